@@ -1,0 +1,130 @@
+//! Parallel BVH builder: sort tets by the Morton code of their centroid, then split each
+//! range at its highest differing Morton bit (as in Karras' LBVH), in parallel with rayon.
+
+use super::{BuildPreset, Bvh, BvhNode, BvhStats};
+use crate::geom::{self, Vec3};
+use rayon::prelude::*;
+use std::time::Instant;
+
+/// Spreads the low 21 bits of `v` to every third bit.
+fn spread3(v: u64) -> u64 {
+    let mut x = v & 0x1f_ffff;
+    x = (x | x << 32) & 0x1f00000000ffff;
+    x = (x | x << 16) & 0x1f0000ff0000ff;
+    x = (x | x << 8) & 0x100f00f00f00f00f;
+    x = (x | x << 4) & 0x10c30c30c30c30c3;
+    x = (x | x << 2) & 0x1249249249249249;
+    x
+}
+
+pub(super) fn build(points: &[Vec3], tets: &[[u32; 4]], preset: BuildPreset) -> Bvh {
+    let t0 = Instant::now();
+    if tets.is_empty() {
+        return Bvh::default();
+    }
+    let boxes: Vec<(Vec3, Vec3)> = tets.par_iter().map(|&t| geom::tet_bounds(t, points)).collect();
+    let (lo, hi) = boxes
+        .par_iter()
+        .map(|(a, b)| (std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k])), std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k]))))
+        .reduce(
+            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+            |(a0, a1), (b0, b1)| (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k]))),
+        );
+    let scale: [f32; 3] = std::array::from_fn(|k| if hi[k] > lo[k] { ((1u32 << 21) - 1) as f32 / (hi[k] - lo[k]) } else { 0.0 });
+    let mut keyed: Vec<(u64, u32)> = boxes
+        .par_iter()
+        .enumerate()
+        .map(|(i, (a, b))| {
+            let q = |k: usize| (((0.5 * (a[k] + b[k]) - lo[k]) * scale[k]) as u64).min((1 << 21) - 1);
+            (spread3(q(0)) | spread3(q(1)) << 1 | spread3(q(2)) << 2, i as u32)
+        })
+        .collect();
+    keyed.par_sort_unstable();
+    let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
+    let prim_ids: Vec<u32> = keyed.into_iter().map(|k| k.1).collect();
+    let sorted_boxes: Vec<(Vec3, Vec3)> = prim_ids.par_iter().map(|&i| boxes[i as usize]).collect();
+    drop(boxes);
+
+    let ctx = Ctx { codes: &codes, boxes: &sorted_boxes, max_leaf: preset.max_leaf_size() };
+    let (mut nodes, _, max_depth) = ctx.subtree(0, codes.len(), 0);
+    // Right-child links were built relative to their parent; make them absolute.
+    nodes.par_iter_mut().enumerate().for_each(|(i, n)| {
+        if n.count == 0 {
+            n.first += i as u32;
+        }
+    });
+    let n_leaves = nodes.par_iter().filter(|n| n.count > 0).count();
+    let stats = BvhStats {
+        n_prims: tets.len(),
+        n_nodes: nodes.len(),
+        n_leaves,
+        max_depth,
+        build_seconds: t0.elapsed().as_secs_f64(),
+        bytes: nodes.len() * std::mem::size_of::<BvhNode>() + prim_ids.len() * 4,
+    };
+    Bvh { nodes, prim_ids, stats }
+}
+
+struct Ctx<'a> {
+    codes: &'a [u64],
+    boxes: &'a [(Vec3, Vec3)],
+    max_leaf: usize,
+}
+
+/// Below this many prims a subtree is built on one thread.
+const PARALLEL_MIN: usize = 16 * 1024;
+
+impl Ctx<'_> {
+    /// Builds the subtree over sorted prims `s..e` as a depth-first node list whose interior
+    /// nodes hold their right child's offset *relative to themselves*, so that subtrees built
+    /// in parallel can be concatenated without fix-ups. Returns (nodes, bounds, depth).
+    fn subtree(&self, s: usize, e: usize, depth: usize) -> (Vec<BvhNode>, (Vec3, Vec3), usize) {
+        let mut nodes = Vec::with_capacity(2 * (e - s) / self.max_leaf.max(1) + 1);
+        let (b, d) = self.emit(s, e, depth, &mut nodes);
+        (nodes, b, d)
+    }
+
+    fn emit(&self, s: usize, e: usize, depth: usize, out: &mut Vec<BvhNode>) -> ((Vec3, Vec3), usize) {
+        let me = out.len();
+        out.push(BvhNode::default());
+        if e - s <= self.max_leaf {
+            let b = self.boxes[s..e].iter().fold(self.boxes[s], |acc, x| union(acc, *x));
+            out[me] = BvhNode { min: b.0, first: s as u32, max: b.1, count: (e - s) as u32 };
+            return (b, depth);
+        }
+        let m = self.split(s, e);
+        let (lb, rb, rel, d) = if e - s >= PARALLEL_MIN {
+            let ((ln, lb, ld), (rn, rb, rd)) =
+                rayon::join(|| self.subtree(s, m, depth + 1), || self.subtree(m, e, depth + 1));
+            let rel = 1 + ln.len();
+            out.extend_from_slice(&ln);
+            out.extend_from_slice(&rn);
+            (lb, rb, rel, ld.max(rd))
+        } else {
+            let (lb, ld) = self.emit(s, m, depth + 1, out);
+            let rel = out.len() - me;
+            let (rb, rd) = self.emit(m, e, depth + 1, out);
+            (lb, rb, rel, ld.max(rd))
+        };
+        let b = union(lb, rb);
+        out[me] = BvhNode { min: b.0, first: rel as u32, max: b.1, count: 0 };
+        (b, d)
+    }
+
+    /// First index of the upper half: where the highest differing Morton bit turns on,
+    /// or the middle when all codes in the range are equal.
+    fn split(&self, s: usize, e: usize) -> usize {
+        let (a, b) = (self.codes[s], self.codes[e - 1]);
+        if a == b {
+            return (s + e) / 2;
+        }
+        let bit = 63 - (a ^ b).leading_zeros();
+        let prefix_mask = !((1u64 << bit) - 1) & !(1u64 << bit);
+        let target = (a & prefix_mask) | (1u64 << bit);
+        s + self.codes[s..e].partition_point(|&c| c < target)
+    }
+}
+
+fn union(a: (Vec3, Vec3), b: (Vec3, Vec3)) -> (Vec3, Vec3) {
+    (std::array::from_fn(|k| a.0[k].min(b.0[k])), std::array::from_fn(|k| a.1[k].max(b.1[k])))
+}

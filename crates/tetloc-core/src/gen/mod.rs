@@ -1,0 +1,1 @@
+//! Synthetic meshes shaped like the paper's data sets.

@@ -1,0 +1,174 @@
+//! The one point-in-tet and interpolation definition of tetloc.
+//!
+//! `shaders/common/tet.glsl` in the Vulkan backend mirrors this file line by line; the CPU
+//! and every GPU kernel must give the same answer for the same point.
+//!
+//! **Watertight by construction.** Tets are stored in *canonical order* (see
+//! [`canonical_tet`]): vertex ids ascending, except that the last two are swapped when that
+//! is needed to make the tet positively oriented. So every face of every tet is evaluated
+//! with its three vertex ids in ascending order, `orient(a, b, c, p)` with `a < b < c`:
+//! two tets sharing a face compute bit-identical determinants for it, and only the sign
+//! they expect differs. A point on a shared face is therefore accepted by at least one of
+//! the two tets, never by neither.
+//!
+//! **Exact where it matters.** Each face determinant is first evaluated in f32 together with
+//! a forward error bound (Shewchuk's orient3d stage-A bound). Only when the f32 value is
+//! within that bound of zero (the point is within rounding of the face, or the tet is a
+//! sliver) is it recomputed in f64, where the products of f32 differences are exact.
+
+pub type Vec3 = [f32; 3];
+
+/// Shewchuk's orient3d stage-A error bound `(7 + 56ε)ε` for f32 (ε = 2⁻²⁴), rounded up.
+pub const ORIENT_ERR_BOUND_F32: f32 = 4.2e-7;
+
+/// f32 barycentrics are trusted when the tet's volume exceeds the summed face-error
+/// bounds by this factor; otherwise they are recomputed in f64 (slivers).
+pub const BARY_F32_TRUST: f32 = 1024.0;
+
+/// Determinant of (a-p, b-p, c-p) in f32, and its error bound.
+#[inline(always)]
+pub fn orient_f32(a: Vec3, b: Vec3, c: Vec3, p: Vec3) -> (f32, f32) {
+    let (adx, ady, adz) = (a[0] - p[0], a[1] - p[1], a[2] - p[2]);
+    let (bdx, bdy, bdz) = (b[0] - p[0], b[1] - p[1], b[2] - p[2]);
+    let (cdx, cdy, cdz) = (c[0] - p[0], c[1] - p[1], c[2] - p[2]);
+    let (bc_yz, cb_yz) = (bdy * cdz, cdy * bdz);
+    let (ca_yz, ac_yz) = (cdy * adz, ady * cdz);
+    let (ab_yz, ba_yz) = (ady * bdz, bdy * adz);
+    let det = adx * (bc_yz - cb_yz) + bdx * (ca_yz - ac_yz) + cdx * (ab_yz - ba_yz);
+    let permanent = (bc_yz.abs() + cb_yz.abs()) * adx.abs()
+        + (ca_yz.abs() + ac_yz.abs()) * bdx.abs()
+        + (ab_yz.abs() + ba_yz.abs()) * cdx.abs();
+    (det, ORIENT_ERR_BOUND_F32 * permanent)
+}
+
+/// The same determinant in f64 (differences and products of f32 inputs are exact there).
+#[inline]
+pub fn orient_f64(a: Vec3, b: Vec3, c: Vec3, p: Vec3) -> f64 {
+    let d = |u: Vec3, i: usize| u[i] as f64 - p[i] as f64;
+    let (adx, ady, adz) = (d(a, 0), d(a, 1), d(a, 2));
+    let (bdx, bdy, bdz) = (d(b, 0), d(b, 1), d(b, 2));
+    let (cdx, cdy, cdz) = (d(c, 0), d(c, 1), d(c, 2));
+    adx * (bdy * cdz - cdy * bdz) + bdx * (cdy * adz - ady * cdz) + cdx * (ady * bdz - bdy * adz)
+}
+
+/// Signed volume ×6 of a tet in f64, positive for our orientation convention
+/// (`orient(v0, v1, v2, v3) > 0`).
+#[inline]
+pub fn tet_volume6(v: [Vec3; 4]) -> f64 {
+    orient_f64(v[0], v[1], v[2], v[3])
+}
+
+/// Puts a tet into canonical order: ids ascending, then the last two swapped if that makes
+/// the orientation positive. Returns the canonical ids and the f64 volume×6 of the
+/// *input* order (negative: the input was inverted; zero: degenerate).
+pub fn canonical_tet(ids: [u32; 4], points: &[Vec3]) -> ([u32; 4], f64) {
+    let p = |i: u32| points[i as usize];
+    let input_vol = tet_volume6([p(ids[0]), p(ids[1]), p(ids[2]), p(ids[3])]);
+    let mut s = ids;
+    s.sort_unstable();
+    let sorted_vol = tet_volume6([p(s[0]), p(s[1]), p(s[2]), p(s[3])]);
+    if sorted_vol < 0.0 {
+        s.swap(2, 3);
+    }
+    (s, input_vol)
+}
+
+/// Faces of a canonical tet `[x, y, z, w]` with `z, w` possibly swapped: for the face opposite
+/// local vertex `i`, the three local indices in ascending global-id order, and the sign with
+/// which `orient` of that face is positive towards vertex `i` (for ascending ids).
+/// Opposite 3: (0,1,2) even; opposite 2: (0,1,3) odd; opposite 1: (0,2,3) even; opposite 0: (1,2,3) odd.
+const SORTED_FACES: [([usize; 3], f32); 4] =
+    [([1, 2, 3], -1.0), ([0, 2, 3], 1.0), ([0, 1, 3], -1.0), ([0, 1, 2], 1.0)];
+
+/// Result of the point-in-tet test: the four barycentric coordinates (weights of v0..v3).
+pub type Bary = [f32; 4];
+
+/// The point-in-tet test. `ids` must be canonical (see [`canonical_tet`]); returns the
+/// barycentric coordinates when `p` is inside or on the boundary of the tet.
+#[inline]
+pub fn point_in_tet(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<Bary> {
+    // Ascending order of the four vertices: swap back the last two if canonical order swapped them.
+    let swapped = ids[3] < ids[2];
+    let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
+    let orientation = if swapped { -1.0f32 } else { 1.0 };
+    let v = [
+        points[asc[0] as usize],
+        points[asc[1] as usize],
+        points[asc[2] as usize],
+        points[asc[3] as usize],
+    ];
+    let mut d = [0f32; 4];
+    let mut bound_sum = 0f32;
+    let mut exact = false;
+    for (i, &(f, parity)) in SORTED_FACES.iter().enumerate() {
+        let sign = parity * orientation;
+        let (det, bound) = orient_f32(v[f[0]], v[f[1]], v[f[2]], p);
+        let signed = if det.abs() > bound {
+            sign * det
+        } else {
+            exact = true;
+            let signed64 = sign as f64 * orient_f64(v[f[0]], v[f[1]], v[f[2]], p);
+            if signed64 < 0.0 {
+                return None;
+            }
+            signed64 as f32
+        };
+        // `signed` may be -0.0 or +0.0 on the face: both count as inside.
+        if signed < 0.0 {
+            return None;
+        }
+        d[i] = signed;
+        bound_sum += bound;
+    }
+    let mut bary = [0f32; 4];
+    let total: f32 = d.iter().sum();
+    if !exact && total > BARY_F32_TRUST * bound_sum {
+        for i in 0..4 {
+            bary[i] = d[i] / total;
+        }
+    } else {
+        // Sliver or point near a face: barycentrics in f64.
+        let mut d64 = [0f64; 4];
+        for (i, &(f, parity)) in SORTED_FACES.iter().enumerate() {
+            d64[i] = (parity * orientation) as f64 * orient_f64(v[f[0]], v[f[1]], v[f[2]], p);
+        }
+        let total64: f64 = d64.iter().sum();
+        if total64 <= 0.0 {
+            return None; // zero-volume tet: contains no point
+        }
+        for i in 0..4 {
+            bary[i] = (d64[i].max(0.0) / total64) as f32;
+        }
+    }
+    // Map weights from ascending order back to the stored (canonical) order.
+    if swapped {
+        bary.swap(2, 3);
+    }
+    Some(bary)
+}
+
+/// Barycentric interpolation of a per-vertex scalar.
+#[inline]
+pub fn interpolate(ids: [u32; 4], bary: Bary, values: &[f32]) -> f32 {
+    bary[0] * values[ids[0] as usize]
+        + bary[1] * values[ids[1] as usize]
+        + bary[2] * values[ids[2] as usize]
+        + bary[3] * values[ids[3] as usize]
+}
+
+#[inline]
+pub fn tet_bounds(ids: [u32; 4], points: &[Vec3]) -> ([f32; 3], [f32; 3]) {
+    let mut lo = points[ids[0] as usize];
+    let mut hi = lo;
+    for &i in &ids[1..] {
+        let q = points[i as usize];
+        for k in 0..3 {
+            lo[k] = lo[k].min(q[k]);
+            hi[k] = hi[k].max(q[k]);
+        }
+    }
+    (lo, hi)
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,1 @@
+//! VTU writers: stub, replaced by the real writer.

@@ -1,0 +1,17 @@
+//! tetloc-core: which tetrahedron of this mesh contains this point, and what is the field
+//! value there? The GPU-free core: mesh model, I/O, generators, BVH and the CPU locator.
+
+pub mod bvh;
+pub mod error;
+pub mod gen;
+pub mod geom;
+pub mod io;
+pub mod locate;
+pub mod mesh;
+#[doc(hidden)]
+pub mod testdata;
+
+pub use error::{Error, Result};
+pub use geom::Vec3;
+pub use locate::{BatchLocator, CpuLocator, OUTSIDE};
+pub use mesh::{Field, FieldLocation, Mesh, MeshInfo, RawMesh};

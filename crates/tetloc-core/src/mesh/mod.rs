@@ -1,0 +1,218 @@
+//! The mesh model: f32 vertices, canonical u32×4 tets, named scalar fields, and what is
+//! derived from them (bounds, edge lengths, shared faces).
+
+mod faces;
+#[cfg(test)]
+mod tests;
+
+pub use faces::{Face, FaceSet};
+
+use crate::error::{Error, Result};
+use crate::geom::{self, Vec3};
+use rayon::prelude::*;
+use serde::Serialize;
+use std::sync::OnceLock;
+
+/// Where a scalar field lives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FieldLocation {
+    /// One value per vertex, interpolated barycentrically.
+    Vertex,
+    /// One value per tet, constant inside it.
+    Cell,
+}
+
+/// A named scalar field. Multi-component arrays in files become one field per component,
+/// named `NAME[i]`.
+#[derive(Clone, Debug)]
+pub struct Field {
+    pub name: String,
+    pub location: FieldLocation,
+    pub values: Vec<f32>,
+}
+
+/// What readers and generators produce: tets in file order (corner vertices only), not yet
+/// validated. `Mesh::new` turns it into a usable mesh or a clear error.
+#[derive(Clone, Debug, Default)]
+pub struct RawMesh {
+    pub points: Vec<Vec3>,
+    pub tets: Vec<[u32; 4]>,
+    pub fields: Vec<Field>,
+    /// `Some(k)` when the file held tets of polynomial order k > 1, located by their corners.
+    pub higher_order: Option<u8>,
+}
+
+/// Facts computed on load, reported by `tetloc info`.
+#[derive(Clone, Debug, Serialize)]
+pub struct MeshInfo {
+    /// The file (or generator) the mesh came from; used in error messages.
+    pub source: String,
+    pub n_points: usize,
+    pub n_tets: usize,
+    pub bounds_min: Vec3,
+    pub bounds_max: Vec3,
+    pub max_edge_length: f32,
+    pub mean_edge_length: f32,
+    /// Tets that were inverted in the file and have been reoriented (kept, not dropped).
+    pub n_reoriented: usize,
+    /// Tets with zero volume (repeated or coplanar vertices): they contain no point.
+    pub n_degenerate: usize,
+    pub higher_order: Option<u8>,
+    pub total_volume: f64,
+}
+
+/// A validated tetrahedral mesh, ready for point location.
+#[derive(Debug)]
+pub struct Mesh {
+    pub points: Vec<Vec3>,
+    /// Tets in file order, each in canonical vertex order (see [`geom::canonical_tet`]).
+    pub tets: Vec<[u32; 4]>,
+    pub fields: Vec<Field>,
+    pub info: MeshInfo,
+    faces: OnceLock<FaceSet>,
+}
+
+impl Mesh {
+    /// Validates a raw mesh: indices in range, finite coordinates, field sizes; reorients
+    /// inverted tets; counts degenerate ones; computes bounds and edge lengths.
+    pub fn new(raw: RawMesh, source: impl Into<String>) -> Result<Mesh> {
+        let source = source.into();
+        let err = |msg: String| Error::Mesh { source_name: source.clone(), msg };
+        let RawMesh { points, mut tets, fields, higher_order } = raw;
+        if tets.is_empty() {
+            return Err(err("the mesh has no tetrahedra".into()));
+        }
+        if points.len() > u32::MAX as usize {
+            return Err(err(format!("{} vertices: more than u32 indices can address", points.len())));
+        }
+        if let Some(i) = points.par_iter().position_first(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(err(format!(
+                "vertex {i} has a non-finite coordinate ({:?}) (or one too large for f32)",
+                points[i]
+            )));
+        }
+        let n = points.len() as u32;
+        if let Some(t) = tets.par_iter().position_first(|t| t.iter().any(|&i| i >= n)) {
+            return Err(err(format!(
+                "tet {t} references vertex {} but the mesh has only {n} vertices",
+                tets[t].iter().max().unwrap()
+            )));
+        }
+        for f in &fields {
+            let want = match f.location {
+                FieldLocation::Vertex => points.len(),
+                FieldLocation::Cell => tets.len(),
+            };
+            if f.values.len() != want {
+                return Err(err(format!(
+                    "field '{}' has {} values, expected {want} (one per {:?})",
+                    f.name,
+                    f.values.len(),
+                    f.location
+                )));
+            }
+        }
+
+        // Canonical order; count inversions and degenerates; accumulate bounds and edges.
+        #[derive(Clone, Copy)]
+        struct Acc {
+            reoriented: usize,
+            degenerate: usize,
+            max_edge2: f32,
+            sum_edge: f64,
+            volume: f64,
+        }
+        let zero = Acc { reoriented: 0, degenerate: 0, max_edge2: 0.0, sum_edge: 0.0, volume: 0.0 };
+        let acc = tets
+            .par_iter_mut()
+            .fold(
+                || zero,
+                |mut a, t| {
+                    let (canon, vol6) = geom::canonical_tet(*t, &points);
+                    *t = canon;
+                    if vol6 < 0.0 {
+                        a.reoriented += 1;
+                    } else if vol6 == 0.0 {
+                        a.degenerate += 1;
+                    }
+                    a.volume += vol6.abs() / 6.0;
+                    for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                        let (p, q) = (points[t[i] as usize], points[t[j] as usize]);
+                        let e2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+                        a.max_edge2 = a.max_edge2.max(e2);
+                        a.sum_edge += (e2 as f64).sqrt();
+                    }
+                    a
+                },
+            )
+            .reduce(
+                || zero,
+                |a, b| Acc {
+                    reoriented: a.reoriented + b.reoriented,
+                    degenerate: a.degenerate + b.degenerate,
+                    max_edge2: a.max_edge2.max(b.max_edge2),
+                    sum_edge: a.sum_edge + b.sum_edge,
+                    volume: a.volume + b.volume,
+                },
+            );
+        // Bounds over the vertices that tets use (unused vertices do not widen the box).
+        let (bounds_min, bounds_max) = tets
+            .par_iter()
+            .map(|&t| geom::tet_bounds(t, &points))
+            .reduce(
+                || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+                |(a0, a1), (b0, b1)| {
+                    (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k])))
+                },
+            );
+        let info = MeshInfo {
+            source,
+            n_points: points.len(),
+            n_tets: tets.len(),
+            bounds_min,
+            bounds_max,
+            max_edge_length: acc.max_edge2.sqrt(),
+            mean_edge_length: (acc.sum_edge / (6.0 * tets.len() as f64)) as f32,
+            n_reoriented: acc.reoriented,
+            n_degenerate: acc.degenerate,
+            higher_order,
+            total_volume: acc.volume,
+        };
+        Ok(Mesh { points, tets, fields, info, faces: OnceLock::new() })
+    }
+
+    pub fn n_tets(&self) -> usize {
+        self.tets.len()
+    }
+
+    /// The field named `name`, or an error that lists the fields there are.
+    pub fn field(&self, name: &str) -> Result<&Field> {
+        self.fields.iter().find(|f| f.name == name).ok_or_else(|| Error::NoSuchField {
+            name: name.to_string(),
+            available: if self.fields.is_empty() {
+                "none".to_string()
+            } else {
+                self.fields.iter().map(|f| format!("'{}'", f.name)).collect::<Vec<_>>().join(", ")
+            },
+        })
+    }
+
+    /// Unique faces with their front and back tets, computed on first use (a parallel sort
+    /// of all 4·T tet faces: memory-hungry on huge meshes, so only when a kernel needs it).
+    pub fn faces(&self) -> &FaceSet {
+        self.faces.get_or_init(|| FaceSet::build(&self.tets))
+    }
+
+    /// The centroid of tet `t`.
+    pub fn tet_center(&self, t: usize) -> Vec3 {
+        let ids = self.tets[t];
+        let mut c = [0f32; 3];
+        for &i in &ids {
+            for k in 0..3 {
+                c[k] += self.points[i as usize][k];
+            }
+        }
+        c.map(|x| x * 0.25)
+    }
+}
