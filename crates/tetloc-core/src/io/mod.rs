@@ -1,10 +1,11 @@
 //! Mesh readers and writers, chosen by file extension (or an explicit [`MeshFormat`]), and
 //! query-point / result array I/O.
 
-mod gmsh;
-mod tetgen;
-mod vtk_legacy;
-mod vtu;
+pub mod gmsh;
+pub mod points;
+pub mod tetgen;
+pub mod vtk_legacy;
+pub mod vtu;
 pub mod vtu_write;
 
 use crate::error::{Error, Result};
