@@ -10,6 +10,8 @@ pub mod locate;
 pub mod mesh;
 #[doc(hidden)]
 pub mod testdata;
+#[cfg(test)]
+pub(crate) mod test_support;
 
 pub use error::{Error, Result};
 pub use geom::Vec3;

@@ -1,0 +1,127 @@
+use super::*;
+use proptest::prelude::*;
+
+fn pts(v: &[[f32; 3]]) -> Vec<Vec3> {
+    v.to_vec()
+}
+
+fn arb_point() -> impl Strategy<Value = Vec3> {
+    prop::array::uniform3(-10.0f32..10.0)
+}
+
+/// A point from barycentric weights, computed in f64 and rounded once.
+fn from_bary(v: [Vec3; 4], w: [f64; 4]) -> Vec3 {
+    std::array::from_fn(|k| (0..4).map(|i| w[i] * v[i][k] as f64).sum::<f64>() as f32)
+}
+
+#[test]
+fn canonical_order_is_sorted_and_positive() {
+    let p = pts(&[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]]);
+    for perm in [[0, 1, 2, 3], [1, 0, 2, 3], [3, 2, 1, 0], [2, 3, 0, 1], [0, 1, 3, 2]] {
+        let (c, vol) = canonical_tet(perm, &p);
+        assert!(c[0] < c[1] && c[1] < c[2].min(c[3]), "{c:?}");
+        assert!(tet_volume6([p[c[0] as usize], p[c[1] as usize], p[c[2] as usize], p[c[3] as usize]]) > 0.0);
+        assert_eq!(vol.abs(), 1.0);
+    }
+    // The two orientations of the input are reported as such.
+    assert!(canonical_tet([0, 1, 2, 3], &p).1 * canonical_tet([1, 0, 2, 3], &p).1 < 0.0);
+}
+
+#[test]
+fn centroid_is_inside_with_equal_weights() {
+    let p = pts(&[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]]);
+    let (c, _) = canonical_tet([3, 1, 0, 2], &p);
+    let b = point_in_tet(c, &p, [0.25, 0.25, 0.25]).expect("inside");
+    for w in b {
+        assert!((w - 0.25).abs() < 1e-6);
+    }
+    assert!(point_in_tet(c, &p, [0.5, 0.5, 0.5]).is_none());
+    assert!(point_in_tet(c, &p, [-1e-3, 0.2, 0.2]).is_none());
+}
+
+#[test]
+fn vertices_and_faces_are_inside() {
+    let p = pts(&[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.]]);
+    let (c, _) = canonical_tet([0, 1, 2, 3], &p);
+    for q in &p {
+        assert!(point_in_tet(c, &p, *q).is_some(), "{q:?}");
+    }
+    assert!(point_in_tet(c, &p, [0.3, 0.3, 0.0]).is_some());
+}
+
+#[test]
+fn zero_volume_tet_contains_nothing() {
+    let p = pts(&[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [1., 1., 0.]]);
+    let (c, vol) = canonical_tet([0, 1, 2, 3], &p);
+    assert_eq!(vol, 0.0);
+    assert!(point_in_tet(c, &p, [0.3, 0.3, 0.0]).is_none());
+}
+
+#[test]
+fn sliver_barycentrics_are_accurate() {
+    // A sliver: the fourth vertex 1e-6 above the opposite face; its centroid must be found
+    // with weights 1/4 although the f32 determinants are pure rounding noise.
+    let p = pts(&[[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0.3, 0.3, 1e-6]]);
+    let (c, _) = canonical_tet([0, 1, 2, 3], &p);
+    let v = [p[0], p[1], p[2], p[3]];
+    let q = from_bary(v, [0.25; 4]);
+    let b = point_in_tet(c, &p, q).expect("sliver centroid inside");
+    for w in b {
+        assert!((w - 0.25).abs() < 0.02, "{b:?}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(2000))]
+
+    /// Points built from positive barycentrics are found, with those weights.
+    #[test]
+    fn inside_points_are_found(a in arb_point(), b in arb_point(), c in arb_point(), d in arb_point(),
+                               w in prop::array::uniform4(0.02f64..1.0)) {
+        let p = vec![a, b, c, d];
+        let (canon, vol) = canonical_tet([0, 1, 2, 3], &p);
+        // Skip nearly flat tets: there, rounding the point to f32 can move it out.
+        let scale = (0..4).flat_map(|i| (0..3).map(move |k| (i, k))).map(|(i, k)| p[i][k].abs() as f64).fold(1.0, f64::max);
+        prop_assume!(vol.abs() > 1e-3 * scale.powi(3));
+        let s: f64 = w.iter().sum();
+        let w = w.map(|x| x / s);
+        let q = from_bary([a, b, c, d], w);
+        let bary = point_in_tet(canon, &p, q);
+        prop_assert!(bary.is_some());
+        let bary = bary.unwrap();
+        for (slot, &id) in canon.iter().enumerate() {
+            prop_assert!((bary[slot] as f64 - w[id as usize]).abs() < 1e-3, "{bary:?} vs {w:?}");
+        }
+    }
+
+    /// Watertight: a point on (or within rounding of) a face shared by two tets is accepted
+    /// by at least one of them, whatever the orientation the tets came in.
+    #[test]
+    fn shared_faces_have_no_cracks(a in arb_point(), b in arb_point(), c in arb_point(),
+                                   up in arb_point(), w in prop::array::uniform3(0.0f64..1.0),
+                                   swap in any::<bool>(), nudge in -2i32..=2) {
+        let n = {
+            let (u, v) = ([b[0]-a[0], b[1]-a[1], b[2]-a[2]], [c[0]-a[0], c[1]-a[1], c[2]-a[2]]);
+            [u[1]*v[2]-u[2]*v[1], u[2]*v[0]-u[0]*v[2], u[0]*v[1]-u[1]*v[0]]
+        };
+        prop_assume!(n.iter().map(|x| x * x).sum::<f32>() > 1e-2);
+        // The two apexes on either side of the face.
+        let d = [a[0] + n[0] + 0.1 * up[0], a[1] + n[1] + 0.1 * up[1], a[2] + n[2] + 0.1 * up[2]];
+        let e = [a[0] - n[0] + 0.1 * up[0], a[1] - n[1] + 0.1 * up[1], a[2] - n[2] + 0.1 * up[2]];
+        let p = vec![a, b, c, d, e];
+        let t1 = canonical_tet(if swap { [1, 0, 2, 3] } else { [0, 1, 2, 3] }, &p).0;
+        let t2 = canonical_tet([0, 1, 2, 4], &p).0;
+        let s: f64 = w.iter().sum::<f64>().max(1e-9);
+        let mut q = from_bary([a, b, c, a], [w[0] / s, w[1] / s, w[2] / s, 0.0]);
+        // Move the point a few ulps off the face in x.
+        for _ in 0..nudge.abs() {
+            q[0] = if nudge > 0 { f32::from_bits(q[0].to_bits() + 1) } else { f32::from_bits(q[0].to_bits().wrapping_sub(1)) };
+        }
+        let in1 = point_in_tet(t1, &p, q).is_some();
+        let in2 = point_in_tet(t2, &p, q).is_some();
+        // Only points inside the triangle (not its edges' outside) are claimed.
+        let strictly_in_triangle = w.iter().all(|&x| x / s > 1e-3);
+        prop_assume!(strictly_in_triangle);
+        prop_assert!(in1 || in2, "point {q:?} fell through the shared face");
+    }
+}

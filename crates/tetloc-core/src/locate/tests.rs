@@ -1,0 +1,96 @@
+use super::*;
+use crate::geom;
+use crate::test_support::grid_mesh;
+use proptest::prelude::*;
+use rand::{Rng, SeedableRng};
+use std::sync::Arc;
+
+/// Brute force over all tets: the reference for the BVH traversal.
+fn brute_force(m: &crate::Mesh, p: Vec3) -> Option<u32> {
+    (0..m.n_tets()).find(|&t| geom::point_in_tet(m.tets[t], &m.points, p).is_some()).map(|t| t as u32)
+}
+
+fn random_inside(m: &crate::Mesh, rng: &mut impl Rng) -> (usize, Vec3) {
+    let t = rng.gen_range(0..m.n_tets());
+    let w: [f64; 4] = std::array::from_fn(|_| rng.gen_range(0.01..1.0));
+    let s: f64 = w.iter().sum();
+    let v = m.tets[t].map(|i| m.points[i as usize]);
+    (t, std::array::from_fn(|k| (0..4).map(|i| w[i] / s * v[i][k] as f64).sum::<f64>() as f32))
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(24))]
+
+    /// Points drawn inside random tets of random jittered meshes are found in that tet;
+    /// points outside the hull give -1; every query agrees with brute force.
+    #[test]
+    fn finds_inside_points_and_rejects_outside(n in 1usize..7, jitter in 0.0f32..0.3, seed in any::<u64>()) {
+        let m = Arc::new(grid_mesh(n, jitter, seed));
+        let mut loc = CpuLocator::new(m.clone());
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+        let mut pts = Vec::new();
+        let mut want = Vec::new();
+        for _ in 0..300 {
+            let (t, p) = random_inside(&m, &mut rng);
+            pts.push(p);
+            want.push(t as i32);
+        }
+        // Outside the unit cube (the hull of the grid).
+        for _ in 0..100 {
+            let mut p: Vec3 = std::array::from_fn(|_| rng.gen_range(-0.5f32..1.5));
+            p[rng.gen_range(0..3)] = if rng.gen() { -1e-3 - rng.gen_range(0.0..0.5) } else { 1.001 + rng.gen_range(0.0..0.5) };
+            pts.push(p);
+            want.push(OUTSIDE);
+        }
+        let mut ids = vec![0; pts.len()];
+        loc.locate(&pts, &mut ids).unwrap();
+        for (i, (&got, &w)) in ids.iter().zip(&want).enumerate() {
+            // Random weights ≥ 0.01 keep points off faces, so the containing tet is unique.
+            prop_assert_eq!(got, w, "point {} {:?}", i, pts[i]);
+            prop_assert_eq!(got, brute_force(&m, pts[i]).map_or(OUTSIDE, |t| t as i32));
+        }
+    }
+
+    /// No cracks: points on interior shared faces and edges are always found.
+    #[test]
+    fn no_cracks_on_shared_faces(n in 2usize..6, seed in any::<u64>()) {
+        let m = Arc::new(grid_mesh(n, 0.3, seed));
+        let loc = CpuLocator::new(m.clone());
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(seed ^ 0x5eed);
+        for f in m.faces().faces.iter().filter(|f| f.front >= 0 && f.back >= 0) {
+            let [a, b, c] = f.v.map(|i| m.points[i as usize]);
+            for _ in 0..4 {
+                let mut w: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.0..1.0));
+                if rng.gen_bool(0.2) { w[rng.gen_range(0..3)] = 0.0; } // on an edge
+                let s: f64 = w.iter().sum::<f64>().max(1e-12);
+                let p: Vec3 = std::array::from_fn(|k| ((w[0] * a[k] as f64 + w[1] * b[k] as f64 + w[2] * c[k] as f64) / s) as f32);
+                prop_assert!(loc.locate_point(p).is_some(), "crack at {:?} on face {:?}", p, f.v);
+            }
+        }
+    }
+}
+
+#[test]
+fn sample_interpolates_vertex_fields_and_looks_up_cell_fields() {
+    let m = Arc::new(grid_mesh(4, 0.25, 9));
+    let mut loc = CpuLocator::new(m.clone());
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+    let mut pts: Vec<Vec3> = (0..500).map(|_| random_inside(&m, &mut rng).1).collect();
+    pts.push([2.0, 2.0, 2.0]);
+    let mut ids = vec![0; pts.len()];
+    let mut f = vec![0.0; pts.len()];
+    let mut cell = vec![0.0; pts.len()];
+    loc.locate(&pts, &mut ids).unwrap();
+    loc.sample(&pts, "f", &mut f).unwrap();
+    loc.sample(&pts, "cellval", &mut cell).unwrap();
+    let fv = &m.field("f").unwrap().values;
+    for i in 0..pts.len() - 1 {
+        let t = ids[i] as usize;
+        let b = geom::point_in_tet(m.tets[t], &m.points, pts[i]).unwrap();
+        assert_eq!(f[i], geom::interpolate(m.tets[t], b, fv));
+        assert_eq!(cell[i], t as f32);
+    }
+    assert!(f.last().unwrap().is_nan() && cell.last().unwrap().is_nan());
+    assert!(loc.sample(&pts, "nope", &mut f).is_err());
+    assert!(loc.locate(&pts, &mut ids[1..]).is_err());
+}

@@ -1,0 +1,88 @@
+use super::*;
+use crate::test_support::{grid_mesh, jittered_grid};
+
+#[test]
+fn grid_is_conforming_and_counted() {
+    let m = grid_mesh(4, 0.2, 1);
+    assert_eq!(m.n_tets(), 6 * 64);
+    assert!((m.info.total_volume - 1.0).abs() < 1e-5, "{}", m.info.total_volume);
+    assert_eq!(m.info.n_degenerate, 0);
+    let fs = m.faces();
+    // Closed surface of a cube: 6 sides × 16 squares × 2 triangles.
+    assert_eq!(fs.stats.n_boundary, 6 * 16 * 2);
+    assert_eq!(fs.stats.n_non_manifold, 0);
+    // Euler-style count: every tet has 4 faces, interior ones counted twice.
+    assert_eq!(4 * m.n_tets(), 2 * fs.stats.n_faces - fs.stats.n_boundary);
+}
+
+#[test]
+fn front_and_back_follow_the_orientation_convention() {
+    let m = grid_mesh(3, 0.25, 2);
+    for f in &m.faces().faces {
+        let [a, b, c] = f.v.map(|i| m.points[i as usize]);
+        for (tet, want_positive) in [(f.front, true), (f.back, false)] {
+            if tet < 0 {
+                continue;
+            }
+            let centre = m.tet_center(tet as usize);
+            let o = crate::geom::orient_f64(a, b, c, centre);
+            assert_eq!(o > 0.0, want_positive, "face {:?} tet {tet}", f.v);
+        }
+    }
+}
+
+#[test]
+fn inverted_tets_are_reoriented_not_dropped() {
+    let mut raw = jittered_grid(2, 0.2, 3);
+    // Make every tet positive, then invert every second one.
+    for (i, t) in raw.tets.iter_mut().enumerate() {
+        *t = crate::geom::canonical_tet(*t, &raw.points).0;
+        if i % 2 == 0 {
+            t.swap(0, 1);
+        }
+    }
+    let n = raw.tets.len();
+    let m = Mesh::new(raw, "inverted").unwrap();
+    assert_eq!(m.n_tets(), n);
+    assert_eq!(m.info.n_reoriented, n / 2);
+    for &t in &m.tets {
+        let v = t.map(|i| m.points[i as usize]);
+        assert!(crate::geom::tet_volume6(v) > 0.0);
+    }
+}
+
+#[test]
+fn bad_meshes_are_errors_naming_the_problem() {
+    let good = jittered_grid(1, 0.0, 0);
+    let mut e = good.clone();
+    e.tets.clear();
+    assert!(Mesh::new(e, "empty.vtu").unwrap_err().to_string().contains("empty.vtu: the mesh has no tetrahedra"));
+    let mut e = good.clone();
+    e.tets[3][2] = 999;
+    let msg = Mesh::new(e, "range.vtu").unwrap_err().to_string();
+    assert!(msg.contains("tet 3 references vertex 999"), "{msg}");
+    let mut e = good.clone();
+    e.points[5][1] = f32::NAN;
+    let msg = Mesh::new(e, "nan.vtu").unwrap_err().to_string();
+    assert!(msg.contains("vertex 5 has a non-finite coordinate"), "{msg}");
+    let mut e = good.clone();
+    e.fields[0].values.pop();
+    let msg = Mesh::new(e, "field.vtu").unwrap_err().to_string();
+    assert!(msg.contains("field 'f' has 7 values, expected 8"), "{msg}");
+}
+
+#[test]
+fn degenerate_tets_are_counted() {
+    let mut raw = jittered_grid(1, 0.0, 0);
+    raw.tets.push([0, 1, 1, 2]);
+    raw.fields.retain(|f| f.location == FieldLocation::Vertex);
+    let m = Mesh::new(raw, "degenerate").unwrap();
+    assert_eq!(m.info.n_degenerate, 1);
+}
+
+#[test]
+fn missing_field_lists_the_available_ones() {
+    let m = grid_mesh(1, 0.0, 0);
+    let msg = m.field("pressure").unwrap_err().to_string();
+    assert!(msg.contains("'f', 'cellval'"), "{msg}");
+}
