@@ -1,7 +1,30 @@
-//! Reader stub: replaced by the real reader.
+//! Gmsh `.msh` reader: file formats 2.2 and 4.1, ASCII and binary (either endianness).
+//!
+//! What is read:
+//! - `$Nodes`: any node tags (sparse, unordered); vertices are numbered densely in file order.
+//!   Parametric coordinates of 4.1 node blocks are skipped.
+//! - `$Elements`: tetrahedra of any order (types 4, 11, 29, 30, 31, the incomplete and
+//!   order 6–10 variants): the first four nodes are the corners, and `higher_order` is the
+//!   highest order seen. Points, lines and surface elements are ignored. Any other volume
+//!   element (hexahedra, prisms, pyramids, ...) is an [`Error::NonTetCells`] that counts them.
+//!   Cell ids are 0-based in file order of the tetrahedra.
+//! - `$NodeData` / `$ElementData`: vertex / cell fields named by their first string tag, with
+//!   `NAME[i]` per component when there are several. Element data is matched to tetrahedra by
+//!   element tag; values on other elements are dropped. Nodes or cells that a view gives no
+//!   value get NaN. When one view name appears with several time steps, the highest time step
+//!   wins (the last one, in files that gmsh writes); sections of the same step (partitions)
+//!   are merged.
+//! - Every other section (`$Entities`, `$PhysicalNames`, `$InterpolationScheme`, ...) is
+//!   skipped.
+//!
+//! The whole file is parsed from one byte buffer without per-line allocation. Declared counts
+//! are checked against the bytes that are left before anything is allocated, so a truncated
+//! or corrupt file is an error naming the line (ASCII) or byte offset (binary), never a panic.
 
 use crate::error::{Error, Result};
-use crate::mesh::RawMesh;
+use crate::mesh::{Field, FieldLocation, RawMesh};
+use std::collections::HashMap;
+use std::fmt::Display;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
@@ -10,6 +33,999 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 }
 
 /// Parses a whole file held in memory; `path` only names it in errors.
-pub fn parse(_bytes: &[u8], path: &Path) -> Result<RawMesh> {
-    Err(Error::format(path, "reader not implemented yet"))
+pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
+    Parser {
+        c: Cursor { buf: bytes, pos: 0, path, binary: false, big_endian: false },
+        version: Version::V2,
+        nodes: None,
+        cells: None,
+        fields: Vec::new(),
+        field_values: 0,
+    }
+    .run()
+}
+
+// ---------------------------------------------------------------------------------------------
+// Element types
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// 0-D, 1-D and 2-D elements: ignored.
+    Lower,
+    /// A tetrahedron of this polynomial order; its first four nodes are the corners.
+    Tet(u8),
+    /// Any other volume element, by family name.
+    Volume(&'static str),
+}
+
+/// Node count and kind of a Gmsh element type (numbers from gmsh's `GmshDefines.h`).
+/// `None` for types without a fixed node count (polygons, polyhedra) or that tetloc does not
+/// know.
+fn element_type(t: i64) -> Option<(usize, Kind)> {
+    use Kind::*;
+    let lower = |n: usize| (n, Lower);
+    let tet = |n: usize, order: i64| (n, Tet(order as u8));
+    let vol = |n: usize, name| (n, Volume(name));
+    Some(match t {
+        15 => lower(1),
+        1 => lower(2),
+        8 => lower(3),
+        26..=28 => lower(t as usize - 22),
+        62..=66 => lower(t as usize - 55),
+        2 => lower(3),
+        3 => lower(4),
+        9 => lower(6),
+        10 => lower(9),
+        16 => lower(8),
+        20 => lower(9),
+        21 => lower(10),
+        22 => lower(12),
+        23 | 24 => lower(15),
+        25 => lower(21),
+        36 => lower(16),
+        37 => lower(25),
+        38 => lower(36),
+        39 => lower(12),
+        40 => lower(16),
+        41 => lower(20),
+        42 => lower(28),
+        43 => lower(36),
+        44 => lower(45),
+        45 => lower(55),
+        46 => lower(66),
+        47 => lower(49),
+        48 => lower(64),
+        49 => lower(81),
+        50 => lower(100),
+        51 => lower(121),
+        52 => lower(18),
+        53 => lower(21),
+        54 => lower(24),
+        55 => lower(27),
+        56 => lower(30),
+        57 => lower(24),
+        58 => lower(28),
+        59 => lower(32),
+        60 => lower(36),
+        61 => lower(40),
+        4 => tet(4, 1),
+        11 => tet(10, 2),
+        29 => tet(20, 3),
+        30 => tet(35, 4),
+        31 => tet(56, 5),
+        32 => tet(22, 4),
+        33 => tet(28, 5),
+        137 => tet(16, 3),
+        // Complete tetrahedra of order 6..10.
+        71..=75 => {
+            let k = t - 65;
+            tet(((k + 1) * (k + 2) * (k + 3) / 6) as usize, k)
+        }
+        // Incomplete (no interior nodes) tetrahedra of order 6..10.
+        79..=83 => {
+            let k = t - 73;
+            tet((4 + 6 * (k - 1)) as usize, k)
+        }
+        5 => vol(8, "hexahedron"),
+        12 => vol(27, "hexahedron"),
+        17 => vol(20, "hexahedron"),
+        92 => vol(64, "hexahedron"),
+        93 => vol(125, "hexahedron"),
+        94..=98 => vol(((t - 88) as usize).pow(3), "hexahedron"),
+        99..=105 => vol((8 + 12 * (t - 97)) as usize, "hexahedron"),
+        6 => vol(6, "prism"),
+        13 => vol(18, "prism"),
+        18 => vol(15, "prism"),
+        90 => vol(40, "prism"),
+        91 => vol(75, "prism"),
+        106..=110 => {
+            let k = t - 101;
+            vol(((k + 1) * (k + 1) * (k + 2) / 2) as usize, "prism")
+        }
+        111..=117 => vol((6 + 9 * (t - 109)) as usize, "prism"),
+        7 => vol(5, "pyramid"),
+        14 => vol(14, "pyramid"),
+        19 => vol(13, "pyramid"),
+        118..=124 => {
+            let k = t - 115;
+            vol(((k + 1) * (k + 2) * (2 * k + 3) / 6) as usize, "pyramid")
+        }
+        125..=131 => vol((5 + 8 * (t - 123)) as usize, "pyramid"),
+        140 => vol(4, "trihedron"),
+        _ => return None,
+    })
+}
+
+// ---------------------------------------------------------------------------------------------
+// Byte cursor: ASCII tokens and binary numbers from one buffer
+
+struct Cursor<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    path: &'a Path,
+    binary: bool,
+    big_endian: bool,
+}
+
+/// A token for an error message: lossy, and cut short.
+fn show(tok: &[u8]) -> String {
+    let s = String::from_utf8_lossy(&tok[..tok.len().min(40)]).into_owned();
+    if tok.len() > 40 {
+        s + "..."
+    } else {
+        s
+    }
+}
+
+fn trim(mut s: &[u8]) -> &[u8] {
+    while let [first, rest @ ..] = s {
+        if !first.is_ascii_whitespace() {
+            break;
+        }
+        s = rest;
+    }
+    while let [rest @ .., last] = s {
+        if !last.is_ascii_whitespace() {
+            break;
+        }
+        s = rest;
+    }
+    s
+}
+
+fn parse_u64(tok: &[u8]) -> Option<u64> {
+    let digits = tok.strip_prefix(b"+").unwrap_or(tok);
+    if digits.is_empty() {
+        return None;
+    }
+    let mut v: u64 = 0;
+    for &b in digits {
+        let d = b.wrapping_sub(b'0');
+        if d > 9 {
+            return None;
+        }
+        v = v.checked_mul(10)?.checked_add(d as u64)?;
+    }
+    Some(v)
+}
+
+fn parse_i64(tok: &[u8]) -> Option<i64> {
+    match tok.strip_prefix(b"-") {
+        Some(rest) if !rest.starts_with(b"+") => 0i64.checked_sub_unsigned(parse_u64(rest)?),
+        Some(_) => None,
+        None => i64::try_from(parse_u64(tok)?).ok(),
+    }
+}
+
+fn parse_f64(tok: &[u8]) -> Option<f64> {
+    std::str::from_utf8(tok).ok()?.parse().ok()
+}
+
+fn get_i32(b: &[u8], big: bool) -> i32 {
+    let a = [b[0], b[1], b[2], b[3]];
+    if big {
+        i32::from_be_bytes(a)
+    } else {
+        i32::from_le_bytes(a)
+    }
+}
+
+fn get_u64(b: &[u8], big: bool) -> u64 {
+    let a = [b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]];
+    if big {
+        u64::from_be_bytes(a)
+    } else {
+        u64::from_le_bytes(a)
+    }
+}
+
+fn get_f64(b: &[u8], big: bool) -> f64 {
+    f64::from_bits(get_u64(b, big))
+}
+
+impl<'a> Cursor<'a> {
+    fn fail(&self, msg: impl Display) -> Error {
+        self.fail_at(self.pos, msg)
+    }
+
+    /// An error located by line (ASCII) or byte offset (binary, where lines mean little).
+    fn fail_at(&self, pos: usize, msg: impl Display) -> Error {
+        let pos = pos.min(self.buf.len());
+        if self.binary {
+            Error::format(self.path, format!("byte {pos}: {msg}"))
+        } else {
+            let line = self.buf[..pos].iter().filter(|&&b| b == b'\n').count() + 1;
+            Error::format(self.path, format!("line {line}: {msg}"))
+        }
+    }
+
+    fn remaining(&self) -> usize {
+        self.buf.len() - self.pos
+    }
+
+    fn skip_ws(&mut self) {
+        while self.pos < self.buf.len() && self.buf[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+    }
+
+    fn at_end(&mut self) -> bool {
+        self.skip_ws();
+        self.pos >= self.buf.len()
+    }
+
+    /// The next whitespace-separated ASCII token.
+    fn token(&mut self, what: &str) -> Result<&'a [u8]> {
+        self.skip_ws();
+        let start = self.pos;
+        while self.pos < self.buf.len() && !self.buf[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        if start == self.pos {
+            return Err(self.fail(format!("unexpected end of file: expected {what}")));
+        }
+        Ok(&self.buf[start..self.pos])
+    }
+
+    fn ascii_u64(&mut self, what: &str) -> Result<u64> {
+        let start = self.pos;
+        let tok = self.token(what)?;
+        parse_u64(tok).ok_or_else(|| self.fail_at(start, format!("expected {what} (an integer ≥ 0), found '{}'", show(tok))))
+    }
+
+    fn ascii_i64(&mut self, what: &str) -> Result<i64> {
+        let start = self.pos;
+        let tok = self.token(what)?;
+        parse_i64(tok).ok_or_else(|| self.fail_at(start, format!("expected {what} (an integer), found '{}'", show(tok))))
+    }
+
+    fn ascii_f64(&mut self, what: &str) -> Result<f64> {
+        let start = self.pos;
+        let tok = self.token(what)?;
+        parse_f64(tok).ok_or_else(|| self.fail_at(start, format!("expected {what} (a number), found '{}'", show(tok))))
+    }
+
+    /// The rest of the current line without its line ending; moves past the `\n`.
+    fn line(&mut self) -> &'a [u8] {
+        let start = self.pos;
+        let end = self.buf[start..].iter().position(|&b| b == b'\n').map_or(self.buf.len(), |i| start + i);
+        self.pos = (end + 1).min(self.buf.len());
+        let line = &self.buf[start..end];
+        line.strip_suffix(b"\r").unwrap_or(line)
+    }
+
+    /// `n` raw bytes of binary data.
+    fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
+        if n > self.remaining() {
+            return Err(self.fail(format!(
+                "file truncated: {what} needs {n} bytes but only {} are left",
+                self.remaining()
+            )));
+        }
+        let out = &self.buf[self.pos..self.pos + n];
+        self.pos += n;
+        Ok(out)
+    }
+
+    /// `count` records of `size` bytes of binary data, with overflow-safe size checks.
+    fn take_records(&mut self, count: u64, size: usize, what: &str) -> Result<&'a [u8]> {
+        let n = usize::try_from(count).ok().and_then(|c| c.checked_mul(size));
+        match n {
+            Some(n) => self.take(n, what),
+            None => Err(self.fail(format!("file truncated: {count} {what} cannot fit in the file"))),
+        }
+    }
+
+    /// An `int` in the file's data encoding (ASCII token or 4 binary bytes).
+    fn int(&mut self, what: &str) -> Result<i64> {
+        if self.binary {
+            Ok(get_i32(self.take(4, what)?, self.big_endian) as i64)
+        } else {
+            self.ascii_i64(what)
+        }
+    }
+
+    /// A `size_t` in the file's data encoding (ASCII token or 8 binary bytes; format 4.1).
+    fn size(&mut self, what: &str) -> Result<u64> {
+        if self.binary {
+            Ok(get_u64(self.take(8, what)?, self.big_endian))
+        } else {
+            self.ascii_u64(what)
+        }
+    }
+
+    /// Checks that `count` records of at least `min_bytes` each can still be in the file,
+    /// so that a corrupt count never makes us allocate (or loop) for data that is not there.
+    fn check_room(&self, count: u64, min_bytes: usize, what: &str) -> Result<usize> {
+        let room = (self.remaining() / min_bytes.max(1)) as u64;
+        if count > room {
+            return Err(self.fail(format!(
+                "the file declares {count} {what} but only {} bytes are left: truncated or corrupt",
+                self.remaining()
+            )));
+        }
+        Ok(count as usize)
+    }
+
+    /// Moves past the next line that starts with `marker` (e.g. `$EndEntities`).
+    fn skip_past(&mut self, marker: &[u8]) -> Result<()> {
+        let mut i = self.pos;
+        while let Some(off) = self.buf[i..].iter().position(|&b| b == b'$') {
+            let at = i + off;
+            let line_start = at == 0 || self.buf[at - 1] == b'\n';
+            let rest = &self.buf[at..];
+            if line_start
+                && rest.starts_with(marker)
+                && rest.get(marker.len()).map_or(true, |b| b.is_ascii_whitespace())
+            {
+                self.pos = at + marker.len();
+                return Ok(());
+            }
+            i = at + 1;
+        }
+        Err(self.fail(format!("no {} found: the file is truncated", show(marker))))
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Tag → dense index maps
+
+/// Maps Gmsh tags (any u64, possibly sparse) to dense 0-based indices.
+enum TagMap {
+    /// Tags within a span not much larger than their count: a direct lookup table.
+    Dense { min: u64, index: Vec<u32> },
+    Sparse(HashMap<u64, u32>),
+}
+
+impl TagMap {
+    /// `Err(tag)` names a tag that appears twice.
+    fn new(tags: &[u64]) -> Result<TagMap, u64> {
+        let (Some(&min), Some(&max)) = (tags.iter().min(), tags.iter().max()) else {
+            return Ok(TagMap::Dense { min: 0, index: Vec::new() });
+        };
+        let span = max - min;
+        if span < 2 * tags.len() as u64 + 1024 {
+            let mut index = vec![u32::MAX; span as usize + 1];
+            for (i, &t) in tags.iter().enumerate() {
+                let slot = &mut index[(t - min) as usize];
+                if *slot != u32::MAX {
+                    return Err(t);
+                }
+                *slot = i as u32;
+            }
+            Ok(TagMap::Dense { min, index })
+        } else {
+            let mut map = HashMap::with_capacity(tags.len());
+            for (i, &t) in tags.iter().enumerate() {
+                if map.insert(t, i as u32).is_some() {
+                    return Err(t);
+                }
+            }
+            Ok(TagMap::Sparse(map))
+        }
+    }
+
+    #[inline]
+    fn get(&self, tag: u64) -> Option<u32> {
+        match self {
+            TagMap::Dense { min, index } => {
+                let i = usize::try_from(tag.checked_sub(*min)?).ok()?;
+                index.get(i).copied().filter(|&v| v != u32::MAX)
+            }
+            TagMap::Sparse(map) => map.get(&tag).copied(),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The parser
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Version {
+    V2,
+    V41,
+}
+
+struct Nodes {
+    points: Vec<[f32; 3]>,
+    map: TagMap,
+}
+
+struct Cells {
+    tets: Vec<[u32; 4]>,
+    /// Element tag of each tet, for `$ElementData`.
+    tags: Vec<u64>,
+    /// Built on the first `$ElementData`.
+    map: Option<TagMap>,
+    order: u8,
+}
+
+/// One view being read: values interleaved by component, NaN where none was given.
+struct FieldAcc {
+    name: String,
+    location: FieldLocation,
+    step: i64,
+    ncomp: usize,
+    values: Vec<f32>,
+}
+
+struct Parser<'a> {
+    c: Cursor<'a>,
+    version: Version,
+    nodes: Option<Nodes>,
+    cells: Option<Cells>,
+    fields: Vec<FieldAcc>,
+    /// Field values allocated so far, bounded so that many tiny views cannot exhaust memory.
+    field_values: usize,
+}
+
+/// Gmsh allows 1 (scalar), 3 (vector) and 9 (tensor) components.
+const MAX_COMPONENTS: usize = 9;
+
+impl Parser<'_> {
+    fn run(mut self) -> Result<RawMesh> {
+        self.c.skip_ws();
+        if trim(self.c.line()) != b"$MeshFormat" {
+            return Err(self.c.fail_at(0, "not a Gmsh .msh file (it does not start with $MeshFormat)"));
+        }
+        self.read_format()?;
+        self.expect_end(b"MeshFormat")?;
+        while !self.c.at_end() {
+            let start = self.c.pos;
+            let header = trim(self.c.line());
+            let Some(name) = header.strip_prefix(b"$") else {
+                return Err(self.c.fail_at(start, format!("expected a section such as $Nodes, found '{}'", show(header))));
+            };
+            match name {
+                b"Nodes" => self.read_nodes(start)?,
+                b"Elements" => self.read_elements(start)?,
+                b"NodeData" => self.read_data(FieldLocation::Vertex, start)?,
+                b"ElementData" => self.read_data(FieldLocation::Cell, start)?,
+                b"MeshFormat" => return Err(self.c.fail_at(start, "a second $MeshFormat section")),
+                _ => {
+                    let mut end = b"$End".to_vec();
+                    end.extend_from_slice(name);
+                    self.c.skip_past(&end)?;
+                    continue;
+                }
+            }
+            self.expect_end(name)?;
+        }
+        self.finish()
+    }
+
+    fn read_format(&mut self) -> Result<()> {
+        self.c.skip_ws();
+        let start = self.c.pos;
+        let version = self.c.token("the format version")?;
+        self.version = match version {
+            b"2" | b"2.0" | b"2.1" | b"2.2" => Version::V2,
+            b"4.1" => Version::V41,
+            _ => {
+                return Err(self.c.fail_at(
+                    start,
+                    format!("Gmsh format version {} is not supported (tetloc reads 2.2 and 4.1)", show(version)),
+                ))
+            }
+        };
+        let binary = match self.c.ascii_u64("the file type (0 ascii, 1 binary)")? {
+            0 => false,
+            1 => true,
+            t => return Err(self.c.fail(format!("file type {t}: expected 0 (ascii) or 1 (binary)"))),
+        };
+        let size = self.c.ascii_u64("the data size")?;
+        if size != 8 {
+            return Err(self.c.fail(format!("data size {size}: only 8 (64-bit size_t and double) is supported")));
+        }
+        self.c.line();
+        if binary {
+            let one = self.c.take(4, "the endianness marker")?;
+            self.c.big_endian = match (get_i32(one, false), get_i32(one, true)) {
+                (1, _) => false,
+                (_, 1) => true,
+                _ => return Err(self.c.fail(format!("bad binary endianness marker {one:?}: expected the integer 1"))),
+            };
+            self.c.binary = true;
+        }
+        Ok(())
+    }
+
+    fn expect_end(&mut self, name: &[u8]) -> Result<()> {
+        self.c.skip_ws();
+        let start = self.c.pos;
+        let line = trim(self.c.line());
+        if line.strip_prefix(b"$End") != Some(name) {
+            return Err(self.c.fail_at(
+                start,
+                format!("expected $End{}, found '{}' (a count in the section does not match its data)", show(name), show(line)),
+            ));
+        }
+        Ok(())
+    }
+
+    fn read_nodes(&mut self, start: usize) -> Result<()> {
+        if self.nodes.is_some() {
+            return Err(self.c.fail_at(start, "a second $Nodes section"));
+        }
+        let (points, tags) = match self.version {
+            Version::V2 => self.read_nodes_v2()?,
+            Version::V41 => self.read_nodes_v41()?,
+        };
+        if points.len() >= u32::MAX as usize {
+            return Err(self.c.fail(format!("{} nodes: more than tetloc's 32-bit indices can address", points.len())));
+        }
+        let map = TagMap::new(&tags).map_err(|t| self.c.fail(format!("node tag {t} appears twice in $Nodes")))?;
+        self.nodes = Some(Nodes { points, map });
+        Ok(())
+    }
+
+    fn read_nodes_v2(&mut self) -> Result<(Vec<[f32; 3]>, Vec<u64>)> {
+        let c = &mut self.c;
+        let declared = c.ascii_u64("the number of nodes")?;
+        c.line();
+        let n = c.check_room(declared, if c.binary { 28 } else { 8 }, "nodes")?;
+        let mut points = Vec::with_capacity(n);
+        let mut tags = Vec::with_capacity(n);
+        if c.binary {
+            let big = c.big_endian;
+            let data = c.take_records(declared, 28, "nodes")?;
+            for r in data.chunks_exact(28) {
+                let tag = get_i32(r, big);
+                if tag < 0 {
+                    return Err(c.fail(format!("negative node tag {tag}")));
+                }
+                tags.push(tag as u64);
+                points.push([get_f64(&r[4..], big) as f32, get_f64(&r[12..], big) as f32, get_f64(&r[20..], big) as f32]);
+            }
+        } else {
+            for _ in 0..n {
+                tags.push(c.ascii_u64("a node tag")?);
+                let p = [c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?];
+                points.push(p.map(|v| v as f32));
+            }
+        }
+        Ok((points, tags))
+    }
+
+    fn read_nodes_v41(&mut self) -> Result<(Vec<[f32; 3]>, Vec<u64>)> {
+        let c = &mut self.c;
+        let blocks = c.size("the number of node blocks")?;
+        let declared = c.size("the number of nodes")?;
+        c.size("the smallest node tag")?;
+        c.size("the largest node tag")?;
+        let n = c.check_room(declared, if c.binary { 32 } else { 8 }, "nodes")?;
+        let mut points = Vec::with_capacity(n);
+        let mut tags = Vec::with_capacity(n);
+        for _ in 0..blocks {
+            let dim = c.int("an entity dimension")?;
+            c.int("an entity tag")?;
+            let parametric = c.int("the parametric flag")?;
+            let count = c.size("the number of nodes in a block")?;
+            if !(0..=3).contains(&dim) || !(0..=1).contains(&parametric) {
+                return Err(c.fail(format!("bad node block header: dimension {dim}, parametric {parametric}")));
+            }
+            if count > (n - points.len()) as u64 {
+                return Err(c.fail(format!("node blocks hold more nodes than the {n} declared")));
+            }
+            // Parametric nodes carry u (curves), u v (surfaces) or u v w (volumes) after x y z.
+            let per_node = 3 + (parametric * dim) as usize;
+            if c.binary {
+                let big = c.big_endian;
+                let tag_bytes = c.take_records(count, 8, "node tags")?;
+                let xyz = c.take_records(count, 8 * per_node, "node coordinates")?;
+                tags.extend(tag_bytes.chunks_exact(8).map(|b| get_u64(b, big)));
+                points.extend(xyz.chunks_exact(8 * per_node).map(|r| {
+                    [get_f64(r, big) as f32, get_f64(&r[8..], big) as f32, get_f64(&r[16..], big) as f32]
+                }));
+            } else {
+                for _ in 0..count {
+                    tags.push(c.ascii_u64("a node tag")?);
+                }
+                for _ in 0..count {
+                    let p = [c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?];
+                    points.push(p.map(|v| v as f32));
+                    for _ in 3..per_node {
+                        c.ascii_f64("a parametric coordinate")?;
+                    }
+                }
+            }
+        }
+        if points.len() != n {
+            return Err(c.fail(format!("$Nodes declares {n} nodes but its blocks hold {}", points.len())));
+        }
+        Ok((points, tags))
+    }
+
+    fn read_elements(&mut self, start: usize) -> Result<()> {
+        if self.cells.is_some() {
+            return Err(self.c.fail_at(start, "a second $Elements section"));
+        }
+        let Some(nodes) = &self.nodes else {
+            return Err(self.c.fail_at(start, "$Elements comes before $Nodes"));
+        };
+        let mut acc = ElementSink { nodes, tets: Vec::new(), tags: Vec::new(), order: 1, others: Vec::new() };
+        match self.version {
+            Version::V2 => read_elements_v2(&mut self.c, &mut acc)?,
+            Version::V41 => read_elements_v41(&mut self.c, &mut acc)?,
+        }
+        if !acc.others.is_empty() {
+            return Err(Error::NonTetCells { path: self.c.path.to_path_buf(), counts: acc.others });
+        }
+        let ElementSink { tets, tags, order, .. } = acc;
+        self.cells = Some(Cells { tets, tags, map: None, order });
+        Ok(())
+    }
+
+    fn read_data(&mut self, location: FieldLocation, start: usize) -> Result<()> {
+        let what = match location {
+            FieldLocation::Vertex => "$NodeData",
+            FieldLocation::Cell => "$ElementData",
+        };
+        let n_items = match location {
+            FieldLocation::Vertex => self.nodes.as_ref().map(|n| n.points.len()),
+            FieldLocation::Cell => self.cells.as_ref().map(|c| c.tets.len()),
+        };
+        let Some(n_items) = n_items else {
+            return Err(self.c.fail_at(start, format!("{what} comes before the mesh it refers to")));
+        };
+        let c = &mut self.c;
+
+        // The header is ASCII even in binary files.
+        let n_str = c.ascii_u64("the number of string tags")?;
+        c.check_room(n_str, 3, "string tags")?;
+        let mut name = None;
+        for _ in 0..n_str {
+            c.skip_ws();
+            let tag = trim(c.line());
+            let tag = tag.strip_prefix(b"\"").and_then(|t| t.strip_suffix(b"\"")).unwrap_or(tag);
+            name.get_or_insert_with(|| String::from_utf8_lossy(tag).into_owned());
+        }
+        let name = name.unwrap_or_else(|| "unnamed".to_string());
+        let n_real = c.ascii_u64("the number of real tags")?;
+        for _ in 0..n_real {
+            c.ascii_f64("a real tag")?;
+        }
+        let n_int = c.ascii_u64("the number of integer tags")?;
+        if n_int < 3 {
+            return Err(c.fail(format!("{what} '{name}' has {n_int} integer tags; it needs 3 (step, components, count)")));
+        }
+        let step = c.ascii_i64("the time step")?;
+        let ncomp = c.ascii_u64("the number of components")?;
+        let count = c.ascii_u64("the number of values")?;
+        for _ in 3..n_int {
+            c.ascii_i64("an integer tag")?;
+        }
+        c.line(); // binary data starts on the next line
+        if !(1..=MAX_COMPONENTS as u64).contains(&ncomp) {
+            return Err(c.fail(format!("{what} '{name}' has {ncomp} components; Gmsh allows 1 to {MAX_COMPONENTS}")));
+        }
+        let ncomp = ncomp as usize;
+        let record = if c.binary { 4 + 8 * ncomp } else { 2 + 2 * ncomp };
+        let count = c.check_room(count, record, &format!("values of {what} '{name}'"))?;
+
+        // Where this section's values go: a fresh view, merged into the same step, or nowhere
+        // (an older step than one already read).
+        let existing = self.fields.iter().position(|f| f.location == location && f.name == name);
+        let slot = match existing {
+            Some(i) if self.fields[i].step > step => None,
+            Some(i) if self.fields[i].step == step => {
+                if self.fields[i].ncomp != ncomp {
+                    return Err(c.fail(format!("{what} '{name}' step {step} changes its number of components")));
+                }
+                Some(i)
+            }
+            _ => {
+                let len = n_items * ncomp;
+                // Many small views over a big mesh could otherwise allocate far more than the
+                // file holds; real files stay well inside this bound.
+                self.field_values += len;
+                if self.field_values > 64 * c.buf.len() + (1 << 20) {
+                    return Err(c.fail(format!("too many field values for the file's size at {what} '{name}'")));
+                }
+                let acc = FieldAcc { name: name.clone(), location, step, ncomp, values: vec![f32::NAN; len] };
+                match existing {
+                    Some(i) => {
+                        self.fields[i] = acc;
+                        Some(i)
+                    }
+                    None => {
+                        self.fields.push(acc);
+                        Some(self.fields.len() - 1)
+                    }
+                }
+            }
+        };
+
+        // Entity tag → row in the field (None: drop the value).
+        let cells = &mut self.cells;
+        if location == FieldLocation::Cell {
+            let cells = cells.as_mut().expect("checked above");
+            if cells.map.is_none() {
+                let map = TagMap::new(&cells.tags).map_err(|t| c.fail(format!("element tag {t} appears twice in $Elements")))?;
+                cells.map = Some(map);
+            }
+        }
+        let nodes = &self.nodes;
+        let lookup = |tag: i64| -> Result<Option<usize>, String> {
+            let t = u64::try_from(tag).map_err(|_| format!("negative tag {tag}"))?;
+            match location {
+                FieldLocation::Vertex => match nodes.as_ref().and_then(|n| n.map.get(t)) {
+                    Some(i) => Ok(Some(i as usize)),
+                    None => Err(format!("{what} '{name}' gives a value for node {t}, which is not in $Nodes")),
+                },
+                // Values on surface or line elements are dropped.
+                FieldLocation::Cell => Ok(cells.as_ref().and_then(|c| c.map.as_ref()).and_then(|m| m.get(t)).map(|i| i as usize)),
+            }
+        };
+        let mut values = slot.map(|i| &mut self.fields[i].values);
+        let mut store = |row: Option<usize>, comp: usize, v: f64| {
+            if let (Some(row), Some(values)) = (row, values.as_deref_mut()) {
+                values[row * ncomp + comp] = v as f32;
+            }
+        };
+        if c.binary {
+            let big = c.big_endian;
+            let data = c.take_records(count as u64, record, &format!("values of {what} '{name}'"))?;
+            for r in data.chunks_exact(record) {
+                let row = lookup(get_i32(r, big) as i64).map_err(|m| c.fail(m))?;
+                for k in 0..ncomp {
+                    store(row, k, get_f64(&r[4 + 8 * k..], big));
+                }
+            }
+        } else {
+            for _ in 0..count {
+                let tag_pos = c.pos;
+                let row = lookup(c.ascii_i64("an entity tag")?).map_err(|m| c.fail_at(tag_pos, m))?;
+                for k in 0..ncomp {
+                    store(row, k, c.ascii_f64("a field value")?);
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn finish(self) -> Result<RawMesh> {
+        let c = &self.c;
+        let Some(nodes) = self.nodes else {
+            return Err(Error::format(c.path, "no $Nodes section"));
+        };
+        let Some(cells) = self.cells else {
+            return Err(Error::format(c.path, "no $Elements section"));
+        };
+        if cells.tets.is_empty() {
+            return Err(Error::format(c.path, "no tetrahedra: the file holds only points, lines or surface elements"));
+        }
+        let mut fields = Vec::new();
+        for f in self.fields {
+            if f.ncomp == 1 {
+                fields.push(Field { name: f.name, location: f.location, values: f.values });
+            } else {
+                for k in 0..f.ncomp {
+                    fields.push(Field {
+                        name: format!("{}[{k}]", f.name),
+                        location: f.location,
+                        values: f.values.iter().skip(k).step_by(f.ncomp).copied().collect(),
+                    });
+                }
+            }
+        }
+        Ok(RawMesh {
+            points: nodes.points,
+            tets: cells.tets,
+            fields,
+            higher_order: (cells.order > 1).then_some(cells.order),
+        })
+    }
+}
+
+/// Collects the tetrahedra of `$Elements` and counts other volume elements.
+struct ElementSink<'n> {
+    nodes: &'n Nodes,
+    tets: Vec<[u32; 4]>,
+    tags: Vec<u64>,
+    order: u8,
+    /// Volume elements that are not tetrahedra, by type name.
+    others: Vec<(String, usize)>,
+}
+
+impl ElementSink<'_> {
+    /// The dense vertex index of a corner, or an error message.
+    #[inline]
+    fn node(&self, elem: u64, tag: u64) -> Result<u32, String> {
+        self.nodes.map.get(tag).ok_or_else(|| format!("element {elem} refers to node {tag}, which is not in $Nodes"))
+    }
+
+    fn other(&mut self, name: &str, nodes: usize, count: usize) {
+        let key = format!("{name} ({nodes} nodes)");
+        match self.others.iter_mut().find(|(k, _)| *k == key) {
+            Some((_, n)) => *n += count,
+            None => self.others.push((key, count)),
+        }
+    }
+
+    fn reserve(&mut self, kind: Kind, count: usize) {
+        if let (Kind::Tet(order), 1..) = (kind, count) {
+            self.order = self.order.max(order);
+            self.tets.reserve(count);
+            self.tags.reserve(count);
+        }
+    }
+}
+
+fn unknown_type(c: &Cursor, pos: usize, ty: i64) -> Error {
+    c.fail_at(pos, format!("element type {ty} is not a Gmsh element type with a fixed number of nodes that tetloc knows"))
+}
+
+fn read_elements_v2(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
+    let declared = c.ascii_u64("the number of elements")?;
+    c.line();
+    if c.binary {
+        // Blocks of elements of one type: header (type, count, number of tags), then for each
+        // element its tag, its tags and its nodes, all 4-byte ints.
+        c.check_room(declared, 16, "elements")?;
+        let big = c.big_endian;
+        let mut seen = 0u64;
+        while seen < declared {
+            let pos = c.pos;
+            let h = c.take(12, "an element block header")?;
+            let (ty, count, ntags) = (get_i32(h, big) as i64, get_i32(&h[4..], big), get_i32(&h[8..], big));
+            let (nn, kind) = element_type(ty).ok_or_else(|| unknown_type(c, pos, ty))?;
+            if count < 0 || ntags < 0 || count as u64 > declared - seen {
+                return Err(c.fail_at(pos, format!("bad element block header: {count} elements with {ntags} tags")));
+            }
+            let record = 4 * (1 + ntags as usize + nn);
+            let data = c.take_records(count as u64, record, "elements")?;
+            seen += count as u64;
+            acc.reserve(kind, count as usize);
+            match kind {
+                Kind::Lower => {}
+                Kind::Volume(name) => acc.other(name, nn, count as usize),
+                Kind::Tet(_) => {
+                    let first = 4 * (1 + ntags as usize);
+                    for r in data.chunks_exact(record) {
+                        let tag = get_i32(r, big);
+                        let tag = u64::try_from(tag).map_err(|_| c.fail_at(pos, format!("negative element tag {tag}")))?;
+                        let mut t = [0u32; 4];
+                        for (k, v) in t.iter_mut().enumerate() {
+                            let node = get_i32(&r[first + 4 * k..], big) as i64 as u64;
+                            *v = acc.node(tag, node).map_err(|m| c.fail_at(pos, m))?;
+                        }
+                        acc.tets.push(t);
+                        acc.tags.push(tag);
+                    }
+                }
+            }
+        }
+    } else {
+        let n = c.check_room(declared, 8, "elements")?;
+        for _ in 0..n {
+            let pos = c.pos;
+            let tag = c.ascii_u64("an element tag")?;
+            let ty = c.ascii_i64("an element type")?;
+            let (nn, kind) = element_type(ty).ok_or_else(|| unknown_type(c, pos, ty))?;
+            let ntags = c.ascii_u64("the number of element tags")?;
+            for _ in 0..ntags {
+                c.token("an element tag")?;
+            }
+            acc.reserve(kind, 1);
+            let mut t = [0u32; 4];
+            for k in 0..nn {
+                let node = c.ascii_u64("a node tag")?;
+                if k < 4 && matches!(kind, Kind::Tet(_)) {
+                    t[k] = acc.node(tag, node).map_err(|m| c.fail_at(pos, m))?;
+                }
+            }
+            match kind {
+                Kind::Lower => {}
+                Kind::Volume(name) => acc.other(name, nn, 1),
+                Kind::Tet(_) => {
+                    acc.tets.push(t);
+                    acc.tags.push(tag);
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+fn read_elements_v41(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
+    let blocks = c.size("the number of element blocks")?;
+    let declared = c.size("the number of elements")?;
+    c.size("the smallest element tag")?;
+    c.size("the largest element tag")?;
+    c.check_room(declared, if c.binary { 16 } else { 4 }, "elements")?;
+    let mut seen = 0u64;
+    for _ in 0..blocks {
+        let pos = c.pos;
+        c.int("an entity dimension")?;
+        c.int("an entity tag")?;
+        let ty = c.int("an element type")?;
+        let count = c.size("the number of elements in a block")?;
+        let (nn, kind) = element_type(ty).ok_or_else(|| unknown_type(c, pos, ty))?;
+        if count > declared - seen {
+            return Err(c.fail_at(pos, format!("element blocks hold more elements than the {declared} declared")));
+        }
+        seen += count;
+        if let Kind::Volume(name) = kind {
+            acc.other(name, nn, count as usize);
+        }
+        if c.binary {
+            let big = c.big_endian;
+            let record = 8 * (1 + nn);
+            let data = c.take_records(count, record, "elements")?;
+            acc.reserve(kind, count as usize);
+            if let Kind::Tet(_) = kind {
+                for r in data.chunks_exact(record) {
+                    let tag = get_u64(r, big);
+                    let mut t = [0u32; 4];
+                    for (k, v) in t.iter_mut().enumerate() {
+                        *v = acc.node(tag, get_u64(&r[8 + 8 * k..], big)).map_err(|m| c.fail_at(pos, m))?;
+                    }
+                    acc.tets.push(t);
+                    acc.tags.push(tag);
+                }
+            }
+        } else {
+            let count = c.check_room(count, 2 * (1 + nn), "elements")?;
+            acc.reserve(kind, count);
+            for _ in 0..count {
+                let epos = c.pos;
+                let tag = c.ascii_u64("an element tag")?;
+                let mut t = [0u32; 4];
+                for k in 0..nn {
+                    let node = c.ascii_u64("a node tag")?;
+                    if k < 4 && matches!(kind, Kind::Tet(_)) {
+                        t[k] = acc.node(tag, node).map_err(|m| c.fail_at(epos, m))?;
+                    }
+                }
+                if let Kind::Tet(_) = kind {
+                    acc.tets.push(t);
+                    acc.tags.push(tag);
+                }
+            }
+        }
+    }
+    if seen != declared {
+        return Err(c.fail(format!("$Elements declares {declared} elements but its blocks hold {seen}")));
+    }
+    Ok(())
+}
+
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn smoke() {
+        let dir = crate::testdata::data_dir().unwrap();
+        for f in ["torus_s.msh", "part_s.msh22.msh", "part_s.meshio.msh", "delaunay_s.msh", "real/bunny.msh", "real/cubes_v22.msh", "real/cubes_v41.msh", "real/ArmadilloP4.msh", "real/P3.msh"] {
+            let t = std::time::Instant::now();
+            let r = read(&dir.join(f));
+            match r {
+                Ok(m) => eprintln!("{f}: {} pts {} tets ho {:?} fields {:?} {:?}", m.points.len(), m.tets.len(), m.higher_order, m.fields.iter().map(|f| (&f.name, f.location, f.values.len(), f.values[..3].to_vec())).collect::<Vec<_>>(), t.elapsed()),
+                Err(e) => eprintln!("{f}: ERR {e}"),
+            }
+        }
+    }
 }
