@@ -8,6 +8,7 @@ pub mod geom;
 pub mod io;
 pub mod locate;
 pub mod mesh;
+pub mod queries;
 #[doc(hidden)]
 pub mod testdata;
 #[cfg(test)]
