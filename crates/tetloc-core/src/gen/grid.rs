@@ -1,0 +1,248 @@
+//! The machinery every shape shares: a structured grid of `ni × nj` columns of `nk` cells,
+//! some columns kept, each kept cell split into the 6 Kuhn tets of its cube.
+//!
+//! **Why it is conforming.** The Kuhn split (all six tets share the cube's main diagonal) is
+//! the same in every cell, so the diagonal it puts on a cube face is the same one the
+//! neighbour puts there: every interior face is shared by exactly two tets, whatever the
+//! mask of kept columns, and also across a periodic wrap of `k` (the split is invariant
+//! under integer translation).
+//!
+//! **Why no tet inverts.** Every Kuhn tet steps through `k` exactly once, so it has one edge
+//! between two levels of the *same* vertex column, and its projection along the columns is
+//! a Kuhn triangle of the 2D grid. Shapes jitter a whole vertex column in-plane (by at most
+//! [`XY_JITTER`] of the spacing, small enough that no 2D triangle flips) and jitter its
+//! levels independently but keep them strictly increasing in `k`; then each tet's volume
+//! is (edge length × projected triangle area)/3 in the straight-column shapes and close to
+//! it in the gently swept torus, so it stays positive.
+
+use super::{Phase, Progress};
+use crate::geom::Vec3;
+use crate::mesh::{Field, FieldLocation, RawMesh};
+use rayon::prelude::*;
+
+/// In-plane jitter of a vertex column, as a fraction of the column spacing. Each vertex of a
+/// 2D Kuhn triangle then moves by at most 0.12·√2 of the spacing, which changes twice the
+/// triangle's area (1) by at most 2·(2·0.17) + (2·0.17)² < 0.8: it cannot flip.
+pub(super) const XY_JITTER: f64 = 0.12;
+
+/// Jitter of a level inside its column, as a fraction of the level spacing: levels stay at
+/// least 0.4 spacings apart, so they keep their order.
+pub(super) const LEVEL_JITTER: f64 = 0.3;
+
+/// Columns handled per parallel task: amortises scheduling and progress updates.
+const BLOCK: usize = 64;
+
+/// The 6 Kuhn tets of a cube, as corners `c = dx | dy << 1 | dz << 2`. Tet `(a, b, c)` walks
+/// 0 → e_a → e_a + e_b → 7 for a permutation of the axes; for even permutations the last two
+/// are swapped so that every tet is positively oriented (`geom::tet_volume6 > 0`).
+const KUHN: [[usize; 4]; 6] = [
+    [0, 1, 7, 3], // x y z (even)
+    [0, 1, 5, 7], // x z y
+    [0, 2, 3, 7], // y x z
+    [0, 2, 7, 6], // y z x (even)
+    [0, 4, 7, 5], // z x y (even)
+    [0, 4, 6, 7], // z y x
+];
+
+/// The grid: which of the `ni × nj` columns (row-major, `i` fastest) are kept, and how many
+/// cells each column has.
+pub(super) struct Columns {
+    pub ni: usize,
+    pub nj: usize,
+    pub nk: usize,
+    /// Level `nk` is level 0 again (the torus' toroidal direction).
+    pub periodic_k: bool,
+    pub keep: Vec<bool>,
+}
+
+impl Columns {
+    pub fn full(ni: usize, nj: usize, nk: usize) -> Columns {
+        Columns { ni, nj, nk, periodic_k: false, keep: vec![true; ni * nj] }
+    }
+
+    /// Vertices per vertex column.
+    pub fn levels(&self) -> usize {
+        if self.periodic_k {
+            self.nk
+        } else {
+            self.nk + 1
+        }
+    }
+
+    pub fn n_kept(&self) -> usize {
+        self.keep.iter().filter(|&&k| k).count()
+    }
+
+    /// Kept columns over the columns of their bounding rectangle: the footprint's share of
+    /// the bounding box in the column plane.
+    pub fn kept_box_fraction(&self) -> f64 {
+        let (mut i0, mut i1, mut j0, mut j1) = (usize::MAX, 0, usize::MAX, 0);
+        for j in 0..self.nj {
+            for i in 0..self.ni {
+                if self.keep[j * self.ni + i] {
+                    (i0, i1, j0, j1) = (i0.min(i), i1.max(i), j0.min(j), j1.max(j));
+                }
+            }
+        }
+        if i0 > i1 {
+            return 0.0;
+        }
+        self.n_kept() as f64 / ((i1 - i0 + 1) * (j1 - j0 + 1)) as f64
+    }
+}
+
+/// Marks the `k` smallest of `values`; ties go to the lower index, so the choice is
+/// deterministic. Used to cut exactly as many columns as the tet count needs.
+pub(super) fn keep_lowest(values: &[f64], k: usize) -> Vec<bool> {
+    let k = k.min(values.len());
+    let mut keep = vec![false; values.len()];
+    if k == 0 {
+        return keep;
+    }
+    let mut idx: Vec<u32> = (0..values.len() as u32).collect();
+    idx.select_nth_unstable_by(k - 1, |&a, &b| {
+        values[a as usize].total_cmp(&values[b as usize]).then(a.cmp(&b))
+    });
+    for &i in &idx[..k] {
+        keep[i as usize] = true;
+    }
+    keep
+}
+
+/// What a shape provides: the grid, and where the vertices of a vertex column go.
+pub(super) trait ColumnShape: Sync {
+    fn columns(&self) -> &Columns;
+    /// Positions of the `levels()` vertices of vertex column `(i, j)`, `0 ≤ i ≤ ni`,
+    /// `0 ≤ j ≤ nj`, in order of `k`.
+    fn column_points(&self, i: usize, j: usize, out: &mut [Vec3]);
+}
+
+/// The smooth per-vertex field `f`, the same formula as the shared test data's.
+#[inline]
+fn field_f(p: Vec3) -> f32 {
+    let (x, y, z) = (p[0] as f64, p[1] as f64, p[2] as f64);
+    ((3.0 * x + 1.0).sin() * (2.0 * y).cos() + 0.5 * (4.0 * z).sin() + 0.3 * x * y) as f32
+}
+
+/// The per-cell field `cellval`: ((id · 2654435761) mod 2³²) / 2³², as in the shared data.
+#[inline]
+fn cellval(id: usize) -> f32 {
+    ((id as u32).wrapping_mul(2_654_435_761) as f64 / 4_294_967_296.0) as f32
+}
+
+/// Builds the mesh: only the vertex columns that a kept column touches get vertices;
+/// vertices are numbered column by column, tets kept column by kept column.
+pub(super) fn build(shape: &dyn ColumnShape, progress: &Progress) -> RawMesh {
+    let g = shape.columns();
+    let (ni, nj, nk) = (g.ni, g.nj, g.nk);
+    let levels = g.levels();
+    let vni = ni + 1;
+    let kept = |i: usize, j: usize| g.keep[j * ni + i];
+
+    // Vertex columns in use and the index of each among them.
+    let mut vindex = vec![u32::MAX; vni * (nj + 1)];
+    let mut used: Vec<(u32, u32)> = Vec::new();
+    for vj in 0..=nj {
+        for vi in 0..=ni {
+            let (i0, i1) = (vi.saturating_sub(1), vi.min(ni - 1));
+            let (j0, j1) = (vj.saturating_sub(1), vj.min(nj - 1));
+            if kept(i0, j0) || kept(i1, j0) || kept(i0, j1) || kept(i1, j1) {
+                vindex[vj * vni + vi] = used.len() as u32;
+                used.push((vi as u32, vj as u32));
+            }
+        }
+    }
+    let cells: Vec<(u32, u32)> =
+        (0..nj).flat_map(|j| (0..ni).map(move |i| (i as u32, j as u32))).filter(|&(i, j)| kept(i as usize, j as usize)).collect();
+
+    let n_points = used.len() * levels;
+    let n_tets = cells.len() * nk * 6;
+    // Progress: weighted by the bytes each phase writes.
+    let (p_end, t_end) = (0.05 + 0.9 * n_points as f64 * 16.0 / (n_points as f64 * 16.0 + n_tets as f64 * 20.0), 0.95);
+
+    let mut points = vec![[0f32; 3]; n_points];
+    let mut f = vec![0f32; n_points];
+    let phase = Phase::new(progress, 0.05, p_end, used.len());
+    points.par_chunks_mut(levels * BLOCK).zip(f.par_chunks_mut(levels * BLOCK)).enumerate().for_each(
+        |(b, (pts, vals))| {
+            for (c, (p, v)) in pts.chunks_mut(levels).zip(vals.chunks_mut(levels)).enumerate() {
+                let (i, j) = used[b * BLOCK + c];
+                shape.column_points(i as usize, j as usize, p);
+                for (v, &q) in v.iter_mut().zip(p.iter()) {
+                    *v = field_f(q);
+                }
+            }
+            phase.advance(pts.len() / levels);
+        },
+    );
+
+    let mut tets = vec![[0u32; 4]; n_tets];
+    let phase = Phase::new(progress, p_end, t_end, cells.len());
+    tets.par_chunks_mut(6 * nk * BLOCK).enumerate().for_each(|(b, out)| {
+        for (c, col) in out.chunks_mut(6 * nk).enumerate() {
+            let (i, j) = (cells[b * BLOCK + c].0 as usize, cells[b * BLOCK + c].1 as usize);
+            // First vertex id of each corner's vertex column, corners as in KUHN (dx, dy).
+            let base: [u32; 4] = std::array::from_fn(|c| {
+                let (vi, vj) = (i + (c & 1), j + (c >> 1));
+                vindex[vj * vni + vi] * levels as u32
+            });
+            for k in 0..nk {
+                let k1 = if k + 1 == levels { 0 } else { k + 1 }; // periodic wrap
+                let corner = |c: usize| base[c & 3] + if c & 4 == 0 { k as u32 } else { k1 as u32 };
+                for (t, tet) in KUHN.iter().enumerate() {
+                    col[6 * k + t] = tet.map(corner);
+                }
+            }
+        }
+        phase.advance(out.len() / (6 * nk));
+    });
+
+    let mut cv = vec![0f32; n_tets];
+    cv.par_iter_mut().enumerate().for_each(|(t, v)| *v = cellval(t));
+    progress.report(1.0);
+
+    RawMesh {
+        points,
+        tets,
+        fields: vec![
+            Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
+            Field { name: "cellval".into(), location: FieldLocation::Cell, values: cv },
+        ],
+        higher_order: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::tet_volume6;
+
+    #[test]
+    fn kuhn_tets_are_positive_and_fill_the_cube() {
+        let corner = |c: usize| [(c & 1) as f32, ((c >> 1) & 1) as f32, ((c >> 2) & 1) as f32];
+        let mut total = 0.0;
+        for tet in KUHN {
+            let v = tet_volume6(tet.map(corner));
+            assert!(v > 0.0, "{tet:?} has volume×6 {v}");
+            total += v / 6.0;
+        }
+        assert_eq!(total, 1.0);
+    }
+
+    #[test]
+    fn keep_lowest_picks_exactly_k_with_ties_by_index() {
+        let v = [3.0, 1.0, 2.0, 1.0, 5.0];
+        assert_eq!(keep_lowest(&v, 2), vec![false, true, false, true, false]);
+        assert_eq!(keep_lowest(&v, 0), vec![false; 5]);
+        assert_eq!(keep_lowest(&[1.0, 1.0, 1.0], 1), vec![true, false, false]);
+        assert_eq!(keep_lowest(&v, 9).iter().filter(|&&k| k).count(), 5);
+    }
+
+    #[test]
+    fn cellval_matches_the_shared_data_formula() {
+        for id in [0usize, 1, 2, 12345, 70_000_000] {
+            let want = ((id as u64 * 2_654_435_761) % (1u64 << 32)) as f64 / (1u64 << 32) as f64;
+            assert_eq!(cellval(id), want as f32);
+        }
+    }
+}

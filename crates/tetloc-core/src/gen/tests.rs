@@ -1,0 +1,210 @@
+use super::*;
+use crate::geom::Vec3;
+use crate::locate::CpuLocator;
+use crate::mesh::{FieldLocation, Mesh};
+use std::collections::HashMap;
+use std::sync::Arc;
+
+const SIZES: [usize; 2] = [8_000, 60_000];
+
+fn mesh(shape: Shape, tets: usize, seed: u64) -> Mesh {
+    Mesh::new(generate(shape, tets, seed), format!("gen {shape} {tets}")).unwrap()
+}
+
+fn occupancy(m: &Mesh) -> f64 {
+    let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
+    let box_volume: f64 = (0..3).map(|k| hi[k] as f64 - lo[k] as f64).product();
+    m.info.total_volume / box_volume
+}
+
+#[test]
+fn shape_names_round_trip() {
+    for s in Shape::ALL {
+        assert_eq!(s.to_string().parse::<Shape>().unwrap(), s);
+    }
+    assert_eq!(" Fusion".parse::<Shape>().unwrap(), Shape::Fusion);
+    let err = "torus".parse::<Shape>().unwrap_err().to_string();
+    assert!(err.contains("torus") && err.contains("agulhas"), "{err}");
+}
+
+#[test]
+fn tet_counts_land_near_the_target() {
+    for shape in Shape::ALL {
+        for target in SIZES {
+            let n = generate(shape, target, 1).tets.len();
+            let err = (n as f64 / target as f64 - 1.0).abs();
+            assert!(err < 0.1, "{shape} {target}: {n} tets ({:.1} % off)", 100.0 * err);
+        }
+    }
+}
+
+#[test]
+fn deterministic_for_a_seed_different_for_another() {
+    for shape in Shape::ALL {
+        let (a, b, c) = (generate(shape, 5_000, 7), generate(shape, 5_000, 7), generate(shape, 5_000, 8));
+        assert_eq!(a.points, b.points, "{shape}");
+        assert_eq!(a.tets, b.tets, "{shape}");
+        assert_eq!(a.fields[0].values, b.fields[0].values, "{shape}");
+        assert_ne!(a.points, c.points, "{shape}: seeds 7 and 8 give the same vertices");
+    }
+}
+
+/// Every interior face shared by exactly two tets, and the boundary faces, oriented
+/// outwards, form a closed surface: each directed edge is matched by its reverse (a
+/// hanging node or a crack leaves edges unmatched).
+#[test]
+fn conforming_with_a_closed_boundary() {
+    for shape in Shape::ALL {
+        for target in SIZES {
+            let m = mesh(shape, target, 3);
+            let fs = m.faces();
+            assert_eq!(fs.stats.n_non_manifold, 0, "{shape} {target}");
+            assert_eq!(4 * m.n_tets(), 2 * fs.stats.n_faces - fs.stats.n_boundary, "{shape} {target}");
+            let mut edges: HashMap<(u32, u32), i64> = HashMap::new();
+            for f in fs.faces.iter().filter(|f| f.front < 0 || f.back < 0) {
+                // The normal (v1-v0)×(v2-v0) points away from `front`: outwards when front is the tet.
+                let v = if f.front >= 0 { f.v } else { [f.v[0], f.v[2], f.v[1]] };
+                for (a, b) in [(v[0], v[1]), (v[1], v[2]), (v[2], v[0])] {
+                    *edges.entry((a.min(b), a.max(b))).or_default() += if a < b { 1 } else { -1 };
+                }
+            }
+            let open = edges.values().filter(|&&n| n != 0).count();
+            assert_eq!(open, 0, "{shape} {target}: {open} boundary edges not closed");
+        }
+    }
+}
+
+#[test]
+fn no_degenerate_or_inverted_tets_and_no_unused_vertices() {
+    for shape in Shape::ALL {
+        for (target, seed) in [(SIZES[0], 11), (SIZES[1], 12), (300_000, 13)] {
+            let m = mesh(shape, target, seed);
+            assert_eq!(m.info.n_degenerate, 0, "{shape} {target}");
+            assert_eq!(m.info.n_reoriented, 0, "{shape} {target}");
+            let mut used = vec![false; m.points.len()];
+            for t in &m.tets {
+                for &v in t {
+                    used[v as usize] = true;
+                }
+            }
+            assert!(used.iter().all(|&u| u), "{shape} {target}: unused vertices");
+        }
+    }
+}
+
+#[test]
+fn occupancy_matches_the_papers_data_sets() {
+    for shape in Shape::ALL {
+        for (target, seed) in [(SIZES[0], 1), (SIZES[1], 2), (SIZES[1], 3)] {
+            let occ = occupancy(&mesh(shape, target, seed));
+            let want = shape.target_occupancy();
+            assert!((occ - want).abs() < 0.05, "{shape} {target} seed {seed}: occupancy {occ:.3}, want {want}");
+        }
+    }
+}
+
+/// Jitter leaves no face with an exactly axis-aligned normal, except where `jets` must lie
+/// flat on its box.
+#[test]
+fn no_axis_aligned_faces() {
+    for shape in Shape::ALL {
+        let m = mesh(shape, SIZES[0], 5);
+        let p = |i: u32| m.points[i as usize].map(|c| c as f64);
+        for f in &m.faces().faces {
+            if shape == Shape::Jets && (f.front < 0 || f.back < 0) {
+                continue;
+            }
+            let (a, b, c) = (p(f.v[0]), p(f.v[1]), p(f.v[2]));
+            let (u, v) = ([b[0] - a[0], b[1] - a[1], b[2] - a[2]], [c[0] - a[0], c[1] - a[1], c[2] - a[2]]);
+            let n = [u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]];
+            let zeros = n.iter().filter(|&&x| x == 0.0).count();
+            assert!(zeros < 2, "{shape}: face {:?} has normal {n:?}", f.v);
+        }
+    }
+}
+
+#[test]
+fn jets_box_faces_are_flat_and_full() {
+    let m = mesh(Shape::Jets, SIZES[0], 9);
+    assert_eq!(m.info.bounds_min, [0.0, 0.0, 0.0]);
+    assert_eq!(m.info.bounds_max, [1.0, 1.0, 2.0]);
+    assert!((occupancy(&m) - 1.0).abs() < 1e-9);
+}
+
+#[test]
+fn fields_are_there_and_finite() {
+    for shape in Shape::ALL {
+        let m = mesh(shape, SIZES[0], 4);
+        let f = m.field("f").unwrap();
+        assert_eq!((f.location, f.values.len()), (FieldLocation::Vertex, m.points.len()));
+        assert!(f.values.iter().all(|v| v.is_finite()));
+        // Smooth: the same formula as the shared data, at each vertex.
+        let p = m.points[m.points.len() / 2].map(|c| c as f64);
+        let want = (3.0 * p[0] + 1.0).sin() * (2.0 * p[1]).cos() + 0.5 * (4.0 * p[2]).sin() + 0.3 * p[0] * p[1];
+        assert!((f.values[m.points.len() / 2] as f64 - want).abs() < 1e-5);
+        let c = m.field("cellval").unwrap();
+        assert_eq!((c.location, c.values.len()), (FieldLocation::Cell, m.n_tets()));
+        assert!(c.values.iter().all(|v| (0.0..=1.0).contains(v)));
+        assert_eq!(c.values[1], (2_654_435_761u64 as f64 / 4_294_967_296.0) as f32);
+    }
+}
+
+#[test]
+fn the_cpu_locator_finds_every_tet_centre_in_its_tet() {
+    for shape in Shape::ALL {
+        let m = Arc::new(mesh(shape, 20_000, 6));
+        let loc = CpuLocator::new(m.clone());
+        let wrong: Vec<(usize, Option<u32>)> = (0..m.n_tets())
+            .filter_map(|t| {
+                let got = loc.locate_point(m.tet_center(t)).map(|(id, _)| id);
+                (got != Some(t as u32)).then_some((t, got))
+            })
+            .take(5)
+            .collect();
+        assert!(wrong.is_empty(), "{shape}: centres found elsewhere (tet, found): {wrong:?}");
+    }
+}
+
+#[test]
+fn tiny_and_zero_targets_still_give_valid_meshes() {
+    for shape in Shape::ALL {
+        for target in [0, 1, 100] {
+            let m = mesh(shape, target, 0);
+            assert!(m.n_tets() > 0);
+            assert_eq!(m.info.n_degenerate + m.info.n_reoriented, 0, "{shape} {target}");
+            assert_eq!(m.faces().stats.n_non_manifold, 0);
+        }
+    }
+}
+
+#[test]
+fn progress_increases_to_one() {
+    let seen = std::sync::Mutex::new(Vec::<f64>::new());
+    let mesh = generate_with_progress(Shape::Agulhas, 50_000, 1, &|f| seen.lock().unwrap().push(f));
+    assert!(!mesh.tets.is_empty());
+    let seen = seen.into_inner().unwrap();
+    assert!(seen.len() >= 3, "{seen:?}");
+    assert!(seen.windows(2).all(|w| w[0] < w[1]), "{seen:?}");
+    assert_eq!((seen[0], *seen.last().unwrap()), (0.0, 1.0));
+}
+
+/// `fusion` is graded: much finer at the centre line than at the surface.
+#[test]
+fn fusion_is_finer_near_the_centre_line() {
+    let m = mesh(Shape::Fusion, SIZES[1], 2);
+    // Distance from the centre line (major radius 1 in the plane z = 0) of a point.
+    let d = |p: Vec3| (((p[0] as f64).hypot(p[1] as f64) - 1.0).powi(2) + (p[2] as f64 / 1.4).powi(2)).sqrt();
+    let (mut inner, mut outer) = ((0.0, 0usize), (0.0, 0usize));
+    for t in 0..m.n_tets() {
+        let r = d(m.tet_center(t)) / 0.4786;
+        let v = m.tets[t].map(|i| m.points[i as usize]);
+        let vol = crate::geom::tet_volume6(v) / 6.0;
+        if r < 0.25 {
+            inner = (inner.0 + vol, inner.1 + 1);
+        } else if r > 0.8 {
+            outer = (outer.0 + vol, outer.1 + 1);
+        }
+    }
+    let ratio = (outer.0 / outer.1 as f64) / (inner.0 / inner.1 as f64);
+    assert!(ratio > 10.0, "outer tets only {ratio:.1}× larger than inner ones");
+}
