@@ -1,7 +1,24 @@
-//! Reader stub: replaced by the real reader.
+//! Reader of VTK XML unstructured grids (`.vtu`).
+//!
+//! Data arrays may be ascii, inline base64 (`format="binary"`) or appended (raw or base64),
+//! uncompressed or zlib-compressed, with UInt32 or UInt64 block headers, in either byte
+//! order. Appended raw data is not XML: the XML part is parsed up to `<AppendedData>`, and
+//! arrays are then read at their offsets after the `_` marker, straight from the file's
+//! bytes. Every size the file declares is checked against the bytes that are there before
+//! anything is allocated for it.
 
+// The parts shared with the legacy reader and the writers live in `io/vtk/`.
+#[path = "vtk/mod.rs"]
+pub(crate) mod vtk;
+
+use self::vtk::blocks::{self, Layout};
+use self::vtk::cells;
+use self::vtk::num::{self, Array, NumType};
+use self::vtk::xml::{self, Node};
 use crate::error::{Error, Result};
-use crate::mesh::RawMesh;
+use crate::mesh::{Field, FieldLocation, RawMesh};
+use std::borrow::Cow;
+use std::collections::BTreeMap;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
@@ -10,6 +27,374 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 }
 
 /// Parses a whole file held in memory; `path` only names it in errors.
-pub fn parse(_bytes: &[u8], path: &Path) -> Result<RawMesh> {
-    Err(Error::format(path, "reader not implemented yet"))
+pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
+    let fail = |msg: String| Error::format(path, msg);
+    let doc = xml::parse(bytes, "AppendedData").map_err(fail)?;
+    let root = &doc.root;
+    if root.name != "VTKFile" {
+        return Err(fail(format!("not a VTK XML file: the root element is <{}>, not <VTKFile>", root.name)));
+    }
+    match root.attr("type") {
+        Some("UnstructuredGrid") => {}
+        other => {
+            return Err(fail(format!(
+                "a VTK XML file of type '{}': tetloc reads UnstructuredGrid (.vtu) files",
+                other.unwrap_or("(none)")
+            )))
+        }
+    }
+    let layout = Layout {
+        header64: match root.attr("header_type") {
+            None | Some("UInt32") => false,
+            Some("UInt64") => true,
+            Some(o) => return Err(fail(format!("header_type '{o}' is neither UInt32 nor UInt64"))),
+        },
+        zlib: match root.attr("compressor") {
+            None | Some("") => false,
+            Some("vtkZLibDataCompressor") => true,
+            Some(o) => return Err(fail(format!("compressor '{o}' is not supported (tetloc reads vtkZLibDataCompressor)"))),
+        },
+        big_endian: match root.attr("byte_order") {
+            None | Some("LittleEndian") => false,
+            Some("BigEndian") => true,
+            Some(o) => return Err(fail(format!("byte_order '{o}' is neither LittleEndian nor BigEndian"))),
+        },
+    };
+    let appended = match &doc.stopped_at {
+        Some((node, pos)) => Some(Appended::find(bytes, node, *pos, root).map_err(fail)?),
+        None => None,
+    };
+    let grid = root.child("UnstructuredGrid").ok_or_else(|| fail("no <UnstructuredGrid> element".into()))?;
+    let ctx = Ctx { path, layout, appended };
+    let pieces: Vec<&Node> = grid.children_named("Piece").collect();
+    if pieces.is_empty() {
+        return Err(fail("<UnstructuredGrid> has no <Piece>".into()));
+    }
+    let parts = pieces.iter().enumerate().map(|(k, p)| ctx.piece(p, k)).collect::<Result<Vec<_>>>()?;
+    merge(parts, path)
+}
+
+/// Where the appended data lies.
+enum Appended<'a> {
+    /// The bytes after `_`; offsets index them.
+    Raw(&'a [u8]),
+    /// The base64 text after `_`, and every array's offset into it, sorted: an array's text
+    /// runs to the next offset.
+    Base64(&'a [u8], Vec<usize>),
+}
+
+impl<'a> Appended<'a> {
+    /// `pos` is just after the `<AppendedData ...>` tag.
+    fn find(bytes: &'a [u8], node: &Node, pos: usize, root: &Node) -> Result<Appended<'a>, String> {
+        let rest = &bytes[pos..];
+        let skip = rest.iter().take_while(|c| c.is_ascii_whitespace()).count();
+        if rest.get(skip) != Some(&b'_') {
+            return Err("<AppendedData>: the data does not start with the '_' marker".into());
+        }
+        let data = &rest[skip + 1..];
+        // A file cut short in its last array still has all the sizes it needs: ask for the
+        // closing tag, which VTK writes after the data.
+        let tail = bytes.trim_ascii_end();
+        if !tail[tail.len().saturating_sub(64)..].windows(9).any(|w| w == b"</VTKFile") {
+            return Err("the file does not end with </VTKFile>: truncated?".into());
+        }
+        match node.attr("encoding") {
+            Some("raw") => Ok(Appended::Raw(data)),
+            Some("base64") => {
+                let end = data.iter().position(|&c| c == b'<').unwrap_or(data.len());
+                let mut offsets = Vec::new();
+                collect_offsets(root, &mut offsets);
+                offsets.sort_unstable();
+                offsets.dedup();
+                Ok(Appended::Base64(&data[..end], offsets))
+            }
+            other => Err(format!("<AppendedData> encoding '{}' is neither raw nor base64", other.unwrap_or("(none)"))),
+        }
+    }
+}
+
+fn collect_offsets(node: &Node, out: &mut Vec<usize>) {
+    if node.name == "DataArray" && node.attr("format") == Some("appended") {
+        if let Some(o) = node.attr("offset").and_then(|o| o.trim().parse().ok()) {
+            out.push(o);
+        }
+    }
+    node.children.iter().for_each(|c| collect_offsets(c, out));
+}
+
+struct Ctx<'a, 'p> {
+    path: &'p Path,
+    layout: Layout,
+    appended: Option<Appended<'a>>,
+}
+
+/// One piece's mesh, and its volume cells that are not tets.
+struct Part {
+    raw: RawMesh,
+    other: BTreeMap<u8, usize>,
+}
+
+impl<'a> Ctx<'a, '_> {
+    fn fail(&self, msg: String) -> Error {
+        Error::format(self.path, msg)
+    }
+
+    /// The values of a `<DataArray>`, which must hold exactly `n_values` of them.
+    fn array(&self, da: &Node, n_values: usize) -> Result<Array<'a>> {
+        let name = da.attr("Name").unwrap_or("(unnamed)");
+        let e = |msg: String| self.fail(format!("DataArray '{name}': {msg}"));
+        let ty = da.attr("type").unwrap_or("(none)");
+        let ty = NumType::from_xml(ty).ok_or_else(|| e(format!("type '{ty}' is not a numeric type")))?;
+        let n_bytes = n_values
+            .checked_mul(ty.size())
+            .ok_or_else(|| e(format!("{n_values} values: more than memory can hold")))?;
+        let big = self.layout.big_endian;
+        match da.attr("format") {
+            Some("ascii") => {
+                let (arr, _) = num::parse_ascii(&da.text(), ty, None).map_err(e)?;
+                if arr.len() != n_values {
+                    return Err(e(format!("has {} values, expected {n_values}", arr.len())));
+                }
+                Ok(arr)
+            }
+            Some("binary") => {
+                let decoded = blocks::base64_decode(&da.text()).map_err(e)?;
+                let block = blocks::read_block(&decoded, 0, self.layout, n_bytes).map_err(e)?;
+                Ok(Array::from_bytes(ty, Cow::Owned(block.into_owned()), big))
+            }
+            Some("appended") => {
+                let offset = da.attr("offset").unwrap_or("(none)");
+                let offset: usize = offset.trim().parse().map_err(|_| e(format!("offset '{offset}' is not a number")))?;
+                match &self.appended {
+                    None => Err(e("format is appended but the file has no <AppendedData>".into())),
+                    Some(Appended::Raw(data)) => {
+                        if offset > data.len() {
+                            return Err(e(format!("appended block at offset {offset} is past the end of the file")));
+                        }
+                        let block = blocks::read_block(data, offset, self.layout, n_bytes).map_err(e)?;
+                        Ok(Array::from_bytes(ty, block, big))
+                    }
+                    Some(Appended::Base64(text, offsets)) => {
+                        let end = offsets.iter().find(|&&o| o > offset).map_or(text.len(), |&o| o.min(text.len()));
+                        if offset > text.len() {
+                            return Err(e(format!("appended block at offset {offset} is past the end of the data")));
+                        }
+                        let decoded = blocks::base64_decode(&text[offset..end]).map_err(e)?;
+                        let block = blocks::read_block(&decoded, 0, self.layout, n_bytes).map_err(e)?;
+                        Ok(Array::from_bytes(ty, Cow::Owned(block.into_owned()), big))
+                    }
+                }
+            }
+            other => Err(e(format!("format '{}' is not ascii, binary or appended", other.unwrap_or("(none)")))),
+        }
+    }
+
+    fn count(&self, piece: &Node, key: &str, k: usize) -> Result<usize> {
+        let v = piece.attr(key).ok_or_else(|| self.fail(format!("piece {k}: <Piece> has no {key}")))?;
+        v.trim().parse().map_err(|_| self.fail(format!("piece {k}: {key}='{v}' is not a count")))
+    }
+
+    fn piece(&self, piece: &Node, k: usize) -> Result<Part> {
+        let n_points = self.count(piece, "NumberOfPoints", k)?;
+        let n_cells = self.count(piece, "NumberOfCells", k)?;
+
+        let points = match piece.child("Points").and_then(|p| p.child("DataArray")) {
+            Some(da) => {
+                if ncomp(da) != Some(3) {
+                    return Err(self.fail(format!("piece {k}: the points do not have 3 components")));
+                }
+                num::to_points(&self.array(da, n_points.saturating_mul(3))?)
+            }
+            None if n_points == 0 => Vec::new(),
+            None => return Err(self.fail(format!("piece {k}: no <Points> array"))),
+        };
+
+        let cells_node = piece.child("Cells");
+        let cell_array = |name: &str| {
+            cells_node
+                .and_then(|c| c.children_named("DataArray").find(|d| d.attr("Name") == Some(name)))
+                .ok_or_else(|| self.fail(format!("piece {k}: no <Cells> array named '{name}'")))
+        };
+        let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
+            let v = arr.get_i64(i).map_or_else(|| format!("{}", arr.get_f64(i)), |v| v.to_string());
+            self.fail(format!("DataArray '{name}': value {i} ({v}) {why}"))
+        };
+        let types_arr = self.array(cell_array("types")?, n_cells)?;
+        let types = num::map_ints(&types_arr, |v| u8::try_from(v).ok())
+            .map_err(|i| bad_value("types", &types_arr, i, "is not a VTK cell type"))?;
+        let offsets_arr = self.array(cell_array("offsets")?, n_cells)?;
+        let mut starts = Vec::with_capacity(n_cells + 1);
+        starts.push(0u64);
+        starts.extend(
+            num::map_ints(&offsets_arr, |v| u64::try_from(v).ok())
+                .map_err(|i| bad_value("offsets", &offsets_arr, i, "is not an offset"))?,
+        );
+        let n_conn = usize::try_from(*starts.last().unwrap()).unwrap_or(usize::MAX);
+        let conn_arr = self.array(cell_array("connectivity")?, n_conn)?;
+        let conn = num::to_ids(&conn_arr, n_points).map_err(|i| {
+            bad_value("connectivity", &conn_arr, i, &format!("is not a point id (the piece has {n_points} points)"))
+        })?;
+        drop(conn_arr);
+        let ex = cells::extract(&types, &starts, conn).map_err(|m| self.fail(format!("piece {k}: {m}")))?;
+        if !ex.other.is_empty() {
+            // The mesh is unusable: skip reading its fields.
+            return Ok(Part { raw: RawMesh::default(), other: ex.other });
+        }
+
+        let mut fields = Vec::new();
+        for (section, location, n) in
+            [("PointData", FieldLocation::Vertex, n_points), ("CellData", FieldLocation::Cell, n_cells)]
+        {
+            for da in piece.child(section).into_iter().flat_map(|s| s.children_named("DataArray")) {
+                if matches!(da.attr("type"), Some("String" | "Bit")) {
+                    continue; // no numeric field
+                }
+                let name = da.attr("Name").unwrap_or("(unnamed)");
+                let nc = ncomp(da).ok_or_else(|| {
+                    self.fail(format!("DataArray '{name}': NumberOfComponents is not a positive count"))
+                })?;
+                let arr = self.array(da, n.saturating_mul(nc))?;
+                for c in 0..nc {
+                    let mut values = num::component_f32(&arr, nc, c);
+                    if location == FieldLocation::Cell {
+                        values = cells::filter_cells(values, ex.kept.as_deref());
+                    }
+                    let name = if nc == 1 { name.to_string() } else { format!("{name}[{c}]") };
+                    fields.push(Field { name, location, values });
+                }
+            }
+        }
+        Ok(Part { raw: RawMesh { points, tets: ex.tets, fields, higher_order: ex.higher_order }, other: ex.other })
+    }
+}
+
+/// `NumberOfComponents` (default 1).
+fn ncomp(da: &Node) -> Option<usize> {
+    match da.attr("NumberOfComponents") {
+        None => Some(1),
+        Some(s) => s.trim().parse().ok().filter(|&n| n > 0),
+    }
+}
+
+/// Joins the pieces into one mesh. Fields that some piece lacks are dropped.
+fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
+    let mut other = BTreeMap::new();
+    for p in &parts {
+        for (&code, &n) in &p.other {
+            *other.entry(code).or_insert(0) += n;
+        }
+    }
+    if !other.is_empty() {
+        return Err(cells::non_tet_error(path, &other));
+    }
+    if parts.len() == 1 {
+        return Ok(parts.pop().unwrap().raw);
+    }
+    let mut out = RawMesh::default();
+    for f in &parts[0].raw.fields {
+        let in_all = parts.iter().all(|p| p.raw.fields.iter().any(|g| g.name == f.name && g.location == f.location));
+        if in_all {
+            out.fields.push(Field { name: f.name.clone(), location: f.location, values: Vec::new() });
+        }
+    }
+    for p in parts {
+        let base = out.points.len() as u64;
+        if base + p.raw.points.len() as u64 > u32::MAX as u64 {
+            return Err(Error::format(path, "the pieces hold more points than u32 ids can address"));
+        }
+        out.tets.extend(p.raw.tets.iter().map(|t| t.map(|i| i + base as u32)));
+        out.points.extend(p.raw.points);
+        out.higher_order = out.higher_order.max(p.raw.higher_order);
+        for f in &mut out.fields {
+            let g = p.raw.fields.iter().find(|g| g.name == f.name && g.location == f.location).unwrap();
+            f.values.extend_from_slice(&g.values);
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse_str(s: &str) -> Result<RawMesh> {
+        parse(s.as_bytes(), Path::new("test.vtu"))
+    }
+
+    const ASCII_TWO_PIECES: &str = r#"<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1">
+ <UnstructuredGrid>
+  <Piece NumberOfPoints="4" NumberOfCells="2">
+   <PointData><DataArray type="Float64" Name="f" format="ascii">0 1 2 3</DataArray>
+     <DataArray type="Int32" Name="v" NumberOfComponents="2" format="ascii">1 2 3 4 5 6 7 8</DataArray></PointData>
+   <CellData><DataArray type="UInt8" Name="c" format="ascii">7 9</DataArray></CellData>
+   <Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">0 0 0 1 0 0 0 1 0 0 0 1</DataArray></Points>
+   <Cells>
+    <DataArray type="Int32" Name="connectivity" format="ascii">0 1 2 3 3</DataArray>
+    <DataArray type="Int32" Name="offsets" format="ascii">4 5</DataArray>
+    <DataArray type="UInt8" Name="types" format="ascii">10 1</DataArray>
+   </Cells>
+  </Piece>
+  <Piece NumberOfPoints="4" NumberOfCells="1">
+   <PointData><DataArray type="Float64" Name="f" format="ascii">4 5 6 7</DataArray></PointData>
+   <CellData><DataArray type="UInt8" Name="c" format="ascii">11</DataArray></CellData>
+   <Points><DataArray type="Float64" NumberOfComponents="3" format="ascii">0 0 0 2 0 0 0 2 0 0 0 2</DataArray></Points>
+   <Cells>
+    <DataArray type="Int64" Name="connectivity" format="ascii">0 1 2 3</DataArray>
+    <DataArray type="Int64" Name="offsets" format="ascii">4</DataArray>
+    <DataArray type="UInt8" Name="types" format="ascii">10</DataArray>
+   </Cells>
+  </Piece>
+ </UnstructuredGrid>
+</VTKFile>"#;
+
+    #[test]
+    fn ascii_pieces_and_components() {
+        let m = parse_str(ASCII_TWO_PIECES).unwrap();
+        assert_eq!(m.points.len(), 8);
+        assert_eq!(m.points[5], [2.0, 0.0, 0.0]);
+        assert_eq!(m.tets, vec![[0, 1, 2, 3], [4, 5, 6, 7]]);
+        let names: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
+        // "v" is only in the first piece: dropped.
+        assert_eq!(names, ["f", "c"]);
+        assert_eq!(m.fields[0].values, vec![0., 1., 2., 3., 4., 5., 6., 7.]);
+        // The vertex cell's value is dropped with the vertex.
+        assert_eq!(m.fields[1].values, vec![7., 11.]);
+
+        let one = ASCII_TWO_PIECES.replacen("<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">", "<Skipped>", 1);
+        let one = one.replacen("</Piece>\n </UnstructuredGrid>", "</Skipped>\n </UnstructuredGrid>", 1);
+        let m = parse_str(&one).unwrap();
+        let names: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["f", "v[0]", "v[1]", "c"]);
+        assert_eq!(m.fields[2].values, vec![2., 4., 6., 8.]);
+    }
+
+    #[test]
+    fn clear_errors() {
+        let cases = [
+            (ASCII_TWO_PIECES.replace("0 1 2 3 3", "0 1 2 9 3"), "connectivity': value 3 (9) is not a point id"),
+            (ASCII_TWO_PIECES.replace("10 1<", "10 12<"), "hexahedron"),
+            (ASCII_TWO_PIECES.replace("0 1 2 3 3", "0 1 2 3"), "has 4 values, expected 5"),
+            (ASCII_TWO_PIECES.replace("\"Float64\" Name=\"f\"", "\"Float65\" Name=\"f\""), "'Float65'"),
+            (ASCII_TWO_PIECES.replace("UnstructuredGrid\"", "PolyData\""), "PolyData"),
+            (ASCII_TWO_PIECES.replace("4 5<", "4 x<"), "'x'"),
+            (ASCII_TWO_PIECES.replace("NumberOfCells=\"2\"", "NumberOfCells=\"-2\""), "not a count"),
+            (ASCII_TWO_PIECES.replace("</VTKFile>", ""), "truncated"),
+            (ASCII_TWO_PIECES.replace("version=\"0.1\"", "compressor=\"vtkLZ4DataCompressor\""), "LZ4"),
+        ];
+        for (src, want) in cases {
+            let e = parse_str(&src).unwrap_err().to_string();
+            assert!(e.contains(want) && e.starts_with("test.vtu"), "{e:?} should say {want:?}");
+        }
+    }
+
+    #[test]
+    fn gigantic_counts_fail_fast() {
+        let src = ASCII_TWO_PIECES.replacen("NumberOfPoints=\"4\"", "NumberOfPoints=\"1000000000000\"", 1);
+        let t = std::time::Instant::now();
+        assert!(parse_str(&src).is_err());
+        let src = ASCII_TWO_PIECES.replacen("NumberOfPoints=\"4\"", "NumberOfPoints=\"18446744073709551615\"", 1);
+        assert!(parse_str(&src).is_err());
+        assert!(t.elapsed().as_secs_f64() < 0.5);
+    }
 }

@@ -1,0 +1,247 @@
+//! VTK cell types, and picking the tetrahedra out of a VTK cell list.
+
+use crate::error::Error;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+/// What tetloc does with one VTK cell type.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Kind {
+    /// A linear tet: exactly 4 points.
+    Tet,
+    /// A tet of higher order whose first 4 points are its corners; the order follows from
+    /// the point count.
+    HigherTet,
+    /// A 0-, 1- or 2-D cell: not part of the volume mesh, ignored.
+    Lower,
+    /// A volume cell that is not a tet: the mesh cannot be used.
+    OtherVolume,
+}
+
+/// VTK's cell type codes (vtkCellType.h) with their names.
+const CELL_TYPES: &[(u8, &str, Kind)] = &[
+    (0, "empty cell", Kind::Lower),
+    (1, "vertex", Kind::Lower),
+    (2, "poly-vertex", Kind::Lower),
+    (3, "line", Kind::Lower),
+    (4, "poly-line", Kind::Lower),
+    (5, "triangle", Kind::Lower),
+    (6, "triangle strip", Kind::Lower),
+    (7, "polygon", Kind::Lower),
+    (8, "pixel", Kind::Lower),
+    (9, "quad", Kind::Lower),
+    (10, "tetra", Kind::Tet),
+    (11, "voxel", Kind::OtherVolume),
+    (12, "hexahedron", Kind::OtherVolume),
+    (13, "wedge", Kind::OtherVolume),
+    (14, "pyramid", Kind::OtherVolume),
+    (15, "pentagonal prism", Kind::OtherVolume),
+    (16, "hexagonal prism", Kind::OtherVolume),
+    (21, "quadratic edge", Kind::Lower),
+    (22, "quadratic triangle", Kind::Lower),
+    (23, "quadratic quad", Kind::Lower),
+    (24, "quadratic tetra", Kind::HigherTet),
+    (25, "quadratic hexahedron", Kind::OtherVolume),
+    (26, "quadratic wedge", Kind::OtherVolume),
+    (27, "quadratic pyramid", Kind::OtherVolume),
+    (28, "biquadratic quad", Kind::Lower),
+    (29, "triquadratic hexahedron", Kind::OtherVolume),
+    (30, "quadratic linear quad", Kind::Lower),
+    (31, "quadratic linear wedge", Kind::OtherVolume),
+    (32, "biquadratic quadratic wedge", Kind::OtherVolume),
+    (33, "biquadratic quadratic hexahedron", Kind::OtherVolume),
+    (34, "biquadratic triangle", Kind::Lower),
+    (35, "cubic line", Kind::Lower),
+    (36, "quadratic polygon", Kind::Lower),
+    (37, "triquadratic pyramid", Kind::OtherVolume),
+    (41, "convex point set", Kind::OtherVolume),
+    (42, "polyhedron", Kind::OtherVolume),
+    (51, "parametric curve", Kind::Lower),
+    (52, "parametric surface", Kind::Lower),
+    (53, "parametric tri surface", Kind::Lower),
+    (54, "parametric quad surface", Kind::Lower),
+    (55, "parametric tetra region", Kind::OtherVolume),
+    (56, "parametric hex region", Kind::OtherVolume),
+    (60, "higher-order edge", Kind::Lower),
+    (61, "higher-order triangle", Kind::Lower),
+    (62, "higher-order quad", Kind::Lower),
+    (63, "higher-order polygon", Kind::Lower),
+    // The deprecated generic higher-order tet has no defined point order: not usable.
+    (64, "higher-order tetrahedron", Kind::OtherVolume),
+    (65, "higher-order wedge", Kind::OtherVolume),
+    (66, "higher-order pyramid", Kind::OtherVolume),
+    (67, "higher-order hexahedron", Kind::OtherVolume),
+    (68, "Lagrange curve", Kind::Lower),
+    (69, "Lagrange triangle", Kind::Lower),
+    (70, "Lagrange quadrilateral", Kind::Lower),
+    (71, "Lagrange tetrahedron", Kind::HigherTet),
+    (72, "Lagrange hexahedron", Kind::OtherVolume),
+    (73, "Lagrange wedge", Kind::OtherVolume),
+    (74, "Lagrange pyramid", Kind::OtherVolume),
+    (75, "Bezier curve", Kind::Lower),
+    (76, "Bezier triangle", Kind::Lower),
+    (77, "Bezier quadrilateral", Kind::Lower),
+    // Bezier tets interpolate their corner control points, so the corner tet is exact there.
+    (78, "Bezier tetrahedron", Kind::HigherTet),
+    (79, "Bezier hexahedron", Kind::OtherVolume),
+    (80, "Bezier wedge", Kind::OtherVolume),
+    (81, "Bezier pyramid", Kind::OtherVolume),
+];
+
+fn lookup(code: u8) -> Option<(&'static str, Kind)> {
+    CELL_TYPES.iter().find(|c| c.0 == code).map(|c| (c.1, c.2))
+}
+
+pub(crate) const TETRA: u8 = 10;
+pub(crate) const VERTEX: u8 = 1;
+
+/// The order k of a tet with `n` Lagrange points, n = (k+1)(k+2)(k+3)/6.
+fn tet_order(n: usize) -> Option<u8> {
+    (1..=20u8).find(|&k| {
+        let k = k as usize;
+        (k + 1) * (k + 2) * (k + 3) / 6 == n
+    })
+}
+
+/// The tets picked out of a cell list.
+#[derive(Debug)]
+pub(crate) struct Extracted {
+    /// Corner ids of the tets, in file order.
+    pub tets: Vec<[u32; 4]>,
+    /// Which cells are tets (`None`: all of them): cell fields keep those values only.
+    pub kept: Option<Vec<bool>>,
+    pub higher_order: Option<u8>,
+    /// Volume cells that are not tets, counted by type code.
+    pub other: BTreeMap<u8, usize>,
+}
+
+/// Picks the tets out of `types.len()` cells; cell `i` has the point ids
+/// `conn[starts[i]..starts[i + 1]]`. `starts` is validated here. Errors are messages for
+/// [`Error::format`].
+pub(crate) fn extract(types: &[u8], starts: &[u64], conn: Vec<u32>) -> Result<Extracted, String> {
+    let n = types.len();
+    if starts.len() != n + 1 {
+        return Err(format!("{} cell types but {} cell offsets", n, starts.len().saturating_sub(1)));
+    }
+    if starts[0] != 0 {
+        return Err(format!("the first cell starts at connectivity entry {}, not 0", starts[0]));
+    }
+    if let Some(i) = starts.windows(2).position(|w| w[1] < w[0]) {
+        return Err(format!("cell offsets decrease at cell {i} ({} then {})", starts[i], starts[i + 1]));
+    }
+    if starts[n] != conn.len() as u64 {
+        return Err(format!(
+            "the cell offsets end at {} but the connectivity has {} entries",
+            starts[n],
+            conn.len()
+        ));
+    }
+
+    // The common case, all linear tets: the connectivity is the tet array, no copy.
+    use rayon::prelude::*;
+    if types.par_iter().all(|&t| t == TETRA) && starts.par_iter().enumerate().all(|(i, &s)| s == 4 * i as u64) {
+        let tets = bytemuck::allocation::try_cast_vec(conn).unwrap_or_else(|(_, v)| {
+            v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect()
+        });
+        return Ok(Extracted { tets, kept: None, higher_order: None, other: BTreeMap::new() });
+    }
+
+    let mut tets = Vec::new();
+    let mut kept = vec![false; n];
+    let mut higher_order: Option<u8> = None;
+    let mut other = BTreeMap::new();
+    for (i, &code) in types.iter().enumerate() {
+        let ids = &conn[starts[i] as usize..starts[i + 1] as usize];
+        let Some((name, kind)) = lookup(code) else {
+            return Err(format!("cell {i} has cell type {code}, which VTK does not define"));
+        };
+        match kind {
+            Kind::Tet | Kind::HigherTet => {
+                let order = match kind {
+                    Kind::Tet => (ids.len() == 4).then_some(1),
+                    _ if code == 24 => (ids.len() == 10).then_some(2),
+                    _ => tet_order(ids.len()),
+                };
+                let Some(order) = order else {
+                    return Err(format!("cell {i} ({name}) has {} points, which no {name} has", ids.len()));
+                };
+                if order > 1 {
+                    higher_order = Some(higher_order.map_or(order, |o| o.max(order)));
+                }
+                tets.push([ids[0], ids[1], ids[2], ids[3]]);
+                kept[i] = true;
+            }
+            Kind::Lower => {}
+            Kind::OtherVolume => *other.entry(code).or_insert(0) += 1,
+        }
+    }
+    let kept = (tets.len() < n).then_some(kept);
+    Ok(Extracted { tets, kept, higher_order, other })
+}
+
+/// The [`Error::NonTetCells`] for volume cells counted by type code.
+pub(crate) fn non_tet_error(path: &Path, other: &BTreeMap<u8, usize>) -> Error {
+    let counts = other
+        .iter()
+        .map(|(&code, &k)| (lookup(code).map_or_else(|| format!("type {code}"), |c| c.0.to_string()), k))
+        .collect();
+    Error::NonTetCells { path: path.to_path_buf(), counts }
+}
+
+/// Keeps the values of the tets only, when some cells were not tets.
+pub(crate) fn filter_cells(values: Vec<f32>, kept: Option<&[bool]>) -> Vec<f32> {
+    match kept {
+        None => values,
+        Some(k) => values.into_iter().zip(k).filter(|(_, &k)| k).map(|(v, _)| v).collect(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn orders() {
+        assert_eq!(tet_order(4), Some(1));
+        assert_eq!(tet_order(10), Some(2));
+        assert_eq!(tet_order(20), Some(3));
+        assert_eq!(tet_order(35), Some(4));
+        assert_eq!(tet_order(11), None);
+    }
+
+    #[test]
+    fn mixed_cells() {
+        // triangle, quadratic tet, tet, vertex
+        let types = [5u8, 24, 10, 1];
+        let starts = [0u64, 3, 13, 17, 18];
+        let conn: Vec<u32> = (0..18).collect();
+        let e = extract(&types, &starts, conn.clone()).unwrap();
+        assert_eq!(e.tets, vec![[3, 4, 5, 6], [13, 14, 15, 16]]);
+        assert_eq!(e.kept.as_deref(), Some(&[false, true, true, false][..]));
+        assert_eq!(e.higher_order, Some(2));
+        assert!(e.other.is_empty());
+        assert_eq!(filter_cells(vec![1., 2., 3., 4.], e.kept.as_deref()), vec![2., 3.]);
+
+        let e = extract(&[12, 10, 12, 13], &[0, 8, 12, 20, 26], (0..26).collect()).unwrap();
+        assert_eq!(e.other.into_iter().collect::<Vec<_>>(), vec![(12, 2), (13, 1)]);
+    }
+
+    #[test]
+    fn bad_cells() {
+        assert!(extract(&[10], &[0, 5], (0..5).collect()).unwrap_err().contains("5 points"));
+        assert!(extract(&[24], &[0, 9], (0..9).collect()).is_err());
+        assert!(extract(&[71], &[0, 11], (0..11).collect()).is_err());
+        assert!(extract(&[200], &[0, 4], (0..4).collect()).unwrap_err().contains("200"));
+        assert!(extract(&[10, 10], &[0, 4, 3], (0..4).collect()).unwrap_err().contains("decrease"));
+        assert!(extract(&[10], &[0, 4], (0..8).collect()).unwrap_err().contains("end at 4"));
+        assert!(extract(&[10], &[1, 5], (0..5).collect()).is_err());
+        assert!(extract(&[10], &[0], vec![]).is_err());
+    }
+
+    #[test]
+    fn all_tets_fast_path() {
+        let e = extract(&[10, 10], &[0, 4, 8], (0..8).collect()).unwrap();
+        assert_eq!(e.tets, vec![[0, 1, 2, 3], [4, 5, 6, 7]]);
+        assert!(e.kept.is_none() && e.higher_order.is_none());
+    }
+}

@@ -1,0 +1,381 @@
+//! Typed numeric arrays as VTK files store them (any of ten element types), and their fast
+//! conversion to tetloc's types. Arrays are normalised to little-endian bytes first, so the
+//! conversions dispatch on the element type only.
+
+use rayon::prelude::*;
+use std::borrow::Cow;
+
+/// Runs `$body` with `$T` bound to the Rust type of a [`NumType`].
+macro_rules! with_type {
+    ($ty:expr, $T:ident => $body:expr) => {
+        match $ty {
+            NumType::I8 => { type $T = i8; $body }
+            NumType::U8 => { type $T = u8; $body }
+            NumType::I16 => { type $T = i16; $body }
+            NumType::U16 => { type $T = u16; $body }
+            NumType::I32 => { type $T = i32; $body }
+            NumType::U32 => { type $T = u32; $body }
+            NumType::I64 => { type $T = i64; $body }
+            NumType::U64 => { type $T = u64; $body }
+            NumType::F32 => { type $T = f32; $body }
+            NumType::F64 => { type $T = f64; $body }
+        }
+    };
+}
+
+/// The element types of VTK data arrays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum NumType {
+    I8,
+    U8,
+    I16,
+    U16,
+    I32,
+    U32,
+    I64,
+    U64,
+    F32,
+    F64,
+}
+
+impl NumType {
+    pub fn size(self) -> usize {
+        match self {
+            NumType::I8 | NumType::U8 => 1,
+            NumType::I16 | NumType::U16 => 2,
+            NumType::I32 | NumType::U32 | NumType::F32 => 4,
+            NumType::I64 | NumType::U64 | NumType::F64 => 8,
+        }
+    }
+
+    pub fn is_float(self) -> bool {
+        matches!(self, NumType::F32 | NumType::F64)
+    }
+
+    /// The `type` attribute of a VTK XML `DataArray`.
+    pub fn from_xml(name: &str) -> Option<NumType> {
+        Some(match name {
+            "Int8" | "Char" => NumType::I8,
+            "UInt8" => NumType::U8,
+            "Int16" => NumType::I16,
+            "UInt16" => NumType::U16,
+            "Int32" => NumType::I32,
+            "UInt32" => NumType::U32,
+            "Int64" => NumType::I64,
+            "UInt64" => NumType::U64,
+            "Float32" => NumType::F32,
+            "Float64" => NumType::F64,
+            _ => return None,
+        })
+    }
+
+    /// A data type name of the legacy format. `long` is 64-bit as VTK writes it on LP64
+    /// systems; `vtkIdType` is written as 32-bit ints by VTK's legacy writer.
+    pub fn from_legacy(name: &str) -> Option<NumType> {
+        Some(match name.to_ascii_lowercase().as_str() {
+            "char" | "signed_char" | "vtktypeint8" => NumType::I8,
+            "unsigned_char" | "vtktypeuint8" => NumType::U8,
+            "short" | "vtktypeint16" => NumType::I16,
+            "unsigned_short" | "vtktypeuint16" => NumType::U16,
+            "int" | "vtkidtype" | "vtktypeint32" => NumType::I32,
+            "unsigned_int" | "vtktypeuint32" => NumType::U32,
+            "long" | "long_long" | "vtktypeint64" => NumType::I64,
+            "unsigned_long" | "unsigned_long_long" | "vtktypeuint64" => NumType::U64,
+            "float" | "vtktypefloat32" => NumType::F32,
+            "double" | "vtktypefloat64" => NumType::F64,
+            _ => return None,
+        })
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            NumType::I8 => "Int8",
+            NumType::U8 => "UInt8",
+            NumType::I16 => "Int16",
+            NumType::U16 => "UInt16",
+            NumType::I32 => "Int32",
+            NumType::U32 => "UInt32",
+            NumType::I64 => "Int64",
+            NumType::U64 => "UInt64",
+            NumType::F32 => "Float32",
+            NumType::F64 => "Float64",
+        }
+    }
+}
+
+#[derive(Debug)]
+/// An array's values as little-endian bytes of `ty`. Borrowed straight from the file when
+/// it can be (appended raw data), owned otherwise.
+pub(crate) struct Array<'a> {
+    pub ty: NumType,
+    pub bytes: Cow<'a, [u8]>,
+}
+
+impl<'a> Array<'a> {
+    /// `bytes` in `big_endian` order become a little-endian array (one copy if swapped).
+    pub fn from_bytes(ty: NumType, bytes: Cow<'a, [u8]>, big_endian: bool) -> Array<'a> {
+        let s = ty.size();
+        if !big_endian || s == 1 {
+            return Array { ty, bytes };
+        }
+        let mut v = bytes.into_owned();
+        v.par_chunks_mut(1 << 16).for_each(|c| c.chunks_exact_mut(s).for_each(|e| e.reverse()));
+        Array { ty, bytes: Cow::Owned(v) }
+    }
+
+    pub fn len(&self) -> usize {
+        self.bytes.len() / self.ty.size()
+    }
+
+    /// The i-th value as f64 (for error messages and small arrays).
+    pub fn get_f64(&self, i: usize) -> f64 {
+        with_type!(self.ty, T => T::get(&self.bytes, i).to_f64())
+    }
+
+    /// The i-th value as an integer, `None` for a float or a u64 beyond i64.
+    pub fn get_i64(&self, i: usize) -> Option<i64> {
+        with_type!(self.ty, T => T::get(&self.bytes, i).to_i64())
+    }
+}
+
+/// One element type: read from little-endian bytes and convert.
+pub(crate) trait Elem: Copy + Send + Sync + 'static {
+    const SIZE: usize;
+    fn read(b: &[u8]) -> Self;
+    fn to_f32(self) -> f32;
+    fn to_f64(self) -> f64;
+    /// `None` for floats and for u64 values beyond i64.
+    fn to_i64(self) -> Option<i64>;
+    fn get(bytes: &[u8], i: usize) -> Self {
+        Self::read(&bytes[i * Self::SIZE..(i + 1) * Self::SIZE])
+    }
+}
+
+macro_rules! impl_int {
+    ($($t:ty),*) => {$(
+        impl Elem for $t {
+            const SIZE: usize = std::mem::size_of::<$t>();
+            #[inline(always)]
+            fn read(b: &[u8]) -> Self { <$t>::from_le_bytes(b.try_into().unwrap()) }
+            #[inline(always)]
+            fn to_f32(self) -> f32 { self as f32 }
+            #[inline(always)]
+            fn to_f64(self) -> f64 { self as f64 }
+            #[inline(always)]
+            fn to_i64(self) -> Option<i64> { i64::try_from(self).ok() }
+        }
+    )*};
+}
+impl_int!(i8, u8, i16, u16, i32, u32, i64, u64);
+
+macro_rules! impl_float {
+    ($($t:ty),*) => {$(
+        impl Elem for $t {
+            const SIZE: usize = std::mem::size_of::<$t>();
+            #[inline(always)]
+            fn read(b: &[u8]) -> Self { <$t>::from_le_bytes(b.try_into().unwrap()) }
+            #[inline(always)]
+            fn to_f32(self) -> f32 { self as f32 }
+            #[inline(always)]
+            fn to_f64(self) -> f64 { self as f64 }
+            #[inline(always)]
+            fn to_i64(self) -> Option<i64> { None }
+        }
+    )*};
+}
+impl_float!(f32, f64);
+
+
+/// Maps each group of `group` consecutive bytes to one output value, in parallel; `f`
+/// rejects a group with `None`, and then the index of the first rejected group is returned.
+fn map_groups<U, F>(bytes: &[u8], group: usize, f: F) -> Result<Vec<U>, usize>
+where
+    U: Copy + Default + Send + Sync,
+    F: Fn(&[u8]) -> Option<U> + Sync,
+{
+    const CHUNK: usize = 1 << 14;
+    let n = bytes.len() / group;
+    let mut out = vec![U::default(); n];
+    let ok = out
+        .par_chunks_mut(CHUNK)
+        .zip(bytes.par_chunks(CHUNK * group))
+        .try_for_each(|(o, b)| {
+            for (x, g) in o.iter_mut().zip(b.chunks_exact(group)) {
+                *x = f(g).ok_or(())?;
+            }
+            Ok(())
+        });
+    match ok {
+        Ok(()) => Ok(out),
+        // Error path only: find the first bad group sequentially.
+        Err(()) => Err(bytes.chunks_exact(group).position(|g| f(g).is_none()).unwrap_or(0)),
+    }
+}
+
+/// Every value as f32 (f64 rounds to nearest).
+pub(crate) fn to_f32(a: &Array) -> Vec<f32> {
+    fn go<T: Elem>(b: &[u8]) -> Vec<f32> {
+        map_groups(b, T::SIZE, |g| Some(T::read(g).to_f32())).unwrap_or_default()
+    }
+    with_type!(a.ty, T => go::<T>(&a.bytes))
+}
+
+/// Component `c` of every tuple of `ncomp` values, as f32.
+pub(crate) fn component_f32(a: &Array, ncomp: usize, c: usize) -> Vec<f32> {
+    fn go<T: Elem>(b: &[u8], ncomp: usize, c: usize) -> Vec<f32> {
+        map_groups(b, ncomp * T::SIZE, |g| Some(T::get(g, c).to_f32())).unwrap_or_default()
+    }
+    if ncomp == 1 {
+        return to_f32(a);
+    }
+    with_type!(a.ty, T => go::<T>(&a.bytes, ncomp, c))
+}
+
+/// Triples of values as f32 points.
+pub(crate) fn to_points(a: &Array) -> Vec<[f32; 3]> {
+    fn go<T: Elem>(b: &[u8]) -> Vec<[f32; 3]> {
+        map_groups(b, 3 * T::SIZE, |g| Some([0, 1, 2].map(|k| T::get(g, k).to_f32()))).unwrap_or_default()
+    }
+    with_type!(a.ty, T => go::<T>(&a.bytes))
+}
+
+/// Integer values mapped through `f`, which returns `None` for values out of the caller's
+/// range. On a float array or a rejected value: the index of the first bad value.
+pub(crate) fn map_ints<U, F>(a: &Array, f: F) -> Result<Vec<U>, usize>
+where
+    U: Copy + Default + Send + Sync,
+    F: Fn(i64) -> Option<U> + Sync,
+{
+    fn go<T: Elem, U: Copy + Default + Send + Sync>(
+        b: &[u8],
+        f: &(impl Fn(i64) -> Option<U> + Sync),
+    ) -> Result<Vec<U>, usize> {
+        map_groups(b, T::SIZE, |g| T::read(g).to_i64().and_then(f))
+    }
+    if a.ty.is_float() {
+        return Err(0);
+    }
+    with_type!(a.ty, T => go::<T, U>(&a.bytes, &f))
+}
+
+/// Point ids below `n_points`, grouped in `k`s (`k` = 1 or 4).
+pub(crate) fn to_ids(a: &Array, n_points: usize) -> Result<Vec<u32>, usize> {
+    // Ids must also fit u32; n_points <= u32::MAX is checked by Mesh::new.
+    let n = n_points.min(u32::MAX as usize) as i64;
+    map_ints(a, move |v| (0..n).contains(&v).then_some(v as u32))
+}
+
+/// Parses whitespace-separated numbers as `ty` into a little-endian array: all of them
+/// (`count` None) or exactly `count`. Returns the array and the number of bytes consumed.
+/// On error: a message naming the bad token.
+pub(crate) fn parse_ascii(text: &[u8], ty: NumType, count: Option<usize>) -> Result<(Array<'static>, usize), String> {
+    let size = ty.size();
+    // A value takes at least two bytes of text (digit and separator): never trust `count`
+    // for the allocation.
+    let cap = count.unwrap_or(usize::MAX).min(text.len() / 2 + 1);
+    let mut out: Vec<u8> = Vec::with_capacity(cap * size);
+    let mut pos = 0;
+    let mut n = 0;
+    while count.map_or(true, |c| n < c) {
+        while pos < text.len() && text[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        if pos == text.len() {
+            break;
+        }
+        let start = pos;
+        while pos < text.len() && !text[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let tok = &text[start..pos];
+        let bad = || format!("value {n}: '{}' is not a valid {}", String::from_utf8_lossy(&tok[..tok.len().min(40)]), ty.name());
+        let s = std::str::from_utf8(tok).map_err(|_| bad())?;
+        macro_rules! push_int {
+            ($t:ty) => {{
+                let v: $t = match s.parse::<$t>() {
+                    Ok(v) => v,
+                    // Some writers print integral values of int arrays as floats ("3.0").
+                    Err(_) => {
+                        let f: f64 = s.parse().map_err(|_| bad())?;
+                        if f.fract() != 0.0 || f < <$t>::MIN as f64 || f > <$t>::MAX as f64 {
+                            return Err(bad());
+                        }
+                        f as $t
+                    }
+                };
+                out.extend_from_slice(&v.to_le_bytes());
+            }};
+        }
+        match ty {
+            NumType::I8 => push_int!(i8),
+            NumType::U8 => push_int!(u8),
+            NumType::I16 => push_int!(i16),
+            NumType::U16 => push_int!(u16),
+            NumType::I32 => push_int!(i32),
+            NumType::U32 => push_int!(u32),
+            NumType::I64 => push_int!(i64),
+            NumType::U64 => push_int!(u64),
+            NumType::F32 => out.extend_from_slice(&s.parse::<f32>().map_err(|_| bad())?.to_le_bytes()),
+            NumType::F64 => out.extend_from_slice(&s.parse::<f64>().map_err(|_| bad())?.to_le_bytes()),
+        }
+        n += 1;
+    }
+    if let Some(c) = count {
+        if n < c {
+            return Err(format!("expected {c} values, found only {n} before the end of the data"));
+        }
+    }
+    Ok((Array { ty, bytes: Cow::Owned(out) }, pos))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn arr(ty: NumType, bytes: Vec<u8>) -> Array<'static> {
+        Array { ty, bytes: Cow::Owned(bytes) }
+    }
+
+    #[test]
+    fn big_endian_is_swapped() {
+        let a = Array::from_bytes(NumType::I32, Cow::Owned(vec![0, 0, 1, 2, 0xff, 0xff, 0xff, 0xfe]), true);
+        assert_eq!(map_ints(&a, Some).unwrap(), vec![258i64, -2]);
+        let d = Array::from_bytes(NumType::F64, Cow::Owned(1.5f64.to_be_bytes().to_vec()), true);
+        assert_eq!(to_f32(&d), vec![1.5]);
+    }
+
+    #[test]
+    fn conversions() {
+        let f: Vec<u8> = [1.0f64, 2.0, 3.0, 4.0, 5.0, 6.0].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let a = arr(NumType::F64, f);
+        assert_eq!(to_points(&a), vec![[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
+        assert_eq!(component_f32(&a, 3, 1), vec![2.0, 5.0]);
+        assert_eq!(component_f32(&a, 2, 1), vec![2.0, 4.0, 6.0]);
+        assert_eq!(map_ints(&a, Some), Err(0), "floats are no ids");
+
+        let ids: Vec<u8> = [0i64, 5, 7, -1].iter().flat_map(|v| v.to_le_bytes()).collect();
+        let a = arr(NumType::I64, ids);
+        assert_eq!(to_ids(&a, 8), Err(3), "negative id");
+        assert_eq!(to_ids(&a, 7), Err(2), "id beyond the points");
+        let big = arr(NumType::U64, u64::MAX.to_le_bytes().to_vec());
+        assert_eq!(big.get_i64(0), None);
+        assert_eq!(to_ids(&big, 10), Err(0));
+    }
+
+    #[test]
+    fn ascii() {
+        let (a, used) = parse_ascii(b"  1 -2\n3e0 4.0 x", NumType::I16, Some(4)).unwrap();
+        assert_eq!(map_ints(&a, Some).unwrap(), vec![1i64, -2, 3, 4]);
+        assert_eq!(used, 14);
+        assert!(parse_ascii(b"1 2 x", NumType::F32, None).unwrap_err().contains("'x'"));
+        assert!(parse_ascii(b"300", NumType::U8, None).is_err());
+        assert!(parse_ascii(b"1.5", NumType::I32, None).is_err());
+        assert!(parse_ascii(b"1 2", NumType::F64, Some(3)).unwrap_err().contains("only 2"));
+        // A huge declared count allocates by the text, not by the claim.
+        assert!(parse_ascii(b"1 2", NumType::F64, Some(1 << 60)).is_err());
+        let (f, _) = parse_ascii(b"0.1 nan -inf", NumType::F32, None).unwrap();
+        let v = to_f32(&f);
+        assert_eq!(v[0], 0.1f32);
+        assert!(v[1].is_nan() && v[2] == f32::NEG_INFINITY);
+    }
+}

@@ -1,0 +1,1 @@
+//! Tests of the VTK readers and writers against the shared data.
