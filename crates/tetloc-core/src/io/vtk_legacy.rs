@@ -1,7 +1,17 @@
-//! Reader stub: replaced by the real reader.
+//! Reader of VTK legacy files (`.vtk`) that hold an `UNSTRUCTURED_GRID`: ASCII or BINARY
+//! (big-endian), file versions up to 4.2 (`CELLS n size` with a count before each cell's
+//! ids) and 5.x (`CELLS` followed by `OFFSETS` and `CONNECTIVITY` arrays).
+//!
+//! The file is a sequence of keyword lines, each followed by its data: whitespace-separated
+//! numbers in ASCII files, raw big-endian values right after the line's newline in BINARY
+//! ones. Point and cell attributes (SCALARS, VECTORS, NORMALS, TENSORS, FIELD arrays, ...)
+//! become fields; METADATA blocks and lookup tables are skipped.
 
+use super::vtu::vtk::cells;
+use super::vtu::vtk::num::{self, Array, NumType};
 use crate::error::{Error, Result};
-use crate::mesh::RawMesh;
+use crate::mesh::{Field, FieldLocation, RawMesh};
+use std::borrow::Cow;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
@@ -10,6 +20,539 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 }
 
 /// Parses a whole file held in memory; `path` only names it in errors.
-pub fn parse(_bytes: &[u8], path: &Path) -> Result<RawMesh> {
-    Err(Error::format(path, "reader not implemented yet"))
+pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
+    let mut c = Cursor { b: bytes, pos: 0, binary: false, path };
+    let magic = c.line().unwrap_or_default();
+    if !String::from_utf8_lossy(magic).to_ascii_lowercase().starts_with("# vtk datafile version") {
+        return Err(c.fail("not a VTK legacy file: the first line is not '# vtk DataFile Version x.y'".into()));
+    }
+    c.line(); // title
+    let mode = String::from_utf8_lossy(c.line().unwrap_or_default()).trim().to_ascii_uppercase();
+    c.binary = match mode.as_str() {
+        "ASCII" => false,
+        "BINARY" => true,
+        _ => return Err(c.fail(format!("the third line is '{mode}', not ASCII or BINARY"))),
+    };
+    let kw = c.keyword()?;
+    let args = c.args();
+    if kw != "DATASET" {
+        return Err(c.fail(format!("expected DATASET, found '{kw}'")));
+    }
+    match args.first().map(|s| s.to_ascii_uppercase()) {
+        Some(t) if t == "UNSTRUCTURED_GRID" => {}
+        t => {
+            return Err(c.fail(format!(
+                "dataset type {}: tetloc reads UNSTRUCTURED_GRID files",
+                t.unwrap_or_else(|| "(none)".into())
+            )))
+        }
+    }
+
+    let mut g = Grid::default();
+    // The attribute section being read: where its values go and how many tuples it has.
+    let mut section: Option<(FieldLocation, usize)> = None;
+    while let Some(kw) = c.keyword_opt() {
+        let args = c.args();
+        let arg = |i: usize| args.get(i).map(String::as_str);
+        match kw.as_str() {
+            "POINTS" => {
+                let n = c.count(arg(0), "POINTS count")?;
+                let ty = c.num_type(arg(1))?;
+                g.points = Some(num::to_points(&c.values(ty, n.saturating_mul(3), "POINTS")?));
+            }
+            "CELLS" => {
+                let (a, b) = (c.count(arg(0), "CELLS count")?, c.count(arg(1), "CELLS size")?);
+                if c.next_line_starts_with("OFFSETS") {
+                    g.cells = Some(c.offsets_and_connectivity(a, b)?);
+                } else {
+                    g.cells = Some(Cells::List(c.values(NumType::I32, b, "CELLS")?));
+                }
+            }
+            "CELL_TYPES" => {
+                let n = c.count(arg(0), "CELL_TYPES count")?;
+                let arr = c.values(NumType::I32, n, "CELL_TYPES")?;
+                let types = num::map_ints(&arr, |v| u8::try_from(v).ok()).map_err(|i| {
+                    c.fail(format!("CELL_TYPES: value {i} ({:?}) is not a VTK cell type", arr.get_i64(i)))
+                })?;
+                g.types = Some(types);
+            }
+            "POINT_DATA" => section = Some((FieldLocation::Vertex, c.count(arg(0), "POINT_DATA count")?)),
+            "CELL_DATA" => section = Some((FieldLocation::Cell, c.count(arg(0), "CELL_DATA count")?)),
+            "FIELD" => {
+                let n_arrays = c.count(arg(1), "FIELD array count")?;
+                for _ in 0..n_arrays {
+                    c.field_array(section, &mut g.fields)?;
+                }
+            }
+            "METADATA" => c.skip_metadata(),
+            "LOOKUP_TABLE" => {
+                // A table of RGBA colours: floats in ASCII, bytes in BINARY.
+                let n = c.count(arg(1), "LOOKUP_TABLE size")?;
+                let ty = if c.binary { NumType::U8 } else { NumType::F32 };
+                c.values(ty, n.saturating_mul(4), "LOOKUP_TABLE")?;
+            }
+            "SCALARS" | "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" | "TEXTURE_COORDINATES" | "COLOR_SCALARS"
+            | "GLOBAL_IDS" | "PEDIGREE_IDS" | "EDGE_FLAGS" => {
+                let Some((location, n)) = section else {
+                    return Err(c.fail(format!("{kw} before POINT_DATA or CELL_DATA")));
+                };
+                let name = decode_name(arg(0).unwrap_or("(unnamed)"));
+                let (ty, ncomp) = match kw.as_str() {
+                    "SCALARS" => {
+                        let nc = match arg(2) {
+                            Some(s) => c.count(Some(s), "SCALARS components")?,
+                            None => 1,
+                        };
+                        if c.next_line_starts_with("LOOKUP_TABLE") {
+                            c.keyword()?;
+                            c.args();
+                        }
+                        (arg(1), nc)
+                    }
+                    "VECTORS" | "NORMALS" => (arg(1), 3),
+                    "TENSORS" => (arg(1), 9),
+                    "TENSORS6" => (arg(1), 6),
+                    "TEXTURE_COORDINATES" => (arg(2), c.count(arg(1), "TEXTURE_COORDINATES dimension")?),
+                    // Colours: bytes in BINARY files, floats in [0, 1] in ASCII ones.
+                    "COLOR_SCALARS" => {
+                        (Some(if c.binary { "unsigned_char" } else { "float" }), c.count(arg(1), "COLOR_SCALARS size")?)
+                    }
+                    _ => (arg(1), 1),
+                };
+                c.attribute(&name, ty, n, ncomp, location, &mut g.fields, kw == "COLOR_SCALARS")?;
+            }
+            _ => {
+                return Err(c.fail(format!(
+                    "unexpected keyword '{kw}' (expected POINTS, CELLS, CELL_TYPES, POINT_DATA, CELL_DATA or an attribute)"
+                )))
+            }
+        }
+    }
+    g.finish(path)
+}
+
+/// The cells as the file gives them.
+enum Cells<'a> {
+    /// Version ≤ 4.2: each cell's point count, then its ids.
+    List(Array<'a>),
+    /// Version 5: `n + 1` offsets and the connectivity.
+    Arrays(Array<'a>, Array<'a>),
+}
+
+#[derive(Default)]
+struct Grid<'a> {
+    points: Option<Vec<[f32; 3]>>,
+    cells: Option<Cells<'a>>,
+    types: Option<Vec<u8>>,
+    fields: Vec<Field>,
+}
+
+impl Grid<'_> {
+    fn finish(self, path: &Path) -> Result<RawMesh> {
+        let fail = |msg: String| Error::format(path, msg);
+        let points = self.points.ok_or_else(|| fail("no POINTS section".into()))?;
+        let cells = self.cells.ok_or_else(|| fail("no CELLS section".into()))?;
+        let types = self.types.ok_or_else(|| fail("no CELL_TYPES section".into()))?;
+        let n_points = points.len();
+        let bad_id = |arr: &Array, i: usize, what: &str| {
+            fail(format!("{what}: value {i} ({:?}) is not a point id (the file has {n_points} points)", arr.get_i64(i)))
+        };
+        let (starts, conn) = match cells {
+            Cells::List(list) => {
+                let v = num::map_ints(&list, |v| u32::try_from(v).ok())
+                    .map_err(|i| fail(format!("CELLS: value {i} ({:?}) is negative", list.get_i64(i))))?;
+                let mut starts = Vec::with_capacity(types.len() + 1);
+                let mut conn = Vec::with_capacity(v.len().saturating_sub(types.len()));
+                let mut pos = 0;
+                starts.push(0u64);
+                while pos < v.len() {
+                    let k = v[pos] as usize;
+                    let ids = v.get(pos + 1..pos + 1 + k).ok_or_else(|| {
+                        fail(format!("CELLS: cell {} claims {k} points, past the end of the list", starts.len() - 1))
+                    })?;
+                    if let Some(&id) = ids.iter().find(|&&id| id as usize >= n_points) {
+                        return Err(fail(format!(
+                            "CELLS: cell {} uses point {id}, but the file has {n_points} points",
+                            starts.len() - 1
+                        )));
+                    }
+                    conn.extend_from_slice(ids);
+                    starts.push(conn.len() as u64);
+                    pos += 1 + k;
+                }
+                (starts, conn)
+            }
+            Cells::Arrays(offsets, connectivity) => {
+                let starts = num::map_ints(&offsets, |v| u64::try_from(v).ok())
+                    .map_err(|i| fail(format!("OFFSETS: value {i} ({:?}) is not an offset", offsets.get_i64(i))))?;
+                let conn = num::to_ids(&connectivity, n_points).map_err(|i| bad_id(&connectivity, i, "CONNECTIVITY"))?;
+                (starts, conn)
+            }
+        };
+        let ex = cells::extract(&types, &starts, conn).map_err(fail)?;
+        if !ex.other.is_empty() {
+            return Err(cells::non_tet_error(path, &ex.other));
+        }
+        let mut fields = self.fields;
+        for f in &mut fields {
+            let (want, what) = match f.location {
+                FieldLocation::Vertex => (n_points, "POINT_DATA"),
+                FieldLocation::Cell => (types.len(), "CELL_DATA"),
+            };
+            if f.values.len() != want {
+                return Err(fail(format!(
+                    "{what} array '{}' has {} values, but the file has {want} {}",
+                    f.name,
+                    f.values.len(),
+                    if what == "POINT_DATA" { "points" } else { "cells" }
+                )));
+            }
+            if f.location == FieldLocation::Cell {
+                f.values = cells::filter_cells(std::mem::take(&mut f.values), ex.kept.as_deref());
+            }
+        }
+        Ok(RawMesh { points, tets: ex.tets, fields, higher_order: ex.higher_order })
+    }
+}
+
+struct Cursor<'a> {
+    b: &'a [u8],
+    pos: usize,
+    binary: bool,
+    path: &'a Path,
+}
+
+impl<'a> Cursor<'a> {
+    fn fail(&self, msg: String) -> Error {
+        Error::format(self.path, format!("{msg} (at byte {})", self.pos))
+    }
+
+    /// The rest of the current line, without its newline; `None` at the end of the file.
+    fn line(&mut self) -> Option<&'a [u8]> {
+        if self.pos >= self.b.len() {
+            return None;
+        }
+        let rest = &self.b[self.pos..];
+        let end = rest.iter().position(|&c| c == b'\n').unwrap_or(rest.len());
+        self.pos += (end + 1).min(rest.len());
+        Some(rest[..end].strip_suffix(b"\r").unwrap_or(&rest[..end]))
+    }
+
+    /// The next word (upper-cased), skipping whitespace and blank lines.
+    fn keyword_opt(&mut self) -> Option<String> {
+        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        let rest = &self.b[self.pos..];
+        let end = rest.iter().position(|c| c.is_ascii_whitespace()).unwrap_or(rest.len());
+        self.pos += end;
+        (end > 0).then(|| String::from_utf8_lossy(&rest[..end]).to_ascii_uppercase())
+    }
+
+    fn keyword(&mut self) -> Result<String> {
+        self.keyword_opt().ok_or_else(|| self.fail("unexpected end of file".into()))
+    }
+
+    /// The words after the keyword on its line; consumes the line, so BINARY data starts
+    /// right here.
+    fn args(&mut self) -> Vec<String> {
+        let line = self.line().unwrap_or_default();
+        String::from_utf8_lossy(line).split_ascii_whitespace().map(str::to_string).collect()
+    }
+
+    /// Whether the next line starts with `word` (after blank lines, in ASCII files). In
+    /// BINARY files only the very next line counts: data may follow.
+    fn next_line_starts_with(&self, word: &str) -> bool {
+        let mut p = self.pos;
+        if !self.binary {
+            while p < self.b.len() && self.b[p].is_ascii_whitespace() {
+                p += 1;
+            }
+        }
+        self.b[p..].len() >= word.len() && self.b[p..p + word.len()].eq_ignore_ascii_case(word.as_bytes())
+    }
+
+    fn count(&self, s: Option<&str>, what: &str) -> Result<usize> {
+        let s = s.ok_or_else(|| self.fail(format!("{what} is missing")))?;
+        s.parse().map_err(|_| self.fail(format!("{what} '{s}' is not a count")))
+    }
+
+    fn num_type(&self, s: Option<&str>) -> Result<NumType> {
+        let s = s.ok_or_else(|| self.fail("data type is missing".into()))?;
+        NumType::from_legacy(s).ok_or_else(|| self.fail(format!("data type '{s}' is not a numeric type tetloc reads")))
+    }
+
+    /// `n` values of `ty`: raw big-endian bytes (BINARY) or numbers (ASCII).
+    fn values(&mut self, ty: NumType, n: usize, what: &str) -> Result<Array<'a>> {
+        if self.binary {
+            let len = n.checked_mul(ty.size()).filter(|&l| l <= self.b.len() - self.pos).ok_or_else(|| {
+                self.fail(format!(
+                    "{what}: {n} values of {} do not fit in the {} bytes left (truncated file?)",
+                    ty.name(),
+                    self.b.len() - self.pos
+                ))
+            })?;
+            let arr = Array::from_bytes(ty, Cow::Borrowed(&self.b[self.pos..self.pos + len]), true);
+            self.pos += len;
+            Ok(arr)
+        } else {
+            let (arr, used) =
+                num::parse_ascii(&self.b[self.pos..], ty, Some(n)).map_err(|m| self.fail(format!("{what}: {m}")))?;
+            self.pos += used;
+            Ok(arr)
+        }
+    }
+
+    /// Reads, or skips, `n` values of a non-numeric type; `false` if `ty` is numeric.
+    fn skip_non_numeric(&mut self, ty: &str, n: usize, what: &str) -> Result<bool> {
+        match ty.to_ascii_lowercase().as_str() {
+            "bit" if self.binary => {
+                let len = n.div_ceil(8);
+                if len > self.b.len() - self.pos {
+                    return Err(self.fail(format!("{what}: {n} bits run past the end of the file")));
+                }
+                self.pos += len;
+            }
+            "bit" => {
+                self.values(NumType::U8, n, what)?;
+            }
+            "string" | "utf8_string" if !self.binary => {
+                for _ in 0..n {
+                    self.line().ok_or_else(|| self.fail(format!("{what}: the file ends inside a string array")))?;
+                }
+            }
+            "string" | "utf8_string" | "variant" => {
+                return Err(self.fail(format!("{what}: {ty} arrays are not supported in BINARY files")))
+            }
+            _ => return Ok(false),
+        }
+        Ok(true)
+    }
+
+    /// One attribute array of `n` tuples × `ncomp` values, added to `fields`.
+    #[allow(clippy::too_many_arguments)]
+    fn attribute(
+        &mut self,
+        name: &str,
+        ty: Option<&str>,
+        n: usize,
+        ncomp: usize,
+        location: FieldLocation,
+        fields: &mut Vec<Field>,
+        colour: bool,
+    ) -> Result<()> {
+        let ty_name = ty.ok_or_else(|| self.fail(format!("'{name}': data type is missing")))?;
+        let total = n.saturating_mul(ncomp);
+        if ncomp == 0 || self.skip_non_numeric(ty_name, total, name)? {
+            return Ok(());
+        }
+        let ty = self.num_type(Some(ty_name))?;
+        let arr = self.values(ty, total, name)?;
+        for c in 0..ncomp {
+            let mut values = num::component_f32(&arr, ncomp, c);
+            if colour && ty == NumType::U8 {
+                values.iter_mut().for_each(|v| *v /= 255.0);
+            }
+            let name = if ncomp == 1 { name.to_string() } else { format!("{name}[{c}]") };
+            fields.push(Field { name, location, values });
+        }
+        Ok(())
+    }
+
+    /// One array of a FIELD: `name ncomp ntuples type`, then data. Outside POINT_DATA and
+    /// CELL_DATA (field data of the whole dataset) it is read and dropped.
+    fn field_array(&mut self, section: Option<(FieldLocation, usize)>, fields: &mut Vec<Field>) -> Result<()> {
+        let name = self.keyword_opt().ok_or_else(|| self.fail("the file ends inside a FIELD".into()))?;
+        let _ = name; // upper-cased: re-read the original spelling below
+        let line_start = self.pos - self.b[..self.pos].iter().rev().take_while(|c| !c.is_ascii_whitespace()).count();
+        let raw_name = String::from_utf8_lossy(&self.b[line_start..self.pos]).into_owned();
+        if raw_name == "NULL_ARRAY" {
+            self.args();
+            return Ok(());
+        }
+        let args = self.args();
+        let arg = |i: usize| args.get(i).map(String::as_str);
+        let ncomp = self.count(arg(0), "FIELD array components")?;
+        let ntuples = self.count(arg(1), "FIELD array tuples")?;
+        let ty = arg(2).ok_or_else(|| self.fail(format!("FIELD array '{raw_name}': data type is missing")))?;
+        let name = decode_name(&raw_name);
+        match section {
+            Some((location, n)) => {
+                if ntuples != n {
+                    return Err(self.fail(format!("FIELD array '{name}' has {ntuples} tuples, expected {n}")));
+                }
+                self.attribute(&name, Some(ty), n, ncomp, location, fields, false)?;
+            }
+            None => {
+                let total = ncomp.saturating_mul(ntuples);
+                if !self.skip_non_numeric(ty, total, &name)? {
+                    let ty = self.num_type(Some(ty))?;
+                    self.values(ty, total, &name)?;
+                }
+            }
+        }
+        if self.next_line_starts_with("METADATA") {
+            self.keyword()?;
+            self.skip_metadata();
+        }
+        Ok(())
+    }
+
+    /// Skips a METADATA block: lines up to a blank one.
+    fn skip_metadata(&mut self) {
+        self.line(); // the rest of the METADATA line
+        while let Some(l) = self.line() {
+            if l.trim_ascii().is_empty() {
+                break;
+            }
+        }
+    }
+
+    fn offsets_and_connectivity(&mut self, n_offsets: usize, n_conn: usize) -> Result<Cells<'a>> {
+        let read = |this: &mut Self, kw: &str, n: usize| -> Result<Array<'a>> {
+            let k = this.keyword()?;
+            let args = this.args();
+            if k != kw {
+                return Err(this.fail(format!("expected {kw}, found '{k}'")));
+            }
+            let ty = this.num_type(args.first().map(String::as_str))?;
+            let arr = this.values(ty, n, kw)?;
+            if this.next_line_starts_with("METADATA") {
+                this.keyword()?;
+                this.skip_metadata();
+            }
+            Ok(arr)
+        };
+        let offsets = read(self, "OFFSETS", n_offsets)?;
+        let conn = read(self, "CONNECTIVITY", n_conn)?;
+        Ok(Cells::Arrays(offsets, conn))
+    }
+}
+
+/// Legacy names encode spaces and other special characters as `%XX`.
+fn decode_name(s: &str) -> String {
+    let b = s.as_bytes();
+    let mut out = Vec::with_capacity(b.len());
+    let mut i = 0;
+    while i < b.len() {
+        let hex = b.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok()).and_then(|h| u8::from_str_radix(h, 16).ok());
+        match (b[i], hex) {
+            (b'%', Some(v)) => {
+                out.push(v);
+                i += 3;
+            }
+            (c, _) => {
+                out.push(c);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn parse_str(s: &str) -> Result<RawMesh> {
+        parse(s.as_bytes(), Path::new("test.vtk"))
+    }
+
+    const ASCII_42: &str = "# vtk DataFile Version 4.2
+a title
+ASCII
+
+DATASET UNSTRUCTURED_GRID
+FIELD FieldData 2
+TIME 1 1 double
+0.5
+names 1 1 string
+hello world
+POINTS 5 float
+0 0 0 1 0 0 0 1 0
+0 0 1 1 1 1
+METADATA
+INFORMATION 0
+
+CELLS 3 13
+4 0 1 2 3
+3 0 1 2
+3 4 1 2
+CELL_TYPES 3
+10 5
+10
+CELL_DATA 3
+SCALARS cell%20id int 1
+LOOKUP_TABLE default
+7 8 9
+POINT_DATA 5
+SCALARS s double
+LOOKUP_TABLE default
+0 1 2 3 4
+VECTORS v float
+1 2 3 4 5 6 7 8 9 10 11 12 13 14 15
+FIELD FieldData 1
+w 2 5 int
+1 2 3 4 5 6 7 8 9 10
+";
+
+    #[test]
+    fn ascii_legacy() {
+        let m = parse_str(ASCII_42).unwrap_err();
+        // cell 2 is a tet with 3 points
+        assert!(m.to_string().contains("cell 2 (tetra) has 3 points"), "{m}");
+        let src = ASCII_42.replace("3 4 1 2\n", "4 4 1 2 0\n").replace("CELLS 3 13", "CELLS 3 14");
+        let m = parse_str(&src).unwrap();
+        assert_eq!(m.points.len(), 5);
+        assert_eq!(m.points[4], [1.0, 1.0, 1.0]);
+        assert_eq!(m.tets, vec![[0, 1, 2, 3], [4, 1, 2, 0]]);
+        let get = |n: &str| m.fields.iter().find(|f| f.name == n).unwrap_or_else(|| panic!("no field {n}"));
+        assert_eq!(get("cell id").values, vec![7.0, 9.0]);
+        assert_eq!(get("cell id").location, FieldLocation::Cell);
+        assert_eq!(get("s").values, vec![0., 1., 2., 3., 4.]);
+        assert_eq!(get("v[1]").values, vec![2., 5., 8., 11., 14.]);
+        assert_eq!(get("w[0]").values, vec![1., 3., 5., 7., 9.]);
+        assert_eq!(m.fields.len(), 1 + 1 + 3 + 2);
+    }
+
+    #[test]
+    fn ascii_51_offsets() {
+        let src = "# vtk DataFile Version 5.1\nx\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 4 double\n\
+                   0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 3 5\nOFFSETS vtktypeint64\n0 4 5\n\
+                   CONNECTIVITY vtktypeint64\n3 2 1 0 2\nCELL_TYPES 2\n10 1\n";
+        let m = parse_str(src).unwrap();
+        assert_eq!(m.tets, vec![[3, 2, 1, 0]]);
+        let bad = src.replace("3 2 1 0 2", "3 2 1 7 2");
+        assert!(parse_str(&bad).unwrap_err().to_string().contains("CONNECTIVITY: value 3"));
+    }
+
+    #[test]
+    fn clear_errors() {
+        let ok = ASCII_42.replace("3 4 1 2\n", "4 4 1 2 0\n").replace("CELLS 3 13", "CELLS 3 14");
+        let cases = [
+            (ok.replace("# vtk", "# vtx"), "not a VTK legacy file"),
+            (ok.replace("ASCII", "TEXT"), "not ASCII or BINARY"),
+            (ok.replace("UNSTRUCTURED_GRID", "POLYDATA"), "POLYDATA"),
+            (ok.replace("CELL_TYPES 3\n10 5\n10", "CELL_TYPES 3\n10 5\n12"), "hexahedron"),
+            (ok.replace("POINTS 5 float", "POINTS 5 floot"), "'floot'"),
+            (ok.replace("4 4 1 2 0", "4 4 1 2 9"), "uses point 9"),
+            (ok.replace("4 4 1 2 0", "9 4 1 2 0"), "past the end"),
+            (ok.replace("POINT_DATA 5", "POINT_DATA 6"), "'VECTORS' is not a valid Float64"),
+            (ok.replace("CELL_DATA 3\n", ""), "before POINT_DATA"),
+            (ok.replace("CELLS 3 14", "CELLS 3 1000000000000"), "found only"),
+            (ok.replace("POINTS 5 float", "POINTS 99999999999999999999 float"), "not a count"),
+            (ok[..ok.find("CELL_TYPES").unwrap()].to_string(), "no CELL_TYPES"),
+            (ok.replace("VECTORS", "VECTOR"), "unexpected keyword 'VECTOR'"),
+        ];
+        for (src, want) in cases {
+            let e = parse_str(&src).unwrap_err().to_string();
+            assert!(e.contains(want) && e.starts_with("test.vtk"), "{e:?} should say {want:?}");
+        }
+    }
+
+    #[test]
+    fn names() {
+        assert_eq!(decode_name("a%20b%2"), "a b%2");
+        assert_eq!(decode_name("%zz"), "%zz");
+    }
 }
