@@ -1,0 +1,116 @@
+//! Images: linear-light RGB in memory, sRGB 8-bit on disk (PNG, animated GIF), and PSNR.
+
+use crate::colorspace::linear_to_srgb;
+use crate::error::{RenderError, Result};
+use std::fs::File;
+use std::io::BufWriter;
+use std::path::Path;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: u32,
+    pub height: u32,
+    /// Linear RGB, row-major, top row first.
+    pub pixels: Vec<[f32; 3]>,
+}
+
+impl Image {
+    /// sRGB-encoded 8-bit RGB bytes.
+    pub fn to_srgb8(&self) -> Vec<u8> {
+        self.pixels.iter().flat_map(|p| p.map(|c| (linear_to_srgb(c) * 255.0 + 0.5) as u8)).collect()
+    }
+
+    pub fn write_png(&self, path: &Path) -> Result<()> {
+        let io = |e: std::io::Error| RenderError::io(path, e);
+        let file = BufWriter::new(File::create(path).map_err(io)?);
+        let mut enc = png::Encoder::new(file, self.width, self.height);
+        enc.set_color(png::ColorType::Rgb);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+        let encode = |e: png::EncodingError| RenderError::file(path, format!("cannot write PNG: {e}"));
+        let mut w = enc.write_header().map_err(encode)?;
+        w.write_image_data(&self.to_srgb8()).map_err(encode)?;
+        w.finish().map_err(encode)
+    }
+}
+
+/// Writes `frames` as a looping animated GIF, `delay_cs` hundredths of a second a frame.
+pub fn write_gif(path: &Path, frames: &[Image], delay_cs: u16) -> Result<()> {
+    let first = frames.first().ok_or_else(|| RenderError::Invalid("no frames to write".into()))?;
+    let (w, h) = (u16::try_from(first.width), u16::try_from(first.height));
+    let (Ok(w), Ok(h)) = (w, h) else {
+        return Err(RenderError::file(path, format!("GIF images are at most 65535 pixels a side, not {}x{}", first.width, first.height)));
+    };
+    let io = |e: std::io::Error| RenderError::io(path, e);
+    let encode = |e: gif::EncodingError| RenderError::file(path, format!("cannot write GIF: {e}"));
+    let file = BufWriter::new(File::create(path).map_err(io)?);
+    let mut enc = gif::Encoder::new(file, w, h, &[]).map_err(encode)?;
+    enc.set_repeat(gif::Repeat::Infinite).map_err(encode)?;
+    for img in frames {
+        // NeuQuant palette per frame; speed 10 is gif's balance of quality and time.
+        let mut frame = gif::Frame::from_rgb_speed(w, h, &img.to_srgb8(), 10);
+        frame.delay = delay_cs;
+        enc.write_frame(&frame).map_err(encode)?;
+    }
+    Ok(())
+}
+
+/// Peak signal-to-noise ratio in dB between two images' 8-bit sRGB encodings (infinite for
+/// identical images).
+pub fn psnr(a: &Image, b: &Image) -> Result<f64> {
+    if (a.width, a.height) != (b.width, b.height) {
+        return Err(RenderError::Invalid(format!("PSNR of a {}x{} and a {}x{} image", a.width, a.height, b.width, b.height)));
+    }
+    let (x, y) = (a.to_srgb8(), b.to_srgb8());
+    let mse = x.iter().zip(&y).map(|(&p, &q)| (p as f64 - q as f64).powi(2)).sum::<f64>() / x.len() as f64;
+    Ok(if mse == 0.0 { f64::INFINITY } else { 10.0 * (255.0f64 * 255.0 / mse).log10() })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn flat(w: u32, h: u32, c: f32) -> Image {
+        Image { width: w, height: h, pixels: vec![[c; 3]; (w * h) as usize] }
+    }
+
+    #[test]
+    fn psnr_of_known_errors() {
+        let a = flat(4, 4, 0.0);
+        assert_eq!(psnr(&a, &a).unwrap(), f64::INFINITY);
+        // Every byte off by one level: MSE 1, PSNR = 20·log10(255).
+        let b = Image { pixels: vec![[crate::colorspace::srgb_to_linear(1.0 / 255.0); 3]; 16], ..a.clone() };
+        assert!((psnr(&a, &b).unwrap() - 48.1308).abs() < 1e-3);
+        assert!(psnr(&a, &flat(2, 8, 0.0)).is_err());
+    }
+
+    #[test]
+    fn png_and_gif_round_trip() {
+        let dir = std::env::temp_dir().join(format!("tetloc-render-img-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut img = flat(3, 2, 0.5);
+        img.pixels[0] = [1.0, 0.0, 0.0];
+        let p = dir.join("a.png");
+        img.write_png(&p).unwrap();
+        let dec = png::Decoder::new(File::open(&p).unwrap());
+        let mut r = dec.read_info().unwrap();
+        let mut buf = vec![0; r.output_buffer_size()];
+        let info = r.next_frame(&mut buf).unwrap();
+        assert_eq!((info.width, info.height), (3, 2));
+        assert_eq!(&buf[..info.buffer_size()], &img.to_srgb8()[..]);
+        assert_eq!(buf[0..3], [255, 0, 0]);
+        assert_eq!(buf[3], 188, "linear 0.5 is sRGB 188");
+
+        let g = dir.join("a.gif");
+        write_gif(&g, &[img.clone(), flat(3, 2, 1.0)], 4).unwrap();
+        let mut d = gif::DecodeOptions::new().read_info(File::open(&g).unwrap()).unwrap();
+        let mut n = 0;
+        while d.read_next_frame().unwrap().is_some() {
+            n += 1;
+        }
+        assert_eq!(n, 2);
+        let e = img.write_png(&dir.join("no/such/dir/x.png")).unwrap_err().to_string();
+        assert!(e.contains("no/such/dir/x.png"), "{e}");
+        std::fs::remove_dir_all(&dir).ok();
+    }
+}

@@ -1,0 +1,129 @@
+//! Whole jobs on top of [`Renderer`]: images and orbits to files, frame-rate measurement,
+//! and comparing two backends on the same frame.
+
+use crate::error::{RenderError, Result};
+use crate::image::{psnr, write_gif, Image};
+use crate::render::{FrameStats, Renderer};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tetloc_core::BatchLocator;
+
+/// What [`render_to_file`] wrote.
+#[derive(Clone, Debug)]
+pub struct RenderReport {
+    pub files: Vec<PathBuf>,
+    /// One entry per frame.
+    pub frames: Vec<FrameStats>,
+}
+
+impl RenderReport {
+    pub fn total(&self) -> FrameStats {
+        FrameStats::sum(&self.frames)
+    }
+}
+
+enum Output {
+    Png,
+    Gif,
+}
+
+fn output_kind(out: &Path) -> Result<Output> {
+    match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("png") => Ok(Output::Png),
+        Some("gif") => Ok(Output::Gif),
+        _ => Err(RenderError::Invalid(format!("{}: the output file must end in .png or .gif", out.display()))),
+    }
+}
+
+/// `out_0000.png` for frame 0 of `out.png`.
+pub fn frame_path(out: &Path, frame: u32) -> PathBuf {
+    let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let ext = out.extension().map(|e| e.to_string_lossy().into_owned()).unwrap_or_else(|| "png".into());
+    out.with_file_name(format!("{stem}_{frame:04}.{ext}"))
+}
+
+/// Renders `options().frames` frames and writes them: one PNG at `out`, numbered PNGs
+/// (`out_0000.png`, ...) for an orbit, or one animated GIF when `out` ends in `.gif`.
+pub fn render_to_file(renderer: &Renderer, locator: &mut dyn BatchLocator, out: &Path) -> Result<RenderReport> {
+    let kind = output_kind(out)?;
+    let n = renderer.options().frames;
+    let mut report = RenderReport { files: Vec::new(), frames: Vec::new() };
+    let mut gif_frames: Vec<Image> = Vec::new();
+    for i in 0..n {
+        let (img, stats) = renderer.render(locator, &renderer.camera(i))?;
+        report.frames.push(stats);
+        match kind {
+            Output::Gif => gif_frames.push(img),
+            Output::Png => {
+                let path = if n == 1 { out.to_path_buf() } else { frame_path(out, i) };
+                img.write_png(&path)?;
+                report.files.push(path);
+            }
+        }
+    }
+    if let Output::Gif = kind {
+        // A whole orbit takes about 4 s, however many frames it has.
+        let delay = (400 / n).clamp(2, 100) as u16;
+        write_gif(out, &gif_frames, delay)?;
+        report.files.push(out.to_path_buf());
+    }
+    Ok(report)
+}
+
+/// Frame rate of one backend (the right-hand columns of the paper's Table 1).
+#[derive(Clone, Debug)]
+pub struct FpsReport {
+    pub backend: String,
+    pub width: u32,
+    pub height: u32,
+    /// Frames timed (after one untimed warm-up frame).
+    pub frames: u32,
+    pub seconds: f64,
+    pub fps: f64,
+    pub samples_per_frame: f64,
+    /// Share of the time spent in `locator.sample`.
+    pub sample_fraction: f64,
+}
+
+/// Renders one warm-up frame, then `frames` frames of an orbit, and reports frames per second.
+pub fn measure_fps(renderer: &Renderer, locator: &mut dyn BatchLocator, frames: u32) -> Result<FpsReport> {
+    if frames == 0 {
+        return Err(RenderError::Invalid("measure_fps needs at least one frame".into()));
+    }
+    renderer.render(locator, &renderer.orbit_camera(0, frames))?;
+    let start = Instant::now();
+    let mut stats = Vec::with_capacity(frames as usize);
+    for i in 0..frames {
+        stats.push(renderer.render(locator, &renderer.orbit_camera(i, frames))?.1);
+    }
+    let seconds = start.elapsed().as_secs_f64();
+    let total = FrameStats::sum(&stats);
+    let o = renderer.options();
+    Ok(FpsReport {
+        backend: locator.name().to_string(),
+        width: o.width,
+        height: o.height,
+        frames,
+        seconds,
+        fps: frames as f64 / seconds,
+        samples_per_frame: total.samples as f64 / frames as f64,
+        sample_fraction: total.sample_seconds / seconds,
+    })
+}
+
+/// The same frame rendered with two backends.
+#[derive(Clone, Debug)]
+pub struct Comparison {
+    pub psnr_db: f64,
+    pub images: [Image; 2],
+    pub stats: [FrameStats; 2],
+}
+
+/// Renders frame 0 with `a` and with `b`; backends that compute the same thing give images
+/// whose PSNR is high (infinite when identical).
+pub fn compare_locators(renderer: &Renderer, a: &mut dyn BatchLocator, b: &mut dyn BatchLocator) -> Result<Comparison> {
+    let cam = renderer.camera(0);
+    let (ia, sa) = renderer.render(a, &cam)?;
+    let (ib, sb) = renderer.render(b, &cam)?;
+    Ok(Comparison { psnr_db: psnr(&ia, &ib)?, images: [ia, ib], stats: [sa, sb] })
+}

@@ -1,0 +1,351 @@
+//! The sample-based volume ray marcher (paper, section 6.3), over any [`BatchLocator`].
+//!
+//! Every ray is clipped to the mesh bounds (and, with surfaces, ended at the nearest surface
+//! hit) and sampled at `t = t0 + (k + ½)·step`. All rays march in lock-step: each round,
+//! every active ray contributes its next sample position(s) to one batch handed to
+//! `locator.sample`, so a GPU backend sees batches of up to a million points. Samples are
+//! mapped through the transfer function and composited front to back; a ray stops at 99 %
+//! opacity or at its end. With empty-space skipping, samples whose occupancy-grid cell
+//! holds no tet are never sent — the positions of the samples that are sent do not change.
+
+use crate::camera::{clip_to_box, Camera, Ray};
+use crate::error::{RenderError, Result};
+use crate::image::Image;
+use crate::options::{RenderOptions, SurfaceSpec};
+use crate::skip::OccupancyGrid;
+use crate::surface::{SurfaceBvh, TriMesh};
+use crate::tf::TfTable;
+use crate::vec::{at, dot, len, sub, Vec3};
+use rayon::prelude::*;
+use std::sync::Arc;
+use std::time::Instant;
+use tetloc_core::{BatchLocator, Mesh};
+
+/// A ray stops once it is this opaque.
+pub const OPACITY_CUTOFF: f32 = 0.99;
+
+/// Occupancy cells are about this many default steps wide: coarse enough that a jump saves
+/// several samples, fine enough to follow the shape of sparse meshes.
+const CELL_STEPS: f32 = 4.0;
+
+/// The most samples one ray takes in a round, when few rays are left.
+const MAX_SAMPLES_PER_ROUND: usize = 64;
+
+/// Counts and timings of one frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FrameStats {
+    pub rays: usize,
+    /// Sample points handed to the locator.
+    pub samples: u64,
+    /// Of those, samples inside the mesh that were composited (before each ray's cutoff).
+    pub in_mesh_samples: u64,
+    /// Batches handed to the locator.
+    pub rounds: u32,
+    /// Seconds inside `locator.sample`.
+    pub sample_seconds: f64,
+    pub seconds: f64,
+}
+
+impl FrameStats {
+    fn add(&mut self, o: &FrameStats) {
+        self.rays += o.rays;
+        self.samples += o.samples;
+        self.in_mesh_samples += o.in_mesh_samples;
+        self.rounds += o.rounds;
+        self.sample_seconds += o.sample_seconds;
+        self.seconds += o.seconds;
+    }
+
+    /// Totals over several frames.
+    pub fn sum<'a>(it: impl IntoIterator<Item = &'a FrameStats>) -> FrameStats {
+        let mut s = FrameStats::default();
+        it.into_iter().for_each(|f| s.add(f));
+        s
+    }
+}
+
+/// A mesh, a field and options made ready to render: the baked transfer function, the
+/// step, the occupancy grid and the surface BVH. Render as many frames as you like with
+/// any locator of the same mesh.
+pub struct Renderer {
+    mesh: Arc<Mesh>,
+    field: String,
+    opts: RenderOptions,
+    table: TfTable,
+    range: (f32, f32),
+    step: f32,
+    /// σ = (transfer-function opacity) × this.
+    sigma_unit: f32,
+    grid: Option<OccupancyGrid>,
+    surface: Option<SurfaceBvh>,
+}
+
+/// One ray in flight.
+#[derive(Clone, Copy)]
+struct RayState {
+    pixel: u32,
+    ray: Ray,
+    t0: f32,
+    /// Samples `k < n` lie before the ray's end.
+    n: u32,
+    /// The next sample index to consider.
+    k: u32,
+    /// Premultiplied linear RGB and opacity accumulated so far.
+    acc: [f32; 4],
+}
+
+impl Renderer {
+    pub fn new(mesh: Arc<Mesh>, field: &str, opts: &RenderOptions) -> Result<Renderer> {
+        opts.validate()?;
+        let values = &mesh.field(field)?.values;
+        let range = match opts.range {
+            Some(r) => r,
+            None => {
+                let (lo, hi) = values
+                    .par_iter()
+                    .filter(|v| v.is_finite())
+                    .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)))
+                    .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), (c, d)| (a.min(c), b.max(d)));
+                if lo > hi {
+                    return Err(RenderError::Invalid(format!("field '{field}' has no finite values to map to colours")));
+                }
+                (lo, hi)
+            }
+        };
+        let table = opts.tf.load()?.bake(range.0, range.1);
+        let info = &mesh.info;
+        let diagonal = len(sub(info.bounds_max, info.bounds_min));
+        let mean_tet = (info.total_volume / info.n_tets as f64).cbrt() as f32;
+        // Degenerate meshes (flat, or all slivers) still get a usable step.
+        let default_step = [mean_tet, info.mean_edge_length, diagonal / 1000.0, 1.0].into_iter().find(|&s| s > 0.0).unwrap();
+        let step = opts.step.unwrap_or(default_step);
+        let sigma_unit = opts.opacity / if diagonal > 0.0 { diagonal } else { 1.0 };
+        let grid = opts.skip.then(|| OccupancyGrid::build(&mesh, CELL_STEPS * default_step));
+        let surface = match &opts.surface {
+            None => None,
+            Some(SurfaceSpec::Boundary) => Some(SurfaceBvh::build(&TriMesh::boundary(&mesh))),
+            Some(SurfaceSpec::File(path)) => Some(SurfaceBvh::build(&TriMesh::load(path)?)),
+        };
+        Ok(Renderer { mesh, field: field.to_string(), opts: opts.clone(), table, range, step, sigma_unit, grid, surface })
+    }
+
+    pub fn mesh(&self) -> &Arc<Mesh> {
+        &self.mesh
+    }
+    pub fn options(&self) -> &RenderOptions {
+        &self.opts
+    }
+    /// The value range the transfer function spans.
+    pub fn range(&self) -> (f32, f32) {
+        self.range
+    }
+    pub fn step(&self) -> f32 {
+        self.step
+    }
+    pub fn grid(&self) -> Option<&OccupancyGrid> {
+        self.grid.as_ref()
+    }
+
+    /// The camera of orbit frame `frame` of `options().frames`.
+    pub fn camera(&self, frame: u32) -> Camera {
+        self.orbit_camera(frame, self.opts.frames)
+    }
+
+    /// Frame `i` of an orbit of `n`: the view's azimuth (or the explicit eye, about the
+    /// target along the up axis) advanced by `i · 360 / n` degrees.
+    pub fn orbit_camera(&self, i: u32, n: u32) -> Camera {
+        let o = &self.opts;
+        let turn = i as f32 * 360.0 / n.max(1) as f32;
+        match o.camera {
+            Some(look) => {
+                let eye = rotate_about(sub(look.eye, look.target), look.up, turn.to_radians());
+                let eye = std::array::from_fn(|k| look.target[k] + eye[k]);
+                Camera::look_at(crate::camera::LookAt { eye, ..look }, o.zoom, o.width, o.height)
+                    .expect("a valid camera stays valid when turned about its up axis")
+            }
+            None => Camera::fitted(
+                self.mesh.info.bounds_min,
+                self.mesh.info.bounds_max,
+                o.azimuth + turn,
+                o.elevation,
+                o.zoom,
+                o.width,
+                o.height,
+            ),
+        }
+    }
+
+    /// Renders one image from `camera`.
+    pub fn render(&self, locator: &mut dyn BatchLocator, camera: &Camera) -> Result<(Image, FrameStats)> {
+        let (rgba, stats) = self.march(locator, &camera.rays())?;
+        let bg = self.opts.background.map(crate::colorspace::srgb_to_linear);
+        let pixels = rgba.par_iter().map(|c| std::array::from_fn(|k| c[k] + (1.0 - c[3]) * bg[k])).collect();
+        Ok((Image { width: camera.width, height: camera.height, pixels }, stats))
+    }
+
+    /// Marches `rays` and returns, per ray, premultiplied linear RGB and opacity of the
+    /// volume in front of any surface, with the shaded surface composited behind it (no
+    /// background).
+    pub fn march(&self, locator: &mut dyn BatchLocator, rays: &[Ray]) -> Result<(Vec<[f32; 4]>, FrameStats)> {
+        let start = Instant::now();
+        let mut stats = FrameStats { rays: rays.len(), ..Default::default() };
+        let (lo, hi) = (self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+        let surface_rgb = self.opts.surface_color.map(crate::colorspace::srgb_to_linear);
+
+        // Per ray: the volume interval, and the shaded surface colour where one is hit.
+        let setup: Vec<(Option<RayState>, Option<Vec3>)> = rays
+            .par_iter()
+            .enumerate()
+            .map(|(i, ray)| {
+                let hit = self.surface.as_ref().and_then(|s| s.intersect(ray, 0.0, f32::INFINITY));
+                // Headlight Lambert: lit from the eye, so either side of a face shows.
+                let shade = hit.map(|h| {
+                    let lambert = dot(h.normal, ray.dir).abs();
+                    surface_rgb.map(|c| c * (0.2 + 0.8 * lambert))
+                });
+                let state = clip_to_box(ray, lo, hi).map(|(t0, t1)| {
+                    let t1 = hit.map_or(t1, |h| t1.min(h.t));
+                    let n = ((t1 - t0) / self.step - 0.5).ceil().clamp(0.0, u32::MAX as f32) as u32;
+                    RayState { pixel: i as u32, ray: *ray, t0, n, k: 0, acc: [0.0; 4] }
+                });
+                (state.filter(|s| s.n > 0), shade)
+            })
+            .collect();
+        let mut out = vec![[0f32; 4]; rays.len()];
+        let mut shades = vec![None; rays.len()];
+        let mut active = Vec::with_capacity(rays.len());
+        for (i, (state, shade)) in setup.into_iter().enumerate() {
+            shades[i] = shade;
+            active.extend(state);
+        }
+
+        let mut slots: Vec<Vec3> = Vec::new();
+        let mut counts: Vec<u32> = Vec::new();
+        let mut batch: Vec<Vec3> = Vec::new();
+        let mut values: Vec<f32> = Vec::new();
+        while !active.is_empty() {
+            // Few rays left: take several samples each, to keep batches large.
+            let m = (self.opts.batch_target / active.len()).clamp(1, MAX_SAMPLES_PER_ROUND);
+            slots.resize(active.len() * m, [0.0; 3]);
+            counts.resize(active.len(), 0);
+            active.par_iter_mut().zip(slots.par_chunks_mut(m)).zip(counts.par_iter_mut()).for_each(|((s, slot), c)| {
+                *c = 0;
+                while (*c as usize) < m {
+                    match self.next_sample(s) {
+                        Some(p) => {
+                            slot[*c as usize] = p;
+                            *c += 1;
+                        }
+                        None => break,
+                    }
+                }
+            });
+            batch.clear();
+            batch.par_extend(slots.par_chunks(m).zip(counts.par_iter()).flat_map_iter(|(slot, &c)| slot[..c as usize].iter().copied()));
+            values.resize(batch.len(), 0.0);
+            if !batch.is_empty() {
+                let t = Instant::now();
+                locator.sample(&batch, &self.field, &mut values)?;
+                stats.sample_seconds += t.elapsed().as_secs_f64();
+                stats.samples += batch.len() as u64;
+                stats.rounds += 1;
+            }
+
+            // Composite each ray's samples in order; note rays that are finished.
+            let mut offsets = Vec::with_capacity(counts.len());
+            let mut off = 0usize;
+            for &c in &counts {
+                offsets.push(off);
+                off += c as usize;
+            }
+            let in_mesh: u64 = active
+                .par_iter_mut()
+                .zip(counts.par_iter())
+                .zip(offsets.par_iter())
+                .map(|((s, &c), &o)| self.composite(s, &values[o..o + c as usize]))
+                .sum();
+            stats.in_mesh_samples += in_mesh;
+
+            // A ray is finished when opaque or out of samples (`next_sample` leaves k ≥ n).
+            active.retain(|s| {
+                let done = s.acc[3] >= OPACITY_CUTOFF || s.k >= s.n;
+                if done {
+                    out[s.pixel as usize] = s.acc;
+                }
+                !done
+            });
+        }
+
+        out.par_iter_mut().zip(shades.par_iter()).for_each(|(c, shade)| {
+            if let Some(rgb) = shade {
+                for k in 0..3 {
+                    c[k] += (1.0 - c[3]) * rgb[k];
+                }
+                c[3] = 1.0;
+            }
+        });
+        stats.seconds = start.elapsed().as_secs_f64();
+        Ok((out, stats))
+    }
+
+    /// The position of the ray's next sample that may be inside a tet, advancing `s.k` past
+    /// it; `None` (with `s.k = s.n`) when the ray has no more.
+    #[inline]
+    fn next_sample(&self, s: &mut RayState) -> Option<Vec3> {
+        while s.k < s.n {
+            let k = s.k;
+            let t = s.t0 + (k as f32 + 0.5) * self.step;
+            let p = at(s.ray.origin, s.ray.dir, t);
+            let Some(grid) = &self.grid else {
+                s.k += 1;
+                return Some(p);
+            };
+            if grid.may_contain(p) {
+                s.k += 1;
+                return Some(p);
+            }
+            // The first sample at or past the point where the empty region may end; it is
+            // tested again on the next pass of the loop.
+            let t_skip = grid.skip_to(&s.ray, t, p);
+            let next = ((t_skip - s.t0) / self.step - 0.5).ceil();
+            s.k = if next > (k + 1) as f32 { next.min(s.n as f32) as u32 } else { k + 1 };
+        }
+        None
+    }
+
+    /// Composites one round's samples of a ray; returns how many were inside the mesh.
+    #[inline]
+    fn composite(&self, s: &mut RayState, values: &[f32]) -> u64 {
+        let mut used = 0;
+        for &v in values {
+            // Outside every tet: transparent.
+            if v.is_nan() {
+                continue;
+            }
+            used += 1;
+            let [r, g, b, o] = self.table.lookup(v);
+            let alpha = 1.0 - (-o * self.sigma_unit * self.step).exp();
+            let w = (1.0 - s.acc[3]) * alpha;
+            s.acc[0] += w * r;
+            s.acc[1] += w * g;
+            s.acc[2] += w * b;
+            s.acc[3] += w;
+            if s.acc[3] >= OPACITY_CUTOFF {
+                break;
+            }
+        }
+        used
+    }
+}
+
+/// `v` rotated by `angle` radians about the axis `axis` (Rodrigues).
+fn rotate_about(v: Vec3, axis: Vec3, angle: f32) -> Vec3 {
+    let Some(k) = crate::vec::normalize(axis) else { return v };
+    let (c, s) = (angle.cos(), angle.sin());
+    let kxv = crate::vec::cross(k, v);
+    let kdv = dot(k, v);
+    std::array::from_fn(|i| v[i] * c + kxv[i] * s + k[i] * kdv * (1.0 - c))
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,145 @@
+//! Empty-space skipping: a coarse occupancy grid over the mesh bounds.
+//!
+//! A cell is occupied when the bounding box of some tet overlaps it, found with the same
+//! floor-of-scaled-coordinate formula ([`OccupancyGrid::cell_of`]) that later classifies
+//! sample points. That formula is monotonic in each coordinate, so a point inside a tet —
+//! inside its box — always lands in a cell marked for that tet: skipping a sample whose
+//! cell is empty never skips a sample that some tet contains.
+
+use crate::camera::Ray;
+use crate::vec::{at, Vec3};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use tetloc_core::{geom, Mesh};
+
+/// At most this many cells along an axis (256³ bytes = 16 MiB).
+pub const MAX_DIM: u32 = 256;
+
+#[derive(Clone, Debug)]
+pub struct OccupancyGrid {
+    lo: Vec3,
+    hi: Vec3,
+    cell: Vec3,
+    inv_cell: Vec3,
+    pub dims: [u32; 3],
+    occupied: Vec<bool>,
+    /// How far before a cell's exit a jump lands, so that rounding in the sample positions
+    /// can never carry a skipped sample into the next cell.
+    margin: f32,
+}
+
+impl OccupancyGrid {
+    /// A grid over the mesh bounds with cells of about `cell_size` (capped at [`MAX_DIM`]
+    /// cells per axis), each marked when a tet's bounding box overlaps it.
+    pub fn build(mesh: &Mesh, cell_size: f32) -> OccupancyGrid {
+        let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+        let dims: [u32; 3] = std::array::from_fn(|k| {
+            let cells = ((hi[k] - lo[k]) / cell_size).ceil();
+            if cells.is_finite() { (cells as u32).clamp(1, MAX_DIM) } else { MAX_DIM }
+        });
+        let cell: Vec3 = std::array::from_fn(|k| (hi[k] - lo[k]) / dims[k] as f32);
+        // A flat axis has one cell and everything maps into it.
+        let inv_cell: Vec3 = std::array::from_fn(|k| if cell[k] > 0.0 { 1.0 / cell[k] } else { 0.0 });
+        let max_abs = lo.iter().chain(hi.iter()).fold(0f32, |m, &x| m.max(x.abs()));
+        let min_cell = cell.iter().copied().filter(|&c| c > 0.0).fold(f32::INFINITY, f32::min);
+        let margin = if min_cell.is_finite() { 1e-3 * min_cell } else { 0.0 } + 1e-5 * max_abs;
+        let mut grid = OccupancyGrid { lo, hi, cell, inv_cell, dims, occupied: Vec::new(), margin };
+
+        let n = dims.iter().map(|&d| d as usize).product();
+        let flags: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
+        mesh.tets.par_iter().for_each(|&t| {
+            let (a, b) = geom::tet_bounds(t, &mesh.points);
+            let (Some(ca), Some(cb)) = (grid.cell_of(a), grid.cell_of(b)) else { return };
+            for z in ca[2]..=cb[2] {
+                for y in ca[1]..=cb[1] {
+                    for x in ca[0]..=cb[0] {
+                        flags[grid.index([x, y, z])].store(true, Ordering::Relaxed);
+                    }
+                }
+            }
+        });
+        grid.occupied = flags.into_iter().map(AtomicBool::into_inner).collect();
+        grid
+    }
+
+    /// The cell holding `p`, or `None` outside the bounds (where no tet is).
+    #[inline]
+    pub fn cell_of(&self, p: Vec3) -> Option<[u32; 3]> {
+        if (0..3).any(|k| !(p[k] >= self.lo[k] && p[k] <= self.hi[k])) {
+            return None;
+        }
+        Some(std::array::from_fn(|k| (((p[k] - self.lo[k]) * self.inv_cell[k]).floor() as u32).min(self.dims[k] - 1)))
+    }
+
+    #[inline]
+    fn index(&self, c: [u32; 3]) -> usize {
+        (c[2] as usize * self.dims[1] as usize + c[1] as usize) * self.dims[0] as usize + c[0] as usize
+    }
+
+    /// Whether some tet may contain `p`.
+    #[inline]
+    pub fn may_contain(&self, p: Vec3) -> bool {
+        self.cell_of(p).is_some_and(|c| self.occupied[self.index(c)])
+    }
+
+    /// The fraction of cells that are occupied.
+    pub fn occupancy(&self) -> f64 {
+        self.occupied.iter().filter(|&&o| o).count() as f64 / self.occupied.len() as f64
+    }
+
+    /// For a point `p = ray(t)` in an empty cell (or outside the bounds), a parameter before
+    /// which every point of the ray past `t` is in that same empty region: a little before
+    /// where the ray leaves the cell. The caller re-tests the first sample past it, so this is
+    /// one step of a 3-D DDA that never trusts the geometry for a sample it keeps.
+    #[inline]
+    pub fn skip_to(&self, ray: &Ray, t: f32, p: Vec3) -> f32 {
+        let (lo, hi): (Vec3, Vec3) = match self.cell_of(p) {
+            Some(c) => {
+                let lo: Vec3 = std::array::from_fn(|k| self.lo[k] + c[k] as f32 * self.cell[k]);
+                (lo, std::array::from_fn(|k| lo[k] + self.cell[k]))
+            }
+            // Outside the bounds the ray is clipped to: nothing to skip to.
+            None => return t,
+        };
+        let mut t_exit = f32::INFINITY;
+        for k in 0..3 {
+            let d = ray.dir[k];
+            if d != 0.0 {
+                let plane = if d > 0.0 { hi[k] } else { lo[k] };
+                t_exit = t_exit.min((plane - ray.origin[k]) / d);
+            }
+        }
+        let end = at(ray.origin, ray.dir, t_exit);
+        let scale = end.iter().fold(t_exit.abs(), |m, x| m.max(x.abs()));
+        t_exit - self.margin - 1e-5 * scale
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::testmesh;
+
+    #[test]
+    fn every_tet_point_is_in_an_occupied_cell() {
+        let mesh = testmesh::two_blobs(6, 3);
+        let grid = OccupancyGrid::build(&mesh, 0.05);
+        assert!(grid.occupancy() < 0.5, "two blobs leave most of the box empty ({})", grid.occupancy());
+        // Corners and centroids of every tet.
+        for (i, t) in mesh.tets.iter().enumerate() {
+            for &v in t {
+                assert!(grid.may_contain(mesh.points[v as usize]));
+            }
+            assert!(grid.may_contain(mesh.tet_center(i)));
+        }
+        assert!(!grid.may_contain([1e6, 0.0, 0.0]));
+    }
+
+    #[test]
+    fn dims_are_capped_and_flat_axes_have_one_cell() {
+        let mesh = testmesh::cube(2, 1.0, 1.0);
+        assert_eq!(OccupancyGrid::build(&mesh, 1e-6).dims, [MAX_DIM; 3]);
+        assert_eq!(OccupancyGrid::build(&mesh, 0.3).dims, [4, 4, 4]);
+        assert_eq!(OccupancyGrid::build(&mesh, 10.0).dims, [1, 1, 1]);
+    }
+}

@@ -1,0 +1,51 @@
+//! Opaque surface geometry drawn with the volume: the mesh's own boundary or a triangle file
+//! (OBJ, STL, VTK legacy polydata). Each pixel's ray is intersected with it once, before
+//! marching, and the volume is integrated only up to the hit (paper, section 6.3).
+
+mod bvh;
+mod io;
+
+pub use bvh::{Hit, SurfaceBvh};
+
+use crate::error::Result;
+use crate::vec::Vec3;
+use std::path::Path;
+use tetloc_core::Mesh;
+
+/// An indexed triangle mesh.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct TriMesh {
+    pub positions: Vec<Vec3>,
+    pub triangles: Vec<[u32; 3]>,
+}
+
+impl TriMesh {
+    /// The faces of `mesh` that have a tet on one side only.
+    pub fn boundary(mesh: &Mesh) -> TriMesh {
+        let triangles = mesh.faces().faces.iter().filter(|f| f.front < 0 || f.back < 0).map(|f| f.v).collect();
+        TriMesh { positions: mesh.points.clone(), triangles }
+    }
+
+    /// Reads a surface file chosen by extension: `.obj`, `.stl` (ascii or binary) or `.vtk`
+    /// (legacy POLYDATA).
+    pub fn load(path: &Path) -> Result<TriMesh> {
+        let bytes = std::fs::read(path).map_err(|e| crate::RenderError::io(path, e))?;
+        Self::parse(&bytes, path)
+    }
+
+    /// Parses a surface file held in memory; `path` names it in errors and picks the format.
+    pub fn parse(bytes: &[u8], path: &Path) -> Result<TriMesh> {
+        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
+        let mesh = match ext.as_deref() {
+            Some("obj") => io::parse_obj(bytes),
+            Some("stl") => io::parse_stl(bytes),
+            Some("vtk") => io::parse_vtk_polydata(bytes),
+            _ => Err("unknown surface format (known: obj, stl, vtk)".to_string()),
+        }
+        .map_err(|msg| crate::RenderError::file(path, msg))?;
+        if mesh.triangles.is_empty() {
+            return Err(crate::RenderError::file(path, "the file holds no triangles"));
+        }
+        Ok(mesh)
+    }
+}
