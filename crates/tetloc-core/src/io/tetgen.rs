@@ -1,15 +1,482 @@
-//! Reader stub: replaced by the real reader.
+//! TetGen `.node` + `.ele` reader.
+//!
+//! `.node`: a header `<#points> [<dimension = 3> [<#attributes> [<#markers 0|1>]]]`, then one
+//! line per point: `<id> <x> <y> <z> [attributes] [marker]`. The first point's id (0 or 1) is
+//! the numbering base of both files; ids must then be consecutive. Point attributes become
+//! vertex fields `attr[i]`; boundary markers are read and dropped.
+//!
+//! `.ele`: a header `<#tets> [<nodes per tet 4|10> [<#attributes>]]`, then one line per tet:
+//! `<id> <nodes...> [attributes]`. 10-node (quadratic) tets keep their 4 corners and set
+//! `higher_order = Some(2)`. One attribute (TetGen's region number) becomes the cell field
+//! `region`; several become `region[i]`.
+//!
+//! `#` starts a comment anywhere on a line; blank lines are skipped. Errors name the file and
+//! the line.
 
 use crate::error::{Error, Result};
-use crate::mesh::RawMesh;
-use std::path::Path;
+use crate::mesh::{Field, FieldLocation, RawMesh};
+use std::path::{Path, PathBuf};
 
 /// Reads `NAME.node` and `NAME.ele` (either may be named).
 pub fn read(path: &Path) -> Result<RawMesh> {
-    Err(Error::format(path, "reader not implemented yet"))
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("node" | "ele") => {}
+        _ => return Err(Error::format(path, "a TetGen mesh is named by its .node or .ele file")),
+    }
+    let (node_path, ele_path) = siblings(path);
+    let node = std::fs::read(&node_path).map_err(|e| Error::io(&node_path, e))?;
+    let ele = std::fs::read(&ele_path).map_err(|e| Error::io(&ele_path, e))?;
+    parse(&node, &ele, path)
 }
 
-/// Parses a .node and a .ele file held in memory; `path` only names them in errors.
-pub fn parse(_node: &[u8], _ele: &[u8], path: &Path) -> Result<RawMesh> {
-    Err(Error::format(path, "reader not implemented yet"))
+/// Parses a .node and a .ele file held in memory; `path` only names them in errors (as
+/// `path` with the extension `.node` or `.ele`).
+pub fn parse(node: &[u8], ele: &[u8], path: &Path) -> Result<RawMesh> {
+    let (node_path, ele_path) = siblings(path);
+    let nodes = read_nodes(&mut Lines::new(node, &node_path))?;
+    let tets = read_tets(&mut Lines::new(ele, &ele_path), &nodes)?;
+    let mut fields = attribute_fields(nodes.attrs, nodes.n_attrs, FieldLocation::Vertex, |i| format!("attr[{i}]"));
+    let n_regions = tets.n_attrs;
+    fields.extend(attribute_fields(tets.attrs, n_regions, FieldLocation::Cell, |i| {
+        if n_regions == 1 {
+            "region".to_string()
+        } else {
+            format!("region[{i}]")
+        }
+    }));
+    Ok(RawMesh { points: nodes.points, tets: tets.tets, fields, higher_order: tets.higher_order })
+}
+
+fn siblings(path: &Path) -> (PathBuf, PathBuf) {
+    (path.with_extension("node"), path.with_extension("ele"))
+}
+
+/// Splits row-major attributes (`n` per item) into one field each.
+fn attribute_fields(values: Vec<f32>, n: usize, location: FieldLocation, name: impl Fn(usize) -> String) -> Vec<Field> {
+    (0..n)
+        .map(|i| Field { name: name(i), location, values: values.iter().skip(i).step_by(n).copied().collect() })
+        .collect()
+}
+
+/// The data lines of one file: comments stripped, blank lines skipped.
+struct Lines<'a> {
+    buf: &'a [u8],
+    pos: usize,
+    line_no: usize,
+    path: &'a Path,
+}
+
+/// The tokens of one data line, with its number for errors.
+struct Record<'a> {
+    data: &'a [u8],
+    line_no: usize,
+    path: &'a Path,
+}
+
+impl<'a> Lines<'a> {
+    fn new(buf: &'a [u8], path: &'a Path) -> Self {
+        Lines { buf, pos: 0, line_no: 0, path }
+    }
+
+    fn fail(&self, line_no: usize, msg: impl std::fmt::Display) -> Error {
+        Error::format(self.path, format!("line {line_no}: {msg}"))
+    }
+
+    /// The next line with data on it, or `None` at the end of the file.
+    fn next(&mut self) -> Option<Record<'a>> {
+        while self.pos < self.buf.len() {
+            let rest = &self.buf[self.pos..];
+            let len = rest.iter().position(|&b| b == b'\n').map_or(rest.len(), |i| i + 1);
+            self.pos += len;
+            self.line_no += 1;
+            let line = &rest[..len];
+            let data = &line[..line.iter().position(|&b| b == b'#').unwrap_or(line.len())];
+            if data.iter().any(|b| !b.is_ascii_whitespace()) {
+                return Some(Record { data, line_no: self.line_no, path: self.path });
+            }
+        }
+        None
+    }
+
+    /// The next data line, which must be there: `what` says what it should hold.
+    fn expect(&mut self, what: &str) -> Result<Record<'a>> {
+        self.next().ok_or_else(|| Error::format(self.path, format!("unexpected end of file: expected {what}")))
+    }
+
+    /// Checks that `count` lines of at least `min_bytes` each can still follow, before
+    /// anything is allocated for them.
+    fn check_room(&self, count: u64, min_bytes: usize, what: &str) -> Result<usize> {
+        let left = self.buf.len() - self.pos;
+        if count > (left / min_bytes) as u64 {
+            return Err(self.fail(
+                self.line_no,
+                format!("the header declares {count} {what} but only {left} bytes follow: truncated or corrupt"),
+            ));
+        }
+        Ok(count as usize)
+    }
+
+    /// Only comments and blank lines may follow the declared records.
+    fn expect_end(&mut self, count: usize, what: &str) -> Result<()> {
+        match self.next() {
+            None => Ok(()),
+            Some(r) => Err(self.fail(r.line_no, format!("more {what} than the {count} that the header declares"))),
+        }
+    }
+}
+
+impl<'a> Record<'a> {
+    fn fail(&self, msg: impl std::fmt::Display) -> Error {
+        Error::format(self.path, format!("line {}: {msg}", self.line_no))
+    }
+
+    fn next_token(&mut self) -> Option<&'a [u8]> {
+        let start = self.data.iter().position(|b| !b.is_ascii_whitespace())?;
+        let rest = &self.data[start..];
+        let len = rest.iter().position(|b| b.is_ascii_whitespace()).unwrap_or(rest.len());
+        self.data = &rest[len..];
+        Some(&rest[..len])
+    }
+
+    fn at_end(&self) -> bool {
+        self.data.iter().all(|b| b.is_ascii_whitespace())
+    }
+
+    fn parse<T: std::str::FromStr>(&mut self, what: &str) -> Result<T> {
+        let Some(tok) = self.next_token() else {
+            return Err(self.fail(format!("missing {what}")));
+        };
+        std::str::from_utf8(tok)
+            .ok()
+            .and_then(|s| s.parse().ok())
+            .ok_or_else(|| self.fail(format!("expected {what}, found '{}'", show(tok))))
+    }
+
+    /// An optional trailing value: `default` when the line ends before it.
+    fn parse_or<T: std::str::FromStr>(&mut self, what: &str, default: T) -> Result<T> {
+        if self.at_end() {
+            Ok(default)
+        } else {
+            self.parse(what)
+        }
+    }
+
+    fn expect_end(&mut self, what: &str) -> Result<()> {
+        match self.next_token() {
+            None => Ok(()),
+            Some(tok) => Err(self.fail(format!("unexpected '{}' after {what} (more values than the header declares)", show(tok)))),
+        }
+    }
+}
+
+fn show(tok: &[u8]) -> String {
+    String::from_utf8_lossy(&tok[..tok.len().min(40)]).into_owned()
+}
+
+struct Nodes {
+    points: Vec<[f32; 3]>,
+    /// `n_attrs` per point, row-major.
+    attrs: Vec<f32>,
+    n_attrs: usize,
+    /// The id of the first point: 0 or 1.
+    base: u64,
+}
+
+/// Attributes per point or tet beyond this are surely a corrupt header.
+const MAX_ATTRS: usize = 1024;
+
+fn read_nodes(lines: &mut Lines) -> Result<Nodes> {
+    let mut h = lines.expect("the header '<#points> 3 <#attributes> <#markers>'")?;
+    let n: u64 = h.parse("the number of points")?;
+    let dim: u64 = h.parse_or("the dimension", 3)?;
+    let n_attrs: usize = h.parse_or("the number of attributes", 0)?;
+    let n_markers: u64 = h.parse_or("the number of boundary markers", 0)?;
+    h.expect_end("the header")?;
+    if dim != 3 {
+        return Err(h.fail(format!("dimension {dim}: tetloc reads 3-D meshes only")));
+    }
+    if n_attrs > MAX_ATTRS || n_markers > 1 {
+        return Err(h.fail(format!("{n_attrs} attributes and {n_markers} markers per point: corrupt header")));
+    }
+    if n == 0 {
+        return Err(h.fail("no points (TetGen then keeps them in a .poly or .smesh file, which tetloc does not read)"));
+    }
+    if n >= u32::MAX as u64 {
+        return Err(h.fail(format!("{n} points: more than tetloc's 32-bit indices can address")));
+    }
+    // "1 0 0 0\n": at least 8 bytes a point, and 2 more an attribute.
+    let n = lines.check_room(n, 8 + 2 * n_attrs, "points")?;
+    let mut points = Vec::with_capacity(n);
+    let mut attrs = Vec::with_capacity(n * n_attrs);
+    let mut base = 0;
+    for i in 0..n {
+        let mut r = lines.expect(&format!("point {} of {n}", i + 1))?;
+        let id: u64 = r.parse("a point number")?;
+        if i == 0 {
+            if id > 1 {
+                return Err(r.fail(format!("the first point is numbered {id}; TetGen numbers from 0 or 1")));
+            }
+            base = id;
+        } else if id != base + i as u64 {
+            return Err(r.fail(format!("point number {id}: expected {} (points must be numbered consecutively)", base + i as u64)));
+        }
+        let p = [r.parse::<f64>("x")?, r.parse::<f64>("y")?, r.parse::<f64>("z")?];
+        points.push(p.map(|c| c as f32));
+        for _ in 0..n_attrs {
+            attrs.push(r.parse::<f64>("a point attribute")? as f32);
+        }
+        if n_markers == 1 {
+            r.parse_or::<i64>("a boundary marker", 0)?;
+        }
+        r.expect_end("the point's values")?;
+    }
+    lines.expect_end(n, "points")?;
+    Ok(Nodes { points, attrs, n_attrs, base })
+}
+
+struct Tets {
+    /// Corners only.
+    tets: Vec<[u32; 4]>,
+    higher_order: Option<u8>,
+    /// `n_attrs` per tet, row-major.
+    attrs: Vec<f32>,
+    n_attrs: usize,
+}
+
+fn read_tets(lines: &mut Lines, nodes: &Nodes) -> Result<Tets> {
+    let mut h = lines.expect("the header '<#tets> <nodes per tet> <#attributes>'")?;
+    let n: u64 = h.parse("the number of tetrahedra")?;
+    let per_tet: usize = h.parse_or("the number of nodes per tetrahedron", 4)?;
+    let n_attrs: usize = h.parse_or("the number of attributes", 0)?;
+    h.expect_end("the header")?;
+    if per_tet != 4 && per_tet != 10 {
+        return Err(h.fail(format!("{per_tet} nodes per tetrahedron: TetGen writes 4 or 10")));
+    }
+    if n_attrs > MAX_ATTRS {
+        return Err(h.fail(format!("{n_attrs} attributes per tetrahedron: corrupt header")));
+    }
+    if n == 0 {
+        return Err(h.fail("no tetrahedra"));
+    }
+    // "1 1 2 3 4\n": at least 10 bytes a tet, and 2 more an attribute.
+    let n = lines.check_room(n, 2 * (1 + per_tet + n_attrs), "tetrahedra")?;
+    let n_points = nodes.points.len() as u64;
+    let mut tets = Vec::with_capacity(n);
+    let mut attrs = Vec::with_capacity(n * n_attrs);
+    for i in 0..n {
+        let mut r = lines.expect(&format!("tetrahedron {} of {n}", i + 1))?;
+        r.parse::<u64>("a tetrahedron number")?;
+        let mut t = [0u32; 4];
+        for k in 0..per_tet {
+            let id: u64 = r.parse("a point number")?;
+            let Some(index) = id.checked_sub(nodes.base).filter(|&x| x < n_points) else {
+                return Err(r.fail(format!(
+                    "point {id} does not exist: the .node file numbers its points {} to {}",
+                    nodes.base,
+                    nodes.base + n_points - 1
+                )));
+            };
+            if let Some(corner) = t.get_mut(k) {
+                *corner = index as u32;
+            }
+        }
+        tets.push(t);
+        for _ in 0..n_attrs {
+            attrs.push(r.parse::<f64>("a tetrahedron attribute")? as f32);
+        }
+        r.expect_end("the tetrahedron's values")?;
+    }
+    lines.expect_end(n, "tetrahedra")?;
+    Ok(Tets { tets, higher_order: (per_tet == 10).then_some(2), attrs, n_attrs })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::Mesh;
+    use rand::{Rng, SeedableRng};
+
+    /// A fresh temporary folder for one test.
+    fn temp_dir(test: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("tetloc-tetgen-{}-{test}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    /// Two tets sharing a face, numbered from `base`, with two point attributes, boundary
+    /// markers and a region attribute, and comments in odd places.
+    fn files(base: u32) -> (String, String) {
+        let pts = [[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]];
+        let mut node = String::from("# written by a test\n5 3 2 1\n\n");
+        for (i, p) in pts.iter().enumerate() {
+            node += &format!("  {}  {} {} {}  {} {}  {}  # point\n", i as u32 + base, p[0], p[1], p[2], i * 10, 0.5, i % 2);
+        }
+        let ele = format!(
+            "2 4 1 # header\n{} {} {} {} {} 3\n{} {} {} {} {} -1\n# Generated by tetgen\n",
+            base,
+            base,
+            base + 1,
+            base + 2,
+            base + 3,
+            base + 1,
+            base + 1,
+            base + 2,
+            base + 3,
+            base + 4
+        );
+        (node, ele)
+    }
+
+    fn expected() -> RawMesh {
+        let f = |name: &str, location, values: Vec<f32>| Field { name: name.into(), location, values };
+        RawMesh {
+            points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
+            tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
+            fields: vec![
+                f("attr[0]", FieldLocation::Vertex, vec![0.0, 10.0, 20.0, 30.0, 40.0]),
+                f("attr[1]", FieldLocation::Vertex, vec![0.5; 5]),
+                f("region", FieldLocation::Cell, vec![3.0, -1.0]),
+            ],
+            higher_order: None,
+        }
+    }
+
+    fn assert_same(got: &RawMesh, want: &RawMesh) {
+        assert_eq!(got.points, want.points);
+        assert_eq!(got.tets, want.tets);
+        assert_eq!(got.higher_order, want.higher_order);
+        let fields = |m: &RawMesh| m.fields.iter().map(|f| (f.name.clone(), f.location, f.values.clone())).collect::<Vec<_>>();
+        assert_eq!(fields(got), fields(want));
+    }
+
+    #[test]
+    fn reads_both_numberings_from_either_file() {
+        let dir = temp_dir("numberings");
+        for base in [0, 1] {
+            let (node, ele) = files(base);
+            let stem = dir.join(format!("mesh{base}.1"));
+            std::fs::write(stem.with_extension("node"), node).unwrap();
+            std::fs::write(stem.with_extension("ele"), ele).unwrap();
+            for ext in ["node", "ele"] {
+                let m = read(&stem.with_extension(ext)).unwrap();
+                assert_same(&m, &expected());
+                Mesh::new(m, "tetgen").unwrap();
+            }
+        }
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn minimal_headers_and_quadratic_tets() {
+        // Header fields after the count are optional; 10-node tets keep their corners.
+        let mut node = String::from("8\n");
+        for i in 0..8 {
+            node += &format!("{} {} {} {}\n", i + 1, i % 2, (i / 2) % 2, i / 4);
+        }
+        let ele = "1 10\n1 1 2 3 5 4 6 7 8 8 8\n";
+        let m = parse(node.as_bytes(), ele.as_bytes(), Path::new("q.node")).unwrap();
+        assert_eq!(m.tets, vec![[0, 1, 2, 4]]);
+        assert_eq!(m.higher_order, Some(2));
+        assert!(m.fields.is_empty());
+        assert_eq!(m.points[7], [1.0, 1.0, 1.0]);
+    }
+
+    #[test]
+    fn several_region_attributes() {
+        let (node, _) = files(0);
+        let ele = "1 4 2\n0 0 1 2 3 7 8\n";
+        let m = parse(node.as_bytes(), ele.as_bytes(), Path::new("m.node")).unwrap();
+        let cell: Vec<_> = m.fields.iter().filter(|f| f.location == FieldLocation::Cell).collect();
+        assert_eq!(cell.len(), 2);
+        assert_eq!((cell[0].name.as_str(), cell[0].values.as_slice()), ("region[0]", &[7.0f32][..]));
+        assert_eq!((cell[1].name.as_str(), cell[1].values.as_slice()), ("region[1]", &[8.0f32][..]));
+    }
+
+    fn err_of(node: &str, ele: &str) -> String {
+        match parse(node.as_bytes(), ele.as_bytes(), Path::new("/d/m.1.ele")) {
+            Ok(_) => panic!("parsed a bad mesh:\n{node}\n{ele}"),
+            Err(e) => e.to_string(),
+        }
+    }
+
+    #[test]
+    fn bad_files_give_clear_errors() {
+        let (node, ele) = files(1);
+        let cases: Vec<(String, String, &str)> = vec![
+            (node.replace("5 3 2 1", "5 2 2 1"), ele.clone(), "/d/m.1.node: line 2: dimension 2"),
+            (node.replace("  1  0 0 0", "  2  0 0 0"), ele.clone(), "line 4: the first point is numbered 2"),
+            (node.replace("  3  0 1 0", "  4  0 1 0"), ele.clone(), "line 6: point number 4: expected 3"),
+            (node.replace("  3  0 1 0", "  3  0 y 0"), ele.clone(), "line 6: expected y, found 'y'"),
+            (node.replace("  3  0 1 0  20 0.5  0", "  3  0 1 0  20"), ele.clone(), "line 6: missing a point attribute"),
+            (node.replace("5 3 2 1", "5 3 1 1"), ele.clone(), "line 4: expected a boundary marker, found '0.5'"),
+            (node.replace("5 3 2 1", "5 3 1 0"), ele.clone(), "line 4: unexpected '0.5' after the point's values"),
+            (node.replace("5 3 2 1", "6 3 2 1"), ele.clone(), "expected point 6 of 6"),
+            (node.replace("5 3 2 1", "4 3 2 1"), ele.clone(), "line 8: more points than the 4"),
+            (node.replace("5 3 2 1", "9999999 3 2 1"), ele.clone(), "declares 9999999 points"),
+            (node.replace("5 3 2 1", "0 3 0 0"), ele.clone(), "no points"),
+            (node.clone(), ele.replace("2 4 1", "2 6 1"), "/d/m.1.ele: line 1: 6 nodes per tetrahedron"),
+            (node.clone(), ele.replace("2 3 4 5 -1", "2 3 4 6 -1"), "line 3: point 6 does not exist: the .node file numbers its points 1 to 5"),
+            (node.clone(), ele.replace("2 3 4 5 -1", "2 3 4 0 -1"), "line 3: point 0 does not exist"),
+            (node.clone(), ele.replace("2 4 1", "3 4 1"), "expected tetrahedron 3 of 3"),
+            (node.clone(), ele.replace(" 3\n", " 3.5.1\n"), "line 2: expected a tetrahedron attribute, found '3.5.1'"),
+        ];
+        for (node, ele, want) in cases {
+            let msg = err_of(&node, &ele);
+            assert!(msg.contains(want), "expected '{want}' in: {msg}");
+        }
+        // A missing sibling names the file that is missing.
+        let dir = temp_dir("missing");
+        let (node, _) = files(0);
+        std::fs::write(dir.join("m.node"), node).unwrap();
+        match read(&dir.join("m.node")) {
+            Err(Error::Io { path, .. }) => assert_eq!(path, dir.join("m.ele")),
+            other => panic!("{other:?}"),
+        }
+        assert!(read(&dir.join("m.face")).unwrap_err().to_string().contains(".node or .ele"));
+        std::fs::remove_dir_all(dir).unwrap();
+    }
+
+    #[test]
+    fn truncated_and_corrupted_files_are_errors() {
+        let (node, ele) = files(0);
+        let (node, ele) = (node.as_bytes(), ele.as_bytes());
+        let path = Path::new("t.node");
+        // A cut before the last data line loses a record; a cut inside it may still parse
+        // (a line-based format cannot tell a shortened last number), but never panics.
+        let last_line = |b: &[u8]| {
+            let text = std::str::from_utf8(b).unwrap();
+            let data_lines: Vec<usize> = text
+                .lines()
+                .scan(0, |at, l| {
+                    let start = *at;
+                    *at += l.len() + 1;
+                    Some((start, l))
+                })
+                .filter(|(_, l)| !l.trim_start().starts_with('#') && !l.trim().is_empty())
+                .map(|(start, _)| start)
+                .collect();
+            *data_lines.last().unwrap()
+        };
+        for len in 0..node.len() {
+            let res = parse(&node[..len], ele, path);
+            assert!(len > last_line(node) || res.is_err(), "node cut at {len}");
+        }
+        for len in 0..ele.len() {
+            let res = parse(node, &ele[..len], path);
+            assert!(len > last_line(ele) || res.is_err(), "ele cut at {len}");
+        }
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        for _ in 0..3000 {
+            let (mut n, mut e) = (node.to_vec(), ele.to_vec());
+            for _ in 0..rng.gen_range(1..4) {
+                let target = if rng.gen() { &mut n } else { &mut e };
+                let i = rng.gen_range(0..target.len());
+                target[i] = [rng.gen(), b'9', b'-', b' ', b'\n', b'#', b'e'][rng.gen_range(0..7)];
+            }
+            if let Ok(m) = parse(&n, &e, path) {
+                let _ = Mesh::new(m, "corrupt");
+            }
+        }
+    }
 }
