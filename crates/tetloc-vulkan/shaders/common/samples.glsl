@@ -1,0 +1,77 @@
+// Where a kernel's points come from and where its answers go: host points from the
+// queries buffer, or samples generated in the kernel as in the paper (`uniform`: the centre
+// of every tet; `random`: a random point in a random tet) plus `bbox` (uniform in the
+// mesh's bounding box). Generated points use only +, -, * (precise), so the CPU can
+// reproduce them; RECORD_POINTS writes them out for the tests.
+#ifndef TL_SAMPLES_GLSL
+#define TL_SAMPLES_GLSL
+
+layout(std430, binding = TL_B_QUERIES) buffer TlQueries { float tl_queries[]; };
+layout(std430, binding = TL_B_OUT) writeonly buffer TlOut { uint tl_out[]; };
+
+// PCG hash (O'Neill's RXS-M-XS output of one LCG step): cheap and well mixed.
+uint tl_hash(uint x) {
+    uint state = x * 747796405u + 2891336453u;
+    uint word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+// A uniform float in [0, 1) with 24 random bits; advances the state.
+float tl_unit(inout uint s) {
+    s = tl_hash(s);
+    return float(s >> 8) * (1.0 / 16777216.0);
+}
+
+// The sample point for point `i` of this launch.
+vec3 tl_sample(uint i) {
+    uint g = params.counts.y + i; // global sample index: chunked launches give the same points
+    if (SAMPLE_MODE == TL_SAMPLE_HOST) {
+        return vec3(tl_queries[3 * i], tl_queries[3 * i + 1], tl_queries[3 * i + 2]);
+    } else if (SAMPLE_MODE == TL_SAMPLE_UNIFORM) {
+        // Mesh::tet_center: the vertices summed in order, then scaled.
+        uvec4 t = tl_tets[g];
+        precise vec3 c = (((tl_vertex(t.x) + tl_vertex(t.y)) + tl_vertex(t.z)) + tl_vertex(t.w)) * 0.25;
+        return c;
+    } else if (SAMPLE_MODE == TL_SAMPLE_RANDOM) {
+        uint s = tl_hash(g ^ tl_hash(params.counts.w));
+        uvec4 t = tl_tets[tl_hash(s) % params.counts.z];
+        precise float a = tl_unit(s), b = tl_unit(s), c = tl_unit(s);
+        // Fold the unit cube into the tet's parameter domain (Rocchini & Cignoni).
+        if (a + b > 1.0) {
+            a = 1.0 - a;
+            b = 1.0 - b;
+        }
+        if (b + c > 1.0) {
+            float tmp = c;
+            c = 1.0 - a - b;
+            b = 1.0 - tmp;
+        } else if (a + b + c > 1.0) {
+            float tmp = c;
+            c = a + b + c - 1.0;
+            a = 1.0 - b - tmp;
+        }
+        precise float w = 1.0 - a - b - c;
+        precise vec3 p = w * tl_vertex(t.x) + a * tl_vertex(t.y) + b * tl_vertex(t.z) + c * tl_vertex(t.w);
+        return p;
+    } else {
+        uint s = tl_hash(g ^ tl_hash(params.counts.w ^ 0x9e3779b9u));
+        precise vec3 u = vec3(tl_unit(s), tl_unit(s), tl_unit(s));
+        precise vec3 p = params.lo_tmin.xyz + u * (params.hi_tmax.xyz - params.lo_tmin.xyz);
+        return p;
+    }
+}
+
+void tl_record(uint i, vec3 p) {
+    if (RECORD_POINTS) {
+        tl_queries[3 * i] = p.x;
+        tl_queries[3 * i + 1] = p.y;
+        tl_queries[3 * i + 2] = p.z;
+    }
+}
+
+// The answer for point i: the tet id (-1 outside) or the field value (NaN outside).
+void tl_store(uint i, int tet, float value) {
+    tl_out[i] = OUTPUT_MODE == TL_OUT_IDS ? uint(tet) : floatBitsToUint(value);
+}
+
+#endif

@@ -1,0 +1,134 @@
+// The point-in-tet test and interpolation: a line-by-line mirror of
+// tetloc-core/src/geom/mod.rs (read that file's header for the why). Keep them in step.
+//
+// Watertightness needs every float operation that feeds a decision to be evaluated exactly
+// as on the CPU: same operands, same order, and no FMA contraction. `precise` forbids
+// contraction (SPIR-V NoContraction); Vulkan rounds +, -, * correctly. Two tets sharing a
+// face therefore compute bit-identical determinants for it, and only the sign they expect
+// differs: a point on a shared face is accepted by at least one of them.
+//
+// TL_F64 (defined when the device has shaderFloat64) enables the exact f64 fallback. Without
+// it, the pure-f32 path lets the f32 determinant decide even within its error bound: still
+// watertight (neighbours see the same value), but a point within rounding of a face may go
+// to either side, and sliver barycentrics are only f32-accurate.
+#ifndef TL_TET_GLSL
+#define TL_TET_GLSL
+
+// Determinant of (a-p, b-p, c-p) in f32 and its error bound (geom::orient_f32).
+float tl_orient_f32(vec3 a, vec3 b, vec3 c, vec3 p, out float bound) {
+    precise float adx = a.x - p.x, ady = a.y - p.y, adz = a.z - p.z;
+    precise float bdx = b.x - p.x, bdy = b.y - p.y, bdz = b.z - p.z;
+    precise float cdx = c.x - p.x, cdy = c.y - p.y, cdz = c.z - p.z;
+    precise float bc_yz = bdy * cdz, cb_yz = cdy * bdz;
+    precise float ca_yz = cdy * adz, ac_yz = ady * cdz;
+    precise float ab_yz = ady * bdz, ba_yz = bdy * adz;
+    precise float det = adx * (bc_yz - cb_yz) + bdx * (ca_yz - ac_yz) + cdx * (ab_yz - ba_yz);
+    precise float permanent = (abs(bc_yz) + abs(cb_yz)) * abs(adx)
+        + (abs(ca_yz) + abs(ac_yz)) * abs(bdx)
+        + (abs(ab_yz) + abs(ba_yz)) * abs(cdx);
+    bound = ORIENT_ERR_BOUND_F32 * permanent;
+    return det;
+}
+
+#ifdef TL_F64
+// The same determinant in f64 (geom::orient_f64).
+double tl_orient_f64(vec3 a, vec3 b, vec3 c, vec3 p) {
+    precise double adx = double(a.x) - double(p.x), ady = double(a.y) - double(p.y), adz = double(a.z) - double(p.z);
+    precise double bdx = double(b.x) - double(p.x), bdy = double(b.y) - double(p.y), bdz = double(b.z) - double(p.z);
+    precise double cdx = double(c.x) - double(p.x), cdy = double(c.y) - double(p.y), cdz = double(c.z) - double(p.z);
+    precise double det = adx * (bdy * cdz - cdy * bdz) + bdx * (cdy * adz - ady * cdz) + cdx * (ady * bdz - bdy * adz);
+    return det;
+}
+#endif
+
+// geom::SORTED_FACES: for the face opposite ascending-order vertex i, its three vertices in
+// ascending order and the sign with which orient() is positive towards vertex i.
+const ivec3 TL_FACE[4] = ivec3[4](ivec3(1, 2, 3), ivec3(0, 2, 3), ivec3(0, 1, 3), ivec3(0, 1, 2));
+const float TL_PARITY[4] = float[4](-1.0, 1.0, -1.0, 1.0);
+
+// geom::point_in_tet. `ids` canonical. On success, `bary` holds the weights of ids.xyzw.
+// On failure, `exit_face` is the (ascending-order) face that p is outside of, the face
+// across which a walk continues (0 for a zero-volume tet).
+bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
+    bary = vec4(0.0);
+    exit_face = 0;
+    // Ascending order: swap back the last two if canonical order swapped them.
+    bool swapped = ids.w < ids.z;
+    uvec4 asc = swapped ? ids.xywz : ids;
+    float orientation = swapped ? -1.0 : 1.0;
+    vec3 v[4] = vec3[4](tl_vertex(asc.x), tl_vertex(asc.y), tl_vertex(asc.z), tl_vertex(asc.w));
+    float d[4];
+    precise float bound_sum = 0.0;
+    bool exact = false;
+    [[unroll]] for (int i = 0; i < 4; i++) {
+        float sign = TL_PARITY[i] * orientation;
+        float bound;
+        precise float det = tl_orient_f32(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p, bound);
+        precise float signed_det;
+#ifdef TL_F64
+        if (abs(det) > bound) {
+            signed_det = sign * det;
+        } else {
+            exact = true;
+            precise double signed64 = double(sign) * tl_orient_f64(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p);
+            if (signed64 < 0.0) {
+                exit_face = i;
+                return false;
+            }
+            signed_det = float(signed64);
+        }
+#else
+        signed_det = sign * det;
+#endif
+        // -0.0 and +0.0 (on the face) both count as inside.
+        if (signed_det < 0.0) {
+            exit_face = i;
+            return false;
+        }
+        d[i] = signed_det;
+        bound_sum += bound;
+    }
+    precise float total = d[0] + d[1] + d[2] + d[3];
+#ifdef TL_F64
+    if (!exact && total > BARY_F32_TRUST * bound_sum) {
+        bary = vec4(d[0], d[1], d[2], d[3]) / total;
+    } else {
+        // Sliver or point near a face: barycentrics in f64.
+        double d64[4];
+        [[unroll]] for (int i = 0; i < 4; i++) {
+            d64[i] = double(TL_PARITY[i] * orientation) * tl_orient_f64(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p);
+        }
+        precise double total64 = d64[0] + d64[1] + d64[2] + d64[3];
+        if (total64 <= 0.0) {
+            return false; // zero-volume tet: contains no point
+        }
+        bary = vec4(float(max(d64[0], 0.0) / total64), float(max(d64[1], 0.0) / total64),
+                    float(max(d64[2], 0.0) / total64), float(max(d64[3], 0.0) / total64));
+    }
+#else
+    if (!(total > 0.0)) {
+        return false; // zero-volume tet: contains no point
+    }
+    bary = vec4(d[0], d[1], d[2], d[3]) / total;
+#endif
+    // Weights from ascending order back to the stored (canonical) order.
+    if (swapped) {
+        bary = bary.xywz;
+    }
+    return true;
+}
+
+// geom::interpolate for a per-vertex field, or the per-cell value; NaN outside.
+float tl_value(int tet, uvec4 ids, vec4 bary) {
+    if (tet < 0) {
+        return uintBitsToFloat(0x7fc00000u);
+    }
+    if (OUTPUT_MODE == TL_OUT_CELL) {
+        return tl_field[tet];
+    }
+    precise float v = bary.x * tl_field[ids.x] + bary.y * tl_field[ids.y]
+        + bary.z * tl_field[ids.z] + bary.w * tl_field[ids.w];
+    return v;
+}
+
+#endif

@@ -1,0 +1,60 @@
+#version 460
+// rt-rep-faces (REP_FACES) and rt-shared-faces (SHARED_FACES): the closest face hit along
+// the ray names a candidate tet, which the point-in-tet test confirms (paper Fig. 5, 6).
+//
+// rep-faces: four inward-facing triangles per tet, back faces culled, so the closest hit is
+// a face of the tet the ray starts in. shared-faces: each face once; the side the ray comes
+// from is the candidate. Vulkan calls a hit front-facing when the ray travels against
+// n = (v1 - v0) x (v2 - v0), i.e. it starts on the side n points to: that is the face's
+// `back` tet in tetloc_core::mesh::Face's convention.
+//
+// When rounding puts the hit on the wrong side of a face or edge (points within rounding of
+// it), the candidate fails the test; a short walk through tet neighbours then finds the
+// containing tet, so no interior point falls through a crack.
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_control_flow_attributes : require
+#extension GL_EXT_ray_tracing : require
+#include "common/types.glsl"
+#include "common/mesh.glsl"
+#include "common/tet.glsl"
+#include "common/rt.glsl"
+
+#ifdef REP_FACES
+// Triangle 4k + j of the concatenated BLAS inputs belongs to tet tl_prim_tet[k].
+layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrimTet { uint tl_prim_tet[]; };
+#else
+// (front, back) tets of each face, -1 for none (tetloc_core::mesh::Face).
+layout(std430, binding = TL_B_PRIMS) readonly buffer TlFaceTets { ivec2 tl_face_tets[]; };
+#endif
+// Neighbour of each tet across the face opposite its ascending-order vertex i (-1: boundary).
+layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_neighbors[]; };
+
+layout(location = 0) rayPayloadInEXT TlPayload pl;
+
+void main() {
+    uint prim = tl_instance_base[gl_InstanceID] + gl_PrimitiveID;
+#ifdef REP_FACES
+    int tet = int(tl_prim_tet[prim >> 2]);
+#else
+    ivec2 sides = tl_face_tets[prim];
+    bool from_back = gl_HitKindEXT == gl_HitKindFrontFacingTriangleEXT;
+    int tet = from_back ? sides.y : sides.x;
+    if (tet < 0) {
+        // The ray comes from outside the mesh: confirm that with the tet behind the face.
+        tet = from_back ? sides.x : sides.y;
+    }
+#endif
+    vec3 p = gl_WorldRayOriginEXT;
+    for (int step = 0; step < WALK_MAX && tet >= 0; step++) {
+        uvec4 ids = tl_tets[tet];
+        vec4 bary;
+        int exit_face;
+        if (tl_point_in_tet(ids, p, bary, exit_face)) {
+            pl.tet = tet;
+            pl.value = OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary);
+            return;
+        }
+        tet = tl_neighbors[tet][exit_face];
+    }
+    pl.tet = -1;
+}

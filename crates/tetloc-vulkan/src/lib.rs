@@ -1,0 +1,1 @@
+//! tetloc's Vulkan backend.
