@@ -24,9 +24,10 @@ use tetloc_core::{BatchLocator, Mesh};
 /// A ray stops once it is this opaque.
 pub const OPACITY_CUTOFF: f32 = 0.99;
 
-/// Occupancy cells are about this many default steps wide: coarse enough that a jump saves
-/// several samples, fine enough to follow the shape of sparse meshes.
-const CELL_STEPS: f32 = 4.0;
+/// Occupancy cells are about this many default steps (mean tet sizes) wide. Finer cells
+/// follow sparse shapes more closely (on the test torus 1 step skips 1.7x, 2 steps 1.4x,
+/// 4 steps 1.2x); the grid is capped at 256 cells an axis, which is what large meshes get.
+const CELL_STEPS: f32 = 1.0;
 
 /// The most samples one ray takes in a round, when few rays are left.
 const MAX_SAMPLES_PER_ROUND: usize = 64;

@@ -7,7 +7,7 @@ mod io;
 
 pub use bvh::{Hit, SurfaceBvh};
 
-use crate::error::Result;
+use crate::error::{RenderError, Result};
 use crate::vec::Vec3;
 use std::path::Path;
 use tetloc_core::Mesh;
@@ -29,23 +29,40 @@ impl TriMesh {
     /// Reads a surface file chosen by extension: `.obj`, `.stl` (ascii or binary) or `.vtk`
     /// (legacy POLYDATA).
     pub fn load(path: &Path) -> Result<TriMesh> {
-        let bytes = std::fs::read(path).map_err(|e| crate::RenderError::io(path, e))?;
+        format_of(path)?;
+        let bytes = std::fs::read(path).map_err(|e| RenderError::io(path, e))?;
         Self::parse(&bytes, path)
     }
 
     /// Parses a surface file held in memory; `path` names it in errors and picks the format.
     pub fn parse(bytes: &[u8], path: &Path) -> Result<TriMesh> {
-        let ext = path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase);
-        let mesh = match ext.as_deref() {
-            Some("obj") => io::parse_obj(bytes),
-            Some("stl") => io::parse_stl(bytes),
-            Some("vtk") => io::parse_vtk_polydata(bytes),
-            _ => Err("unknown surface format (known: obj, stl, vtk)".to_string()),
+        let mesh = match format_of(path)? {
+            Format::Obj => io::parse_obj(bytes),
+            Format::Stl => io::parse_stl(bytes),
+            Format::Vtk => io::parse_vtk_polydata(bytes),
         }
-        .map_err(|msg| crate::RenderError::file(path, msg))?;
+        .map_err(|msg| RenderError::file(path, msg))?;
         if mesh.triangles.is_empty() {
-            return Err(crate::RenderError::file(path, "the file holds no triangles"));
+            return Err(RenderError::file(path, "the file holds no triangles"));
+        }
+        if let Some(i) = mesh.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
+            return Err(RenderError::file(path, format!("vertex {i} has a non-finite coordinate {:?}", mesh.positions[i])));
         }
         Ok(mesh)
+    }
+}
+
+enum Format {
+    Obj,
+    Stl,
+    Vtk,
+}
+
+fn format_of(path: &Path) -> Result<Format> {
+    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
+        Some("obj") => Ok(Format::Obj),
+        Some("stl") => Ok(Format::Stl),
+        Some("vtk") => Ok(Format::Vtk),
+        _ => Err(RenderError::file(path, "unknown surface format (known: obj, stl, vtk)")),
     }
 }
