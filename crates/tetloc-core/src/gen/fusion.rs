@@ -1,4 +1,4 @@
-//! `fusion`: a tokamak-like torus (major radius 1, elongated cross-section), its cells ~5×
+//! `fusion`: a tokamak-like torus (major radius 1, elongated cross-section), its cells ~10×
 //! finer near the centre line, like the Fusion data set, whose tets "are densely packed
 //! around the center line of the torus".
 //!
@@ -18,7 +18,7 @@ const MINOR: f64 = 0.4786;
 /// Vertical stretch of the cross-section (tokamak plasmas are taller than wide).
 const ELONGATION: f64 = 1.4;
 /// Radial warp: spacing at the centre line over the mean spacing...
-const CORE_SPACING: f64 = 0.2;
+const CORE_SPACING: f64 = 0.1;
 /// ...reached within about √CORE_RADIUS2 of the minor radius.
 const CORE_RADIUS2: f64 = 0.3;
 /// Toroidal cell length at the major radius, over the cross-section's grid spacing.

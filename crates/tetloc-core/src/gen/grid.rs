@@ -224,9 +224,9 @@ mod tests {
         for tet in KUHN {
             let v = tet_volume6(tet.map(corner));
             assert!(v > 0.0, "{tet:?} has volume×6 {v}");
-            total += v / 6.0;
+            total += v;
         }
-        assert_eq!(total, 1.0);
+        assert_eq!(total, 6.0, "the six tets do not fill the unit cube");
     }
 
     #[test]

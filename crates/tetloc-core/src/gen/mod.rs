@@ -3,7 +3,7 @@
 //! | shape | like | occupancy of the bounding box |
 //! |---|---|---|
 //! | `jets` | Jets: fills a box, graded towards the jet axis and the inflow | 100 % |
-//! | `fusion` | Fusion: a tokamak torus, ~5× finer near its centre line | ~54 % |
+//! | `fusion` | Fusion: a tokamak torus, ~10× finer near its centre line | ~54 % |
 //! | `agulhas` | Agulhas: an ocean layer over a bathymetry, with continents as holes | ~49 % |
 //! | `japan` | Japan: a thin curved sheet of varying thickness in a large box | ~7 % |
 //!
