@@ -539,7 +539,7 @@ w 2 5 int
             (ok.replace("4 4 1 2 0", "9 4 1 2 0"), "past the end"),
             (ok.replace("POINT_DATA 5", "POINT_DATA 6"), "'VECTORS' is not a valid Float64"),
             (ok.replace("CELL_DATA 3\n", ""), "before POINT_DATA"),
-            (ok.replace("CELLS 3 14", "CELLS 3 1000000000000"), "found only"),
+            (ok.replace("CELLS 3 14", "CELLS 3 1000000000000"), "'CELL_TYPES' is not a valid Int32"),
             (ok.replace("POINTS 5 float", "POINTS 99999999999999999999 float"), "not a count"),
             (ok[..ok.find("CELL_TYPES").unwrap()].to_string(), "no CELL_TYPES"),
             (ok.replace("VECTORS", "VECTOR"), "unexpected keyword 'VECTOR'"),

@@ -95,7 +95,8 @@ impl<'a> Appended<'a> {
         // A file cut short in its last array still has all the sizes it needs: ask for the
         // closing tag, which VTK writes after the data.
         let tail = bytes.trim_ascii_end();
-        if !tail[tail.len().saturating_sub(64)..].windows(9).any(|w| w == b"</VTKFile") {
+        let closed = tail.ends_with(b">") && tail[tail.len().saturating_sub(64)..].windows(9).any(|w| w == b"</VTKFile");
+        if !closed {
             return Err("the file does not end with </VTKFile>: truncated?".into());
         }
         match node.attr("encoding") {
