@@ -58,23 +58,40 @@ impl Agulhas {
         let bottom = Noise2::new(&mut rng, 6, 0.15, 1.2);
         let surface = Noise2::new(&mut rng, 4, 0.3, 1.0);
         let centre = |c: usize| (((c % ni) as f64 + 0.5) * h, ((c / ni) as f64 + 0.5) * h);
-        let land_at: Vec<f64> = (0..ni * nj).map(|c| {
-            let (x, y) = centre(c);
-            land.at(x, y)
-        }).collect();
+        let land_at: Vec<f64> = (0..ni * nj)
+            .map(|c| {
+                let (x, y) = centre(c);
+                land.at(x, y)
+            })
+            .collect();
         let keep = keep_lowest(&land_at, n_wet);
         let coast = (0..ni * nj).filter(|&c| keep[c]).map(|c| land_at[c]).fold(f64::MIN, f64::max);
         let mean = land_at.iter().sum::<f64>() / land_at.len() as f64;
         let spread = (land_at.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / land_at.len() as f64).sqrt().max(1e-6);
         let columns = Columns { ni, nj, nk, periodic_k: false, keep };
 
-        let mut sea = Agulhas { columns, h, land, bottom, surface, coast, spread, t_min: 0.0, t_max: 1.0, shallow: 0.0, seed: splitmix64(seed) };
+        let mut sea = Agulhas {
+            columns,
+            h,
+            land,
+            bottom,
+            surface,
+            coast,
+            spread,
+            t_min: 0.0,
+            t_max: 1.0,
+            shallow: 0.0,
+            seed: splitmix64(seed),
+        };
         // Normalise the bathymetry over the sea, then pick the shallowest depth that gives
         // the occupancy: wet share of the box × mean depth / box height.
-        let t: Vec<f64> = (0..ni * nj).filter(|&c| sea.columns.keep[c]).map(|c| {
-            let (x, y) = centre(c);
-            sea.raw_bathymetry(x, y)
-        }).collect();
+        let t: Vec<f64> = (0..ni * nj)
+            .filter(|&c| sea.columns.keep[c])
+            .map(|c| {
+                let (x, y) = centre(c);
+                sea.raw_bathymetry(x, y)
+            })
+            .collect();
         sea.t_min = t.iter().copied().fold(f64::MAX, f64::min);
         sea.t_max = t.iter().copied().fold(f64::MIN, f64::max).max(sea.t_min + 1e-9);
         let t_mean = t.iter().map(|&v| (v - sea.t_min) / (sea.t_max - sea.t_min)).sum::<f64>() / t.len() as f64;

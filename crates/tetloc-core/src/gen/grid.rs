@@ -100,9 +100,7 @@ pub(super) fn keep_lowest(values: &[f64], k: usize) -> Vec<bool> {
         return keep;
     }
     let mut idx: Vec<u32> = (0..values.len() as u32).collect();
-    idx.select_nth_unstable_by(k - 1, |&a, &b| {
-        values[a as usize].total_cmp(&values[b as usize]).then(a.cmp(&b))
-    });
+    idx.select_nth_unstable_by(k - 1, |&a, &b| values[a as usize].total_cmp(&values[b as usize]).then(a.cmp(&b)));
     for &i in &idx[..k] {
         keep[i as usize] = true;
     }
@@ -152,8 +150,10 @@ pub(super) fn build(shape: &dyn ColumnShape, progress: &Progress) -> RawMesh {
             }
         }
     }
-    let cells: Vec<(u32, u32)> =
-        (0..nj).flat_map(|j| (0..ni).map(move |i| (i as u32, j as u32))).filter(|&(i, j)| kept(i as usize, j as usize)).collect();
+    let cells: Vec<(u32, u32)> = (0..nj)
+        .flat_map(|j| (0..ni).map(move |i| (i as u32, j as u32)))
+        .filter(|&(i, j)| kept(i as usize, j as usize))
+        .collect();
 
     let n_points = used.len() * levels;
     let n_tets = cells.len() * nk * 6;

@@ -79,10 +79,7 @@ impl FromStr for Shape {
     type Err = Error;
     fn from_str(s: &str) -> Result<Shape, Error> {
         Shape::ALL.into_iter().find(|sh| sh.name().eq_ignore_ascii_case(s.trim())).ok_or_else(|| {
-            Error::Invalid(format!(
-                "unknown shape '{s}' (known: {})",
-                Shape::ALL.map(|sh| sh.name()).join(", ")
-            ))
+            Error::Invalid(format!("unknown shape '{s}' (known: {})", Shape::ALL.map(|sh| sh.name()).join(", ")))
         })
     }
 }
@@ -94,12 +91,7 @@ pub fn generate(shape: Shape, target_tets: usize, seed: u64) -> RawMesh {
 
 /// [`generate`], calling `progress` with the fraction done (increasing, ending with 1.0),
 /// from whichever thread gets there, at most about a thousand times.
-pub fn generate_with_progress(
-    shape: Shape,
-    target_tets: usize,
-    seed: u64,
-    progress: &(dyn Fn(f64) + Sync),
-) -> RawMesh {
+pub fn generate_with_progress(shape: Shape, target_tets: usize, seed: u64, progress: &(dyn Fn(f64) + Sync)) -> RawMesh {
     let progress = Progress { callback: progress, last: Mutex::new(-1.0) };
     progress.report(0.0);
     // Every shape is made of cells of 6 tets.
