@@ -296,13 +296,15 @@ impl<'a> Cursor<'a> {
     fn ascii_u64(&mut self, what: &str) -> Result<u64> {
         let start = self.here();
         let tok = self.token(what)?;
-        parse_u64(tok).ok_or_else(|| self.fail_at(start, format!("expected {what} (an integer ≥ 0), found '{}'", show(tok))))
+        parse_u64(tok)
+            .ok_or_else(|| self.fail_at(start, format!("expected {what} (an integer ≥ 0), found '{}'", show(tok))))
     }
 
     fn ascii_i64(&mut self, what: &str) -> Result<i64> {
         let start = self.here();
         let tok = self.token(what)?;
-        parse_i64(tok).ok_or_else(|| self.fail_at(start, format!("expected {what} (an integer), found '{}'", show(tok))))
+        parse_i64(tok)
+            .ok_or_else(|| self.fail_at(start, format!("expected {what} (an integer), found '{}'", show(tok))))
     }
 
     fn ascii_f64(&mut self, what: &str) -> Result<f64> {
@@ -323,10 +325,9 @@ impl<'a> Cursor<'a> {
     /// `n` raw bytes of binary data.
     fn take(&mut self, n: usize, what: &str) -> Result<&'a [u8]> {
         if n > self.remaining() {
-            return Err(self.fail(format!(
-                "file truncated: {what} needs {n} bytes but only {} are left",
-                self.remaining()
-            )));
+            return Err(
+                self.fail(format!("file truncated: {what} needs {n} bytes but only {} are left", self.remaining()))
+            );
         }
         let out = &self.buf[self.pos..self.pos + n];
         self.pos += n;
@@ -399,7 +400,10 @@ impl<'a> Cursor<'a> {
 /// Maps Gmsh tags (any u64, possibly sparse) to dense 0-based indices.
 enum TagMap {
     /// Tags within a span not much larger than their count: a direct lookup table.
-    Dense { min: u64, index: Vec<u32> },
+    Dense {
+        min: u64,
+        index: Vec<u32>,
+    },
     Sparse(HashMap<u64, u32>),
 }
 
@@ -500,7 +504,9 @@ impl Parser<'_> {
             let start = self.c.pos;
             let header = trim(self.c.line());
             let Some(name) = header.strip_prefix(b"$") else {
-                return Err(self.c.fail_at(start, format!("expected a section such as $Nodes, found '{}'", show(header))));
+                return Err(self
+                    .c
+                    .fail_at(start, format!("expected a section such as $Nodes, found '{}'", show(header))));
             };
             match name {
                 b"Nodes" => self.read_nodes(start)?,
@@ -563,7 +569,11 @@ impl Parser<'_> {
         if line.strip_prefix(b"$End") != Some(name) {
             return Err(self.c.fail_at(
                 start,
-                format!("expected $End{}, found '{}' (a count in the section does not match its data)", show(name), show(line)),
+                format!(
+                    "expected $End{}, found '{}' (a count in the section does not match its data)",
+                    show(name),
+                    show(line)
+                ),
             ));
         }
         Ok(())
@@ -601,7 +611,11 @@ impl Parser<'_> {
                     return Err(c.fail(format!("negative node tag {tag}")));
                 }
                 tags.push(tag as u64);
-                points.push([get_f64(&r[4..], big) as f32, get_f64(&r[12..], big) as f32, get_f64(&r[20..], big) as f32]);
+                points.push([
+                    get_f64(&r[4..], big) as f32,
+                    get_f64(&r[12..], big) as f32,
+                    get_f64(&r[20..], big) as f32,
+                ]);
             }
         } else {
             for _ in 0..n {
@@ -640,9 +654,10 @@ impl Parser<'_> {
                 let tag_bytes = c.take_records(count, 8, "node tags")?;
                 let xyz = c.take_records(count, 8 * per_node, "node coordinates")?;
                 tags.extend(tag_bytes.chunks_exact(8).map(|b| get_u64(b, big)));
-                points.extend(xyz.chunks_exact(8 * per_node).map(|r| {
-                    [get_f64(r, big) as f32, get_f64(&r[8..], big) as f32, get_f64(&r[16..], big) as f32]
-                }));
+                points
+                    .extend(xyz.chunks_exact(8 * per_node).map(|r| {
+                        [get_f64(r, big) as f32, get_f64(&r[8..], big) as f32, get_f64(&r[16..], big) as f32]
+                    }));
             } else {
                 for _ in 0..count {
                     tags.push(c.ascii_u64("a node tag")?);
@@ -713,7 +728,9 @@ impl Parser<'_> {
         }
         let n_int = c.ascii_u64("the number of integer tags")?;
         if n_int < 3 {
-            return Err(c.fail(format!("{what} '{name}' has {n_int} integer tags; it needs 3 (step, components, count)")));
+            return Err(
+                c.fail(format!("{what} '{name}' has {n_int} integer tags; it needs 3 (step, components, count)"))
+            );
         }
         let step = c.ascii_i64("the time step")?;
         let ncomp = c.ascii_u64("the number of components")?;
@@ -767,7 +784,8 @@ impl Parser<'_> {
         if location == FieldLocation::Cell {
             let cells = cells.as_mut().expect("checked above");
             if cells.map.is_none() {
-                let map = TagMap::new(&cells.tags).map_err(|t| c.fail(format!("element tag {t} appears twice in $Elements")))?;
+                let map = TagMap::new(&cells.tags)
+                    .map_err(|t| c.fail(format!("element tag {t} appears twice in $Elements")))?;
                 cells.map = Some(map);
             }
         }
@@ -780,7 +798,9 @@ impl Parser<'_> {
                     None => Err(format!("{what} '{name}' gives a value for node {t}, which is not in $Nodes")),
                 },
                 // Values on surface or line elements are dropped.
-                FieldLocation::Cell => Ok(cells.as_ref().and_then(|c| c.map.as_ref()).and_then(|m| m.get(t)).map(|i| i as usize)),
+                FieldLocation::Cell => {
+                    Ok(cells.as_ref().and_then(|c| c.map.as_ref()).and_then(|m| m.get(t)).map(|i| i as usize))
+                }
             }
         };
         let mut values = slot.map(|i| &mut self.fields[i].values);
@@ -879,11 +899,21 @@ impl ElementSink<'_> {
 }
 
 fn unknown_type(c: &Cursor, pos: usize, ty: i64) -> Error {
-    c.fail_at(pos, format!("element type {ty} is not a Gmsh element type with a fixed number of nodes that tetloc knows"))
+    c.fail_at(
+        pos,
+        format!("element type {ty} is not a Gmsh element type with a fixed number of nodes that tetloc knows"),
+    )
 }
 
 /// Reads the `nn` node tags of an ASCII element; the corners if it is a tetrahedron.
-fn read_ascii_nodes(c: &mut Cursor, acc: &ElementSink, kind: Kind, nn: usize, tag: u64, pos: usize) -> Result<[u32; 4]> {
+fn read_ascii_nodes(
+    c: &mut Cursor,
+    acc: &ElementSink,
+    kind: Kind,
+    nn: usize,
+    tag: u64,
+    pos: usize,
+) -> Result<[u32; 4]> {
     let mut t = [0u32; 4];
     let corners = if let Kind::Tet(_) = kind { 4 } else { 0 };
     for v in &mut t[..corners] {
@@ -923,7 +953,8 @@ fn read_elements_v2(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
                     let first = 4 * (1 + ntags as usize);
                     for r in data.chunks_exact(record) {
                         let tag = get_i32(r, big);
-                        let tag = u64::try_from(tag).map_err(|_| c.fail_at(pos, format!("negative element tag {tag}")))?;
+                        let tag =
+                            u64::try_from(tag).map_err(|_| c.fail_at(pos, format!("negative element tag {tag}")))?;
                         let mut t = [0u32; 4];
                         for (k, v) in t.iter_mut().enumerate() {
                             let node = get_i32(&r[first + 4 * k..], big) as i64 as u64;
@@ -1017,7 +1048,6 @@ fn read_elements_v41(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
     }
     Ok(())
 }
-
 
 #[cfg(test)]
 mod tests {
@@ -1318,7 +1348,10 @@ mod tests {
             match parse(&write(&s, e), &p()) {
                 Err(Error::NonTetCells { path, counts }) => {
                     assert_eq!(path, p());
-                    assert_eq!(counts, vec![("hexahedron (8 nodes)".to_string(), 2), ("prism (6 nodes)".to_string(), 1)]);
+                    assert_eq!(
+                        counts,
+                        vec![("hexahedron (8 nodes)".to_string(), 2), ("prism (6 nodes)".to_string(), 1)]
+                    );
                 }
                 other => panic!("{e:?}: {other:?}"),
             }
@@ -1340,7 +1373,10 @@ mod tests {
             (ascii(false).replace("$Nodes\n5\n", "$Nodes\n4\n"), "expected $EndNodes"),
             (ascii(false).replace("$Nodes\n5\n", "$Nodes\n500000\n"), "declares 500000 nodes"),
             (ascii(true).replace("\n2 5 3 5000", "\n2 6 3 5000"), "declares 6 nodes but its blocks hold 5"),
-            (ascii(false).replace("\"vel\"\n\"scheme\"\n1\n0.5\n4\n0\n3", "\"vel\"\n\"scheme\"\n1\n0.5\n4\n0\n4"), "expected an entity tag (an integer), found '1.0'"),
+            (
+                ascii(false).replace("\"vel\"\n\"scheme\"\n1\n0.5\n4\n0\n3", "\"vel\"\n\"scheme\"\n1\n0.5\n4\n0\n4"),
+                "expected an entity tag (an integer), found '1.0'",
+            ),
             (ascii(false).replace("0\n3\n5\n0\n10 ", "0\n3\n5\n0\n11 "), "gives a value for node 11"),
             (ascii(false).replace("$Elements", "$Elementz"), "no $EndElementz"),
             (ascii(false)[..ascii(false).find("$Elements").unwrap()].to_string(), "no $Elements section"),

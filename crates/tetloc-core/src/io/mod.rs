@@ -7,6 +7,8 @@ pub mod tetgen;
 pub mod vtk_legacy;
 pub mod vtu;
 pub mod vtu_write;
+#[cfg(test)]
+mod tests;
 
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, RawMesh};

@@ -1,0 +1,125 @@
+//! Cross-format identity: one mesh read from each of its encodings (VTU raw / zlib / base64,
+//! VTK legacy 4.2 / 5.1, Gmsh 2.2 ASCII / 4.1 binary from gmsh and from meshio) gives the
+//! same points, tets and fields. Every file here stores coordinates and both fields (`f` per
+//! point, `cellval` per cell) as float64 and every one of these formats carries both fields,
+//! so names must match and the f32 arrays must agree bit for bit — except against ASCII files
+//! (`part_s.msh22.msh`), where gmsh printed 16 significant digits: a value that lies on an f32
+//! rounding tie (`cellval` = k/2³² often does) may then round to the neighbouring f32, so
+//! there one unit in the last place is allowed.
+
+use super::read_raw;
+use crate::mesh::RawMesh;
+use crate::testdata::require_data;
+
+/// Files whose numbers are decimal text.
+const ASCII: &[&str] = &["part_s.msh22.msh"];
+
+const GROUPS: [&[&str]; 3] = [
+    &["part_s.vtu", "part_s.zlib.vtu", "part_s.v42.vtk", "part_s.msh22.msh", "part_s.meshio.msh"],
+    &["torus_s.vtu", "torus_s.b64.vtu", "torus_s.msh"],
+    &["delaunay_s.vtu", "delaunay_s.zlib.vtu", "delaunay_s.vtk", "delaunay_s.msh"],
+];
+
+/// The differences between two reads of one mesh, as readable lines (empty: identical).
+/// Floats may differ by `ulps` units in the last place.
+fn differences(a: &RawMesh, b: &RawMesh, ulps: i64) -> Vec<String> {
+    let mut out = Vec::new();
+    let first_diff =
+        |x: &[u32], y: &[u32]| x.iter().zip(y).position(|(&p, &q)| (p as i32 as i64 - q as i32 as i64).abs() > ulps);
+    let bits = |v: &[[f32; 3]]| v.iter().flatten().map(|c| c.to_bits()).collect::<Vec<_>>();
+    if a.points.len() != b.points.len() {
+        out.push(format!("{} vs {} points", a.points.len(), b.points.len()));
+    } else if let Some(i) = first_diff(&bits(&a.points), &bits(&b.points)) {
+        out.push(format!("point {}: {:?} vs {:?}", i / 3, a.points[i / 3], b.points[i / 3]));
+    }
+    if a.tets.len() != b.tets.len() {
+        out.push(format!("{} vs {} tets", a.tets.len(), b.tets.len()));
+    } else if let Some(i) = a.tets.iter().zip(&b.tets).position(|(p, q)| p != q) {
+        out.push(format!("tet {i}: {:?} vs {:?}", a.tets[i], b.tets[i]));
+    }
+    if a.higher_order != b.higher_order {
+        out.push(format!("higher_order {:?} vs {:?}", a.higher_order, b.higher_order));
+    }
+    let names = |m: &RawMesh| {
+        let mut v: Vec<_> = m.fields.iter().map(|f| (f.name.clone(), f.location)).collect();
+        v.sort_by(|x, y| x.0.cmp(&y.0));
+        v
+    };
+    if names(a) != names(b) {
+        out.push(format!("fields {:?} vs {:?}", names(a), names(b)));
+    }
+    for fa in &a.fields {
+        let Some(fb) = b.fields.iter().find(|f| f.name == fa.name) else { continue };
+        let (va, vb) = (
+            fa.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            fb.values.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+        );
+        if va.len() != vb.len() {
+            out.push(format!("field {}: {} vs {} values", fa.name, va.len(), vb.len()));
+        } else if let Some(i) = first_diff(&va, &vb) {
+            out.push(format!("field {}[{i}]: {} vs {}", fa.name, fa.values[i], fb.values[i]));
+        }
+    }
+    out
+}
+
+#[test]
+fn every_encoding_of_a_mesh_reads_the_same() {
+    let Some(dir) = require_data("every_encoding_of_a_mesh_reads_the_same") else { return };
+    let mut failures = Vec::new();
+    for group in GROUPS {
+        let read = |f: &str| read_raw(&dir.join(f), None).map_err(|e| format!("{f}: {e}"));
+        let reference = match read(group[0]) {
+            Ok(m) => m,
+            Err(e) => {
+                failures.push(e);
+                continue;
+            }
+        };
+        assert!(reference.fields.len() == 2 && !reference.tets.is_empty(), "{}: expected f and cellval", group[0]);
+        for file in &group[1..] {
+            match read(file) {
+                Ok(m) => {
+                    let ulps = if ASCII.contains(file) { 1 } else { 0 };
+                    failures.extend(
+                        differences(&reference, &m, ulps).into_iter().map(|d| format!("{} vs {file}: {d}", group[0])),
+                    )
+                }
+                Err(e) => failures.push(e),
+            }
+        }
+    }
+    assert!(failures.is_empty(), "encodings disagree:\n{}", failures.join("\n"));
+}
+
+/// The comparison itself must see a difference in any array.
+#[test]
+fn differences_are_found() {
+    use crate::mesh::{Field, FieldLocation};
+    let a = RawMesh {
+        points: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        tets: vec![[0, 1, 2, 3]],
+        fields: vec![Field {
+            name: "f".into(),
+            location: FieldLocation::Vertex,
+            values: vec![f32::NAN, 1.0, 2.0, 3.0],
+        }],
+        higher_order: None,
+    };
+    assert!(differences(&a, &a.clone(), 0).is_empty(), "NaN compares equal to itself by bits");
+    let mut b = a.clone();
+    b.points[2][1] = 1.0 + f32::EPSILON;
+    assert_eq!(differences(&a, &b, 0).len(), 1);
+    assert!(differences(&a, &b, 1).is_empty());
+    b.points[2][1] = 1.0 + 2.0 * f32::EPSILON;
+    assert_eq!(differences(&a, &b, 1).len(), 1);
+    let mut b = a.clone();
+    b.tets[0].swap(2, 3);
+    assert_eq!(differences(&a, &b, 0).len(), 1);
+    let mut b = a.clone();
+    b.fields[0].values[3] = 3.5;
+    assert_eq!(differences(&a, &b, 0).len(), 1);
+    let mut b = a.clone();
+    b.fields[0].name = "g".into();
+    assert_eq!(differences(&a, &b, 0).len(), 1);
+}
