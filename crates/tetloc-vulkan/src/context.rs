@@ -65,6 +65,7 @@ pub(crate) struct RayTracing {
 pub(crate) struct Limits {
     pub max_storage_buffer_range: u64,
     pub max_workgroup_count: [u32; 3],
+    pub max_workgroup_size: [u32; 3],
     pub timestamp_period_ns: f64,
     pub timestamp_valid_bits: u32,
     pub max_allocation: u64,
@@ -405,6 +406,7 @@ impl Context {
             let limits = Limits {
                 max_storage_buffer_range: props.limits.max_storage_buffer_range as u64,
                 max_workgroup_count: props.limits.max_compute_work_group_count,
+                max_workgroup_size: props.limits.max_compute_work_group_size,
                 timestamp_period_ns: props.limits.timestamp_period as f64,
                 timestamp_valid_bits: probe.timestamp_valid_bits,
                 max_allocation: p11.max_memory_allocation_size,

@@ -1,1 +1,34 @@
-//! tetloc's Vulkan backend.
+//! tetloc's Vulkan backend: which tet contains each point, and the field value there, on any
+//! Vulkan device. Four kernels after Wald et al., "RTX Beyond Ray Tracing" (HPG 2019):
+//! `soft-bvh` (a compute shader traversing a quantized 4-wide BVH) and three ray-tracing
+//! pipeline kernels (`rt-bvh`, `rt-rep-faces`, `rt-shared-faces`). Every kernel uses the one
+//! watertight point-in-tet test of `tetloc_core::geom`, mirrored in `shaders/common/tet.glsl`.
+//!
+//! ```no_run
+//! use std::sync::Arc;
+//! use tetloc_core::BatchLocator;
+//! use tetloc_vulkan::{Context, Kernel, LocatorOptions, VulkanLocator};
+//! # fn main() -> Result<(), Box<dyn std::error::Error>> {
+//! # let mesh: Arc<tetloc_core::Mesh> = unimplemented!();
+//! let ctx = Context::new(None)?;
+//! let mut loc = VulkanLocator::new(ctx, mesh, Kernel::SoftBvh, LocatorOptions::default())?;
+//! let mut ids = vec![0; 1];
+//! loc.locate(&[[0.1, 0.2, 0.3]], &mut ids)?;
+//! # Ok(()) }
+//! ```
+
+mod context;
+mod error;
+mod gpu_types;
+mod locator;
+mod memory;
+mod pipeline;
+mod rt;
+mod shaders;
+mod soft_bvh;
+
+pub use context::{devices, Context, ContextOptions, DeviceInfo};
+pub use error::VkError;
+pub use locator::{Kernel, LocatorOptions, MemoryReport, SampleMode, VulkanLocator};
+pub use memory::{MemItem, MemKind, STAGING_BYTES};
+pub use rt::AsReport;

@@ -1,0 +1,362 @@
+//! GPU memory: named, counted buffers (one allocation each), one-shot command submission,
+//! and uploads/downloads through one bounded staging buffer.
+
+use crate::context::Context;
+use crate::error::{VkError, VkResult};
+use ash::vk;
+use std::sync::{Arc, Mutex};
+
+/// What an allocation is for; decides which report total it counts in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MemKind {
+    /// Mesh data on the GPU: vertices, tets, a field.
+    Mesh,
+    /// The kernel's search structure: BVH nodes, acceleration structures, primitive tables.
+    Structure,
+    /// Only alive while building (AS build scratch, build inputs, uncompacted structures).
+    Scratch,
+    /// The staging buffer for uploads and downloads.
+    Staging,
+    /// Per-batch query points and results.
+    Query,
+}
+
+/// One live allocation.
+#[derive(Clone, Debug)]
+pub struct MemItem {
+    pub name: String,
+    pub kind: MemKind,
+    pub bytes: u64,
+}
+
+/// Counts live allocations and the peak of their sum.
+#[derive(Debug, Default)]
+pub(crate) struct Tracker {
+    live: Vec<(u64, MemItem)>,
+    next_id: u64,
+    current: u64,
+    peak: u64,
+}
+
+impl Tracker {
+    fn add(&mut self, item: MemItem) -> u64 {
+        self.next_id += 1;
+        self.current += item.bytes;
+        self.peak = self.peak.max(self.current);
+        self.live.push((self.next_id, item));
+        self.next_id
+    }
+
+    fn remove(&mut self, id: u64) {
+        if let Some(i) = self.live.iter().position(|(k, _)| *k == id) {
+            self.current -= self.live.swap_remove(i).1.bytes;
+        }
+    }
+
+    pub fn peak(&self) -> u64 {
+        self.peak
+    }
+
+    /// Live allocations, in allocation order.
+    pub fn items(&self) -> Vec<MemItem> {
+        let mut v = self.live.clone();
+        v.sort_by_key(|(k, _)| *k);
+        v.into_iter().map(|(_, m)| m).collect()
+    }
+}
+
+pub(crate) type SharedTracker = Arc<Mutex<Tracker>>;
+
+/// Where a buffer lives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Location {
+    Device,
+    /// Host-visible and coherent (staging), preferably cached for fast reads.
+    Host,
+}
+
+/// A buffer with its own memory allocation. Dropping it frees both and updates the tracker.
+pub(crate) struct Buffer {
+    ctx: Arc<Context>,
+    tracker: SharedTracker,
+    id: u64,
+    pub name: String,
+    pub buffer: vk::Buffer,
+    memory: vk::DeviceMemory,
+    pub size: u64,
+    /// Device address when created with SHADER_DEVICE_ADDRESS usage, else 0.
+    pub address: u64,
+    mapped: *mut u8,
+}
+
+// SAFETY: the mapped pointer is only used through &mut self; Vulkan handles are plain ids.
+unsafe impl Send for Buffer {}
+
+impl Buffer {
+    pub fn new(
+        ctx: &Arc<Context>,
+        tracker: &SharedTracker,
+        name: impl Into<String>,
+        kind: MemKind,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: Location,
+    ) -> VkResult<Buffer> {
+        let name = name.into();
+        let size = size.max(16);
+        if ctx.limits.max_allocation > 0 && size > ctx.limits.max_allocation {
+            return Err(VkError::TooLarge { name, bytes: size, limit: ctx.limits.max_allocation, what: "maxMemoryAllocationSize" });
+        }
+        let dev = &ctx.device;
+        let with_address = usage.contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS);
+        // SAFETY: valid create infos; every handle is destroyed on the error paths and in Drop.
+        unsafe {
+            let buffer = dev
+                .create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None)
+                .map_err(VkError::vk("vkCreateBuffer"))?;
+            let req = dev.get_buffer_memory_requirements(buffer);
+            let (want, prefer) = match location {
+                Location::Device => (vk::MemoryPropertyFlags::DEVICE_LOCAL, vk::MemoryPropertyFlags::empty()),
+                Location::Host => (
+                    vk::MemoryPropertyFlags::HOST_VISIBLE | vk::MemoryPropertyFlags::HOST_COHERENT,
+                    vk::MemoryPropertyFlags::HOST_CACHED,
+                ),
+            };
+            let type_index = match ctx.memory_type(req.memory_type_bits, want, prefer) {
+                Ok(t) => t,
+                Err(e) => {
+                    dev.destroy_buffer(buffer, None);
+                    return Err(e);
+                }
+            };
+            let mut flags = vk::MemoryAllocateFlagsInfo::default().flags(vk::MemoryAllocateFlags::DEVICE_ADDRESS);
+            let mut alloc = vk::MemoryAllocateInfo::default().allocation_size(req.size).memory_type_index(type_index);
+            if with_address {
+                alloc = alloc.push_next(&mut flags);
+            }
+            let memory = match dev.allocate_memory(&alloc, None) {
+                Ok(m) => m,
+                Err(result) => {
+                    dev.destroy_buffer(buffer, None);
+                    return Err(VkError::Vk { what: "vkAllocateMemory", result });
+                }
+            };
+            let bound = dev.bind_buffer_memory(buffer, memory, 0).map_err(VkError::vk("vkBindBufferMemory"));
+            let mapped = match (bound, location) {
+                (Err(e), _) => Err(e),
+                (Ok(()), Location::Host) => dev
+                    .map_memory(memory, 0, vk::WHOLE_SIZE, vk::MemoryMapFlags::empty())
+                    .map(|p| p as *mut u8)
+                    .map_err(VkError::vk("vkMapMemory")),
+                (Ok(()), Location::Device) => Ok(std::ptr::null_mut()),
+            };
+            let mapped = match mapped {
+                Ok(p) => p,
+                Err(e) => {
+                    dev.destroy_buffer(buffer, None);
+                    dev.free_memory(memory, None);
+                    return Err(e);
+                }
+            };
+            let address =
+                if with_address { dev.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(buffer)) } else { 0 };
+            let id = tracker.lock().unwrap().add(MemItem { name: name.clone(), kind, bytes: req.size });
+            Ok(Buffer { ctx: ctx.clone(), tracker: tracker.clone(), id, name, buffer, memory, size, address, mapped })
+        }
+    }
+
+    /// The mapped bytes of a host buffer.
+    pub fn mapped(&mut self) -> &mut [u8] {
+        assert!(!self.mapped.is_null(), "not a host-visible buffer");
+        // SAFETY: the whole allocation (>= size) is mapped for the buffer's lifetime.
+        unsafe { std::slice::from_raw_parts_mut(self.mapped, self.size as usize) }
+    }
+
+    pub fn info(&self) -> vk::DescriptorBufferInfo {
+        vk::DescriptorBufferInfo { buffer: self.buffer, offset: 0, range: vk::WHOLE_SIZE }
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        // SAFETY: all work using the buffer has completed: every submission is waited for.
+        unsafe {
+            self.ctx.device.destroy_buffer(self.buffer, None);
+            self.ctx.device.free_memory(self.memory, None);
+        }
+        self.tracker.lock().unwrap().remove(self.id);
+    }
+}
+
+/// A command pool with one command buffer and a fence: record, submit, wait.
+pub(crate) struct Commands {
+    ctx: Arc<Context>,
+    pool: vk::CommandPool,
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+}
+
+/// Longest we wait for one submission before reporting the GPU as hung.
+const SUBMIT_TIMEOUT_NS: u64 = 600_000_000_000;
+
+impl Commands {
+    pub fn new(ctx: &Arc<Context>) -> VkResult<Commands> {
+        let dev = &ctx.device;
+        // SAFETY: plain object creation; partial results are destroyed on error.
+        unsafe {
+            let pool = dev
+                .create_command_pool(&vk::CommandPoolCreateInfo::default().queue_family_index(ctx.queue_family), None)
+                .map_err(VkError::vk("vkCreateCommandPool"))?;
+            let alloc = vk::CommandBufferAllocateInfo::default().command_pool(pool).command_buffer_count(1);
+            let cmd = match dev.allocate_command_buffers(&alloc) {
+                Ok(c) => c[0],
+                Err(result) => {
+                    dev.destroy_command_pool(pool, None);
+                    return Err(VkError::Vk { what: "vkAllocateCommandBuffers", result });
+                }
+            };
+            let fence = match dev.create_fence(&vk::FenceCreateInfo::default(), None) {
+                Ok(f) => f,
+                Err(result) => {
+                    dev.destroy_command_pool(pool, None);
+                    return Err(VkError::Vk { what: "vkCreateFence", result });
+                }
+            };
+            Ok(Commands { ctx: ctx.clone(), pool, cmd, fence })
+        }
+    }
+
+    /// Records commands with `record`, submits them and waits for completion. Every
+    /// submission starts with a full memory barrier, so it sees all earlier submissions' writes.
+    pub fn run<R>(&mut self, record: impl FnOnce(&ash::Device, vk::CommandBuffer) -> R) -> VkResult<R> {
+        let dev = &self.ctx.device;
+        // SAFETY: the previous submission has completed (we always wait), so the pool can be
+        // reset; the queue is externally synchronised by the context's mutex.
+        unsafe {
+            dev.reset_command_pool(self.pool, vk::CommandPoolResetFlags::empty()).map_err(VkError::vk("vkResetCommandPool"))?;
+            dev.begin_command_buffer(
+                self.cmd,
+                &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .map_err(VkError::vk("vkBeginCommandBuffer"))?;
+            full_barrier(dev, self.cmd);
+            let r = record(dev, self.cmd);
+            dev.end_command_buffer(self.cmd).map_err(VkError::vk("vkEndCommandBuffer"))?;
+            let cmds = [self.cmd];
+            let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+            {
+                let queue = self.ctx.queue.lock().unwrap();
+                dev.queue_submit(*queue, &[submit], self.fence).map_err(VkError::vk("vkQueueSubmit"))?;
+            }
+            let waited = dev.wait_for_fences(&[self.fence], true, SUBMIT_TIMEOUT_NS);
+            dev.reset_fences(&[self.fence]).map_err(VkError::vk("vkResetFences"))?;
+            waited.map_err(VkError::vk("vkWaitForFences"))?;
+            Ok(r)
+        }
+    }
+}
+
+impl Drop for Commands {
+    fn drop(&mut self) {
+        // SAFETY: no submission is pending (run() always waits).
+        unsafe {
+            self.ctx.device.destroy_fence(self.fence, None);
+            self.ctx.device.destroy_command_pool(self.pool, None);
+        }
+    }
+}
+
+/// Makes all earlier writes (transfers, builds, shaders) visible to all later commands.
+pub(crate) fn full_barrier(dev: &ash::Device, cmd: vk::CommandBuffer) {
+    let barrier = vk::MemoryBarrier::default()
+        .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
+        .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE);
+    // SAFETY: recording into a command buffer in the recording state.
+    unsafe {
+        dev.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::ALL_COMMANDS,
+            vk::PipelineStageFlags::ALL_COMMANDS,
+            vk::DependencyFlags::empty(),
+            &[barrier],
+            &[],
+            &[],
+        )
+    };
+}
+
+/// Default size of the staging buffer: uploads and downloads move through it in pieces.
+pub const STAGING_BYTES: u64 = 64 << 20;
+
+/// The one bounded staging buffer of a locator.
+pub(crate) struct Staging {
+    buf: Buffer,
+}
+
+impl Staging {
+    pub fn new(ctx: &Arc<Context>, tracker: &SharedTracker, bytes: u64) -> VkResult<Staging> {
+        let usage = vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
+        Ok(Staging { buf: Buffer::new(ctx, tracker, "staging", MemKind::Staging, bytes, usage, Location::Host)? })
+    }
+
+    /// Copies `data` into `dst` at `offset`, one staging-buffer-full at a time.
+    pub fn upload(&mut self, cmds: &mut Commands, dst: &Buffer, offset: u64, data: &[u8]) -> VkResult<()> {
+        let step = self.buf.size as usize;
+        for (k, piece) in data.chunks(step).enumerate() {
+            self.buf.mapped()[..piece.len()].copy_from_slice(piece);
+            let region = vk::BufferCopy { src_offset: 0, dst_offset: offset + (k * step) as u64, size: piece.len() as u64 };
+            let src = self.buf.buffer;
+            // SAFETY: both buffers are alive and large enough; the copy completes before return.
+            cmds.run(|dev, cmd| unsafe { dev.cmd_copy_buffer(cmd, src, dst.buffer, &[region]) })?;
+        }
+        Ok(())
+    }
+
+    /// Copies `out.len()` bytes of `src` from `offset` into `out`.
+    pub fn download(&mut self, cmds: &mut Commands, src: &Buffer, offset: u64, out: &mut [u8]) -> VkResult<()> {
+        let step = self.buf.size as usize;
+        for (k, piece) in out.chunks_mut(step).enumerate() {
+            let region = vk::BufferCopy { src_offset: offset + (k * step) as u64, dst_offset: 0, size: piece.len() as u64 };
+            let dst = self.buf.buffer;
+            // SAFETY: as in upload; the fence wait in run() makes the host see the copy.
+            cmds.run(|dev, cmd| unsafe { dev.cmd_copy_buffer(cmd, src.buffer, dst, &[region]) })?;
+            piece.copy_from_slice(&self.buf.mapped()[..piece.len()]);
+        }
+        Ok(())
+    }
+}
+
+/// Creates a device-local buffer named `name` holding `data` (uploaded through `staging`).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn device_buffer_with(
+    ctx: &Arc<Context>,
+    tracker: &SharedTracker,
+    staging: &mut Staging,
+    cmds: &mut Commands,
+    name: &str,
+    kind: MemKind,
+    usage: vk::BufferUsageFlags,
+    data: &[u8],
+) -> VkResult<Buffer> {
+    let buf = Buffer::new(ctx, tracker, name, kind, data.len() as u64, usage | vk::BufferUsageFlags::TRANSFER_DST, Location::Device)?;
+    staging.upload(cmds, &buf, 0, data)?;
+    Ok(buf)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tracker_counts_live_and_peak() {
+        let mut t = Tracker::default();
+        let a = t.add(MemItem { name: "a".into(), kind: MemKind::Mesh, bytes: 100 });
+        let b = t.add(MemItem { name: "b".into(), kind: MemKind::Scratch, bytes: 50 });
+        t.remove(b);
+        let _c = t.add(MemItem { name: "c".into(), kind: MemKind::Structure, bytes: 20 });
+        assert_eq!(t.current, 120);
+        assert_eq!(t.peak(), 150);
+        t.remove(a);
+        assert_eq!(t.items().iter().map(|m| m.name.as_str()).collect::<Vec<_>>(), ["c"]);
+    }
+}

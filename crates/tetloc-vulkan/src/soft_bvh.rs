@@ -1,0 +1,256 @@
+//! soft-bvh's node layout: the binary `tetloc_core::bvh::Bvh` collapsed into a 4-wide BVH
+//! whose child boxes are quantized to one byte per coordinate (the paper's QBVH-like
+//! layout): 64-byte nodes instead of four 32-byte binary nodes.
+
+use crate::error::{VkError, VkResult};
+use crate::gpu_types::{QNode4, EMPTY, LEAF, LEAF_FIRST_MAX};
+use tetloc_core::bvh::{Bvh, BvhNode};
+
+/// A collapsed, quantized BVH ready for upload.
+pub(crate) struct QBvh {
+    pub nodes: Vec<QNode4>,
+    /// Tet ids in leaf order (leaf references index into this).
+    pub prims: Vec<u32>,
+    /// Levels of 4-wide nodes on the longest root-to-leaf path.
+    pub depth: usize,
+}
+
+impl QBvh {
+    /// Traversal stack entries that always suffice: a node pushes at most 3 children.
+    pub fn stack_size(&self) -> u32 {
+        (3 * self.depth + 1) as u32
+    }
+}
+
+/// Dequantization as the shader does it: one f32 multiply, then one add (no FMA: `precise`).
+#[inline]
+pub(crate) fn dequantize(origin: f32, q: u8, scale: f32) -> f32 {
+    origin + q as f32 * scale
+}
+
+fn area(n: &BvhNode) -> f32 {
+    let d = [n.max[0] - n.min[0], n.max[1] - n.min[1], n.max[2] - n.min[2]];
+    d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
+}
+
+/// The scale for one axis: the smallest step with `origin + 255 * scale >= hi`.
+fn axis_scale(lo: f32, hi: f32) -> VkResult<f32> {
+    if hi <= lo {
+        return Ok(0.0);
+    }
+    let mut s = (hi - lo) / 255.0;
+    while dequantize(lo, 255, s) < hi {
+        s = s.next_up();
+    }
+    if !s.is_finite() {
+        return Err(VkError::Mesh(format!("mesh extent {lo}..{hi} is too large for f32 node boxes")));
+    }
+    Ok(s)
+}
+
+/// Conservative bytes for [lo, hi] on an axis: dequantized lower <= lo and upper >= hi.
+fn quantize(origin: f32, scale: f32, lo: f32, hi: f32) -> (u8, u8) {
+    if scale == 0.0 {
+        return (0, 0);
+    }
+    let mut ql = ((lo - origin) / scale).floor().clamp(0.0, 255.0) as u8;
+    while ql > 0 && dequantize(origin, ql, scale) > lo {
+        ql -= 1;
+    }
+    let mut qh = ((hi - origin) / scale).ceil().clamp(0.0, 255.0) as u8;
+    while qh < 255 && dequantize(origin, qh, scale) < hi {
+        qh += 1;
+    }
+    (ql, qh)
+}
+
+struct Collapse<'a> {
+    bvh: &'a Bvh,
+    nodes: Vec<QNode4>,
+    depth: usize,
+}
+
+impl Collapse<'_> {
+    fn children(&self, i: usize) -> [usize; 2] {
+        [i + 1, self.bvh.nodes[i].first as usize]
+    }
+
+    /// Emits the 4-wide node for binary interior node `i` and its subtree (depth-first order).
+    fn emit(&mut self, i: usize, depth: usize) -> VkResult<u32> {
+        self.depth = self.depth.max(depth);
+        // Open the largest interior child until there are four.
+        let mut kids: Vec<usize> = self.children(i).to_vec();
+        while kids.len() < 4 {
+            let open = kids
+                .iter()
+                .enumerate()
+                .filter(|(_, &k)| !self.bvh.nodes[k].is_leaf())
+                .max_by(|a, b| area(&self.bvh.nodes[*a.1]).total_cmp(&area(&self.bvh.nodes[*b.1])))
+                .map(|(j, _)| j);
+            let Some(j) = open else { break };
+            let k = kids.swap_remove(j);
+            kids.extend(self.children(k));
+        }
+        let me = self.nodes.len();
+        self.nodes.push(QNode4::default());
+        let n = &self.bvh.nodes[i];
+        let mut node = QNode4 { origin: n.min, child: [EMPTY; 4], ..Default::default() };
+        for a in 0..3 {
+            node.scale[a] = axis_scale(n.min[a], n.max[a])?;
+        }
+        for (c, &k) in kids.iter().enumerate() {
+            let kn = self.bvh.nodes[k];
+            for a in 0..3 {
+                let (ql, qh) = quantize(node.origin[a], node.scale[a], kn.min[a], kn.max[a]);
+                node.q[2 * a] |= (ql as u32) << (8 * c);
+                node.q[2 * a + 1] |= (qh as u32) << (8 * c);
+            }
+            node.child[c] = if kn.is_leaf() {
+                leaf_ref(kn.first, kn.count)?
+            } else {
+                self.emit(k, depth + 1)?
+            };
+        }
+        // Empty slots get an empty box (lower byte 255 > upper byte 0) besides the EMPTY reference.
+        for c in kids.len()..4 {
+            for a in 0..3 {
+                node.q[2 * a] |= 255 << (8 * c);
+            }
+        }
+        self.nodes[me] = node;
+        Ok(me as u32)
+    }
+}
+
+fn leaf_ref(first: u32, count: u32) -> VkResult<u32> {
+    if !(1..=4).contains(&count) || first > LEAF_FIRST_MAX {
+        return Err(VkError::Mesh(format!(
+            "soft-bvh leaf ({count} tets from {first}) does not fit its 32-bit reference (at most 4 tets, first < 2^29)"
+        )));
+    }
+    Ok(LEAF | (count - 1) << 29 | first)
+}
+
+/// Collapses a binary BVH (leaves of at most 4 tets) into quantized 4-wide nodes.
+pub(crate) fn collapse(bvh: &Bvh) -> VkResult<QBvh> {
+    let root = bvh.nodes.first().ok_or_else(|| VkError::Mesh("empty BVH".into()))?;
+    let mut c = Collapse { bvh, nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1), depth: 0 };
+    if root.is_leaf() {
+        // A tiny mesh: one node whose only child is the leaf.
+        let mut node = QNode4 { origin: root.min, child: [EMPTY; 4], ..Default::default() };
+        for a in 0..3 {
+            node.scale[a] = axis_scale(root.min[a], root.max[a])?;
+            let (ql, qh) = quantize(node.origin[a], node.scale[a], root.min[a], root.max[a]);
+            node.q[2 * a] = ql as u32 | 0xFFFF_FF00;
+            node.q[2 * a + 1] = qh as u32;
+        }
+        node.child[0] = leaf_ref(root.first, root.count)?;
+        c.nodes.push(node);
+        c.depth = 1;
+    } else {
+        c.emit(0, 1)?;
+    }
+    Ok(QBvh { nodes: c.nodes, prims: bvh.prim_ids.clone(), depth: c.depth })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use tetloc_core::bvh::BuildPreset;
+    use tetloc_core::geom;
+
+    fn grid(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 4]>) {
+        // n^3 cubes, 6 tets each (Kuhn), jittered vertices.
+        let idx = |i: usize, j: usize, k: usize| (i * (n + 1) * (n + 1) + j * (n + 1) + k) as u32;
+        let mut pts = vec![];
+        for i in 0..=n {
+            for j in 0..=n {
+                for k in 0..=n {
+                    let h = ((i * 73856093) ^ (j * 19349663) ^ (k * 83492791)) % 1000;
+                    pts.push([i as f32 + h as f32 * 1e-4, j as f32 - h as f32 * 7e-5, k as f32 * 1.5]);
+                }
+            }
+        }
+        let mut tets = vec![];
+        for i in 0..n {
+            for j in 0..n {
+                for k in 0..n {
+                    let c = |a, b, d| idx(i + a, j + b, k + d);
+                    let (v0, v7) = (c(0, 0, 0), c(1, 1, 1));
+                    for (a, b) in [(c(1, 0, 0), c(1, 1, 0)), (c(1, 0, 0), c(1, 0, 1)), (c(0, 1, 0), c(1, 1, 0)),
+                                   (c(0, 1, 0), c(0, 1, 1)), (c(0, 0, 1), c(1, 0, 1)), (c(0, 0, 1), c(0, 1, 1))] {
+                        tets.push(geom::canonical_tet([v0, a, b, v7], &pts).0);
+                    }
+                }
+            }
+        }
+        (pts, tets)
+    }
+
+    /// Walks the 4-wide tree on the CPU as the shader does; returns every leaf's tets with
+    /// the dequantized box of the reference that led to it.
+    fn leaves(q: &QBvh) -> Vec<(u32, [f32; 3], [f32; 3])> {
+        let mut out = vec![];
+        let mut stack = vec![0u32];
+        while let Some(i) = stack.pop() {
+            let n = &q.nodes[i as usize];
+            for c in 0..4 {
+                let r = n.child[c];
+                if r == EMPTY {
+                    continue;
+                }
+                let byte = |w: u32| ((w >> (8 * c)) & 0xFF) as u8;
+                let lo: [f32; 3] = std::array::from_fn(|a| dequantize(n.origin[a], byte(n.q[2 * a]), n.scale[a]));
+                let hi: [f32; 3] = std::array::from_fn(|a| dequantize(n.origin[a], byte(n.q[2 * a + 1]), n.scale[a]));
+                if r & LEAF != 0 {
+                    let (first, count) = (r & LEAF_FIRST_MAX, ((r >> 29) & 3) + 1);
+                    for k in first..first + count {
+                        out.push((q.prims[k as usize], lo, hi));
+                    }
+                } else {
+                    stack.push(r);
+                }
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn every_tet_in_one_leaf_inside_its_conservative_box() {
+        let (pts, tets) = grid(7);
+        for preset in [BuildPreset::Fast, BuildPreset::SingleTetLeaves] {
+            let bvh = Bvh::build(&pts, &tets, preset);
+            let q = collapse(&bvh).unwrap();
+            assert!(q.nodes.len() < bvh.nodes.len() / 2, "{} 4-wide nodes for {} binary", q.nodes.len(), bvh.nodes.len());
+            let mut seen = vec![0; tets.len()];
+            for (t, lo, hi) in leaves(&q) {
+                seen[t as usize] += 1;
+                let (tlo, thi) = geom::tet_bounds(tets[t as usize], &pts);
+                for a in 0..3 {
+                    assert!(lo[a] <= tlo[a] && hi[a] >= thi[a], "tet {t} axis {a}: box {lo:?}..{hi:?} vs {tlo:?}..{thi:?}");
+                }
+            }
+            assert!(seen.iter().all(|&s| s == 1));
+            assert!(q.depth >= 3 && q.depth < bvh.stats.max_depth + 1);
+        }
+    }
+
+    #[test]
+    fn quantization_is_conservative_at_awkward_values() {
+        for (lo, hi) in [(0.1f32, 0.7f32), (-3.3e5, 1.7e-3), (1.0, 1.0 + f32::EPSILON), (-1e-30, 1e-30)] {
+            let s = axis_scale(lo, hi).unwrap();
+            assert!(dequantize(lo, 255, s) >= hi);
+            let mid = lo + (hi - lo) * 0.37;
+            let (ql, qh) = quantize(lo, s, mid, hi);
+            assert!(dequantize(lo, ql, s) <= mid && dequantize(lo, qh, s) >= hi);
+        }
+    }
+
+    #[test]
+    fn single_tet_mesh() {
+        let pts = vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]];
+        let tets = vec![geom::canonical_tet([0, 1, 2, 3], &pts).0];
+        let q = collapse(&Bvh::build(&pts, &tets, BuildPreset::Fast)).unwrap();
+        assert_eq!(leaves(&q).len(), 1);
+    }
+}

@@ -1,0 +1,108 @@
+//! Shared helpers of the integration tests: a context with validation (or a SKIPPED
+//! message outside CI when there is no Vulkan), meshes, and the checks every kernel must pass.
+#![allow(dead_code)]
+
+use std::sync::Arc;
+use tetloc_core::geom::{self, Vec3};
+use tetloc_core::mesh::{Field, FieldLocation, Mesh, RawMesh};
+use tetloc_core::testdata::in_ci;
+use tetloc_vulkan::{Context, ContextOptions, Kernel, VkError};
+
+/// A validating context on the default device; `None` (after printing SKIPPED) when this
+/// machine has no Vulkan loader or device, except in CI where that fails the test.
+pub fn context(test: &str) -> Option<Arc<Context>> {
+    match Context::with_options(ContextOptions { device_index: None, validation: true }) {
+        Ok(c) => Some(c),
+        Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) => {
+            if in_ci() {
+                panic!("{test}: no Vulkan device in CI: {e}");
+            }
+            eprintln!("SKIPPED {test}: {e}");
+            None
+        }
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
+/// The kernels this device can run; in CI every kernel must be runnable.
+pub fn kernels(ctx: &Context, test: &str) -> Vec<Kernel> {
+    if !ctx.info().ray_tracing {
+        if in_ci() {
+            panic!("{test}: {} has no ray tracing; CI must run every kernel", ctx.info().name);
+        }
+        eprintln!("SKIPPED {test} for rt-* kernels: {} has no ray-tracing pipelines", ctx.info().name);
+    }
+    Kernel::ALL.into_iter().filter(|k| ctx.info().ray_tracing || !k.needs_ray_tracing()).collect()
+}
+
+/// Fails the test if the validation layer reported errors.
+pub fn assert_no_validation_errors(ctx: &Context) {
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
+}
+
+/// A jittered grid mesh of about `n` tets from the core generator.
+pub fn jets(n: usize, seed: u64) -> Arc<Mesh> {
+    Arc::new(Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, n, seed), "jets").unwrap())
+}
+
+/// A regular (not jittered) grid of n^3 cubes, 6 Kuhn tets each: axis-aligned faces and a
+/// shared diagonal per cube, the worst case for rays along structured directions. Vertex
+/// field `f` = x + 2y + 3z (linear, so interpolation is exact), cell field `c` = id.
+pub fn regular_grid(n: usize) -> Arc<Mesh> {
+    let idx = |i: usize, j: usize, k: usize| (i * (n + 1) * (n + 1) + j * (n + 1) + k) as u32;
+    let mut points = vec![];
+    for i in 0..=n {
+        for j in 0..=n {
+            for k in 0..=n {
+                points.push([i as f32, j as f32, k as f32]);
+            }
+        }
+    }
+    let mut tets = vec![];
+    for i in 0..n {
+        for j in 0..n {
+            for k in 0..n {
+                let c = |a, b, d| idx(i + a, j + b, k + d);
+                let (v0, v7) = (c(0, 0, 0), c(1, 1, 1));
+                for (a, b) in [
+                    (c(1, 0, 0), c(1, 1, 0)),
+                    (c(1, 0, 0), c(1, 0, 1)),
+                    (c(0, 1, 0), c(1, 1, 0)),
+                    (c(0, 1, 0), c(0, 1, 1)),
+                    (c(0, 0, 1), c(1, 0, 1)),
+                    (c(0, 0, 1), c(0, 1, 1)),
+                ] {
+                    tets.push([v0, a, b, v7]);
+                }
+            }
+        }
+    }
+    let f = points.iter().map(|p| p[0] + 2.0 * p[1] + 3.0 * p[2]).collect();
+    let c = (0..tets.len()).map(|t| t as f32).collect();
+    let fields = vec![
+        Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
+        Field { name: "c".into(), location: FieldLocation::Cell, values: c },
+    ];
+    Arc::new(Mesh::new(RawMesh { points, tets, fields, higher_order: None }, "regular grid").unwrap())
+}
+
+/// Checks GPU ids against the watertight definition: every id >= 0 is a tet that contains
+/// the point (CPU test), and -1 only where the CPU finds no tet. Returns the number of
+/// points where GPU and CPU picked different (both valid) tets.
+pub fn check_ids(label: &str, mesh: &Mesh, points: &[Vec3], gpu: &[i32], cpu: &[i32]) -> usize {
+    let mut differ = 0;
+    for (i, (&g, &c)) in gpu.iter().zip(cpu).enumerate() {
+        if g == c {
+            continue;
+        }
+        let p = points[i];
+        assert!(g >= -1 && g < mesh.n_tets() as i32, "{label}: point {i} {p:?}: id {g} out of range");
+        assert!(g >= 0, "{label}: point {i} {p:?} came back outside, but tet {c} contains it (a crack)");
+        assert!(
+            geom::point_in_tet(mesh.tets[g as usize], &mesh.points, p).is_some(),
+            "{label}: point {i} {p:?}: tet {g} does not contain it (CPU says {c})"
+        );
+        differ += 1;
+    }
+    differ
+}
