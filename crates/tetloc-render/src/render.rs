@@ -72,11 +72,10 @@ pub struct Renderer {
     mesh: Arc<Mesh>,
     field: String,
     opts: RenderOptions,
+    /// Linear RGB and the alpha of one step.
     table: TfTable,
     range: (f32, f32),
     step: f32,
-    /// σ = (transfer-function opacity) × this.
-    sigma_unit: f32,
     grid: Option<OccupancyGrid>,
     surface: Option<SurfaceBvh>,
 }
@@ -113,21 +112,24 @@ impl Renderer {
                 (lo, hi)
             }
         };
-        let table = opts.tf.load()?.bake(range.0, range.1);
+        let tf = opts.tf.load()?;
         let info = &mesh.info;
         let diagonal = len(sub(info.bounds_max, info.bounds_min));
         let mean_tet = (info.total_volume / info.n_tets as f64).cbrt() as f32;
         // Degenerate meshes (flat, or all slivers) still get a usable step.
         let default_step = [mean_tet, info.mean_edge_length, diagonal / 1000.0, 1.0].into_iter().find(|&s| s > 0.0).unwrap();
         let step = opts.step.unwrap_or(default_step);
+        // Extinction σ = (transfer-function opacity) × opacity scale / diagonal; a step of
+        // length Δ then has alpha 1 − exp(−σΔ), baked into the table once per renderer.
         let sigma_unit = opts.opacity / if diagonal > 0.0 { diagonal } else { 1.0 };
+        let table = tf.bake(range.0, range.1).with_step_alpha(sigma_unit * step);
         let grid = opts.skip.then(|| OccupancyGrid::build(&mesh, CELL_STEPS * default_step));
         let surface = match &opts.surface {
             None => None,
             Some(SurfaceSpec::Boundary) => Some(SurfaceBvh::build(&TriMesh::boundary(&mesh))),
             Some(SurfaceSpec::File(path)) => Some(SurfaceBvh::build(&TriMesh::load(path)?)),
         };
-        Ok(Renderer { mesh, field: field.to_string(), opts: opts.clone(), table, range, step, sigma_unit, grid, surface })
+        Ok(Renderer { mesh, field: field.to_string(), opts: opts.clone(), table, range, step, grid, surface })
     }
 
     pub fn mesh(&self) -> &Arc<Mesh> {
@@ -241,8 +243,11 @@ impl Renderer {
                     }
                 }
             });
+            // Compact the slots into one batch (a memory-bound copy: not worth threads).
             batch.clear();
-            batch.par_extend(slots.par_chunks(m).zip(counts.par_iter()).flat_map_iter(|(slot, &c)| slot[..c as usize].iter().copied()));
+            for (slot, &c) in slots.chunks(m).zip(&counts) {
+                batch.extend_from_slice(&slot[..c as usize]);
+            }
             values.resize(batch.len(), 0.0);
             if !batch.is_empty() {
                 let t = Instant::now();
@@ -324,8 +329,7 @@ impl Renderer {
                 continue;
             }
             used += 1;
-            let [r, g, b, o] = self.table.lookup(v);
-            let alpha = 1.0 - (-o * self.sigma_unit * self.step).exp();
+            let [r, g, b, alpha] = self.table.lookup(v);
             let w = (1.0 - s.acc[3]) * alpha;
             s.acc[0] += w * r;
             s.acc[1] += w * g;

@@ -313,7 +313,16 @@ pub struct TfTable {
 }
 
 impl TfTable {
-    /// Linear RGB and opacity for a field value, linearly filtered; values outside the range clamp.
+    /// The same table with each opacity `o` replaced by the alpha of a step whose optical
+    /// depth is `o · depth`: 1 − exp(−o · depth).
+    pub fn with_step_alpha(mut self, depth: f32) -> TfTable {
+        for e in &mut self.entries {
+            e[3] = 1.0 - (-e[3] * depth).exp();
+        }
+        self
+    }
+
+    /// Linear RGB and opacity (or step alpha) for a field value, linearly filtered; values outside the range clamp.
     #[inline]
     pub fn lookup(&self, v: f32) -> [f32; 4] {
         let n = self.entries.len();
