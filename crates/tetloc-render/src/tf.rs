@@ -284,6 +284,8 @@ fn numbers(v: &Value, what: &str) -> Result<Vec<f64>, String> {
         .collect()
 }
 
+// `is_multiple_of` is newer than the workspace's rust-version (1.80).
+#[allow(clippy::manual_is_multiple_of)]
 fn groups_of_4(v: &[f64], what: &str, layout: &str) -> Result<Vec<[f64; 4]>, String> {
     if v.is_empty() || v.len() % 4 != 0 {
         return Err(format!("{what} has {} numbers; expected groups of {layout} (a non-zero multiple of 4)", v.len()));
