@@ -1,12 +1,12 @@
 #version 460
-// The ray hit nothing: the payload keeps TL_MISS from the ray generation shader.
+// The ray hit nothing: say so, so that the ray generation shader can retry.
+#extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_ray_tracing : require
-struct TlPayload {
-    int tet;
-    float value;
-};
+#include "common/types.glsl"
+#include "common/rt.glsl"
+
 layout(location = 0) rayPayloadInEXT TlPayload pl;
 
 void main() {
-    pl.tet = -2; // TL_MISS
+    pl.tet = TL_MISS;
 }

@@ -10,7 +10,8 @@
 //
 // When rounding puts the hit on the wrong side of a face or edge (points within rounding of
 // it), the candidate fails the test; a short walk through tet neighbours then finds the
-// containing tet, so no interior point falls through a crack.
+// containing tet, so no interior point falls through a crack. A walk that finds nothing
+// sends the ray generation shader to try the opposite direction.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_EXT_ray_tracing : require
@@ -56,5 +57,8 @@ void main() {
         }
         tet = tl_neighbors[tet][exit_face];
     }
-    pl.tet = -1;
+    // Not found: the point is outside the mesh, or the hit was a face coincident with
+    // another (a seam of duplicated vertices) that led the walk astray. Report it like a
+    // miss, so that the ray generation shader tries the opposite direction once.
+    pl.tet = TL_MISS;
 }

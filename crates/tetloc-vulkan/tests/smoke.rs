@@ -14,6 +14,7 @@ fn soft_bvh_matches_cpu_on_tet_centres() {
         let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
         let mut gpu = vec![0; points.len()];
         loc.locate(&points, &mut gpu).unwrap();
+        println!("{k}: {} outside", gpu.iter().filter(|&&g| g < 0).count());
         let d = common::check_ids(k.name(), &mesh, &points, &gpu, &cpu);
         println!("{k}: {d} differ; {:?}", loc.memory_report().final_bytes);
     }

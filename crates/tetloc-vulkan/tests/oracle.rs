@@ -1,0 +1,99 @@
+//! Every kernel, id and scalar variant, against the oracle query sets of ../shared/data.
+
+mod common;
+
+use std::collections::BTreeMap;
+use std::sync::Arc;
+use tetloc_core::testdata::{query_sets, require_data, QuerySet};
+use tetloc_core::{BatchLocator, CpuLocator, Mesh};
+use tetloc_vulkan::{LocatorOptions, VulkanLocator};
+
+/// Relative tolerance of interpolated values (relative to max(|expected|, 1)).
+const VALUE_TOL: f64 = 1e-5;
+
+fn check_set(loc: &mut VulkanLocator, mesh: &Mesh, set: &QuerySet, cpu: &[i32]) {
+    let label = format!("{} {}", loc.kernel(), set.label);
+    let n = set.points.len();
+    let mut ids = vec![0; n];
+    loc.locate(&set.points, &mut ids).unwrap();
+
+    // Oracle: exact ids except at points within rounding of a face.
+    let wrong: Vec<usize> = (0..n).filter(|&i| ids[i] != set.cell[i] && !set.ambiguous(i)).collect();
+    assert!(wrong.is_empty(), "{label}: {} ids differ from the oracle at unambiguous points, e.g. point {} {:?}: {} vs {}",
+        wrong.len(), wrong[0], set.points[wrong[0]], ids[wrong[0]], set.cell[wrong[0]]);
+    // No cracks: centres and random points lie in tets.
+    if set.label.ends_with(".centers") || set.label.ends_with(".random") {
+        let outside = ids.iter().filter(|&&t| t < 0).count();
+        assert_eq!(outside, 0, "{label}: {outside} points inside the mesh came back outside");
+    }
+    // The CPU definition: every answer contains its point; -1 only where the CPU finds none.
+    let differ = common::check_ids(&label, mesh, &set.points, &ids, cpu);
+    let ambiguous_differ = (0..n).filter(|&i| ids[i] != cpu[i]).filter(|&i| set.ambiguous(i)).count();
+    assert_eq!(differ, ambiguous_differ, "{label}: GPU and CPU ids differ at unambiguous points");
+
+    // Scalar variants.
+    let mut oracle_off = vec![];
+    if let (Some(expected), Ok(f)) = (&set.value, mesh.field("f")) {
+        let mut v = vec![0f32; n];
+        loc.sample(&set.points, "f", &mut v).unwrap();
+        let close = |a: f64, b: f64| (a - b).abs() <= VALUE_TOL * b.abs().max(1.0);
+        for i in 0..n {
+            let (got, want) = (v[i] as f64, expected[i]);
+            if want.is_nan() || got.is_nan() {
+                assert!(want.is_nan() == got.is_nan() || set.ambiguous(i), "{label}: f at point {i}: {got} vs {want}");
+                continue;
+            }
+            // The reference: f64 barycentrics in the tet the kernel chose.
+            let exact = common::exact_value(mesh, ids[i] as usize, set.points[i], &f.values);
+            assert!(close(got, exact), "{label}: f at point {i}: {got}, exact {exact}");
+            if !close(exact, want) {
+                oracle_off.push(i); // the oracle itself is off here (or another tet was chosen)
+                continue;
+            }
+            assert!(close(got, want), "{label}: f at point {i}: {got} vs oracle {want}");
+        }
+    }
+    if let Ok(cell) = mesh.field("cellval") {
+        let mut v = vec![0f32; n];
+        loc.sample(&set.points, "cellval", &mut v).unwrap();
+        for i in 0..n {
+            let want = if ids[i] >= 0 { cell.values[ids[i] as usize] } else { f32::NAN };
+            assert!(v[i] == want || (v[i].is_nan() && want.is_nan()), "{label}: cellval at point {i}: {} vs {want}", v[i]);
+        }
+    }
+    println!(
+        "{label}: ok ({ambiguous_differ} ambiguous points answered differently from the CPU; \
+         oracle value off from f64 interpolation at {oracle_off:?})"
+    );
+}
+
+#[test]
+fn every_kernel_matches_the_oracle() {
+    let Some(dir) = require_data("every_kernel_matches_the_oracle") else { return };
+    let Some(ctx) = common::context("every_kernel_matches_the_oracle") else { return };
+    let kernels = common::kernels(&ctx, "every_kernel_matches_the_oracle");
+    let mut by_mesh: BTreeMap<_, Vec<QuerySet>> = BTreeMap::new();
+    for s in query_sets(&dir) {
+        by_mesh.entry(s.mesh_path.clone()).or_default().push(s);
+    }
+    assert!(by_mesh.len() >= 3, "expected the oracle meshes in {}", dir.display());
+    for (path, sets) in by_mesh {
+        let mesh = Arc::new(tetloc_core::io::read_mesh(&path, None).unwrap());
+        let mut cpu_loc = CpuLocator::new(mesh.clone());
+        let cpu: Vec<Vec<i32>> = sets
+            .iter()
+            .map(|s| {
+                let mut ids = vec![0; s.points.len()];
+                cpu_loc.locate(&s.points, &mut ids).unwrap();
+                ids
+            })
+            .collect();
+        for &k in &kernels {
+            let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
+            for (set, cpu) in sets.iter().zip(&cpu) {
+                check_set(&mut loc, &mesh, set, cpu);
+            }
+        }
+    }
+    common::assert_no_validation_errors(&ctx);
+}
