@@ -8,6 +8,7 @@ use super::noise::{column_jitter, level_jitter, smoothstep, splitmix64, Noise2};
 use crate::geom::Vec3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
+use rayon::prelude::*;
 
 pub(super) const OCCUPANCY: f64 = 0.49;
 const WIDTH: f64 = 2.0;
@@ -59,6 +60,7 @@ impl Agulhas {
         let surface = Noise2::new(&mut rng, 4, 0.3, 1.0);
         let centre = |c: usize| (((c % ni) as f64 + 0.5) * h, ((c / ni) as f64 + 0.5) * h);
         let land_at: Vec<f64> = (0..ni * nj)
+            .into_par_iter()
             .map(|c| {
                 let (x, y) = centre(c);
                 land.at(x, y)
@@ -86,6 +88,7 @@ impl Agulhas {
         // Normalise the bathymetry over the sea, then pick the shallowest depth that gives
         // the occupancy: wet share of the box × mean depth / box height.
         let t: Vec<f64> = (0..ni * nj)
+            .into_par_iter()
             .filter(|&c| sea.columns.keep[c])
             .map(|c| {
                 let (x, y) = centre(c);

@@ -8,6 +8,7 @@ use super::noise::{column_jitter, level_jitter, splitmix64, Noise2};
 use crate::geom::Vec3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
+use rayon::prelude::*;
 
 pub(super) const OCCUPANCY: f64 = 0.0715;
 const WIDTH: f64 = 1.0;
@@ -59,6 +60,7 @@ impl Japan {
         let centre = |c: usize| (((c % ni) as f64 + 0.5) * h, ((c / ni) as f64 + 0.5) * h);
         // Footprint: the columns nearest the arc, with ragged edges.
         let outline: Vec<f64> = (0..ni * nj)
+            .into_par_iter()
             .map(|c| {
                 let (x, y) = centre(c);
                 inside_arc(x, y).abs() / BAND + 0.6 * edges.at(x, y)
@@ -69,12 +71,16 @@ impl Japan {
         let mut sheet =
             Japan { columns, h, undulation, thickness, s_min: 0.0, s_max: 1.0, dip: 0.0, seed: splitmix64(seed) };
         let kept: Vec<(f64, f64)> = (0..ni * nj).filter(|&c| sheet.columns.keep[c]).map(centre).collect();
-        let s: Vec<f64> = kept.iter().map(|&(x, y)| sheet.raw_surface(x, y)).collect();
+        let s: Vec<f64> = kept.par_iter().map(|&(x, y)| sheet.raw_surface(x, y)).collect();
         sheet.s_min = s.iter().copied().fold(f64::MAX, f64::min);
         sheet.s_max = s.iter().copied().fold(f64::MIN, f64::max).max(sheet.s_min + 1e-9);
         // Occupancy = footprint share of the box × mean thickness / box height, and the box
         // is as tall as the dip plus about a mean thickness.
-        let mean_thickness = kept.iter().map(|&(x, y)| sheet.thickness_at(x, y)).sum::<f64>() / kept.len() as f64;
+        let mean_thickness = {
+            // Summed in order, not in parallel: the result must not depend on the thread count.
+            let th: Vec<f64> = kept.par_iter().map(|&(x, y)| sheet.thickness_at(x, y)).collect();
+            th.iter().sum::<f64>() / th.len() as f64
+        };
         let height = mean_thickness * sheet.columns.kept_box_fraction() / OCCUPANCY;
         sheet.dip = (height - mean_thickness).max(mean_thickness);
         sheet
