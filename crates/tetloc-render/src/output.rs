@@ -85,6 +85,22 @@ pub struct FpsReport {
     pub sample_fraction: f64,
 }
 
+impl std::fmt::Display for FpsReport {
+    /// e.g. `cpu: 3.21 FPS at 1024x1024 (12.3 M samples a frame, 85 % in the locator)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}: {:.2} FPS at {}x{} ({:.1} M samples a frame, {:.0} % in the locator)",
+            self.backend,
+            self.fps,
+            self.width,
+            self.height,
+            self.samples_per_frame / 1e6,
+            100.0 * self.sample_fraction
+        )
+    }
+}
+
 /// Renders one warm-up frame, then `frames` frames of an orbit, and reports frames per second.
 pub fn measure_fps(renderer: &Renderer, locator: &mut dyn BatchLocator, frames: u32) -> Result<FpsReport> {
     if frames == 0 {

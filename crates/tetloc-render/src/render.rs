@@ -65,6 +65,24 @@ impl FrameStats {
     }
 }
 
+impl std::fmt::Display for FrameStats {
+    /// One line for the CLI, e.g. `262144 rays, 968744 samples (88.1 % inside the mesh) in
+    /// 5 batches, 0.50 s (83 % in the locator)`.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let pct = |a: f64, b: f64| if b > 0.0 { 100.0 * a / b } else { 0.0 };
+        write!(
+            f,
+            "{} rays, {} samples ({:.1} % inside the mesh) in {} batches, {:.2} s ({:.0} % in the locator)",
+            self.rays,
+            self.samples,
+            pct(self.in_mesh_samples as f64, self.samples as f64),
+            self.rounds,
+            self.seconds,
+            pct(self.sample_seconds, self.seconds)
+        )
+    }
+}
+
 /// A mesh, a field and options made ready to render: the baked transfer function, the
 /// step, the occupancy grid and the surface BVH. Render as many frames as you like with
 /// any locator of the same mesh.
