@@ -14,6 +14,28 @@
 //! # Ok(()) }
 //! ```
 //!
+//! `tetloc render` options map one to one onto [`RenderOptions`] fields, each with a parser
+//! that names the option and the problem in its error:
+//!
+//! | option | field | parser |
+//! |---|---|---|
+//! | `--size WxH` | `width`, `height` | [`parse_size`] |
+//! | `--view AZ,EL` | `azimuth`, `elevation` | [`parse_view`] |
+//! | `--zoom Z` | `zoom` | [`parse_positive`]`("--zoom", ..)` |
+//! | `--camera eye,target,up` | `camera` | [`parse_camera`] |
+//! | `--step S` | `step` | [`parse_positive`]`("--step", ..)` |
+//! | `--tf NAME\|FILE.json[#PRESET]` | `tf` | [`TfSpec::parse`] |
+//! | `--range LO,HI` | `range` | [`parse_range`] |
+//! | `--opacity K` | `opacity` | [`parse_opacity`] |
+//! | `--surface boundary\|FILE` | `surface` | [`SurfaceSpec::parse`] |
+//! | `--frames N` | `frames` | [`parse_frames`] |
+//! | `--no-skip` | `skip = false` | |
+//! | `--background COLOR` | `background` | [`parse_color`] |
+//! | `--fps` | | [`measure_fps`] with the chosen locator |
+//!
+//! [`render_to_file`] writes one PNG, numbered PNGs for an orbit, or a GIF (by the output's
+//! extension); [`FrameStats`] and [`FpsReport`] print as one line each.
+//!
 //! Beyond the paper: empty-space skipping over a conservative occupancy grid (on by
 //! default, exact: the same samples inside the mesh as without it), ParaView colormap
 //! presets, surfaces from OBJ/STL/VTK files, orbits as PNG series or GIF.
