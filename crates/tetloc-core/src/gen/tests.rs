@@ -29,10 +29,10 @@ fn shape_names_round_trip() {
 #[test]
 fn tet_counts_land_near_the_target() {
     for shape in Shape::ALL {
-        for target in SIZES {
+        for target in [5_000, 8_000, 13_000, 30_000, 60_000, 150_000, 400_000] {
             let n = generate(shape, target, 1).tets.len();
             let err = (n as f64 / target as f64 - 1.0).abs();
-            assert!(err < 0.1, "{shape} {target}: {n} tets ({:.1} % off)", 100.0 * err);
+            assert!(err < 0.05, "{shape} {target}: {n} tets ({:.1} % off)", 100.0 * err);
         }
     }
 }
