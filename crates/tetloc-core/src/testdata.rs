@@ -80,7 +80,8 @@ pub fn query_sets(dir: &Path) -> Vec<QuerySet> {
                 .map(|ext| folder.join(format!("{mesh}.{ext}")))
                 .find(|p| p.exists())
                 .unwrap_or_else(|| panic!("{}: no mesh file named {mesh}.vtu/.msh/.vtk", j.display()));
-            let arr = |key: &str| meta["arrays"][key]["file"].as_str().map(|f| folder.join(f));
+            // Real meshes list a `value` array but ship none (ids only): take only files that exist.
+            let arr = |key: &str| meta["arrays"][key]["file"].as_str().map(|f| folder.join(f)).filter(|p| p.exists());
             let points: Vec<f32> = read_le(&arr("points").unwrap());
             out.push(QuerySet {
                 label: format!("{mesh}.{set}"),

@@ -83,14 +83,26 @@ const SORTED_FACES: [([usize; 3], f32); 4] =
 /// Result of the point-in-tet test: the four barycentric coordinates (weights of v0..v3).
 pub type Bary = [f32; 4];
 
-/// The point-in-tet test. `ids` must be canonical (see [`canonical_tet`]); returns the
-/// barycentric coordinates when `p` is inside or on the boundary of the tet.
+/// What the point-in-tet test found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum TetTest {
+    /// Inside or on the boundary: the barycentric weights of the stored vertices. A weight of
+    /// exactly 0 means the point is on the face opposite that vertex (shared with a neighbour).
+    Inside(Bary),
+    /// Outside: the stored-order index of the vertex opposite the first face that separates
+    /// the point from the tet (the way to walk towards the point).
+    Outside { face: usize },
+}
+
+/// The point-in-tet test. `ids` must be canonical (see [`canonical_tet`]).
 #[inline]
-pub fn point_in_tet(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<Bary> {
+pub fn test_point(ids: [u32; 4], points: &[Vec3], p: Vec3) -> TetTest {
     // Ascending order of the four vertices: swap back the last two if canonical order swapped them.
     let swapped = ids[3] < ids[2];
     let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
     let orientation = if swapped { -1.0f32 } else { 1.0 };
+    // Ascending index -> stored index.
+    let stored = |i: usize| if swapped && i >= 2 { 5 - i } else { i };
     let v = [
         points[asc[0] as usize],
         points[asc[1] as usize],
@@ -109,13 +121,13 @@ pub fn point_in_tet(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<Bary> {
             exact = true;
             let signed64 = sign as f64 * orient_f64(v[f[0]], v[f[1]], v[f[2]], p);
             if signed64 < 0.0 {
-                return None;
+                return TetTest::Outside { face: stored(i) };
             }
             signed64 as f32
         };
         // `signed` may be -0.0 or +0.0 on the face: both count as inside.
         if signed < 0.0 {
-            return None;
+            return TetTest::Outside { face: stored(i) };
         }
         d[i] = signed;
         bound_sum += bound;
@@ -134,7 +146,7 @@ pub fn point_in_tet(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<Bary> {
         }
         let total64: f64 = d64.iter().sum();
         if total64 <= 0.0 {
-            return None; // zero-volume tet: contains no point
+            return TetTest::Outside { face: 0 }; // zero-volume tet: contains no point
         }
         for i in 0..4 {
             bary[i] = (d64[i].max(0.0) / total64) as f32;
@@ -144,7 +156,17 @@ pub fn point_in_tet(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<Bary> {
     if swapped {
         bary.swap(2, 3);
     }
-    Some(bary)
+    TetTest::Inside(bary)
+}
+
+/// The point-in-tet test: the barycentric coordinates when `p` is inside or on the
+/// boundary of the (canonical) tet `ids`.
+#[inline]
+pub fn point_in_tet(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<Bary> {
+    match test_point(ids, points, p) {
+        TetTest::Inside(b) => Some(b),
+        TetTest::Outside { .. } => None,
+    }
 }
 
 /// Barycentric interpolation of a per-vertex scalar.

@@ -1,16 +1,24 @@
-//! The CPU locator: BVH traversal and the shared point-in-tet test, parallel over points
-//! with rayon.
+//! The CPU locator, parallel over points with rayon.
+//!
+//! Each batch is visited in Morton order of its points, so consecutive queries are close in
+//! space; each query first *walks* from the previous answer through face neighbours (a few
+//! point-in-tet tests when the points are coherent), and falls back to BVH traversal when
+//! the walk leaves the mesh, runs long, or ends exactly on a face. Answers do not depend on
+//! the order: a point strictly inside a tet has exactly one containing tet, which the walk
+//! and the BVH agree on, and a point on a face always gets the BVH's answer.
 
 use super::{check_lengths, BatchLocator, OUTSIDE};
 use crate::bvh::{BuildPreset, Bvh};
 use crate::error::Result;
-use crate::geom::{self, Bary, Vec3};
+use crate::geom::{self, Bary, TetTest, Vec3};
 use crate::mesh::{FieldLocation, Mesh};
 use rayon::prelude::*;
 use std::sync::Arc;
 
 /// Points handed to one rayon task: large enough to amortise scheduling, small enough to balance.
 const CHUNK: usize = 4096;
+/// Walk steps before giving up and traversing the BVH.
+const MAX_WALK: usize = 24;
 
 pub struct CpuLocator {
     mesh: Arc<Mesh>,
@@ -24,6 +32,7 @@ impl CpuLocator {
 
     pub fn with_preset(mesh: Arc<Mesh>, preset: BuildPreset) -> CpuLocator {
         let bvh = Bvh::build(&mesh.points, &mesh.tets, preset);
+        mesh.neighbors(); // build the adjacency now, not inside the first batch
         CpuLocator { mesh, bvh }
     }
 
@@ -35,7 +44,8 @@ impl CpuLocator {
         &self.mesh
     }
 
-    /// The tet containing `p` and the barycentric coordinates of `p` in it.
+    /// The tet containing `p` and the barycentric coordinates of `p` in it, by BVH traversal
+    /// (the canonical answer: the first containing tet in traversal order).
     #[inline]
     pub fn locate_point(&self, p: Vec3) -> Option<(u32, Bary)> {
         let nodes = &self.bvh.nodes;
@@ -76,17 +86,74 @@ impl CpuLocator {
         }
     }
 
-    /// The value of `field` at `p`: interpolated (per vertex) or looked up (per cell); NaN outside.
+    /// Walks from tet `start` towards `p`. Returns the tet only when `p` is strictly inside
+    /// it (no zero weight), so that the answer is the unique one.
     #[inline]
-    fn sample_point(&self, p: Vec3, values: &[f32], location: FieldLocation) -> f32 {
-        match self.locate_point(p) {
-            None => f32::NAN,
-            Some((t, bary)) => match location {
-                FieldLocation::Vertex => geom::interpolate(self.mesh.tets[t as usize], bary, values),
-                FieldLocation::Cell => values[t as usize],
-            },
+    fn walk(&self, start: u32, p: Vec3) -> Option<(u32, Bary)> {
+        let neighbors = self.mesh.neighbors();
+        let mut t = start;
+        for _ in 0..MAX_WALK {
+            match geom::test_point(self.mesh.tets[t as usize], &self.mesh.points, p) {
+                TetTest::Inside(b) => return (!b.contains(&0.0)).then_some((t, b)),
+                TetTest::Outside { face } => {
+                    let next = neighbors[t as usize][face];
+                    if next < 0 {
+                        return None;
+                    }
+                    t = next as u32;
+                }
+            }
+        }
+        None
+    }
+
+    /// Locates every point, visiting them in Morton order with walks from the previous
+    /// answer, and hands `(index, answer)` to `emit` in that order, per chunk.
+    fn locate_batch<T: Send + Copy>(&self, points: &[Vec3], out: &mut [T], f: impl Fn(Option<(u32, Bary)>) -> T + Sync) {
+        let order = morton_order(points, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+        let sorted: Vec<T> = order
+            .par_chunks(CHUNK)
+            .flat_map_iter(|chunk| {
+                let mut hint: Option<u32> = None;
+                chunk
+                    .iter()
+                    .map(|&i| {
+                        let p = points[i as usize];
+                        let found = hint.and_then(|h| self.walk(h, p)).or_else(|| self.locate_point(p));
+                        if let Some((t, _)) = found {
+                            hint = Some(t);
+                        }
+                        f(found)
+                    })
+                    .collect::<Vec<T>>()
+            })
+            .collect();
+        for (k, &i) in order.iter().enumerate() {
+            out[i as usize] = sorted[k];
         }
     }
+}
+
+/// The permutation that sorts `points` by the Morton code of their position in the box.
+fn morton_order(points: &[Vec3], lo: Vec3, hi: Vec3) -> Vec<u32> {
+    let scale: [f32; 3] = std::array::from_fn(|k| if hi[k] > lo[k] { 1023.0 / (hi[k] - lo[k]) } else { 0.0 });
+    let spread = |v: u32| -> u32 {
+        let mut x = v & 0x3ff;
+        x = (x | x << 16) & 0x030000ff;
+        x = (x | x << 8) & 0x0300f00f;
+        x = (x | x << 4) & 0x030c30c3;
+        (x | x << 2) & 0x09249249
+    };
+    let mut keyed: Vec<(u32, u32)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let q = |k: usize| ((p[k] - lo[k]) * scale[k]).clamp(0.0, 1023.0) as u32;
+            (spread(q(0)) | spread(q(1)) << 1 | spread(q(2)) << 2, i as u32)
+        })
+        .collect();
+    keyed.par_sort_unstable_by_key(|k| k.0);
+    keyed.into_iter().map(|k| k.1).collect()
 }
 
 impl BatchLocator for CpuLocator {
@@ -96,22 +163,20 @@ impl BatchLocator for CpuLocator {
 
     fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
-        ids.par_chunks_mut(CHUNK).zip(points.par_chunks(CHUNK)).for_each(|(out, pts)| {
-            for (o, &p) in out.iter_mut().zip(pts) {
-                *o = self.locate_point(p).map_or(OUTSIDE, |(t, _)| t as i32);
-            }
-        });
+        self.locate_batch(points, ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
         Ok(())
     }
 
     fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
         check_lengths(points.len(), values.len())?;
         let f = self.mesh.field(field)?;
-        values.par_chunks_mut(CHUNK).zip(points.par_chunks(CHUNK)).for_each(|(out, pts)| {
-            for (o, &p) in out.iter_mut().zip(pts) {
-                *o = self.sample_point(p, &f.values, f.location);
-            }
-        });
+        let (tets, vals) = (&self.mesh.tets, &f.values);
+        match f.location {
+            FieldLocation::Vertex => self.locate_batch(points, values, |found| {
+                found.map_or(f32::NAN, |(t, b)| geom::interpolate(tets[t as usize], b, vals))
+            }),
+            FieldLocation::Cell => self.locate_batch(points, values, |found| found.map_or(f32::NAN, |(t, _)| vals[t as usize])),
+        }
         Ok(())
     }
 }

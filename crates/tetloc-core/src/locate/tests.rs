@@ -94,3 +94,29 @@ fn sample_interpolates_vertex_fields_and_looks_up_cell_fields() {
     assert!(loc.sample(&pts, "nope", &mut f).is_err());
     assert!(loc.locate(&pts, &mut ids[1..]).is_err());
 }
+
+/// The batch answer (Morton order, walks) equals the per-point BVH answer, also for points
+/// exactly on faces, edges and vertices, and whatever order the batch comes in.
+#[test]
+fn batch_answers_do_not_depend_on_order() {
+    let m = Arc::new(grid_mesh(6, 0.3, 11));
+    let mut loc = CpuLocator::new(m.clone());
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+    let mut pts: Vec<Vec3> = (0..2000).map(|_| random_inside(&m, &mut rng).1).collect();
+    pts.extend(m.points.iter().copied());
+    for f in m.faces().faces.iter().take(500) {
+        let [a, b, c] = f.v.map(|i| m.points[i as usize]);
+        pts.push(std::array::from_fn(|k| (a[k] + b[k] + c[k]) / 3.0));
+        pts.push(std::array::from_fn(|k| (a[k] + b[k]) / 2.0));
+    }
+    let want: Vec<i32> = pts.iter().map(|&p| loc.locate_point(p).map_or(OUTSIDE, |(t, _)| t as i32)).collect();
+    let mut ids = vec![0; pts.len()];
+    loc.locate(&pts, &mut ids).unwrap();
+    assert_eq!(ids, want);
+    // Reversed batch, same answers.
+    pts.reverse();
+    loc.locate(&pts, &mut ids).unwrap();
+    ids.reverse();
+    assert_eq!(ids, want);
+    assert!(want.iter().all(|&i| i >= 0), "a point of the mesh came back outside");
+}

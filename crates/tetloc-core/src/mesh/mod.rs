@@ -2,6 +2,7 @@
 //! derived from them (bounds, edge lengths, shared faces).
 
 mod faces;
+mod neighbors;
 #[cfg(test)]
 mod tests;
 
@@ -71,6 +72,7 @@ pub struct Mesh {
     pub fields: Vec<Field>,
     pub info: MeshInfo,
     faces: OnceLock<FaceSet>,
+    neighbors: OnceLock<Vec<[i32; 4]>>,
 }
 
 impl Mesh {
@@ -179,7 +181,7 @@ impl Mesh {
             higher_order,
             total_volume: acc.volume,
         };
-        Ok(Mesh { points, tets, fields, info, faces: OnceLock::new() })
+        Ok(Mesh { points, tets, fields, info, faces: OnceLock::new(), neighbors: OnceLock::new() })
     }
 
     pub fn n_tets(&self) -> usize {
@@ -202,6 +204,12 @@ impl Mesh {
     /// of all 4·T tet faces: memory-hungry on huge meshes, so only when a kernel needs it).
     pub fn faces(&self) -> &FaceSet {
         self.faces.get_or_init(|| FaceSet::build(&self.tets))
+    }
+
+    /// For each tet and stored vertex i, the tet across the face opposite vertex i (-1 on
+    /// the boundary). Computed on first use.
+    pub fn neighbors(&self) -> &[[i32; 4]] {
+        self.neighbors.get_or_init(|| neighbors::build(&self.tets))
     }
 
     /// The centroid of tet `t`.

@@ -86,3 +86,23 @@ fn missing_field_lists_the_available_ones() {
     let msg = m.field("pressure").unwrap_err().to_string();
     assert!(msg.contains("'f', 'cellval'"), "{msg}");
 }
+
+#[test]
+fn neighbors_are_symmetric_and_match_the_faces() {
+    let m = grid_mesh(3, 0.3, 4);
+    let nb = m.neighbors();
+    let mut boundary = 0;
+    for (t, n) in nb.iter().enumerate() {
+        for (i, &o) in n.iter().enumerate() {
+            if o < 0 {
+                boundary += 1;
+                continue;
+            }
+            assert!(nb[o as usize].contains(&(t as i32)), "tet {t} face {i} -> {o} not symmetric");
+            // The shared face is the one without vertex i.
+            let face: Vec<u32> = m.tets[t].iter().enumerate().filter(|(j, _)| *j != i).map(|(_, &v)| v).collect();
+            assert!(face.iter().all(|v| m.tets[o as usize].contains(v)));
+        }
+    }
+    assert_eq!(boundary, m.faces().stats.n_boundary);
+}

@@ -1,0 +1,69 @@
+//! The CPU locator against the oracle answers made with VTK, scipy and gmsh
+//! (`../shared/data`): no id mismatches except within rounding of a face (flags bit0),
+//! values within 1e-5 relative, and no interior point of `centers`/`random` lost.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+use tetloc_core::testdata::{query_sets, require_data};
+use tetloc_core::{io, BatchLocator, CpuLocator, Mesh};
+
+#[test]
+fn cpu_locator_matches_the_oracle() {
+    let Some(dir) = require_data("cpu_locator_matches_the_oracle") else { return };
+    let sets = query_sets(&dir);
+    assert!(sets.len() >= 18, "expected the oracle query sets, found {}", sets.len());
+    let mut meshes: HashMap<std::path::PathBuf, Arc<Mesh>> = HashMap::new();
+    let mut report = Vec::new();
+    let mut failures = Vec::new();
+    for set in &sets {
+        let mesh = meshes
+            .entry(set.mesh_path.clone())
+            .or_insert_with(|| Arc::new(io::read_mesh(&set.mesh_path, None).unwrap_or_else(|e| panic!("{e}"))))
+            .clone();
+        let mut loc = CpuLocator::new(mesh.clone());
+        let mut ids = vec![0; set.points.len()];
+        loc.locate(&set.points, &mut ids).unwrap();
+        let mut mismatches = 0;
+        let mut lost = 0;
+        for i in 0..ids.len() {
+            if ids[i] != set.cell[i] && !set.ambiguous(i) {
+                mismatches += 1;
+                if mismatches <= 3 {
+                    eprintln!("{}: point {i} {:?}: got {} want {}", set.label, set.points[i], ids[i], set.cell[i]);
+                }
+            }
+            if set.cell[i] >= 0 && ids[i] < 0 && !set.label.ends_with(".bbox") {
+                lost += 1;
+            }
+        }
+        let mut bad_values = 0;
+        if let Some(want) = &set.value {
+            let mut got = vec![0f32; set.points.len()];
+            loc.sample(&set.points, "f", &mut got).unwrap();
+            for i in 0..got.len() {
+                if set.ambiguous(i) {
+                    continue;
+                }
+                let (g, w) = (got[i] as f64, want[i]);
+                let ok = if w.is_nan() { g.is_nan() } else { (g - w).abs() <= 1e-5 * w.abs().max(1.0) };
+                if !ok {
+                    bad_values += 1;
+                    if bad_values <= 3 {
+                        eprintln!("{}: point {i}: value {g} want {w}", set.label);
+                    }
+                }
+            }
+        }
+        let ambiguous = set.flags.iter().filter(|f| *f & 1 != 0).count();
+        report.push(format!(
+            "{:<22} {:>6} points: {mismatches} id mismatches, {lost} lost, {bad_values} bad values ({ambiguous} ambiguous skipped)",
+            set.label,
+            ids.len()
+        ));
+        if mismatches + lost + bad_values > 0 {
+            failures.push(set.label.clone());
+        }
+    }
+    eprintln!("{}", report.join("\n"));
+    assert!(failures.is_empty(), "oracle disagreements in {failures:?}");
+}

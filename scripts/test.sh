@@ -1,0 +1,15 @@
+#!/usr/bin/env bash
+# Runs every test of the workspace: installs what the tests need (the Vulkan loader and
+# lavapipe, Mesa's CPU Vulkan driver with ray-tracing pipelines, from bookworm-backports),
+# then `cargo test`. The GPU tests run on whatever Vulkan device there is; with CI set, a
+# test that finds no device or no oracle data fails instead of skipping.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+bash scripts/install-test-deps.sh
+# Prefer lavapipe when no other driver is set, so results do not depend on a desktop GPU.
+if [ -z "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ] && [ -n "${CI:-}" ]; then
+  lvp=$(ls /usr/share/vulkan/icd.d/lvp_icd*.json 2>/dev/null | head -n1 || true)
+  [ -n "$lvp" ] && export VK_DRIVER_FILES="$lvp"
+fi
+export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
+cargo test --workspace --locked "$@"
