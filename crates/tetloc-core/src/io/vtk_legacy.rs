@@ -15,7 +15,7 @@ use std::borrow::Cow;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = super::vtu::vtk::read_file(path)?;
     parse(&bytes, path)
 }
 
@@ -157,39 +157,45 @@ impl Grid<'_> {
         let bad_id = |arr: &Array, i: usize, what: &str| {
             fail(format!("{what}: value {i} ({:?}) is not a point id (the file has {n_points} points)", arr.get_i64(i)))
         };
-        let (starts, conn) = match cells {
+        let (ends, conn) = match cells {
             Cells::List(list) => {
                 let v = num::map_ints(&list, |v| u32::try_from(v).ok())
                     .map_err(|i| fail(format!("CELLS: value {i} ({:?}) is negative", list.get_i64(i))))?;
-                let mut starts = Vec::with_capacity(types.len() + 1);
+                let mut ends = Vec::with_capacity(types.len());
                 let mut conn = Vec::with_capacity(v.len().saturating_sub(types.len()));
                 let mut pos = 0;
-                starts.push(0u64);
                 while pos < v.len() {
                     let k = v[pos] as usize;
                     let ids = v.get(pos + 1..pos + 1 + k).ok_or_else(|| {
-                        fail(format!("CELLS: cell {} claims {k} points, past the end of the list", starts.len() - 1))
+                        fail(format!("CELLS: cell {} claims {k} points, past the end of the list", ends.len()))
                     })?;
                     if let Some(&id) = ids.iter().find(|&&id| id as usize >= n_points) {
                         return Err(fail(format!(
                             "CELLS: cell {} uses point {id}, but the file has {n_points} points",
-                            starts.len() - 1
+                            ends.len()
                         )));
                     }
                     conn.extend_from_slice(ids);
-                    starts.push(conn.len() as u64);
+                    ends.push(conn.len() as u64);
                     pos += 1 + k;
                 }
-                (starts, conn)
+                (ends, conn)
             }
             Cells::Arrays(offsets, connectivity) => {
-                let starts = num::map_ints(&offsets, |v| u64::try_from(v).ok())
+                let mut ends = num::map_ints(&offsets, |v| u64::try_from(v).ok())
                     .map_err(|i| fail(format!("OFFSETS: value {i} ({:?}) is not an offset", offsets.get_i64(i))))?;
+                // n + 1 offsets from 0; the cells end at the last n.
+                if ends.first().is_some_and(|&s| s != 0) {
+                    return Err(fail(format!("OFFSETS: the first cell starts at {}, not 0", ends[0])));
+                }
+                if !ends.is_empty() {
+                    ends.remove(0);
+                }
                 let conn = num::to_ids(&connectivity, n_points).map_err(|i| bad_id(&connectivity, i, "CONNECTIVITY"))?;
-                (starts, conn)
+                (ends, conn)
             }
         };
-        let ex = cells::extract(&types, &starts, conn).map_err(fail)?;
+        let ex = cells::extract(&types, &ends, conn).map_err(fail)?;
         if !ex.other.is_empty() {
             return Err(cells::non_tet_error(path, &ex.other));
         }

@@ -22,7 +22,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = vtk::read_file(path)?;
     parse(&bytes, path)
 }
 
@@ -221,22 +221,23 @@ impl<'a> Ctx<'a, '_> {
             self.fail(format!("DataArray '{name}': value {i} ({v}) {why}"))
         };
         let types_arr = self.array(cell_array("types")?, n_cells)?;
-        let types = num::map_ints(&types_arr, |v| u8::try_from(v).ok())
-            .map_err(|i| bad_value("types", &types_arr, i, "is not a VTK cell type"))?;
-        let offsets_arr = self.array(cell_array("offsets")?, n_cells)?;
-        let mut starts = Vec::with_capacity(n_cells + 1);
-        starts.push(0u64);
-        starts.extend(
-            num::map_ints(&offsets_arr, |v| u64::try_from(v).ok())
-                .map_err(|i| bad_value("offsets", &offsets_arr, i, "is not an offset"))?,
-        );
-        let n_conn = usize::try_from(*starts.last().unwrap()).unwrap_or(usize::MAX);
-        let conn_arr = self.array(cell_array("connectivity")?, n_conn)?;
-        let conn = num::to_ids(&conn_arr, n_points).map_err(|i| {
-            bad_value("connectivity", &conn_arr, i, &format!("is not a point id (the piece has {n_points} points)"))
-        })?;
-        drop(conn_arr);
-        let ex = cells::extract(&types, &starts, conn).map_err(|m| self.fail(format!("piece {k}: {m}")))?;
+        let ends_arr = self.array(cell_array("offsets")?, n_cells)?;
+        let conn_ids = |n_conn: usize| {
+            let arr = self.array(cell_array("connectivity")?, n_conn)?;
+            num::to_ids(&arr, n_points).map_err(|i| {
+                bad_value("connectivity", &arr, i, &format!("is not a point id (the piece has {n_points} points)"))
+            })
+        };
+        let ex = if cells::all_linear_tets(&types_arr, &ends_arr) {
+            cells::Extracted::all_tets(conn_ids(4 * n_cells)?)
+        } else {
+            let types = num::map_ints(&types_arr, |v| u8::try_from(v).ok())
+                .map_err(|i| bad_value("types", &types_arr, i, "is not a VTK cell type"))?;
+            let ends = num::map_ints(&ends_arr, |v| u64::try_from(v).ok())
+                .map_err(|i| bad_value("offsets", &ends_arr, i, "is not an offset"))?;
+            let n_conn = usize::try_from(ends.last().copied().unwrap_or(0)).unwrap_or(usize::MAX);
+            cells::extract(&types, &ends, conn_ids(n_conn)?).map_err(|m| self.fail(format!("piece {k}: {m}")))?
+        };
         if !ex.other.is_empty() {
             // The mesh is unusable: skip reading its fields.
             return Ok(Part { raw: RawMesh::default(), other: ex.other });

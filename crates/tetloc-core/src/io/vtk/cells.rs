@@ -1,5 +1,6 @@
 //! VTK cell types, and picking the tetrahedra out of a VTK cell list.
 
+use super::num::{self, Array};
 use crate::error::Error;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -115,35 +116,40 @@ pub(crate) struct Extracted {
     pub other: BTreeMap<u8, usize>,
 }
 
+impl Extracted {
+    /// Every cell a linear tet: the connectivity is the tet array, no copy.
+    pub fn all_tets(conn: Vec<u32>) -> Extracted {
+        let tets = bytemuck::allocation::try_cast_vec(conn)
+            .unwrap_or_else(|(_, v)| v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect());
+        Extracted { tets, kept: None, higher_order: None, other: BTreeMap::new() }
+    }
+}
+
+/// Whether every cell is a linear tet with its 4 ids in order (`ends` = 4, 8, 12, ...): the
+/// common case, checked on the file's arrays without converting them.
+pub(crate) fn all_linear_tets(types: &Array, ends: &Array) -> bool {
+    types.len() == ends.len()
+        && num::all_ints(types, |_, t| t == TETRA as i64)
+        && num::all_ints(ends, |i, e| e == 4 * (i as i64 + 1))
+}
+
 /// Picks the tets out of `types.len()` cells; cell `i` has the point ids
-/// `conn[starts[i]..starts[i + 1]]`. `starts` is validated here. Errors are messages for
-/// [`Error::format`].
-pub(crate) fn extract(types: &[u8], starts: &[u64], conn: Vec<u32>) -> Result<Extracted, String> {
+/// `conn[ends[i - 1]..ends[i]]` (from 0 for the first). `ends` is validated here. Errors
+/// are messages for [`Error::format`].
+pub(crate) fn extract(types: &[u8], ends: &[u64], conn: Vec<u32>) -> Result<Extracted, String> {
     let n = types.len();
-    if starts.len() != n + 1 {
-        return Err(format!("{} cell types but {} cell offsets", n, starts.len().saturating_sub(1)));
+    if ends.len() != n {
+        return Err(format!("{} cell types but {} cell offsets", n, ends.len()));
     }
-    if starts[0] != 0 {
-        return Err(format!("the first cell starts at connectivity entry {}, not 0", starts[0]));
+    if let Some(i) = ends.windows(2).position(|w| w[1] < w[0]) {
+        return Err(format!("cell offsets decrease at cell {} ({} then {})", i + 1, ends[i], ends[i + 1]));
     }
-    if let Some(i) = starts.windows(2).position(|w| w[1] < w[0]) {
-        return Err(format!("cell offsets decrease at cell {i} ({} then {})", starts[i], starts[i + 1]));
-    }
-    if starts[n] != conn.len() as u64 {
+    if ends.last().copied().unwrap_or(0) != conn.len() as u64 {
         return Err(format!(
             "the cell offsets end at {} but the connectivity has {} entries",
-            starts[n],
+            ends.last().copied().unwrap_or(0),
             conn.len()
         ));
-    }
-
-    // The common case, all linear tets: the connectivity is the tet array, no copy.
-    use rayon::prelude::*;
-    if types.par_iter().all(|&t| t == TETRA) && starts.par_iter().enumerate().all(|(i, &s)| s == 4 * i as u64) {
-        let tets = bytemuck::allocation::try_cast_vec(conn).unwrap_or_else(|(_, v)| {
-            v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect()
-        });
-        return Ok(Extracted { tets, kept: None, higher_order: None, other: BTreeMap::new() });
     }
 
     let mut tets = Vec::new();
@@ -151,7 +157,8 @@ pub(crate) fn extract(types: &[u8], starts: &[u64], conn: Vec<u32>) -> Result<Ex
     let mut higher_order: Option<u8> = None;
     let mut other = BTreeMap::new();
     for (i, &code) in types.iter().enumerate() {
-        let ids = &conn[starts[i] as usize..starts[i + 1] as usize];
+        let start = if i == 0 { 0 } else { ends[i - 1] as usize };
+        let ids = &conn[start..ends[i] as usize];
         let Some((name, kind)) = lookup(code) else {
             return Err(format!("cell {i} has cell type {code}, which VTK does not define"));
         };
@@ -213,34 +220,47 @@ mod tests {
     fn mixed_cells() {
         // triangle, quadratic tet, tet, vertex
         let types = [5u8, 24, 10, 1];
-        let starts = [0u64, 3, 13, 17, 18];
-        let conn: Vec<u32> = (0..18).collect();
-        let e = extract(&types, &starts, conn.clone()).unwrap();
+        let ends = [3u64, 13, 17, 18];
+        let e = extract(&types, &ends, (0..18).collect()).unwrap();
         assert_eq!(e.tets, vec![[3, 4, 5, 6], [13, 14, 15, 16]]);
         assert_eq!(e.kept.as_deref(), Some(&[false, true, true, false][..]));
         assert_eq!(e.higher_order, Some(2));
         assert!(e.other.is_empty());
         assert_eq!(filter_cells(vec![1., 2., 3., 4.], e.kept.as_deref()), vec![2., 3.]);
 
-        let e = extract(&[12, 10, 12, 13], &[0, 8, 12, 20, 26], (0..26).collect()).unwrap();
+        let e = extract(&[12, 10, 12, 13], &[8, 12, 20, 26], (0..26).collect()).unwrap();
         assert_eq!(e.other.into_iter().collect::<Vec<_>>(), vec![(12, 2), (13, 1)]);
     }
 
     #[test]
     fn bad_cells() {
-        assert!(extract(&[10], &[0, 5], (0..5).collect()).unwrap_err().contains("5 points"));
-        assert!(extract(&[24], &[0, 9], (0..9).collect()).is_err());
-        assert!(extract(&[71], &[0, 11], (0..11).collect()).is_err());
-        assert!(extract(&[200], &[0, 4], (0..4).collect()).unwrap_err().contains("200"));
-        assert!(extract(&[10, 10], &[0, 4, 3], (0..4).collect()).unwrap_err().contains("decrease"));
-        assert!(extract(&[10], &[0, 4], (0..8).collect()).unwrap_err().contains("end at 4"));
-        assert!(extract(&[10], &[1, 5], (0..5).collect()).is_err());
-        assert!(extract(&[10], &[0], vec![]).is_err());
+        assert!(extract(&[10], &[5], (0..5).collect()).unwrap_err().contains("5 points"));
+        assert!(extract(&[24], &[9], (0..9).collect()).is_err());
+        assert!(extract(&[71], &[11], (0..11).collect()).is_err());
+        assert!(extract(&[200], &[4], (0..4).collect()).unwrap_err().contains("200"));
+        assert!(extract(&[10, 10], &[4, 3], (0..4).collect()).unwrap_err().contains("decrease"));
+        assert!(extract(&[10], &[4], (0..8).collect()).unwrap_err().contains("end at 4"));
+        assert!(extract(&[10], &[], vec![]).is_err());
+        assert!(extract(&[], &[], vec![]).unwrap().tets.is_empty());
     }
 
     #[test]
     fn all_tets_fast_path() {
-        let e = extract(&[10, 10], &[0, 4, 8], (0..8).collect()).unwrap();
+        let arr = |ty, v: &[i64]| {
+            let (a, _) = num::parse_ascii(
+                v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(" ").as_bytes(),
+                ty,
+                None,
+            )
+            .unwrap();
+            a
+        };
+        let types = arr(num::NumType::U8, &[10, 10]);
+        assert!(all_linear_tets(&types, &arr(num::NumType::I64, &[4, 8])));
+        assert!(!all_linear_tets(&types, &arr(num::NumType::I32, &[4, 9])));
+        assert!(!all_linear_tets(&types, &arr(num::NumType::I32, &[4])));
+        assert!(!all_linear_tets(&arr(num::NumType::U8, &[10, 24]), &arr(num::NumType::I32, &[4, 8])));
+        let e = Extracted::all_tets((0..8).collect());
         assert_eq!(e.tets, vec![[0, 1, 2, 3], [4, 5, 6, 7]]);
         assert!(e.kept.is_none() && e.higher_order.is_none());
     }

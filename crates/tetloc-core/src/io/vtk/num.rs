@@ -186,44 +186,46 @@ macro_rules! impl_float {
 impl_float!(f32, f64);
 
 
-/// Maps each group of `group` consecutive bytes to one output value, in parallel; `f`
-/// rejects a group with `None`, and then the index of the first rejected group is returned.
-fn map_groups<U, F>(bytes: &[u8], group: usize, f: F) -> Result<Vec<U>, usize>
+/// Maps each tuple of `N` values of `T` to one output value, in parallel. `f` rejects a tuple
+/// with `None`; then the index of the first rejected tuple is returned. (`N` and `T` are
+/// compile-time so that the inner loop has constant strides.)
+fn map_tuples<T, const N: usize, U, F>(bytes: &[u8], f: F) -> Result<Vec<U>, usize>
 where
+    T: Elem,
     U: Copy + Default + Send + Sync,
-    F: Fn(&[u8]) -> Option<U> + Sync,
+    F: Fn([T; N]) -> Option<U> + Sync,
 {
     const CHUNK: usize = 1 << 14;
-    let n = bytes.len() / group;
-    let mut out = vec![U::default(); n];
-    let ok = out
-        .par_chunks_mut(CHUNK)
-        .zip(bytes.par_chunks(CHUNK * group))
-        .try_for_each(|(o, b)| {
-            for (x, g) in o.iter_mut().zip(b.chunks_exact(group)) {
-                *x = f(g).ok_or(())?;
+    let tuple = |t: &[u8]| f(std::array::from_fn(|k| T::get(t, k)));
+    let mut out = vec![U::default(); bytes.len() / (N * T::SIZE)];
+    let ok = out.par_chunks_mut(CHUNK).zip(bytes.par_chunks(CHUNK * N * T::SIZE)).all(|(o, b)| {
+        // No early exit inside a chunk: keeps the loop branch-light.
+        let mut ok = true;
+        for (x, t) in o.iter_mut().zip(b.chunks_exact(N * T::SIZE)) {
+            match tuple(t) {
+                Some(v) => *x = v,
+                None => ok = false,
             }
-            Ok(())
-        });
-    match ok {
-        Ok(()) => Ok(out),
-        // Error path only: find the first bad group sequentially.
-        Err(()) => Err(bytes.chunks_exact(group).position(|g| f(g).is_none()).unwrap_or(0)),
+        }
+        ok
+    });
+    if ok {
+        Ok(out)
+    } else {
+        // Error path only: find the first bad tuple sequentially.
+        Err(bytes.chunks_exact(N * T::SIZE).position(|t| tuple(t).is_none()).unwrap_or(0))
     }
 }
 
 /// Every value as f32 (f64 rounds to nearest).
 pub(crate) fn to_f32(a: &Array) -> Vec<f32> {
-    fn go<T: Elem>(b: &[u8]) -> Vec<f32> {
-        map_groups(b, T::SIZE, |g| Some(T::read(g).to_f32())).unwrap_or_default()
-    }
-    with_type!(a.ty, T => go::<T>(&a.bytes))
+    with_type!(a.ty, T => map_tuples::<T, 1, _, _>(&a.bytes, |[v]| Some(v.to_f32())).unwrap_or_default())
 }
 
 /// Component `c` of every tuple of `ncomp` values, as f32.
 pub(crate) fn component_f32(a: &Array, ncomp: usize, c: usize) -> Vec<f32> {
     fn go<T: Elem>(b: &[u8], ncomp: usize, c: usize) -> Vec<f32> {
-        map_groups(b, ncomp * T::SIZE, |g| Some(T::get(g, c).to_f32())).unwrap_or_default()
+        b.par_chunks_exact(ncomp * T::SIZE).map(|t| T::get(t, c).to_f32()).collect()
     }
     if ncomp == 1 {
         return to_f32(a);
@@ -233,10 +235,7 @@ pub(crate) fn component_f32(a: &Array, ncomp: usize, c: usize) -> Vec<f32> {
 
 /// Triples of values as f32 points.
 pub(crate) fn to_points(a: &Array) -> Vec<[f32; 3]> {
-    fn go<T: Elem>(b: &[u8]) -> Vec<[f32; 3]> {
-        map_groups(b, 3 * T::SIZE, |g| Some([0, 1, 2].map(|k| T::get(g, k).to_f32()))).unwrap_or_default()
-    }
-    with_type!(a.ty, T => go::<T>(&a.bytes))
+    with_type!(a.ty, T => map_tuples::<T, 3, _, _>(&a.bytes, |t| Some(t.map(Elem::to_f32))).unwrap_or_default())
 }
 
 /// Integer values mapped through `f`, which returns `None` for values out of the caller's
@@ -246,16 +245,26 @@ where
     U: Copy + Default + Send + Sync,
     F: Fn(i64) -> Option<U> + Sync,
 {
-    fn go<T: Elem, U: Copy + Default + Send + Sync>(
-        b: &[u8],
-        f: &(impl Fn(i64) -> Option<U> + Sync),
-    ) -> Result<Vec<U>, usize> {
-        map_groups(b, T::SIZE, |g| T::read(g).to_i64().and_then(f))
-    }
     if a.ty.is_float() {
         return Err(0);
     }
-    with_type!(a.ty, T => go::<T, U>(&a.bytes, &f))
+    with_type!(a.ty, T => map_tuples::<T, 1, _, _>(&a.bytes, |[v]| v.to_i64().and_then(&f)))
+}
+
+/// Whether every value is an integer `v` at index `i` with `pred(i, v)`: a parallel check
+/// that needs no converted copy.
+pub(crate) fn all_ints(a: &Array, pred: impl Fn(usize, i64) -> bool + Sync) -> bool {
+    fn go<T: Elem>(b: &[u8], pred: &(impl Fn(usize, i64) -> bool + Sync)) -> bool {
+        const CHUNK: usize = 1 << 14;
+        b.par_chunks(CHUNK * T::SIZE).enumerate().all(|(c, b)| {
+            let mut ok = true;
+            for (j, e) in b.chunks_exact(T::SIZE).enumerate() {
+                ok &= T::read(e).to_i64().is_some_and(|v| pred(c * CHUNK + j, v));
+            }
+            ok
+        })
+    }
+    !a.ty.is_float() && with_type!(a.ty, T => go::<T>(&a.bytes, &pred))
 }
 
 /// Point ids below `n_points`, grouped in `k`s (`k` = 1 or 4).
@@ -276,7 +285,7 @@ pub(crate) fn parse_ascii(text: &[u8], ty: NumType, count: Option<usize>) -> Res
     let mut out: Vec<u8> = Vec::with_capacity(cap * size);
     let mut pos = 0;
     let mut n = 0;
-    while count.map_or(true, |c| n < c) {
+    while !matches!(count, Some(c) if n >= c) {
         while pos < text.len() && text[pos].is_ascii_whitespace() {
             pos += 1;
         }
@@ -352,11 +361,14 @@ mod tests {
         assert_eq!(component_f32(&a, 3, 1), vec![2.0, 5.0]);
         assert_eq!(component_f32(&a, 2, 1), vec![2.0, 4.0, 6.0]);
         assert_eq!(map_ints(&a, Some), Err(0), "floats are no ids");
+        assert!(!all_ints(&a, |_, _| true));
 
         let ids: Vec<u8> = [0i64, 5, 7, -1].iter().flat_map(|v| v.to_le_bytes()).collect();
         let a = arr(NumType::I64, ids);
         assert_eq!(to_ids(&a, 8), Err(3), "negative id");
         assert_eq!(to_ids(&a, 7), Err(2), "id beyond the points");
+        assert!(all_ints(&a, |i, v| v == [0, 5, 7, -1][i]));
+        assert!(!all_ints(&a, |i, v| i < 3 && v >= 0));
         let big = arr(NumType::U64, u64::MAX.to_le_bytes().to_vec());
         assert_eq!(big.get_i64(0), None);
         assert_eq!(to_ids(&big, 10), Err(0));

@@ -239,3 +239,128 @@ fn gigantic_declared_sizes_fail_fast() {
     assert!(t.elapsed().as_secs_f64() < 2.0, "{:?}", t.elapsed());
 }
 
+
+/// A jittered grid of `n`³ cubes, 6 tets each (Kuhn split), with a point and a cell field.
+pub(crate) fn jittered_grid(n: usize, seed: u64) -> crate::Mesh {
+    use crate::mesh::Field;
+    use rand::{Rng, SeedableRng};
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    let m = n + 1;
+    let h = 1.0 / n as f32;
+    let mut points = Vec::with_capacity(m * m * m);
+    for k in 0..m {
+        for j in 0..m {
+            for i in 0..m {
+                let mut jit = || rng.gen_range(-0.15..0.15) * h;
+                points.push([i as f32 * h + jit(), j as f32 * h + jit(), k as f32 * h + jit()]);
+            }
+        }
+    }
+    let v = |i: usize, j: usize, k: usize| (i + m * (j + m * k)) as u32;
+    let mut tets = Vec::with_capacity(6 * n * n * n);
+    for k in 0..n {
+        for j in 0..n {
+            for i in 0..n {
+                let c = |a: usize, b: usize, d: usize| v(i + a, j + b, k + d);
+                let (v0, v7) = (c(0, 0, 0), c(1, 1, 1));
+                for (a, b) in [
+                    (c(1, 0, 0), c(1, 1, 0)),
+                    (c(1, 0, 0), c(1, 0, 1)),
+                    (c(0, 1, 0), c(1, 1, 0)),
+                    (c(0, 1, 0), c(0, 1, 1)),
+                    (c(0, 0, 1), c(1, 0, 1)),
+                    (c(0, 0, 1), c(0, 1, 1)),
+                ] {
+                    tets.push([v0, a, b, v7]);
+                }
+            }
+        }
+    }
+    let f = points.iter().map(|p| p[0] + 2.0 * p[1] - p[2]).collect();
+    let cell = (0..tets.len()).map(|i| i as f32).collect();
+    let fields = vec![
+        Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
+        Field { name: "cell id".into(), location: FieldLocation::Cell, values: cell },
+    ];
+    crate::Mesh::new(RawMesh { points, tets, fields, higher_order: None }, "jittered grid").unwrap()
+}
+
+#[test]
+fn written_grid_reads_back() {
+    use crate::io::vtu_write;
+    let mesh = jittered_grid(12, 1);
+    for zlib in [false, true] {
+        let path = std::env::temp_dir().join(format!("tetloc-{}-grid-{zlib}.vtu", std::process::id()));
+        vtu_write::write_mesh_vtu(&path, &mesh, zlib).unwrap();
+        let back = crate::Mesh::new(vtu::read(&path).unwrap(), "back").unwrap();
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(back.tets, mesh.tets);
+        assert_eq!(back.points, mesh.points);
+        assert_eq!(back.fields[1].values, mesh.fields[1].values);
+    }
+}
+
+/// Load speed of a ~10M-tet appended raw file (run with `--ignored --nocapture`; set
+/// TETLOC_BENCH_KEEP=1 to keep the files in the temp folder).
+#[test]
+#[ignore]
+fn bench_load_10m_tets() {
+    use crate::io::vtu_write;
+    use std::time::Instant;
+    let t = Instant::now();
+    let mesh = jittered_grid(119, 2);
+    eprintln!("grid: {} points, {} tets in {:.2?}", mesh.points.len(), mesh.tets.len(), t.elapsed());
+    let keep = std::env::var_os("TETLOC_BENCH_KEEP").is_some();
+    for (label, zlib, wide) in [("int32", false, false), ("int64", false, true), ("zlib", true, false)] {
+        let path = std::env::temp_dir().join(format!("tetloc-bench-10m-{label}.vtu"));
+        let t = Instant::now();
+        vtu_write::write_mesh(&path, &mesh, zlib, wide).unwrap();
+        let w = t.elapsed().as_secs_f64();
+        let size = std::fs::metadata(&path).unwrap().len() as f64 / 1e6;
+        let mut best = f64::INFINITY;
+        let mut raw = None;
+        for _ in 0..3 {
+            drop(raw.take());
+            let t = Instant::now();
+            raw = Some(vtu::read(&path).unwrap());
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        let raw = raw.unwrap();
+        assert_eq!(raw.tets.len(), mesh.tets.len());
+        let t = Instant::now();
+        let bytes = std::fs::read(&path).unwrap();
+        let fs_read = t.elapsed().as_secs_f64();
+        drop(bytes);
+        eprintln!(
+            "{label}: {size:.0} MB written in {w:.2} s ({:.0} MB/s); read in {best:.3} s = {:.0} MB/s (fs::read alone {fs_read:.3} s)",
+            size / w,
+            size / best
+        );
+        if !keep {
+            std::fs::remove_file(&path).unwrap();
+        }
+    }
+}
+
+/// CPU time (user + system) of this process so far, in seconds.
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    // Fields after the command name (which may hold spaces): utime and stime are 14 and 15.
+    let rest = stat.rsplit(')').next().unwrap_or("");
+    let f: Vec<f64> = rest.split_whitespace().map(|x| x.parse().unwrap_or(0.0)).collect();
+    f.get(11).zip(f.get(12)).map_or(f64::NAN, |(u, s)| (u + s) / 100.0)
+}
+
+/// Load time of the VTU file named by $TETLOC_BENCH_FILE (run with --ignored --nocapture).
+#[test]
+#[ignore]
+fn bench_load_file() {
+    let Some(p) = std::env::var_os("TETLOC_BENCH_FILE") else { return };
+    let size = std::fs::metadata(&p).unwrap().len() as f64 / 1e6;
+    for _ in 0..5 {
+        let (t, c) = (std::time::Instant::now(), cpu_seconds());
+        let m = vtu::read(Path::new(&p)).unwrap();
+        let (wall, cpu) = (t.elapsed().as_secs_f64(), cpu_seconds() - c);
+        eprintln!("{size:.0} MB, {} tets: {wall:.3} s = {:.0} MB/s (cpu {cpu:.2} s)", m.tets.len(), size / wall);
+    }
+}
