@@ -34,25 +34,43 @@ impl Image {
     }
 }
 
-/// Writes `frames` as a looping animated GIF, `delay_cs` hundredths of a second a frame.
-pub fn write_gif(path: &Path, frames: &[Image], delay_cs: u16) -> Result<()> {
-    let first = frames.first().ok_or_else(|| RenderError::Invalid("no frames to write".into()))?;
-    let (w, h) = (u16::try_from(first.width), u16::try_from(first.height));
-    let (Ok(w), Ok(h)) = (w, h) else {
-        return Err(RenderError::file(path, format!("GIF images are at most 65535 pixels a side, not {}x{}", first.width, first.height)));
-    };
-    let io = |e: std::io::Error| RenderError::io(path, e);
-    let encode = |e: gif::EncodingError| RenderError::file(path, format!("cannot write GIF: {e}"));
-    let file = BufWriter::new(File::create(path).map_err(io)?);
-    let mut enc = gif::Encoder::new(file, w, h, &[]).map_err(encode)?;
-    enc.set_repeat(gif::Repeat::Infinite).map_err(encode)?;
-    for img in frames {
-        // NeuQuant palette per frame; speed 10 is gif's balance of quality and time.
-        let mut frame = gif::Frame::from_rgb_speed(w, h, &img.to_srgb8(), 10);
-        frame.delay = delay_cs;
-        enc.write_frame(&frame).map_err(encode)?;
+/// A looping animated GIF written frame by frame, so long orbits need no memory per frame.
+pub struct GifWriter {
+    enc: gif::Encoder<BufWriter<File>>,
+    path: std::path::PathBuf,
+    size: (u16, u16),
+    delay_cs: u16,
+}
+
+impl GifWriter {
+    /// Starts `path` for frames of `width`×`height`, shown `delay_cs` hundredths of a second each.
+    pub fn create(path: &Path, width: u32, height: u32, delay_cs: u16) -> Result<GifWriter> {
+        let (Ok(w), Ok(h)) = (u16::try_from(width), u16::try_from(height)) else {
+            return Err(RenderError::file(path, format!("GIF images are at most 65535 pixels a side, not {width}x{height}")));
+        };
+        let file = BufWriter::new(File::create(path).map_err(|e| RenderError::io(path, e))?);
+        let encode = |e: gif::EncodingError| RenderError::file(path, format!("cannot write GIF: {e}"));
+        let mut enc = gif::Encoder::new(file, w, h, &[]).map_err(encode)?;
+        enc.set_repeat(gif::Repeat::Infinite).map_err(encode)?;
+        Ok(GifWriter { enc, path: path.to_path_buf(), size: (w, h), delay_cs })
     }
-    Ok(())
+
+    pub fn add(&mut self, img: &Image) -> Result<()> {
+        if (img.width, img.height) != (self.size.0 as u32, self.size.1 as u32) {
+            return Err(RenderError::Invalid(format!("a {}x{} frame for a {}x{} GIF", img.width, img.height, self.size.0, self.size.1)));
+        }
+        // NeuQuant palette per frame; speed 10 is gif's balance of quality and time.
+        let mut frame = gif::Frame::from_rgb_speed(self.size.0, self.size.1, &img.to_srgb8(), 10);
+        frame.delay = self.delay_cs;
+        self.enc.write_frame(&frame).map_err(|e| RenderError::file(&self.path, format!("cannot write GIF: {e}")))
+    }
+
+    /// Writes the trailer and flushes the file.
+    pub fn finish(self) -> Result<()> {
+        let path = self.path;
+        let mut w = self.enc.into_inner().map_err(|e| RenderError::io(&path, e))?;
+        std::io::Write::flush(&mut w).map_err(|e| RenderError::io(&path, e))
+    }
 }
 
 /// Peak signal-to-noise ratio in dB between two images' 8-bit sRGB encodings (infinite for
@@ -102,7 +120,11 @@ mod tests {
         assert_eq!(buf[3], 188, "linear 0.5 is sRGB 188");
 
         let g = dir.join("a.gif");
-        write_gif(&g, &[img.clone(), flat(3, 2, 1.0)], 4).unwrap();
+        let mut w = GifWriter::create(&g, 3, 2, 4).unwrap();
+        w.add(&img).unwrap();
+        w.add(&flat(3, 2, 1.0)).unwrap();
+        assert!(w.add(&flat(2, 3, 1.0)).is_err(), "frames must match the GIF's size");
+        w.finish().unwrap();
         let mut d = gif::DecodeOptions::new().read_info(File::open(&g).unwrap()).unwrap();
         let mut n = 0;
         while d.read_next_frame().unwrap().is_some() {

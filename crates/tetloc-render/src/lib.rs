@@ -55,7 +55,7 @@ mod vec;
 
 pub use camera::{Camera, LookAt, Ray};
 pub use error::{RenderError, Result};
-pub use image::{psnr, Image};
+pub use image::{psnr, GifWriter, Image};
 pub use options::{
     parse_camera, parse_color, parse_frames, parse_opacity, parse_positive, parse_range, parse_size, parse_view,
     RenderOptions, SurfaceSpec, TfSpec,

@@ -2,7 +2,7 @@
 //! and comparing two backends on the same frame.
 
 use crate::error::{RenderError, Result};
-use crate::image::{psnr, write_gif, Image};
+use crate::image::{psnr, GifWriter, Image};
 use crate::render::{FrameStats, Renderer};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -46,25 +46,28 @@ pub fn frame_path(out: &Path, frame: u32) -> PathBuf {
 /// (`out_0000.png`, ...) for an orbit, or one animated GIF when `out` ends in `.gif`.
 pub fn render_to_file(renderer: &Renderer, locator: &mut dyn BatchLocator, out: &Path) -> Result<RenderReport> {
     let kind = output_kind(out)?;
-    let n = renderer.options().frames;
+    let o = renderer.options();
+    let n = o.frames;
     let mut report = RenderReport { files: Vec::new(), frames: Vec::new() };
-    let mut gif_frames: Vec<Image> = Vec::new();
+    let mut gif = match kind {
+        // A whole orbit takes about 4 s, however many frames it has.
+        Output::Gif => Some(GifWriter::create(out, o.width, o.height, (400 / n).clamp(2, 100) as u16)?),
+        Output::Png => None,
+    };
     for i in 0..n {
         let (img, stats) = renderer.render(locator, &renderer.camera(i))?;
         report.frames.push(stats);
-        match kind {
-            Output::Gif => gif_frames.push(img),
-            Output::Png => {
+        match &mut gif {
+            Some(g) => g.add(&img)?,
+            None => {
                 let path = if n == 1 { out.to_path_buf() } else { frame_path(out, i) };
                 img.write_png(&path)?;
                 report.files.push(path);
             }
         }
     }
-    if let Output::Gif = kind {
-        // A whole orbit takes about 4 s, however many frames it has.
-        let delay = (400 / n).clamp(2, 100) as u16;
-        write_gif(out, &gif_frames, delay)?;
+    if let Some(g) = gif {
+        g.finish()?;
         report.files.push(out.to_path_buf());
     }
     Ok(report)
