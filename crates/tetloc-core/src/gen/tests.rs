@@ -105,7 +105,7 @@ fn boundary_check_sees_hanging_nodes_and_cracks() {
     let points: Vec<Vec3> = (0..12).map(|i| [(i % 3) as f32, ((i / 3) % 2) as f32, (i / 6) as f32]).collect();
     let kuhn = [[0, 1, 7, 3], [0, 1, 5, 7], [0, 2, 3, 7], [0, 2, 7, 6], [0, 4, 7, 5], [0, 4, 6, 7]];
     let cube = |x0: u32, mirror: u32| {
-        kuhn.map(|t| t.map(|c| (c ^ mirror) as u32).map(|c| x0 + (c & 1) + 3 * ((c >> 1) & 1) + 6 * (c >> 2)))
+        kuhn.map(|t| t.map(|c| c ^ mirror).map(|c| x0 + (c & 1) + 3 * ((c >> 1) & 1) + 6 * (c >> 2)))
     };
     // Cube B (x in [1, 2]) mirrored in y: the diagonal of its face x = 1 crosses cube A's.
     assert!(check(points.clone(), [cube(0, 0), cube(1, 2)].concat()) > 0);
@@ -205,7 +205,7 @@ fn fields_are_there_and_finite() {
         let c = m.field("cellval").unwrap();
         assert_eq!((c.location, c.values.len()), (FieldLocation::Cell, m.n_tets()));
         assert!(c.values.iter().all(|v| (0.0..=1.0).contains(v)));
-        assert_eq!(c.values[1], (2_654_435_761u64 as f64 / 4_294_967_296.0) as f32);
+        assert_eq!(c.values[1], (2_654_435_761.0f64 / 4_294_967_296.0) as f32);
     }
 }
 
