@@ -81,13 +81,14 @@ pub struct Context {
     pub(crate) instance: ash::Instance,
     debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
     messenger: Box<Messenger>,
-    pub(crate) physical: vk::PhysicalDevice,
     pub(crate) device: ash::Device,
     pub(crate) queue: Mutex<vk::Queue>,
     pub(crate) queue_family: u32,
     pub(crate) memory_properties: vk::PhysicalDeviceMemoryProperties,
     pub(crate) rt: Option<RayTracing>,
     pub(crate) limits: Limits,
+    /// The device UUID (NVML names the same GPU by it).
+    pub(crate) uuid: [u8; 16],
     info: DeviceInfo,
     validation: bool,
     // Last: the loader library must outlive every Vulkan object above.
@@ -135,6 +136,7 @@ fn version_string(v: u32) -> String {
 /// What we learn about a physical device before creating a logical one.
 struct Probe {
     info: DeviceInfo,
+    uuid: [u8; 16],
     api: u32,
     queue_family: Option<u32>,
     timestamp_valid_bits: u32,
@@ -145,7 +147,8 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
     // struct is only chained when its extension is supported.
     unsafe {
         let mut driver = vk::PhysicalDeviceDriverProperties::default();
-        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver);
+        let mut id = vk::PhysicalDeviceIDProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver).push_next(&mut id);
         instance.get_physical_device_properties2(pd, &mut props2);
         let props = props2.properties;
         let exts = instance.enumerate_device_extension_properties(pd).unwrap_or_default();
@@ -206,6 +209,7 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
                 float64,
                 timestamps: timestamp_valid_bits > 0,
             },
+            uuid: id.device_uuid,
             api: props.api_version,
             queue_family,
             timestamp_valid_bits,
@@ -331,7 +335,7 @@ impl Context {
                 return Err(e);
             }
         };
-        let physical = list[info.index].0;
+        let (physical, uuid) = (list[info.index].0, list[info.index].1.uuid);
         // SAFETY: queries on the chosen device; queue 0 of the family was requested at creation.
         let (memory_properties, queue) = unsafe {
             (instance.get_physical_device_memory_properties(physical), device.get_device_queue(queue_family, 0))
@@ -340,13 +344,13 @@ impl Context {
             instance: guard.0.take().unwrap(),
             debug,
             messenger,
-            physical,
             device,
             queue: Mutex::new(queue),
             queue_family,
             memory_properties,
             rt,
             limits,
+            uuid,
             info,
             validation,
             _entry: entry,

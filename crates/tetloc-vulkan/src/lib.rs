@@ -17,16 +17,19 @@
 //! # Ok(()) }
 //! ```
 
+mod bench;
 mod context;
 mod error;
 mod gpu_types;
 mod locator;
 mod memory;
+mod nvml;
 mod pipeline;
 mod rt;
 mod shaders;
 mod soft_bvh;
 
+pub use bench::{si, BenchOptions, BenchResult};
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
 pub use locator::{Kernel, LocatorOptions, MemoryReport, SampleMode, VulkanLocator};

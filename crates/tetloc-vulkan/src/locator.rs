@@ -75,7 +75,7 @@ pub struct LocatorOptions {
     pub compact: bool,
     /// Points per kernel launch; larger batches run in chunks (bounds the query buffers).
     pub chunk_points: usize,
-    /// soft-bvh: tets per BVH leaf, 1 or up to 4.
+    /// soft-bvh: tets per BVH leaf: 1 (the paper's layout, more nodes) or 4 (up to four).
     pub leaf_size: usize,
     /// Use the exact f64 fallback of the point-in-tet test when the device has shaderFloat64;
     /// `false` forces the pure-f32 test.
@@ -138,7 +138,7 @@ impl SampleMode {
         }
     }
 
-    fn code(self) -> i32 {
+    pub(crate) fn code(self) -> i32 {
         match self {
             SampleMode::Host => SAMPLE_HOST,
             SampleMode::Uniform => SAMPLE_UNIFORM,
@@ -166,7 +166,7 @@ pub(crate) struct Variant {
 }
 
 enum Structure {
-    Soft { nodes: Buffer, prims: Buffer, stack: u32 },
+    Soft { _nodes: Buffer, _prims: Buffer, stack: u32 },
     Rt(RtStructure),
 }
 
@@ -182,17 +182,17 @@ pub struct VulkanLocator {
     f64: bool,
     tracker: SharedTracker,
     pub(crate) cmds: Commands,
-    staging: Staging,
-    desc: Descriptors,
+    pub(crate) staging: Staging,
+    pub(crate) desc: Descriptors,
     _points: Buffer,
     _tets: Buffer,
     dummy: Buffer,
     field: Option<(String, FieldLocation, Buffer)>,
     /// Query points and results, `io_capacity` points each.
-    io: Option<(Buffer, Buffer)>,
+    pub(crate) io: Option<(Buffer, Buffer)>,
     io_capacity: usize,
     structure: Structure,
-    pipelines: HashMap<Variant, Pipeline>,
+    pub(crate) pipelines: HashMap<Variant, Pipeline>,
     build_seconds: f64,
     memory: MemoryReport,
 }
@@ -204,9 +204,9 @@ impl VulkanLocator {
         if kernel.needs_ray_tracing() && ctx.rt.is_none() {
             return Err(VkError::NoRayTracing { device: ctx.device_name(), kernel: kernel.name().into() });
         }
-        if opts.chunk_points == 0 || !(1..=4).contains(&opts.leaf_size) || opts.workgroup_size == 0 {
+        if opts.chunk_points == 0 || ![1, 4].contains(&opts.leaf_size) || opts.workgroup_size == 0 {
             return Err(VkError::Mesh(format!(
-                "invalid options: chunk_points {} (> 0), leaf_size {} (1..=4), workgroup_size {} (> 0)",
+                "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0)",
                 opts.chunk_points, opts.leaf_size, opts.workgroup_size
             )));
         }
@@ -255,7 +255,7 @@ impl VulkanLocator {
                 bindings.push((B_ACCEL, vk::DescriptorType::STORAGE_BUFFER));
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
                 desc.write_buffers(&[(B_ACCEL, &nodes), (B_PRIMS, &prims)])?;
-                (Structure::Soft { nodes, prims, stack: q.stack_size() }, desc)
+                (Structure::Soft { _nodes: nodes, _prims: prims, stack: q.stack_size() }, desc)
             }
             _ => {
                 let geometry = match kernel {
@@ -427,7 +427,7 @@ impl VulkanLocator {
     }
 
     /// Uploads `name` (if not already on the GPU) and returns its output mode.
-    fn ensure_field(&mut self, name: &str) -> tetloc_core::Result<i32> {
+    pub(crate) fn ensure_field(&mut self, name: &str) -> tetloc_core::Result<i32> {
         let mesh = self.mesh.clone();
         let f = mesh.field(name)?;
         let mode = match f.location {

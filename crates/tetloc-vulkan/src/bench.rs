@@ -1,0 +1,305 @@
+//! Benchmarks as in the paper's Table 1: samples generated inside the kernel (`uniform`,
+//! `random`, `bbox`) timed with GPU timestamps, or host points (`host`) timed on the host
+//! clock with their transfers; warm-up runs, repeats, medians; optionally board power.
+
+use crate::error::{VkError, VkResult};
+use crate::gpu_types::{Params, OUT_CELL, OUT_IDS, OUT_VERTEX};
+use crate::locator::{launch, SampleMode, Variant, VulkanLocator};
+use crate::memory::full_barrier;
+use crate::nvml::{Nvml, PowerSampler};
+use ash::vk;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tetloc_core::geom::Vec3;
+use tetloc_core::mesh::FieldLocation;
+use tetloc_core::BatchLocator;
+
+/// What to benchmark.
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub mode: SampleMode,
+    /// `None`: the id variant; `Some(name)`: the scalar variant sampling that field.
+    pub field: Option<String>,
+    /// Samples per run for `random` and `bbox` (default: one per tet). `uniform` always
+    /// takes one sample per tet; `host` takes the given points.
+    pub samples: Option<usize>,
+    pub seed: u32,
+    /// Untimed runs first (pipeline creation, caches, clocks).
+    pub warmup: usize,
+    /// Timed runs; the result is their median. At least 5.
+    pub repeats: usize,
+    /// Also read the board's power through NVML while the kernel runs for about a second.
+    pub power: bool,
+}
+
+impl Default for BenchOptions {
+    fn default() -> Self {
+        BenchOptions { mode: SampleMode::Uniform, field: None, samples: None, seed: 1, warmup: 2, repeats: 7, power: false }
+    }
+}
+
+/// One benchmark's result.
+#[derive(Clone, Debug)]
+pub struct BenchResult {
+    pub kernel: String,
+    pub mode: SampleMode,
+    /// "ids" or the sampled field's name.
+    pub variant: String,
+    pub samples: usize,
+    /// Median, fastest and slowest of the timed runs, seconds.
+    pub seconds: f64,
+    pub seconds_min: f64,
+    pub seconds_max: f64,
+    pub samples_per_second: f64,
+    /// Samples of the last run reported outside every tet.
+    pub outside: usize,
+    /// "gpu timestamps" or "host clock (transfers included)".
+    pub timing: &'static str,
+    pub build_seconds: f64,
+    pub final_bytes: u64,
+    pub peak_bytes: u64,
+    pub device: String,
+    pub driver: String,
+    /// Mean board power while the kernel ran (NVML), when asked for and available.
+    pub power_watts: Option<f64>,
+}
+
+fn median(mut v: Vec<f64>) -> (f64, f64, f64) {
+    v.sort_by(f64::total_cmp);
+    let m = if v.len() % 2 == 1 { v[v.len() / 2] } else { 0.5 * (v[v.len() / 2 - 1] + v[v.len() / 2]) };
+    (m, v[0], v[v.len() - 1])
+}
+
+impl VulkanLocator {
+    /// Runs one benchmark. `host_points` are the points of `SampleMode::Host` (ignored otherwise).
+    pub fn bench(&mut self, opts: &BenchOptions, host_points: Option<&[Vec3]>) -> tetloc_core::Result<BenchResult> {
+        if opts.repeats < 5 {
+            return Err(tetloc_core::Error::Invalid(format!("{} repeats: benchmarks take at least 5", opts.repeats)));
+        }
+        let output = match &opts.field {
+            None => OUT_IDS,
+            Some(name) => match self.mesh.field(name)?.location {
+                FieldLocation::Vertex => OUT_VERTEX,
+                FieldLocation::Cell => OUT_CELL,
+            },
+        };
+        let nvml = if opts.power { Nvml::open(&self.ctx.uuid).map(Arc::new) } else { None };
+        let (times, samples, outside, timing, power) = match opts.mode {
+            SampleMode::Host => {
+                let pts = host_points
+                    .ok_or_else(|| tetloc_core::Error::Invalid("the host benchmark needs points".into()))?;
+                let (times, outside, power) = self.bench_host(opts, pts, nvml)?;
+                (times, pts.len(), outside, "host clock (transfers included)", power)
+            }
+            mode => {
+                if let Some(f) = &opts.field {
+                    self.ensure_field(f)?;
+                }
+                let n = match mode {
+                    SampleMode::Uniform => self.mesh.n_tets(),
+                    _ => opts.samples.unwrap_or(self.mesh.n_tets()),
+                };
+                let (times, outside, power) = self.bench_gpu(opts, mode, output, n, nvml)?;
+                (times, n, outside, "gpu timestamps", power)
+            }
+        };
+        let (seconds, seconds_min, seconds_max) = median(times);
+        let info = self.ctx.info();
+        Ok(BenchResult {
+            kernel: self.kernel.name().into(),
+            mode: opts.mode,
+            variant: opts.field.clone().unwrap_or_else(|| "ids".into()),
+            samples,
+            seconds,
+            seconds_min,
+            seconds_max,
+            samples_per_second: samples as f64 / seconds,
+            outside,
+            timing,
+            build_seconds: self.build_seconds(),
+            final_bytes: self.memory_report().final_bytes,
+            peak_bytes: self.memory_report().peak_bytes,
+            device: info.name.clone(),
+            driver: info.driver.clone(),
+            power_watts: power,
+        })
+    }
+
+    fn bench_host(
+        &mut self,
+        opts: &BenchOptions,
+        pts: &[Vec3],
+        nvml: Option<Arc<Nvml>>,
+    ) -> tetloc_core::Result<(Vec<f64>, usize, Option<f64>)> {
+        let mut ids = vec![0i32; pts.len()];
+        let mut vals = vec![0f32; pts.len()];
+        let mut run = |loc: &mut VulkanLocator| -> tetloc_core::Result<()> {
+            match &opts.field {
+                None => loc.locate(pts, &mut ids),
+                Some(f) => loc.sample(pts, f, &mut vals),
+            }
+        };
+        for _ in 0..opts.warmup {
+            run(self)?;
+        }
+        let mut times = vec![];
+        for _ in 0..opts.repeats {
+            let t = Instant::now();
+            run(self)?;
+            times.push(t.elapsed().as_secs_f64());
+        }
+        let power = match nvml {
+            Some(n) => {
+                let sampler = PowerSampler::start(n);
+                let t = Instant::now();
+                while t.elapsed() < Duration::from_secs(1) {
+                    run(self)?;
+                }
+                sampler.finish()
+            }
+            None => None,
+        };
+        let outside = match &opts.field {
+            None => ids.iter().filter(|&&t| t < 0).count(),
+            Some(_) => vals.iter().filter(|v| v.is_nan()).count(),
+        };
+        Ok((times, outside, power))
+    }
+
+    fn bench_gpu(
+        &mut self,
+        opts: &BenchOptions,
+        mode: SampleMode,
+        output: i32,
+        n: usize,
+        nvml: Option<Arc<Nvml>>,
+    ) -> VkResult<(Vec<f64>, usize, Option<f64>)> {
+        let bits = self.ctx.limits.timestamp_valid_bits;
+        if bits == 0 {
+            return Err(VkError::NoTimestamps { device: self.ctx.info().name.clone() });
+        }
+        let v = Variant { sample: mode.code(), output, record: false };
+        self.pipeline(v)?;
+        let chunk = self.launch_limit().min(n.max(1));
+        self.ensure_io(chunk)?;
+        let launches: Vec<Params> = (0..n).step_by(chunk).map(|base| self.params(chunk.min(n - base), base, opts.seed)).collect();
+        let runs = opts.warmup + opts.repeats;
+        let dev = &self.ctx.device;
+        // SAFETY: plain query-pool creation; destroyed below on every path.
+        let pool = unsafe {
+            dev.create_query_pool(
+                &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2 * runs as u32),
+                None,
+            )
+        }
+        .map_err(VkError::vk("vkCreateQueryPool"))?;
+        let l = launch!(self, v);
+        // One submission: reset every query, then write all of them, so that no query is
+        // ever waited on unwritten (that hangs some drivers); we read after the fence.
+        let recorded = self.cmds.run(|dev, cmd| unsafe {
+            dev.cmd_reset_query_pool(cmd, pool, 0, 2 * runs as u32);
+            for r in 0..runs as u32 {
+                full_barrier(dev, cmd);
+                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 2 * r);
+                for p in &launches {
+                    l.record(dev, cmd, p);
+                }
+                full_barrier(dev, cmd);
+                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 2 * r + 1);
+            }
+        });
+        let mut ticks = vec![0u64; 2 * runs];
+        let read = recorded.and_then(|()| {
+            // SAFETY: all queries were written by the completed submission.
+            unsafe { self.ctx.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
+                .map_err(VkError::vk("vkGetQueryPoolResults"))
+        });
+        // SAFETY: the submission using the pool has completed.
+        unsafe { self.ctx.device.destroy_query_pool(pool, None) };
+        read?;
+        let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+        let period = self.ctx.limits.timestamp_period_ns * 1e-9;
+        let times: Vec<f64> =
+            (opts.warmup..runs).map(|r| ((ticks[2 * r + 1].wrapping_sub(ticks[2 * r])) & mask) as f64 * period).collect();
+
+        // Power: keep the GPU busy for about a second, one run per submission.
+        let power = match nvml {
+            Some(nv) => {
+                let sampler = PowerSampler::start(nv);
+                let t = Instant::now();
+                while t.elapsed() < Duration::from_secs(1) {
+                    let l = launch!(self, v);
+                    self.cmds.run(|dev, cmd| {
+                        for p in &launches {
+                            l.record(dev, cmd, p);
+                        }
+                    })?;
+                }
+                sampler.finish()
+            }
+            None => None,
+        };
+
+        // Outside count of the last chunk of the last run (all chunks are alike samples).
+        let last = launches.last().map_or(0, |p| p.counts[0] as usize);
+        let mut out = vec![0u32; last];
+        let o = &self.io.as_ref().unwrap().1;
+        self.staging.download(&mut self.cmds, o, 0, bytemuck::cast_slice_mut(&mut out))?;
+        let outside_last = match output {
+            OUT_IDS => out.iter().filter(|&&t| t as i32 == -1).count(),
+            _ => out.iter().filter(|&&b| f32::from_bits(b).is_nan()).count(),
+        };
+        let outside = (outside_last as f64 * n as f64 / last.max(1) as f64).round() as usize;
+        Ok((times, outside, power))
+    }
+}
+
+impl BenchResult {
+    /// Column names matching [`BenchResult::row`].
+    pub fn header() -> String {
+        format!(
+            "{:<16} {:<8} {:<8} {:>11} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10} {:>7}",
+            "kernel", "mode", "variant", "samples", "median ms", "samples/s", "outside", "build s", "final MiB", "peak MiB", "watts"
+        )
+    }
+
+    /// One table row.
+    pub fn row(&self) -> String {
+        let mib = |b: u64| b as f64 / (1 << 20) as f64;
+        format!(
+            "{:<16} {:<8} {:<8} {:>11} {:>10.3} {:>12} {:>8} {:>9.2} {:>10.1} {:>10.1} {:>7}",
+            self.kernel,
+            self.mode.name(),
+            self.variant,
+            self.samples,
+            self.seconds * 1e3,
+            si(self.samples_per_second),
+            self.outside,
+            self.build_seconds,
+            mib(self.final_bytes),
+            mib(self.peak_bytes),
+            self.power_watts.map_or("-".into(), |w| format!("{w:.0}")),
+        )
+    }
+}
+
+/// 1.23G, 456M, 7.8k: the paper's notation for rates.
+pub fn si(x: f64) -> String {
+    match x {
+        x if x >= 1e9 => format!("{:.2}G", x / 1e9),
+        x if x >= 1e6 => format!("{:.1}M", x / 1e6),
+        x if x >= 1e3 => format!("{:.1}k", x / 1e3),
+        x => format!("{x:.0}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn median_and_si() {
+        assert_eq!(super::median(vec![3.0, 1.0, 2.0]), (2.0, 1.0, 3.0));
+        assert_eq!(super::median(vec![4.0, 1.0, 2.0, 3.0]).0, 2.5);
+        assert_eq!(super::si(2.39e9), "2.39G");
+        assert_eq!(super::si(407e6), "407.0M");
+    }
+}
