@@ -139,6 +139,13 @@ fn skipping_gives_the_same_image_with_fewer_samples_torus() {
     skip_vs_fixed(testmesh::torus(24, 9), "c");
 }
 
+/// The generated Japan-like sheet fills ~7 % of its box: the case skipping is for.
+#[test]
+fn skipping_gives_the_same_image_with_fewer_samples_japan() {
+    use tetloc_core::gen::{generate, Shape};
+    skip_vs_fixed(Mesh::new(generate(Shape::Japan, 20_000, 1), "japan").unwrap(), "f");
+}
+
 #[test]
 fn two_locators_computing_the_same_thing_agree() {
     let mesh = Arc::new(testmesh::two_blobs(8, 3));
