@@ -14,6 +14,18 @@ pub struct LookAt {
     pub up: Vec3,
 }
 
+impl LookAt {
+    /// Whether a camera can be placed so: eye and target apart, and `up` far enough from the
+    /// view direction (sine of the angle ≥ 1e-4) that turning the eye about `up` for an
+    /// orbit, with its rounding, keeps it so.
+    pub fn is_usable(&self) -> bool {
+        match (normalize(sub(self.target, self.eye)), normalize(self.up)) {
+            (Some(f), Some(u)) => len(cross(f, u)) >= 1e-4,
+            _ => false,
+        }
+    }
+}
+
 /// A ray with a unit direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Ray {
@@ -150,6 +162,15 @@ mod tests {
     fn look_at_rejects_degenerate_placements() {
         assert!(Camera::look_at(LookAt { eye: [1.0; 3], target: [1.0; 3], up: [0.0, 0.0, 1.0] }, 1.0, 4, 4).is_none());
         assert!(Camera::look_at(LookAt { eye: [0.0; 3], target: [0.0, 0.0, 5.0], up: [0.0, 0.0, 1.0] }, 1.0, 4, 4).is_none());
+    }
+
+    #[test]
+    fn nearly_parallel_up_is_not_usable() {
+        let look = |up: Vec3| LookAt { eye: [0.0, 0.0, 5.0], target: [0.0; 3], up };
+        assert!(look([0.0, 1.0, 0.0]).is_usable());
+        assert!(!look([0.0, 1e-6, 1.0]).is_usable());
+        assert!(!look([0.0; 3]).is_usable());
+        assert!(!LookAt { eye: [1.0; 3], target: [1.0; 3], up: [0.0, 0.0, 1.0] }.is_usable());
     }
 
     #[test]

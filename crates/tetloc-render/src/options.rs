@@ -158,7 +158,7 @@ impl RenderOptions {
             return bad("batch_target must be at least 1".into());
         }
         if let Some(look) = self.camera {
-            if crate::camera::Camera::look_at(look, 1.0, 1, 1).is_none() {
+            if !look.is_usable() {
                 return bad(format!("camera {look:?}: eye equals target, or up is zero or parallel to the view direction"));
             }
         }
@@ -213,7 +213,7 @@ pub fn parse_view(s: &str) -> Result<(f32, f32)> {
 pub fn parse_camera(s: &str) -> Result<LookAt> {
     let v = numbers("--camera", s, 9, "eye,target,up (ex,ey,ez,tx,ty,tz,ux,uy,uz)")?;
     let look = LookAt { eye: [v[0], v[1], v[2]], target: [v[3], v[4], v[5]], up: [v[6], v[7], v[8]] };
-    if crate::camera::Camera::look_at(look, 1.0, 1, 1).is_none() {
+    if !look.is_usable() {
         return Err(RenderError::option("--camera", s, "eye equals target, or up is zero or parallel to the view direction"));
     }
     Ok(look)

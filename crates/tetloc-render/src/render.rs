@@ -133,6 +133,12 @@ impl Renderer {
         let tf = opts.tf.load()?;
         let info = &mesh.info;
         let diagonal = len(sub(info.bounds_max, info.bounds_min));
+        if !diagonal.is_finite() {
+            return Err(RenderError::Invalid(format!(
+                "{}: the mesh bounds {:?}..{:?} are too large to render in f32",
+                info.source, info.bounds_min, info.bounds_max
+            )));
+        }
         let mean_tet = (info.total_volume / info.n_tets as f64).cbrt() as f32;
         // Degenerate meshes (flat, or all slivers) still get a usable step.
         let default_step = [mean_tet, info.mean_edge_length, diagonal / 1000.0, 1.0].into_iter().find(|&s| s > 0.0).unwrap();

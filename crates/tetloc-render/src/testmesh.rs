@@ -14,6 +14,9 @@ const KUHN: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0
 /// A grid of `n³` cubes over `[0, 1]³`, each split into 6 tets, keeping the tets whose
 /// centroid satisfies `keep`. Interior vertices are moved by up to `jitter` cell widths per
 /// axis (≤ 0.1 keeps every tet positively shaped). `f(p)` gives the vertex field.
+///
+/// # Panics
+/// When `n` is 0 or `jitter` is outside 0..=0.1, or `keep` rejects every tet.
 pub fn grid(n: usize, jitter: f32, seed: u64, keep: impl Fn(Vec3) -> bool, f: impl Fn(Vec3) -> f32, name: &str) -> Mesh {
     assert!(n >= 1 && (0.0..=0.1).contains(&jitter));
     let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
