@@ -127,7 +127,10 @@ impl Renderer {
                 if lo > hi {
                     return Err(RenderError::Invalid(format!("field '{field}' has no finite values to map to colours")));
                 }
-                (lo, hi)
+                // A constant field gets a small range around its value, so that it maps to
+                // the middle of the transfer function rather than to its (transparent) start.
+                let pad = if lo == hi { lo.abs().max(1.0) * 1e-3 } else { 0.0 };
+                (lo - pad, hi + pad)
             }
         };
         let tf = opts.tf.load()?;
@@ -162,7 +165,8 @@ impl Renderer {
     pub fn options(&self) -> &RenderOptions {
         &self.opts
     }
-    /// The value range the transfer function spans.
+    /// The value range the transfer function spans: `options().range`, else the field's
+    /// finite minimum and maximum (widened a little around a constant field's value).
     pub fn range(&self) -> (f32, f32) {
         self.range
     }

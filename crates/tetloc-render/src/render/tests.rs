@@ -88,6 +88,18 @@ fn constant_cube_matches_the_closed_form() {
     }
 }
 
+#[test]
+fn a_constant_field_maps_to_the_middle_of_the_transfer_function() {
+    let mesh = Arc::new(testmesh::cube(2, 1.0, 7.0));
+    let r = Renderer::new(mesh.clone(), "f", &RenderOptions::default()).unwrap();
+    let (lo, hi) = r.range();
+    assert!(lo < 7.0 && hi > 7.0 && ((lo + hi) / 2.0 - 7.0).abs() < 1e-5);
+    // The default ramp is half opaque there, so the cube shows.
+    let ray = Ray { origin: [0.5, 0.5, 3.0], dir: [0.0, 0.0, -1.0] };
+    let (rgba, _) = r.march(&mut CpuLocator::new(mesh), &[ray]).unwrap();
+    assert!(rgba[0][3] > 0.5, "{:?}", rgba[0]);
+}
+
 /// An opaque enough volume stops each ray at 99 % and takes fewer samples than the path has.
 #[test]
 fn rays_stop_at_the_opacity_cutoff() {
