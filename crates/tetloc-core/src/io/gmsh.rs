@@ -23,6 +23,7 @@
 
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, RawMesh};
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::fmt::Display;
 use std::path::Path;
@@ -399,6 +400,11 @@ impl<'a> Cursor<'a> {
 
 /// Maps Gmsh tags (any u64, possibly sparse) to dense 0-based indices.
 enum TagMap {
+    /// Tags `min, min + 1, ...` in file order (what gmsh writes): no table at all.
+    Sequential {
+        min: u64,
+        len: u64,
+    },
     /// Tags within a span not much larger than their count: a direct lookup table.
     Dense {
         min: u64,
@@ -411,8 +417,11 @@ impl TagMap {
     /// `Err(tag)` names a tag that appears twice.
     fn new(tags: &[u64]) -> Result<TagMap, u64> {
         let (Some(&min), Some(&max)) = (tags.iter().min(), tags.iter().max()) else {
-            return Ok(TagMap::Dense { min: 0, index: Vec::new() });
+            return Ok(TagMap::Sequential { min: 0, len: 0 });
         };
+        if tags.iter().enumerate().all(|(i, &t)| t == min + i as u64) {
+            return Ok(TagMap::Sequential { min, len: tags.len() as u64 });
+        }
         let span = max - min;
         if span < 2 * tags.len() as u64 + 1024 {
             let mut index = vec![u32::MAX; span as usize + 1];
@@ -438,6 +447,7 @@ impl TagMap {
     #[inline]
     fn get(&self, tag: u64) -> Option<u32> {
         match self {
+            TagMap::Sequential { min, len } => tag.checked_sub(*min).filter(|i| i < len).map(|i| i as u32),
             TagMap::Dense { min, index } => {
                 let i = usize::try_from(tag.checked_sub(*min)?).ok()?;
                 index.get(i).copied().filter(|&v| v != u32::MAX)
@@ -881,6 +891,29 @@ impl ElementSink<'_> {
         self.nodes.map.get(tag).ok_or_else(|| format!("element {elem} refers to node {tag}, which is not in $Nodes"))
     }
 
+    /// Adds a block of binary tetrahedron records, decoded in parallel: they are the bulk of a
+    /// large binary file. `tag(r)` and `node(r, k)` read a record's element tag and k-th node.
+    fn add_binary_tets(
+        &mut self,
+        data: &[u8],
+        record: usize,
+        tag: impl Fn(&[u8]) -> u64 + Sync + Send,
+        node: impl Fn(&[u8], usize) -> u64 + Sync + Send,
+    ) -> Result<(), String> {
+        const MISSING: u32 = u32::MAX; // never an index: there are fewer than u32::MAX nodes
+        let map = &self.nodes.map;
+        let start = self.tets.len();
+        let records = || data.par_chunks_exact(record);
+        self.tets.par_extend(records().map(|r| std::array::from_fn(|k| map.get(node(r, k)).unwrap_or(MISSING))));
+        self.tags.par_extend(records().map(&tag));
+        if let Some(i) = self.tets[start..].par_iter().position_first(|t| t.contains(&MISSING)) {
+            let r = &data[i * record..];
+            let k = (0..4).find(|&k| map.get(node(r, k)).is_none()).unwrap_or(0);
+            return Err(self.node(tag(r), node(r, k)).err().unwrap_or_default());
+        }
+        Ok(())
+    }
+
     fn other(&mut self, name: &str, nodes: usize, count: usize) {
         let key = format!("{name} ({nodes} nodes)");
         match self.others.iter_mut().find(|(k, _)| *k == key) {
@@ -950,19 +983,11 @@ fn read_elements_v2(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
                 Kind::Lower => {}
                 Kind::Volume(name) => acc.other(name, nn, count as usize),
                 Kind::Tet(_) => {
+                    // A negative tag becomes a huge one, which no node or data section matches.
                     let first = 4 * (1 + ntags as usize);
-                    for r in data.chunks_exact(record) {
-                        let tag = get_i32(r, big);
-                        let tag =
-                            u64::try_from(tag).map_err(|_| c.fail_at(pos, format!("negative element tag {tag}")))?;
-                        let mut t = [0u32; 4];
-                        for (k, v) in t.iter_mut().enumerate() {
-                            let node = get_i32(&r[first + 4 * k..], big) as i64 as u64;
-                            *v = acc.node(tag, node).map_err(|m| c.fail_at(pos, m))?;
-                        }
-                        acc.tets.push(t);
-                        acc.tags.push(tag);
-                    }
+                    let int = move |b: &[u8]| get_i32(b, big) as i64 as u64;
+                    acc.add_binary_tets(data, record, int, |r, k| int(&r[first + 4 * k..]))
+                        .map_err(|m| c.fail_at(pos, m))?;
                 }
             }
         }
@@ -1019,15 +1044,8 @@ fn read_elements_v41(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
             let data = c.take_records(count, record, "elements")?;
             acc.reserve(kind, count as usize);
             if let Kind::Tet(_) = kind {
-                for r in data.chunks_exact(record) {
-                    let tag = get_u64(r, big);
-                    let mut t = [0u32; 4];
-                    for (k, v) in t.iter_mut().enumerate() {
-                        *v = acc.node(tag, get_u64(&r[8 + 8 * k..], big)).map_err(|m| c.fail_at(pos, m))?;
-                    }
-                    acc.tets.push(t);
-                    acc.tags.push(tag);
-                }
+                acc.add_binary_tets(data, record, |r| get_u64(r, big), |r, k| get_u64(&r[8 + 8 * k..], big))
+                    .map_err(|m| c.fail_at(pos, m))?;
             }
         } else {
             let count = c.check_room(count, 2 * (1 + nn), "elements")?;
@@ -1392,6 +1410,14 @@ mod tests {
         s.elem_data.clear();
         let msg = err_of(&write(&s, ENCODINGS[0]));
         assert!(msg.contains("no tetrahedra"), "{msg}");
+        // The same for the parallel decoding of binary tets.
+        let mut s = spec();
+        s.elems[3].2[2] = 11;
+        s.elem_data.clear();
+        for e in ENCODINGS {
+            let msg = err_of(&write(&s, e));
+            assert!(msg.contains("element 2 refers to node 11, which is not in $Nodes"), "{e:?}: {msg}");
+        }
         // A binary file whose endianness marker is not 1.
         let mut bin = write(&spec(), ENCODINGS[4]);
         let at = bin.windows(4).position(|w| w == 1i32.to_le_bytes()).unwrap();
