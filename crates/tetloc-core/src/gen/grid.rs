@@ -33,15 +33,15 @@ pub(super) const LEVEL_JITTER: f64 = 0.3;
 const BLOCK: usize = 64;
 
 /// The 6 Kuhn tets of a cube, as corners `c = dx | dy << 1 | dz << 2`. Tet `(a, b, c)` walks
-/// 0 → e_a → e_a + e_b → 7 for a permutation of the axes; for even permutations the last two
-/// are swapped so that every tet is positively oriented (`geom::tet_volume6 > 0`).
+/// 0 → e_a → e_a + e_b → 7 for a permutation of the axes; for odd permutations the last two
+/// are swapped so that every tet is right-handed (`geom::tet_volume6 > 0`, as VTK expects).
 const KUHN: [[usize; 4]; 6] = [
-    [0, 1, 7, 3], // x y z (even)
-    [0, 1, 5, 7], // x z y
-    [0, 2, 3, 7], // y x z
-    [0, 2, 7, 6], // y z x (even)
-    [0, 4, 7, 5], // z x y (even)
-    [0, 4, 6, 7], // z y x
+    [0, 1, 3, 7], // x y z (even)
+    [0, 1, 7, 5], // x z y
+    [0, 2, 7, 3], // y x z
+    [0, 2, 6, 7], // y z x (even)
+    [0, 4, 5, 7], // z x y (even)
+    [0, 4, 7, 6], // z y x
 ];
 
 /// The grid: which of the `ni × nj` columns (row-major, `i` fastest) are kept, and how many

@@ -51,16 +51,17 @@ pub fn orient_f64(a: Vec3, b: Vec3, c: Vec3, p: Vec3) -> f64 {
     adx * (bdy * cdz - cdy * bdz) + bdx * (cdy * adz - ady * cdz) + cdx * (ady * bdz - bdy * adz)
 }
 
-/// Signed volume ×6 of a tet in f64, positive for our orientation convention
-/// (`orient(v0, v1, v2, v3) > 0`).
+/// Signed volume ×6 of a tet in f64, right-handed: `((v1-v0) × (v2-v0)) · (v3-v0)`,
+/// positive for a tet as VTK and Gmsh expect it. Equals `-orient(v0, v1, v2, v3)`.
 #[inline]
 pub fn tet_volume6(v: [Vec3; 4]) -> f64 {
-    orient_f64(v[0], v[1], v[2], v[3])
+    -orient_f64(v[0], v[1], v[2], v[3])
 }
 
 /// Puts a tet into canonical order: ids ascending, then the last two swapped if that makes
-/// the orientation positive. Returns the canonical ids and the f64 volume×6 of the
-/// *input* order (negative: the input was inverted; zero: degenerate).
+/// it positively oriented (right-handed, [`tet_volume6`] > 0). Returns the canonical ids
+/// and the f64 volume×6 of the *input* order (negative: the input was inverted; zero:
+/// degenerate).
 pub fn canonical_tet(ids: [u32; 4], points: &[Vec3]) -> ([u32; 4], f64) {
     let p = |i: u32| points[i as usize];
     let input_vol = tet_volume6([p(ids[0]), p(ids[1]), p(ids[2]), p(ids[3])]);
@@ -75,7 +76,9 @@ pub fn canonical_tet(ids: [u32; 4], points: &[Vec3]) -> ([u32; 4], f64) {
 
 /// Faces of a canonical tet `[x, y, z, w]` with `z, w` possibly swapped: for the face opposite
 /// local vertex `i`, the three local indices in ascending global-id order, and the sign with
-/// which `orient` of that face is positive towards vertex `i` (for ascending ids).
+/// which `orient` of that face is positive towards vertex `i` when the ascending order has
+/// `orient(v0, v1, v2, v3) > 0` (that is, when it is left-handed, and the canonical order
+/// swapped the last two to make it right-handed).
 /// Opposite 3: (0,1,2) even; opposite 2: (0,1,3) odd; opposite 1: (0,2,3) even; opposite 0: (1,2,3) odd.
 const SORTED_FACES: [([usize; 3], f32); 4] =
     [([1, 2, 3], -1.0), ([0, 2, 3], 1.0), ([0, 1, 3], -1.0), ([0, 1, 2], 1.0)];
@@ -100,7 +103,8 @@ pub fn test_point(ids: [u32; 4], points: &[Vec3], p: Vec3) -> TetTest {
     // Ascending order of the four vertices: swap back the last two if canonical order swapped them.
     let swapped = ids[3] < ids[2];
     let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
-    let orientation = if swapped { -1.0f32 } else { 1.0 };
+    // The ascending order is left-handed (orient > 0) exactly when canonical order swapped it.
+    let orientation = if swapped { 1.0f32 } else { -1.0 };
     // Ascending index -> stored index.
     let stored = |i: usize| if swapped && i >= 2 { 5 - i } else { i };
     let v = [

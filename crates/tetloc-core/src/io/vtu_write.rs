@@ -48,12 +48,10 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, zlib: bool, wide_ids: bool) -
         point_data,
         cell_data,
         points: OutArray::floats("Points", 3, bytemuck::cast_slice(&mesh.points)),
-        // Canonical tets are positive for tetloc's orient(), which is VTK's negative: the
-        // last two corners are swapped to make them positive in VTK's convention.
+        // Canonical tets are right-handed, as VTK expects: written as they are.
         connectivity: OutArray::new("connectivity", id_type, 1, 4 * n_tets, move |r, out| {
             for i in r {
-                let t = tets[i / 4];
-                let v = t[[0, 1, 3, 2][i % 4]];
+                let v = tets[i / 4][i % 4];
                 push_id(out, v as u64, wide);
             }
         }),
@@ -299,9 +297,8 @@ mod tests {
         write_mesh(&tmp.0, mesh, zlib, wide).unwrap();
         let back = vtu::read(&tmp.0).unwrap();
         assert_eq!(back.points, mesh.points);
-        // Written with the last two corners swapped (VTK's orientation).
-        let swapped: Vec<[u32; 4]> = mesh.tets.iter().map(|t| [t[0], t[1], t[3], t[2]]).collect();
-        assert_eq!(back.tets, swapped);
+        // Canonical tets are written as they are (right-handed, VTK's orientation).
+        assert_eq!(back.tets, mesh.tets);
         assert_eq!(back.fields.len(), mesh.fields.len());
         for (a, b) in back.fields.iter().zip(&mesh.fields) {
             assert_eq!((&a.name, a.location), (&b.name, b.location));

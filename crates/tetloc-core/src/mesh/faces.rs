@@ -38,7 +38,7 @@ pub struct FaceStats {
 fn tet_faces(t: [u32; 4]) -> [([u32; 3], bool); 4] {
     let swapped = t[3] < t[2];
     let a = if swapped { [t[0], t[1], t[3], t[2]] } else { t };
-    let o = !swapped; // orientation of the ascending order is positive iff not swapped
+    let o = swapped; // the ascending order has orient > 0 iff canonical order swapped it
     [
         ([a[1], a[2], a[3]], !o), // parity odd
         ([a[0], a[2], a[3]], o),  // even
