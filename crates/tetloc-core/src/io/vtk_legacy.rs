@@ -244,15 +244,20 @@ impl<'a> Cursor<'a> {
         Some(rest[..end].strip_suffix(b"\r").unwrap_or(&rest[..end]))
     }
 
-    /// The next word (upper-cased), skipping whitespace and blank lines.
-    fn keyword_opt(&mut self) -> Option<String> {
+    /// The next word, skipping whitespace and blank lines.
+    fn word(&mut self) -> Option<String> {
         while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
             self.pos += 1;
         }
         let rest = &self.b[self.pos..];
         let end = rest.iter().position(|c| c.is_ascii_whitespace()).unwrap_or(rest.len());
         self.pos += end;
-        (end > 0).then(|| String::from_utf8_lossy(&rest[..end]).to_ascii_uppercase())
+        (end > 0).then(|| String::from_utf8_lossy(&rest[..end]).into_owned())
+    }
+
+    /// The next word, upper-cased: keywords are case-insensitive.
+    fn keyword_opt(&mut self) -> Option<String> {
+        self.word().map(|w| w.to_ascii_uppercase())
     }
 
     fn keyword(&mut self) -> Result<String> {
@@ -368,10 +373,7 @@ impl<'a> Cursor<'a> {
     /// One array of a FIELD: `name ncomp ntuples type`, then data. Outside POINT_DATA and
     /// CELL_DATA (field data of the whole dataset) it is read and dropped.
     fn field_array(&mut self, section: Option<(FieldLocation, usize)>, fields: &mut Vec<Field>) -> Result<()> {
-        let name = self.keyword_opt().ok_or_else(|| self.fail("the file ends inside a FIELD".into()))?;
-        let _ = name; // upper-cased: re-read the original spelling below
-        let line_start = self.pos - self.b[..self.pos].iter().rev().take_while(|c| !c.is_ascii_whitespace()).count();
-        let raw_name = String::from_utf8_lossy(&self.b[line_start..self.pos]).into_owned();
+        let raw_name = self.word().ok_or_else(|| self.fail("the file ends inside a FIELD".into()))?;
         if raw_name == "NULL_ARRAY" {
             self.args();
             return Ok(());

@@ -29,7 +29,7 @@ pub fn write_mesh_vtu(path: &Path, mesh: &Mesh, zlib: bool) -> Result<()> {
 /// [`write_mesh_vtu`] with `wide_ids` forcing Int64 connectivity and offsets (as VTK writes).
 pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, zlib: bool, wide_ids: bool) -> Result<()> {
     let n_tets = mesh.tets.len();
-    let wide = wide_ids || 4 * n_tets as u64 > i32::MAX as u64;
+    let wide = wide_ids || (4 * n_tets).max(mesh.points.len()) as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
     let tets = &mesh.tets;
 
@@ -49,10 +49,14 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, zlib: bool, wide_ids: bool) -
         cell_data,
         points: OutArray::floats("Points", 3, bytemuck::cast_slice(&mesh.points)),
         // Canonical tets are right-handed, as VTK expects: written as they are.
+        // (Chunks hold whole tets: they start at multiples of CHUNK, a multiple of 4.)
         connectivity: OutArray::new("connectivity", id_type, 1, 4 * n_tets, move |r, out| {
-            for i in r {
-                let v = tets[i / 4][i % 4];
-                push_id(out, v as u64, wide);
+            let tets = &tets[r.start / 4..r.end / 4];
+            if wide {
+                tets.iter().for_each(|t| out.extend_from_slice(bytemuck::bytes_of(&t.map(i64::from))));
+            } else {
+                // Ids below 2^31 (checked above): their u32 bytes are their i32 bytes.
+                out.extend_from_slice(bytemuck::cast_slice(tets));
             }
         }),
         offsets: OutArray::new("offsets", id_type, 1, n_tets, move |r, out| {
@@ -107,6 +111,9 @@ fn push_id(out: &mut Vec<u8>, v: u64, wide: bool) {
     }
 }
 
+/// Values per chunk of a streamed array (a multiple of 4: chunks hold whole tets).
+const CHUNK: usize = 1 << 16;
+
 /// Appends values `range` (counted in values, not tuples) as native-endian bytes.
 type Fill<'a> = Box<dyn Fn(Range<usize>, &mut Vec<u8>) + Sync + 'a>;
 
@@ -141,7 +148,6 @@ impl<'a> OutArray<'a> {
 
     /// Values in chunks, each passed to `sink`.
     fn chunks(&self, mut sink: impl FnMut(&[u8]) -> std::io::Result<()>) -> std::io::Result<()> {
-        const CHUNK: usize = 1 << 16;
         let mut buf = Vec::with_capacity(CHUNK * 8);
         for start in (0..self.n_values).step_by(CHUNK) {
             buf.clear();
@@ -207,7 +213,7 @@ impl Grid<'_> {
             }
         }
         w.write_all(b"\n  </AppendedData>\n</VTKFile>\n").map_err(io)?;
-        w.into_inner().map_err(|e| io(e.into_error()))?.sync_all().map_err(io)
+        w.flush().map_err(io)
     }
 
     fn header(&self, arrays: &[&OutArray], offsets: &[usize], zlib: bool) -> String {
