@@ -5,6 +5,7 @@ mod bench;
 mod demo;
 mod mesh_arg;
 mod progress;
+mod render;
 
 use anyhow::{bail, Result};
 use backend::BackendOptions;
@@ -87,6 +88,8 @@ enum Command {
         #[command(flatten)]
         common: Common,
     },
+    /// Render a field with the sample-based volume ray marcher (PNG, PNG series or GIF).
+    Render(render::RenderArgs),
     /// Generate a fusion-like mesh of about 1M tets, locate and sample a million points on
     /// every available backend, check that they agree and print samples/s.
     Demo {
@@ -175,6 +178,7 @@ fn run(cli: Cli) -> Result<()> {
             bench::run(&m, &args)?;
             Ok(())
         }
+        Command::Render(args) => render::run(args),
         Command::Demo { tets, points, seed, device } => {
             demo::run(mesh_arg::parse_count(&tets)?, mesh_arg::parse_count(&points)?, seed, &BackendOptions { device })
         }

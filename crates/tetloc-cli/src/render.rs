@@ -1,0 +1,113 @@
+//! `tetloc render`: the volume ray marcher over any backend.
+
+use crate::backend::{self, BackendOptions};
+use crate::mesh_arg;
+use anyhow::Result;
+use std::path::PathBuf;
+use tetloc_render as tr;
+
+#[derive(clap::Args)]
+pub struct RenderArgs {
+    /// A mesh file, or SHAPE:N to generate one.
+    mesh: String,
+    /// The scalar field to render.
+    #[arg(long)]
+    field: String,
+    /// Output: .png (numbered PNGs with --frames), or .gif for an animated orbit.
+    #[arg(short, long, default_value = "render.png")]
+    out: PathBuf,
+    /// Backends, comma-separated (with --fps each is measured): cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto.
+    #[arg(long, default_value = "auto")]
+    backend: String,
+    #[arg(long)]
+    device: Option<usize>,
+    #[arg(long, default_value = "1024x1024")]
+    size: String,
+    /// Azimuth,elevation in degrees around the bounds centre.
+    #[arg(long)]
+    view: Option<String>,
+    #[arg(long)]
+    zoom: Option<String>,
+    /// eye,target,up as 9 comma-separated numbers.
+    #[arg(long)]
+    camera: Option<String>,
+    /// Sampling step in mesh units (default: the mean tet size).
+    #[arg(long)]
+    step: Option<String>,
+    /// viridis, plasma, coolwarm, grayscale, or a ParaView preset FILE.json[#NAME].
+    #[arg(long, default_value = "viridis")]
+    tf: String,
+    /// Value range LO,HI of the transfer function (default: the field's range).
+    #[arg(long)]
+    range: Option<String>,
+    /// Optical depth across the bounds' diagonal of a fully opaque value.
+    #[arg(long)]
+    opacity: Option<String>,
+    /// `boundary` (the mesh's boundary faces) or an OBJ, STL or VTK polydata file.
+    #[arg(long)]
+    surface: Option<String>,
+    /// Render an orbit of N frames.
+    #[arg(long, default_value = "1")]
+    frames: String,
+    /// Fixed stepping everywhere (the paper's), no empty-space skipping.
+    #[arg(long)]
+    no_skip: bool,
+    #[arg(long)]
+    background: Option<String>,
+    /// Measure frames per second over an orbit of this many frames instead of writing images.
+    #[arg(long, num_args = 0..=1, default_missing_value = "16")]
+    fps: Option<u32>,
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    #[arg(long)]
+    format: Option<String>,
+}
+
+pub fn run(a: RenderArgs) -> Result<()> {
+    let mut o = tr::RenderOptions::default();
+    (o.width, o.height) = tr::parse_size(&a.size)?;
+    if let Some(v) = &a.view {
+        (o.azimuth, o.elevation) = tr::parse_view(v)?;
+    }
+    if let Some(z) = &a.zoom {
+        o.zoom = tr::parse_positive("--zoom", z)?;
+    }
+    if let Some(c) = &a.camera {
+        o.camera = Some(tr::parse_camera(c)?);
+    }
+    if let Some(s) = &a.step {
+        o.step = Some(tr::parse_positive("--step", s)?);
+    }
+    o.tf = tr::TfSpec::parse(&a.tf)?;
+    if let Some(r) = &a.range {
+        o.range = Some(tr::parse_range(r)?);
+    }
+    if let Some(k) = &a.opacity {
+        o.opacity = tr::parse_opacity(k)?;
+    }
+    o.surface = a.surface.as_deref().map(tr::SurfaceSpec::parse);
+    o.frames = tr::parse_frames(&a.frames)?;
+    o.skip = !a.no_skip;
+    if let Some(b) = &a.background {
+        o.background = tr::parse_color("--background", b)?;
+    }
+    let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
+    let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
+    let opts = BackendOptions { device: a.device };
+    for name in a.backend.split(',') {
+        let mut loc = backend::make(name, &mesh, &opts)?;
+        match a.fps {
+            Some(frames) => println!("{}", tr::measure_fps(&renderer, loc.as_mut(), frames.max(1))?),
+            None => {
+                let report = tr::render_to_file(&renderer, loc.as_mut(), &a.out)?;
+                for f in &report.frames {
+                    eprintln!("{f}");
+                }
+                for f in &report.files {
+                    eprintln!("wrote {}", f.display());
+                }
+            }
+        }
+    }
+    Ok(())
+}
