@@ -27,7 +27,7 @@ layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrimTet { uint tl_prim_te
 // (front, back) tets of each face, -1 for none (tetloc_core::mesh::Face).
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlFaceTets { ivec2 tl_face_tets[]; };
 #endif
-// Neighbour of each tet across the face opposite its ascending-order vertex i (-1: boundary).
+// Neighbour of each tet across the face opposite its stored vertex i (-1: boundary), Mesh::neighbors().
 layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_neighbors[]; };
 
 layout(location = 0) rayPayloadInEXT TlPayload pl;

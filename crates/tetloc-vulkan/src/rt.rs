@@ -120,37 +120,14 @@ fn morton_order(centroids: &[Vec3], lo: Vec3, hi: Vec3) -> Vec<u32> {
 /// front-facing from inside the tet: a hit is front-facing when the ray travels against
 /// n = (v1 - v0) x (v2 - v0) (spec, "Ray Face Culling"), so n must point into the tet.
 fn inward_faces(t: [u32; 4]) -> [u32; 12] {
-    let swapped = t[3] < t[2];
-    let a = if swapped { [t[0], t[1], t[3], t[2]] } else { t };
-    // Ascending faces opposite vertex 0..3, and whether orient(face, x) > 0 inside the tet
-    // (geom::SORTED_FACES parity times the orientation of the ascending order). There the
-    // tet is on the side n points *away* from (mesh::Face), so the winding is flipped.
-    let faces = [([a[1], a[2], a[3]], -1.0f32), ([a[0], a[2], a[3]], 1.0), ([a[0], a[1], a[3]], -1.0), ([a[0], a[1], a[2]], 1.0)];
-    let orientation = if swapped { -1.0 } else { 1.0 };
+    // Where orient(face, x) > 0 inside the tet, the tet is on the side n points *away*
+    // from (mesh::Face), so the winding is flipped.
     let mut out = [0u32; 12];
-    for (i, (f, parity)) in faces.iter().enumerate() {
-        let tri = if parity * orientation > 0.0 { [f[0], f[2], f[1]] } else { *f };
+    for (i, (f, sign)) in tetloc_core::geom::ascending_faces(t).iter().enumerate() {
+        let tri = if *sign > 0.0 { [f[0], f[2], f[1]] } else { *f };
         out[3 * i..3 * i + 3].copy_from_slice(&tri);
     }
     out
-}
-
-/// Neighbour of each tet across the face opposite its ascending-order vertex i (-1: none).
-pub(crate) fn neighbors(mesh: &Mesh) -> Vec<[i32; 4]> {
-    let mut nb = vec![[-1i32; 4]; mesh.n_tets()];
-    let local = |t: usize, v: [u32; 3]| {
-        let ids = mesh.tets[t];
-        let swapped = ids[3] < ids[2];
-        let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
-        asc.iter().position(|x| !v.contains(x)).unwrap()
-    };
-    for f in &mesh.faces().faces {
-        if f.front >= 0 && f.back >= 0 {
-            nb[f.front as usize][local(f.front as usize, f.v)] = f.back;
-            nb[f.back as usize][local(f.back as usize, f.v)] = f.front;
-        }
-    }
-    nb
 }
 
 fn align_up(x: u64, a: u64) -> u64 {
@@ -246,8 +223,8 @@ pub(crate) fn build(
     let neighbors = match kind {
         Geometry::Boxes => None,
         _ => {
-            let nb = neighbors(mesh);
-            Some(memory::device_buffer_with(ctx, tracker, staging, cmds, "tet neighbours", MemKind::Structure, storage, bytemuck::cast_slice(&nb))?)
+            let nb = mesh.neighbors();
+            Some(memory::device_buffer_with(ctx, tracker, staging, cmds, "tet neighbours", MemKind::Structure, storage, bytemuck::cast_slice(nb))?)
         }
     };
 

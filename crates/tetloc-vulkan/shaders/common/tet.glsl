@@ -42,7 +42,8 @@ double tl_orient_f64(vec3 a, vec3 b, vec3 c, vec3 p) {
 #endif
 
 // geom::SORTED_FACES: for the face opposite ascending-order vertex i, its three vertices in
-// ascending order and the sign with which orient() is positive towards vertex i.
+// ascending order and the sign with which orient() is positive towards vertex i when the
+// ascending order is left-handed (orient(v0, v1, v2, v3) > 0).
 const ivec3 TL_FACE[4] = ivec3[4](ivec3(1, 2, 3), ivec3(0, 2, 3), ivec3(0, 1, 3), ivec3(0, 1, 2));
 const float TL_PARITY[4] = float[4](-1.0, 1.0, -1.0, 1.0);
 
@@ -55,7 +56,8 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
     // Ascending order: swap back the last two if canonical order swapped them.
     bool swapped = ids.w < ids.z;
     uvec4 asc = swapped ? ids.xywz : ids;
-    float orientation = swapped ? -1.0 : 1.0;
+    // The ascending order is left-handed (orient > 0) exactly when canonical order swapped it.
+    float orientation = swapped ? 1.0 : -1.0;
     vec3 v[4] = vec3[4](tl_vertex(asc.x), tl_vertex(asc.y), tl_vertex(asc.z), tl_vertex(asc.w));
     float d[4];
     precise float bound_sum = 0.0;
@@ -72,7 +74,7 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
             exact = true;
             precise double signed64 = double(sign) * tl_orient_f64(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p);
             if (signed64 < 0.0) {
-                exit_face = i;
+                exit_face = (swapped && i >= 2) ? 5 - i : i;
                 return false;
             }
             signed_det = float(signed64);
@@ -82,7 +84,7 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 #endif
         // -0.0 and +0.0 (on the face) both count as inside.
         if (signed_det < 0.0) {
-            exit_face = i;
+            exit_face = (swapped && i >= 2) ? 5 - i : i; // ascending index -> stored index
             return false;
         }
         d[i] = signed_det;
