@@ -83,6 +83,17 @@ pub fn canonical_tet(ids: [u32; 4], points: &[Vec3]) -> ([u32; 4], f64) {
 const SORTED_FACES: [([usize; 3], f32); 4] =
     [([1, 2, 3], -1.0), ([0, 2, 3], 1.0), ([0, 1, 3], -1.0), ([0, 1, 2], 1.0)];
 
+/// The four faces of a canonical tet, face `i` opposite ascending vertex `i`, each with its
+/// vertex ids ascending and the sign `s` such that `s · orient(face, x) > 0` for `x` inside
+/// the tet. Everything that builds faces (shared faces, ray-tracing triangles) uses this.
+pub fn ascending_faces(ids: [u32; 4]) -> [([u32; 3], f32); 4] {
+    let swapped = ids[3] < ids[2];
+    let a = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
+    // The ascending order is left-handed (orient > 0) exactly when canonical order swapped it.
+    let orientation = if swapped { 1.0f32 } else { -1.0 };
+    SORTED_FACES.map(|(f, parity)| ([a[f[0]], a[f[1]], a[f[2]]], parity * orientation))
+}
+
 /// Result of the point-in-tet test: the four barycentric coordinates (weights of v0..v3).
 pub type Bary = [f32; 4];
 

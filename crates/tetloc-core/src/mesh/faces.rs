@@ -33,18 +33,9 @@ pub struct FaceStats {
     pub n_non_manifold: usize,
 }
 
-/// Local faces of a canonical tet in ascending-id order and the side (front = 1) the tet is on,
-/// mirroring `geom::SORTED_FACES`: parity of the face × the canonical orientation.
+/// Faces of a canonical tet with ascending ids, and whether the tet is on the front side.
 fn tet_faces(t: [u32; 4]) -> [([u32; 3], bool); 4] {
-    let swapped = t[3] < t[2];
-    let a = if swapped { [t[0], t[1], t[3], t[2]] } else { t };
-    let o = swapped; // the ascending order has orient > 0 iff canonical order swapped it
-    [
-        ([a[1], a[2], a[3]], !o), // parity odd
-        ([a[0], a[2], a[3]], o),  // even
-        ([a[0], a[1], a[3]], !o), // odd
-        ([a[0], a[1], a[2]], o),  // even
-    ]
+    crate::geom::ascending_faces(t).map(|(f, s)| (f, s > 0.0))
 }
 
 impl FaceSet {
