@@ -137,6 +137,8 @@ pub(crate) fn zlib_block(data: &[u8], block_size: usize) -> Vec<u8> {
     let parts: Vec<Vec<u8>> = data
         .par_chunks(block_size)
         .map(|c| {
+            // Level 3: measured on a 10M-tet grid, as small as the default level and much
+            // faster; zlib-rs's level 1 gave a 70 % larger file.
             let mut z = flate2::write::ZlibEncoder::new(Vec::with_capacity(c.len() / 2), flate2::Compression::new(3));
             z.write_all(c).expect("writing to a Vec");
             z.finish().expect("writing to a Vec")
