@@ -1,17 +1,50 @@
-//! `tetloc bench`: samples/s per backend and query set, warm-up, repeats, medians.
+//! `tetloc bench`: samples/s per backend and query set (the paper's Table 1), build time and
+//! memory (its Table 2). GPU kernels are timed with GPU timestamps and, for `centers`,
+//! `random` and `bbox`, generate their sample points inside the kernel as the paper does;
+//! `host` uploads points from a host array and includes the transfers. The CPU backend is
+//! timed with the host clock. Warm-up, then the median of the repeats.
 
 use crate::backend::{self, BackendOptions};
-use anyhow::Result;
+use anyhow::{bail, Result};
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::Mesh;
+use tetloc_vulkan::{BenchOptions, Kernel, SampleMode};
+
+/// A query set on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Query {
+    Generated(QueryKind),
+    /// Random points made on the host and uploaded (transfers timed too).
+    Host,
+}
+
+impl std::str::FromStr for Query {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "host" => Ok(Query::Host),
+            _ => s.parse().map(Query::Generated).map_err(|e| format!("{e}, host")),
+        }
+    }
+}
+
+impl Query {
+    fn name(self) -> &'static str {
+        match self {
+            Query::Generated(k) => k.name(),
+            Query::Host => "host",
+        }
+    }
+}
 
 #[derive(Debug, Serialize)]
 pub struct BenchRow {
     pub backend: String,
     pub device: String,
+    pub driver: String,
     pub mesh: String,
     pub n_tets: usize,
     pub queries: String,
@@ -19,73 +52,144 @@ pub struct BenchRow {
     pub n: usize,
     pub samples_per_s: f64,
     pub median_s: f64,
+    pub outside: usize,
     pub build_s: f64,
+    pub final_bytes: Option<u64>,
+    pub peak_bytes: Option<u64>,
+    pub timing: String,
     pub repeats: usize,
+    pub power_watts: Option<f64>,
 }
 
 pub struct BenchArgs {
     pub backends: Vec<String>,
-    pub queries: Vec<QueryKind>,
+    pub queries: Vec<Query>,
     pub n: Option<usize>,
     pub repeats: usize,
     pub field: Option<String>,
     pub seed: u64,
     pub json: bool,
+    pub power: bool,
     pub opts: BackendOptions,
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
-    v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+    v.sort_by(f64::total_cmp);
     v[v.len() / 2]
-}
-
-pub fn cpu_name() -> String {
-    format!("{} CPU threads", rayon::current_num_threads())
 }
 
 pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
     let mut rows = Vec::new();
     let n = args.n.unwrap_or(mesh.n_tets());
+    let variant = args.field.as_ref().map_or("id".to_string(), |f| format!("value:{f}"));
+    let emit = |row: BenchRow, rows: &mut Vec<BenchRow>| -> Result<()> {
+        if args.json {
+            println!("{}", serde_json::to_string(&row)?);
+        } else {
+            eprintln!("  {:<16} {:<8} {:>12}", row.backend, row.queries, fmt_rate(row.samples_per_s));
+        }
+        rows.push(row);
+        Ok(())
+    };
     for name in &args.backends {
-        let t0 = Instant::now();
-        let mut loc = backend::make(name, mesh, &args.opts)?;
-        let build_s = t0.elapsed().as_secs_f64();
+        let name = if name == "auto" { backend::auto_choice(&args.opts)? } else { name.clone() };
+        if name == backend::CPU {
+            let t0 = Instant::now();
+            let mut loc = backend::make(&name, mesh, &args.opts)?;
+            let build_s = t0.elapsed().as_secs_f64();
+            for &q in &args.queries {
+                let kind = match q {
+                    Query::Generated(k) => k,
+                    Query::Host => QueryKind::Random,
+                };
+                let points = queries::generate(mesh, kind, n, args.seed);
+                let mut ids = vec![0i32; n];
+                let mut values = vec![0f32; n];
+                let mut run_once = |loc: &mut dyn tetloc_core::BatchLocator| -> Result<f64> {
+                    let t = Instant::now();
+                    match &args.field {
+                        Some(f) => loc.sample(&points, f, &mut values)?,
+                        None => loc.locate(&points, &mut ids)?,
+                    }
+                    Ok(t.elapsed().as_secs_f64())
+                };
+                run_once(loc.as_mut())?; // warm-up
+                let times: Vec<f64> = (0..args.repeats).map(|_| run_once(loc.as_mut())).collect::<Result<_>>()?;
+                let med = median(times);
+                let outside = match &args.field {
+                    Some(_) => values.iter().filter(|v| v.is_nan()).count(),
+                    None => ids.iter().filter(|&&i| i < 0).count(),
+                };
+                let row = BenchRow {
+                    backend: name.clone(),
+                    device: format!("{} CPU threads", rayon::current_num_threads()),
+                    driver: "rayon".into(),
+                    mesh: mesh.info.source.clone(),
+                    n_tets: mesh.n_tets(),
+                    queries: q.name().to_string(),
+                    variant: variant.clone(),
+                    n,
+                    samples_per_s: n as f64 / med,
+                    median_s: med,
+                    outside,
+                    build_s,
+                    final_bytes: None,
+                    peak_bytes: None,
+                    timing: "host clock".into(),
+                    repeats: args.repeats,
+                    power_watts: None,
+                };
+                emit(row, &mut rows)?;
+            }
+            continue;
+        }
+        let kernel: Kernel = match name.parse() {
+            Ok(k) => k,
+            Err(e) => bail!("{e}"),
+        };
+        let mut loc = backend::make_vulkan(kernel, mesh, &args.opts)?;
         for &q in &args.queries {
-            let points = queries::generate(mesh, q, n, args.seed);
-            let mut ids = vec![0i32; n];
-            let mut values = vec![0f32; n];
-            let mut run_once = |loc: &mut dyn tetloc_core::BatchLocator| -> Result<f64> {
-                let t = Instant::now();
-                match &args.field {
-                    Some(f) => loc.sample(&points, f, &mut values)?,
-                    None => loc.locate(&points, &mut ids)?,
-                }
-                Ok(t.elapsed().as_secs_f64())
+            let mode = match q {
+                Query::Generated(QueryKind::Centers) => SampleMode::Uniform,
+                Query::Generated(QueryKind::Random) => SampleMode::Random,
+                Query::Generated(QueryKind::Bbox) => SampleMode::BBox,
+                Query::Host => SampleMode::Host,
             };
-            run_once(loc.as_mut())?; // warm-up
-            let times: Vec<f64> = (0..args.repeats).map(|_| run_once(loc.as_mut())).collect::<Result<_>>()?;
-            let med = median(times);
+            let host = (q == Query::Host).then(|| queries::generate(mesh, QueryKind::Random, n, args.seed));
+            let opts = BenchOptions {
+                mode,
+                field: args.field.clone(),
+                samples: Some(n),
+                seed: args.seed as u32,
+                warmup: 2,
+                repeats: args.repeats.max(5),
+                power: args.power,
+            };
+            let r = loc.bench(&opts, host.as_deref())?;
             let row = BenchRow {
-                backend: loc.name().to_string(),
-                device: cpu_name(),
+                backend: name.clone(),
+                device: r.device.clone(),
+                driver: r.driver.clone(),
                 mesh: mesh.info.source.clone(),
                 n_tets: mesh.n_tets(),
-                queries: q.to_string(),
-                variant: args.field.as_ref().map_or("id".to_string(), |f| format!("value:{f}")),
-                n,
-                samples_per_s: n as f64 / med,
-                median_s: med,
-                build_s,
-                repeats: args.repeats,
+                queries: q.name().to_string(),
+                variant: variant.clone(),
+                n: r.samples,
+                samples_per_s: r.samples_per_second,
+                median_s: r.seconds,
+                outside: r.outside,
+                build_s: r.build_seconds,
+                final_bytes: Some(r.final_bytes),
+                peak_bytes: Some(r.peak_bytes),
+                timing: r.timing.to_string(),
+                repeats: opts.repeats,
+                power_watts: r.power_watts,
             };
-            if args.json {
-                println!("{}", serde_json::to_string(&row)?);
-            }
-            rows.push(row);
+            emit(row, &mut rows)?;
         }
     }
     if !args.json {
-        print_table(&rows);
+        print_tables(&rows, &args.queries);
     }
     Ok(rows)
 }
@@ -100,21 +204,41 @@ pub fn fmt_rate(r: f64) -> String {
     }
 }
 
-pub fn print_table(rows: &[BenchRow]) {
-    if let Some(r) = rows.first() {
-        println!("mesh {} ({} tets), {} queries per run, median of {}", r.mesh, r.n_tets, r.n, r.repeats);
-    }
-    println!("{:<16} {:<10} {:<10} {:>14} {:>12} {:>10}  device", "backend", "queries", "variant", "samples/s", "median", "build");
+/// The paper's Table 1 (samples/s, a column per query set) and Table 2 (build, memory).
+pub fn print_tables(rows: &[BenchRow], queries: &[Query]) {
+    let Some(first) = rows.first() else { return };
+    println!("\nmesh {} ({} tets), variant {}, median of {} runs", first.mesh, first.n_tets, first.variant, first.repeats);
+    let mut backends: Vec<&str> = Vec::new();
     for r in rows {
-        println!(
-            "{:<16} {:<10} {:<10} {:>14} {:>10.2}ms {:>9.3}s  {}",
-            r.backend,
-            r.queries,
-            r.variant,
-            fmt_rate(r.samples_per_s),
-            r.median_s * 1e3,
-            r.build_s,
-            r.device
-        );
+        if !backends.contains(&r.backend.as_str()) {
+            backends.push(&r.backend);
+        }
+    }
+    print!("{:<16}", "samples/s");
+    for q in queries {
+        print!(" {:>12}", q.name());
+    }
+    println!("  device");
+    for b in &backends {
+        print!("{b:<16}");
+        let mut device = String::new();
+        for q in queries {
+            match rows.iter().find(|r| r.backend == *b && r.queries == q.name()) {
+                Some(r) => {
+                    print!(" {:>12}", fmt_rate(r.samples_per_s));
+                    device = format!("{} ({})", r.device, r.driver);
+                }
+                None => print!(" {:>12}", "-"),
+            }
+        }
+        println!("  {device}");
+    }
+    println!("\n{:<16} {:>9} {:>11} {:>11} {:>10}", "build/memory", "build s", "final MiB", "peak MiB", "outside");
+    for b in &backends {
+        if let Some(r) = rows.iter().find(|r| r.backend == *b) {
+            let mib = |x: Option<u64>| x.map_or("-".to_string(), |v| format!("{:.1}", v as f64 / (1 << 20) as f64));
+            let outside: Vec<String> = rows.iter().filter(|x| x.backend == *b).map(|x| format!("{}:{}", x.queries, x.outside)).collect();
+            println!("{b:<16} {:>9.3} {:>11} {:>11} {:>10}", r.build_s, mib(r.final_bytes), mib(r.peak_bytes), outside.join(" "));
+        }
     }
 }

@@ -13,7 +13,6 @@ use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::io::{points, vtu_write};
-use tetloc_core::queries::QueryKind;
 
 #[derive(Parser)]
 #[command(name = "tetloc", version, about = "Locate points in tetrahedral meshes and sample fields, on GPUs and CPUs")]
@@ -71,9 +70,9 @@ enum Command {
     Bench {
         /// A mesh file, or SHAPE:N to generate one (e.g. fusion:1.4M).
         mesh: String,
-        /// Query sets: centers (the paper's uniform), random, bbox.
+        /// Query sets: centers (the paper's uniform), random, bbox (generated in the GPU kernel), host (uploaded).
         #[arg(long, value_delimiter = ',', default_value = "centers,random,bbox")]
-        queries: Vec<QueryKind>,
+        queries: Vec<bench::Query>,
         /// Number of queries per run (default: one per tet).
         #[arg(long)]
         n: Option<String>,
@@ -85,9 +84,14 @@ enum Command {
         /// One JSON object per line instead of a table.
         #[arg(long)]
         json: bool,
+        /// Read board power through NVML while GPU kernels run (where NVML is present).
+        #[arg(long)]
+        power: bool,
         #[command(flatten)]
         common: Common,
     },
+    /// List the Vulkan devices: name, driver, ray-tracing support, memory.
+    Devices,
     /// Render a field with the sample-based volume ray marcher (PNG, PNG series or GIF).
     Render(render::RenderArgs),
     /// Generate a fusion-like mesh of about 1M tets, locate and sample a million points on
@@ -106,9 +110,15 @@ enum Command {
 
 #[derive(clap::Args)]
 struct Common {
-    /// Backends, comma-separated: cpu, or auto (the fastest available).
+    /// Backends, comma-separated: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto (the fastest here, measured once per device), all.
     #[arg(long, default_value = "auto")]
     backend: String,
+    /// rt kernels: primitives per bottom-level acceleration structure (e.g. 1M), or `off` for one structure.
+    #[arg(long, default_value = "1M")]
+    split: String,
+    /// rt kernels: do not compact the acceleration structures.
+    #[arg(long)]
+    no_compact: bool,
     /// Vulkan device index (see `tetloc devices`).
     #[arg(long)]
     device: Option<usize>,
@@ -120,8 +130,9 @@ struct Common {
 }
 
 impl Common {
-    fn opts(&self) -> BackendOptions {
-        BackendOptions { device: self.device }
+    fn opts(&self) -> Result<BackendOptions> {
+        let split = if self.split == "off" { None } else { Some(mesh_arg::parse_count(&self.split)?) };
+        Ok(BackendOptions { device: self.device, split, compact: !self.no_compact })
     }
 }
 
@@ -155,13 +166,15 @@ fn run(cli: Cli) -> Result<()> {
         Command::Locate { mesh, points: pts, out, field, values, common } => {
             locate(&mesh, &pts, &out, field.as_deref(), values.as_deref(), &common)
         }
-        Command::Bench { mesh, queries, n, repeats, field, json, common } => {
+        Command::Devices => devices(),
+        Command::Bench { mesh, queries, n, repeats, field, json, power, common } => {
             let m = mesh_arg::load(&mesh, common.format.as_deref(), common.seed)?;
             if let Some(f) = &field {
                 m.field(f)?;
             }
+            let opts = common.opts()?;
             let backends = if common.backend == "all" {
-                backend::available(&common.opts()).into_iter().map(String::from).collect()
+                backend::available(&opts).into_iter().map(String::from).collect()
             } else {
                 common.backend.split(',').map(String::from).collect()
             };
@@ -173,16 +186,38 @@ fn run(cli: Cli) -> Result<()> {
                 field,
                 seed: common.seed,
                 json,
-                opts: common.opts(),
+                power,
+                opts,
             };
             bench::run(&m, &args)?;
             Ok(())
         }
         Command::Render(args) => render::run(args),
         Command::Demo { tets, points, seed, device } => {
-            demo::run(mesh_arg::parse_count(&tets)?, mesh_arg::parse_count(&points)?, seed, &BackendOptions { device })
+            demo::run(mesh_arg::parse_count(&tets)?, mesh_arg::parse_count(&points)?, seed, &BackendOptions { device, ..Default::default() })
         }
     }
+}
+
+fn devices() -> Result<()> {
+    let list = tetloc_vulkan::devices()?;
+    if list.is_empty() {
+        println!("no Vulkan devices (the cpu backend still works)");
+    }
+    for d in list {
+        println!(
+            "{}: {} ({}, {}), Vulkan {}, {:.1} GiB, ray tracing: {}, float64: {}",
+            d.index,
+            d.name,
+            d.driver,
+            d.device_type,
+            d.api_version,
+            d.memory_bytes as f64 / (1u64 << 30) as f64,
+            if d.ray_tracing { "yes" } else { "no" },
+            if d.float64 { "yes" } else { "no" }
+        );
+    }
+    Ok(())
 }
 
 fn info(mesh: &str, json: bool, format: Option<&str>) -> Result<()> {
@@ -230,7 +265,8 @@ fn locate(mesh: &str, pts: &Path, out: &Path, field: Option<&str>, values_out: O
         bail!("--values needs --field NAME");
     }
     let points = points::read_points(pts)?;
-    let mut loc = progress::with_spinner("building the locator", || backend::make(&common.backend, &m, &common.opts()))?;
+    let opts = common.opts()?;
+    let mut loc = progress::with_spinner("building the locator", || backend::make(&common.backend, &m, &opts))?;
     // Chunks keep the progress bar moving and bound GPU batch memory.
     const CHUNK: usize = 1 << 22;
     let mut ids = vec![0i32; points.len()];

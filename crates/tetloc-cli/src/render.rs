@@ -93,7 +93,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
     let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
-    let opts = BackendOptions { device: a.device };
+    let opts = BackendOptions { device: a.device, ..Default::default() };
     for name in a.backend.split(',') {
         let mut loc = backend::make(name, &mesh, &opts)?;
         match a.fps {
