@@ -1,0 +1,29 @@
+#!/usr/bin/env bash
+# One device call's worth of measurements (see NOTES.md): a 12M-tet jets mesh through every
+# kernel (checked against the CPU, then benchmarked), and soft-bvh layout variants.
+# Usage, from the repository root on the device machine:
+#   bash crates/tetloc-vulkan/scripts/h100.sh .devbin/vkbench "$OUT"
+# Each kernel runs in its own process under a timeout, so that one failure loses one log.
+set -u
+BIN=$1
+LOGS=$2
+TETS=${TETS:-12000000}
+for f in .gl/*.deb; do dpkg -x "$f" /; done
+ldconfig
+{ date -u; nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm,power.draw,power.limit,temperature.gpu --format=csv; } > "$LOGS/gpu.txt" 2>&1
+probe() { timeout 60 "$BIN" --tets 20000 --check 20000 --modes uniform --repeats 5 > "$LOGS/probe.log" 2>&1; }
+if ! probe; then
+  export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+  echo "retrying with VK_DRIVER_FILES=$VK_DRIVER_FILES" >> "$LOGS/gpu.txt"
+  probe
+fi
+for k in soft-bvh rt-bvh rt-shared-faces rt-rep-faces; do
+  timeout 110 "$BIN" --tets "$TETS" --kernels "$k" --check 2000000 --field f --power --repeats 7 > "$LOGS/jets-$k.log" 2>&1
+  echo "$k exit $?" >> "$LOGS/gpu.txt"
+done
+timeout 90 "$BIN" --tets "$TETS" --kernels soft-bvh --variants --modes uniform,random --check 0 --repeats 7 > "$LOGS/variants.log" 2>&1
+echo "variants exit $?" >> "$LOGS/gpu.txt"
+cat "$LOGS/gpu.txt"
+grep -h -E "check of|build failed|Error|error" "$LOGS"/*.log
+for f in "$LOGS"/jets-*.log "$LOGS"/variants.log; do sed -n '/^config/,/^memory/p' "$f" | grep -v '^memory'; done
+grep -h -A6 '^memory' "$LOGS"/jets-*.log | grep -E 'final'
