@@ -72,7 +72,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
                 let n = c.count(arg(0), "CELL_TYPES count")?;
                 let arr = c.values(NumType::I32, n, "CELL_TYPES")?;
                 let types = num::map_ints(&arr, |v| u8::try_from(v).ok()).map_err(|i| {
-                    c.fail(format!("CELL_TYPES: value {i} ({:?}) is not a VTK cell type", arr.get_i64(i)))
+                    c.fail(format!("CELL_TYPES: value {i} ({}) is not a VTK cell type", arr.show(i)))
                 })?;
                 g.types = Some(types);
             }
@@ -155,12 +155,12 @@ impl Grid<'_> {
         let types = self.types.ok_or_else(|| fail("no CELL_TYPES section".into()))?;
         let n_points = points.len();
         let bad_id = |arr: &Array, i: usize, what: &str| {
-            fail(format!("{what}: value {i} ({:?}) is not a point id (the file has {n_points} points)", arr.get_i64(i)))
+            fail(format!("{what}: value {i} ({}) is not a point id (the file has {n_points} points)", arr.show(i)))
         };
         let (ends, conn) = match cells {
             Cells::List(list) => {
                 let v = num::map_ints(&list, |v| u32::try_from(v).ok())
-                    .map_err(|i| fail(format!("CELLS: value {i} ({:?}) is negative", list.get_i64(i))))?;
+                    .map_err(|i| fail(format!("CELLS: value {i} ({}) is negative", list.show(i))))?;
                 let mut ends = Vec::with_capacity(types.len());
                 let mut conn = Vec::with_capacity(v.len().saturating_sub(types.len()));
                 let mut pos = 0;
@@ -183,7 +183,7 @@ impl Grid<'_> {
             }
             Cells::Arrays(offsets, connectivity) => {
                 let mut ends = num::map_ints(&offsets, |v| u64::try_from(v).ok())
-                    .map_err(|i| fail(format!("OFFSETS: value {i} ({:?}) is not an offset", offsets.get_i64(i))))?;
+                    .map_err(|i| fail(format!("OFFSETS: value {i} ({}) is not an offset", offsets.show(i))))?;
                 // n + 1 offsets from 0; the cells end at the last n.
                 if ends.first().is_some_and(|&s| s != 0) {
                     return Err(fail(format!("OFFSETS: the first cell starts at {}, not 0", ends[0])));

@@ -217,8 +217,7 @@ impl<'a> Ctx<'a, '_> {
                 .ok_or_else(|| self.fail(format!("piece {k}: no <Cells> array named '{name}'")))
         };
         let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
-            let v = arr.get_i64(i).map_or_else(|| format!("{}", arr.get_f64(i)), |v| v.to_string());
-            self.fail(format!("DataArray '{name}': value {i} ({v}) {why}"))
+            self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
         };
         let types_arr = self.array(cell_array("types")?, n_cells)?;
         let ends_arr = self.array(cell_array("offsets")?, n_cells)?;

@@ -132,6 +132,11 @@ impl<'a> Array<'a> {
         with_type!(self.ty, T => T::get(&self.bytes, i).to_f64())
     }
 
+    /// The i-th value as text, for error messages.
+    pub fn show(&self, i: usize) -> String {
+        self.get_i64(i).map_or_else(|| self.get_f64(i).to_string(), |v| v.to_string())
+    }
+
     /// The i-th value as an integer, `None` for a float or a u64 beyond i64.
     pub fn get_i64(&self, i: usize) -> Option<i64> {
         with_type!(self.ty, T => T::get(&self.bytes, i).to_i64())

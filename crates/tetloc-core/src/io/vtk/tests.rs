@@ -500,7 +500,7 @@ fn write_samples() {
         vtu_write::write_mesh(&dir.join(format!("{name}.vtu")), &mesh, zlib, wide).unwrap();
     }
     let pts: Vec<[f32; 3]> = (0..100).map(|i| mesh.tet_center(i * 7)).collect();
-    let ids: Vec<i32> = (0..100).map(|i| if i % 10 == 9 { -1 } else { i as i32 * 7 }).collect();
+    let ids: Vec<i32> = (0..100).map(|i| if i % 10 == 9 { -1 } else { i * 7 }).collect();
     let vals: Vec<f32> = ids.iter().map(|&i| i as f32 * 0.5).collect();
     vtu_write::write_points_vtu(&dir.join("points.vtu"), &pts, &ids, Some(("value", &vals))).unwrap();
 }
