@@ -15,7 +15,16 @@ probe() { timeout 60 "$BIN" --tets 20000 --check 20000 --modes uniform --repeats
 if ! probe; then
   export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
   echo "retrying with VK_DRIVER_FILES=$VK_DRIVER_FILES" >> "$LOGS/gpu.txt"
-  probe
+  if ! probe; then
+    # Say why no driver was found, then give up.
+    { ls -l /usr/local/nvidia/share/vulkan/icd.d/ /usr/share/vulkan/icd.d/ /etc/vulkan/icd.d/ 2>&1
+      cat /usr/local/nvidia/share/vulkan/icd.d/*.json
+      lib=$(grep -ho '"library_path"[^,]*' /usr/local/nvidia/share/vulkan/icd.d/*.json | cut -d'"' -f4)
+      ldd "$(ldconfig -p | grep -m1 "$lib" | awk '{print $NF}')"
+      VK_LOADER_DEBUG=error,warn,driver "$BIN" --tets 1000 --check 0 --modes uniform --repeats 5; } >> "$LOGS/probe.log" 2>&1
+    tail -n 60 "$LOGS/probe.log"
+    exit 1
+  fi
 fi
 for k in soft-bvh rt-bvh rt-shared-faces rt-rep-faces; do
   timeout 110 "$BIN" --tets "$TETS" --kernels "$k" --check 2000000 --field f --power --repeats 7 > "$LOGS/jets-$k.log" 2>&1
