@@ -35,8 +35,13 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 
 /// Parses a whole file held in memory; `path` only names it in errors.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
+    parse_with(bytes, path, MIN_PARALLEL)
+}
+
+/// `parse`, with runs of at least `min_parallel` ASCII records parsed in parallel.
+fn parse_with(bytes: &[u8], path: &Path, min_parallel: usize) -> Result<RawMesh> {
     Parser {
-        c: Cursor { buf: bytes, pos: 0, path, binary: false, big_endian: false },
+        c: Cursor { buf: bytes, pos: 0, path, binary: false, big_endian: false, min_parallel },
         version: Version::V2,
         nodes: None,
         cells: None,
@@ -166,6 +171,8 @@ struct Cursor<'a> {
     path: &'a Path,
     binary: bool,
     big_endian: bool,
+    /// See [`Cursor::par_lines`].
+    min_parallel: usize,
 }
 
 /// A token for an error message: lossy, and cut short.
@@ -396,6 +403,144 @@ impl<'a> Cursor<'a> {
 }
 
 // ---------------------------------------------------------------------------------------------
+// Parallel parsing of long runs of ASCII records
+//
+// Gmsh writes one node or element per line, so a long run of records can be cut at line ends
+// and parsed on all cores. The parallel parser accepts only that layout, with exactly the
+// expected tokens on each line; anything else (records spread over lines, blank lines, bad
+// numbers, unknown nodes) makes it give up, and the sequential parser reads the run instead,
+// with its precise error messages.
+
+/// Runs of fewer ASCII records are parsed sequentially.
+const MIN_PARALLEL: usize = 20_000;
+
+/// The tokens of one line.
+struct Tokens<'a>(&'a [u8]);
+
+impl<'a> Tokens<'a> {
+    fn next(&mut self) -> Option<&'a [u8]> {
+        let start = self.0.iter().position(|b| !b.is_ascii_whitespace())?;
+        let rest = &self.0[start..];
+        let len = rest.iter().position(|b| b.is_ascii_whitespace()).unwrap_or(rest.len());
+        self.0 = &rest[len..];
+        Some(&rest[..len])
+    }
+    fn u64(&mut self) -> Option<u64> {
+        parse_u64(self.next()?)
+    }
+    fn i64(&mut self) -> Option<i64> {
+        parse_i64(self.next()?)
+    }
+    fn f32(&mut self) -> Option<f32> {
+        parse_f64(self.next()?).map(|v| v as f32)
+    }
+    fn done(&self) -> bool {
+        self.0.iter().all(|b| b.is_ascii_whitespace())
+    }
+}
+
+/// The offset just past the `count`-th line end at or after `start`, if there are that many.
+fn end_of_lines(buf: &[u8], start: usize, count: usize) -> Option<usize> {
+    let mut seen = 0;
+    let mut at = start;
+    // Count whole blocks first (a loop the compiler vectorises), then find the exact byte.
+    for block in buf[start..].chunks(1 << 16) {
+        let n = block.iter().filter(|&&b| b == b'\n').count();
+        if seen + n >= count {
+            let i = block.iter().enumerate().filter(|(_, &b)| b == b'\n').nth(count - seen - 1)?.0;
+            return Some(at + i + 1);
+        }
+        seen += n;
+        at += block.len();
+    }
+    None
+}
+
+impl Cursor<'_> {
+    /// Parses the `count` lines at the cursor in parallel: `line` reads one line's tokens into
+    /// a chunk's state `S` (the states come back in file order). `None`, with the cursor
+    /// unmoved, when the run is short, binary, or not one record per line.
+    fn par_lines<S: Default + Send>(
+        &mut self,
+        count: usize,
+        line: impl Fn(&mut Tokens, &mut S) -> Option<()> + Sync,
+    ) -> Option<Vec<S>> {
+        if self.binary || count < self.min_parallel.max(1) {
+            return None;
+        }
+        let start = self.here();
+        let end = end_of_lines(self.buf, start, count)?;
+        let text = &self.buf[start..end];
+        // Cut into a few pieces per thread, each just after a line end.
+        let parts = 4 * rayon::current_num_threads();
+        let mut cuts = vec![0];
+        for k in 1..parts {
+            let from = (text.len() * k / parts).max(*cuts.last().unwrap_or(&0));
+            if let Some(i) = text[from..].iter().position(|&b| b == b'\n') {
+                if from + i + 1 < text.len() && from + i + 1 > *cuts.last().unwrap_or(&0) {
+                    cuts.push(from + i + 1);
+                }
+            }
+        }
+        cuts.push(text.len());
+        let states = cuts
+            .par_windows(2)
+            .map(|w| {
+                let mut state = S::default();
+                let piece = &text[w[0]..w[1] - 1]; // without its last line end
+                for l in piece.split(|&b| b == b'\n') {
+                    let mut tokens = Tokens(l);
+                    line(&mut tokens, &mut state)?;
+                    if !tokens.done() {
+                        return None;
+                    }
+                }
+                Some(state)
+            })
+            .collect::<Option<Vec<S>>>()?;
+        self.pos = end;
+        Some(states)
+    }
+}
+
+/// The tetrahedra and other volume elements of one chunk of ASCII element lines.
+#[derive(Default)]
+struct Chunk {
+    tets: Vec<[u32; 4]>,
+    tags: Vec<u64>,
+    order: u8,
+    /// (family, nodes, count)
+    others: Vec<(&'static str, usize, usize)>,
+}
+
+impl Chunk {
+    /// Reads an element's `nn` node tags; keeps its corners if it is a tetrahedron.
+    fn element(&mut self, t: &mut Tokens, map: &TagMap, tag: u64, kind: Kind, nn: usize) -> Option<()> {
+        match kind {
+            Kind::Tet(order) => {
+                let mut c = [0u32; 4];
+                for v in &mut c {
+                    *v = map.get(t.u64()?)?;
+                }
+                self.tets.push(c);
+                self.tags.push(tag);
+                self.order = self.order.max(order);
+            }
+            Kind::Volume(name) => match self.others.iter_mut().find(|o| o.0 == name && o.1 == nn) {
+                Some(o) => o.2 += 1,
+                None => self.others.push((name, nn, 1)),
+            },
+            Kind::Lower => {}
+        }
+        let skip = if let Kind::Tet(_) = kind { nn - 4 } else { nn };
+        for _ in 0..skip {
+            t.u64()?;
+        }
+        Some(())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
 // Tag → dense index maps
 
 /// Maps Gmsh tags (any u64, possibly sparse) to dense 0-based indices.
@@ -595,12 +740,13 @@ impl Parser<'_> {
         }
         let (points, tags) = match self.version {
             Version::V2 => self.read_nodes_v2()?,
-            Version::V41 => self.read_nodes_v41()?,
+            Version::V41 => self.read_nodes_v41(start)?,
         };
         if points.len() >= u32::MAX as usize {
             return Err(self.c.fail(format!("{} nodes: more than tetloc's 32-bit indices can address", points.len())));
         }
-        let map = TagMap::new(&tags).map_err(|t| self.c.fail(format!("node tag {t} appears twice in $Nodes")))?;
+        let map =
+            TagMap::new(&tags).map_err(|t| self.c.fail_at(start, format!("node tag {t} appears twice in $Nodes")))?;
         self.nodes = Some(Nodes { points, map });
         Ok(())
     }
@@ -627,6 +773,15 @@ impl Parser<'_> {
                     get_f64(&r[20..], big) as f32,
                 ]);
             }
+        } else if let Some(chunks) = c.par_lines(n, |t, s: &mut (Vec<u64>, Vec<[f32; 3]>)| {
+            s.0.push(t.u64()?);
+            s.1.push([t.f32()?, t.f32()?, t.f32()?]);
+            Some(())
+        }) {
+            for (t, p) in chunks {
+                tags.extend(t);
+                points.extend(p);
+            }
         } else {
             for _ in 0..n {
                 tags.push(c.ascii_u64("a node tag")?);
@@ -637,7 +792,8 @@ impl Parser<'_> {
         Ok((points, tags))
     }
 
-    fn read_nodes_v41(&mut self) -> Result<(Vec<[f32; 3]>, Vec<u64>)> {
+    /// `start`: where the section begins, for errors about it as a whole.
+    fn read_nodes_v41(&mut self, start: usize) -> Result<(Vec<[f32; 3]>, Vec<u64>)> {
         let c = &mut self.c;
         let blocks = c.size("the number of node blocks")?;
         let declared = c.size("the number of nodes")?;
@@ -669,20 +825,32 @@ impl Parser<'_> {
                         [get_f64(r, big) as f32, get_f64(&r[8..], big) as f32, get_f64(&r[16..], big) as f32]
                     }));
             } else {
-                for _ in 0..count {
-                    tags.push(c.ascii_u64("a node tag")?);
+                let count = count as usize;
+                if let Some(chunks) = c.par_lines(count, |t, s: &mut Vec<u64>| Some(s.push(t.u64()?))) {
+                    chunks.into_iter().for_each(|ch| tags.extend(ch));
+                } else {
+                    for _ in 0..count {
+                        tags.push(c.ascii_u64("a node tag")?);
+                    }
                 }
-                for _ in 0..count {
-                    let p = [c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?];
-                    points.push(p.map(|v| v as f32));
-                    for _ in 3..per_node {
-                        c.ascii_f64("a parametric coordinate")?;
+                if let Some(chunks) = c.par_lines(count, |t, s: &mut Vec<[f32; 3]>| {
+                    s.push([t.f32()?, t.f32()?, t.f32()?]);
+                    (3..per_node).try_for_each(|_| t.f32().map(drop))
+                }) {
+                    chunks.into_iter().for_each(|ch| points.extend(ch));
+                } else {
+                    for _ in 0..count {
+                        let p = [c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?];
+                        points.push(p.map(|v| v as f32));
+                        for _ in 3..per_node {
+                            c.ascii_f64("a parametric coordinate")?;
+                        }
                     }
                 }
             }
         }
         if points.len() != n {
-            return Err(c.fail(format!("$Nodes declares {n} nodes but its blocks hold {}", points.len())));
+            return Err(c.fail_at(start, format!("$Nodes declares {n} nodes but its blocks hold {}", points.len())));
         }
         Ok((points, tags))
     }
@@ -697,7 +865,7 @@ impl Parser<'_> {
         let mut acc = ElementSink { nodes, tets: Vec::new(), tags: Vec::new(), order: 1, others: Vec::new() };
         match self.version {
             Version::V2 => read_elements_v2(&mut self.c, &mut acc)?,
-            Version::V41 => read_elements_v41(&mut self.c, &mut acc)?,
+            Version::V41 => read_elements_v41(&mut self.c, &mut acc, start)?,
         }
         if !acc.others.is_empty() {
             return Err(Error::NonTetCells { path: self.c.path.to_path_buf(), counts: acc.others });
@@ -914,6 +1082,21 @@ impl ElementSink<'_> {
         Ok(())
     }
 
+    /// Appends the chunks of a parallel parse, in order.
+    fn merge(&mut self, chunks: Vec<Chunk>, count_others: bool) {
+        let n = chunks.iter().map(|c| c.tets.len()).sum();
+        self.tets.reserve(n);
+        self.tags.reserve(n);
+        for c in chunks {
+            self.tets.extend_from_slice(&c.tets);
+            self.tags.extend_from_slice(&c.tags);
+            self.order = self.order.max(c.order);
+            if count_others {
+                c.others.iter().for_each(|&(name, nn, n)| self.other(name, nn, n));
+            }
+        }
+    }
+
     fn other(&mut self, name: &str, nodes: usize, count: usize) {
         let key = format!("{name} ({nodes} nodes)");
         match self.others.iter_mut().find(|(k, _)| *k == key) {
@@ -993,6 +1176,18 @@ fn read_elements_v2(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
         }
     } else {
         let n = c.check_room(declared, 8, "elements")?;
+        let map = &acc.nodes.map;
+        if let Some(chunks) = c.par_lines(n, |t, s: &mut Chunk| {
+            let tag = t.u64()?;
+            let (nn, kind) = element_type(t.i64()?)?;
+            for _ in 0..t.u64()? {
+                t.next()?;
+            }
+            s.element(t, map, tag, kind, nn)
+        }) {
+            acc.merge(chunks, true);
+            return Ok(());
+        }
         for _ in 0..n {
             let pos = c.here();
             let tag = c.ascii_u64("an element tag")?;
@@ -1017,7 +1212,8 @@ fn read_elements_v2(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
     Ok(())
 }
 
-fn read_elements_v41(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
+/// `start`: where the section begins, for errors about it as a whole.
+fn read_elements_v41(c: &mut Cursor, acc: &mut ElementSink, start: usize) -> Result<()> {
     let blocks = c.size("the number of element blocks")?;
     let declared = c.size("the number of elements")?;
     c.size("the smallest element tag")?;
@@ -1049,6 +1245,14 @@ fn read_elements_v41(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
             }
         } else {
             let count = c.check_room(count, 2 * (1 + nn), "elements")?;
+            let map = &acc.nodes.map;
+            if let Some(chunks) = c.par_lines(count, |t, s: &mut Chunk| {
+                let tag = t.u64()?;
+                s.element(t, map, tag, kind, nn)
+            }) {
+                acc.merge(chunks, false); // other volume elements are counted above
+                continue;
+            }
             acc.reserve(kind, count);
             for _ in 0..count {
                 let epos = c.here();
@@ -1062,7 +1266,7 @@ fn read_elements_v41(c: &mut Cursor, acc: &mut ElementSink) -> Result<()> {
         }
     }
     if seen != declared {
-        return Err(c.fail(format!("$Elements declares {declared} elements but its blocks hold {seen}")));
+        return Err(c.fail_at(start, format!("$Elements declares {declared} elements but its blocks hold {seen}")));
     }
     Ok(())
 }
@@ -1327,16 +1531,22 @@ mod tests {
         let want = expected();
         for e in ENCODINGS {
             let bytes = write(&spec(), e);
-            let got = parse(&bytes, &p()).unwrap_or_else(|err| panic!("{e:?}: {err}"));
-            assert_same(&got, &want, &format!("{e:?}"));
+            // Sequential, and parallel on even the shortest runs of ASCII records.
+            for min_parallel in [usize::MAX, 1] {
+                let got = parse_with(&bytes, &p(), min_parallel).unwrap_or_else(|err| panic!("{e:?}: {err}"));
+                assert_same(&got, &want, &format!("{e:?}, min_parallel {min_parallel}"));
+            }
         }
     }
 
+    /// The error for a bad file: the same whether ASCII runs are tried in parallel or not.
     fn err_of(bytes: &[u8]) -> String {
-        match parse(bytes, &p()) {
+        let msgs = [1, usize::MAX].map(|min_parallel| match parse_with(bytes, &p(), min_parallel) {
             Ok(_) => panic!("parsed a bad file:\n{}", String::from_utf8_lossy(bytes)),
             Err(e) => e.to_string(),
-        }
+        });
+        assert_eq!(msgs[0], msgs[1]);
+        msgs[1].clone()
     }
 
     #[test]
@@ -1346,8 +1556,8 @@ mod tests {
         s.elems[1] = (9, 11, vec![10, 3, 7, 100, 200, 201, 202, 203, 204, 205]);
         s.node_data.clear();
         s.elem_data.clear();
-        for e in ENCODINGS {
-            let m = parse(&write(&s, e), &p()).unwrap();
+        for (e, min_parallel) in ENCODINGS.iter().flat_map(|&e| [(e, 1), (e, usize::MAX)]) {
+            let m = parse_with(&write(&s, e), &p(), min_parallel).unwrap();
             assert_eq!(m.tets, vec![[0, 1, 2, 3], [1, 2, 3, 4]], "{e:?}");
             assert_eq!(m.higher_order, Some(2), "{e:?}");
             assert_eq!(m.points.len(), 11);
@@ -1362,8 +1572,8 @@ mod tests {
         s.elems.push((20, 5, hex.clone()));
         s.elems.push((21, 5, hex));
         s.elems.push((22, 6, vec![10, 3, 7, 300, 301, 302]));
-        for e in ENCODINGS {
-            match parse(&write(&s, e), &p()) {
+        for (e, min_parallel) in ENCODINGS.iter().flat_map(|&e| [(e, 1), (e, usize::MAX)]) {
+            match parse_with(&write(&s, e), &p(), min_parallel) {
                 Err(Error::NonTetCells { path, counts }) => {
                     assert_eq!(path, p());
                     assert_eq!(
@@ -1386,11 +1596,14 @@ mod tests {
             // Element 9 refers to a node that does not exist (line 15).
             (ascii(false).replace("9 4 2 1 1 10 3", "9 4 2 1 1 11 3"), "line 20: element 9 refers to node 11"),
             (ascii(false).replace("9 4 2 1 1", "9 999 2 1 1"), "line 20: element type 999"),
-            (ascii(false).replace("\n100 0.0 0.0 1.0", "\n7 0.0 0.0 1.0"), "node tag 7 appears twice"),
+            (ascii(false).replace("\n100 0.0 0.0 1.0", "\n7 0.0 0.0 1.0"), "line 8: node tag 7 appears twice"),
             (ascii(false).replace("5000 1.0 1.0 1.0", "5000 1.0 1.0 x"), "line 14: expected z (a number), found 'x'"),
             (ascii(false).replace("$Nodes\n5\n", "$Nodes\n4\n"), "expected $EndNodes"),
             (ascii(false).replace("$Nodes\n5\n", "$Nodes\n500000\n"), "declares 500000 nodes"),
-            (ascii(true).replace("\n2 5 3 5000", "\n2 6 3 5000"), "declares 6 nodes but its blocks hold 5"),
+            (
+                ascii(true).replace("\n2 5 3 5000", "\n2 6 3 5000"),
+                "line 13: $Nodes declares 6 nodes but its blocks hold 5",
+            ),
             (
                 ascii(false).replace("\"vel\"\n\"scheme\"\n1\n0.5\n4\n0\n3", "\"vel\"\n\"scheme\"\n1\n0.5\n4\n0\n4"),
                 "expected an entity tag (an integer), found '1.0'",
@@ -1465,10 +1678,15 @@ mod tests {
                     _ => b' ',
                 };
             }
-            // Whatever the outcome, it must come back; a mesh that comes back must validate or
-            // fail cleanly.
-            if let Ok(m) = parse(&b, &p()) {
-                let _ = Mesh::new(m, "corrupt");
+            // Whatever the outcome, it must come back, the same from the sequential and the
+            // parallel parser; a mesh that comes back must validate or fail cleanly.
+            match (parse_with(&b, &p(), usize::MAX), parse_with(&b, &p(), 1)) {
+                (Ok(seq), Ok(par)) => {
+                    assert_same(&par, &seq, "corrupt file");
+                    let _ = Mesh::new(seq, "corrupt");
+                }
+                (Err(seq), Err(par)) => assert_eq!(seq.to_string(), par.to_string()),
+                (seq, par) => panic!("sequential {seq:?}\nparallel {par:?}"),
             }
         };
         for e in ENCODINGS {
@@ -1478,7 +1696,7 @@ mod tests {
             }
         }
         let Some(dir) = require_data("corrupted_files_do_not_panic") else { return };
-        for f in ["torus_s.msh", "real/bunny.msh"] {
+        for f in ["torus_s.msh", "real/bunny.msh", "part_s.msh22.msh"] {
             let bytes = std::fs::read(dir.join(f)).unwrap();
             for _ in 0..30 {
                 corrupt(&bytes, &mut rng);
@@ -1554,6 +1772,33 @@ mod tests {
         let v22 = read(&dir.join("real/cubes_v22.msh")).unwrap();
         let v41 = read(&dir.join("real/cubes_v41.msh")).unwrap();
         assert_eq!(v22.points.len(), v41.points.len());
+    }
+
+    /// Long runs of ASCII records parse in parallel, to the same arrays; a file that does not
+    /// keep one record per line falls back to the sequential parser.
+    #[test]
+    fn parallel_ascii_parsing_agrees() {
+        let Some(dir) = require_data("parallel_ascii_parsing_agrees") else { return };
+        for f in ["part_s.msh22.msh", "real/bunny.msh", "real/cubes_v22.msh", "real/cubes_v41.msh"] {
+            let bytes = std::fs::read(dir.join(f)).unwrap();
+            let seq = parse_with(&bytes, &p(), usize::MAX).unwrap();
+            assert_same(&parse_with(&bytes, &p(), 1).unwrap(), &seq, f);
+            assert_same(&parse(&bytes, &p()).unwrap(), &seq, f);
+        }
+        // Each element of part_s.msh22.msh spread over two lines: still valid Gmsh.
+        let text = std::fs::read_to_string(dir.join("part_s.msh22.msh")).unwrap();
+        let (head, rest) = text.split_once("$Elements\n").unwrap();
+        let (elems, tail) = rest.split_once("$EndElements").unwrap();
+        let split: String = elems
+            .lines()
+            .map(|l| match l.split_once(' ') {
+                Some((tag, more)) => format!("{tag}\n  {more}\n"),
+                None => format!("{l}\n"),
+            })
+            .collect();
+        let odd = format!("{head}$Elements\n{split}$EndElements{tail}");
+        let want = parse_with(text.as_bytes(), &p(), usize::MAX).unwrap();
+        assert_same(&parse_with(odd.as_bytes(), &p(), 1).unwrap(), &want, "split lines");
     }
 
     /// The `centers` query sets hold each tet's centroid in file order: our tets must sit
