@@ -95,3 +95,20 @@ pub fn query_sets(dir: &Path) -> Vec<QuerySet> {
     }
     out
 }
+
+/// The value of a per-vertex field at `p` by barycentric interpolation in tet `t`, with the
+/// barycentrics computed in f64 on the stored (f32) vertices: the reference a locator's
+/// value must match. The oracle's own values use the file's f64 vertices; in slivers the
+/// rounding of the vertices to f32 alone moves them by more than 1e-5.
+pub fn exact_value(mesh: &crate::Mesh, t: usize, p: Vec3, values: &[f32]) -> f64 {
+    let ids = mesh.tets[t];
+    let v: [Vec3; 4] = ids.map(|i| mesh.points[i as usize]);
+    let vol = crate::geom::tet_volume6(v);
+    (0..4)
+        .map(|i| {
+            let mut w = v;
+            w[i] = p;
+            crate::geom::tet_volume6(w) / vol * values[ids[i] as usize] as f64
+        })
+        .sum()
+}

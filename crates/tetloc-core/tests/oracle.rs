@@ -1,10 +1,15 @@
 //! The CPU locator against the oracle answers made with VTK, scipy and gmsh
 //! (`../shared/data`): no id mismatches except within rounding of a face (flags bit0),
 //! values within 1e-5 relative, and no interior point of `centers`/`random` lost.
+//!
+//! Values: every value must match f64 interpolation on the stored vertices
+//! ([`exact_value`]) within 1e-5; and that must match the oracle's value except where the
+//! oracle itself differs from it, which happens only in slivers where rounding the file's
+//! f64 vertices to f32 moves the barycentrics (`delaunay_s`: 3 points of one sliver).
 
 use std::collections::HashMap;
 use std::sync::Arc;
-use tetloc_core::testdata::{query_sets, require_data};
+use tetloc_core::testdata::{exact_value, query_sets, require_data};
 use tetloc_core::{io, BatchLocator, CpuLocator, Mesh};
 
 #[test]
@@ -37,15 +42,26 @@ fn cpu_locator_matches_the_oracle() {
             }
         }
         let mut bad_values = 0;
+        let mut oracle_off = Vec::new();
         if let Some(want) = &set.value {
             let mut got = vec![0f32; set.points.len()];
             loc.sample(&set.points, "f", &mut got).unwrap();
+            let f = &mesh.field("f").unwrap().values;
+            let close = |a: f64, b: f64| (a - b).abs() <= 1e-5 * b.abs().max(1.0);
             for i in 0..got.len() {
                 if set.ambiguous(i) {
                     continue;
                 }
                 let (g, w) = (got[i] as f64, want[i]);
-                let ok = if w.is_nan() { g.is_nan() } else { (g - w).abs() <= 1e-5 * w.abs().max(1.0) };
+                let ok = if w.is_nan() || g.is_nan() {
+                    w.is_nan() && g.is_nan()
+                } else {
+                    let exact = exact_value(&mesh, ids[i] as usize, set.points[i], f);
+                    if !close(exact, w) {
+                        oracle_off.push(i);
+                    }
+                    close(g, exact) && (close(g, w) || !close(exact, w))
+                };
                 if !ok {
                     bad_values += 1;
                     if bad_values <= 3 {
@@ -56,11 +72,12 @@ fn cpu_locator_matches_the_oracle() {
         }
         let ambiguous = set.flags.iter().filter(|f| *f & 1 != 0).count();
         report.push(format!(
-            "{:<22} {:>6} points: {mismatches} id mismatches, {lost} lost, {bad_values} bad values ({ambiguous} ambiguous skipped)",
+            "{:<22} {:>6} points: {mismatches} id mismatches, {lost} lost, {bad_values} bad values ({ambiguous} ambiguous skipped; f32 vertex rounding moves the oracle value at {oracle_off:?})",
             set.label,
             ids.len()
         ));
-        if mismatches + lost + bad_values > 0 {
+        // Rounding vertices to f32 may move a value only in rare slivers, never broadly.
+        if mismatches + lost + bad_values > 0 || oracle_off.len() > ids.len() / 1000 {
             failures.push(set.label.clone());
         }
     }
