@@ -826,7 +826,10 @@ impl Parser<'_> {
                     }));
             } else {
                 let count = count as usize;
-                if let Some(chunks) = c.par_lines(count, |t, s: &mut Vec<u64>| Some(s.push(t.u64()?))) {
+                if let Some(chunks) = c.par_lines(count, |t, s: &mut Vec<u64>| {
+                    s.push(t.u64()?);
+                    Some(())
+                }) {
                     chunks.into_iter().for_each(|ch| tags.extend(ch));
                 } else {
                     for _ in 0..count {
