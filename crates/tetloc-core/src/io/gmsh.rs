@@ -17,7 +17,8 @@
 //! - Every other section (`$Entities`, `$PhysicalNames`, `$InterpolationScheme`, ...) is
 //!   skipped.
 //!
-//! The whole file is parsed from one byte buffer without per-line allocation. Declared counts
+//! The whole file is parsed from one byte buffer without per-line allocation; binary
+//! tetrahedra and long runs of ASCII records are decoded on all cores (rayon). Declared counts
 //! are checked against the bytes that are left before anything is allocated, so a truncated
 //! or corrupt file is an error naming the line (ASCII) or byte offset (binary), never a panic.
 
