@@ -7,7 +7,7 @@
 //! --kernels a,b (default all the device runs), --modes uniform,random,bbox,host,
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
-//! --variants (soft-bvh layout variants: leaf size and workgroup size).
+//! --variants (soft-bvh variants: leaf size, workgroup size, pure-f32 test).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -133,9 +133,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut configs: Vec<(String, Kernel, LocatorOptions)> =
         kernels.iter().map(|&k| (k.name().to_string(), k, args.opts.clone())).collect();
     if args.variants {
-        for (leaf, wg) in [(1, 128), (4, 64), (4, 256)] {
-            let o = LocatorOptions { leaf_size: leaf, workgroup_size: wg, ..args.opts.clone() };
-            configs.push((format!("soft-bvh leaf {leaf} wg {wg}"), Kernel::SoftBvh, o));
+        for (leaf, wg, f64) in [(4, 128, true), (1, 64, true), (1, 256, true), (1, 128, false), (4, 128, false)] {
+            let o = LocatorOptions { leaf_size: leaf, workgroup_size: wg, float64: f64, ..args.opts.clone() };
+            let label = format!("soft-bvh leaf {leaf} wg {wg}{}", if f64 { "" } else { " f32" });
+            configs.push((label, Kernel::SoftBvh, o));
         }
     }
     let host_points: Vec<_> = {

@@ -15,6 +15,8 @@ layout(local_size_x_id = 7) in;
 // child); w3 = child references.
 layout(std430, binding = TL_B_ACCEL) readonly buffer TlNodes { uvec4 tl_nodes[]; };
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrims { uint tl_prims[]; };
+// One tet per leaf, its id in the reference itself (no tl_prims lookup).
+layout(constant_id = 10) const bool DIRECT_LEAVES = false;
 
 // Bytes 0..3 of a word, one per child.
 vec4 tl_bytes(uint w) {
@@ -30,7 +32,7 @@ int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
             uint first = ref & 0x1fffffffu;
             uint count = ((ref >> 29u) & 3u) + 1u;
             for (uint k = 0u; k < count; k++) {
-                uint tet = tl_prims[first + k];
+                uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
                 ids = tl_tets[tet];
                 int exit_face;
                 if (tl_point_in_tet(ids, p, bary, exit_face)) {

@@ -24,8 +24,11 @@ pub struct BenchOptions {
     /// takes one sample per tet; `host` takes the given points.
     pub samples: Option<usize>,
     pub seed: u32,
-    /// Untimed runs first (pipeline creation, caches, clocks).
+    /// Untimed runs first (pipeline creation, caches).
     pub warmup: usize,
+    /// Before those, keep the GPU busy with the kernel for this long: clocks ramp up under
+    /// load (on the H100 the first benchmark of a process ran 5x slower without this).
+    pub warmup_seconds: f64,
     /// Timed runs; the result is their median. At least 5.
     pub repeats: usize,
     /// Also read the board's power through NVML while the kernel runs for about a second.
@@ -34,7 +37,16 @@ pub struct BenchOptions {
 
 impl Default for BenchOptions {
     fn default() -> Self {
-        BenchOptions { mode: SampleMode::Uniform, field: None, samples: None, seed: 1, warmup: 2, repeats: 7, power: false }
+        BenchOptions {
+            mode: SampleMode::Uniform,
+            field: None,
+            samples: None,
+            seed: 1,
+            warmup: 2,
+            warmup_seconds: 0.5,
+            repeats: 7,
+            power: false,
+        }
     }
 }
 
@@ -139,7 +151,11 @@ impl VulkanLocator {
                 Some(f) => loc.sample(pts, f, &mut vals),
             }
         };
-        for _ in 0..opts.warmup {
+        let t = Instant::now();
+        for k in 0.. {
+            if k >= opts.warmup && t.elapsed().as_secs_f64() >= opts.warmup_seconds {
+                break;
+            }
             run(self)?;
         }
         let mut times = vec![];
@@ -183,6 +199,16 @@ impl VulkanLocator {
         let chunk = self.launch_limit().min(n.max(1));
         self.ensure_io(chunk)?;
         let launches: Vec<Params> = (0..n).step_by(chunk).map(|base| self.params(chunk.min(n - base), base, opts.seed)).collect();
+        // Warm up by time, one run per submission, until the clocks have ramped up.
+        let t = Instant::now();
+        while t.elapsed().as_secs_f64() < opts.warmup_seconds {
+            let l = launch!(self, v);
+            self.cmds.run(|dev, cmd| {
+                for p in &launches {
+                    l.record(dev, cmd, p);
+                }
+            })?;
+        }
         let runs = opts.warmup + opts.repeats;
         let dev = &self.ctx.device;
         // SAFETY: plain query-pool creation; destroyed below on every path.

@@ -40,6 +40,7 @@ pub const SC_WALK_MAX: u32 = 6;
 pub const SC_WORKGROUP: u32 = 7;
 pub const SC_RAY_FLAGS: u32 = 8;
 pub const SC_RETRY_ON_MISS: u32 = 9;
+pub const SC_DIRECT_LEAVES: u32 = 10;
 
 /// The push-constant block.
 #[repr(C)]
@@ -140,5 +141,6 @@ mod tests {
         }
         let comp = include_str!("../shaders/soft_bvh.comp");
         assert!(comp.contains(&format!("local_size_x_id = {SC_WORKGROUP}")));
+        assert!(comp.contains(&format!("constant_id = {SC_DIRECT_LEAVES}) const bool DIRECT_LEAVES")));
     }
 }

@@ -75,7 +75,8 @@ pub struct LocatorOptions {
     pub compact: bool,
     /// Points per kernel launch; larger batches run in chunks (bounds the query buffers).
     pub chunk_points: usize,
-    /// soft-bvh: tets per BVH leaf: 1 (the paper's layout, more nodes) or 4 (up to four).
+    /// soft-bvh: tets per BVH leaf: 1 (the paper's layout; the reference holds the tet id) or
+    /// 4 (up to four, fewer nodes, an index list). 1 measured faster on the H100 (NOTES.md).
     pub leaf_size: usize,
     /// Use the exact f64 fallback of the point-in-tet test when the device has shaderFloat64;
     /// `false` forces the pure-f32 test.
@@ -92,7 +93,7 @@ impl Default for LocatorOptions {
             split: Some(1 << 20),
             compact: true,
             chunk_points: 1 << 22,
-            leaf_size: 4,
+            leaf_size: 1,
             float64: true,
             workgroup_size: 128,
             staging_bytes: memory::STAGING_BYTES,
@@ -166,8 +167,8 @@ pub(crate) struct Variant {
 }
 
 enum Structure {
-    Soft { _nodes: Buffer, _prims: Buffer, stack: u32 },
-    Rt(RtStructure),
+    Soft { _nodes: Buffer, _prims: Option<Buffer>, stack: u32, direct: bool },
+    Rt(Box<RtStructure>),
 }
 
 /// Most tets the face kernels visit when the closest hit's tet is off by rounding.
@@ -249,13 +250,17 @@ impl VulkanLocator {
                 let nodes = memory::device_buffer_with(
                     &ctx, &tracker, &mut staging, &mut cmds, "bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&q.nodes),
                 )?;
-                let prims = memory::device_buffer_with(
-                    &ctx, &tracker, &mut staging, &mut cmds, "bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&q.prims),
-                )?;
+                let prims = if q.direct {
+                    None
+                } else {
+                    Some(memory::device_buffer_with(
+                        &ctx, &tracker, &mut staging, &mut cmds, "bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&q.prims),
+                    )?)
+                };
                 bindings.push((B_ACCEL, vk::DescriptorType::STORAGE_BUFFER));
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
-                desc.write_buffers(&[(B_ACCEL, &nodes), (B_PRIMS, &prims)])?;
-                (Structure::Soft { _nodes: nodes, _prims: prims, stack: q.stack_size() }, desc)
+                desc.write_buffers(&[(B_ACCEL, &nodes), (B_PRIMS, prims.as_ref().unwrap_or(&dummy))])?;
+                (Structure::Soft { _nodes: nodes, _prims: prims, stack: q.stack_size(), direct: q.direct }, desc)
             }
             _ => {
                 let geometry = match kernel {
@@ -274,7 +279,7 @@ impl VulkanLocator {
                 let desc = Descriptors::new(&ctx, &bindings, stages)?;
                 desc.write_accel(B_ACCEL, s.tlas.handle);
                 desc.write_buffers(&[(B_PRIMS, &s.prims), (B_INSTANCES, &s.instance_base), (B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&dummy))])?;
-                (Structure::Rt(s), desc)
+                (Structure::Rt(Box::new(s)), desc)
             }
         };
         desc.write_buffers(&[(B_POINTS, &points), (B_TETS, &tets), (B_FIELD, &dummy), (B_QUERIES, &dummy), (B_OUT, &dummy)])?;
@@ -350,8 +355,11 @@ impl VulkanLocator {
                 .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
                 .set(SC_WALK_MAX, WALK_MAX as u32);
             let p = match &self.structure {
-                Structure::Soft { stack, .. } => {
-                    let spec = spec.set(SC_STACK_SIZE, *stack).set(SC_WORKGROUP, self.opts.workgroup_size);
+                Structure::Soft { stack, direct, .. } => {
+                    let spec = spec
+                        .set(SC_STACK_SIZE, *stack)
+                        .set(SC_WORKGROUP, self.opts.workgroup_size)
+                        .set(SC_DIRECT_LEAVES, *direct as u32);
                     pipeline::compute_pipeline(&self.ctx, self.desc.layout, shaders::SOFT_BVH.pick(self.f64), &spec)?
                 }
                 Structure::Rt(_) => {

@@ -9,8 +9,11 @@ use tetloc_core::bvh::{Bvh, BvhNode};
 /// A collapsed, quantized BVH ready for upload.
 pub(crate) struct QBvh {
     pub nodes: Vec<QNode4>,
-    /// Tet ids in leaf order (leaf references index into this).
+    /// Tet ids in leaf order (leaf references index into this); empty when `direct`.
     pub prims: Vec<u32>,
+    /// Every leaf holds one tet and its reference holds the tet id itself, saving the
+    /// shader one dependent load per leaf.
+    pub direct: bool,
     /// Levels of 4-wide nodes on the longest root-to-leaf path.
     pub depth: usize,
 }
@@ -66,6 +69,7 @@ fn quantize(origin: f32, scale: f32, lo: f32, hi: f32) -> (u8, u8) {
 
 struct Collapse<'a> {
     bvh: &'a Bvh,
+    direct: bool,
     nodes: Vec<QNode4>,
     depth: usize,
 }
@@ -106,7 +110,7 @@ impl Collapse<'_> {
                 node.q[2 * a + 1] |= (qh as u32) << (8 * c);
             }
             node.child[c] = if kn.is_leaf() {
-                leaf_ref(kn.first, kn.count)?
+                self.leaf(kn)?
             } else {
                 self.emit(k, depth + 1)?
             };
@@ -122,6 +126,16 @@ impl Collapse<'_> {
     }
 }
 
+impl Collapse<'_> {
+    fn leaf(&self, n: BvhNode) -> VkResult<u32> {
+        if self.direct {
+            leaf_ref(self.bvh.prim_ids[n.first as usize], 1)
+        } else {
+            leaf_ref(n.first, n.count)
+        }
+    }
+}
+
 fn leaf_ref(first: u32, count: u32) -> VkResult<u32> {
     if !(1..=4).contains(&count) || first > LEAF_FIRST_MAX {
         return Err(VkError::Mesh(format!(
@@ -134,7 +148,8 @@ fn leaf_ref(first: u32, count: u32) -> VkResult<u32> {
 /// Collapses a binary BVH (leaves of at most 4 tets) into quantized 4-wide nodes.
 pub(crate) fn collapse(bvh: &Bvh) -> VkResult<QBvh> {
     let root = bvh.nodes.first().ok_or_else(|| VkError::Mesh("empty BVH".into()))?;
-    let mut c = Collapse { bvh, nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1), depth: 0 };
+    let direct = bvh.nodes.iter().all(|n| !n.is_leaf() || n.count == 1);
+    let mut c = Collapse { bvh, direct, nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1), depth: 0 };
     if root.is_leaf() {
         // A tiny mesh: one node whose only child is the leaf.
         let mut node = QNode4 { origin: root.min, child: [EMPTY; 4], ..Default::default() };
@@ -144,13 +159,14 @@ pub(crate) fn collapse(bvh: &Bvh) -> VkResult<QBvh> {
             node.q[2 * a] = ql as u32 | 0xFFFF_FF00;
             node.q[2 * a + 1] = qh as u32;
         }
-        node.child[0] = leaf_ref(root.first, root.count)?;
+        node.child[0] = c.leaf(*root)?;
         c.nodes.push(node);
         c.depth = 1;
     } else {
         c.emit(0, 1)?;
     }
-    Ok(QBvh { nodes: c.nodes, prims: bvh.prim_ids.clone(), depth: c.depth })
+    let prims = if direct { vec![] } else { bvh.prim_ids.clone() };
+    Ok(QBvh { nodes: c.nodes, prims, direct, depth: c.depth })
 }
 
 #[cfg(test)]
@@ -204,6 +220,10 @@ mod tests {
                 let hi: [f32; 3] = std::array::from_fn(|a| dequantize(n.origin[a], byte(n.q[2 * a + 1]), n.scale[a]));
                 if r & LEAF != 0 {
                     let (first, count) = (r & LEAF_FIRST_MAX, ((r >> 29) & 3) + 1);
+                    if q.direct {
+                        out.push((first, lo, hi));
+                        continue;
+                    }
                     for k in first..first + count {
                         out.push((q.prims[k as usize], lo, hi));
                     }
@@ -231,6 +251,7 @@ mod tests {
                 }
             }
             assert!(seen.iter().all(|&s| s == 1));
+            assert_eq!(q.direct, preset == BuildPreset::SingleTetLeaves);
             assert!(q.depth >= 3 && q.depth < bvh.stats.max_depth + 1);
         }
     }

@@ -55,7 +55,7 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             ("chunks of 997 points", LocatorOptions { chunk_points: 997, ..base.clone() }),
         ];
         if k == Kernel::SoftBvh {
-            variants.push(("one tet per leaf", LocatorOptions { leaf_size: 1, ..base.clone() }));
+            variants.push(("up to four tets per leaf", LocatorOptions { leaf_size: 4, ..base.clone() }));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
             variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));
