@@ -35,3 +35,15 @@ pub use error::VkError;
 pub use locator::{Kernel, LocatorOptions, MemoryReport, SampleMode, VulkanLocator};
 pub use memory::{MemItem, MemKind, STAGING_BYTES};
 pub use rt::AsReport;
+
+#[cfg(test)]
+mod tests {
+    /// Locators move between threads (one per thread); contexts are shared.
+    #[test]
+    fn thread_safety() {
+        fn send<T: Send>() {}
+        fn send_sync<T: Send + Sync>() {}
+        send::<crate::VulkanLocator>();
+        send_sync::<crate::Context>();
+    }
+}
