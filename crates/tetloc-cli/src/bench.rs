@@ -161,9 +161,9 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                 field: args.field.clone(),
                 samples: Some(n),
                 seed: args.seed as u32,
-                warmup: 2,
                 repeats: args.repeats.max(5),
                 power: args.power,
+                ..BenchOptions::default()
             };
             let r = loc.bench(&opts, host.as_deref())?;
             let row = BenchRow {
