@@ -7,7 +7,8 @@
 //! --kernels a,b (default all the device runs), --modes uniform,random,bbox,host,
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
-//! --variants (soft-bvh variants: leaf size, workgroup size, pure-f32 test).
+//! --grid (soft-bvh entry grid), --variants (soft-bvh variants: leaf size, workgroup size,
+//! pure-f32 test, entry grid).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -66,6 +67,7 @@ fn parse() -> Result<Args, String> {
             "--no-compact" => a.opts.compact = false,
             "--leaf" => a.opts.leaf_size = num(val()?)?,
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
+            "--grid" => a.opts.grid_start = true,
             "--repeats" => a.repeats = num(val()?)?,
             "--power" => a.power = true,
             "--variants" => a.variants = true,
@@ -133,9 +135,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut configs: Vec<(String, Kernel, LocatorOptions)> =
         kernels.iter().map(|&k| (k.name().to_string(), k, args.opts.clone())).collect();
     if args.variants {
-        for (leaf, wg, f64) in [(4, 128, true), (1, 64, true), (1, 256, true), (1, 128, false), (4, 128, false)] {
-            let o = LocatorOptions { leaf_size: leaf, workgroup_size: wg, float64: f64, ..args.opts.clone() };
-            let label = format!("soft-bvh leaf {leaf} wg {wg}{}", if f64 { "" } else { " f32" });
+        for (leaf, wg, f64, grid) in
+            [(4, 128, true, false), (1, 64, true, false), (1, 256, true, false), (1, 128, false, false), (1, 128, true, true), (4, 128, true, true)]
+        {
+            let o = LocatorOptions { leaf_size: leaf, workgroup_size: wg, float64: f64, grid_start: grid, ..args.opts.clone() };
+            let label =
+                format!("soft-bvh leaf {leaf} wg {wg}{}{}", if f64 { "" } else { " f32" }, if grid { " grid" } else { "" });
             configs.push((label, Kernel::SoftBvh, o));
         }
     }

@@ -17,6 +17,16 @@ layout(std430, binding = TL_B_ACCEL) readonly buffer TlNodes { uvec4 tl_nodes[];
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrims { uint tl_prims[]; };
 // One tet per leaf, its id in the reference itself (no tl_prims lookup).
 layout(constant_id = 10) const bool DIRECT_LEAVES = false;
+// Start below the root, at the node the entry grid names for the point's cell
+// (src/soft_bvh.rs EntryGrid: header dims.xyz, 0, inv.xyz as bits, 0; then the cells).
+layout(constant_id = 11) const bool GRID_START = false;
+layout(std430, binding = TL_B_GRID) readonly buffer TlGrid { uint tl_grid[]; };
+
+// soft_bvh::cell_coord: the same f32 operations, so CPU and GPU agree on the cell.
+uint tl_cell_coord(float p, float lo, float inv, uint dim) {
+    precise float x = (p - lo) * inv;
+    return uint(clamp(floor(x), 0.0, float(dim - 1u)));
+}
 
 // Bytes 0..3 of a word, one per child.
 vec4 tl_bytes(uint w) {
@@ -27,6 +37,18 @@ int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
     uint stack[STACK_SIZE];
     uint sp = 0u;
     uint ref = 0u; // the root
+    if (GRID_START) {
+        uvec3 dims = uvec3(tl_grid[0], tl_grid[1], tl_grid[2]);
+        vec3 inv = uintBitsToFloat(uvec3(tl_grid[4], tl_grid[5], tl_grid[6]));
+        vec3 lo = params.lo_tmin.xyz;
+        uint cx = tl_cell_coord(p.x, lo.x, inv.x, dims.x);
+        uint cy = tl_cell_coord(p.y, lo.y, inv.y, dims.y);
+        uint cz = tl_cell_coord(p.z, lo.z, inv.z, dims.z);
+        ref = tl_grid[8u + (cz * dims.y + cy) * dims.x + cx];
+        if (ref == TL_EMPTY) {
+            return -1; // no tet's box overlaps this cell
+        }
+    }
     while (true) {
         if ((ref & TL_LEAF) != 0u) {
             uint first = ref & 0x1fffffffu;

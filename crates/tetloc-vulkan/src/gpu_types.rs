@@ -14,6 +14,8 @@ pub const B_ACCEL: u32 = 5;
 pub const B_PRIMS: u32 = 6;
 pub const B_INSTANCES: u32 = 7;
 pub const B_NEIGHBORS: u32 = 8;
+/// soft-bvh entry grid.
+pub const B_GRID: u32 = 9;
 
 pub const SAMPLE_HOST: i32 = 0;
 pub const SAMPLE_UNIFORM: i32 = 1;
@@ -41,6 +43,7 @@ pub const SC_WORKGROUP: u32 = 7;
 pub const SC_RAY_FLAGS: u32 = 8;
 pub const SC_RETRY_ON_MISS: u32 = 9;
 pub const SC_DIRECT_LEAVES: u32 = 10;
+pub const SC_GRID_START: u32 = 11;
 
 /// The push-constant block.
 #[repr(C)]
@@ -110,6 +113,7 @@ mod tests {
             ("TL_B_PRIMS", B_PRIMS),
             ("TL_B_INSTANCES", B_INSTANCES),
             ("TL_B_NEIGHBORS", B_NEIGHBORS),
+            ("TL_B_GRID", B_GRID),
             ("TL_LEAF", LEAF),
             ("TL_EMPTY", EMPTY),
         ] {
@@ -142,5 +146,6 @@ mod tests {
         let comp = include_str!("../shaders/soft_bvh.comp");
         assert!(comp.contains(&format!("local_size_x_id = {SC_WORKGROUP}")));
         assert!(comp.contains(&format!("constant_id = {SC_DIRECT_LEAVES}) const bool DIRECT_LEAVES")));
+        assert!(comp.contains(&format!("constant_id = {SC_GRID_START}) const bool GRID_START")));
     }
 }

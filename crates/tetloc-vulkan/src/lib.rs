@@ -32,7 +32,7 @@ mod soft_bvh;
 pub use bench::{si, BenchOptions, BenchResult};
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
-pub use locator::{Kernel, LocatorOptions, MemoryReport, SampleMode, VulkanLocator};
+pub use locator::{Kernel, LocatorOptions, MemoryReport, SampleMode, VulkanLocator, GRID_TETS_PER_CELL};
 pub use memory::{MemItem, MemKind, STAGING_BYTES};
 pub use rt::AsReport;
 

@@ -83,6 +83,10 @@ pub struct LocatorOptions {
     pub float64: bool,
     /// soft-bvh: invocations per workgroup.
     pub workgroup_size: u32,
+    /// soft-bvh: start each traversal below the root, at the node an entry grid names for the
+    /// point's cell (about `GRID_TETS_PER_CELL` tets per cell, 4 B per cell). Unmeasured on
+    /// GPUs so far: off by default (NOTES.md).
+    pub grid_start: bool,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
 }
@@ -96,6 +100,7 @@ impl Default for LocatorOptions {
             leaf_size: 1,
             float64: true,
             workgroup_size: 128,
+            grid_start: false,
             staging_bytes: memory::STAGING_BYTES,
         }
     }
@@ -167,9 +172,13 @@ pub(crate) struct Variant {
 }
 
 enum Structure {
-    Soft { _nodes: Buffer, _prims: Option<Buffer>, stack: u32, direct: bool },
+    Soft { _nodes: Buffer, _prims: Option<Buffer>, _grid: Option<Buffer>, stack: u32, direct: bool, grid: bool },
     Rt(Box<RtStructure>),
 }
+
+/// soft-bvh entry grid resolution: about this many tets per cell (a 1M-tet jets mesh then
+/// starts traversal at level 6-7 of 13 on median).
+pub const GRID_TETS_PER_CELL: usize = 2;
 
 /// Most tets the face kernels visit when the closest hit's tet is off by rounding.
 const WALK_MAX: i32 = 16;
@@ -257,10 +266,24 @@ impl VulkanLocator {
                         &ctx, &tracker, &mut staging, &mut cmds, "bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&q.prims),
                     )?)
                 };
+                let grid = if opts.grid_start {
+                    let g = q.entry_grid(&mesh.points, &mesh.tets, mesh.info.bounds_min, mesh.info.bounds_max, GRID_TETS_PER_CELL);
+                    Some(memory::device_buffer_with(
+                        &ctx, &tracker, &mut staging, &mut cmds, "entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()),
+                    )?)
+                } else {
+                    None
+                };
                 bindings.push((B_ACCEL, vk::DescriptorType::STORAGE_BUFFER));
+                bindings.push((B_GRID, vk::DescriptorType::STORAGE_BUFFER));
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
-                desc.write_buffers(&[(B_ACCEL, &nodes), (B_PRIMS, prims.as_ref().unwrap_or(&dummy))])?;
-                (Structure::Soft { _nodes: nodes, _prims: prims, stack: q.stack_size(), direct: q.direct }, desc)
+                desc.write_buffers(&[
+                    (B_ACCEL, &nodes),
+                    (B_PRIMS, prims.as_ref().unwrap_or(&dummy)),
+                    (B_GRID, grid.as_ref().unwrap_or(&dummy)),
+                ])?;
+                let (stack, direct, has_grid) = (q.stack_size(), q.direct, grid.is_some());
+                (Structure::Soft { _nodes: nodes, _prims: prims, _grid: grid, stack, direct, grid: has_grid }, desc)
             }
             _ => {
                 let geometry = match kernel {
@@ -355,11 +378,12 @@ impl VulkanLocator {
                 .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
                 .set(SC_WALK_MAX, WALK_MAX as u32);
             let p = match &self.structure {
-                Structure::Soft { stack, direct, .. } => {
+                Structure::Soft { stack, direct, grid, .. } => {
                     let spec = spec
                         .set(SC_STACK_SIZE, *stack)
                         .set(SC_WORKGROUP, self.opts.workgroup_size)
-                        .set(SC_DIRECT_LEAVES, *direct as u32);
+                        .set(SC_DIRECT_LEAVES, *direct as u32)
+                        .set(SC_GRID_START, *grid as u32);
                     pipeline::compute_pipeline(&self.ctx, self.desc.layout, shaders::SOFT_BVH.pick(self.f64), &spec)?
                 }
                 Structure::Rt(_) => {

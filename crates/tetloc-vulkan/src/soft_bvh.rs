@@ -16,6 +16,11 @@ pub(crate) struct QBvh {
     pub direct: bool,
     /// Levels of 4-wide nodes on the longest root-to-leaf path.
     pub depth: usize,
+    /// For the entry grid: each node's parent (root: itself) and level, and the node whose
+    /// child list holds each tet.
+    parent: Vec<u32>,
+    level: Vec<u8>,
+    home: Vec<u32>,
 }
 
 impl QBvh {
@@ -72,6 +77,9 @@ struct Collapse<'a> {
     direct: bool,
     nodes: Vec<QNode4>,
     depth: usize,
+    parent: Vec<u32>,
+    level: Vec<u8>,
+    home: Vec<u32>,
 }
 
 impl Collapse<'_> {
@@ -80,7 +88,7 @@ impl Collapse<'_> {
     }
 
     /// Emits the 4-wide node for binary interior node `i` and its subtree (depth-first order).
-    fn emit(&mut self, i: usize, depth: usize) -> VkResult<u32> {
+    fn emit(&mut self, i: usize, depth: usize, parent: Option<u32>) -> VkResult<u32> {
         self.depth = self.depth.max(depth);
         // Open the largest interior child until there are four.
         let mut kids: Vec<usize> = self.children(i).to_vec();
@@ -97,6 +105,8 @@ impl Collapse<'_> {
         }
         let me = self.nodes.len();
         self.nodes.push(QNode4::default());
+        self.parent.push(parent.unwrap_or(me as u32));
+        self.level.push(depth.min(255) as u8);
         let n = &self.bvh.nodes[i];
         let mut node = QNode4 { origin: n.min, child: [EMPTY; 4], ..Default::default() };
         for a in 0..3 {
@@ -110,9 +120,12 @@ impl Collapse<'_> {
                 node.q[2 * a + 1] |= (qh as u32) << (8 * c);
             }
             node.child[c] = if kn.is_leaf() {
+                for &t in &self.bvh.prim_ids[kn.first as usize..(kn.first + kn.count) as usize] {
+                    self.home[t as usize] = me as u32;
+                }
                 self.leaf(kn)?
             } else {
-                self.emit(k, depth + 1)?
+                self.emit(k, depth + 1, Some(me as u32))?
             };
         }
         // Empty slots get an empty box (lower byte 255 > upper byte 0) besides the EMPTY reference.
@@ -149,7 +162,15 @@ fn leaf_ref(first: u32, count: u32) -> VkResult<u32> {
 pub(crate) fn collapse(bvh: &Bvh) -> VkResult<QBvh> {
     let root = bvh.nodes.first().ok_or_else(|| VkError::Mesh("empty BVH".into()))?;
     let direct = bvh.nodes.iter().all(|n| !n.is_leaf() || n.count == 1);
-    let mut c = Collapse { bvh, direct, nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1), depth: 0 };
+    let mut c = Collapse {
+        bvh,
+        direct,
+        nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1),
+        depth: 0,
+        parent: vec![],
+        level: vec![],
+        home: vec![0; bvh.prim_ids.len()],
+    };
     if root.is_leaf() {
         // A tiny mesh: one node whose only child is the leaf.
         let mut node = QNode4 { origin: root.min, child: [EMPTY; 4], ..Default::default() };
@@ -161,12 +182,89 @@ pub(crate) fn collapse(bvh: &Bvh) -> VkResult<QBvh> {
         }
         node.child[0] = c.leaf(*root)?;
         c.nodes.push(node);
+        c.parent.push(0);
+        c.level.push(1);
         c.depth = 1;
     } else {
-        c.emit(0, 1)?;
+        c.emit(0, 1, None)?;
     }
     let prims = if direct { vec![] } else { bvh.prim_ids.clone() };
-    Ok(QBvh { nodes: c.nodes, prims, direct, depth: c.depth })
+    Ok(QBvh { nodes: c.nodes, prims, direct, depth: c.depth, parent: c.parent, level: c.level, home: c.home })
+}
+
+/// Cell coordinate of `p` on one axis, computed exactly as the shader does (one f32
+/// subtraction and one multiplication, no FMA), so that the CPU and the GPU agree on which
+/// cell a point is in, and cell(lo) <= cell(p) <= cell(hi) whenever lo <= p <= hi.
+#[inline]
+pub(crate) fn cell_coord(p: f32, lo: f32, inv: f32, dim: u32) -> u32 {
+    ((p - lo) * inv).floor().clamp(0.0, (dim - 1) as f32) as u32
+}
+
+/// A uniform grid over the mesh's bounding box whose cells name where traversal may start:
+/// the lowest common ancestor of the nodes holding every tet whose box overlaps the cell
+/// (so the subtree holds every tet that can contain a point of the cell), or EMPTY.
+pub(crate) struct EntryGrid {
+    pub dims: [u32; 3],
+    pub inv: [f32; 3],
+    pub cells: Vec<u32>,
+}
+
+impl EntryGrid {
+    /// Header (dims, 0, inv as bits, 0) and cells, as uploaded.
+    pub fn words(&self) -> Vec<u32> {
+        let mut w = vec![self.dims[0], self.dims[1], self.dims[2], 0];
+        w.extend(self.inv.map(f32::to_bits));
+        w.push(0);
+        w.extend_from_slice(&self.cells);
+        w
+    }
+
+    pub fn cell_of(&self, p: [f32; 3], lo: [f32; 3]) -> usize {
+        let c: [u32; 3] = std::array::from_fn(|a| cell_coord(p[a], lo[a], self.inv[a], self.dims[a]));
+        ((c[2] as usize * self.dims[1] as usize) + c[1] as usize) * self.dims[0] as usize + c[0] as usize
+    }
+}
+
+impl QBvh {
+    fn lca(&self, mut a: u32, mut b: u32) -> u32 {
+        while self.level[a as usize] > self.level[b as usize] {
+            a = self.parent[a as usize];
+        }
+        while self.level[b as usize] > self.level[a as usize] {
+            b = self.parent[b as usize];
+        }
+        while a != b {
+            a = self.parent[a as usize];
+            b = self.parent[b as usize];
+        }
+        a
+    }
+
+    /// The entry grid over [lo, hi] with about one cell per `tets_per_cell` tets.
+    pub fn entry_grid(&self, points: &[[f32; 3]], tets: &[[u32; 4]], lo: [f32; 3], hi: [f32; 3], tets_per_cell: usize) -> EntryGrid {
+        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0) as f64);
+        let cells_wanted = (tets.len() / tets_per_cell.max(1)).max(1) as f64;
+        let used: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
+        let h = if used.is_empty() { 1.0 } else { (used.iter().product::<f64>() / cells_wanted).powf(1.0 / used.len() as f64) };
+        let dims: [u32; 3] = std::array::from_fn(|a| ((extent[a] / h).round() as u32).clamp(1, 1024));
+        let inv: [f32; 3] = std::array::from_fn(|a| if extent[a] > 0.0 { dims[a] as f32 / (hi[a] - lo[a]) } else { 0.0 });
+        let mut grid = EntryGrid { dims, inv, cells: vec![EMPTY; (dims[0] * dims[1] * dims[2]) as usize] };
+        for (t, &ids) in tets.iter().enumerate() {
+            let (tlo, thi) = tetloc_core::geom::tet_bounds(ids, points);
+            let c0: [u32; 3] = std::array::from_fn(|a| cell_coord(tlo[a], lo[a], inv[a], dims[a]));
+            let c1: [u32; 3] = std::array::from_fn(|a| cell_coord(thi[a], lo[a], inv[a], dims[a]));
+            let home = self.home[t];
+            for z in c0[2]..=c1[2] {
+                for y in c0[1]..=c1[1] {
+                    for x in c0[0]..=c1[0] {
+                        let cell = &mut grid.cells[((z * dims[1] + y) * dims[0] + x) as usize];
+                        *cell = if *cell == EMPTY { home } else { self.lca(*cell, home) };
+                    }
+                }
+            }
+        }
+        grid
+    }
 }
 
 #[cfg(test)]
@@ -253,6 +351,36 @@ mod tests {
             assert!(seen.iter().all(|&s| s == 1));
             assert_eq!(q.direct, preset == BuildPreset::SingleTetLeaves);
             assert!(q.depth >= 3 && q.depth < bvh.stats.max_depth + 1);
+        }
+    }
+
+    /// Every tet lies in the subtree of the entry of every cell its box overlaps.
+    #[test]
+    fn entry_grid_subtrees_hold_their_tets() {
+        let (pts, tets) = grid(6);
+        for preset in [BuildPreset::Fast, BuildPreset::SingleTetLeaves] {
+            let q = collapse(&Bvh::build(&pts, &tets, preset)).unwrap();
+            let (lo, hi) = pts.iter().fold(([f32::MAX; 3], [f32::MIN; 3]), |(l, h), p| {
+                (std::array::from_fn(|a| l[a].min(p[a])), std::array::from_fn(|a| h[a].max(p[a])))
+            });
+            let g = q.entry_grid(&pts, &tets, lo, hi, 4);
+            assert!(g.cells.len() > 100 && g.cells.iter().all(|&c| c != EMPTY));
+            let below = |mut n: u32, anc: u32| loop {
+                if n == anc {
+                    return true;
+                }
+                if q.parent[n as usize] == n {
+                    return false;
+                }
+                n = q.parent[n as usize];
+            };
+            for (t, &ids) in tets.iter().enumerate() {
+                let c = g.cell_of(geom::tet_bounds(ids, &pts).0, lo);
+                assert!(below(q.home[t], g.cells[c]), "tet {t} not under the entry of cell {c}");
+            }
+            // Most cells start below the root (a 1M-tet jets mesh: median level 6-7 of 13).
+            let deep = g.cells.iter().filter(|&&c| q.level[c as usize] > 1).count();
+            assert!(deep * 2 > g.cells.len(), "{deep} of {} cells start below the root", g.cells.len());
         }
     }
 

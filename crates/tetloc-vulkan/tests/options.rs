@@ -56,6 +56,8 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
         ];
         if k == Kernel::SoftBvh {
             variants.push(("up to four tets per leaf", LocatorOptions { leaf_size: 4, ..base.clone() }));
+            variants.push(("entry grid", LocatorOptions { grid_start: true, ..base.clone() }));
+            variants.push(("entry grid, four per leaf", LocatorOptions { grid_start: true, leaf_size: 4, ..base.clone() }));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
             variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));

@@ -13,6 +13,7 @@
 #define TL_B_PRIMS 6
 #define TL_B_INSTANCES 7
 #define TL_B_NEIGHBORS 8
+#define TL_B_GRID 9
 
 // Where sample points come from (specialization constant SAMPLE_MODE).
 #define TL_SAMPLE_HOST 0
