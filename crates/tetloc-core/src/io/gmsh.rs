@@ -1751,7 +1751,9 @@ mod tests {
             assert_eq!(m.tets.len() as u64, meta["n_tets"].as_u64().unwrap(), "{file}");
             assert_eq!(m.higher_order, None);
             check_generated_fields(&m, &file);
-            Mesh::new(m, file.clone()).unwrap();
+            // Corners in the file's order: the inverted tets are those the generator counted.
+            let mesh = Mesh::new(m, file.clone()).unwrap();
+            assert_eq!(mesh.info.n_reoriented as u64, meta["n_negative_volume"].as_u64().unwrap(), "{file}");
             seen += 1;
         }
         assert_eq!(seen, 4, "generated .msh files");
