@@ -171,9 +171,11 @@ pub(crate) struct Variant {
     pub record: bool,
 }
 
+/// The search structure; its buffers are only held (bound in the descriptor set).
+#[allow(clippy::large_enum_variant)]
 enum Structure {
     Soft { _nodes: Buffer, _prims: Option<Buffer>, _grid: Option<Buffer>, stack: u32, direct: bool, grid: bool },
-    Rt(Box<RtStructure>),
+    Rt(RtStructure),
 }
 
 /// soft-bvh entry grid resolution: about this many tets per cell (a 1M-tet jets mesh then
@@ -302,7 +304,7 @@ impl VulkanLocator {
                 let desc = Descriptors::new(&ctx, &bindings, stages)?;
                 desc.write_accel(B_ACCEL, s.tlas.handle);
                 desc.write_buffers(&[(B_PRIMS, &s.prims), (B_INSTANCES, &s.instance_base), (B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&dummy))])?;
-                (Structure::Rt(Box::new(s)), desc)
+                (Structure::Rt(s), desc)
             }
         };
         desc.write_buffers(&[(B_POINTS, &points), (B_TETS, &tets), (B_FIELD, &dummy), (B_QUERIES, &dummy), (B_OUT, &dummy)])?;

@@ -219,6 +219,7 @@ impl EntryGrid {
         w
     }
 
+    #[cfg(test)]
     pub fn cell_of(&self, p: [f32; 3], lo: [f32; 3]) -> usize {
         let c: [u32; 3] = std::array::from_fn(|a| cell_coord(p[a], lo[a], self.inv[a], self.dims[a]));
         ((c[2] as usize * self.dims[1] as usize) + c[1] as usize) * self.dims[0] as usize + c[0] as usize
