@@ -65,7 +65,7 @@ pub fn make(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<d
     if name == CPU {
         return Ok(Box::new(CpuLocator::new(mesh.clone())));
     }
-    let kernel: Kernel = name.parse().map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto)", names().join(", ")))?;
+    let kernel: Kernel = name.parse().map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto, all)", names().join(", ")))?;
     Ok(Box::new(make_vulkan(kernel, mesh, opts)?))
 }
 

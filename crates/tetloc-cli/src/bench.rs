@@ -143,9 +143,8 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
             }
             continue;
         }
-        let kernel: Kernel = match name.parse() {
-            Ok(k) => k,
-            Err(e) => bail!("{e}"),
+        let Ok(kernel) = name.parse::<Kernel>() else {
+            bail!("unknown backend '{name}' (known: {}, auto, all)", backend::names().join(", "));
         };
         let mut loc = backend::make_vulkan(kernel, mesh, &args.opts)?;
         for &q in &args.queries {

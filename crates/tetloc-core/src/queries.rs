@@ -46,9 +46,11 @@ impl FromStr for QueryKind {
     }
 }
 
-/// A uniformly random point in the tet with corners `v` (Rocchini & Cignoni's folding of the cube).
+/// A uniformly random point in the tet with corners `v` (Rocchini & Cignoni's folding of the
+/// cube), computed in f64 and pulled towards the centre by 1e-3 of the way, so that rounding
+/// to f32 cannot put it outside a boundary tet (such points would count as "outside").
 pub fn random_point_in_tet(v: [Vec3; 4], rng: &mut impl Rng) -> Vec3 {
-    let (mut s, mut t, mut u): (f32, f32, f32) = (rng.gen(), rng.gen(), rng.gen());
+    let (mut s, mut t, mut u): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
     if s + t > 1.0 {
         s = 1.0 - s;
         t = 1.0 - t;
@@ -62,8 +64,9 @@ pub fn random_point_in_tet(v: [Vec3; 4], rng: &mut impl Rng) -> Vec3 {
         u = s + t + u - 1.0;
         s = 1.0 - t - tmp;
     }
-    let a = 1.0 - s - t - u;
-    std::array::from_fn(|k| a * v[0][k] + s * v[1][k] + t * v[2][k] + u * v[3][k])
+    const PULL: f64 = 1e-3;
+    let w = [1.0 - s - t - u, s, t, u].map(|x| (1.0 - PULL) * x + PULL * 0.25);
+    std::array::from_fn(|k| (0..4).map(|i| w[i] * v[i][k] as f64).sum::<f64>() as f32)
 }
 
 /// `n` query points of the given kind (for `centers`, tet centres in order, cycling if `n`
@@ -88,4 +91,36 @@ pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> 
                 .collect::<Vec<_>>()
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Random points lie inside their tet, also in a flat one.
+    #[test]
+    fn random_points_are_inside_their_tet() {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+        let pts = vec![[1.0, 1.0, 1.0], [1.1, 1.0, 1.0], [1.0, 1.1, 1.0], [1.03, 1.03, 1.01]];
+        let (tet, _) = crate::geom::canonical_tet([0, 1, 2, 3], &pts);
+        for _ in 0..20000 {
+            let p = random_point_in_tet(tet.map(|i| pts[i as usize]), &mut rng);
+            assert!(crate::geom::point_in_tet(tet, &pts, p).is_some(), "{p:?}");
+        }
+    }
+
+    #[test]
+    fn query_sets_have_the_asked_size_and_kind() {
+        let mesh = crate::test_support::grid_mesh(3, 0.2, 1);
+        for kind in QueryKind::ALL {
+            let q = generate(&mesh, kind, 70_000, 3);
+            assert_eq!(q.len(), 70_000);
+            assert_eq!(q, generate(&mesh, kind, 70_000, 3), "deterministic");
+            let inside = |p: &Vec3| p.iter().all(|&c| (0.0..=1.0).contains(&c));
+            assert!(q.iter().all(inside), "{kind}");
+        }
+        assert_eq!(generate(&mesh, QueryKind::Centers, 5, 0)[2], mesh.tet_center(2));
+        assert_eq!("uniform".parse::<QueryKind>().unwrap(), QueryKind::Centers);
+        assert!("nope".parse::<QueryKind>().is_err());
+    }
 }
