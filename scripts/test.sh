@@ -12,4 +12,7 @@ if [ -z "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ] && [ -n "${CI:-}" ]; then
   [ -n "$lvp" ] && export VK_DRIVER_FILES="$lvp"
 fi
 export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
+# The fuzz targets' bodies over the shared data, truncations and byte flips (stable toolchain;
+# the fuzz crate is its own workspace so that cargo-fuzz can build it with nightly).
+cargo test --locked --manifest-path fuzz/Cargo.toml --lib
 cargo test --workspace --locked "$@"
