@@ -44,7 +44,7 @@ fn check_set(loc: &mut VulkanLocator, mesh: &Mesh, set: &QuerySet, cpu: &[i32]) 
                 continue;
             }
             // The reference: f64 barycentrics in the tet the kernel chose.
-            let exact = common::exact_value(mesh, ids[i] as usize, set.points[i], &f.values);
+            let exact = tetloc_core::testdata::exact_value(mesh, ids[i] as usize, set.points[i], &f.values);
             assert!(close(got, exact), "{label}: f at point {i}: {got}, exact {exact}");
             if !close(exact, want) {
                 oracle_off.push(i); // the oracle itself is off here (or another tet was chosen)

@@ -123,17 +123,3 @@ pub fn check_ids_allowing(
     differ
 }
 
-/// The per-vertex field `values` at `p` interpolated in tet `t` with barycentrics from f64
-/// volumes: the reference for the scalar variants.
-pub fn exact_value(mesh: &Mesh, t: usize, p: Vec3, values: &[f32]) -> f64 {
-    let ids = mesh.tets[t];
-    let v: [Vec3; 4] = ids.map(|i| mesh.points[i as usize]);
-    let vol = geom::tet_volume6(v);
-    (0..4)
-        .map(|i| {
-            let mut w = v;
-            w[i] = p;
-            geom::tet_volume6(w) / vol * values[ids[i] as usize] as f64
-        })
-        .sum()
-}
