@@ -21,7 +21,9 @@ pub fn run(n_tets: usize, n_points: usize, seed: u64, opts: &BackendOptions) -> 
         let build = t0.elapsed().as_secs_f64();
         let mut ids = vec![0; points.len()];
         let mut vals = vec![0f32; points.len()];
-        loc.locate(&points, &mut ids)?; // warm-up
+        // Warm-up: GPU backends compile each variant's pipeline and upload the field on first use.
+        loc.locate(&points, &mut ids)?;
+        loc.sample(&points, "f", &mut vals)?;
         let t = Instant::now();
         loc.locate(&points, &mut ids)?;
         let locate_s = t.elapsed().as_secs_f64();
