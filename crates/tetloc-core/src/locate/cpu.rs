@@ -107,31 +107,50 @@ impl CpuLocator {
         None
     }
 
-    /// Locates every point, visiting them in Morton order with walks from the previous
-    /// answer, and hands `(index, answer)` to `emit` in that order, per chunk.
+    /// Locates every point, walking from the previous answer, and writes `f(answer)` to
+    /// `out`. Incoherent batches are visited in Morton order so that consecutive points are
+    /// close; batches that already are (tet centres in mesh order, points along rays or
+    /// particle paths) keep their order and skip the sort.
     fn locate_batch<T: Send + Copy>(&self, points: &[Vec3], out: &mut [T], f: impl Fn(Option<(u32, Bary)>) -> T + Sync) {
-        let order = morton_order(points, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
-        let sorted: Vec<T> = order
-            .par_chunks(CHUNK)
-            .flat_map_iter(|chunk| {
-                let mut hint: Option<u32> = None;
-                chunk
-                    .iter()
-                    .map(|&i| {
-                        let p = points[i as usize];
-                        let found = hint.and_then(|h| self.walk(h, p)).or_else(|| self.locate_point(p));
-                        if let Some((t, _)) = found {
-                            hint = Some(t);
-                        }
-                        f(found)
-                    })
-                    .collect::<Vec<T>>()
+        let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<T> {
+            let mut hint: Option<u32> = None;
+            idx.map(|i| {
+                let p = points[i];
+                let found = hint.and_then(|h| self.walk(h, p)).or_else(|| self.locate_point(p));
+                if let Some((t, _)) = found {
+                    hint = Some(t);
+                }
+                f(found)
             })
-            .collect();
+            .collect()
+        };
+        if is_coherent(points, self.mesh.info.mean_edge_length) {
+            out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
+                o.copy_from_slice(&walk_chunk(&mut (c * CHUNK..c * CHUNK + o.len())));
+            });
+            return;
+        }
+        let order = morton_order(points, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+        let sorted: Vec<T> =
+            order.par_chunks(CHUNK).flat_map_iter(|chunk| walk_chunk(&mut chunk.iter().map(|&i| i as usize))).collect();
         for (k, &i) in order.iter().enumerate() {
             out[i as usize] = sorted[k];
         }
     }
+}
+
+/// Whether consecutive points are, on average, within a few tet sizes of each other, so
+/// that walking in the given order beats sorting first.
+pub(super) fn is_coherent(points: &[Vec3], mean_edge: f32) -> bool {
+    if points.len() < 2 {
+        return true;
+    }
+    let step: f64 = points
+        .par_windows(2)
+        .map(|w| (0..3).map(|k| ((w[1][k] - w[0][k]) as f64).abs()).sum::<f64>())
+        .sum::<f64>()
+        / (points.len() - 1) as f64;
+    step < 3.0 * mean_edge as f64
 }
 
 /// The permutation that sorts `points` by the Morton code of their position in the box.

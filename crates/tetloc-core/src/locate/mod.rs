@@ -4,6 +4,8 @@
 
 mod cpu;
 #[cfg(test)]
+use cpu::is_coherent;
+#[cfg(test)]
 mod tests;
 
 pub use cpu::CpuLocator;

@@ -120,3 +120,35 @@ fn batch_answers_do_not_depend_on_order() {
     assert_eq!(ids, want);
     assert!(want.iter().all(|&i| i >= 0), "a point of the mesh came back outside");
 }
+
+/// Coherent batches (tet centres and face points in mesh order) skip the Morton sort and
+/// walk in the given order: the answers are still the per-point BVH answers.
+#[test]
+fn coherent_batches_give_the_same_answers() {
+    // Small jitter: no tet folds over, so every interior point has one containing tet.
+    let m = Arc::new(grid_mesh(8, 0.1, 12));
+    assert_eq!(m.info.n_reoriented, m.n_tets() / 2, "Kuhn tets alternate orientation; none folded");
+    let mut loc = CpuLocator::new(m.clone());
+    let mut pts: Vec<Vec3> = (0..m.n_tets()).map(|t| m.tet_center(t)).collect();
+    for f in &m.faces().faces {
+        let [a, b, c] = f.v.map(|i| m.points[i as usize]);
+        pts.push(std::array::from_fn(|k| (a[k] + b[k] + c[k]) / 3.0));
+    }
+    assert!(super::is_coherent(&pts, m.info.mean_edge_length), "the test must exercise the unsorted path");
+    let want: Vec<i32> = pts.iter().map(|&p| loc.locate_point(p).map_or(OUTSIDE, |(t, _)| t as i32)).collect();
+    let mut ids = vec![0; pts.len()];
+    loc.locate(&pts, &mut ids).unwrap();
+    assert_eq!(ids, want);
+    assert!((0..m.n_tets()).all(|t| ids[t] == t as i32), "every centre in its own tet");
+    let mut shuffled = pts.clone();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(1);
+    use rand::seq::SliceRandom;
+    let mut perm: Vec<usize> = (0..pts.len()).collect();
+    perm.shuffle(&mut rng);
+    for (k, &i) in perm.iter().enumerate() {
+        shuffled[k] = pts[i];
+    }
+    assert!(!super::is_coherent(&shuffled, m.info.mean_edge_length));
+    loc.locate(&shuffled, &mut ids).unwrap();
+    assert!(perm.iter().enumerate().all(|(k, &i)| ids[k] == want[i]));
+}
