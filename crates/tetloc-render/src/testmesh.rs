@@ -3,70 +3,20 @@
 //!
 //! Each mesh carries a per-vertex field `f` and a per-cell field `c`.
 
-use rand::{Rng, SeedableRng};
 use std::f32::consts::TAU;
-use tetloc_core::{Field, FieldLocation, Mesh, RawMesh, Vec3};
+use tetloc_core::testdata::KuhnGrid;
+use tetloc_core::{Mesh, Vec3};
 
-/// The six tets of the Kuhn (Freudenthal) split of a grid cube: one per axis order, so the
-/// split is the same in every cube and neighbouring cubes share faces exactly.
-const KUHN: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
-
-/// A grid of `n³` cubes over `[0, 1]³`, each split into 6 tets, keeping the tets whose
-/// centroid satisfies `keep`. Interior vertices are moved by up to `jitter` cell widths per
-/// axis (≤ 0.1 keeps every tet positively shaped). `f(p)` gives the vertex field.
+/// A grid of `n³` cubes over `[0, 1]³`, each split into 6 tets (Kuhn split:
+/// [`KuhnGrid`]), keeping the tets whose centroid satisfies `keep`. Interior
+/// vertices are moved by up to `jitter` cell widths per axis (≤ 0.1 keeps every tet
+/// positively shaped). `f(p)` gives the vertex field `f`, and at the centroids the cell field `c`.
 ///
 /// # Panics
 /// When `n` is 0 or `jitter` is outside 0..=0.1, or `keep` rejects every tet.
 pub fn grid(n: usize, jitter: f32, seed: u64, keep: impl Fn(Vec3) -> bool, f: impl Fn(Vec3) -> f32, name: &str) -> Mesh {
     assert!(n >= 1 && (0.0..=0.1).contains(&jitter));
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-    let h = 1.0 / n as f32;
-    let id = |x: usize, y: usize, z: usize| ((z * (n + 1) + y) * (n + 1) + x) as u32;
-    let mut points = Vec::with_capacity((n + 1).pow(3));
-    for z in 0..=n {
-        for y in 0..=n {
-            for x in 0..=n {
-                let g = [x, y, z];
-                points.push(std::array::from_fn(|k| {
-                    let interior = g[k] > 0 && g[k] < n;
-                    let j = if interior && jitter > 0.0 { rng.gen_range(-jitter..jitter) } else { 0.0 };
-                    (g[k] as f32 + j) * h
-                }));
-            }
-        }
-    }
-    let mut tets = Vec::new();
-    for z in 0..n {
-        for y in 0..n {
-            for x in 0..n {
-                for order in KUHN {
-                    let mut c = [x, y, z];
-                    let mut t = [id(x, y, z); 4];
-                    for (i, &axis) in order.iter().enumerate() {
-                        c[axis] += 1;
-                        t[i + 1] = id(c[0], c[1], c[2]);
-                    }
-                    let centroid: Vec3 = std::array::from_fn(|k| t.iter().map(|&v| points[v as usize][k]).sum::<f32>() / 4.0);
-                    if keep(centroid) {
-                        tets.push(t);
-                    }
-                }
-            }
-        }
-    }
-    let vertex = points.iter().map(|&p| f(p)).collect();
-    let cell = tets
-        .iter()
-        .map(|t: &[u32; 4]| {
-            let c: Vec3 = std::array::from_fn(|k| t.iter().map(|&v| points[v as usize][k]).sum::<f32>() / 4.0);
-            f(c)
-        })
-        .collect();
-    let fields = vec![
-        Field { name: "f".into(), location: FieldLocation::Vertex, values: vertex },
-        Field { name: "c".into(), location: FieldLocation::Cell, values: cell },
-    ];
-    Mesh::new(RawMesh { points, tets, fields, higher_order: None }, name).expect("grid meshes are valid")
+    KuhnGrid::new(n).jitter(jitter, seed).keep(keep).vertex_field(&f).cell_field("c", |_, c| f(c)).mesh(name)
 }
 
 /// A smooth field with structure at a few scales.
@@ -76,14 +26,7 @@ pub fn wavy(p: Vec3) -> f32 {
 
 /// The cube `[0, side]³` of `n³ · 6` regular tets with both fields constant at `value`.
 pub fn cube(n: usize, side: f32, value: f32) -> Mesh {
-    let unit = grid(n, 0.0, 0, |_| true, |_| value, "cube");
-    let raw = RawMesh {
-        points: unit.points.iter().map(|p| p.map(|x| x * side)).collect(),
-        tets: unit.tets.clone(),
-        fields: unit.fields.clone(),
-        higher_order: None,
-    };
-    Mesh::new(raw, "cube").expect("valid")
+    KuhnGrid::new(n).spacing([side / n as f32; 3]).vertex_field(|_| value).cell_field("c", |_, _| value).mesh("cube")
 }
 
 /// Two balls of radius 0.2 at opposite corners of the unit square's diagonal, z = 0.5.

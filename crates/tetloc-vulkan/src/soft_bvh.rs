@@ -274,32 +274,12 @@ mod tests {
     use tetloc_core::bvh::BuildPreset;
     use tetloc_core::geom;
 
+    /// n^3 cubes, 6 tets each (Kuhn), taller than wide, every vertex jittered; tets made
+    /// positive as the locator's BVH expects.
     fn grid(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 4]>) {
-        // n^3 cubes, 6 tets each (Kuhn), jittered vertices.
-        let idx = |i: usize, j: usize, k: usize| (i * (n + 1) * (n + 1) + j * (n + 1) + k) as u32;
-        let mut pts = vec![];
-        for i in 0..=n {
-            for j in 0..=n {
-                for k in 0..=n {
-                    let h = ((i * 73856093) ^ (j * 19349663) ^ (k * 83492791)) % 1000;
-                    pts.push([i as f32 + h as f32 * 1e-4, j as f32 - h as f32 * 7e-5, k as f32 * 1.5]);
-                }
-            }
-        }
-        let mut tets = vec![];
-        for i in 0..n {
-            for j in 0..n {
-                for k in 0..n {
-                    let c = |a, b, d| idx(i + a, j + b, k + d);
-                    let (v0, v7) = (c(0, 0, 0), c(1, 1, 1));
-                    for (a, b) in [(c(1, 0, 0), c(1, 1, 0)), (c(1, 0, 0), c(1, 0, 1)), (c(0, 1, 0), c(1, 1, 0)),
-                                   (c(0, 1, 0), c(0, 1, 1)), (c(0, 0, 1), c(1, 0, 1)), (c(0, 0, 1), c(0, 1, 1))] {
-                        tets.push(geom::canonical_tet([v0, a, b, v7], &pts).0);
-                    }
-                }
-            }
-        }
-        (pts, tets)
+        let raw = tetloc_core::testdata::KuhnGrid::new(n).spacing([1.0, 1.0, 1.5]).jitter(0.05, n as u64).jitter_boundary().raw();
+        let tets = raw.tets.iter().map(|&t| geom::canonical_tet(t, &raw.points).0).collect();
+        (raw.points, tets)
     }
 
     /// Walks the 4-wide tree on the CPU as the shader does; returns every leaf's tets with

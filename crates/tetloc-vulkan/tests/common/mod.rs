@@ -4,7 +4,7 @@
 
 use std::sync::Arc;
 use tetloc_core::geom::{self, Vec3};
-use tetloc_core::mesh::{Field, FieldLocation, Mesh, RawMesh};
+use tetloc_core::mesh::Mesh;
 use tetloc_core::testdata::in_ci;
 use tetloc_vulkan::{Context, ContextOptions, Kernel, VkError};
 
@@ -49,41 +49,7 @@ pub fn jets(n: usize, seed: u64) -> Arc<Mesh> {
 /// shared diagonal per cube, the worst case for rays along structured directions. Vertex
 /// field `f` = x + 2y + 3z (linear, so interpolation is exact), cell field `c` = id.
 pub fn regular_grid(n: usize) -> Arc<Mesh> {
-    let idx = |i: usize, j: usize, k: usize| (i * (n + 1) * (n + 1) + j * (n + 1) + k) as u32;
-    let mut points = vec![];
-    for i in 0..=n {
-        for j in 0..=n {
-            for k in 0..=n {
-                points.push([i as f32, j as f32, k as f32]);
-            }
-        }
-    }
-    let mut tets = vec![];
-    for i in 0..n {
-        for j in 0..n {
-            for k in 0..n {
-                let c = |a, b, d| idx(i + a, j + b, k + d);
-                let (v0, v7) = (c(0, 0, 0), c(1, 1, 1));
-                for (a, b) in [
-                    (c(1, 0, 0), c(1, 1, 0)),
-                    (c(1, 0, 0), c(1, 0, 1)),
-                    (c(0, 1, 0), c(1, 1, 0)),
-                    (c(0, 1, 0), c(0, 1, 1)),
-                    (c(0, 0, 1), c(1, 0, 1)),
-                    (c(0, 0, 1), c(0, 1, 1)),
-                ] {
-                    tets.push([v0, a, b, v7]);
-                }
-            }
-        }
-    }
-    let f = points.iter().map(|p| p[0] + 2.0 * p[1] + 3.0 * p[2]).collect();
-    let c = (0..tets.len()).map(|t| t as f32).collect();
-    let fields = vec![
-        Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
-        Field { name: "c".into(), location: FieldLocation::Cell, values: c },
-    ];
-    Arc::new(Mesh::new(RawMesh { points, tets, fields, higher_order: None }, "regular grid").unwrap())
+    Arc::new(tetloc_core::testdata::KuhnGrid::new(n).spacing([1.0; 3]).mesh("regular grid"))
 }
 
 /// Checks GPU ids against the watertight definition: every id >= 0 is a tet that contains

@@ -241,49 +241,15 @@ fn gigantic_declared_sizes_fail_fast() {
 }
 
 
-/// A jittered grid of `n`³ cubes, 6 tets each (Kuhn split), with a point and a cell field.
+/// A grid of `n`³ cubes, 6 tets each (Kuhn split), every vertex jittered (boundary too),
+/// with a point and a cell field.
 pub(crate) fn jittered_grid(n: usize, seed: u64) -> crate::Mesh {
-    use crate::mesh::Field;
-    use rand::{Rng, SeedableRng};
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
-    let m = n + 1;
-    let h = 1.0 / n as f32;
-    let mut points = Vec::with_capacity(m * m * m);
-    for k in 0..m {
-        for j in 0..m {
-            for i in 0..m {
-                let mut jit = || rng.gen_range(-0.15..0.15) * h;
-                points.push([i as f32 * h + jit(), j as f32 * h + jit(), k as f32 * h + jit()]);
-            }
-        }
-    }
-    let v = |i: usize, j: usize, k: usize| (i + m * (j + m * k)) as u32;
-    let mut tets = Vec::with_capacity(6 * n * n * n);
-    for k in 0..n {
-        for j in 0..n {
-            for i in 0..n {
-                let c = |a: usize, b: usize, d: usize| v(i + a, j + b, k + d);
-                let (v0, v7) = (c(0, 0, 0), c(1, 1, 1));
-                for (a, b) in [
-                    (c(1, 0, 0), c(1, 1, 0)),
-                    (c(1, 0, 0), c(1, 0, 1)),
-                    (c(0, 1, 0), c(1, 1, 0)),
-                    (c(0, 1, 0), c(0, 1, 1)),
-                    (c(0, 0, 1), c(1, 0, 1)),
-                    (c(0, 0, 1), c(0, 1, 1)),
-                ] {
-                    tets.push([v0, a, b, v7]);
-                }
-            }
-        }
-    }
-    let f = points.iter().map(|p| p[0] + 2.0 * p[1] - p[2]).collect();
-    let cell = (0..tets.len()).map(|i| i as f32).collect();
-    let fields = vec![
-        Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
-        Field { name: "cell id".into(), location: FieldLocation::Cell, values: cell },
-    ];
-    crate::Mesh::new(RawMesh { points, tets, fields, higher_order: None }, "jittered grid").unwrap()
+    crate::testdata::KuhnGrid::new(n)
+        .jitter(0.15, seed)
+        .jitter_boundary()
+        .vertex_field(|p| p[0] + 2.0 * p[1] - p[2])
+        .cell_field("cell id", |t, _| t as f32)
+        .mesh("jittered grid")
 }
 
 #[test]
