@@ -10,7 +10,7 @@ use serde::Serialize;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::queries::{self, QueryKind};
-use tetloc_core::Mesh;
+use tetloc_core::{BatchLocator, Mesh};
 use tetloc_vulkan::{BenchOptions, Kernel, SampleMode};
 
 /// A query set on the command line.
@@ -95,8 +95,9 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
         let name = if name == "auto" { backend::auto_choice(&args.opts)? } else { name.clone() };
         if name == backend::CPU {
             let t0 = Instant::now();
-            let mut loc = backend::make(&name, mesh, &args.opts)?;
+            let mut loc = tetloc_core::CpuLocator::new(mesh.clone());
             let build_s = t0.elapsed().as_secs_f64();
+            eprintln!("{}", loc.bvh().stats.report());
             for &q in &args.queries {
                 let kind = match q {
                     Query::Generated(k) => k,
@@ -105,7 +106,7 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                 let points = queries::generate(mesh, kind, n, args.seed);
                 let mut ids = vec![0i32; n];
                 let mut values = vec![0f32; n];
-                let mut run_once = |loc: &mut dyn tetloc_core::BatchLocator| -> Result<f64> {
+                let mut run_once = |loc: &mut tetloc_core::CpuLocator| -> Result<f64> {
                     let t = Instant::now();
                     match &args.field {
                         Some(f) => loc.sample(&points, f, &mut values)?,
@@ -113,8 +114,8 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                     }
                     Ok(t.elapsed().as_secs_f64())
                 };
-                run_once(loc.as_mut())?; // warm-up
-                let times: Vec<f64> = (0..args.repeats).map(|_| run_once(loc.as_mut())).collect::<Result<_>>()?;
+                run_once(&mut loc)?; // warm-up
+                let times: Vec<f64> = (0..args.repeats).map(|_| run_once(&mut loc)).collect::<Result<_>>()?;
                 let med = median(times);
                 let outside = match &args.field {
                     Some(_) => values.iter().filter(|v| v.is_nan()).count(),
