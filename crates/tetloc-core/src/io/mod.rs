@@ -5,6 +5,8 @@ pub mod gmsh;
 pub mod points;
 pub mod tetgen;
 pub mod vtk_legacy;
+/// What the VTK XML and legacy readers and the VTU writer share: cell types, arrays, blocks.
+pub(crate) mod vtk;
 pub mod vtu;
 pub mod vtu_write;
 #[cfg(test)]

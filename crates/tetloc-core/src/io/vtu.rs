@@ -8,13 +8,11 @@
 //! anything is allocated for it.
 
 // The parts shared with the legacy reader and the writers live in `io/vtk/`.
-#[path = "vtk/mod.rs"]
-pub(crate) mod vtk;
 
-use self::vtk::blocks::{self, Layout};
-use self::vtk::cells;
-use self::vtk::num::{self, Array, NumType};
-use self::vtk::xml::{self, Node};
+use super::vtk::blocks::{self, Layout};
+use super::vtk::cells;
+use super::vtk::num::{self, Array, NumType};
+use super::vtk::xml::{self, Node};
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::borrow::Cow;
@@ -22,7 +20,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
-    let bytes = vtk::read_file(path)?;
+    let bytes = super::vtk::read_file(path)?;
     parse(&bytes, path)
 }
 

@@ -6,9 +6,9 @@
 //! no copy of it; compressed ones are compressed in parallel blocks first (their sizes go in
 //! the XML header).
 
-use super::vtu::vtk::blocks;
-use super::vtu::vtk::cells;
-use super::vtu::vtk::num::NumType;
+use super::vtk::blocks;
+use super::vtk::cells;
+use super::vtk::num::NumType;
 use crate::error::{Error, Result};
 use crate::mesh::{FieldLocation, Mesh};
 use std::io::Write;
@@ -352,7 +352,7 @@ mod tests {
         let pts = vec![[0.5, 1.5, 2.5], [3., 4., 5.], [-1., -2., -3.]];
         write_points_vtu(&tmp.0, &pts, &[4, -1, 0], Some(("value of f", &[1.0, f32::NAN, 3.0]))).unwrap();
         let bytes = std::fs::read(&tmp.0).unwrap();
-        let doc = super::super::vtu::vtk::xml::parse(&bytes, "AppendedData").unwrap();
+        let doc = super::super::vtk::xml::parse(&bytes, "AppendedData").unwrap();
         let piece = doc.root.child("UnstructuredGrid").unwrap().child("Piece").unwrap();
         let pd = piece.child("PointData").unwrap();
         let ids = pd.children_named("DataArray").find(|d| d.attr("Name") == Some("tet_id")).unwrap();
