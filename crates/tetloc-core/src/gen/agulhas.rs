@@ -3,7 +3,7 @@
 //! down to a smooth bathymetry that shoals towards the coasts, with continents (smooth noise)
 //! cut out as holes through the whole layer. Terrain-following layers, finer near the surface.
 
-use super::grid::{keep_lowest, ColumnShape, Columns, LEVEL_JITTER, XY_JITTER};
+use super::grid::{keep_lowest, ColumnShape, Columns, LayerPlan, LEVEL_JITTER, XY_JITTER};
 use super::noise::{column_jitter, level_jitter, smoothstep, splitmix64, Noise2};
 use crate::geom::Vec3;
 use rand::SeedableRng;
@@ -44,21 +44,14 @@ pub(super) struct Agulhas {
 impl Agulhas {
     pub fn new(cells: usize, seed: u64) -> Agulhas {
         let mut rng = Pcg64::seed_from_u64(seed ^ 0x4147_554c);
-        // K wet columns of nk layers with layer thickness ≈ FLATNESS · h, h = √(wet area / K):
-        // cells = K · MEAN_DEPTH·DEPTH / (FLATNESS·h)  ⇒  K = (cells·FLATNESS·√area / (MEAN_DEPTH·DEPTH))^⅔.
-        let wet_area = WET * WIDTH * LENGTH;
-        let k_est = (cells as f64 * FLATNESS * wet_area.sqrt() / (MEAN_DEPTH * DEPTH)).powf(2.0 / 3.0);
-        let nk = ((cells as f64 / k_est.max(1.0)).round() as usize).max(2);
-        let n_wet = ((cells as f64 / nk as f64).round() as usize).max(1);
-        let n_cols = n_wet as f64 / WET;
-        let ni = ((n_cols * WIDTH / LENGTH).sqrt().round() as usize).max(2);
-        let nj = ((n_cols / ni as f64).ceil() as usize).max(2);
-        let h = WIDTH / ni as f64;
+        // Wet columns of nk layers, layer thickness ≈ FLATNESS · h.
+        let plan = LayerPlan::new(cells, WET, WIDTH, LENGTH, MEAN_DEPTH * DEPTH / FLATNESS);
+        let LayerPlan { ni, nj, nk, n_keep: n_wet, h } = plan;
 
         let land = Noise2::new(&mut rng, 8, 0.25, 2.0);
         let bottom = Noise2::new(&mut rng, 6, 0.15, 1.2);
         let surface = Noise2::new(&mut rng, 4, 0.3, 1.0);
-        let centre = |c: usize| (((c % ni) as f64 + 0.5) * h, ((c / ni) as f64 + 0.5) * h);
+        let centre = |c: usize| plan.centre(c);
         let land_at: Vec<f64> = (0..ni * nj)
             .into_par_iter()
             .map(|c| {

@@ -44,6 +44,36 @@ const KUHN: [[usize; 4]; 6] = [
     [0, 4, 7, 6], // z y x
 ];
 
+/// How a thin layer over a `width × length` rectangle is cut into columns: `n_keep` kept
+/// columns (a `kept_fraction` of all) of `nk` cubes each, square in plan with side `h`, so that
+/// the cube count is about `cells` when a column is `thickness / h` cubes deep on average.
+pub(super) struct LayerPlan {
+    pub ni: usize,
+    pub nj: usize,
+    pub nk: usize,
+    pub n_keep: usize,
+    pub h: f64,
+}
+
+impl LayerPlan {
+    /// cells = K · thickness / h with h = √(kept area / K)  ⇒  K = (cells · √area / thickness)^⅔.
+    pub fn new(cells: usize, kept_fraction: f64, width: f64, length: f64, thickness: f64) -> LayerPlan {
+        let area = kept_fraction * width * length;
+        let k_est = (cells as f64 * area.sqrt() / thickness).powf(2.0 / 3.0);
+        let nk = ((cells as f64 / k_est.max(1.0)).round() as usize).max(2);
+        let n_keep = ((cells as f64 / nk as f64).round() as usize).max(1);
+        let n_cols = n_keep as f64 / kept_fraction;
+        let ni = ((n_cols * width / length).sqrt().round() as usize).max(2);
+        let nj = ((n_cols / ni as f64).ceil() as usize).max(2);
+        LayerPlan { ni, nj, nk, n_keep, h: width / ni as f64 }
+    }
+
+    /// The plan-view centre of column `c` (row-major, `i` fastest).
+    pub fn centre(&self, c: usize) -> (f64, f64) {
+        (((c % self.ni) as f64 + 0.5) * self.h, ((c / self.ni) as f64 + 0.5) * self.h)
+    }
+}
+
 /// The grid: which of the `ni × nj` columns (row-major, `i` fastest) are kept, and how many
 /// cells each column has.
 pub(super) struct Columns {

@@ -3,7 +3,7 @@
 //! along an island arc with ragged edges, dipping steeply under the arc like a subducting
 //! plate, inside a box 1 × 1.6 wide and as tall as the sheet's dip.
 
-use super::grid::{keep_lowest, ColumnShape, Columns, LEVEL_JITTER, XY_JITTER};
+use super::grid::{keep_lowest, ColumnShape, Columns, LayerPlan, LEVEL_JITTER, XY_JITTER};
 use super::noise::{column_jitter, level_jitter, splitmix64, Noise2};
 use crate::geom::Vec3;
 use rand::SeedableRng;
@@ -43,21 +43,14 @@ fn inside_arc(x: f64, y: f64) -> f64 {
 impl Japan {
     pub fn new(cells: usize, seed: u64) -> Japan {
         let mut rng = Pcg64::seed_from_u64(seed ^ 0x4a50_4e00);
-        // K footprint columns of nk layers, layer thickness ≈ spacing h = √(area / K):
-        // cells = K · THICKNESS / h  ⇒  K = (cells · √area / THICKNESS)^⅔.
-        let area = FOOTPRINT * WIDTH * LENGTH;
-        let k_est = (cells as f64 * area.sqrt() / THICKNESS).powf(2.0 / 3.0);
-        let nk = ((cells as f64 / k_est.max(1.0)).round() as usize).max(2);
-        let n_keep = ((cells as f64 / nk as f64).round() as usize).max(1);
-        let n_cols = n_keep as f64 / FOOTPRINT;
-        let ni = ((n_cols * WIDTH / LENGTH).sqrt().round() as usize).max(2);
-        let nj = ((n_cols / ni as f64).ceil() as usize).max(2);
-        let h = WIDTH / ni as f64;
+        // Footprint columns of nk layers, layer thickness ≈ spacing h.
+        let plan = LayerPlan::new(cells, FOOTPRINT, WIDTH, LENGTH, THICKNESS);
+        let LayerPlan { ni, nj, nk, n_keep, h } = plan;
 
         let edges = Noise2::new(&mut rng, 6, 0.08, 0.8);
         let undulation = Noise2::new(&mut rng, 5, 0.2, 1.2);
         let thickness = Noise2::new(&mut rng, 5, 0.15, 1.0);
-        let centre = |c: usize| (((c % ni) as f64 + 0.5) * h, ((c / ni) as f64 + 0.5) * h);
+        let centre = |c: usize| plan.centre(c);
         // Footprint: the columns nearest the arc, with ragged edges.
         let outline: Vec<f64> = (0..ni * nj)
             .into_par_iter()
