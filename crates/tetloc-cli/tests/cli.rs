@@ -88,6 +88,8 @@ fn bad_input_is_a_clear_error_and_a_nonzero_exit() {
     assert!(!ok && err.contains("cut.vtu"), "{err}");
     let (ok, _, err) = tetloc(&["locate", "jets:1000", "--points", "/nonexistent/p.bin", "--out", "x.bin", "--backend", "cpu"]);
     assert!(!ok && err.contains("/nonexistent/p.bin"), "{err}");
+    let (ok, _, err) = tetloc(&["info", "jets:100G"]);
+    assert!(!ok && err.contains("GB of memory"), "{err}");
     let (ok, _, err) = tetloc(&["bench", "jets:1000", "--backend", "warp-drive"]);
     assert!(!ok && err.contains("unknown backend 'warp-drive'"), "{err}");
     if let Some(dir) = require_data("bad_input_is_a_clear_error_and_a_nonzero_exit") {

@@ -50,12 +50,39 @@ impl MeshFormat {
     }
 }
 
+/// Memory the system can still hand out (Linux `MemAvailable`), if known.
+pub fn available_memory_bytes() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib * 1024)
+}
+
+/// Refuses, with a clear error, to start reading a file that cannot fit in memory: readers
+/// hold the file's bytes and the arrays decoded from them at once (about twice its size).
+fn check_fits_in_memory(path: &Path) -> Result<()> {
+    let len = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
+    if let Some(avail) = available_memory_bytes() {
+        if len.saturating_mul(2) > avail {
+            let gb = |b: u64| b as f64 / 1e9;
+            return Err(Error::format(
+                path,
+                format!("the file is {:.1} GB; reading it needs about {:.1} GB of memory but {:.1} GB are available", gb(len), gb(2 * len), gb(avail)),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Reads a mesh file into a raw mesh (tets in file order, not yet validated).
 pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
     let format = match format {
         Some(f) => f,
         None => MeshFormat::from_path(path)?,
     };
+    if format != MeshFormat::TetGen {
+        check_fits_in_memory(path)?;
+    }
     match format {
         MeshFormat::Vtu => vtu::read(path),
         MeshFormat::VtkLegacy => vtk_legacy::read(path),
@@ -68,4 +95,22 @@ pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
 pub fn read_mesh(path: &Path, format: Option<MeshFormat>) -> Result<Mesh> {
     let raw = read_raw(path, format)?;
     Mesh::new(raw, path.display().to_string())
+}
+
+#[cfg(test)]
+mod memory_tests {
+    use super::*;
+
+    /// A (sparse) file larger than memory is refused up front with a clear error, not an
+    /// allocation failure.
+    #[test]
+    fn files_too_big_for_memory_are_refused() {
+        let Some(avail) = available_memory_bytes() else { return };
+        let path = std::env::temp_dir().join(format!("tetloc-huge-{}.vtu", std::process::id()));
+        let f = std::fs::File::create(&path).unwrap();
+        f.set_len(avail).unwrap();
+        let msg = read_mesh(&path, None).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(msg.contains(&path.display().to_string()) && msg.contains("GB of memory"), "{msg}");
+    }
 }
