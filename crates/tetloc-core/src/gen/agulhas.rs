@@ -3,8 +3,8 @@
 //! down to a smooth bathymetry that shoals towards the coasts, with continents (smooth noise)
 //! cut out as holes through the whole layer. Terrain-following layers, finer near the surface.
 
-use super::grid::{keep_lowest, ColumnShape, Columns, LayerPlan, LEVEL_JITTER, XY_JITTER};
-use super::noise::{column_jitter, level_jitter, smoothstep, splitmix64, Noise2};
+use super::grid::{column_xy, keep_lowest, ColumnShape, Columns, LayerPlan, LEVEL_JITTER};
+use super::noise::{level_jitter, smoothstep, splitmix64, Noise2};
 use crate::geom::Vec3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
@@ -115,9 +115,7 @@ impl ColumnShape for Agulhas {
 
     fn column_points(&self, i: usize, j: usize, out: &mut [Vec3]) {
         let nk = self.columns.nk;
-        let (jx, jy) = column_jitter(self.seed, i, j);
-        let x = (i as f64 + XY_JITTER * jx) * self.h;
-        let y = (j as f64 + XY_JITTER * jy) * self.h;
+        let (x, y) = column_xy(self.seed, i, j, self.h);
         let top = SURFACE * DEPTH * self.surface.at(x, y);
         let bottom = -self.depth(x, y);
         for (k, p) in out.iter_mut().enumerate() {

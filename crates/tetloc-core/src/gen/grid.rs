@@ -25,6 +25,12 @@ use rayon::prelude::*;
 /// triangle's area (1) by at most 2·(2·0.17) + (2·0.17)² < 0.8: it cannot flip.
 pub(super) const XY_JITTER: f64 = 0.12;
 
+/// Plan position of vertex column `(i, j)` of a layer with spacing `h`, jittered sideways.
+pub(super) fn column_xy(seed: u64, i: usize, j: usize, h: f64) -> (f64, f64) {
+    let (jx, jy) = super::noise::column_jitter(seed, i, j);
+    ((i as f64 + XY_JITTER * jx) * h, (j as f64 + XY_JITTER * jy) * h)
+}
+
 /// Jitter of a level inside its column, as a fraction of the level spacing: levels stay at
 /// least 0.4 spacings apart, so they keep their order.
 pub(super) const LEVEL_JITTER: f64 = 0.3;

@@ -3,8 +3,8 @@
 //! along an island arc with ragged edges, dipping steeply under the arc like a subducting
 //! plate, inside a box 1 × 1.6 wide and as tall as the sheet's dip.
 
-use super::grid::{keep_lowest, ColumnShape, Columns, LayerPlan, LEVEL_JITTER, XY_JITTER};
-use super::noise::{column_jitter, level_jitter, splitmix64, Noise2};
+use super::grid::{column_xy, keep_lowest, ColumnShape, Columns, LayerPlan, LEVEL_JITTER};
+use super::noise::{level_jitter, splitmix64, Noise2};
 use crate::geom::Vec3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
@@ -96,9 +96,7 @@ impl ColumnShape for Japan {
 
     fn column_points(&self, i: usize, j: usize, out: &mut [Vec3]) {
         let nk = self.columns.nk;
-        let (jx, jy) = column_jitter(self.seed, i, j);
-        let x = (i as f64 + XY_JITTER * jx) * self.h;
-        let y = (j as f64 + XY_JITTER * jy) * self.h;
+        let (x, y) = column_xy(self.seed, i, j, self.h);
         let s = ((self.raw_surface(x, y) - self.s_min) / (self.s_max - self.s_min)).clamp(-0.1, 1.1);
         let mid = -self.dip * s;
         let th = self.thickness_at(x, y);

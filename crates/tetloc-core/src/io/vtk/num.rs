@@ -156,8 +156,9 @@ pub(crate) trait Elem: Copy + Send + Sync + 'static {
     }
 }
 
-macro_rules! impl_int {
-    ($($t:ty),*) => {$(
+/// Element types; `to_i64` is the one conversion that differs between integers and floats.
+macro_rules! impl_elem {
+    ($to_i64:expr; $($t:ty),*) => {$(
         impl Elem for $t {
             const SIZE: usize = std::mem::size_of::<$t>();
             #[inline(always)]
@@ -167,28 +168,12 @@ macro_rules! impl_int {
             #[inline(always)]
             fn to_f64(self) -> f64 { self as f64 }
             #[inline(always)]
-            fn to_i64(self) -> Option<i64> { i64::try_from(self).ok() }
+            fn to_i64(self) -> Option<i64> { ($to_i64)(self) }
         }
     )*};
 }
-impl_int!(i8, u8, i16, u16, i32, u32, i64, u64);
-
-macro_rules! impl_float {
-    ($($t:ty),*) => {$(
-        impl Elem for $t {
-            const SIZE: usize = std::mem::size_of::<$t>();
-            #[inline(always)]
-            fn read(b: &[u8]) -> Self { <$t>::from_le_bytes(b.try_into().unwrap()) }
-            #[inline(always)]
-            fn to_f32(self) -> f32 { self as f32 }
-            #[inline(always)]
-            fn to_f64(self) -> f64 { self as f64 }
-            #[inline(always)]
-            fn to_i64(self) -> Option<i64> { None }
-        }
-    )*};
-}
-impl_float!(f32, f64);
+impl_elem!(|v| i64::try_from(v).ok(); i8, u8, i16, u16, i32, u32, i64, u64);
+impl_elem!(|_| None; f32, f64);
 
 
 /// Maps each tuple of `N` values of `T` to one output value, in parallel. `f` rejects a tuple
