@@ -275,9 +275,9 @@ fn locate(mesh: &str, pts: &Path, out: &Path, field: Option<&str>, values_out: O
     let t0 = Instant::now();
     for (c, p) in points.chunks(CHUNK).enumerate() {
         let r = c * CHUNK..c * CHUNK + p.len();
-        loc.locate(p, &mut ids[r.clone()])?;
-        if let Some(f) = field {
-            loc.sample(p, f, &mut values[r])?;
+        match field {
+            Some(f) => loc.locate_and_sample(p, f, &mut ids[r.clone()], &mut values[r])?,
+            None => loc.locate(p, &mut ids[r])?,
         }
         pb.inc(p.len() as u64);
     }

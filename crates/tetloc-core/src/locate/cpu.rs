@@ -153,6 +153,20 @@ pub(super) fn is_coherent(points: &[Vec3], mean_edge: f32) -> bool {
     step < 3.0 * mean_edge as f64
 }
 
+impl CpuLocator {
+    /// The value of `field` for a locate answer: interpolated (per vertex) or looked up (per
+    /// cell); NaN outside.
+    fn value_fn(&self, field: &str) -> Result<impl Fn(Option<(u32, Bary)>) -> f32 + Sync + '_> {
+        let f = self.mesh.field(field)?;
+        let (tets, vals, location) = (&self.mesh.tets, &f.values, f.location);
+        Ok(move |found: Option<(u32, Bary)>| match (found, location) {
+            (None, _) => f32::NAN,
+            (Some((t, b)), FieldLocation::Vertex) => geom::interpolate(tets[t as usize], b, vals),
+            (Some((t, _)), FieldLocation::Cell) => vals[t as usize],
+        })
+    }
+}
+
 /// The permutation that sorts `points` by the Morton code of their position in the box.
 fn morton_order(points: &[Vec3], lo: Vec3, hi: Vec3) -> Vec<u32> {
     let scale: [f32; 3] = std::array::from_fn(|k| if hi[k] > lo[k] { 1023.0 / (hi[k] - lo[k]) } else { 0.0 });
@@ -188,13 +202,19 @@ impl BatchLocator for CpuLocator {
 
     fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
         check_lengths(points.len(), values.len())?;
-        let f = self.mesh.field(field)?;
-        let (tets, vals) = (&self.mesh.tets, &f.values);
-        match f.location {
-            FieldLocation::Vertex => self.locate_batch(points, values, |found| {
-                found.map_or(f32::NAN, |(t, b)| geom::interpolate(tets[t as usize], b, vals))
-            }),
-            FieldLocation::Cell => self.locate_batch(points, values, |found| found.map_or(f32::NAN, |(t, _)| vals[t as usize])),
+        let value = self.value_fn(field)?;
+        self.locate_batch(points, values, value);
+        Ok(())
+    }
+
+    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len(), values.len())?;
+        let value = self.value_fn(field)?;
+        let mut both = vec![(OUTSIDE, 0f32); points.len()];
+        self.locate_batch(points, &mut both, |found| (found.map_or(OUTSIDE, |(t, _)| t as i32), value(found)));
+        for ((id, v), (i, x)) in ids.iter_mut().zip(values.iter_mut()).zip(both) {
+            (*id, *v) = (i, x);
         }
         Ok(())
     }

@@ -27,6 +27,11 @@ pub trait BatchLocator {
     fn name(&self) -> &str;
     fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()>;
     fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()>;
+    /// Ids and values together; backends that can do both in one pass override this.
+    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        self.locate(points, ids)?;
+        self.sample(points, field, values)
+    }
 }
 
 pub(crate) fn check_lengths(points: usize, out: usize) -> Result<()> {

@@ -91,6 +91,11 @@ fn sample_interpolates_vertex_fields_and_looks_up_cell_fields() {
         assert_eq!(cell[i], t as f32);
     }
     assert!(f.last().unwrap().is_nan() && cell.last().unwrap().is_nan());
+    // One pass for both gives the same ids and values as two.
+    let (mut ids2, mut f2) = (vec![0; pts.len()], vec![0.0; pts.len()]);
+    loc.locate_and_sample(&pts, "f", &mut ids2, &mut f2).unwrap();
+    assert_eq!(ids2, ids);
+    assert!(f2.iter().zip(&f).all(|(a, b)| a.to_bits() == b.to_bits()));
     assert!(loc.sample(&pts, "nope", &mut f).is_err());
     assert!(loc.locate(&pts, &mut ids[1..]).is_err());
 }
