@@ -19,6 +19,7 @@
 #include "common/mesh.glsl"
 #include "common/tet.glsl"
 #include "common/rt.glsl"
+#include "common/walk.glsl"
 
 #ifdef REP_FACES
 // Triangle 4k + j of the concatenated BLAS inputs belongs to tet tl_prim_tet[k].
@@ -27,8 +28,6 @@ layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrimTet { uint tl_prim_te
 // (front, back) tets of each face, -1 for none (tetloc_core::mesh::Face).
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlFaceTets { ivec2 tl_face_tets[]; };
 #endif
-// Neighbour of each tet across the face opposite its stored vertex i (-1: boundary), Mesh::neighbors().
-layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_neighbors[]; };
 
 layout(location = 0) rayPayloadInEXT TlPayload pl;
 
@@ -46,16 +45,13 @@ void main() {
     }
 #endif
     vec3 p = gl_WorldRayOriginEXT;
-    for (int step = 0; step < WALK_MAX && tet >= 0; step++) {
-        uvec4 ids = tl_tets[tet];
-        vec4 bary;
-        int exit_face;
-        if (tl_point_in_tet(ids, p, bary, exit_face)) {
-            pl.tet = tet;
-            pl.value = OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary);
-            return;
-        }
-        tet = tl_neighbors[tet][exit_face];
+    uvec4 ids;
+    vec4 bary;
+    tet = tl_walk(tet, p, WALK_MAX, ids, bary);
+    if (tet >= 0) {
+        pl.tet = tet;
+        pl.value = OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary);
+        return;
     }
     // Not found: the point is outside the mesh, or the hit was a face coincident with
     // another (a seam of duplicated vertices) that led the walk astray. Report it like a

@@ -145,7 +145,8 @@ mod tests {
         }
         let comp = include_str!("../shaders/soft_bvh.comp");
         assert!(comp.contains(&format!("local_size_x_id = {SC_WORKGROUP}")));
-        assert!(comp.contains(&format!("constant_id = {SC_DIRECT_LEAVES}) const bool DIRECT_LEAVES")));
-        assert!(comp.contains(&format!("constant_id = {SC_GRID_START}) const bool GRID_START")));
+        let traversal = include_str!("../shaders/common/soft_bvh.glsl");
+        assert!(traversal.contains(&format!("constant_id = {SC_DIRECT_LEAVES}) const bool DIRECT_LEAVES")));
+        assert!(traversal.contains(&format!("constant_id = {SC_GRID_START}) const bool GRID_START")));
     }
 }
