@@ -7,7 +7,7 @@ mod mesh_arg;
 mod progress;
 mod render;
 
-use anyhow::{bail, Result};
+use anyhow::{bail, Context, Result};
 use backend::BackendOptions;
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
@@ -46,6 +46,10 @@ enum Command {
         /// zlib-compress the appended data.
         #[arg(long)]
         zlib: bool,
+        /// Also write the shape's terrain (agulhas: sea floor and land) as a Wavefront OBJ
+        /// surface, for `tetloc render --surface FILE`.
+        #[arg(long)]
+        terrain: Option<PathBuf>,
     },
     /// Locate points (and sample a field) and write the tet ids (and values).
     Locate {
@@ -146,9 +150,17 @@ fn main() {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { mesh, json, format } => info(&mesh, json, format.as_deref()),
-        Command::Gen { shape, tets, out, seed, zlib } => {
+        Command::Gen { shape, tets, out, seed, zlib, terrain } => {
             let shape: tetloc_core::gen::Shape = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
             let n = mesh_arg::parse_count(&tets)?;
+            if let Some(path) = &terrain {
+                let ground = mesh_arg::terrain(shape, n, seed)?;
+                let file = std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?;
+                ground
+                    .write_obj(std::io::BufWriter::new(file))
+                    .with_context(|| format!("{}: cannot write", path.display()))?;
+                eprintln!("{}: terrain with {} triangles", path.display(), ground.triangles.len());
+            }
             let t0 = Instant::now();
             let mesh = mesh_arg::generate(shape, n, seed)?;
             let gen_s = t0.elapsed().as_secs_f64();

@@ -55,6 +55,14 @@ pub fn generate(shape: Shape, n: usize, seed: u64) -> Result<Mesh> {
     Ok(mesh)
 }
 
+/// The terrain that goes with a generated shape, or an error naming the shapes that have one.
+pub fn terrain(shape: Shape, n: usize, seed: u64) -> Result<gen::Terrain> {
+    gen::terrain(shape, n, seed).with_context(|| {
+        let with: Vec<_> = Shape::ALL.into_iter().filter(|&s| gen::terrain(s, 1000, 1).is_some()).map(|s| s.name()).collect();
+        format!("{shape} has no terrain (shapes with one: {})", with.join(", "))
+    })
+}
+
 /// Loads a mesh file (format from the extension unless given) or generates `SHAPE:N`.
 pub fn load(arg: &str, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
     if let Some((shape, n)) = parse_generated(arg) {

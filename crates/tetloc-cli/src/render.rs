@@ -43,7 +43,8 @@ pub struct RenderArgs {
     /// Optical depth across the bounds' diagonal of a fully opaque value.
     #[arg(long)]
     opacity: Option<String>,
-    /// `boundary` (the mesh's boundary faces) or an OBJ, STL or VTK polydata file.
+    /// `boundary` (the mesh's boundary faces), `terrain` (a generated shape's ground, e.g.
+    /// agulhas: sea floor and continents), or an OBJ, STL or VTK polydata file.
     #[arg(long)]
     surface: Option<String>,
     /// Render an orbit of N frames.
@@ -85,7 +86,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(k) = &a.opacity {
         o.opacity = tr::parse_opacity(k)?;
     }
-    o.surface = a.surface.as_deref().map(tr::SurfaceSpec::parse);
+    o.surface = match a.surface.as_deref() {
+        Some("terrain") => {
+            let Some((shape, n)) = mesh_arg::parse_generated(&a.mesh) else {
+                anyhow::bail!("--surface terrain: {} is not a generated shape (SHAPE:N)", a.mesh);
+            };
+            let ground = mesh_arg::terrain(shape, n, a.seed)?;
+            Some(tr::SurfaceSpec::Mesh(std::sync::Arc::new(ground.into())))
+        }
+        s => s.map(tr::SurfaceSpec::parse),
+    };
     o.frames = tr::parse_frames(&a.frames)?;
     o.skip = !a.no_skip;
     if let Some(b) = &a.background {

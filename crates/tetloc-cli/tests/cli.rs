@@ -126,3 +126,91 @@ fn bench_json_has_the_documented_keys() {
     }
     assert_eq!(rows[0]["outside"], 0, "tet centres are inside");
 }
+
+#[test]
+fn agulhas_terrain_is_written_and_drawn() {
+    let obj = tmp("land.obj");
+    let vtu = tmp("agulhas.vtu");
+    let (ok, _, err) = tetloc(&[
+        "gen",
+        "agulhas",
+        "--tets",
+        "20k",
+        "-o",
+        vtu.to_str().unwrap(),
+        "--terrain",
+        obj.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let text = std::fs::read_to_string(&obj).unwrap();
+    assert!(
+        text.lines().filter(|l| l.starts_with("f ")).count() > 100,
+        "{err}"
+    );
+    // The OBJ file and `--surface terrain` draw the same ground.
+    let (a, b) = (tmp("a.png"), tmp("b.png"));
+    for (surface, out) in [(obj.to_str().unwrap(), &a), ("terrain", &b)] {
+        let args = [
+            "render",
+            "agulhas:20k",
+            "--field",
+            "f",
+            "--backend",
+            "cpu",
+            "--size",
+            "48x32",
+            "--surface",
+            surface,
+        ];
+        let (ok, _, err) = tetloc(&[&args[..], &["-o", out.to_str().unwrap()]].concat());
+        assert!(ok, "{err}");
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    let (ok, out, err) = tetloc(&[
+        "render",
+        "agulhas:20k",
+        "--field",
+        "f",
+        "--backend",
+        "cpu",
+        "--size",
+        "48x32",
+        "-o",
+        a.to_str().unwrap(),
+    ]);
+    assert!(ok, "{out}{err}");
+    assert_ne!(
+        std::fs::read(&a).unwrap(),
+        std::fs::read(&b).unwrap(),
+        "the terrain changed nothing"
+    );
+    // Shapes without terrain and mesh files say so.
+    let (ok, _, err) = tetloc(&[
+        "render",
+        "jets:5k",
+        "--field",
+        "f",
+        "--backend",
+        "cpu",
+        "--surface",
+        "terrain",
+    ]);
+    assert!(
+        !ok && err.contains("jets has no terrain (shapes with one: agulhas)"),
+        "{err}"
+    );
+    let (ok, _, err) = tetloc(&[
+        "render",
+        vtu.to_str().unwrap(),
+        "--field",
+        "f",
+        "--backend",
+        "cpu",
+        "--surface",
+        "terrain",
+    ]);
+    assert!(!ok && err.contains("is not a generated shape"), "{err}");
+    for f in [obj, vtu, a, b] {
+        let _ = std::fs::remove_file(f);
+    }
+}

@@ -1,14 +1,17 @@
 //! Renders the four generated shapes (jets, fusion, agulhas, japan) with the CPU backend,
-//! with and without empty-space skipping, and writes `DIR/<shape>.png`.
+//! with and without empty-space skipping, and writes `DIR/<shape>.png`. `agulhas` is drawn
+//! over its terrain (sea floor and continents), with a denser transfer function since the
+//! ocean layer is thin.
 //!
 //!     cargo run --release -p tetloc-render --example gallery -- DIR [TETS] [SIZE]
 //!
 //! TETS defaults to 200000 and SIZE to 256 (pixels a side).
 
 use std::sync::Arc;
-use tetloc_core::gen::{generate, Shape};
+use tetloc_core::gen::{generate, terrain, Shape};
 use tetloc_core::{CpuLocator, Mesh};
-use tetloc_render::{RenderOptions, Renderer};
+use tetloc_render::surface::TriMesh;
+use tetloc_render::{RenderOptions, Renderer, SurfaceSpec};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().skip(1).collect();
@@ -19,7 +22,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for shape in Shape::ALL {
         let mesh = Arc::new(Mesh::new(generate(shape, tets, 1), shape.name())?);
         let mut cpu = CpuLocator::new(mesh.clone());
-        let opts = RenderOptions { width: size, height: size, ..Default::default() };
+        let mut opts = RenderOptions { width: size, height: size, ..Default::default() };
+        if let Some(ground) = terrain(shape, tets, 1) {
+            opts.surface = Some(SurfaceSpec::Mesh(Arc::new(TriMesh::from(ground))));
+            opts.opacity = 60.0;
+        }
         let mut line = format!("{:8} {:>9} tets", shape.name(), mesh.n_tets());
         for skip in [false, true] {
             let r = Renderer::new(mesh.clone(), "f", &RenderOptions { skip, ..opts.clone() })?;

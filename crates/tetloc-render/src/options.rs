@@ -3,6 +3,7 @@
 
 use crate::camera::LookAt;
 use crate::error::{RenderError, Result};
+use crate::surface::TriMesh;
 use crate::tf::{Colormap, TransferFunction};
 use std::path::PathBuf;
 
@@ -55,6 +56,8 @@ pub enum SurfaceSpec {
     Boundary,
     /// An OBJ, STL or VTK legacy polydata file.
     File(PathBuf),
+    /// Triangles already in memory (e.g. a generated shape's terrain, `--surface terrain`).
+    Mesh(std::sync::Arc<TriMesh>),
 }
 
 impl SurfaceSpec {

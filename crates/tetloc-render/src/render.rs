@@ -155,6 +155,7 @@ impl Renderer {
             None => None,
             Some(SurfaceSpec::Boundary) => Some(SurfaceBvh::build(&TriMesh::boundary(&mesh))),
             Some(SurfaceSpec::File(path)) => Some(SurfaceBvh::build(&TriMesh::load(path)?)),
+            Some(SurfaceSpec::Mesh(tris)) => Some(SurfaceBvh::build(tris)),
         };
         Ok(Renderer { mesh, field: field.to_string(), opts: opts.clone(), table, range, step, grid, surface })
     }

@@ -5,6 +5,7 @@
 
 use super::grid::{column_xy, keep_lowest, ColumnShape, Columns, LayerPlan, LEVEL_JITTER};
 use super::noise::{level_jitter, smoothstep, splitmix64, Noise2};
+use super::terrain::Terrain;
 use crate::geom::Vec3;
 use rand::SeedableRng;
 use rand_pcg::Pcg64;
@@ -22,6 +23,10 @@ const FLATNESS: f64 = 0.5;
 const SURFACE: f64 = 0.01;
 /// Mean depth over DEPTH we expect when choosing the number of layers.
 const MEAN_DEPTH: f64 = 0.7;
+/// Highest land of the terrain above the sea surface, relative to DEPTH.
+const LAND_HEIGHT: f64 = 0.4;
+/// The terrain's grid has at most this many squares along its longer side.
+const TERRAIN_SIDE: usize = 512;
 
 pub(super) struct Agulhas {
     columns: Columns,
@@ -100,6 +105,31 @@ impl Agulhas {
     fn raw_bathymetry(&self, x: f64, y: f64) -> f64 {
         let offshore = (self.coast - self.land.at(x, y)) / self.spread;
         0.6 * smoothstep(0.0, 0.6, offshore) + 0.4 * self.bottom.at(x, y)
+    }
+
+    /// The ground: the sea floor under the wet columns, rising into land where the continents
+    /// cut through the layer. Sampled at every `stride`-th vertex column (at most
+    /// TERRAIN_SIDE squares a side); a node of a wet column sits exactly on the mesh's bottom.
+    pub fn terrain(&self) -> Terrain {
+        let Columns { ni, nj, ref keep, .. } = self.columns;
+        let stride = ni.max(nj).div_ceil(TERRAIN_SIDE).max(1);
+        // Vertex column (i, j) is a corner of columns i-1..=i, j-1..=j.
+        let wet = |i: usize, j: usize| {
+            (i.saturating_sub(1)..=i.min(ni - 1)).any(|ci| (j.saturating_sub(1)..=j.min(nj - 1)).any(|cj| keep[cj * ni + ci]))
+        };
+        Terrain::height_field(ni.div_ceil(stride), nj.div_ceil(stride), |ti, tj| {
+            let (i, j) = ((ti * stride).min(ni), (tj * stride).min(nj));
+            let (x, y) = column_xy(self.seed, i, j, self.h);
+            let floor = -self.depth(x, y);
+            let z = if wet(i, j) {
+                floor
+            } else {
+                // How far inland, in units of the land noise's spread.
+                let inland = (self.land.at(x, y) - self.coast) / self.spread;
+                floor + (LAND_HEIGHT * DEPTH - floor) * smoothstep(0.0, 1.0, inland)
+            };
+            [x as f32, y as f32, z as f32]
+        })
     }
 
     fn depth(&self, x: f64, y: f64) -> f64 {

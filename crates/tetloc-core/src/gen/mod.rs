@@ -23,8 +23,11 @@ mod grid;
 mod japan;
 mod jets;
 mod noise;
+mod terrain;
 #[cfg(test)]
 mod tests;
+
+pub use terrain::Terrain;
 
 use crate::error::Error;
 use crate::mesh::RawMesh;
@@ -104,6 +107,16 @@ pub fn generate_with_progress(shape: Shape, target_tets: usize, seed: u64, progr
     };
     progress.report(1.0);
     mesh
+}
+
+/// The ground a generated shape is drawn over, for the shapes that have one (`agulhas`: its
+/// bathymetry and continents), matching `generate(shape, target_tets, seed)`.
+pub fn terrain(shape: Shape, target_tets: usize, seed: u64) -> Option<Terrain> {
+    let cells = target_tets.min(MAX_TETS) / 6;
+    match shape {
+        Shape::Agulhas => Some(agulhas::Agulhas::new(cells, seed).terrain()),
+        Shape::Jets | Shape::Fusion | Shape::Japan => None,
+    }
 }
 
 /// Forwards progress to the caller's callback in increasing order and in steps of at least

@@ -307,3 +307,52 @@ fn report() {
         }
     }
 }
+
+#[test]
+fn agulhas_terrain_lies_under_the_sea_and_rises_into_land() {
+    for shape in [Shape::Jets, Shape::Fusion, Shape::Japan] {
+        assert!(terrain(shape, 20_000, 1).is_none(), "{shape}");
+    }
+    let m = mesh(Shape::Agulhas, 60_000, 3);
+    let t = terrain(Shape::Agulhas, 60_000, 3).unwrap();
+    // Mesh vertex columns share their plan position: the lowest level is the sea floor.
+    let mut floor = std::collections::HashMap::new();
+    for p in &m.points {
+        let z = floor
+            .entry((p[0].to_bits(), p[1].to_bits()))
+            .or_insert(f32::INFINITY);
+        *z = z.min(p[2]);
+    }
+    let (mut wet, mut highest) = (0, f32::MIN);
+    for p in &t.positions {
+        assert!(p.iter().all(|c| c.is_finite()));
+        highest = highest.max(p[2]);
+        if let Some(&z) = floor.get(&(p[0].to_bits(), p[1].to_bits())) {
+            assert!(p[2] <= z + 1e-6, "terrain {p:?} above the sea floor {z}");
+            wet += 1;
+        }
+    }
+    assert!(
+        wet > t.positions.len() / 3,
+        "{wet} of {} terrain nodes under the sea",
+        t.positions.len()
+    );
+    assert!(highest > 0.02, "no land above the sea: highest {highest}");
+    // Every triangle faces up (counter-clockwise seen from +z).
+    for tri in &t.triangles {
+        let [a, b, c] = tri.map(|v| t.positions[v as usize]);
+        let cross = (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0]);
+        assert!(cross > 0.0, "{tri:?}");
+    }
+    let mut obj = Vec::new();
+    t.write_obj(&mut obj).unwrap();
+    let text = String::from_utf8(obj).unwrap();
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("v ")).count(),
+        t.positions.len()
+    );
+    assert_eq!(
+        text.lines().filter(|l| l.starts_with("f ")).count(),
+        t.triangles.len()
+    );
+}

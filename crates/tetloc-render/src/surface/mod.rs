@@ -19,6 +19,12 @@ pub struct TriMesh {
     pub triangles: Vec<[u32; 3]>,
 }
 
+impl From<tetloc_core::gen::Terrain> for TriMesh {
+    fn from(t: tetloc_core::gen::Terrain) -> TriMesh {
+        TriMesh { positions: t.positions, triangles: t.triangles }
+    }
+}
+
 impl TriMesh {
     /// The faces of `mesh` that have a tet on one side only.
     pub fn boundary(mesh: &Mesh) -> TriMesh {
