@@ -52,6 +52,10 @@ pub struct RenderArgs {
     /// Fixed stepping everywhere (the paper's), no empty-space skipping.
     #[arg(long)]
     no_skip: bool,
+    /// GPU backends: march on the host and hand each round's samples to the kernel, instead
+    /// of marching whole frames on the GPU.
+    #[arg(long)]
+    host_march: bool,
     #[arg(long)]
     background: Option<String>,
     /// Measure frames per second over an orbit of this many frames instead of writing images.
@@ -95,11 +99,19 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
     let opts = BackendOptions { device: a.device, ..Default::default() };
     for name in a.backend.split(',') {
-        let mut loc = backend::make(name, &mesh, &opts)?;
+        let name = if name == "auto" { backend::auto_choice(&opts)? } else { name.to_string() };
+        let mut marcher: Box<dyn tr::Marcher> = match name.parse::<tetloc_vulkan::Kernel>() {
+            // GPU backends march whole frames on the GPU.
+            Ok(kernel) if !a.host_march => Box::new(tr::GpuMarcher::new(backend::make_vulkan(kernel, &mesh, &opts)?, &renderer)?),
+            _ => {
+                let loc = backend::make(&name, &mesh, &opts)?;
+                Box::new(HostMarch(loc))
+            }
+        };
         match a.fps {
-            Some(frames) => println!("{}", tr::measure_fps(&renderer, loc.as_mut(), frames.max(1))?),
+            Some(frames) => println!("{}", tr::measure_fps(&renderer, marcher.as_mut(), frames.max(1))?),
             None => {
-                let report = tr::render_to_file(&renderer, loc.as_mut(), &a.out)?;
+                let report = tr::render_to_file(&renderer, marcher.as_mut(), &a.out)?;
                 for f in &report.frames {
                     eprintln!("{f}");
                 }
@@ -110,4 +122,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// The host marcher over a boxed locator.
+struct HostMarch(Box<dyn tetloc_core::BatchLocator>);
+
+impl tr::Marcher for HostMarch {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn march_frame(&mut self, r: &tr::Renderer, cam: &tr::Camera) -> tr::Result<(Vec<[f32; 4]>, tr::FrameStats)> {
+        tr::HostMarcher(self.0.as_mut()).march_frame(r, cam)
+    }
 }
