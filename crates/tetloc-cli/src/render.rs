@@ -13,9 +13,10 @@ pub struct RenderArgs {
     /// The scalar field to render.
     #[arg(long)]
     field: String,
-    /// Output: .png (numbered PNGs with --frames), or .gif for an animated orbit.
-    #[arg(short, long, default_value = "render.png")]
-    out: PathBuf,
+    /// Output: .png (numbered PNGs with --frames), or .gif for an animated orbit. With --fps,
+    /// frame 0 of the first backend is written here when given.
+    #[arg(short, long)]
+    out: Option<PathBuf>,
     /// Backends, comma-separated (with --fps each is measured): cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto.
     #[arg(long, default_value = "auto")]
     backend: String,
@@ -98,7 +99,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
     let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
     let opts = BackendOptions { device: a.device, ..Default::default() };
-    for name in a.backend.split(',') {
+    for (i, name) in a.backend.split(',').enumerate() {
+        let first = i == 0;
         let name = if name == "auto" { backend::auto_choice(&opts)? } else { name.to_string() };
         let mut marcher: Box<dyn tr::Marcher> = match name.parse::<tetloc_vulkan::Kernel>() {
             // GPU backends march whole frames on the GPU.
@@ -109,9 +111,16 @@ pub fn run(a: RenderArgs) -> Result<()> {
             }
         };
         match a.fps {
-            Some(frames) => println!("{}", tr::measure_fps(&renderer, marcher.as_mut(), frames.max(1))?),
+            Some(frames) => {
+                println!("{}", tr::measure_fps(&renderer, marcher.as_mut(), frames.max(1))?);
+                // With an explicit --out, the first backend's frame 0 too: what was measured.
+                if let (Some(out), true) = (&a.out, first) {
+                    renderer.render(marcher.as_mut(), &renderer.camera(0))?.0.write_png(out)?;
+                    eprintln!("wrote {}", out.display());
+                }
+            }
             None => {
-                let report = tr::render_to_file(&renderer, marcher.as_mut(), &a.out)?;
+                let report = tr::render_to_file(&renderer, marcher.as_mut(), a.out.as_deref().unwrap_or("render.png".as_ref()))?;
                 for f in &report.frames {
                     eprintln!("{f}");
                 }
