@@ -104,7 +104,14 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let name = if name == "auto" { backend::auto_choice(&opts)? } else { name.to_string() };
         let mut marcher: Box<dyn tr::Marcher> = match name.parse::<tetloc_vulkan::Kernel>() {
             // GPU backends march whole frames on the GPU.
-            Ok(kernel) if !a.host_march => Box::new(tr::GpuMarcher::new(backend::make_vulkan(kernel, &mesh, &opts)?, &renderer)?),
+            Ok(kernel) if !a.host_march => {
+                let mut m = tr::GpuMarcher::new(backend::make_vulkan(kernel, &mesh, &opts)?, &renderer)?;
+                if a.fps.is_some() {
+                    // Keep the GPU busy between frames (image downloads), so its clocks stay up.
+                    m.set_busy_dispatches(FPS_BUSY_DISPATCHES);
+                }
+                Box::new(m)
+            }
             _ => {
                 let loc = backend::make(&name, &mesh, &opts)?;
                 Box::new(HostMarch(loc))
@@ -132,6 +139,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     Ok(())
 }
+
+/// `--fps` with the GPU marcher: untimed marches of each frame before the timed one.
+const FPS_BUSY_DISPATCHES: u32 = 3;
 
 /// The host marcher over a boxed locator.
 struct HostMarch(Box<dyn tetloc_core::BatchLocator>);

@@ -55,6 +55,14 @@ impl GpuMarcher {
     }
 }
 
+impl GpuMarcher {
+    /// Benchmarks: march each frame `n` more times, untimed, so that the GPU's clocks stay
+    /// up between frames (see `VolumeMarcher::set_busy_dispatches`).
+    pub fn set_busy_dispatches(&mut self, n: u32) {
+        self.march.set_busy_dispatches(n);
+    }
+}
+
 impl Marcher for GpuMarcher {
     fn name(&self) -> &str {
         self.march.kernel().name()

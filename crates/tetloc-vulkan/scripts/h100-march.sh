@@ -29,11 +29,10 @@ step() {
   timeout "$t" "$BIN" render "$2" --field f --size 1024x1024 --fps 8 --backend "$3" "${out[@]}" >> "$LOGS/fps.log" 2>&1
   echo "== exit $? after $((SECONDS - s0)) s" >> "$LOGS/fps.log"
 }
-step 80 fusion:3M soft-bvh,rt-bvh,rt-shared-faces,rt-rep-faces fusion.png
-step 60 agulhas:36M soft-bvh agulhas.png
-step 80 jets:12M soft-bvh,rt-bvh,rt-shared-faces,rt-rep-faces jets.png
-step 70 japan:62M soft-bvh japan.png
-step 60 jets:36M soft-bvh
-step 90 agulhas:36M rt-bvh,rt-shared-faces,rt-rep-faces
+step 60 fusion:3M soft-bvh,rt-bvh,rt-shared-faces,rt-rep-faces fusion.png
+step 60 jets:36M soft-bvh jets.png
+step 90 agulhas:36M soft-bvh,rt-bvh,rt-shared-faces,rt-rep-faces agulhas.png
+step 60 jets:12M soft-bvh,rt-bvh,rt-shared-faces,rt-rep-faces
+step 80 japan:62M soft-bvh,rt-bvh japan.png
 cat "$LOGS/gpu.txt"
 grep -E "^==|FPS|rror" "$LOGS/fps.log"

@@ -126,13 +126,14 @@ pub struct VolumeMarcher {
     surface: Option<(Buffer, usize)>,
     pixels: Option<(Buffer, usize)>,
     query_pool: Option<vk::QueryPool>,
+    busy: u32,
     loc: VulkanLocator,
 }
 
 impl VolumeMarcher {
     pub fn new(mut loc: VulkanLocator, scene: &MarchScene) -> tetloc_core::Result<VolumeMarcher> {
         let bad = |m: String| Err(tetloc_core::Error::Invalid(m));
-        if scene.tf.len() < 2 || !(scene.step > 0.0) {
+        if scene.tf.len() < 2 || scene.step.is_nan() || scene.step <= 0.0 {
             return bad(format!("march: {} transfer-function entries (need 2) and step {}", scene.tf.len(), scene.step));
         }
         let output = loc.ensure_field(&scene.field)?;
@@ -247,6 +248,7 @@ impl VolumeMarcher {
             surface: None,
             pixels: None,
             query_pool,
+            busy: 0,
             loc,
         })
     }
@@ -257,6 +259,12 @@ impl VolumeMarcher {
 
     pub fn locator(&self) -> &VulkanLocator {
         &self.loc
+    }
+
+    /// Benchmarks: march each frame `n` more times, untimed, before the timed march, so that
+    /// the GPU stays busy between frames (image downloads) and its clocks stay up.
+    pub fn set_busy_dispatches(&mut self, n: u32) {
+        self.busy = n;
     }
 
     /// Marches one frame. `out` (width × height, row-major, top row first) receives each
@@ -318,6 +326,7 @@ impl VolumeMarcher {
         let push = self.loc.params(0, 0, 0);
         let (pl, desc, params_buf, pool) = (&self.pipeline, &self.desc, self.params_buf.buffer, self.query_pool);
         let (w, h) = (view.width, view.height);
+        let busy = self.busy;
         let t = Instant::now();
         // SAFETY: recording into the locator's command buffer with live objects; the params
         // update is far below vkCmdUpdateBuffer's 64 KiB limit and a multiple of 4 bytes.
@@ -326,19 +335,21 @@ impl VolumeMarcher {
             if let Some(pool) = pool {
                 dev.cmd_reset_query_pool(cmd, pool, 0, 2);
             }
-            full_barrier(dev, cmd);
-            if let Some(pool) = pool {
-                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 0);
-            }
             dev.cmd_bind_pipeline(cmd, pl.bind_point, pl.pipeline);
             dev.cmd_bind_descriptor_sets(cmd, pl.bind_point, desc.layout, 0, &[desc.set], &[]);
             dev.cmd_push_constants(cmd, desc.layout, desc.stages, 0, bytemuck::bytes_of(&push));
-            match &pl.sbt {
-                None => dev.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1),
-                Some(sbt) => {
-                    let empty = vk::StridedDeviceAddressRegionKHR::default();
-                    let rt = ctx.rt.as_ref().unwrap();
-                    rt.pipeline.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &empty, w, h, 1);
+            for i in 0..=busy {
+                full_barrier(dev, cmd);
+                if let (Some(pool), true) = (pool, i == busy) {
+                    dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 0);
+                }
+                match &pl.sbt {
+                    None => dev.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1),
+                    Some(sbt) => {
+                        let empty = vk::StridedDeviceAddressRegionKHR::default();
+                        let rt = ctx.rt.as_ref().unwrap();
+                        rt.pipeline.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &empty, w, h, 1);
+                    }
                 }
             }
             full_barrier(dev, cmd);
