@@ -13,9 +13,10 @@ pub struct RenderArgs {
     /// The scalar field to render.
     #[arg(long)]
     field: String,
-    /// Output: .png (numbered PNGs with --frames), or .gif for an animated orbit.
-    #[arg(short, long, default_value = "render.png")]
-    out: PathBuf,
+    /// Output: .png (numbered PNGs with --frames), or .gif for an animated orbit. With --fps,
+    /// frame 0 of the first backend is written here when given.
+    #[arg(short, long)]
+    out: Option<PathBuf>,
     /// Backends, comma-separated (with --fps each is measured): cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto.
     #[arg(long, default_value = "auto")]
     backend: String,
@@ -53,6 +54,10 @@ pub struct RenderArgs {
     /// Fixed stepping everywhere (the paper's), no empty-space skipping.
     #[arg(long)]
     no_skip: bool,
+    /// GPU backends: march on the host and hand each round's samples to the kernel, instead
+    /// of marching whole frames on the GPU.
+    #[arg(long)]
+    host_march: bool,
     #[arg(long)]
     background: Option<String>,
     /// Measure frames per second over an orbit of this many frames instead of writing images.
@@ -104,12 +109,35 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
     let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
     let opts = BackendOptions { device: a.device, ..Default::default() };
-    for name in a.backend.split(',') {
-        let mut loc = backend::make(name, &mesh, &opts)?;
+    for (i, name) in a.backend.split(',').enumerate() {
+        let first = i == 0;
+        let name = if name == "auto" { backend::auto_choice(&opts)? } else { name.to_string() };
+        let mut marcher: Box<dyn tr::Marcher> = match name.parse::<tetloc_vulkan::Kernel>() {
+            // GPU backends march whole frames on the GPU.
+            Ok(kernel) if !a.host_march => {
+                let mut m = tr::GpuMarcher::new(backend::make_vulkan(kernel, &mesh, &opts)?, &renderer)?;
+                if a.fps.is_some() {
+                    // Keep the GPU busy between frames (image downloads), so its clocks stay up.
+                    m.set_busy_dispatches(FPS_BUSY_DISPATCHES);
+                }
+                Box::new(m)
+            }
+            _ => {
+                let loc = backend::make(&name, &mesh, &opts)?;
+                Box::new(HostMarch(loc))
+            }
+        };
         match a.fps {
-            Some(frames) => println!("{}", tr::measure_fps(&renderer, loc.as_mut(), frames.max(1))?),
+            Some(frames) => {
+                println!("{}", tr::measure_fps(&renderer, marcher.as_mut(), frames.max(1))?);
+                // With an explicit --out, the first backend's frame 0 too: what was measured.
+                if let (Some(out), true) = (&a.out, first) {
+                    renderer.render(marcher.as_mut(), &renderer.camera(0))?.0.write_png(out)?;
+                    eprintln!("wrote {}", out.display());
+                }
+            }
             None => {
-                let report = tr::render_to_file(&renderer, loc.as_mut(), &a.out)?;
+                let report = tr::render_to_file(&renderer, marcher.as_mut(), a.out.as_deref().unwrap_or("render.png".as_ref()))?;
                 for f in &report.frames {
                     eprintln!("{f}");
                 }
@@ -120,4 +148,19 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// `--fps` with the GPU marcher: untimed marches of each frame before the timed one.
+const FPS_BUSY_DISPATCHES: u32 = 3;
+
+/// The host marcher over a boxed locator.
+struct HostMarch(Box<dyn tetloc_core::BatchLocator>);
+
+impl tr::Marcher for HostMarch {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn march_frame(&mut self, r: &tr::Renderer, cam: &tr::Camera) -> tr::Result<(Vec<[f32; 4]>, tr::FrameStats)> {
+        tr::HostMarcher(self.0.as_mut()).march_frame(r, cam)
+    }
 }

@@ -99,6 +99,16 @@ impl Camera {
     pub fn forward(&self) -> Vec3 {
         self.forward
     }
+    pub fn right(&self) -> Vec3 {
+        self.right
+    }
+    pub fn up(&self) -> Vec3 {
+        self.up
+    }
+    /// tan(fov_y / 2) after zoom.
+    pub fn tan_half_y(&self) -> f32 {
+        self.tan_half_y
+    }
 }
 
 /// The parametric interval `[t_near, t_far]` where `ray` is inside the box, clipped to

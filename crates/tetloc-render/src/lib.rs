@@ -36,6 +36,10 @@
 //! [`render_to_file`] writes one PNG, numbered PNGs for an orbit, or a GIF (by the output's
 //! extension); [`FrameStats`] and [`FpsReport`] print as one line each.
 //!
+//! Frames are rendered by a [`Marcher`]: the host marcher over any locator, which batches
+//! every round's samples for `locator.sample`, or (feature `vulkan`, on by default)
+//! [`GpuMarcher`], which runs the whole march on the GPU with a tetloc-vulkan kernel.
+//!
 //! Beyond the paper: empty-space skipping over a conservative occupancy grid (on by
 //! default, exact: the same samples inside the mesh as without it), ParaView colormap
 //! presets, surfaces from OBJ/STL/VTK files, orbits as PNG series or GIF.
@@ -43,6 +47,8 @@
 pub mod camera;
 pub mod colorspace;
 mod error;
+#[cfg(feature = "vulkan")]
+mod gpu;
 pub mod image;
 mod options;
 mod output;
@@ -61,5 +67,7 @@ pub use options::{
     RenderOptions, SurfaceSpec, TfSpec,
 };
 pub use output::{compare_locators, frame_path, measure_fps, render_to_file, Comparison, FpsReport, RenderReport};
-pub use render::{FrameStats, Renderer, OPACITY_CUTOFF};
+pub use render::{FrameStats, HostMarcher, Marcher, Renderer, OPACITY_CUTOFF};
+#[cfg(feature = "vulkan")]
+pub use gpu::GpuMarcher;
 pub use tf::{Colormap, TransferFunction};

@@ -40,11 +40,13 @@ pub struct FrameStats {
     pub samples: u64,
     /// Of those, samples inside the mesh that were composited (before each ray's cutoff).
     pub in_mesh_samples: u64,
-    /// Batches handed to the locator.
+    /// Batches handed to the locator (1 a frame for the GPU marcher).
     pub rounds: u32,
-    /// Seconds inside `locator.sample`.
+    /// Seconds inside `locator.sample` (the GPU marcher: the GPU time of the march).
     pub sample_seconds: f64,
     pub seconds: f64,
+    /// The GPU marcher: GPU time of the frame (timestamps); 0 for the host marcher.
+    pub gpu_seconds: f64,
 }
 
 impl FrameStats {
@@ -55,6 +57,7 @@ impl FrameStats {
         self.rounds += o.rounds;
         self.sample_seconds += o.sample_seconds;
         self.seconds += o.seconds;
+        self.gpu_seconds += o.gpu_seconds;
     }
 
     /// Totals over several frames.
@@ -70,6 +73,17 @@ impl std::fmt::Display for FrameStats {
     /// 5 batches, 0.50 s (83 % in the locator)`.
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         let pct = |a: f64, b: f64| if b > 0.0 { 100.0 * a / b } else { 0.0 };
+        if self.gpu_seconds > 0.0 {
+            return write!(
+                f,
+                "{} rays, {} samples ({:.1} % inside the mesh) marched on the GPU in {:.2} ms ({:.3} s with transfers)",
+                self.rays,
+                self.samples,
+                pct(self.in_mesh_samples as f64, self.samples as f64),
+                1e3 * self.gpu_seconds,
+                self.seconds
+            );
+        }
         write!(
             f,
             "{} rays, {} samples ({:.1} % inside the mesh) in {} batches, {:.2} s ({:.0} % in the locator)",
@@ -88,14 +102,46 @@ impl std::fmt::Display for FrameStats {
 /// any locator of the same mesh.
 pub struct Renderer {
     mesh: Arc<Mesh>,
-    field: String,
+    pub(crate) field: String,
     opts: RenderOptions,
     /// Linear RGB and the alpha of one step.
-    table: TfTable,
+    pub(crate) table: TfTable,
     range: (f32, f32),
     step: f32,
     grid: Option<OccupancyGrid>,
     surface: Option<SurfaceBvh>,
+}
+
+/// What renders a [`Renderer`]'s frames: the host marcher over any [`BatchLocator`] (every
+/// locator is a `Marcher`), or a marcher that runs whole frames elsewhere (the GPU marcher,
+/// `crate::gpu`).
+pub trait Marcher {
+    fn name(&self) -> &str;
+    /// Per pixel of `camera`'s image (row-major, top row first): premultiplied linear RGB
+    /// and opacity of the volume in front of any surface, the shaded surface composited
+    /// behind it, no background.
+    fn march_frame(&mut self, renderer: &Renderer, camera: &Camera) -> Result<(Vec<[f32; 4]>, FrameStats)>;
+}
+
+impl<L: BatchLocator> Marcher for L {
+    fn name(&self) -> &str {
+        BatchLocator::name(self)
+    }
+    fn march_frame(&mut self, renderer: &Renderer, camera: &Camera) -> Result<(Vec<[f32; 4]>, FrameStats)> {
+        renderer.march(self, &camera.rays())
+    }
+}
+
+/// The host marcher over a boxed or borrowed locator.
+pub struct HostMarcher<'a>(pub &'a mut dyn BatchLocator);
+
+impl Marcher for HostMarcher<'_> {
+    fn name(&self) -> &str {
+        self.0.name()
+    }
+    fn march_frame(&mut self, renderer: &Renderer, camera: &Camera) -> Result<(Vec<[f32; 4]>, FrameStats)> {
+        renderer.march(self.0, &camera.rays())
+    }
 }
 
 /// One ray in flight.
@@ -177,6 +223,21 @@ impl Renderer {
     pub fn grid(&self) -> Option<&OccupancyGrid> {
         self.grid.as_ref()
     }
+    pub fn field(&self) -> &str {
+        &self.field
+    }
+    pub fn has_surface(&self) -> bool {
+        self.surface.is_some()
+    }
+
+    /// Where `ray` hits the surface, and the surface's shaded linear colour there: a
+    /// headlight Lambert, lit from the eye so that either side of a face shows.
+    pub fn surface_hit(&self, ray: &Ray) -> Option<(f32, Vec3)> {
+        let hit = self.surface.as_ref()?.intersect(ray, 0.0, f32::INFINITY)?;
+        let lambert = dot(hit.normal, ray.dir).abs();
+        let rgb = self.opts.surface_color.map(crate::colorspace::srgb_to_linear);
+        Some((hit.t, rgb.map(|c| c * (0.2 + 0.8 * lambert))))
+    }
 
     /// The camera of orbit frame `frame` of `options().frames`.
     pub fn camera(&self, frame: u32) -> Camera {
@@ -208,8 +269,8 @@ impl Renderer {
     }
 
     /// Renders one image from `camera`.
-    pub fn render(&self, locator: &mut dyn BatchLocator, camera: &Camera) -> Result<(Image, FrameStats)> {
-        let (rgba, stats) = self.march(locator, &camera.rays())?;
+    pub fn render(&self, marcher: &mut dyn Marcher, camera: &Camera) -> Result<(Image, FrameStats)> {
+        let (rgba, stats) = marcher.march_frame(self, camera)?;
         let bg = self.opts.background.map(crate::colorspace::srgb_to_linear);
         let pixels = rgba.par_iter().map(|c| std::array::from_fn(|k| c[k] + (1.0 - c[3]) * bg[k])).collect();
         Ok((Image { width: camera.width, height: camera.height, pixels }, stats))
@@ -222,21 +283,16 @@ impl Renderer {
         let start = Instant::now();
         let mut stats = FrameStats { rays: rays.len(), ..Default::default() };
         let (lo, hi) = (self.mesh.info.bounds_min, self.mesh.info.bounds_max);
-        let surface_rgb = self.opts.surface_color.map(crate::colorspace::srgb_to_linear);
 
         // Per ray: the volume interval, and the shaded surface colour where one is hit.
         let setup: Vec<(Option<RayState>, Option<Vec3>)> = rays
             .par_iter()
             .enumerate()
             .map(|(i, ray)| {
-                let hit = self.surface.as_ref().and_then(|s| s.intersect(ray, 0.0, f32::INFINITY));
-                // Headlight Lambert: lit from the eye, so either side of a face shows.
-                let shade = hit.map(|h| {
-                    let lambert = dot(h.normal, ray.dir).abs();
-                    surface_rgb.map(|c| c * (0.2 + 0.8 * lambert))
-                });
+                let hit = self.surface_hit(ray);
+                let shade = hit.map(|h| h.1);
                 let state = clip_to_box(ray, lo, hi).map(|(t0, t1)| {
-                    let t1 = hit.map_or(t1, |h| t1.min(h.t));
+                    let t1 = hit.map_or(t1, |h| t1.min(h.0));
                     let n = ((t1 - t0) / self.step - 0.5).ceil().clamp(0.0, u32::MAX as f32) as u32;
                     RayState { pixel: i as u32, ray: *ray, t0, n, k: 0, acc: [0.0; 4] }
                 });

@@ -23,18 +23,18 @@ pub const BLOCK: u32 = 8;
 
 #[derive(Clone, Debug)]
 pub struct OccupancyGrid {
-    lo: Vec3,
-    hi: Vec3,
-    cell: Vec3,
-    inv_cell: Vec3,
+    pub(crate) lo: Vec3,
+    pub(crate) hi: Vec3,
+    pub(crate) cell: Vec3,
+    pub(crate) inv_cell: Vec3,
     pub dims: [u32; 3],
-    occupied: Vec<bool>,
+    pub(crate) occupied: Vec<bool>,
     /// Blocks of `BLOCK³` cells: occupied if any of their cells is.
-    block_dims: [u32; 3],
-    blocks: Vec<bool>,
+    pub(crate) block_dims: [u32; 3],
+    pub(crate) blocks: Vec<bool>,
     /// How far before a cell's exit a jump lands, so that rounding in the sample positions
     /// can never carry a skipped sample into the next cell.
-    margin: f32,
+    pub(crate) margin: f32,
 }
 
 impl OccupancyGrid {

@@ -308,10 +308,10 @@ fn normalise(groups: &[[f64; 4]], what: &str) -> Result<Vec<f32>, String> {
 /// A baked transfer function: 1024 entries of linear RGB and opacity over a value range.
 #[derive(Clone, Debug)]
 pub struct TfTable {
-    entries: Vec<[f32; 4]>,
-    lo: f32,
+    pub(crate) entries: Vec<[f32; 4]>,
+    pub(crate) lo: f32,
     /// 1 / (hi − lo); 0 for an empty range, which maps every value to the table's start.
-    inv_range: f32,
+    pub(crate) inv_range: f32,
 }
 
 impl TfTable {

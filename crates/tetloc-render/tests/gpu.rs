@@ -1,39 +1,140 @@
-//! The same small mesh rendered with the CPU backend and with every GPU kernel agrees
-//! (PSNR ≥ 40 dB). Runs on whatever Vulkan device there is (lavapipe in CI); with `CI`
+//! GPU backends against the CPU: the host marcher over every GPU kernel, and the GPU
+//! marcher (whole frames on the GPU) on every kernel, render the same small mesh like the
+//! CPU backend (PSNR ≥ 40 dB); the GPU marcher skips exactly and matches the closed form
+//! of a constant cube. Runs on whatever Vulkan device there is (lavapipe in CI); with `CI`
 //! set, a missing device or missing ray tracing fails the test instead of skipping it.
 
 use std::sync::Arc;
 use tetloc_core::testdata::in_ci;
-use tetloc_core::CpuLocator;
-use tetloc_render::{compare_locators, testmesh, RenderOptions, Renderer};
+use tetloc_core::{CpuLocator, Mesh};
+use tetloc_render::tf::{Colormap, TransferFunction};
+use tetloc_render::{
+    compare_locators, psnr, testmesh, GpuMarcher, LookAt, Marcher, RenderOptions, Renderer, SurfaceSpec, TfSpec,
+};
 use tetloc_vulkan::{Context, ContextOptions, Kernel, LocatorOptions, VulkanLocator};
 
-#[test]
-fn every_gpu_kernel_renders_like_the_cpu() {
+/// The device, or `None` (test skipped) outside CI when there is none.
+fn context(test: &str) -> Option<Arc<Context>> {
     let ctx = match Context::with_options(ContextOptions { device_index: None, validation: true }) {
         Ok(c) => c,
         Err(e) if !in_ci() => {
-            eprintln!("SKIPPED every_gpu_kernel_renders_like_the_cpu: {e}");
-            return;
+            eprintln!("SKIPPED {test}: {e}");
+            return None;
         }
         Err(e) => panic!("no Vulkan device in CI: {e}"),
     };
     assert!(ctx.info().ray_tracing || !in_ci(), "CI must run every kernel, but {} has no ray tracing", ctx.info().name);
+    Some(ctx)
+}
+
+fn kernels(ctx: &Context) -> Vec<Kernel> {
+    Kernel::ALL.into_iter().filter(|k| ctx.info().ray_tracing || !k.needs_ray_tracing()).collect()
+}
+
+fn gpu_marcher(ctx: &Arc<Context>, mesh: &Arc<Mesh>, kernel: Kernel, r: &Renderer) -> GpuMarcher {
+    let loc = VulkanLocator::new(ctx.clone(), mesh.clone(), kernel, LocatorOptions::default()).unwrap();
+    GpuMarcher::new(loc, r).unwrap()
+}
+
+#[test]
+fn every_gpu_kernel_renders_like_the_cpu() {
+    let Some(ctx) = context("every_gpu_kernel_renders_like_the_cpu") else { return };
     let mesh = Arc::new(testmesh::torus(10, 3));
     let opts = RenderOptions { width: 96, height: 72, azimuth: 30.0, elevation: 25.0, ..Default::default() };
-    for field in ["f", "cellval"] {
-        if mesh.field(field).is_err() {
-            continue;
-        }
-        let renderer = Renderer::new(mesh.clone(), field, &opts).unwrap();
+    let with_surface = RenderOptions { surface: Some(SurfaceSpec::Boundary), opacity: 20.0, ..opts.clone() };
+    for (field, opts) in [("f", &opts), ("c", &opts), ("f", &with_surface)] {
+        let renderer = Renderer::new(mesh.clone(), field, opts).unwrap();
         let mut cpu = CpuLocator::new(mesh.clone());
-        for kernel in Kernel::ALL.into_iter().filter(|k| ctx.info().ray_tracing || !k.needs_ray_tracing()) {
+        for kernel in kernels(&ctx) {
+            let what = format!("{kernel} field {field} surface {}", opts.surface.is_some());
+            // The host marcher handing batches to the kernel.
             let mut gpu = VulkanLocator::new(ctx.clone(), mesh.clone(), kernel, LocatorOptions::default()).unwrap();
             let cmp = compare_locators(&renderer, &mut cpu, &mut gpu).unwrap();
-            eprintln!("{kernel} field {field}: PSNR {:.1} dB", cmp.psnr_db);
-            assert!(cmp.psnr_db >= 40.0, "{kernel} field {field}: PSNR {:.1} dB against the CPU", cmp.psnr_db);
+            eprintln!("{what}, host marcher: PSNR {:.1} dB", cmp.psnr_db);
+            assert!(cmp.psnr_db >= 40.0, "{what}, host marcher: PSNR {:.1} dB against the CPU", cmp.psnr_db);
             assert!(cmp.stats[1].samples > 0);
+            // The whole march on the GPU.
+            let mut march = GpuMarcher::new(gpu, &renderer).unwrap();
+            let cmp = compare_locators(&renderer, &mut cpu, &mut march).unwrap();
+            let [c, g] = cmp.stats;
+            eprintln!("{what}, GPU marcher: PSNR {:.1} dB, samples {} / {} (CPU)", cmp.psnr_db, g.samples, c.samples);
+            assert!(cmp.psnr_db >= 40.0, "{what}, GPU marcher: PSNR {:.1} dB against the CPU", cmp.psnr_db);
+            // The same samples inside the mesh were composited, up to rays whose last round
+            // on the host took samples past the cutoff (the GPU stops at the sample).
+            // (The boundary surface hides the whole volume.)
+            assert!(g.in_mesh_samples <= c.in_mesh_samples, "{g:?} vs {c:?}");
+            assert!(g.in_mesh_samples > 0 || opts.surface.is_some(), "{g:?}");
+            assert!(g.gpu_seconds > 0.0);
         }
     }
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
+/// Skipping on and off give the same image on the GPU, with fewer samples.
+#[test]
+fn gpu_skipping_is_exact() {
+    let Some(ctx) = context("gpu_skipping_is_exact") else { return };
+    let mesh = Arc::new(testmesh::two_blobs(16, 5));
+    let base = RenderOptions { width: 64, height: 48, opacity: 4.0, ..Default::default() };
+    let skip = Renderer::new(mesh.clone(), "f", &RenderOptions { skip: true, ..base.clone() }).unwrap();
+    let fixed = Renderer::new(mesh.clone(), "f", &RenderOptions { skip: false, ..base }).unwrap();
+    let cam = skip.camera(0);
+    for kernel in kernels(&ctx) {
+        let (a, sa) = skip.render(&mut gpu_marcher(&ctx, &mesh, kernel, &skip), &cam).unwrap();
+        let (b, sb) = fixed.render(&mut gpu_marcher(&ctx, &mesh, kernel, &fixed), &cam).unwrap();
+        let db = psnr(&a, &b).unwrap();
+        eprintln!("{kernel}: skip {} samples, fixed {}, in-mesh {} / {}, PSNR {db:.1} dB", sa.samples, sb.samples, sa.in_mesh_samples, sb.in_mesh_samples);
+        assert!(db >= 45.0, "{kernel}: PSNR {db}");
+        assert_eq!(sa.in_mesh_samples, sb.in_mesh_samples, "{kernel}: the same samples inside the mesh");
+        assert!(sa.in_mesh_samples > 1000, "the mesh is in view");
+        assert!((sa.samples as f64) < 0.7 * sb.samples as f64, "{kernel}: skipping saves samples: {} vs {}", sa.samples, sb.samples);
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
+/// A constant field through a constant-opacity transfer function, seen along an axis by a
+/// one-pixel camera: opacity 1 − exp(−σL) over the path length L, within 1 %.
+#[test]
+fn gpu_constant_cube_matches_the_closed_form() {
+    let Some(ctx) = context("gpu_constant_cube_matches_the_closed_form") else { return };
+    let side = 2.0;
+    let mesh = Arc::new(testmesh::cube(4, side, 1.0));
+    let o = 0.5;
+    let tf = TransferFunction::builtin(Colormap::Grayscale).with_constant_opacity(o);
+    let camera = LookAt { eye: [0.7, 1.3, 6.0], target: [0.7, 1.3, 0.0], up: [0.0, 1.0, 0.0] };
+    for field in ["f", "c"] {
+        let opts = RenderOptions {
+            width: 1,
+            height: 1,
+            camera: Some(camera),
+            tf: TfSpec::Custom(tf.clone()),
+            opacity: 3.0,
+            step: Some(side / 333.0),
+            range: Some((0.0, 2.0)),
+            ..Default::default()
+        };
+        let r = Renderer::new(mesh.clone(), field, &opts).unwrap();
+        let expect = 1.0 - (-o * opts.opacity / (side * 3f32.sqrt()) * side).exp();
+        for kernel in kernels(&ctx) {
+            let (rgba, stats) = gpu_marcher(&ctx, &mesh, kernel, &r).march_frame(&r, &r.camera(0)).unwrap();
+            let a = rgba[0][3];
+            assert!((a - expect).abs() <= 0.01 * expect, "{kernel} {field}: opacity {a} vs {expect}");
+            assert_eq!(stats.in_mesh_samples, stats.samples, "{kernel}: every sample is inside the cube");
+        }
+    }
+}
+
+#[test]
+fn a_gpu_marcher_refuses_another_renderer() {
+    let Some(ctx) = context("a_gpu_marcher_refuses_another_renderer") else { return };
+    let mesh = Arc::new(testmesh::cube(2, 1.0, 1.0));
+    let opts = RenderOptions { width: 8, height: 8, ..Default::default() };
+    let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
+    let other = Renderer::new(mesh.clone(), "c", &opts).unwrap();
+    let mut m = gpu_marcher(&ctx, &mesh, Kernel::SoftBvh, &r);
+    let e = m.march_frame(&other, &other.camera(0)).unwrap_err().to_string();
+    assert!(e.contains("built for field 'f'"), "{e}");
+    // Zero-size images never reach the GPU: the options are refused first.
+    let e = Renderer::new(mesh, "f", &RenderOptions { width: 0, ..opts }).err().unwrap().to_string();
+    assert!(e.contains("size") || e.contains("0"), "{e}");
 }

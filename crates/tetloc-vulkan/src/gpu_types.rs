@@ -16,6 +16,12 @@ pub const B_INSTANCES: u32 = 7;
 pub const B_NEIGHBORS: u32 = 8;
 /// soft-bvh entry grid.
 pub const B_GRID: u32 = 9;
+/// Volume ray marcher: parameters, transfer function, occupancy grid, per-pixel surface, pixels out.
+pub const B_MARCH: u32 = 10;
+pub const B_TF: u32 = 11;
+pub const B_OCCUPANCY: u32 = 12;
+pub const B_SURFACE: u32 = 13;
+pub const B_PIXELS: u32 = 14;
 
 pub const SAMPLE_HOST: i32 = 0;
 pub const SAMPLE_UNIFORM: i32 = 1;
@@ -114,6 +120,11 @@ mod tests {
             ("TL_B_INSTANCES", B_INSTANCES),
             ("TL_B_NEIGHBORS", B_NEIGHBORS),
             ("TL_B_GRID", B_GRID),
+            ("TL_B_MARCH", B_MARCH),
+            ("TL_B_TF", B_TF),
+            ("TL_B_OCCUPANCY", B_OCCUPANCY),
+            ("TL_B_SURFACE", B_SURFACE),
+            ("TL_B_PIXELS", B_PIXELS),
             ("TL_LEAF", LEAF),
             ("TL_EMPTY", EMPTY),
         ] {

@@ -22,6 +22,7 @@ mod context;
 mod error;
 mod gpu_types;
 mod locator;
+mod march;
 mod memory;
 mod nvml;
 mod pipeline;
@@ -33,6 +34,7 @@ pub use bench::{si, BenchOptions, BenchResult};
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
 pub use locator::{Kernel, LocatorOptions, MemoryReport, SampleMode, VulkanLocator, GRID_TETS_PER_CELL};
+pub use march::{MarchGrid, MarchScene, MarchStats, MarchView, VolumeMarcher};
 pub use memory::{MemItem, MemKind, STAGING_BYTES};
 pub use rt::AsReport;
 

@@ -178,6 +178,15 @@ enum Structure {
     Rt(RtStructure),
 }
 
+/// A locator's GPU resources as another pipeline binds them (see `VulkanLocator::resources`).
+pub(crate) struct Resources {
+    pub buffers: Vec<(u32, vk::DescriptorBufferInfo)>,
+    /// The top-level acceleration structure (rt kernels), bound at `B_ACCEL`.
+    pub accel: Option<vk::AccelerationStructureKHR>,
+    /// A small buffer for bindings a pipeline declares but does not use.
+    pub dummy: vk::DescriptorBufferInfo,
+}
+
 /// soft-bvh entry grid resolution: about this many tets per cell (a 1M-tet jets mesh then
 /// starts traversal at level 6-7 of 13 on median).
 pub const GRID_TETS_PER_CELL: usize = 2;
@@ -191,8 +200,8 @@ pub struct VulkanLocator {
     pub(crate) mesh: Arc<Mesh>,
     pub(crate) kernel: Kernel,
     pub(crate) opts: LocatorOptions,
-    f64: bool,
-    tracker: SharedTracker,
+    pub(crate) f64: bool,
+    pub(crate) tracker: SharedTracker,
     pub(crate) cmds: Commands,
     pub(crate) staging: Staging,
     pub(crate) desc: Descriptors,
@@ -372,44 +381,81 @@ impl VulkanLocator {
     /// The pipeline for `v`, created on first use.
     pub(crate) fn pipeline(&mut self, v: Variant) -> VkResult<&Pipeline> {
         if !self.pipelines.contains_key(&v) {
-            let spec = Spec::default()
-                .set(SC_SAMPLE_MODE, v.sample as u32)
-                .set(SC_OUTPUT_MODE, v.output as u32)
-                .set(SC_RECORD_POINTS, v.record as u32)
-                .set(SC_ORIENT_ERR_BOUND, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
-                .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
-                .set(SC_WALK_MAX, WALK_MAX as u32);
+            let spec = self.spec(v.output).set(SC_SAMPLE_MODE, v.sample as u32).set(SC_RECORD_POINTS, v.record as u32);
             let p = match &self.structure {
-                Structure::Soft { stack, direct, grid, .. } => {
-                    let spec = spec
-                        .set(SC_STACK_SIZE, *stack)
-                        .set(SC_WORKGROUP, self.opts.workgroup_size)
-                        .set(SC_DIRECT_LEAVES, *direct as u32)
-                        .set(SC_GRID_START, *grid as u32);
+                Structure::Soft { .. } => {
+                    let spec = spec.set(SC_WORKGROUP, self.opts.workgroup_size);
                     pipeline::compute_pipeline(&self.ctx, self.desc.layout, shaders::SOFT_BVH.pick(self.f64), &spec)?
                 }
                 Structure::Rt(_) => {
-                    const OPAQUE: u32 = 0x1;
-                    const TERMINATE_ON_FIRST_HIT: u32 = 0x4;
-                    const CULL_BACK_FACING: u32 = 0x10;
-                    let (flags, retry, chit, rint) = match self.kernel {
-                        Kernel::RtBvh => (
-                            OPAQUE | TERMINATE_ON_FIRST_HIT,
-                            false,
-                            shaders::RT_BVH_RCHIT,
-                            Some(shaders::RT_BVH_RINT.pick(self.f64)),
-                        ),
-                        Kernel::RtRepFaces => (OPAQUE | CULL_BACK_FACING, true, shaders::RT_REP_RCHIT.pick(self.f64), None),
-                        _ => (OPAQUE, true, shaders::RT_SHARED_RCHIT.pick(self.f64), None),
-                    };
-                    let spec = spec.set(SC_RAY_FLAGS, flags).set(SC_RETRY_ON_MISS, retry as u32);
-                    let sh = RtShaders { raygen: shaders::RT_RGEN, miss: shaders::RT_RMISS, closest_hit: chit, intersection: rint };
+                    let sh = self.rt_shaders(shaders::RT_RGEN);
                     pipeline::rt_pipeline(&self.ctx, &self.tracker, &mut self.staging, &mut self.cmds, self.desc.layout, &sh, &spec)?
                 }
             };
             self.pipelines.insert(v, p);
         }
         Ok(&self.pipelines[&v])
+    }
+
+    /// The specialization constants of this kernel's shaders for `output` (the volume
+    /// marcher's pipelines start from these too).
+    pub(crate) fn spec(&self, output: i32) -> Spec {
+        let spec = Spec::default()
+            .set(SC_OUTPUT_MODE, output as u32)
+            .set(SC_ORIENT_ERR_BOUND, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
+            .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
+            .set(SC_WALK_MAX, WALK_MAX as u32);
+        match &self.structure {
+            Structure::Soft { stack, direct, grid, .. } => {
+                spec.set(SC_STACK_SIZE, *stack).set(SC_DIRECT_LEAVES, *direct as u32).set(SC_GRID_START, *grid as u32)
+            }
+            Structure::Rt(_) => {
+                const OPAQUE: u32 = 0x1;
+                const TERMINATE_ON_FIRST_HIT: u32 = 0x4;
+                const CULL_BACK_FACING: u32 = 0x10;
+                let (flags, retry) = match self.kernel {
+                    Kernel::RtBvh => (OPAQUE | TERMINATE_ON_FIRST_HIT, false),
+                    Kernel::RtRepFaces => (OPAQUE | CULL_BACK_FACING, true),
+                    _ => (OPAQUE, true),
+                };
+                spec.set(SC_RAY_FLAGS, flags).set(SC_RETRY_ON_MISS, retry as u32)
+            }
+        }
+    }
+
+    /// This rt kernel's miss and hit shaders behind the ray generation shader `raygen`.
+    pub(crate) fn rt_shaders(&self, raygen: &'static [u8]) -> RtShaders<'static> {
+        let (chit, rint) = match self.kernel {
+            Kernel::RtBvh => (shaders::RT_BVH_RCHIT, Some(shaders::RT_BVH_RINT.pick(self.f64))),
+            Kernel::RtRepFaces => (shaders::RT_REP_RCHIT.pick(self.f64), None),
+            _ => (shaders::RT_SHARED_RCHIT.pick(self.f64), None),
+        };
+        RtShaders { raygen, miss: shaders::RT_RMISS, closest_hit: chit, intersection: rint }
+    }
+
+    /// What the volume marcher binds of this locator (no second upload): the kernel's
+    /// bindings but the query buffers, with the field `ensure_field` uploaded last.
+    pub(crate) fn resources(&self) -> Resources {
+        let mut buffers: Vec<(u32, vk::DescriptorBufferInfo)> = vec![
+            (B_POINTS, self._points.info()),
+            (B_TETS, self._tets.info()),
+            (B_FIELD, self.field.as_ref().map_or(&self.dummy, |f| &f.2).info()),
+        ];
+        let accel = match &self.structure {
+            Structure::Soft { _nodes, _prims, _grid, .. } => {
+                buffers.push((B_ACCEL, _nodes.info()));
+                buffers.push((B_PRIMS, _prims.as_ref().unwrap_or(&self.dummy).info()));
+                buffers.push((B_GRID, _grid.as_ref().unwrap_or(&self.dummy).info()));
+                None
+            }
+            Structure::Rt(s) => {
+                buffers.push((B_PRIMS, s.prims.info()));
+                buffers.push((B_INSTANCES, s.instance_base.info()));
+                buffers.push((B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&self.dummy).info()));
+                Some(s.tlas.handle)
+            }
+        };
+        Resources { buffers, accel, dummy: self.dummy.info() }
     }
 
     /// Push constants for a launch of `n` points starting at global sample index `base`.

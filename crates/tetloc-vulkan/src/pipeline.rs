@@ -71,7 +71,15 @@ impl Descriptors {
         if let Some((_, b)) = writes.iter().find(|(_, b)| b.size > limit) {
             return Err(VkError::TooLarge { name: b.name.clone(), bytes: b.size, limit, what: "maxStorageBufferRange" });
         }
-        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = writes.iter().map(|(_, b)| [b.info()]).collect();
+        let infos: Vec<(u32, vk::DescriptorBufferInfo)> = writes.iter().map(|(binding, b)| (*binding, b.info())).collect();
+        self.write_infos(&infos);
+        Ok(())
+    }
+
+    /// Points storage-buffer bindings at buffers given by their descriptor infos (buffers of
+    /// another object, already checked against the range limit when that object bound them).
+    pub fn write_infos(&self, writes: &[(u32, vk::DescriptorBufferInfo)]) {
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = writes.iter().map(|(_, info)| [*info]).collect();
         let w: Vec<_> = writes
             .iter()
             .zip(&infos)
@@ -85,7 +93,6 @@ impl Descriptors {
             .collect();
         // SAFETY: the set is not in use by any pending submission.
         unsafe { self.ctx.device.update_descriptor_sets(&w, &[]) };
-        Ok(())
     }
 
     pub fn write_accel(&self, binding: u32, accel: vk::AccelerationStructureKHR) {

@@ -24,6 +24,10 @@ impl Variants {
 
 pub(crate) const SOFT_BVH: Variants = Variants { f64: spirv!("soft_bvh_f64"), f32: spirv!("soft_bvh_f32") };
 pub(crate) const RT_RGEN: &[u8] = spirv!("rt_rgen");
+/// The volume ray marcher: soft-bvh with neighbour walks (compute), and the ray generation
+/// shader that runs it on the rt kernels' hit groups.
+pub(crate) const MARCH: Variants = Variants { f64: spirv!("march_f64"), f32: spirv!("march_f32") };
+pub(crate) const MARCH_RGEN: &[u8] = spirv!("march_rgen");
 pub(crate) const RT_RMISS: &[u8] = spirv!("rt_rmiss");
 pub(crate) const RT_BVH_RINT: Variants = Variants { f64: spirv!("rt_bvh_rint_f64"), f32: spirv!("rt_bvh_rint_f32") };
 pub(crate) const RT_BVH_RCHIT: &[u8] = spirv!("rt_bvh_rchit");

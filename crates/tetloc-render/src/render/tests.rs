@@ -299,7 +299,7 @@ fn fps_is_measured_per_backend() {
     assert!(rep.fps > 0.0 && rep.samples_per_frame > 0.0 && rep.sample_fraction > 0.0 && rep.sample_fraction <= 1.0);
     let line = rep.to_string();
     assert!(line.starts_with("cpu: ") && line.contains("FPS at 24x24"), "{line}");
-    let st = FrameStats { rays: 4, samples: 10, in_mesh_samples: 5, rounds: 2, sample_seconds: 0.5, seconds: 1.0 };
+    let st = FrameStats { rays: 4, samples: 10, in_mesh_samples: 5, rounds: 2, sample_seconds: 0.5, seconds: 1.0, gpu_seconds: 0.0 };
     assert_eq!(st.to_string(), "4 rays, 10 samples (50.0 % inside the mesh) in 2 batches, 1.00 s (50 % in the locator)");
 }
 

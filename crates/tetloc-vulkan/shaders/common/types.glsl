@@ -14,6 +14,12 @@
 #define TL_B_INSTANCES 7
 #define TL_B_NEIGHBORS 8
 #define TL_B_GRID 9
+// Volume ray marcher (march.glsl).
+#define TL_B_MARCH 10
+#define TL_B_TF 11
+#define TL_B_OCCUPANCY 12
+#define TL_B_SURFACE 13
+#define TL_B_PIXELS 14
 
 // Where sample points come from (specialization constant SAMPLE_MODE).
 #define TL_SAMPLE_HOST 0

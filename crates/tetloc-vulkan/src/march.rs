@@ -1,0 +1,424 @@
+//! The volume ray marcher on the GPU (paper, section 6.3): one invocation per pixel runs the
+//! whole march of `shaders/common/march.glsl` — camera ray, box clipping, exact empty-space
+//! skipping, transfer function, front-to-back compositing to the opacity cutoff — locating
+//! every sample with the locator's own kernel: soft-bvh in a compute shader (a neighbour walk
+//! from the previous sample, BVH traversal as the fallback), the rt kernels in a ray
+//! generation shader that traces through their hit groups.
+//!
+//! A [`VolumeMarcher`] takes a [`VulkanLocator`] and binds its mesh and structure buffers
+//! (no second upload); the scene (transfer function, occupancy grid) is plain data that
+//! tetloc-render fills in, so this crate knows nothing of cameras or colormaps beyond the
+//! numbers. Frame times come from GPU timestamps around the one dispatch.
+
+use crate::error::{VkError, VkResult};
+use crate::gpu_types::*;
+use crate::locator::VulkanLocator;
+use crate::memory::{self, full_barrier, Buffer, Location, MemKind};
+use crate::pipeline::{self, Descriptors, Pipeline};
+use crate::shaders;
+use crate::Kernel;
+use ash::vk;
+use bytemuck::{Pod, Zeroable};
+use std::time::Instant;
+
+/// `TlMarchParams` of march.glsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct MarchParams {
+    eye_step: [f32; 4],
+    fwd_tan: [f32; 4],
+    right_cutoff: [f32; 4],
+    up: [f32; 4],
+    size: [u32; 4],
+    box_lo_tf_lo: [f32; 4],
+    box_hi_tf_inv: [f32; 4],
+    occ_lo_margin: [f32; 4],
+    occ_hi: [f32; 4],
+    occ_cell: [f32; 4],
+    occ_inv: [f32; 4],
+    occ_dims: [u32; 4],
+    occ_blocks: [u32; 4],
+}
+
+const FLAG_SKIP: u32 = 1;
+const FLAG_SURFACE: u32 = 2;
+
+/// `TlPixel` of march.glsl.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
+struct Pixel {
+    rgba: [f32; 4],
+    count: [u32; 4],
+}
+
+/// An occupancy grid for exact empty-space skipping (tetloc-render's `OccupancyGrid`).
+#[derive(Clone, Debug)]
+pub struct MarchGrid {
+    pub lo: [f32; 3],
+    pub hi: [f32; 3],
+    pub cell: [f32; 3],
+    pub inv_cell: [f32; 3],
+    /// How far before a region's exit a skip lands.
+    pub margin: f32,
+    pub dims: [u32; 3],
+    pub block_dims: [u32; 3],
+    /// Cells along a block's edge.
+    pub block: u32,
+    /// Per cell, x fastest.
+    pub occupied: Vec<bool>,
+    /// Per block, x fastest.
+    pub blocks: Vec<bool>,
+}
+
+/// What stays the same from frame to frame.
+#[derive(Clone, Debug)]
+pub struct MarchScene {
+    pub field: String,
+    pub step: f32,
+    /// A ray stops once this opaque.
+    pub cutoff: f32,
+    /// Transfer function: linear RGB and step alpha, at least 2 entries, linearly filtered
+    /// over `[tf_lo, tf_lo + 1 / tf_inv_range]`.
+    pub tf: Vec<[f32; 4]>,
+    pub tf_lo: f32,
+    pub tf_inv_range: f32,
+    /// Empty-space skipping when set.
+    pub grid: Option<MarchGrid>,
+}
+
+/// One frame's camera (tetloc-render's `Camera`) and surface.
+#[derive(Clone, Copy, Debug)]
+pub struct MarchView<'a> {
+    pub eye: [f32; 3],
+    /// Unit vectors.
+    pub forward: [f32; 3],
+    pub right: [f32; 3],
+    pub up: [f32; 3],
+    pub tan_half_y: f32,
+    pub width: u32,
+    pub height: u32,
+    /// Per pixel: the ray parameter where it hits a surface (+inf: none) and the surface's
+    /// shaded linear RGB.
+    pub surface: Option<&'a [[f32; 4]]>,
+}
+
+/// What one frame cost.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MarchStats {
+    /// GPU time of the march (timestamps around the dispatch), or the submission's host
+    /// time on a device without timestamps.
+    pub gpu_seconds: f64,
+    /// Samples located, and of those the ones inside the mesh (composited).
+    pub samples: u64,
+    pub in_mesh_samples: u64,
+}
+
+/// A locator's kernel marching whole frames on the GPU.
+pub struct VolumeMarcher {
+    // Field order is drop order: the pipeline and the march's buffers before the locator.
+    pipeline: Pipeline,
+    desc: Descriptors,
+    params: MarchParams,
+    params_buf: Buffer,
+    _tf: Buffer,
+    _occupancy: Buffer,
+    _neighbors: Option<Buffer>,
+    surface: Option<(Buffer, usize)>,
+    pixels: Option<(Buffer, usize)>,
+    query_pool: Option<vk::QueryPool>,
+    busy: u32,
+    loc: VulkanLocator,
+}
+
+impl VolumeMarcher {
+    pub fn new(mut loc: VulkanLocator, scene: &MarchScene) -> tetloc_core::Result<VolumeMarcher> {
+        let bad = |m: String| Err(tetloc_core::Error::Invalid(m));
+        if scene.tf.len() < 2 || scene.step.is_nan() || scene.step <= 0.0 {
+            return bad(format!("march: {} transfer-function entries (need 2) and step {}", scene.tf.len(), scene.step));
+        }
+        let output = loc.ensure_field(&scene.field)?;
+        let ctx = loc.ctx.clone();
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let upload = |loc: &mut VulkanLocator, name: &str, kind: MemKind, data: &[u8]| {
+            memory::device_buffer_with(&ctx, &loc.tracker, &mut loc.staging, &mut loc.cmds, name, kind, storage, data)
+        };
+        let tf = upload(&mut loc, "march transfer function", MemKind::Structure, bytemuck::cast_slice(&scene.tf))?;
+        let (lo, hi) = (loc.mesh.info.bounds_min, loc.mesh.info.bounds_max);
+        let mut p = MarchParams {
+            eye_step: [0.0, 0.0, 0.0, scene.step],
+            right_cutoff: [0.0, 0.0, 0.0, scene.cutoff],
+            size: [0, 0, 0, scene.tf.len() as u32],
+            box_lo_tf_lo: [lo[0], lo[1], lo[2], scene.tf_lo],
+            box_hi_tf_inv: [hi[0], hi[1], hi[2], scene.tf_inv_range],
+            ..Default::default()
+        };
+        let occupancy = match &scene.grid {
+            Some(g) => {
+                let cells = g.occupied.len();
+                let words = cells.div_ceil(32);
+                let mut bits = vec![0u32; words + g.blocks.len().div_ceil(32)];
+                for (i, _) in g.occupied.iter().enumerate().filter(|(_, &o)| o) {
+                    bits[i / 32] |= 1 << (i % 32);
+                }
+                for (i, _) in g.blocks.iter().enumerate().filter(|(_, &o)| o) {
+                    bits[words + i / 32] |= 1 << (i % 32);
+                }
+                p.size[2] |= FLAG_SKIP;
+                p.occ_lo_margin = [g.lo[0], g.lo[1], g.lo[2], g.margin];
+                p.occ_hi = [g.hi[0], g.hi[1], g.hi[2], 0.0];
+                p.occ_cell = [g.cell[0], g.cell[1], g.cell[2], 0.0];
+                p.occ_inv = [g.inv_cell[0], g.inv_cell[1], g.inv_cell[2], 0.0];
+                p.occ_dims = [g.dims[0], g.dims[1], g.dims[2], words as u32];
+                p.occ_blocks = [g.block_dims[0], g.block_dims[1], g.block_dims[2], g.block];
+                upload(&mut loc, "march occupancy grid", MemKind::Structure, bytemuck::cast_slice(&bits))?
+            }
+            None => upload(&mut loc, "march occupancy grid", MemKind::Structure, &[0; 16])?,
+        };
+        let params_buf = Buffer::new(
+            &ctx,
+            &loc.tracker,
+            "march parameters",
+            MemKind::Query,
+            std::mem::size_of::<MarchParams>() as u64,
+            storage | vk::BufferUsageFlags::TRANSFER_DST,
+            Location::Device,
+        )?;
+
+        // One descriptor set: the locator's resources, then the march's own.
+        let res = loc.resources();
+        let soft = loc.kernel == Kernel::SoftBvh;
+        let neighbors = if soft {
+            let mesh = loc.mesh.clone();
+            let nb = mesh.neighbors();
+            Some(upload(&mut loc, "march tet neighbours", MemKind::Structure, bytemuck::cast_slice(nb))?)
+        } else {
+            None
+        };
+        let mut bindings: Vec<(u32, vk::DescriptorType)> =
+            res.buffers.iter().map(|(b, _)| (*b, vk::DescriptorType::STORAGE_BUFFER)).collect();
+        let own = [B_MARCH, B_TF, B_OCCUPANCY, B_SURFACE, B_PIXELS];
+        bindings.extend(own.iter().map(|&b| (b, vk::DescriptorType::STORAGE_BUFFER)));
+        if soft {
+            bindings.push((B_NEIGHBORS, vk::DescriptorType::STORAGE_BUFFER));
+        }
+        if res.accel.is_some() {
+            bindings.push((B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR));
+        }
+        let stages = if soft {
+            vk::ShaderStageFlags::COMPUTE
+        } else {
+            vk::ShaderStageFlags::RAYGEN_KHR
+                | vk::ShaderStageFlags::MISS_KHR
+                | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+                | vk::ShaderStageFlags::INTERSECTION_KHR
+        };
+        let desc = Descriptors::new(&ctx, &bindings, stages)?;
+        desc.write_infos(&res.buffers);
+        desc.write_buffers(&[(B_MARCH, &params_buf), (B_TF, &tf), (B_OCCUPANCY, &occupancy)])?;
+        desc.write_infos(&[(B_SURFACE, res.dummy), (B_PIXELS, res.dummy)]);
+        if let Some(nb) = &neighbors {
+            desc.write_buffers(&[(B_NEIGHBORS, nb)])?;
+        }
+        if let Some(a) = res.accel {
+            desc.write_accel(B_ACCEL, a);
+        }
+
+        let spec = loc.spec(output);
+        let pipeline = if soft {
+            pipeline::compute_pipeline(&ctx, desc.layout, shaders::MARCH.pick(loc.f64), &spec)?
+        } else {
+            let sh = loc.rt_shaders(shaders::MARCH_RGEN);
+            pipeline::rt_pipeline(&ctx, &loc.tracker, &mut loc.staging, &mut loc.cmds, desc.layout, &sh, &spec)?
+        };
+        let query_pool = if ctx.limits.timestamp_valid_bits > 0 {
+            let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
+            // SAFETY: plain query-pool creation; destroyed in Drop.
+            Some(unsafe { ctx.device.create_query_pool(&info, None) }.map_err(VkError::vk("vkCreateQueryPool"))?)
+        } else {
+            None
+        };
+        Ok(VolumeMarcher {
+            pipeline,
+            desc,
+            params: p,
+            params_buf,
+            _tf: tf,
+            _occupancy: occupancy,
+            _neighbors: neighbors,
+            surface: None,
+            pixels: None,
+            query_pool,
+            busy: 0,
+            loc,
+        })
+    }
+
+    pub fn kernel(&self) -> Kernel {
+        self.loc.kernel
+    }
+
+    pub fn locator(&self) -> &VulkanLocator {
+        &self.loc
+    }
+
+    /// Benchmarks: march each frame `n` more times, untimed, before the timed march, so that
+    /// the GPU stays busy between frames (image downloads) and its clocks stay up.
+    pub fn set_busy_dispatches(&mut self, n: u32) {
+        self.busy = n;
+    }
+
+    /// Marches one frame. `out` (width × height, row-major, top row first) receives each
+    /// pixel's premultiplied linear RGB and opacity, surface included, no background.
+    pub fn render(&mut self, view: &MarchView, out: &mut [[f32; 4]]) -> tetloc_core::Result<MarchStats> {
+        let n = view.width as usize * view.height as usize;
+        if n == 0 || out.len() != n {
+            return Err(tetloc_core::Error::Invalid(format!(
+                "march: a {}x{} frame into {} pixels",
+                view.width,
+                view.height,
+                out.len()
+            )));
+        }
+        if let Some(s) = view.surface {
+            if s.len() != n {
+                return Err(tetloc_core::Error::Invalid(format!("march: {} surface entries for {n} pixels", s.len())));
+            }
+        }
+        Ok(self.render_frame(view, out)?)
+    }
+
+    fn render_frame(&mut self, view: &MarchView, out: &mut [[f32; 4]]) -> VkResult<MarchStats> {
+        let n = out.len();
+        let ctx = self.loc.ctx.clone();
+        if let Some(rt) = &ctx.rt {
+            if self.loc.kernel != Kernel::SoftBvh && n > rt.max_dispatch as usize {
+                return Err(VkError::Mesh(format!("{n} pixels: more rays than one launch may have ({})", rt.max_dispatch)));
+            }
+        }
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
+        if self.pixels.as_ref().is_none_or(|(_, cap)| *cap < n) {
+            self.pixels = None;
+            let bytes = (n * std::mem::size_of::<Pixel>()) as u64;
+            let b = Buffer::new(&ctx, &self.loc.tracker, "march pixels", MemKind::Query, bytes, usage, Location::Device)?;
+            self.desc.write_buffers(&[(B_PIXELS, &b)])?;
+            self.pixels = Some((b, n));
+        }
+        let mut p = self.params;
+        p.eye_step[..3].copy_from_slice(&view.eye);
+        p.fwd_tan = [view.forward[0], view.forward[1], view.forward[2], view.tan_half_y];
+        p.right_cutoff[..3].copy_from_slice(&view.right);
+        p.up[..3].copy_from_slice(&view.up);
+        p.size[0] = view.width;
+        p.size[1] = view.height;
+        if let Some(s) = view.surface {
+            p.size[2] |= FLAG_SURFACE;
+            if self.surface.as_ref().is_none_or(|(_, cap)| *cap < n) {
+                self.surface = None;
+                let bytes = (n * 16) as u64;
+                let b = Buffer::new(&ctx, &self.loc.tracker, "march surface", MemKind::Query, bytes, usage, Location::Device)?;
+                self.desc.write_buffers(&[(B_SURFACE, &b)])?;
+                self.surface = Some((b, n));
+            }
+            let buf = &self.surface.as_ref().unwrap().0;
+            self.loc.staging.upload(&mut self.loc.cmds, buf, 0, bytemuck::cast_slice(s))?;
+        }
+
+        let push = self.loc.params(0, 0, 0);
+        let (pl, desc, params_buf, pool) = (&self.pipeline, &self.desc, self.params_buf.buffer, self.query_pool);
+        let (w, h) = (view.width, view.height);
+        let busy = self.busy;
+        let t = Instant::now();
+        // SAFETY: recording into the locator's command buffer with live objects; the params
+        // update is far below vkCmdUpdateBuffer's 64 KiB limit and a multiple of 4 bytes.
+        self.loc.cmds.run(|dev, cmd| unsafe {
+            dev.cmd_update_buffer(cmd, params_buf, 0, bytemuck::bytes_of(&p));
+            if let Some(pool) = pool {
+                dev.cmd_reset_query_pool(cmd, pool, 0, 2);
+            }
+            dev.cmd_bind_pipeline(cmd, pl.bind_point, pl.pipeline);
+            dev.cmd_bind_descriptor_sets(cmd, pl.bind_point, desc.layout, 0, &[desc.set], &[]);
+            dev.cmd_push_constants(cmd, desc.layout, desc.stages, 0, bytemuck::bytes_of(&push));
+            for i in 0..=busy {
+                full_barrier(dev, cmd);
+                if let (Some(pool), true) = (pool, i == busy) {
+                    dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 0);
+                }
+                match &pl.sbt {
+                    None => dev.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1),
+                    Some(sbt) => {
+                        let empty = vk::StridedDeviceAddressRegionKHR::default();
+                        let rt = ctx.rt.as_ref().unwrap();
+                        rt.pipeline.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &empty, w, h, 1);
+                    }
+                }
+            }
+            full_barrier(dev, cmd);
+            if let Some(pool) = pool {
+                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 1);
+            }
+        })?;
+        let host_seconds = t.elapsed().as_secs_f64();
+        let gpu_seconds = match pool {
+            Some(pool) => {
+                let mut ticks = [0u64; 2];
+                // SAFETY: both queries were written by the completed submission (never read
+                // a query that was reset but not written: that hangs some drivers).
+                unsafe { ctx.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
+                    .map_err(VkError::vk("vkGetQueryPoolResults"))?;
+                let bits = ctx.limits.timestamp_valid_bits;
+                let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+                (ticks[1].wrapping_sub(ticks[0]) & mask) as f64 * ctx.limits.timestamp_period_ns * 1e-9
+            }
+            None => host_seconds,
+        };
+
+        let mut pixels = vec![Pixel::default(); n];
+        let buf = &self.pixels.as_ref().unwrap().0;
+        self.loc.staging.download(&mut self.loc.cmds, buf, 0, bytemuck::cast_slice_mut(&mut pixels))?;
+        let mut stats = MarchStats { gpu_seconds, ..Default::default() };
+        for (o, px) in out.iter_mut().zip(&pixels) {
+            *o = px.rgba;
+            stats.samples += px.count[0] as u64;
+            stats.in_mesh_samples += px.count[1] as u64;
+        }
+        Ok(stats)
+    }
+}
+
+impl Drop for VolumeMarcher {
+    fn drop(&mut self) {
+        if let Some(pool) = self.query_pool {
+            // SAFETY: every submission using the pool has completed (run() waits).
+            unsafe { self.loc.ctx.device.destroy_query_pool(pool, None) };
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The Rust mirror of `TlMarchParams` has the GLSL layout: 13 16-byte rows, in order.
+    #[test]
+    fn params_match_the_glsl_struct() {
+        assert_eq!(std::mem::size_of::<MarchParams>(), 13 * 16);
+        let glsl = include_str!("../shaders/common/march.glsl");
+        let body = &glsl[glsl.find("struct TlMarchParams {").unwrap()..];
+        let body = &body[..body.find("};").unwrap()];
+        let names: Vec<&str> = body
+            .lines()
+            .skip(1)
+            .filter_map(|l| l.trim().split(';').next()?.split_whitespace().nth(1))
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "eye_step", "fwd_tan", "right_cutoff", "up", "size", "box_lo_tf_lo", "box_hi_tf_inv", "occ_lo_margin",
+                "occ_hi", "occ_cell", "occ_inv", "occ_dims", "occ_blocks"
+            ]
+        );
+        assert!(glsl.contains(&format!("#define TL_MARCH_SKIP {FLAG_SKIP}u")));
+        assert!(glsl.contains(&format!("#define TL_MARCH_SURFACE {FLAG_SURFACE}u")));
+        assert_eq!(std::mem::size_of::<Pixel>(), 32);
+    }
+}
