@@ -1,0 +1,94 @@
+// soft-bvh traversal (the paper's cuda-bvh), shared by the point-location kernel
+// (soft_bvh.comp) and the volume ray marcher: depth-first traversal of a 4-wide BVH with
+// quantized child boxes, in software, returning at the first tet that contains the point.
+// Needs types.glsl, mesh.glsl and tet.glsl first, and GL_EXT_control_flow_attributes.
+#ifndef TL_SOFT_BVH_GLSL
+#define TL_SOFT_BVH_GLSL
+
+// Nodes as four uvec4 (src/gpu_types.rs `QNode4`): w0 = origin.xyz, scale.x;
+// w1 = scale.yz, quantized lower/upper x; w2 = quantized lower/upper y, z (one byte per
+// child); w3 = child references.
+layout(std430, binding = TL_B_ACCEL) readonly buffer TlNodes { uvec4 tl_nodes[]; };
+layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrims { uint tl_prims[]; };
+// One tet per leaf, its id in the reference itself (no tl_prims lookup).
+layout(constant_id = 10) const bool DIRECT_LEAVES = false;
+// Start below the root, at the node the entry grid names for the point's cell
+// (src/soft_bvh.rs EntryGrid: header dims.xyz, 0, inv.xyz as bits, 0; then the cells).
+layout(constant_id = 11) const bool GRID_START = false;
+layout(std430, binding = TL_B_GRID) readonly buffer TlGrid { uint tl_grid[]; };
+
+// soft_bvh::cell_coord: the same f32 operations, so CPU and GPU agree on the cell.
+uint tl_cell_coord(float p, float lo, float inv, uint dim) {
+    precise float x = (p - lo) * inv;
+    return uint(clamp(floor(x), 0.0, float(dim - 1u)));
+}
+
+// Bytes 0..3 of a word, one per child.
+vec4 tl_bytes(uint w) {
+    return vec4((uvec4(w) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu);
+}
+
+int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
+    uint stack[STACK_SIZE];
+    uint sp = 0u;
+    uint ref = 0u; // the root
+    if (GRID_START) {
+        uvec3 dims = uvec3(tl_grid[0], tl_grid[1], tl_grid[2]);
+        vec3 inv = uintBitsToFloat(uvec3(tl_grid[4], tl_grid[5], tl_grid[6]));
+        vec3 lo = params.lo_tmin.xyz;
+        uint cx = tl_cell_coord(p.x, lo.x, inv.x, dims.x);
+        uint cy = tl_cell_coord(p.y, lo.y, inv.y, dims.y);
+        uint cz = tl_cell_coord(p.z, lo.z, inv.z, dims.z);
+        ref = tl_grid[8u + (cz * dims.y + cy) * dims.x + cx];
+        if (ref == TL_EMPTY) {
+            return -1; // no tet's box overlaps this cell
+        }
+    }
+    while (true) {
+        if ((ref & TL_LEAF) != 0u) {
+            uint first = ref & 0x1fffffffu;
+            uint count = ((ref >> 29u) & 3u) + 1u;
+            for (uint k = 0u; k < count; k++) {
+                uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
+                ids = tl_tets[tet];
+                int exit_face;
+                if (tl_point_in_tet(ids, p, bary, exit_face)) {
+                    return int(tet);
+                }
+            }
+        } else {
+            uvec4 w0 = tl_nodes[4u * ref], w1 = tl_nodes[4u * ref + 1u];
+            uvec4 w2 = tl_nodes[4u * ref + 2u], w3 = tl_nodes[4u * ref + 3u];
+            vec3 org = uintBitsToFloat(w0.xyz);
+            vec3 scl = uintBitsToFloat(uvec3(w0.w, w1.x, w1.y));
+            // Dequantize exactly as the CPU did when it made the boxes conservative.
+            precise vec4 lox = org.x + tl_bytes(w1.z) * scl.x, hix = org.x + tl_bytes(w1.w) * scl.x;
+            precise vec4 loy = org.y + tl_bytes(w2.x) * scl.y, hiy = org.y + tl_bytes(w2.y) * scl.y;
+            precise vec4 loz = org.z + tl_bytes(w2.z) * scl.z, hiz = org.z + tl_bytes(w2.w) * scl.z;
+            bvec4 hit = bvec4(uvec4(greaterThanEqual(vec4(p.x), lox)) & uvec4(lessThanEqual(vec4(p.x), hix))
+                & uvec4(greaterThanEqual(vec4(p.y), loy)) & uvec4(lessThanEqual(vec4(p.y), hiy))
+                & uvec4(greaterThanEqual(vec4(p.z), loz)) & uvec4(lessThanEqual(vec4(p.z), hiz))
+                & uvec4(notEqual(w3, uvec4(TL_EMPTY))));
+            uint next = TL_EMPTY;
+            [[unroll]] for (int c = 0; c < 4; c++) {
+                if (hit[c]) {
+                    if (next == TL_EMPTY) {
+                        next = w3[c];
+                    } else if (sp < STACK_SIZE) { // never full: STACK_SIZE comes from the tree depth
+                        stack[sp++] = w3[c];
+                    }
+                }
+            }
+            if (next != TL_EMPTY) {
+                ref = next;
+                continue;
+            }
+        }
+        if (sp == 0u) {
+            return -1;
+        }
+        ref = stack[--sp];
+    }
+}
+
+#endif
