@@ -44,6 +44,7 @@ pub const SC_RAY_FLAGS: u32 = 8;
 pub const SC_RETRY_ON_MISS: u32 = 9;
 pub const SC_DIRECT_LEAVES: u32 = 10;
 pub const SC_GRID_START: u32 = 11;
+pub const SC_WALK_START: u32 = 12;
 
 /// The push-constant block.
 #[repr(C)]
@@ -148,5 +149,6 @@ mod tests {
         let traversal = include_str!("../shaders/common/soft_bvh.glsl");
         assert!(traversal.contains(&format!("constant_id = {SC_DIRECT_LEAVES}) const bool DIRECT_LEAVES")));
         assert!(traversal.contains(&format!("constant_id = {SC_GRID_START}) const bool GRID_START")));
+        assert!(traversal.contains(&format!("constant_id = {SC_WALK_START}) const bool WALK_START")));
     }
 }

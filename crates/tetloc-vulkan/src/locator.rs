@@ -87,6 +87,12 @@ pub struct LocatorOptions {
     /// point's cell (about `GRID_TETS_PER_CELL` tets per cell, 4 B per cell). Unmeasured on
     /// GPUs so far: off by default (NOTES.md).
     pub grid_start: bool,
+    /// soft-bvh: walk through face neighbours from a start tet the entry grid names for the
+    /// point's cell (the tet holding the cell's centre), traversal from the cell's node as the
+    /// exact fallback; +4 B per cell and the neighbours (16 B per tet). Implies the grid.
+    pub walk_start: bool,
+    /// soft-bvh entry grid resolution: about this many tets per cell.
+    pub grid_tets_per_cell: usize,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
 }
@@ -101,6 +107,8 @@ impl Default for LocatorOptions {
             float64: true,
             workgroup_size: 128,
             grid_start: false,
+            walk_start: false,
+            grid_tets_per_cell: GRID_TETS_PER_CELL,
             staging_bytes: memory::STAGING_BYTES,
         }
     }
@@ -174,7 +182,7 @@ pub(crate) struct Variant {
 /// The search structure; its buffers are only held (bound in the descriptor set).
 #[allow(clippy::large_enum_variant)]
 enum Structure {
-    Soft { _nodes: Buffer, _prims: Option<Buffer>, _grid: Option<Buffer>, stack: u32, direct: bool, grid: bool },
+    Soft { _buffers: Vec<Buffer>, stack: u32, direct: bool, grid: bool, walk: bool },
     Rt(RtStructure),
 }
 
@@ -184,6 +192,9 @@ pub const GRID_TETS_PER_CELL: usize = 2;
 
 /// Most tets the face kernels visit when the closest hit's tet is off by rounding.
 const WALK_MAX: i32 = 16;
+/// Most tets a soft-bvh walk start visits before traversal takes over (jets: 1.7-2.6 on
+/// average from a cell-centre start, NOTES.md).
+const SOFT_WALK_MAX: i32 = 32;
 
 /// A mesh on one Vulkan device with one kernel's search structure.
 pub struct VulkanLocator {
@@ -216,10 +227,10 @@ impl VulkanLocator {
         if kernel.needs_ray_tracing() && ctx.rt.is_none() {
             return Err(VkError::NoRayTracing { device: ctx.device_name(), kernel: kernel.name().into() });
         }
-        if opts.chunk_points == 0 || ![1, 4].contains(&opts.leaf_size) || opts.workgroup_size == 0 {
+        if opts.chunk_points == 0 || ![1, 4].contains(&opts.leaf_size) || opts.workgroup_size == 0 || opts.grid_tets_per_cell == 0 {
             return Err(VkError::Mesh(format!(
-                "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0)",
-                opts.chunk_points, opts.leaf_size, opts.workgroup_size
+                "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0), grid_tets_per_cell {} (> 0)",
+                opts.chunk_points, opts.leaf_size, opts.workgroup_size, opts.grid_tets_per_cell
             )));
         }
         if mesh.n_tets() >= i32::MAX as usize {
@@ -268,24 +279,34 @@ impl VulkanLocator {
                         &ctx, &tracker, &mut staging, &mut cmds, "bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&q.prims),
                     )?)
                 };
-                let grid = if opts.grid_start {
-                    let g = q.entry_grid(&mesh.points, &mesh.tets, mesh.info.bounds_min, mesh.info.bounds_max, GRID_TETS_PER_CELL);
+                let grid = if opts.grid_start || opts.walk_start {
+                    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+                    let g = q.entry_grid(&mesh.points, &mesh.tets, lo, hi, opts.grid_tets_per_cell, opts.walk_start);
                     Some(memory::device_buffer_with(
                         &ctx, &tracker, &mut staging, &mut cmds, "entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()),
                     )?)
                 } else {
                     None
                 };
+                let neighbors = if opts.walk_start {
+                    let nb = bytemuck::cast_slice(mesh.neighbors());
+                    Some(memory::device_buffer_with(&ctx, &tracker, &mut staging, &mut cmds, "tet neighbours", MemKind::Structure, storage, nb)?)
+                } else {
+                    None
+                };
                 bindings.push((B_ACCEL, vk::DescriptorType::STORAGE_BUFFER));
                 bindings.push((B_GRID, vk::DescriptorType::STORAGE_BUFFER));
+                bindings.push((B_NEIGHBORS, vk::DescriptorType::STORAGE_BUFFER));
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
                 desc.write_buffers(&[
                     (B_ACCEL, &nodes),
                     (B_PRIMS, prims.as_ref().unwrap_or(&dummy)),
                     (B_GRID, grid.as_ref().unwrap_or(&dummy)),
+                    (B_NEIGHBORS, neighbors.as_ref().unwrap_or(&dummy)),
                 ])?;
                 let (stack, direct, has_grid) = (q.stack_size(), q.direct, grid.is_some());
-                (Structure::Soft { _nodes: nodes, _prims: prims, _grid: grid, stack, direct, grid: has_grid }, desc)
+                let buffers = [Some(nodes), prims, grid, neighbors].into_iter().flatten().collect();
+                (Structure::Soft { _buffers: buffers, stack, direct, grid: has_grid, walk: opts.walk_start }, desc)
             }
             _ => {
                 let geometry = match kernel {
@@ -377,11 +398,12 @@ impl VulkanLocator {
                 .set(SC_OUTPUT_MODE, v.output as u32)
                 .set(SC_RECORD_POINTS, v.record as u32)
                 .set(SC_ORIENT_ERR_BOUND, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
-                .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
-                .set(SC_WALK_MAX, WALK_MAX as u32);
+                .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits());
             let p = match &self.structure {
-                Structure::Soft { stack, direct, grid, .. } => {
+                Structure::Soft { stack, direct, grid, walk, .. } => {
                     let spec = spec
+                        .set(SC_WALK_MAX, SOFT_WALK_MAX as u32)
+                        .set(SC_WALK_START, *walk as u32)
                         .set(SC_STACK_SIZE, *stack)
                         .set(SC_WORKGROUP, self.opts.workgroup_size)
                         .set(SC_DIRECT_LEAVES, *direct as u32)
@@ -402,7 +424,7 @@ impl VulkanLocator {
                         Kernel::RtRepFaces => (OPAQUE | CULL_BACK_FACING, true, shaders::RT_REP_RCHIT.pick(self.f64), None),
                         _ => (OPAQUE, true, shaders::RT_SHARED_RCHIT.pick(self.f64), None),
                     };
-                    let spec = spec.set(SC_RAY_FLAGS, flags).set(SC_RETRY_ON_MISS, retry as u32);
+                    let spec = spec.set(SC_WALK_MAX, WALK_MAX as u32).set(SC_RAY_FLAGS, flags).set(SC_RETRY_ON_MISS, retry as u32);
                     let sh = RtShaders { raygen: shaders::RT_RGEN, miss: shaders::RT_RMISS, closest_hit: chit, intersection: rint };
                     pipeline::rt_pipeline(&self.ctx, &self.tracker, &mut self.staging, &mut self.cmds, self.desc.layout, &sh, &spec)?
                 }

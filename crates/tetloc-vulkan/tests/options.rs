@@ -58,6 +58,10 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             variants.push(("up to four tets per leaf", LocatorOptions { leaf_size: 4, ..base.clone() }));
             variants.push(("entry grid", LocatorOptions { grid_start: true, ..base.clone() }));
             variants.push(("entry grid, four per leaf", LocatorOptions { grid_start: true, leaf_size: 4, ..base.clone() }));
+            variants.push(("walk start", LocatorOptions { walk_start: true, ..base.clone() }));
+            let fine = LocatorOptions { walk_start: true, grid_tets_per_cell: 1, chunk_points: 997, ..base.clone() };
+            variants.push(("walk start, 1 tet a cell, chunks of 997", fine));
+            variants.push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
             variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));

@@ -91,6 +91,8 @@ fn every_kernel_matches_the_oracle() {
         let mut configs: Vec<_> = kernels.iter().map(|&k| (k, LocatorOptions::default())).collect();
         // soft-bvh's entry grid: cells no tet overlaps (holes, sparse meshes) answer -1 at once.
         configs.push((Kernel::SoftBvh, LocatorOptions { grid_start: true, ..Default::default() }));
+        // Walk start: walks leave non-convex meshes and end on faces; traversal takes over.
+        configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: true, ..Default::default() }));
         for (k, opts) in configs {
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();
             for (set, cpu) in sets.iter().zip(&cpu) {

@@ -13,11 +13,12 @@ layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_
 int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
     for (int step = 0; step < max_steps && tet >= 0; step++) {
         ids = tl_tets[tet];
+        ivec4 next = tl_neighbors[tet]; // loaded beside the tet: one memory latency a step, not two
         int exit_face;
         if (tl_point_in_tet(ids, p, bary, exit_face)) {
             return tet;
         }
-        tet = tl_neighbors[tet][exit_face];
+        tet = next[exit_face];
     }
     return -1;
 }
