@@ -7,8 +7,9 @@
 //! --kernels a,b (default all the device runs), --modes uniform,random,bbox,host,
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
-//! --grid (soft-bvh entry grid), --variants (soft-bvh variants: leaf size, workgroup size,
-//! pure-f32 test, entry grid).
+//! --grid (soft-bvh entry grid), --walk (soft-bvh walk start), --cell-tets N (grid
+//! resolution), --f32-first, --f32 (pure-f32 test), --variants (soft-bvh variants: entry grid,
+//! walk start at two grid resolutions, f32-first and pure-f32 tests).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -68,6 +69,10 @@ fn parse() -> Result<Args, String> {
             "--leaf" => a.opts.leaf_size = num(val()?)?,
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
             "--grid" => a.opts.grid_start = true,
+            "--walk" => a.opts.walk_start = true,
+            "--cell-tets" => a.opts.grid_tets_per_cell = num(val()?)?,
+            "--f32-first" => a.opts.f32_first = true,
+            "--f32" => a.opts.float64 = false,
             "--repeats" => a.repeats = num(val()?)?,
             "--power" => a.power = true,
             "--variants" => a.variants = true,
@@ -135,12 +140,30 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut configs: Vec<(String, Kernel, LocatorOptions)> =
         kernels.iter().map(|&k| (k.name().to_string(), k, args.opts.clone())).collect();
     if args.variants {
-        for (leaf, wg, f64, grid) in
-            [(4, 128, true, false), (1, 64, true, false), (1, 256, true, false), (1, 128, false, false), (1, 128, true, true), (4, 128, true, true)]
-        {
-            let o = LocatorOptions { leaf_size: leaf, workgroup_size: wg, float64: f64, grid_start: grid, ..args.opts.clone() };
-            let label =
-                format!("soft-bvh leaf {leaf} wg {wg}{}{}", if f64 { "" } else { " f32" }, if grid { " grid" } else { "" });
+        // (grid, walk, tets per cell, f32 first, f64); leaf size and workgroup size were
+        // measured before (BENCHMARKS.md: within noise).
+        for (grid, walk, cell, first, f64) in [
+            (true, false, 2, false, true),
+            (false, false, 2, true, true),
+            (false, true, 2, false, true),
+            (false, true, 1, false, true),
+            (false, true, 1, true, true),
+            (false, true, 1, false, false),
+        ] {
+            let o = LocatorOptions {
+                grid_start: grid,
+                walk_start: walk,
+                grid_tets_per_cell: cell,
+                f32_first: first,
+                float64: f64,
+                ..args.opts.clone()
+            };
+            let label = format!(
+                "soft-bvh{}{}{}",
+                if grid { format!(" grid {cell}") } else if walk { format!(" walk {cell}") } else { String::new() },
+                if first { " f32-first" } else { "" },
+                if f64 { "" } else { " pure-f32" }
+            );
             configs.push((label, Kernel::SoftBvh, o));
         }
     }

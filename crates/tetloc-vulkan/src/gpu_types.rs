@@ -45,6 +45,7 @@ pub const SC_RETRY_ON_MISS: u32 = 9;
 pub const SC_DIRECT_LEAVES: u32 = 10;
 pub const SC_GRID_START: u32 = 11;
 pub const SC_WALK_START: u32 = 12;
+pub const SC_F32_FIRST: u32 = 13;
 
 /// The push-constant block.
 #[repr(C)]
@@ -150,5 +151,7 @@ mod tests {
         assert!(traversal.contains(&format!("constant_id = {SC_DIRECT_LEAVES}) const bool DIRECT_LEAVES")));
         assert!(traversal.contains(&format!("constant_id = {SC_GRID_START}) const bool GRID_START")));
         assert!(traversal.contains(&format!("constant_id = {SC_WALK_START}) const bool WALK_START")));
+        let walk = include_str!("../shaders/common/walk.glsl");
+        assert!(walk.contains(&format!("constant_id = {SC_F32_FIRST}) const bool F32_FIRST")));
     }
 }

@@ -93,6 +93,9 @@ pub struct LocatorOptions {
     pub walk_start: bool,
     /// soft-bvh entry grid resolution: about this many tets per cell.
     pub grid_tets_per_cell: usize,
+    /// soft-bvh: decide the point-in-tet test in f32 first and enter the full test (with its
+    /// f64 fallback) only when f32 cannot; same answers, no f64 state on the hot path.
+    pub f32_first: bool,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
 }
@@ -109,6 +112,7 @@ impl Default for LocatorOptions {
             grid_start: false,
             walk_start: false,
             grid_tets_per_cell: GRID_TETS_PER_CELL,
+            f32_first: false,
             staging_bytes: memory::STAGING_BYTES,
         }
     }
@@ -404,6 +408,7 @@ impl VulkanLocator {
                     let spec = spec
                         .set(SC_WALK_MAX, SOFT_WALK_MAX as u32)
                         .set(SC_WALK_START, *walk as u32)
+                        .set(SC_F32_FIRST, self.opts.f32_first as u32)
                         .set(SC_STACK_SIZE, *stack)
                         .set(SC_WORKGROUP, self.opts.workgroup_size)
                         .set(SC_DIRECT_LEAVES, *direct as u32)

@@ -62,6 +62,8 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             let fine = LocatorOptions { walk_start: true, grid_tets_per_cell: 1, chunk_points: 997, ..base.clone() };
             variants.push(("walk start, 1 tet a cell, chunks of 997", fine));
             variants.push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
+            variants.push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
+            variants.push(("f32 first", LocatorOptions { f32_first: true, ..base.clone() }));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
             variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));

@@ -93,6 +93,8 @@ fn every_kernel_matches_the_oracle() {
         configs.push((Kernel::SoftBvh, LocatorOptions { grid_start: true, ..Default::default() }));
         // Walk start: walks leave non-convex meshes and end on faces; traversal takes over.
         configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: true, ..Default::default() }));
+        // f32 first: the f64 fallback must still decide the points near faces here.
+        configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: true, f32_first: true, ..Default::default() }));
         for (k, opts) in configs {
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();
             for (set, cpu) in sets.iter().zip(&cpu) {

@@ -47,7 +47,7 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
                 uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
                 ids = tl_tets[tet];
                 int exit_face;
-                if (tl_point_in_tet(ids, p, bary, exit_face)) {
+                if (tl_test(ids, p, bary, exit_face)) {
                     return int(tet);
                 }
             }

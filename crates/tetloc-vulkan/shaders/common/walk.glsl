@@ -8,6 +8,54 @@
 // Neighbour of each tet across the face opposite its stored vertex i (-1: boundary), Mesh::neighbors().
 layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_neighbors[]; };
 
+// Decide in f32 first and run the full test (tet.glsl, with its f64 fallback) only when f32
+// cannot: a face within its error bound, or barycentrics the f32 values do not support.
+// Same answers (the f32 prefix is the full test's own first steps); the point is that the
+// hot path holds no f64 state (the CPU counts no f64 face on jets at all, NOTES.md).
+layout(constant_id = 13) const bool F32_FIRST = false;
+
+bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
+#ifdef TL_F64
+    if (F32_FIRST) {
+        bool swapped = ids.w < ids.z;
+        uvec4 asc = swapped ? ids.xywz : ids;
+        float orientation = swapped ? 1.0 : -1.0;
+        vec3 v[4] = vec3[4](tl_vertex(asc.x), tl_vertex(asc.y), tl_vertex(asc.z), tl_vertex(asc.w));
+        float d[4];
+        precise float bound_sum = 0.0;
+        bool decided = true;
+        [[unroll]] for (int i = 0; i < 4; i++) {
+            float bound;
+            precise float det = tl_orient_f32(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p, bound);
+            if (!(abs(det) > bound)) {
+                decided = false;
+                break;
+            }
+            precise float signed_det = TL_PARITY[i] * orientation * det;
+            if (signed_det < 0.0) {
+                bary = vec4(0.0);
+                exit_face = (swapped && i >= 2) ? 5 - i : i;
+                return false;
+            }
+            d[i] = signed_det;
+            bound_sum += bound;
+        }
+        if (decided) {
+            precise float total = d[0] + d[1] + d[2] + d[3];
+            if (total > BARY_F32_TRUST * bound_sum) {
+                bary = vec4(d[0], d[1], d[2], d[3]) / total;
+                if (swapped) {
+                    bary = bary.xywz;
+                }
+                exit_face = 0;
+                return true;
+            }
+        }
+    }
+#endif
+    return tl_point_in_tet(ids, p, bary, exit_face);
+}
+
 // The tet containing p, found in at most `max_steps` tets from `tet`; -1 when the walk
 // leaves the mesh or runs out of steps (the point may still be inside: the caller decides).
 int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
@@ -15,7 +63,7 @@ int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
         ids = tl_tets[tet];
         ivec4 next = tl_neighbors[tet]; // loaded beside the tet: one memory latency a step, not two
         int exit_face;
-        if (tl_point_in_tet(ids, p, bary, exit_face)) {
+        if (tl_test(ids, p, bary, exit_face)) {
             return tet;
         }
         tet = next[exit_face];
