@@ -280,25 +280,38 @@ impl QBvh {
         let inv: [f32; 3] = std::array::from_fn(|a| if extent[a] > 0.0 { dims[a] as f32 / (hi[a] - lo[a]) } else { 0.0 });
         let n_cells = (dims[0] * dims[1] * dims[2]) as usize;
         let mut grid = EntryGrid { dims, inv, cells: vec![EMPTY; n_cells], starts: vec![] };
-        let mut any = if starts { vec![EMPTY; n_cells] } else { vec![] };
-        for (t, &ids) in tets.iter().enumerate() {
-            let (tlo, thi) = tetloc_core::geom::tet_bounds(ids, points);
-            let c0: [u32; 3] = std::array::from_fn(|a| cell_coord(tlo[a], lo[a], inv[a], dims[a]));
-            let c1: [u32; 3] = std::array::from_fn(|a| cell_coord(thi[a], lo[a], inv[a], dims[a]));
-            let home = self.home[t];
-            for z in c0[2]..=c1[2] {
-                for y in c0[1]..=c1[1] {
-                    for x in c0[0]..=c1[0] {
-                        let i = ((z * dims[1] + y) * dims[0] + x) as usize;
-                        let cell = &mut grid.cells[i];
-                        *cell = if *cell == EMPTY { home } else { self.lca(*cell, home) };
-                        if starts && any[i] == EMPTY {
-                            any[i] = t as u32;
+        // Per cell, some tet whose box overlaps it (the first in mesh order): the walk start
+        // when the cell's centre lies in no tet.
+        let mut any = vec![EMPTY; n_cells];
+        // Parallel over slabs of z layers: each slab scans every tet and rasterizes only its own
+        // layers (the LCA is order-free and `any` keeps the first tet, so the result does not
+        // depend on the slabs).
+        use rayon::prelude::*;
+        let layer = (dims[0] * dims[1]) as usize;
+        let per = (dims[2] as usize).div_ceil(rayon::current_num_threads() * 2).max(1);
+        grid.cells.par_chunks_mut(per * layer).zip(any.par_chunks_mut(per * layer)).enumerate().for_each(|(s, (cells, any))| {
+            let (z_first, z_last) = ((s * per) as u32, (s * per + cells.len() / layer - 1) as u32);
+            for (t, &ids) in tets.iter().enumerate() {
+                let (tlo, thi) = tetloc_core::geom::tet_bounds(ids, points);
+                let c0: [u32; 3] = std::array::from_fn(|a| cell_coord(tlo[a], lo[a], inv[a], dims[a]));
+                let c1: [u32; 3] = std::array::from_fn(|a| cell_coord(thi[a], lo[a], inv[a], dims[a]));
+                if c1[2] < z_first || c0[2] > z_last {
+                    continue;
+                }
+                let home = self.home[t];
+                for z in c0[2].max(z_first)..=c1[2].min(z_last) {
+                    for y in c0[1]..=c1[1] {
+                        for x in c0[0]..=c1[0] {
+                            let i = (((z - z_first) * dims[1] + y) * dims[0] + x) as usize;
+                            cells[i] = if cells[i] == EMPTY { home } else { self.lca(cells[i], home) };
+                            if any[i] == EMPTY {
+                                any[i] = t as u32;
+                            }
                         }
                     }
                 }
             }
-        }
+        });
         if starts {
             grid.fill_starts(self, points, tets, lo, &any);
         }

@@ -56,14 +56,15 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
         ];
         if k == Kernel::SoftBvh {
             variants.push(("up to four tets per leaf", LocatorOptions { leaf_size: 4, ..base.clone() }));
-            variants.push(("entry grid", LocatorOptions { grid_start: true, ..base.clone() }));
-            variants.push(("entry grid, four per leaf", LocatorOptions { grid_start: true, leaf_size: 4, ..base.clone() }));
-            variants.push(("walk start", LocatorOptions { walk_start: true, ..base.clone() }));
-            let fine = LocatorOptions { walk_start: true, grid_tets_per_cell: 1, chunk_points: 997, ..base.clone() };
-            variants.push(("walk start, 1 tet a cell, chunks of 997", fine));
+            variants.push(("traversal from the root", LocatorOptions { walk_start: false, ..base.clone() }));
+            variants.push(("entry grid", LocatorOptions { grid_start: true, walk_start: false, ..base.clone() }));
+            let grid4 = LocatorOptions { grid_start: true, walk_start: false, leaf_size: 4, ..base.clone() };
+            variants.push(("entry grid, four per leaf", grid4));
+            let coarse = LocatorOptions { walk_start: true, grid_tets_per_cell: 3, chunk_points: 997, ..base.clone() };
+            variants.push(("walk start, 3 tets a cell, chunks of 997", coarse));
             variants.push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
             variants.push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
-            variants.push(("f32 first", LocatorOptions { f32_first: true, ..base.clone() }));
+            variants.push(("root, f32 first", LocatorOptions { walk_start: false, f32_first: true, ..base.clone() }));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
             variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));
