@@ -8,7 +8,8 @@
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
 //! --grid (soft-bvh entry grid), --walk (soft-bvh walk start), --cell-tets N (grid
-//! resolution), --f32-first, --f32 (pure-f32 test), --variants (soft-bvh variants: entry grid,
+//! resolution), --f32-first, --f32 (pure-f32 test), --max-buffer BYTES (split arrays above
+//! this size over several buffers, as when they exceed the device's limits), --variants (soft-bvh variants: entry grid,
 //! walk start at two grid resolutions, f32-first and pure-f32 tests).
 
 use std::sync::Arc;
@@ -73,6 +74,7 @@ fn parse() -> Result<Args, String> {
             "--cell-tets" => a.opts.grid_tets_per_cell = num(val()?)?,
             "--f32-first" => a.opts.f32_first = true,
             "--f32" => a.opts.float64 = false,
+            "--max-buffer" => a.opts.max_buffer_bytes = Some(num(val()?)? as u64),
             "--repeats" => a.repeats = num(val()?)?,
             "--power" => a.power = true,
             "--variants" => a.variants = true,

@@ -16,6 +16,13 @@ pub const B_INSTANCES: u32 = 7;
 pub const B_NEIGHBORS: u32 = 8;
 /// soft-bvh entry grid.
 pub const B_GRID: u32 = 9;
+/// Buffers 1.. of arrays split over several buffers (memory::Chunked), each binding an
+/// array of MAX_CHUNKS - 1 buffers.
+pub const B_POINTS_HI: u32 = 10;
+pub const B_TETS_HI: u32 = 11;
+pub const B_ACCEL_HI: u32 = 12;
+pub const B_NEIGHBORS_HI: u32 = 13;
+pub const MAX_CHUNKS: usize = 16;
 
 pub const SAMPLE_HOST: i32 = 0;
 pub const SAMPLE_UNIFORM: i32 = 1;
@@ -46,6 +53,11 @@ pub const SC_DIRECT_LEAVES: u32 = 10;
 pub const SC_GRID_START: u32 = 11;
 pub const SC_WALK_START: u32 = 12;
 pub const SC_F32_FIRST: u32 = 13;
+/// Elements per buffer of split arrays (0: one buffer).
+pub const SC_POINTS_CHUNK: u32 = 14;
+pub const SC_TETS_CHUNK: u32 = 15;
+pub const SC_NODES_CHUNK: u32 = 16;
+pub const SC_NEIGHBORS_CHUNK: u32 = 17;
 
 /// The push-constant block.
 #[repr(C)]
@@ -116,6 +128,11 @@ mod tests {
             ("TL_B_INSTANCES", B_INSTANCES),
             ("TL_B_NEIGHBORS", B_NEIGHBORS),
             ("TL_B_GRID", B_GRID),
+            ("TL_B_POINTS_HI", B_POINTS_HI),
+            ("TL_B_TETS_HI", B_TETS_HI),
+            ("TL_B_ACCEL_HI", B_ACCEL_HI),
+            ("TL_B_NEIGHBORS_HI", B_NEIGHBORS_HI),
+            ("TL_MAX_CHUNKS", MAX_CHUNKS as u32),
             ("TL_LEAF", LEAF),
             ("TL_EMPTY", EMPTY),
         ] {
@@ -153,5 +170,10 @@ mod tests {
         assert!(traversal.contains(&format!("constant_id = {SC_WALK_START}) const bool WALK_START")));
         let walk = include_str!("../shaders/common/walk.glsl");
         assert!(walk.contains(&format!("constant_id = {SC_F32_FIRST}) const bool F32_FIRST")));
+        assert!(walk.contains(&format!("constant_id = {SC_NEIGHBORS_CHUNK}) const uint NEIGHBORS_CHUNK")));
+        assert!(traversal.contains(&format!("constant_id = {SC_NODES_CHUNK}) const uint NODES_CHUNK")));
+        let mesh = include_str!("../shaders/common/mesh.glsl");
+        assert!(mesh.contains(&format!("constant_id = {SC_POINTS_CHUNK}) const uint POINTS_CHUNK")));
+        assert!(mesh.contains(&format!("constant_id = {SC_TETS_CHUNK}) const uint TETS_CHUNK")));
     }
 }

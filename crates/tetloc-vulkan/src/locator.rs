@@ -3,7 +3,7 @@
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
 use crate::gpu_types::*;
-use crate::memory::{self, Buffer, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker};
+use crate::memory::{self, Buffer, Chunked, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker};
 use crate::pipeline::{self, Descriptors, Pipeline, RtShaders, Spec};
 use crate::rt::{self, AsReport, Geometry, RtStructure};
 use crate::shaders;
@@ -99,6 +99,9 @@ pub struct LocatorOptions {
     pub f32_first: bool,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
+    /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
+    /// device's limits, 4 GiB on the H100). Tests set it tiny to exercise the splitting.
+    pub max_buffer_bytes: Option<u64>,
 }
 
 impl Default for LocatorOptions {
@@ -115,6 +118,7 @@ impl Default for LocatorOptions {
             grid_tets_per_cell: GRID_TETS_PER_CELL,
             f32_first: false,
             staging_bytes: memory::STAGING_BYTES,
+            max_buffer_bytes: None,
         }
     }
 }
@@ -187,7 +191,7 @@ pub(crate) struct Variant {
 /// The search structure; its buffers are only held (bound in the descriptor set).
 #[allow(clippy::large_enum_variant)]
 enum Structure {
-    Soft { _buffers: Vec<Buffer>, stack: u32, direct: bool, grid: bool, walk: bool },
+    Soft { _buffers: Vec<Buffer>, stack: u32, direct: bool, grid: bool, walk: bool, nodes_chunk: u32, neighbors_chunk: u32 },
     Rt(RtStructure),
 }
 
@@ -213,8 +217,8 @@ pub struct VulkanLocator {
     pub(crate) cmds: Commands,
     pub(crate) staging: Staging,
     pub(crate) desc: Descriptors,
-    _points: Buffer,
-    _tets: Buffer,
+    _points: Chunked,
+    _tets: Chunked,
     dummy: Buffer,
     field: Option<(String, FieldLocation, Buffer)>,
     /// Query points and results, `io_capacity` points each.
@@ -239,6 +243,12 @@ impl VulkanLocator {
                 opts.chunk_points, opts.leaf_size, opts.workgroup_size, opts.grid_tets_per_cell
             )));
         }
+        if !ctx.info().nonuniform_buffers {
+            return Err(VkError::Mesh(format!(
+                "{} lacks shaderStorageBufferArrayNonUniformIndexing, which the kernels use to read arrays split over buffers",
+                ctx.device_name()
+            )));
+        }
         if mesh.n_tets() >= i32::MAX as usize {
             return Err(VkError::Mesh(format!("{} tets: more than 32-bit signed ids can name", mesh.n_tets())));
         }
@@ -252,22 +262,28 @@ impl VulkanLocator {
             point_usage |= vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
                 | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         }
-        let points = memory::device_buffer_with(
-            &ctx, &tracker, &mut staging, &mut cmds, "mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points),
+        let max_bytes = memory::max_buffer_bytes(&ctx, opts.max_buffer_bytes);
+        let points = memory::chunked_buffer(
+            &ctx, &tracker, &mut staging, &mut cmds, "mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points), 12, max_bytes,
         )?;
-        let tets = memory::device_buffer_with(
-            &ctx, &tracker, &mut staging, &mut cmds, "mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets),
+        let tets = memory::chunked_buffer(
+            &ctx, &tracker, &mut staging, &mut cmds, "mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16, max_bytes,
         )?;
         let dummy = Buffer::new(&ctx, &tracker, "unbound", MemKind::Query, 16, storage, Location::Device)?;
 
         let f64 = opts.float64 && ctx.info().float64;
+        const SB: vk::DescriptorType = vk::DescriptorType::STORAGE_BUFFER;
+        let hi = MAX_CHUNKS as u32 - 1;
         let mut bindings = vec![
-            (B_POINTS, vk::DescriptorType::STORAGE_BUFFER),
-            (B_TETS, vk::DescriptorType::STORAGE_BUFFER),
-            (B_FIELD, vk::DescriptorType::STORAGE_BUFFER),
-            (B_QUERIES, vk::DescriptorType::STORAGE_BUFFER),
-            (B_OUT, vk::DescriptorType::STORAGE_BUFFER),
-            (B_PRIMS, vk::DescriptorType::STORAGE_BUFFER),
+            (B_POINTS, SB, 1),
+            (B_TETS, SB, 1),
+            (B_FIELD, SB, 1),
+            (B_QUERIES, SB, 1),
+            (B_OUT, SB, 1),
+            (B_PRIMS, SB, 1),
+            (B_POINTS_HI, SB, hi),
+            (B_TETS_HI, SB, hi),
+            (B_NEIGHBORS_HI, SB, hi),
         ];
         let (structure, desc) = match kernel {
             Kernel::SoftBvh => {
@@ -275,8 +291,8 @@ impl VulkanLocator {
                 let bvh = Bvh::build(&mesh.points, &mesh.tets, preset);
                 let q = soft_bvh::collapse(&bvh)?;
                 drop(bvh);
-                let nodes = memory::device_buffer_with(
-                    &ctx, &tracker, &mut staging, &mut cmds, "bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&q.nodes),
+                let nodes = memory::chunked_buffer(
+                    &ctx, &tracker, &mut staging, &mut cmds, "bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&q.nodes), 64, max_bytes,
                 )?;
                 let prims = if q.direct {
                     None
@@ -296,23 +312,22 @@ impl VulkanLocator {
                 };
                 let neighbors = if opts.walk_start {
                     let nb = bytemuck::cast_slice(mesh.neighbors());
-                    Some(memory::device_buffer_with(&ctx, &tracker, &mut staging, &mut cmds, "tet neighbours", MemKind::Structure, storage, nb)?)
+                    Some(memory::chunked_buffer(&ctx, &tracker, &mut staging, &mut cmds, "tet neighbours", MemKind::Structure, storage, nb, 16, max_bytes)?)
                 } else {
                     None
                 };
-                bindings.push((B_ACCEL, vk::DescriptorType::STORAGE_BUFFER));
-                bindings.push((B_GRID, vk::DescriptorType::STORAGE_BUFFER));
-                bindings.push((B_NEIGHBORS, vk::DescriptorType::STORAGE_BUFFER));
+                bindings.extend([(B_ACCEL, SB, 1), (B_GRID, SB, 1), (B_NEIGHBORS, SB, 1), (B_ACCEL_HI, SB, hi)]);
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
-                desc.write_buffers(&[
-                    (B_ACCEL, &nodes),
-                    (B_PRIMS, prims.as_ref().unwrap_or(&dummy)),
-                    (B_GRID, grid.as_ref().unwrap_or(&dummy)),
-                    (B_NEIGHBORS, neighbors.as_ref().unwrap_or(&dummy)),
-                ])?;
+                desc.write_buffers(&[(B_PRIMS, prims.as_ref().unwrap_or(&dummy)), (B_GRID, grid.as_ref().unwrap_or(&dummy))])?;
+                bind_chunked(&desc, B_ACCEL, B_ACCEL_HI, Some(&nodes), &dummy)?;
+                bind_chunked(&desc, B_NEIGHBORS, B_NEIGHBORS_HI, neighbors.as_ref(), &dummy)?;
                 let (stack, direct, has_grid) = (q.stack_size(), q.direct, grid.is_some());
-                let buffers = [Some(nodes), prims, grid, neighbors].into_iter().flatten().collect();
-                (Structure::Soft { _buffers: buffers, stack, direct, grid: has_grid, walk: opts.walk_start }, desc)
+                let (nodes_chunk, neighbors_chunk) = (nodes.per_chunk, neighbors.as_ref().map_or(0, |n| n.per_chunk));
+                let mut buffers: Vec<Buffer> = [prims, grid].into_iter().flatten().collect();
+                buffers.extend(nodes.parts);
+                buffers.extend(neighbors.into_iter().flat_map(|n| n.parts));
+                let walk = opts.walk_start;
+                (Structure::Soft { _buffers: buffers, stack, direct, grid: has_grid, walk, nodes_chunk, neighbors_chunk }, desc)
             }
             _ => {
                 let geometry = match kernel {
@@ -320,10 +335,16 @@ impl VulkanLocator {
                     Kernel::RtRepFaces => Geometry::RepFaces,
                     _ => Geometry::SharedFaces,
                 };
-                let s = rt::build(&ctx, &tracker, &mut staging, &mut cmds, &mesh, &points, geometry, opts.split, opts.compact)?;
-                bindings.push((B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR));
-                bindings.push((B_INSTANCES, vk::DescriptorType::STORAGE_BUFFER));
-                bindings.push((B_NEIGHBORS, vk::DescriptorType::STORAGE_BUFFER));
+                if points.parts.len() > 1 {
+                    return Err(VkError::TooLarge {
+                        name: "mesh points".into(),
+                        bytes: mesh.points.len() as u64 * 12,
+                        limit: max_bytes,
+                        what: "one buffer: the ray-tracing kernels build from a single vertex buffer",
+                    });
+                }
+                let s = rt::build(&ctx, &tracker, &mut staging, &mut cmds, &mesh, &points.parts[0], geometry, opts.split, opts.compact)?;
+                bindings.extend([(B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, 1), (B_INSTANCES, SB, 1), (B_NEIGHBORS, SB, 1)]);
                 let stages = vk::ShaderStageFlags::RAYGEN_KHR
                     | vk::ShaderStageFlags::MISS_KHR
                     | vk::ShaderStageFlags::CLOSEST_HIT_KHR
@@ -331,10 +352,13 @@ impl VulkanLocator {
                 let desc = Descriptors::new(&ctx, &bindings, stages)?;
                 desc.write_accel(B_ACCEL, s.tlas.handle);
                 desc.write_buffers(&[(B_PRIMS, &s.prims), (B_INSTANCES, &s.instance_base), (B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&dummy))])?;
+                desc.write_buffer_array(B_NEIGHBORS_HI, &[&dummy; MAX_CHUNKS - 1])?;
                 (Structure::Rt(s), desc)
             }
         };
-        desc.write_buffers(&[(B_POINTS, &points), (B_TETS, &tets), (B_FIELD, &dummy), (B_QUERIES, &dummy), (B_OUT, &dummy)])?;
+        desc.write_buffers(&[(B_FIELD, &dummy), (B_QUERIES, &dummy), (B_OUT, &dummy)])?;
+        bind_chunked(&desc, B_POINTS, B_POINTS_HI, Some(&points), &dummy)?;
+        bind_chunked(&desc, B_TETS, B_TETS_HI, Some(&tets), &dummy)?;
 
         let (items, peak) = {
             let t = tracker.lock().unwrap();
@@ -404,10 +428,14 @@ impl VulkanLocator {
                 .set(SC_OUTPUT_MODE, v.output as u32)
                 .set(SC_RECORD_POINTS, v.record as u32)
                 .set(SC_ORIENT_ERR_BOUND, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
-                .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits());
+                .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
+                .set(SC_POINTS_CHUNK, self._points.per_chunk)
+                .set(SC_TETS_CHUNK, self._tets.per_chunk);
             let p = match &self.structure {
-                Structure::Soft { stack, direct, grid, walk, .. } => {
+                Structure::Soft { stack, direct, grid, walk, nodes_chunk, neighbors_chunk, .. } => {
                     let spec = spec
+                        .set(SC_NODES_CHUNK, *nodes_chunk)
+                        .set(SC_NEIGHBORS_CHUNK, *neighbors_chunk)
                         .set(SC_WALK_MAX, SOFT_WALK_MAX as u32)
                         .set(SC_WALK_START, *walk as u32)
                         .set(SC_F32_FIRST, self.opts.f32_first as u32)
@@ -565,6 +593,14 @@ impl VulkanLocator {
         self.cmds.run(|dev, cmd| launch.record(dev, cmd, params))
     }
 
+}
+
+/// Binds a split array: its first buffer at `lo`, the others (or `dummy`) at the array `hi`.
+/// `None`: the array is not used; everything gets `dummy`.
+fn bind_chunked(desc: &Descriptors, lo: u32, hi: u32, array: Option<&Chunked>, dummy: &Buffer) -> VkResult<()> {
+    let part = |k: usize| array.and_then(|a| a.parts.get(k)).unwrap_or(dummy);
+    desc.write_buffers(&[(lo, part(0))])?;
+    desc.write_buffer_array(hi, &(1..MAX_CHUNKS).map(part).collect::<Vec<_>>())
 }
 
 /// The [`Launch`] of variant `v` (whose pipeline must exist), borrowing only the fields it

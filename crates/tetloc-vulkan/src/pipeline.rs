@@ -19,19 +19,20 @@ pub(crate) struct Descriptors {
 }
 
 impl Descriptors {
-    pub fn new(ctx: &Arc<Context>, bindings: &[(u32, vk::DescriptorType)], stages: vk::ShaderStageFlags) -> VkResult<Descriptors> {
+    /// `bindings`: (binding, type, number of descriptors: 1, or an array).
+    pub fn new(ctx: &Arc<Context>, bindings: &[(u32, vk::DescriptorType, u32)], stages: vk::ShaderStageFlags) -> VkResult<Descriptors> {
         let dev = &ctx.device;
         let layout_bindings: Vec<_> = bindings
             .iter()
-            .map(|&(b, t)| {
-                vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(1).stage_flags(stages)
+            .map(|&(b, t, n)| {
+                vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(n).stage_flags(stages)
             })
             .collect();
         let mut sizes: Vec<vk::DescriptorPoolSize> = vec![];
-        for &(_, t) in bindings {
+        for &(_, t, n) in bindings {
             match sizes.iter_mut().find(|s| s.ty == t) {
-                Some(s) => s.descriptor_count += 1,
-                None => sizes.push(vk::DescriptorPoolSize { ty: t, descriptor_count: 1 }),
+                Some(s) => s.descriptor_count += n,
+                None => sizes.push(vk::DescriptorPoolSize { ty: t, descriptor_count: n }),
             }
         }
         let ranges = [vk::PushConstantRange { stage_flags: stages, offset: 0, size: std::mem::size_of::<Params>() as u32 }];
@@ -83,6 +84,23 @@ impl Descriptors {
                     .buffer_info(info)
             })
             .collect();
+        // SAFETY: the set is not in use by any pending submission.
+        unsafe { self.ctx.device.update_descriptor_sets(&w, &[]) };
+        Ok(())
+    }
+
+    /// Points the storage-buffer array at `binding` at `buffers` (elements 0..).
+    pub fn write_buffer_array(&self, binding: u32, buffers: &[&Buffer]) -> VkResult<()> {
+        let limit = self.ctx.limits.max_storage_buffer_range;
+        if let Some(b) = buffers.iter().find(|b| b.size > limit) {
+            return Err(VkError::TooLarge { name: b.name.clone(), bytes: b.size, limit, what: "maxStorageBufferRange" });
+        }
+        let infos: Vec<vk::DescriptorBufferInfo> = buffers.iter().map(|b| b.info()).collect();
+        let w = [vk::WriteDescriptorSet::default()
+            .dst_set(self.set)
+            .dst_binding(binding)
+            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+            .buffer_info(&infos)];
         // SAFETY: the set is not in use by any pending submission.
         unsafe { self.ctx.device.update_descriptor_sets(&w, &[]) };
         Ok(())

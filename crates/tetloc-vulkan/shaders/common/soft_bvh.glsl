@@ -11,6 +11,18 @@
 // w1 = scale.yz, quantized lower/upper x; w2 = quantized lower/upper y, z (one byte per
 // child); w3 = child references.
 layout(std430, binding = TL_B_ACCEL) readonly buffer TlNodes { uvec4 tl_nodes[]; };
+// Nodes per buffer when the nodes are split over several (mesh.glsl), 0: one buffer.
+layout(constant_id = 16) const uint NODES_CHUNK = 0;
+layout(std430, binding = TL_B_ACCEL_HI) readonly buffer TlNodesHi { uvec4 v[]; } tl_nodes_hi[TL_MAX_CHUNKS - 1];
+
+// Word k of node r.
+uvec4 tl_node_word(uint r, uint k) {
+    if (NODES_CHUNK == 0u || r < NODES_CHUNK) {
+        return tl_nodes[4u * r + k];
+    }
+    uint c = r / NODES_CHUNK - 1u, o = 4u * (r % NODES_CHUNK) + k;
+    TL_RETURN_HI(tl_nodes_hi, c, o)
+}
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrims { uint tl_prims[]; };
 // One tet per leaf, its id in the reference itself (no tl_prims lookup).
 layout(constant_id = 10) const bool DIRECT_LEAVES = false;
@@ -45,15 +57,15 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
             uint count = ((ref >> 29u) & 3u) + 1u;
             for (uint k = 0u; k < count; k++) {
                 uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
-                ids = tl_tets[tet];
+                ids = tl_tet(tet);
                 int exit_face;
                 if (tl_test(ids, p, bary, exit_face)) {
                     return int(tet);
                 }
             }
         } else {
-            uvec4 w0 = tl_nodes[4u * ref], w1 = tl_nodes[4u * ref + 1u];
-            uvec4 w2 = tl_nodes[4u * ref + 2u], w3 = tl_nodes[4u * ref + 3u];
+            uvec4 w0 = tl_node_word(ref, 0u), w1 = tl_node_word(ref, 1u);
+            uvec4 w2 = tl_node_word(ref, 2u), w3 = tl_node_word(ref, 3u);
             vec3 org = uintBitsToFloat(w0.xyz);
             vec3 scl = uintBitsToFloat(uvec3(w0.w, w1.x, w1.y));
             // Dequantize exactly as the CPU did when it made the boxes conservative.

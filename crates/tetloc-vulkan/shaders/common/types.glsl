@@ -14,6 +14,13 @@
 #define TL_B_INSTANCES 7
 #define TL_B_NEIGHBORS 8
 #define TL_B_GRID 9
+// Arrays split over several buffers (mesh.glsl): buffers 1.. of points, tets, soft-bvh
+// nodes and neighbours, each binding an array of TL_MAX_CHUNKS - 1 buffers.
+#define TL_B_POINTS_HI 10
+#define TL_B_TETS_HI 11
+#define TL_B_ACCEL_HI 12
+#define TL_B_NEIGHBORS_HI 13
+#define TL_MAX_CHUNKS 16
 
 // Where sample points come from (specialization constant SAMPLE_MODE).
 #define TL_SAMPLE_HOST 0

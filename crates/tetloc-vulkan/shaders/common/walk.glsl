@@ -7,6 +7,17 @@
 
 // Neighbour of each tet across the face opposite its stored vertex i (-1: boundary), Mesh::neighbors().
 layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_neighbors[]; };
+// Tets per buffer when the neighbours are split over several (mesh.glsl), 0: one buffer.
+layout(constant_id = 17) const uint NEIGHBORS_CHUNK = 0;
+layout(std430, binding = TL_B_NEIGHBORS_HI) readonly buffer TlNeighborsHi { ivec4 v[]; } tl_neighbors_hi[TL_MAX_CHUNKS - 1];
+
+ivec4 tl_neighbors4(uint t) {
+    if (NEIGHBORS_CHUNK == 0u || t < NEIGHBORS_CHUNK) {
+        return tl_neighbors[t];
+    }
+    uint c = t / NEIGHBORS_CHUNK - 1u, o = t % NEIGHBORS_CHUNK;
+    TL_RETURN_HI(tl_neighbors_hi, c, o)
+}
 
 // Decide in f32 first and run the full test (tet.glsl, with its f64 fallback) only when f32
 // cannot: a face within its error bound, or barycentrics the f32 values do not support.
@@ -60,8 +71,8 @@ bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 // leaves the mesh or runs out of steps (the point may still be inside: the caller decides).
 int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
     for (int step = 0; step < max_steps && tet >= 0; step++) {
-        ids = tl_tets[tet];
-        ivec4 next = tl_neighbors[tet]; // loaded beside the tet: one memory latency a step, not two
+        ids = tl_tet(tet);
+        ivec4 next = tl_neighbors4(tet); // loaded beside the tet: one memory latency a step, not two
         int exit_face;
         if (tl_test(ids, p, bary, exit_face)) {
             return tet;
