@@ -3,7 +3,8 @@
 //!
 //! cargo run --release -p tetloc-vulkan --example vkbench -- --tets 1000000 --shape jets
 //!
-//! Options: --tets N, --shape jets|fusion|agulhas|japan, --mesh FILE, --seed S, --device I,
+//! Options: --tets N, --shape jets|fusion|agulhas|japan, --regular (an unjittered grid of
+//! n³ cubes, 6 Kuhn tets each, like the lead's throwaway probe), --mesh FILE, --seed S, --device I,
 //! --kernels a,b (default all the device runs), --modes uniform,random,bbox,host,
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
@@ -33,6 +34,7 @@ struct Args {
     repeats: usize,
     power: bool,
     variants: bool,
+    regular: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -50,6 +52,7 @@ fn parse() -> Result<Args, String> {
         repeats: 7,
         power: false,
         variants: false,
+        regular: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -78,6 +81,7 @@ fn parse() -> Result<Args, String> {
             "--repeats" => a.repeats = num(val()?)?,
             "--power" => a.power = true,
             "--variants" => a.variants = true,
+            "--regular" => a.regular = true,
             _ => return Err(format!("unknown option {flag} (see the header of examples/vkbench.rs)")),
         }
     }
@@ -122,6 +126,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let mesh = Arc::new(match &args.mesh {
         Some(path) => tetloc_core::io::read_mesh(std::path::Path::new(path), None)?,
+        None if args.regular => {
+            let n = (args.tets as f64 / 6.0).cbrt().round().max(1.0) as usize;
+            tetloc_core::testdata::KuhnGrid::new(n).mesh(&format!("regular {n}^3 cubes"))
+        }
         None => Mesh::new(generate(args.shape, args.tets, args.seed), args.shape.name())?,
     });
     println!(
@@ -132,9 +140,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mesh.info.max_edge_length,
         t.elapsed().as_secs_f64()
     );
+    // The CPU reference only when checking (its BVH takes a minute at 250M tets).
     let t = Instant::now();
-    let mut cpu = CpuLocator::new(mesh.clone());
-    println!("cpu locator built in {:.1} s", t.elapsed().as_secs_f64());
+    let mut cpu = (args.check > 0).then(|| CpuLocator::new(mesh.clone()));
+    if cpu.is_some() {
+        println!("cpu locator built in {:.1} s", t.elapsed().as_secs_f64());
+    }
 
     let kernels = args.kernels.clone().unwrap_or_else(|| {
         Kernel::ALL.into_iter().filter(|k| ctx.info().ray_tracing || !k.needs_ray_tracing()).collect()
@@ -187,8 +198,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         };
         println!("{label}: built in {:.2} s (float64 test: {})", t.elapsed().as_secs_f64(), loc.uses_float64());
-        if args.check > 0 {
-            let (n, wrong, lost, differ) = check(&mut loc, &mut cpu, &mesh, args.check)?;
+        if let Some(cpu) = cpu.as_mut() {
+            let (n, wrong, lost, differ) = check(&mut loc, cpu, &mesh, args.check)?;
             println!("{label}: check of {n} random+bbox samples vs CPU: {wrong} wrong tets, {lost} lost, {differ} differ (valid ties)");
         }
         for &mode in &args.modes {
