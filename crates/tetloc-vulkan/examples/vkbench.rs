@@ -8,10 +8,11 @@
 //! --kernels a,b (default all the device runs), --modes uniform,random,bbox,host,
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
-//! --grid (soft-bvh entry grid), --walk (soft-bvh walk start), --cell-tets N (grid
-//! resolution), --f32-first, --f32 (pure-f32 test), --max-buffer BYTES (split arrays above
-//! this size over several buffers, as when they exceed the device's limits), --variants (soft-bvh variants: entry grid,
-//! walk start at two grid resolutions, f32-first and pure-f32 tests).
+//! --grid (soft-bvh entry grid), --walk / --no-walk (soft-bvh walk start, the default),
+//! --cell-tets N (grid resolution), --f32-first, --f32 (pure-f32 test), --max-buffer BYTES
+//! (split arrays above this size over several buffers, as when they exceed the device's
+//! limits), --variants (soft-bvh variants: root traversal, entry grid, walk start at two grid
+//! resolutions, f32-first and pure-f32 tests).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -74,6 +75,7 @@ fn parse() -> Result<Args, String> {
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
             "--grid" => a.opts.grid_start = true,
             "--walk" => a.opts.walk_start = true,
+            "--no-walk" => a.opts.walk_start = false,
             "--cell-tets" => a.opts.grid_tets_per_cell = num(val()?)?,
             "--f32-first" => a.opts.f32_first = true,
             "--f32" => a.opts.float64 = false,
