@@ -17,11 +17,11 @@ pub const B_NEIGHBORS: u32 = 8;
 /// soft-bvh entry grid.
 pub const B_GRID: u32 = 9;
 /// Buffers 1.. of arrays split over several buffers (memory::Chunked), each binding an
-/// array of MAX_CHUNKS - 1 buffers.
-pub const B_POINTS_HI: u32 = 10;
-pub const B_TETS_HI: u32 = 11;
-pub const B_ACCEL_HI: u32 = 12;
-pub const B_NEIGHBORS_HI: u32 = 13;
+/// array of MAX_CHUNKS - 1 buffers (10-15 stay free for the ray marcher's bindings).
+pub const B_POINTS_HI: u32 = 16;
+pub const B_TETS_HI: u32 = 17;
+pub const B_ACCEL_HI: u32 = 18;
+pub const B_NEIGHBORS_HI: u32 = 19;
 pub const MAX_CHUNKS: usize = 16;
 
 pub const SAMPLE_HOST: i32 = 0;

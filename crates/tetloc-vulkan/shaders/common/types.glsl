@@ -15,11 +15,12 @@
 #define TL_B_NEIGHBORS 8
 #define TL_B_GRID 9
 // Arrays split over several buffers (mesh.glsl): buffers 1.. of points, tets, soft-bvh
-// nodes and neighbours, each binding an array of TL_MAX_CHUNKS - 1 buffers.
-#define TL_B_POINTS_HI 10
-#define TL_B_TETS_HI 11
-#define TL_B_ACCEL_HI 12
-#define TL_B_NEIGHBORS_HI 13
+// nodes and neighbours, each binding an array of TL_MAX_CHUNKS - 1 buffers (10-15 are left
+// to the volume ray marcher's bindings on the gpu-march branch).
+#define TL_B_POINTS_HI 16
+#define TL_B_TETS_HI 17
+#define TL_B_ACCEL_HI 18
+#define TL_B_NEIGHBORS_HI 19
 #define TL_MAX_CHUNKS 16
 
 // Where sample points come from (specialization constant SAMPLE_MODE).
