@@ -11,8 +11,9 @@
 //! --grid (soft-bvh entry grid), --walk / --no-walk (soft-bvh walk start, the default),
 //! --cell-tets N (grid resolution), --f32-first, --f32 (pure-f32 test), --max-buffer BYTES
 //! (split arrays above this size over several buffers, as when they exceed the device's
-//! limits), --variants (soft-bvh variants: root traversal, entry grid, walk start at two grid
-//! resolutions, f32-first and pure-f32 tests).
+//! limits), --defer (soft-bvh: exact tests deferred to a second dispatch), --variants
+//! (soft-bvh variants: root traversal, entry grid, walk start at two grid resolutions,
+//! f32-first, pure-f32 and deferred exact tests).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -78,6 +79,7 @@ fn parse() -> Result<Args, String> {
             "--no-walk" => a.opts.walk_start = false,
             "--cell-tets" => a.opts.grid_tets_per_cell = num(val()?)?,
             "--f32-first" => a.opts.f32_first = true,
+            "--defer" => a.opts.defer_exact = true,
             "--f32" => a.opts.float64 = false,
             "--max-buffer" => a.opts.max_buffer_bytes = Some(num(val()?)? as u64),
             "--repeats" => a.repeats = num(val()?)?,
@@ -157,13 +159,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     if args.variants {
         // (grid, walk, tets per cell, f32 first, f64); leaf size and workgroup size were
         // measured before (BENCHMARKS.md: within noise).
-        for (grid, walk, cell, first, f64) in [
-            (false, false, 1, false, true),
-            (false, false, 1, true, true),
-            (true, false, 2, false, true),
-            (false, true, 2, false, true),
-            (false, true, 1, true, true),
-            (false, true, 1, false, false),
+        // (grid, walk, tets per cell, f32 first, f64, deferred exact tests)
+        for (grid, walk, cell, first, f64, defer) in [
+            (false, false, 1, false, true, false),
+            (false, false, 1, true, true, false),
+            (true, false, 2, false, true, false),
+            (false, true, 2, false, true, false),
+            (false, true, 1, true, true, false),
+            (false, true, 1, false, false, false),
+            (false, true, 1, false, true, true),
         ] {
             let o = LocatorOptions {
                 grid_start: grid,
@@ -171,13 +175,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 grid_tets_per_cell: cell,
                 f32_first: first,
                 float64: f64,
+                defer_exact: defer,
                 ..args.opts.clone()
             };
             let label = format!(
-                "soft-bvh{}{}{}",
+                "soft-bvh{}{}{}{}",
                 if walk { format!(" walk {cell}") } else if grid { format!(" grid {cell}") } else { " root".into() },
                 if first { " f32-first" } else { "" },
-                if f64 { "" } else { " pure-f32" }
+                if f64 { "" } else { " pure-f32" },
+                if defer { " deferred" } else { "" }
             );
             configs.push((label, Kernel::SoftBvh, o));
         }

@@ -23,6 +23,8 @@ pub const B_TETS_HI: u32 = 17;
 pub const B_ACCEL_HI: u32 = 18;
 pub const B_NEIGHBORS_HI: u32 = 19;
 pub const MAX_CHUNKS: usize = 16;
+/// soft-bvh with deferred exact tests: the samples the f32 pass could not decide.
+pub const B_DEFER: u32 = 20;
 
 pub const SAMPLE_HOST: i32 = 0;
 pub const SAMPLE_UNIFORM: i32 = 1;
@@ -58,6 +60,8 @@ pub const SC_POINTS_CHUNK: u32 = 14;
 pub const SC_TETS_CHUNK: u32 = 15;
 pub const SC_NODES_CHUNK: u32 = 16;
 pub const SC_NEIGHBORS_CHUNK: u32 = 17;
+pub const SC_DEFER_EXACT: u32 = 18;
+pub const SC_EXACT_PASS: u32 = 19;
 
 /// The push-constant block.
 #[repr(C)]
@@ -133,6 +137,7 @@ mod tests {
             ("TL_B_ACCEL_HI", B_ACCEL_HI),
             ("TL_B_NEIGHBORS_HI", B_NEIGHBORS_HI),
             ("TL_MAX_CHUNKS", MAX_CHUNKS as u32),
+            ("TL_B_DEFER", B_DEFER),
             ("TL_LEAF", LEAF),
             ("TL_EMPTY", EMPTY),
         ] {
@@ -171,6 +176,8 @@ mod tests {
         let walk = include_str!("../shaders/common/walk.glsl");
         assert!(walk.contains(&format!("constant_id = {SC_F32_FIRST}) const bool F32_FIRST")));
         assert!(walk.contains(&format!("constant_id = {SC_NEIGHBORS_CHUNK}) const uint NEIGHBORS_CHUNK")));
+        assert!(walk.contains(&format!("constant_id = {SC_DEFER_EXACT}) const bool DEFER_EXACT")));
+        assert!(comp.contains(&format!("constant_id = {SC_EXACT_PASS}) const bool EXACT_PASS")));
         assert!(traversal.contains(&format!("constant_id = {SC_NODES_CHUNK}) const uint NODES_CHUNK")));
         let mesh = include_str!("../shaders/common/mesh.glsl");
         assert!(mesh.contains(&format!("constant_id = {SC_POINTS_CHUNK}) const uint POINTS_CHUNK")));

@@ -3,7 +3,7 @@
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
 use crate::gpu_types::*;
-use crate::memory::{self, Buffer, Chunked, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker};
+use crate::memory::{self, full_barrier, Buffer, Chunked, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker};
 use crate::pipeline::{self, Descriptors, Pipeline, RtShaders, Spec};
 use crate::rt::{self, AsReport, Geometry, RtStructure};
 use crate::shaders;
@@ -97,6 +97,10 @@ pub struct LocatorOptions {
     /// soft-bvh: decide the point-in-tet test in f32 first and enter the full test (with its
     /// f64 fallback) only when f32 cannot; same answers, no f64 state on the hot path.
     pub f32_first: bool,
+    /// soft-bvh: decide every test in f32 and defer the samples f32 cannot decide to a second,
+    /// exact dispatch (indirect, over a list the first pass appends to); same answers, and the
+    /// first pass holds no f64 code. Not yet measured on a GPU: off by default (NOTES.md).
+    pub defer_exact: bool,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
     /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
@@ -117,6 +121,7 @@ impl Default for LocatorOptions {
             walk_start: true,
             grid_tets_per_cell: GRID_TETS_PER_CELL,
             f32_first: false,
+            defer_exact: false,
             staging_bytes: memory::STAGING_BYTES,
             max_buffer_bytes: None,
         }
@@ -226,6 +231,10 @@ pub struct VulkanLocator {
     io_capacity: usize,
     structure: Structure,
     pub(crate) pipelines: HashMap<Variant, Pipeline>,
+    /// soft-bvh with `defer_exact`: the exact second pass of each variant, and the list of
+    /// deferred samples (header: indirect dispatch size, count; then sample indices).
+    pub(crate) exact_pipelines: HashMap<Variant, Pipeline>,
+    pub(crate) defer: Option<Buffer>,
     build_seconds: f64,
     memory: MemoryReport,
 }
@@ -316,9 +325,13 @@ impl VulkanLocator {
                 } else {
                     None
                 };
-                bindings.extend([(B_ACCEL, SB, 1), (B_GRID, SB, 1), (B_NEIGHBORS, SB, 1), (B_ACCEL_HI, SB, hi)]);
+                bindings.extend([(B_ACCEL, SB, 1), (B_GRID, SB, 1), (B_NEIGHBORS, SB, 1), (B_ACCEL_HI, SB, hi), (B_DEFER, SB, 1)]);
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
-                desc.write_buffers(&[(B_PRIMS, prims.as_ref().unwrap_or(&dummy)), (B_GRID, grid.as_ref().unwrap_or(&dummy))])?;
+                desc.write_buffers(&[
+                    (B_PRIMS, prims.as_ref().unwrap_or(&dummy)),
+                    (B_GRID, grid.as_ref().unwrap_or(&dummy)),
+                    (B_DEFER, &dummy),
+                ])?;
                 bind_chunked(&desc, B_ACCEL, B_ACCEL_HI, Some(&nodes), &dummy)?;
                 bind_chunked(&desc, B_NEIGHBORS, B_NEIGHBORS_HI, neighbors.as_ref(), &dummy)?;
                 let (stack, direct, has_grid) = (q.stack_size(), q.direct, grid.is_some());
@@ -388,6 +401,8 @@ impl VulkanLocator {
             io_capacity: 0,
             structure,
             pipelines: HashMap::new(),
+            exact_pipelines: HashMap::new(),
+            defer: None,
             build_seconds: 0.0,
             memory,
         };
@@ -421,8 +436,27 @@ impl VulkanLocator {
     }
 
     /// The pipeline for `v`, created on first use.
+    /// soft-bvh with `defer_exact` on a device with the f64 test.
+    fn defers(&self) -> bool {
+        self.opts.defer_exact && self.f64 && matches!(self.structure, Structure::Soft { .. })
+    }
+
     pub(crate) fn pipeline(&mut self, v: Variant) -> VkResult<&Pipeline> {
+        if self.defers() && !self.exact_pipelines.contains_key(&v) {
+            let p = self.make_pipeline(v, true)?;
+            self.exact_pipelines.insert(v, p);
+        }
         if !self.pipelines.contains_key(&v) {
+            let p = self.make_pipeline(v, false)?;
+            self.pipelines.insert(v, p);
+        }
+        Ok(&self.pipelines[&v])
+    }
+
+    /// The pipeline of variant `v`, or its exact second pass (`defer_exact`).
+    fn make_pipeline(&mut self, v: Variant, exact_pass: bool) -> VkResult<Pipeline> {
+        let defer = self.defers() && !exact_pass;
+        {
             let spec = Spec::default()
                 .set(SC_SAMPLE_MODE, v.sample as u32)
                 .set(SC_OUTPUT_MODE, v.output as u32)
@@ -438,7 +472,9 @@ impl VulkanLocator {
                         .set(SC_NEIGHBORS_CHUNK, *neighbors_chunk)
                         .set(SC_WALK_MAX, SOFT_WALK_MAX as u32)
                         .set(SC_WALK_START, *walk as u32)
-                        .set(SC_F32_FIRST, self.opts.f32_first as u32)
+                        .set(SC_F32_FIRST, (self.opts.f32_first || defer) as u32)
+                        .set(SC_DEFER_EXACT, defer as u32)
+                        .set(SC_EXACT_PASS, exact_pass as u32)
                         .set(SC_STACK_SIZE, *stack)
                         .set(SC_WORKGROUP, self.opts.workgroup_size)
                         .set(SC_DIRECT_LEAVES, *direct as u32)
@@ -464,9 +500,8 @@ impl VulkanLocator {
                     pipeline::rt_pipeline(&self.ctx, &self.tracker, &mut self.staging, &mut self.cmds, self.desc.layout, &sh, &spec)?
                 }
             };
-            self.pipelines.insert(v, p);
+            Ok(p)
         }
-        Ok(&self.pipelines[&v])
     }
 
     /// Push constants for a launch of `n` points starting at global sample index `base`.
@@ -512,6 +547,13 @@ impl VulkanLocator {
         let q = Buffer::new(&self.ctx, &self.tracker, "query points", MemKind::Query, (n * 12) as u64, usage, Location::Device)?;
         let o = Buffer::new(&self.ctx, &self.tracker, "query results", MemKind::Query, (n * 4) as u64, usage, Location::Device)?;
         self.desc.write_buffers(&[(B_QUERIES, &q), (B_OUT, &o)])?;
+        if self.defers() {
+            self.defer = None;
+            let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+            let d = Buffer::new(&self.ctx, &self.tracker, "deferred samples", MemKind::Query, 16 + (n * 4) as u64, usage, Location::Device)?;
+            self.desc.write_buffers(&[(B_DEFER, &d)])?;
+            self.defer = Some(d);
+        }
         self.io = Some((q, o));
         self.io_capacity = n;
         Ok(())
@@ -611,6 +653,7 @@ macro_rules! launch {
             ctx: &$loc.ctx,
             desc: &$loc.desc,
             pipeline: &$loc.pipelines[&$v],
+            exact: $loc.exact_pipelines.get(&$v).zip($loc.defer.as_ref().map(|b| b.buffer)),
             workgroup: $loc.opts.workgroup_size,
         }
     };
@@ -622,6 +665,8 @@ pub(crate) struct Launch<'a> {
     pub ctx: &'a Context,
     pub desc: &'a Descriptors,
     pub pipeline: &'a Pipeline,
+    /// soft-bvh with `defer_exact`: the exact second pass and the deferred-sample list.
+    pub exact: Option<(&'a Pipeline, vk::Buffer)>,
     pub workgroup: u32,
 }
 
@@ -632,6 +677,12 @@ impl Launch<'_> {
         let n = params.counts[0] as u64;
         // SAFETY: recording into a command buffer in the recording state, with live objects.
         unsafe {
+            if let Some((_, list)) = self.exact {
+                // Empty the deferred-sample list: dispatch size (0, 1, 1), count 0.
+                full_barrier(dev, cmd);
+                dev.cmd_update_buffer(cmd, list, 0, bytemuck::cast_slice(&[0u32, 1, 1, 0]));
+                full_barrier(dev, cmd);
+            }
             dev.cmd_bind_pipeline(cmd, p.bind_point, p.pipeline);
             dev.cmd_bind_descriptor_sets(cmd, p.bind_point, self.desc.layout, 0, &[self.desc.set], &[]);
             dev.cmd_push_constants(cmd, self.desc.layout, self.desc.stages, 0, bytemuck::bytes_of(params));
@@ -650,6 +701,14 @@ impl Launch<'_> {
                     let rt = self.ctx.rt.as_ref().unwrap();
                     rt.pipeline.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &empty, width as u32, n.div_ceil(width) as u32, 1);
                 }
+            }
+            if let Some((exact, list)) = self.exact {
+                // The samples the f32 pass deferred, exactly: as many workgroups as it counted.
+                full_barrier(dev, cmd);
+                dev.cmd_bind_pipeline(cmd, exact.bind_point, exact.pipeline);
+                dev.cmd_bind_descriptor_sets(cmd, exact.bind_point, self.desc.layout, 0, &[self.desc.set], &[]);
+                dev.cmd_push_constants(cmd, self.desc.layout, self.desc.stages, 0, bytemuck::bytes_of(params));
+                dev.cmd_dispatch_indirect(cmd, list, 0);
             }
         }
     }

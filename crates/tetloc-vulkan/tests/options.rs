@@ -65,6 +65,9 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             variants.push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
             variants.push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
             variants.push(("root, f32 first", LocatorOptions { walk_start: false, f32_first: true, ..base.clone() }));
+            variants.push(("deferred exact tests", LocatorOptions { defer_exact: true, ..base.clone() }));
+            let defer_root = LocatorOptions { defer_exact: true, walk_start: false, chunk_points: 997, ..base.clone() };
+            variants.push(("deferred exact tests, root, chunks of 997", defer_root));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
             variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));

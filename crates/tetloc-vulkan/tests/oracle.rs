@@ -96,6 +96,9 @@ fn every_kernel_matches_the_oracle() {
         configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: false, ..Default::default() }));
         // f32 first: the f64 fallback must still decide the points near faces here.
         configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: true, f32_first: true, ..Default::default() }));
+        // Deferred exact tests: the points near faces go through the second, exact pass.
+        configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, ..Default::default() }));
+        configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, walk_start: false, ..Default::default() }));
         for (k, opts) in configs {
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();
             for (set, cpu) in sets.iter().zip(&cpu) {

@@ -62,6 +62,9 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
                 if (tl_test(ids, p, bary, exit_face)) {
                     return int(tet);
                 }
+                if (DEFER_EXACT && tl_undecided) {
+                    return -2;
+                }
             }
         } else {
             uvec4 w0 = tl_node_word(ref, 0u), w1 = tl_node_word(ref, 1u);
@@ -114,6 +117,9 @@ int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
         }
         if (WALK_START) {
             int tet = tl_walk(int(tl_grid[8u + tl_grid[3] + cell]), p, WALK_MAX, ids, bary);
+            if (tet == -2) {
+                return -2; // DEFER_EXACT: undecided
+            }
             // Strictly inside: the only tet holding p, the one traversal would find too.
             if (tet >= 0 && all(greaterThan(bary, vec4(0.0)))) {
                 return tet;

@@ -22,6 +22,8 @@
 #define TL_B_ACCEL_HI 18
 #define TL_B_NEIGHBORS_HI 19
 #define TL_MAX_CHUNKS 16
+// soft-bvh with deferred exact tests: the samples the f32 pass could not decide.
+#define TL_B_DEFER 20
 
 // Where sample points come from (specialization constant SAMPLE_MODE).
 #define TL_SAMPLE_HOST 0

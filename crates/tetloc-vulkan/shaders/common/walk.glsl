@@ -24,6 +24,10 @@ ivec4 tl_neighbors4(uint t) {
 // Same answers (the f32 prefix is the full test's own first steps); the point is that the
 // hot path holds no f64 state (the CPU counts no f64 face on jets at all, NOTES.md).
 layout(constant_id = 13) const bool F32_FIRST = false;
+// With F32_FIRST: never run the full test; an undecided test sets tl_undecided instead, and
+// the caller gives the sample up (-2) for a second, exact pass (soft_bvh.comp).
+layout(constant_id = 18) const bool DEFER_EXACT = false;
+bool tl_undecided = false;
 
 bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 #ifdef TL_F64
@@ -62,13 +66,20 @@ bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
                 return true;
             }
         }
+        if (DEFER_EXACT) {
+            tl_undecided = true;
+            bary = vec4(0.0);
+            exit_face = 0;
+            return false;
+        }
     }
 #endif
     return tl_point_in_tet(ids, p, bary, exit_face);
 }
 
 // The tet containing p, found in at most `max_steps` tets from `tet`; -1 when the walk
-// leaves the mesh or runs out of steps (the point may still be inside: the caller decides).
+// leaves the mesh or runs out of steps (the point may still be inside: the caller decides);
+// -2 only with DEFER_EXACT, when a test could not be decided in f32.
 int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
     for (int step = 0; step < max_steps && tet >= 0; step++) {
         ids = tl_tet(tet);
@@ -76,6 +87,9 @@ int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
         int exit_face;
         if (tl_test(ids, p, bary, exit_face)) {
             return tet;
+        }
+        if (DEFER_EXACT && tl_undecided) {
+            return -2;
         }
         tet = next[exit_face];
     }
