@@ -138,3 +138,27 @@ fn a_gpu_marcher_refuses_another_renderer() {
     let e = Renderer::new(mesh, "f", &RenderOptions { width: 0, ..opts }).err().unwrap().to_string();
     assert!(e.contains("size") || e.contains("0"), "{e}");
 }
+
+/// The GPU marcher binds the locator's buffers as they are: split over several buffers
+/// (arrays larger than a buffer may be) or not, without the walk start or with it, the
+/// images are the same.
+#[test]
+fn gpu_marcher_follows_the_locators_buffer_layout() {
+    let Some(ctx) = context("gpu_marcher_follows_the_locators_buffer_layout") else { return };
+    let mesh = Arc::new(testmesh::torus(10, 3));
+    let opts = RenderOptions { width: 64, height: 48, azimuth: 30.0, elevation: 25.0, ..Default::default() };
+    let renderer = Renderer::new(mesh.clone(), "f", &opts).unwrap();
+    let render = |lo: LocatorOptions| {
+        let loc = VulkanLocator::new(ctx.clone(), mesh.clone(), Kernel::SoftBvh, lo).unwrap();
+        let mut march = GpuMarcher::new(loc, &renderer).unwrap();
+        renderer.render(&mut march, &renderer.camera(0)).unwrap().0
+    };
+    let one = render(LocatorOptions::default());
+    // Buffers of a quarter of the tets: tets, nodes and neighbours each split over several.
+    let quarter = (mesh.n_tets() as u64 * 16 / 4).next_multiple_of(256);
+    let split = render(LocatorOptions { max_buffer_bytes: Some(quarter), ..Default::default() });
+    let no_walk = render(LocatorOptions { walk_start: false, ..Default::default() });
+    assert_eq!(psnr(&one, &split).unwrap(), f64::INFINITY, "split buffers");
+    assert_eq!(psnr(&one, &no_walk).unwrap(), f64::INFINITY, "without the walk start");
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}

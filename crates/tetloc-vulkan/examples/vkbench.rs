@@ -3,12 +3,17 @@
 //!
 //! cargo run --release -p tetloc-vulkan --example vkbench -- --tets 1000000 --shape jets
 //!
-//! Options: --tets N, --shape jets|fusion|agulhas|japan, --mesh FILE, --seed S, --device I,
+//! Options: --tets N, --shape jets|fusion|agulhas|japan, --regular (an unjittered grid of
+//! n³ cubes, 6 Kuhn tets each, like the lead's throwaway probe), --mesh FILE, --seed S, --device I,
 //! --kernels a,b (default all the device runs), --modes uniform,random,bbox,host,
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
-//! --grid (soft-bvh entry grid), --variants (soft-bvh variants: leaf size, workgroup size,
-//! pure-f32 test, entry grid).
+//! --grid (soft-bvh entry grid), --walk / --no-walk (soft-bvh walk start, the default),
+//! --cell-tets N (grid resolution), --f32-first, --f32 (pure-f32 test), --max-buffer BYTES
+//! (split arrays above this size over several buffers, as when they exceed the device's
+//! limits), --defer (soft-bvh: exact tests deferred to a second dispatch), --variants
+//! (soft-bvh variants: root traversal, entry grid, walk start at two grid resolutions,
+//! f32-first, pure-f32 and deferred exact tests).
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -31,6 +36,7 @@ struct Args {
     repeats: usize,
     power: bool,
     variants: bool,
+    regular: bool,
 }
 
 fn parse() -> Result<Args, String> {
@@ -48,6 +54,7 @@ fn parse() -> Result<Args, String> {
         repeats: 7,
         power: false,
         variants: false,
+        regular: false,
     };
     let mut it = std::env::args().skip(1);
     while let Some(flag) = it.next() {
@@ -68,9 +75,17 @@ fn parse() -> Result<Args, String> {
             "--leaf" => a.opts.leaf_size = num(val()?)?,
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
             "--grid" => a.opts.grid_start = true,
+            "--walk" => a.opts.walk_start = true,
+            "--no-walk" => a.opts.walk_start = false,
+            "--cell-tets" => a.opts.grid_tets_per_cell = num(val()?)?,
+            "--f32-first" => a.opts.f32_first = true,
+            "--defer" => a.opts.defer_exact = true,
+            "--f32" => a.opts.float64 = false,
+            "--max-buffer" => a.opts.max_buffer_bytes = Some(num(val()?)? as u64),
             "--repeats" => a.repeats = num(val()?)?,
             "--power" => a.power = true,
             "--variants" => a.variants = true,
+            "--regular" => a.regular = true,
             _ => return Err(format!("unknown option {flag} (see the header of examples/vkbench.rs)")),
         }
     }
@@ -115,6 +130,10 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let t = Instant::now();
     let mesh = Arc::new(match &args.mesh {
         Some(path) => tetloc_core::io::read_mesh(std::path::Path::new(path), None)?,
+        None if args.regular => {
+            let n = (args.tets as f64 / 6.0).cbrt().round().max(1.0) as usize;
+            tetloc_core::testdata::KuhnGrid::new(n).mesh(&format!("regular {n}^3 cubes"))
+        }
         None => Mesh::new(generate(args.shape, args.tets, args.seed), args.shape.name())?,
     });
     println!(
@@ -125,9 +144,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         mesh.info.max_edge_length,
         t.elapsed().as_secs_f64()
     );
+    // The CPU reference only when checking (its BVH takes a minute at 250M tets).
     let t = Instant::now();
-    let mut cpu = CpuLocator::new(mesh.clone());
-    println!("cpu locator built in {:.1} s", t.elapsed().as_secs_f64());
+    let mut cpu = (args.check > 0).then(|| CpuLocator::new(mesh.clone()));
+    if cpu.is_some() {
+        println!("cpu locator built in {:.1} s", t.elapsed().as_secs_f64());
+    }
 
     let kernels = args.kernels.clone().unwrap_or_else(|| {
         Kernel::ALL.into_iter().filter(|k| ctx.info().ray_tracing || !k.needs_ray_tracing()).collect()
@@ -135,12 +157,34 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut configs: Vec<(String, Kernel, LocatorOptions)> =
         kernels.iter().map(|&k| (k.name().to_string(), k, args.opts.clone())).collect();
     if args.variants {
-        for (leaf, wg, f64, grid) in
-            [(4, 128, true, false), (1, 64, true, false), (1, 256, true, false), (1, 128, false, false), (1, 128, true, true), (4, 128, true, true)]
-        {
-            let o = LocatorOptions { leaf_size: leaf, workgroup_size: wg, float64: f64, grid_start: grid, ..args.opts.clone() };
-            let label =
-                format!("soft-bvh leaf {leaf} wg {wg}{}{}", if f64 { "" } else { " f32" }, if grid { " grid" } else { "" });
+        // (grid, walk, tets per cell, f32 first, f64); leaf size and workgroup size were
+        // measured before (BENCHMARKS.md: within noise).
+        // (grid, walk, tets per cell, f32 first, f64, deferred exact tests)
+        for (grid, walk, cell, first, f64, defer) in [
+            (false, false, 1, false, true, false),
+            (false, false, 1, true, true, false),
+            (true, false, 2, false, true, false),
+            (false, true, 2, false, true, false),
+            (false, true, 1, true, true, false),
+            (false, true, 1, false, false, false),
+            (false, true, 1, false, true, true),
+        ] {
+            let o = LocatorOptions {
+                grid_start: grid,
+                walk_start: walk,
+                grid_tets_per_cell: cell,
+                f32_first: first,
+                float64: f64,
+                defer_exact: defer,
+                ..args.opts.clone()
+            };
+            let label = format!(
+                "soft-bvh{}{}{}{}",
+                if walk { format!(" walk {cell}") } else if grid { format!(" grid {cell}") } else { " root".into() },
+                if first { " f32-first" } else { "" },
+                if f64 { "" } else { " pure-f32" },
+                if defer { " deferred" } else { "" }
+            );
             configs.push((label, Kernel::SoftBvh, o));
         }
     }
@@ -162,8 +206,8 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             }
         };
         println!("{label}: built in {:.2} s (float64 test: {})", t.elapsed().as_secs_f64(), loc.uses_float64());
-        if args.check > 0 {
-            let (n, wrong, lost, differ) = check(&mut loc, &mut cpu, &mesh, args.check)?;
+        if let Some(cpu) = cpu.as_mut() {
+            let (n, wrong, lost, differ) = check(&mut loc, cpu, &mesh, args.check)?;
             println!("{label}: check of {n} random+bbox samples vs CPU: {wrong} wrong tets, {lost} lost, {differ} differ (valid ties)");
         }
         for &mode in &args.modes {

@@ -30,6 +30,9 @@ pub struct DeviceInfo {
     pub float64: bool,
     /// The compute queue has timestamps (needed by benchmarks).
     pub timestamps: bool,
+    /// shaderStorageBufferArrayNonUniformIndexing: the shaders read arrays split over several
+    /// buffers (larger than one buffer may be) through it.
+    pub nonuniform_buffers: bool,
 }
 
 /// How to create a [`Context`].
@@ -208,6 +211,7 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
                 memory_bytes,
                 float64,
                 timestamps: timestamp_valid_bits > 0,
+                nonuniform_buffers: f12.shader_storage_buffer_array_non_uniform_indexing == vk::TRUE,
             },
             uuid: id.device_uuid,
             api: props.api_version,
@@ -383,7 +387,9 @@ impl Context {
             ]);
         }
         let features = vk::PhysicalDeviceFeatures::default().shader_float64(info.float64);
-        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(info.ray_tracing);
+        let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
+            .buffer_device_address(info.ray_tracing)
+            .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers);
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut f_rt = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default().ray_tracing_pipeline(true);
         let mut create = vk::DeviceCreateInfo::default()

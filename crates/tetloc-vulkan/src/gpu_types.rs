@@ -22,6 +22,15 @@ pub const B_TF: u32 = 11;
 pub const B_OCCUPANCY: u32 = 12;
 pub const B_SURFACE: u32 = 13;
 pub const B_PIXELS: u32 = 14;
+/// Buffers 1.. of arrays split over several buffers (memory::Chunked), each binding an
+/// array of MAX_CHUNKS - 1 buffers.
+pub const B_POINTS_HI: u32 = 16;
+pub const B_TETS_HI: u32 = 17;
+pub const B_ACCEL_HI: u32 = 18;
+pub const B_NEIGHBORS_HI: u32 = 19;
+pub const MAX_CHUNKS: usize = 16;
+/// soft-bvh with deferred exact tests: the samples the f32 pass could not decide.
+pub const B_DEFER: u32 = 20;
 
 pub const SAMPLE_HOST: i32 = 0;
 pub const SAMPLE_UNIFORM: i32 = 1;
@@ -50,6 +59,15 @@ pub const SC_RAY_FLAGS: u32 = 8;
 pub const SC_RETRY_ON_MISS: u32 = 9;
 pub const SC_DIRECT_LEAVES: u32 = 10;
 pub const SC_GRID_START: u32 = 11;
+pub const SC_WALK_START: u32 = 12;
+pub const SC_F32_FIRST: u32 = 13;
+/// Elements per buffer of split arrays (0: one buffer).
+pub const SC_POINTS_CHUNK: u32 = 14;
+pub const SC_TETS_CHUNK: u32 = 15;
+pub const SC_NODES_CHUNK: u32 = 16;
+pub const SC_NEIGHBORS_CHUNK: u32 = 17;
+pub const SC_DEFER_EXACT: u32 = 18;
+pub const SC_EXACT_PASS: u32 = 19;
 
 /// The push-constant block.
 #[repr(C)]
@@ -125,6 +143,12 @@ mod tests {
             ("TL_B_OCCUPANCY", B_OCCUPANCY),
             ("TL_B_SURFACE", B_SURFACE),
             ("TL_B_PIXELS", B_PIXELS),
+            ("TL_B_POINTS_HI", B_POINTS_HI),
+            ("TL_B_TETS_HI", B_TETS_HI),
+            ("TL_B_ACCEL_HI", B_ACCEL_HI),
+            ("TL_B_NEIGHBORS_HI", B_NEIGHBORS_HI),
+            ("TL_MAX_CHUNKS", MAX_CHUNKS as u32),
+            ("TL_B_DEFER", B_DEFER),
             ("TL_LEAF", LEAF),
             ("TL_EMPTY", EMPTY),
         ] {
@@ -159,5 +183,15 @@ mod tests {
         let traversal = include_str!("../shaders/common/soft_bvh.glsl");
         assert!(traversal.contains(&format!("constant_id = {SC_DIRECT_LEAVES}) const bool DIRECT_LEAVES")));
         assert!(traversal.contains(&format!("constant_id = {SC_GRID_START}) const bool GRID_START")));
+        assert!(traversal.contains(&format!("constant_id = {SC_WALK_START}) const bool WALK_START")));
+        let walk = include_str!("../shaders/common/walk.glsl");
+        assert!(walk.contains(&format!("constant_id = {SC_F32_FIRST}) const bool F32_FIRST")));
+        assert!(walk.contains(&format!("constant_id = {SC_NEIGHBORS_CHUNK}) const uint NEIGHBORS_CHUNK")));
+        assert!(walk.contains(&format!("constant_id = {SC_DEFER_EXACT}) const bool DEFER_EXACT")));
+        assert!(comp.contains(&format!("constant_id = {SC_EXACT_PASS}) const bool EXACT_PASS")));
+        assert!(traversal.contains(&format!("constant_id = {SC_NODES_CHUNK}) const uint NODES_CHUNK")));
+        let mesh = include_str!("../shaders/common/mesh.glsl");
+        assert!(mesh.contains(&format!("constant_id = {SC_POINTS_CHUNK}) const uint POINTS_CHUNK")));
+        assert!(mesh.contains(&format!("constant_id = {SC_TETS_CHUNK}) const uint TETS_CHUNK")));
     }
 }

@@ -3,7 +3,7 @@
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
 use crate::gpu_types::*;
-use crate::memory::{self, Buffer, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker};
+use crate::memory::{self, full_barrier, Buffer, Chunked, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker};
 use crate::pipeline::{self, Descriptors, Pipeline, RtShaders, Spec};
 use crate::rt::{self, AsReport, Geometry, RtStructure};
 use crate::shaders;
@@ -87,8 +87,25 @@ pub struct LocatorOptions {
     /// point's cell (about `GRID_TETS_PER_CELL` tets per cell, 4 B per cell). Unmeasured on
     /// GPUs so far: off by default (NOTES.md).
     pub grid_start: bool,
+    /// soft-bvh: walk through face neighbours from a start tet the entry grid names for the
+    /// point's cell (the tet holding the cell's centre), traversal from the cell's node as the
+    /// exact fallback; +4 B per cell and the neighbours (16 B per tet). Implies the grid. The
+    /// default: on the H100 5.1x (uniform) and 2.0x (random) faster than traversal (NOTES.md).
+    pub walk_start: bool,
+    /// soft-bvh entry grid resolution: about this many tets per cell.
+    pub grid_tets_per_cell: usize,
+    /// soft-bvh: decide the point-in-tet test in f32 first and enter the full test (with its
+    /// f64 fallback) only when f32 cannot; same answers, no f64 state on the hot path.
+    pub f32_first: bool,
+    /// soft-bvh: decide every test in f32 and defer the samples f32 cannot decide to a second,
+    /// exact dispatch (indirect, over a list the first pass appends to); same answers, and the
+    /// first pass holds no f64 code. Not yet measured on a GPU: off by default (NOTES.md).
+    pub defer_exact: bool,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
+    /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
+    /// device's limits, 4 GiB on the H100). Tests set it tiny to exercise the splitting.
+    pub max_buffer_bytes: Option<u64>,
 }
 
 impl Default for LocatorOptions {
@@ -101,7 +118,12 @@ impl Default for LocatorOptions {
             float64: true,
             workgroup_size: 128,
             grid_start: false,
+            walk_start: true,
+            grid_tets_per_cell: GRID_TETS_PER_CELL,
+            f32_first: false,
+            defer_exact: false,
             staging_bytes: memory::STAGING_BYTES,
+            max_buffer_bytes: None,
         }
     }
 }
@@ -174,13 +196,16 @@ pub(crate) struct Variant {
 /// The search structure; its buffers are only held (bound in the descriptor set).
 #[allow(clippy::large_enum_variant)]
 enum Structure {
-    Soft { _nodes: Buffer, _prims: Option<Buffer>, _grid: Option<Buffer>, stack: u32, direct: bool, grid: bool },
+    Soft { _buffers: Vec<Buffer>, stack: u32, direct: bool, grid: bool, walk: bool, nodes_chunk: u32, neighbors_chunk: u32 },
     Rt(RtStructure),
 }
 
 /// A locator's GPU resources as another pipeline binds them (see `VulkanLocator::resources`).
 pub(crate) struct Resources {
-    pub buffers: Vec<(u32, vk::DescriptorBufferInfo)>,
+    /// (binding, the buffers of its array elements), every storage-buffer binding.
+    pub buffers: Vec<(u32, Vec<vk::DescriptorBufferInfo>)>,
+    /// soft-bvh: the neighbour table is among `buffers` (the walk start uses it).
+    pub soft_neighbors: bool,
     /// The top-level acceleration structure (rt kernels), bound at `B_ACCEL`.
     pub accel: Option<vk::AccelerationStructureKHR>,
     /// A small buffer for bindings a pipeline declares but does not use.
@@ -188,11 +213,15 @@ pub(crate) struct Resources {
 }
 
 /// soft-bvh entry grid resolution: about this many tets per cell (a 1M-tet jets mesh then
-/// starts traversal at level 6-7 of 13 on median).
-pub const GRID_TETS_PER_CELL: usize = 2;
+/// starts traversal at level 6-7 of 13 on median; walks from a cell's start take 1.7 tests
+/// a sample on jets 12M, 2.1 at 2 tets a cell).
+pub const GRID_TETS_PER_CELL: usize = 1;
 
 /// Most tets the face kernels visit when the closest hit's tet is off by rounding.
 const WALK_MAX: i32 = 16;
+/// Most tets a soft-bvh walk start visits before traversal takes over (jets: 1.7-2.6 on
+/// average from a cell-centre start, NOTES.md).
+const SOFT_WALK_MAX: i32 = 32;
 
 /// A mesh on one Vulkan device with one kernel's search structure.
 pub struct VulkanLocator {
@@ -205,8 +234,8 @@ pub struct VulkanLocator {
     pub(crate) cmds: Commands,
     pub(crate) staging: Staging,
     pub(crate) desc: Descriptors,
-    _points: Buffer,
-    _tets: Buffer,
+    _points: Chunked,
+    _tets: Chunked,
     dummy: Buffer,
     field: Option<(String, FieldLocation, Buffer)>,
     /// Query points and results, `io_capacity` points each.
@@ -214,6 +243,10 @@ pub struct VulkanLocator {
     io_capacity: usize,
     structure: Structure,
     pub(crate) pipelines: HashMap<Variant, Pipeline>,
+    /// soft-bvh with `defer_exact`: the exact second pass of each variant, and the list of
+    /// deferred samples (header: indirect dispatch size, count; then sample indices).
+    pub(crate) exact_pipelines: HashMap<Variant, Pipeline>,
+    pub(crate) defer: Option<Buffer>,
     build_seconds: f64,
     memory: MemoryReport,
 }
@@ -225,10 +258,16 @@ impl VulkanLocator {
         if kernel.needs_ray_tracing() && ctx.rt.is_none() {
             return Err(VkError::NoRayTracing { device: ctx.device_name(), kernel: kernel.name().into() });
         }
-        if opts.chunk_points == 0 || ![1, 4].contains(&opts.leaf_size) || opts.workgroup_size == 0 {
+        if opts.chunk_points == 0 || ![1, 4].contains(&opts.leaf_size) || opts.workgroup_size == 0 || opts.grid_tets_per_cell == 0 {
             return Err(VkError::Mesh(format!(
-                "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0)",
-                opts.chunk_points, opts.leaf_size, opts.workgroup_size
+                "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0), grid_tets_per_cell {} (> 0)",
+                opts.chunk_points, opts.leaf_size, opts.workgroup_size, opts.grid_tets_per_cell
+            )));
+        }
+        if !ctx.info().nonuniform_buffers {
+            return Err(VkError::Mesh(format!(
+                "{} lacks shaderStorageBufferArrayNonUniformIndexing, which the kernels use to read arrays split over buffers",
+                ctx.device_name()
             )));
         }
         if mesh.n_tets() >= i32::MAX as usize {
@@ -244,22 +283,28 @@ impl VulkanLocator {
             point_usage |= vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
                 | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         }
-        let points = memory::device_buffer_with(
-            &ctx, &tracker, &mut staging, &mut cmds, "mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points),
+        let max_bytes = memory::max_buffer_bytes(&ctx, opts.max_buffer_bytes);
+        let points = memory::chunked_buffer(
+            &ctx, &tracker, &mut staging, &mut cmds, "mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points), 12, max_bytes,
         )?;
-        let tets = memory::device_buffer_with(
-            &ctx, &tracker, &mut staging, &mut cmds, "mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets),
+        let tets = memory::chunked_buffer(
+            &ctx, &tracker, &mut staging, &mut cmds, "mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16, max_bytes,
         )?;
         let dummy = Buffer::new(&ctx, &tracker, "unbound", MemKind::Query, 16, storage, Location::Device)?;
 
         let f64 = opts.float64 && ctx.info().float64;
+        const SB: vk::DescriptorType = vk::DescriptorType::STORAGE_BUFFER;
+        let hi = MAX_CHUNKS as u32 - 1;
         let mut bindings = vec![
-            (B_POINTS, vk::DescriptorType::STORAGE_BUFFER),
-            (B_TETS, vk::DescriptorType::STORAGE_BUFFER),
-            (B_FIELD, vk::DescriptorType::STORAGE_BUFFER),
-            (B_QUERIES, vk::DescriptorType::STORAGE_BUFFER),
-            (B_OUT, vk::DescriptorType::STORAGE_BUFFER),
-            (B_PRIMS, vk::DescriptorType::STORAGE_BUFFER),
+            (B_POINTS, SB, 1),
+            (B_TETS, SB, 1),
+            (B_FIELD, SB, 1),
+            (B_QUERIES, SB, 1),
+            (B_OUT, SB, 1),
+            (B_PRIMS, SB, 1),
+            (B_POINTS_HI, SB, hi),
+            (B_TETS_HI, SB, hi),
+            (B_NEIGHBORS_HI, SB, hi),
         ];
         let (structure, desc) = match kernel {
             Kernel::SoftBvh => {
@@ -267,8 +312,8 @@ impl VulkanLocator {
                 let bvh = Bvh::build(&mesh.points, &mesh.tets, preset);
                 let q = soft_bvh::collapse(&bvh)?;
                 drop(bvh);
-                let nodes = memory::device_buffer_with(
-                    &ctx, &tracker, &mut staging, &mut cmds, "bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&q.nodes),
+                let nodes = memory::chunked_buffer(
+                    &ctx, &tracker, &mut staging, &mut cmds, "bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&q.nodes), 64, max_bytes,
                 )?;
                 let prims = if q.direct {
                     None
@@ -277,24 +322,37 @@ impl VulkanLocator {
                         &ctx, &tracker, &mut staging, &mut cmds, "bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&q.prims),
                     )?)
                 };
-                let grid = if opts.grid_start {
-                    let g = q.entry_grid(&mesh.points, &mesh.tets, mesh.info.bounds_min, mesh.info.bounds_max, GRID_TETS_PER_CELL);
+                let grid = if opts.grid_start || opts.walk_start {
+                    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+                    let g = q.entry_grid(&mesh.points, &mesh.tets, lo, hi, opts.grid_tets_per_cell, opts.walk_start);
                     Some(memory::device_buffer_with(
                         &ctx, &tracker, &mut staging, &mut cmds, "entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()),
                     )?)
                 } else {
                     None
                 };
-                bindings.push((B_ACCEL, vk::DescriptorType::STORAGE_BUFFER));
-                bindings.push((B_GRID, vk::DescriptorType::STORAGE_BUFFER));
+                let neighbors = if opts.walk_start {
+                    let nb = bytemuck::cast_slice(mesh.neighbors());
+                    Some(memory::chunked_buffer(&ctx, &tracker, &mut staging, &mut cmds, "tet neighbours", MemKind::Structure, storage, nb, 16, max_bytes)?)
+                } else {
+                    None
+                };
+                bindings.extend([(B_ACCEL, SB, 1), (B_GRID, SB, 1), (B_NEIGHBORS, SB, 1), (B_ACCEL_HI, SB, hi), (B_DEFER, SB, 1)]);
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
                 desc.write_buffers(&[
-                    (B_ACCEL, &nodes),
                     (B_PRIMS, prims.as_ref().unwrap_or(&dummy)),
                     (B_GRID, grid.as_ref().unwrap_or(&dummy)),
+                    (B_DEFER, &dummy),
                 ])?;
+                bind_chunked(&desc, B_ACCEL, B_ACCEL_HI, Some(&nodes), &dummy)?;
+                bind_chunked(&desc, B_NEIGHBORS, B_NEIGHBORS_HI, neighbors.as_ref(), &dummy)?;
                 let (stack, direct, has_grid) = (q.stack_size(), q.direct, grid.is_some());
-                (Structure::Soft { _nodes: nodes, _prims: prims, _grid: grid, stack, direct, grid: has_grid }, desc)
+                let (nodes_chunk, neighbors_chunk) = (nodes.per_chunk, neighbors.as_ref().map_or(0, |n| n.per_chunk));
+                let mut buffers: Vec<Buffer> = [prims, grid].into_iter().flatten().collect();
+                buffers.extend(nodes.parts);
+                buffers.extend(neighbors.into_iter().flat_map(|n| n.parts));
+                let walk = opts.walk_start;
+                (Structure::Soft { _buffers: buffers, stack, direct, grid: has_grid, walk, nodes_chunk, neighbors_chunk }, desc)
             }
             _ => {
                 let geometry = match kernel {
@@ -302,10 +360,16 @@ impl VulkanLocator {
                     Kernel::RtRepFaces => Geometry::RepFaces,
                     _ => Geometry::SharedFaces,
                 };
-                let s = rt::build(&ctx, &tracker, &mut staging, &mut cmds, &mesh, &points, geometry, opts.split, opts.compact)?;
-                bindings.push((B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR));
-                bindings.push((B_INSTANCES, vk::DescriptorType::STORAGE_BUFFER));
-                bindings.push((B_NEIGHBORS, vk::DescriptorType::STORAGE_BUFFER));
+                if points.parts.len() > 1 {
+                    return Err(VkError::TooLarge {
+                        name: "mesh points".into(),
+                        bytes: mesh.points.len() as u64 * 12,
+                        limit: max_bytes,
+                        what: "one buffer: the ray-tracing kernels build from a single vertex buffer",
+                    });
+                }
+                let s = rt::build(&ctx, &tracker, &mut staging, &mut cmds, &mesh, &points.parts[0], geometry, opts.split, opts.compact)?;
+                bindings.extend([(B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, 1), (B_INSTANCES, SB, 1), (B_NEIGHBORS, SB, 1)]);
                 let stages = vk::ShaderStageFlags::RAYGEN_KHR
                     | vk::ShaderStageFlags::MISS_KHR
                     | vk::ShaderStageFlags::CLOSEST_HIT_KHR
@@ -313,10 +377,13 @@ impl VulkanLocator {
                 let desc = Descriptors::new(&ctx, &bindings, stages)?;
                 desc.write_accel(B_ACCEL, s.tlas.handle);
                 desc.write_buffers(&[(B_PRIMS, &s.prims), (B_INSTANCES, &s.instance_base), (B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&dummy))])?;
+                desc.write_buffer_array(B_NEIGHBORS_HI, &[&dummy; MAX_CHUNKS - 1])?;
                 (Structure::Rt(s), desc)
             }
         };
-        desc.write_buffers(&[(B_POINTS, &points), (B_TETS, &tets), (B_FIELD, &dummy), (B_QUERIES, &dummy), (B_OUT, &dummy)])?;
+        desc.write_buffers(&[(B_FIELD, &dummy), (B_QUERIES, &dummy), (B_OUT, &dummy)])?;
+        bind_chunked(&desc, B_POINTS, B_POINTS_HI, Some(&points), &dummy)?;
+        bind_chunked(&desc, B_TETS, B_TETS_HI, Some(&tets), &dummy)?;
 
         let (items, peak) = {
             let t = tracker.lock().unwrap();
@@ -346,6 +413,8 @@ impl VulkanLocator {
             io_capacity: 0,
             structure,
             pipelines: HashMap::new(),
+            exact_pipelines: HashMap::new(),
+            defer: None,
             build_seconds: 0.0,
             memory,
         };
@@ -378,37 +447,63 @@ impl VulkanLocator {
         self.f64
     }
 
-    /// The pipeline for `v`, created on first use.
+    /// soft-bvh with `defer_exact` on a device with the f64 test.
+    fn defers(&self) -> bool {
+        self.opts.defer_exact && self.f64 && matches!(self.structure, Structure::Soft { .. })
+    }
+
+    /// The pipeline for `v`, created on first use (with its exact second pass when deferring).
     pub(crate) fn pipeline(&mut self, v: Variant) -> VkResult<&Pipeline> {
+        if self.defers() && !self.exact_pipelines.contains_key(&v) {
+            let p = self.make_pipeline(v, true)?;
+            self.exact_pipelines.insert(v, p);
+        }
         if !self.pipelines.contains_key(&v) {
-            let spec = self.spec(v.output).set(SC_SAMPLE_MODE, v.sample as u32).set(SC_RECORD_POINTS, v.record as u32);
-            let p = match &self.structure {
-                Structure::Soft { .. } => {
-                    let spec = spec.set(SC_WORKGROUP, self.opts.workgroup_size);
-                    pipeline::compute_pipeline(&self.ctx, self.desc.layout, shaders::SOFT_BVH.pick(self.f64), &spec)?
-                }
-                Structure::Rt(_) => {
-                    let sh = self.rt_shaders(shaders::RT_RGEN);
-                    pipeline::rt_pipeline(&self.ctx, &self.tracker, &mut self.staging, &mut self.cmds, self.desc.layout, &sh, &spec)?
-                }
-            };
+            let p = self.make_pipeline(v, false)?;
             self.pipelines.insert(v, p);
         }
         Ok(&self.pipelines[&v])
     }
 
+    /// The pipeline of variant `v`, or its exact second pass (`defer_exact`).
+    fn make_pipeline(&mut self, v: Variant, exact_pass: bool) -> VkResult<Pipeline> {
+        let defer = self.defers() && !exact_pass;
+        let spec = self.spec(v.output).set(SC_SAMPLE_MODE, v.sample as u32).set(SC_RECORD_POINTS, v.record as u32);
+        match &self.structure {
+            Structure::Soft { .. } => {
+                let spec = spec
+                    .set(SC_F32_FIRST, (self.opts.f32_first || defer) as u32)
+                    .set(SC_DEFER_EXACT, defer as u32)
+                    .set(SC_EXACT_PASS, exact_pass as u32)
+                    .set(SC_WORKGROUP, self.opts.workgroup_size);
+                pipeline::compute_pipeline(&self.ctx, self.desc.layout, shaders::SOFT_BVH.pick(self.f64), &spec)
+            }
+            Structure::Rt(_) => {
+                let sh = self.rt_shaders(shaders::RT_RGEN);
+                pipeline::rt_pipeline(&self.ctx, &self.tracker, &mut self.staging, &mut self.cmds, self.desc.layout, &sh, &spec)
+            }
+        }
+    }
+
     /// The specialization constants of this kernel's shaders for `output` (the volume
-    /// marcher's pipelines start from these too).
+    /// marcher's pipelines start from these too): the test's constants, how the arrays are
+    /// split over buffers, and the kernel's own.
     pub(crate) fn spec(&self, output: i32) -> Spec {
         let spec = Spec::default()
             .set(SC_OUTPUT_MODE, output as u32)
             .set(SC_ORIENT_ERR_BOUND, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(SC_BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
-            .set(SC_WALK_MAX, WALK_MAX as u32);
+            .set(SC_POINTS_CHUNK, self._points.per_chunk)
+            .set(SC_TETS_CHUNK, self._tets.per_chunk);
         match &self.structure {
-            Structure::Soft { stack, direct, grid, .. } => {
-                spec.set(SC_STACK_SIZE, *stack).set(SC_DIRECT_LEAVES, *direct as u32).set(SC_GRID_START, *grid as u32)
-            }
+            Structure::Soft { stack, direct, grid, walk, nodes_chunk, neighbors_chunk, .. } => spec
+                .set(SC_NODES_CHUNK, *nodes_chunk)
+                .set(SC_NEIGHBORS_CHUNK, *neighbors_chunk)
+                .set(SC_WALK_MAX, SOFT_WALK_MAX as u32)
+                .set(SC_WALK_START, *walk as u32)
+                .set(SC_STACK_SIZE, *stack)
+                .set(SC_DIRECT_LEAVES, *direct as u32)
+                .set(SC_GRID_START, *grid as u32),
             Structure::Rt(_) => {
                 const OPAQUE: u32 = 0x1;
                 const TERMINATE_ON_FIRST_HIT: u32 = 0x4;
@@ -418,7 +513,7 @@ impl VulkanLocator {
                     Kernel::RtRepFaces => (OPAQUE | CULL_BACK_FACING, true),
                     _ => (OPAQUE, true),
                 };
-                spec.set(SC_RAY_FLAGS, flags).set(SC_RETRY_ON_MISS, retry as u32)
+                spec.set(SC_WALK_MAX, WALK_MAX as u32).set(SC_RAY_FLAGS, flags).set(SC_RETRY_ON_MISS, retry as u32)
             }
         }
     }
@@ -433,29 +528,18 @@ impl VulkanLocator {
         RtShaders { raygen, miss: shaders::RT_RMISS, closest_hit: chit, intersection: rint }
     }
 
-    /// What the volume marcher binds of this locator (no second upload): the kernel's
-    /// bindings but the query buffers, with the field `ensure_field` uploaded last.
+    /// What the volume marcher binds of this locator (no second upload): every buffer
+    /// binding of the kernel but the query, output and deferral buffers, with the field
+    /// `ensure_field` uploaded last.
     pub(crate) fn resources(&self) -> Resources {
-        let mut buffers: Vec<(u32, vk::DescriptorBufferInfo)> = vec![
-            (B_POINTS, self._points.info()),
-            (B_TETS, self._tets.info()),
-            (B_FIELD, self.field.as_ref().map_or(&self.dummy, |f| &f.2).info()),
-        ];
+        let buffers =
+            self.desc.buffer_bindings().into_iter().filter(|(b, _)| ![B_QUERIES, B_OUT, B_DEFER].contains(b)).collect();
         let accel = match &self.structure {
-            Structure::Soft { _nodes, _prims, _grid, .. } => {
-                buffers.push((B_ACCEL, _nodes.info()));
-                buffers.push((B_PRIMS, _prims.as_ref().unwrap_or(&self.dummy).info()));
-                buffers.push((B_GRID, _grid.as_ref().unwrap_or(&self.dummy).info()));
-                None
-            }
-            Structure::Rt(s) => {
-                buffers.push((B_PRIMS, s.prims.info()));
-                buffers.push((B_INSTANCES, s.instance_base.info()));
-                buffers.push((B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&self.dummy).info()));
-                Some(s.tlas.handle)
-            }
+            Structure::Soft { .. } => None,
+            Structure::Rt(s) => Some(s.tlas.handle),
         };
-        Resources { buffers, accel, dummy: self.dummy.info() }
+        let soft_neighbors = matches!(self.structure, Structure::Soft { walk: true, .. });
+        Resources { buffers, accel, soft_neighbors, dummy: self.dummy.info() }
     }
 
     /// Push constants for a launch of `n` points starting at global sample index `base`.
@@ -501,6 +585,13 @@ impl VulkanLocator {
         let q = Buffer::new(&self.ctx, &self.tracker, "query points", MemKind::Query, (n * 12) as u64, usage, Location::Device)?;
         let o = Buffer::new(&self.ctx, &self.tracker, "query results", MemKind::Query, (n * 4) as u64, usage, Location::Device)?;
         self.desc.write_buffers(&[(B_QUERIES, &q), (B_OUT, &o)])?;
+        if self.defers() {
+            self.defer = None;
+            let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+            let d = Buffer::new(&self.ctx, &self.tracker, "deferred samples", MemKind::Query, 16 + (n * 4) as u64, usage, Location::Device)?;
+            self.desc.write_buffers(&[(B_DEFER, &d)])?;
+            self.defer = Some(d);
+        }
         self.io = Some((q, o));
         self.io_capacity = n;
         Ok(())
@@ -584,6 +675,14 @@ impl VulkanLocator {
 
 }
 
+/// Binds a split array: its first buffer at `lo`, the others (or `dummy`) at the array `hi`.
+/// `None`: the array is not used; everything gets `dummy`.
+fn bind_chunked(desc: &Descriptors, lo: u32, hi: u32, array: Option<&Chunked>, dummy: &Buffer) -> VkResult<()> {
+    let part = |k: usize| array.and_then(|a| a.parts.get(k)).unwrap_or(dummy);
+    desc.write_buffers(&[(lo, part(0))])?;
+    desc.write_buffer_array(hi, &(1..MAX_CHUNKS).map(part).collect::<Vec<_>>())
+}
+
 /// The [`Launch`] of variant `v` (whose pipeline must exist), borrowing only the fields it
 /// reads so that `cmds` and `staging` stay usable beside it.
 macro_rules! launch {
@@ -592,6 +691,7 @@ macro_rules! launch {
             ctx: &$loc.ctx,
             desc: &$loc.desc,
             pipeline: &$loc.pipelines[&$v],
+            exact: $loc.exact_pipelines.get(&$v).zip($loc.defer.as_ref().map(|b| b.buffer)),
             workgroup: $loc.opts.workgroup_size,
         }
     };
@@ -603,6 +703,8 @@ pub(crate) struct Launch<'a> {
     pub ctx: &'a Context,
     pub desc: &'a Descriptors,
     pub pipeline: &'a Pipeline,
+    /// soft-bvh with `defer_exact`: the exact second pass and the deferred-sample list.
+    pub exact: Option<(&'a Pipeline, vk::Buffer)>,
     pub workgroup: u32,
 }
 
@@ -613,6 +715,12 @@ impl Launch<'_> {
         let n = params.counts[0] as u64;
         // SAFETY: recording into a command buffer in the recording state, with live objects.
         unsafe {
+            if let Some((_, list)) = self.exact {
+                // Empty the deferred-sample list: dispatch size (0, 1, 1), count 0.
+                full_barrier(dev, cmd);
+                dev.cmd_update_buffer(cmd, list, 0, bytemuck::cast_slice(&[0u32, 1, 1, 0]));
+                full_barrier(dev, cmd);
+            }
             dev.cmd_bind_pipeline(cmd, p.bind_point, p.pipeline);
             dev.cmd_bind_descriptor_sets(cmd, p.bind_point, self.desc.layout, 0, &[self.desc.set], &[]);
             dev.cmd_push_constants(cmd, self.desc.layout, self.desc.stages, 0, bytemuck::bytes_of(params));
@@ -631,6 +739,14 @@ impl Launch<'_> {
                     let rt = self.ctx.rt.as_ref().unwrap();
                     rt.pipeline.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &empty, width as u32, n.div_ceil(width) as u32, 1);
                 }
+            }
+            if let Some((exact, list)) = self.exact {
+                // The samples the f32 pass deferred, exactly: as many workgroups as it counted.
+                full_barrier(dev, cmd);
+                dev.cmd_bind_pipeline(cmd, exact.bind_point, exact.pipeline);
+                dev.cmd_bind_descriptor_sets(cmd, exact.bind_point, self.desc.layout, 0, &[self.desc.set], &[]);
+                dev.cmd_push_constants(cmd, self.desc.layout, self.desc.stages, 0, bytemuck::bytes_of(params));
+                dev.cmd_dispatch_indirect(cmd, list, 0);
             }
         }
     }

@@ -187,22 +187,21 @@ impl VolumeMarcher {
         // One descriptor set: the locator's resources, then the march's own.
         let res = loc.resources();
         let soft = loc.kernel == Kernel::SoftBvh;
-        let neighbors = if soft {
+        // The compute marcher walks between samples; a soft-bvh locator built without the
+        // walk start has no neighbour table, so the marcher brings its own (one buffer).
+        let neighbors = if soft && !res.soft_neighbors {
             let mesh = loc.mesh.clone();
             let nb = mesh.neighbors();
             Some(upload(&mut loc, "march tet neighbours", MemKind::Structure, bytemuck::cast_slice(nb))?)
         } else {
             None
         };
-        let mut bindings: Vec<(u32, vk::DescriptorType)> =
-            res.buffers.iter().map(|(b, _)| (*b, vk::DescriptorType::STORAGE_BUFFER)).collect();
+        let mut bindings: Vec<(u32, vk::DescriptorType, u32)> =
+            res.buffers.iter().map(|(b, infos)| (*b, vk::DescriptorType::STORAGE_BUFFER, infos.len() as u32)).collect();
         let own = [B_MARCH, B_TF, B_OCCUPANCY, B_SURFACE, B_PIXELS];
-        bindings.extend(own.iter().map(|&b| (b, vk::DescriptorType::STORAGE_BUFFER)));
-        if soft {
-            bindings.push((B_NEIGHBORS, vk::DescriptorType::STORAGE_BUFFER));
-        }
+        bindings.extend(own.iter().map(|&b| (b, vk::DescriptorType::STORAGE_BUFFER, 1)));
         if res.accel.is_some() {
-            bindings.push((B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR));
+            bindings.push((B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, 1));
         }
         let stages = if soft {
             vk::ShaderStageFlags::COMPUTE
@@ -215,7 +214,7 @@ impl VolumeMarcher {
         let desc = Descriptors::new(&ctx, &bindings, stages)?;
         desc.write_infos(&res.buffers);
         desc.write_buffers(&[(B_MARCH, &params_buf), (B_TF, &tf), (B_OCCUPANCY, &occupancy)])?;
-        desc.write_infos(&[(B_SURFACE, res.dummy), (B_PIXELS, res.dummy)]);
+        desc.write_infos(&[(B_SURFACE, vec![res.dummy]), (B_PIXELS, vec![res.dummy])]);
         if let Some(nb) = &neighbors {
             desc.write_buffers(&[(B_NEIGHBORS, nb)])?;
         }

@@ -343,6 +343,59 @@ pub(crate) fn device_buffer_with(
     Ok(buf)
 }
 
+/// An array in one device buffer, or split over several of `per_chunk` elements each when it
+/// is larger than one buffer may be (shaders/common/mesh.glsl reads both).
+pub(crate) struct Chunked {
+    pub parts: Vec<Buffer>,
+    /// Elements per buffer; 0 when there is one buffer.
+    pub per_chunk: u32,
+}
+
+/// The largest buffer worth making on this device: the allocation and storage-buffer range
+/// limits (4 GiB on the H100), or `forced` (a test hook) when smaller; a multiple of 64 bytes.
+pub(crate) fn max_buffer_bytes(ctx: &Context, forced: Option<u64>) -> u64 {
+    let l = &ctx.limits;
+    let alloc = if l.max_allocation > 0 { l.max_allocation } else { u64::MAX };
+    let max = alloc.min(l.max_storage_buffer_range).min(forced.unwrap_or(u64::MAX));
+    (max & !63).max(64)
+}
+
+/// Uploads `data` (elements of `elem_bytes`) into one device buffer named `name`, or, when it
+/// is larger than `max_bytes`, into up to `MAX_CHUNKS` buffers of whole elements.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn chunked_buffer(
+    ctx: &Arc<Context>,
+    tracker: &SharedTracker,
+    staging: &mut Staging,
+    cmds: &mut Commands,
+    name: &str,
+    kind: MemKind,
+    usage: vk::BufferUsageFlags,
+    data: &[u8],
+    elem_bytes: usize,
+    max_bytes: u64,
+) -> VkResult<Chunked> {
+    if data.len() as u64 <= max_bytes {
+        return Ok(Chunked { parts: vec![device_buffer_with(ctx, tracker, staging, cmds, name, kind, usage, data)?], per_chunk: 0 });
+    }
+    let per = (max_bytes / elem_bytes as u64).min(u32::MAX as u64) as usize;
+    let n_parts = (data.len() / elem_bytes).div_ceil(per.max(1));
+    if per == 0 || n_parts > crate::gpu_types::MAX_CHUNKS {
+        return Err(VkError::TooLarge {
+            name: name.into(),
+            bytes: data.len() as u64,
+            limit: crate::gpu_types::MAX_CHUNKS as u64 * max_bytes,
+            what: "16 buffers of the device's largest buffer (maxMemoryAllocationSize, maxStorageBufferRange)",
+        });
+    }
+    let parts = data
+        .chunks(per * elem_bytes)
+        .enumerate()
+        .map(|(k, piece)| device_buffer_with(ctx, tracker, staging, cmds, &format!("{name} {}/{n_parts}", k + 1), kind, usage, piece))
+        .collect::<VkResult<Vec<_>>>()?;
+    Ok(Chunked { parts, per_chunk: per as u32 })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

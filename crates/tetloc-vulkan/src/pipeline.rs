@@ -6,7 +6,8 @@ use crate::error::{VkError, VkResult};
 use crate::gpu_types::Params;
 use crate::memory::{Buffer, Commands, Location, MemKind, SharedTracker, Staging};
 use ash::vk;
-use std::sync::Arc;
+use std::collections::BTreeMap;
+use std::sync::{Arc, Mutex};
 
 /// One descriptor set (set 0) with its layout, pool and the pipeline layout around it.
 pub(crate) struct Descriptors {
@@ -16,22 +17,25 @@ pub(crate) struct Descriptors {
     pub set: vk::DescriptorSet,
     pub layout: vk::PipelineLayout,
     pub stages: vk::ShaderStageFlags,
+    /// Storage-buffer bindings written so far, by binding.
+    written: Mutex<BTreeMap<u32, Vec<vk::DescriptorBufferInfo>>>,
 }
 
 impl Descriptors {
-    pub fn new(ctx: &Arc<Context>, bindings: &[(u32, vk::DescriptorType)], stages: vk::ShaderStageFlags) -> VkResult<Descriptors> {
+    /// `bindings`: (binding, type, number of descriptors: 1, or an array).
+    pub fn new(ctx: &Arc<Context>, bindings: &[(u32, vk::DescriptorType, u32)], stages: vk::ShaderStageFlags) -> VkResult<Descriptors> {
         let dev = &ctx.device;
         let layout_bindings: Vec<_> = bindings
             .iter()
-            .map(|&(b, t)| {
-                vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(1).stage_flags(stages)
+            .map(|&(b, t, n)| {
+                vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(n).stage_flags(stages)
             })
             .collect();
         let mut sizes: Vec<vk::DescriptorPoolSize> = vec![];
-        for &(_, t) in bindings {
+        for &(_, t, n) in bindings {
             match sizes.iter_mut().find(|s| s.ty == t) {
-                Some(s) => s.descriptor_count += 1,
-                None => sizes.push(vk::DescriptorPoolSize { ty: t, descriptor_count: 1 }),
+                Some(s) => s.descriptor_count += n,
+                None => sizes.push(vk::DescriptorPoolSize { ty: t, descriptor_count: n }),
             }
         }
         let ranges = [vk::PushConstantRange { stage_flags: stages, offset: 0, size: std::mem::size_of::<Params>() as u32 }];
@@ -42,6 +46,7 @@ impl Descriptors {
             set: vk::DescriptorSet::null(),
             layout: vk::PipelineLayout::null(),
             stages,
+            written: Mutex::default(),
         };
         // SAFETY: valid create infos; Drop destroys whatever was created if a later step fails.
         unsafe {
@@ -67,32 +72,50 @@ impl Descriptors {
 
     /// Points storage-buffer bindings at buffers. The set must not be in use (we always wait).
     pub fn write_buffers(&self, writes: &[(u32, &Buffer)]) -> VkResult<()> {
-        let limit = self.ctx.limits.max_storage_buffer_range;
-        if let Some((_, b)) = writes.iter().find(|(_, b)| b.size > limit) {
-            return Err(VkError::TooLarge { name: b.name.clone(), bytes: b.size, limit, what: "maxStorageBufferRange" });
+        for (binding, b) in writes {
+            self.write_buffer_array(*binding, &[*b])?;
         }
-        let infos: Vec<(u32, vk::DescriptorBufferInfo)> = writes.iter().map(|(binding, b)| (*binding, b.info())).collect();
-        self.write_infos(&infos);
         Ok(())
     }
 
-    /// Points storage-buffer bindings at buffers given by their descriptor infos (buffers of
-    /// another object, already checked against the range limit when that object bound them).
-    pub fn write_infos(&self, writes: &[(u32, vk::DescriptorBufferInfo)]) {
-        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = writes.iter().map(|(_, info)| [*info]).collect();
+    /// Points the elements 0.. of an array binding at `buffers`, in order.
+    pub fn write_buffer_array(&self, binding: u32, buffers: &[&Buffer]) -> VkResult<()> {
+        let limit = self.ctx.limits.max_storage_buffer_range;
+        if let Some(b) = buffers.iter().find(|b| b.size > limit) {
+            return Err(VkError::TooLarge { name: b.name.clone(), bytes: b.size, limit, what: "maxStorageBufferRange" });
+        }
+        let infos: Vec<vk::DescriptorBufferInfo> = buffers.iter().map(|b| b.info()).collect();
+        self.write_infos(&[(binding, infos)]);
+        Ok(())
+    }
+
+    /// Points storage-buffer bindings (each an array of one or more) at buffers given by their
+    /// descriptor infos (buffers of another object, already checked against the range limit
+    /// when that object bound them). Remembered for [`Descriptors::buffer_bindings`].
+    pub fn write_infos(&self, writes: &[(u32, Vec<vk::DescriptorBufferInfo>)]) {
         let w: Vec<_> = writes
             .iter()
-            .zip(&infos)
-            .map(|((binding, _), info)| {
+            .map(|(binding, infos)| {
                 vk::WriteDescriptorSet::default()
                     .dst_set(self.set)
                     .dst_binding(*binding)
                     .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                    .buffer_info(info)
+                    .buffer_info(infos)
             })
             .collect();
         // SAFETY: the set is not in use by any pending submission.
         unsafe { self.ctx.device.update_descriptor_sets(&w, &[]) };
+        let mut written = self.written.lock().unwrap_or_else(|e| e.into_inner());
+        for (binding, infos) in writes {
+            written.insert(*binding, infos.clone());
+        }
+    }
+
+    /// Every storage-buffer binding written so far with what it points at, so that another
+    /// pipeline can bind the same buffers (the volume marcher binds a locator's).
+    pub fn buffer_bindings(&self) -> Vec<(u32, Vec<vk::DescriptorBufferInfo>)> {
+        let written = self.written.lock().unwrap_or_else(|e| e.into_inner());
+        written.iter().map(|(b, infos)| (*b, infos.clone())).collect()
     }
 
     pub fn write_accel(&self, binding: u32, accel: vk::AccelerationStructureKHR) {

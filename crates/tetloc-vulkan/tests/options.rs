@@ -7,7 +7,7 @@ use std::sync::Arc;
 use tetloc_core::geom::Vec3;
 use tetloc_core::testdata::{query_sets, require_data};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
-use tetloc_vulkan::{Kernel, LocatorOptions, MemKind, VulkanLocator};
+use tetloc_vulkan::{Kernel, LocatorOptions, MemKind, SampleMode, VulkanLocator};
 
 fn answers(loc: &mut VulkanLocator, points: &[Vec3]) -> (Vec<i32>, Vec<u32>) {
     let mut ids = vec![0; points.len()];
@@ -56,8 +56,18 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
         ];
         if k == Kernel::SoftBvh {
             variants.push(("up to four tets per leaf", LocatorOptions { leaf_size: 4, ..base.clone() }));
-            variants.push(("entry grid", LocatorOptions { grid_start: true, ..base.clone() }));
-            variants.push(("entry grid, four per leaf", LocatorOptions { grid_start: true, leaf_size: 4, ..base.clone() }));
+            variants.push(("traversal from the root", LocatorOptions { walk_start: false, ..base.clone() }));
+            variants.push(("entry grid", LocatorOptions { grid_start: true, walk_start: false, ..base.clone() }));
+            let grid4 = LocatorOptions { grid_start: true, walk_start: false, leaf_size: 4, ..base.clone() };
+            variants.push(("entry grid, four per leaf", grid4));
+            let coarse = LocatorOptions { walk_start: true, grid_tets_per_cell: 3, chunk_points: 997, ..base.clone() };
+            variants.push(("walk start, 3 tets a cell, chunks of 997", coarse));
+            variants.push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
+            variants.push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
+            variants.push(("root, f32 first", LocatorOptions { walk_start: false, f32_first: true, ..base.clone() }));
+            variants.push(("deferred exact tests", LocatorOptions { defer_exact: true, ..base.clone() }));
+            let defer_root = LocatorOptions { defer_exact: true, walk_start: false, chunk_points: 997, ..base.clone() };
+            variants.push(("deferred exact tests, root, chunks of 997", defer_root));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
             variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));
@@ -140,5 +150,49 @@ fn bad_input_gives_errors() {
     assert!("rt-faces".parse::<Kernel>().unwrap_err().contains("soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces"));
     let e: tetloc_core::Error = tetloc_vulkan::VkError::NoDevice.into();
     assert!(matches!(e, tetloc_core::Error::Backend { .. }) && e.to_string().starts_with("vulkan: "));
+    common::assert_no_validation_errors(&ctx);
+}
+
+/// Arrays larger than the device's buffer limit are split over several buffers: forced here
+/// with a tiny limit (`max_buffer_bytes`), answers and generated samples must not change.
+#[test]
+fn arrays_split_over_buffers_give_the_same_answers() {
+    let name = "arrays_split_over_buffers_give_the_same_answers";
+    let Some(ctx) = common::context(name) else { return };
+    let mesh = common::jets(20_000, 3);
+    let points = test_points(&mesh, 20_000);
+    let point_bytes = mesh.points.len() as u64 * 12;
+    for k in common::kernels(&ctx, name) {
+        // soft-bvh: every array split, the points in two; rt: the points must stay whole.
+        let max = if k == Kernel::SoftBvh { point_bytes * 9 / 10 } else { point_bytes + 64 };
+        let mut variants = vec![("default", LocatorOptions::default())];
+        if k == Kernel::SoftBvh {
+            variants.push(("root traversal", LocatorOptions { walk_start: false, ..Default::default() }));
+            variants.push(("four per leaf", LocatorOptions { leaf_size: 4, ..Default::default() }));
+        }
+        for (label, opts) in variants {
+            let mut whole = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts.clone()).unwrap();
+            let split_opts = LocatorOptions { max_buffer_bytes: Some(max), ..opts };
+            let mut split = VulkanLocator::new(ctx.clone(), mesh.clone(), k, split_opts).unwrap();
+            let names: Vec<String> = split.memory_report().items.iter().map(|i| i.name.clone()).collect();
+            let parts = |array: &str| names.iter().filter(|n| n.starts_with(array)).count();
+            assert!(parts("mesh tets") >= 5, "{k} {label}: tets in {} buffers: {names:?}", parts("mesh tets"));
+            if k == Kernel::SoftBvh {
+                assert_eq!(parts("mesh points"), 2, "{k} {label}: {names:?}");
+                assert!(parts("bvh nodes") >= 2, "{k} {label}: {names:?}");
+            }
+            assert!(answers(&mut whole, &points) == answers(&mut split, &points), "{k} {label}: answers changed by splitting");
+            for mode in [SampleMode::Uniform, SampleMode::Random] {
+                let a = whole.locate_generated(mode, 5000, 11).unwrap();
+                let b = split.locate_generated(mode, 5000, 11).unwrap();
+                assert!(a == b, "{k} {label}: {} samples changed by splitting", mode.name());
+                assert!(b.1.iter().all(|&t| t >= 0), "{k} {label}: a {} sample was lost", mode.name());
+            }
+        }
+        // Too large even for 16 buffers: a clear error, not a crash.
+        let tiny = LocatorOptions { max_buffer_bytes: Some(1024), ..Default::default() };
+        let e = VulkanLocator::new(ctx.clone(), mesh.clone(), k, tiny).err().expect("1 KiB buffers cannot hold the mesh");
+        assert!(e.to_string().contains("16 buffers"), "{k}: {e}");
+    }
     common::assert_no_validation_errors(&ctx);
 }

@@ -90,7 +90,15 @@ fn every_kernel_matches_the_oracle() {
             .collect();
         let mut configs: Vec<_> = kernels.iter().map(|&k| (k, LocatorOptions::default())).collect();
         // soft-bvh's entry grid: cells no tet overlaps (holes, sparse meshes) answer -1 at once.
-        configs.push((Kernel::SoftBvh, LocatorOptions { grid_start: true, ..Default::default() }));
+        configs.push((Kernel::SoftBvh, LocatorOptions { grid_start: true, walk_start: false, ..Default::default() }));
+        // The default walks from the grid; walks leave non-convex meshes and end on faces, where
+        // traversal takes over. Traversal from the root:
+        configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: false, ..Default::default() }));
+        // f32 first: the f64 fallback must still decide the points near faces here.
+        configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: true, f32_first: true, ..Default::default() }));
+        // Deferred exact tests: the points near faces go through the second, exact pass.
+        configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, ..Default::default() }));
+        configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, walk_start: false, ..Default::default() }));
         for (k, opts) in configs {
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();
             for (set, cpu) in sets.iter().zip(&cpu) {

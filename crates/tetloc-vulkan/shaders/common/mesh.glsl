@@ -2,13 +2,41 @@
 // u32x4 tets, and the scalar field being sampled (per vertex or per cell).
 #ifndef TL_MESH_GLSL
 #define TL_MESH_GLSL
+#extension GL_EXT_nonuniform_qualifier : require
 
 layout(std430, binding = TL_B_POINTS) readonly buffer TlPoints { float tl_points[]; };
 layout(std430, binding = TL_B_TETS) readonly buffer TlTets { uvec4 tl_tets[]; };
 layout(std430, binding = TL_B_FIELD) readonly buffer TlField { float tl_field[]; };
 
+// Arrays larger than one buffer may be (maxMemoryAllocationSize, maxStorageBufferRange: 4 GiB
+// on the H100) are split into buffers of a fixed number of elements N each (src/memory.rs
+// `Chunked`): element i lives in buffer i / N, buffer 0 being the binding above and buffer
+// k >= 1 element k - 1 of the matching _HI binding. N is a specialization constant, 0 when
+// the array fits one buffer: then the split path folds away. Read through the accessors
+// (tl_vertex, tl_tet, tl_node_word, tl_neighbors4), not the arrays.
+layout(constant_id = 14) const uint POINTS_CHUNK = 0; // vertices per buffer
+layout(constant_id = 15) const uint TETS_CHUNK = 0;   // tets per buffer
+layout(std430, binding = TL_B_POINTS_HI) readonly buffer TlPointsHi { float v[]; } tl_points_hi[TL_MAX_CHUNKS - 1];
+layout(std430, binding = TL_B_TETS_HI) readonly buffer TlTetsHi { uvec4 v[]; } tl_tets_hi[TL_MAX_CHUNKS - 1];
+
+// `return arr[c].v[o];` for a lane-varying c (needs shaderStorageBufferArrayNonUniformIndexing,
+// which the context enables; a switch over constant indices compiled for minutes on lavapipe).
+#define TL_RETURN_HI(arr, c, o) return arr[nonuniformEXT(c)].v[o];
+
 vec3 tl_vertex(uint i) {
-    return vec3(tl_points[3 * i], tl_points[3 * i + 1], tl_points[3 * i + 2]);
+    if (POINTS_CHUNK == 0u || i < POINTS_CHUNK) {
+        return vec3(tl_points[3 * i], tl_points[3 * i + 1], tl_points[3 * i + 2]);
+    }
+    uint c = i / POINTS_CHUNK - 1u, o = 3u * (i % POINTS_CHUNK);
+    return vec3(tl_points_hi[nonuniformEXT(c)].v[o], tl_points_hi[nonuniformEXT(c)].v[o + 1u], tl_points_hi[nonuniformEXT(c)].v[o + 2u]);
+}
+
+uvec4 tl_tet(uint i) {
+    if (TETS_CHUNK == 0u || i < TETS_CHUNK) {
+        return tl_tets[i];
+    }
+    uint c = i / TETS_CHUNK - 1u, o = i % TETS_CHUNK;
+    TL_RETURN_HI(tl_tets_hi, c, o)
 }
 
 #endif

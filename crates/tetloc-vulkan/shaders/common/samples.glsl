@@ -29,12 +29,12 @@ vec3 tl_sample(uint i) {
         return vec3(tl_queries[3 * i], tl_queries[3 * i + 1], tl_queries[3 * i + 2]);
     } else if (SAMPLE_MODE == TL_SAMPLE_UNIFORM) {
         // Mesh::tet_center: the vertices summed in order, then scaled.
-        uvec4 t = tl_tets[g];
+        uvec4 t = tl_tet(g);
         precise vec3 c = (((tl_vertex(t.x) + tl_vertex(t.y)) + tl_vertex(t.z)) + tl_vertex(t.w)) * 0.25;
         return c;
     } else if (SAMPLE_MODE == TL_SAMPLE_RANDOM) {
         uint s = tl_hash(g ^ tl_hash(params.counts.w));
-        uvec4 t = tl_tets[tl_hash(s) % params.counts.z];
+        uvec4 t = tl_tet(tl_hash(s) % params.counts.z);
         precise float a = tl_unit(s), b = tl_unit(s), c = tl_unit(s);
         // Fold the unit cube into the tet's parameter domain (Rocchini & Cignoni).
         if (a + b > 1.0) {

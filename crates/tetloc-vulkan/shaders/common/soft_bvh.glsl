@@ -5,10 +5,24 @@
 #ifndef TL_SOFT_BVH_GLSL
 #define TL_SOFT_BVH_GLSL
 
+#include "common/walk.glsl" // paths resolve against shaders/ (build.rs)
+
 // Nodes as four uvec4 (src/gpu_types.rs `QNode4`): w0 = origin.xyz, scale.x;
 // w1 = scale.yz, quantized lower/upper x; w2 = quantized lower/upper y, z (one byte per
 // child); w3 = child references.
 layout(std430, binding = TL_B_ACCEL) readonly buffer TlNodes { uvec4 tl_nodes[]; };
+// Nodes per buffer when the nodes are split over several (mesh.glsl), 0: one buffer.
+layout(constant_id = 16) const uint NODES_CHUNK = 0;
+layout(std430, binding = TL_B_ACCEL_HI) readonly buffer TlNodesHi { uvec4 v[]; } tl_nodes_hi[TL_MAX_CHUNKS - 1];
+
+// Word k of node r.
+uvec4 tl_node_word(uint r, uint k) {
+    if (NODES_CHUNK == 0u || r < NODES_CHUNK) {
+        return tl_nodes[4u * r + k];
+    }
+    uint c = r / NODES_CHUNK - 1u, o = 4u * (r % NODES_CHUNK) + k;
+    TL_RETURN_HI(tl_nodes_hi, c, o)
+}
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrims { uint tl_prims[]; };
 // One tet per leaf, its id in the reference itself (no tl_prims lookup).
 layout(constant_id = 10) const bool DIRECT_LEAVES = false;
@@ -16,6 +30,10 @@ layout(constant_id = 10) const bool DIRECT_LEAVES = false;
 // (src/soft_bvh.rs EntryGrid: header dims.xyz, 0, inv.xyz as bits, 0; then the cells).
 layout(constant_id = 11) const bool GRID_START = false;
 layout(std430, binding = TL_B_GRID) readonly buffer TlGrid { uint tl_grid[]; };
+// Walk from the tet the entry grid names for the point's cell (after the cells' nodes; header
+// word 3 = number of cells), at most WALK_MAX steps; traversal from the cell's node when the
+// walk leaves the mesh, runs out of steps or ends on a face (so the answer is the traversal's).
+layout(constant_id = 12) const bool WALK_START = false;
 
 // soft_bvh::cell_coord: the same f32 operations, so CPU and GPU agree on the cell.
 uint tl_cell_coord(float p, float lo, float inv, uint dim) {
@@ -28,37 +46,29 @@ vec4 tl_bytes(uint w) {
     return vec4((uvec4(w) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu);
 }
 
-int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
+// Depth-first traversal from node reference `ref` (0: the root): the first tet in
+// traversal order that contains p, or -1.
+int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
     uint stack[STACK_SIZE];
     uint sp = 0u;
-    uint ref = 0u; // the root
-    if (GRID_START) {
-        uvec3 dims = uvec3(tl_grid[0], tl_grid[1], tl_grid[2]);
-        vec3 inv = uintBitsToFloat(uvec3(tl_grid[4], tl_grid[5], tl_grid[6]));
-        vec3 lo = params.lo_tmin.xyz;
-        uint cx = tl_cell_coord(p.x, lo.x, inv.x, dims.x);
-        uint cy = tl_cell_coord(p.y, lo.y, inv.y, dims.y);
-        uint cz = tl_cell_coord(p.z, lo.z, inv.z, dims.z);
-        ref = tl_grid[8u + (cz * dims.y + cy) * dims.x + cx];
-        if (ref == TL_EMPTY) {
-            return -1; // no tet's box overlaps this cell
-        }
-    }
     while (true) {
         if ((ref & TL_LEAF) != 0u) {
             uint first = ref & 0x1fffffffu;
             uint count = ((ref >> 29u) & 3u) + 1u;
             for (uint k = 0u; k < count; k++) {
                 uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
-                ids = tl_tets[tet];
+                ids = tl_tet(tet);
                 int exit_face;
-                if (tl_point_in_tet(ids, p, bary, exit_face)) {
+                if (tl_test(ids, p, bary, exit_face)) {
                     return int(tet);
+                }
+                if (DEFER_EXACT && tl_undecided) {
+                    return -2;
                 }
             }
         } else {
-            uvec4 w0 = tl_nodes[4u * ref], w1 = tl_nodes[4u * ref + 1u];
-            uvec4 w2 = tl_nodes[4u * ref + 2u], w3 = tl_nodes[4u * ref + 3u];
+            uvec4 w0 = tl_node_word(ref, 0u), w1 = tl_node_word(ref, 1u);
+            uvec4 w2 = tl_node_word(ref, 2u), w3 = tl_node_word(ref, 3u);
             vec3 org = uintBitsToFloat(w0.xyz);
             vec3 scl = uintBitsToFloat(uvec3(w0.w, w1.x, w1.y));
             // Dequantize exactly as the CPU did when it made the boxes conservative.
@@ -89,6 +99,34 @@ int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
         }
         ref = stack[--sp];
     }
+}
+
+int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
+    uint ref = 0u; // the root
+    if (GRID_START || WALK_START) {
+        uvec3 dims = uvec3(tl_grid[0], tl_grid[1], tl_grid[2]);
+        vec3 inv = uintBitsToFloat(uvec3(tl_grid[4], tl_grid[5], tl_grid[6]));
+        vec3 lo = params.lo_tmin.xyz;
+        uint cx = tl_cell_coord(p.x, lo.x, inv.x, dims.x);
+        uint cy = tl_cell_coord(p.y, lo.y, inv.y, dims.y);
+        uint cz = tl_cell_coord(p.z, lo.z, inv.z, dims.z);
+        uint cell = (cz * dims.y + cy) * dims.x + cx;
+        ref = tl_grid[8u + cell];
+        if (ref == TL_EMPTY) {
+            return -1; // no tet's box overlaps this cell
+        }
+        if (WALK_START) {
+            int tet = tl_walk(int(tl_grid[8u + tl_grid[3] + cell]), p, WALK_MAX, ids, bary);
+            if (tet == -2) {
+                return -2; // DEFER_EXACT: undecided
+            }
+            // Strictly inside: the only tet holding p, the one traversal would find too.
+            if (tet >= 0 && all(greaterThan(bary, vec4(0.0)))) {
+                return tet;
+            }
+        }
+    }
+    return tl_traverse(ref, p, ids, bary);
 }
 
 #endif

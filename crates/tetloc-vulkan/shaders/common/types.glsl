@@ -20,6 +20,15 @@
 #define TL_B_OCCUPANCY 12
 #define TL_B_SURFACE 13
 #define TL_B_PIXELS 14
+// Arrays split over several buffers (mesh.glsl): buffers 1.. of points, tets, soft-bvh
+// nodes and neighbours, each binding an array of TL_MAX_CHUNKS - 1 buffers.
+#define TL_B_POINTS_HI 16
+#define TL_B_TETS_HI 17
+#define TL_B_ACCEL_HI 18
+#define TL_B_NEIGHBORS_HI 19
+#define TL_MAX_CHUNKS 16
+// soft-bvh with deferred exact tests: the samples the f32 pass could not decide.
+#define TL_B_DEFER 20
 
 // Where sample points come from (specialization constant SAMPLE_MODE).
 #define TL_SAMPLE_HOST 0

@@ -7,17 +7,91 @@
 
 // Neighbour of each tet across the face opposite its stored vertex i (-1: boundary), Mesh::neighbors().
 layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_neighbors[]; };
+// Tets per buffer when the neighbours are split over several (mesh.glsl), 0: one buffer.
+layout(constant_id = 17) const uint NEIGHBORS_CHUNK = 0;
+layout(std430, binding = TL_B_NEIGHBORS_HI) readonly buffer TlNeighborsHi { ivec4 v[]; } tl_neighbors_hi[TL_MAX_CHUNKS - 1];
+
+ivec4 tl_neighbors4(uint t) {
+    if (NEIGHBORS_CHUNK == 0u || t < NEIGHBORS_CHUNK) {
+        return tl_neighbors[t];
+    }
+    uint c = t / NEIGHBORS_CHUNK - 1u, o = t % NEIGHBORS_CHUNK;
+    TL_RETURN_HI(tl_neighbors_hi, c, o)
+}
+
+// Decide in f32 first and run the full test (tet.glsl, with its f64 fallback) only when f32
+// cannot: a face within its error bound, or barycentrics the f32 values do not support.
+// Same answers (the f32 prefix is the full test's own first steps); the point is that the
+// hot path holds no f64 state (the CPU counts no f64 face on jets at all, NOTES.md).
+layout(constant_id = 13) const bool F32_FIRST = false;
+// With F32_FIRST: never run the full test; an undecided test sets tl_undecided instead, and
+// the caller gives the sample up (-2) for a second, exact pass (soft_bvh.comp).
+layout(constant_id = 18) const bool DEFER_EXACT = false;
+bool tl_undecided = false;
+
+bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
+#ifdef TL_F64
+    if (F32_FIRST) {
+        bool swapped = ids.w < ids.z;
+        uvec4 asc = swapped ? ids.xywz : ids;
+        float orientation = swapped ? 1.0 : -1.0;
+        vec3 v[4] = vec3[4](tl_vertex(asc.x), tl_vertex(asc.y), tl_vertex(asc.z), tl_vertex(asc.w));
+        float d[4];
+        precise float bound_sum = 0.0;
+        bool decided = true;
+        [[unroll]] for (int i = 0; i < 4; i++) {
+            float bound;
+            precise float det = tl_orient_f32(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p, bound);
+            if (!(abs(det) > bound)) {
+                decided = false;
+                break;
+            }
+            precise float signed_det = TL_PARITY[i] * orientation * det;
+            if (signed_det < 0.0) {
+                bary = vec4(0.0);
+                exit_face = (swapped && i >= 2) ? 5 - i : i;
+                return false;
+            }
+            d[i] = signed_det;
+            bound_sum += bound;
+        }
+        if (decided) {
+            precise float total = d[0] + d[1] + d[2] + d[3];
+            if (total > BARY_F32_TRUST * bound_sum) {
+                bary = vec4(d[0], d[1], d[2], d[3]) / total;
+                if (swapped) {
+                    bary = bary.xywz;
+                }
+                exit_face = 0;
+                return true;
+            }
+        }
+        if (DEFER_EXACT) {
+            tl_undecided = true;
+            bary = vec4(0.0);
+            exit_face = 0;
+            return false;
+        }
+    }
+#endif
+    return tl_point_in_tet(ids, p, bary, exit_face);
+}
 
 // The tet containing p, found in at most `max_steps` tets from `tet`; -1 when the walk
-// leaves the mesh or runs out of steps (the point may still be inside: the caller decides).
+// leaves the mesh or runs out of steps (the point may still be inside: the caller decides);
+// -2 only with DEFER_EXACT, when a test could not be decided in f32.
 int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
     for (int step = 0; step < max_steps && tet >= 0; step++) {
-        ids = tl_tets[tet];
+        ids = tl_tet(tet);
+        ivec4 next = tl_neighbors4(tet); // loaded beside the tet: one memory latency a step, not two
         int exit_face;
-        if (tl_point_in_tet(ids, p, bary, exit_face)) {
+        if (tl_test(ids, p, bary, exit_face)) {
             return tet;
         }
-        tet = tl_neighbors[tet][exit_face];
+        if (DEFER_EXACT && tl_undecided) {
+            return -2;
+        }
+        tet = next[exit_face];
     }
     return -1;
 }
