@@ -129,88 +129,32 @@ fn bench_json_has_the_documented_keys() {
 
 #[test]
 fn agulhas_terrain_is_written_and_drawn() {
-    let obj = tmp("land.obj");
-    let vtu = tmp("agulhas.vtu");
-    let (ok, _, err) = tetloc(&[
-        "gen",
-        "agulhas",
-        "--tets",
-        "20k",
-        "-o",
-        vtu.to_str().unwrap(),
-        "--terrain",
-        obj.to_str().unwrap(),
-    ]);
+    let (obj, vtu) = (tmp("land.obj"), tmp("agulhas.vtu"));
+    let (obj_s, vtu_s) = (obj.to_str().unwrap(), vtu.to_str().unwrap());
+    let (ok, _, err) = tetloc(&["gen", "agulhas", "--tets", "20k", "-o", vtu_s, "--terrain", obj_s]);
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&obj).unwrap();
-    assert!(
-        text.lines().filter(|l| l.starts_with("f ")).count() > 100,
-        "{err}"
-    );
-    // The OBJ file and `--surface terrain` draw the same ground.
-    let (a, b) = (tmp("a.png"), tmp("b.png"));
-    for (surface, out) in [(obj.to_str().unwrap(), &a), ("terrain", &b)] {
-        let args = [
-            "render",
-            "agulhas:20k",
-            "--field",
-            "f",
-            "--backend",
-            "cpu",
-            "--size",
-            "48x32",
-            "--surface",
-            surface,
-        ];
-        let (ok, _, err) = tetloc(&[&args[..], &["-o", out.to_str().unwrap()]].concat());
+    assert!(text.lines().filter(|l| l.starts_with("f ")).count() > 100, "{err}");
+    // A small CPU render of `mesh` with extra arguments.
+    let render = |mesh: &str, extra: &[&str]| {
+        let args = ["render", mesh, "--field", "f", "--backend", "cpu", "--size", "48x32"];
+        tetloc(&[&args[..], extra].concat())
+    };
+    // The OBJ file and `--surface terrain` draw the same ground; without it the image differs.
+    let (a, b, c) = (tmp("a.png"), tmp("b.png"), tmp("c.png"));
+    for (extra, out) in [(vec!["--surface", obj_s], &a), (vec!["--surface", "terrain"], &b), (vec![], &c)] {
+        let (ok, _, err) = render("agulhas:20k", &[&extra[..], &["-o", out.to_str().unwrap()]].concat());
         assert!(ok, "{err}");
     }
-    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
-    let (ok, out, err) = tetloc(&[
-        "render",
-        "agulhas:20k",
-        "--field",
-        "f",
-        "--backend",
-        "cpu",
-        "--size",
-        "48x32",
-        "-o",
-        a.to_str().unwrap(),
-    ]);
-    assert!(ok, "{out}{err}");
-    assert_ne!(
-        std::fs::read(&a).unwrap(),
-        std::fs::read(&b).unwrap(),
-        "the terrain changed nothing"
-    );
+    let read = |p: &PathBuf| std::fs::read(p).unwrap();
+    assert_eq!(read(&a), read(&b));
+    assert_ne!(read(&a), read(&c), "the terrain changed nothing");
     // Shapes without terrain and mesh files say so.
-    let (ok, _, err) = tetloc(&[
-        "render",
-        "jets:5k",
-        "--field",
-        "f",
-        "--backend",
-        "cpu",
-        "--surface",
-        "terrain",
-    ]);
-    assert!(
-        !ok && err.contains("jets has no terrain (shapes with one: agulhas)"),
-        "{err}"
-    );
-    let (ok, _, err) = tetloc(&[
-        "render",
-        vtu.to_str().unwrap(),
-        "--field",
-        "f",
-        "--backend",
-        "cpu",
-        "--surface",
-        "terrain",
-    ]);
+    let (ok, _, err) = render("jets:5k", &["--surface", "terrain"]);
+    assert!(!ok && err.contains("jets has no terrain (shapes with one: agulhas)"), "{err}");
+    let (ok, _, err) = render(vtu_s, &["--surface", "terrain"]);
     assert!(!ok && err.contains("is not a generated shape"), "{err}");
-    for f in [obj, vtu, a, b] {
+    for f in [obj, vtu, a, b, c] {
         let _ = std::fs::remove_file(f);
     }
 }

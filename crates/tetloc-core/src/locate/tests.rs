@@ -45,9 +45,25 @@ proptest! {
         let mut ids = vec![0; pts.len()];
         loc.locate(&pts, &mut ids).unwrap();
         for (i, (&got, &w)) in ids.iter().zip(&want).enumerate() {
-            // Random weights ≥ 0.01 keep points off faces, so the containing tet is unique.
-            prop_assert_eq!(got, w, "point {} {:?}", i, pts[i]);
-            prop_assert_eq!(got, brute_force(&m, pts[i]).map_or(OUTSIDE, |t| t as i32));
+            let p = pts[i];
+            if w == OUTSIDE {
+                prop_assert_eq!(got, OUTSIDE, "point {} {:?}", i, p);
+                prop_assert_eq!(brute_force(&m, p), None);
+                continue;
+            }
+            // Found, and in a tet that holds it: rounding the point to f32 can move it out of
+            // a sliver it was drawn in (jitter 0.3 makes some), into the neighbour.
+            prop_assert!(got >= 0, "point {} {:?} inside tet {} not found", i, p, w);
+            prop_assert!(geom::point_in_tet(m.tets[got as usize], &m.points, p).is_some(), "point {} {:?}: tet {}", i, p, got);
+            // Well inside the tet it was drawn in (every weight ≥ 1e-3 after rounding) of a
+            // mesh without folds: the containing tet is unique, so the locator and brute force
+            // both name it. (Jitter 0.3 can invert tets; reoriented, they overlap neighbours.)
+            let clear = m.info.n_reoriented == 0
+                && geom::point_in_tet(m.tets[w as usize], &m.points, p).is_some_and(|b| b.iter().all(|&x| x >= 1e-3));
+            if clear {
+                prop_assert_eq!(got, w, "point {} {:?}", i, p);
+                prop_assert_eq!(got, brute_force(&m, p).map_or(OUTSIDE, |t| t as i32));
+            }
         }
     }
 

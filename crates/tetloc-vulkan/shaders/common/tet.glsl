@@ -47,10 +47,17 @@ double tl_orient_f64(vec3 a, vec3 b, vec3 c, vec3 p) {
 const ivec3 TL_FACE[4] = ivec3[4](ivec3(1, 2, 3), ivec3(0, 2, 3), ivec3(0, 1, 3), ivec3(0, 1, 2));
 const float TL_PARITY[4] = float[4](-1.0, 1.0, -1.0, 1.0);
 
-// geom::point_in_tet. `ids` canonical. On success, `bary` holds the weights of ids.xyzw.
-// On failure, `exit_face` is the (ascending-order) face that p is outside of, the face
-// across which a walk continues (0 for a zero-volume tet).
-bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
+// Answers of tl_point_in_tet_stage.
+#define TL_OUTSIDE 0
+#define TL_INSIDE 1
+#define TL_UNDECIDED 2
+
+// geom::point_in_tet. `ids` canonical. Inside: `bary` holds the weights of ids.xyzw.
+// Outside: `exit_face` is the (ascending-order) face that p is outside of, the face across
+// which a walk continues (0 for a zero-volume tet). With `f32_only` (a constant at every call
+// site), the f32 stage alone: TL_UNDECIDED wherever the full test would turn to f64, so a
+// caller can keep the f64 code off its hot path (walk.glsl `tl_test`).
+int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out int exit_face) {
     bary = vec4(0.0);
     exit_face = 0;
     // Ascending order: swap back the last two if canonical order swapped them.
@@ -71,11 +78,14 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
         if (abs(det) > bound) {
             signed_det = sign * det;
         } else {
+            if (f32_only) {
+                return TL_UNDECIDED;
+            }
             exact = true;
             precise double signed64 = double(sign) * tl_orient_f64(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p);
             if (signed64 < 0.0) {
                 exit_face = (swapped && i >= 2) ? 5 - i : i;
-                return false;
+                return TL_OUTSIDE;
             }
             signed_det = float(signed64);
         }
@@ -85,7 +95,7 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
         // -0.0 and +0.0 (on the face) both count as inside.
         if (signed_det < 0.0) {
             exit_face = (swapped && i >= 2) ? 5 - i : i; // ascending index -> stored index
-            return false;
+            return TL_OUTSIDE;
         }
         d[i] = signed_det;
         bound_sum += bound;
@@ -94,6 +104,8 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 #ifdef TL_F64
     if (!exact && total > BARY_F32_TRUST * bound_sum) {
         bary = vec4(d[0], d[1], d[2], d[3]) / total;
+    } else if (f32_only) {
+        return TL_UNDECIDED;
     } else {
         // Sliver or point near a face: barycentrics in f64.
         double d64[4];
@@ -102,14 +114,14 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
         }
         precise double total64 = d64[0] + d64[1] + d64[2] + d64[3];
         if (total64 <= 0.0) {
-            return false; // zero-volume tet: contains no point
+            return TL_OUTSIDE; // zero-volume tet: contains no point
         }
         bary = vec4(float(max(d64[0], 0.0) / total64), float(max(d64[1], 0.0) / total64),
                     float(max(d64[2], 0.0) / total64), float(max(d64[3], 0.0) / total64));
     }
 #else
     if (!(total > 0.0)) {
-        return false; // zero-volume tet: contains no point
+        return TL_OUTSIDE; // zero-volume tet: contains no point
     }
     bary = vec4(d[0], d[1], d[2], d[3]) / total;
 #endif
@@ -117,7 +129,11 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
     if (swapped) {
         bary = bary.xywz;
     }
-    return true;
+    return TL_INSIDE;
+}
+
+bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
+    return tl_point_in_tet_stage(ids, p, false, bary, exit_face) == TL_INSIDE;
 }
 
 // geom::interpolate for a per-vertex field, or the per-cell value; NaN outside.

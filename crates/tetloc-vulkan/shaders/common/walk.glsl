@@ -32,39 +32,9 @@ bool tl_undecided = false;
 bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 #ifdef TL_F64
     if (F32_FIRST) {
-        bool swapped = ids.w < ids.z;
-        uvec4 asc = swapped ? ids.xywz : ids;
-        float orientation = swapped ? 1.0 : -1.0;
-        vec3 v[4] = vec3[4](tl_vertex(asc.x), tl_vertex(asc.y), tl_vertex(asc.z), tl_vertex(asc.w));
-        float d[4];
-        precise float bound_sum = 0.0;
-        bool decided = true;
-        [[unroll]] for (int i = 0; i < 4; i++) {
-            float bound;
-            precise float det = tl_orient_f32(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p, bound);
-            if (!(abs(det) > bound)) {
-                decided = false;
-                break;
-            }
-            precise float signed_det = TL_PARITY[i] * orientation * det;
-            if (signed_det < 0.0) {
-                bary = vec4(0.0);
-                exit_face = (swapped && i >= 2) ? 5 - i : i;
-                return false;
-            }
-            d[i] = signed_det;
-            bound_sum += bound;
-        }
-        if (decided) {
-            precise float total = d[0] + d[1] + d[2] + d[3];
-            if (total > BARY_F32_TRUST * bound_sum) {
-                bary = vec4(d[0], d[1], d[2], d[3]) / total;
-                if (swapped) {
-                    bary = bary.xywz;
-                }
-                exit_face = 0;
-                return true;
-            }
+        int answer = tl_point_in_tet_stage(ids, p, true, bary, exit_face);
+        if (answer != TL_UNDECIDED) {
+            return answer == TL_INSIDE;
         }
         if (DEFER_EXACT) {
             tl_undecided = true;
