@@ -46,24 +46,36 @@ impl FromStr for QueryKind {
     }
 }
 
-/// A uniformly random point in the tet with corners `v` (Rocchini & Cignoni's folding of the
-/// cube), computed in f64 and pulled towards the centre by 1e-3 of the way, so that rounding
+/// Rocchini & Cignoni's folding of a uniform point `(s, t, u)` of the unit cube into the
+/// tet's parameter domain (all ≥ 0, sum ≤ 1), still uniform. Generic so that the f32 mirror of
+/// the GPU's `random` samples (shaders/common/samples.glsl) folds with the same operations.
+pub fn fold_cube_into_tet<T>(s: T, t: T, u: T) -> [T; 3]
+where
+    T: Copy + PartialOrd + std::ops::Add<Output = T> + std::ops::Sub<Output = T> + From<f32>,
+{
+    let one = T::from(1.0);
+    let (mut s, mut t, mut u) = (s, t, u);
+    if s + t > one {
+        s = one - s;
+        t = one - t;
+    }
+    if t + u > one {
+        let tmp = u;
+        u = one - s - t;
+        t = one - tmp;
+    } else if s + t + u > one {
+        let tmp = u;
+        u = s + t + u - one;
+        s = one - t - tmp;
+    }
+    [s, t, u]
+}
+
+/// A uniformly random point in the tet with corners `v` ([`fold_cube_into_tet`]), computed in
+/// f64 and pulled towards the centre by 1e-3 of the way, so that rounding
 /// to f32 cannot put it outside a boundary tet (such points would count as "outside").
 pub fn random_point_in_tet(v: [Vec3; 4], rng: &mut impl Rng) -> Vec3 {
-    let (mut s, mut t, mut u): (f64, f64, f64) = (rng.gen(), rng.gen(), rng.gen());
-    if s + t > 1.0 {
-        s = 1.0 - s;
-        t = 1.0 - t;
-    }
-    if t + u > 1.0 {
-        let tmp = u;
-        u = 1.0 - s - t;
-        t = 1.0 - tmp;
-    } else if s + t + u > 1.0 {
-        let tmp = u;
-        u = s + t + u - 1.0;
-        s = 1.0 - t - tmp;
-    }
+    let [s, t, u] = fold_cube_into_tet::<f64>(rng.gen(), rng.gen(), rng.gen());
     const PULL: f64 = 1e-3;
     let w = [1.0 - s - t - u, s, t, u].map(|x| (1.0 - PULL) * x + PULL * 0.25);
     std::array::from_fn(|k| (0..4).map(|i| w[i] * v[i][k] as f64).sum::<f64>() as f32)

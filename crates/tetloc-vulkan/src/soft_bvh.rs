@@ -631,19 +631,8 @@ mod tests {
             st = hash(st);
             (st >> 8) as f32 * (1.0 / 16777216.0)
         };
-        let (mut a, mut b, mut c) = (unit(), unit(), unit());
-        if a + b > 1.0 {
-            (a, b) = (1.0 - a, 1.0 - b);
-        }
-        if b + c > 1.0 {
-            let tmp = c;
-            c = 1.0 - a - b;
-            b = 1.0 - tmp;
-        } else if a + b + c > 1.0 {
-            let tmp = c;
-            c = a + b + c - 1.0;
-            a = 1.0 - b - tmp;
-        }
+        let (a, b, c) = (unit(), unit(), unit());
+        let [a, b, c] = tetloc_core::queries::fold_cube_into_tet(a, b, c);
         let w = 1.0 - a - b - c;
         let v = t.map(|i| points[i as usize]);
         std::array::from_fn(|k| w * v[0][k] + a * v[1][k] + b * v[2][k] + c * v[3][k])

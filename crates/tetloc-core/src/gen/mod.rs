@@ -60,6 +60,11 @@ impl Shape {
         }
     }
 
+    /// Whether [`terrain`] has ground for this shape (`agulhas`: its bathymetry and continents).
+    pub fn has_terrain(self) -> bool {
+        self == Shape::Agulhas
+    }
+
     /// The share of its bounding box the shape fills (tet volume / box volume), as in the
     /// paper's data sets.
     pub fn target_occupancy(self) -> f64 {
@@ -109,8 +114,8 @@ pub fn generate_with_progress(shape: Shape, target_tets: usize, seed: u64, progr
     mesh
 }
 
-/// The ground a generated shape is drawn over, for the shapes that have one (`agulhas`: its
-/// bathymetry and continents), matching `generate(shape, target_tets, seed)`.
+/// The ground a generated shape is drawn over, for the shapes that have one
+/// ([`Shape::has_terrain`]), matching `generate(shape, target_tets, seed)`.
 pub fn terrain(shape: Shape, target_tets: usize, seed: u64) -> Option<Terrain> {
     let cells = target_tets.min(MAX_TETS) / 6;
     match shape {
