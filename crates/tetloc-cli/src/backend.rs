@@ -65,7 +65,9 @@ pub fn make(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<d
     if name == CPU {
         return Ok(Box::new(CpuLocator::new(mesh.clone())));
     }
-    let kernel: Kernel = name.parse().map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto, all)", names().join(", ")))?;
+    let kernel: Kernel = name
+        .parse()
+        .map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto, all)", names().join(", ")))?;
     Ok(Box::new(make_vulkan(kernel, mesh, opts)?))
 }
 
@@ -85,7 +87,9 @@ struct AutoCache {
 }
 
 fn cache_path(device: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("XDG_CACHE_HOME").map(PathBuf::from).or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
+    let base = std::env::var_os("XDG_CACHE_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
     let key: String = device.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
     Some(base.join("tetloc").join(format!("auto-{key}.json")))
 }
@@ -99,7 +103,9 @@ pub fn auto_choice(opts: &BackendOptions) -> Result<String> {
     }
     let device = vulkan(opts.device).map(|c| format!("{} {}", c.info().name, c.info().driver)).unwrap_or_default();
     let path = cache_path(&device);
-    if let Some(cached) = path.as_ref().and_then(|p| std::fs::read(p).ok()).and_then(|b| serde_json::from_slice::<AutoCache>(&b).ok()) {
+    if let Some(cached) =
+        path.as_ref().and_then(|p| std::fs::read(p).ok()).and_then(|b| serde_json::from_slice::<AutoCache>(&b).ok())
+    {
         if let Some((best, _)) = cached.ranking.iter().find(|(n, _)| avail.contains(&n.as_str())) {
             return Ok(best.clone());
         }
@@ -117,7 +123,8 @@ pub fn auto_choice(opts: &BackendOptions) -> Result<String> {
 }
 
 fn measure_ranking(avail: &[&str], opts: &BackendOptions) -> Result<Vec<(String, f64)>> {
-    let probe = Arc::new(Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Fusion, 300_000, 7), "auto probe")?);
+    let probe =
+        Arc::new(Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Fusion, 300_000, 7), "auto probe")?);
     let points = queries::generate(&probe, QueryKind::Random, 1 << 20, 7);
     let mut ids = vec![0; points.len()];
     let mut ranking = Vec::new();

@@ -207,7 +207,10 @@ pub fn fmt_rate(r: f64) -> String {
 /// The paper's Table 1 (samples/s, a column per query set) and Table 2 (build, memory).
 pub fn print_tables(rows: &[BenchRow], queries: &[Query]) {
     let Some(first) = rows.first() else { return };
-    println!("\nmesh {} ({} tets), variant {}, median of {} runs", first.mesh, first.n_tets, first.variant, first.repeats);
+    println!(
+        "\nmesh {} ({} tets), variant {}, median of {} runs",
+        first.mesh, first.n_tets, first.variant, first.repeats
+    );
     let mut backends: Vec<&str> = Vec::new();
     for r in rows {
         if !backends.contains(&r.backend.as_str()) {
@@ -237,8 +240,15 @@ pub fn print_tables(rows: &[BenchRow], queries: &[Query]) {
     for b in &backends {
         if let Some(r) = rows.iter().find(|r| r.backend == *b) {
             let mib = |x: Option<u64>| x.map_or("-".to_string(), |v| format!("{:.1}", v as f64 / (1 << 20) as f64));
-            let outside: Vec<String> = rows.iter().filter(|x| x.backend == *b).map(|x| format!("{}:{}", x.queries, x.outside)).collect();
-            println!("{b:<16} {:>9.3} {:>11} {:>11} {:>10}", r.build_s, mib(r.final_bytes), mib(r.peak_bytes), outside.join(" "));
+            let outside: Vec<String> =
+                rows.iter().filter(|x| x.backend == *b).map(|x| format!("{}:{}", x.queries, x.outside)).collect();
+            println!(
+                "{b:<16} {:>9.3} {:>11} {:>11} {:>10}",
+                r.build_s,
+                mib(r.final_bytes),
+                mib(r.peak_bytes),
+                outside.join(" ")
+            );
         }
     }
 }

@@ -50,9 +50,15 @@ pub fn run(n_tets: usize, n_points: usize, seed: u64, opts: &BackendOptions) -> 
                 let differ: Vec<usize> = (0..ids.len()).filter(|&i| ids[i] != rids[i]).collect();
                 let wrong = differ
                     .iter()
-                    .filter(|&&i| ids[i] < 0 || geom::point_in_tet(mesh.tets[ids[i] as usize], &mesh.points, points[i]).is_none())
+                    .filter(|&&i| {
+                        ids[i] < 0 || geom::point_in_tet(mesh.tets[ids[i] as usize], &mesh.points, points[i]).is_none()
+                    })
                     .count();
-                println!("   vs {rname}: {} differ ({} on shared faces, {wrong} wrong)", differ.len(), differ.len() - wrong);
+                println!(
+                    "   vs {rname}: {} differ ({} on shared faces, {wrong} wrong)",
+                    differ.len(),
+                    differ.len() - wrong
+                );
                 if wrong > 0 {
                     failures += 1;
                 }

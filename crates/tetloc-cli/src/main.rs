@@ -165,7 +165,9 @@ fn run(cli: Cli) -> Result<()> {
             let mesh = mesh_arg::generate(shape, n, seed)?;
             let gen_s = t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
-            progress::with_spinner(format!("writing {}", out.display()), || vtu_write::write_mesh_vtu(&out, &mesh, zlib))?;
+            progress::with_spinner(format!("writing {}", out.display()), || {
+                vtu_write::write_mesh_vtu(&out, &mesh, zlib)
+            })?;
             eprintln!(
                 "{}: {shape} with {} tets, {} vertices (generated in {gen_s:.2} s, written in {:.2} s)",
                 out.display(),
@@ -205,9 +207,12 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Render(args) => render::run(args),
-        Command::Demo { tets, points, seed, device } => {
-            demo::run(mesh_arg::parse_count(&tets)?, mesh_arg::parse_count(&points)?, seed, &BackendOptions { device, ..Default::default() })
-        }
+        Command::Demo { tets, points, seed, device } => demo::run(
+            mesh_arg::parse_count(&tets)?,
+            mesh_arg::parse_count(&points)?,
+            seed,
+            &BackendOptions { device, ..Default::default() },
+        ),
     }
 }
 
@@ -236,7 +241,8 @@ fn info(mesh: &str, json: bool, format: Option<&str>) -> Result<()> {
     let m = mesh_arg::load(mesh, format, 1)?;
     let faces = progress::with_spinner("computing shared faces", || m.faces().stats);
     if json {
-        let fields: Vec<_> = m.fields.iter().map(|f| serde_json::json!({"name": f.name, "location": f.location})).collect();
+        let fields: Vec<_> =
+            m.fields.iter().map(|f| serde_json::json!({"name": f.name, "location": f.location})).collect();
         let out = serde_json::json!({"mesh": m.info, "faces": faces, "fields": fields});
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
@@ -248,7 +254,10 @@ fn info(mesh: &str, json: bool, format: Option<&str>) -> Result<()> {
     println!("  bounds      {:?} .. {:?}", i.bounds_min, i.bounds_max);
     println!("  volume      {:.6e}", i.total_volume);
     println!("  edges       max {:.4e}, mean {:.4e}", i.max_edge_length, i.mean_edge_length);
-    println!("  faces       {} unique, {} on the boundary, {} non-manifold", faces.n_faces, faces.n_boundary, faces.n_non_manifold);
+    println!(
+        "  faces       {} unique, {} on the boundary, {} non-manifold",
+        faces.n_faces, faces.n_boundary, faces.n_non_manifold
+    );
     println!("  reoriented  {} inverted tets (kept, reoriented)", i.n_reoriented);
     println!("  degenerate  {} zero-volume tets (they contain no point)", i.n_degenerate);
     if let Some(k) = i.higher_order {
@@ -258,13 +267,24 @@ fn info(mesh: &str, json: bool, format: Option<&str>) -> Result<()> {
         println!("  fields      none");
     }
     for f in &m.fields {
-        let (lo, hi) = f.values.iter().filter(|v| v.is_finite()).fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
+        let (lo, hi) = f
+            .values
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
         println!("  field       '{}' per {:?}, range {lo} .. {hi}", f.name, f.location);
     }
     Ok(())
 }
 
-fn locate(mesh: &str, pts: &Path, out: &Path, field: Option<&str>, values_out: Option<&Path>, common: &Common) -> Result<()> {
+fn locate(
+    mesh: &str,
+    pts: &Path,
+    out: &Path,
+    field: Option<&str>,
+    values_out: Option<&Path>,
+    common: &Common,
+) -> Result<()> {
     let m = mesh_arg::load(mesh, common.format.as_deref(), common.seed)?;
     if let Some(f) = field {
         m.field(f)?;

@@ -17,7 +17,8 @@ pub fn parse_count(s: &str) -> Result<usize> {
         Some('g' | 'G') => (&s[..s.len() - 1], 1e9),
         _ => (s, 1.0),
     };
-    let v: f64 = num.replace('_', "").parse().with_context(|| format!("'{s}' is not a count (e.g. 1000, 1.4M, 250k)"))?;
+    let v: f64 =
+        num.replace('_', "").parse().with_context(|| format!("'{s}' is not a count (e.g. 1000, 1.4M, 250k)"))?;
     if !(v > 0.0) {
         bail!("'{s}': the count must be positive");
     }
@@ -69,12 +70,18 @@ pub fn load(arg: &str, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
         return Ok(Arc::new(generate(shape, n, seed)?));
     }
     let format = match format {
-        Some(f) => Some(MeshFormat::from_name(f).with_context(|| format!("unknown --format '{f}' (known: {})", io::KNOWN_MESH_FORMATS))?),
+        Some(f) => Some(
+            MeshFormat::from_name(f)
+                .with_context(|| format!("unknown --format '{f}' (known: {})", io::KNOWN_MESH_FORMATS))?,
+        ),
         None => None,
     };
     let path = Path::new(arg);
     if !path.exists() {
-        bail!("{arg}: no such file (and not a generated mesh like fusion:1M; shapes: {})", Shape::ALL.map(|s| s.to_string()).join(", "));
+        bail!(
+            "{arg}: no such file (and not a generated mesh like fusion:1M; shapes: {})",
+            Shape::ALL.map(|s| s.to_string()).join(", ")
+        );
     }
     let mesh = progress::with_spinner(format!("reading {arg}"), || io::read_mesh(path, format))?;
     Ok(Arc::new(mesh))

@@ -137,7 +137,8 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 }
             }
             None => {
-                let report = tr::render_to_file(&renderer, marcher.as_mut(), a.out.as_deref().unwrap_or("render.png".as_ref()))?;
+                let report =
+                    tr::render_to_file(&renderer, marcher.as_mut(), a.out.as_deref().unwrap_or("render.png".as_ref()))?;
                 for f in &report.frames {
                     eprintln!("{f}");
                 }

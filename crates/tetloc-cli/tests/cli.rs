@@ -50,7 +50,8 @@ fn locate_writes_the_oracle_answers() {
         "cpu",
     ]);
     assert!(ok, "{err}");
-    let got: Vec<i32> = std::fs::read(&ids).unwrap().chunks_exact(4).map(|c| i32::from_le_bytes(c.try_into().unwrap())).collect();
+    let got: Vec<i32> =
+        std::fs::read(&ids).unwrap().chunks_exact(4).map(|c| i32::from_le_bytes(c.try_into().unwrap())).collect();
     assert_eq!(got.len(), set.cell.len());
     let wrong = (0..got.len()).filter(|&i| got[i] != set.cell[i] && !set.ambiguous(i)).count();
     assert_eq!(wrong, 0);
@@ -83,10 +84,12 @@ fn bad_input_is_a_clear_error_and_a_nonzero_exit() {
     let (ok, _, err) = tetloc(&["info", junk.to_str().unwrap()]);
     assert!(!ok && err.contains("unknown file format"), "{err}");
     let truncated = tmp("cut.vtu");
-    std::fs::write(&truncated, "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid><Piece NumberOfPoints=\"4\"").unwrap();
+    std::fs::write(&truncated, "<VTKFile type=\"UnstructuredGrid\"><UnstructuredGrid><Piece NumberOfPoints=\"4\"")
+        .unwrap();
     let (ok, _, err) = tetloc(&["info", truncated.to_str().unwrap()]);
     assert!(!ok && err.contains("cut.vtu"), "{err}");
-    let (ok, _, err) = tetloc(&["locate", "jets:1000", "--points", "/nonexistent/p.bin", "--out", "x.bin", "--backend", "cpu"]);
+    let (ok, _, err) =
+        tetloc(&["locate", "jets:1000", "--points", "/nonexistent/p.bin", "--out", "x.bin", "--backend", "cpu"]);
     assert!(!ok && err.contains("/nonexistent/p.bin"), "{err}");
     let (ok, _, err) = tetloc(&["info", "jets:100G"]);
     assert!(!ok && err.contains("GB of memory"), "{err}");
@@ -114,7 +117,17 @@ fn gen_writes_a_mesh_that_reads_back() {
 
 #[test]
 fn bench_json_has_the_documented_keys() {
-    let (ok, out, err) = tetloc(&["bench", "jets:5k", "--backend", "cpu", "--queries", "centers,random,bbox", "--json", "--repeats", "1"]);
+    let (ok, out, err) = tetloc(&[
+        "bench",
+        "jets:5k",
+        "--backend",
+        "cpu",
+        "--queries",
+        "centers,random,bbox",
+        "--json",
+        "--repeats",
+        "1",
+    ]);
     assert!(ok, "{err}");
     let rows: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(rows.len(), 3);

@@ -9,10 +9,10 @@ pub mod io;
 pub mod locate;
 pub mod mesh;
 pub mod queries;
-#[doc(hidden)]
-pub mod testdata;
 #[cfg(test)]
 pub(crate) mod test_support;
+#[doc(hidden)]
+pub mod testdata;
 
 pub use error::{Error, Result};
 pub use geom::Vec3;

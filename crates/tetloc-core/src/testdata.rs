@@ -24,7 +24,9 @@ pub fn in_ci() -> bool {
 pub fn require_data(test: &str) -> Option<PathBuf> {
     match data_dir() {
         Some(d) => Some(d),
-        None if in_ci() => panic!("{test}: oracle data not found (set TETLOC_DATA or lay out ../shared/data); CI must not skip"),
+        None if in_ci() => {
+            panic!("{test}: oracle data not found (set TETLOC_DATA or lay out ../shared/data); CI must not skip")
+        }
         None => {
             eprintln!("SKIPPED {test}: oracle data not found (set TETLOC_DATA to ../shared/data)");
             None
@@ -215,7 +217,9 @@ impl<'a> KuhnGrid<'a> {
         }
         const AXIS_ORDERS: [[usize; 3]; 6] = [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]];
         let id = |c: [usize; 3]| (c[0] + (n + 1) * (c[1] + (n + 1) * c[2])) as u32;
-        let centroid = |t: &[u32; 4]| -> Vec3 { std::array::from_fn(|a| t.iter().map(|&v| points[v as usize][a]).sum::<f32>() / 4.0) };
+        let centroid = |t: &[u32; 4]| -> Vec3 {
+            std::array::from_fn(|a| t.iter().map(|&v| points[v as usize][a]).sum::<f32>() / 4.0)
+        };
         let mut tets = Vec::with_capacity(6 * n * n * n);
         for k in 0..n {
             for j in 0..n {

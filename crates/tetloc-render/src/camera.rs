@@ -79,7 +79,8 @@ impl Camera {
         let eye = add(center, scale(toward_eye, dist));
         // Straight up or down: +y stands in for up.
         let up = if el.cos().abs() < 1e-4 { [0.0, 1.0, 0.0] } else { [0.0, 0.0, 1.0] };
-        Camera::look_at(LookAt { eye, target: center, up }, zoom, width, height).expect("fitted camera is non-degenerate")
+        Camera::look_at(LookAt { eye, target: center, up }, zoom, width, height)
+            .expect("fitted camera is non-degenerate")
     }
 
     /// The ray through the centre of pixel (x, y), y = 0 at the top.
@@ -138,17 +139,25 @@ mod tests {
     #[test]
     fn fitted_camera_sees_the_whole_box() {
         let (lo, hi) = ([-1.0, 0.0, 2.0], [3.0, 1.0, 4.0]);
-        for (az, el, w, h) in [(0.0, 0.0, 64, 64), (30.0, 20.0, 200, 100), (-120.0, 70.0, 50, 120), (0.0, 90.0, 40, 40)] {
+        for (az, el, w, h) in [(0.0, 0.0, 64, 64), (30.0, 20.0, 200, 100), (-120.0, 70.0, 50, 120), (0.0, 90.0, 40, 40)]
+        {
             let cam = Camera::fitted(lo, hi, az, el, 1.0, w, h);
             // Every box corner projects inside the image.
             for i in 0..8 {
-                let c = [if i & 1 == 0 { lo[0] } else { hi[0] }, if i & 2 == 0 { lo[1] } else { hi[1] }, if i & 4 == 0 { lo[2] } else { hi[2] }];
+                let c = [
+                    if i & 1 == 0 { lo[0] } else { hi[0] },
+                    if i & 2 == 0 { lo[1] } else { hi[1] },
+                    if i & 4 == 0 { lo[2] } else { hi[2] },
+                ];
                 assert!(faces(&cam, c));
                 let d = sub(c, cam.eye);
                 let z = dot(d, cam.forward);
                 let (u, v) = (dot(d, cam.right) / z, dot(d, cam.up) / z);
                 let aspect = w as f32 / h as f32;
-                assert!(u.abs() <= cam.tan_half_y * aspect && v.abs() <= cam.tan_half_y, "{az},{el}: corner {c:?} off screen");
+                assert!(
+                    u.abs() <= cam.tan_half_y * aspect && v.abs() <= cam.tan_half_y,
+                    "{az},{el}: corner {c:?} off screen"
+                );
             }
         }
     }
@@ -171,7 +180,8 @@ mod tests {
     #[test]
     fn look_at_rejects_degenerate_placements() {
         assert!(Camera::look_at(LookAt { eye: [1.0; 3], target: [1.0; 3], up: [0.0, 0.0, 1.0] }, 1.0, 4, 4).is_none());
-        assert!(Camera::look_at(LookAt { eye: [0.0; 3], target: [0.0, 0.0, 5.0], up: [0.0, 0.0, 1.0] }, 1.0, 4, 4).is_none());
+        assert!(Camera::look_at(LookAt { eye: [0.0; 3], target: [0.0, 0.0, 5.0], up: [0.0, 0.0, 1.0] }, 1.0, 4, 4)
+            .is_none());
     }
 
     #[test]

@@ -46,7 +46,10 @@ impl GifWriter {
     /// Starts `path` for frames of `width`×`height`, shown `delay_cs` hundredths of a second each.
     pub fn create(path: &Path, width: u32, height: u32, delay_cs: u16) -> Result<GifWriter> {
         let (Ok(w), Ok(h)) = (u16::try_from(width), u16::try_from(height)) else {
-            return Err(RenderError::file(path, format!("GIF images are at most 65535 pixels a side, not {width}x{height}")));
+            return Err(RenderError::file(
+                path,
+                format!("GIF images are at most 65535 pixels a side, not {width}x{height}"),
+            ));
         };
         let file = BufWriter::new(File::create(path).map_err(|e| RenderError::io(path, e))?);
         let encode = |e: gif::EncodingError| RenderError::file(path, format!("cannot write GIF: {e}"));
@@ -57,7 +60,10 @@ impl GifWriter {
 
     pub fn add(&mut self, img: &Image) -> Result<()> {
         if (img.width, img.height) != (self.size.0 as u32, self.size.1 as u32) {
-            return Err(RenderError::Invalid(format!("a {}x{} frame for a {}x{} GIF", img.width, img.height, self.size.0, self.size.1)));
+            return Err(RenderError::Invalid(format!(
+                "a {}x{} frame for a {}x{} GIF",
+                img.width, img.height, self.size.0, self.size.1
+            )));
         }
         // NeuQuant palette per frame; speed 10 is gif's balance of quality and time.
         let mut frame = gif::Frame::from_rgb_speed(self.size.0, self.size.1, &img.to_srgb8(), 10);
@@ -77,7 +83,10 @@ impl GifWriter {
 /// identical images).
 pub fn psnr(a: &Image, b: &Image) -> Result<f64> {
     if (a.width, a.height) != (b.width, b.height) {
-        return Err(RenderError::Invalid(format!("PSNR of a {}x{} and a {}x{} image", a.width, a.height, b.width, b.height)));
+        return Err(RenderError::Invalid(format!(
+            "PSNR of a {}x{} and a {}x{} image",
+            a.width, a.height, b.width, b.height
+        )));
     }
     let (x, y) = (a.to_srgb8(), b.to_srgb8());
     let mse = x.iter().zip(&y).map(|(&p, &q)| (p as f64 - q as f64).powi(2)).sum::<f64>() / x.len() as f64;

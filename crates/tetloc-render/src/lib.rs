@@ -61,6 +61,8 @@ mod vec;
 
 pub use camera::{Camera, LookAt, Ray};
 pub use error::{RenderError, Result};
+#[cfg(feature = "vulkan")]
+pub use gpu::GpuMarcher;
 pub use image::{psnr, GifWriter, Image};
 pub use options::{
     parse_camera, parse_color, parse_frames, parse_opacity, parse_positive, parse_range, parse_size, parse_view,
@@ -68,6 +70,4 @@ pub use options::{
 };
 pub use output::{compare_locators, frame_path, measure_fps, render_to_file, Comparison, FpsReport, RenderReport};
 pub use render::{FrameStats, HostMarcher, Marcher, Renderer, OPACITY_CUTOFF};
-#[cfg(feature = "vulkan")]
-pub use gpu::GpuMarcher;
 pub use tf::{Colormap, TransferFunction};

@@ -12,7 +12,10 @@ use std::path::PathBuf;
 pub enum TfSpec {
     Builtin(Colormap),
     /// A ParaView preset file; `preset` picks one by name, else the first.
-    File { path: PathBuf, preset: Option<String> },
+    File {
+        path: PathBuf,
+        preset: Option<String>,
+    },
     /// A transfer function built in code.
     Custom(TransferFunction),
 }
@@ -162,7 +165,9 @@ impl RenderOptions {
         }
         if let Some(look) = self.camera {
             if !look.is_usable() {
-                return bad(format!("camera {look:?}: eye equals target, or up is zero or parallel to the view direction"));
+                return bad(format!(
+                    "camera {look:?}: eye equals target, or up is zero or parallel to the view direction"
+                ));
             }
         }
         if !self.azimuth.is_finite() || !self.elevation.is_finite() {
@@ -217,7 +222,11 @@ pub fn parse_camera(s: &str) -> Result<LookAt> {
     let v = numbers("--camera", s, 9, "eye,target,up (ex,ey,ez,tx,ty,tz,ux,uy,uz)")?;
     let look = LookAt { eye: [v[0], v[1], v[2]], target: [v[3], v[4], v[5]], up: [v[6], v[7], v[8]] };
     if !look.is_usable() {
-        return Err(RenderError::option("--camera", s, "eye equals target, or up is zero or parallel to the view direction"));
+        return Err(RenderError::option(
+            "--camera",
+            s,
+            "eye equals target, or up is zero or parallel to the view direction",
+        ));
     }
     Ok(look)
 }

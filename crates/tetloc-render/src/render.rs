@@ -171,7 +171,9 @@ impl Renderer {
                     .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)))
                     .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), (c, d)| (a.min(c), b.max(d)));
                 if lo > hi {
-                    return Err(RenderError::Invalid(format!("field '{field}' has no finite values to map to colours")));
+                    return Err(RenderError::Invalid(format!(
+                        "field '{field}' has no finite values to map to colours"
+                    )));
                 }
                 // A constant field gets a small range around its value, so that it maps to
                 // the middle of the transfer function rather than to its (transparent) start.
@@ -190,7 +192,8 @@ impl Renderer {
         }
         let mean_tet = (info.total_volume / info.n_tets as f64).cbrt() as f32;
         // Degenerate meshes (flat, or all slivers) still get a usable step.
-        let default_step = [mean_tet, info.mean_edge_length, diagonal / 1000.0, 1.0].into_iter().find(|&s| s > 0.0).unwrap();
+        let default_step =
+            [mean_tet, info.mean_edge_length, diagonal / 1000.0, 1.0].into_iter().find(|&s| s > 0.0).unwrap();
         let step = opts.step.unwrap_or(default_step);
         // Extinction σ = (transfer-function opacity) × opacity scale / diagonal; a step of
         // length Δ then has alpha 1 − exp(−σΔ), baked into the table once per renderer.

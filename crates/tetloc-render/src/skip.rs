@@ -44,7 +44,11 @@ impl OccupancyGrid {
         let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
         let dims: [u32; 3] = std::array::from_fn(|k| {
             let cells = ((hi[k] - lo[k]) / cell_size).ceil();
-            if cells.is_finite() { (cells as u32).clamp(1, MAX_DIM) } else { MAX_DIM }
+            if cells.is_finite() {
+                (cells as u32).clamp(1, MAX_DIM)
+            } else {
+                MAX_DIM
+            }
         });
         let cell: Vec3 = std::array::from_fn(|k| (hi[k] - lo[k]) / dims[k] as f32);
         // A flat axis has one cell and everything maps into it.
@@ -53,7 +57,17 @@ impl OccupancyGrid {
         let min_cell = cell.iter().copied().filter(|&c| c > 0.0).fold(f32::INFINITY, f32::min);
         let margin = if min_cell.is_finite() { 1e-3 * min_cell } else { 0.0 } + 1e-5 * max_abs;
         let block_dims = dims.map(|d| d.div_ceil(BLOCK));
-        let mut grid = OccupancyGrid { lo, hi, cell, inv_cell, dims, occupied: Vec::new(), block_dims, blocks: Vec::new(), margin };
+        let mut grid = OccupancyGrid {
+            lo,
+            hi,
+            cell,
+            inv_cell,
+            dims,
+            occupied: Vec::new(),
+            block_dims,
+            blocks: Vec::new(),
+            margin,
+        };
 
         let n = dims.iter().map(|&d| d as usize).product();
         let flags: Vec<AtomicBool> = (0..n).map(|_| AtomicBool::new(false)).collect();
@@ -126,7 +140,8 @@ impl OccupancyGrid {
     pub fn skip_to(&self, ray: &Ray, t: f32, p: Vec3) -> f32 {
         // Outside the bounds the ray is clipped to: nothing to skip to.
         let Some(c) = self.cell_of(p) else { return t };
-        let (first, width) = if self.blocks[self.block_index(c)] { (c, 1) } else { (c.map(|i| i / BLOCK * BLOCK), BLOCK) };
+        let (first, width) =
+            if self.blocks[self.block_index(c)] { (c, 1) } else { (c.map(|i| i / BLOCK * BLOCK), BLOCK) };
         // The region's box; a block may reach past the bounds, where there are no tets either.
         let lo: Vec3 = std::array::from_fn(|k| self.lo[k] + first[k] as f32 * self.cell[k]);
         let hi: Vec3 = std::array::from_fn(|k| lo[k] + width as f32 * self.cell[k]);

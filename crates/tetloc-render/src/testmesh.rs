@@ -14,7 +14,14 @@ use tetloc_core::{Mesh, Vec3};
 ///
 /// # Panics
 /// When `n` is 0 or `jitter` is outside 0..=0.1, or `keep` rejects every tet.
-pub fn grid(n: usize, jitter: f32, seed: u64, keep: impl Fn(Vec3) -> bool, f: impl Fn(Vec3) -> f32, name: &str) -> Mesh {
+pub fn grid(
+    n: usize,
+    jitter: f32,
+    seed: u64,
+    keep: impl Fn(Vec3) -> bool,
+    f: impl Fn(Vec3) -> f32,
+    name: &str,
+) -> Mesh {
     assert!(n >= 1 && (0.0..=0.1).contains(&jitter));
     KuhnGrid::new(n).jitter(jitter, seed).keep(keep).vertex_field(&f).cell_field("c", |_, c| f(c)).mesh(name)
 }

@@ -143,7 +143,10 @@ impl TransferFunction {
             None => presets[0],
             Some(want) => presets.iter().copied().find(|p| name_of(p).as_deref() == Some(want)).ok_or_else(|| {
                 let names: Vec<String> = presets.iter().filter_map(|p| name_of(p)).map(|n| format!("'{n}'")).collect();
-                bad(format!("no preset named '{want}' (the file has: {})", if names.is_empty() { "no named presets".into() } else { names.join(", ") }))
+                bad(format!(
+                    "no preset named '{want}' (the file has: {})",
+                    if names.is_empty() { "no named presets".into() } else { names.join(", ") }
+                ))
             })?,
         };
         let name = name_of(chosen).unwrap_or_else(|| "unnamed".to_string());
@@ -180,14 +183,21 @@ impl TransferFunction {
                 let groups = groups_of_4(&pts, "Points", "x,opacity,midpoint,sharpness").map_err(bad)?;
                 for (i, g) in groups.iter().enumerate() {
                     if let Some(c) = g[1..].iter().find(|c| !(0.0..=1.0).contains(*c)) {
-                        return Err(bad(format!("Points point {i}: opacity, midpoint and sharpness must be in 0..1, found {c}")));
+                        return Err(bad(format!(
+                            "Points point {i}: opacity, midpoint and sharpness must be in 0..1, found {c}"
+                        )));
                     }
                 }
                 let xs = normalise(&groups, "Points").map_err(bad)?;
                 groups
                     .iter()
                     .zip(xs)
-                    .map(|(g, x)| OpacityPoint { x, opacity: g[1] as f32, midpoint: g[2] as f32, sharpness: g[3] as f32 })
+                    .map(|(g, x)| OpacityPoint {
+                        x,
+                        opacity: g[1] as f32,
+                        midpoint: g[2] as f32,
+                        sharpness: g[3] as f32,
+                    })
                     .collect()
             }
         };
@@ -262,11 +272,8 @@ fn shaped_segment(a: OpacityPoint, y1: f32, f: f32) -> f32 {
         return y0 + (y1 - y0) * x;
     }
     // Sharper segments flatten near the ends and steepen through the middle.
-    let x = if x < 0.5 {
-        0.5 * (2.0 * x).powf(1.0 + 10.0 * s)
-    } else {
-        1.0 - 0.5 * (2.0 * (1.0 - x)).powf(1.0 + 10.0 * s)
-    };
+    let x =
+        if x < 0.5 { 0.5 * (2.0 * x).powf(1.0 + 10.0 * s) } else { 1.0 - 0.5 * (2.0 * (1.0 - x)).powf(1.0 + 10.0 * s) };
     let (x2, x3) = (x * x, x * x * x);
     let (h1, h2, h3, h4) = (2.0 * x3 - 3.0 * x2 + 1.0, -2.0 * x3 + 3.0 * x2, x3 - 2.0 * x2 + x, x3 - x2);
     let slope = (1.0 - s) * (y1 - y0);
@@ -298,7 +305,12 @@ fn groups_of_4(v: &[f64], what: &str, layout: &str) -> Result<Vec<[f64; 4]>, Str
 fn normalise(groups: &[[f64; 4]], what: &str) -> Result<Vec<f32>, String> {
     for (i, w) in groups.windows(2).enumerate() {
         if w[1][0] < w[0][0] {
-            return Err(format!("{what} positions must not decrease: point {} is at {} after {}", i + 1, w[1][0], w[0][0]));
+            return Err(format!(
+                "{what} positions must not decrease: point {} is at {} after {}",
+                i + 1,
+                w[1][0],
+                w[0][0]
+            ));
         }
     }
     let (lo, hi) = (groups[0][0], groups[groups.len() - 1][0]);

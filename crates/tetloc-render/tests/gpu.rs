@@ -83,11 +83,19 @@ fn gpu_skipping_is_exact() {
         let (a, sa) = skip.render(&mut gpu_marcher(&ctx, &mesh, kernel, &skip), &cam).unwrap();
         let (b, sb) = fixed.render(&mut gpu_marcher(&ctx, &mesh, kernel, &fixed), &cam).unwrap();
         let db = psnr(&a, &b).unwrap();
-        eprintln!("{kernel}: skip {} samples, fixed {}, in-mesh {} / {}, PSNR {db:.1} dB", sa.samples, sb.samples, sa.in_mesh_samples, sb.in_mesh_samples);
+        eprintln!(
+            "{kernel}: skip {} samples, fixed {}, in-mesh {} / {}, PSNR {db:.1} dB",
+            sa.samples, sb.samples, sa.in_mesh_samples, sb.in_mesh_samples
+        );
         assert!(db >= 45.0, "{kernel}: PSNR {db}");
         assert_eq!(sa.in_mesh_samples, sb.in_mesh_samples, "{kernel}: the same samples inside the mesh");
         assert!(sa.in_mesh_samples > 1000, "the mesh is in view");
-        assert!((sa.samples as f64) < 0.7 * sb.samples as f64, "{kernel}: skipping saves samples: {} vs {}", sa.samples, sb.samples);
+        assert!(
+            (sa.samples as f64) < 0.7 * sb.samples as f64,
+            "{kernel}: skipping saves samples: {} vs {}",
+            sa.samples,
+            sb.samples
+        );
     }
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
 }

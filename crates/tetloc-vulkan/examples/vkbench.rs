@@ -70,7 +70,12 @@ fn parse() -> Result<Args, String> {
             "--modes" => a.modes = val()?.split(',').map(|m| m.parse()).collect::<Result<_, _>>()?,
             "--field" => a.field = Some(val()?),
             "--check" => a.check = num(val()?)?,
-            "--split" => a.opts.split = match val()?.as_str() { "none" => None, s => Some(num(s.into())?) },
+            "--split" => {
+                a.opts.split = match val()?.as_str() {
+                    "none" => None,
+                    s => Some(num(s.into())?),
+                }
+            }
             "--no-compact" => a.opts.compact = false,
             "--leaf" => a.opts.leaf_size = num(val()?)?,
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
@@ -94,7 +99,12 @@ fn parse() -> Result<Args, String> {
 
 /// Locates `n` random in-kernel samples and checks them against the CPU definition:
 /// (points checked, GPU ids not containing their point, interior points lost, ids differing).
-fn check(loc: &mut VulkanLocator, cpu: &mut CpuLocator, mesh: &Mesh, n: usize) -> Result<(usize, usize, usize, usize), Box<dyn std::error::Error>> {
+fn check(
+    loc: &mut VulkanLocator,
+    cpu: &mut CpuLocator,
+    mesh: &Mesh,
+    n: usize,
+) -> Result<(usize, usize, usize, usize), Box<dyn std::error::Error>> {
     let mut bad = (0, 0, 0);
     for mode in [SampleMode::Random, SampleMode::BBox] {
         let (points, ids) = loc.locate_generated(mode, n / 2, 7)?;
@@ -121,7 +131,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     for d in devices()? {
         println!(
             "  [{}] {} ({}, {}), Vulkan {}, {:.1} GiB, ray tracing: {}, float64: {}",
-            d.index, d.name, d.device_type, d.driver, d.api_version, d.memory_bytes as f64 / (1u64 << 30) as f64, d.ray_tracing, d.float64
+            d.index,
+            d.name,
+            d.device_type,
+            d.driver,
+            d.api_version,
+            d.memory_bytes as f64 / (1u64 << 30) as f64,
+            d.ray_tracing,
+            d.float64
         );
     }
     let ctx = Context::new(args.device)?;
@@ -180,7 +197,13 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             };
             let label = format!(
                 "soft-bvh{}{}{}{}",
-                if walk { format!(" walk {cell}") } else if grid { format!(" grid {cell}") } else { " root".into() },
+                if walk {
+                    format!(" walk {cell}")
+                } else if grid {
+                    format!(" grid {cell}")
+                } else {
+                    " root".into()
+                },
                 if first { " f32-first" } else { "" },
                 if f64 { "" } else { " pure-f32" },
                 if defer { " deferred" } else { "" }
@@ -216,7 +239,14 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 variants.push(args.field.clone());
             }
             for field in variants {
-                let o = BenchOptions { mode, field, repeats: args.repeats, power: args.power, seed: 1, ..Default::default() };
+                let o = BenchOptions {
+                    mode,
+                    field,
+                    repeats: args.repeats,
+                    power: args.power,
+                    seed: 1,
+                    ..Default::default()
+                };
                 match loc.bench(&o, Some(&host_points)) {
                     Ok(r) => {
                         println!("{label}: {}", r.row());
@@ -241,7 +271,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         let accel = m.accel.map_or(String::new(), |a| {
             format!(
                 "  BLAS x{} ({} prims): built {:.1}, compacted {:.1}, TLAS {:.3}",
-                a.blas_count, a.primitives, mib(a.blas_bytes_built), mib(a.blas_bytes), mib(a.tlas_bytes)
+                a.blas_count,
+                a.primitives,
+                mib(a.blas_bytes_built),
+                mib(a.blas_bytes),
+                mib(a.tlas_bytes)
             )
         });
         println!("{label:<28} final {:>9.1} peak {:>9.1}{accel}", mib(m.final_bytes), mib(m.peak_bytes));

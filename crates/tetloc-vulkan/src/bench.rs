@@ -98,8 +98,8 @@ impl VulkanLocator {
         let nvml = if opts.power { Nvml::open(&self.ctx.uuid).map(Arc::new) } else { None };
         let (times, samples, outside, timing, power) = match opts.mode {
             SampleMode::Host => {
-                let pts = host_points
-                    .ok_or_else(|| tetloc_core::Error::Invalid("the host benchmark needs points".into()))?;
+                let pts =
+                    host_points.ok_or_else(|| tetloc_core::Error::Invalid("the host benchmark needs points".into()))?;
                 let (times, outside, power) = self.bench_host(opts, pts, nvml)?;
                 (times, pts.len(), outside, "host clock (transfers included)", power)
             }
@@ -198,7 +198,8 @@ impl VulkanLocator {
         self.pipeline(v)?;
         let chunk = self.launch_limit().min(n.max(1));
         self.ensure_io(chunk)?;
-        let launches: Vec<Params> = (0..n).step_by(chunk).map(|base| self.params(chunk.min(n - base), base, opts.seed)).collect();
+        let launches: Vec<Params> =
+            (0..n).step_by(chunk).map(|base| self.params(chunk.min(n - base), base, opts.seed)).collect();
         // Warm up by time, one run per submission, until the clocks have ramped up.
         let t = Instant::now();
         while t.elapsed().as_secs_f64() < opts.warmup_seconds {
@@ -245,8 +246,9 @@ impl VulkanLocator {
         read?;
         let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
         let period = self.ctx.limits.timestamp_period_ns * 1e-9;
-        let times: Vec<f64> =
-            (opts.warmup..runs).map(|r| ((ticks[2 * r + 1].wrapping_sub(ticks[2 * r])) & mask) as f64 * period).collect();
+        let times: Vec<f64> = (opts.warmup..runs)
+            .map(|r| ((ticks[2 * r + 1].wrapping_sub(ticks[2 * r])) & mask) as f64 * period)
+            .collect();
 
         // Power: keep the GPU busy for about a second, one run per submission.
         let power = match nvml {
@@ -285,7 +287,17 @@ impl BenchResult {
     pub fn header() -> String {
         format!(
             "{:<16} {:<8} {:<8} {:>11} {:>10} {:>12} {:>8} {:>9} {:>10} {:>10} {:>7}",
-            "kernel", "mode", "variant", "samples", "median ms", "samples/s", "outside", "build s", "final MiB", "peak MiB", "watts"
+            "kernel",
+            "mode",
+            "variant",
+            "samples",
+            "median ms",
+            "samples/s",
+            "outside",
+            "build s",
+            "final MiB",
+            "peak MiB",
+            "watts"
         )
     }
 

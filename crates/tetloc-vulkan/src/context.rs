@@ -118,9 +118,8 @@ fn create_instance(entry: &ash::Entry, validation: bool) -> VkResult<(ash::Insta
                 .enumerate_instance_layer_properties()
                 .map(|ls| ls.iter().any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER)))
                 .unwrap_or(false);
-        let app = vk::ApplicationInfo::default()
-            .application_name(c"tetloc")
-            .api_version(version.min(vk::API_VERSION_1_3));
+        let app =
+            vk::ApplicationInfo::default().application_name(c"tetloc").api_version(version.min(vk::API_VERSION_1_3));
         let layers = [VALIDATION_LAYER.as_ptr()];
         let exts = [ash::ext::debug_utils::NAME.as_ptr()];
         let mut info = vk::InstanceCreateInfo::default().application_info(&app);
@@ -285,12 +284,17 @@ impl Context {
         let debug = if validation {
             let du = ash::ext::debug_utils::Instance::new(&entry, instance);
             let info = vk::DebugUtilsMessengerCreateInfoEXT::default()
-                .message_severity(vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING)
-                .message_type(vk::DebugUtilsMessageTypeFlagsEXT::GENERAL | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION)
+                .message_severity(
+                    vk::DebugUtilsMessageSeverityFlagsEXT::ERROR | vk::DebugUtilsMessageSeverityFlagsEXT::WARNING,
+                )
+                .message_type(
+                    vk::DebugUtilsMessageTypeFlagsEXT::GENERAL | vk::DebugUtilsMessageTypeFlagsEXT::VALIDATION,
+                )
                 .pfn_user_callback(Some(on_message))
                 .user_data(&*messenger as *const Messenger as *mut c_void);
             // SAFETY: `messenger` is boxed and lives in the Context, after the messenger is destroyed.
-            let m = unsafe { du.create_debug_utils_messenger(&info, None) }.map_err(VkError::vk("vkCreateDebugUtilsMessengerEXT"))?;
+            let m = unsafe { du.create_debug_utils_messenger(&info, None) }
+                .map_err(VkError::vk("vkCreateDebugUtilsMessengerEXT"))?;
             Some((du, m))
         } else {
             None
@@ -322,7 +326,9 @@ impl Context {
                         "cpu" => 1,
                         _ => 0,
                     };
-                    (p.queue_family.is_some() && p.api >= vk::API_VERSION_1_2) as u32 * 100 + t * 2 + p.info.ray_tracing as u32
+                    (p.queue_family.is_some() && p.api >= vk::API_VERSION_1_2) as u32 * 100
+                        + t * 2
+                        + p.info.ray_tracing as u32
                 };
                 // Highest score, lowest index on ties.
                 Ok(list.iter().enumerate().max_by_key(|(i, (_, p))| (score(p), usize::MAX - i)).unwrap().0)
@@ -377,7 +383,8 @@ impl Context {
             return Err(VkError::Unsupported { device: info.name, reason: "no compute queue".into() });
         };
         let priorities = [1.0f32];
-        let queues = [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
+        let queues =
+            [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
         let mut exts = vec![];
         if info.ray_tracing {
             exts.extend([
@@ -451,9 +458,16 @@ impl Context {
 
     /// Index of a memory type allowed by `type_bits` with all of `want`, preferring one that
     /// also has `prefer`.
-    pub(crate) fn memory_type(&self, type_bits: u32, want: vk::MemoryPropertyFlags, prefer: vk::MemoryPropertyFlags) -> VkResult<u32> {
+    pub(crate) fn memory_type(
+        &self,
+        type_bits: u32,
+        want: vk::MemoryPropertyFlags,
+        prefer: vk::MemoryPropertyFlags,
+    ) -> VkResult<u32> {
         let mp = &self.memory_properties;
-        let ok = |i: u32, f: vk::MemoryPropertyFlags| type_bits & (1 << i) != 0 && mp.memory_types[i as usize].property_flags.contains(f);
+        let ok = |i: u32, f: vk::MemoryPropertyFlags| {
+            type_bits & (1 << i) != 0 && mp.memory_types[i as usize].property_flags.contains(f)
+        };
         (0..mp.memory_type_count)
             .find(|&i| ok(i, want | prefer))
             .or_else(|| (0..mp.memory_type_count).find(|&i| ok(i, want)))

@@ -112,7 +112,8 @@ mod tests {
                 .lines()
                 .find(|l| l.split_whitespace().take(2).eq(["#define", name]))
                 .unwrap_or_else(|| panic!("no #define {name} in types.glsl"));
-            let v = line.split_whitespace().nth(2).unwrap().trim_end_matches('u').trim_matches(|c| c == '(' || c == ')');
+            let v =
+                line.split_whitespace().nth(2).unwrap().trim_end_matches('u').trim_matches(|c| c == '(' || c == ')');
             if let Some(hex) = v.strip_prefix("0x") {
                 i64::from_str_radix(hex, 16).unwrap()
             } else {

@@ -3,7 +3,9 @@
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
 use crate::gpu_types::*;
-use crate::memory::{self, full_barrier, Buffer, Chunked, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker};
+use crate::memory::{
+    self, full_barrier, Buffer, Chunked, Commands, Location, MemItem, MemKind, SharedTracker, Staging, Tracker,
+};
 use crate::pipeline::{self, Descriptors, Pipeline, RtShaders, Spec};
 use crate::rt::{self, AsReport, Geometry, RtStructure};
 use crate::shaders;
@@ -59,9 +61,10 @@ impl fmt::Display for Kernel {
 impl FromStr for Kernel {
     type Err = String;
     fn from_str(s: &str) -> Result<Kernel, String> {
-        Kernel::ALL.into_iter().find(|k| k.name() == s).ok_or_else(|| {
-            format!("unknown kernel '{s}' (known: {})", Kernel::ALL.map(|k| k.name()).join(", "))
-        })
+        Kernel::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| format!("unknown kernel '{s}' (known: {})", Kernel::ALL.map(|k| k.name()).join(", ")))
     }
 }
 
@@ -196,7 +199,15 @@ pub(crate) struct Variant {
 /// The search structure; its buffers are only held (bound in the descriptor set).
 #[allow(clippy::large_enum_variant)]
 enum Structure {
-    Soft { _buffers: Vec<Buffer>, stack: u32, direct: bool, grid: bool, walk: bool, nodes_chunk: u32, neighbors_chunk: u32 },
+    Soft {
+        _buffers: Vec<Buffer>,
+        stack: u32,
+        direct: bool,
+        grid: bool,
+        walk: bool,
+        nodes_chunk: u32,
+        neighbors_chunk: u32,
+    },
     Rt(RtStructure),
 }
 
@@ -258,7 +269,11 @@ impl VulkanLocator {
         if kernel.needs_ray_tracing() && ctx.rt.is_none() {
             return Err(VkError::NoRayTracing { device: ctx.device_name(), kernel: kernel.name().into() });
         }
-        if opts.chunk_points == 0 || ![1, 4].contains(&opts.leaf_size) || opts.workgroup_size == 0 || opts.grid_tets_per_cell == 0 {
+        if opts.chunk_points == 0
+            || ![1, 4].contains(&opts.leaf_size)
+            || opts.workgroup_size == 0
+            || opts.grid_tets_per_cell == 0
+        {
             return Err(VkError::Mesh(format!(
                 "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0), grid_tets_per_cell {} (> 0)",
                 opts.chunk_points, opts.leaf_size, opts.workgroup_size, opts.grid_tets_per_cell
@@ -285,10 +300,28 @@ impl VulkanLocator {
         }
         let max_bytes = memory::max_buffer_bytes(&ctx, opts.max_buffer_bytes);
         let points = memory::chunked_buffer(
-            &ctx, &tracker, &mut staging, &mut cmds, "mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points), 12, max_bytes,
+            &ctx,
+            &tracker,
+            &mut staging,
+            &mut cmds,
+            "mesh points",
+            MemKind::Mesh,
+            point_usage,
+            bytemuck::cast_slice(&mesh.points),
+            12,
+            max_bytes,
         )?;
         let tets = memory::chunked_buffer(
-            &ctx, &tracker, &mut staging, &mut cmds, "mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16, max_bytes,
+            &ctx,
+            &tracker,
+            &mut staging,
+            &mut cmds,
+            "mesh tets",
+            MemKind::Mesh,
+            storage,
+            bytemuck::cast_slice(&mesh.tets),
+            16,
+            max_bytes,
         )?;
         let dummy = Buffer::new(&ctx, &tracker, "unbound", MemKind::Query, 16, storage, Location::Device)?;
 
@@ -313,31 +346,71 @@ impl VulkanLocator {
                 let q = soft_bvh::collapse(&bvh)?;
                 drop(bvh);
                 let nodes = memory::chunked_buffer(
-                    &ctx, &tracker, &mut staging, &mut cmds, "bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&q.nodes), 64, max_bytes,
+                    &ctx,
+                    &tracker,
+                    &mut staging,
+                    &mut cmds,
+                    "bvh nodes",
+                    MemKind::Structure,
+                    storage,
+                    bytemuck::cast_slice(&q.nodes),
+                    64,
+                    max_bytes,
                 )?;
                 let prims = if q.direct {
                     None
                 } else {
                     Some(memory::device_buffer_with(
-                        &ctx, &tracker, &mut staging, &mut cmds, "bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&q.prims),
+                        &ctx,
+                        &tracker,
+                        &mut staging,
+                        &mut cmds,
+                        "bvh prims",
+                        MemKind::Structure,
+                        storage,
+                        bytemuck::cast_slice(&q.prims),
                     )?)
                 };
                 let grid = if opts.grid_start || opts.walk_start {
                     let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
                     let g = q.entry_grid(&mesh.points, &mesh.tets, lo, hi, opts.grid_tets_per_cell, opts.walk_start);
                     Some(memory::device_buffer_with(
-                        &ctx, &tracker, &mut staging, &mut cmds, "entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()),
+                        &ctx,
+                        &tracker,
+                        &mut staging,
+                        &mut cmds,
+                        "entry grid",
+                        MemKind::Structure,
+                        storage,
+                        bytemuck::cast_slice(&g.words()),
                     )?)
                 } else {
                     None
                 };
                 let neighbors = if opts.walk_start {
                     let nb = bytemuck::cast_slice(mesh.neighbors());
-                    Some(memory::chunked_buffer(&ctx, &tracker, &mut staging, &mut cmds, "tet neighbours", MemKind::Structure, storage, nb, 16, max_bytes)?)
+                    Some(memory::chunked_buffer(
+                        &ctx,
+                        &tracker,
+                        &mut staging,
+                        &mut cmds,
+                        "tet neighbours",
+                        MemKind::Structure,
+                        storage,
+                        nb,
+                        16,
+                        max_bytes,
+                    )?)
                 } else {
                     None
                 };
-                bindings.extend([(B_ACCEL, SB, 1), (B_GRID, SB, 1), (B_NEIGHBORS, SB, 1), (B_ACCEL_HI, SB, hi), (B_DEFER, SB, 1)]);
+                bindings.extend([
+                    (B_ACCEL, SB, 1),
+                    (B_GRID, SB, 1),
+                    (B_NEIGHBORS, SB, 1),
+                    (B_ACCEL_HI, SB, hi),
+                    (B_DEFER, SB, 1),
+                ]);
                 let desc = Descriptors::new(&ctx, &bindings, vk::ShaderStageFlags::COMPUTE)?;
                 desc.write_buffers(&[
                     (B_PRIMS, prims.as_ref().unwrap_or(&dummy)),
@@ -352,7 +425,18 @@ impl VulkanLocator {
                 buffers.extend(nodes.parts);
                 buffers.extend(neighbors.into_iter().flat_map(|n| n.parts));
                 let walk = opts.walk_start;
-                (Structure::Soft { _buffers: buffers, stack, direct, grid: has_grid, walk, nodes_chunk, neighbors_chunk }, desc)
+                (
+                    Structure::Soft {
+                        _buffers: buffers,
+                        stack,
+                        direct,
+                        grid: has_grid,
+                        walk,
+                        nodes_chunk,
+                        neighbors_chunk,
+                    },
+                    desc,
+                )
             }
             _ => {
                 let geometry = match kernel {
@@ -368,15 +452,33 @@ impl VulkanLocator {
                         what: "one buffer: the ray-tracing kernels build from a single vertex buffer",
                     });
                 }
-                let s = rt::build(&ctx, &tracker, &mut staging, &mut cmds, &mesh, &points.parts[0], geometry, opts.split, opts.compact)?;
-                bindings.extend([(B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, 1), (B_INSTANCES, SB, 1), (B_NEIGHBORS, SB, 1)]);
+                let s = rt::build(
+                    &ctx,
+                    &tracker,
+                    &mut staging,
+                    &mut cmds,
+                    &mesh,
+                    &points.parts[0],
+                    geometry,
+                    opts.split,
+                    opts.compact,
+                )?;
+                bindings.extend([
+                    (B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, 1),
+                    (B_INSTANCES, SB, 1),
+                    (B_NEIGHBORS, SB, 1),
+                ]);
                 let stages = vk::ShaderStageFlags::RAYGEN_KHR
                     | vk::ShaderStageFlags::MISS_KHR
                     | vk::ShaderStageFlags::CLOSEST_HIT_KHR
                     | vk::ShaderStageFlags::INTERSECTION_KHR;
                 let desc = Descriptors::new(&ctx, &bindings, stages)?;
                 desc.write_accel(B_ACCEL, s.tlas.handle);
-                desc.write_buffers(&[(B_PRIMS, &s.prims), (B_INSTANCES, &s.instance_base), (B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&dummy))])?;
+                desc.write_buffers(&[
+                    (B_PRIMS, &s.prims),
+                    (B_INSTANCES, &s.instance_base),
+                    (B_NEIGHBORS, s.neighbors.as_ref().unwrap_or(&dummy)),
+                ])?;
                 desc.write_buffer_array(B_NEIGHBORS_HI, &[&dummy; MAX_CHUNKS - 1])?;
                 (Structure::Rt(s), desc)
             }
@@ -389,7 +491,8 @@ impl VulkanLocator {
             let t = tracker.lock().unwrap();
             (t.items(), t.peak())
         };
-        let final_bytes = items.iter().filter(|m| matches!(m.kind, MemKind::Mesh | MemKind::Structure)).map(|m| m.bytes).sum();
+        let final_bytes =
+            items.iter().filter(|m| matches!(m.kind, MemKind::Mesh | MemKind::Structure)).map(|m| m.bytes).sum();
         let accel = match &structure {
             Structure::Rt(s) => Some(s.report),
             Structure::Soft { .. } => None,
@@ -480,7 +583,15 @@ impl VulkanLocator {
             }
             Structure::Rt(_) => {
                 let sh = self.rt_shaders(shaders::RT_RGEN);
-                pipeline::rt_pipeline(&self.ctx, &self.tracker, &mut self.staging, &mut self.cmds, self.desc.layout, &sh, &spec)
+                pipeline::rt_pipeline(
+                    &self.ctx,
+                    &self.tracker,
+                    &mut self.staging,
+                    &mut self.cmds,
+                    self.desc.layout,
+                    &sh,
+                    &spec,
+                )
             }
         }
     }
@@ -581,14 +692,42 @@ impl VulkanLocator {
             return Ok(());
         }
         self.io = None;
-        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
-        let q = Buffer::new(&self.ctx, &self.tracker, "query points", MemKind::Query, (n * 12) as u64, usage, Location::Device)?;
-        let o = Buffer::new(&self.ctx, &self.tracker, "query results", MemKind::Query, (n * 4) as u64, usage, Location::Device)?;
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+            | vk::BufferUsageFlags::TRANSFER_SRC
+            | vk::BufferUsageFlags::TRANSFER_DST;
+        let q = Buffer::new(
+            &self.ctx,
+            &self.tracker,
+            "query points",
+            MemKind::Query,
+            (n * 12) as u64,
+            usage,
+            Location::Device,
+        )?;
+        let o = Buffer::new(
+            &self.ctx,
+            &self.tracker,
+            "query results",
+            MemKind::Query,
+            (n * 4) as u64,
+            usage,
+            Location::Device,
+        )?;
         self.desc.write_buffers(&[(B_QUERIES, &q), (B_OUT, &o)])?;
         if self.defers() {
             self.defer = None;
-            let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::INDIRECT_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
-            let d = Buffer::new(&self.ctx, &self.tracker, "deferred samples", MemKind::Query, 16 + (n * 4) as u64, usage, Location::Device)?;
+            let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::INDIRECT_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST;
+            let d = Buffer::new(
+                &self.ctx,
+                &self.tracker,
+                "deferred samples",
+                MemKind::Query,
+                16 + (n * 4) as u64,
+                usage,
+                Location::Device,
+            )?;
             self.desc.write_buffers(&[(B_DEFER, &d)])?;
             self.defer = Some(d);
         }
@@ -672,7 +811,6 @@ impl VulkanLocator {
         let launch = launch!(self, v);
         self.cmds.run(|dev, cmd| launch.record(dev, cmd, params))
     }
-
 }
 
 /// Binds a split array: its first buffer at `lo`, the others (or `dummy`) at the array `hi`.
@@ -737,7 +875,16 @@ impl Launch<'_> {
                     let width = n.min(max_width).max(1);
                     let empty = vk::StridedDeviceAddressRegionKHR::default();
                     let rt = self.ctx.rt.as_ref().unwrap();
-                    rt.pipeline.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &empty, width as u32, n.div_ceil(width) as u32, 1);
+                    rt.pipeline.cmd_trace_rays(
+                        cmd,
+                        &sbt.raygen,
+                        &sbt.miss,
+                        &sbt.hit,
+                        &empty,
+                        width as u32,
+                        n.div_ceil(width) as u32,
+                        1,
+                    );
                 }
             }
             if let Some((exact, list)) = self.exact {
@@ -759,7 +906,11 @@ impl BatchLocator for VulkanLocator {
 
     fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> tetloc_core::Result<()> {
         if points.len() != ids.len() {
-            return Err(tetloc_core::Error::Invalid(format!("{} points but an output buffer for {}", points.len(), ids.len())));
+            return Err(tetloc_core::Error::Invalid(format!(
+                "{} points but an output buffer for {}",
+                points.len(),
+                ids.len()
+            )));
         }
         if points.is_empty() {
             return Ok(());
@@ -770,7 +921,11 @@ impl BatchLocator for VulkanLocator {
 
     fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> tetloc_core::Result<()> {
         if points.len() != values.len() {
-            return Err(tetloc_core::Error::Invalid(format!("{} points but an output buffer for {}", points.len(), values.len())));
+            return Err(tetloc_core::Error::Invalid(format!(
+                "{} points but an output buffer for {}",
+                points.len(),
+                values.len()
+            )));
         }
         let mode = self.ensure_field(field)?;
         if points.is_empty() {

@@ -134,7 +134,11 @@ impl VolumeMarcher {
     pub fn new(mut loc: VulkanLocator, scene: &MarchScene) -> tetloc_core::Result<VolumeMarcher> {
         let bad = |m: String| Err(tetloc_core::Error::Invalid(m));
         if scene.tf.len() < 2 || scene.step.is_nan() || scene.step <= 0.0 {
-            return bad(format!("march: {} transfer-function entries (need 2) and step {}", scene.tf.len(), scene.step));
+            return bad(format!(
+                "march: {} transfer-function entries (need 2) and step {}",
+                scene.tf.len(),
+                scene.step
+            ));
         }
         let output = loc.ensure_field(&scene.field)?;
         let ctx = loc.ctx.clone();
@@ -291,14 +295,20 @@ impl VolumeMarcher {
         let ctx = self.loc.ctx.clone();
         if let Some(rt) = &ctx.rt {
             if self.loc.kernel != Kernel::SoftBvh && n > rt.max_dispatch as usize {
-                return Err(VkError::Mesh(format!("{n} pixels: more rays than one launch may have ({})", rt.max_dispatch)));
+                return Err(VkError::Mesh(format!(
+                    "{n} pixels: more rays than one launch may have ({})",
+                    rt.max_dispatch
+                )));
             }
         }
-        let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+            | vk::BufferUsageFlags::TRANSFER_SRC
+            | vk::BufferUsageFlags::TRANSFER_DST;
         if self.pixels.as_ref().is_none_or(|(_, cap)| *cap < n) {
             self.pixels = None;
             let bytes = (n * std::mem::size_of::<Pixel>()) as u64;
-            let b = Buffer::new(&ctx, &self.loc.tracker, "march pixels", MemKind::Query, bytes, usage, Location::Device)?;
+            let b =
+                Buffer::new(&ctx, &self.loc.tracker, "march pixels", MemKind::Query, bytes, usage, Location::Device)?;
             self.desc.write_buffers(&[(B_PIXELS, &b)])?;
             self.pixels = Some((b, n));
         }
@@ -314,7 +324,15 @@ impl VolumeMarcher {
             if self.surface.as_ref().is_none_or(|(_, cap)| *cap < n) {
                 self.surface = None;
                 let bytes = (n * 16) as u64;
-                let b = Buffer::new(&ctx, &self.loc.tracker, "march surface", MemKind::Query, bytes, usage, Location::Device)?;
+                let b = Buffer::new(
+                    &ctx,
+                    &self.loc.tracker,
+                    "march surface",
+                    MemKind::Query,
+                    bytes,
+                    usage,
+                    Location::Device,
+                )?;
                 self.desc.write_buffers(&[(B_SURFACE, &b)])?;
                 self.surface = Some((b, n));
             }
@@ -404,16 +422,24 @@ mod tests {
         let glsl = include_str!("../shaders/common/march.glsl");
         let body = &glsl[glsl.find("struct TlMarchParams {").unwrap()..];
         let body = &body[..body.find("};").unwrap()];
-        let names: Vec<&str> = body
-            .lines()
-            .skip(1)
-            .filter_map(|l| l.trim().split(';').next()?.split_whitespace().nth(1))
-            .collect();
+        let names: Vec<&str> =
+            body.lines().skip(1).filter_map(|l| l.trim().split(';').next()?.split_whitespace().nth(1)).collect();
         assert_eq!(
             names,
             [
-                "eye_step", "fwd_tan", "right_cutoff", "up", "size", "box_lo_tf_lo", "box_hi_tf_inv", "occ_lo_margin",
-                "occ_hi", "occ_cell", "occ_inv", "occ_dims", "occ_blocks"
+                "eye_step",
+                "fwd_tan",
+                "right_cutoff",
+                "up",
+                "size",
+                "box_lo_tf_lo",
+                "box_hi_tf_inv",
+                "occ_lo_margin",
+                "occ_hi",
+                "occ_cell",
+                "occ_inv",
+                "occ_dims",
+                "occ_blocks"
             ]
         );
         assert!(glsl.contains(&format!("#define TL_MARCH_SKIP {FLAG_SKIP}u")));

@@ -105,7 +105,12 @@ impl Buffer {
         let name = name.into();
         let size = size.max(16);
         if ctx.limits.max_allocation > 0 && size > ctx.limits.max_allocation {
-            return Err(VkError::TooLarge { name, bytes: size, limit: ctx.limits.max_allocation, what: "maxMemoryAllocationSize" });
+            return Err(VkError::TooLarge {
+                name,
+                bytes: size,
+                limit: ctx.limits.max_allocation,
+                what: "maxMemoryAllocationSize",
+            });
         }
         let dev = &ctx.device;
         let with_address = usage.contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS);
@@ -158,8 +163,11 @@ impl Buffer {
                     return Err(e);
                 }
             };
-            let address =
-                if with_address { dev.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(buffer)) } else { 0 };
+            let address = if with_address {
+                dev.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(buffer))
+            } else {
+                0
+            };
             let id = tracker.lock().unwrap().add(MemItem { name: name.clone(), kind, bytes: req.size });
             Ok(Buffer { ctx: ctx.clone(), tracker: tracker.clone(), id, name, buffer, memory, size, address, mapped })
         }
@@ -233,7 +241,8 @@ impl Commands {
         // SAFETY: the previous submission has completed (we always wait), so the pool can be
         // reset; the queue is externally synchronised by the context's mutex.
         unsafe {
-            dev.reset_command_pool(self.pool, vk::CommandPoolResetFlags::empty()).map_err(VkError::vk("vkResetCommandPool"))?;
+            dev.reset_command_pool(self.pool, vk::CommandPoolResetFlags::empty())
+                .map_err(VkError::vk("vkResetCommandPool"))?;
             dev.begin_command_buffer(
                 self.cmd,
                 &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
@@ -304,7 +313,8 @@ impl Staging {
         let step = self.buf.size as usize;
         for (k, piece) in data.chunks(step).enumerate() {
             self.buf.mapped()[..piece.len()].copy_from_slice(piece);
-            let region = vk::BufferCopy { src_offset: 0, dst_offset: offset + (k * step) as u64, size: piece.len() as u64 };
+            let region =
+                vk::BufferCopy { src_offset: 0, dst_offset: offset + (k * step) as u64, size: piece.len() as u64 };
             let src = self.buf.buffer;
             // SAFETY: both buffers are alive and large enough; the copy completes before return.
             cmds.run(|dev, cmd| unsafe { dev.cmd_copy_buffer(cmd, src, dst.buffer, &[region]) })?;
@@ -316,7 +326,8 @@ impl Staging {
     pub fn download(&mut self, cmds: &mut Commands, src: &Buffer, offset: u64, out: &mut [u8]) -> VkResult<()> {
         let step = self.buf.size as usize;
         for (k, piece) in out.chunks_mut(step).enumerate() {
-            let region = vk::BufferCopy { src_offset: offset + (k * step) as u64, dst_offset: 0, size: piece.len() as u64 };
+            let region =
+                vk::BufferCopy { src_offset: offset + (k * step) as u64, dst_offset: 0, size: piece.len() as u64 };
             let dst = self.buf.buffer;
             // SAFETY: as in upload; the fence wait in run() makes the host see the copy.
             cmds.run(|dev, cmd| unsafe { dev.cmd_copy_buffer(cmd, src.buffer, dst, &[region]) })?;
@@ -338,7 +349,15 @@ pub(crate) fn device_buffer_with(
     usage: vk::BufferUsageFlags,
     data: &[u8],
 ) -> VkResult<Buffer> {
-    let buf = Buffer::new(ctx, tracker, name, kind, data.len() as u64, usage | vk::BufferUsageFlags::TRANSFER_DST, Location::Device)?;
+    let buf = Buffer::new(
+        ctx,
+        tracker,
+        name,
+        kind,
+        data.len() as u64,
+        usage | vk::BufferUsageFlags::TRANSFER_DST,
+        Location::Device,
+    )?;
     staging.upload(cmds, &buf, 0, data)?;
     Ok(buf)
 }
@@ -376,7 +395,10 @@ pub(crate) fn chunked_buffer(
     max_bytes: u64,
 ) -> VkResult<Chunked> {
     if data.len() as u64 <= max_bytes {
-        return Ok(Chunked { parts: vec![device_buffer_with(ctx, tracker, staging, cmds, name, kind, usage, data)?], per_chunk: 0 });
+        return Ok(Chunked {
+            parts: vec![device_buffer_with(ctx, tracker, staging, cmds, name, kind, usage, data)?],
+            per_chunk: 0,
+        });
     }
     let per = (max_bytes / elem_bytes as u64).min(u32::MAX as u64) as usize;
     let n_parts = (data.len() / elem_bytes).div_ceil(per.max(1));
@@ -391,7 +413,9 @@ pub(crate) fn chunked_buffer(
     let parts = data
         .chunks(per * elem_bytes)
         .enumerate()
-        .map(|(k, piece)| device_buffer_with(ctx, tracker, staging, cmds, &format!("{name} {}/{n_parts}", k + 1), kind, usage, piece))
+        .map(|(k, piece)| {
+            device_buffer_with(ctx, tracker, staging, cmds, &format!("{name} {}/{n_parts}", k + 1), kind, usage, piece)
+        })
         .collect::<VkResult<Vec<_>>>()?;
     Ok(Chunked { parts, per_chunk: per as u32 })
 }

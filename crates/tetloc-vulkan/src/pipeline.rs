@@ -23,12 +23,20 @@ pub(crate) struct Descriptors {
 
 impl Descriptors {
     /// `bindings`: (binding, type, number of descriptors: 1, or an array).
-    pub fn new(ctx: &Arc<Context>, bindings: &[(u32, vk::DescriptorType, u32)], stages: vk::ShaderStageFlags) -> VkResult<Descriptors> {
+    pub fn new(
+        ctx: &Arc<Context>,
+        bindings: &[(u32, vk::DescriptorType, u32)],
+        stages: vk::ShaderStageFlags,
+    ) -> VkResult<Descriptors> {
         let dev = &ctx.device;
         let layout_bindings: Vec<_> = bindings
             .iter()
             .map(|&(b, t, n)| {
-                vk::DescriptorSetLayoutBinding::default().binding(b).descriptor_type(t).descriptor_count(n).stage_flags(stages)
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b)
+                    .descriptor_type(t)
+                    .descriptor_count(n)
+                    .stage_flags(stages)
             })
             .collect();
         let mut sizes: Vec<vk::DescriptorPoolSize> = vec![];
@@ -38,7 +46,8 @@ impl Descriptors {
                 None => sizes.push(vk::DescriptorPoolSize { ty: t, descriptor_count: n }),
             }
         }
-        let ranges = [vk::PushConstantRange { stage_flags: stages, offset: 0, size: std::mem::size_of::<Params>() as u32 }];
+        let ranges =
+            [vk::PushConstantRange { stage_flags: stages, offset: 0, size: std::mem::size_of::<Params>() as u32 }];
         let mut d = Descriptors {
             ctx: ctx.clone(),
             set_layout: vk::DescriptorSetLayout::null(),
@@ -51,14 +60,19 @@ impl Descriptors {
         // SAFETY: valid create infos; Drop destroys whatever was created if a later step fails.
         unsafe {
             d.set_layout = dev
-                .create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings), None)
+                .create_descriptor_set_layout(
+                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&layout_bindings),
+                    None,
+                )
                 .map_err(VkError::vk("vkCreateDescriptorSetLayout"))?;
             d.pool = dev
                 .create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None)
                 .map_err(VkError::vk("vkCreateDescriptorPool"))?;
             let layouts = [d.set_layout];
             d.set = dev
-                .allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(d.pool).set_layouts(&layouts))
+                .allocate_descriptor_sets(
+                    &vk::DescriptorSetAllocateInfo::default().descriptor_pool(d.pool).set_layouts(&layouts),
+                )
                 .map_err(VkError::vk("vkAllocateDescriptorSets"))?[0];
             d.layout = dev
                 .create_pipeline_layout(
@@ -82,7 +96,12 @@ impl Descriptors {
     pub fn write_buffer_array(&self, binding: u32, buffers: &[&Buffer]) -> VkResult<()> {
         let limit = self.ctx.limits.max_storage_buffer_range;
         if let Some(b) = buffers.iter().find(|b| b.size > limit) {
-            return Err(VkError::TooLarge { name: b.name.clone(), bytes: b.size, limit, what: "maxStorageBufferRange" });
+            return Err(VkError::TooLarge {
+                name: b.name.clone(),
+                bytes: b.size,
+                limit,
+                what: "maxStorageBufferRange",
+            });
         }
         let infos: Vec<vk::DescriptorBufferInfo> = buffers.iter().map(|b| b.info()).collect();
         self.write_infos(&[(binding, infos)]);
@@ -212,7 +231,12 @@ impl Drop for Pipeline {
     }
 }
 
-pub(crate) fn compute_pipeline(ctx: &Arc<Context>, layout: vk::PipelineLayout, spirv: &[u8], spec: &Spec) -> VkResult<Pipeline> {
+pub(crate) fn compute_pipeline(
+    ctx: &Arc<Context>,
+    layout: vk::PipelineLayout,
+    spirv: &[u8],
+    spec: &Spec,
+) -> VkResult<Pipeline> {
     let dev = &ctx.device;
     let module = Module::new(dev, spirv)?;
     let spec_info = spec.info();
@@ -259,7 +283,11 @@ pub(crate) fn rt_pipeline(
     let rint = shaders.intersection.map(|s| Module::new(dev, s)).transpose()?;
     let spec_info = spec.info();
     let stage = |flags, m: &Module| {
-        vk::PipelineShaderStageCreateInfo::default().stage(flags).module(m.module).name(c"main").specialization_info(&spec_info)
+        vk::PipelineShaderStageCreateInfo::default()
+            .stage(flags)
+            .module(m.module)
+            .name(c"main")
+            .specialization_info(&spec_info)
     };
     let mut stages = vec![
         stage(vk::ShaderStageFlags::RAYGEN_KHR, &rgen),
@@ -295,10 +323,16 @@ pub(crate) fn rt_pipeline(
         .layout(layout);
     // SAFETY: valid modules, groups and layout.
     let pipeline = unsafe {
-        rt.pipeline.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), vk::PipelineCache::null(), &[info], None)
+        rt.pipeline.create_ray_tracing_pipelines(
+            vk::DeferredOperationKHR::null(),
+            vk::PipelineCache::null(),
+            &[info],
+            None,
+        )
     }
     .map_err(|(_, r)| VkError::Vk { what: "vkCreateRayTracingPipelinesKHR", result: r })?[0];
-    let pipeline = Pipeline { ctx: ctx.clone(), pipeline, bind_point: vk::PipelineBindPoint::RAY_TRACING_KHR, sbt: None };
+    let pipeline =
+        Pipeline { ctx: ctx.clone(), pipeline, bind_point: vk::PipelineBindPoint::RAY_TRACING_KHR, sbt: None };
 
     // Shader binding table: each region starts at the base alignment.
     let handle = rt.handle_size as usize;

@@ -56,7 +56,8 @@ impl Accel {
         size: u64,
     ) -> VkResult<Accel> {
         let rt = ctx.rt.as_ref().unwrap();
-        let usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let usage =
+            vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let buf = Buffer::new(ctx, tracker, name, kind, size, usage, Location::Device)?;
         let info = vk::AccelerationStructureCreateInfoKHR::default().buffer(buf.buffer).size(size).ty(ty);
         // SAFETY: the buffer is large enough and has the storage usage.
@@ -111,7 +112,8 @@ fn morton(p: Vec3, lo: Vec3, scale: Vec3) -> u32 {
 /// Indices 0..centroids.len() in Morton order of the centroids: spatially coherent groups.
 fn morton_order(centroids: &[Vec3], lo: Vec3, hi: Vec3) -> Vec<u32> {
     let scale: Vec3 = std::array::from_fn(|k| if hi[k] > lo[k] { 1023.0 / (hi[k] - lo[k]) } else { 0.0 });
-    let mut keyed: Vec<(u32, u32)> = centroids.par_iter().enumerate().map(|(i, &c)| (morton(c, lo, scale), i as u32)).collect();
+    let mut keyed: Vec<(u32, u32)> =
+        centroids.par_iter().enumerate().map(|(i, &c)| (morton(c, lo, scale), i as u32)).collect();
     keyed.par_sort_unstable();
     keyed.into_iter().map(|(_, i)| i).collect()
 }
@@ -153,7 +155,11 @@ fn geometry<'a>(kind: Geometry, input: u64, points: u64, n_points: u32) -> vk::A
         },
     };
     vk::AccelerationStructureGeometryKHR::default()
-        .geometry_type(if kind == Geometry::Boxes { vk::GeometryTypeKHR::AABBS } else { vk::GeometryTypeKHR::TRIANGLES })
+        .geometry_type(if kind == Geometry::Boxes {
+            vk::GeometryTypeKHR::AABBS
+        } else {
+            vk::GeometryTypeKHR::TRIANGLES
+        })
         .geometry(data)
         .flags(vk::GeometryFlagsKHR::OPAQUE)
 }
@@ -199,7 +205,8 @@ pub(crate) fn build(
                 })
                 .collect();
             let order = morton_order(&centers, lo, hi);
-            let table: Vec<[i32; 2]> = order.par_iter().map(|&f| [faces[f as usize].front, faces[f as usize].back]).collect();
+            let table: Vec<[i32; 2]> =
+                order.par_iter().map(|&f| [faces[f as usize].front, faces[f as usize].back]).collect();
             (order, bytemuck::cast_slice(&table).to_vec(), 1)
         }
     };
@@ -215,16 +222,42 @@ pub(crate) fn build(
     let groups: Vec<std::ops::Range<usize>> =
         (0..n_items).step_by(items_per_group).map(|s| s..(s + items_per_group).min(n_items)).collect();
 
-    let prims = memory::device_buffer_with(ctx, tracker, staging, cmds, "primitive table", MemKind::Structure, storage, &table_bytes)?;
+    let prims = memory::device_buffer_with(
+        ctx,
+        tracker,
+        staging,
+        cmds,
+        "primitive table",
+        MemKind::Structure,
+        storage,
+        &table_bytes,
+    )?;
     drop(table_bytes);
     let bases: Vec<u32> = groups.iter().map(|g| (g.start * prims_per_item) as u32).collect();
-    let instance_base =
-        memory::device_buffer_with(ctx, tracker, staging, cmds, "instance base", MemKind::Structure, storage, bytemuck::cast_slice(&bases))?;
+    let instance_base = memory::device_buffer_with(
+        ctx,
+        tracker,
+        staging,
+        cmds,
+        "instance base",
+        MemKind::Structure,
+        storage,
+        bytemuck::cast_slice(&bases),
+    )?;
     let neighbors = match kind {
         Geometry::Boxes => None,
         _ => {
             let nb = mesh.neighbors();
-            Some(memory::device_buffer_with(ctx, tracker, staging, cmds, "tet neighbours", MemKind::Structure, storage, bytemuck::cast_slice(nb))?)
+            Some(memory::device_buffer_with(
+                ctx,
+                tracker,
+                staging,
+                cmds,
+                "tet neighbours",
+                MemKind::Structure,
+                storage,
+                bytemuck::cast_slice(nb),
+            )?)
         }
     };
 
@@ -238,7 +271,14 @@ pub(crate) fn build(
                     .map(|&t| {
                         let (l, h) = tetloc_core::geom::tet_bounds(mesh.tets[t as usize], &mesh.points);
                         // One ulp outwards: a point on the box's surface is strictly inside.
-                        Aabb([l[0].next_down(), l[1].next_down(), l[2].next_down(), h[0].next_up(), h[1].next_up(), h[2].next_up()])
+                        Aabb([
+                            l[0].next_down(),
+                            l[1].next_down(),
+                            l[2].next_down(),
+                            h[0].next_up(),
+                            h[1].next_up(),
+                            h[2].next_up(),
+                        ])
                     })
                     .collect();
                 bytemuck::cast_slice(&boxes).to_vec()
@@ -278,7 +318,12 @@ pub(crate) fn build(
             let count = [(g.len() * prims_per_item) as u32];
             // SAFETY: size query with a valid geometry description.
             unsafe {
-                rt.accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &info, &count, &mut sizes)
+                rt.accel.get_acceleration_structure_build_sizes(
+                    vk::AccelerationStructureBuildTypeKHR::DEVICE,
+                    &info,
+                    &count,
+                    &mut sizes,
+                )
             };
             sizes
         })
@@ -286,19 +331,37 @@ pub(crate) fn build(
     let scratch_align = rt.scratch_alignment.max(1) as u64;
     let scratch_usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
     let max_scratch = blas_sizes.iter().map(|s| s.build_scratch_size).max().unwrap_or(0);
-    let scratch = Buffer::new(ctx, tracker, "build scratch", MemKind::Scratch, max_scratch + scratch_align, scratch_usage, Location::Device)?;
+    let scratch = Buffer::new(
+        ctx,
+        tracker,
+        "build scratch",
+        MemKind::Scratch,
+        max_scratch + scratch_align,
+        scratch_usage,
+        Location::Device,
+    )?;
     let scratch_addr = align_up(scratch.address, scratch_align);
     let input_usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
         | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS
         | vk::BufferUsageFlags::TRANSFER_DST;
     let max_items = groups.iter().map(|g| g.len()).max().unwrap_or(0);
-    let input = Buffer::new(ctx, tracker, "build input", MemKind::Scratch, (max_items * input_bytes_per_item) as u64, input_usage, Location::Device)?;
+    let input = Buffer::new(
+        ctx,
+        tracker,
+        "build input",
+        MemKind::Scratch,
+        (max_items * input_bytes_per_item) as u64,
+        input_usage,
+        Location::Device,
+    )?;
 
     // SAFETY (whole block): all handles are alive; each submission completes before the
     // next starts (Commands::run waits), and every build input outlives its build.
     let query_pool = unsafe {
         ctx.device.create_query_pool(
-            &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::ACCELERATION_STRUCTURE_COMPACTED_SIZE_KHR).query_count(1),
+            &vk::QueryPoolCreateInfo::default()
+                .query_type(vk::QueryType::ACCELERATION_STRUCTURE_COMPACTED_SIZE_KHR)
+                .query_count(1),
             None,
         )
     }
@@ -334,7 +397,8 @@ pub(crate) fn build(
             .dst_acceleration_structure(built.handle)
             .geometries(&geo)
             .scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch_addr });
-        let range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count((g.len() * prims_per_item) as u32)];
+        let range =
+            [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count((g.len() * prims_per_item) as u32)];
         cmds.run(|dev, cmd| unsafe {
             rt.accel.cmd_build_acceleration_structures(cmd, &[info], &[&range]);
             if compact {
@@ -371,7 +435,14 @@ pub(crate) fn build(
         unsafe { ctx.device.get_query_pool_results(query_pool, 0, &mut compacted, vk::QueryResultFlags::TYPE_64) }
             .map_err(VkError::vk("vkGetQueryPoolResults"))?;
         let size = compacted[0].clamp(1, built.bytes());
-        let small = Accel::new(ctx, tracker, format!("blas {gi}"), MemKind::Structure, vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, size)?;
+        let small = Accel::new(
+            ctx,
+            tracker,
+            format!("blas {gi}"),
+            MemKind::Structure,
+            vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
+            size,
+        )?;
         let copy = vk::CopyAccelerationStructureInfoKHR::default()
             .src(built.handle)
             .dst(small.handle)
@@ -399,7 +470,16 @@ pub(crate) fn build(
     let instance_bytes = unsafe {
         std::slice::from_raw_parts(instances.as_ptr() as *const u8, std::mem::size_of_val(instances.as_slice()))
     };
-    let instance_buf = memory::device_buffer_with(ctx, tracker, staging, cmds, "instances", MemKind::Scratch, input_usage, instance_bytes)?;
+    let instance_buf = memory::device_buffer_with(
+        ctx,
+        tracker,
+        staging,
+        cmds,
+        "instances",
+        MemKind::Scratch,
+        input_usage,
+        instance_bytes,
+    )?;
     let tl_geo = [vk::AccelerationStructureGeometryKHR::default()
         .geometry_type(vk::GeometryTypeKHR::INSTANCES)
         .geometry(vk::AccelerationStructureGeometryDataKHR {
@@ -414,10 +494,30 @@ pub(crate) fn build(
     let mut tl_sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
     let count = [instances.len() as u32];
     unsafe {
-        rt.accel.get_acceleration_structure_build_sizes(vk::AccelerationStructureBuildTypeKHR::DEVICE, &tl_info, &count, &mut tl_sizes)
+        rt.accel.get_acceleration_structure_build_sizes(
+            vk::AccelerationStructureBuildTypeKHR::DEVICE,
+            &tl_info,
+            &count,
+            &mut tl_sizes,
+        )
     };
-    let tlas = Accel::new(ctx, tracker, "tlas".into(), MemKind::Structure, vk::AccelerationStructureTypeKHR::TOP_LEVEL, tl_sizes.acceleration_structure_size)?;
-    let tl_scratch = Buffer::new(ctx, tracker, "tlas scratch", MemKind::Scratch, tl_sizes.build_scratch_size + scratch_align, scratch_usage, Location::Device)?;
+    let tlas = Accel::new(
+        ctx,
+        tracker,
+        "tlas".into(),
+        MemKind::Structure,
+        vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+        tl_sizes.acceleration_structure_size,
+    )?;
+    let tl_scratch = Buffer::new(
+        ctx,
+        tracker,
+        "tlas scratch",
+        MemKind::Scratch,
+        tl_sizes.build_scratch_size + scratch_align,
+        scratch_usage,
+        Location::Device,
+    )?;
     tl_info = tl_info
         .dst_acceleration_structure(tlas.handle)
         .scratch_data(vk::DeviceOrHostAddressKHR { device_address: align_up(tl_scratch.address, scratch_align) });

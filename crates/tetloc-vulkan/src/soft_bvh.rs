@@ -241,7 +241,9 @@ impl EntryGrid {
             .into_par_iter()
             .map_init(Vec::new, |stack, i| match self.cells[i] {
                 EMPTY => EMPTY,
-                node => q.traverse(points, tets, self.centre(i, lo), node, stack, &mut Cost::default()).unwrap_or(any[i]),
+                node => {
+                    q.traverse(points, tets, self.centre(i, lo), node, stack, &mut Cost::default()).unwrap_or(any[i])
+                }
             })
             .collect();
         self.starts = starts;
@@ -271,13 +273,26 @@ impl QBvh {
 
     /// The entry grid over [lo, hi] with about one cell per `tets_per_cell` tets; with
     /// `starts`, each cell also names the tet a walk starts from.
-    pub fn entry_grid(&self, points: &[[f32; 3]], tets: &[[u32; 4]], lo: [f32; 3], hi: [f32; 3], tets_per_cell: usize, starts: bool) -> EntryGrid {
+    pub fn entry_grid(
+        &self,
+        points: &[[f32; 3]],
+        tets: &[[u32; 4]],
+        lo: [f32; 3],
+        hi: [f32; 3],
+        tets_per_cell: usize,
+        starts: bool,
+    ) -> EntryGrid {
         let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0) as f64);
         let cells_wanted = (tets.len() / tets_per_cell.max(1)).max(1) as f64;
         let used: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
-        let h = if used.is_empty() { 1.0 } else { (used.iter().product::<f64>() / cells_wanted).powf(1.0 / used.len() as f64) };
+        let h = if used.is_empty() {
+            1.0
+        } else {
+            (used.iter().product::<f64>() / cells_wanted).powf(1.0 / used.len() as f64)
+        };
         let dims: [u32; 3] = std::array::from_fn(|a| ((extent[a] / h).round() as u32).clamp(1, 1024));
-        let inv: [f32; 3] = std::array::from_fn(|a| if extent[a] > 0.0 { dims[a] as f32 / (hi[a] - lo[a]) } else { 0.0 });
+        let inv: [f32; 3] =
+            std::array::from_fn(|a| if extent[a] > 0.0 { dims[a] as f32 / (hi[a] - lo[a]) } else { 0.0 });
         let n_cells = (dims[0] * dims[1] * dims[2]) as usize;
         let mut grid = EntryGrid { dims, inv, cells: vec![EMPTY; n_cells], starts: vec![] };
         // Per cell, some tet whose box overlaps it (the first in mesh order): the walk start
@@ -289,29 +304,31 @@ impl QBvh {
         use rayon::prelude::*;
         let layer = (dims[0] * dims[1]) as usize;
         let per = (dims[2] as usize).div_ceil(rayon::current_num_threads() * 2).max(1);
-        grid.cells.par_chunks_mut(per * layer).zip(any.par_chunks_mut(per * layer)).enumerate().for_each(|(s, (cells, any))| {
-            let (z_first, z_last) = ((s * per) as u32, (s * per + cells.len() / layer - 1) as u32);
-            for (t, &ids) in tets.iter().enumerate() {
-                let (tlo, thi) = tetloc_core::geom::tet_bounds(ids, points);
-                let c0: [u32; 3] = std::array::from_fn(|a| cell_coord(tlo[a], lo[a], inv[a], dims[a]));
-                let c1: [u32; 3] = std::array::from_fn(|a| cell_coord(thi[a], lo[a], inv[a], dims[a]));
-                if c1[2] < z_first || c0[2] > z_last {
-                    continue;
-                }
-                let home = self.home[t];
-                for z in c0[2].max(z_first)..=c1[2].min(z_last) {
-                    for y in c0[1]..=c1[1] {
-                        for x in c0[0]..=c1[0] {
-                            let i = (((z - z_first) * dims[1] + y) * dims[0] + x) as usize;
-                            cells[i] = if cells[i] == EMPTY { home } else { self.lca(cells[i], home) };
-                            if any[i] == EMPTY {
-                                any[i] = t as u32;
+        grid.cells.par_chunks_mut(per * layer).zip(any.par_chunks_mut(per * layer)).enumerate().for_each(
+            |(s, (cells, any))| {
+                let (z_first, z_last) = ((s * per) as u32, (s * per + cells.len() / layer - 1) as u32);
+                for (t, &ids) in tets.iter().enumerate() {
+                    let (tlo, thi) = tetloc_core::geom::tet_bounds(ids, points);
+                    let c0: [u32; 3] = std::array::from_fn(|a| cell_coord(tlo[a], lo[a], inv[a], dims[a]));
+                    let c1: [u32; 3] = std::array::from_fn(|a| cell_coord(thi[a], lo[a], inv[a], dims[a]));
+                    if c1[2] < z_first || c0[2] > z_last {
+                        continue;
+                    }
+                    let home = self.home[t];
+                    for z in c0[2].max(z_first)..=c1[2].min(z_last) {
+                        for y in c0[1]..=c1[1] {
+                            for x in c0[0]..=c1[0] {
+                                let i = (((z - z_first) * dims[1] + y) * dims[0] + x) as usize;
+                                cells[i] = if cells[i] == EMPTY { home } else { self.lca(cells[i], home) };
+                                if any[i] == EMPTY {
+                                    any[i] = t as u32;
+                                }
                             }
                         }
                     }
                 }
-            }
-        });
+            },
+        );
         if starts {
             grid.fill_starts(self, points, tets, lo, &any);
         }
@@ -335,12 +352,7 @@ pub(crate) struct Cost {
 
 /// The point-in-tet test, counting tests and (in the counting tests only, as it costs a second
 /// evaluation) the faces whose sign the f64 fallback decides.
-fn test_counting(
-    ids: [u32; 4],
-    points: &[[f32; 3]],
-    p: [f32; 3],
-    cost: &mut Cost,
-) -> geom::TetTest {
+fn test_counting(ids: [u32; 4], points: &[[f32; 3]], p: [f32; 3], cost: &mut Cost) -> geom::TetTest {
     cost.tests += 1;
     let r = geom::test_point(ids, points, p);
     if !cfg!(test) {
@@ -382,14 +394,8 @@ impl QBvh {
             if r & LEAF != 0 {
                 let (first, count) = (r & LEAF_FIRST_MAX, ((r >> 29) & 3) + 1);
                 for k in 0..count {
-                    let t = if self.direct {
-                        first
-                    } else {
-                        self.prims[(first + k) as usize]
-                    };
-                    if let geom::TetTest::Inside(_) =
-                        test_counting(tets[t as usize], points, p, cost)
-                    {
+                    let t = if self.direct { first } else { self.prims[(first + k) as usize] };
+                    if let geom::TetTest::Inside(_) = test_counting(tets[t as usize], points, p, cost) {
                         return Some(t);
                     }
                 }
@@ -459,7 +465,11 @@ mod tests {
     /// n^3 cubes, 6 tets each (Kuhn), taller than wide, every vertex jittered; tets made
     /// positive as the locator's BVH expects.
     fn grid(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 4]>) {
-        let raw = tetloc_core::testdata::KuhnGrid::new(n).spacing([1.0, 1.0, 1.5]).jitter(0.05, n as u64).jitter_boundary().raw();
+        let raw = tetloc_core::testdata::KuhnGrid::new(n)
+            .spacing([1.0, 1.0, 1.5])
+            .jitter(0.05, n as u64)
+            .jitter_boundary()
+            .raw();
         let tets = raw.tets.iter().map(|&t| geom::canonical_tet(t, &raw.points).0).collect();
         (raw.points, tets)
     }
@@ -502,13 +512,21 @@ mod tests {
         for preset in [BuildPreset::Fast, BuildPreset::SingleTetLeaves] {
             let bvh = Bvh::build(&pts, &tets, preset);
             let q = collapse(&bvh).unwrap();
-            assert!(q.nodes.len() < bvh.nodes.len() / 2, "{} 4-wide nodes for {} binary", q.nodes.len(), bvh.nodes.len());
+            assert!(
+                q.nodes.len() < bvh.nodes.len() / 2,
+                "{} 4-wide nodes for {} binary",
+                q.nodes.len(),
+                bvh.nodes.len()
+            );
             let mut seen = vec![0; tets.len()];
             for (t, lo, hi) in leaves(&q) {
                 seen[t as usize] += 1;
                 let (tlo, thi) = geom::tet_bounds(tets[t as usize], &pts);
                 for a in 0..3 {
-                    assert!(lo[a] <= tlo[a] && hi[a] >= thi[a], "tet {t} axis {a}: box {lo:?}..{hi:?} vs {tlo:?}..{thi:?}");
+                    assert!(
+                        lo[a] <= tlo[a] && hi[a] >= thi[a],
+                        "tet {t} axis {a}: box {lo:?}..{hi:?} vs {tlo:?}..{thi:?}"
+                    );
                 }
             }
             assert!(seen.iter().all(|&s| s == 1));
@@ -568,31 +586,17 @@ mod tests {
             assert!(t != EMPTY && (t as usize) < tets.len());
             held += geom::point_in_tet(tets[t as usize], pts, g.centre(i, lo)).is_some() as usize;
         }
-        assert!(
-            held * 10 >= g.cells.len() * 9,
-            "only {held} of {} starts hold their cell's centre",
-            g.cells.len()
-        );
+        assert!(held * 10 >= g.cells.len() * 9, "only {held} of {} starts hold their cell's centre", g.cells.len());
         let nb = mesh.neighbors();
         let (mut walked, mut s) = (0, 7u64);
         for _ in 0..20_000 {
             let p: [f32; 3] = std::array::from_fn(|a| {
-                s = s
-                    .wrapping_mul(6364136223846793005)
-                    .wrapping_add(1442695040888963407);
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
                 lo[a] + (hi[a] - lo[a]) * ((s >> 40) as f32 / (1u64 << 24) as f32 * 1.1 - 0.05)
             });
             let want = q.traverse(pts, tets, p, 0, &mut vec![], &mut Cost::default());
             let c = g.cell_of(p, lo);
-            if let Some(t) = walk(
-                pts,
-                tets,
-                nb,
-                g.starts[c] as i32,
-                p,
-                32,
-                &mut Cost::default(),
-            ) {
+            if let Some(t) = walk(pts, tets, nb, g.starts[c] as i32, p, 32, &mut Cost::default()) {
                 assert_eq!(Some(t), want, "walk from cell {c} to {p:?}");
                 walked += 1;
             }
@@ -647,14 +651,10 @@ mod tests {
     fn count_costs() {
         use rayon::prelude::*;
         let n: usize = std::env::var("TETLOC_COUNT_TETS").map_or(3_000_000, |v| v.parse().unwrap());
-        let per_cell: usize =
-            std::env::var("TETLOC_TETS_PER_CELL").map_or(2, |v| v.parse().unwrap());
+        let per_cell: usize = std::env::var("TETLOC_TETS_PER_CELL").map_or(2, |v| v.parse().unwrap());
         let max_steps: u32 = std::env::var("TETLOC_WALK_STEPS").map_or(32, |v| v.parse().unwrap());
-        let mesh = tetloc_core::Mesh::new(
-            tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, n, 1),
-            "jets",
-        )
-        .unwrap();
+        let mesh =
+            tetloc_core::Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, n, 1), "jets").unwrap();
         let (pts, tets) = (&mesh.points, &mesh.tets);
         let q = collapse(&Bvh::build(pts, tets, BuildPreset::SingleTetLeaves)).unwrap();
         let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
@@ -679,27 +679,15 @@ mod tests {
                     let base = (w * (tets.len() / 32 / warps)) * 32;
                     for lane in 0..32 {
                         let i = base + lane;
-                        let p = if mode == "uniform" {
-                            mesh.tet_center(i)
-                        } else {
-                            random_sample(i as u32, 1, pts, tets)
-                        };
+                        let p =
+                            if mode == "uniform" { mesh.tet_center(i) } else { random_sample(i as u32, 1, pts, tets) };
                         let c = g.cell_of(p, lo);
                         let mut costs = [Cost::default(); 3];
                         let stack = &mut vec![];
                         let a = q.traverse(pts, tets, p, 0, stack, &mut costs[0]);
                         let b = q.traverse(pts, tets, p, g.cells[c], stack, &mut costs[1]);
-                        let walked = walk(
-                            pts,
-                            tets,
-                            nb,
-                            g.starts[c] as i32,
-                            p,
-                            max_steps,
-                            &mut costs[2],
-                        );
-                        let w =
-                            walked.or_else(|| q.traverse(pts, tets, p, g.cells[c], stack, &mut costs[2]));
+                        let walked = walk(pts, tets, nb, g.starts[c] as i32, p, max_steps, &mut costs[2]);
+                        let w = walked.or_else(|| q.traverse(pts, tets, p, g.cells[c], stack, &mut costs[2]));
                         assert!(a.is_some(), "{mode} sample {i} {p:?} lost");
                         assert_eq!(a, b, "{mode} sample {i}: grid start changed the answer");
                         if walked.is_some() {
@@ -709,14 +697,8 @@ mod tests {
                         assert!(w.is_some());
                         for (k, cost) in costs.iter().enumerate() {
                             let iters = cost.nodes + cost.tests;
-                            let v = [
-                                cost.nodes,
-                                cost.tests,
-                                cost.f64_faces,
-                                cost.walk_steps,
-                                cost.fallback as u32,
-                                iters,
-                            ];
+                            let v =
+                                [cost.nodes, cost.tests, cost.f64_faces, cost.walk_steps, cost.fallback as u32, iters];
                             for (j, x) in v.iter().enumerate() {
                                 acc[k][j] += *x as f64;
                             }

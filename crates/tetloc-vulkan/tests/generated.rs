@@ -15,7 +15,13 @@ fn generated_samples_are_located_correctly() {
     let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
     for k in common::kernels(&ctx, name) {
         let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
-        let mut chunked = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions { chunk_points: 1000, ..Default::default() }).unwrap();
+        let mut chunked = VulkanLocator::new(
+            ctx.clone(),
+            mesh.clone(),
+            k,
+            LocatorOptions { chunk_points: 1000, ..Default::default() },
+        )
+        .unwrap();
         for mode in [SampleMode::Uniform, SampleMode::Random, SampleMode::BBox] {
             let n = if mode == SampleMode::Uniform { mesh.n_tets() } else { 20_000 };
             let (points, ids) = loc.locate_generated(mode, n, 42).unwrap();
@@ -38,7 +44,10 @@ fn generated_samples_are_located_correctly() {
                     assert!(distinct.len() > mesh.n_tets() / 2, "{label}: only {} tets sampled", distinct.len());
                 }
                 SampleMode::BBox => {
-                    assert!(points.iter().all(|p| (0..3).all(|a| p[a] >= lo[a] && p[a] <= hi[a])), "{label}: outside the box");
+                    assert!(
+                        points.iter().all(|p| (0..3).all(|a| p[a] >= lo[a] && p[a] <= hi[a])),
+                        "{label}: outside the box"
+                    );
                 }
                 SampleMode::Host => unreachable!(),
             }

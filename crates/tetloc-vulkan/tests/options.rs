@@ -62,15 +62,20 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             variants.push(("entry grid, four per leaf", grid4));
             let coarse = LocatorOptions { walk_start: true, grid_tets_per_cell: 3, chunk_points: 997, ..base.clone() };
             variants.push(("walk start, 3 tets a cell, chunks of 997", coarse));
-            variants.push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
-            variants.push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
+            variants
+                .push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
+            variants
+                .push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
             variants.push(("root, f32 first", LocatorOptions { walk_start: false, f32_first: true, ..base.clone() }));
             variants.push(("deferred exact tests", LocatorOptions { defer_exact: true, ..base.clone() }));
             let defer_root = LocatorOptions { defer_exact: true, walk_start: false, chunk_points: 997, ..base.clone() };
             variants.push(("deferred exact tests, root, chunks of 997", defer_root));
         } else {
             variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
-            variants.push(("split 5000, not compacted", LocatorOptions { split: Some(5000), compact: false, ..base.clone() }));
+            variants.push((
+                "split 5000, not compacted",
+                LocatorOptions { split: Some(5000), compact: false, ..base.clone() },
+            ));
             variants.push(("one BLAS, not compacted", LocatorOptions { split: None, compact: false, ..base.clone() }));
         }
         let mut first: Option<(Vec<i32>, Vec<u32>)> = None;
@@ -79,7 +84,12 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             let got = answers(&mut loc, &points);
             common::check_ids(&format!("{k} {label}"), &mesh, &points, &got.0, &cpu);
             let m = loc.memory_report();
-            assert!(m.final_bytes > 0 && m.final_bytes <= m.peak_bytes, "{k} {label}: final {} peak {}", m.final_bytes, m.peak_bytes);
+            assert!(
+                m.final_bytes > 0 && m.final_bytes <= m.peak_bytes,
+                "{k} {label}: final {} peak {}",
+                m.final_bytes,
+                m.peak_bytes
+            );
             assert!(m.items.iter().any(|i| i.name == "mesh tets" && i.kind == MemKind::Mesh));
             if let Some(a) = m.accel {
                 // rep-faces keeps a tet's four triangles together: groups hold split / 4 tets.
@@ -116,7 +126,9 @@ fn pure_f32_test_agrees_outside_ambiguous_points() {
     let sets: Vec<_> = query_sets(&dir).into_iter().filter(|s| s.label.starts_with("delaunay_s.")).collect();
     let mesh = Arc::new(tetloc_core::io::read_mesh(&sets[0].mesh_path, None).unwrap());
     for k in common::kernels(&ctx, name) {
-        let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions { float64: false, ..Default::default() }).unwrap();
+        let mut loc =
+            VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions { float64: false, ..Default::default() })
+                .unwrap();
         assert!(!loc.uses_float64());
         for s in &sets {
             let mut ids = vec![0; s.points.len()];
@@ -181,7 +193,10 @@ fn arrays_split_over_buffers_give_the_same_answers() {
                 assert_eq!(parts("mesh points"), 2, "{k} {label}: {names:?}");
                 assert!(parts("bvh nodes") >= 2, "{k} {label}: {names:?}");
             }
-            assert!(answers(&mut whole, &points) == answers(&mut split, &points), "{k} {label}: answers changed by splitting");
+            assert!(
+                answers(&mut whole, &points) == answers(&mut split, &points),
+                "{k} {label}: answers changed by splitting"
+            );
             for mode in [SampleMode::Uniform, SampleMode::Random] {
                 let a = whole.locate_generated(mode, 5000, 11).unwrap();
                 let b = split.locate_generated(mode, 5000, 11).unwrap();
@@ -191,7 +206,8 @@ fn arrays_split_over_buffers_give_the_same_answers() {
         }
         // Too large even for 16 buffers: a clear error, not a crash.
         let tiny = LocatorOptions { max_buffer_bytes: Some(1024), ..Default::default() };
-        let e = VulkanLocator::new(ctx.clone(), mesh.clone(), k, tiny).err().expect("1 KiB buffers cannot hold the mesh");
+        let e =
+            VulkanLocator::new(ctx.clone(), mesh.clone(), k, tiny).err().expect("1 KiB buffers cannot hold the mesh");
         assert!(e.to_string().contains("16 buffers"), "{k}: {e}");
     }
     common::assert_no_validation_errors(&ctx);

@@ -19,8 +19,15 @@ fn check_set(loc: &mut VulkanLocator, mesh: &Mesh, set: &QuerySet, cpu: &[i32]) 
 
     // Oracle: exact ids except at points within rounding of a face.
     let wrong: Vec<usize> = (0..n).filter(|&i| ids[i] != set.cell[i] && !set.ambiguous(i)).collect();
-    assert!(wrong.is_empty(), "{label}: {} ids differ from the oracle at unambiguous points, e.g. point {} {:?}: {} vs {}",
-        wrong.len(), wrong[0], set.points[wrong[0]], ids[wrong[0]], set.cell[wrong[0]]);
+    assert!(
+        wrong.is_empty(),
+        "{label}: {} ids differ from the oracle at unambiguous points, e.g. point {} {:?}: {} vs {}",
+        wrong.len(),
+        wrong[0],
+        set.points[wrong[0]],
+        ids[wrong[0]],
+        set.cell[wrong[0]]
+    );
     // No cracks: centres and random points lie in tets.
     if set.label.ends_with(".centers") || set.label.ends_with(".random") {
         let outside = ids.iter().filter(|&&t| t < 0).count();
@@ -58,7 +65,11 @@ fn check_set(loc: &mut VulkanLocator, mesh: &Mesh, set: &QuerySet, cpu: &[i32]) 
         loc.sample(&set.points, "cellval", &mut v).unwrap();
         for i in 0..n {
             let want = if ids[i] >= 0 { cell.values[ids[i] as usize] } else { f32::NAN };
-            assert!(v[i] == want || (v[i].is_nan() && want.is_nan()), "{label}: cellval at point {i}: {} vs {want}", v[i]);
+            assert!(
+                v[i] == want || (v[i].is_nan() && want.is_nan()),
+                "{label}: cellval at point {i}: {} vs {want}",
+                v[i]
+            );
         }
     }
     println!(

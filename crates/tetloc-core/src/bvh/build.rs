@@ -25,12 +25,18 @@ pub(super) fn build(points: &[Vec3], tets: &[[u32; 4]], preset: BuildPreset) -> 
     let boxes: Vec<(Vec3, Vec3)> = tets.par_iter().map(|&t| geom::tet_bounds(t, points)).collect();
     let (lo, hi) = boxes
         .par_iter()
-        .map(|(a, b)| (std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k])), std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k]))))
+        .map(|(a, b)| {
+            (
+                std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k])),
+                std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k])),
+            )
+        })
         .reduce(
             || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
             |(a0, a1), (b0, b1)| (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k]))),
         );
-    let scale: [f32; 3] = std::array::from_fn(|k| if hi[k] > lo[k] { ((1u32 << 21) - 1) as f32 / (hi[k] - lo[k]) } else { 0.0 });
+    let scale: [f32; 3] =
+        std::array::from_fn(|k| if hi[k] > lo[k] { ((1u32 << 21) - 1) as f32 / (hi[k] - lo[k]) } else { 0.0 });
     let mut keyed: Vec<(u64, u32)> = boxes
         .par_iter()
         .enumerate()

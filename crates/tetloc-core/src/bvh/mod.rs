@@ -104,7 +104,9 @@ impl Bvh {
             return if tets.is_empty() { Ok(()) } else { Err("no nodes".into()) };
         }
         let mut seen = vec![false; tets.len()];
-        let inside = |inner: &BvhNode, outer: &BvhNode| (0..3).all(|k| inner.min[k] >= outer.min[k] && inner.max[k] <= outer.max[k]);
+        let inside = |inner: &BvhNode, outer: &BvhNode| {
+            (0..3).all(|k| inner.min[k] >= outer.min[k] && inner.max[k] <= outer.max[k])
+        };
         let mut stack = vec![0usize];
         while let Some(i) = stack.pop() {
             let n = self.nodes.get(i).ok_or(format!("node index {i} out of range"))?;

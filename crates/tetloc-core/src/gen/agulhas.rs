@@ -115,7 +115,8 @@ impl Agulhas {
         let stride = ni.max(nj).div_ceil(TERRAIN_SIDE).max(1);
         // Vertex column (i, j) is a corner of columns i-1..=i, j-1..=j.
         let wet = |i: usize, j: usize| {
-            (i.saturating_sub(1)..=i.min(ni - 1)).any(|ci| (j.saturating_sub(1)..=j.min(nj - 1)).any(|cj| keep[cj * ni + ci]))
+            (i.saturating_sub(1)..=i.min(ni - 1))
+                .any(|ci| (j.saturating_sub(1)..=j.min(nj - 1)).any(|cj| keep[cj * ni + ci]))
         };
         Terrain::height_field(ni.div_ceil(stride), nj.div_ceil(stride), |ti, tj| {
             let (i, j) = ((ti * stride).min(ni), (tj * stride).min(nj));

@@ -318,9 +318,7 @@ fn agulhas_terrain_lies_under_the_sea_and_rises_into_land() {
     // Mesh vertex columns share their plan position: the lowest level is the sea floor.
     let mut floor = std::collections::HashMap::new();
     for p in &m.points {
-        let z = floor
-            .entry((p[0].to_bits(), p[1].to_bits()))
-            .or_insert(f32::INFINITY);
+        let z = floor.entry((p[0].to_bits(), p[1].to_bits())).or_insert(f32::INFINITY);
         *z = z.min(p[2]);
     }
     let (mut wet, mut highest) = (0, f32::MIN);
@@ -332,11 +330,7 @@ fn agulhas_terrain_lies_under_the_sea_and_rises_into_land() {
             wet += 1;
         }
     }
-    assert!(
-        wet > t.positions.len() / 3,
-        "{wet} of {} terrain nodes under the sea",
-        t.positions.len()
-    );
+    assert!(wet > t.positions.len() / 3, "{wet} of {} terrain nodes under the sea", t.positions.len());
     assert!(highest > 0.02, "no land above the sea: highest {highest}");
     // Every triangle faces up (counter-clockwise seen from +z).
     for tri in &t.triangles {
@@ -347,12 +341,6 @@ fn agulhas_terrain_lies_under_the_sea_and_rises_into_land() {
     let mut obj = Vec::new();
     t.write_obj(&mut obj).unwrap();
     let text = String::from_utf8(obj).unwrap();
-    assert_eq!(
-        text.lines().filter(|l| l.starts_with("v ")).count(),
-        t.positions.len()
-    );
-    assert_eq!(
-        text.lines().filter(|l| l.starts_with("f ")).count(),
-        t.triangles.len()
-    );
+    assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), t.positions.len());
+    assert_eq!(text.lines().filter(|l| l.starts_with("f ")).count(), t.triangles.len());
 }

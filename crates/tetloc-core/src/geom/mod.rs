@@ -80,8 +80,7 @@ pub fn canonical_tet(ids: [u32; 4], points: &[Vec3]) -> ([u32; 4], f64) {
 /// `orient(v0, v1, v2, v3) > 0` (that is, when it is left-handed, and the canonical order
 /// swapped the last two to make it right-handed).
 /// Opposite 3: (0,1,2) even; opposite 2: (0,1,3) odd; opposite 1: (0,2,3) even; opposite 0: (1,2,3) odd.
-const SORTED_FACES: [([usize; 3], f32); 4] =
-    [([1, 2, 3], -1.0), ([0, 2, 3], 1.0), ([0, 1, 3], -1.0), ([0, 1, 2], 1.0)];
+const SORTED_FACES: [([usize; 3], f32); 4] = [([1, 2, 3], -1.0), ([0, 2, 3], 1.0), ([0, 1, 3], -1.0), ([0, 1, 2], 1.0)];
 
 /// The four faces of a canonical tet, face `i` opposite ascending vertex `i`, each with its
 /// vertex ids ascending and the sign `s` such that `s · orient(face, x) > 0` for `x` inside
@@ -118,12 +117,7 @@ pub fn test_point(ids: [u32; 4], points: &[Vec3], p: Vec3) -> TetTest {
     let orientation = if swapped { 1.0f32 } else { -1.0 };
     // Ascending index -> stored index.
     let stored = |i: usize| if swapped && i >= 2 { 5 - i } else { i };
-    let v = [
-        points[asc[0] as usize],
-        points[asc[1] as usize],
-        points[asc[2] as usize],
-        points[asc[3] as usize],
-    ];
+    let v = [points[asc[0] as usize], points[asc[1] as usize], points[asc[2] as usize], points[asc[3] as usize]];
     let mut d = [0f32; 4];
     let mut bound_sum = 0f32;
     let mut exact = false;

@@ -3,14 +3,14 @@
 
 pub mod gmsh;
 pub mod points;
-pub mod tetgen;
-pub mod vtk_legacy;
-/// What the VTK XML and legacy readers and the VTU writer share: cell types, arrays, blocks.
-pub(crate) mod vtk;
-pub mod vtu;
-pub mod vtu_write;
 #[cfg(test)]
 mod tests;
+pub mod tetgen;
+/// What the VTK XML and legacy readers and the VTU writer share: cell types, arrays, blocks.
+pub(crate) mod vtk;
+pub mod vtk_legacy;
+pub mod vtu;
+pub mod vtu_write;
 
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, RawMesh};
@@ -67,7 +67,12 @@ fn check_fits_in_memory(path: &Path) -> Result<()> {
             let gb = |b: u64| b as f64 / 1e9;
             return Err(Error::format(
                 path,
-                format!("the file is {:.1} GB; reading it needs about {:.1} GB of memory but {:.1} GB are available", gb(len), gb(2 * len), gb(avail)),
+                format!(
+                    "the file is {:.1} GB; reading it needs about {:.1} GB of memory but {:.1} GB are available",
+                    gb(len),
+                    gb(2 * len),
+                    gb(avail)
+                ),
             ));
         }
     }

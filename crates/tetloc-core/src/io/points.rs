@@ -42,7 +42,8 @@ pub fn read_points(path: &Path) -> Result<Vec<Vec3>> {
 
 fn read_points_npy(path: &Path) -> Result<Vec<Vec3>> {
     let file = std::fs::File::open(path).map_err(|e| Error::io(path, e))?;
-    let npy = npyz::NpyFile::new(BufReader::new(file)).map_err(|e| Error::format(path, format!("not a valid .npy file: {e}")))?;
+    let npy = npyz::NpyFile::new(BufReader::new(file))
+        .map_err(|e| Error::format(path, format!("not a valid .npy file: {e}")))?;
     let shape = npy.shape().to_vec();
     if shape.len() != 2 || shape[1] != 3 {
         return Err(Error::format(path, format!("expected an array of shape (N, 3), found {shape:?}")));
@@ -53,8 +54,18 @@ fn read_points_npy(path: &Path) -> Result<Vec<Vec3>> {
     let dtype = npy.dtype().descr();
     let flat: Vec<f32> = match dtype.as_str() {
         "'<f4'" => npy.into_vec::<f32>().map_err(|e| Error::format(path, e.to_string()))?,
-        "'<f8'" => npy.into_vec::<f64>().map_err(|e| Error::format(path, e.to_string()))?.into_iter().map(|x| x as f32).collect(),
-        other => return Err(Error::format(path, format!("expected dtype float32 or float64 (little-endian), found {other}"))),
+        "'<f8'" => npy
+            .into_vec::<f64>()
+            .map_err(|e| Error::format(path, e.to_string()))?
+            .into_iter()
+            .map(|x| x as f32)
+            .collect(),
+        other => {
+            return Err(Error::format(
+                path,
+                format!("expected dtype float32 or float64 (little-endian), found {other}"),
+            ))
+        }
     };
     Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
@@ -68,13 +79,19 @@ fn read_points_csv(path: &Path) -> Result<Vec<Vec3>> {
         if line.is_empty() || line.starts_with('#') {
             continue;
         }
-        let fields: Vec<&str> = line.split(|c: char| c == ',' || c == ';' || c.is_whitespace()).filter(|s| !s.is_empty()).collect();
+        let fields: Vec<&str> =
+            line.split(|c: char| c == ',' || c == ';' || c.is_whitespace()).filter(|s| !s.is_empty()).collect();
         let parsed: std::result::Result<Vec<f32>, _> = fields.iter().map(|s| s.parse::<f32>()).collect();
         match parsed {
             Ok(v) if v.len() == 3 => out.push([v[0], v[1], v[2]]),
             // A header line (x,y,z) is allowed before the first point.
             Err(_) if out.is_empty() && n == 0 => continue,
-            _ => return Err(Error::format(path, format!("line {}: expected three numbers x,y,z, found '{line}'", n + 1))),
+            _ => {
+                return Err(Error::format(
+                    path,
+                    format!("line {}: expected three numbers x,y,z, found '{line}'", n + 1),
+                ))
+            }
         }
     }
     Ok(out)
@@ -100,7 +117,12 @@ where
     match ext(path).as_str() {
         "npy" => {
             use npyz::WriterBuilder;
-            let mut npy = npyz::WriteOptions::new().default_dtype().shape(&[data.len() as u64]).writer(&mut w).begin_nd().map_err(io)?;
+            let mut npy = npyz::WriteOptions::new()
+                .default_dtype()
+                .shape(&[data.len() as u64])
+                .writer(&mut w)
+                .begin_nd()
+                .map_err(io)?;
             npy.extend(data.iter()).map_err(io)?;
             npy.finish().map_err(io)?;
         }
@@ -111,7 +133,12 @@ where
             }
         }
         "bin" | "f32" | "i32" | "raw" => w.write_all(bytemuck::cast_slice(data)).map_err(io)?,
-        _ => return Err(Error::UnknownFormat { path: path.to_path_buf(), known: "npy, csv, bin (or vtu for a point set)" }),
+        _ => {
+            return Err(Error::UnknownFormat {
+                path: path.to_path_buf(),
+                known: "npy, csv, bin (or vtu for a point set)",
+            })
+        }
     }
     w.flush().map_err(io)
 }
@@ -141,7 +168,12 @@ mod tests {
         {
             use npyz::WriterBuilder;
             let mut w = std::io::BufWriter::new(std::fs::File::create(&npy).unwrap());
-            let mut n = npyz::WriteOptions::new().default_dtype().shape(&[bin.len() as u64, 3]).writer(&mut w).begin_nd().unwrap();
+            let mut n = npyz::WriteOptions::new()
+                .default_dtype()
+                .shape(&[bin.len() as u64, 3])
+                .writer(&mut w)
+                .begin_nd()
+                .unwrap();
             n.extend(bin.iter().flat_map(|p| p.iter().map(|&c| c as f64))).unwrap();
             n.finish().unwrap();
         }

@@ -71,9 +71,8 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
             "CELL_TYPES" => {
                 let n = c.count(arg(0), "CELL_TYPES count")?;
                 let arr = c.values(NumType::I32, n, "CELL_TYPES")?;
-                let types = num::map_ints(&arr, |v| u8::try_from(v).ok()).map_err(|i| {
-                    c.fail(format!("CELL_TYPES: value {i} ({}) is not a VTK cell type", arr.show(i)))
-                })?;
+                let types = num::map_ints(&arr, |v| u8::try_from(v).ok())
+                    .map_err(|i| c.fail(format!("CELL_TYPES: value {i} ({}) is not a VTK cell type", arr.show(i))))?;
                 g.types = Some(types);
             }
             "POINT_DATA" => section = Some((FieldLocation::Vertex, c.count(arg(0), "POINT_DATA count")?)),
@@ -91,8 +90,16 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
                 let ty = if c.binary { NumType::U8 } else { NumType::F32 };
                 c.values(ty, n.saturating_mul(4), "LOOKUP_TABLE")?;
             }
-            "SCALARS" | "VECTORS" | "NORMALS" | "TENSORS" | "TENSORS6" | "TEXTURE_COORDINATES" | "COLOR_SCALARS"
-            | "GLOBAL_IDS" | "PEDIGREE_IDS" | "EDGE_FLAGS" => {
+            "SCALARS"
+            | "VECTORS"
+            | "NORMALS"
+            | "TENSORS"
+            | "TENSORS6"
+            | "TEXTURE_COORDINATES"
+            | "COLOR_SCALARS"
+            | "GLOBAL_IDS"
+            | "PEDIGREE_IDS"
+            | "EDGE_FLAGS" => {
                 let Some((location, n)) = section else {
                     return Err(c.fail(format!("{kw} before POINT_DATA or CELL_DATA")));
                 };
@@ -123,8 +130,8 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
             }
             _ => {
                 return Err(c.fail(format!(
-                    "unexpected keyword '{kw}' (expected POINTS, CELLS, CELL_TYPES, POINT_DATA, CELL_DATA or an attribute)"
-                )))
+                "unexpected keyword '{kw}' (expected POINTS, CELLS, CELL_TYPES, POINT_DATA, CELL_DATA or an attribute)"
+            )))
             }
         }
     }
@@ -191,7 +198,8 @@ impl Grid<'_> {
                 if !ends.is_empty() {
                     ends.remove(0);
                 }
-                let conn = num::to_ids(&connectivity, n_points).map_err(|i| bad_id(&connectivity, i, "CONNECTIVITY"))?;
+                let conn =
+                    num::to_ids(&connectivity, n_points).map_err(|i| bad_id(&connectivity, i, "CONNECTIVITY"))?;
                 (ends, conn)
             }
         };
@@ -443,7 +451,8 @@ fn decode_name(s: &str) -> String {
     let mut out = Vec::with_capacity(b.len());
     let mut i = 0;
     while i < b.len() {
-        let hex = b.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok()).and_then(|h| u8::from_str_radix(h, 16).ok());
+        let hex =
+            b.get(i + 1..i + 3).and_then(|h| std::str::from_utf8(h).ok()).and_then(|h| u8::from_str_radix(h, 16).ok());
         match (b[i], hex) {
             (b'%', Some(v)) => {
                 out.push(v);

@@ -50,7 +50,9 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
         zlib: match root.attr("compressor") {
             None | Some("") => false,
             Some("vtkZLibDataCompressor") => true,
-            Some(o) => return Err(fail(format!("compressor '{o}' is not supported (tetloc reads vtkZLibDataCompressor)"))),
+            Some(o) => {
+                return Err(fail(format!("compressor '{o}' is not supported (tetloc reads vtkZLibDataCompressor)")))
+            }
         },
         big_endian: match root.attr("byte_order") {
             None | Some("LittleEndian") => false,
@@ -93,7 +95,8 @@ impl<'a> Appended<'a> {
         // A file cut short in its last array still has all the sizes it needs: ask for the
         // closing tag, which VTK writes after the data.
         let tail = bytes.trim_ascii_end();
-        let closed = tail.ends_with(b">") && tail[tail.len().saturating_sub(64)..].windows(9).any(|w| w == b"</VTKFile");
+        let closed =
+            tail.ends_with(b">") && tail[tail.len().saturating_sub(64)..].windows(9).any(|w| w == b"</VTKFile");
         if !closed {
             return Err("the file does not end with </VTKFile>: truncated?".into());
         }
@@ -163,7 +166,8 @@ impl<'a> Ctx<'a, '_> {
             }
             Some("appended") => {
                 let offset = da.attr("offset").unwrap_or("(none)");
-                let offset: usize = offset.trim().parse().map_err(|_| e(format!("offset '{offset}' is not a number")))?;
+                let offset: usize =
+                    offset.trim().parse().map_err(|_| e(format!("offset '{offset}' is not a number")))?;
                 match &self.appended {
                     None => Err(e("format is appended but the file has no <AppendedData>".into())),
                     Some(Appended::Raw(data)) => {

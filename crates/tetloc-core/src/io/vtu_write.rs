@@ -97,7 +97,9 @@ pub fn write_points_vtu(path: &Path, points: &[[f32; 3]], ids: &[i32], values: O
         connectivity: OutArray::new("connectivity", id_type, 1, n, move |r, out| {
             r.for_each(|i| push_id(out, i as u64, wide))
         }),
-        offsets: OutArray::new("offsets", id_type, 1, n, move |r, out| r.for_each(|i| push_id(out, i as u64 + 1, wide))),
+        offsets: OutArray::new("offsets", id_type, 1, n, move |r, out| {
+            r.for_each(|i| push_id(out, i as u64 + 1, wide))
+        }),
         types: OutArray::new("types", NumType::U8, 1, n, |r, out| out.resize(out.len() + r.len(), cells::VERTEX)),
     };
     grid.write(path, false)
@@ -316,7 +318,8 @@ mod tests {
             let p = t.map(|i| back.points[i as usize].map(f64::from));
             let d = |k: usize| [0, 1, 2].map(|c| p[k][c] - p[0][c]);
             let (a, b, c) = (d(1), d(2), d(3));
-            let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0]) + a[2] * (b[0] * c[1] - b[1] * c[0]);
+            let det = a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
+                + a[2] * (b[0] * c[1] - b[1] * c[0]);
             assert!(det > 0.0, "tet {t:?} is not positive in VTK's convention");
         }
         // Reading it again as a mesh gives the same canonical tets.
@@ -338,7 +341,11 @@ mod tests {
             points: vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.], [0.7, 0.7, 0.7]],
             tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
             fields: vec![
-                Field { name: "p <&\"'> x".into(), location: FieldLocation::Vertex, values: vec![0.5, -1., 2., f32::NAN, 4.] },
+                Field {
+                    name: "p <&\"'> x".into(),
+                    location: FieldLocation::Vertex,
+                    values: vec![0.5, -1., 2., f32::NAN, 4.],
+                },
                 Field { name: "c[0]".into(), location: FieldLocation::Cell, values: vec![7., 8.] },
             ],
             higher_order: None,

@@ -111,7 +111,12 @@ impl CpuLocator {
     /// `out`. Incoherent batches are visited in Morton order so that consecutive points are
     /// close; batches that already are (tet centres in mesh order, points along rays or
     /// particle paths) keep their order and skip the sort.
-    fn locate_batch<T: Send + Copy>(&self, points: &[Vec3], out: &mut [T], f: impl Fn(Option<(u32, Bary)>) -> T + Sync) {
+    fn locate_batch<T: Send + Copy>(
+        &self,
+        points: &[Vec3],
+        out: &mut [T],
+        f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
+    ) {
         let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<T> {
             let mut hint: Option<u32> = None;
             idx.map(|i| {
@@ -145,11 +150,9 @@ pub(super) fn is_coherent(points: &[Vec3], mean_edge: f32) -> bool {
     if points.len() < 2 {
         return true;
     }
-    let step: f64 = points
-        .par_windows(2)
-        .map(|w| (0..3).map(|k| ((w[1][k] - w[0][k]) as f64).abs()).sum::<f64>())
-        .sum::<f64>()
-        / (points.len() - 1) as f64;
+    let step: f64 =
+        points.par_windows(2).map(|w| (0..3).map(|k| ((w[1][k] - w[0][k]) as f64).abs()).sum::<f64>()).sum::<f64>()
+            / (points.len() - 1) as f64;
     step < 3.0 * mean_edge as f64
 }
 

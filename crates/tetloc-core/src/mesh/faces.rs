@@ -51,10 +51,8 @@ impl FaceSet {
             .collect();
         recs.par_sort_unstable();
         // Group starts, found in parallel.
-        let starts: Vec<usize> = (0..recs.len())
-            .into_par_iter()
-            .filter(|&i| i == 0 || recs[i][..3] != recs[i - 1][..3])
-            .collect();
+        let starts: Vec<usize> =
+            (0..recs.len()).into_par_iter().filter(|&i| i == 0 || recs[i][..3] != recs[i - 1][..3]).collect();
         let faces: Vec<(Face, u8)> = starts
             .par_iter()
             .enumerate()

@@ -159,15 +159,10 @@ impl Mesh {
                 },
             );
         // Bounds over the vertices that tets use (unused vertices do not widen the box).
-        let (bounds_min, bounds_max) = tets
-            .par_iter()
-            .map(|&t| geom::tet_bounds(t, &points))
-            .reduce(
-                || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-                |(a0, a1), (b0, b1)| {
-                    (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k])))
-                },
-            );
+        let (bounds_min, bounds_max) = tets.par_iter().map(|&t| geom::tet_bounds(t, &points)).reduce(
+            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+            |(a0, a1), (b0, b1)| (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k]))),
+        );
         let info = MeshInfo {
             source,
             n_points: points.len(),

@@ -17,7 +17,11 @@ struct BruteForce {
 
 impl BruteForce {
     fn find(&self, p: Vec3) -> Option<(usize, geom::Bary)> {
-        self.mesh.tets.iter().enumerate().find_map(|(i, &t)| geom::point_in_tet(t, &self.mesh.points, p).map(|b| (i, b)))
+        self.mesh
+            .tets
+            .iter()
+            .enumerate()
+            .find_map(|(i, &t)| geom::point_in_tet(t, &self.mesh.points, p).map(|b| (i, b)))
     }
 }
 
@@ -67,7 +71,13 @@ fn constant_cube_matches_the_closed_form() {
     let diagonal = side * 3f32.sqrt();
     for field in ["f", "c"] {
         for step in [side / 200.0, side / 333.0] {
-            let opts = RenderOptions { tf: TfSpec::Custom(tf.clone()), opacity: 3.0, step: Some(step), range: Some((0.0, 2.0)), ..Default::default() };
+            let opts = RenderOptions {
+                tf: TfSpec::Custom(tf.clone()),
+                opacity: 3.0,
+                step: Some(step),
+                range: Some((0.0, 2.0)),
+                ..Default::default()
+            };
             let r = Renderer::new(mesh.clone(), field, &opts).unwrap();
             let sigma = o * opts.opacity / diagonal;
             let expect = 1.0 - (-sigma * side).exp();
@@ -79,7 +89,11 @@ fn constant_cube_matches_the_closed_form() {
             let (rgba, stats) = r.march(&mut CpuLocator::new(mesh.clone()), &rays).unwrap();
             let grey = r.table.lookup(1.0);
             for (ray, c) in rays.iter().zip(&rgba) {
-                assert!((c[3] - expect).abs() <= 0.01 * expect, "{field} step {step} {ray:?}: opacity {} vs {expect}", c[3]);
+                assert!(
+                    (c[3] - expect).abs() <= 0.01 * expect,
+                    "{field} step {step} {ray:?}: opacity {} vs {expect}",
+                    c[3]
+                );
                 // A constant colour composites to opacity × colour.
                 assert!((c[0] - c[3] * grey[0]).abs() < 1e-4);
             }
@@ -105,7 +119,13 @@ fn a_constant_field_maps_to_the_middle_of_the_transfer_function() {
 fn rays_stop_at_the_opacity_cutoff() {
     let mesh = Arc::new(testmesh::cube(3, 1.0, 1.0));
     let tf = TransferFunction::builtin(Colormap::Grayscale).with_constant_opacity(1.0);
-    let opts = RenderOptions { tf: TfSpec::Custom(tf), opacity: 200.0, step: Some(0.001), range: Some((0.0, 1.0)), ..Default::default() };
+    let opts = RenderOptions {
+        tf: TfSpec::Custom(tf),
+        opacity: 200.0,
+        step: Some(0.001),
+        range: Some((0.0, 1.0)),
+        ..Default::default()
+    };
     let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
     let ray = Ray { origin: [-1.0, 0.5, 0.5], dir: [1.0, 0.0, 0.0] };
     let (rgba, stats) = r.march(&mut CpuLocator::new(mesh), &[ray]).unwrap();
@@ -161,7 +181,12 @@ fn skipping_gives_the_same_image_with_fewer_samples_japan() {
 #[test]
 fn two_locators_computing_the_same_thing_agree() {
     let mesh = Arc::new(testmesh::two_blobs(8, 3));
-    let r = Renderer::new(mesh.clone(), "f", &small(RenderOptions { tf: TfSpec::Builtin(Colormap::Coolwarm), ..Default::default() })).unwrap();
+    let r = Renderer::new(
+        mesh.clone(),
+        "f",
+        &small(RenderOptions { tf: TfSpec::Builtin(Colormap::Coolwarm), ..Default::default() }),
+    )
+    .unwrap();
     let cmp = compare_locators(&r, &mut CpuLocator::new(mesh.clone()), &mut BruteForce { mesh: mesh.clone() }).unwrap();
     eprintln!("cpu vs brute force: PSNR {:.1} dB", cmp.psnr_db);
     assert!(cmp.psnr_db >= 40.0, "PSNR {}", cmp.psnr_db);
@@ -191,7 +216,8 @@ fn the_fitted_view_shows_the_mesh_and_misses_are_background() {
     let bg = [0.2, 0.3, 0.4];
     let r = Renderer::new(mesh.clone(), "f", &small(RenderOptions { background: bg, ..Default::default() })).unwrap();
     let (img, _) = r.render(&mut CpuLocator::new(mesh), &r.camera(0)).unwrap();
-    let bg8 = crate::image::Image { width: 1, height: 1, pixels: vec![bg.map(crate::colorspace::srgb_to_linear)] }.to_srgb8();
+    let bg8 =
+        crate::image::Image { width: 1, height: 1, pixels: vec![bg.map(crate::colorspace::srgb_to_linear)] }.to_srgb8();
     let px = img.to_srgb8();
     let is_bg: Vec<bool> = px.chunks(3).map(|c| c == &bg8[..]).collect();
     let covered = is_bg.iter().filter(|b| !**b).count() as f64 / is_bg.len() as f64;
@@ -224,7 +250,10 @@ fn a_surface_file_ends_volume_integration() {
     // A square at z = 0.5 through the unit cube, as ascii STL.
     let stl = dir.join("plane.stl");
     let facet = |a: [f32; 3], b: [f32; 3], c: [f32; 3]| {
-        format!("facet normal 0 0 1\nouter loop\nvertex {} {} {}\nvertex {} {} {}\nvertex {} {} {}\nendloop\nendfacet\n", a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2])
+        format!(
+            "facet normal 0 0 1\nouter loop\nvertex {} {} {}\nvertex {} {} {}\nvertex {} {} {}\nendloop\nendfacet\n",
+            a[0], a[1], a[2], b[0], b[1], b[2], c[0], c[1], c[2]
+        )
     };
     let text = format!(
         "solid p\n{}{}endsolid p\n",
@@ -299,14 +328,27 @@ fn fps_is_measured_per_backend() {
     assert!(rep.fps > 0.0 && rep.samples_per_frame > 0.0 && rep.sample_fraction > 0.0 && rep.sample_fraction <= 1.0);
     let line = rep.to_string();
     assert!(line.starts_with("cpu: ") && line.contains("FPS at 24x24"), "{line}");
-    let st = FrameStats { rays: 4, samples: 10, in_mesh_samples: 5, rounds: 2, sample_seconds: 0.5, seconds: 1.0, gpu_seconds: 0.0 };
-    assert_eq!(st.to_string(), "4 rays, 10 samples (50.0 % inside the mesh) in 2 batches, 1.00 s (50 % in the locator)");
+    let st = FrameStats {
+        rays: 4,
+        samples: 10,
+        in_mesh_samples: 5,
+        rounds: 2,
+        sample_seconds: 0.5,
+        seconds: 1.0,
+        gpu_seconds: 0.0,
+    };
+    assert_eq!(
+        st.to_string(),
+        "4 rays, 10 samples (50.0 % inside the mesh) in 2 batches, 1.00 s (50 % in the locator)"
+    );
 }
 
 #[test]
 fn bad_inputs_give_clear_errors() {
     let mesh = Arc::new(testmesh::cube(2, 1.0, 1.0));
-    let err = |opts: RenderOptions, field: &str| Renderer::new(mesh.clone(), field, &opts).err().expect("should fail").to_string();
+    let err = |opts: RenderOptions, field: &str| {
+        Renderer::new(mesh.clone(), field, &opts).err().expect("should fail").to_string()
+    };
     let e = err(RenderOptions::default(), "pressure");
     assert!(e.contains("no field named 'pressure'") && e.contains("'f', 'c'"), "{e}");
     let e = err(RenderOptions { width: 0, ..Default::default() }, "f");
@@ -341,7 +383,8 @@ fn a_paraview_preset_renders() {
     )
     .unwrap();
     let mesh = Arc::new(testmesh::two_blobs(6, 4));
-    let opts = RenderOptions { width: 20, height: 20, tf: TfSpec::parse(p.to_str().unwrap()).unwrap(), ..Default::default() };
+    let opts =
+        RenderOptions { width: 20, height: 20, tf: TfSpec::parse(p.to_str().unwrap()).unwrap(), ..Default::default() };
     let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
     let (img, stats) = r.render(&mut CpuLocator::new(mesh), &r.camera(0)).unwrap();
     assert!(stats.in_mesh_samples > 0);

@@ -203,10 +203,16 @@ mod tests {
 
     #[test]
     fn hit_distance_and_normal() {
-        let m = TriMesh { positions: vec![[0.0, -1.0, -1.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]], triangles: vec![[0, 1, 2]] };
+        let m = TriMesh {
+            positions: vec![[0.0, -1.0, -1.0], [0.0, 1.0, -1.0], [0.0, 0.0, 1.0]],
+            triangles: vec![[0, 1, 2]],
+        };
         let bvh = SurfaceBvh::build(&m);
         let h = bvh.intersect(&Ray { origin: [-3.0, 0.0, 0.0], dir: [1.0, 0.0, 0.0] }, 0.0, 10.0).unwrap();
         assert!((h.t - 3.0).abs() < 1e-6 && h.normal[0].abs() > 0.999);
-        assert!(bvh.intersect(&Ray { origin: [-3.0, 0.0, 0.0], dir: [1.0, 0.0, 0.0] }, 0.0, 2.5).is_none(), "t_max bounds the hit");
+        assert!(
+            bvh.intersect(&Ray { origin: [-3.0, 0.0, 0.0], dir: [1.0, 0.0, 0.0] }, 0.0, 2.5).is_none(),
+            "t_max bounds the hit"
+        );
     }
 }

@@ -30,7 +30,9 @@ pub fn parse_obj(bytes: &[u8]) -> Parsed {
                         let i: i64 = first.parse().map_err(|_| format!("line {ln}: '{t}' is not a vertex index"))?;
                         let idx = if i < 0 { n + i } else { i - 1 };
                         if i == 0 || idx < 0 || idx >= n {
-                            return Err(format!("line {ln}: vertex index {i} out of range (there are {n} vertices so far)"));
+                            return Err(format!(
+                                "line {ln}: vertex index {i} out of range (there are {n} vertices so far)"
+                            ));
                         }
                         Ok(idx as u32)
                     })
@@ -276,8 +278,11 @@ impl Reader<'_> {
         let mut cells = Vec::with_capacity(n);
         let mut i = 0;
         for c in 0..n {
-            let k = *flat.get(i).ok_or(format!("{what}: {size} numbers hold fewer than the {n} cells announced"))? as usize;
-            let ids = flat.get(i + 1..i + 1 + k).ok_or(format!("{what}: cell {c} with {k} points runs past the {size} numbers announced"))?;
+            let k =
+                *flat.get(i).ok_or(format!("{what}: {size} numbers hold fewer than the {n} cells announced"))? as usize;
+            let ids = flat
+                .get(i + 1..i + 1 + k)
+                .ok_or(format!("{what}: cell {c} with {k} points runs past the {size} numbers announced"))?;
             cells.push(ids.iter().map(|&x| x as i64).collect());
             i += 1 + k;
         }
@@ -297,7 +302,8 @@ mod tests {
 
     #[test]
     fn obj_faces_are_fanned_and_indices_resolved() {
-        let m = parse_obj(b"# quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1\nf -4 -3 -2\n").unwrap();
+        let m = parse_obj(b"# quad\nv 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nf 1//1 2//1 3//1 4//1\nf -4 -3 -2\n")
+            .unwrap();
         assert_eq!(m.positions.len(), 4);
         assert_eq!(m.triangles, vec![[0, 1, 2], [0, 2, 3], [0, 1, 2]]);
     }
@@ -352,7 +358,8 @@ mod tests {
         assert!(e.contains("not closed"), "{e}");
     }
 
-    const VTK_ASCII: &str = "# vtk DataFile Version 3.0\nsquare\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\n\
+    const VTK_ASCII: &str =
+        "# vtk DataFile Version 3.0\nsquare\nASCII\nDATASET POLYDATA\nPOINTS 4 float\n0 0 0 1 0 0 1 1 0 0 1 0\n\
         LINES 1 3\n2 0 1\nPOLYGONS 1 5\n4 0 1 2 3\nPOINT_DATA 4\nSCALARS s float 1\nLOOKUP_TABLE default\n0 1 2 3\n";
 
     #[test]

@@ -52,7 +52,10 @@ impl TriMesh {
             return Err(RenderError::file(path, "the file holds no triangles"));
         }
         if let Some(i) = mesh.positions.iter().position(|p| !p.iter().all(|c| c.is_finite())) {
-            return Err(RenderError::file(path, format!("vertex {i} has a non-finite coordinate {:?}", mesh.positions[i])));
+            return Err(RenderError::file(
+                path,
+                format!("vertex {i} has a non-finite coordinate {:?}", mesh.positions[i]),
+            ));
         }
         Ok(mesh)
     }

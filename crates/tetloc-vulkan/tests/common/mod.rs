@@ -88,4 +88,3 @@ pub fn check_ids_allowing(
     }
     differ
 }
-

@@ -247,12 +247,9 @@ mod tests {
     #[test]
     fn all_tets_fast_path() {
         let arr = |ty, v: &[i64]| {
-            let (a, _) = num::parse_ascii(
-                v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(" ").as_bytes(),
-                ty,
-                None,
-            )
-            .unwrap();
+            let (a, _) =
+                num::parse_ascii(v.iter().map(|x| x.to_string()).collect::<Vec<_>>().join(" ").as_bytes(), ty, None)
+                    .unwrap();
             a
         };
         let types = arr(num::NumType::U8, &[10, 10]);

@@ -9,16 +9,46 @@ use std::borrow::Cow;
 macro_rules! with_type {
     ($ty:expr, $T:ident => $body:expr) => {
         match $ty {
-            NumType::I8 => { type $T = i8; $body }
-            NumType::U8 => { type $T = u8; $body }
-            NumType::I16 => { type $T = i16; $body }
-            NumType::U16 => { type $T = u16; $body }
-            NumType::I32 => { type $T = i32; $body }
-            NumType::U32 => { type $T = u32; $body }
-            NumType::I64 => { type $T = i64; $body }
-            NumType::U64 => { type $T = u64; $body }
-            NumType::F32 => { type $T = f32; $body }
-            NumType::F64 => { type $T = f64; $body }
+            NumType::I8 => {
+                type $T = i8;
+                $body
+            }
+            NumType::U8 => {
+                type $T = u8;
+                $body
+            }
+            NumType::I16 => {
+                type $T = i16;
+                $body
+            }
+            NumType::U16 => {
+                type $T = u16;
+                $body
+            }
+            NumType::I32 => {
+                type $T = i32;
+                $body
+            }
+            NumType::U32 => {
+                type $T = u32;
+                $body
+            }
+            NumType::I64 => {
+                type $T = i64;
+                $body
+            }
+            NumType::U64 => {
+                type $T = u64;
+                $body
+            }
+            NumType::F32 => {
+                type $T = f32;
+                $body
+            }
+            NumType::F64 => {
+                type $T = f64;
+                $body
+            }
         }
     };
 }
@@ -175,7 +205,6 @@ macro_rules! impl_elem {
 impl_elem!(|v| i64::try_from(v).ok(); i8, u8, i16, u16, i32, u32, i64, u64);
 impl_elem!(|_| None; f32, f64);
 
-
 /// Maps each tuple of `N` values of `T` to one output value, in parallel. `f` rejects a tuple
 /// with `None`; then the index of the first rejected tuple is returned. (`N` and `T` are
 /// compile-time so that the inner loop has constant strides.)
@@ -287,7 +316,9 @@ pub(crate) fn parse_ascii(text: &[u8], ty: NumType, count: Option<usize>) -> Res
             pos += 1;
         }
         let tok = &text[start..pos];
-        let bad = || format!("value {n}: '{}' is not a valid {}", String::from_utf8_lossy(&tok[..tok.len().min(40)]), ty.name());
+        let bad = || {
+            format!("value {n}: '{}' is not a valid {}", String::from_utf8_lossy(&tok[..tok.len().min(40)]), ty.name())
+        };
         let s = std::str::from_utf8(tok).map_err(|_| bad())?;
         macro_rules! push_int {
             ($t:ty) => {{

@@ -154,7 +154,8 @@ fn every_vtk_file_in_the_data_reads() {
 
 /// Runs the parser, turning a panic into a test failure that names the input.
 fn parse_no_panic(bytes: &[u8], path: &Path, what: &str) -> crate::Result<RawMesh> {
-    std::panic::catch_unwind(|| parse(bytes, path)).unwrap_or_else(|_| panic!("{}: parser panicked on {what}", path.display()))
+    std::panic::catch_unwind(|| parse(bytes, path))
+        .unwrap_or_else(|_| panic!("{}: parser panicked on {what}", path.display()))
 }
 
 #[test]
@@ -164,7 +165,10 @@ fn truncated_files_fail_cleanly() {
         let bytes = std::fs::read(&p).unwrap();
         // Legacy files have no end marker: data after the last array (METADATA) may go.
         let end = if p.extension().unwrap() == "vtk" {
-            bytes.windows(10).rposition(|w| w == b"\nMETADATA\n").filter(|&i| i > bytes.len() - 200)
+            bytes
+                .windows(10)
+                .rposition(|w| w == b"\nMETADATA\n")
+                .filter(|&i| i > bytes.len() - 200)
                 .unwrap_or(bytes.len() - usize::from(bytes.ends_with(b"\n")))
         } else {
             bytes.trim_ascii_end().len() // trailing whitespace may go
@@ -239,7 +243,6 @@ fn gigantic_declared_sizes_fail_fast() {
     assert!(e.to_string().contains("DataArray 'f'"), "{e}");
     assert!(t.elapsed().as_secs_f64() < 2.0, "{:?}", t.elapsed());
 }
-
 
 /// A grid of `n`³ cubes, 6 tets each (Kuhn split), every vertex jittered (boundary too),
 /// with a point and a cell field.
@@ -443,7 +446,11 @@ fn other_encodings_read_the_same() {
             assert_eq!(m.fields.len(), first.fields.len());
             for (f, g) in m.fields.iter().zip(&first.fields) {
                 assert_eq!(f.name, g.name);
-                assert!(f.values.iter().zip(&g.values).all(|(a, b)| a.to_bits() == b.to_bits()), "{name} {enc:?} {}", f.name);
+                assert!(
+                    f.values.iter().zip(&g.values).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    "{name} {enc:?} {}",
+                    f.name
+                );
             }
             // Damaged copies of the re-encoded file fail cleanly too.
             for cut in [b.len() / 3, b.len() / 2, b.len() - 40] {
@@ -462,7 +469,9 @@ fn write_samples() {
     let Some(dir) = std::env::var_os("TETLOC_WRITE_DIR").map(PathBuf::from) else { return };
     std::fs::create_dir_all(&dir).unwrap();
     let mesh = jittered_grid(10, 3);
-    for (name, zlib, wide) in [("grid", false, false), ("grid_zlib", true, false), ("grid_i64", false, true), ("grid_i64_zlib", true, true)] {
+    for (name, zlib, wide) in
+        [("grid", false, false), ("grid_zlib", true, false), ("grid_i64", false, true), ("grid_i64_zlib", true, true)]
+    {
         vtu_write::write_mesh(&dir.join(format!("{name}.vtu")), &mesh, zlib, wide).unwrap();
     }
     let pts: Vec<[f32; 3]> = (0..100).map(|i| mesh.tet_center(i * 7)).collect();
@@ -492,10 +501,17 @@ fn compare_dir() {
         } else {
             0.0
         };
-        let close = |a: &[f32], b: &[f32]| a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol * y.abs().max(1.0));
+        let close = |a: &[f32], b: &[f32]| {
+            a.len() == b.len() && a.iter().zip(b).all(|(x, y)| (x - y).abs() <= tol * y.abs().max(1.0))
+        };
         let same_points = close(bytemuck::cast_slice(&m.points), bytemuck::cast_slice(&first.points));
-        let same_fields = first.fields.iter().all(|g| m.fields.iter().any(|f| f.name == g.name && close(&f.values, &g.values)));
-        eprintln!("{}: points {same_points} tets {} fields {same_fields} (tolerance {tol})", p.display(), m.tets == first.tets);
+        let same_fields =
+            first.fields.iter().all(|g| m.fields.iter().any(|f| f.name == g.name && close(&f.values, &g.values)));
+        eprintln!(
+            "{}: points {same_points} tets {} fields {same_fields} (tolerance {tol})",
+            p.display(),
+            m.tets == first.tets
+        );
         assert!(same_points && m.tets == first.tets && same_fields, "{}", p.display());
     }
 }

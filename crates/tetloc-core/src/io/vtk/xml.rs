@@ -68,9 +68,8 @@ pub(crate) fn parse<'a>(bytes: &'a [u8], stop_at: &str) -> Result<Document<'a>, 
     let mut stack: Vec<Node<'a>> = vec![Node { name: String::new(), attrs: vec![], text: vec![], children: vec![] }];
     let mut stopped_at = None;
     loop {
-        let ev = reader
-            .read_event()
-            .map_err(|e| format!("malformed XML near byte {}: {e}", reader.error_position()))?;
+        let ev =
+            reader.read_event().map_err(|e| format!("malformed XML near byte {}: {e}", reader.error_position()))?;
         match ev {
             Event::Start(e) if e.name().as_ref() == stop_at.as_bytes() => {
                 stopped_at = Some((Node::new(&e)?, reader.buffer_position() as usize));
@@ -83,7 +82,10 @@ pub(crate) fn parse<'a>(bytes: &'a [u8], stop_at: &str) -> Result<Document<'a>, 
             }
             Event::End(_) => {
                 if stack.len() < 2 {
-                    return Err(format!("malformed XML near byte {}: closing tag without opening tag", reader.buffer_position()));
+                    return Err(format!(
+                        "malformed XML near byte {}: closing tag without opening tag",
+                        reader.buffer_position()
+                    ));
                 }
                 let node = stack.pop().unwrap();
                 stack.last_mut().unwrap().children.push(node);
