@@ -3,7 +3,8 @@
 //! succeeds, validates the mesh: any panic, overflow or runaway allocation is a bug.
 
 use std::path::Path;
-use tetloc_core::io::{gmsh, tetgen, vtk_legacy, vtu};
+use tetloc_core::io::vtk::{legacy as vtk_legacy, vtu};
+use tetloc_core::io::{gmsh, tetgen};
 use tetloc_core::{Mesh, RawMesh, Result};
 
 fn validate(parsed: Result<RawMesh>) {

@@ -12,7 +12,8 @@ use backend::BackendOptions;
 use clap::{Parser, Subcommand};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::io::{points, vtu_write};
+use tetloc_core::io::points;
+use tetloc_core::io::vtk::write as vtu_write;
 
 #[derive(Parser)]
 #[command(name = "tetloc", version, about = "Locate points in tetrahedral meshes and sample fields, on GPUs and CPUs")]

@@ -19,7 +19,7 @@ pub fn parse_count(s: &str) -> Result<usize> {
     };
     let v: f64 =
         num.replace('_', "").parse().with_context(|| format!("'{s}' is not a count (e.g. 1000, 1.4M, 250k)"))?;
-    if !(v > 0.0) {
+    if v.is_nan() || v <= 0.0 {
         bail!("'{s}': the count must be positive");
     }
     Ok((v * mult).round() as usize)

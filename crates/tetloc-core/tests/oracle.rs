@@ -30,14 +30,14 @@ fn cpu_locator_matches_the_oracle() {
         loc.locate(&set.points, &mut ids).unwrap();
         let mut mismatches = 0;
         let mut lost = 0;
-        for i in 0..ids.len() {
-            if ids[i] != set.cell[i] && !set.ambiguous(i) {
+        for (i, &got) in ids.iter().enumerate() {
+            if got != set.cell[i] && !set.ambiguous(i) {
                 mismatches += 1;
                 if mismatches <= 3 {
-                    eprintln!("{}: point {i} {:?}: got {} want {}", set.label, set.points[i], ids[i], set.cell[i]);
+                    eprintln!("{}: point {i} {:?}: got {got} want {}", set.label, set.points[i], set.cell[i]);
                 }
             }
-            if set.cell[i] >= 0 && ids[i] < 0 && !set.label.ends_with(".bbox") {
+            if set.cell[i] >= 0 && got < 0 && !set.label.ends_with(".bbox") {
                 lost += 1;
             }
         }

@@ -6,11 +6,8 @@ pub mod points;
 #[cfg(test)]
 mod tests;
 pub mod tetgen;
-/// What the VTK XML and legacy readers and the VTU writer share: cell types, arrays, blocks.
-pub(crate) mod vtk;
-pub mod vtk_legacy;
-pub mod vtu;
-pub mod vtu_write;
+/// The VTK family: XML (`.vtu`) and legacy (`.vtk`) readers, the VTU writers, and what they share.
+pub mod vtk;
 
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, RawMesh};
@@ -89,8 +86,8 @@ pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
         check_fits_in_memory(path)?;
     }
     match format {
-        MeshFormat::Vtu => vtu::read(path),
-        MeshFormat::VtkLegacy => vtk_legacy::read(path),
+        MeshFormat::Vtu => vtk::vtu::read(path),
+        MeshFormat::VtkLegacy => vtk::legacy::read(path),
         MeshFormat::Gmsh => gmsh::read(path),
         MeshFormat::TetGen => tetgen::read(path),
     }

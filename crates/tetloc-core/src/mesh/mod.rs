@@ -212,8 +212,8 @@ impl Mesh {
         let ids = self.tets[t];
         let mut c = [0f32; 3];
         for &i in &ids {
-            for k in 0..3 {
-                c[k] += self.points[i as usize][k];
+            for (ck, pk) in c.iter_mut().zip(self.points[i as usize]) {
+                *ck += pk;
             }
         }
         c.map(|x| x * 0.25)

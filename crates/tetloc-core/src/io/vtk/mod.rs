@@ -1,10 +1,14 @@
-//! Parts shared by the VTK readers ([`super::vtu`], [`super::vtk_legacy`]) and the VTU
-//! writers ([`super::vtu_write`]): element types, cell types, XML and binary blocks.
+//! The VTK family: the XML reader ([`vtu`]), the legacy reader ([`legacy`]), the VTU writers
+//! ([`write`]), and what they share: element types, cell types, XML and binary blocks.
 
 pub(crate) mod blocks;
 pub(crate) mod cells;
 pub(crate) mod num;
 pub(crate) mod xml;
+
+pub mod legacy;
+pub mod vtu;
+pub mod write;
 
 #[cfg(test)]
 mod tests;

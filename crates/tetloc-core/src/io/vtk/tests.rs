@@ -2,7 +2,7 @@
 //! agree bit for bit, higher-order and non-tet files, and damaged files fail cleanly.
 
 use crate::error::Error;
-use crate::io::{vtk_legacy, vtu};
+use crate::io::vtk::{legacy as vtk_legacy, vtu};
 use crate::mesh::{FieldLocation, RawMesh};
 use crate::testdata::require_data;
 use std::path::{Path, PathBuf};
@@ -257,7 +257,7 @@ pub(crate) fn jittered_grid(n: usize, seed: u64) -> crate::Mesh {
 
 #[test]
 fn written_grid_reads_back() {
-    use crate::io::vtu_write;
+    use crate::io::vtk::write as vtu_write;
     let mesh = jittered_grid(12, 1);
     for zlib in [false, true] {
         let path = std::env::temp_dir().join(format!("tetloc-{}-grid-{zlib}.vtu", std::process::id()));
@@ -275,7 +275,7 @@ fn written_grid_reads_back() {
 #[test]
 #[ignore]
 fn bench_load_10m_tets() {
-    use crate::io::vtu_write;
+    use crate::io::vtk::write as vtu_write;
     use std::time::Instant;
     let t = Instant::now();
     let mesh = jittered_grid(119, 2);
@@ -465,7 +465,7 @@ fn other_encodings_read_the_same() {
 #[test]
 #[ignore]
 fn write_samples() {
-    use crate::io::vtu_write;
+    use crate::io::vtk::write as vtu_write;
     let Some(dir) = std::env::var_os("TETLOC_WRITE_DIR").map(PathBuf::from) else { return };
     std::fs::create_dir_all(&dir).unwrap();
     let mesh = jittered_grid(10, 3);

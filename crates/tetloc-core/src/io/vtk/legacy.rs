@@ -7,15 +7,15 @@
 //! ones. Point and cell attributes (SCALARS, VECTORS, NORMALS, TENSORS, FIELD arrays, ...)
 //! become fields; METADATA blocks and lookup tables are skipped.
 
-use super::vtk::cells;
-use super::vtk::num::{self, Array, NumType};
+use super::cells;
+use super::num::{self, Array, NumType};
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::borrow::Cow;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
-    let bytes = super::vtk::read_file(path)?;
+    let bytes = super::read_file(path)?;
     parse(&bytes, path)
 }
 

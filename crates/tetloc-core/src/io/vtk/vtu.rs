@@ -9,10 +9,10 @@
 
 // The parts shared with the legacy reader and the writers live in `io/vtk/`.
 
-use super::vtk::blocks::{self, Layout};
-use super::vtk::cells;
-use super::vtk::num::{self, Array, NumType};
-use super::vtk::xml::{self, Node};
+use super::blocks::{self, Layout};
+use super::cells;
+use super::num::{self, Array, NumType};
+use super::xml::{self, Node};
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::borrow::Cow;
@@ -20,7 +20,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
-    let bytes = super::vtk::read_file(path)?;
+    let bytes = super::read_file(path)?;
     parse(&bytes, path)
 }
 

@@ -6,9 +6,9 @@
 //! no copy of it; compressed ones are compressed in parallel blocks first (their sizes go in
 //! the XML header).
 
-use super::vtk::blocks;
-use super::vtk::cells;
-use super::vtk::num::NumType;
+use super::blocks;
+use super::cells;
+use super::num::NumType;
 use crate::error::{Error, Result};
 use crate::mesh::{FieldLocation, Mesh};
 use std::io::Write;
@@ -280,7 +280,7 @@ fn escape(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::vtu;
+    use crate::io::vtk::vtu;
     use crate::mesh::{Field, RawMesh};
     use std::path::PathBuf;
 
@@ -359,7 +359,7 @@ mod tests {
         let pts = vec![[0.5, 1.5, 2.5], [3., 4., 5.], [-1., -2., -3.]];
         write_points_vtu(&tmp.0, &pts, &[4, -1, 0], Some(("value of f", &[1.0, f32::NAN, 3.0]))).unwrap();
         let bytes = std::fs::read(&tmp.0).unwrap();
-        let doc = super::super::vtk::xml::parse(&bytes, "AppendedData").unwrap();
+        let doc = super::super::xml::parse(&bytes, "AppendedData").unwrap();
         let piece = doc.root.child("UnstructuredGrid").unwrap().child("Piece").unwrap();
         let pd = piece.child("PointData").unwrap();
         let ids = pd.children_named("DataArray").find(|d| d.attr("Name") == Some("tet_id")).unwrap();
