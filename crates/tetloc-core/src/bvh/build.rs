@@ -1,54 +1,32 @@
-//! Parallel BVH builder: sort tets by the Morton code of their centroid, then split each
-//! range at its highest differing Morton bit (as in Karras' LBVH), in parallel with rayon.
+//! Parallel BVH builder over boxes: sort the primitives by the Morton code of their box's
+//! centre, then split each range at its highest differing Morton bit (as in Karras' LBVH),
+//! in parallel with rayon.
 
-use super::{BuildPreset, Bvh, BvhNode, BvhStats};
-use crate::geom::{self, Vec3};
+use super::morton::Morton;
+use super::{Aabb, BuildPreset, Bvh, BvhNode, BvhStats};
 use rayon::prelude::*;
+use std::borrow::Cow;
 use std::time::Instant;
 
-/// Spreads the low 21 bits of `v` to every third bit.
-fn spread3(v: u64) -> u64 {
-    let mut x = v & 0x1f_ffff;
-    x = (x | x << 32) & 0x1f00000000ffff;
-    x = (x | x << 16) & 0x1f0000ff0000ff;
-    x = (x | x << 8) & 0x100f00f00f00f00f;
-    x = (x | x << 4) & 0x10c30c30c30c30c3;
-    x = (x | x << 2) & 0x1249249249249249;
-    x
-}
-
-pub(super) fn build(points: &[Vec3], tets: &[[u32; 4]], preset: BuildPreset) -> Bvh {
+/// `boxes` may be owned so that it is freed before the nodes are built (the largest meshes).
+pub(super) fn build(boxes: Cow<[Aabb]>, preset: BuildPreset) -> Bvh {
     let t0 = Instant::now();
-    if tets.is_empty() {
+    if boxes.is_empty() {
         return Bvh::default();
     }
-    let boxes: Vec<(Vec3, Vec3)> = tets.par_iter().map(|&t| geom::tet_bounds(t, points)).collect();
-    let (lo, hi) = boxes
-        .par_iter()
-        .map(|(a, b)| {
-            (
-                std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k])),
-                std::array::from_fn::<f32, 3, _>(|k| 0.5 * (a[k] + b[k])),
-            )
-        })
-        .reduce(
-            || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
-            |(a0, a1), (b0, b1)| (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k]))),
-        );
-    let scale: [f32; 3] =
-        std::array::from_fn(|k| if hi[k] > lo[k] { ((1u32 << 21) - 1) as f32 / (hi[k] - lo[k]) } else { 0.0 });
-    let mut keyed: Vec<(u64, u32)> = boxes
-        .par_iter()
-        .enumerate()
-        .map(|(i, (a, b))| {
-            let q = |k: usize| (((0.5 * (a[k] + b[k]) - lo[k]) * scale[k]) as u64).min((1 << 21) - 1);
-            (spread3(q(0)) | spread3(q(1)) << 1 | spread3(q(2)) << 2, i as u32)
-        })
-        .collect();
+    // Morton codes of the box centres, 21 bits an axis over the centres' bounds.
+    let (lo, hi) = boxes.par_iter().map(|b| (b.centre(), b.centre())).reduce(
+        || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
+        |(a0, a1), (b0, b1)| (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k]))),
+    );
+    let morton = Morton::new(lo, hi, 21);
+    let mut keyed: Vec<(u64, u32)> =
+        boxes.par_iter().enumerate().map(|(i, b)| (morton.code(b.centre()), i as u32)).collect();
     keyed.par_sort_unstable();
     let codes: Vec<u64> = keyed.iter().map(|k| k.0).collect();
     let prim_ids: Vec<u32> = keyed.into_iter().map(|k| k.1).collect();
-    let sorted_boxes: Vec<(Vec3, Vec3)> = prim_ids.par_iter().map(|&i| boxes[i as usize]).collect();
+    let sorted_boxes: Vec<Aabb> = prim_ids.par_iter().map(|&i| boxes[i as usize]).collect();
+    let n_prims = boxes.len();
     drop(boxes);
 
     let ctx = Ctx { codes: &codes, boxes: &sorted_boxes, max_leaf: preset.max_leaf_size() };
@@ -61,7 +39,7 @@ pub(super) fn build(points: &[Vec3], tets: &[[u32; 4]], preset: BuildPreset) -> 
     });
     let n_leaves = nodes.par_iter().filter(|n| n.count > 0).count();
     let stats = BvhStats {
-        n_prims: tets.len(),
+        n_prims,
         n_nodes: nodes.len(),
         n_leaves,
         max_depth,
@@ -73,7 +51,7 @@ pub(super) fn build(points: &[Vec3], tets: &[[u32; 4]], preset: BuildPreset) -> 
 
 struct Ctx<'a> {
     codes: &'a [u64],
-    boxes: &'a [(Vec3, Vec3)],
+    boxes: &'a [Aabb],
     max_leaf: usize,
 }
 
@@ -84,18 +62,18 @@ impl Ctx<'_> {
     /// Builds the subtree over sorted prims `s..e` as a depth-first node list whose interior
     /// nodes hold their right child's offset *relative to themselves*, so that subtrees built
     /// in parallel can be concatenated without fix-ups. Returns (nodes, bounds, depth).
-    fn subtree(&self, s: usize, e: usize, depth: usize) -> (Vec<BvhNode>, (Vec3, Vec3), usize) {
+    fn subtree(&self, s: usize, e: usize, depth: usize) -> (Vec<BvhNode>, Aabb, usize) {
         let mut nodes = Vec::with_capacity(2 * (e - s) / self.max_leaf.max(1) + 1);
         let (b, d) = self.emit(s, e, depth, &mut nodes);
         (nodes, b, d)
     }
 
-    fn emit(&self, s: usize, e: usize, depth: usize, out: &mut Vec<BvhNode>) -> ((Vec3, Vec3), usize) {
+    fn emit(&self, s: usize, e: usize, depth: usize, out: &mut Vec<BvhNode>) -> (Aabb, usize) {
         let me = out.len();
         out.push(BvhNode::default());
         if e - s <= self.max_leaf {
-            let b = self.boxes[s..e].iter().fold(self.boxes[s], |acc, x| union(acc, *x));
-            out[me] = BvhNode { min: b.0, first: s as u32, max: b.1, count: (e - s) as u32 };
+            let b = self.boxes[s..e].iter().fold(self.boxes[s], |acc, x| acc.union(x));
+            out[me] = BvhNode { min: b.min, first: s as u32, max: b.max, count: (e - s) as u32 };
             return (b, depth);
         }
         let m = self.split(s, e);
@@ -112,8 +90,8 @@ impl Ctx<'_> {
             let (rb, rd) = self.emit(m, e, depth + 1, out);
             (lb, rb, rel, ld.max(rd))
         };
-        let b = union(lb, rb);
-        out[me] = BvhNode { min: b.0, first: rel as u32, max: b.1, count: 0 };
+        let b = lb.union(&rb);
+        out[me] = BvhNode { min: b.min, first: rel as u32, max: b.max, count: 0 };
         (b, d)
     }
 
@@ -129,8 +107,4 @@ impl Ctx<'_> {
         let target = (a & prefix_mask) | (1u64 << bit);
         s + self.codes[s..e].partition_point(|&c| c < target)
     }
-}
-
-fn union(a: (Vec3, Vec3), b: (Vec3, Vec3)) -> (Vec3, Vec3) {
-    (std::array::from_fn(|k| a.0[k].min(b.0[k])), std::array::from_fn(|k| a.1[k].max(b.1[k])))
 }

@@ -8,7 +8,7 @@
 //! and the BVH agree on, and a point on a face always gets the BVH's answer.
 
 use super::{check_lengths, BatchLocator, OUTSIDE};
-use crate::bvh::{BuildPreset, Bvh};
+use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
 use crate::geom::{self, Bary, TetTest, Vec3};
 use crate::mesh::{FieldLocation, Mesh};
@@ -135,7 +135,7 @@ impl CpuLocator {
             });
             return;
         }
-        let order = morton_order(points, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+        let order = morton::order(points, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
         let sorted: Vec<T> =
             order.par_chunks(CHUNK).flat_map_iter(|chunk| walk_chunk(&mut chunk.iter().map(|&i| i as usize))).collect();
         for (k, &i) in order.iter().enumerate() {
@@ -168,28 +168,6 @@ impl CpuLocator {
             (Some((t, _)), FieldLocation::Cell) => vals[t as usize],
         })
     }
-}
-
-/// The permutation that sorts `points` by the Morton code of their position in the box.
-fn morton_order(points: &[Vec3], lo: Vec3, hi: Vec3) -> Vec<u32> {
-    let scale: [f32; 3] = std::array::from_fn(|k| if hi[k] > lo[k] { 1023.0 / (hi[k] - lo[k]) } else { 0.0 });
-    let spread = |v: u32| -> u32 {
-        let mut x = v & 0x3ff;
-        x = (x | x << 16) & 0x030000ff;
-        x = (x | x << 8) & 0x0300f00f;
-        x = (x | x << 4) & 0x030c30c3;
-        (x | x << 2) & 0x09249249
-    };
-    let mut keyed: Vec<(u32, u32)> = points
-        .par_iter()
-        .enumerate()
-        .map(|(i, p)| {
-            let q = |k: usize| ((p[k] - lo[k]) * scale[k]).clamp(0.0, 1023.0) as u32;
-            (spread(q(0)) | spread(q(1)) << 1 | spread(q(2)) << 2, i as u32)
-        })
-        .collect();
-    keyed.par_sort_unstable_by_key(|k| k.0);
-    keyed.into_iter().map(|k| k.1).collect()
 }
 
 impl BatchLocator for CpuLocator {
