@@ -1,21 +1,11 @@
-//! A BVH over surface triangles for nearest-hit ray queries: median splits on the widest
-//! centroid axis, a few triangles a leaf, Möller–Trumbore intersection.
+//! Nearest-hit ray queries against surface triangles: core's BVH over the triangles' boxes
+//! (`tetloc_core::bvh`, the builder every BVH of tetloc uses), traversed with a slab test
+//! per node and Möller–Trumbore per triangle.
 
 use super::TriMesh;
 use crate::camera::Ray;
 use crate::vec::{cross, dot, normalize, sub, Vec3};
-
-const LEAF_SIZE: usize = 4;
-
-#[derive(Clone, Copy, Debug)]
-struct Node {
-    min: Vec3,
-    max: Vec3,
-    /// Leaf: first triangle in `tris`; interior: index of the right child (left is next).
-    first: u32,
-    /// Triangles in a leaf, 0 for an interior node.
-    count: u32,
-}
+use tetloc_core::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 
 /// A triangle stored as vertex and two edges, ready for intersection.
 #[derive(Clone, Copy, Debug)]
@@ -35,14 +25,14 @@ pub struct Hit {
 
 #[derive(Clone, Debug)]
 pub struct SurfaceBvh {
-    nodes: Vec<Node>,
+    bvh: Bvh,
     tris: Vec<Tri>,
 }
 
 impl SurfaceBvh {
     pub fn build(mesh: &TriMesh) -> SurfaceBvh {
         let p = |i: u32| mesh.positions[i as usize];
-        let mut tris: Vec<Tri> = mesh
+        let tris: Vec<Tri> = mesh
             .triangles
             .iter()
             .map(|t| {
@@ -50,94 +40,58 @@ impl SurfaceBvh {
                 Tri { v0, e1: sub(p(t[1]), v0), e2: sub(p(t[2]), v0) }
             })
             .collect();
-        let mut nodes = Vec::with_capacity(2 * tris.len() / LEAF_SIZE + 1);
-        if !tris.is_empty() {
-            build(&mut nodes, &mut tris, 0);
-        }
-        SurfaceBvh { nodes, tris }
+        // The boxes of the triangles as intersected (vertex plus edges), a few a leaf.
+        let boxes: Vec<Aabb> = tris.iter().map(bounds_of).collect();
+        SurfaceBvh { bvh: Bvh::build_boxes(&boxes, BuildPreset::Fast), tris }
     }
 
     /// The nearest hit with `t_min < t < t_max`.
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
-        if self.nodes.is_empty() {
-            return None;
-        }
-        let inv = ray.dir.map(|d| 1.0 / d);
-        let mut best: Option<(f32, usize)> = None;
-        let mut t_best = t_max;
-        let mut stack = [0u32; 64];
-        let mut sp = 1;
-        while sp > 0 {
-            sp -= 1;
-            let n = self.nodes[stack[sp] as usize];
-            if !slab_hit(&n, ray.origin, inv, t_min, t_best) {
-                continue;
-            }
-            if n.count > 0 {
-                for i in n.first as usize..(n.first + n.count) as usize {
-                    if let Some(t) = hit_tri(&self.tris[i], ray, t_min, t_best) {
-                        t_best = t;
-                        best = Some((t, i));
-                    }
-                }
-            } else {
-                // Median splits keep the depth ≤ log2(n) + 1, far below the stack size.
-                let here = stack[sp] as usize;
-                stack[sp] = n.first;
-                stack[sp + 1] = (here + 1) as u32;
-                sp += 2;
-            }
-        }
-        best.map(|(t, i)| {
-            let tri = &self.tris[i];
-            Hit { t, normal: normalize(cross(tri.e1, tri.e2)).unwrap_or([0.0, 0.0, 1.0]) }
+        let mut nearest =
+            Nearest { ray, inv: ray.dir.map(|d| 1.0 / d), t_min, t_best: t_max, best: None, tris: &self.tris };
+        self.bvh.traverse(&mut nearest);
+        nearest.best.map(|i| {
+            let tri = &self.tris[i as usize];
+            Hit { t: nearest.t_best, normal: normalize(cross(tri.e1, tri.e2)).unwrap_or([0.0, 0.0, 1.0]) }
         })
     }
 }
 
-fn bounds_of(t: &Tri) -> (Vec3, Vec3) {
-    let v1: Vec3 = std::array::from_fn(|k| t.v0[k] + t.e1[k]);
-    let v2: Vec3 = std::array::from_fn(|k| t.v0[k] + t.e2[k]);
-    (std::array::from_fn(|k| t.v0[k].min(v1[k]).min(v2[k])), std::array::from_fn(|k| t.v0[k].max(v1[k]).max(v2[k])))
+/// The traversal's state: enters boxes the ray meets before the nearest hit so far.
+struct Nearest<'a> {
+    ray: &'a Ray,
+    inv: Vec3,
+    t_min: f32,
+    t_best: f32,
+    best: Option<u32>,
+    tris: &'a [Tri],
 }
 
-/// Builds the subtree over `tris` (whose first triangle has global index `offset`),
-/// appending nodes depth-first. Returns the subtree root's index.
-fn build(nodes: &mut Vec<Node>, tris: &mut [Tri], offset: usize) -> usize {
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    let (mut clo, mut chi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    for t in tris.iter() {
-        let (a, b) = bounds_of(t);
-        for k in 0..3 {
-            lo[k] = lo[k].min(a[k]);
-            hi[k] = hi[k].max(b[k]);
-            let c = 0.5 * (a[k] + b[k]);
-            clo[k] = clo[k].min(c);
-            chi[k] = chi[k].max(c);
+impl Visitor for Nearest<'_> {
+    fn enter(&mut self, b: &Aabb) -> bool {
+        slab_hit(b, self.ray.origin, self.inv, self.t_min, self.t_best)
+    }
+
+    fn prim(&mut self, id: u32) -> bool {
+        if let Some(t) = hit_tri(&self.tris[id as usize], self.ray, self.t_min, self.t_best) {
+            self.t_best = t;
+            self.best = Some(id);
         }
+        false // the nearest hit needs every box the ray meets
     }
-    let me = nodes.len();
-    nodes.push(Node { min: lo, max: hi, first: offset as u32, count: tris.len() as u32 });
-    if tris.len() <= LEAF_SIZE {
-        return me;
+}
+
+fn bounds_of(t: &Tri) -> Aabb {
+    let v1: Vec3 = std::array::from_fn(|k| t.v0[k] + t.e1[k]);
+    let v2: Vec3 = std::array::from_fn(|k| t.v0[k] + t.e2[k]);
+    Aabb {
+        min: std::array::from_fn(|k| t.v0[k].min(v1[k]).min(v2[k])),
+        max: std::array::from_fn(|k| t.v0[k].max(v1[k]).max(v2[k])),
     }
-    let axis = (0..3).max_by(|&a, &b| (chi[a] - clo[a]).total_cmp(&(chi[b] - clo[b]))).unwrap();
-    let mid = tris.len() / 2;
-    let key = |t: &Tri| {
-        let (a, b) = bounds_of(t);
-        a[axis] + b[axis]
-    };
-    tris.select_nth_unstable_by(mid, |x, y| key(x).total_cmp(&key(y)));
-    let (left, right) = tris.split_at_mut(mid);
-    build(nodes, left, offset);
-    let r = build(nodes, right, offset + mid);
-    nodes[me].first = r as u32;
-    nodes[me].count = 0;
-    me
 }
 
 #[inline]
-fn slab_hit(n: &Node, o: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> bool {
+fn slab_hit(n: &Aabb, o: Vec3, inv: Vec3, t_min: f32, t_max: f32) -> bool {
     let (mut t0, mut t1) = (t_min, t_max);
     for k in 0..3 {
         let (a, b) = ((n.min[k] - o[k]) * inv[k], (n.max[k] - o[k]) * inv[k]);
