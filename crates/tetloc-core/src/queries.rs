@@ -1,6 +1,9 @@
 //! Query point sets for benchmarks and checks, the paper's synthetic ones and more:
 //! `centers` (the paper's "uniform": one sample at every tet centre), `random` (a random
-//! tet, a uniformly random point inside it) and `bbox` (uniform in the bounding box).
+//! tet, a uniformly random point inside it), `bbox` (uniform in the bounding box) and `host`
+//! (the `random` points, made on the host and handed over as a batch). The one enum that
+//! names them: the CLI, the GPU kernels (which generate the first three themselves) and the
+//! benchmarks all use [`QueryKind`].
 
 use crate::geom::Vec3;
 use crate::mesh::Mesh;
@@ -9,21 +12,30 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::str::FromStr;
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+/// A query set.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
 #[serde(rename_all = "lowercase")]
 pub enum QueryKind {
+    /// The centre of every tet, in mesh order (the paper's "uniform").
     Centers,
+    /// A random point in a random tet (the paper's "random").
     Random,
+    /// Uniform in the mesh's bounding box (many points outside).
     Bbox,
+    /// The `random` points made on the host and handed to the locator as a batch: GPU
+    /// benchmarks then time the transfers too, where the others generate points in the kernel.
+    Host,
 }
 
 impl QueryKind {
-    pub const ALL: [QueryKind; 3] = [QueryKind::Centers, QueryKind::Random, QueryKind::Bbox];
+    pub const ALL: [QueryKind; 4] = [QueryKind::Centers, QueryKind::Random, QueryKind::Bbox, QueryKind::Host];
+
     pub fn name(self) -> &'static str {
         match self {
             QueryKind::Centers => "centers",
             QueryKind::Random => "random",
             QueryKind::Bbox => "bbox",
+            QueryKind::Host => "host",
         }
     }
 }
@@ -41,7 +53,8 @@ impl FromStr for QueryKind {
             "centers" | "uniform" => Ok(QueryKind::Centers),
             "random" => Ok(QueryKind::Random),
             "bbox" => Ok(QueryKind::Bbox),
-            _ => Err(format!("unknown query set '{s}' (known: centers (alias uniform), random, bbox)")),
+            "host" => Ok(QueryKind::Host),
+            _ => Err(format!("unknown query set '{s}' (known: centers (alias uniform), random, bbox, host)")),
         }
     }
 }
@@ -82,7 +95,7 @@ pub fn random_point_in_tet(v: [Vec3; 4], rng: &mut impl Rng) -> Vec3 {
 }
 
 /// `n` query points of the given kind (for `centers`, tet centres in order, cycling if `n`
-/// exceeds the tet count). Deterministic for a seed.
+/// exceeds the tet count; `host` makes the `random` points). Deterministic for a seed.
 pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> {
     const BLOCK: usize = 1 << 16;
     (0..n.div_ceil(BLOCK))
@@ -94,7 +107,7 @@ pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> 
             range
                 .map(move |i| match kind {
                     QueryKind::Centers => mesh.tet_center(i % mesh.n_tets()),
-                    QueryKind::Random => {
+                    QueryKind::Random | QueryKind::Host => {
                         let t = mesh.tets[rng.gen_range(0..mesh.n_tets())];
                         random_point_in_tet(t.map(|i| mesh.points[i as usize]), &mut rng)
                     }
@@ -132,6 +145,10 @@ mod tests {
             assert!(q.iter().all(inside), "{kind}");
         }
         assert_eq!(generate(&mesh, QueryKind::Centers, 5, 0)[2], mesh.tet_center(2));
+        assert_eq!(generate(&mesh, QueryKind::Host, 100, 5), generate(&mesh, QueryKind::Random, 100, 5));
+        for kind in QueryKind::ALL {
+            assert_eq!(kind.name().parse::<QueryKind>(), Ok(kind));
+        }
         assert_eq!("uniform".parse::<QueryKind>().unwrap(), QueryKind::Centers);
         assert!("nope".parse::<QueryKind>().is_err());
     }
