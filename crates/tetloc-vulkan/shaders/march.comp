@@ -6,22 +6,22 @@
 // watertight point-in-tet test, so the answer is exact either way.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
-#include "common/types.glsl"
+#include "interface.glsl" // generated from src/interface.rs (build.rs)
 #include "common/mesh.glsl"
 #include "common/tet.glsl"
 #include "common/soft_bvh.glsl"
 #include "common/walk.glsl"
 #include "common/march.glsl"
 
-layout(local_size_x = 8, local_size_y = 8) in;
+layout(local_size_x = TL_MARCH_TILE, local_size_y = TL_MARCH_TILE) in;
 
-// The tet of this ray's previous sample (-1: none, or outside the mesh).
-int tl_prev_tet = -1;
+// The tet of this ray's previous sample (TL_OUTSIDE: none, or outside the mesh).
+int tl_prev_tet = TL_OUTSIDE;
 
 float tl_march_sample(vec3 p) {
     uvec4 ids;
     vec4 bary;
-    int tet = tl_prev_tet >= 0 ? tl_walk(tl_prev_tet, p, WALK_MAX, ids, bary) : -1;
+    int tet = tl_prev_tet >= 0 ? tl_walk(tl_prev_tet, p, WALK_MAX, ids, bary) : TL_OUTSIDE;
     if (tet < 0) {
         tet = tl_locate(p, ids, bary);
     }

@@ -15,7 +15,7 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_EXT_ray_tracing : require
-#include "common/types.glsl"
+#include "interface.glsl" // generated from src/interface.rs (build.rs)
 #include "common/mesh.glsl"
 #include "common/tet.glsl"
 #include "common/rt.glsl"

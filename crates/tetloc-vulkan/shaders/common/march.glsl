@@ -5,29 +5,9 @@
 // marcher (render.rs, camera.rs, skip.rs, tf.rs), so both give the same image.
 //
 // The stage defines `float tl_march_sample(vec3 p)`: the field value at p, NaN outside.
-// Needs types.glsl first.
+// Needs interface.glsl first (TlMarchParams, TlPixel, TL_MARCH_*).
 #ifndef TL_MARCH_GLSL
 #define TL_MARCH_GLSL
-
-// src/march.rs `MarchParams`.
-struct TlMarchParams {
-    vec4 eye_step;      // camera eye, sampling step
-    vec4 fwd_tan;       // unit forward, tan(fov_y / 2) after zoom
-    vec4 right_cutoff;  // unit right, opacity cutoff
-    vec4 up;            // unit up
-    uvec4 size;         // width, height, flags (TL_MARCH_*), transfer-function entries
-    vec4 box_lo_tf_lo;  // mesh bounds min, transfer-function range start
-    vec4 box_hi_tf_inv; // mesh bounds max, 1 / transfer-function range
-    vec4 occ_lo_margin; // occupancy grid: bounds min, skip margin
-    vec4 occ_hi;        // bounds max
-    vec4 occ_cell;      // cell size
-    vec4 occ_inv;       // 1 / cell size (0 on flat axes)
-    uvec4 occ_dims;     // cells per axis, word offset of the block bits
-    uvec4 occ_blocks;   // blocks per axis, cells per block edge
-};
-
-#define TL_MARCH_SKIP 1u
-#define TL_MARCH_SURFACE 2u
 
 layout(std430, binding = TL_B_MARCH) readonly buffer TlMarch { TlMarchParams tl_m; };
 // Linear RGB and step alpha, linearly filtered (tf.rs TfTable).
@@ -36,10 +16,6 @@ layout(std430, binding = TL_B_TF) readonly buffer TlTf { vec4 tl_tf[]; };
 layout(std430, binding = TL_B_OCCUPANCY) readonly buffer TlOcc { uint tl_occ[]; };
 // Per pixel: where the surface is hit (+inf: nowhere) and its shaded linear colour.
 layout(std430, binding = TL_B_SURFACE) readonly buffer TlSurface { vec4 tl_surface[]; };
-struct TlPixel {
-    vec4 rgba;   // premultiplied linear RGB and opacity, surface included, no background
-    uvec4 count; // samples located, samples inside the mesh, 0, 0
-};
 layout(std430, binding = TL_B_PIXELS) writeonly buffer TlPixels { TlPixel tl_pixels[]; };
 
 float tl_march_sample(vec3 p);

@@ -9,13 +9,12 @@ layout(std430, binding = TL_B_TETS) readonly buffer TlTets { uvec4 tl_tets[]; };
 layout(std430, binding = TL_B_FIELD) readonly buffer TlField { float tl_field[]; };
 
 // Arrays larger than one buffer may be (maxMemoryAllocationSize, maxStorageBufferRange: 4 GiB
-// on the H100) are split into buffers of a fixed number of elements N each (src/memory.rs
-// `Chunked`): element i lives in buffer i / N, buffer 0 being the binding above and buffer
+// on the H100) are split into buffers of a fixed number of elements N each (src/device.rs
+// `Split`): element i lives in buffer i / N, buffer 0 being the binding above and buffer
 // k >= 1 element k - 1 of the matching _HI binding. N is a specialization constant, 0 when
 // the array fits one buffer: then the split path folds away. Read through the accessors
-// (tl_vertex, tl_tet, tl_node_word, tl_neighbors4), not the arrays.
-layout(constant_id = 14) const uint POINTS_CHUNK = 0; // vertices per buffer
-layout(constant_id = 15) const uint TETS_CHUNK = 0;   // tets per buffer
+// (tl_vertex, tl_tet, tl_node_word, tl_neighbors4), not the arrays. POINTS_CHUNK: vertices
+// per buffer, TETS_CHUNK: tets per buffer.
 layout(std430, binding = TL_B_POINTS_HI) readonly buffer TlPointsHi { float v[]; } tl_points_hi[TL_MAX_CHUNKS - 1];
 layout(std430, binding = TL_B_TETS_HI) readonly buffer TlTetsHi { uvec4 v[]; } tl_tets_hi[TL_MAX_CHUNKS - 1];
 

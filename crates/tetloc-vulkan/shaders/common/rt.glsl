@@ -4,7 +4,7 @@
 #define TL_RT_GLSL
 
 struct TlPayload {
-    int tet;     // containing tet, -1 outside, TL_MISS when the ray hit nothing
+    int tet;     // containing tet, TL_OUTSIDE outside, TL_MISS when the ray hit nothing
     float value; // field value when OUTPUT_MODE != TL_OUT_IDS
 };
 

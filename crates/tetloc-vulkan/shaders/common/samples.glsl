@@ -27,7 +27,7 @@ vec3 tl_sample(uint i) {
     uint g = params.counts.y + i; // global sample index: chunked launches give the same points
     if (SAMPLE_MODE == TL_SAMPLE_HOST) {
         return vec3(tl_queries[3 * i], tl_queries[3 * i + 1], tl_queries[3 * i + 2]);
-    } else if (SAMPLE_MODE == TL_SAMPLE_UNIFORM) {
+    } else if (SAMPLE_MODE == TL_SAMPLE_CENTERS) {
         // Mesh::tet_center: the vertices summed in order, then scaled.
         uvec4 t = tl_tet(g);
         precise vec3 c = (((tl_vertex(t.x) + tl_vertex(t.y)) + tl_vertex(t.z)) + tl_vertex(t.w)) * 0.25;
@@ -69,7 +69,7 @@ void tl_record(uint i, vec3 p) {
     }
 }
 
-// The answer for point i: the tet id (-1 outside) or the field value (NaN outside).
+// The answer for point i: the tet id (TL_OUTSIDE outside) or the field value (NaN outside).
 void tl_store(uint i, int tet, float value) {
     tl_out[i] = OUTPUT_MODE == TL_OUT_IDS ? uint(tet) : floatBitsToUint(value);
 }

@@ -1,18 +1,17 @@
 // soft-bvh traversal (the paper's cuda-bvh), shared by the point-location kernel
 // (soft_bvh.comp) and the volume ray marcher: depth-first traversal of a 4-wide BVH with
 // quantized child boxes, in software, returning at the first tet that contains the point.
-// Needs types.glsl, mesh.glsl and tet.glsl first, and GL_EXT_control_flow_attributes.
+// Needs interface.glsl, mesh.glsl and tet.glsl first, and GL_EXT_control_flow_attributes.
 #ifndef TL_SOFT_BVH_GLSL
 #define TL_SOFT_BVH_GLSL
 
 #include "common/walk.glsl" // paths resolve against shaders/ (build.rs)
 
-// Nodes as four uvec4 (src/gpu_types.rs `QNode4`): w0 = origin.xyz, scale.x;
+// Nodes as four uvec4 (tetloc_core::bvh::QNode4): w0 = origin.xyz, scale.x;
 // w1 = scale.yz, quantized lower/upper x; w2 = quantized lower/upper y, z (one byte per
 // child); w3 = child references.
 layout(std430, binding = TL_B_ACCEL) readonly buffer TlNodes { uvec4 tl_nodes[]; };
-// Nodes per buffer when the nodes are split over several (mesh.glsl), 0: one buffer.
-layout(constant_id = 16) const uint NODES_CHUNK = 0;
+// NODES_CHUNK: nodes per buffer when the nodes are split over several (mesh.glsl), 0: one buffer.
 layout(std430, binding = TL_B_ACCEL_HI) readonly buffer TlNodesHi { uvec4 v[]; } tl_nodes_hi[TL_MAX_CHUNKS - 1];
 
 // Word k of node r.
@@ -24,18 +23,16 @@ uvec4 tl_node_word(uint r, uint k) {
     TL_RETURN_HI(tl_nodes_hi, c, o)
 }
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrims { uint tl_prims[]; };
-// One tet per leaf, its id in the reference itself (no tl_prims lookup).
-layout(constant_id = 10) const bool DIRECT_LEAVES = false;
-// Start below the root, at the node the entry grid names for the point's cell
-// (src/soft_bvh.rs EntryGrid: header dims.xyz, 0, inv.xyz as bits, 0; then the cells).
-layout(constant_id = 11) const bool GRID_START = false;
+// DIRECT_LEAVES: one tet per leaf, its id in the reference itself (no tl_prims lookup).
+// GRID_START: start below the root, at the node the entry grid names for the point's cell
+// (tetloc_core::bvh::EntryGrid::words: header dims.xyz, 0, inv.xyz as bits, 0; then the cells).
 layout(std430, binding = TL_B_GRID) readonly buffer TlGrid { uint tl_grid[]; };
-// Walk from the tet the entry grid names for the point's cell (after the cells' nodes; header
-// word 3 = number of cells), at most WALK_MAX steps; traversal from the cell's node when the
-// walk leaves the mesh, runs out of steps or ends on a face (so the answer is the traversal's).
-layout(constant_id = 12) const bool WALK_START = false;
+// WALK_START: walk from the tet the entry grid names for the point's cell (after the cells'
+// nodes; header word 3 = number of cells), at most WALK_MAX steps; traversal from the cell's
+// node when the walk leaves the mesh, runs out of steps or ends on a face (so the answer is
+// the traversal's).
 
-// soft_bvh::cell_coord: the same f32 operations, so CPU and GPU agree on the cell.
+// tetloc_core::bvh::grid::cell_coord: the same f32 operations, so CPU and GPU agree on the cell.
 uint tl_cell_coord(float p, float lo, float inv, uint dim) {
     precise float x = (p - lo) * inv;
     return uint(clamp(floor(x), 0.0, float(dim - 1u)));
@@ -47,14 +44,14 @@ vec4 tl_bytes(uint w) {
 }
 
 // Depth-first traversal from node reference `ref` (0: the root): the first tet in
-// traversal order that contains p, or -1.
+// traversal order that contains p, or TL_OUTSIDE (TL_DEFERRED: undecided, DEFER_EXACT).
 int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
     uint stack[STACK_SIZE];
     uint sp = 0u;
     while (true) {
         if ((ref & TL_LEAF) != 0u) {
-            uint first = ref & 0x1fffffffu;
-            uint count = ((ref >> 29u) & 3u) + 1u;
+            uint first = ref & TL_LEAF_FIRST_MAX;
+            uint count = ((ref >> TL_LEAF_COUNT_SHIFT) & 3u) + 1u;
             for (uint k = 0u; k < count; k++) {
                 uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
                 ids = tl_tet(tet);
@@ -63,7 +60,7 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
                     return int(tet);
                 }
                 if (DEFER_EXACT && tl_undecided) {
-                    return -2;
+                    return TL_DEFERRED;
                 }
             }
         } else {
@@ -95,7 +92,7 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
             }
         }
         if (sp == 0u) {
-            return -1;
+            return TL_OUTSIDE;
         }
         ref = stack[--sp];
     }
@@ -113,12 +110,12 @@ int tl_locate(vec3 p, out uvec4 ids, out vec4 bary) {
         uint cell = (cz * dims.y + cy) * dims.x + cx;
         ref = tl_grid[8u + cell];
         if (ref == TL_EMPTY) {
-            return -1; // no tet's box overlaps this cell
+            return TL_OUTSIDE; // no tet's box overlaps this cell
         }
         if (WALK_START) {
             int tet = tl_walk(int(tl_grid[8u + tl_grid[3] + cell]), p, WALK_MAX, ids, bary);
-            if (tet == -2) {
-                return -2; // DEFER_EXACT: undecided
+            if (tet == TL_DEFERRED) {
+                return TL_DEFERRED;
             }
             // Strictly inside: the only tet holding p, the one traversal would find too.
             if (tet >= 0 && all(greaterThan(bary, vec4(0.0)))) {

@@ -48,14 +48,14 @@ const ivec3 TL_FACE[4] = ivec3[4](ivec3(1, 2, 3), ivec3(0, 2, 3), ivec3(0, 1, 3)
 const float TL_PARITY[4] = float[4](-1.0, 1.0, -1.0, 1.0);
 
 // Answers of tl_point_in_tet_stage.
-#define TL_OUTSIDE 0
-#define TL_INSIDE 1
-#define TL_UNDECIDED 2
+#define TL_TEST_OUTSIDE 0
+#define TL_TEST_INSIDE 1
+#define TL_TEST_UNDECIDED 2
 
 // geom::point_in_tet. `ids` canonical. Inside: `bary` holds the weights of ids.xyzw.
 // Outside: `exit_face` is the (ascending-order) face that p is outside of, the face across
 // which a walk continues (0 for a zero-volume tet). With `f32_only` (a constant at every call
-// site), the f32 stage alone: TL_UNDECIDED wherever the full test would turn to f64, so a
+// site), the f32 stage alone: TL_TEST_UNDECIDED wherever the full test would turn to f64, so a
 // caller can keep the f64 code off its hot path (walk.glsl `tl_test`).
 int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out int exit_face) {
     bary = vec4(0.0);
@@ -79,13 +79,13 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
             signed_det = sign * det;
         } else {
             if (f32_only) {
-                return TL_UNDECIDED;
+                return TL_TEST_UNDECIDED;
             }
             exact = true;
             precise double signed64 = double(sign) * tl_orient_f64(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p);
             if (signed64 < 0.0) {
                 exit_face = (swapped && i >= 2) ? 5 - i : i;
-                return TL_OUTSIDE;
+                return TL_TEST_OUTSIDE;
             }
             signed_det = float(signed64);
         }
@@ -95,7 +95,7 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
         // -0.0 and +0.0 (on the face) both count as inside.
         if (signed_det < 0.0) {
             exit_face = (swapped && i >= 2) ? 5 - i : i; // ascending index -> stored index
-            return TL_OUTSIDE;
+            return TL_TEST_OUTSIDE;
         }
         d[i] = signed_det;
         bound_sum += bound;
@@ -105,7 +105,7 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
     if (!exact && total > BARY_F32_TRUST * bound_sum) {
         bary = vec4(d[0], d[1], d[2], d[3]) / total;
     } else if (f32_only) {
-        return TL_UNDECIDED;
+        return TL_TEST_UNDECIDED;
     } else {
         // Sliver or point near a face: barycentrics in f64.
         double d64[4];
@@ -114,14 +114,14 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
         }
         precise double total64 = d64[0] + d64[1] + d64[2] + d64[3];
         if (total64 <= 0.0) {
-            return TL_OUTSIDE; // zero-volume tet: contains no point
+            return TL_TEST_OUTSIDE; // zero-volume tet: contains no point
         }
         bary = vec4(float(max(d64[0], 0.0) / total64), float(max(d64[1], 0.0) / total64),
                     float(max(d64[2], 0.0) / total64), float(max(d64[3], 0.0) / total64));
     }
 #else
     if (!(total > 0.0)) {
-        return TL_OUTSIDE; // zero-volume tet: contains no point
+        return TL_TEST_OUTSIDE; // zero-volume tet: contains no point
     }
     bary = vec4(d[0], d[1], d[2], d[3]) / total;
 #endif
@@ -129,11 +129,11 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
     if (swapped) {
         bary = bary.xywz;
     }
-    return TL_INSIDE;
+    return TL_TEST_INSIDE;
 }
 
 bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
-    return tl_point_in_tet_stage(ids, p, false, bary, exit_face) == TL_INSIDE;
+    return tl_point_in_tet_stage(ids, p, false, bary, exit_face) == TL_TEST_INSIDE;
 }
 
 // geom::interpolate for a per-vertex field, or the per-cell value; NaN outside.

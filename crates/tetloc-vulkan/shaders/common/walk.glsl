@@ -1,14 +1,14 @@
 // Walking through face neighbours towards a point (a visibility walk): leave each tet
 // through the first face whose plane separates it from the point. The face kernels use it to
 // correct a candidate that rounding put one tet off; exact and watertight like the test.
-// Needs types.glsl, mesh.glsl and tet.glsl first.
+// Needs interface.glsl, mesh.glsl and tet.glsl first.
 #ifndef TL_WALK_GLSL
 #define TL_WALK_GLSL
 
 // Neighbour of each tet across the face opposite its stored vertex i (-1: boundary), Mesh::neighbors().
 layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_neighbors[]; };
-// Tets per buffer when the neighbours are split over several (mesh.glsl), 0: one buffer.
-layout(constant_id = 17) const uint NEIGHBORS_CHUNK = 0;
+// NEIGHBORS_CHUNK: tets per buffer when the neighbours are split over several (mesh.glsl), 0:
+// one buffer.
 layout(std430, binding = TL_B_NEIGHBORS_HI) readonly buffer TlNeighborsHi { ivec4 v[]; } tl_neighbors_hi[TL_MAX_CHUNKS - 1];
 
 ivec4 tl_neighbors4(uint t) {
@@ -19,22 +19,21 @@ ivec4 tl_neighbors4(uint t) {
     TL_RETURN_HI(tl_neighbors_hi, c, o)
 }
 
-// Decide in f32 first and run the full test (tet.glsl, with its f64 fallback) only when f32
-// cannot: a face within its error bound, or barycentrics the f32 values do not support.
+// F32_FIRST: decide in f32 first and run the full test (tet.glsl, with its f64 fallback) only
+// when f32 cannot: a face within its error bound, or barycentrics the f32 values do not support.
 // Same answers (the f32 prefix is the full test's own first steps); the point is that the
 // hot path holds no f64 state (the CPU counts no f64 face on jets at all, NOTES.md).
-layout(constant_id = 13) const bool F32_FIRST = false;
-// With F32_FIRST: never run the full test; an undecided test sets tl_undecided instead, and
-// the caller gives the sample up (-2) for a second, exact pass (soft_bvh.comp).
-layout(constant_id = 18) const bool DEFER_EXACT = false;
+// DEFER_EXACT (with F32_FIRST): never run the full test; an undecided test sets tl_undecided
+// instead, and the caller gives the sample up (TL_DEFERRED) for a second, exact pass
+// (soft_bvh.comp).
 bool tl_undecided = false;
 
 bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 #ifdef TL_F64
     if (F32_FIRST) {
         int answer = tl_point_in_tet_stage(ids, p, true, bary, exit_face);
-        if (answer != TL_UNDECIDED) {
-            return answer == TL_INSIDE;
+        if (answer != TL_TEST_UNDECIDED) {
+            return answer == TL_TEST_INSIDE;
         }
         if (DEFER_EXACT) {
             tl_undecided = true;
@@ -47,9 +46,9 @@ bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
     return tl_point_in_tet(ids, p, bary, exit_face);
 }
 
-// The tet containing p, found in at most `max_steps` tets from `tet`; -1 when the walk
+// The tet containing p, found in at most `max_steps` tets from `tet`; TL_OUTSIDE when the walk
 // leaves the mesh or runs out of steps (the point may still be inside: the caller decides);
-// -2 only with DEFER_EXACT, when a test could not be decided in f32.
+// TL_DEFERRED only with DEFER_EXACT, when a test could not be decided in f32.
 int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
     for (int step = 0; step < max_steps && tet >= 0; step++) {
         ids = tl_tet(tet);
@@ -59,11 +58,11 @@ int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
             return tet;
         }
         if (DEFER_EXACT && tl_undecided) {
-            return -2;
+            return TL_DEFERRED;
         }
         tet = next[exit_face];
     }
-    return -1;
+    return TL_OUTSIDE;
 }
 
 #endif
