@@ -11,34 +11,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{BatchLocator, Mesh};
-use tetloc_vulkan::{BenchOptions, Kernel, SampleMode};
-
-/// A query set on the command line.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Query {
-    Generated(QueryKind),
-    /// Random points made on the host and uploaded (transfers timed too).
-    Host,
-}
-
-impl std::str::FromStr for Query {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "host" => Ok(Query::Host),
-            _ => s.parse().map(Query::Generated).map_err(|e| format!("{e}, host")),
-        }
-    }
-}
-
-impl Query {
-    fn name(self) -> &'static str {
-        match self {
-            Query::Generated(k) => k.name(),
-            Query::Host => "host",
-        }
-    }
-}
+use tetloc_vulkan::{BenchOptions, Kernel};
 
 #[derive(Debug, Serialize)]
 pub struct BenchRow {
@@ -63,7 +36,7 @@ pub struct BenchRow {
 
 pub struct BenchArgs {
     pub backends: Vec<String>,
-    pub queries: Vec<Query>,
+    pub queries: Vec<QueryKind>,
     pub n: Option<usize>,
     pub repeats: usize,
     pub field: Option<String>,
@@ -99,11 +72,7 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
             let build_s = t0.elapsed().as_secs_f64();
             eprintln!("{}", loc.bvh().stats.report());
             for &q in &args.queries {
-                let kind = match q {
-                    Query::Generated(k) => k,
-                    Query::Host => QueryKind::Random,
-                };
-                let points = queries::generate(mesh, kind, n, args.seed);
+                let points = queries::generate(mesh, q, n, args.seed);
                 let mut ids = vec![0i32; n];
                 let mut values = vec![0f32; n];
                 let mut run_once = |loc: &mut tetloc_core::CpuLocator| -> Result<f64> {
@@ -149,15 +118,9 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
         };
         let mut loc = backend::make_vulkan(kernel, mesh, &args.opts)?;
         for &q in &args.queries {
-            let mode = match q {
-                Query::Generated(QueryKind::Centers) => SampleMode::Uniform,
-                Query::Generated(QueryKind::Random) => SampleMode::Random,
-                Query::Generated(QueryKind::Bbox) => SampleMode::BBox,
-                Query::Host => SampleMode::Host,
-            };
-            let host = (q == Query::Host).then(|| queries::generate(mesh, QueryKind::Random, n, args.seed));
+            let host = (q == QueryKind::Host).then(|| queries::generate(mesh, q, n, args.seed));
             let opts = BenchOptions {
-                mode,
+                mode: q,
                 field: args.field.clone(),
                 samples: Some(n),
                 seed: args.seed as u32,
@@ -205,7 +168,7 @@ pub fn fmt_rate(r: f64) -> String {
 }
 
 /// The paper's Table 1 (samples/s, a column per query set) and Table 2 (build, memory).
-pub fn print_tables(rows: &[BenchRow], queries: &[Query]) {
+pub fn print_tables(rows: &[BenchRow], queries: &[QueryKind]) {
     let Some(first) = rows.first() else { return };
     println!(
         "\nmesh {} ({} tets), variant {}, median of {} runs",

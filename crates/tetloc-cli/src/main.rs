@@ -77,7 +77,7 @@ enum Command {
         mesh: String,
         /// Query sets: centers (the paper's uniform), random, bbox (generated in the GPU kernel), host (uploaded).
         #[arg(long, value_delimiter = ',', default_value = "centers,random,bbox")]
-        queries: Vec<bench::Query>,
+        queries: Vec<tetloc_core::queries::QueryKind>,
         /// Number of queries per run (default: one per tet).
         #[arg(long)]
         n: Option<String>,

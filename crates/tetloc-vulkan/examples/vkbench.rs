@@ -5,7 +5,7 @@
 //!
 //! Options: --tets N, --shape jets|fusion|agulhas|japan, --regular (an unjittered grid of
 //! n³ cubes, 6 Kuhn tets each, like the lead's throwaway probe), --mesh FILE, --seed S, --device I,
-//! --kernels a,b (default all the device runs), --modes uniform,random,bbox,host,
+//! --kernels a,b (default all the device runs), --modes centers,random,bbox,host (uniform: centers),
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
 //! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
 //! --grid (soft-bvh entry grid), --walk / --no-walk (soft-bvh walk start, the default),
@@ -20,7 +20,7 @@ use std::time::Instant;
 use tetloc_core::gen::{generate, Shape};
 use tetloc_core::geom;
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
-use tetloc_vulkan::{devices, BenchOptions, BenchResult, Context, Kernel, LocatorOptions, SampleMode, VulkanLocator};
+use tetloc_vulkan::{devices, BenchOptions, BenchResult, Context, Kernel, LocatorOptions, QueryKind, VulkanLocator};
 
 struct Args {
     tets: usize,
@@ -29,7 +29,7 @@ struct Args {
     seed: u64,
     device: Option<usize>,
     kernels: Option<Vec<Kernel>>,
-    modes: Vec<SampleMode>,
+    modes: Vec<QueryKind>,
     field: Option<String>,
     check: usize,
     opts: LocatorOptions,
@@ -47,7 +47,7 @@ fn parse() -> Result<Args, String> {
         seed: 1,
         device: None,
         kernels: None,
-        modes: vec![SampleMode::Uniform, SampleMode::Random, SampleMode::BBox, SampleMode::Host],
+        modes: QueryKind::ALL.to_vec(),
         field: None,
         check: 1_000_000,
         opts: LocatorOptions::default(),
@@ -106,7 +106,7 @@ fn check(
     n: usize,
 ) -> Result<(usize, usize, usize, usize), Box<dyn std::error::Error>> {
     let mut bad = (0, 0, 0);
-    for mode in [SampleMode::Random, SampleMode::BBox] {
+    for mode in [QueryKind::Random, QueryKind::Bbox] {
         let (points, ids) = loc.locate_generated(mode, n / 2, 7)?;
         let mut want = vec![0; points.len()];
         cpu.locate(&points, &mut want)?;

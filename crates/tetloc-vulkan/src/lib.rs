@@ -4,6 +4,11 @@
 //! pipeline kernels (`rt-bvh`, `rt-rep-faces`, `rt-shared-faces`). Every kernel uses the one
 //! watertight point-in-tet test of `tetloc_core::geom`, mirrored in `shaders/common/tet.glsl`.
 //!
+//! Layout: `kernels/` (one module per kernel, each building a `Plan`), `locator/` (the batch
+//! API over any plan, and the benchmarks), `march.rs` (the volume marcher over any plan),
+//! `device.rs` (the device object: buffers, uploads, submissions), `interface.rs` (the one
+//! definition of the Rust/GLSL interface; build.rs writes its GLSL side).
+//!
 //! ```no_run
 //! use std::sync::Arc;
 //! use tetloc_core::BatchLocator;
@@ -17,26 +22,27 @@
 //! # Ok(()) }
 //! ```
 
-mod bench;
 mod context;
+mod device;
 mod error;
-mod gpu_types;
+mod interface;
+mod kernels;
 mod locator;
 mod march;
 mod memory;
 mod nvml;
 mod pipeline;
-mod rt;
 mod shaders;
-mod soft_bvh;
 
-pub use bench::{si, BenchOptions, BenchResult};
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
-pub use locator::{Kernel, LocatorOptions, MemoryReport, SampleMode, VulkanLocator, GRID_TETS_PER_CELL};
+pub use kernels::rt::AsReport;
+pub use kernels::Kernel;
+pub use locator::{si, BenchOptions, BenchResult, LocatorOptions, MemoryReport, VulkanLocator, GRID_TETS_PER_CELL};
 pub use march::{MarchGrid, MarchScene, MarchStats, MarchView, VolumeMarcher};
 pub use memory::{MemItem, MemKind, STAGING_BYTES};
-pub use rt::AsReport;
+/// The query sets (`centers`, `random`, `bbox` generated in the kernels; `host` uploaded).
+pub use tetloc_core::queries::QueryKind;
 
 #[cfg(test)]
 mod tests {

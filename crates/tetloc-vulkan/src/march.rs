@@ -11,45 +11,13 @@
 //! numbers. Frame times come from GPU timestamps around the one dispatch.
 
 use crate::error::{VkError, VkResult};
-use crate::gpu_types::*;
+use crate::interface::*;
 use crate::locator::VulkanLocator;
-use crate::memory::{self, full_barrier, Buffer, Location, MemKind};
-use crate::pipeline::{self, Descriptors, Pipeline};
-use crate::shaders;
+use crate::memory::{Buffer, BufferDesc, MemKind};
+use crate::pipeline::{Binding, Descriptors, Pipeline};
 use crate::Kernel;
 use ash::vk;
-use bytemuck::{Pod, Zeroable};
 use std::time::Instant;
-
-/// `TlMarchParams` of march.glsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct MarchParams {
-    eye_step: [f32; 4],
-    fwd_tan: [f32; 4],
-    right_cutoff: [f32; 4],
-    up: [f32; 4],
-    size: [u32; 4],
-    box_lo_tf_lo: [f32; 4],
-    box_hi_tf_inv: [f32; 4],
-    occ_lo_margin: [f32; 4],
-    occ_hi: [f32; 4],
-    occ_cell: [f32; 4],
-    occ_inv: [f32; 4],
-    occ_dims: [u32; 4],
-    occ_blocks: [u32; 4],
-}
-
-const FLAG_SKIP: u32 = 1;
-const FLAG_SURFACE: u32 = 2;
-
-/// `TlPixel` of march.glsl.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, Pod, Zeroable)]
-struct Pixel {
-    rgba: [f32; 4],
-    count: [u32; 4],
-}
 
 /// An occupancy grid for exact empty-space skipping (tetloc-render's `OccupancyGrid`).
 #[derive(Clone, Debug)]
@@ -119,6 +87,8 @@ pub struct VolumeMarcher {
     pipeline: Pipeline,
     desc: Descriptors,
     params: MarchParams,
+    /// The push constants (the locator's launch parameters: bounds, ray).
+    push: Params,
     params_buf: Buffer,
     _tf: Buffer,
     _occupancy: Buffer,
@@ -140,14 +110,12 @@ impl VolumeMarcher {
                 scene.step
             ));
         }
-        let output = loc.ensure_field(&scene.field)?;
-        let ctx = loc.ctx.clone();
+        let res = loc.resources(&scene.field)?;
+        let dev = res.dev;
+        let ctx = dev.ctx().clone();
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let upload = |loc: &mut VulkanLocator, name: &str, kind: MemKind, data: &[u8]| {
-            memory::device_buffer_with(&ctx, &loc.tracker, &mut loc.staging, &mut loc.cmds, name, kind, storage, data)
-        };
-        let tf = upload(&mut loc, "march transfer function", MemKind::Structure, bytemuck::cast_slice(&scene.tf))?;
-        let (lo, hi) = (loc.mesh.info.bounds_min, loc.mesh.info.bounds_max);
+        let tf = dev.upload("march transfer function", MemKind::Structure, storage, bytemuck::cast_slice(&scene.tf))?;
+        let (lo, hi) = (res.mesh.info.bounds_min, res.mesh.info.bounds_max);
         let mut p = MarchParams {
             eye_step: [0.0, 0.0, 0.0, scene.step],
             right_cutoff: [0.0, 0.0, 0.0, scene.cutoff],
@@ -167,72 +135,48 @@ impl VolumeMarcher {
                 for (i, _) in g.blocks.iter().enumerate().filter(|(_, &o)| o) {
                     bits[words + i / 32] |= 1 << (i % 32);
                 }
-                p.size[2] |= FLAG_SKIP;
+                p.size[2] |= MARCH_SKIP;
                 p.occ_lo_margin = [g.lo[0], g.lo[1], g.lo[2], g.margin];
                 p.occ_hi = [g.hi[0], g.hi[1], g.hi[2], 0.0];
                 p.occ_cell = [g.cell[0], g.cell[1], g.cell[2], 0.0];
                 p.occ_inv = [g.inv_cell[0], g.inv_cell[1], g.inv_cell[2], 0.0];
                 p.occ_dims = [g.dims[0], g.dims[1], g.dims[2], words as u32];
                 p.occ_blocks = [g.block_dims[0], g.block_dims[1], g.block_dims[2], g.block];
-                upload(&mut loc, "march occupancy grid", MemKind::Structure, bytemuck::cast_slice(&bits))?
+                dev.upload("march occupancy grid", MemKind::Structure, storage, bytemuck::cast_slice(&bits))?
             }
-            None => upload(&mut loc, "march occupancy grid", MemKind::Structure, &[0; 16])?,
+            None => dev.upload("march occupancy grid", MemKind::Structure, storage, &[0; 16])?,
         };
-        let params_buf = Buffer::new(
-            &ctx,
-            &loc.tracker,
-            "march parameters",
+        let params_desc = BufferDesc::device(
             MemKind::Query,
             std::mem::size_of::<MarchParams>() as u64,
             storage | vk::BufferUsageFlags::TRANSFER_DST,
-            Location::Device,
-        )?;
+        );
+        let params_buf = dev.create_buffer(params_desc, "march parameters", None)?;
 
         // One descriptor set: the locator's resources, then the march's own.
-        let res = loc.resources();
-        let soft = loc.kernel == Kernel::SoftBvh;
-        // The compute marcher walks between samples; a soft-bvh locator built without the
-        // walk start has no neighbour table, so the marcher brings its own (one buffer).
-        let neighbors = if soft && !res.soft_neighbors {
-            let mesh = loc.mesh.clone();
-            let nb = mesh.neighbors();
-            Some(upload(&mut loc, "march tet neighbours", MemKind::Structure, bytemuck::cast_slice(nb))?)
+        let mut bindings = res.bindings;
+        // A march program that walks between samples, on a structure without the neighbour
+        // table (soft-bvh without its walk start), brings its own (one buffer).
+        let neighbors = if res.plan.march_needs_neighbors {
+            let nb = bytemuck::cast_slice(res.mesh.neighbors());
+            let buf = dev.upload("march tet neighbours", MemKind::Structure, storage, nb)?;
+            bindings.retain(|b| b.slot != B_NEIGHBORS);
+            bindings.push(Binding::buffer(B_NEIGHBORS, &buf));
+            Some(buf)
         } else {
             None
         };
-        let mut bindings: Vec<(u32, vk::DescriptorType, u32)> =
-            res.buffers.iter().map(|(b, infos)| (*b, vk::DescriptorType::STORAGE_BUFFER, infos.len() as u32)).collect();
-        let own = [B_MARCH, B_TF, B_OCCUPANCY, B_SURFACE, B_PIXELS];
-        bindings.extend(own.iter().map(|&b| (b, vk::DescriptorType::STORAGE_BUFFER, 1)));
-        if res.accel.is_some() {
-            bindings.push((B_ACCEL, vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, 1));
-        }
-        let stages = if soft {
-            vk::ShaderStageFlags::COMPUTE
-        } else {
-            vk::ShaderStageFlags::RAYGEN_KHR
-                | vk::ShaderStageFlags::MISS_KHR
-                | vk::ShaderStageFlags::CLOSEST_HIT_KHR
-                | vk::ShaderStageFlags::INTERSECTION_KHR
-        };
-        let desc = Descriptors::new(&ctx, &bindings, stages)?;
-        desc.write_infos(&res.buffers);
-        desc.write_buffers(&[(B_MARCH, &params_buf), (B_TF, &tf), (B_OCCUPANCY, &occupancy)])?;
-        desc.write_infos(&[(B_SURFACE, vec![res.dummy]), (B_PIXELS, vec![res.dummy])]);
-        if let Some(nb) = &neighbors {
-            desc.write_buffers(&[(B_NEIGHBORS, nb)])?;
-        }
-        if let Some(a) = res.accel {
-            desc.write_accel(B_ACCEL, a);
-        }
-
-        let spec = loc.spec(output);
-        let pipeline = if soft {
-            pipeline::compute_pipeline(&ctx, desc.layout, shaders::MARCH.pick(loc.f64), &spec)?
-        } else {
-            let sh = loc.rt_shaders(shaders::MARCH_RGEN);
-            pipeline::rt_pipeline(&ctx, &loc.tracker, &mut loc.staging, &mut loc.cmds, desc.layout, &sh, &spec)?
-        };
+        let unbound = dev.unbound();
+        bindings.extend([
+            Binding::buffer(B_MARCH, &params_buf),
+            Binding::buffer(B_TF, &tf),
+            Binding::buffer(B_OCCUPANCY, &occupancy),
+            Binding::buffer(B_SURFACE, unbound),
+            Binding::buffer(B_PIXELS, unbound),
+        ]);
+        let program = res.plan.march;
+        let desc = Descriptors::new(&ctx, &bindings, program.stages())?;
+        let pipeline = program.pipeline(dev, desc.layout, res.f64, &res.spec)?;
         let query_pool = if ctx.limits.timestamp_valid_bits > 0 {
             let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2);
             // SAFETY: plain query-pool creation; destroyed in Drop.
@@ -244,6 +188,7 @@ impl VolumeMarcher {
             pipeline,
             desc,
             params: p,
+            push: res.params,
             params_buf,
             _tf: tf,
             _occupancy: occupancy,
@@ -257,7 +202,7 @@ impl VolumeMarcher {
     }
 
     pub fn kernel(&self) -> Kernel {
-        self.loc.kernel
+        self.loc.kernel()
     }
 
     pub fn locator(&self) -> &VulkanLocator {
@@ -292,24 +237,21 @@ impl VolumeMarcher {
 
     fn render_frame(&mut self, view: &MarchView, out: &mut [[f32; 4]]) -> VkResult<MarchStats> {
         let n = out.len();
-        let ctx = self.loc.ctx.clone();
-        if let Some(rt) = &ctx.rt {
-            if self.loc.kernel != Kernel::SoftBvh && n > rt.max_dispatch as usize {
+        let dev = self.loc.device();
+        let ctx = dev.ctx().clone();
+        if let (Some(rt), Some(_)) = (&ctx.rt, &self.pipeline.sbt) {
+            if n > rt.max_dispatch as usize {
                 return Err(VkError::Mesh(format!(
                     "{n} pixels: more rays than one launch may have ({})",
                     rt.max_dispatch
                 )));
             }
         }
-        let usage = vk::BufferUsageFlags::STORAGE_BUFFER
-            | vk::BufferUsageFlags::TRANSFER_SRC
-            | vk::BufferUsageFlags::TRANSFER_DST;
         if self.pixels.as_ref().is_none_or(|(_, cap)| *cap < n) {
             self.pixels = None;
             let bytes = (n * std::mem::size_of::<Pixel>()) as u64;
-            let b =
-                Buffer::new(&ctx, &self.loc.tracker, "march pixels", MemKind::Query, bytes, usage, Location::Device)?;
-            self.desc.write_buffers(&[(B_PIXELS, &b)])?;
+            let b = dev.create_buffer(BufferDesc::io(MemKind::Query, bytes), "march pixels", None)?;
+            self.desc.write(&[Binding::buffer(B_PIXELS, &b)]);
             self.pixels = Some((b, n));
         }
         let mut p = self.params;
@@ -320,34 +262,24 @@ impl VolumeMarcher {
         p.size[0] = view.width;
         p.size[1] = view.height;
         if let Some(s) = view.surface {
-            p.size[2] |= FLAG_SURFACE;
+            p.size[2] |= MARCH_SURFACE;
             if self.surface.as_ref().is_none_or(|(_, cap)| *cap < n) {
                 self.surface = None;
-                let bytes = (n * 16) as u64;
-                let b = Buffer::new(
-                    &ctx,
-                    &self.loc.tracker,
-                    "march surface",
-                    MemKind::Query,
-                    bytes,
-                    usage,
-                    Location::Device,
-                )?;
-                self.desc.write_buffers(&[(B_SURFACE, &b)])?;
+                let b = dev.create_buffer(BufferDesc::io(MemKind::Query, (n * 16) as u64), "march surface", None)?;
+                self.desc.write(&[Binding::buffer(B_SURFACE, &b)]);
                 self.surface = Some((b, n));
             }
-            let buf = &self.surface.as_ref().unwrap().0;
-            self.loc.staging.upload(&mut self.loc.cmds, buf, 0, bytemuck::cast_slice(s))?;
+            let buf = &self.surface.as_ref().expect("made above").0;
+            dev.write(buf, 0, bytemuck::cast_slice(s))?;
         }
 
-        let push = self.loc.params(0, 0, 0);
         let (pl, desc, params_buf, pool) = (&self.pipeline, &self.desc, self.params_buf.buffer, self.query_pool);
-        let (w, h) = (view.width, view.height);
-        let busy = self.busy;
+        let (w, h, push, busy) = (view.width, view.height, self.push, self.busy);
         let t = Instant::now();
-        // SAFETY: recording into the locator's command buffer with live objects; the params
-        // update is far below vkCmdUpdateBuffer's 64 KiB limit and a multiple of 4 bytes.
-        self.loc.cmds.run(|dev, cmd| unsafe {
+        // SAFETY: recording into the device object's command buffer with live objects; the
+        // params update is far below vkCmdUpdateBuffer's 64 KiB limit and a multiple of 4 bytes.
+        dev.run(|r| unsafe {
+            let (dev, cmd) = (r.dev, r.cmd);
             dev.cmd_update_buffer(cmd, params_buf, 0, bytemuck::bytes_of(&p));
             if let Some(pool) = pool {
                 dev.cmd_reset_query_pool(cmd, pool, 0, 2);
@@ -356,20 +288,20 @@ impl VolumeMarcher {
             dev.cmd_bind_descriptor_sets(cmd, pl.bind_point, desc.layout, 0, &[desc.set], &[]);
             dev.cmd_push_constants(cmd, desc.layout, desc.stages, 0, bytemuck::bytes_of(&push));
             for i in 0..=busy {
-                full_barrier(dev, cmd);
+                r.barrier();
                 if let (Some(pool), true) = (pool, i == busy) {
                     dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 0);
                 }
                 match &pl.sbt {
-                    None => dev.cmd_dispatch(cmd, w.div_ceil(8), h.div_ceil(8), 1),
+                    None => dev.cmd_dispatch(cmd, w.div_ceil(MARCH_TILE), h.div_ceil(MARCH_TILE), 1),
                     Some(sbt) => {
                         let empty = vk::StridedDeviceAddressRegionKHR::default();
-                        let rt = ctx.rt.as_ref().unwrap();
+                        let rt = r.ctx.rt.as_ref().expect("a ray-tracing pipeline exists only with ray tracing");
                         rt.pipeline.cmd_trace_rays(cmd, &sbt.raygen, &sbt.miss, &sbt.hit, &empty, w, h, 1);
                     }
                 }
             }
-            full_barrier(dev, cmd);
+            r.barrier();
             if let Some(pool) = pool {
                 dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 1);
             }
@@ -390,8 +322,8 @@ impl VolumeMarcher {
         };
 
         let mut pixels = vec![Pixel::default(); n];
-        let buf = &self.pixels.as_ref().unwrap().0;
-        self.loc.staging.download(&mut self.loc.cmds, buf, 0, bytemuck::cast_slice_mut(&mut pixels))?;
+        let buf = &self.pixels.as_ref().expect("made above").0;
+        dev.download(buf, 0, bytemuck::cast_slice_mut(&mut pixels))?;
         let mut stats = MarchStats { gpu_seconds, ..Default::default() };
         for (o, px) in out.iter_mut().zip(&pixels) {
             *o = px.rgba;
@@ -406,44 +338,7 @@ impl Drop for VolumeMarcher {
     fn drop(&mut self) {
         if let Some(pool) = self.query_pool {
             // SAFETY: every submission using the pool has completed (run() waits).
-            unsafe { self.loc.ctx.device.destroy_query_pool(pool, None) };
+            unsafe { self.loc.context().device.destroy_query_pool(pool, None) };
         }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// The Rust mirror of `TlMarchParams` has the GLSL layout: 13 16-byte rows, in order.
-    #[test]
-    fn params_match_the_glsl_struct() {
-        assert_eq!(std::mem::size_of::<MarchParams>(), 13 * 16);
-        let glsl = include_str!("../shaders/common/march.glsl");
-        let body = &glsl[glsl.find("struct TlMarchParams {").unwrap()..];
-        let body = &body[..body.find("};").unwrap()];
-        let names: Vec<&str> =
-            body.lines().skip(1).filter_map(|l| l.trim().split(';').next()?.split_whitespace().nth(1)).collect();
-        assert_eq!(
-            names,
-            [
-                "eye_step",
-                "fwd_tan",
-                "right_cutoff",
-                "up",
-                "size",
-                "box_lo_tf_lo",
-                "box_hi_tf_inv",
-                "occ_lo_margin",
-                "occ_hi",
-                "occ_cell",
-                "occ_inv",
-                "occ_dims",
-                "occ_blocks"
-            ]
-        );
-        assert!(glsl.contains(&format!("#define TL_MARCH_SKIP {FLAG_SKIP}u")));
-        assert!(glsl.contains(&format!("#define TL_MARCH_SURFACE {FLAG_SURFACE}u")));
-        assert_eq!(std::mem::size_of::<Pixel>(), 32);
     }
 }

@@ -1,5 +1,6 @@
-//! GPU memory: named, counted buffers (one allocation each), one-shot command submission,
-//! and uploads/downloads through one bounded staging buffer.
+//! GPU memory and submission, the parts the device object (`device.rs`) is made of: named,
+//! counted buffers (one allocation each), one-shot command submission, and uploads/downloads
+//! through one bounded staging buffer.
 
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
@@ -75,12 +76,35 @@ pub(crate) enum Location {
     Host,
 }
 
+/// What a buffer is: its size and usage, where it lives, and the report total it counts in.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct BufferDesc {
+    pub size: u64,
+    pub usage: vk::BufferUsageFlags,
+    pub kind: MemKind,
+    pub location: Location,
+}
+
+impl BufferDesc {
+    /// A device-local buffer.
+    pub fn device(kind: MemKind, size: u64, usage: vk::BufferUsageFlags) -> BufferDesc {
+        BufferDesc { size, usage, kind, location: Location::Device }
+    }
+
+    /// A device-local storage buffer that transfers fill and read (query points, results).
+    pub fn io(kind: MemKind, size: u64) -> BufferDesc {
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+            | vk::BufferUsageFlags::TRANSFER_SRC
+            | vk::BufferUsageFlags::TRANSFER_DST;
+        Self::device(kind, size, usage)
+    }
+}
+
 /// A buffer with its own memory allocation. Dropping it frees both and updates the tracker.
 pub(crate) struct Buffer {
     ctx: Arc<Context>,
     tracker: SharedTracker,
     id: u64,
-    pub name: String,
     pub buffer: vk::Buffer,
     memory: vk::DeviceMemory,
     pub size: u64,
@@ -96,12 +120,10 @@ impl Buffer {
     pub fn new(
         ctx: &Arc<Context>,
         tracker: &SharedTracker,
+        desc: BufferDesc,
         name: impl Into<String>,
-        kind: MemKind,
-        size: u64,
-        usage: vk::BufferUsageFlags,
-        location: Location,
     ) -> VkResult<Buffer> {
+        let BufferDesc { size, usage, kind, location } = desc;
         let name = name.into();
         let size = size.max(16);
         if ctx.limits.max_allocation > 0 && size > ctx.limits.max_allocation {
@@ -168,8 +190,8 @@ impl Buffer {
             } else {
                 0
             };
-            let id = tracker.lock().unwrap().add(MemItem { name: name.clone(), kind, bytes: req.size });
-            Ok(Buffer { ctx: ctx.clone(), tracker: tracker.clone(), id, name, buffer, memory, size, address, mapped })
+            let id = tracker.lock().unwrap().add(MemItem { name, kind, bytes: req.size });
+            Ok(Buffer { ctx: ctx.clone(), tracker: tracker.clone(), id, buffer, memory, size, address, mapped })
         }
     }
 
@@ -236,8 +258,9 @@ impl Commands {
 
     /// Records commands with `record`, submits them and waits for completion. Every
     /// submission starts with a full memory barrier, so it sees all earlier submissions' writes.
-    pub fn run<R>(&mut self, record: impl FnOnce(&ash::Device, vk::CommandBuffer) -> R) -> VkResult<R> {
+    pub fn run<R>(&mut self, record: impl FnOnce(&Recording) -> R) -> VkResult<R> {
         let dev = &self.ctx.device;
+        let rec = Recording { ctx: &self.ctx, dev, cmd: self.cmd };
         // SAFETY: the previous submission has completed (we always wait), so the pool can be
         // reset; the queue is externally synchronised by the context's mutex.
         unsafe {
@@ -248,8 +271,8 @@ impl Commands {
                 &vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
             )
             .map_err(VkError::vk("vkBeginCommandBuffer"))?;
-            full_barrier(dev, self.cmd);
-            let r = record(dev, self.cmd);
+            rec.barrier();
+            let r = record(&rec);
             dev.end_command_buffer(self.cmd).map_err(VkError::vk("vkEndCommandBuffer"))?;
             let cmds = [self.cmd];
             let submit = vk::SubmitInfo::default().command_buffers(&cmds);
@@ -265,6 +288,34 @@ impl Commands {
     }
 }
 
+/// A command buffer being recorded, with the context it belongs to.
+pub(crate) struct Recording<'a> {
+    pub ctx: &'a Context,
+    pub dev: &'a ash::Device,
+    pub cmd: vk::CommandBuffer,
+}
+
+impl Recording<'_> {
+    /// Makes all earlier writes (transfers, builds, shaders) visible to all later commands.
+    pub fn barrier(&self) {
+        let barrier = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
+            .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE);
+        // SAFETY: recording into a command buffer in the recording state.
+        unsafe {
+            self.dev.cmd_pipeline_barrier(
+                self.cmd,
+                vk::PipelineStageFlags::ALL_COMMANDS,
+                vk::PipelineStageFlags::ALL_COMMANDS,
+                vk::DependencyFlags::empty(),
+                &[barrier],
+                &[],
+                &[],
+            )
+        };
+    }
+}
+
 impl Drop for Commands {
     fn drop(&mut self) {
         // SAFETY: no submission is pending (run() always waits).
@@ -275,29 +326,10 @@ impl Drop for Commands {
     }
 }
 
-/// Makes all earlier writes (transfers, builds, shaders) visible to all later commands.
-pub(crate) fn full_barrier(dev: &ash::Device, cmd: vk::CommandBuffer) {
-    let barrier = vk::MemoryBarrier::default()
-        .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
-        .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE);
-    // SAFETY: recording into a command buffer in the recording state.
-    unsafe {
-        dev.cmd_pipeline_barrier(
-            cmd,
-            vk::PipelineStageFlags::ALL_COMMANDS,
-            vk::PipelineStageFlags::ALL_COMMANDS,
-            vk::DependencyFlags::empty(),
-            &[barrier],
-            &[],
-            &[],
-        )
-    };
-}
-
 /// Default size of the staging buffer: uploads and downloads move through it in pieces.
 pub const STAGING_BYTES: u64 = 64 << 20;
 
-/// The one bounded staging buffer of a locator.
+/// The one bounded staging buffer of a device object.
 pub(crate) struct Staging {
     buf: Buffer,
 }
@@ -305,7 +337,8 @@ pub(crate) struct Staging {
 impl Staging {
     pub fn new(ctx: &Arc<Context>, tracker: &SharedTracker, bytes: u64) -> VkResult<Staging> {
         let usage = vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST;
-        Ok(Staging { buf: Buffer::new(ctx, tracker, "staging", MemKind::Staging, bytes, usage, Location::Host)? })
+        let desc = BufferDesc { size: bytes, usage, kind: MemKind::Staging, location: Location::Host };
+        Ok(Staging { buf: Buffer::new(ctx, tracker, desc, "staging")? })
     }
 
     /// Copies `data` into `dst` at `offset`, one staging-buffer-full at a time.
@@ -317,7 +350,7 @@ impl Staging {
                 vk::BufferCopy { src_offset: 0, dst_offset: offset + (k * step) as u64, size: piece.len() as u64 };
             let src = self.buf.buffer;
             // SAFETY: both buffers are alive and large enough; the copy completes before return.
-            cmds.run(|dev, cmd| unsafe { dev.cmd_copy_buffer(cmd, src, dst.buffer, &[region]) })?;
+            cmds.run(|r| unsafe { r.dev.cmd_copy_buffer(r.cmd, src, dst.buffer, &[region]) })?;
         }
         Ok(())
     }
@@ -330,94 +363,11 @@ impl Staging {
                 vk::BufferCopy { src_offset: offset + (k * step) as u64, dst_offset: 0, size: piece.len() as u64 };
             let dst = self.buf.buffer;
             // SAFETY: as in upload; the fence wait in run() makes the host see the copy.
-            cmds.run(|dev, cmd| unsafe { dev.cmd_copy_buffer(cmd, src.buffer, dst, &[region]) })?;
+            cmds.run(|r| unsafe { r.dev.cmd_copy_buffer(r.cmd, src.buffer, dst, &[region]) })?;
             piece.copy_from_slice(&self.buf.mapped()[..piece.len()]);
         }
         Ok(())
     }
-}
-
-/// Creates a device-local buffer named `name` holding `data` (uploaded through `staging`).
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn device_buffer_with(
-    ctx: &Arc<Context>,
-    tracker: &SharedTracker,
-    staging: &mut Staging,
-    cmds: &mut Commands,
-    name: &str,
-    kind: MemKind,
-    usage: vk::BufferUsageFlags,
-    data: &[u8],
-) -> VkResult<Buffer> {
-    let buf = Buffer::new(
-        ctx,
-        tracker,
-        name,
-        kind,
-        data.len() as u64,
-        usage | vk::BufferUsageFlags::TRANSFER_DST,
-        Location::Device,
-    )?;
-    staging.upload(cmds, &buf, 0, data)?;
-    Ok(buf)
-}
-
-/// An array in one device buffer, or split over several of `per_chunk` elements each when it
-/// is larger than one buffer may be (shaders/common/mesh.glsl reads both).
-pub(crate) struct Chunked {
-    pub parts: Vec<Buffer>,
-    /// Elements per buffer; 0 when there is one buffer.
-    pub per_chunk: u32,
-}
-
-/// The largest buffer worth making on this device: the allocation and storage-buffer range
-/// limits (4 GiB on the H100), or `forced` (a test hook) when smaller; a multiple of 64 bytes.
-pub(crate) fn max_buffer_bytes(ctx: &Context, forced: Option<u64>) -> u64 {
-    let l = &ctx.limits;
-    let alloc = if l.max_allocation > 0 { l.max_allocation } else { u64::MAX };
-    let max = alloc.min(l.max_storage_buffer_range).min(forced.unwrap_or(u64::MAX));
-    (max & !63).max(64)
-}
-
-/// Uploads `data` (elements of `elem_bytes`) into one device buffer named `name`, or, when it
-/// is larger than `max_bytes`, into up to `MAX_CHUNKS` buffers of whole elements.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn chunked_buffer(
-    ctx: &Arc<Context>,
-    tracker: &SharedTracker,
-    staging: &mut Staging,
-    cmds: &mut Commands,
-    name: &str,
-    kind: MemKind,
-    usage: vk::BufferUsageFlags,
-    data: &[u8],
-    elem_bytes: usize,
-    max_bytes: u64,
-) -> VkResult<Chunked> {
-    if data.len() as u64 <= max_bytes {
-        return Ok(Chunked {
-            parts: vec![device_buffer_with(ctx, tracker, staging, cmds, name, kind, usage, data)?],
-            per_chunk: 0,
-        });
-    }
-    let per = (max_bytes / elem_bytes as u64).min(u32::MAX as u64) as usize;
-    let n_parts = (data.len() / elem_bytes).div_ceil(per.max(1));
-    if per == 0 || n_parts > crate::gpu_types::MAX_CHUNKS {
-        return Err(VkError::TooLarge {
-            name: name.into(),
-            bytes: data.len() as u64,
-            limit: crate::gpu_types::MAX_CHUNKS as u64 * max_bytes,
-            what: "16 buffers of the device's largest buffer (maxMemoryAllocationSize, maxStorageBufferRange)",
-        });
-    }
-    let parts = data
-        .chunks(per * elem_bytes)
-        .enumerate()
-        .map(|(k, piece)| {
-            device_buffer_with(ctx, tracker, staging, cmds, &format!("{name} {}/{n_parts}", k + 1), kind, usage, piece)
-        })
-        .collect::<VkResult<Vec<_>>>()?;
-    Ok(Chunked { parts, per_chunk: per as u32 })
 }
 
 #[cfg(test)]

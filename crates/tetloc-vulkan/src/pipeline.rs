@@ -2,12 +2,61 @@
 //! ray-tracing pipelines built from them (with the ray-tracing shader binding table).
 
 use crate::context::Context;
+use crate::device::{Device, Split};
 use crate::error::{VkError, VkResult};
-use crate::gpu_types::Params;
-use crate::memory::{Buffer, Commands, Location, MemKind, SharedTracker, Staging};
+use crate::interface::{Params, MAX_CHUNKS};
+use crate::memory::{Buffer, BufferDesc, MemKind};
+use crate::shaders::Shader;
 use ash::vk;
-use std::collections::BTreeMap;
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+
+/// What one binding of the descriptor set points at.
+#[derive(Clone, Debug)]
+pub(crate) enum Bound {
+    /// Storage buffers: one, or the elements of an array binding in order.
+    Buffers(Vec<vk::DescriptorBufferInfo>),
+    Accel(vk::AccelerationStructureKHR),
+}
+
+/// A binding number and what it points at: the unit in which kernels describe their
+/// structures (`Plan::bindings`) and pipelines declare and fill their descriptor sets.
+#[derive(Clone, Debug)]
+pub(crate) struct Binding {
+    pub slot: u32,
+    pub bound: Bound,
+}
+
+impl Binding {
+    pub fn buffer(slot: u32, b: &Buffer) -> Binding {
+        Binding { slot, bound: Bound::Buffers(vec![b.info()]) }
+    }
+
+    pub fn accel(slot: u32, a: vk::AccelerationStructureKHR) -> Binding {
+        Binding { slot, bound: Bound::Accel(a) }
+    }
+
+    /// A split array: its first buffer at `lo`, the others (`unbound` past the last) at the
+    /// array binding `hi`. `None`: the array is not used; everything is `unbound`.
+    pub fn split(lo: u32, hi: u32, array: Option<&Split>, unbound: &Buffer) -> [Binding; 2] {
+        let part = |k: usize| array.and_then(|a| a.parts.get(k)).unwrap_or(unbound).info();
+        [
+            Binding { slot: lo, bound: Bound::Buffers(vec![part(0)]) },
+            Binding { slot: hi, bound: Bound::Buffers((1..MAX_CHUNKS as usize).map(part).collect()) },
+        ]
+    }
+
+    fn layout(&self, stages: vk::ShaderStageFlags) -> vk::DescriptorSetLayoutBinding<'static> {
+        let (ty, n) = match &self.bound {
+            Bound::Buffers(infos) => (vk::DescriptorType::STORAGE_BUFFER, infos.len() as u32),
+            Bound::Accel(_) => (vk::DescriptorType::ACCELERATION_STRUCTURE_KHR, 1),
+        };
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(self.slot)
+            .descriptor_type(ty)
+            .descriptor_count(n)
+            .stage_flags(stages)
+    }
+}
 
 /// One descriptor set (set 0) with its layout, pool and the pipeline layout around it.
 pub(crate) struct Descriptors {
@@ -17,33 +66,20 @@ pub(crate) struct Descriptors {
     pub set: vk::DescriptorSet,
     pub layout: vk::PipelineLayout,
     pub stages: vk::ShaderStageFlags,
-    /// Storage-buffer bindings written so far, by binding.
-    written: Mutex<BTreeMap<u32, Vec<vk::DescriptorBufferInfo>>>,
 }
 
 impl Descriptors {
-    /// `bindings`: (binding, type, number of descriptors: 1, or an array).
-    pub fn new(
-        ctx: &Arc<Context>,
-        bindings: &[(u32, vk::DescriptorType, u32)],
-        stages: vk::ShaderStageFlags,
-    ) -> VkResult<Descriptors> {
+    /// A set with a layout for `bindings` (visible to `stages`), pointed at what they name.
+    pub fn new(ctx: &Arc<Context>, bindings: &[Binding], stages: vk::ShaderStageFlags) -> VkResult<Descriptors> {
         let dev = &ctx.device;
-        let layout_bindings: Vec<_> = bindings
-            .iter()
-            .map(|&(b, t, n)| {
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(b)
-                    .descriptor_type(t)
-                    .descriptor_count(n)
-                    .stage_flags(stages)
-            })
-            .collect();
+        let layout_bindings: Vec<_> = bindings.iter().map(|b| b.layout(stages)).collect();
         let mut sizes: Vec<vk::DescriptorPoolSize> = vec![];
-        for &(_, t, n) in bindings {
-            match sizes.iter_mut().find(|s| s.ty == t) {
-                Some(s) => s.descriptor_count += n,
-                None => sizes.push(vk::DescriptorPoolSize { ty: t, descriptor_count: n }),
+        for b in &layout_bindings {
+            match sizes.iter_mut().find(|s| s.ty == b.descriptor_type) {
+                Some(s) => s.descriptor_count += b.descriptor_count,
+                None => {
+                    sizes.push(vk::DescriptorPoolSize { ty: b.descriptor_type, descriptor_count: b.descriptor_count })
+                }
             }
         }
         let ranges =
@@ -55,7 +91,6 @@ impl Descriptors {
             set: vk::DescriptorSet::null(),
             layout: vk::PipelineLayout::null(),
             stages,
-            written: Mutex::default(),
         };
         // SAFETY: valid create infos; Drop destroys whatever was created if a later step fails.
         unsafe {
@@ -81,73 +116,32 @@ impl Descriptors {
                 )
                 .map_err(VkError::vk("vkCreatePipelineLayout"))?;
         }
+        d.write(bindings);
         Ok(d)
     }
 
-    /// Points storage-buffer bindings at buffers. The set must not be in use (we always wait).
-    pub fn write_buffers(&self, writes: &[(u32, &Buffer)]) -> VkResult<()> {
-        for (binding, b) in writes {
-            self.write_buffer_array(*binding, &[*b])?;
+    /// Points bindings (declared at creation) at what they name. The set must not be in use
+    /// by a pending submission (every submission is waited for).
+    pub fn write(&self, bindings: &[Binding]) {
+        for b in bindings {
+            let w = vk::WriteDescriptorSet::default().dst_set(self.set).dst_binding(b.slot);
+            match &b.bound {
+                Bound::Buffers(infos) => {
+                    let w = w.descriptor_type(vk::DescriptorType::STORAGE_BUFFER).buffer_info(infos);
+                    // SAFETY: the set is not in use by any pending submission; the buffers are alive.
+                    unsafe { self.ctx.device.update_descriptor_sets(&[w], &[]) };
+                }
+                Bound::Accel(accel) => {
+                    let handles = [*accel];
+                    let mut info =
+                        vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&handles);
+                    let mut w = w.descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR).push_next(&mut info);
+                    w.descriptor_count = 1;
+                    // SAFETY: as above; the acceleration structure is alive.
+                    unsafe { self.ctx.device.update_descriptor_sets(&[w], &[]) };
+                }
+            }
         }
-        Ok(())
-    }
-
-    /// Points the elements 0.. of an array binding at `buffers`, in order.
-    pub fn write_buffer_array(&self, binding: u32, buffers: &[&Buffer]) -> VkResult<()> {
-        let limit = self.ctx.limits.max_storage_buffer_range;
-        if let Some(b) = buffers.iter().find(|b| b.size > limit) {
-            return Err(VkError::TooLarge {
-                name: b.name.clone(),
-                bytes: b.size,
-                limit,
-                what: "maxStorageBufferRange",
-            });
-        }
-        let infos: Vec<vk::DescriptorBufferInfo> = buffers.iter().map(|b| b.info()).collect();
-        self.write_infos(&[(binding, infos)]);
-        Ok(())
-    }
-
-    /// Points storage-buffer bindings (each an array of one or more) at buffers given by their
-    /// descriptor infos (buffers of another object, already checked against the range limit
-    /// when that object bound them). Remembered for [`Descriptors::buffer_bindings`].
-    pub fn write_infos(&self, writes: &[(u32, Vec<vk::DescriptorBufferInfo>)]) {
-        let w: Vec<_> = writes
-            .iter()
-            .map(|(binding, infos)| {
-                vk::WriteDescriptorSet::default()
-                    .dst_set(self.set)
-                    .dst_binding(*binding)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                    .buffer_info(infos)
-            })
-            .collect();
-        // SAFETY: the set is not in use by any pending submission.
-        unsafe { self.ctx.device.update_descriptor_sets(&w, &[]) };
-        let mut written = self.written.lock().unwrap_or_else(|e| e.into_inner());
-        for (binding, infos) in writes {
-            written.insert(*binding, infos.clone());
-        }
-    }
-
-    /// Every storage-buffer binding written so far with what it points at, so that another
-    /// pipeline can bind the same buffers (the volume marcher binds a locator's).
-    pub fn buffer_bindings(&self) -> Vec<(u32, Vec<vk::DescriptorBufferInfo>)> {
-        let written = self.written.lock().unwrap_or_else(|e| e.into_inner());
-        written.iter().map(|(b, infos)| (*b, infos.clone())).collect()
-    }
-
-    pub fn write_accel(&self, binding: u32, accel: vk::AccelerationStructureKHR) {
-        let handles = [accel];
-        let mut info = vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(&handles);
-        let mut w = vk::WriteDescriptorSet::default()
-            .dst_set(self.set)
-            .dst_binding(binding)
-            .descriptor_type(vk::DescriptorType::ACCELERATION_STRUCTURE_KHR)
-            .push_next(&mut info);
-        w.descriptor_count = 1;
-        // SAFETY: as in write_buffers.
-        unsafe { self.ctx.device.update_descriptor_sets(&[w], &[]) };
     }
 }
 
@@ -177,8 +171,60 @@ impl Spec {
         self
     }
 
+    /// These constants followed by `more`'s.
+    pub fn concat(mut self, more: &Spec) -> Spec {
+        let base = self.data.len() as u32;
+        self.entries.extend(more.entries.iter().map(|e| vk::SpecializationMapEntry { offset: e.offset + base, ..*e }));
+        self.data.extend_from_slice(&more.data);
+        self
+    }
+
     fn info(&self) -> vk::SpecializationInfo<'_> {
         vk::SpecializationInfo::default().map_entries(&self.entries).data(&self.data)
+    }
+}
+
+/// The shaders of one pipeline: a compute shader, or the stages of a ray-tracing pipeline
+/// (ray generation, miss, and a hit group: closest hit, and an intersection shader for
+/// procedural (AABB) geometry). Each in its f64 and f32 variants, picked at creation.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum Program {
+    Compute(Shader),
+    RayTracing { raygen: Shader, miss: Shader, closest_hit: Shader, intersection: Option<Shader> },
+}
+
+impl Program {
+    pub fn ray_tracing(&self) -> bool {
+        matches!(self, Program::RayTracing { .. })
+    }
+
+    /// The stages a descriptor set must be visible to.
+    pub fn stages(&self) -> vk::ShaderStageFlags {
+        match self {
+            Program::Compute(_) => vk::ShaderStageFlags::COMPUTE,
+            Program::RayTracing { .. } => {
+                vk::ShaderStageFlags::RAYGEN_KHR
+                    | vk::ShaderStageFlags::MISS_KHR
+                    | vk::ShaderStageFlags::CLOSEST_HIT_KHR
+                    | vk::ShaderStageFlags::INTERSECTION_KHR
+            }
+        }
+    }
+
+    /// The pipeline of this program for a device with (`f64`) or without the exact f64 test.
+    pub fn pipeline(&self, dev: &mut Device, layout: vk::PipelineLayout, f64: bool, spec: &Spec) -> VkResult<Pipeline> {
+        match *self {
+            Program::Compute(shader) => compute_pipeline(dev.ctx(), layout, shader.pick(f64), spec),
+            Program::RayTracing { raygen, miss, closest_hit, intersection } => {
+                let shaders = RtShaders {
+                    raygen: raygen.pick(f64),
+                    miss: miss.pick(f64),
+                    closest_hit: closest_hit.pick(f64),
+                    intersection: intersection.map(|s| s.pick(f64)),
+                };
+                rt_pipeline(dev, layout, &shaders, spec)
+            }
+        }
     }
 }
 
@@ -231,12 +277,7 @@ impl Drop for Pipeline {
     }
 }
 
-pub(crate) fn compute_pipeline(
-    ctx: &Arc<Context>,
-    layout: vk::PipelineLayout,
-    spirv: &[u8],
-    spec: &Spec,
-) -> VkResult<Pipeline> {
+fn compute_pipeline(ctx: &Arc<Context>, layout: vk::PipelineLayout, spirv: &[u8], spec: &Spec) -> VkResult<Pipeline> {
     let dev = &ctx.device;
     let module = Module::new(dev, spirv)?;
     let spec_info = spec.info();
@@ -252,9 +293,8 @@ pub(crate) fn compute_pipeline(
     Ok(Pipeline { ctx: ctx.clone(), pipeline, bind_point: vk::PipelineBindPoint::COMPUTE, sbt: None })
 }
 
-/// The shaders of a ray-tracing pipeline: ray generation, miss, closest hit, and an
-/// intersection shader for procedural (AABB) geometry.
-pub(crate) struct RtShaders<'a> {
+/// The SPIR-V of a ray-tracing pipeline's stages.
+struct RtShaders<'a> {
     pub raygen: &'a [u8],
     pub miss: &'a [u8],
     pub closest_hit: &'a [u8],
@@ -265,16 +305,13 @@ fn align_up(x: u64, a: u64) -> u64 {
     x.div_ceil(a) * a
 }
 
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn rt_pipeline(
-    ctx: &Arc<Context>,
-    tracker: &SharedTracker,
-    staging: &mut Staging,
-    cmds: &mut Commands,
+fn rt_pipeline(
+    device: &mut Device,
     layout: vk::PipelineLayout,
     shaders: &RtShaders,
     spec: &Spec,
 ) -> VkResult<Pipeline> {
+    let ctx = device.ctx().clone();
     let rt = ctx.rt.as_ref().expect("ray-tracing pipeline on a device without ray tracing");
     let dev = &ctx.device;
     let rgen = Module::new(dev, shaders.raygen)?;
@@ -351,9 +388,10 @@ pub(crate) fn rt_pipeline(
     // The table's address must be aligned too: over-allocate and start at an aligned offset.
     let pad = rt.base_alignment as u64;
     let size = table.len() as u64 + pad;
-    let buf = Buffer::new(ctx, tracker, "shader binding table", MemKind::Structure, size, usage, Location::Device)?;
+    let buf =
+        device.create_buffer(BufferDesc::device(MemKind::Structure, size, usage), "shader binding table", None)?;
     let base = align_up(buf.address, pad);
-    staging.upload(cmds, &buf, base - buf.address, &table)?;
+    device.write(&buf, base - buf.address, &table)?;
     let at = |g: u64, size: u64| vk::StridedDeviceAddressRegionKHR { device_address: base + g * region, stride, size };
     let sbt = Sbt { raygen: at(0, stride), miss: at(1, stride), hit: at(2, stride), _buf: buf };
     let mut pipeline = pipeline;

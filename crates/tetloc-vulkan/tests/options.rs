@@ -7,7 +7,7 @@ use std::sync::Arc;
 use tetloc_core::geom::Vec3;
 use tetloc_core::testdata::{query_sets, require_data};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
-use tetloc_vulkan::{Kernel, LocatorOptions, MemKind, SampleMode, VulkanLocator};
+use tetloc_vulkan::{Kernel, LocatorOptions, MemKind, QueryKind, VulkanLocator};
 
 fn answers(loc: &mut VulkanLocator, points: &[Vec3]) -> (Vec<i32>, Vec<u32>) {
     let mut ids = vec![0; points.len()];
@@ -197,7 +197,7 @@ fn arrays_split_over_buffers_give_the_same_answers() {
                 answers(&mut whole, &points) == answers(&mut split, &points),
                 "{k} {label}: answers changed by splitting"
             );
-            for mode in [SampleMode::Uniform, SampleMode::Random] {
+            for mode in [QueryKind::Centers, QueryKind::Random] {
                 let a = whole.locate_generated(mode, 5000, 11).unwrap();
                 let b = split.locate_generated(mode, 5000, 11).unwrap();
                 assert!(a == b, "{k} {label}: {} samples changed by splitting", mode.name());

@@ -1,26 +1,26 @@
-//! Benchmarks as in the paper's Table 1: samples generated inside the kernel (`uniform`,
+//! Benchmarks as in the paper's Table 1: samples generated inside the kernel (`centers`,
 //! `random`, `bbox`) timed with GPU timestamps, or host points (`host`) timed on the host
 //! clock with their transfers; warm-up runs, repeats, medians; optionally board power.
 
+use super::{sample_mode, Variant, VulkanLocator};
 use crate::error::{VkError, VkResult};
-use crate::gpu_types::{Params, OUT_CELL, OUT_IDS, OUT_VERTEX};
-use crate::locator::{launch, SampleMode, Variant, VulkanLocator};
-use crate::memory::full_barrier;
+use crate::interface::{Params, OUT_CELL, OUT_IDS, OUT_VERTEX};
 use crate::nvml::{Nvml, PowerSampler};
 use ash::vk;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tetloc_core::geom::Vec3;
 use tetloc_core::mesh::FieldLocation;
+use tetloc_core::queries::QueryKind;
 use tetloc_core::BatchLocator;
 
 /// What to benchmark.
 #[derive(Clone, Debug)]
 pub struct BenchOptions {
-    pub mode: SampleMode,
+    pub mode: QueryKind,
     /// `None`: the id variant; `Some(name)`: the scalar variant sampling that field.
     pub field: Option<String>,
-    /// Samples per run for `random` and `bbox` (default: one per tet). `uniform` always
+    /// Samples per run for `random` and `bbox` (default: one per tet). `centers` always
     /// takes one sample per tet; `host` takes the given points.
     pub samples: Option<usize>,
     pub seed: u32,
@@ -38,7 +38,7 @@ pub struct BenchOptions {
 impl Default for BenchOptions {
     fn default() -> Self {
         BenchOptions {
-            mode: SampleMode::Uniform,
+            mode: QueryKind::Centers,
             field: None,
             samples: None,
             seed: 1,
@@ -54,7 +54,7 @@ impl Default for BenchOptions {
 #[derive(Clone, Debug)]
 pub struct BenchResult {
     pub kernel: String,
-    pub mode: SampleMode,
+    pub mode: QueryKind,
     /// "ids" or the sampled field's name.
     pub variant: String,
     pub samples: usize,
@@ -83,7 +83,7 @@ fn median(mut v: Vec<f64>) -> (f64, f64, f64) {
 }
 
 impl VulkanLocator {
-    /// Runs one benchmark. `host_points` are the points of `SampleMode::Host` (ignored otherwise).
+    /// Runs one benchmark. `host_points` are the points of `QueryKind::Host` (ignored otherwise).
     pub fn bench(&mut self, opts: &BenchOptions, host_points: Option<&[Vec3]>) -> tetloc_core::Result<BenchResult> {
         if opts.repeats < 5 {
             return Err(tetloc_core::Error::Invalid(format!("{} repeats: benchmarks take at least 5", opts.repeats)));
@@ -95,9 +95,9 @@ impl VulkanLocator {
                 FieldLocation::Cell => OUT_CELL,
             },
         };
-        let nvml = if opts.power { Nvml::open(&self.ctx.uuid).map(Arc::new) } else { None };
+        let nvml = if opts.power { Nvml::open(&self.dev.ctx().uuid).map(Arc::new) } else { None };
         let (times, samples, outside, timing, power) = match opts.mode {
-            SampleMode::Host => {
+            QueryKind::Host => {
                 let pts =
                     host_points.ok_or_else(|| tetloc_core::Error::Invalid("the host benchmark needs points".into()))?;
                 let (times, outside, power) = self.bench_host(opts, pts, nvml)?;
@@ -108,7 +108,7 @@ impl VulkanLocator {
                     self.ensure_field(f)?;
                 }
                 let n = match mode {
-                    SampleMode::Uniform => self.mesh.n_tets(),
+                    QueryKind::Centers => self.mesh.n_tets(),
                     _ => opts.samples.unwrap_or(self.mesh.n_tets()),
                 };
                 let (times, outside, power) = self.bench_gpu(opts, mode, output, n, nvml)?;
@@ -116,7 +116,7 @@ impl VulkanLocator {
             }
         };
         let (seconds, seconds_min, seconds_max) = median(times);
-        let info = self.ctx.info();
+        let info = self.dev.ctx().info();
         Ok(BenchResult {
             kernel: self.kernel.name().into(),
             mode: opts.mode,
@@ -185,67 +185,63 @@ impl VulkanLocator {
     fn bench_gpu(
         &mut self,
         opts: &BenchOptions,
-        mode: SampleMode,
+        mode: QueryKind,
         output: i32,
         n: usize,
         nvml: Option<Arc<Nvml>>,
     ) -> VkResult<(Vec<f64>, usize, Option<f64>)> {
-        let bits = self.ctx.limits.timestamp_valid_bits;
+        let ctx = self.dev.ctx().clone();
+        let bits = ctx.limits.timestamp_valid_bits;
         if bits == 0 {
-            return Err(VkError::NoTimestamps { device: self.ctx.info().name.clone() });
+            return Err(VkError::NoTimestamps { device: ctx.info().name.clone() });
         }
-        let v = Variant { sample: mode.code(), output, record: false };
+        let v = Variant { sample: sample_mode(mode), output, record: false };
         self.pipeline(v)?;
         let chunk = self.launch_limit().min(n.max(1));
         self.ensure_io(chunk)?;
         let launches: Vec<Params> =
             (0..n).step_by(chunk).map(|base| self.params(chunk.min(n - base), base, opts.seed)).collect();
+        let deferred = self.io.as_ref().and_then(|io| io.deferred.as_ref()).map(|d| d.buffer);
+        let l = self.launcher.launch(v, deferred);
         // Warm up by time, one run per submission, until the clocks have ramped up.
         let t = Instant::now();
         while t.elapsed().as_secs_f64() < opts.warmup_seconds {
-            let l = launch!(self, v);
-            self.cmds.run(|dev, cmd| {
+            self.dev.run(|r| {
                 for p in &launches {
-                    l.record(dev, cmd, p);
+                    l.record(r, p);
                 }
             })?;
         }
         let runs = opts.warmup + opts.repeats;
-        let dev = &self.ctx.device;
+        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2 * runs as u32);
         // SAFETY: plain query-pool creation; destroyed below on every path.
-        let pool = unsafe {
-            dev.create_query_pool(
-                &vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2 * runs as u32),
-                None,
-            )
-        }
-        .map_err(VkError::vk("vkCreateQueryPool"))?;
-        let l = launch!(self, v);
+        let pool = unsafe { ctx.device.create_query_pool(&info, None) }.map_err(VkError::vk("vkCreateQueryPool"))?;
         // One submission: reset every query, then write all of them, so that no query is
         // ever waited on unwritten (that hangs some drivers); we read after the fence.
-        let recorded = self.cmds.run(|dev, cmd| unsafe {
-            dev.cmd_reset_query_pool(cmd, pool, 0, 2 * runs as u32);
-            for r in 0..runs as u32 {
-                full_barrier(dev, cmd);
-                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 2 * r);
+        // SAFETY: recording with live objects; the pool outlives the submission (run waits).
+        let recorded = self.dev.run(|r| unsafe {
+            r.dev.cmd_reset_query_pool(r.cmd, pool, 0, 2 * runs as u32);
+            for k in 0..runs as u32 {
+                r.barrier();
+                r.dev.cmd_write_timestamp(r.cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 2 * k);
                 for p in &launches {
-                    l.record(dev, cmd, p);
+                    l.record(r, p);
                 }
-                full_barrier(dev, cmd);
-                dev.cmd_write_timestamp(cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 2 * r + 1);
+                r.barrier();
+                r.dev.cmd_write_timestamp(r.cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 2 * k + 1);
             }
         });
         let mut ticks = vec![0u64; 2 * runs];
         let read = recorded.and_then(|()| {
             // SAFETY: all queries were written by the completed submission.
-            unsafe { self.ctx.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
+            unsafe { ctx.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
                 .map_err(VkError::vk("vkGetQueryPoolResults"))
         });
         // SAFETY: the submission using the pool has completed.
-        unsafe { self.ctx.device.destroy_query_pool(pool, None) };
+        unsafe { ctx.device.destroy_query_pool(pool, None) };
         read?;
         let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
-        let period = self.ctx.limits.timestamp_period_ns * 1e-9;
+        let period = ctx.limits.timestamp_period_ns * 1e-9;
         let times: Vec<f64> = (opts.warmup..runs)
             .map(|r| ((ticks[2 * r + 1].wrapping_sub(ticks[2 * r])) & mask) as f64 * period)
             .collect();
@@ -256,10 +252,9 @@ impl VulkanLocator {
                 let sampler = PowerSampler::start(nv);
                 let t = Instant::now();
                 while t.elapsed() < Duration::from_secs(1) {
-                    let l = launch!(self, v);
-                    self.cmds.run(|dev, cmd| {
+                    self.dev.run(|r| {
                         for p in &launches {
-                            l.record(dev, cmd, p);
+                            l.record(r, p);
                         }
                     })?;
                 }
@@ -271,8 +266,8 @@ impl VulkanLocator {
         // Outside count of the last chunk of the last run (all chunks are alike samples).
         let last = launches.last().map_or(0, |p| p.counts[0] as usize);
         let mut out = vec![0u32; last];
-        let o = &self.io.as_ref().unwrap().1;
-        self.staging.download(&mut self.cmds, o, 0, bytemuck::cast_slice_mut(&mut out))?;
+        let io = self.io.as_ref().expect("ensure_io made it");
+        self.dev.download(&io.results, 0, bytemuck::cast_slice_mut(&mut out))?;
         let outside_last = match output {
             OUT_IDS => out.iter().filter(|&&t| t as i32 == -1).count(),
             _ => out.iter().filter(|&&b| f32::from_bits(b).is_nan()).count(),

@@ -1,0 +1,146 @@
+//! The point-location kernels, one module each: `soft_bvh` (a compute shader), and under
+//! `rt/` the ray-tracing kernels with their shared setup. Each kernel builds its search
+//! structure on the device and returns a [`Plan`]: everything the locator, the volume marcher
+//! and the benchmarks need to run it, so that none of them asks which kernel it is. A new
+//! kernel is a new module and one line in [`kernels!`] below.
+
+pub(crate) mod rt;
+pub(crate) mod soft_bvh;
+
+use crate::device::{Device, Split};
+use crate::error::VkResult;
+use crate::locator::LocatorOptions;
+use crate::pipeline::{Binding, Program, Spec};
+use rt::AsReport;
+use std::fmt;
+use std::str::FromStr;
+use std::sync::Arc;
+use tetloc_core::geom::Vec3;
+use tetloc_core::mesh::Mesh;
+
+/// A kernel as the registry knows it.
+pub(crate) struct KernelDef {
+    /// The name on the command line and in reports.
+    pub name: &'static str,
+    /// Needs ray-tracing pipelines; then it builds from the vertex buffer (uploaded with
+    /// acceleration-structure build-input usage).
+    pub ray_tracing: bool,
+    /// Builds the kernel's structure for a mesh on the device.
+    pub plan: fn(&mut Device, &Inputs) -> VkResult<Plan>,
+}
+
+/// What a kernel builds from: the mesh, on the host and on the device, and the options.
+pub(crate) struct Inputs<'a> {
+    pub mesh: &'a Arc<Mesh>,
+    pub points: &'a Split,
+    pub opts: &'a LocatorOptions,
+    /// The point-in-tet test runs with its exact f64 fallback.
+    pub f64: bool,
+}
+
+/// A kernel's structure on the device and how to run it.
+pub(crate) struct Plan {
+    /// What the structure owns (buffers, acceleration structures); only held: `bindings`
+    /// name it.
+    pub _owned: Box<dyn Send>,
+    /// The structure's descriptor bindings (the mesh's, the field's and the queries' are the
+    /// locator's).
+    pub bindings: Vec<Binding>,
+    /// The kernel's specialization constants, for the locate and the march pipelines.
+    pub spec: Spec,
+    /// The locate pipelines' own constants (on top of `spec`) ...
+    pub locate_spec: Spec,
+    /// ... and, with deferred exact tests, the exact second pass's, an indirect dispatch over
+    /// the samples the first pass deferred (`DEFERRED`).
+    pub exact_pass: Option<Spec>,
+    /// The shaders that locate points, and the ones that march a frame.
+    pub locate: Program,
+    pub march: Program,
+    /// The march shaders walk through tet neighbours, which `bindings` lacks: the marcher
+    /// must bind a table of its own.
+    pub march_needs_neighbors: bool,
+    /// The rays the rt kernels trace (push constants); unused by compute kernels.
+    pub ray: Ray,
+    /// Acceleration-structure sizes for the memory report.
+    pub accel: Option<AsReport>,
+}
+
+/// A ray's length and unit direction.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct Ray {
+    pub tmax: f32,
+    pub dir: Vec3,
+}
+
+impl Ray {
+    /// A ray of length `tmax` along `dir` (normalised here).
+    pub fn new(tmax: f32, dir: Vec3) -> Ray {
+        let norm = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt();
+        Ray { tmax, dir: dir.map(|d| d / norm) }
+    }
+}
+
+/// The largest extent of the mesh's bounding box (never 0).
+pub(crate) fn extent(mesh: &Mesh) -> f32 {
+    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+    (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max).max(f32::MIN_POSITIVE)
+}
+
+/// Declares the kernels: the public enum and each one's [`KernelDef`], one line a kernel.
+macro_rules! kernels {
+    ($( $(#[doc = $doc:literal])* $variant:ident => $def:path, )*) => {
+        /// The point-location kernels (the four of the paper).
+        #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+        pub enum Kernel {
+            $( $(#[doc = $doc])* $variant, )*
+        }
+
+        impl Kernel {
+            pub const ALL: [Kernel; [$(stringify!($variant)),*].len()] = [$(Kernel::$variant),*];
+
+            pub(crate) fn def(self) -> &'static KernelDef {
+                match self {
+                    $( Kernel::$variant => &$def, )*
+                }
+            }
+        }
+    };
+}
+
+kernels! {
+    /// BVH traversal and point-in-tet in a compute shader (the paper's cuda-bvh).
+    SoftBvh => soft_bvh::KERNEL,
+    /// Ray-tracing BVH over one box per tet, point-in-tet in an intersection shader.
+    RtBvh => rt::bvh::KERNEL,
+    /// Four inward-facing triangles per tet, closest hit with back faces culled.
+    RtRepFaces => rt::rep_faces::KERNEL,
+    /// Each unique face once with its two tets, closest hit picks the side.
+    RtSharedFaces => rt::shared_faces::KERNEL,
+}
+
+impl Kernel {
+    pub fn name(self) -> &'static str {
+        self.def().name
+    }
+
+    /// True for the kernels that need ray-tracing pipelines.
+    pub fn needs_ray_tracing(self) -> bool {
+        self.def().ray_tracing
+    }
+}
+
+impl fmt::Display for Kernel {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl FromStr for Kernel {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Kernel, String> {
+        Kernel::ALL
+            .into_iter()
+            .find(|k| k.name() == s)
+            .ok_or_else(|| format!("unknown kernel '{s}' (known: {})", Kernel::ALL.map(|k| k.name()).join(", ")))
+    }
+}

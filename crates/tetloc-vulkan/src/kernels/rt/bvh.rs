@@ -1,0 +1,39 @@
+//! rt-bvh: the hardware (or driver) traverses a BVH over one box per tet; an intersection
+//! shader runs the point-in-tet test for each box an infinitesimal ray from the point starts
+//! in, and the ray ends at the first tet that holds it (shaders/rt_bvh.rint, rt_bvh.rchit).
+
+use super::{Geometry, RtKernel, OPAQUE, TERMINATE_ON_FIRST_HIT};
+use crate::kernels::{extent, KernelDef, Ray};
+use crate::shaders;
+use rayon::prelude::*;
+use tetloc_core::bvh::Aabb;
+
+pub(crate) const KERNEL: KernelDef =
+    KernelDef { name: "rt-bvh", ray_tracing: true, plan: |dev, input| super::plan(&RT_BVH, dev, input) };
+
+const RT_BVH: RtKernel = RtKernel {
+    geometry: Geometry::Boxes,
+    centres: super::tet_centres,
+    prims_per_item: 1,
+    input_bytes: std::mem::size_of::<Aabb>(),
+    input: |mesh, tets| {
+        let boxes: Vec<Aabb> = tets
+            .par_iter()
+            .map(|&t| {
+                let b = Aabb::of_tet(mesh.tets[t as usize], &mesh.points);
+                // One ulp outwards: a point on the box's surface is strictly inside.
+                Aabb { min: b.min.map(f32::next_down), max: b.max.map(f32::next_up) }
+            })
+            .collect();
+        bytemuck::cast_slice(&boxes).to_vec()
+    },
+    // The tet of each box.
+    table: |_, order| bytemuck::cast_slice(order).to_vec(),
+    walks: false,
+    ray_flags: OPAQUE | TERMINATE_ON_FIRST_HIT,
+    retry_on_miss: false,
+    // An infinitesimal ray: it only finds the boxes that contain its origin.
+    ray: |mesh| Ray::new(extent(mesh) * 1e-10, [1.0, 1.0, 1.0]),
+    closest_hit: shaders::RT_BVH_RCHIT,
+    intersection: Some(shaders::RT_BVH_RINT),
+};

@@ -1,0 +1,298 @@
+//! soft-bvh (the paper's cuda-bvh): one compute-shader invocation per point traverses the
+//! wide quantized BVH of `tetloc_core::bvh` (4 children a node, child boxes in a byte a
+//! coordinate), entered through a uniform grid whose cells name a start tet for a walk through
+//! face neighbours and a node for the exact traversal fallback (shaders/soft_bvh.comp,
+//! shaders/common/soft_bvh.glsl). The volume marcher runs the same traversal (march.comp).
+
+use super::{Inputs, KernelDef, Plan, Ray};
+use crate::device::Device;
+use crate::error::{VkError, VkResult};
+use crate::interface::{self, sc, B_ACCEL, B_ACCEL_HI, B_GRID, B_NEIGHBORS, B_NEIGHBORS_HI, B_PRIMS};
+use crate::memory::MemKind;
+use crate::pipeline::{Binding, Program, Spec};
+use crate::shaders;
+use ash::vk;
+use tetloc_core::bvh::{wide, Aabb, BuildPreset, Bvh, EntryGrid, WideBvh};
+use tetloc_core::geom::{self, Vec3};
+
+pub(crate) const KERNEL: KernelDef = KernelDef { name: "soft-bvh", ray_tracing: false, plan };
+
+/// Most tets a walk start visits before traversal takes over (jets: 1.7-2.6 on average from
+/// a cell-centre start, NOTES.md).
+const WALK_MAX: i32 = 32;
+
+// The shaders decode tetloc_core's node format with the interface's constants.
+const _: () = assert!(
+    interface::LEAF == wide::LEAF
+        && interface::EMPTY == wide::EMPTY
+        && interface::LEAF_COUNT_SHIFT == wide::LEAF_COUNT_SHIFT
+        && interface::LEAF_FIRST_MAX == wide::LEAF_FIRST_MAX
+        && interface::OUTSIDE == tetloc_core::OUTSIDE
+);
+
+fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
+    let (mesh, opts) = (input.mesh, input.opts);
+    let preset = if opts.leaf_size == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
+    let wide = WideBvh::collapse(&Bvh::build(&mesh.points, &mesh.tets, preset))
+        .map_err(|e| VkError::Mesh(format!("soft-bvh: {e}")))?;
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let nodes = dev.upload_split("bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&wide.nodes), 64)?;
+    let prims = if wide.direct {
+        None
+    } else {
+        Some(dev.upload("bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&wide.prims))?)
+    };
+    let grid = if opts.grid_start || opts.walk_start {
+        let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
+            &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
+        let g = EntryGrid::new(
+            &wide,
+            mesh.n_tets(),
+            |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
+            (mesh.info.bounds_min, mesh.info.bounds_max),
+            opts.grid_tets_per_cell,
+            opts.walk_start.then_some(holds),
+        );
+        Some(dev.upload("entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()))?)
+    } else {
+        None
+    };
+    let neighbors = if opts.walk_start {
+        let nb = bytemuck::cast_slice(mesh.neighbors());
+        Some(dev.upload_split("tet neighbours", MemKind::Structure, storage, nb, 16)?)
+    } else {
+        None
+    };
+
+    let unbound = dev.unbound();
+    let mut bindings = vec![
+        Binding::buffer(B_PRIMS, prims.as_ref().unwrap_or(unbound)),
+        Binding::buffer(B_GRID, grid.as_ref().unwrap_or(unbound)),
+    ];
+    bindings.extend(Binding::split(B_ACCEL, B_ACCEL_HI, Some(&nodes), unbound));
+    bindings.extend(Binding::split(B_NEIGHBORS, B_NEIGHBORS_HI, neighbors.as_ref(), unbound));
+    let spec = Spec::default()
+        .set(sc::NODES_CHUNK, nodes.per_chunk)
+        .set(sc::NEIGHBORS_CHUNK, neighbors.as_ref().map_or(0, |n| n.per_chunk))
+        .set(sc::WALK_MAX, WALK_MAX as u32)
+        .set(sc::WALK_START, opts.walk_start as u32)
+        .set(sc::STACK_SIZE, wide.stack_size())
+        .set(sc::DIRECT_LEAVES, wide.direct as u32)
+        .set(sc::GRID_START, grid.is_some() as u32);
+    // Deferred exact tests need the f64 test to defer to.
+    let defer = opts.defer_exact && input.f64;
+    let pass = |defer: bool, exact: bool| {
+        Spec::default()
+            .set(sc::F32_FIRST, (opts.f32_first || defer) as u32)
+            .set(sc::DEFER_EXACT, defer as u32)
+            .set(sc::EXACT_PASS, exact as u32)
+            .set(sc::WORKGROUP, opts.workgroup_size)
+    };
+    Ok(Plan {
+        _owned: Box::new((nodes, prims, grid, neighbors)),
+        bindings,
+        spec,
+        locate_spec: pass(defer, false),
+        exact_pass: defer.then(|| pass(false, true)),
+        locate: Program::Compute(shaders::SOFT_BVH),
+        march: Program::Compute(shaders::MARCH),
+        // The marcher walks from sample to sample (march.comp), with or without the walk start.
+        march_needs_neighbors: !opts.walk_start,
+        ray: Ray::default(),
+        accel: None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rayon::prelude::*;
+
+    /// What one CPU-mirrored location cost (NOTES.md "counts"): 4-wide nodes loaded,
+    /// point-in-tet tests, faces decided in f64, walk steps (tets tested by the walk).
+    #[derive(Clone, Copy, Debug, Default)]
+    struct Cost {
+        nodes: u32,
+        tests: u32,
+        f64_faces: u32,
+        walk_steps: u32,
+        /// The walk did not settle the point (left the mesh, ran out of steps, ended on a face).
+        fallback: bool,
+    }
+
+    /// The point-in-tet test, counting tests and the faces whose sign the f64 fallback decides.
+    fn test_counting(ids: [u32; 4], points: &[Vec3], p: Vec3, cost: &mut Cost) -> geom::TetTest {
+        cost.tests += 1;
+        let r = geom::test_point(ids, points, p);
+        let evaluated = match r {
+            geom::TetTest::Inside(_) => 4,
+            geom::TetTest::Outside { face } => {
+                let swapped = ids[3] < ids[2];
+                // stored index -> ascending index (the same involution), +1 faces evaluated
+                (if swapped && face >= 2 { 5 - face } else { face }) + 1
+            }
+        };
+        for (f, _) in geom::ascending_faces(ids).iter().take(evaluated) {
+            let v = f.map(|i| points[i as usize]);
+            let (det, bound) = geom::orient_f32(v[0], v[1], v[2], p);
+            if det.abs() <= bound {
+                cost.f64_faces += 1;
+            }
+        }
+        r
+    }
+
+    /// The CPU mirror of `tl_walk` (shaders/common/walk.glsl) with the walk-start rule of
+    /// `tl_locate`: the answer counts only when the point is strictly inside.
+    fn walk(mesh: &tetloc_core::Mesh, mut tet: i32, p: Vec3, max_steps: u32, cost: &mut Cost) -> Option<u32> {
+        for _ in 0..max_steps {
+            if tet < 0 {
+                break;
+            }
+            cost.walk_steps += 1;
+            match test_counting(mesh.tets[tet as usize], &mesh.points, p, cost) {
+                geom::TetTest::Inside(b) if b.iter().all(|&w| w != 0.0) => return Some(tet as u32),
+                geom::TetTest::Inside(_) => break,
+                geom::TetTest::Outside { face } => tet = mesh.neighbors()[tet as usize][face],
+            }
+        }
+        cost.fallback = true;
+        None
+    }
+
+    /// The wide traversal from `start`, counting.
+    fn traverse(
+        q: &WideBvh,
+        mesh: &tetloc_core::Mesh,
+        p: Vec3,
+        start: u32,
+        stack: &mut Vec<u32>,
+        cost: &mut Cost,
+    ) -> Option<u32> {
+        let mut tests = Cost::default();
+        let found = q.traverse(p, start, stack, |t| {
+            matches!(test_counting(mesh.tets[t as usize], &mesh.points, p, &mut tests), geom::TetTest::Inside(_))
+        });
+        cost.nodes += found.nodes;
+        cost.tests += tests.tests;
+        cost.f64_faces += tests.f64_faces;
+        found.prim
+    }
+
+    /// shaders/common/samples.glsl's `random` generator (hash, fold), for the counts.
+    fn random_sample(g: u32, seed: u32, points: &[Vec3], tets: &[[u32; 4]]) -> Vec3 {
+        let hash = |x: u32| {
+            let state = x.wrapping_mul(747796405).wrapping_add(2891336453);
+            let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277803737);
+            (word >> 22) ^ word
+        };
+        let mut st = hash(g ^ hash(seed));
+        let t = tets[(hash(st) % tets.len() as u32) as usize];
+        let mut unit = || {
+            st = hash(st);
+            (st >> 8) as f32 * (1.0 / 16777216.0)
+        };
+        let (a, b, c) = (unit(), unit(), unit());
+        let [a, b, c] = tetloc_core::queries::fold_cube_into_tet(a, b, c);
+        let w = 1.0 - a - b - c;
+        let v = t.map(|i| points[i as usize]);
+        std::array::from_fn(|k| w * v[0][k] + a * v[1][k] + b * v[2][k] + c * v[3][k])
+    }
+
+    /// Per-sample costs of three ways to locate (NOTES.md "Counts"): traversal from the root,
+    /// from the entry grid's node, and a walk from the grid's start tet (BVH from the entry
+    /// node as the fallback); averages per sample and, for SIMT, the mean over warps of 32
+    /// consecutive samples of the longest lane's loop iterations.
+    #[test]
+    #[ignore = "measurement: TETLOC_COUNT_TETS=12000000 cargo test --release -p tetloc-vulkan --lib count_costs -- --ignored --nocapture"]
+    fn count_costs() {
+        let n: usize = std::env::var("TETLOC_COUNT_TETS").map_or(3_000_000, |v| v.parse().unwrap());
+        let per_cell: usize = std::env::var("TETLOC_TETS_PER_CELL").map_or(2, |v| v.parse().unwrap());
+        let max_steps: u32 = std::env::var("TETLOC_WALK_STEPS").map_or(32, |v| v.parse().unwrap());
+        let mesh =
+            tetloc_core::Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, n, 1), "jets").unwrap();
+        let (pts, tets) = (&mesh.points, &mesh.tets);
+        let q = WideBvh::collapse(&Bvh::build(pts, tets, BuildPreset::SingleTetLeaves)).unwrap();
+        let holds = |t: u32, p: Vec3| geom::point_in_tet(tets[t as usize], pts, p).is_some();
+        let bounds = (mesh.info.bounds_min, mesh.info.bounds_max);
+        let g = EntryGrid::new(&q, tets.len(), |t| Aabb::of_tet(tets[t as usize], pts), bounds, per_cell, Some(&holds));
+        println!(
+            "jets {} tets, {} nodes, depth {}, grid {:?} ({} tets/cell), walk <= {max_steps} steps",
+            tets.len(),
+            q.nodes.len(),
+            q.depth,
+            g.dims,
+            per_cell
+        );
+        let warps = 20_000.min(tets.len() / 32);
+        for mode in ["centers", "random"] {
+            // [root, grid, walk] x [nodes, tests, f64 faces, walk steps, fallbacks, iterations, warp-max iterations]
+            let sums = (0..warps)
+                .into_par_iter()
+                .map(|w| {
+                    let mut acc = [[0f64; 7]; 3];
+                    let mut warp_max = [0u32; 3];
+                    let base = (w * (tets.len() / 32 / warps)) * 32;
+                    for lane in 0..32 {
+                        let i = base + lane;
+                        let p =
+                            if mode == "centers" { mesh.tet_center(i) } else { random_sample(i as u32, 1, pts, tets) };
+                        let c = g.cell_of(p);
+                        let mut costs = [Cost::default(); 3];
+                        let stack = &mut vec![];
+                        let a = traverse(&q, &mesh, p, 0, stack, &mut costs[0]);
+                        let b = traverse(&q, &mesh, p, g.cells[c], stack, &mut costs[1]);
+                        let walked = walk(&mesh, g.starts[c] as i32, p, max_steps, &mut costs[2]);
+                        let w = walked.or_else(|| traverse(&q, &mesh, p, g.cells[c], stack, &mut costs[2]));
+                        assert!(a.is_some(), "{mode} sample {i} {p:?} lost");
+                        assert_eq!(a, b, "{mode} sample {i}: grid start changed the answer");
+                        if walked.is_some() {
+                            // strictly inside: the one tet that holds the point
+                            assert_eq!(walked, a, "{mode} sample {i}: the walk found another tet");
+                        }
+                        assert!(w.is_some());
+                        for (k, cost) in costs.iter().enumerate() {
+                            let iters = cost.nodes + cost.tests;
+                            let v =
+                                [cost.nodes, cost.tests, cost.f64_faces, cost.walk_steps, cost.fallback as u32, iters];
+                            for (j, x) in v.iter().enumerate() {
+                                acc[k][j] += *x as f64;
+                            }
+                            warp_max[k] = warp_max[k].max(iters);
+                        }
+                    }
+                    for k in 0..3 {
+                        acc[k][6] = warp_max[k] as f64;
+                    }
+                    acc
+                })
+                .reduce(
+                    || [[0f64; 7]; 3],
+                    |mut x, y| {
+                        for k in 0..3 {
+                            for j in 0..7 {
+                                x[k][j] += y[k][j];
+                            }
+                        }
+                        x
+                    },
+                );
+            let samples = (warps * 32) as f64;
+            println!("{mode} ({} samples in warps of 32):", warps * 32);
+            println!("  start      nodes  tests  f64-faces  walk-steps  fallback  iterations  warp-max-iterations");
+            for (k, name) in ["root", "grid node", "grid walk"].iter().enumerate() {
+                let m: Vec<f64> = sums[k][..6].iter().map(|x| x / samples).collect();
+                println!(
+                    "  {name:<10} {:>5.2} {:>6.2} {:>10.4} {:>11.2} {:>8.2}% {:>11.2} {:>20.2}",
+                    m[0],
+                    m[1],
+                    m[2],
+                    m[3],
+                    100.0 * m[4],
+                    m[5],
+                    sums[k][6] / warps as f64
+                );
+            }
+        }
+    }
+}
