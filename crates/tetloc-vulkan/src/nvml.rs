@@ -23,6 +23,7 @@ pub(crate) struct Nvml {
 
 // SAFETY: NVML is thread-safe; the handle stays valid until nvmlShutdown in Drop.
 unsafe impl Send for Nvml {}
+// SAFETY: as for Send: NVML's calls may come from any thread at once.
 unsafe impl Sync for Nvml {}
 
 /// NVML's text form of a GPU UUID: "GPU-" and the 16 bytes as 8-4-4-4-12 hex digits.
