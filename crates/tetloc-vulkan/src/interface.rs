@@ -34,10 +34,14 @@ macro_rules! gpu_interface {
     ) => {
         $( $(#[doc = $ldoc])* pub const $lname: u32 = $lval; )*
         $( $(#[doc = $vdoc])* pub const $vname: $vty = $vval; )*
+        #[cfg(test)]
+        const LAYOUT: &[(&str, u32)] = &[$((stringify!($lname), $lval)),*];
 
         /// Specialization-constant ids.
         pub mod sc {
             $( $(#[doc = $sdoc])* pub const $sname: u32 = $sid; )*
+            #[cfg(test)]
+            pub(super) const ALL: &[(&str, u32)] = &[$((stringify!($sname), $sid)),*];
         }
 
         $(#[doc = $pdoc])*
@@ -307,5 +311,37 @@ gpu_interface! {
             /// Samples located, samples inside the mesh, 0, 0.
             count: [u32; 4],
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Binding numbers and specialization-constant ids are each used once.
+    #[test]
+    fn bindings_and_constant_ids_are_distinct() {
+        let bindings: Vec<u32> = LAYOUT.iter().filter(|(name, _)| name.starts_with("B_")).map(|b| b.1).collect();
+        let ids: Vec<u32> = sc::ALL.iter().map(|c| c.1).collect();
+        for (what, v) in [("binding", bindings), ("constant id", ids)] {
+            let mut sorted = v.clone();
+            sorted.sort();
+            sorted.dedup();
+            assert_eq!(sorted.len(), v.len(), "a {what} is used twice: {v:?}");
+        }
+    }
+
+    /// The GLSL declares every constant with its value, and every specialization constant.
+    #[test]
+    fn glsl_names_every_number() {
+        let g = glsl();
+        for (name, v) in LAYOUT {
+            assert!(g.contains(&format!("#define TL_{name} {v}\n")), "{name}");
+        }
+        for (name, id) in sc::ALL {
+            assert!(g.contains(&format!("#define TL_SC_{name} {id}\n")), "{name}");
+            assert!(name == &"WORKGROUP" || g.contains(&format!("layout(constant_id = {id}) const ")), "{name}");
+        }
+        assert!(g.contains("#define TL_DEFERRED (-3)") && g.contains("#define TL_LEAF 0x80000000u"));
     }
 }

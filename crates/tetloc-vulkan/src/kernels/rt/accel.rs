@@ -122,11 +122,15 @@ pub(crate) fn build(
     groups: &[Range<usize>],
     compact: bool,
 ) -> VkResult<Built> {
-    let mut report =
-        AsReport { blas_count: groups.len(), primitives: order.len() * k.prims_per_item, ..Default::default() };
-    let blas = build_bottom(dev, k, mesh, points, order, groups, compact, &mut report)?;
+    let (blas, blas_bytes_built) = build_bottom(dev, k, mesh, points, order, groups, compact)?;
     let tlas = build_top(dev, &blas)?;
-    report.tlas_bytes = tlas.bytes();
+    let report = AsReport {
+        blas_count: blas.len(),
+        primitives: order.len() * k.prims_per_item,
+        blas_bytes_built,
+        blas_bytes: blas.iter().map(Accel::bytes).sum(),
+        tlas_bytes: tlas.bytes(),
+    };
     Ok(Built { tlas, _blas: blas, report })
 }
 
@@ -154,8 +158,7 @@ impl Drop for SizeQuery<'_> {
     }
 }
 
-/// The bottom-level structures, one per group; adds their sizes to `report`.
-#[allow(clippy::too_many_arguments)] // the kernel, its items in order and their groups, and the report
+/// The bottom-level structures, one per group, and their bytes as built (before compaction).
 fn build_bottom(
     dev: &mut Device,
     k: &RtKernel,
@@ -164,8 +167,7 @@ fn build_bottom(
     order: &[u32],
     groups: &[Range<usize>],
     compact: bool,
-    report: &mut AsReport,
-) -> VkResult<Vec<Accel>> {
+) -> VkResult<(Vec<Accel>, u64)> {
     let ctx = dev.ctx().clone();
     let rt = ctx.rt.as_ref().expect("acceleration structures on a device without ray tracing");
     let n_points = mesh.points.len() as u32;
@@ -218,12 +220,13 @@ fn build_bottom(
     let query = SizeQuery::new(&ctx.device)?;
 
     let mut blas = Vec::with_capacity(groups.len());
+    let mut bytes_built = 0;
     for (gi, (g, sizes)) in groups.iter().zip(&sizes).enumerate() {
         dev.write(&input, 0, &(k.input)(mesh, &order[g.clone()]))?;
         let built_kind = if compact { MemKind::Scratch } else { MemKind::Structure };
         let bottom = vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL;
         let built = Accel::new(dev, format!("blas {gi}"), built_kind, bottom, sizes.acceleration_structure_size)?;
-        report.blas_bytes_built += built.bytes();
+        bytes_built += built.bytes();
         let geo = [geometry(k.geometry, input.address, points.address, n_points)];
         let info = build_info(flags, &geo)
             .dst_acceleration_structure(built.handle)
@@ -258,11 +261,9 @@ fn build_bottom(
                 );
             }
         })?;
-        let done = if compact { compacted(dev, built, &query, gi)? } else { built };
-        report.blas_bytes += done.bytes();
-        blas.push(done);
+        blas.push(if compact { compacted(dev, built, &query, gi)? } else { built });
     }
-    Ok(blas)
+    Ok((blas, bytes_built))
 }
 
 /// A compacted copy of `built`, whose compacted size the completed build wrote to `query`.
