@@ -2,7 +2,7 @@
 //! `rt/` the ray-tracing kernels with their shared setup. Each kernel builds its search
 //! structure on the device and returns a [`Plan`]: everything the locator, the volume marcher
 //! and the benchmarks need to run it, so that none of them asks which kernel it is. A new
-//! kernel is a new module and one line in [`kernels!`] below.
+//! kernel is a new module and one line in `kernels!` below.
 
 pub(crate) mod rt;
 pub(crate) mod soft_bvh;

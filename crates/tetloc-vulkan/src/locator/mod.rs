@@ -6,7 +6,7 @@ mod bench;
 mod launch;
 
 pub use bench::{si, BenchOptions, BenchResult};
-pub(crate) use launch::{Launcher, Variant};
+use launch::{Launcher, Variant};
 
 use crate::context::Context;
 use crate::device::{Device, Split};
@@ -253,7 +253,7 @@ impl VulkanLocator {
     }
 
     /// The pipeline for `v`, created on first use (with its exact second pass when deferring).
-    pub(crate) fn pipeline(&mut self, v: Variant) -> VkResult<&Pipeline> {
+    fn pipeline(&mut self, v: Variant) -> VkResult<&Pipeline> {
         let spec = self.spec(v.output).set(sc::SAMPLE_MODE, v.sample as u32).set(sc::RECORD_POINTS, v.record as u32);
         let layout = self.launcher.desc.layout;
         if let Some(exact) = &self.plan.exact_pass {
@@ -283,7 +283,7 @@ impl VulkanLocator {
     }
 
     /// Push constants for a launch of `n` points starting at global sample index `base`.
-    pub(crate) fn params(&self, n: usize, base: usize, seed: u32) -> Params {
+    fn params(&self, n: usize, base: usize, seed: u32) -> Params {
         let (lo, hi) = (self.mesh.info.bounds_min, self.mesh.info.bounds_max);
         let ray = self.plan.ray;
         Params {
