@@ -465,11 +465,8 @@ mod tests {
     /// n^3 cubes, 6 tets each (Kuhn), taller than wide, every vertex jittered; tets made
     /// positive as the locator's BVH expects.
     fn grid(n: usize) -> (Vec<[f32; 3]>, Vec<[u32; 4]>) {
-        let raw = tetloc_core::testdata::KuhnGrid::new(n)
-            .spacing([1.0, 1.0, 1.5])
-            .jitter(0.05, n as u64)
-            .jitter_boundary()
-            .raw();
+        let raw =
+            tetloc_testdata::KuhnGrid::new(n).spacing([1.0, 1.0, 1.5]).jitter(0.05, n as u64).jitter_boundary().raw();
         let tets = raw.tets.iter().map(|&t| geom::canonical_tet(t, &raw.points).0).collect();
         (raw.points, tets)
     }
@@ -569,11 +566,8 @@ mod tests {
     /// them finds the traversal's tet for points strictly inside, for points anywhere.
     #[test]
     fn walk_starts_lead_to_the_traversal_answer() {
-        let mesh = tetloc_core::testdata::KuhnGrid::new(6)
-            .spacing([1.0, 1.0, 1.5])
-            .jitter(0.05, 6)
-            .jitter_boundary()
-            .mesh("grid");
+        let mesh =
+            tetloc_testdata::KuhnGrid::new(6).spacing([1.0, 1.0, 1.5]).jitter(0.05, 6).jitter_boundary().mesh("grid");
         let (pts, tets) = (&mesh.points, &mesh.tets);
         let q = collapse(&Bvh::build(pts, tets, BuildPreset::SingleTetLeaves)).unwrap();
         let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);

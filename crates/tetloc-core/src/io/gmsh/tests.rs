@@ -3,7 +3,7 @@
 
 use super::*;
 use crate::mesh::{Field, Mesh};
-use crate::testdata::require_data;
+use crate::test_support::require_data;
 use rand::{Rng, SeedableRng};
 use std::path::PathBuf;
 
