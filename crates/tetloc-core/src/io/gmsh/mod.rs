@@ -22,10 +22,10 @@
 //! are checked against the bytes that are left before anything is allocated, so a truncated
 //! or corrupt file is an error naming the line (ASCII) or byte offset (binary), never a panic.
 //!
-//! The parts: `mod.rs` dispatches sections and assembles the [`RawMesh`]; [`v2`] and [`v4`]
-//! read `$Nodes` and `$Elements` of each format version; [`elements`] is the element type
-//! table; [`tets`] collects the tetrahedra; [`tags`] maps tags to indices; [`data`] reads the
-//! fields. Words, numbers and binary blocks come from the shared [`Cursor`].
+//! The parts: `mod.rs` dispatches sections and assembles the [`RawMesh`]; `v2.rs` and `v4.rs`
+//! read `$Nodes` and `$Elements` of each format version; `elements.rs` is the element type
+//! table; `tets.rs` collects the tetrahedra; `tags.rs` maps tags to indices; `data.rs` reads
+//! the fields. Words, numbers and binary blocks come from the shared `io/cursor.rs`.
 
 mod data;
 mod elements;

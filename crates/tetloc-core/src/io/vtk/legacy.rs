@@ -113,8 +113,10 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
                             None => 1,
                         };
                         if r.c.next_line_starts_with("LOOKUP_TABLE") {
+                            let at = r.at; // errors about the array still name the SCALARS line
                             r.keyword()?;
                             r.args();
+                            r.at = at;
                         }
                         (arg(1), nc)
                     }
@@ -516,12 +518,15 @@ w 2 5 int
             (ok.replace("ASCII", "TEXT"), "not ASCII or BINARY"),
             (ok.replace("UNSTRUCTURED_GRID", "POLYDATA"), "POLYDATA"),
             (ok.replace("CELL_TYPES 3\n10 5\n10", "CELL_TYPES 3\n10 5\n12"), "hexahedron"),
-            (ok.replace("POINTS 5 float", "POINTS 5 floot"), "'floot'"),
+            (ok.replace("POINTS 5 float", "POINTS 5 floot"), "test.vtk: line 11: data type 'floot'"),
             (ok.replace("4 4 1 2 0", "4 4 1 2 9"), "uses point 9"),
             (ok.replace("4 4 1 2 0", "9 4 1 2 0"), "past the end"),
             (ok.replace("POINT_DATA 5", "POINT_DATA 6"), "'VECTORS' is not a valid Float64"),
             (ok.replace("CELL_DATA 3\n", ""), "before POINT_DATA"),
-            (ok.replace("CELLS 3 14", "CELLS 3 1000000000000"), "'CELL_TYPES' is not a valid Int32"),
+            (
+                ok.replace("CELLS 3 14", "CELLS 3 1000000000000"),
+                "test.vtk: line 18: CELLS: value 14: 'CELL_TYPES' is not a valid Int32",
+            ),
             (ok.replace("POINTS 5 float", "POINTS 99999999999999999999 float"), "not a count"),
             (ok[..ok.find("CELL_TYPES").unwrap()].to_string(), "no CELL_TYPES"),
             (ok.replace("VECTORS", "VECTOR"), "unexpected keyword 'VECTOR'"),
