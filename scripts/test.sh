@@ -23,8 +23,8 @@ gate() {
 gate "format" "run 'cargo fmt --all' to fix it" cargo fmt --all --check
 gate "format (fuzz)" "run 'cargo fmt --all --manifest-path fuzz/Cargo.toml' to fix it" \
   cargo fmt --all --check --manifest-path fuzz/Cargo.toml
-gate "clippy" "see the warnings above" cargo clippy --workspace --all-targets --locked -- -D warnings
-gate "clippy (fuzz)" "see the warnings above" \
+gate "clippy" "see the messages above" cargo clippy --workspace --all-targets --locked -- -D warnings
+gate "clippy (fuzz)" "see the messages above" \
   cargo clippy --manifest-path fuzz/Cargo.toml --lib --tests --locked -- -D warnings
 
 bash scripts/install-test-deps.sh
