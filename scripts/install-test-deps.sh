@@ -1,15 +1,31 @@
 #!/usr/bin/env bash
 # Installs what the tests need on Debian: lavapipe (Mesa's CPU Vulkan driver, with
 # ray-tracing pipelines since Mesa 25) and the Vulkan loader from bookworm-backports,
-# plus the validation layers. The backports source reuses the URIs of the machine's
-# own Debian sources, so no registry host is named here.
+# plus the validation layers (the GPU tests run with them on, and the smoke test checks
+# that they are). Each part is checked on its own, so a machine that already has lavapipe
+# still gets the layers. The backports source reuses the URIs of the machine's own Debian
+# sources, so no registry host is named here.
 set -euo pipefail
 [ "$(id -u)" = 0 ] && SUDO= || SUDO=sudo
-if ldconfig -p | grep -q libvulkan.so.1 && ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1 \
-   && [ -z "${TETLOC_REINSTALL_DEPS:-}" ]; then
-  echo "install-test-deps: Vulkan loader and lavapipe already present"
+
+have_driver() {
+  ldconfig -p | grep -q libvulkan.so.1 && ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1
+}
+have_layers() {
+  ls /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json >/dev/null 2>&1
+}
+
+need_driver=1
+need_layers=1
+if [ -z "${TETLOC_REINSTALL_DEPS:-}" ]; then
+  have_driver && need_driver=
+  have_layers && need_layers=
+fi
+if [ -z "$need_driver$need_layers" ]; then
+  echo "install-test-deps: Vulkan loader, lavapipe and validation layers already present"
   exit 0
 fi
+
 src=/etc/apt/sources.list.d/debian.sources
 uris=$(awk '/^URIs:/ {print $2; exit}' "$src" 2>/dev/null || true)
 if [ -z "$uris" ]; then
@@ -25,8 +41,18 @@ if [ ! -f "$bp" ]; then
 fi
 export DEBIAN_FRONTEND=noninteractive
 $SUDO apt-get update -qq
-$SUDO apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers libvulkan1 >/dev/null
-# Validation layers (optional: tests turn them on when present).
-$SUDO apt-get install -y -qq -t bookworm-backports vulkan-validationlayers >/dev/null 2>&1 \
-  || $SUDO apt-get install -y -qq vulkan-validationlayers >/dev/null 2>&1 || true
+if [ -n "$need_driver" ]; then
+  echo "install-test-deps: installing the Vulkan loader and lavapipe"
+  $SUDO apt-get install -y -qq -t bookworm-backports mesa-vulkan-drivers libvulkan1 >/dev/null
+fi
+if [ -n "$need_layers" ]; then
+  # From backports when it has them (to match the loader), else from the release.
+  echo "install-test-deps: installing the Vulkan validation layers"
+  $SUDO apt-get install -y -qq -t bookworm-backports vulkan-validationlayers >/dev/null 2>&1 \
+    || $SUDO apt-get install -y -qq vulkan-validationlayers >/dev/null
+fi
+if ! have_driver || ! have_layers; then
+  echo "install-test-deps: lavapipe or the validation layers are still missing after the install" >&2
+  exit 1
+fi
 echo "install-test-deps: done"

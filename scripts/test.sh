@@ -1,10 +1,32 @@
 #!/usr/bin/env bash
-# Runs every test of the workspace: installs what the tests need (the Vulkan loader and
-# lavapipe, Mesa's CPU Vulkan driver with ray-tracing pipelines, from bookworm-backports),
-# then `cargo test`. The GPU tests run on whatever Vulkan device there is; with CI set, a
-# test that finds no device or no oracle data fails instead of skipping.
+# Runs every check of the workspace. First the gates, which fail fast with the command that
+# fixes or shows the problem: formatting (`cargo fmt --check`) and lints (`cargo clippy
+# -D warnings`), each for the workspace and the fuzz crate. Then it installs what the tests
+# need (the Vulkan loader and lavapipe, Mesa's CPU Vulkan driver with ray-tracing pipelines,
+# from bookworm-backports, and the validation layers) and runs `cargo test`. The GPU tests
+# run on whatever Vulkan device there is; with CI set, a test that finds no device or no
+# oracle data fails instead of skipping. Arguments go to the workspace's `cargo test`.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+
+# gate NAME FIX COMMAND...: runs COMMAND; on failure says which gate failed and how to fix it.
+gate() {
+  local name=$1 fix=$2
+  shift 2
+  echo "test.sh: gate: $name"
+  if ! "$@"; then
+    echo "test.sh: FAILED gate '$name'; $fix" >&2
+    exit 1
+  fi
+}
+# The fuzz crate is its own workspace (cargo-fuzz builds it with nightly), so each gate runs twice.
+gate "format" "run 'cargo fmt --all' to fix it" cargo fmt --all --check
+gate "format (fuzz)" "run 'cargo fmt --all --manifest-path fuzz/Cargo.toml' to fix it" \
+  cargo fmt --all --check --manifest-path fuzz/Cargo.toml
+gate "clippy" "see the messages above" cargo clippy --workspace --all-targets --locked -- -D warnings
+gate "clippy (fuzz)" "see the messages above" \
+  cargo clippy --manifest-path fuzz/Cargo.toml --lib --tests --locked -- -D warnings
+
 bash scripts/install-test-deps.sh
 # Prefer lavapipe when no other driver is set, so results do not depend on a desktop GPU.
 if [ -z "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ] && [ -n "${CI:-}" ]; then
@@ -12,7 +34,6 @@ if [ -z "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ] && [ -n "${CI:-}" ]; then
   [ -n "$lvp" ] && export VK_DRIVER_FILES="$lvp"
 fi
 export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
-# The fuzz targets' bodies over the shared data, truncations and byte flips (stable toolchain;
-# the fuzz crate is its own workspace so that cargo-fuzz can build it with nightly).
+# The fuzz targets' bodies over the shared data, truncations and byte flips (stable toolchain).
 cargo test --locked --manifest-path fuzz/Cargo.toml --lib
 cargo test --workspace --locked "$@"

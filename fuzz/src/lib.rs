@@ -39,14 +39,6 @@ mod tests {
     use super::*;
     use std::path::PathBuf;
 
-    /// The shared data folder (`TETLOC_DATA` overrides it), as the core crate's tests find it.
-    fn data_dir() -> Option<PathBuf> {
-        let dir = std::env::var_os("TETLOC_DATA")
-            .map(PathBuf::from)
-            .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
-        dir.is_dir().then_some(dir)
-    }
-
     /// Files of the seed corpus with one of `exts`, from the data folder and `real/`.
     fn seeds(dir: &Path, exts: &[&str]) -> Vec<PathBuf> {
         let mut out: Vec<PathBuf> = [dir.to_path_buf(), dir.join("real")]
@@ -89,11 +81,7 @@ mod tests {
 
     #[test]
     fn targets_survive_the_seed_corpus() {
-        let Some(dir) = data_dir() else {
-            assert!(std::env::var_os("CI").is_none(), "no shared data: set TETLOC_DATA");
-            eprintln!("SKIPPED: no shared data (set TETLOC_DATA)");
-            return;
-        };
+        let Some(dir) = tetloc_testdata::require_data("targets_survive_the_seed_corpus") else { return };
         let msh = seeds(&dir, &["msh"]);
         let vtus = seeds(&dir, &["vtu"]);
         let vtks = seeds(&dir, &["vtk"]);

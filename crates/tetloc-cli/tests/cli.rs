@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 use std::process::Command;
-use tetloc_core::testdata::{query_sets, require_data};
+use tetloc_testdata::{query_sets, require_data};
 
 fn tetloc(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");

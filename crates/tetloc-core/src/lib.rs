@@ -10,9 +10,7 @@ pub mod locate;
 pub mod mesh;
 pub mod queries;
 #[cfg(test)]
-pub(crate) mod test_support;
-#[doc(hidden)]
-pub mod testdata;
+mod test_support;
 
 pub use error::{Error, Result};
 pub use geom::Vec3;

@@ -9,8 +9,8 @@
 
 use std::collections::HashMap;
 use std::sync::Arc;
-use tetloc_core::testdata::{exact_value, query_sets, require_data};
 use tetloc_core::{io, BatchLocator, CpuLocator, Mesh};
+use tetloc_testdata::{exact_value, query_sets, require_data};
 
 #[test]
 fn cpu_locator_matches_the_oracle() {

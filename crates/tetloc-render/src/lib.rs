@@ -55,7 +55,6 @@ mod output;
 mod render;
 pub mod skip;
 pub mod surface;
-pub mod testmesh;
 pub mod tf;
 mod vec;
 

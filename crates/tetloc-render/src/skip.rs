@@ -162,7 +162,7 @@ impl OccupancyGrid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::testmesh;
+    use tetloc_testdata::testmesh;
 
     #[test]
     fn every_tet_point_is_in_an_occupied_cell() {

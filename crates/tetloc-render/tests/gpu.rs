@@ -5,12 +5,12 @@
 //! set, a missing device or missing ray tracing fails the test instead of skipping it.
 
 use std::sync::Arc;
-use tetloc_core::testdata::in_ci;
 use tetloc_core::{CpuLocator, Mesh};
 use tetloc_render::tf::{Colormap, TransferFunction};
 use tetloc_render::{
-    compare_locators, psnr, testmesh, GpuMarcher, LookAt, Marcher, RenderOptions, Renderer, SurfaceSpec, TfSpec,
+    compare_locators, psnr, GpuMarcher, LookAt, Marcher, RenderOptions, Renderer, SurfaceSpec, TfSpec,
 };
+use tetloc_testdata::{in_ci, testmesh};
 use tetloc_vulkan::{Context, ContextOptions, Kernel, LocatorOptions, VulkanLocator};
 
 /// The device, or `None` (test skipped) outside CI when there is none.

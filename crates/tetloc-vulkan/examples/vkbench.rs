@@ -149,7 +149,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         Some(path) => tetloc_core::io::read_mesh(std::path::Path::new(path), None)?,
         None if args.regular => {
             let n = (args.tets as f64 / 6.0).cbrt().round().max(1.0) as usize;
-            tetloc_core::testdata::KuhnGrid::new(n).mesh(&format!("regular {n}^3 cubes"))
+            tetloc_testdata::KuhnGrid::new(n).mesh(&format!("regular {n}^3 cubes"))
         }
         None => Mesh::new(generate(args.shape, args.tets, args.seed), args.shape.name())?,
     });

@@ -53,7 +53,7 @@ fn check_mesh(name: &str, mesh: Arc<Mesh>) {
             let mut v = vec![0f32; points.len()];
             loc.sample(&points, "f", &mut v).unwrap();
             for (i, &p) in points.iter().enumerate().filter(|&(i, _)| ids[i] >= 0) {
-                let want = tetloc_core::testdata::exact_value(&mesh, ids[i] as usize, p, &f.values);
+                let want = tetloc_testdata::exact_value(&mesh, ids[i] as usize, p, &f.values);
                 assert!(
                     (v[i] as f64 - want).abs() <= 1e-5 * want.abs().max(1.0),
                     "{name} {k}: f at {p:?}: {} vs {want}",

@@ -5,8 +5,8 @@ mod common;
 
 use std::sync::Arc;
 use tetloc_core::geom::Vec3;
-use tetloc_core::testdata::{query_sets, require_data};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
+use tetloc_testdata::{query_sets, require_data};
 use tetloc_vulkan::{Kernel, LocatorOptions, MemKind, QueryKind, VulkanLocator};
 
 fn answers(loc: &mut VulkanLocator, points: &[Vec3]) -> (Vec<i32>, Vec<u32>) {

@@ -4,8 +4,8 @@ mod common;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
-use tetloc_core::testdata::{query_sets, require_data, QuerySet};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
+use tetloc_testdata::{query_sets, require_data, QuerySet};
 use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 
 /// Relative tolerance of interpolated values (relative to max(|expected|, 1)).
@@ -51,7 +51,7 @@ fn check_set(loc: &mut VulkanLocator, mesh: &Mesh, set: &QuerySet, cpu: &[i32]) 
                 continue;
             }
             // The reference: f64 barycentrics in the tet the kernel chose.
-            let exact = tetloc_core::testdata::exact_value(mesh, ids[i] as usize, set.points[i], &f.values);
+            let exact = tetloc_testdata::exact_value(mesh, ids[i] as usize, set.points[i], &f.values);
             assert!(close(got, exact), "{label}: f at point {i}: {got}, exact {exact}");
             if !close(exact, want) {
                 oracle_off.push(i); // the oracle itself is off here (or another tet was chosen)

@@ -35,7 +35,7 @@ fn validate_catches_broken_trees() {
 /// n^3 cubes, 6 tets each (Kuhn), taller than wide, every vertex jittered, as a mesh
 /// (canonical tets, neighbours).
 fn tall_grid(n: usize) -> crate::Mesh {
-    crate::testdata::KuhnGrid::new(n).spacing([1.0, 1.0, 1.5]).jitter(0.05, n as u64).jitter_boundary().mesh("grid")
+    crate::test_support::KuhnGrid::new(n).spacing([1.0, 1.0, 1.5]).jitter(0.05, n as u64).jitter_boundary().mesh("grid")
 }
 
 fn inside(m: &crate::Mesh, t: u32, p: Vec3) -> bool {

@@ -1,6 +1,7 @@
 //! Mesh readers and writers, chosen by file extension (or an explicit [`MeshFormat`]), and
 //! query-point / result array I/O.
 
+pub(crate) mod cursor;
 pub mod gmsh;
 pub mod points;
 #[cfg(test)]

@@ -153,7 +153,9 @@ mod tests {
 
     #[test]
     fn every_points_format_reads_the_oracle_points() {
-        let Some(dir) = crate::testdata::require_data("every_points_format_reads_the_oracle_points") else { return };
+        let Some(dir) = crate::test_support::require_data("every_points_format_reads_the_oracle_points") else {
+            return;
+        };
         let bin = read_points(&dir.join("torus_s.random.points.bin")).unwrap();
         assert_eq!(bin.len(), 20000);
         // CSV written by hand, npy written by us: all three give the same points.

@@ -9,7 +9,7 @@
 
 use super::read_raw;
 use crate::mesh::RawMesh;
-use crate::testdata::require_data;
+use crate::test_support::require_data;
 
 /// Files whose numbers are decimal text.
 const ASCII: &[&str] = &["part_s.msh22.msh"];

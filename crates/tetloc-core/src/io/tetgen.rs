@@ -13,6 +13,7 @@
 //! `#` starts a comment anywhere on a line; blank lines are skipped. Errors name the file and
 //! the line.
 
+use super::cursor::{Cursor, Line};
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::path::{Path, PathBuf};
@@ -33,8 +34,8 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 /// `path` with the extension `.node` or `.ele`).
 pub fn parse(node: &[u8], ele: &[u8], path: &Path) -> Result<RawMesh> {
     let (node_path, ele_path) = siblings(path);
-    let nodes = read_nodes(&mut Lines::new(node, &node_path))?;
-    let tets = read_tets(&mut Lines::new(ele, &ele_path), &nodes)?;
+    let nodes = read_nodes(&mut Cursor::new(node, &node_path))?;
+    let tets = read_tets(&mut Cursor::new(ele, &ele_path), &nodes)?;
     let mut fields = attribute_fields(nodes.attrs, nodes.n_attrs, FieldLocation::Vertex, |i| format!("attr[{i}]"));
     let n_regions = tets.n_attrs;
     fields.extend(attribute_fields(tets.attrs, n_regions, FieldLocation::Cell, |i| {
@@ -58,122 +59,18 @@ fn attribute_fields(values: Vec<f32>, n: usize, location: FieldLocation, name: i
         .collect()
 }
 
-/// The data lines of one file: comments stripped, blank lines skipped.
-struct Lines<'a> {
-    buf: &'a [u8],
-    pos: usize,
-    line_no: usize,
-    path: &'a Path,
+/// The next data line (`#` starts a comment; blank lines are skipped), which must be there:
+/// `what` says what it should hold.
+fn expect_line<'a>(c: &mut Cursor<'a>, what: &str) -> Result<Line<'a>> {
+    c.data_line(b'#').ok_or_else(|| c.fail(format!("unexpected end of file: expected {what}")))
 }
 
-/// The tokens of one data line, with its number for errors.
-struct Record<'a> {
-    data: &'a [u8],
-    line_no: usize,
-    path: &'a Path,
-}
-
-impl<'a> Lines<'a> {
-    fn new(buf: &'a [u8], path: &'a Path) -> Self {
-        Lines { buf, pos: 0, line_no: 0, path }
+/// Only comments and blank lines may follow the `count` declared records.
+fn expect_no_more(c: &mut Cursor, count: usize, what: &str) -> Result<()> {
+    match c.data_line(b'#') {
+        None => Ok(()),
+        Some(r) => Err(r.fail(format!("more {what} than the {count} that the header declares"))),
     }
-
-    fn fail(&self, line_no: usize, msg: impl std::fmt::Display) -> Error {
-        Error::format(self.path, format!("line {line_no}: {msg}"))
-    }
-
-    /// The next line with data on it, or `None` at the end of the file.
-    fn next(&mut self) -> Option<Record<'a>> {
-        while self.pos < self.buf.len() {
-            let rest = &self.buf[self.pos..];
-            let len = rest.iter().position(|&b| b == b'\n').map_or(rest.len(), |i| i + 1);
-            self.pos += len;
-            self.line_no += 1;
-            let line = &rest[..len];
-            let data = &line[..line.iter().position(|&b| b == b'#').unwrap_or(line.len())];
-            if data.iter().any(|b| !b.is_ascii_whitespace()) {
-                return Some(Record { data, line_no: self.line_no, path: self.path });
-            }
-        }
-        None
-    }
-
-    /// The next data line, which must be there: `what` says what it should hold.
-    fn expect(&mut self, what: &str) -> Result<Record<'a>> {
-        self.next().ok_or_else(|| Error::format(self.path, format!("unexpected end of file: expected {what}")))
-    }
-
-    /// Checks that `count` lines of at least `min_bytes` each can still follow, before
-    /// anything is allocated for them.
-    fn check_room(&self, count: u64, min_bytes: usize, what: &str) -> Result<usize> {
-        let left = self.buf.len() - self.pos;
-        if count > (left / min_bytes) as u64 {
-            return Err(self.fail(
-                self.line_no,
-                format!("the header declares {count} {what} but only {left} bytes follow: truncated or corrupt"),
-            ));
-        }
-        Ok(count as usize)
-    }
-
-    /// Only comments and blank lines may follow the declared records.
-    fn expect_end(&mut self, count: usize, what: &str) -> Result<()> {
-        match self.next() {
-            None => Ok(()),
-            Some(r) => Err(self.fail(r.line_no, format!("more {what} than the {count} that the header declares"))),
-        }
-    }
-}
-
-impl<'a> Record<'a> {
-    fn fail(&self, msg: impl std::fmt::Display) -> Error {
-        Error::format(self.path, format!("line {}: {msg}", self.line_no))
-    }
-
-    fn next_token(&mut self) -> Option<&'a [u8]> {
-        let start = self.data.iter().position(|b| !b.is_ascii_whitespace())?;
-        let rest = &self.data[start..];
-        let len = rest.iter().position(|b| b.is_ascii_whitespace()).unwrap_or(rest.len());
-        self.data = &rest[len..];
-        Some(&rest[..len])
-    }
-
-    fn at_end(&self) -> bool {
-        self.data.iter().all(|b| b.is_ascii_whitespace())
-    }
-
-    fn parse<T: std::str::FromStr>(&mut self, what: &str) -> Result<T> {
-        let Some(tok) = self.next_token() else {
-            return Err(self.fail(format!("missing {what}")));
-        };
-        std::str::from_utf8(tok)
-            .ok()
-            .and_then(|s| s.parse().ok())
-            .ok_or_else(|| self.fail(format!("expected {what}, found '{}'", show(tok))))
-    }
-
-    /// An optional trailing value: `default` when the line ends before it.
-    fn parse_or<T: std::str::FromStr>(&mut self, what: &str, default: T) -> Result<T> {
-        if self.at_end() {
-            Ok(default)
-        } else {
-            self.parse(what)
-        }
-    }
-
-    fn expect_end(&mut self, what: &str) -> Result<()> {
-        match self.next_token() {
-            None => Ok(()),
-            Some(tok) => {
-                Err(self
-                    .fail(format!("unexpected '{}' after {what} (more values than the header declares)", show(tok))))
-            }
-        }
-    }
-}
-
-fn show(tok: &[u8]) -> String {
-    String::from_utf8_lossy(&tok[..tok.len().min(40)]).into_owned()
 }
 
 struct Nodes {
@@ -185,15 +82,19 @@ struct Nodes {
     base: u64,
 }
 
-/// Attributes per point or tet beyond this are surely a corrupt header.
-const MAX_ATTRS: usize = 1024;
+// What a record line with too many values ends with.
+const MORE_VALUES_AFTER_POINT: &str = "the point's values (more values than the header declares)";
+const MORE_VALUES_AFTER_TET: &str = "the tetrahedron's values (more values than the header declares)";
 
-fn read_nodes(lines: &mut Lines) -> Result<Nodes> {
-    let mut h = lines.expect("the header '<#points> 3 <#attributes> <#markers>'")?;
-    let n: u64 = h.parse("the number of points")?;
-    let dim: u64 = h.parse_or("the dimension", 3)?;
-    let n_attrs: usize = h.parse_or("the number of attributes", 0)?;
-    let n_markers: u64 = h.parse_or("the number of boundary markers", 0)?;
+/// Attributes per point or tet beyond this are surely a corrupt header.
+const MAX_ATTRS: u64 = 1024;
+
+fn read_nodes(c: &mut Cursor) -> Result<Nodes> {
+    let mut h = expect_line(c, "the header '<#points> 3 <#attributes> <#markers>'")?;
+    let n = h.u64("the number of points")?;
+    let dim = h.u64_or("the dimension", 3)?;
+    let n_attrs = h.u64_or("the number of attributes", 0)?;
+    let n_markers = h.u64_or("the number of boundary markers", 0)?;
     h.expect_end("the header")?;
     if dim != 3 {
         return Err(h.fail(format!("dimension {dim}: tetloc reads 3-D meshes only")));
@@ -201,6 +102,7 @@ fn read_nodes(lines: &mut Lines) -> Result<Nodes> {
     if n_attrs > MAX_ATTRS || n_markers > 1 {
         return Err(h.fail(format!("{n_attrs} attributes and {n_markers} markers per point: corrupt header")));
     }
+    let n_attrs = n_attrs as usize;
     if n == 0 {
         return Err(h.fail("no points (TetGen then keeps them in a .poly or .smesh file, which tetloc does not read)"));
     }
@@ -208,13 +110,13 @@ fn read_nodes(lines: &mut Lines) -> Result<Nodes> {
         return Err(h.fail(format!("{n} points: more than tetloc's 32-bit indices can address")));
     }
     // "1 0 0 0\n": at least 8 bytes a point, and 2 more an attribute.
-    let n = lines.check_room(n, 8 + 2 * n_attrs, "points")?;
+    let n = c.check_room(n, 8 + 2 * n_attrs, "points")?;
     let mut points = Vec::with_capacity(n);
     let mut attrs = Vec::with_capacity(n * n_attrs);
     let mut base = 0;
     for i in 0..n {
-        let mut r = lines.expect(&format!("point {} of {n}", i + 1))?;
-        let id: u64 = r.parse("a point number")?;
+        let mut r = expect_line(c, &format!("point {} of {n}", i + 1))?;
+        let id = r.u64("a point number")?;
         if i == 0 {
             if id > 1 {
                 return Err(r.fail(format!("the first point is numbered {id}; TetGen numbers from 0 or 1")));
@@ -226,17 +128,17 @@ fn read_nodes(lines: &mut Lines) -> Result<Nodes> {
                 base + i as u64
             )));
         }
-        let p = [r.parse::<f64>("x")?, r.parse::<f64>("y")?, r.parse::<f64>("z")?];
+        let p = [r.f64("x")?, r.f64("y")?, r.f64("z")?];
         points.push(p.map(|c| c as f32));
         for _ in 0..n_attrs {
-            attrs.push(r.parse::<f64>("a point attribute")? as f32);
+            attrs.push(r.f64("a point attribute")? as f32);
         }
-        if n_markers == 1 {
-            r.parse_or::<i64>("a boundary marker", 0)?;
+        if n_markers == 1 && !r.at_end() {
+            r.i64("a boundary marker")?;
         }
-        r.expect_end("the point's values")?;
+        r.expect_end(MORE_VALUES_AFTER_POINT)?;
     }
-    lines.expect_end(n, "points")?;
+    expect_no_more(c, n, "points")?;
     Ok(Nodes { points, attrs, n_attrs, base })
 }
 
@@ -249,11 +151,11 @@ struct Tets {
     n_attrs: usize,
 }
 
-fn read_tets(lines: &mut Lines, nodes: &Nodes) -> Result<Tets> {
-    let mut h = lines.expect("the header '<#tets> <nodes per tet> <#attributes>'")?;
-    let n: u64 = h.parse("the number of tetrahedra")?;
-    let per_tet: usize = h.parse_or("the number of nodes per tetrahedron", 4)?;
-    let n_attrs: usize = h.parse_or("the number of attributes", 0)?;
+fn read_tets(c: &mut Cursor, nodes: &Nodes) -> Result<Tets> {
+    let mut h = expect_line(c, "the header '<#tets> <nodes per tet> <#attributes>'")?;
+    let n = h.u64("the number of tetrahedra")?;
+    let per_tet = h.u64_or("the number of nodes per tetrahedron", 4)?;
+    let n_attrs = h.u64_or("the number of attributes", 0)?;
     h.expect_end("the header")?;
     if per_tet != 4 && per_tet != 10 {
         return Err(h.fail(format!("{per_tet} nodes per tetrahedron: TetGen writes 4 or 10")));
@@ -261,20 +163,21 @@ fn read_tets(lines: &mut Lines, nodes: &Nodes) -> Result<Tets> {
     if n_attrs > MAX_ATTRS {
         return Err(h.fail(format!("{n_attrs} attributes per tetrahedron: corrupt header")));
     }
+    let (per_tet, n_attrs) = (per_tet as usize, n_attrs as usize);
     if n == 0 {
         return Err(h.fail("no tetrahedra"));
     }
     // "1 1 2 3 4\n": at least 10 bytes a tet, and 2 more an attribute.
-    let n = lines.check_room(n, 2 * (1 + per_tet + n_attrs), "tetrahedra")?;
+    let n = c.check_room(n, 2 * (1 + per_tet + n_attrs), "tetrahedra")?;
     let n_points = nodes.points.len() as u64;
     let mut tets = Vec::with_capacity(n);
     let mut attrs = Vec::with_capacity(n * n_attrs);
     for i in 0..n {
-        let mut r = lines.expect(&format!("tetrahedron {} of {n}", i + 1))?;
-        r.parse::<u64>("a tetrahedron number")?;
+        let mut r = expect_line(c, &format!("tetrahedron {} of {n}", i + 1))?;
+        r.u64("a tetrahedron number")?;
         let mut t = [0u32; 4];
         for k in 0..per_tet {
-            let id: u64 = r.parse("a point number")?;
+            let id = r.u64("a point number")?;
             let Some(index) = id.checked_sub(nodes.base).filter(|&x| x < n_points) else {
                 return Err(r.fail(format!(
                     "point {id} does not exist: the .node file numbers its points {} to {}",
@@ -288,11 +191,11 @@ fn read_tets(lines: &mut Lines, nodes: &Nodes) -> Result<Tets> {
         }
         tets.push(t);
         for _ in 0..n_attrs {
-            attrs.push(r.parse::<f64>("a tetrahedron attribute")? as f32);
+            attrs.push(r.f64("a tetrahedron attribute")? as f32);
         }
-        r.expect_end("the tetrahedron's values")?;
+        r.expect_end(MORE_VALUES_AFTER_TET)?;
     }
-    lines.expect_end(n, "tetrahedra")?;
+    expect_no_more(c, n, "tetrahedra")?;
     Ok(Tets { tets, higher_order: (per_tet == 10).then_some(2), attrs, n_attrs })
 }
 
@@ -415,9 +318,13 @@ mod tests {
             (node.replace("5 3 2 1", "5 2 2 1"), ele.clone(), "/d/m.1.node: line 2: dimension 2"),
             (node.replace("  1  0 0 0", "  2  0 0 0"), ele.clone(), "line 4: the first point is numbered 2"),
             (node.replace("  3  0 1 0", "  4  0 1 0"), ele.clone(), "line 6: point number 4: expected 3"),
-            (node.replace("  3  0 1 0", "  3  0 y 0"), ele.clone(), "line 6: expected y, found 'y'"),
+            (node.replace("  3  0 1 0", "  3  0 y 0"), ele.clone(), "line 6: expected y (a number), found 'y'"),
             (node.replace("  3  0 1 0  20 0.5  0", "  3  0 1 0  20"), ele.clone(), "line 6: missing a point attribute"),
-            (node.replace("5 3 2 1", "5 3 1 1"), ele.clone(), "line 4: expected a boundary marker, found '0.5'"),
+            (
+                node.replace("5 3 2 1", "5 3 1 1"),
+                ele.clone(),
+                "line 4: expected a boundary marker (an integer), found '0.5'",
+            ),
             (node.replace("5 3 2 1", "5 3 1 0"), ele.clone(), "line 4: unexpected '0.5' after the point's values"),
             (node.replace("5 3 2 1", "6 3 2 1"), ele.clone(), "expected point 6 of 6"),
             (node.replace("5 3 2 1", "4 3 2 1"), ele.clone(), "line 8: more points than the 4"),
@@ -431,7 +338,11 @@ mod tests {
             ),
             (node.clone(), ele.replace("2 3 4 5 -1", "2 3 4 0 -1"), "line 3: point 0 does not exist"),
             (node.clone(), ele.replace("2 4 1", "3 4 1"), "expected tetrahedron 3 of 3"),
-            (node.clone(), ele.replace(" 3\n", " 3.5.1\n"), "line 2: expected a tetrahedron attribute, found '3.5.1'"),
+            (
+                node.clone(),
+                ele.replace(" 3\n", " 3.5.1\n"),
+                "line 2: expected a tetrahedron attribute (a number), found '3.5.1'",
+            ),
         ];
         for (node, ele, want) in cases {
             let msg = err_of(&node, &ele);

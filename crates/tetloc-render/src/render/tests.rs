@@ -6,8 +6,9 @@ use crate::camera::LookAt;
 use crate::image::psnr;
 use crate::options::TfSpec;
 use crate::tf::{Colormap, TransferFunction};
-use crate::{compare_locators, measure_fps, render_to_file, testmesh};
+use crate::{compare_locators, measure_fps, render_to_file};
 use tetloc_core::{geom, CpuLocator, FieldLocation, Result as CoreResult, OUTSIDE};
+use tetloc_testdata::testmesh;
 
 /// Tests every tet for every point: slow, obviously right, and a second opinion for the
 /// CPU locator (which walks a BVH).

@@ -5,7 +5,7 @@
 use std::sync::Arc;
 use tetloc_core::geom::{self, Vec3};
 use tetloc_core::mesh::Mesh;
-use tetloc_core::testdata::in_ci;
+use tetloc_testdata::in_ci;
 use tetloc_vulkan::{Context, ContextOptions, Kernel, VkError};
 
 /// A validating context on the default device; `None` (after printing SKIPPED) when this
@@ -49,7 +49,7 @@ pub fn jets(n: usize, seed: u64) -> Arc<Mesh> {
 /// shared diagonal per cube, the worst case for rays along structured directions. Vertex
 /// field `f` = x + 2y + 3z (linear, so interpolation is exact), cell field `c` = id.
 pub fn regular_grid(n: usize) -> Arc<Mesh> {
-    Arc::new(tetloc_core::testdata::KuhnGrid::new(n).spacing([1.0; 3]).mesh("regular grid"))
+    Arc::new(tetloc_testdata::KuhnGrid::new(n).spacing([1.0; 3]).mesh("regular grid"))
 }
 
 /// Checks GPU ids against the watertight definition: every id >= 0 is a tet that contains

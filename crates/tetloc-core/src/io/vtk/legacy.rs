@@ -10,6 +10,7 @@
 use super::cells;
 use super::num::{self, Array, NumType};
 use crate::error::{Error, Result};
+use crate::io::cursor::Cursor;
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::borrow::Cow;
 use std::path::Path;
@@ -21,27 +22,28 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 
 /// Parses a whole file held in memory; `path` only names it in errors.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
-    let mut c = Cursor { b: bytes, pos: 0, binary: false, path };
-    let magic = c.line().unwrap_or_default();
+    let mut r = Reader { c: Cursor::new(bytes, path), at: 0 };
+    let magic = r.c.line().unwrap_or_default();
     if !String::from_utf8_lossy(magic).to_ascii_lowercase().starts_with("# vtk datafile version") {
-        return Err(c.fail("not a VTK legacy file: the first line is not '# vtk DataFile Version x.y'".into()));
+        return Err(r.c.fail_at(0, "not a VTK legacy file: the first line is not '# vtk DataFile Version x.y'"));
     }
-    c.line(); // title
-    let mode = String::from_utf8_lossy(c.line().unwrap_or_default()).trim().to_ascii_uppercase();
-    c.binary = match mode.as_str() {
+    r.c.line(); // title
+    r.at = r.c.pos;
+    let mode = String::from_utf8_lossy(r.c.line().unwrap_or_default()).trim().to_ascii_uppercase();
+    r.c.binary = match mode.as_str() {
         "ASCII" => false,
         "BINARY" => true,
-        _ => return Err(c.fail(format!("the third line is '{mode}', not ASCII or BINARY"))),
+        _ => return Err(r.fail(format!("the third line is '{mode}', not ASCII or BINARY"))),
     };
-    let kw = c.keyword()?;
-    let args = c.args();
+    let kw = r.keyword()?;
+    let args = r.args();
     if kw != "DATASET" {
-        return Err(c.fail(format!("expected DATASET, found '{kw}'")));
+        return Err(r.fail(format!("expected DATASET, found '{kw}'")));
     }
     match args.first().map(|s| s.to_ascii_uppercase()) {
         Some(t) if t == "UNSTRUCTURED_GRID" => {}
         t => {
-            return Err(c.fail(format!(
+            return Err(r.fail(format!(
                 "dataset type {}: tetloc reads UNSTRUCTURED_GRID files",
                 t.unwrap_or_else(|| "(none)".into())
             )))
@@ -51,44 +53,44 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
     let mut g = Grid::default();
     // The attribute section being read: where its values go and how many tuples it has.
     let mut section: Option<(FieldLocation, usize)> = None;
-    while let Some(kw) = c.keyword_opt() {
-        let args = c.args();
+    while let Some(kw) = r.keyword_opt() {
+        let args = r.args();
         let arg = |i: usize| args.get(i).map(String::as_str);
         match kw.as_str() {
             "POINTS" => {
-                let n = c.count(arg(0), "POINTS count")?;
-                let ty = c.num_type(arg(1))?;
-                g.points = Some(num::to_points(&c.values(ty, n.saturating_mul(3), "POINTS")?));
+                let n = r.count(arg(0), "POINTS count")?;
+                let ty = r.num_type(arg(1))?;
+                g.points = Some(num::to_points(&r.values(ty, n.saturating_mul(3), "POINTS")?));
             }
             "CELLS" => {
-                let (a, b) = (c.count(arg(0), "CELLS count")?, c.count(arg(1), "CELLS size")?);
-                if c.next_line_starts_with("OFFSETS") {
-                    g.cells = Some(c.offsets_and_connectivity(a, b)?);
+                let (a, b) = (r.count(arg(0), "CELLS count")?, r.count(arg(1), "CELLS size")?);
+                if r.c.next_line_starts_with("OFFSETS") {
+                    g.cells = Some(r.offsets_and_connectivity(a, b)?);
                 } else {
-                    g.cells = Some(Cells::List(c.values(NumType::I32, b, "CELLS")?));
+                    g.cells = Some(Cells::List(r.values(NumType::I32, b, "CELLS")?));
                 }
             }
             "CELL_TYPES" => {
-                let n = c.count(arg(0), "CELL_TYPES count")?;
-                let arr = c.values(NumType::I32, n, "CELL_TYPES")?;
+                let n = r.count(arg(0), "CELL_TYPES count")?;
+                let arr = r.values(NumType::I32, n, "CELL_TYPES")?;
                 let types = num::map_ints(&arr, |v| u8::try_from(v).ok())
-                    .map_err(|i| c.fail(format!("CELL_TYPES: value {i} ({}) is not a VTK cell type", arr.show(i))))?;
+                    .map_err(|i| r.fail(format!("CELL_TYPES: value {i} ({}) is not a VTK cell type", arr.show(i))))?;
                 g.types = Some(types);
             }
-            "POINT_DATA" => section = Some((FieldLocation::Vertex, c.count(arg(0), "POINT_DATA count")?)),
-            "CELL_DATA" => section = Some((FieldLocation::Cell, c.count(arg(0), "CELL_DATA count")?)),
+            "POINT_DATA" => section = Some((FieldLocation::Vertex, r.count(arg(0), "POINT_DATA count")?)),
+            "CELL_DATA" => section = Some((FieldLocation::Cell, r.count(arg(0), "CELL_DATA count")?)),
             "FIELD" => {
-                let n_arrays = c.count(arg(1), "FIELD array count")?;
+                let n_arrays = r.count(arg(1), "FIELD array count")?;
                 for _ in 0..n_arrays {
-                    c.field_array(section, &mut g.fields)?;
+                    r.field_array(section, &mut g.fields)?;
                 }
             }
-            "METADATA" => c.skip_metadata(),
+            "METADATA" => r.skip_metadata(),
             "LOOKUP_TABLE" => {
                 // A table of RGBA colours: floats in ASCII, bytes in BINARY.
-                let n = c.count(arg(1), "LOOKUP_TABLE size")?;
-                let ty = if c.binary { NumType::U8 } else { NumType::F32 };
-                c.values(ty, n.saturating_mul(4), "LOOKUP_TABLE")?;
+                let n = r.count(arg(1), "LOOKUP_TABLE size")?;
+                let ty = if r.c.binary { NumType::U8 } else { NumType::F32 };
+                r.values(ty, n.saturating_mul(4), "LOOKUP_TABLE")?;
             }
             "SCALARS"
             | "VECTORS"
@@ -101,35 +103,38 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
             | "PEDIGREE_IDS"
             | "EDGE_FLAGS" => {
                 let Some((location, n)) = section else {
-                    return Err(c.fail(format!("{kw} before POINT_DATA or CELL_DATA")));
+                    return Err(r.fail(format!("{kw} before POINT_DATA or CELL_DATA")));
                 };
                 let name = decode_name(arg(0).unwrap_or("(unnamed)"));
                 let (ty, ncomp) = match kw.as_str() {
                     "SCALARS" => {
                         let nc = match arg(2) {
-                            Some(s) => c.count(Some(s), "SCALARS components")?,
+                            Some(s) => r.count(Some(s), "SCALARS components")?,
                             None => 1,
                         };
-                        if c.next_line_starts_with("LOOKUP_TABLE") {
-                            c.keyword()?;
-                            c.args();
+                        if r.c.next_line_starts_with("LOOKUP_TABLE") {
+                            let at = r.at; // errors about the array still name the SCALARS line
+                            r.keyword()?;
+                            r.args();
+                            r.at = at;
                         }
                         (arg(1), nc)
                     }
                     "VECTORS" | "NORMALS" => (arg(1), 3),
                     "TENSORS" => (arg(1), 9),
                     "TENSORS6" => (arg(1), 6),
-                    "TEXTURE_COORDINATES" => (arg(2), c.count(arg(1), "TEXTURE_COORDINATES dimension")?),
+                    "TEXTURE_COORDINATES" => (arg(2), r.count(arg(1), "TEXTURE_COORDINATES dimension")?),
                     // Colours: bytes in BINARY files, floats in [0, 1] in ASCII ones.
-                    "COLOR_SCALARS" => {
-                        (Some(if c.binary { "unsigned_char" } else { "float" }), c.count(arg(1), "COLOR_SCALARS size")?)
-                    }
+                    "COLOR_SCALARS" => (
+                        Some(if r.c.binary { "unsigned_char" } else { "float" }),
+                        r.count(arg(1), "COLOR_SCALARS size")?,
+                    ),
                     _ => (arg(1), 1),
                 };
-                c.attribute(&name, ty, n, ncomp, location, &mut g.fields, kw == "COLOR_SCALARS")?;
+                r.attribute(&name, ty, n, ncomp, location, &mut g.fields, kw == "COLOR_SCALARS")?;
             }
             _ => {
-                return Err(c.fail(format!(
+                return Err(r.fail(format!(
                 "unexpected keyword '{kw}' (expected POINTS, CELLS, CELL_TYPES, POINT_DATA, CELL_DATA or an attribute)"
             )))
             }
@@ -229,38 +234,23 @@ impl Grid<'_> {
     }
 }
 
-struct Cursor<'a> {
-    b: &'a [u8],
-    pos: usize,
-    binary: bool,
-    path: &'a Path,
+/// The reader's state: the cursor, whose `binary` says whether data is raw (big-endian) or text.
+struct Reader<'a> {
+    c: Cursor<'a>,
+    /// Where the current keyword (or FIELD array) line starts: errors about it point there.
+    at: usize,
 }
 
-impl<'a> Cursor<'a> {
+impl<'a> Reader<'a> {
+    /// An error about the current keyword line.
     fn fail(&self, msg: String) -> Error {
-        Error::format(self.path, format!("{msg} (at byte {})", self.pos))
+        self.c.fail_at(self.at, msg)
     }
 
-    /// The rest of the current line, without its newline; `None` at the end of the file.
-    fn line(&mut self) -> Option<&'a [u8]> {
-        if self.pos >= self.b.len() {
-            return None;
-        }
-        let rest = &self.b[self.pos..];
-        let end = rest.iter().position(|&c| c == b'\n').unwrap_or(rest.len());
-        self.pos += (end + 1).min(rest.len());
-        Some(rest[..end].strip_suffix(b"\r").unwrap_or(&rest[..end]))
-    }
-
-    /// The next word, skipping whitespace and blank lines.
+    /// The next word, lossy, which starts a line; `None` at the end of the file.
     fn word(&mut self) -> Option<String> {
-        while self.pos < self.b.len() && self.b[self.pos].is_ascii_whitespace() {
-            self.pos += 1;
-        }
-        let rest = &self.b[self.pos..];
-        let end = rest.iter().position(|c| c.is_ascii_whitespace()).unwrap_or(rest.len());
-        self.pos += end;
-        (end > 0).then(|| String::from_utf8_lossy(&rest[..end]).into_owned())
+        self.at = self.c.here();
+        self.c.word().map(|w| String::from_utf8_lossy(w).into_owned())
     }
 
     /// The next word, upper-cased: keywords are case-insensitive.
@@ -275,20 +265,8 @@ impl<'a> Cursor<'a> {
     /// The words after the keyword on its line; consumes the line, so BINARY data starts
     /// right here.
     fn args(&mut self) -> Vec<String> {
-        let line = self.line().unwrap_or_default();
+        let line = self.c.line().unwrap_or_default();
         String::from_utf8_lossy(line).split_ascii_whitespace().map(str::to_string).collect()
-    }
-
-    /// Whether the next line starts with `word` (after blank lines, in ASCII files). In
-    /// BINARY files only the very next line counts: data may follow.
-    fn next_line_starts_with(&self, word: &str) -> bool {
-        let mut p = self.pos;
-        if !self.binary {
-            while p < self.b.len() && self.b[p].is_ascii_whitespace() {
-                p += 1;
-            }
-        }
-        self.b[p..].len() >= word.len() && self.b[p..p + word.len()].eq_ignore_ascii_case(word.as_bytes())
     }
 
     fn count(&self, s: Option<&str>, what: &str) -> Result<usize> {
@@ -303,21 +281,14 @@ impl<'a> Cursor<'a> {
 
     /// `n` values of `ty`: raw big-endian bytes (BINARY) or numbers (ASCII).
     fn values(&mut self, ty: NumType, n: usize, what: &str) -> Result<Array<'a>> {
-        if self.binary {
-            let len = n.checked_mul(ty.size()).filter(|&l| l <= self.b.len() - self.pos).ok_or_else(|| {
-                self.fail(format!(
-                    "{what}: {n} values of {} do not fit in the {} bytes left (truncated file?)",
-                    ty.name(),
-                    self.b.len() - self.pos
-                ))
-            })?;
-            let arr = Array::from_bytes(ty, Cow::Borrowed(&self.b[self.pos..self.pos + len]), true);
-            self.pos += len;
-            Ok(arr)
+        if self.c.binary {
+            let bytes = self.c.take_records(n as u64, ty.size(), &format!("{what} ({n} values of {})", ty.name()))?;
+            Ok(Array::from_bytes(ty, Cow::Borrowed(bytes), true))
         } else {
+            let c = &mut self.c;
             let (arr, used) =
-                num::parse_ascii(&self.b[self.pos..], ty, Some(n)).map_err(|m| self.fail(format!("{what}: {m}")))?;
-            self.pos += used;
+                num::parse_ascii(&c.buf[c.pos..], ty, Some(n)).map_err(|m| c.fail(format!("{what}: {m}")))?;
+            c.pos += used;
             Ok(arr)
         }
     }
@@ -325,19 +296,15 @@ impl<'a> Cursor<'a> {
     /// Reads, or skips, `n` values of a non-numeric type; `false` if `ty` is numeric.
     fn skip_non_numeric(&mut self, ty: &str, n: usize, what: &str) -> Result<bool> {
         match ty.to_ascii_lowercase().as_str() {
-            "bit" if self.binary => {
-                let len = n.div_ceil(8);
-                if len > self.b.len() - self.pos {
-                    return Err(self.fail(format!("{what}: {n} bits run past the end of the file")));
-                }
-                self.pos += len;
+            "bit" if self.c.binary => {
+                self.c.take(n.div_ceil(8), &format!("{what} ({n} bits)"))?;
             }
             "bit" => {
                 self.values(NumType::U8, n, what)?;
             }
-            "string" | "utf8_string" if !self.binary => {
+            "string" | "utf8_string" if !self.c.binary => {
                 for _ in 0..n {
-                    self.line().ok_or_else(|| self.fail(format!("{what}: the file ends inside a string array")))?;
+                    self.c.line().ok_or_else(|| self.fail(format!("{what}: the file ends inside a string array")))?;
                 }
             }
             "string" | "utf8_string" | "variant" => {
@@ -407,7 +374,7 @@ impl<'a> Cursor<'a> {
                 }
             }
         }
-        if self.next_line_starts_with("METADATA") {
+        if self.c.next_line_starts_with("METADATA") {
             self.keyword()?;
             self.skip_metadata();
         }
@@ -416,8 +383,8 @@ impl<'a> Cursor<'a> {
 
     /// Skips a METADATA block: lines up to a blank one.
     fn skip_metadata(&mut self) {
-        self.line(); // the rest of the METADATA line
-        while let Some(l) = self.line() {
+        self.c.line(); // the rest of the METADATA line
+        while let Some(l) = self.c.line() {
             if l.trim_ascii().is_empty() {
                 break;
             }
@@ -433,7 +400,7 @@ impl<'a> Cursor<'a> {
             }
             let ty = this.num_type(args.first().map(String::as_str))?;
             let arr = this.values(ty, n, kw)?;
-            if this.next_line_starts_with("METADATA") {
+            if this.c.next_line_starts_with("METADATA") {
                 this.keyword()?;
                 this.skip_metadata();
             }
@@ -551,12 +518,15 @@ w 2 5 int
             (ok.replace("ASCII", "TEXT"), "not ASCII or BINARY"),
             (ok.replace("UNSTRUCTURED_GRID", "POLYDATA"), "POLYDATA"),
             (ok.replace("CELL_TYPES 3\n10 5\n10", "CELL_TYPES 3\n10 5\n12"), "hexahedron"),
-            (ok.replace("POINTS 5 float", "POINTS 5 floot"), "'floot'"),
+            (ok.replace("POINTS 5 float", "POINTS 5 floot"), "test.vtk: line 11: data type 'floot'"),
             (ok.replace("4 4 1 2 0", "4 4 1 2 9"), "uses point 9"),
             (ok.replace("4 4 1 2 0", "9 4 1 2 0"), "past the end"),
             (ok.replace("POINT_DATA 5", "POINT_DATA 6"), "'VECTORS' is not a valid Float64"),
             (ok.replace("CELL_DATA 3\n", ""), "before POINT_DATA"),
-            (ok.replace("CELLS 3 14", "CELLS 3 1000000000000"), "'CELL_TYPES' is not a valid Int32"),
+            (
+                ok.replace("CELLS 3 14", "CELLS 3 1000000000000"),
+                "test.vtk: line 18: CELLS: value 14: 'CELL_TYPES' is not a valid Int32",
+            ),
             (ok.replace("POINTS 5 float", "POINTS 99999999999999999999 float"), "not a count"),
             (ok[..ok.find("CELL_TYPES").unwrap()].to_string(), "no CELL_TYPES"),
             (ok.replace("VECTORS", "VECTOR"), "unexpected keyword 'VECTOR'"),

@@ -4,7 +4,7 @@
 use crate::error::Error;
 use crate::io::vtk::{legacy as vtk_legacy, vtu};
 use crate::mesh::{FieldLocation, RawMesh};
-use crate::testdata::require_data;
+use crate::test_support::require_data;
 use std::path::{Path, PathBuf};
 
 fn read(path: &Path) -> crate::Result<RawMesh> {
@@ -247,7 +247,7 @@ fn gigantic_declared_sizes_fail_fast() {
 /// A grid of `n`³ cubes, 6 tets each (Kuhn split), every vertex jittered (boundary too),
 /// with a point and a cell field.
 pub(crate) fn jittered_grid(n: usize, seed: u64) -> crate::Mesh {
-    crate::testdata::KuhnGrid::new(n)
+    crate::test_support::KuhnGrid::new(n)
         .jitter(0.15, seed)
         .jitter_boundary()
         .vertex_field(|p| p[0] + 2.0 * p[1] - p[2])

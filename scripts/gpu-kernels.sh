@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# One device call's worth of measurements (see NOTES.md): a 12M-tet jets mesh through every
+# One device call's worth of measurements (see crates/tetloc-vulkan/NOTES.md): a 12M-tet jets mesh through every
 # kernel (checked against the CPU, then benchmarked), and soft-bvh layout variants.
 # Usage, from the repository root on the device machine:
-#   bash crates/tetloc-vulkan/scripts/h100.sh .devbin/vkbench "$OUT"
+#   bash scripts/gpu-kernels.sh .devbin/vkbench "$OUT"
 # Each kernel runs in its own process under a timeout, so that one failure loses one log.
 set -u
 BIN=$1

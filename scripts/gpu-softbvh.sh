@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# soft-bvh on the device (NOTES.md, H100 runs 3 and 4), every benchmark warmed up for 0.5 s:
+# soft-bvh on the device (crates/tetloc-vulkan/NOTES.md, H100 runs 3 and 4), every benchmark warmed up for 0.5 s:
 #   part 1: soft-bvh variants at jets 12M (root traversal, entry grid, walk start at 1 and 2
 #           tets a cell, f32-first and pure-f32 tests), japan 62M root vs walk;
 #   part 2: a regular unjittered 13.2M grid (the probe's mesh kind) with rt-bvh and
@@ -7,7 +7,7 @@
 #           (checked), jets 250M soft-bvh and rt-bvh.
 # Usage, from the repository root on the device machine, after building vkbench here and
 # copying it to .devbin/ (carry .gl and .devbin); PARTS picks parts (default "1 2", ~3 + ~7 min):
-#   bash crates/tetloc-vulkan/scripts/h100-softbvh.sh .devbin/vkbench "$OUT"
+#   bash scripts/gpu-softbvh.sh .devbin/vkbench "$OUT"
 set -u
 B=$1
 L=$2

@@ -3,7 +3,7 @@
 # one device call: `tetloc render SHAPE:N --fps` per shape, each in its own process under a
 # timeout, most important first, stopping before the time budget runs out.
 # Usage, from the repository root on the device machine:
-#   bash crates/tetloc-vulkan/scripts/h100-march.sh .devbin/tetloc-march "$OUT" [BUDGET_S]
+#   bash scripts/gpu-march.sh .devbin/tetloc-march "$OUT" [BUDGET_S]
 set -u
 BIN=$1
 LOGS=$2

@@ -3,8 +3,8 @@
 //!
 //! Each mesh carries a per-vertex field `f` and a per-cell field `c`.
 
+use crate::KuhnGrid;
 use std::f32::consts::TAU;
-use tetloc_core::testdata::KuhnGrid;
 use tetloc_core::{Mesh, Vec3};
 
 /// A grid of `n³` cubes over `[0, 1]³`, each split into 6 tets (Kuhn split:

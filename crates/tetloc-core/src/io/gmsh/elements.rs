@@ -1,0 +1,149 @@
+//! Gmsh's element types: how many nodes each has, and whether it is a tetrahedron (of which
+//! order), another volume element, or a lower-dimensional one that the reader ignores.
+
+use crate::error::Error;
+use crate::io::cursor::Cursor;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Kind {
+    /// 0-D, 1-D and 2-D elements: ignored.
+    Lower,
+    /// A tetrahedron of this polynomial order; its first four nodes are the corners.
+    Tet(u8),
+    /// Any other volume element, by family name.
+    Volume(&'static str),
+}
+
+/// Node count and kind of a Gmsh element type (numbers from gmsh's `GmshDefines.h`).
+/// `None` for types without a fixed node count (polygons, polyhedra) or that tetloc does not
+/// know.
+pub(super) fn element_type(t: i64) -> Option<(usize, Kind)> {
+    use Kind::*;
+    let lower = |n: usize| (n, Lower);
+    let tet = |n: usize, order: i64| (n, Tet(order as u8));
+    let vol = |n: usize, name| (n, Volume(name));
+    Some(match t {
+        15 => lower(1),
+        1 => lower(2),
+        8 => lower(3),
+        26..=28 => lower(t as usize - 22),
+        62..=66 => lower(t as usize - 55),
+        2 => lower(3),
+        3 => lower(4),
+        9 => lower(6),
+        10 => lower(9),
+        16 => lower(8),
+        20 => lower(9),
+        21 => lower(10),
+        22 => lower(12),
+        23 | 24 => lower(15),
+        25 => lower(21),
+        36 => lower(16),
+        37 => lower(25),
+        38 => lower(36),
+        39 => lower(12),
+        40 => lower(16),
+        41 => lower(20),
+        42 => lower(28),
+        43 => lower(36),
+        44 => lower(45),
+        45 => lower(55),
+        46 => lower(66),
+        47 => lower(49),
+        48 => lower(64),
+        49 => lower(81),
+        50 => lower(100),
+        51 => lower(121),
+        52 => lower(18),
+        53 => lower(21),
+        54 => lower(24),
+        55 => lower(27),
+        56 => lower(30),
+        57 => lower(24),
+        58 => lower(28),
+        59 => lower(32),
+        60 => lower(36),
+        61 => lower(40),
+        4 => tet(4, 1),
+        11 => tet(10, 2),
+        29 => tet(20, 3),
+        30 => tet(35, 4),
+        31 => tet(56, 5),
+        32 => tet(22, 4),
+        33 => tet(28, 5),
+        137 => tet(16, 3),
+        // Complete tetrahedra of order 6..10.
+        71..=75 => {
+            let k = t - 65;
+            tet(((k + 1) * (k + 2) * (k + 3) / 6) as usize, k)
+        }
+        // Incomplete (no interior nodes) tetrahedra of order 6..10.
+        79..=83 => {
+            let k = t - 73;
+            tet((4 + 6 * (k - 1)) as usize, k)
+        }
+        5 => vol(8, "hexahedron"),
+        12 => vol(27, "hexahedron"),
+        17 => vol(20, "hexahedron"),
+        92 => vol(64, "hexahedron"),
+        93 => vol(125, "hexahedron"),
+        94..=98 => vol(((t - 88) as usize).pow(3), "hexahedron"),
+        99..=105 => vol((8 + 12 * (t - 97)) as usize, "hexahedron"),
+        6 => vol(6, "prism"),
+        13 => vol(18, "prism"),
+        18 => vol(15, "prism"),
+        90 => vol(40, "prism"),
+        91 => vol(75, "prism"),
+        106..=110 => {
+            let k = t - 101;
+            vol(((k + 1) * (k + 1) * (k + 2) / 2) as usize, "prism")
+        }
+        111..=117 => vol((6 + 9 * (t - 109)) as usize, "prism"),
+        7 => vol(5, "pyramid"),
+        14 => vol(14, "pyramid"),
+        19 => vol(13, "pyramid"),
+        118..=124 => {
+            let k = t - 115;
+            vol(((k + 1) * (k + 2) * (2 * k + 3) / 6) as usize, "pyramid")
+        }
+        125..=131 => vol((5 + 8 * (t - 123)) as usize, "pyramid"),
+        140 => vol(4, "trihedron"),
+        _ => return None,
+    })
+}
+
+/// The error for a type that [`element_type`] does not know, at byte `pos`.
+pub(super) fn unknown_type(c: &Cursor, pos: usize, ty: i64) -> Error {
+    c.fail_at(
+        pos,
+        format!("element type {ty} is not a Gmsh element type with a fixed number of nodes that tetloc knows"),
+    )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Node counts follow the closed forms of complete and serendipity (incomplete) elements.
+    #[test]
+    fn node_counts_follow_the_element_families() {
+        let tet = |k: usize| (k + 1) * (k + 2) * (k + 3) / 6;
+        let complete_tets = [(4, 1), (11, 2), (29, 3), (30, 4), (31, 5), (71, 6), (72, 7), (73, 8), (74, 9), (75, 10)];
+        for (ty, order) in complete_tets {
+            assert_eq!(element_type(ty), Some((tet(order), Kind::Tet(order as u8))), "type {ty}");
+        }
+        // Incomplete tets: corners and edge nodes only.
+        for (ty, order) in [(137, 3), (32, 4), (33, 5), (79, 6), (83, 10)] {
+            assert_eq!(element_type(ty), Some((4 + 6 * (order - 1), Kind::Tet(order as u8))), "type {ty}");
+        }
+        let hex = |k: usize| (k + 1).pow(3);
+        for (ty, order) in [(5, 1), (12, 2), (92, 3), (93, 4), (94, 5), (98, 9)] {
+            assert_eq!(element_type(ty), Some((hex(order), Kind::Volume("hexahedron"))), "type {ty}");
+        }
+        assert_eq!(element_type(2), Some((3, Kind::Lower)));
+        assert_eq!(element_type(15), Some((1, Kind::Lower)));
+        for unknown in [0, 67, 200, -1] {
+            assert_eq!(element_type(unknown), None);
+        }
+    }
+}

@@ -1,0 +1,116 @@
+//! Format 2.2: `$Nodes` as one list of `tag x y z` records, `$Elements` as one list of
+//! `tag type ntags tags... nodes...` records (in binary files: blocks of one element type,
+//! each behind a header of type, count and number of tags). Binary numbers are 4-byte ints
+//! and 8-byte doubles.
+
+use super::elements::{element_type, unknown_type, Kind};
+use super::tets::{read_ascii_nodes, Chunk, ElementSink};
+use crate::error::Result;
+use crate::io::cursor::{get_f64, get_i32, Cursor};
+
+pub(super) fn read_nodes(c: &mut Cursor, min_parallel: usize) -> Result<(Vec<[f32; 3]>, Vec<u64>)> {
+    let declared = c.ascii_u64("the number of nodes")?;
+    c.line(); // binary data starts on the next line
+    let n = c.check_room(declared, if c.binary { 28 } else { 8 }, "nodes")?;
+    let mut points = Vec::with_capacity(n);
+    let mut tags = Vec::with_capacity(n);
+    if c.binary {
+        let big = c.big_endian;
+        let data = c.take_records(declared, 28, "nodes")?;
+        for r in data.chunks_exact(28) {
+            let tag = get_i32(r, big);
+            if tag < 0 {
+                return Err(c.fail(format!("negative node tag {tag}")));
+            }
+            tags.push(tag as u64);
+            points.push([get_f64(&r[4..], big) as f32, get_f64(&r[12..], big) as f32, get_f64(&r[20..], big) as f32]);
+        }
+    } else if let Some(chunks) = c.par_lines(n, min_parallel, |t, s: &mut (Vec<u64>, Vec<[f32; 3]>)| {
+        s.0.push(t.u64()?);
+        s.1.push([t.f32()?, t.f32()?, t.f32()?]);
+        Some(())
+    }) {
+        for (t, p) in chunks {
+            tags.extend(t);
+            points.extend(p);
+        }
+    } else {
+        for _ in 0..n {
+            tags.push(c.ascii_u64("a node tag")?);
+            let p = [c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?];
+            points.push(p.map(|v| v as f32));
+        }
+    }
+    Ok((points, tags))
+}
+
+pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel: usize) -> Result<()> {
+    let declared = c.ascii_u64("the number of elements")?;
+    c.line(); // binary data starts on the next line
+    if c.binary {
+        // Blocks of elements of one type: header (type, count, number of tags), then for each
+        // element its tag, its tags and its nodes, all 4-byte ints.
+        c.check_room(declared, 16, "elements")?;
+        let big = c.big_endian;
+        let mut seen = 0u64;
+        while seen < declared {
+            let pos = c.pos;
+            let h = c.take(12, "an element block header")?;
+            let (ty, count, ntags) = (get_i32(h, big) as i64, get_i32(&h[4..], big), get_i32(&h[8..], big));
+            let (nn, kind) = element_type(ty).ok_or_else(|| unknown_type(c, pos, ty))?;
+            if count < 0 || ntags < 0 || count as u64 > declared - seen {
+                return Err(c.fail_at(pos, format!("bad element block header: {count} elements with {ntags} tags")));
+            }
+            let record = 4 * (1 + ntags as usize + nn);
+            let data = c.take_records(count as u64, record, "elements")?;
+            seen += count as u64;
+            acc.reserve(kind, count as usize);
+            match kind {
+                Kind::Lower => {}
+                Kind::Volume(name) => acc.other(name, nn, count as usize),
+                Kind::Tet(_) => {
+                    // A negative tag becomes a huge one, which no node or data section matches.
+                    let first = 4 * (1 + ntags as usize);
+                    let int = move |b: &[u8]| get_i32(b, big) as i64 as u64;
+                    acc.add_binary_tets(data, record, int, |r, k| int(&r[first + 4 * k..]))
+                        .map_err(|m| c.fail_at(pos, m))?;
+                }
+            }
+        }
+    } else {
+        let n = c.check_room(declared, 8, "elements")?;
+        let map = &acc.nodes.map;
+        if let Some(chunks) = c.par_lines(n, min_parallel, |t, s: &mut Chunk| {
+            let tag = t.u64()?;
+            let (nn, kind) = element_type(t.i64()?)?;
+            for _ in 0..t.u64()? {
+                t.next_word()?;
+            }
+            s.element(t, map, tag, kind, nn)
+        }) {
+            acc.merge(chunks, true);
+            return Ok(());
+        }
+        for _ in 0..n {
+            let pos = c.here();
+            let tag = c.ascii_u64("an element tag")?;
+            let ty = c.ascii_i64("an element type")?;
+            let (nn, kind) = element_type(ty).ok_or_else(|| unknown_type(c, pos, ty))?;
+            let ntags = c.ascii_u64("the number of element tags")?;
+            for _ in 0..ntags {
+                c.token("an element tag")?;
+            }
+            acc.reserve(kind, 1);
+            let t = read_ascii_nodes(c, acc, kind, nn, tag, pos)?;
+            match kind {
+                Kind::Lower => {}
+                Kind::Volume(name) => acc.other(name, nn, 1),
+                Kind::Tet(_) => {
+                    acc.tets.push(t);
+                    acc.tags.push(tag);
+                }
+            }
+        }
+    }
+    Ok(())
+}
