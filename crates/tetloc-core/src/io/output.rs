@@ -24,7 +24,7 @@ pub struct AtomicFile {
 impl AtomicFile {
     /// Starts a new version of `path`. A symbolic link is followed: its target is replaced.
     pub fn create(path: &Path) -> Result<AtomicFile> {
-        let target = if path.is_symlink() { std::fs::canonicalize(path).unwrap_or(path.into()) } else { path.into() };
+        let target = if path.is_symlink() { canonical(path).unwrap_or(path.into()) } else { path.into() };
         let dir = parent_dir(&target);
         let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
         let prefix = format!(".{name}.");
@@ -101,14 +101,6 @@ pub fn extension(path: &Path) -> String {
 /// `extensions`, it is not a directory or a device, and its directory exists and takes a new
 /// file (tested by creating and removing one, which also catches read-only file systems).
 pub fn check_output(path: &Path, extensions: &[&str]) -> Result<()> {
-    let ext = extension(path);
-    if !extensions.contains(&ext.as_str()) {
-        let found = if ext.is_empty() { "no extension".to_string() } else { format!("'.{ext}'") };
-        return Err(Error::format(
-            path,
-            format!("cannot write {found} here (known output formats: {})", extensions.join(", ")),
-        ));
-    }
     if let Ok(m) = std::fs::metadata(path) {
         if m.is_dir() {
             return Err(Error::format(path, "is a directory, not a file to write"));
@@ -116,6 +108,14 @@ pub fn check_output(path: &Path, extensions: &[&str]) -> Result<()> {
         if !m.is_file() {
             return Err(Error::format(path, "is not a regular file (a device or a pipe); outputs are regular files"));
         }
+    }
+    let ext = extension(path);
+    if !extensions.contains(&ext.as_str()) {
+        let found = if ext.is_empty() { "no extension".to_string() } else { format!("'.{ext}'") };
+        return Err(Error::format(
+            path,
+            format!("cannot write {found} here (known output formats: {})", extensions.join(", ")),
+        ));
     }
     let dir = parent_dir(path);
     if !dir.exists() {
@@ -182,9 +182,20 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
     }
 }
 
-/// The canonical form of a path whose file may not exist yet (its directory must).
+/// The canonical form of a path whose file may not exist yet (its directory must). A
+/// dangling symbolic link stands for the file it points to, which writing it would create.
 fn canonical(p: &Path) -> Option<PathBuf> {
-    std::fs::canonicalize(p).ok().or_else(|| Some(std::fs::canonicalize(parent_dir(p)).ok()?.join(p.file_name()?)))
+    let mut p = p.to_path_buf();
+    for _ in 0..8 {
+        if let Ok(c) = std::fs::canonicalize(&p) {
+            return Some(c);
+        }
+        match std::fs::read_link(&p) {
+            Ok(target) => p = parent_dir(&p).join(target),
+            Err(_) => return Some(std::fs::canonicalize(parent_dir(&p)).ok()?.join(p.file_name()?)),
+        }
+    }
+    None
 }
 
 #[cfg(test)]
@@ -304,7 +315,7 @@ mod tests {
         // A device as an output: renaming over it would replace the device node.
         #[cfg(unix)]
         {
-            let e = check_output(Path::new("/dev/null"), &[""]).unwrap_err().to_string();
+            let e = check_output(Path::new("/dev/null"), &["npy"]).unwrap_err().to_string();
             assert!(e.contains("not a regular file"), "{e}");
         }
         std::fs::write(dir.join("plain"), "").unwrap();
