@@ -433,7 +433,8 @@ fn auto_is_fast_and_visible() {
 }
 
 /// Points with NaN coordinates get -1 (and NaN values) on every backend, with a count on
-/// stderr, instead of a refusal of the file; the other points get their usual answers.
+/// stderr, instead of a refusal of the file; the other points get their usual answers. The
+/// boundary tolerance works over every backend too.
 #[test]
 fn nan_points_get_no_answer_on_every_backend() {
     let dir = tmp_dir("nan");
@@ -451,7 +452,7 @@ fn nan_points_get_no_answer_on_every_backend() {
             backends.extend(["rt-bvh", "rt-rep-faces", "rt-shared-faces"]);
         }
     }
-    let mut reference: Option<Vec<i32>> = None;
+    let mut reference: Option<(Vec<i32>, Vec<i32>)> = None;
     for b in backends {
         let (ids, vals) = (dir.join(format!("{b}.bin")), dir.join(format!("{b}.f32")));
         let args = ["locate", "jets:3000", "--points", s(&points), "--out", s(&ids), "--backend", b];
@@ -465,10 +466,24 @@ fn nan_points_get_no_answer_on_every_backend() {
             assert!(v[i].is_nan(), "{b}: point {i}");
         }
         assert!(got.iter().filter(|&&i| i >= 0).count() > 200, "{b}: the finite points were not located");
+        // The boundary tolerance over this backend: a tenth of the cube's side around it.
+        let (ok, _, err) = tetloc(&[&args[..], &["--tolerance", "0.05"]].concat());
+        assert!(ok, "{b}: {err}");
+        let tol = read_i32(&ids);
+        assert!((0..300).all(|i| got[i] < 0 || tol[i] == got[i]), "{b}: an inside answer changed");
+        assert!([0, 17, 50, 299].iter().all(|&i| tol[i] == -1), "{b}: a NaN point got an answer");
         match &reference {
-            None => reference = Some(got),
-            // A point on a face shared by two tets may go to either.
-            Some(r) => assert!((0..300).filter(|&i| (r[i] < 0) != (got[i] < 0)).count() == 0, "{b}: {got:?}"),
+            None => {
+                let rescued = (0..300).filter(|&i| got[i] < 0 && tol[i] >= 0).count();
+                assert!(rescued > 0, "the tolerance changed nothing");
+                reference = Some((got, tol));
+            }
+            // A point on a face shared by two tets may go to either; which points get an
+            // answer does not depend on the backend.
+            Some((r, rt)) => {
+                assert!((0..300).all(|i| (r[i] < 0) == (got[i] < 0)), "{b}: {got:?}");
+                assert!((0..300).all(|i| (rt[i] < 0) == (tol[i] < 0)), "{b} with the tolerance: {tol:?}");
+            }
         }
     }
 }

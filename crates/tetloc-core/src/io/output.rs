@@ -5,6 +5,9 @@
 //! A failure (full disk, a kill, an error) leaves the previous file intact and no partial one.
 //! Commands check their output paths with [`check_output`] and [`check_distinct`] before any
 //! work starts, so that a bad path or an output that is also an input costs nothing.
+//!
+//! A process killed outright (SIGKILL, power loss) can leave its temporary file behind, named
+//! `.NAME.XXXXXX.tmp` next to NAME; never a partial NAME.
 
 use crate::error::{Error, Result};
 use std::fs::File;

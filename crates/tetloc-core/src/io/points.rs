@@ -74,7 +74,7 @@ fn read_points_npy(path: &Path, bytes: &[u8]) -> Result<Vec<Vec3>> {
             ))
         }
     };
-    let want = shape[0].checked_mul(3 * item).unwrap_or(u64::MAX);
+    let want = shape[0].saturating_mul(3 * item);
     if data.len() as u64 != want {
         let what = if (data.len() as u64) < want { "truncated" } else { "longer than its header says" };
         return Err(Error::format(

@@ -191,7 +191,7 @@ pub fn closest_on_triangle(p: [f64; 3], [a, b, c]: [[f64; 3]; 3]) -> [f64; 3] {
         return [0.0, 1.0 - w, w];
     }
     let sum = va + vb + vc;
-    if !(sum > 0.0) {
+    if sum.is_nan() || sum <= 0.0 {
         // A degenerate (zero-area) triangle that no region above claimed: its nearest vertex.
         let d = [ap, bp, cp].map(|x| dot(x, x));
         let k = (0..3).min_by(|&i, &j| d[i].total_cmp(&d[j])).unwrap();
