@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use backend::BackendOptions;
 use clap::{Parser, Subcommand};
 use std::ffi::OsString;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::vtk::write as vtu_write;
@@ -204,14 +204,7 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-fn gen(
-    shape: &str,
-    tets: &str,
-    out: &std::path::Path,
-    seed: u64,
-    zlib: bool,
-    terrain: Option<&std::path::Path>,
-) -> Result<()> {
+fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Option<&Path>) -> Result<()> {
     let shape: tetloc_core::gen::Shape = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let n = mesh_arg::parse_count(tets)?;
     // Every output is checked before the (possibly long) generation.
