@@ -1,18 +1,25 @@
-//! Backend selection: `cpu`, the four Vulkan kernels, and `auto` (the fastest on this
-//! machine, chosen from a measurement that is cached per device).
+//! Backend selection: `cpu`, the four Vulkan kernels, and `auto`.
+//!
+//! `auto` is decided in seconds and said on stderr: `cpu` when there is no Vulkan device or
+//! when the device runs on the CPU itself (lavapipe, llvmpipe, SwiftShader: Vulkan's CPU device
+//! type), where a GPU kernel only competes with the cpu backend for the same cores; otherwise
+//! the fastest backend in a microbenchmark of at most [`AUTO_BUDGET_S`], cached per device and
+//! driver. A cache that cannot be written is said once, and the choice is kept in memory.
 
-use anyhow::{bail, Context as _, Result};
+use anyhow::{bail, Result};
 use serde::{Deserialize, Serialize};
-use std::path::PathBuf;
-use std::sync::{Arc, OnceLock};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
+use tetloc_core::locate::FiniteOnly;
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
 use tetloc_vulkan::{Context, Kernel, LocatorOptions, VulkanLocator};
 
 pub const CPU: &str = "cpu";
 
-/// Every backend name the CLI accepts (besides `auto` and `all`).
+/// Every backend name the CLI accepts (besides `auto`, and `all` for bench).
 pub fn names() -> Vec<&'static str> {
     std::iter::once(CPU).chain(Kernel::ALL.iter().map(|k| k.name())).collect()
 }
@@ -24,12 +31,14 @@ pub struct BackendOptions {
     /// rt kernels: primitives per bottom-level structure (`None`: one structure).
     pub split: Option<usize>,
     pub compact: bool,
+    /// Do not say which backend `auto` chose.
+    pub quiet: bool,
 }
 
 impl Default for BackendOptions {
     fn default() -> Self {
         let d = LocatorOptions::default();
-        BackendOptions { device: None, split: d.split, compact: d.compact }
+        BackendOptions { device: None, split: d.split, compact: d.compact, quiet: false }
     }
 }
 
@@ -56,19 +65,19 @@ pub fn available(opts: &BackendOptions) -> Vec<&'static str> {
     out
 }
 
-/// Builds the named backend over `mesh`.
+/// Builds the named backend over `mesh`. Points with a NaN or infinite coordinate are
+/// answered -1 / NaN before any backend sees them.
 pub fn make(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<dyn BatchLocator>> {
     if name == "auto" {
         let best = auto_choice(opts)?;
         return make(&best, mesh, opts);
     }
     if name == CPU {
-        return Ok(Box::new(CpuLocator::new(mesh.clone())));
+        return Ok(Box::new(FiniteOnly::new(CpuLocator::new(mesh.clone()))));
     }
-    let kernel: Kernel = name
-        .parse()
-        .map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto, all)", names().join(", ")))?;
-    Ok(Box::new(make_vulkan(kernel, mesh, opts)?))
+    let kernel: Kernel =
+        name.parse().map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto)", names().join(", ")))?;
+    Ok(Box::new(FiniteOnly::new(make_vulkan(kernel, mesh, opts)?)))
 }
 
 pub fn make_vulkan(kernel: Kernel, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<VulkanLocator> {
@@ -79,66 +88,179 @@ pub fn make_vulkan(kernel: Kernel, mesh: &Arc<Mesh>, opts: &BackendOptions) -> R
     Ok(VulkanLocator::new(ctx, mesh.clone(), kernel, opts.locator_options())?)
 }
 
-/// The cached ranking of backends on one device.
+/// Longest time `auto` spends measuring, builds included.
+pub const AUTO_BUDGET_S: f64 = 2.0;
+
+/// `auto`: the backend for this machine, said on stderr unless `opts.quiet` (see the module
+/// documentation). Decided once per process.
+pub fn auto_choice(opts: &BackendOptions) -> Result<String> {
+    static CHOICE: OnceLock<String> = OnceLock::new();
+    if let Some(c) = CHOICE.get() {
+        return Ok(c.clone());
+    }
+    let (choice, why) = decide(opts)?;
+    if !opts.quiet {
+        eprintln!("auto: {choice} ({why})");
+    }
+    Ok(CHOICE.get_or_init(|| choice).clone())
+}
+
+fn decide(opts: &BackendOptions) -> Result<(String, String)> {
+    let ctx = match vulkan(opts.device) {
+        Ok(c) => c,
+        Err(e) => return Ok((CPU.into(), format!("no Vulkan device: {e}"))),
+    };
+    let info = ctx.info();
+    if info.device_type == "cpu" {
+        return Ok((CPU.into(), format!("the Vulkan device, {}, runs on the CPU", info.name)));
+    }
+    let key = format!("{} {}", info.name, info.driver);
+    let avail = available(opts);
+    let path = cache_path(&key);
+    let (ranking, source) = ranking(path.as_deref(), &key, &mut || measure(&avail, opts, AUTO_BUDGET_S))?;
+    let best = ranking.iter().find(|(n, _)| avail.contains(&n.as_str())).map_or(CPU.to_string(), |b| b.0.clone());
+    let rates: Vec<String> = ranking.iter().map(|(n, r)| format!("{n} {}", crate::bench::fmt_rate(*r))).collect();
+    Ok((best, format!("{source} on {key}: {}", rates.join(", "))))
+}
+
+/// A ranking of backends by samples/s on one device, fastest first.
+type Ranking = Vec<(String, f64)>;
+
+/// The cached ranking of backends on one device and driver.
 #[derive(Serialize, Deserialize)]
 struct AutoCache {
     device: String,
-    ranking: Vec<(String, f64)>,
+    ranking: Ranking,
 }
 
-fn cache_path(device: &str) -> Option<PathBuf> {
+fn cache_path(key: &str) -> Option<PathBuf> {
     let base = std::env::var_os("XDG_CACHE_HOME")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    let key: String = device.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
-    Some(base.join("tetloc").join(format!("auto-{key}.json")))
+    let name: String = key.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    Some(base.join("tetloc").join(format!("auto-{name}.json")))
 }
 
-/// `auto`: the backend that located random points fastest on a probe mesh on this device
-/// (measured once per device and driver, then read from the cache).
-pub fn auto_choice(opts: &BackendOptions) -> Result<String> {
-    let avail = available(opts);
-    if avail.len() == 1 {
-        return Ok(avail[0].to_string());
+/// The ranking for device `key`: from this process' memory, from the cache file, or measured
+/// (and then cached; a cache that cannot be written is said once and the ranking kept in
+/// memory). Also says where it came from.
+fn ranking(
+    path: Option<&Path>,
+    key: &str,
+    measure: &mut dyn FnMut() -> Result<Ranking>,
+) -> Result<(Ranking, &'static str)> {
+    static MEMORY: Mutex<Option<HashMap<String, Ranking>>> = Mutex::new(None);
+    let mut memory = MEMORY.lock().unwrap_or_else(|e| e.into_inner());
+    let memory = memory.get_or_insert_with(HashMap::new);
+    if let Some(r) = memory.get(key) {
+        return Ok((r.clone(), "measured before in this process"));
     }
-    let device = vulkan(opts.device).map(|c| format!("{} {}", c.info().name, c.info().driver)).unwrap_or_default();
-    let path = cache_path(&device);
-    if let Some(cached) =
-        path.as_ref().and_then(|p| std::fs::read(p).ok()).and_then(|b| serde_json::from_slice::<AutoCache>(&b).ok())
-    {
-        if let Some((best, _)) = cached.ranking.iter().find(|(n, _)| avail.contains(&n.as_str())) {
-            return Ok(best.clone());
+    let cached = path.and_then(|p| std::fs::read(p).ok()).and_then(|b| serde_json::from_slice::<AutoCache>(&b).ok());
+    if let Some(c) = cached.filter(|c| c.device == key && !c.ranking.is_empty()) {
+        memory.insert(key.to_string(), c.ranking.clone());
+        return Ok((c.ranking, "cached"));
+    }
+    let ranking = measure()?;
+    memory.insert(key.to_string(), ranking.clone());
+    match path {
+        Some(p) => {
+            let json = serde_json::to_vec(&AutoCache { device: key.to_string(), ranking: ranking.clone() })?;
+            let written = p
+                .parent()
+                .map_or(Ok(()), std::fs::create_dir_all)
+                .map_err(|e| tetloc_core::Error::io(p.parent().unwrap_or(p), e))
+                .and_then(|_| tetloc_core::io::output::write_atomically(p, |f| write_all(f, p, &json)));
+            if let Err(e) = written {
+                eprintln!("warning: auto: cannot cache the measurement ({e}); it is kept for this run only");
+            }
         }
+        None => eprintln!("warning: auto: no cache directory (neither XDG_CACHE_HOME nor HOME is set); the measurement is kept for this run only"),
     }
-    let ranking = measure_ranking(&avail, opts)?;
-    eprintln!(
-        "auto: measured on this device ({device}): {}",
-        ranking.iter().map(|(n, r)| format!("{n} {}", crate::bench::fmt_rate(*r))).collect::<Vec<_>>().join(", ")
-    );
-    if let Some(p) = &path {
-        let _ = std::fs::create_dir_all(p.parent().unwrap());
-        let _ = std::fs::write(p, serde_json::to_vec(&AutoCache { device, ranking: ranking.clone() })?);
-    }
-    Ok(ranking[0].0.clone())
+    Ok((ranking, "measured"))
 }
 
-fn measure_ranking(avail: &[&str], opts: &BackendOptions) -> Result<Vec<(String, f64)>> {
+fn write_all(f: &mut impl std::io::Write, p: &Path, bytes: &[u8]) -> tetloc_core::Result<()> {
+    f.write_all(bytes).map_err(|e| tetloc_core::Error::io(p, e))
+}
+
+/// Samples/s of each backend locating random points in a small probe mesh, within about
+/// `budget_s` seconds in all (a build or a run already started is not interrupted): each
+/// backend gets an equal share of what is left, in which batches grow from 4096 points while
+/// they are short against the share; its rate is the best batch's. Backends not reached in
+/// time are left out of the ranking.
+fn measure(avail: &[&str], opts: &BackendOptions, budget_s: f64) -> Result<Ranking> {
+    let start = Instant::now();
     let probe =
-        Arc::new(Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Fusion, 300_000, 7), "auto probe")?);
+        Arc::new(Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Fusion, 50_000, 7), "auto probe")?);
     let points = queries::generate(&probe, QueryKind::Random, 1 << 20, 7);
     let mut ids = vec![0; points.len()];
     let mut ranking = Vec::new();
-    for &name in avail {
-        let mut loc = make(name, &probe, opts).with_context(|| format!("auto: measuring {name}"))?;
-        loc.locate(&points, &mut ids)?;
-        let mut best = f64::INFINITY;
-        for _ in 0..3 {
-            let t = Instant::now();
-            loc.locate(&points, &mut ids)?;
-            best = best.min(t.elapsed().as_secs_f64());
+    for (k, &name) in avail.iter().enumerate() {
+        let left = budget_s - start.elapsed().as_secs_f64();
+        if left <= 0.0 {
+            break;
         }
-        ranking.push((name.to_string(), points.len() as f64 / best));
+        let share = left / (avail.len() - k) as f64;
+        let t = Instant::now();
+        let mut loc = match make(name, &probe, opts) {
+            Ok(l) => l,
+            Err(e) => {
+                eprintln!("warning: auto: {name} left out: {e:#}");
+                continue;
+            }
+        };
+        let (mut n, mut rate) = (1 << 12, 0f64);
+        loop {
+            let run = Instant::now();
+            loc.locate(&points[..n], &mut ids[..n])?;
+            let secs = run.elapsed().as_secs_f64();
+            rate = rate.max(n as f64 / secs.max(1e-9));
+            if t.elapsed().as_secs_f64() >= share {
+                break;
+            }
+            if secs < share / 16.0 && n < points.len() {
+                n *= 2;
+            }
+        }
+        ranking.push((name.to_string(), rate));
     }
     ranking.sort_by(|a, b| b.1.total_cmp(&a.1));
     Ok(ranking)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A cache that cannot be written: the measurement is made once, said once, and kept.
+    #[test]
+    fn an_unwritable_cache_measures_once() {
+        let dir = std::env::temp_dir().join(format!("tetloc-auto-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        // A regular file where the cache directory should be: not writable, even for root.
+        std::fs::write(dir.join("not-a-dir"), "").unwrap();
+        let path = dir.join("not-a-dir/tetloc/auto-x.json");
+        let mut calls = 0;
+        let mut measure = || -> Result<Ranking> {
+            calls += 1;
+            Ok(vec![("soft-bvh".into(), 2e9), ("cpu".into(), 1e8)])
+        };
+        let (r, from) = ranking(Some(&path), "test device A", &mut measure).unwrap();
+        assert_eq!((r[0].0.as_str(), from), ("soft-bvh", "measured"));
+        let (r, from) = ranking(Some(&path), "test device A", &mut measure).unwrap();
+        assert_eq!((r[0].0.as_str(), from), ("soft-bvh", "measured before in this process"));
+        assert_eq!(calls, 1);
+        // A writable cache is written, and read back by a later process (a key this one has
+        // not measured); a cache of another device is not used.
+        let good = dir.join("cache/tetloc/auto-y.json");
+        ranking(Some(&good), "test device B", &mut || Ok(vec![("rt-bvh".into(), 1e9)])).unwrap();
+        let text = std::fs::read_to_string(&good).unwrap();
+        assert!(text.contains("rt-bvh") && text.contains("test device B"), "{text}");
+        std::fs::write(&good, text.replace("test device B", "test device C")).unwrap();
+        let (r, from) = ranking(Some(&good), "test device C", &mut || bail!("not measured again")).unwrap();
+        assert_eq!((r[0].0.as_str(), from), ("rt-bvh", "cached"));
+        let e = ranking(Some(&good), "test device D", &mut || bail!("measured")).unwrap_err();
+        assert_eq!(e.to_string(), "measured");
+    }
 }

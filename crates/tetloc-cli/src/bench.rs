@@ -124,7 +124,7 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                 field: args.field.clone(),
                 samples: Some(n),
                 seed: args.seed as u32,
-                repeats: args.repeats.max(5),
+                repeats: args.repeats,
                 power: args.power,
                 ..BenchOptions::default()
             };

@@ -3,16 +3,18 @@
 mod backend;
 mod bench;
 mod demo;
+mod locate;
 mod mesh_arg;
 mod progress;
 mod render;
 
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use backend::BackendOptions;
 use clap::{Parser, Subcommand};
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::io::points;
+use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::vtk::write as vtu_write;
 
 #[derive(Parser)]
@@ -26,7 +28,9 @@ struct Cli {
 enum Command {
     /// Print what a mesh holds: counts, bounds, fields, reoriented and degenerate tets, faces.
     Info {
-        mesh: String,
+        /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M).
+        mesh: OsString,
+        /// Print one JSON object (counts, bounds, faces, fields with their value ranges) instead of text.
         #[arg(long)]
         json: bool,
         /// File format, overriding the extension (vtu, vtk, msh, node).
@@ -40,8 +44,10 @@ enum Command {
         /// Approximate number of tets (e.g. 1M, 12M).
         #[arg(long)]
         tets: String,
+        /// The mesh file to write: .vtu.
         #[arg(short, long)]
         out: PathBuf,
+        /// Seed of the generator's random numbers (the same seed gives the same mesh).
         #[arg(long, default_value_t = 1)]
         seed: u64,
         /// zlib-compress the appended data.
@@ -53,36 +59,20 @@ enum Command {
         terrain: Option<PathBuf>,
     },
     /// Locate points (and sample a field) and write the tet ids (and values).
-    Locate {
-        /// A mesh file, or SHAPE:N to generate one.
-        mesh: String,
-        /// Query points: .npy (f32/f64, (N,3)), .csv (x,y,z) or .bin/.f32 (raw little-endian f32 triplets).
-        #[arg(long)]
-        points: PathBuf,
-        /// Tet ids (-1 outside): .npy (int32), .csv, .bin (raw i32), or .vtu for a ParaView point set.
-        #[arg(long)]
-        out: PathBuf,
-        /// A field to sample at the points (NaN outside).
-        #[arg(long)]
-        field: Option<String>,
-        /// Where the sampled values go: .npy/.bin (f32) or .csv. Not needed with --out *.vtu.
-        #[arg(long)]
-        values: Option<PathBuf>,
-        #[command(flatten)]
-        common: Common,
-    },
+    Locate(locate::LocateArgs),
     /// Measure samples/s per backend and query set.
     Bench {
         /// A mesh file, or SHAPE:N to generate one (e.g. fusion:1.4M).
-        mesh: String,
+        mesh: OsString,
         /// Query sets: centers (the paper's uniform), random, bbox (generated in the GPU kernel), host (uploaded).
         #[arg(long, value_delimiter = ',', default_value = "centers,random,bbox")]
         queries: Vec<tetloc_core::queries::QueryKind>,
         /// Number of queries per run (default: one per tet).
         #[arg(long)]
         n: Option<String>,
-        #[arg(long, default_value_t = 5)]
-        repeats: usize,
+        /// Timed runs per measurement (after the warm-up); the median is reported.
+        #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u64).range(1..))]
+        repeats: u64,
         /// Sample this field (the scalar variant) instead of locating ids.
         #[arg(long)]
         field: Option<String>,
@@ -92,6 +82,10 @@ enum Command {
         /// Read board power through NVML while GPU kernels run (where NVML is present).
         #[arg(long)]
         power: bool,
+        /// Backends, comma-separated: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto (the one
+        /// `locate` would choose here), or all (every backend this machine can run).
+        #[arg(long, default_value = "auto")]
+        backend: String,
         #[command(flatten)]
         common: Common,
     },
@@ -102,22 +96,24 @@ enum Command {
     /// Generate a fusion-like mesh of about 1M tets, locate and sample a million points on
     /// every available backend, check that they agree and print samples/s.
     Demo {
+        /// Approximate number of tets of the generated mesh.
         #[arg(long, default_value = "1M")]
         tets: String,
+        /// Number of random query points.
         #[arg(long, default_value = "1M")]
         points: String,
+        /// Seed of the mesh generator and the query points.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Vulkan device index (see `tetloc devices`).
         #[arg(long)]
         device: Option<usize>,
     },
 }
 
+/// Options of the commands that build locators.
 #[derive(clap::Args)]
 struct Common {
-    /// Backends, comma-separated: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto (the fastest here, measured once per device), all.
-    #[arg(long, default_value = "auto")]
-    backend: String,
     /// rt kernels: primitives per bottom-level acceleration structure (e.g. 1M), or `off` for one structure.
     #[arg(long, default_value = "1M")]
     split: String,
@@ -127,77 +123,68 @@ struct Common {
     /// Vulkan device index (see `tetloc devices`).
     #[arg(long)]
     device: Option<usize>,
-    /// Mesh file format, overriding the extension.
+    /// Mesh file format, overriding the extension (vtu, vtk, msh, node).
     #[arg(long)]
     format: Option<String>,
+    /// Seed of a generated mesh (SHAPE:N) and of generated query points.
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Print only errors and warnings on stderr (not the backend `auto` chose, nor timings).
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 impl Common {
     fn opts(&self) -> Result<BackendOptions> {
         let split = if self.split == "off" { None } else { Some(mesh_arg::parse_count(&self.split)?) };
-        Ok(BackendOptions { device: self.device, split, compact: !self.no_compact })
+        Ok(BackendOptions { device: self.device, split, compact: !self.no_compact, quiet: self.quiet })
     }
 }
 
 fn main() {
     if let Err(e) = run(Cli::parse()) {
-        eprintln!("error: {e:#}");
+        eprintln!("error: {}", error_text(&e));
         std::process::exit(1);
     }
+}
+
+/// The error and its causes, each said once: errors that name their cause in their own
+/// message (`path: No such file or directory`) would otherwise repeat it.
+fn error_text(e: &anyhow::Error) -> String {
+    let mut text = e.to_string();
+    for cause in e.chain().skip(1) {
+        let c = cause.to_string();
+        if !text.contains(&c) {
+            text = format!("{text}: {c}");
+        }
+    }
+    text
 }
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { mesh, json, format } => info(&mesh, json, format.as_deref()),
         Command::Gen { shape, tets, out, seed, zlib, terrain } => {
-            let shape: tetloc_core::gen::Shape = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
-            let n = mesh_arg::parse_count(&tets)?;
-            if let Some(path) = &terrain {
-                let ground = mesh_arg::terrain(shape, n, seed)?;
-                let file = std::fs::File::create(path).with_context(|| format!("{}: cannot create", path.display()))?;
-                ground
-                    .write_obj(std::io::BufWriter::new(file))
-                    .with_context(|| format!("{}: cannot write", path.display()))?;
-                eprintln!("{}: terrain with {} triangles", path.display(), ground.triangles.len());
-            }
-            let t0 = Instant::now();
-            let mesh = mesh_arg::generate(shape, n, seed)?;
-            let gen_s = t0.elapsed().as_secs_f64();
-            let t1 = Instant::now();
-            progress::with_spinner(format!("writing {}", out.display()), || {
-                vtu_write::write_mesh_vtu(&out, &mesh, zlib)
-            })?;
-            eprintln!(
-                "{}: {shape} with {} tets, {} vertices (generated in {gen_s:.2} s, written in {:.2} s)",
-                out.display(),
-                mesh.n_tets(),
-                mesh.points.len(),
-                t1.elapsed().as_secs_f64()
-            );
-            Ok(())
+            gen(&shape, &tets, &out, seed, zlib, terrain.as_deref())
         }
-        Command::Locate { mesh, points: pts, out, field, values, common } => {
-            locate(&mesh, &pts, &out, field.as_deref(), values.as_deref(), &common)
-        }
+        Command::Locate(args) => locate::run(&args),
         Command::Devices => devices(),
-        Command::Bench { mesh, queries, n, repeats, field, json, power, common } => {
+        Command::Bench { mesh, queries, n, repeats, field, json, power, backend, common } => {
+            let opts = common.opts()?;
             let m = mesh_arg::load(&mesh, common.format.as_deref(), common.seed)?;
             if let Some(f) = &field {
                 m.field(f)?;
             }
-            let opts = common.opts()?;
-            let backends = if common.backend == "all" {
+            let backends = if backend == "all" {
                 backend::available(&opts).into_iter().map(String::from).collect()
             } else {
-                common.backend.split(',').map(String::from).collect()
+                backend.split(',').map(String::from).collect()
             };
             let args = bench::BenchArgs {
                 backends,
                 queries,
                 n: n.map(|s| mesh_arg::parse_count(&s)).transpose()?,
-                repeats: repeats.max(1),
+                repeats: repeats as usize,
                 field,
                 seed: common.seed,
                 json,
@@ -215,6 +202,38 @@ fn run(cli: Cli) -> Result<()> {
             &BackendOptions { device, ..Default::default() },
         ),
     }
+}
+
+fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Option<&Path>) -> Result<()> {
+    let shape: tetloc_core::gen::Shape = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let n = mesh_arg::parse_count(tets)?;
+    // Every output is checked before the (possibly long) generation.
+    output::check_output(out, &["vtu"]).context("-o/--out: gen writes VTK XML unstructured grids")?;
+    let mut outputs = vec![FileArg::new("--out", out)];
+    if let Some(t) = terrain {
+        output::check_output(t, &["obj"]).context("--terrain: the terrain is written as Wavefront OBJ")?;
+        mesh_arg::terrain_shape_check(shape)?;
+        outputs.push(FileArg::new("--terrain", t));
+    }
+    output::check_distinct(&[], &outputs)?;
+    if let Some(path) = terrain {
+        let ground = mesh_arg::terrain(shape, n, seed)?;
+        output::write_atomically(path, |f| ground.write_obj(f).map_err(|e| tetloc_core::Error::io(path, e)))?;
+        eprintln!("{}: terrain with {} triangles", path.display(), ground.triangles.len());
+    }
+    let t0 = Instant::now();
+    let mesh = mesh_arg::generate(shape, n, seed)?;
+    let gen_s = t0.elapsed().as_secs_f64();
+    let t1 = Instant::now();
+    progress::with_spinner(format!("writing {}", out.display()), || vtu_write::write_mesh_vtu(out, &mesh, zlib))?;
+    eprintln!(
+        "{}: {shape} with {} tets, {} vertices (generated in {gen_s:.2} s, written in {:.2} s)",
+        out.display(),
+        mesh.n_tets(),
+        mesh.points.len(),
+        t1.elapsed().as_secs_f64()
+    );
+    Ok(())
 }
 
 fn devices() -> Result<()> {
@@ -238,12 +257,18 @@ fn devices() -> Result<()> {
     Ok(())
 }
 
-fn info(mesh: &str, json: bool, format: Option<&str>) -> Result<()> {
+fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> {
     let m = mesh_arg::load(mesh, format, 1)?;
     let faces = progress::with_spinner("computing shared faces", || m.faces().stats);
     if json {
-        let fields: Vec<_> =
-            m.fields.iter().map(|f| serde_json::json!({"name": f.name, "location": f.location})).collect();
+        let fields: Vec<_> = m
+            .fields
+            .iter()
+            .map(|f| {
+                let (min, max) = finite_range(&f.values).unzip();
+                serde_json::json!({"name": f.name, "location": f.location, "min": min, "max": max})
+            })
+            .collect();
         let out = serde_json::json!({"mesh": m.info, "faces": faces, "fields": fields});
         println!("{}", serde_json::to_string_pretty(&out)?);
         return Ok(());
@@ -268,68 +293,58 @@ fn info(mesh: &str, json: bool, format: Option<&str>) -> Result<()> {
         println!("  fields      none");
     }
     for f in &m.fields {
-        let (lo, hi) = f
-            .values
-            .iter()
-            .filter(|v| v.is_finite())
-            .fold((f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)));
-        println!("  field       '{}' per {:?}, range {lo} .. {hi}", f.name, f.location);
+        let range = match finite_range(&f.values) {
+            Some((lo, hi)) => format!("range {lo} .. {hi}"),
+            None => "no finite values".to_string(),
+        };
+        println!("  field       '{}' per {:?}, {range}", f.name, f.location);
     }
     Ok(())
 }
 
-fn locate(
-    mesh: &str,
-    pts: &Path,
-    out: &Path,
-    field: Option<&str>,
-    values_out: Option<&Path>,
-    common: &Common,
-) -> Result<()> {
-    let m = mesh_arg::load(mesh, common.format.as_deref(), common.seed)?;
-    if let Some(f) = field {
-        m.field(f)?;
-    }
-    let to_vtu = out.extension().is_some_and(|e| e == "vtu");
-    if field.is_some() && values_out.is_none() && !to_vtu {
-        bail!("--field needs --values FILE (or --out FILE.vtu, which carries ids and values)");
-    }
-    if field.is_none() && values_out.is_some() {
-        bail!("--values needs --field NAME");
-    }
-    let points = points::read_points(pts)?;
-    let opts = common.opts()?;
-    let mut loc = progress::with_spinner("building the locator", || backend::make(&common.backend, &m, &opts))?;
-    // Chunks keep the progress bar moving and bound GPU batch memory.
-    const CHUNK: usize = 1 << 22;
-    let mut ids = vec![0i32; points.len()];
-    let mut values = vec![0f32; if field.is_some() { points.len() } else { 0 }];
-    let pb = progress::bar(points.len() as u64, format!("locating on {}", loc.name()));
-    let t0 = Instant::now();
-    for (c, p) in points.chunks(CHUNK).enumerate() {
-        let r = c * CHUNK..c * CHUNK + p.len();
-        match field {
-            Some(f) => loc.locate_and_sample(p, f, &mut ids[r.clone()], &mut values[r])?,
-            None => loc.locate(p, &mut ids[r])?,
+/// The smallest and largest finite values, if there are any.
+fn finite_range(values: &[f32]) -> Option<(f32, f32)> {
+    values.iter().filter(|v| v.is_finite()).fold(None, |r, &v| match r {
+        None => Some((v, v)),
+        Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
+
+    /// Every option and argument of every command says what it is for.
+    #[test]
+    fn every_option_has_help() {
+        let cli = Cli::command();
+        let mut missing = Vec::new();
+        for cmd in cli.get_subcommands() {
+            for arg in cmd.get_arguments() {
+                let builtin = matches!(arg.get_id().as_str(), "help" | "version");
+                if !builtin && arg.get_help().is_none() && arg.get_long_help().is_none() {
+                    missing.push(format!("{} {}", cmd.get_name(), arg.get_id()));
+                }
+            }
         }
-        pb.inc(p.len() as u64);
+        assert!(missing.is_empty(), "options without help: {missing:?}");
     }
-    pb.finish_and_clear();
-    let secs = t0.elapsed().as_secs_f64();
-    let outside = ids.iter().filter(|&&i| i < 0).count();
-    if to_vtu {
-        vtu_write::write_points_vtu(out, &points, &ids, field.map(|f| (f, values.as_slice())))?;
-    } else {
-        points::write_ids(out, &ids)?;
+
+    /// `locate` takes one backend: its help offers no `all` (which it refuses).
+    #[test]
+    fn locate_help_offers_no_backend_all() {
+        let mut cli = Cli::command();
+        let locate = cli.find_subcommand_mut("locate").unwrap();
+        let help = locate.render_long_help().to_string();
+        let backend = help.split("--backend").nth(1).unwrap().split("\n      --").next().unwrap();
+        assert!(backend.contains("auto") && !backend.contains("all"), "{backend}");
     }
-    if let (Some(_), Some(vp)) = (field, values_out) {
-        points::write_values(vp, &values)?;
+
+    #[test]
+    fn causes_are_said_once() {
+        let io = std::io::Error::new(std::io::ErrorKind::NotFound, "No such file or directory (os error 2)");
+        let e = anyhow::Error::new(tetloc_core::Error::io("/x/p.bin", io)).context("reading points");
+        assert_eq!(error_text(&e), "reading points: /x/p.bin: No such file or directory (os error 2)");
     }
-    eprintln!(
-        "{} points located on {} in {secs:.3} s ({}); {outside} outside the mesh",
-        points.len(),
-        loc.name(),
-        bench::fmt_rate(points.len() as f64 / secs)
-    );
-    Ok(())
 }

@@ -2,7 +2,8 @@
 
 use crate::progress;
 use anyhow::{bail, Context, Result};
-use std::path::Path;
+use std::ffi::OsStr;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tetloc_core::gen::{self, Shape};
 use tetloc_core::io::{self, MeshFormat};
@@ -26,12 +27,29 @@ pub fn parse_count(s: &str) -> Result<usize> {
 }
 
 /// `SHAPE:N` when `arg` is not an existing file and parses that way.
-pub fn parse_generated(arg: &str) -> Option<(Shape, usize)> {
+pub fn parse_generated(arg: &OsStr) -> Option<(Shape, usize)> {
     if Path::new(arg).exists() {
         return None;
     }
-    let (shape, n) = arg.split_once(':')?;
+    let (shape, n) = arg.to_str()?.split_once(':')?;
     Some((shape.parse().ok()?, parse_count(n).ok()?))
+}
+
+/// The files a mesh argument reads: none for `SHAPE:N`, both `.node` and `.ele` for TetGen,
+/// else the file itself.
+pub fn input_files(arg: &OsStr, format: Option<&str>) -> Vec<PathBuf> {
+    if parse_generated(arg).is_some() {
+        return Vec::new();
+    }
+    let path = Path::new(arg);
+    let format = match format {
+        Some(f) => MeshFormat::from_name(f),
+        None => MeshFormat::from_path(path).ok(),
+    };
+    match format {
+        Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
+        _ => vec![path.to_path_buf()],
+    }
 }
 
 /// Bytes a generated mesh of `n` tets takes while it is built and validated (tets, vertices,
@@ -58,14 +76,22 @@ pub fn generate(shape: Shape, n: usize, seed: u64) -> Result<Mesh> {
 
 /// The terrain that goes with a generated shape, or an error naming the shapes that have one.
 pub fn terrain(shape: Shape, n: usize, seed: u64) -> Result<gen::Terrain> {
-    gen::terrain(shape, n, seed).with_context(|| {
+    terrain_shape_check(shape)?;
+    gen::terrain(shape, n, seed).with_context(|| format!("{shape}: no terrain was generated"))
+}
+
+/// Whether `shape` has a terrain, as an error naming the shapes that have one.
+pub fn terrain_shape_check(shape: Shape) -> Result<()> {
+    if !shape.has_terrain() {
         let with: Vec<_> = Shape::ALL.into_iter().filter(|s| s.has_terrain()).map(|s| s.name()).collect();
-        format!("{shape} has no terrain (shapes with one: {})", with.join(", "))
-    })
+        bail!("{shape} has no terrain (shapes with one: {})", with.join(", "));
+    }
+    Ok(())
 }
 
 /// Loads a mesh file (format from the extension unless given) or generates `SHAPE:N`.
-pub fn load(arg: &str, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
+/// File names need not be UTF-8.
+pub fn load(arg: &OsStr, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
     if let Some((shape, n)) = parse_generated(arg) {
         return Ok(Arc::new(generate(shape, n, seed)?));
     }
@@ -79,10 +105,11 @@ pub fn load(arg: &str, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
     let path = Path::new(arg);
     if !path.exists() {
         bail!(
-            "{arg}: no such file (and not a generated mesh like fusion:1M; shapes: {})",
+            "{}: no such file (and not a generated mesh like fusion:1M; shapes: {})",
+            path.display(),
             Shape::ALL.map(|s| s.to_string()).join(", ")
         );
     }
-    let mesh = progress::with_spinner(format!("reading {arg}"), || io::read_mesh(path, format))?;
+    let mesh = progress::with_spinner(format!("reading {}", path.display()), || io::read_mesh(path, format))?;
     Ok(Arc::new(mesh))
 }

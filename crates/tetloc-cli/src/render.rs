@@ -3,13 +3,15 @@
 use crate::backend::{self, BackendOptions};
 use crate::mesh_arg;
 use anyhow::Result;
+use std::ffi::OsString;
 use std::path::PathBuf;
+use tetloc_core::io::output::{self, FileArg};
 use tetloc_render as tr;
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
     /// A mesh file, or SHAPE:N to generate one.
-    mesh: String,
+    mesh: OsString,
     /// The scalar field to render.
     #[arg(long)]
     field: String,
@@ -20,13 +22,16 @@ pub struct RenderArgs {
     /// Backends, comma-separated (with --fps each is measured): cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto.
     #[arg(long, default_value = "auto")]
     backend: String,
+    /// Vulkan device index (see `tetloc devices`).
     #[arg(long)]
     device: Option<usize>,
+    /// Image size WIDTHxHEIGHT in pixels.
     #[arg(long, default_value = "1024x1024")]
     size: String,
     /// Azimuth,elevation in degrees around the bounds centre.
     #[arg(long)]
     view: Option<String>,
+    /// Magnification: 2 shows half as much of the mesh.
     #[arg(long)]
     zoom: Option<String>,
     /// eye,target,up as 9 comma-separated numbers.
@@ -58,15 +63,21 @@ pub struct RenderArgs {
     /// of marching whole frames on the GPU.
     #[arg(long)]
     host_march: bool,
+    /// Background colour behind the volume: R,G,B in 0..1, or #RRGGBB.
     #[arg(long)]
     background: Option<String>,
     /// Measure frames per second over an orbit of this many frames instead of writing images.
     #[arg(long, num_args = 0..=1, default_missing_value = "16")]
     fps: Option<u32>,
+    /// Seed of a generated mesh (SHAPE:N).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Mesh file format, overriding the extension (vtu, vtk, msh, node).
     #[arg(long)]
     format: Option<String>,
+    /// Print only errors and warnings on stderr (not the backend `auto` chose, nor the files written).
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
@@ -94,7 +105,10 @@ pub fn run(a: RenderArgs) -> Result<()> {
     o.surface = match a.surface.as_deref() {
         Some("terrain") => {
             let Some((shape, n)) = mesh_arg::parse_generated(&a.mesh) else {
-                anyhow::bail!("--surface terrain: {} is not a generated shape (SHAPE:N)", a.mesh);
+                anyhow::bail!(
+                    "--surface terrain: {} is not a generated shape (SHAPE:N)",
+                    std::path::Path::new(&a.mesh).display()
+                );
             };
             let ground = mesh_arg::terrain(shape, n, a.seed)?;
             Some(tr::SurfaceSpec::Mesh(std::sync::Arc::new(ground.into())))
@@ -106,9 +120,25 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(b) = &a.background {
         o.background = tr::parse_color("--background", b)?;
     }
+    // The image files are checked, and kept apart from every input, before any work.
+    let out = a.out.clone().unwrap_or_else(|| "render.png".into());
+    let files = match a.fps {
+        Some(_) => a.out.iter().map(|o| tr::check_outputs(o, 1)).collect::<tr::Result<Vec<_>>>()?.concat(),
+        None => tr::check_outputs(&out, o.frames)?,
+    };
+    let outputs: Vec<FileArg> = files.iter().map(|f| FileArg::new("--out", f)).collect();
+    let mesh_files = mesh_arg::input_files(&a.mesh, a.format.as_deref());
+    let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
+    if let tr::TfSpec::File { path, .. } = &o.tf {
+        inputs.push(FileArg::new("--tf", path));
+    }
+    if let Some(tr::SurfaceSpec::File(path)) = &o.surface {
+        inputs.push(FileArg::new("--surface", path));
+    }
+    output::check_distinct(&inputs, &outputs)?;
     let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
     let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
-    let opts = BackendOptions { device: a.device, ..Default::default() };
+    let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
     for (i, name) in a.backend.split(',').enumerate() {
         let first = i == 0;
         let name = if name == "auto" { backend::auto_choice(&opts)? } else { name.to_string() };
@@ -133,17 +163,20 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 // With an explicit --out, the first backend's frame 0 too: what was measured.
                 if let (Some(out), true) = (&a.out, first) {
                     renderer.render(marcher.as_mut(), &renderer.camera(0))?.0.write_png(out)?;
-                    eprintln!("wrote {}", out.display());
+                    if !a.quiet {
+                        eprintln!("wrote {}", out.display());
+                    }
                 }
             }
             None => {
-                let report =
-                    tr::render_to_file(&renderer, marcher.as_mut(), a.out.as_deref().unwrap_or("render.png".as_ref()))?;
-                for f in &report.frames {
-                    eprintln!("{f}");
-                }
-                for f in &report.files {
-                    eprintln!("wrote {}", f.display());
+                let report = tr::render_to_file(&renderer, marcher.as_mut(), &out)?;
+                if !a.quiet {
+                    for f in &report.frames {
+                        eprintln!("{f}");
+                    }
+                    for f in &report.files {
+                        eprintln!("wrote {}", f.display());
+                    }
                 }
             }
         }

@@ -1,10 +1,10 @@
 //! Images: linear-light RGB in memory, sRGB 8-bit on disk (PNG, animated GIF), and PSNR.
+//! Files are written atomically: complete, or the previous file stays.
 
 use crate::colorspace::linear_to_srgb;
 use crate::error::{RenderError, Result};
-use std::fs::File;
-use std::io::BufWriter;
 use std::path::Path;
+use tetloc_core::io::output::{write_atomically, AtomicFile};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
@@ -21,22 +21,22 @@ impl Image {
     }
 
     pub fn write_png(&self, path: &Path) -> Result<()> {
-        let io = |e: std::io::Error| RenderError::io(path, e);
-        let file = BufWriter::new(File::create(path).map_err(io)?);
-        let mut enc = png::Encoder::new(file, self.width, self.height);
-        enc.set_color(png::ColorType::Rgb);
-        enc.set_depth(png::BitDepth::Eight);
-        enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
-        let encode = |e: png::EncodingError| RenderError::file(path, format!("cannot write PNG: {e}"));
-        let mut w = enc.write_header().map_err(encode)?;
-        w.write_image_data(&self.to_srgb8()).map_err(encode)?;
-        w.finish().map_err(encode)
+        write_atomically(path, |file| {
+            let mut enc = png::Encoder::new(file, self.width, self.height);
+            enc.set_color(png::ColorType::Rgb);
+            enc.set_depth(png::BitDepth::Eight);
+            enc.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+            let encode = |e: png::EncodingError| RenderError::file(path, format!("cannot write PNG: {e}"));
+            let mut w = enc.write_header().map_err(encode)?;
+            w.write_image_data(&self.to_srgb8()).map_err(encode)?;
+            w.finish().map_err(encode)
+        })
     }
 }
 
 /// A looping animated GIF written frame by frame, so long orbits need no memory per frame.
 pub struct GifWriter {
-    enc: gif::Encoder<BufWriter<File>>,
+    enc: gif::Encoder<AtomicFile>,
     path: std::path::PathBuf,
     size: (u16, u16),
     delay_cs: u16,
@@ -51,7 +51,7 @@ impl GifWriter {
                 format!("GIF images are at most 65535 pixels a side, not {width}x{height}"),
             ));
         };
-        let file = BufWriter::new(File::create(path).map_err(|e| RenderError::io(path, e))?);
+        let file = AtomicFile::create(path)?;
         let encode = |e: gif::EncodingError| RenderError::file(path, format!("cannot write GIF: {e}"));
         let mut enc = gif::Encoder::new(file, w, h, &[]).map_err(encode)?;
         enc.set_repeat(gif::Repeat::Infinite).map_err(encode)?;
@@ -72,10 +72,11 @@ impl GifWriter {
     }
 
     /// Writes the trailer and flushes the file.
+    /// Ends the GIF and puts it in place (dropped unfinished, the previous file stays).
     pub fn finish(self) -> Result<()> {
         let path = self.path;
-        let mut w = self.enc.into_inner().map_err(|e| RenderError::io(&path, e))?;
-        std::io::Write::flush(&mut w).map_err(|e| RenderError::io(&path, e))
+        let w = self.enc.into_inner().map_err(|e| RenderError::io(&path, e))?;
+        Ok(w.commit()?)
     }
 }
 
@@ -113,6 +114,7 @@ mod tests {
 
     #[test]
     fn png_and_gif_round_trip() {
+        use std::fs::File;
         let dir = std::env::temp_dir().join(format!("tetloc-render-img-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let mut img = flat(3, 2, 0.5);
@@ -142,6 +144,18 @@ mod tests {
         assert_eq!(n, 2);
         let e = img.write_png(&dir.join("no/such/dir/x.png")).unwrap_err().to_string();
         assert!(e.contains("no/such/dir/x.png"), "{e}");
+        // A GIF dropped unfinished leaves the previous file, and no other.
+        let mut w = GifWriter::create(&g, 3, 2, 4).unwrap();
+        w.add(&img).unwrap();
+        drop(w);
+        let mut d = gif::DecodeOptions::new().read_info(File::open(&g).unwrap()).unwrap();
+        let mut n = 0;
+        while d.read_next_frame().unwrap().is_some() {
+            n += 1;
+        }
+        assert_eq!(n, 2, "the finished GIF of two frames is still there");
+        let names: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert!(names.iter().all(|n| !n.to_string_lossy().ends_with(".tmp")), "{names:?}");
         std::fs::remove_dir_all(&dir).ok();
     }
 }

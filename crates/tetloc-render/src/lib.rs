@@ -67,6 +67,8 @@ pub use options::{
     parse_camera, parse_color, parse_frames, parse_opacity, parse_positive, parse_range, parse_size, parse_view,
     RenderOptions, SurfaceSpec, TfSpec,
 };
-pub use output::{compare_locators, frame_path, measure_fps, render_to_file, Comparison, FpsReport, RenderReport};
+pub use output::{
+    check_outputs, compare_locators, frame_path, measure_fps, render_to_file, Comparison, FpsReport, RenderReport,
+};
 pub use render::{FrameStats, HostMarcher, Marcher, Renderer, OPACITY_CUTOFF};
 pub use tf::{Colormap, TransferFunction};

@@ -34,6 +34,19 @@ fn output_kind(out: &Path) -> Result<Output> {
     }
 }
 
+/// The files [`render_to_file`] will write for `out` and `frames` frames (one PNG, numbered
+/// PNGs, or one GIF), each checked before any rendering: extension, directory, permission.
+pub fn check_outputs(out: &Path, frames: u32) -> Result<Vec<PathBuf>> {
+    let files = match output_kind(out)? {
+        Output::Png if frames > 1 => (0..frames).map(|i| frame_path(out, i)).collect(),
+        _ => vec![out.to_path_buf()],
+    };
+    for f in &files {
+        tetloc_core::io::output::check_output(f, &["png", "gif"])?;
+    }
+    Ok(files)
+}
+
 /// `out_0000.png` for frame 0 of `out.png`.
 pub fn frame_path(out: &Path, frame: u32) -> PathBuf {
     let stem = out.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();

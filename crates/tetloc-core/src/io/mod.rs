@@ -3,6 +3,7 @@
 
 pub(crate) mod cursor;
 pub mod gmsh;
+pub mod output;
 pub mod points;
 #[cfg(test)]
 mod tests;
@@ -77,6 +78,59 @@ fn check_fits_in_memory(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Most bytes read from a file that is not a regular file (a pipe, a device such as
+/// `/dev/zero`), whose size cannot be known in advance; less when memory is short.
+pub const NON_REGULAR_READ_CAP: u64 = 1 << 30;
+
+/// Reads a whole file, boundedly: a regular file must fit in memory (its size is known),
+/// and anything else (pipes, devices) is read up to [`NON_REGULAR_READ_CAP`] and refused
+/// beyond. Large regular files are read by all threads at once: copying from the page cache
+/// is a good part of loading a big mesh, and it parallelises.
+pub fn read_file(path: &Path) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let io = |e| Error::io(path, e);
+    let file = std::fs::File::open(path).map_err(io)?;
+    let meta = file.metadata().map_err(io)?;
+    if meta.is_dir() {
+        return Err(Error::format(path, "is a directory, not a file"));
+    }
+    if !meta.is_file() {
+        let cap = available_memory_bytes().map_or(NON_REGULAR_READ_CAP, |a| (a / 2).min(NON_REGULAR_READ_CAP));
+        let mut buf = Vec::new();
+        file.take(cap + 1).read_to_end(&mut buf).map_err(io)?;
+        if buf.len() as u64 > cap {
+            return Err(Error::format(
+                path,
+                format!(
+                    "not a regular file (a pipe or a device) and longer than {} MiB, the most read from one; \
+                     save it to a file first",
+                    cap >> 20
+                ),
+            ));
+        }
+        return Ok(buf);
+    }
+    check_fits_in_memory(path)?;
+    let len = usize::try_from(meta.len()).map_err(|_| Error::format(path, "file too large for this machine"))?;
+    #[cfg(unix)]
+    {
+        use rayon::prelude::*;
+        use std::os::unix::fs::FileExt;
+        const PART: usize = 8 << 20;
+        if len > 4 * PART && rayon::current_num_threads() > 1 {
+            let mut buf = vec![0u8; len];
+            buf.par_chunks_mut(PART)
+                .enumerate()
+                .try_for_each(|(i, part)| file.read_exact_at(part, (i * PART) as u64))
+                .map_err(io)?;
+            return Ok(buf);
+        }
+    }
+    let mut buf = Vec::with_capacity(len);
+    (&file).read_to_end(&mut buf).map_err(io)?;
+    Ok(buf)
+}
+
 /// Reads a mesh file into a raw mesh (tets in file order, not yet validated).
 pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
     let format = match format {
@@ -85,6 +139,12 @@ pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
     };
     if format != MeshFormat::TetGen {
         check_fits_in_memory(path)?;
+    }
+    let regular = std::fs::metadata(path).map_or(true, |m| m.is_file());
+    if matches!(format, MeshFormat::Gmsh | MeshFormat::TetGen) && !regular {
+        // These readers read with `std::fs::read`, unbounded on a pipe or a device.
+        // TODO(iohygiene): read through `io::read_file` and drop this refusal.
+        return Err(Error::format(path, "not a regular file; Gmsh and TetGen meshes are read from regular files only"));
     }
     match format {
         MeshFormat::Vtu => vtk::vtu::read(path),

@@ -121,6 +121,10 @@ impl CpuLocator {
             let mut hint: Option<u32> = None;
             idx.map(|i| {
                 let p = points[i];
+                // A NaN or infinite coordinate is in no tet (and would lead a walk astray).
+                if !super::is_finite(p) {
+                    return f(None);
+                }
                 let found = hint.and_then(|h| self.walk(h, p)).or_else(|| self.locate_point(p));
                 if let Some((t, _)) = found {
                     hint = Some(t);

@@ -1,17 +1,22 @@
 //! The seam every backend plugs into: a batch locator takes points and returns tet ids, or
 //! values of a field. The CPU implementation lives here; the Vulkan backend implements the
-//! same trait in `tetloc-vulkan`.
+//! same trait in `tetloc-vulkan`. Two wrappers add what is the same for every backend:
+//! [`FiniteOnly`] answers points with NaN or infinite coordinates, and
+//! [`WithTolerance`] assigns points just outside the boundary to the nearest boundary cell.
 
 mod cpu;
 #[cfg(test)]
 use cpu::is_coherent;
 #[cfg(test)]
 mod tests;
+pub mod tolerance;
 
 pub use cpu::CpuLocator;
+pub use tolerance::{Tolerance, WithTolerance};
 
 use crate::error::Result;
 use crate::geom::Vec3;
+use rayon::prelude::*;
 
 /// Id returned for a point outside every tet.
 pub const OUTSIDE: i32 = -1;
@@ -34,9 +39,176 @@ pub trait BatchLocator {
     }
 }
 
+impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
+    fn name(&self) -> &str {
+        (**self).name()
+    }
+    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
+        (**self).locate(points, ids)
+    }
+    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
+        (**self).sample(points, field, values)
+    }
+    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        (**self).locate_and_sample(points, field, ids, values)
+    }
+}
+
+/// Whether all three coordinates are finite (not NaN, not infinite).
+#[inline]
+pub fn is_finite(p: Vec3) -> bool {
+    p.iter().all(|c| c.is_finite())
+}
+
+/// How many points have a NaN or infinite coordinate.
+pub fn count_non_finite(points: &[Vec3]) -> usize {
+    points.par_iter().filter(|&&p| !is_finite(p)).count()
+}
+
+/// Any backend, with points that have a NaN or infinite coordinate answered here: they are
+/// in no tet ([`OUTSIDE`], NaN). They are compacted out of the batch before the backend sees
+/// it, so GPU kernels never get one; batches without such points pass through as they are.
+pub struct FiniteOnly<L> {
+    inner: L,
+}
+
+impl<L: BatchLocator> FiniteOnly<L> {
+    pub fn new(inner: L) -> Self {
+        FiniteOnly { inner }
+    }
+    pub fn inner(&self) -> &L {
+        &self.inner
+    }
+    pub fn into_inner(self) -> L {
+        self.inner
+    }
+}
+
+/// The finite points of a batch that has others, and the batch index of each.
+struct Compacted {
+    index: Vec<usize>,
+    points: Vec<Vec3>,
+}
+
+impl Compacted {
+    /// `None` when every point is finite (nothing to compact).
+    fn of(points: &[Vec3]) -> Option<Compacted> {
+        if points.par_iter().all(|&p| is_finite(p)) {
+            return None;
+        }
+        let index: Vec<usize> = (0..points.len()).into_par_iter().filter(|&i| is_finite(points[i])).collect();
+        let points = index.par_iter().map(|&i| points[i]).collect();
+        Some(Compacted { index, points })
+    }
+
+    /// Spreads the answers for the compacted points back; the others get `none`.
+    fn scatter<T: Copy>(&self, answers: &[T], out: &mut [T], none: T) {
+        out.fill(none);
+        for (&i, &a) in self.index.iter().zip(answers) {
+            out[i] = a;
+        }
+    }
+}
+
+impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+
+    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        let Some(c) = Compacted::of(points) else { return self.inner.locate(points, ids) };
+        let mut sub = vec![OUTSIDE; c.points.len()];
+        self.inner.locate(&c.points, &mut sub)?;
+        c.scatter(&sub, ids, OUTSIDE);
+        Ok(())
+    }
+
+    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
+        check_lengths(points.len(), values.len())?;
+        let Some(c) = Compacted::of(points) else { return self.inner.sample(points, field, values) };
+        let mut sub = vec![f32::NAN; c.points.len()];
+        self.inner.sample(&c.points, field, &mut sub)?;
+        c.scatter(&sub, values, f32::NAN);
+        Ok(())
+    }
+
+    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len(), values.len())?;
+        let Some(c) = Compacted::of(points) else { return self.inner.locate_and_sample(points, field, ids, values) };
+        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len()]);
+        self.inner.locate_and_sample(&c.points, field, &mut sub_ids, &mut sub_values)?;
+        c.scatter(&sub_ids, ids, OUTSIDE);
+        c.scatter(&sub_values, values, f32::NAN);
+        Ok(())
+    }
+}
+
 pub(crate) fn check_lengths(points: usize, out: usize) -> Result<()> {
     if points != out {
         return Err(crate::Error::Invalid(format!("{points} points but an output buffer for {out}")));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod nan_tests {
+    use super::*;
+    use crate::test_support::KuhnGrid;
+    use std::sync::Arc;
+
+    /// A backend that fails the test if it is handed a non-finite point.
+    struct NoNaN(CpuLocator);
+    impl BatchLocator for NoNaN {
+        fn name(&self) -> &str {
+            "no-nan"
+        }
+        fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
+            assert_eq!(count_non_finite(points), 0, "the backend saw a non-finite point");
+            self.0.locate(points, ids)
+        }
+        fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
+            assert_eq!(count_non_finite(points), 0, "the backend saw a non-finite point");
+            self.0.sample(points, field, values)
+        }
+    }
+
+    /// NaN and infinite points are answered -1 / NaN, the others as without them, and the
+    /// backend never sees them; the CPU locator answers them the same way on its own.
+    #[test]
+    fn non_finite_points_get_no_answer_and_never_reach_the_backend() {
+        let m = Arc::new(KuhnGrid::new(3).mesh("cube"));
+        let pts = [
+            [0.3, 0.4, 0.5],
+            [f32::NAN, 0.5, 0.5],
+            [0.5, f32::INFINITY, 0.5],
+            [0.9, 0.1, 0.2],
+            [0.5, 0.5, f32::NEG_INFINITY],
+            [2.0, 0.5, 0.5],
+        ];
+        let finite: Vec<Vec3> = pts.iter().copied().filter(|&p| is_finite(p)).collect();
+        assert_eq!(count_non_finite(&pts), 3);
+        let mut plain = CpuLocator::new(m.clone());
+        let (mut want_ids, mut want_vals) = (vec![0; 3], vec![0.0; 3]);
+        plain.locate_and_sample(&finite, "f", &mut want_ids, &mut want_vals).unwrap();
+
+        let mut loc = FiniteOnly::new(NoNaN(CpuLocator::new(m.clone())));
+        let (mut ids, mut vals, mut both_ids, mut both_vals) = (vec![7; 6], vec![7.0; 6], vec![7; 6], vec![7.0; 6]);
+        loc.locate(&pts, &mut ids).unwrap();
+        loc.sample(&pts, "f", &mut vals).unwrap();
+        loc.locate_and_sample(&pts, "f", &mut both_ids, &mut both_vals).unwrap();
+        for (ids, vals) in [(&ids, &vals), (&both_ids, &both_vals)] {
+            assert_eq!(*ids, [want_ids[0], OUTSIDE, OUTSIDE, want_ids[1], OUTSIDE, OUTSIDE]);
+            assert_eq!([vals[0], vals[3]], [want_vals[0], want_vals[1]]);
+            assert!([1, 2, 4, 5].iter().all(|&i| vals[i].is_nan()));
+        }
+        // The CPU locator by itself, in a batch large and incoherent enough to be sorted.
+        let many: Vec<Vec3> = (0..10_000).map(|i| pts[i * 7 % pts.len()]).collect();
+        let mut ids = vec![0; many.len()];
+        plain.locate(&many, &mut ids).unwrap();
+        for (p, id) in many.iter().zip(&ids) {
+            assert_eq!(*id >= 0, is_finite(*p) && p[0] < 1.5, "{p:?}: {id}");
+        }
+    }
 }

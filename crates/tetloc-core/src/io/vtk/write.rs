@@ -1,6 +1,7 @@
-//! VTU writers: a mesh with its fields, and a point set with the located tet ids and values,
-//! as VTK XML unstructured grids with appended raw data (UInt64 block headers, optionally
-//! zlib-compressed), readable by ParaView and VTK.
+//! VTK XML writers: a mesh with its fields (`.vtu`), and a point set with the located tet
+//! ids, values and `vtkValidPointMask` (`.vtu` with vertex cells, or `.vtp` polydata with
+//! verts), with appended raw data (UInt64 block headers, optionally zlib-compressed),
+//! readable by ParaView and VTK. Files are written atomically (see [`crate::io::output`]).
 //!
 //! Uncompressed arrays stream through a `BufWriter` in chunks, so writing a large mesh needs
 //! no copy of it; compressed ones are compressed in parallel blocks first (their sizes go in
@@ -10,6 +11,8 @@ use super::blocks;
 use super::cells;
 use super::num::NumType;
 use crate::error::{Error, Result};
+use crate::io::output::write_atomically;
+use crate::io::points::VALID_MASK;
 use crate::mesh::{FieldLocation, Mesh};
 use std::io::Write;
 use std::ops::Range;
@@ -43,6 +46,7 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, zlib: bool, wide_ids: bool) -
         }
     }
     let grid = Grid {
+        kind: Kind::Unstructured,
         n_points: mesh.points.len(),
         n_cells: n_tets,
         point_data,
@@ -62,14 +66,31 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, zlib: bool, wide_ids: bool) -
         offsets: OutArray::new("offsets", id_type, 1, n_tets, move |r, out| {
             r.for_each(|i| push_id(out, 4 * (i as u64 + 1), wide))
         }),
-        types: OutArray::new("types", NumType::U8, 1, n_tets, |r, out| out.resize(out.len() + r.len(), cells::TETRA)),
+        types: Some(OutArray::new("types", NumType::U8, 1, n_tets, |r, out| {
+            out.resize(out.len() + r.len(), cells::TETRA)
+        })),
     };
     grid.write(path, zlib)
 }
 
-/// Writes a point set: one VTK_VERTEX cell per point, point data `tet_id` (Int32, -1 for
-/// points outside the mesh) and, if given, the named values (Float32).
+/// Writes a point set as an unstructured grid: one VTK_VERTEX cell per point, point data
+/// `tet_id` (Int32, -1 for points without an answer), the named values (Float32) if given,
+/// and `vtkValidPointMask` (UInt8, 1 where a point got an answer).
 pub fn write_points_vtu(path: &Path, points: &[[f32; 3]], ids: &[i32], values: Option<(&str, &[f32])>) -> Result<()> {
+    point_set(Kind::Unstructured, points, ids, values)?.write(path, false)
+}
+
+/// [`write_points_vtu`] as VTK polydata (`.vtp`): the same arrays, one vertex (`Verts`) per point.
+pub fn write_points_vtp(path: &Path, points: &[[f32; 3]], ids: &[i32], values: Option<(&str, &[f32])>) -> Result<()> {
+    point_set(Kind::PolyVerts, points, ids, values)?.write(path, false)
+}
+
+fn point_set<'a>(
+    kind: Kind,
+    points: &'a [[f32; 3]],
+    ids: &'a [i32],
+    values: Option<(&str, &'a [f32])>,
+) -> Result<Grid<'a>> {
     let n = points.len();
     if ids.len() != n {
         return Err(Error::Invalid(format!("{} points but {} tet ids", n, ids.len())));
@@ -81,14 +102,18 @@ pub fn write_points_vtu(path: &Path, points: &[[f32; 3]], ids: &[i32], values: O
         if v.len() != n {
             return Err(Error::Invalid(format!("{} points but {} values of '{name}'", n, v.len())));
         }
-        if name == "tet_id" {
-            return Err(Error::Invalid("the value array cannot be named 'tet_id'".into()));
+        if name == "tet_id" || name == VALID_MASK {
+            return Err(Error::Invalid(format!("the value array cannot be named '{name}'")));
         }
         point_data.push(OutArray::floats(name, 1, v));
     }
+    point_data.push(OutArray::new(VALID_MASK, NumType::U8, 1, n, |r, out| {
+        out.extend(ids[r].iter().map(|&i| u8::from(i >= 0)))
+    }));
     let wide = n as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
-    let grid = Grid {
+    Ok(Grid {
+        kind,
         n_points: n,
         n_cells: n,
         point_data,
@@ -100,9 +125,10 @@ pub fn write_points_vtu(path: &Path, points: &[[f32; 3]], ids: &[i32], values: O
         offsets: OutArray::new("offsets", id_type, 1, n, move |r, out| {
             r.for_each(|i| push_id(out, i as u64 + 1, wide))
         }),
-        types: OutArray::new("types", NumType::U8, 1, n, |r, out| out.resize(out.len() + r.len(), cells::VERTEX)),
-    };
-    grid.write(path, false)
+        types: (kind == Kind::Unstructured).then(|| {
+            OutArray::new("types", NumType::U8, 1, n, |r, out| out.resize(out.len() + r.len(), cells::VERTEX))
+        }),
+    })
 }
 
 fn push_id(out: &mut Vec<u8>, v: u64, wide: bool) {
@@ -167,7 +193,17 @@ impl<'a> OutArray<'a> {
     }
 }
 
+/// The dataset type of a file.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// `UnstructuredGrid`: cells with connectivity, offsets and types.
+    Unstructured,
+    /// `PolyData` whose cells are all vertices (`Verts`: connectivity and offsets).
+    PolyVerts,
+}
+
 struct Grid<'a> {
+    kind: Kind,
     n_points: usize,
     n_cells: usize,
     point_data: Vec<OutArray<'a>>,
@@ -175,14 +211,16 @@ struct Grid<'a> {
     points: OutArray<'a>,
     connectivity: OutArray<'a>,
     offsets: OutArray<'a>,
-    types: OutArray<'a>,
+    /// Unstructured grids only.
+    types: Option<OutArray<'a>>,
 }
 
 impl Grid<'_> {
     /// Arrays in the order of the file.
     fn arrays(&self) -> Vec<&OutArray<'_>> {
         let mut v: Vec<&OutArray> = self.point_data.iter().chain(&self.cell_data).collect();
-        v.extend([&self.points, &self.connectivity, &self.offsets, &self.types]);
+        v.extend([&self.points, &self.connectivity, &self.offsets]);
+        v.extend(&self.types);
         v
     }
 
@@ -202,20 +240,19 @@ impl Grid<'_> {
             at += s;
         }
 
-        let file = std::fs::File::create(path).map_err(io)?;
-        let mut w = std::io::BufWriter::with_capacity(1 << 20, file);
-        w.write_all(self.header(&arrays, &offsets, zlib).as_bytes()).map_err(io)?;
-        match compressed {
-            Some(blocks) => blocks.iter().try_for_each(|b| w.write_all(b)).map_err(io)?,
-            None => {
-                for a in &arrays {
-                    w.write_all(&(a.n_bytes() as u64).to_ne_bytes()).map_err(io)?;
-                    a.chunks(|c| w.write_all(c)).map_err(io)?;
+        write_atomically(path, |w| {
+            w.write_all(self.header(&arrays, &offsets, zlib).as_bytes()).map_err(io)?;
+            match compressed {
+                Some(blocks) => blocks.iter().try_for_each(|b| w.write_all(b)).map_err(io)?,
+                None => {
+                    for a in &arrays {
+                        w.write_all(&(a.n_bytes() as u64).to_ne_bytes()).map_err(io)?;
+                        a.chunks(|c| w.write_all(c)).map_err(io)?;
+                    }
                 }
             }
-        }
-        w.write_all(b"\n  </AppendedData>\n</VTKFile>\n").map_err(io)?;
-        w.flush().map_err(io)
+            w.write_all(b"\n  </AppendedData>\n</VTKFile>\n").map_err(io)
+        })
     }
 
     fn header(&self, arrays: &[&OutArray], offsets: &[usize], zlib: bool) -> String {
@@ -224,12 +261,23 @@ impl Grid<'_> {
         let compressor = if zlib { " compressor=\"vtkZLibDataCompressor\"" } else { "" };
         let mut s = String::new();
         let _ = writeln!(s, "<?xml version=\"1.0\"?>");
+        let (dataset, cells, counts) = match self.kind {
+            Kind::Unstructured => ("UnstructuredGrid", "Cells", format!("NumberOfCells=\"{}\"", self.n_cells)),
+            Kind::PolyVerts => (
+                "PolyData",
+                "Verts",
+                format!(
+                    "NumberOfVerts=\"{}\" NumberOfLines=\"0\" NumberOfStrips=\"0\" NumberOfPolys=\"0\"",
+                    self.n_cells
+                ),
+            ),
+        };
         let _ = writeln!(
             s,
-            "<VTKFile type=\"UnstructuredGrid\" version=\"1.0\" byte_order=\"{order}\" header_type=\"UInt64\"{compressor}>"
+            "<VTKFile type=\"{dataset}\" version=\"1.0\" byte_order=\"{order}\" header_type=\"UInt64\"{compressor}>"
         );
-        let _ = writeln!(s, "  <UnstructuredGrid>");
-        let _ = writeln!(s, "    <Piece NumberOfPoints=\"{}\" NumberOfCells=\"{}\">", self.n_points, self.n_cells);
+        let _ = writeln!(s, "  <{dataset}>");
+        let _ = writeln!(s, "    <Piece NumberOfPoints=\"{}\" {counts}>", self.n_points);
         let mut k = 0;
         let mut section = |s: &mut String, tag: &str, n: usize| {
             let _ = writeln!(s, "      <{tag}>");
@@ -250,9 +298,9 @@ impl Grid<'_> {
         section(&mut s, "PointData", self.point_data.len());
         section(&mut s, "CellData", self.cell_data.len());
         section(&mut s, "Points", 1);
-        section(&mut s, "Cells", 3);
+        section(&mut s, cells, 2 + self.types.is_some() as usize);
         let _ = writeln!(s, "    </Piece>");
-        let _ = writeln!(s, "  </UnstructuredGrid>");
+        let _ = writeln!(s, "  </{dataset}>");
         let _ = write!(s, "  <AppendedData encoding=\"raw\">\n   _");
         s
     }
@@ -369,10 +417,36 @@ mod tests {
         assert!(back.tets.is_empty());
         assert_eq!(back.points, pts);
         let names: Vec<&str> = back.fields.iter().map(|f| f.name.as_str()).collect();
-        assert_eq!(names, ["tet_id", "value of f"]);
+        assert_eq!(names, ["tet_id", "value of f", "vtkValidPointMask"]);
         assert_eq!(back.fields[0].values, vec![4.0, -1.0, 0.0]);
         assert_eq!(back.fields[1].values[0], 1.0);
         assert!(back.fields[1].values[1].is_nan());
+        assert_eq!(back.fields[2].values, vec![1.0, 0.0, 1.0]);
+        let mask = pd.children_named("DataArray").find(|d| d.attr("Name") == Some("vtkValidPointMask")).unwrap();
+        assert_eq!(mask.attr("type"), Some("UInt8"));
+    }
+
+    /// The polydata point set: the same arrays, `Verts` instead of `Cells`. (VTK itself reads
+    /// it in the CLI's boundary-tolerance test.)
+    #[test]
+    fn vtp_point_set() {
+        let tmp = TempPath::new("points");
+        let pts = vec![[0.5, 1.5, 2.5], [3., 4., 5.]];
+        write_points_vtp(&tmp.0, &pts, &[-1, 2], Some(("f", &[f32::NAN, 3.0]))).unwrap();
+        let bytes = std::fs::read(&tmp.0).unwrap();
+        let doc = super::super::xml::parse(&bytes, "AppendedData").unwrap();
+        assert_eq!(doc.root.attr("type"), Some("PolyData"));
+        let piece = doc.root.child("PolyData").unwrap().child("Piece").unwrap();
+        assert_eq!(piece.attr("NumberOfPoints"), Some("2"));
+        assert_eq!(piece.attr("NumberOfVerts"), Some("2"));
+        assert_eq!(piece.attr("NumberOfPolys"), Some("0"));
+        let names: Vec<_> =
+            piece.child("PointData").unwrap().children_named("DataArray").map(|d| d.attr("Name").unwrap()).collect();
+        assert_eq!(names, ["tet_id", "f", "vtkValidPointMask"]);
+        let verts: Vec<_> =
+            piece.child("Verts").unwrap().children_named("DataArray").map(|d| d.attr("Name").unwrap()).collect();
+        assert_eq!(verts, ["connectivity", "offsets"]);
+        assert!(piece.child("Cells").is_none());
     }
 
     #[test]

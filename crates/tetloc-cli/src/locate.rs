@@ -1,0 +1,166 @@
+//! `tetloc locate`: query points in; tet ids, sampled values and the valid-point mask out.
+//! Every path is checked before the mesh is read, and nothing is written over an input.
+
+use crate::{backend, bench, mesh_arg, progress, Common};
+use anyhow::{bail, Context, Result};
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tetloc_core::io::output::{self, FileArg};
+use tetloc_core::io::points::{self, Results};
+use tetloc_core::io::vtk::write as vtk_write;
+use tetloc_core::locate::{count_non_finite, is_finite, Tolerance, WithTolerance};
+use tetloc_core::BatchLocator;
+
+#[derive(clap::Args)]
+pub struct LocateArgs {
+    /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M).
+    mesh: OsString,
+    /// Query points: .npy (f32/f64, (N,3)), .csv (x,y,z per line, an optional `x,y,z` header) or
+    /// .bin/.f32 (raw little-endian f32 triplets). Points with a NaN coordinate get no answer.
+    #[arg(long)]
+    points: PathBuf,
+    /// Where the answers go: tet ids (-1: no answer) as .npy (int32) or .bin (raw i32); a table
+    /// as .csv (tet_id, the values with --field, vtkValidPointMask); or a point set for ParaView
+    /// as .vtu or .vtp (the points with the same arrays).
+    #[arg(long)]
+    out: PathBuf,
+    /// A field to sample at the points (NaN where a point gets no answer).
+    #[arg(long)]
+    field: Option<String>,
+    /// Where the sampled values go: .npy/.bin/.f32 (float32) or .csv (the field and
+    /// vtkValidPointMask). Not needed when --out is .csv, .vtu or .vtp, which carry the values.
+    #[arg(long)]
+    values: Option<PathBuf>,
+    /// Boundary tolerance: a point outside the mesh but within this distance of its boundary
+    /// gets the nearest boundary cell and the value at the closest boundary point (as VTK's
+    /// probe filter with a tolerance). A distance in mesh units, or a percentage of the mean
+    /// edge length (e.g. 1%). 0, the default, is the exact answer.
+    #[arg(long, default_value = "0")]
+    tolerance: Tolerance,
+    /// The backend: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, or auto (cpu where the
+    /// only Vulkan device runs on the CPU, else the fastest in a short measurement, cached per
+    /// device and driver).
+    #[arg(long, default_value = "auto")]
+    backend: String,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// What `--out` is, by its extension.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum OutKind {
+    /// One array: the ids.
+    Array,
+    /// A CSV table of every column.
+    Csv,
+    Vtu,
+    Vtp,
+}
+
+impl OutKind {
+    fn of(path: &Path) -> OutKind {
+        match output::extension(path).as_str() {
+            "csv" | "txt" => OutKind::Csv,
+            "vtu" => OutKind::Vtu,
+            "vtp" => OutKind::Vtp,
+            _ => OutKind::Array,
+        }
+    }
+}
+
+/// The extensions `--out` takes: the id arrays and tables, and the two point sets.
+fn out_extensions() -> Vec<&'static str> {
+    points::ID_EXTENSIONS.iter().copied().chain(["vtu", "vtp"]).collect()
+}
+
+pub fn run(a: &LocateArgs) -> Result<()> {
+    let kind = OutKind::of(&a.out);
+    match (&a.field, &a.values) {
+        (None, Some(_)) => bail!("--values needs --field NAME"),
+        (Some(_), None) if kind == OutKind::Array => {
+            bail!("--field needs --values FILE (or --out FILE.csv, .vtu or .vtp, which carry ids and values)")
+        }
+        _ => {}
+    }
+    if a.backend == "all" || a.backend.contains(',') {
+        bail!(
+            "locate runs one backend, not '{}' (known: {}, auto); `tetloc bench` compares several",
+            a.backend,
+            backend::names().join(", ")
+        );
+    }
+    // Outputs and inputs are checked before anything is read or computed.
+    output::check_output(&a.out, &out_extensions()).context("--out")?;
+    let mut outputs = vec![FileArg::new("--out", &a.out)];
+    if let Some(v) = &a.values {
+        output::check_output(v, points::VALUE_EXTENSIONS).context("--values")?;
+        outputs.push(FileArg::new("--values", v));
+    }
+    let mesh_files = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
+    let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
+    inputs.push(FileArg::new("--points", &a.points));
+    output::check_distinct(&inputs, &outputs)?;
+    let opts = a.common.opts()?;
+
+    let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
+    if let Some(f) = &a.field {
+        m.field(f)?;
+    }
+    let pts = points::read_points(&a.points)?;
+    let non_finite = count_non_finite(&pts);
+    if non_finite > 0 {
+        let first = pts.iter().position(|&p| !is_finite(p)).unwrap_or(0);
+        eprintln!(
+            "warning: {}: {non_finite} of {} points have a NaN or infinite coordinate (the first is point {first}); they get tet id -1 and value NaN",
+            a.points.display(),
+            pts.len()
+        );
+    }
+    let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
+    let exact = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
+    let mut loc: Box<dyn BatchLocator> = match a.tolerance.distance(&m) {
+        d if d > 0.0 => Box::new(WithTolerance::new(exact, m.clone(), a.tolerance)),
+        _ => exact,
+    };
+    // Chunks keep the progress bar moving and bound GPU batch memory.
+    const CHUNK: usize = 1 << 22;
+    let mut ids = vec![0i32; pts.len()];
+    let mut values = vec![0f32; if a.field.is_some() { pts.len() } else { 0 }];
+    let pb = progress::bar(pts.len() as u64, format!("locating on {}", loc.name()));
+    let t0 = Instant::now();
+    for (c, p) in pts.chunks(CHUNK).enumerate() {
+        let r = c * CHUNK..c * CHUNK + p.len();
+        match &a.field {
+            Some(f) => loc.locate_and_sample(p, f, &mut ids[r.clone()], &mut values[r])?,
+            None => loc.locate(p, &mut ids[r])?,
+        }
+        pb.inc(p.len() as u64);
+    }
+    pb.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+
+    let results = Results { ids: &ids, values: a.field.as_deref().map(|f| (f, values.as_slice())) };
+    match kind {
+        OutKind::Vtu => vtk_write::write_points_vtu(&a.out, &pts, &ids, results.values)?,
+        OutKind::Vtp => vtk_write::write_points_vtp(&a.out, &pts, &ids, results.values)?,
+        OutKind::Csv | OutKind::Array => points::write_ids(&a.out, &results)?,
+    }
+    if let Some(v) = &a.values {
+        points::write_values(v, &results)?;
+    }
+    if !a.common.quiet {
+        let none = ids.iter().filter(|&&i| i < 0).count();
+        let within = match a.tolerance.distance(&m) {
+            d if d > 0.0 => format!(" by more than the tolerance {} ({d:.3e})", a.tolerance),
+            _ => String::new(),
+        };
+        eprintln!(
+            "{} points located on {} in {secs:.3} s ({}); {none} outside the mesh{within}",
+            pts.len(),
+            loc.name(),
+            bench::fmt_rate(pts.len() as f64 / secs)
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,369 @@
+//! Outputs that are either complete or absent.
+//!
+//! Every file tetloc writes goes through an [`AtomicFile`]: a temporary file in the target's
+//! directory, written, flushed to disk and renamed over the target on [`AtomicFile::commit`].
+//! A failure (full disk, a kill, an error) leaves the previous file intact and no partial one.
+//! Commands check their output paths with [`check_output`] and [`check_distinct`] before any
+//! work starts, so that a bad path or an output that is also an input costs nothing.
+//!
+//! A process killed outright (SIGKILL, power loss) can leave its temporary file behind, named
+//! `.NAME.XXXXXX.tmp` next to NAME; never a partial NAME.
+
+use crate::error::{Error, Result};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use tempfile::NamedTempFile;
+
+/// A file written to a temporary name next to its target and renamed over the target on
+/// [`commit`](AtomicFile::commit). Dropped without `commit`, the temporary file is removed
+/// and the target is left as it was.
+#[must_use = "an AtomicFile is only written to its target by commit()"]
+pub struct AtomicFile {
+    target: PathBuf,
+    tmp: BufWriter<NamedTempFile>,
+}
+
+impl AtomicFile {
+    /// Starts a new version of `path`. A symbolic link is followed: its target is replaced.
+    pub fn create(path: &Path) -> Result<AtomicFile> {
+        let target = if path.is_symlink() { canonical(path).unwrap_or(path.into()) } else { path.into() };
+        let dir = parent_dir(&target);
+        let name = target.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let prefix = format!(".{name}.");
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(".tmp");
+        #[cfg(unix)]
+        {
+            // Outputs get the permissions a plain create would give them (0666 less the umask),
+            // or those of the file they replace, not the private mode of temporary files.
+            use std::os::unix::fs::PermissionsExt;
+            let mode = std::fs::metadata(&target).map(|m| m.permissions().mode() & 0o7777).unwrap_or(0o666);
+            builder.permissions(std::fs::Permissions::from_mode(mode));
+        }
+        let tmp = builder.tempfile_in(dir).map_err(|e| Error::io(&target, e))?;
+        Ok(AtomicFile { target, tmp: BufWriter::with_capacity(1 << 20, tmp) })
+    }
+
+    /// The file this will become.
+    pub fn path(&self) -> &Path {
+        &self.target
+    }
+
+    /// Flushes, syncs the data to disk and renames the temporary file over the target.
+    pub fn commit(self) -> Result<()> {
+        let io = |e: std::io::Error| Error::io(&self.target, e);
+        let tmp = self.tmp.into_inner().map_err(|e| Error::io(&self.target, e.into_error()))?;
+        tmp.as_file().sync_all().map_err(io)?;
+        tmp.persist(&self.target).map_err(|e| io(e.error))?;
+        // The rename itself reaches the disk with the directory (best effort: not every
+        // file system lets a directory be opened and synced).
+        if let Ok(d) = File::open(parent_dir(&self.target)) {
+            let _ = d.sync_all();
+        }
+        Ok(())
+    }
+}
+
+impl Write for AtomicFile {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        self.tmp.write(buf)
+    }
+    fn write_all(&mut self, buf: &[u8]) -> std::io::Result<()> {
+        self.tmp.write_all(buf)
+    }
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.tmp.flush()
+    }
+}
+
+/// Writes `path` atomically with `write`: complete, or not at all.
+pub fn write_atomically<E: From<Error>>(
+    path: &Path,
+    write: impl FnOnce(&mut AtomicFile) -> std::result::Result<(), E>,
+) -> std::result::Result<(), E> {
+    let mut f = AtomicFile::create(path)?;
+    write(&mut f)?;
+    Ok(f.commit()?)
+}
+
+/// The directory a file is in (`.` for a bare file name).
+fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// The lower-case extension of `path` ("" when it has none).
+pub fn extension(path: &Path) -> String {
+    path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase()
+}
+
+/// Checks, before any work, that `path` can become an output: its extension is one of
+/// `extensions`, it is not a directory or a device, and its directory exists and takes a new
+/// file (tested by creating and removing one, which also catches read-only file systems).
+pub fn check_output(path: &Path, extensions: &[&str]) -> Result<()> {
+    if let Ok(m) = std::fs::metadata(path) {
+        if m.is_dir() {
+            return Err(Error::format(path, "is a directory, not a file to write"));
+        }
+        if !m.is_file() {
+            return Err(Error::format(path, "is not a regular file (a device or a pipe); outputs are regular files"));
+        }
+    }
+    let ext = extension(path);
+    if !extensions.contains(&ext.as_str()) {
+        let found = if ext.is_empty() { "no extension".to_string() } else { format!("'.{ext}'") };
+        return Err(Error::format(
+            path,
+            format!("cannot write {found} here (known output formats: {})", extensions.join(", ")),
+        ));
+    }
+    let dir = parent_dir(path);
+    if !dir.exists() {
+        return Err(Error::format(path, format!("the directory {} does not exist", dir.display())));
+    }
+    if !dir.is_dir() {
+        return Err(Error::format(path, format!("{} is not a directory", dir.display())));
+    }
+    tempfile::Builder::new()
+        .prefix(".tetloc-write-check.")
+        .tempfile_in(dir)
+        .map_err(|e| Error::format(path, format!("cannot create files in {}: {e}", dir.display())))?;
+    Ok(())
+}
+
+/// One file argument of a command, named as the user wrote it (e.g. `--out`).
+#[derive(Clone, Copy, Debug)]
+pub struct FileArg<'a> {
+    pub name: &'a str,
+    pub path: &'a Path,
+}
+
+impl<'a> FileArg<'a> {
+    pub fn new(name: &'a str, path: &'a Path) -> Self {
+        FileArg { name, path }
+    }
+}
+
+/// Refuses a command whose output is one of its inputs, or two of whose outputs are the same
+/// file: by canonical path, and by device and inode (hard links) where both files exist.
+pub fn check_distinct(inputs: &[FileArg], outputs: &[FileArg]) -> Result<()> {
+    let clash = |o: &FileArg, other: &FileArg, what: &str| {
+        Error::Invalid(format!(
+            "{} {} is the same file as the {what} {} {}; tetloc never writes over an {what}",
+            o.name,
+            o.path.display(),
+            other.name,
+            other.path.display()
+        ))
+    };
+    for (k, o) in outputs.iter().enumerate() {
+        if let Some(i) = inputs.iter().find(|i| same_file(o.path, i.path)) {
+            return Err(clash(o, i, "input"));
+        }
+        if let Some(p) = outputs[..k].iter().find(|p| same_file(o.path, p.path)) {
+            return Err(clash(o, p, "output"));
+        }
+    }
+    Ok(())
+}
+
+/// Whether two paths name the same file (or would, once `a` is created).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return (ma.dev(), ma.ino()) == (mb.dev(), mb.ino());
+        }
+    }
+    match (canonical(a), canonical(b)) {
+        (Some(x), Some(y)) => x == y,
+        _ => false,
+    }
+}
+
+/// The canonical form of a path whose file may not exist yet (its directory must). A
+/// dangling symbolic link stands for the file it points to, which writing it would create.
+fn canonical(p: &Path) -> Option<PathBuf> {
+    let mut p = p.to_path_buf();
+    for _ in 0..8 {
+        if let Ok(c) = std::fs::canonicalize(&p) {
+            return Some(c);
+        }
+        match std::fs::read_link(&p) {
+            Ok(target) => p = parent_dir(&p).join(target),
+            Err(_) => return Some(std::fs::canonicalize(parent_dir(&p)).ok()?.join(p.file_name()?)),
+        }
+    }
+    None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tmp_dir(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("tetloc-output-{}-{tag}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn entries(dir: &Path) -> Vec<String> {
+        let mut v: Vec<String> =
+            std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+        v.sort();
+        v
+    }
+
+    /// A full-disk stand-in: accepts `left` bytes, then fails as a full disk does.
+    struct FailAfter<W> {
+        inner: W,
+        left: usize,
+    }
+    impl<W: Write> Write for FailAfter<W> {
+        fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+            if self.left == 0 {
+                return Err(std::io::Error::new(std::io::ErrorKind::StorageFull, "no space left on device"));
+            }
+            let n = self.inner.write(&buf[..buf.len().min(self.left)])?;
+            self.left -= n;
+            Ok(n)
+        }
+        fn flush(&mut self) -> std::io::Result<()> {
+            self.inner.flush()
+        }
+    }
+
+    fn put(f: &mut AtomicFile, bytes: &[u8]) -> Result<()> {
+        f.write_all(bytes).map_err(|e| Error::io("test", e))
+    }
+
+    #[test]
+    fn commit_replaces_and_drop_keeps_the_old_file() {
+        let dir = tmp_dir("commit");
+        let path = dir.join("out.csv");
+        std::fs::write(&path, "old").unwrap();
+        let mut f = AtomicFile::create(&path).unwrap();
+        f.write_all(b"new, not committed").unwrap();
+        drop(f);
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
+        assert_eq!(entries(&dir), ["out.csv"], "the temporary file stays behind");
+        write_atomically(&path, |f| put(f, b"new")).unwrap();
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
+        assert_eq!(entries(&dir), ["out.csv"]);
+    }
+
+    #[test]
+    fn a_write_failure_leaves_the_old_file_and_no_temporary() {
+        let dir = tmp_dir("full");
+        let path = dir.join("ids.bin");
+        std::fs::write(&path, "previous result").unwrap();
+        let err = write_atomically(&path, |f| {
+            let mut w = FailAfter { inner: f, left: 1000 };
+            (0..100).try_for_each(|_| w.write_all(&[7u8; 100])).map_err(|e| Error::io("ids.bin", e))
+        })
+        .unwrap_err();
+        assert!(err.to_string().contains("no space left"), "{err}");
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "previous result");
+        assert_eq!(entries(&dir), ["ids.bin"]);
+    }
+
+    #[test]
+    fn a_failed_rename_leaves_no_temporary() {
+        // The target is a directory: the rename fails after everything was written.
+        let dir = tmp_dir("rename");
+        std::fs::create_dir(dir.join("taken.vtu")).unwrap();
+        std::fs::write(dir.join("taken.vtu/keep"), "x").unwrap();
+        let e = write_atomically(&dir.join("taken.vtu"), |f| put(f, b"data")).unwrap_err();
+        assert!(e.to_string().contains("taken.vtu"), "{e}");
+        assert_eq!(entries(&dir), ["taken.vtu"]);
+        assert_eq!(std::fs::read_to_string(dir.join("taken.vtu/keep")).unwrap(), "x");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn outputs_get_ordinary_permissions_and_links_are_followed() {
+        use std::os::unix::fs::PermissionsExt;
+        let dir = tmp_dir("perm");
+        let path = dir.join("a.npy");
+        write_atomically(&path, |f| put(f, b"1")).unwrap();
+        let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
+        assert_ne!(mode & 0o044, 0, "mode {mode:o}: readable only by the owner, unlike a plain create");
+        std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).unwrap();
+        let link = dir.join("link.npy");
+        std::os::unix::fs::symlink(&path, &link).unwrap();
+        write_atomically(&link, |f| put(f, b"2")).unwrap();
+        assert!(link.is_symlink());
+        assert_eq!(std::fs::read_to_string(&path).unwrap(), "2");
+        assert_eq!(std::fs::metadata(&path).unwrap().permissions().mode() & 0o777, 0o640);
+    }
+
+    #[test]
+    fn output_paths_are_checked_up_front() {
+        let dir = tmp_dir("check");
+        let ok = dir.join("x.npy");
+        check_output(&ok, &["npy", "csv"]).unwrap();
+        assert_eq!(entries(&dir), Vec::<String>::new(), "checking creates nothing");
+        let e = check_output(&dir.join("o.h5"), &["npy", "csv"]).unwrap_err().to_string();
+        assert!(e.contains("o.h5") && e.contains("'.h5'") && e.contains("npy, csv"), "{e}");
+        let e = check_output(&dir.join("no/such/x.npy"), &["npy"]).unwrap_err().to_string();
+        assert!(e.contains("does not exist"), "{e}");
+        std::fs::create_dir(dir.join("d.npy")).unwrap();
+        let e = check_output(&dir.join("d.npy"), &["npy"]).unwrap_err().to_string();
+        assert!(e.contains("is a directory"), "{e}");
+        // A device as an output: renaming over it would replace the device node.
+        #[cfg(unix)]
+        {
+            let e = check_output(Path::new("/dev/null"), &["npy"]).unwrap_err().to_string();
+            assert!(e.contains("not a regular file"), "{e}");
+        }
+        std::fs::write(dir.join("plain"), "").unwrap();
+        let e = check_output(&dir.join("plain/x.npy"), &["npy"]).unwrap_err().to_string();
+        assert!(e.contains("is not a directory"), "{e}");
+        // A directory that takes no new file, even for root.
+        #[cfg(target_os = "linux")]
+        {
+            let e = check_output(Path::new("/proc/x.npy"), &["npy"]).unwrap_err().to_string();
+            assert!(e.contains("cannot create files in /proc"), "{e}");
+        }
+    }
+
+    #[test]
+    fn an_output_that_is_an_input_is_refused() {
+        let dir = tmp_dir("same");
+        let mesh = dir.join("mesh.vtu");
+        std::fs::write(&mesh, "mesh").unwrap();
+        let points = dir.join("p.npy");
+        std::fs::write(&points, "points").unwrap();
+        let inputs = [FileArg::new("MESH", &mesh), FileArg::new("--points", &points)];
+        let other = dir.join("ids.npy");
+        check_distinct(&inputs, &[FileArg::new("--out", &other)]).unwrap();
+        // The same name, another spelling of it, a hard link and a symbolic link.
+        let dotted = dir.join(".").join("mesh.vtu");
+        let hard = dir.join("hard.vtu");
+        std::fs::hard_link(&mesh, &hard).unwrap();
+        let mut outs = vec![mesh.clone(), dotted, hard];
+        #[cfg(unix)]
+        {
+            let soft = dir.join("soft.vtu");
+            std::os::unix::fs::symlink(&mesh, &soft).unwrap();
+            outs.push(soft);
+        }
+        for o in &outs {
+            let e = check_distinct(&inputs, &[FileArg::new("--out", o)]).unwrap_err().to_string();
+            assert!(e.contains("--out") && e.contains("input MESH") && e.contains("mesh.vtu"), "{e}");
+        }
+        let e = check_distinct(&inputs, &[FileArg::new("--values", &points)]).unwrap_err().to_string();
+        assert!(e.contains("--values") && e.contains("--points"), "{e}");
+        // Two outputs into one file, which does not exist yet.
+        let e = check_distinct(&inputs, &[FileArg::new("--out", &other), FileArg::new("--values", &other)])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--values") && e.contains("output --out"), "{e}");
+        assert_eq!(std::fs::read_to_string(&mesh).unwrap(), "mesh");
+    }
+}
