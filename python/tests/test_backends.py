@@ -19,21 +19,18 @@ def torus(data_dir):
 
 @pytest.mark.parametrize("backend", GPU_BACKENDS)
 def test_gpu_backend_matches_the_oracle(vulkan, oracle_sets, backend):
-    by_mesh = {}
-    for s in oracle_sets:
-        if s.label.split(".")[0] in ("torus_s", "delaunay_s"):
-            by_mesh.setdefault(s.mesh_path, []).append(s)
-    assert len(by_mesh) == 2
-    for path, sets in by_mesh.items():
-        mesh = tetloc.read(path)
-        loc = tetloc.Locator(mesh, backend=backend)
-        assert loc.backend == backend
-        cpu = tetloc.Locator(mesh, backend="cpu")
-        for s in sets:
-            check_set(loc, mesh, s)
-            # Unambiguous points: the same tet as cpu.
-            same = (loc.locate(s.points) == cpu.locate(s.points)) | s.ambiguous
-            assert same.all(), f"{backend} {s.label}: ids differ from cpu at unambiguous points"
+    """delaunay_s: slivers and inverted tets (the Rust tests run every set on every kernel)."""
+    sets = [s for s in oracle_sets if s.label.startswith("delaunay_s.")]
+    assert len(sets) == 3
+    mesh = tetloc.read(sets[0].mesh_path)
+    loc = tetloc.Locator(mesh, backend=backend)
+    assert loc.backend == backend
+    cpu = tetloc.Locator(mesh, backend="cpu")
+    for s in sets:
+        ids = check_set(loc, mesh, s)
+        # Unambiguous points: the same tet as cpu.
+        same = (ids == cpu.locate(s.points)) | s.ambiguous
+        assert same.all(), f"{backend} {s.label}: ids differ from cpu at unambiguous points"
 
 
 def test_gpu_memory_report(vulkan, torus):
@@ -80,7 +77,8 @@ def test_devices_lists_what_each_device_runs(vulkan):
 
 def test_rt_options(vulkan, torus, oracle_sets):
     s = next(s for s in oracle_sets if s.label == "torus_s.random")
-    want = tetloc.Locator(torus, backend="cpu").locate(s.points)
+    points, ambiguous = s.points[:5000], s.ambiguous[:5000]
+    want = tetloc.Locator(torus, backend="cpu").locate(points)
     for opts in ({"split": None}, {"split": 10_000, "compact": False}):
-        got = tetloc.Locator(torus, backend="rt-bvh", **opts).locate(s.points)
-        assert ((got == want) | s.ambiguous).all(), opts
+        got = tetloc.Locator(torus, backend="rt-bvh", **opts).locate(points)
+        assert ((got == want) | ambiguous).all(), opts

@@ -51,7 +51,7 @@ def test_from_pyvista_answers_like_vtk(data_dir):
 def test_from_pyvista_keeps_tets_ignores_surfaces_refuses_other_volumes():
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
     grid = pv.UnstructuredGrid(
-        {pv.CellType.TRIANGLE: [[0, 1, 2]], pv.CellType.TETRA: [[0, 1, 2, 3], [1, 2, 3, 4]]}, points
+        {pv.CellType.TRIANGLE: np.array([[0, 1, 2]]), pv.CellType.TETRA: np.array([[0, 1, 2, 3], [1, 2, 3, 4]])}, points
     )
     grid.cell_data["id"] = np.arange(3)
     mesh = tetloc.Mesh.from_pyvista(grid)
@@ -69,7 +69,7 @@ def test_from_pyvista_keeps_tets_ignores_surfaces_refuses_other_volumes():
 def test_from_pyvista_higher_order_tets_keep_their_corners():
     corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     mids = [(corners[a] + corners[b]) / 2 for a, b in ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3))]
-    grid = pv.UnstructuredGrid({pv.CellType.QUADRATIC_TETRA: [list(range(10))]}, np.vstack([corners, mids]))
+    grid = pv.UnstructuredGrid({pv.CellType.QUADRATIC_TETRA: np.arange(10)[None]}, np.vstack([corners, mids]))
     mesh = tetloc.Mesh.from_pyvista(grid)
     assert mesh.n_cells == 1 and sorted(mesh.cells[0]) == [0, 1, 2, 3]
     assert tetloc.Locator(mesh, backend="cpu").locate([[0.1, 0.1, 0.1]])[0] == 0

@@ -17,7 +17,8 @@ def close(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.abs(a - b) <= VALUE_TOL * np.maximum(np.abs(b), 1.0)
 
 
-def check_set(loc: tetloc.Locator, mesh: tetloc.Mesh, s) -> None:
+def check_set(loc: tetloc.Locator, mesh: tetloc.Mesh, s) -> np.ndarray:
+    """Checks one backend on one oracle set; returns its ids."""
     label = f"{loc.backend} {s.label}"
     ids = loc.locate(s.points)
     assert ids.dtype == np.int32 and ids.shape == (len(s.points),)
@@ -29,7 +30,6 @@ def check_set(loc: tetloc.Locator, mesh: tetloc.Mesh, s) -> None:
     if s.value is not None:
         ids2, got = loc.locate_and_sample(s.points, "f")
         np.testing.assert_array_equal(ids2, ids)
-        np.testing.assert_array_equal(loc.sample(s.points, "f"), got)
         assert got.dtype == np.float32
         exact = exact_values(mesh, ids, s.points, mesh.field("f"))
         np.testing.assert_array_equal(np.isnan(got), ids < 0)
@@ -45,6 +45,7 @@ def check_set(loc: tetloc.Locator, mesh: tetloc.Mesh, s) -> None:
         got = loc.sample(s.points, "cellval")
         want = np.where(ids >= 0, mesh.field("cellval")[np.maximum(ids, 0)], np.nan)
         np.testing.assert_array_equal(got, want.astype(np.float32))
+    return ids
 
 
 def test_cpu_matches_every_oracle_set(oracle_sets):

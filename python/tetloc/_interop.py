@@ -53,8 +53,11 @@ def from_pyvista(grid: Any) -> Arrays:
         grid = grid.cast_to_unstructured_grid()
     source = "pyvista grid"
     types = np.asarray(grid.celltypes)
-    offsets = np.asarray(grid.offsets, dtype=np.int64)
-    conn = np.asarray(grid.cell_connectivity, dtype=np.int64)
+    from vtkmodules.util.numpy_support import vtk_to_numpy
+
+    vtk_cells = grid.GetCells()  # VTK 9's offsets + connectivity (pyvista's names for them vary)
+    offsets = vtk_to_numpy(vtk_cells.GetOffsetsArray()).astype(np.int64)
+    conn = vtk_to_numpy(vtk_cells.GetConnectivityArray()).astype(np.int64)
     is_tet = (types == _VTK_TET) | np.isin(types, _VTK_HIGHER_TETS)
     other = ~is_tet & ~np.isin(types, _VTK_LOWER)
     if other.any():

@@ -30,7 +30,8 @@ class Locator:
     device : int, optional
         Vulkan device index (see ``tetloc.devices()``); the best device when omitted.
     **options
-        ``progress=True``: show a progress bar on long builds and batches.
+        ``progress=True``: show a progress bar on stderr during long builds and batches (or a
+        callable, called as ``progress(stage, fraction or None, seconds)``).
         ``split`` (rt kernels: primitives per bottom-level acceleration structure, or None
         for one structure; default 1M), ``compact`` (rt kernels: compact the structures;
         default True). Unknown options raise ``TypeError``.
@@ -47,9 +48,14 @@ class Locator:
         if not isinstance(mesh, Mesh):
             raise TypeError(f"mesh: expected a tetloc.Mesh, got {type(mesh).__name__}")
         progress = options.pop("progress", False)
-        self._bar = ProgressBar(f"tetloc {backend}") if progress else None
+        if progress is True:
+            progress = ProgressBar(f"tetloc {backend}")
+        elif progress is False or progress is None:
+            progress = None
+        elif not callable(progress):
+            raise TypeError(f"progress: expected True, False or a callable, got {type(progress).__name__}")
         self._mesh = mesh
-        self._raw = _Locator(mesh._raw, backend, device, options, self._bar)
+        self._raw = _Locator(mesh._raw, backend, device, options, progress)
         if self._raw.auto_note:
             warnings.warn(self._raw.auto_note, RuntimeWarning, stacklevel=2)
 
