@@ -100,6 +100,7 @@ def timed(f: Callable[[], object], repeats: int = 1):
 class Row:
     def __init__(self, name: str, build: Optional[float], locate: float, n: int, ids=None, note: str = ""):
         self.name, self.build, self.locate, self.n, self.ids, self.note = name, build, locate, n, ids, note
+        print(f"  measured {name}: build {build or 0:.3f} s, locate {locate:.3f} s", file=sys.stderr, flush=True)
 
     @property
     def rate(self) -> float:
@@ -129,7 +130,9 @@ def vtk_probe(grid, points: np.ndarray, locator_class, repeats: int):
         f = vtk.vtkProbeFilter()
         f.SetInputData(poly)
         f.SetSourceData(source)
-        f.SetCellLocatorPrototype(locator_class())
+        f.SetCellLocator(locator_class()) if hasattr(f, "SetCellLocator") else f.SetCellLocatorPrototype(
+            locator_class()
+        )
         f.Update()
         out = f.GetOutput()
         ids = vtk_to_numpy(out.GetPointData().GetArray("tet")).astype(np.int32)
