@@ -34,6 +34,24 @@ if [ -z "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ] && [ -n "${CI:-}" ]; then
   [ -n "$lvp" ] && export VK_DRIVER_FILES="$lvp"
 fi
 export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
-# The fuzz targets' bodies over the shared data, truncations and byte flips (stable toolchain).
+
+# --- Python (python/): a virtualenv under target/ with what the Python tests need, from the
+# package index by name (kept between runs). TETLOC_PYTHON is that interpreter, for Rust tests
+# that call VTK through Python.
+venv=target/pyenv
+[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
+"$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy
+export TETLOC_PYTHON="$PWD/$venv/bin/python"
+# --- end of the Python setup
+# The fuzz targets' bodies over the shared data, truncations and byte flips (stable toolchain;
+# the fuzz crate is its own workspace so that cargo-fuzz can build it with nightly).
 cargo test --locked --manifest-path fuzz/Cargo.toml --lib
 cargo test --workspace --locked "$@"
+
+# --- Python: build the release wheel once (what `pip install ./python` builds), install it
+# into the virtualenv, and run pytest; the CLI tests compare with the binary `cargo test` built.
+rm -f target/wheels/tetloc-*.whl
+"$venv/bin/maturin" build --quiet --release --manifest-path python/Cargo.toml --interpreter "$TETLOC_PYTHON" \
+  --out target/wheels
+"$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/tetloc-*.whl
+TETLOC_CLI="$PWD/target/debug/tetloc" "$venv/bin/python" -m pytest -q python/tests

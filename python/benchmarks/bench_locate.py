@@ -1,0 +1,274 @@
+#!/usr/bin/env python3
+"""tetloc.Locator.locate against the Python peers, same machine, same run.
+
+Default mode: the `fusion` shape of about 1.4M tets (written by `tetloc gen fusion`) and 1M
+random points inside it, located by
+
+  - tetloc ``Locator.locate`` (cpu, and soft-bvh when a GPU is there),
+  - pyvista ``find_containing_cell`` (a cached vtkStaticCellLocator, one FindCell per point),
+  - VTK ``vtkProbeFilter`` with a ``vtkStaticCellLocator`` and with a ``vtkCellTreeLocator``,
+  - scipy ``Delaunay.find_simplex`` on the Delaunay mesh of the same vertices,
+
+printing build and locate times, points/s and tetloc's ratio to each, with the machine and
+versions. ``--gpu`` measures the numpy-array path on a GPU instead: points/s of
+``Locator.locate`` / ``sample`` from float32 and float64 arrays, every transfer included.
+
+Run it from the repository root:  python python/benchmarks/bench_locate.py [--json FILE]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import pathlib
+import platform
+import subprocess
+import sys
+import time
+from typing import Callable, Dict, List, Optional
+
+import numpy as np
+
+import tetloc
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def count(text: str) -> int:
+    """1.4M, 200k, 1000 -> int."""
+    scale = {"k": 1e3, "m": 1e6, "g": 1e9}.get(text[-1].lower(), 1)
+    return int(float(text.rstrip("kKmMgG")) * scale)
+
+
+def machine() -> Dict[str, object]:
+    cpu = platform.processor()
+    try:
+        cpu = next(line.split(":", 1)[1].strip() for line in open("/proc/cpuinfo") if line.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    info: Dict[str, object] = {
+        "cpu": cpu,
+        "cpu_count": os.cpu_count(),
+        "usable_cpus": len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count(),
+        "python": platform.python_version(),
+        "tetloc": tetloc.__version__,
+        "numpy": np.__version__,
+        "devices": [f"{d['name']} ({d['device_type']}, {d['driver']})" for d in tetloc.devices()],
+    }
+    for name in ("vtk", "pyvista", "scipy"):
+        try:
+            info[name] = __import__(name).__version__
+        except ImportError:
+            info[name] = None
+    return info
+
+
+def fusion_mesh(tets: str, cli: Optional[str], cache: pathlib.Path) -> pathlib.Path:
+    """The fusion shape written by `tetloc gen` (cached)."""
+    path = cache / f"fusion-{tets}.vtu"
+    if not path.exists():
+        cli = cli or next(
+            (str(p) for p in (REPO / "target/release/tetloc", REPO / "target/debug/tetloc") if p.is_file()), None
+        )
+        if cli is None:
+            sys.exit("no tetloc binary: cargo build --release -p tetloc-cli (or --cli PATH, or --mesh FILE)")
+        cache.mkdir(parents=True, exist_ok=True)
+        subprocess.run([cli, "gen", "fusion", "--tets", tets, "-o", str(path)], check=True)
+    return path
+
+
+def random_points_inside(mesh: tetloc.Mesh, n: int, seed: int) -> np.ndarray:
+    """`n` points, each uniform in a random tet (the CLI's `random` query set), float32."""
+    rng = np.random.default_rng(seed)
+    corners = mesh.points.astype(np.float64)[mesh.cells[rng.integers(0, mesh.n_cells, n)]]
+    w = -np.log(rng.random((n, 4)))  # Dirichlet(1,1,1,1): uniform barycentrics
+    w /= w.sum(axis=1, keepdims=True)
+    return np.einsum("nk,nkd->nd", w, corners).astype(np.float32)
+
+
+def timed(f: Callable[[], object], repeats: int = 1):
+    """(best seconds over `repeats`, the last result)."""
+    best, out = float("inf"), None
+    for _ in range(repeats):
+        t = time.perf_counter()
+        out = f()
+        best = min(best, time.perf_counter() - t)
+    return best, out
+
+
+class Row:
+    def __init__(self, name: str, build: Optional[float], locate: float, n: int, ids=None, note: str = ""):
+        self.name, self.build, self.locate, self.n, self.ids, self.note = name, build, locate, n, ids, note
+        print(f"  measured {name}: build {build or 0:.3f} s, locate {locate:.3f} s", file=sys.stderr, flush=True)
+
+    @property
+    def rate(self) -> float:
+        return self.n / self.locate
+
+    def as_dict(self) -> Dict[str, object]:
+        return {"name": self.name, "build_s": self.build, "locate_s": self.locate, "points": self.n,
+                "points_per_s": self.rate, "note": self.note}
+
+
+def vtk_probe(grid, points: np.ndarray, locator_class, repeats: int):
+    """(locator build s, probe-only s, probe total s, ids): vtkProbeFilter with `locator_class`
+    as the cell locator prototype. The probe builds its locator on every update: the build is
+    timed alone (a 1-point probe), the probe-only time is the difference."""
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+
+    source = grid.copy()
+    source.clear_data()
+    source.cell_data["tet"] = np.arange(source.n_cells, dtype=np.int32)
+
+    def probe(p: np.ndarray):
+        pts = vtk.vtkPoints()
+        pts.SetData(numpy_to_vtk(p, deep=False))
+        poly = vtk.vtkPolyData()
+        poly.SetPoints(pts)
+        f = vtk.vtkProbeFilter()
+        f.SetInputData(poly)
+        f.SetSourceData(source)
+        f.SetCellLocator(locator_class()) if hasattr(f, "SetCellLocator") else f.SetCellLocatorPrototype(
+            locator_class()
+        )
+        f.Update()
+        out = f.GetOutput()
+        ids = vtk_to_numpy(out.GetPointData().GetArray("tet")).astype(np.int32)
+        valid = vtk_to_numpy(out.GetPointData().GetArray(f.GetValidPointMaskArrayName())).astype(bool)
+        return np.where(valid, ids, -1)
+
+    build, _ = timed(lambda: probe(points[:1]), repeats)
+    total, ids = timed(lambda: probe(points), repeats)
+    return build, max(total - build, 1e-9), total, ids
+
+
+def peers(mesh_path: pathlib.Path, mesh: tetloc.Mesh, points: np.ndarray, repeats: int) -> List[Row]:
+    rows: List[Row] = []
+    try:
+        import pyvista as pv
+        import vtk
+    except ImportError as e:
+        print(f"skipping the VTK peers: {e}", file=sys.stderr)
+        pv = None
+    if pv is not None:
+        grid = pv.read(mesh_path)
+        print(f"VTK SMP backend {vtk.vtkSMPTools.GetBackend()}, "
+              f"{vtk.vtkSMPTools.GetEstimatedNumberOfThreads()} threads", file=sys.stderr)
+        # pyvista caches its locator on the dataset: the first call builds it.
+        build, _ = timed(lambda: grid.find_containing_cell(points[:1]))
+        loc_s, ids = timed(lambda: grid.find_containing_cell(points))
+        rows.append(Row("pyvista find_containing_cell", build, loc_s, len(points), ids, "Python loop of FindCell"))
+        for cls in (vtk.vtkStaticCellLocator, vtk.vtkCellTreeLocator):
+            build, probe_s, total, ids = vtk_probe(grid, points, cls, repeats)
+            rows.append(Row(f"vtkProbeFilter + {cls.__name__}", build, probe_s, len(points), ids,
+                            f"probe total {total:.2f} s"))
+    try:
+        from scipy.spatial import Delaunay
+
+        build, tri = timed(lambda: Delaunay(mesh.points.astype(np.float64)))
+        loc_s, _ = timed(lambda: tri.find_simplex(points.astype(np.float64)), repeats)
+        rows.append(Row("scipy Delaunay.find_simplex", build, loc_s, len(points), None,
+                        f"its own Delaunay mesh: {len(tri.simplices)} tets"))
+    except ImportError as e:
+        print(f"skipping scipy: {e}", file=sys.stderr)
+    return rows
+
+
+def tetloc_rows(mesh: tetloc.Mesh, points: np.ndarray, backends: List[str], repeats: int) -> List[Row]:
+    rows = []
+    for backend in backends:
+        build, loc = timed(lambda: tetloc.Locator(mesh, backend=backend))
+        loc.locate(points)  # warm-up (pipelines, page faults)
+        s, ids = timed(lambda: loc.locate(points), repeats)
+        mem = loc.memory()
+        rows.append(Row(f"tetloc {backend}", build, s, len(points), ids,
+                        f"peak {mem['peak_bytes'] / 2**20:.0f} MiB ({mem['on']})"))
+    return rows
+
+
+def print_table(rows: List[Row], ours: Row) -> None:
+    print(f"{'method':<40} {'build s':>8} {'locate s':>9} {'points/s':>10} {'tetloc locate ×':>16}  note")
+    for r in rows:
+        ratio = ours.rate / r.rate
+        build = "-" if r.build is None else f"{r.build:.3f}"
+        print(f"{r.name:<40} {build:>8} {r.locate:>9.3f} {r.rate / 1e6:>9.3f}M {ratio:>15.1f}×  {r.note}")
+
+
+def compare(args) -> Dict[str, object]:
+    path = pathlib.Path(args.mesh) if args.mesh else fusion_mesh(args.tets, args.cli, REPO / "target/bench")
+    mesh = tetloc.read(path)
+    points = random_points_inside(mesh, count(args.points), args.seed)
+    print(f"mesh {path}: {mesh.n_cells} tets, {mesh.n_points} points; {len(points)} random points inside")
+    backends = ["cpu"]
+    if any(d["device_type"] != "cpu" for d in tetloc.devices()):
+        backends.append("soft-bvh")
+    ours = tetloc_rows(mesh, points, backends, args.repeats)
+    others = peers(path, mesh, points, args.repeats)
+    cpu = ours[0]
+    print_table(ours + others, cpu)
+    for r in others:
+        if r.ids is not None:
+            same = np.mean(np.asarray(r.ids) == cpu.ids)
+            print(f"  {r.name}: same id as tetloc for {100 * same:.2f} % of points "
+                  "(VTK accepts points up to ~1e-3 outside a tet)")
+    best = max(others, key=lambda r: r.rate) if others else None
+    if best:
+        e2e = lambda r: r.n / (r.locate + (r.build or 0))  # noqa: E731
+        best_e2e = max(others, key=e2e)
+        print(f"tetloc cpu locate vs the best peer ({best.name}): {cpu.rate / best.rate:.1f}×; "
+              f"build + locate vs the best peer's ({best_e2e.name}): {e2e(cpu) / e2e(best_e2e):.1f}×")
+    return {"mesh": str(path), "tets": mesh.n_cells, "rows": [r.as_dict() for r in ours + others]}
+
+
+def gpu(args) -> Dict[str, object]:
+    """The numpy-array path on a GPU: points/s with transfers, from float32 and float64 arrays."""
+    path = pathlib.Path(args.mesh) if args.mesh else fusion_mesh(args.tets, args.cli, REPO / "target/bench")
+    mesh = tetloc.read(path)
+    field = next(iter(mesh.point_data), None)
+    sizes = [count(s) for s in args.sizes.split(",")]
+    points = random_points_inside(mesh, max(sizes), args.seed)
+    print(f"mesh {path}: {mesh.n_cells} tets; point field {field!r}")
+    rows = []
+    for backend in args.backends.split(","):
+        build, loc = timed(lambda: tetloc.Locator(mesh, backend=backend))
+        mem = loc.memory()
+        print(f"{backend}: build {build:.2f} s, final {mem['final_bytes'] / 2**20:.0f} MiB, "
+              f"peak {mem['peak_bytes'] / 2**20:.0f} MiB ({mem['on']})")
+        loc.locate(points[: sizes[0]])  # warm-up
+        for n in sizes:
+            p32 = points[:n]
+            p64 = p32.astype(np.float64)
+            cases = {"locate f32": lambda: loc.locate(p32), "locate f64": lambda: loc.locate(p64)}
+            if field:
+                cases["sample f32"] = lambda: loc.sample(p32, field)
+            for case, f in cases.items():
+                s, _ = timed(f, args.repeats)
+                rows.append({"backend": backend, "case": case, "points": n, "seconds": s, "points_per_s": n / s})
+                print(f"  {case:<11} {n:>11,} points {s:8.4f} s  {n / s / 1e6:9.1f} M points/s")
+    return {"mesh": str(path), "tets": mesh.n_cells, "rows": rows}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--mesh", help="a mesh file instead of the generated fusion shape")
+    ap.add_argument("--tets", default="1.4M", help="fusion size for `tetloc gen` (default 1.4M)")
+    ap.add_argument("--points", default="1M", help="random points inside the mesh (default 1M)")
+    ap.add_argument("--repeats", type=int, default=3, help="best of this many runs (default 3)")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--cli", help="the tetloc binary that writes the mesh (default target/release/tetloc)")
+    ap.add_argument("--gpu", action="store_true", help="measure the numpy-array path on a GPU instead")
+    ap.add_argument("--backends", default="soft-bvh,cpu", help="--gpu: backends (default soft-bvh,cpu)")
+    ap.add_argument("--sizes", default="1M,10M,50M", help="--gpu: batch sizes (default 1M,10M,50M)")
+    ap.add_argument("--json", help="also write the results as JSON to this file")
+    args = ap.parse_args()
+    info = machine()
+    print(" ".join(f"{k}={v}" for k, v in info.items()))
+    result = gpu(args) if args.gpu else compare(args)
+    if args.json:
+        pathlib.Path(args.json).write_text(json.dumps({"machine": info, **result}, indent=1))
+
+
+if __name__ == "__main__":
+    main()

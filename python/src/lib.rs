@@ -1,0 +1,35 @@
+//! `tetloc._tetloc`, the extension module under the `tetloc` Python package: meshes
+//! ([`mesh`]), locators on every backend ([`locator`], [`backend`]), errors as Python
+//! exceptions ([`errors`]). The public API, vector fields and pyvista/meshio conversion are
+//! Python (`python/tetloc`).
+
+mod alloc;
+mod backend;
+mod background;
+mod errors;
+mod locator;
+mod mesh;
+
+use pyo3::prelude::*;
+
+#[global_allocator]
+static ALLOC: alloc::Counting = alloc::Counting;
+
+/// Validation-layer errors reported so far by the Vulkan contexts of this process.
+#[pyfunction]
+fn validation_errors() -> usize {
+    backend::validation_errors()
+}
+
+#[pymodule]
+fn _tetloc(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<mesh::PyMesh>()?;
+    m.add_class::<locator::PyLocator>()?;
+    m.add_function(wrap_pyfunction!(mesh::read_mesh, m)?)?;
+    m.add_function(wrap_pyfunction!(backend::devices, m)?)?;
+    m.add_function(wrap_pyfunction!(validation_errors, m)?)?;
+    m.add("DeviceError", m.py().get_type::<errors::DeviceError>())?;
+    m.add("BACKENDS", backend::names())?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

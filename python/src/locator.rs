@@ -1,0 +1,328 @@
+//! `_Locator`: one backend's search structure over a `_Mesh`, and the batch calls. Builds run
+//! on a worker thread (interruptible, with progress); batches run in chunks with the GIL
+//! released and a check for Ctrl-C between chunks. The public `tetloc.Locator`
+//! (python/tetloc/_locator.py) wraps it.
+
+use crate::alloc::PeakMeter;
+use crate::backend::{self, Choice};
+use crate::background::{self, Stages};
+use crate::errors::{device_error, internal_error, to_py};
+use crate::mesh::{contiguous, PyMesh};
+use numpy::{PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::sync::MutexExt;
+use pyo3::types::PyDict;
+use rayon::prelude::*;
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::{Arc, Mutex};
+use std::time::Instant;
+use tetloc_core::bvh::BvhNode;
+use tetloc_core::{BatchLocator, CpuLocator, Mesh, Vec3};
+use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
+
+/// Points per call into the backend between two checks for Ctrl-C: about 0.2 s on two cores.
+const CPU_CHUNK: usize = 1 << 20;
+
+/// The `**options` of `tetloc.Locator` this version knows, and those that are planned.
+const KNOWN_OPTIONS: &str = "split, compact";
+const PLANNED_OPTIONS: [&str; 2] = ["tolerance", "precision"];
+
+type Backend = Box<dyn BatchLocator + Send>;
+type IdsAndValues<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f32>>);
+
+/// Memory of a locator: device memory for the GPU kernels, host heap for `cpu`.
+#[derive(Clone, Debug)]
+struct Memory {
+    on: &'static str,
+    final_bytes: u64,
+    peak_bytes: u64,
+    items: BTreeMap<String, u64>,
+}
+
+struct Built {
+    backend: Backend,
+    memory: Memory,
+    build_seconds: f64,
+    /// Why `auto` did not use a device that is there.
+    note: Option<String>,
+}
+
+#[pyclass(name = "_Locator", module = "tetloc._tetloc", frozen)]
+pub struct PyLocator {
+    /// `None` after a panic inside the backend: its state is unknown, so it is not used again.
+    backend: Mutex<Option<Backend>>,
+    name: String,
+    chunk: usize,
+    memory: Memory,
+    build_seconds: f64,
+    note: Option<String>,
+    progress: Option<Py<PyAny>>,
+}
+
+/// The Vulkan options from `**options`; unknown names are a `TypeError` as for any keyword.
+fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<LocatorOptions> {
+    let mut opts = LocatorOptions::default();
+    let Some(options) = options else { return Ok(opts) };
+    for (key, value) in options.iter() {
+        let key: String = key.extract()?;
+        match key.as_str() {
+            "split" => {
+                opts.split = if value.is_none() {
+                    None
+                } else {
+                    match value.extract::<usize>() {
+                        Ok(n) if n > 0 => Some(n),
+                        _ => {
+                            return Err(PyValueError::new_err(format!(
+                                "split: expected a positive number of primitives per structure, or None for one \
+                                 structure; got {value}"
+                            )))
+                        }
+                    }
+                }
+            }
+            "compact" => {
+                opts.compact = value
+                    .extract::<bool>()
+                    .map_err(|_| PyTypeError::new_err(format!("compact: expected True or False, got {value}")))?
+            }
+            k if PLANNED_OPTIONS.contains(&k) => {
+                return Err(PyTypeError::new_err(format!(
+                    "Locator(): option '{k}' is planned but not supported by this version (known: {KNOWN_OPTIONS})"
+                )))
+            }
+            k => {
+                return Err(PyTypeError::new_err(format!(
+                    "Locator() got an unexpected option '{k}' (known: {KNOWN_OPTIONS})"
+                )))
+            }
+        }
+    }
+    Ok(opts)
+}
+
+fn build_cpu(mesh: Arc<Mesh>, stages: &Stages<Built>) -> Built {
+    let t0 = Instant::now();
+    let meter = PeakMeter::start();
+    stages.enter("face neighbours");
+    let neighbors = mesh.neighbors().len();
+    stages.enter("BVH");
+    let loc = CpuLocator::new(mesh.clone());
+    let size = |n: usize, each: usize| (n * each) as u64;
+    let items = BTreeMap::from([
+        ("mesh points".to_string(), size(mesh.points.len(), 12)),
+        ("mesh tets".to_string(), size(mesh.n_tets(), 16)),
+        ("bvh nodes".to_string(), size(loc.bvh().nodes.len(), std::mem::size_of::<BvhNode>())),
+        ("bvh prims".to_string(), size(loc.bvh().prim_ids.len(), 4)),
+        ("tet neighbours".to_string(), size(neighbors, 16)),
+    ]);
+    let final_bytes: u64 = items.values().sum();
+    let mesh_bytes = items["mesh points"] + items["mesh tets"];
+    let peak_bytes = final_bytes.max(mesh_bytes + meter.peak_since() as u64);
+    Built {
+        backend: Box::new(loc),
+        memory: Memory { on: "host", final_bytes, peak_bytes, items },
+        build_seconds: t0.elapsed().as_secs_f64(),
+        note: None,
+    }
+}
+
+fn build_gpu(
+    kernel: Kernel,
+    device: Option<usize>,
+    mesh: Arc<Mesh>,
+    opts: LocatorOptions,
+    stages: &Stages<Built>,
+) -> PyResult<Built> {
+    stages.enter("opening the Vulkan device");
+    let ctx = backend::gpu_context(kernel, device)?;
+    if kernel == Kernel::SoftBvh && opts.walk_start {
+        stages.enter("face neighbours");
+        mesh.neighbors();
+    }
+    stages.enter("search structure on the GPU");
+    let loc = VulkanLocator::new(ctx, mesh, kernel, opts).map_err(|e| device_error(kernel.name(), e))?;
+    let report = loc.memory_report();
+    let mut items = BTreeMap::new();
+    for item in &report.items {
+        *items.entry(item.name.clone()).or_default() += item.bytes;
+    }
+    let memory = Memory { on: "device", final_bytes: report.final_bytes, peak_bytes: report.peak_bytes, items };
+    Ok(Built { build_seconds: loc.build_seconds(), backend: Box::new(loc), memory, note: None })
+}
+
+impl PyLocator {
+    /// Runs `f` over `n` points in chunks, with the GIL released during each chunk and a
+    /// check for Ctrl-C (and a progress tick) between chunks.
+    fn chunked(
+        &self,
+        py: Python<'_>,
+        n: usize,
+        mut f: impl FnMut(&mut (dyn BatchLocator + Send), Range<usize>) -> tetloc_core::Result<()> + Send,
+    ) -> PyResult<()> {
+        // Waits for another thread's call on this locator without holding the GIL.
+        let mut guard = self.backend.lock_py_attached(py).unwrap_or_else(|p| p.into_inner());
+        let t0 = Instant::now();
+        let mut start = 0;
+        while start < n {
+            let Some(loc) = guard.as_mut() else {
+                return Err(PyRuntimeError::new_err(format!(
+                    "this {} Locator is unusable after an internal error; build a new one",
+                    self.name
+                )));
+            };
+            let range = start..n.min(start + self.chunk);
+            start = range.end;
+            let loc: &mut (dyn BatchLocator + Send) = &mut **loc;
+            match py.detach(|| catch_unwind(AssertUnwindSafe(|| f(loc, range)))) {
+                Ok(result) => result.map_err(to_py)?,
+                Err(panic) => {
+                    *guard = None;
+                    return Err(internal_error(&format!("locating on {}", self.name), &*panic));
+                }
+            }
+            if start < n {
+                py.check_signals()?;
+                if let Some(p) = &self.progress {
+                    let stage = format!("locating on {}", self.name);
+                    p.call1(py, (stage, start as f64 / n as f64, t0.elapsed().as_secs_f64()))?;
+                }
+            }
+        }
+        if let (Some(p), true) = (&self.progress, n > self.chunk) {
+            p.call1(py, ("done", 1.0, t0.elapsed().as_secs_f64()))?;
+        }
+        Ok(())
+    }
+}
+
+/// The points of a (K, 3) float32 C-contiguous array, without a copy; every one finite.
+fn points_of<'a>(py: Python<'_>, points: &'a PyReadonlyArray2<'_, f32>) -> PyResult<&'a [Vec3]> {
+    if points.shape()[1] != 3 {
+        return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
+    }
+    let pts: &[Vec3] = bytemuck::cast_slice(contiguous(points, "points")?);
+    if let Some(i) = py.detach(|| pts.par_iter().position_first(|p| !p.iter().all(|c| c.is_finite()))) {
+        return Err(PyValueError::new_err(format!(
+            "points: point {i} is not finite ({:?}): coordinates must be finite numbers within float32 range",
+            pts[i]
+        )));
+    }
+    Ok(pts)
+}
+
+#[pymethods]
+impl PyLocator {
+    /// Builds `backend` ("auto", "cpu", "soft-bvh", "rt-bvh", "rt-rep-faces",
+    /// "rt-shared-faces") over `mesh`. `progress(stage, fraction or None, seconds)` is called
+    /// during the build and between chunks of long batches.
+    #[new]
+    #[pyo3(signature = (mesh, backend="auto", device=None, options=None, progress=None))]
+    fn new(
+        py: Python<'_>,
+        mesh: &PyMesh,
+        backend: &str,
+        device: Option<usize>,
+        options: Option<&Bound<'_, PyDict>>,
+        progress: Option<Bound<'_, PyAny>>,
+    ) -> PyResult<PyLocator> {
+        let choice = Choice::parse(backend)?;
+        let opts = parse_options(options)?;
+        let mesh = mesh.mesh.clone();
+        let built = background::run(py, "building a locator", progress.as_ref(), move |stages| {
+            let (choice, note) = match choice {
+                Choice::Auto => {
+                    stages.enter("looking for a Vulkan device");
+                    backend::resolve_auto(device)
+                }
+                c => (c, None),
+            };
+            let built = match choice {
+                Choice::Gpu(kernel) => build_gpu(kernel, device, mesh, opts, stages)?,
+                _ => build_cpu(mesh, stages),
+            };
+            Ok(Built { note, ..built })
+        })?;
+        let name = built.backend.name().to_string();
+        let chunk = if name == backend::CPU { CPU_CHUNK } else { LocatorOptions::default().chunk_points };
+        Ok(PyLocator {
+            backend: Mutex::new(Some(built.backend)),
+            name,
+            chunk,
+            memory: built.memory,
+            build_seconds: built.build_seconds,
+            note: built.note,
+            progress: progress.map(Bound::unbind),
+        })
+    }
+
+    /// The backend actually used ("cpu", "soft-bvh", ...).
+    #[getter]
+    fn backend(&self) -> &str {
+        &self.name
+    }
+
+    /// Why `auto` chose `cpu` although a Vulkan device is there (`None` otherwise).
+    #[getter]
+    fn auto_note(&self) -> Option<&str> {
+        self.note.as_deref()
+    }
+
+    /// Seconds the build took.
+    #[getter]
+    fn build_seconds(&self) -> f64 {
+        self.build_seconds
+    }
+
+    /// {"on": "host" or "device", "final_bytes", "peak_bytes", "items": {name: bytes}}.
+    fn memory<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("on", self.memory.on)?;
+        d.set_item("final_bytes", self.memory.final_bytes)?;
+        d.set_item("peak_bytes", self.memory.peak_bytes)?;
+        d.set_item("items", self.memory.items.clone())?;
+        Ok(d)
+    }
+
+    /// Tet ids (-1 outside) of (K, 3) float32 C-contiguous points.
+    fn locate<'py>(&self, py: Python<'py>, points: PyReadonlyArray2<'_, f32>) -> PyResult<Bound<'py, PyArray1<i32>>> {
+        let pts = points_of(py, &points)?;
+        let mut ids = vec![0i32; pts.len()];
+        let out = &mut ids;
+        self.chunked(py, pts.len(), |loc, r| loc.locate(&pts[r.clone()], &mut out[r]))?;
+        Ok(PyArray1::from_vec(py, ids))
+    }
+
+    /// Values of the scalar field `name` (NaN outside).
+    fn sample<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'_, f32>,
+        name: &str,
+    ) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let pts = points_of(py, &points)?;
+        let mut values = vec![0f32; pts.len()];
+        let out = &mut values;
+        self.chunked(py, pts.len(), |loc, r| loc.sample(&pts[r.clone()], name, &mut out[r]))?;
+        Ok(PyArray1::from_vec(py, values))
+    }
+
+    /// Ids and values of the scalar field `name` in one pass.
+    fn locate_and_sample<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'_, f32>,
+        name: &str,
+    ) -> PyResult<IdsAndValues<'py>> {
+        let pts = points_of(py, &points)?;
+        let (mut ids, mut values) = (vec![0i32; pts.len()], vec![0f32; pts.len()]);
+        let (ids_out, values_out) = (&mut ids, &mut values);
+        self.chunked(py, pts.len(), |loc, r| {
+            loc.locate_and_sample(&pts[r.clone()], name, &mut ids_out[r.clone()], &mut values_out[r])
+        })?;
+        Ok((PyArray1::from_vec(py, ids), PyArray1::from_vec(py, values)))
+    }
+}

@@ -1,0 +1,141 @@
+//! `_Mesh`: a validated core mesh shared (`Arc`) with the locators built on it, made from
+//! arrays or read from a file. The public `tetloc.Mesh` (python/tetloc/_mesh.py) wraps it.
+
+use crate::background;
+use crate::errors::to_py;
+use numpy::{
+    PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use std::path::PathBuf;
+use std::sync::Arc;
+use tetloc_core::io::{self, MeshFormat};
+use tetloc_core::{Field, FieldLocation, Mesh, RawMesh, Vec3};
+
+#[pyclass(name = "_Mesh", module = "tetloc._tetloc", frozen)]
+pub struct PyMesh {
+    pub mesh: Arc<Mesh>,
+}
+
+fn location_name(l: FieldLocation) -> &'static str {
+    match l {
+        FieldLocation::Vertex => "point",
+        FieldLocation::Cell => "cell",
+    }
+}
+
+/// A C-contiguous array's data, or a `ValueError` naming the argument.
+pub fn contiguous<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
+    a: &'a PyReadonlyArray<'_, T, D>,
+    arg: &str,
+) -> PyResult<&'a [T]> {
+    a.as_slice().map_err(|_| PyValueError::new_err(format!("{arg}: expected a C-contiguous array")))
+}
+
+#[pymethods]
+impl PyMesh {
+    /// Validates and builds a mesh. `points`: (N, 3) float32; `cells`: (M, 4) uint32 vertex
+    /// ids; `fields`: (name, "point" or "cell", float32 values). `source` names the mesh in
+    /// error messages.
+    #[new]
+    fn new(
+        py: Python<'_>,
+        points: PyReadonlyArray2<'_, f32>,
+        cells: PyReadonlyArray2<'_, u32>,
+        fields: Vec<(String, String, PyReadonlyArray1<'_, f32>)>,
+        source: String,
+    ) -> PyResult<PyMesh> {
+        if points.shape()[1] != 3 || cells.shape()[1] != 4 {
+            return Err(PyValueError::new_err("points must be (N, 3) and cells (M, 4)"));
+        }
+        let points: Vec<Vec3> = bytemuck::cast_slice(contiguous(&points, "points")?).to_vec();
+        let tets: Vec<[u32; 4]> = bytemuck::cast_slice(contiguous(&cells, "cells")?).to_vec();
+        let fields = fields
+            .iter()
+            .map(|(name, location, values)| {
+                let location = match location.as_str() {
+                    "point" => FieldLocation::Vertex,
+                    "cell" => FieldLocation::Cell,
+                    other => return Err(PyValueError::new_err(format!("field '{name}': unknown location '{other}'"))),
+                };
+                Ok(Field { name: name.clone(), location, values: contiguous(values, name)?.to_vec() })
+            })
+            .collect::<PyResult<Vec<_>>>()?;
+        let raw = RawMesh { points, tets, fields, higher_order: None };
+        let mesh = py.detach(|| Mesh::new(raw, source)).map_err(to_py)?;
+        Ok(PyMesh { mesh: Arc::new(mesh) })
+    }
+
+    #[getter]
+    fn n_points(&self) -> usize {
+        self.mesh.points.len()
+    }
+
+    #[getter]
+    fn n_cells(&self) -> usize {
+        self.mesh.n_tets()
+    }
+
+    /// (min, max) corners of the box around the vertices that tets use.
+    #[getter]
+    fn bounds(&self) -> (Vec3, Vec3) {
+        (self.mesh.info.bounds_min, self.mesh.info.bounds_max)
+    }
+
+    /// The file (or description) the mesh came from.
+    #[getter]
+    fn source(&self) -> &str {
+        &self.mesh.info.source
+    }
+
+    /// (name, "point" or "cell") of every scalar field, in the mesh's order.
+    fn fields(&self) -> Vec<(String, &'static str)> {
+        self.mesh.fields.iter().map(|f| (f.name.clone(), location_name(f.location))).collect()
+    }
+
+    /// A copy of a scalar field's values.
+    fn field<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f32>>> {
+        let f = self.mesh.field(name).map_err(to_py)?;
+        Ok(PyArray1::from_slice(py, &f.values))
+    }
+
+    /// A copy of the vertices, (N, 3) float32.
+    fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let flat = PyArray1::from_slice(py, bytemuck::cast_slice::<Vec3, f32>(&self.mesh.points));
+        flat.reshape([self.mesh.points.len(), 3])
+    }
+
+    /// A copy of the tets, (M, 4) int64, in file order with canonical vertex order.
+    fn cells<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
+        let flat: Vec<i64> = self.mesh.tets.iter().flatten().map(|&i| i64::from(i)).collect();
+        PyArray1::from_vec(py, flat).reshape([self.mesh.n_tets(), 4])
+    }
+
+    /// The JSON of `tetloc info --json`: the mesh facts, face counts and fields. Computes
+    /// the shared faces on first use (a sort of 4 faces per tet).
+    fn info_json(&self, py: Python<'_>) -> PyResult<String> {
+        let mesh = &self.mesh;
+        let faces = py.detach(|| mesh.faces().stats);
+        let fields: Vec<_> =
+            mesh.fields.iter().map(|f| serde_json::json!({"name": f.name, "location": f.location})).collect();
+        let out = serde_json::json!({"mesh": mesh.info, "faces": faces, "fields": fields});
+        serde_json::to_string(&out).map_err(|e| PyValueError::new_err(e.to_string()))
+    }
+}
+
+/// Reads a mesh file in any format the CLI reads (by extension, or `format`: vtu, vtk, msh,
+/// node). Interruptible with Ctrl-C.
+#[pyfunction]
+#[pyo3(signature = (path, format=None))]
+pub fn read_mesh(py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<PyMesh> {
+    let format = format
+        .map(|f| {
+            MeshFormat::from_name(f).ok_or_else(|| {
+                PyValueError::new_err(format!("format '{f}': unknown mesh format (known: {})", io::KNOWN_MESH_FORMATS))
+            })
+        })
+        .transpose()?;
+    let mesh = background::run(py, "reading a mesh", None, move |_| io::read_mesh(&path, format).map_err(to_py))?;
+    Ok(PyMesh { mesh: Arc::new(mesh) })
+}

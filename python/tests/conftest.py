@@ -1,0 +1,180 @@
+"""Shared fixtures: the oracle data (``TETLOC_DATA`` or ``../shared/data`` beside the
+repository), the ``tetloc`` CLI binary, a Vulkan device, and small test meshes.
+
+As in the Rust tests, a missing oracle folder, CLI binary or Vulkan device skips the
+tests that need it, except with ``CI`` set, where it fails them.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import pathlib
+import shutil
+from dataclasses import dataclass
+from typing import Dict, List, Optional
+
+import numpy as np
+import pytest
+
+# Contexts read this when they open: every Vulkan call of the tests runs under the
+# validation layer (when installed), and the session ends by checking its error count.
+os.environ.setdefault("TETLOC_VK_VALIDATION", "1")
+
+import tetloc  # noqa: E402
+from tetloc import _tetloc  # noqa: E402
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+
+
+def in_ci() -> bool:
+    return os.environ.get("CI", "") not in ("", "0", "false")
+
+
+def missing(what: str) -> None:
+    """Skips the test (a user's clone may lack `what`); fails it in CI."""
+    if in_ci():
+        pytest.fail(f"{what} (CI must not skip)")
+    pytest.skip(what)
+
+
+@pytest.fixture(scope="session")
+def data_dir() -> pathlib.Path:
+    d = pathlib.Path(os.environ.get("TETLOC_DATA") or REPO.parent / "shared" / "data")
+    if not d.is_dir():
+        missing(f"oracle data not found at {d} (set TETLOC_DATA)")
+    return d
+
+
+@pytest.fixture(scope="session")
+def cli() -> str:
+    """The tetloc binary: TETLOC_CLI, else target/release/tetloc, else target/debug/tetloc."""
+    for candidate in (os.environ.get("TETLOC_CLI"), REPO / "target/release/tetloc", REPO / "target/debug/tetloc"):
+        if candidate and pathlib.Path(candidate).is_file():
+            return str(candidate)
+    found = shutil.which("tetloc")
+    if found:
+        return found
+    missing("no tetloc binary (cargo build -p tetloc-cli, or set TETLOC_CLI)")
+    raise AssertionError  # unreachable
+
+
+@pytest.fixture(scope="session")
+def vulkan() -> Dict:
+    """The device GPU backends use by default; in CI it must have ray tracing (lavapipe does)."""
+    devs = tetloc.devices()
+    if not devs:
+        missing("no Vulkan device")
+    if in_ci() and not all(d["ray_tracing"] for d in devs):
+        pytest.fail("CI must run every backend: a Vulkan device lacks ray tracing")
+    return devs[0]
+
+
+@pytest.fixture(scope="session", autouse=True)
+def no_validation_errors():
+    yield
+    assert _tetloc.validation_errors() == 0, "Vulkan validation errors (printed above)"
+
+
+@dataclass
+class QuerySet:
+    label: str
+    mesh_path: pathlib.Path
+    points: np.ndarray  # (N, 3) float32
+    cell: np.ndarray  # oracle ids, -1 outside
+    value: Optional[np.ndarray]  # oracle values of field f (generated meshes), NaN outside
+    flags: np.ndarray
+
+    @property
+    def ambiguous(self) -> np.ndarray:
+        """Points within rounding of a face: another tet (or outside) is also right."""
+        return (self.flags & 1) != 0
+
+
+def query_sets(data: pathlib.Path) -> List[QuerySet]:
+    """Every oracle query set in `data` and `data/real` (as tetloc_core::testdata does)."""
+    out = []
+    for folder in (data, data / "real"):
+        for meta_path in sorted(folder.glob("*.*.json")):
+            if meta_path.name.endswith(".mesh.json") or meta_path.name.count(".") != 2:
+                continue
+            meta = json.loads(meta_path.read_text())
+            mesh = next(p for p in (folder / f"{meta['mesh']}.{e}" for e in ("vtu", "msh", "vtk")) if p.exists())
+
+            def arr(key: str) -> Optional[np.ndarray]:
+                a = meta["arrays"].get(key)
+                p = folder / a["file"] if a else None
+                return np.fromfile(p, dtype=np.dtype(a["dtype"])).reshape(a["shape"]) if p and p.exists() else None
+
+            out.append(
+                QuerySet(f"{meta['mesh']}.{meta['set']}", mesh, arr("points"), arr("cell"), arr("value"), arr("flags"))
+            )
+    return out
+
+
+@pytest.fixture(scope="session")
+def oracle_sets(data_dir) -> List[QuerySet]:
+    sets = query_sets(data_dir)
+    assert len(sets) >= 18, f"expected the oracle query sets in {data_dir}, found {len(sets)}"
+    return sets
+
+
+def kuhn_grid(n: int, spacing: float = 1.0):
+    """n^3 cubes of side `spacing`, 6 Kuhn tets each (the Rust tests' KuhnGrid): vertices x
+    fastest; each cube's tets [v0, v0+e_a, v0+e_a+e_b, v7] for the 6 axis orders."""
+    ax = np.arange(n + 1) * spacing
+    z, y, x = np.meshgrid(ax, ax, ax, indexing="ij")
+    points = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
+    vid = lambda i, j, k: i + (n + 1) * (j + (n + 1) * k)  # noqa: E731
+    k, j, i = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
+    i, j, k = i.ravel(), j.ravel(), k.ravel()
+    unit = np.eye(3, dtype=int)
+    tets = []
+    for a, b in ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)):
+        e1, e12 = unit[a], unit[a] + unit[b]
+        tets.append(
+            np.stack(
+                [vid(i, j, k), vid(i + e1[0], j + e1[1], k + e1[2]), vid(i + e12[0], j + e12[1], k + e12[2]),
+                 vid(i + 1, j + 1, k + 1)],
+                axis=1,
+            )
+        )
+    cells = np.stack(tets, axis=1).reshape(-1, 4)
+    return points, cells
+
+
+@pytest.fixture(scope="session")
+def grid_mesh() -> tetloc.Mesh:
+    """A 6x6x6-cube Kuhn grid on [0, 6]^3 with f = x + 2y + 3z (linear: interpolation is
+    exact), a vector field v = (x, y, z), and cell fields c = id and w = (id, -id)."""
+    points, cells = kuhn_grid(6)
+    ids = np.arange(len(cells), dtype=np.float64)
+    return tetloc.Mesh(
+        points,
+        cells,
+        point_data={"f": points @ [1.0, 2.0, 3.0], "v": points},
+        cell_data={"c": ids, "w": np.stack([ids, -ids], axis=1)},
+    )
+
+
+def exact_values(mesh: tetloc.Mesh, ids: np.ndarray, points: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """Barycentric interpolation in tet `ids[i]` with f64 barycentrics on the stored f32
+    vertices (tetloc_core::testdata::exact_value); NaN where ids < 0."""
+    out = np.full(len(ids), np.nan)
+    inside = ids >= 0
+    v = mesh.points.astype(np.float64)[mesh.cells[ids[inside]]]  # (K, 4, 3)
+    p = points[inside].astype(np.float64)
+
+    def vol6(a, b, c, d):
+        return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a)
+
+    corners = [v[:, 0], v[:, 1], v[:, 2], v[:, 3]]
+    total = vol6(*corners)
+    vals = values[mesh.cells[ids[inside]]].astype(np.float64)
+    acc = np.zeros(len(p))
+    for c in range(4):
+        w = list(corners)
+        w[c] = p
+        acc += vol6(*w) / total * vals[:, c]
+    out[inside] = acc
+    return out

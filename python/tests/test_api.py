@@ -1,0 +1,100 @@
+"""The Mesh and Locator API on a mesh with known answers: properties, scalar and vector
+fields on points and cells, memory reports, progress output, docstrings."""
+
+from __future__ import annotations
+
+import io
+
+import numpy as np
+import pytest
+from conftest import exact_values, kuhn_grid
+
+import tetloc
+from tetloc._progress import ProgressBar
+
+
+def test_mesh_properties(grid_mesh):
+    assert (grid_mesh.n_points, grid_mesh.n_cells) == (7**3, 6 * 6**3)
+    assert grid_mesh.bounds == (0.0, 6.0, 0.0, 6.0, 0.0, 6.0)
+    assert grid_mesh.point_data == {"f": (343,), "v": (343, 3)}
+    assert grid_mesh.cell_data == {"c": (1296,), "w": (1296, 2)}
+    assert grid_mesh.points.dtype == np.float32 and grid_mesh.points.shape == (343, 3)
+    assert grid_mesh.cells.dtype == np.int64 and grid_mesh.cells.shape == (1296, 4)
+    np.testing.assert_array_equal(grid_mesh.field("v"), grid_mesh.points)
+    assert "1296 tets" in repr(grid_mesh) and "v[3]" in repr(grid_mesh)
+
+
+def test_info_reports_the_mesh(grid_mesh):
+    info = grid_mesh.info()
+    assert info["mesh"]["n_tets"] == 1296 and info["mesh"]["n_points"] == 343
+    assert info["mesh"]["n_reoriented"] > 0  # half the Kuhn tets are inverted as given
+    assert info["mesh"]["total_volume"] == pytest.approx(216.0)
+    assert info["faces"]["n_boundary"] == 6 * 6 * 6 * 2
+    assert {"name": "v[2]", "location": "vertex"} in info["fields"]  # the CLI's words
+
+
+def test_locate_and_sample_known_answers(grid_mesh):
+    rng = np.random.default_rng(2)
+    pts = rng.uniform(-1, 7, size=(20_000, 3))
+    loc = tetloc.Locator(grid_mesh, backend="cpu")
+    ids = loc.locate(pts)
+    p32 = pts.astype(np.float32)
+    outside = (p32 < 0).any(axis=1) | (p32 > 6).any(axis=1)
+    np.testing.assert_array_equal(ids < 0, outside)
+    f = loc.sample(pts, "f")
+    np.testing.assert_allclose(f[~outside], (p32.astype(np.float64) @ [1, 2, 3])[~outside], rtol=1e-5, atol=1e-4)
+    np.testing.assert_allclose(f, exact_values(grid_mesh, ids, p32, grid_mesh.field("f")), rtol=1e-5, atol=1e-5)
+    assert np.isnan(f[outside]).all()
+    v = loc.sample(pts, "v")
+    assert v.shape == (20_000, 3) and v.dtype == np.float32
+    np.testing.assert_allclose(v[~outside], p32[~outside], atol=1e-5)
+    c = loc.sample(pts, "c")
+    np.testing.assert_array_equal(c[~outside], ids[~outside].astype(np.float32))
+    ids2, w = loc.locate_and_sample(pts, "w")
+    np.testing.assert_array_equal(ids2, ids)
+    np.testing.assert_array_equal(w[~outside], np.stack([ids, -ids], axis=1)[~outside].astype(np.float32))
+    assert np.isnan(w[outside]).all()
+
+
+def test_tets_in_the_given_order_whatever_their_orientation():
+    points, cells = kuhn_grid(2)
+    flipped = cells[:, [1, 0, 2, 3]]  # every tet inverted: reoriented, same ids
+    a = tetloc.Locator(tetloc.Mesh(points, cells), backend="cpu")
+    b = tetloc.Locator(tetloc.Mesh(points, flipped), backend="cpu")
+    pts = np.random.default_rng(4).uniform(0, 2, (5000, 3))
+    np.testing.assert_array_equal(a.locate(pts), b.locate(pts))
+
+
+def test_cpu_memory_report(grid_mesh):
+    loc = tetloc.Locator(grid_mesh, backend="cpu")
+    m = loc.memory()
+    assert m["on"] == "host" and loc.backend == "cpu"
+    assert m["items"]["mesh tets"] == 16 * grid_mesh.n_cells
+    assert m["items"]["tet neighbours"] == 16 * grid_mesh.n_cells
+    assert m["final_bytes"] == sum(m["items"].values()) <= m["peak_bytes"]
+
+
+def test_progress_bar_on_a_build():
+    out = io.StringIO()
+    bar = ProgressBar("tetloc cpu", stream=out, after_seconds=0)
+    mesh = tetloc.Mesh(*kuhn_grid(20))
+    loc = tetloc.Locator(mesh, backend="cpu", progress=bar)
+    text = out.getvalue()
+    assert "tetloc cpu: BVH" in text and text.endswith("\n"), text
+    out.truncate(0)
+    loc.locate(np.random.default_rng(0).uniform(0, 20, (3 << 20, 3)))  # 3 chunks
+    assert "locating on cpu [" in out.getvalue() and "done" in out.getvalue()
+    # progress=True draws on stderr, only after half a second.
+    assert tetloc.Locator(mesh, backend="cpu", progress=True).backend == "cpu"
+
+
+def test_every_public_name_has_a_docstring():
+    for name in tetloc.__all__:
+        obj = getattr(tetloc, name)
+        if callable(obj):
+            assert obj.__doc__, name
+    for cls in (tetloc.Mesh, tetloc.Locator):
+        for attr, member in vars(cls).items():
+            if not attr.startswith("_"):
+                assert (getattr(member, "__doc__", None) or getattr(member, "fget", None).__doc__), f"{cls}.{attr}"
+    assert set(tetloc.BACKENDS) == {"cpu", "soft-bvh", "rt-bvh", "rt-rep-faces", "rt-shared-faces"}

@@ -1,0 +1,84 @@
+"""Every backend through the Python API on the machine's Vulkan device (lavapipe in CI):
+the oracle sets of two meshes, the same answers as cpu, memory reports, device errors."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_oracle import check_set
+
+import tetloc
+
+GPU_BACKENDS = ["soft-bvh", "rt-bvh", "rt-rep-faces", "rt-shared-faces"]
+
+
+@pytest.fixture(scope="module")
+def torus(data_dir):
+    return tetloc.read(data_dir / "torus_s.vtu")
+
+
+@pytest.mark.parametrize("backend", GPU_BACKENDS)
+def test_gpu_backend_matches_the_oracle(vulkan, oracle_sets, backend):
+    """delaunay_s: slivers and inverted tets (the Rust tests run every set on every kernel)."""
+    sets = [s for s in oracle_sets if s.label.startswith("delaunay_s.")]
+    assert len(sets) == 3
+    mesh = tetloc.read(sets[0].mesh_path)
+    loc = tetloc.Locator(mesh, backend=backend)
+    assert loc.backend == backend
+    cpu = tetloc.Locator(mesh, backend="cpu")
+    for s in sets:
+        ids = check_set(loc, mesh, s)
+        # Unambiguous points: the same tet as cpu.
+        same = (ids == cpu.locate(s.points)) | s.ambiguous
+        assert same.all(), f"{backend} {s.label}: ids differ from cpu at unambiguous points"
+
+
+def test_gpu_memory_report(vulkan, torus):
+    loc = tetloc.Locator(torus, backend="soft-bvh")
+    m = loc.memory()
+    assert m["on"] == "device"
+    assert 0 < m["final_bytes"] <= m["peak_bytes"]
+    # The mesh itself is on the device: at least its vertices and tets.
+    assert m["final_bytes"] >= torus.n_points * 12 + torus.n_cells * 16
+    assert loc.build_seconds > 0
+
+
+def test_vector_fields_and_shapes_on_the_gpu(vulkan, grid_mesh):
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-0.5, 6.5, size=(2, 50, 3))
+    gpu = tetloc.Locator(grid_mesh, backend="soft-bvh")
+    cpu = tetloc.Locator(grid_mesh, backend="cpu")
+    assert gpu.locate(pts).shape == (2, 50)
+    np.testing.assert_array_equal(gpu.sample(pts, "v"), cpu.sample(pts, "v"))
+    np.testing.assert_array_equal(gpu.sample(pts, "w"), cpu.sample(pts, "w"))
+    assert gpu.locate(np.empty((0, 3), np.float32)).shape == (0,)
+
+
+def test_auto_uses_cpu_on_a_cpu_vulkan_driver(vulkan, grid_mesh):
+    loc = tetloc.Locator(grid_mesh)
+    assert loc.backend == ("cpu" if vulkan["device_type"] == "cpu" else "soft-bvh")
+
+
+def test_a_device_that_does_not_exist_raises_device_error(vulkan, grid_mesh):
+    bad = len(tetloc.devices()) + 5
+    with pytest.raises(tetloc.DeviceError, match=f"index {bad} out of range"):
+        tetloc.Locator(grid_mesh, backend="soft-bvh", device=bad)
+    # auto with an explicit device that cannot be opened falls back to cpu, and says why.
+    with pytest.warns(RuntimeWarning, match="auto"):
+        assert tetloc.Locator(grid_mesh, device=bad).backend == "cpu"
+
+
+def test_devices_lists_what_each_device_runs(vulkan):
+    for d in tetloc.devices():
+        assert {"index", "name", "driver", "device_type", "ray_tracing", "memory_bytes", "backends"} <= set(d)
+        assert "soft-bvh" in d["backends"]
+        assert ("rt-bvh" in d["backends"]) == d["ray_tracing"]
+
+
+def test_rt_options(vulkan, torus, oracle_sets):
+    s = next(s for s in oracle_sets if s.label == "torus_s.random")
+    points, ambiguous = s.points[:5000], s.ambiguous[:5000]
+    want = tetloc.Locator(torus, backend="cpu").locate(points)
+    for opts in ({"split": None}, {"split": 10_000, "compact": False}):
+        got = tetloc.Locator(torus, backend="rt-bvh", **opts).locate(points)
+        assert ((got == want) | ambiguous).all(), opts

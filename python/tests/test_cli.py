@@ -1,0 +1,36 @@
+"""The Python API answers exactly as the ``tetloc`` CLI: ids, values, and ``info --json``."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+
+import numpy as np
+import pytest
+
+import tetloc
+
+
+def run(cli: str, *args: str) -> str:
+    out = subprocess.run([cli, *map(str, args)], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    return out.stdout
+
+
+@pytest.mark.parametrize("name", ["torus_s.vtu", "part_s.msh22.msh", "delaunay_s.vtk"])
+def test_locate_and_sample_match_the_cli(cli, data_dir, oracle_sets, tmp_path, name):
+    label = name.split(".")[0]
+    points = np.concatenate([s.points for s in oracle_sets if s.label.startswith(label + ".")])
+    np.save(tmp_path / "p.npy", points.astype(np.float64))  # f64 in: both round to f32
+    run(cli, "locate", data_dir / name, "--points", tmp_path / "p.npy", "--out", tmp_path / "ids.npy",
+        "--field", "f", "--values", tmp_path / "v.npy", "--backend", "cpu")
+    mesh = tetloc.read(data_dir / name)
+    ids, values = tetloc.Locator(mesh, backend="cpu").locate_and_sample(points.astype(np.float64), "f")
+    np.testing.assert_array_equal(ids, np.load(tmp_path / "ids.npy"))
+    np.testing.assert_array_equal(values, np.load(tmp_path / "v.npy"))
+
+
+@pytest.mark.parametrize("name", ["part_s.vtu", "real/post.vtk"])
+def test_info_is_the_clis_info_json(cli, data_dir, name):
+    path = str(data_dir / name)
+    assert tetloc.read(path).info() == json.loads(run(cli, "info", path, "--json"))

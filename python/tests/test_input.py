@@ -1,0 +1,216 @@
+"""What the API takes and what it refuses: points in every accepted layout (and no copy
+where none is needed), bad shapes, dtypes, NaN, empty and non-contiguous arrays, unknown
+fields, backends and options, bad files. Every refusal is a Python exception that names
+the argument or file."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import tetloc
+from tetloc._points import as_points
+
+
+@pytest.fixture(scope="module")
+def loc(grid_mesh):
+    return tetloc.Locator(grid_mesh, backend="cpu")
+
+
+@pytest.fixture(scope="module")
+def pts():
+    return np.random.default_rng(1).uniform(-1, 7, size=(1000, 3))
+
+
+def test_a_c_contiguous_float32_array_is_used_without_a_copy(pts):
+    a = pts.astype(np.float32)
+    flat, lead = as_points(a)
+    assert flat is a and lead == (1000,)
+    view, _ = as_points(a[10:20])  # a contiguous slice is still not copied
+    assert np.shares_memory(view, a)
+
+
+def test_every_layout_gives_the_same_answers(loc, pts):
+    want = loc.locate(pts.astype(np.float32))
+    f32 = pts.astype(np.float32)
+    layouts = {
+        "float64": pts,
+        "fortran f32": np.asfortranarray(f32),
+        "fortran f64": np.asfortranarray(pts),
+        "big-endian": f32.astype(">f4"),
+        "strided": np.repeat(f32, 2, axis=0)[::2],
+        "transposed view": np.ascontiguousarray(f32.T).T,
+        "list": f32.tolist(),
+        "read-only": np.frombuffer(f32.tobytes(), np.float32).reshape(-1, 3),
+    }
+    for name, p in layouts.items():
+        np.testing.assert_array_equal(loc.locate(p), want, err_msg=name)
+    assert loc.locate([[1, 1, 1]]).shape == (1,)  # a list of ints is numbers too
+    grid = f32.reshape(10, 100, 3)
+    np.testing.assert_array_equal(loc.locate(grid), want.reshape(10, 100))
+    assert loc.locate(f32[0]).shape == () and loc.locate(f32[0]) == want[0]
+    assert loc.sample(grid, "v").shape == (10, 100, 3)
+
+
+class DLPackOnly:
+    """A tensor that offers only DLPack (as array-API libraries do)."""
+
+    def __init__(self, a: np.ndarray):
+        self._a = a
+
+    def __dlpack__(self, **kwargs):
+        return self._a.__dlpack__(**kwargs)
+
+    def __dlpack_device__(self):
+        return self._a.__dlpack_device__()
+
+
+class ArrayOnly:
+    def __init__(self, a: np.ndarray):
+        self._a = a
+
+    def __array__(self, dtype=None, copy=None):
+        return self._a if dtype is None else self._a.astype(dtype)
+
+
+def test_tensors_through_dlpack_or_array(loc, pts):
+    f32 = pts.astype(np.float32)
+    want = loc.locate(f32)
+    np.testing.assert_array_equal(loc.locate(DLPackOnly(f32)), want)
+    np.testing.assert_array_equal(loc.locate(ArrayOnly(f32)), want)
+    flat, _ = as_points(DLPackOnly(f32))
+    assert np.shares_memory(flat, f32)
+
+
+def test_torch_cpu_tensors(loc, pts):
+    torch = pytest.importorskip("torch")  # not a test dependency: runs where torch is installed
+    t = torch.from_numpy(pts.astype(np.float32))
+    np.testing.assert_array_equal(loc.locate(t), loc.locate(pts))
+    np.testing.assert_array_equal(loc.locate(t.double().T.contiguous().T), loc.locate(pts))
+
+
+def test_empty_points(loc):
+    for empty in (np.empty((0, 3), np.float32), np.empty((0, 3)), []):
+        if isinstance(empty, list):
+            with pytest.raises(ValueError, match="shape"):
+                loc.locate(empty)
+            continue
+        assert loc.locate(empty).shape == (0,) and loc.locate(empty).dtype == np.int32
+        assert loc.sample(empty, "f").shape == (0,)
+        assert loc.sample(empty, "v").shape == (0, 3)
+        ids, vals = loc.locate_and_sample(empty, "w")
+        assert ids.shape == (0,) and vals.shape == (0, 2)
+
+
+@pytest.mark.parametrize(
+    "bad, match",
+    [
+        (np.zeros((5, 2)), r"points: shape \(5, 2\); expected \(K, 3\)"),
+        (np.zeros((3, 5)), r"points: shape \(3, 5\)"),
+        (np.zeros(()), r"points: shape \(\)"),
+        (np.zeros((5, 3), np.int32), "points: dtype int32; expected float32 or float64"),
+        (np.zeros((5, 3), np.float16), "points: dtype float16"),
+        (np.zeros((5, 3), np.complex64), "points: dtype complex64"),
+        (np.array([["a", "b", "c"]]), "points: dtype <U1"),
+        ([[0, 0], [1, 1, 1]], "points: not an array of numbers"),
+        (np.array([[0, 0, 0], [1, np.nan, 1]]), r"points: point 1 is not finite"),
+        (np.array([[0, 0, np.inf]]), r"points: point 0 is not finite"),
+        (np.array([[0, 0, 1e300]]), r"points: point 0 is not finite .*float32 range"),
+    ],
+)
+def test_bad_points_raise_value_error(loc, bad, match):
+    with pytest.raises(ValueError, match=match):
+        loc.locate(bad)
+    with pytest.raises(ValueError, match=match):
+        loc.sample(bad, "f")
+
+
+def test_unknown_field(loc, pts):
+    with pytest.raises(ValueError, match=r"no field named 'nope' \(the mesh has: 'f' \(point\), 'v' \(point, 3 comp"):
+        loc.sample(pts, "nope")
+    with pytest.raises(ValueError, match="no field named 'v\\[0\\]'"):  # components are not fields
+        loc.locate_and_sample(pts, "v[0]")
+
+
+def test_unknown_backend_device_and_options(grid_mesh):
+    with pytest.raises(ValueError, match=r"backend 'gpu': unknown \(known: cpu, soft-bvh"):
+        tetloc.Locator(grid_mesh, backend="gpu")
+    with pytest.raises(TypeError, match="unexpected option 'leaf'"):
+        tetloc.Locator(grid_mesh, backend="cpu", leaf=4)
+    with pytest.raises(TypeError, match="option 'tolerance' is planned"):
+        tetloc.Locator(grid_mesh, tolerance=1e-6)
+    with pytest.raises(ValueError, match="split: expected a positive number"):
+        tetloc.Locator(grid_mesh, split=0)
+    with pytest.raises(TypeError, match="expected a tetloc.Mesh"):
+        tetloc.Locator("mesh.vtu")
+
+
+def test_a_gpu_backend_without_vulkan_raises_device_error():
+    """Without a Vulkan driver (none listed for the loader, in a fresh interpreter), GPU
+    backends raise DeviceError, auto falls back to cpu and devices() is empty."""
+
+    code = (
+        "import numpy as np, tetloc\n"
+        "from conftest import kuhn_grid\n"
+        "m = tetloc.Mesh(*kuhn_grid(2))\n"
+        "assert tetloc.devices() == []\n"
+        "assert tetloc.Locator(m).backend == 'cpu'\n"
+        "try:\n"
+        "    tetloc.Locator(m, backend='soft-bvh')\n"
+        "except tetloc.DeviceError as e:\n"
+        "    print('DeviceError:', e)\n"
+    )
+    env = {k: v for k, v in os.environ.items() if k != "VK_ICD_FILENAMES"}
+    env["VK_DRIVER_FILES"] = "/nonexistent/none.json"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, env=env,
+                         cwd=os.path.dirname(__file__))
+    assert out.returncode == 0, out.stderr
+    assert "DeviceError: soft-bvh: no Vulkan device" in out.stdout
+
+
+def test_bad_meshes(data_dir, tmp_path):
+    with pytest.raises(FileNotFoundError) as e:
+        tetloc.read(tmp_path / "missing.vtu")
+    assert e.value.filename == str(tmp_path / "missing.vtu")
+    with pytest.raises(ValueError, match=r"can.vtu: the mesh has volume cells that are not tetrahedra \(4800 hexahedron"):
+        tetloc.read(data_dir / "real" / "can.vtu")
+    truncated = tmp_path / "truncated.vtu"
+    truncated.write_bytes((data_dir / "torus_s.vtu").read_bytes()[:50_000])
+    with pytest.raises(ValueError, match="truncated.vtu"):
+        tetloc.read(truncated)
+    (tmp_path / "dir.vtu").mkdir()
+    with pytest.raises(IsADirectoryError):
+        tetloc.read(tmp_path / "dir.vtu")
+
+
+def test_bad_mesh_arrays():
+    points = np.eye(4, 3)
+    cells = np.array([[0, 1, 2, 3]])
+    with pytest.raises(ValueError, match=r"points: shape \(4, 2\)"):
+        tetloc.Mesh(points[:, :2], cells)
+    with pytest.raises(ValueError, match=r"cells: shape \(1, 3\)"):
+        tetloc.Mesh(points, cells[:, :3])
+    with pytest.raises(ValueError, match="cells: .* dtype float64"):
+        tetloc.Mesh(points, cells.astype(float))
+    with pytest.raises(ValueError, match=r"cells: row 0 \[0, 1, 2, 4\] names a vertex outside 0..3"):
+        tetloc.Mesh(points, [[0, 1, 2, 4]])
+    with pytest.raises(ValueError, match="cells: row 0 .* outside"):
+        tetloc.Mesh(points, [[0, 1, 2, -1]])
+    with pytest.raises(ValueError, match="vertex 1 has a non-finite coordinate"):
+        tetloc.Mesh(np.array([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0], [0, 0, 1]]), cells)
+    with pytest.raises(ValueError, match="the mesh has no tetrahedra"):
+        tetloc.Mesh(points, np.empty((0, 4), int))
+    with pytest.raises(ValueError, match=r"point_data\['f'\]: shape \(3,\); expected \(4,\) or \(4, k\)"):
+        tetloc.Mesh(points, cells, point_data={"f": [1, 2, 3]})
+    with pytest.raises(ValueError, match=r"cell_data\['c'\]: dtype <U1"):
+        tetloc.Mesh(points, cells, cell_data={"c": ["a"]})
+    with pytest.raises(ValueError, match=r"given twice: \['v\[0\]'\]"):
+        tetloc.Mesh(points, cells, point_data={"v": np.eye(4, 2), "v[0]": np.ones(4)})
+    # Any integer dtype for cells; non-contiguous inputs are fine.
+    for dt in (np.int8, np.uint16, np.int64, np.uint64):
+        assert tetloc.Mesh(points, cells.astype(dt)).n_cells == 1
+    assert tetloc.Mesh(np.asfortranarray(points), np.asfortranarray(cells)).n_cells == 1

@@ -1,0 +1,109 @@
+"""pyvista and meshio in and out: round trips keep points, tets, fields and answers."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+
+import meshio
+import numpy as np
+import pytest
+import pyvista as pv
+
+import tetloc
+
+
+def same_mesh(a: tetloc.Mesh, b: tetloc.Mesh) -> None:
+    assert (a.n_points, a.n_cells) == (b.n_points, b.n_cells)
+    np.testing.assert_array_equal(a.points, b.points)
+    np.testing.assert_array_equal(a.cells, b.cells)
+    assert a.point_data == b.point_data and a.cell_data == b.cell_data
+    for name in list(a.point_data) + list(a.cell_data):
+        np.testing.assert_array_equal(a.field(name), b.field(name))
+
+
+def test_pyvista_round_trip(grid_mesh):
+    grid = grid_mesh.to_pyvista()
+    assert isinstance(grid, pv.UnstructuredGrid)
+    assert (grid.n_points, grid.n_cells) == (grid_mesh.n_points, grid_mesh.n_cells)
+    assert (grid.celltypes == pv.CellType.TETRA).all()
+    np.testing.assert_array_equal(grid.point_data["v"], grid_mesh.field("v"))
+    np.testing.assert_array_equal(grid.cell_data["w"], grid_mesh.field("w"))
+    np.testing.assert_allclose(grid.bounds, grid_mesh.bounds)
+    # Canonical tets are right-handed, as VTK wants them: no negative volumes.
+    assert (grid.compute_cell_sizes(length=False, area=False)["Volume"] > 0).all()
+    same_mesh(tetloc.Mesh.from_pyvista(grid), grid_mesh)
+
+
+def test_from_pyvista_answers_like_vtk(data_dir):
+    """A file read by pyvista (VTK) gives the mesh tetloc reads, and ids VTK agrees with."""
+    grid = pv.read(data_dir / "torus_s.vtu")
+    mesh = tetloc.Mesh.from_pyvista(grid)
+    ref = tetloc.read(data_dir / "torus_s.vtu")
+    same_mesh(mesh, ref)
+    pts = np.asarray(grid.cell_centers().points[::7])
+    ids = tetloc.Locator(mesh, backend="cpu").locate(pts)
+    np.testing.assert_array_equal(ids, np.arange(0, grid.n_cells, 7))
+    vtk_ids = grid.find_containing_cell(pts)
+    np.testing.assert_array_equal(ids, vtk_ids)
+
+
+def test_from_pyvista_keeps_tets_ignores_surfaces_refuses_other_volumes():
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
+    grid = pv.UnstructuredGrid(
+        {pv.CellType.TRIANGLE: np.array([[0, 1, 2]]), pv.CellType.TETRA: np.array([[0, 1, 2, 3], [1, 2, 3, 4]])}, points
+    )
+    grid.cell_data["id"] = np.arange(3)
+    mesh = tetloc.Mesh.from_pyvista(grid)
+    assert mesh.n_cells == 2
+    # VTK orders cells by the dict's type order; the triangle's row is dropped from the data.
+    kept = np.asarray(grid.celltypes) == pv.CellType.TETRA
+    np.testing.assert_array_equal(mesh.field("id"), np.arange(3)[kept])
+    hexes = pv.ImageData(dimensions=(3, 3, 3))
+    with pytest.raises(ValueError, match=r"not tetrahedra \(8 voxel\)"):
+        tetloc.Mesh.from_pyvista(hexes)
+    with pytest.raises(ValueError, match="expected a pyvista dataset"):
+        tetloc.Mesh.from_pyvista(np.zeros(3))
+
+
+def test_from_pyvista_higher_order_tets_keep_their_corners():
+    corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
+    mids = [(corners[a] + corners[b]) / 2 for a, b in ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3))]
+    grid = pv.UnstructuredGrid({pv.CellType.QUADRATIC_TETRA: np.arange(10)[None]}, np.vstack([corners, mids]))
+    mesh = tetloc.Mesh.from_pyvista(grid)
+    assert mesh.n_cells == 1 and sorted(mesh.cells[0]) == [0, 1, 2, 3]
+    assert tetloc.Locator(mesh, backend="cpu").locate([[0.1, 0.1, 0.1]])[0] == 0
+
+
+def test_meshio_round_trip(grid_mesh, tmp_path, data_dir):
+    m = meshio.Mesh(
+        grid_mesh.points,
+        [("tetra", grid_mesh.cells)],
+        point_data={"f": grid_mesh.field("f"), "v": grid_mesh.field("v")},
+        cell_data={"c": [grid_mesh.field("c")], "w": [grid_mesh.field("w")]},
+    )
+    same_mesh(tetloc.Mesh.from_meshio(m), grid_mesh)
+    # A file through meshio and through tetloc's own reader.
+    path = tmp_path / "grid.vtu"
+    meshio.write(path, m)
+    same_mesh(tetloc.Mesh.from_meshio(meshio.read(path)), tetloc.read(path))
+    # A Gmsh file with surface blocks beside the tets (the cell data of those is dropped).
+    gm = meshio.read(data_dir / "part_s.meshio.msh")
+    mesh = tetloc.Mesh.from_meshio(gm)
+    ref = tetloc.read(data_dir / "part_s.meshio.msh")
+    assert mesh.n_cells == ref.n_cells
+    np.testing.assert_array_equal(np.sort(mesh.cells, axis=1), np.sort(ref.cells, axis=1))
+
+
+def test_from_meshio_refuses_other_volume_cells():
+    m = meshio.Mesh(np.eye(8, 3), [("hexahedron", [list(range(8))]), ("tetra", [[0, 1, 2, 3]])])
+    with pytest.raises(ValueError, match=r"not tetrahedra \(1 hexahedron\)"):
+        tetloc.Mesh.from_meshio(m)
+    with pytest.raises(ValueError, match="no tetrahedra"):
+        tetloc.Mesh.from_meshio(meshio.Mesh(np.eye(3, 3), [("triangle", [[0, 1, 2]])]))
+
+
+def test_pyvista_and_meshio_are_imported_only_when_used():
+    code = "import sys, tetloc; print('pyvista' in sys.modules, 'meshio' in sys.modules)"
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.split() == ["False", "False"]

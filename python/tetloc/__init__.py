@@ -1,0 +1,32 @@
+"""tetloc: which tetrahedron of this mesh contains this point, and what is the field value
+there? On GPUs (Vulkan) and CPUs.
+
+>>> import tetloc
+>>> mesh = tetloc.read("mesh.vtu")                    # .vtu, .vtk, .msh, .node/.ele
+>>> loc = tetloc.Locator(mesh)                         # backend="auto": a GPU if there is one
+>>> ids = loc.locate(points)                           # (K, 3) -> (K,) int32, -1 outside
+>>> f = loc.sample(points, "f")                        # float32, NaN outside
+
+``Mesh.from_pyvista``, ``Mesh.to_pyvista`` and ``Mesh.from_meshio`` convert meshes;
+``devices()`` lists the Vulkan devices. Errors: ``FileNotFoundError`` (``OSError``),
+``ValueError`` naming the file or argument, ``DeviceError`` for the GPU.
+"""
+
+from ._locator import Locator
+from ._mesh import Mesh, read
+from ._tetloc import BACKENDS, DeviceError, __version__
+from ._tetloc import devices as _devices
+
+from typing import Any, Dict, List
+
+
+def devices() -> List[Dict[str, Any]]:
+    """The Vulkan devices: one dict each with ``index`` (for ``Locator(device=...)``),
+    ``name``, ``driver``, ``device_type`` ("discrete", "integrated", "virtual", "cpu",
+    "other"), ``api_version``, ``ray_tracing``, ``memory_bytes``, ``float64`` and
+    ``backends`` (the GPU backends it runs). Empty when there is no Vulkan loader or device;
+    the ``cpu`` backend works everywhere."""
+    return _devices()
+
+
+__all__ = ["BACKENDS", "DeviceError", "Locator", "Mesh", "__version__", "devices", "read"]

@@ -1,0 +1,109 @@
+"""``tetloc.Locator``: which tet holds each point, and the field values there."""
+
+from __future__ import annotations
+
+import warnings
+from typing import Any, Dict, Optional, Tuple
+
+import numpy as np
+
+from . import _fields
+from ._mesh import Mesh
+from ._points import as_points
+from ._progress import ProgressBar
+from ._tetloc import _Locator
+
+ArrayLike = Any
+
+
+class Locator:
+    """A search structure over a mesh on one backend, answering batches of points.
+
+    Parameters
+    ----------
+    mesh : Mesh
+    backend : str
+        ``"auto"`` (soft-bvh on a GPU; ``cpu`` when there is no Vulkan device or only a CPU
+        Vulkan driver), ``"cpu"``, or a Vulkan kernel: ``"soft-bvh"``, ``"rt-bvh"``,
+        ``"rt-rep-faces"``, ``"rt-shared-faces"``. A Vulkan kernel without a usable device
+        raises ``tetloc.DeviceError``.
+    device : int, optional
+        Vulkan device index (see ``tetloc.devices()``); the best device when omitted.
+    **options
+        ``progress=True``: show a progress bar on stderr during long builds and batches (or a
+        callable, called as ``progress(stage, fraction or None, seconds)``).
+        ``split`` (rt kernels: primitives per bottom-level acceleration structure, or None
+        for one structure; default 1M), ``compact`` (rt kernels: compact the structures;
+        default True). Unknown options raise ``TypeError``.
+
+    Points are any array-like of shape (K, 3) (or (..., 3)), float32 or float64, C or
+    Fortran order, including CPU tensors (DLPack or ``__array__``). They are located as
+    float32; a C-contiguous float32 array is used without a copy. Results have the points'
+    leading shape. A point on a face shared by two tets gets one of them, always the same
+    for a backend. Calls release the GIL (a Locator may be used from several threads; calls
+    on one Locator run one at a time) and can be interrupted with Ctrl-C.
+    """
+
+    def __init__(self, mesh: Mesh, backend: str = "auto", device: Optional[int] = None, **options: Any) -> None:
+        if not isinstance(mesh, Mesh):
+            raise TypeError(f"mesh: expected a tetloc.Mesh, got {type(mesh).__name__}")
+        progress = options.pop("progress", False)
+        if progress is True:
+            progress = ProgressBar(f"tetloc {backend}")
+        elif progress is False or progress is None:
+            progress = None
+        elif not callable(progress):
+            raise TypeError(f"progress: expected True, False or a callable, got {type(progress).__name__}")
+        self._mesh = mesh
+        self._raw = _Locator(mesh._raw, backend, device, options, progress)
+        if self._raw.auto_note:
+            warnings.warn(self._raw.auto_note, RuntimeWarning, stacklevel=2)
+
+    @property
+    def backend(self) -> str:
+        """The backend in use: ``"cpu"``, ``"soft-bvh"``, ... (what ``"auto"`` chose)."""
+        return self._raw.backend
+
+    @property
+    def mesh(self) -> Mesh:
+        """The mesh this locator answers for."""
+        return self._mesh
+
+    @property
+    def build_seconds(self) -> float:
+        """Seconds the build took."""
+        return self._raw.build_seconds
+
+    def memory(self) -> Dict[str, Any]:
+        """Memory of the locator: ``{"on": "device" or "host", "final_bytes": ...,
+        "peak_bytes": ..., "items": {name: bytes}}``. Final: resident after the build (mesh
+        and search structure); peak: most memory alive at once during the build (GPU: device
+        memory tracked by the backend; cpu: the extension's heap, measured)."""
+        return self._raw.memory()
+
+    def locate(self, points: ArrayLike) -> np.ndarray:
+        """Ids of the tets containing `points` (0-based, the mesh's order), -1 outside: an
+        int32 array of the points' leading shape."""
+        flat, lead = as_points(points)
+        return self._raw.locate(flat).reshape(lead)
+
+    def sample(self, points: ArrayLike, name: str) -> np.ndarray:
+        """Values of field `name` at `points`, NaN outside: float32, shape (K,) for a scalar
+        field, (K, k) for a k-component field. Point fields are interpolated barycentrically,
+        cell fields are constant in each tet. (A k-component field is sampled one
+        component at a time for now.)"""
+        comps, k = self._mesh._index.components(name)
+        flat, lead = as_points(points)
+        values = _fields.join([self._raw.sample(flat, c) for c in comps], k)
+        return values.reshape(lead + values.shape[1:])
+
+    def locate_and_sample(self, points: ArrayLike, name: str) -> Tuple[np.ndarray, np.ndarray]:
+        """``(locate(points), sample(points, name))`` in one pass (per component)."""
+        comps, k = self._mesh._index.components(name)
+        flat, lead = as_points(points)
+        ids, first = self._raw.locate_and_sample(flat, comps[0])
+        values = _fields.join([first] + [self._raw.sample(flat, c) for c in comps[1:]], k)
+        return ids.reshape(lead), values.reshape(lead + values.shape[1:])
+
+    def __repr__(self) -> str:
+        return f"tetloc.Locator(backend={self.backend!r}, {self._mesh!r})"

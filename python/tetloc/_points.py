@@ -1,0 +1,51 @@
+"""Query points in: any array-like of shape (..., 3), float32 or float64, C or Fortran
+order, numpy arrays, lists, and CPU tensors (DLPack or ``__array__``, e.g. torch).
+
+The core locates float32 points; a C-contiguous float32 array is handed over as it is,
+anything else is copied once (converted and/or made contiguous).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Tuple
+
+import numpy as np
+
+
+def _to_numpy(points: Any, arg: str) -> np.ndarray:
+    if isinstance(points, np.ndarray):
+        return points
+    if hasattr(points, "__dlpack__"):
+        try:
+            return np.from_dlpack(points)  # zero-copy for CPU tensors
+        except (BufferError, RuntimeError, TypeError, ValueError) as e:
+            if not hasattr(points, "__array__"):
+                raise ValueError(
+                    f"{arg}: cannot read this {type(points).__name__} through DLPack ({e}); "
+                    "pass a CPU array (for a GPU tensor: .cpu())"
+                ) from None
+    if hasattr(points, "__array__"):
+        return np.asarray(points)
+    # Plain sequences: numbers become float64, so [[0, 0, 0]] is a point too.
+    try:
+        return np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError) as e:
+        raise ValueError(f"{arg}: not an array of numbers of shape (..., 3) ({e})") from None
+
+
+def as_points(points: Any, arg: str = "points") -> Tuple[np.ndarray, Tuple[int, ...]]:
+    """(a (K, 3) float32 C-contiguous array, the leading shape of the input).
+
+    Results take the leading shape: (K,) for (K, 3) points, () for one point (3,).
+    """
+    a = _to_numpy(points, arg)
+    if a.dtype.kind != "f" or a.dtype.itemsize not in (4, 8):
+        raise ValueError(
+            f"{arg}: dtype {a.dtype}; expected float32 or float64 (convert with .astype(np.float32))"
+        )
+    if a.ndim == 0 or a.shape[-1] != 3:
+        raise ValueError(f"{arg}: shape {a.shape}; expected (K, 3) (or (..., 3))")
+    lead = a.shape[:-1]
+    flat = a if a.ndim == 2 else a.reshape(-1, 3)  # a view unless the layout forbids it
+    with np.errstate(over="ignore"):  # beyond float32 range: refused as not finite
+        return np.ascontiguousarray(flat, dtype=np.float32), lead
