@@ -128,9 +128,11 @@ impl LocalFrame {
 
 /// orient3d(a, b, c, p) (see [`super::orient3d`]) on local coordinates, in f32, with the bound
 /// derived above: when `|det| > bound`, `det` has the sign of orient3d on the file's f64
-/// coordinates of the same four points.
+/// coordinates of the same four points. `delta` is Δ': [`FILTER_DELTA`] for coordinates
+/// from [`LocalFrame::to_local`], 0 for inputs that are the exact points (fixed-point
+/// numbers of the local grid).
 #[inline(always)]
-pub fn orient3d_local(a: Vec3, b: Vec3, c: Vec3, p: Vec3) -> (f32, f32) {
+pub fn orient3d_local(a: Vec3, b: Vec3, c: Vec3, p: Vec3, delta: f32) -> (f32, f32) {
     let (adx, ady, adz) = (a[0] - p[0], a[1] - p[1], a[2] - p[2]);
     let (bdx, bdy, bdz) = (b[0] - p[0], b[1] - p[1], b[2] - p[2]);
     let (cdx, cdy, cdz) = (c[0] - p[0], c[1] - p[1], c[2] - p[2]);
@@ -141,10 +143,10 @@ pub fn orient3d_local(a: Vec3, b: Vec3, c: Vec3, p: Vec3) -> (f32, f32) {
     let permanent =
         (bc.abs() + cb.abs()) * adx.abs() + (ca.abs() + ac.abs()) * bdx.abs() + (ab.abs() + ba.abs()) * cdx.abs();
     // Row norms, widened by the rounding of the inputs.
-    let two_delta = 2.0 * FILTER_DELTA;
+    let two_delta = 2.0 * delta;
     let ma = adx.abs() + ady.abs() + adz.abs() + two_delta;
     let mb = bdx.abs() + bdy.abs() + bdz.abs() + two_delta;
     let mc = cdx.abs() + cdy.abs() + cdz.abs() + two_delta;
-    let inputs = FILTER_DELTA * (ma * mb + mb * mc + mc * ma);
+    let inputs = delta * (ma * mb + mb * mc + mc * ma);
     (det, LOCAL_ORIENT_BOUND * permanent + inputs)
 }

@@ -3,7 +3,7 @@
 //! zeros), slivers, f64 coordinates that do not round to f32, offsets of 1e6–1e7.
 
 use super::expansion::{two_product, two_sum, Expansion};
-use super::local::{orient3d_local, LocalFrame};
+use super::local::{orient3d_local, LocalFrame, Vec3};
 use super::orient::{orient3d_exact, Point};
 use super::reference::{self as r, Dyadic};
 use super::*;
@@ -216,7 +216,8 @@ fn exact_local(frame: &LocalFrame, x: Point) -> r::Exact3 {
 }
 
 /// A mesh-like frame for four points: the box of the points and of two far corners `ratio`
-/// times the points' spread away, so that the points are a small part of the mesh.
+/// times the points' spread away, so that the points are a small part of the mesh (0: the
+/// points' own box).
 fn frame_for(pts: &[Point], ratio: f64) -> LocalFrame {
     let c = pts[0];
     let spread = pts.iter().flat_map(|p| (0..3).map(move |k| (p[k] - c[k]).abs())).fold(1e-300, f64::max);
@@ -256,10 +257,10 @@ proptest! {
     /// true local coordinates; so when |det| > bound the sign is that of orient3d on the
     /// file's f64 coordinates.
     #[test]
-    fn local_filter_bound_holds((kind, [a, b, c, p]) in configuration(), ratio in 1.0f64..1e4) {
+    fn local_filter_bound_holds((kind, [a, b, c, p]) in configuration(), ratio in prop_oneof![Just(0.0), 1.0f64..1e4]) {
         let frame = frame_for(&[a, b, c, p], ratio);
         let local = [a, b, c, p].map(|x| frame.to_local(x).unwrap());
-        let (det, bound) = orient3d_local(local[0], local[1], local[2], local[3]);
+        let (det, bound) = orient3d_local(local[0], local[1], local[2], local[3], FILTER_DELTA);
         let [ea, eb, ec, ep] = [a, b, c, p].map(|x| exact_local(&frame, x));
         let exact = r::orient3d_exact(&ea, &eb, &ec, &ep);
         let error = (&Dyadic::from_f32(det) - &exact).abs();
@@ -267,6 +268,25 @@ proptest! {
         if det.abs() > bound {
             prop_assert_eq!(Sign::of(det as f64), Sign::of(r::orient3d(a, b, c, p) as f64));
         }
+    }
+
+    /// The arithmetic half of the bound alone (delta 0), on inputs that are exact local
+    /// coordinates (multiples of 2⁻²⁵ within 1/2), near-coplanar and spanning the box, where
+    /// rounding errors are largest.
+    #[test]
+    fn local_filter_arithmetic_bound_holds(pts in prop::array::uniform3(prop::array::uniform3(-0.5f64..0.5)),
+                                           s in -1.0f64..2.0, t in -1.0f64..2.0, grid_steps in prop::array::uniform3(-3i32..=3)) {
+        let grid = |x: f64| ((x * 33_554_432.0).round() / 33_554_432.0).clamp(-0.5, 0.5) as f32;
+        let [a, b, c] = pts.map(|q| q.map(grid));
+        let p: Vec3 = std::array::from_fn(|k| {
+            let on_plane = a[k] as f64 + s * (b[k] - a[k]) as f64 + t * (c[k] - a[k]) as f64;
+            grid(on_plane + grid_steps[k] as f64 / 33_554_432.0)
+        });
+        let (det, bound) = orient3d_local(a, b, c, p, 0.0);
+        let e = |v: Vec3| v.map(Dyadic::from_f32);
+        let exact = r::orient3d_exact(&e(a), &e(b), &e(c), &e(p));
+        let error = (&Dyadic::from_f32(det) - &exact).abs();
+        prop_assert!((&error - &Dyadic::from_f32(bound)).sign() <= 0, "{:?} det {det} bound {bound}", [a, b, c, p]);
     }
 
     /// The filter is worth having: for a tet at most 10 times smaller than the mesh box and
@@ -283,7 +303,7 @@ proptest! {
         let l = v.map(|x| frame.to_local(x).unwrap());
         let lp = frame.to_local(p).unwrap();
         for f in FACES {
-            let (det, bound) = orient3d_local(l[f[0]], l[f[1]], l[f[2]], lp);
+            let (det, bound) = orient3d_local(l[f[0]], l[f[1]], l[f[2]], lp, FILTER_DELTA);
             prop_assert!(det > bound, "undecided: det {det} bound {bound} weights {w:?}");
         }
     }
@@ -508,7 +528,7 @@ fn every_point_of_a_kuhn_grid_has_exactly_one_tet() {
                     .filter(|t| {
                         let v = t.map(|i| local[i as usize]);
                         FACES.iter().any(|f| {
-                            let (det, bound) = orient3d_local(v[f[0]], v[f[1]], v[f[2]], lp);
+                            let (det, bound) = orient3d_local(v[f[0]], v[f[1]], v[f[2]], lp, FILTER_DELTA);
                             det.abs() <= bound
                         })
                     })

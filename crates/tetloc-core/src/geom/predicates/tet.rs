@@ -13,7 +13,7 @@
 //! and a vanishing face never says inside): no point, perturbed or not, is on the inner
 //! side of all four.
 
-use super::local::{orient3d_local, Vec3};
+use super::local::{orient3d_local, Vec3, FILTER_DELTA};
 use super::orient::{orient3d, orient3d_sos, Point};
 use super::Sign;
 
@@ -56,7 +56,7 @@ pub fn side_of_tet(v: [Point; 4], p: Point) -> Side {
 pub fn side_of_tet_staged(ids: [u32; 4], local: &[Vec3], file: &[Point], p: &Query) -> Side {
     let v = ids.map(|i| local[i as usize]);
     for (i, f) in FACES.iter().enumerate() {
-        let (det, bound) = orient3d_local(v[f[0]], v[f[1]], v[f[2]], p.local);
+        let (det, bound) = orient3d_local(v[f[0]], v[f[1]], v[f[2]], p.local, FILTER_DELTA);
         let inside = if det > bound {
             true
         } else if det < -bound {
