@@ -119,7 +119,7 @@ impl<const N: usize> Expansion<N> {
     /// the exact sign. If rounding in that sum ever cancelled the largest component, the
     /// largest component itself is returned, so the sign holds by construction.
     pub fn value(&self) -> f64 {
-        let sum: f64 = self.components().iter().sum();
+        let sum = self.components().iter().fold(0.0, |sum, &c| sum + c);
         if sum * self.sign() > 0.0 || self.n == 0 {
             sum
         } else {

@@ -116,8 +116,8 @@ impl LocalFrame {
         let mut local = [0f32; 3];
         for k in 0..3 {
             let y = (x[k] - self.origin[k]) * self.scale;
-            if !(y.abs() <= 0.5) {
-                return None; // also NaN
+            if y.is_nan() || y.abs() > 0.5 {
+                return None;
             }
             // An integer of magnitude ≤ 2²⁴ times 2⁻²⁵: the conversion to f32 is exact.
             local[k] = ((y / QUANTUM).round_ties_even() * QUANTUM) as f32;
