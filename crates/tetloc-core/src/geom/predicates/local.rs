@@ -61,8 +61,10 @@ use super::EPS32;
 
 pub type Vec3 = [f32; 3];
 
-/// The quantum of local coordinates, 2⁻²⁵.
-const QUANTUM: f64 = 1.0 / 33_554_432.0;
+/// Steps of the local fixed point per local unit, 2²⁵, and the step, 2⁻²⁵ (multiplications by
+/// either are exact).
+const STEPS: f64 = 33_554_432.0;
+const QUANTUM: f64 = 1.0 / STEPS;
 
 /// Δ' of the derivation above: per-coordinate bound on the rounding of `vertex − point` in
 /// local units (both rounded by at most 2⁻²⁶ + 2⁻⁵³), with the slack that pays for the
@@ -120,7 +122,7 @@ impl LocalFrame {
                 return None;
             }
             // An integer of magnitude ≤ 2²⁴ times 2⁻²⁵: the conversion to f32 is exact.
-            local[k] = ((y / QUANTUM).round_ties_even() * QUANTUM) as f32;
+            local[k] = ((y * STEPS).round_ties_even() * QUANTUM) as f32;
         }
         Some(local)
     }

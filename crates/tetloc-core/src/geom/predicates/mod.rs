@@ -46,8 +46,8 @@
 //! any stage forms is zero or of magnitude in [2⁻⁹⁷⁷, 2⁷³⁰] (the smallest: a stage-A bound,
 //! 9ε times a triple product of differences, each rounded product a multiple of its ulp):
 //! no stage underflows or overflows, so the error-free transformations are exact and the
-//! error bounds hold (and GPUs that flush denormals give the same answers). Readers reject
-//! other coordinates with an error.
+//! error bounds hold (and GPUs that flush denormals give the same answers). Other
+//! coordinates must be rejected as input errors before they reach these predicates.
 //!
 //! # Rounding
 //!
