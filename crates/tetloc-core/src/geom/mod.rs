@@ -16,6 +16,8 @@
 //! within that bound of zero (the point is within rounding of the face, or the tet is a
 //! sliver) is it recomputed in f64, where the products of f32 differences are exact.
 
+pub mod predicates;
+
 pub type Vec3 = [f32; 3];
 
 /// Shewchuk's orient3d stage-A error bound `(7 + 56ε)ε` for f32 (ε = 2⁻²⁴), rounded up.
