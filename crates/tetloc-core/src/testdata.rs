@@ -248,6 +248,7 @@ impl<'a> KuhnGrid<'a> {
             points,
             tets,
             higher_order: None,
+            cells: None,
         }
     }
 

@@ -1042,6 +1042,7 @@ impl Parser<'_> {
             tets: cells.tets,
             fields,
             higher_order: (cells.order > 1).then_some(cells.order),
+            cells: None,
         })
     }
 }
@@ -1337,6 +1338,7 @@ mod tests {
                 field("mat", FieldLocation::Cell, vec![90.0, 20.0]),
             ],
             higher_order: None,
+            cells: None,
         }
     }
 
