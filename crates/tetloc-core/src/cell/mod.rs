@@ -35,6 +35,8 @@ mod triquadratic_hex;
 mod wedge;
 
 #[cfg(test)]
+mod brute_force;
+#[cfg(test)]
 mod oracle_tests;
 #[cfg(test)]
 mod tests;
