@@ -130,15 +130,10 @@ impl Design {
                     faces.insert(key, (c, f));
                 }
             }
-            let mut b = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-            for &i in ids {
-                let q = m.points32[i as usize];
-                for k in 0..3 {
-                    b.0[k] = b.0[k].min(q[k]);
-                    b.1[k] = b.1[k].max(q[k]);
-                }
-            }
-            boxes.push(b);
+            let corner = |k: usize| ids.iter().map(move |&i| m.points32[i as usize][k]);
+            let lo = std::array::from_fn(|k| corner(k).fold(f32::INFINITY, f32::min));
+            let hi = std::array::from_fn(|k| corner(k).fold(f32::NEG_INFINITY, f32::max));
+            boxes.push((lo, hi));
         }
         let grid = Grid::new(&boxes);
         Design { tets, first, warped, neighbours, boxes, grid }
