@@ -62,7 +62,7 @@ impl PyMesh {
                 Ok(Field { name: name.clone(), location, values: contiguous(values, name)?.to_vec() })
             })
             .collect::<PyResult<Vec<_>>>()?;
-        let raw = RawMesh { points, tets, fields, higher_order: None };
+        let raw = RawMesh { points, tets, fields, higher_order: None, cells: None };
         let mesh = py.detach(|| Mesh::new(raw, source)).map_err(to_py)?;
         Ok(PyMesh { mesh: Arc::new(mesh) })
     }

@@ -2,6 +2,7 @@
 //! value there? The GPU-free core: mesh model, I/O, generators, BVH and the CPU locator.
 
 pub mod bvh;
+pub mod cell;
 pub mod error;
 pub mod gen;
 pub mod geom;

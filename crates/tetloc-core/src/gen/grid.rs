@@ -245,6 +245,7 @@ pub(super) fn build(shape: &dyn ColumnShape, progress: &Progress) -> RawMesh {
             Field { name: "cellval".into(), location: FieldLocation::Cell, values: cv },
         ],
         higher_order: None,
+        cells: None,
     }
 }
 

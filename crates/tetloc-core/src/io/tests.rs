@@ -105,6 +105,7 @@ fn differences_are_found() {
             values: vec![f32::NAN, 1.0, 2.0, 3.0],
         }],
         higher_order: None,
+        cells: None,
     };
     assert!(differences(&a, &a.clone(), 0).is_empty(), "NaN compares equal to itself by bits");
     let mut b = a.clone();

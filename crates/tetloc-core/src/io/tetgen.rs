@@ -45,7 +45,7 @@ pub fn parse(node: &[u8], ele: &[u8], path: &Path) -> Result<RawMesh> {
             format!("region[{i}]")
         }
     }));
-    Ok(RawMesh { points: nodes.points, tets: tets.tets, fields, higher_order: tets.higher_order })
+    Ok(RawMesh { points: nodes.points, tets: tets.tets, fields, higher_order: tets.higher_order, cells: None })
 }
 
 fn siblings(path: &Path) -> (PathBuf, PathBuf) {
@@ -249,6 +249,7 @@ mod tests {
                 f("region", FieldLocation::Cell, vec![3.0, -1.0]),
             ],
             higher_order: None,
+            cells: None,
         }
     }
 

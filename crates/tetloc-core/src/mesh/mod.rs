@@ -38,10 +38,14 @@ pub struct Field {
 #[derive(Clone, Debug, Default)]
 pub struct RawMesh {
     pub points: Vec<Vec3>,
+    /// The tets' corners, for a mesh of tets (of any order); empty when `cells` holds other types.
     pub tets: Vec<[u32; 4]>,
     pub fields: Vec<Field>,
-    /// `Some(k)` when the file held tets of polynomial order k > 1, located by their corners.
+    /// `Some(k)` when the file held cells of polynomial order k > 1, located by their corners.
     pub higher_order: Option<u8>,
+    /// Every volume cell with all its nodes, in file order, when some cell is not a linear tet
+    /// (`None` for linear tets only). Cell fields have one value per cell of this block.
+    pub cells: Option<crate::cell::CellBlock>,
 }
 
 /// Facts computed on load, reported by `tetloc info`.
@@ -81,7 +85,11 @@ impl Mesh {
     pub fn new(raw: RawMesh, source: impl Into<String>) -> Result<Mesh> {
         let source = source.into();
         let err = |msg: String| Error::Mesh { source_name: source.clone(), msg };
-        let RawMesh { points, mut tets, fields, higher_order } = raw;
+        // Mixed cells are read but not yet located: refuse them, counted by type.
+        if let Some(counts) = raw.cells.as_ref().and_then(|c| c.non_tet_counts()) {
+            return Err(Error::NonTetCells { path: source.into(), counts });
+        }
+        let RawMesh { points, mut tets, fields, higher_order, cells: _ } = raw;
         if tets.is_empty() {
             return Err(err("the mesh has no tetrahedra".into()));
         }

@@ -139,6 +139,7 @@ impl<'a> KuhnGrid<'a> {
             points,
             tets,
             higher_order: None,
+            cells: None,
         }
     }
 

@@ -1,15 +1,19 @@
-//! What the core's unit tests share: the test-mesh builder [`KuhnGrid`] and the oracle data
-//! folder ([`require_data`]), the same source files that `tetloc-testdata` includes for the
-//! other crates' tests (core's unit tests cannot depend on that crate: they would see a second
+//! What the core's unit tests share: the test-mesh builder [`KuhnGrid`], the oracle data
+//! folder ([`require_data`]) and its query sets ([`query_sets`]), the same source files that
+//! `tetloc-testdata` includes for the other crates' tests (core's unit tests cannot depend on that crate: they would see a second
 //! copy of core's types), and the core's usual test grid.
 
 mod data_dir;
+// Shared whole with tetloc-testdata: core's tests read only part of a query set.
+#[allow(dead_code)]
+mod query_sets;
 // Shared whole with tetloc-testdata: core's tests use only part of the builder.
 #[allow(dead_code)]
 mod kuhn;
 
 pub(crate) use data_dir::require_data;
 pub(crate) use kuhn::KuhnGrid;
+pub(crate) use query_sets::{query_sets, QuerySet};
 
 // What kuhn.rs takes from its includer.
 use crate::geom::Vec3;

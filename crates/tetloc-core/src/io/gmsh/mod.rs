@@ -243,6 +243,7 @@ impl Parser<'_> {
             tets: cells.tets,
             fields: self.fields.into_iter().flat_map(FieldAcc::into_fields).collect(),
             higher_order: (cells.order > 1).then_some(cells.order),
+            cells: None,
         })
     }
 }

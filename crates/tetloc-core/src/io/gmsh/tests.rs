@@ -57,6 +57,7 @@ fn expected() -> RawMesh {
             field("mat", FieldLocation::Cell, vec![90.0, 20.0]),
         ],
         higher_order: None,
+        cells: None,
     }
 }
 

@@ -1,6 +1,7 @@
-//! VTK cell types, and picking the tetrahedra out of a VTK cell list.
+//! VTK cell types, and picking the volume cells out of a VTK cell list.
 
 use super::num::{self, Array};
+use crate::cell::{CellBlock, CellType};
 use crate::error::Error;
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -8,15 +9,12 @@ use std::path::Path;
 /// What tetloc does with one VTK cell type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Kind {
-    /// A linear tet: exactly 4 points.
-    Tet,
-    /// A tet of higher order whose first 4 points are its corners; the order follows from
-    /// the point count.
-    HigherTet,
+    /// A volume cell tetloc reads: its [`CellType`] follows from the code and the point count.
+    Volume,
     /// A 0-, 1- or 2-D cell: not part of the volume mesh, ignored.
     Lower,
-    /// A volume cell that is not a tet: the mesh cannot be used.
-    OtherVolume,
+    /// A volume cell tetloc does not read: the mesh cannot be used.
+    Unsupported,
 }
 
 /// VTK's cell type codes (vtkCellType.h) with their names.
@@ -31,62 +29,62 @@ const CELL_TYPES: &[(u8, &str, Kind)] = &[
     (7, "polygon", Kind::Lower),
     (8, "pixel", Kind::Lower),
     (9, "quad", Kind::Lower),
-    (10, "tetra", Kind::Tet),
-    (11, "voxel", Kind::OtherVolume),
-    (12, "hexahedron", Kind::OtherVolume),
-    (13, "wedge", Kind::OtherVolume),
-    (14, "pyramid", Kind::OtherVolume),
-    (15, "pentagonal prism", Kind::OtherVolume),
-    (16, "hexagonal prism", Kind::OtherVolume),
+    (10, "tetra", Kind::Volume),
+    (11, "voxel", Kind::Unsupported),
+    (12, "hexahedron", Kind::Volume),
+    (13, "wedge", Kind::Volume),
+    (14, "pyramid", Kind::Volume),
+    (15, "pentagonal prism", Kind::Unsupported),
+    (16, "hexagonal prism", Kind::Unsupported),
     (21, "quadratic edge", Kind::Lower),
     (22, "quadratic triangle", Kind::Lower),
     (23, "quadratic quad", Kind::Lower),
-    (24, "quadratic tetra", Kind::HigherTet),
-    (25, "quadratic hexahedron", Kind::OtherVolume),
-    (26, "quadratic wedge", Kind::OtherVolume),
-    (27, "quadratic pyramid", Kind::OtherVolume),
+    (24, "quadratic tetra", Kind::Volume),
+    (25, "quadratic hexahedron", Kind::Volume),
+    (26, "quadratic wedge", Kind::Volume),
+    (27, "quadratic pyramid", Kind::Volume),
     (28, "biquadratic quad", Kind::Lower),
-    (29, "triquadratic hexahedron", Kind::OtherVolume),
+    (29, "triquadratic hexahedron", Kind::Volume),
     (30, "quadratic linear quad", Kind::Lower),
-    (31, "quadratic linear wedge", Kind::OtherVolume),
-    (32, "biquadratic quadratic wedge", Kind::OtherVolume),
-    (33, "biquadratic quadratic hexahedron", Kind::OtherVolume),
+    (31, "quadratic linear wedge", Kind::Unsupported),
+    (32, "biquadratic quadratic wedge", Kind::Volume),
+    (33, "biquadratic quadratic hexahedron", Kind::Unsupported),
     (34, "biquadratic triangle", Kind::Lower),
     (35, "cubic line", Kind::Lower),
     (36, "quadratic polygon", Kind::Lower),
-    (37, "triquadratic pyramid", Kind::OtherVolume),
-    (41, "convex point set", Kind::OtherVolume),
-    (42, "polyhedron", Kind::OtherVolume),
+    (37, "triquadratic pyramid", Kind::Unsupported),
+    (41, "convex point set", Kind::Unsupported),
+    (42, "polyhedron", Kind::Unsupported),
     (51, "parametric curve", Kind::Lower),
     (52, "parametric surface", Kind::Lower),
     (53, "parametric tri surface", Kind::Lower),
     (54, "parametric quad surface", Kind::Lower),
-    (55, "parametric tetra region", Kind::OtherVolume),
-    (56, "parametric hex region", Kind::OtherVolume),
+    (55, "parametric tetra region", Kind::Unsupported),
+    (56, "parametric hex region", Kind::Unsupported),
     (60, "higher-order edge", Kind::Lower),
     (61, "higher-order triangle", Kind::Lower),
     (62, "higher-order quad", Kind::Lower),
     (63, "higher-order polygon", Kind::Lower),
-    // The deprecated generic higher-order tet has no defined point order: not usable.
-    (64, "higher-order tetrahedron", Kind::OtherVolume),
-    (65, "higher-order wedge", Kind::OtherVolume),
-    (66, "higher-order pyramid", Kind::OtherVolume),
-    (67, "higher-order hexahedron", Kind::OtherVolume),
+    // The deprecated generic higher-order cells have no defined point order: not usable.
+    (64, "higher-order tetrahedron", Kind::Unsupported),
+    (65, "higher-order wedge", Kind::Unsupported),
+    (66, "higher-order pyramid", Kind::Unsupported),
+    (67, "higher-order hexahedron", Kind::Unsupported),
     (68, "Lagrange curve", Kind::Lower),
     (69, "Lagrange triangle", Kind::Lower),
     (70, "Lagrange quadrilateral", Kind::Lower),
-    (71, "Lagrange tetrahedron", Kind::HigherTet),
-    (72, "Lagrange hexahedron", Kind::OtherVolume),
-    (73, "Lagrange wedge", Kind::OtherVolume),
-    (74, "Lagrange pyramid", Kind::OtherVolume),
+    (71, "Lagrange tetrahedron", Kind::Volume),
+    (72, "Lagrange hexahedron", Kind::Volume),
+    (73, "Lagrange wedge", Kind::Volume),
+    // VTK has no vtkLagrangePyramid: no point order is defined for it.
+    (74, "Lagrange pyramid", Kind::Unsupported),
     (75, "Bezier curve", Kind::Lower),
     (76, "Bezier triangle", Kind::Lower),
     (77, "Bezier quadrilateral", Kind::Lower),
-    // Bezier tets interpolate their corner control points, so the corner tet is exact there.
-    (78, "Bezier tetrahedron", Kind::HigherTet),
-    (79, "Bezier hexahedron", Kind::OtherVolume),
-    (80, "Bezier wedge", Kind::OtherVolume),
-    (81, "Bezier pyramid", Kind::OtherVolume),
+    (78, "Bezier tetrahedron", Kind::Volume),
+    (79, "Bezier hexahedron", Kind::Unsupported),
+    (80, "Bezier wedge", Kind::Unsupported),
+    (81, "Bezier pyramid", Kind::Unsupported),
 ];
 
 fn lookup(code: u8) -> Option<(&'static str, Kind)> {
@@ -96,24 +94,22 @@ fn lookup(code: u8) -> Option<(&'static str, Kind)> {
 pub(crate) const TETRA: u8 = 10;
 pub(crate) const VERTEX: u8 = 1;
 
-/// The order k of a tet with `n` Lagrange points, n = (k+1)(k+2)(k+3)/6.
-fn tet_order(n: usize) -> Option<u8> {
-    (1..=20u8).find(|&k| {
-        let k = k as usize;
-        (k + 1) * (k + 2) * (k + 3) / 6 == n
-    })
-}
-
-/// The tets picked out of a cell list.
+/// The volume cells picked out of a cell list.
 #[derive(Debug)]
 pub(crate) struct Extracted {
-    /// Corner ids of the tets, in file order.
+    /// Corner ids of the cells that are tets (of any order), in file order.
     pub tets: Vec<[u32; 4]>,
-    /// Which cells are tets (`None`: all of them): cell fields keep those values only.
+    /// Which cells are volume cells (`None`: all of them): cell fields keep those values only.
     pub kept: Option<Vec<bool>>,
+    /// The highest polynomial order of the volume cells, when above 1.
     pub higher_order: Option<u8>,
     /// Volume cells that are not tets, counted by type code.
     pub other: BTreeMap<u8, usize>,
+    /// Whether some of `other` are of a type tetloc does not read.
+    pub unsupported: bool,
+    /// Every volume cell with all its nodes, when some volume cell is not a linear tet (`None`:
+    /// `tets` says it all).
+    pub cells: Option<CellBlock>,
 }
 
 impl Extracted {
@@ -121,7 +117,7 @@ impl Extracted {
     pub fn all_tets(conn: Vec<u32>) -> Extracted {
         let tets = bytemuck::allocation::try_cast_vec(conn)
             .unwrap_or_else(|(_, v)| v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect());
-        Extracted { tets, kept: None, higher_order: None, other: BTreeMap::new() }
+        Extracted { tets, kept: None, higher_order: None, other: BTreeMap::new(), unsupported: false, cells: None }
     }
 }
 
@@ -133,7 +129,7 @@ pub(crate) fn all_linear_tets(types: &Array, ends: &Array) -> bool {
         && num::all_ints(ends, |i, e| e == 4 * (i as i64 + 1))
 }
 
-/// Picks the tets out of `types.len()` cells; cell `i` has the point ids
+/// Picks the volume cells out of `types.len()` cells; cell `i` has the point ids
 /// `conn[ends[i - 1]..ends[i]]` (from 0 for the first). `ends` is validated here. Errors
 /// are messages for [`Error::format`].
 pub(crate) fn extract(types: &[u8], ends: &[u64], conn: Vec<u32>) -> Result<Extracted, String> {
@@ -156,6 +152,9 @@ pub(crate) fn extract(types: &[u8], ends: &[u64], conn: Vec<u32>) -> Result<Extr
     let mut kept = vec![false; n];
     let mut higher_order: Option<u8> = None;
     let mut other = BTreeMap::new();
+    let mut unsupported = false;
+    let mut cells = CellBlock::default();
+    let mut last: Option<(u8, usize, CellType)> = None;
     for (i, &code) in types.iter().enumerate() {
         let start = if i == 0 { 0 } else { ends[i - 1] as usize };
         let ids = &conn[start..ends[i] as usize];
@@ -163,27 +162,38 @@ pub(crate) fn extract(types: &[u8], ends: &[u64], conn: Vec<u32>) -> Result<Extr
             return Err(format!("cell {i} has cell type {code}, which VTK does not define"));
         };
         match kind {
-            Kind::Tet | Kind::HigherTet => {
-                let order = match kind {
-                    Kind::Tet => (ids.len() == 4).then_some(1),
-                    _ if code == 24 => (ids.len() == 10).then_some(2),
-                    _ => tet_order(ids.len()),
+            Kind::Volume => {
+                // Files repeat one type for long runs: look it up once per run.
+                let ty = match last {
+                    Some((c, len, t)) if c == code && len == ids.len() => t,
+                    _ => CellType::from_vtk(code, ids.len()).ok_or_else(|| {
+                        format!("cell {i} ({name}) has {} points, which no {name} tetloc reads has", ids.len())
+                    })?,
                 };
-                let Some(order) = order else {
-                    return Err(format!("cell {i} ({name}) has {} points, which no {name} has", ids.len()));
-                };
+                last = Some((code, ids.len(), ty));
+                let order = ty.def().order();
                 if order > 1 {
                     higher_order = Some(higher_order.map_or(order, |o| o.max(order)));
                 }
-                tets.push([ids[0], ids[1], ids[2], ids[3]]);
+                if ty.shape().is_tet() {
+                    tets.push([ids[0], ids[1], ids[2], ids[3]]);
+                } else {
+                    *other.entry(code).or_insert(0) += 1;
+                }
+                cells.push(ty, ids);
                 kept[i] = true;
             }
             Kind::Lower => {}
-            Kind::OtherVolume => *other.entry(code).or_insert(0) += 1,
+            Kind::Unsupported => {
+                *other.entry(code).or_insert(0) += 1;
+                unsupported = true;
+            }
         }
     }
-    let kept = (tets.len() < n).then_some(kept);
-    Ok(Extracted { tets, kept, higher_order, other })
+    let linear_tets_only = other.is_empty() && higher_order.is_none();
+    let kept = (cells.len() < n).then_some(kept);
+    let cells = (!linear_tets_only && !unsupported).then_some(cells);
+    Ok(Extracted { tets, kept, higher_order, other, unsupported, cells })
 }
 
 /// The [`Error::NonTetCells`] for volume cells counted by type code.
@@ -195,7 +205,7 @@ pub(crate) fn non_tet_error(path: &Path, other: &BTreeMap<u8, usize>) -> Error {
     Error::NonTetCells { path: path.to_path_buf(), counts }
 }
 
-/// Keeps the values of the tets only, when some cells were not tets.
+/// Keeps the values of the volume cells only, when some cells were not.
 pub(crate) fn filter_cells(values: Vec<f32>, kept: Option<&[bool]>) -> Vec<f32> {
     match kept {
         None => values,
@@ -208,15 +218,6 @@ mod tests {
     use super::*;
 
     #[test]
-    fn orders() {
-        assert_eq!(tet_order(4), Some(1));
-        assert_eq!(tet_order(10), Some(2));
-        assert_eq!(tet_order(20), Some(3));
-        assert_eq!(tet_order(35), Some(4));
-        assert_eq!(tet_order(11), None);
-    }
-
-    #[test]
     fn mixed_cells() {
         // triangle, quadratic tet, tet, vertex
         let types = [5u8, 24, 10, 1];
@@ -225,11 +226,30 @@ mod tests {
         assert_eq!(e.tets, vec![[3, 4, 5, 6], [13, 14, 15, 16]]);
         assert_eq!(e.kept.as_deref(), Some(&[false, true, true, false][..]));
         assert_eq!(e.higher_order, Some(2));
-        assert!(e.other.is_empty());
+        assert!(e.other.is_empty() && !e.unsupported);
         assert_eq!(filter_cells(vec![1., 2., 3., 4.], e.kept.as_deref()), vec![2., 3.]);
+        // Higher-order nodes are kept with the cells.
+        let cells = e.cells.unwrap();
+        assert_eq!(cells.len(), 2);
+        assert_eq!(cells.nodes(0), &(3..13).collect::<Vec<u32>>()[..]);
+        assert_eq!(cells.types[1], CellType::tet());
 
+        // hex, tet, hex, wedge: every volume cell in the block, the tets among them in `tets`.
         let e = extract(&[12, 10, 12, 13], &[8, 12, 20, 26], (0..26).collect()).unwrap();
-        assert_eq!(e.other.into_iter().collect::<Vec<_>>(), vec![(12, 2), (13, 1)]);
+        assert_eq!(e.other.clone().into_iter().collect::<Vec<_>>(), vec![(12, 2), (13, 1)]);
+        assert!(!e.unsupported && e.kept.is_none() && e.higher_order.is_none());
+        assert_eq!(e.tets, vec![[8, 9, 10, 11]]);
+        let cells = e.cells.unwrap();
+        assert_eq!(cells.non_tet_counts().unwrap(), vec![("hexahedron".to_string(), 2), ("wedge".to_string(), 1)]);
+        assert_eq!(cells.nodes(3), &[20, 21, 22, 23, 24, 25]);
+
+        // A polyhedron (or any type tetloc does not read) leaves no block, only the counts.
+        let e = extract(&[12, 42], &[8, 12], (0..12).collect()).unwrap();
+        assert!(e.unsupported && e.cells.is_none());
+        assert_eq!(e.other.into_iter().collect::<Vec<_>>(), vec![(12, 1), (42, 1)]);
+
+        // Linear tets and lower cells only: no block.
+        assert!(extract(&[10, 5], &[4, 7], (0..7).collect()).unwrap().cells.is_none());
     }
 
     #[test]
@@ -237,6 +257,7 @@ mod tests {
         assert!(extract(&[10], &[5], (0..5).collect()).unwrap_err().contains("5 points"));
         assert!(extract(&[24], &[9], (0..9).collect()).is_err());
         assert!(extract(&[71], &[11], (0..11).collect()).is_err());
+        assert!(extract(&[12], &[9], (0..9).collect()).unwrap_err().contains("9 points, which no hexahedron"));
         assert!(extract(&[200], &[4], (0..4).collect()).unwrap_err().contains("200"));
         assert!(extract(&[10, 10], &[4, 3], (0..4).collect()).unwrap_err().contains("decrease"));
         assert!(extract(&[10], &[4], (0..8).collect()).unwrap_err().contains("end at 4"));
@@ -259,6 +280,6 @@ mod tests {
         assert!(!all_linear_tets(&arr(num::NumType::U8, &[10, 24]), &arr(num::NumType::I32, &[4, 8])));
         let e = Extracted::all_tets((0..8).collect());
         assert_eq!(e.tets, vec![[0, 1, 2, 3], [4, 5, 6, 7]]);
-        assert!(e.kept.is_none() && e.higher_order.is_none());
+        assert!(e.kept.is_none() && e.higher_order.is_none() && e.cells.is_none());
     }
 }

@@ -126,8 +126,10 @@ fn real_files() {
         ("penta_hexa.vtk", &[("pentagonal prism", 60), ("hexagonal prism", 150)]),
         ("notch_disp.vtu", &[("quadratic hexahedron", 2188), ("quadratic wedge", 4)]),
     ];
+    // VTU files with cells tetloc reads hand them over; the mesh model refuses them (for now).
+    let read_mesh = |p: &Path| read(p).and_then(|raw| crate::Mesh::new(raw, p.display().to_string()));
     for (file, want) in non_tet {
-        match read(&real.join(file)) {
+        match read_mesh(&real.join(file)) {
             Err(Error::NonTetCells { path, counts }) => {
                 assert_eq!(path, real.join(file));
                 let want: Vec<(String, usize)> = want.iter().map(|&(s, n)| (s.to_string(), n)).collect();
@@ -145,7 +147,7 @@ fn every_vtk_file_in_the_data_reads() {
     assert!(files.len() >= 14, "{files:?}");
     for p in files {
         match read(&p) {
-            Ok(m) => assert!(!m.tets.is_empty(), "{}", p.display()),
+            Ok(m) => assert!(!m.tets.is_empty() || m.cells.is_some(), "{}", p.display()),
             Err(Error::NonTetCells { .. }) => {}
             Err(e) => panic!("{e}"),
         }

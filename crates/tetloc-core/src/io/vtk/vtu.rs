@@ -13,6 +13,7 @@ use super::blocks::{self, Layout};
 use super::cells;
 use super::num::{self, Array, NumType};
 use super::xml::{self, Node};
+use crate::cell::{CellBlock, CellType};
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::borrow::Cow;
@@ -130,10 +131,11 @@ struct Ctx<'a, 'p> {
     appended: Option<Appended<'a>>,
 }
 
-/// One piece's mesh, and its volume cells that are not tets.
+/// One piece's mesh, or the counts of its volume cells by type when some of them are of a
+/// type tetloc does not read (the mesh is refused).
 struct Part {
     raw: RawMesh,
-    other: BTreeMap<u8, usize>,
+    refused: BTreeMap<u8, usize>,
 }
 
 impl<'a> Ctx<'a, '_> {
@@ -239,9 +241,9 @@ impl<'a> Ctx<'a, '_> {
             let n_conn = usize::try_from(ends.last().copied().unwrap_or(0)).unwrap_or(usize::MAX);
             cells::extract(&types, &ends, conn_ids(n_conn)?).map_err(|m| self.fail(format!("piece {k}: {m}")))?
         };
-        if !ex.other.is_empty() {
+        if ex.unsupported {
             // The mesh is unusable: skip reading its fields.
-            return Ok(Part { raw: RawMesh::default(), other: ex.other });
+            return Ok(Part { raw: RawMesh::default(), refused: ex.other });
         }
 
         let mut fields = Vec::new();
@@ -267,7 +269,10 @@ impl<'a> Ctx<'a, '_> {
                 }
             }
         }
-        Ok(Part { raw: RawMesh { points, tets: ex.tets, fields, higher_order: ex.higher_order }, other: ex.other })
+        // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
+        let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
+        let raw = RawMesh { points, tets, fields, higher_order: ex.higher_order, cells: ex.cells };
+        Ok(Part { raw, refused: BTreeMap::new() })
     }
 }
 
@@ -281,14 +286,14 @@ fn ncomp(da: &Node) -> Option<usize> {
 
 /// Joins the pieces into one mesh. Fields that some piece lacks are dropped.
 fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
-    let mut other = BTreeMap::new();
+    let mut refused = BTreeMap::new();
     for p in &parts {
-        for (&code, &n) in &p.other {
-            *other.entry(code).or_insert(0) += n;
+        for (&code, &n) in &p.refused {
+            *refused.entry(code).or_insert(0) += n;
         }
     }
-    if !other.is_empty() {
-        return Err(cells::non_tet_error(path, &other));
+    if !refused.is_empty() {
+        return Err(cells::non_tet_error(path, &refused));
     }
     if parts.len() == 1 {
         return Ok(parts.pop().unwrap().raw);
@@ -300,12 +305,21 @@ fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
             out.fields.push(Field { name: f.name.clone(), location: f.location, values: Vec::new() });
         }
     }
+    // When some piece has a cell block, every piece goes into one (linear tets as tet cells).
+    let mut block = parts.iter().any(|p| p.raw.cells.is_some()).then(CellBlock::default);
     for p in parts {
         let base = out.points.len() as u64;
         if base + p.raw.points.len() as u64 > u32::MAX as u64 {
             return Err(Error::format(path, "the pieces hold more points than u32 ids can address"));
         }
-        out.tets.extend(p.raw.tets.iter().map(|t| t.map(|i| i + base as u32)));
+        let base = base as u32;
+        if let Some(block) = &mut block {
+            match &p.raw.cells {
+                Some(c) => block.append(c, base),
+                None => p.raw.tets.iter().for_each(|t| block.push(CellType::tet(), &t.map(|i| i + base))),
+            }
+        }
+        out.tets.extend(p.raw.tets.iter().map(|t| t.map(|i| i + base)));
         out.points.extend(p.raw.points);
         out.higher_order = out.higher_order.max(p.raw.higher_order);
         for f in &mut out.fields {
@@ -313,6 +327,10 @@ fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
             f.values.extend_from_slice(&g.values);
         }
     }
+    if block.as_ref().is_some_and(|b| b.non_tet_counts().is_some()) {
+        out.tets.clear();
+    }
+    out.cells = block;
     Ok(out)
 }
 
@@ -389,6 +407,111 @@ mod tests {
             let e = parse_str(&src).unwrap_err().to_string();
             assert!(e.contains(want) && e.starts_with("test.vtu"), "{e:?} should say {want:?}");
         }
+    }
+
+    /// A hex, a wedge, a pyramid, a quadratic tet, a tet and a triangle, over two pieces: every
+    /// volume cell comes back with all its nodes, in file order, and the cell field with it.
+    const ASCII_MIXED: &str = r#"<?xml version="1.0"?>
+<VTKFile type="UnstructuredGrid" version="0.1">
+ <UnstructuredGrid>
+  <Piece NumberOfPoints="12" NumberOfCells="4">
+   <CellData><DataArray type="Float32" Name="c" format="ascii">0 1 2 3</DataArray></CellData>
+   <Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">
+     0 0 0  1 0 0  1 1 0  0 1 0  0 0 1  1 0 1  1 1 1  0 1 1  0.5 0.5 2  2 0 0  2 1 0  2 0 1
+   </DataArray></Points>
+   <Cells>
+    <DataArray type="Int32" Name="connectivity" format="ascii">0 1 2 3 4 5 6 7  1 9 2 5 11 6  4 5 6 7 8  0 1 3</DataArray>
+    <DataArray type="Int32" Name="offsets" format="ascii">8 14 19 22</DataArray>
+    <DataArray type="UInt8" Name="types" format="ascii">12 13 14 5</DataArray>
+   </Cells>
+  </Piece>
+  <Piece NumberOfPoints="10" NumberOfCells="2">
+   <CellData><DataArray type="Float32" Name="c" format="ascii">4 5</DataArray></CellData>
+   <Points><DataArray type="Float32" NumberOfComponents="3" format="ascii">
+     0 0 0  1 0 0  0 1 0  0 0 1  0.5 0 0  0.5 0.5 0  0 0.5 0  0 0 0.5  0.5 0 0.5  0 0.5 0.5
+   </DataArray></Points>
+   <Cells>
+    <DataArray type="Int32" Name="connectivity" format="ascii">0 1 2 3 4 5 6 7 8 9  0 1 2 3</DataArray>
+    <DataArray type="Int32" Name="offsets" format="ascii">10 14</DataArray>
+    <DataArray type="UInt8" Name="types" format="ascii">24 10</DataArray>
+   </Cells>
+  </Piece>
+ </UnstructuredGrid>
+</VTKFile>"#;
+
+    #[test]
+    fn mixed_cells_keep_every_node() {
+        let m = parse_str(ASCII_MIXED).unwrap();
+        let cells = m.cells.as_ref().expect("a block of cells");
+        let names: Vec<&str> = cells.types.iter().map(|t| t.def().name()).collect();
+        assert_eq!(names, ["hexahedron", "wedge", "pyramid", "quadratic tetra", "tetra"]);
+        assert_eq!(cells.nodes(1), &[1, 9, 2, 5, 11, 6]);
+        assert_eq!(cells.nodes(3), &(12..22).collect::<Vec<u32>>()[..], "second piece's ids are shifted");
+        assert_eq!(cells.corners(3), &[12, 13, 14, 15]);
+        assert_eq!(cells.nodes(4), &[12, 13, 14, 15]);
+        assert!(m.tets.is_empty(), "tets are for tet meshes");
+        assert_eq!(m.higher_order, Some(2));
+        assert_eq!(m.fields[0].values, vec![0., 1., 2., 4., 5.], "the triangle's value is dropped");
+        // The mesh model refuses them for now, counted by type.
+        let e = crate::Mesh::new(m, "test.vtu").unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "test.vtu: the mesh has volume cells that are not tetrahedra (1 hexahedron, 1 wedge, 1 pyramid); \
+             tetloc locates points in tetrahedral meshes only"
+        );
+
+        // Tets of higher order: corner tets as before, and the cells with every node.
+        let second = ASCII_MIXED.replacen("<Piece NumberOfPoints=\"12\"", "<Skipped NumberOfPoints=\"12\"", 1);
+        let second = second.replacen("</Piece>\n  <Piece", "</Skipped>\n  <Piece", 1);
+        let m = parse_str(&second).unwrap();
+        assert_eq!(m.tets, vec![[0, 1, 2, 3], [0, 1, 2, 3]]);
+        assert_eq!(m.cells.as_ref().unwrap().nodes(0).len(), 10);
+        assert!(crate::Mesh::new(m, "test.vtu").is_ok());
+
+        // A polyhedron (or any type tetloc does not read) is refused by the reader, counted.
+        let poly = ASCII_MIXED.replace("12 13 14 5<", "12 42 14 5<");
+        let e = parse_str(&poly).unwrap_err().to_string();
+        assert!(e.contains("1 hexahedron, 1 pyramid, 1 polyhedron"), "{e}");
+        // A cell whose point count its type does not have.
+        let e = parse_str(&ASCII_MIXED.replace("8 14 19 22", "8 13 19 22")).unwrap_err().to_string();
+        assert!(e.contains("cell 1 (wedge) has 5 points"), "{e}");
+    }
+
+    /// The shared data's meshes with cells other than tets, counted independently (the files'
+    /// `.mesh.json` and the data README).
+    #[test]
+    fn mixed_files_read_every_cell() {
+        use crate::test_support::require_data;
+        let Some(dir) = require_data("mixed_files_read_every_cell") else { return };
+        let cases: [(&str, &[(&str, usize)]); 6] = [
+            ("mixed/hexwarp.zlib.vtu", &[("hexahedron", 9424)]),
+            ("mixed/prisms.zlib.vtu", &[("wedge", 20916)]),
+            ("mixed/hybrid.zlib.vtu", &[("tetra", 15273), ("hexahedron", 1536), ("wedge", 4420), ("pyramid", 464)]),
+            ("real/can.vtu", &[("hexahedron", 4800)]),
+            ("real/notch_disp.vtu", &[("quadratic hexahedron", 2188), ("quadratic wedge", 4)]),
+            ("real/quadratic_tetra.vtu", &[("quadratic tetra", 96)]),
+        ];
+        for (file, want) in cases {
+            let path = dir.join(file);
+            let m = read(&path).unwrap_or_else(|e| panic!("{e}"));
+            let cells = m.cells.as_ref().unwrap_or_else(|| panic!("{file}: no cells"));
+            for &(name, n) in want {
+                assert_eq!(cells.types.iter().filter(|t| t.def().name() == name).count(), n, "{file}: {name}");
+            }
+            assert_eq!(cells.len(), want.iter().map(|w| w.1).sum::<usize>(), "{file}");
+            for f in m.fields.iter().filter(|f| f.location == FieldLocation::Cell) {
+                assert_eq!(f.values.len(), cells.len(), "{file}: cell field '{}'", f.name);
+            }
+            assert!(cells.conn.iter().all(|&i| (i as usize) < m.points.len()));
+        }
+        // hybrid's file order: wedges, hexes, tets, pyramids.
+        let m = read(&dir.join("mixed/hybrid.zlib.vtu")).unwrap();
+        let names: Vec<&str> = m.cells.unwrap().types.iter().map(|t| t.def().name()).collect();
+        let mut runs = names.clone();
+        runs.dedup();
+        assert_eq!(runs, ["wedge", "hexahedron", "tetra", "pyramid"]);
+        // Linear tets only: the fast path, no block.
+        assert!(read(&dir.join("torus_s.vtu")).unwrap().cells.is_none());
     }
 
     #[test]

@@ -397,6 +397,7 @@ mod tests {
                 Field { name: "c[0]".into(), location: FieldLocation::Cell, values: vec![7., 8.] },
             ],
             higher_order: None,
+            cells: None,
         };
         Mesh::new(raw, "small").unwrap()
     }

@@ -1,0 +1,84 @@
+//! The quadratic (serendipity, 20-node) hexahedron: VTK 25 (vtkQuadraticHexahedron), Gmsh 17
+//! (hex20). Corners, then the midpoints of the edges (0,1) (1,2) (2,3) (3,0) (4,5) (5,6) (6,7)
+//! (7,4) (0,4) (1,5) (2,6) (3,7).
+
+use super::scalar::{self, Scalar};
+use super::{hex, CellDef, GmshType, PCoords, Shape};
+use std::borrow::Cow;
+
+const NODES: [PCoords; 20] = [
+    [0.0, 0.0, 0.0],
+    [1.0, 0.0, 0.0],
+    [1.0, 1.0, 0.0],
+    [0.0, 1.0, 0.0],
+    [0.0, 0.0, 1.0],
+    [1.0, 0.0, 1.0],
+    [1.0, 1.0, 1.0],
+    [0.0, 1.0, 1.0],
+    [0.5, 0.0, 0.0],
+    [1.0, 0.5, 0.0],
+    [0.5, 1.0, 0.0],
+    [0.0, 0.5, 0.0],
+    [0.5, 0.0, 1.0],
+    [1.0, 0.5, 1.0],
+    [0.5, 1.0, 1.0],
+    [0.0, 0.5, 1.0],
+    [0.0, 0.0, 0.5],
+    [1.0, 0.0, 0.5],
+    [1.0, 1.0, 0.5],
+    [0.0, 1.0, 0.5],
+];
+
+/// Gmsh lists the edges as (0,1) (0,3) (0,4) (1,2) (1,5) (2,3) (2,6) (3,7) (4,5) (4,7) (5,6) (6,7).
+pub(super) const GMSH_HEX20: [u16; 20] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 13, 9, 16, 18, 19, 17, 10, 12, 14, 15];
+
+const GMSH: &[GmshType] = &[GmshType { code: 17, n_nodes: 20, vtk_from_gmsh: Cow::Borrowed(&GMSH_HEX20) }];
+
+pub struct QuadraticHex;
+
+/// In the symmetric coordinates ξ = 2·pc − 1 ∈ [−1, 1]: corners
+/// ⅛ (1 + ξξᵢ)(1 + ηηᵢ)(1 + ζζᵢ)(ξξᵢ + ηηᵢ + ζζᵢ − 2), mid-edge nodes ¼ (1 − ξ²)(1 + ηηᵢ)(1 + ζζᵢ)
+/// and its permutations.
+fn functions<T: Scalar>(pc: [T; 3], w: &mut [T]) {
+    let one = T::from(1.0);
+    let x = pc.map(|v| v * 2.0 - one);
+    for (wi, node) in w.iter_mut().zip(&NODES) {
+        let c = node.map(|v| 2.0 * v - 1.0); // −1, 0 or 1
+        let lin = |k: usize| one + x[k] * c[k];
+        let bubble = |k: usize| one - x[k] * x[k];
+        *wi = match c.iter().position(|&v| v == 0.0) {
+            None => lin(0) * lin(1) * lin(2) * (x[0] * c[0] + x[1] * c[1] + x[2] * c[2] - T::from(2.0)) * 0.125,
+            Some(k) => {
+                let (a, b) = ((k + 1) % 3, (k + 2) % 3);
+                bubble(k) * lin(a) * lin(b) * 0.25
+            }
+        };
+    }
+}
+
+impl CellDef for QuadraticHex {
+    fn name(&self) -> &'static str {
+        "quadratic hexahedron"
+    }
+    fn vtk_type(&self) -> u8 {
+        25
+    }
+    fn gmsh_types(&self) -> &[GmshType] {
+        GMSH
+    }
+    fn shape(&self) -> &'static Shape {
+        &hex::SHAPE
+    }
+    fn order(&self) -> u8 {
+        2
+    }
+    fn node_pcoords(&self) -> &[PCoords] {
+        &NODES
+    }
+    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
+        functions(pc, w);
+    }
+    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
+        scalar::derivatives(pc, d, functions);
+    }
+}
