@@ -36,6 +36,7 @@ const SHADERS: &[Shader] = &[
     // soft-bvh (compute) and the volume marcher on it.
     shader("SOFT_BVH", "soft_bvh.comp", ShaderStage::Compute, true),
     shader("MARCH", "march.comp", ShaderStage::Compute, true),
+    shader("MEMPROBE", "memprobe.comp", ShaderStage::Compute, false),
     // The ray-tracing kernels: ray generation (locate, march) and miss shared, hit groups per kernel.
     shader("RT_RGEN", "rt.rgen", ShaderStage::RayGeneration, false),
     shader("MARCH_RGEN", "march.rgen", ShaderStage::RayGeneration, false),

@@ -13,13 +13,13 @@ use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::MutexExt;
 use pyo3::types::PyDict;
-use rayon::prelude::*;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tetloc_core::bvh::BvhNode;
+use tetloc_core::locate::{count_non_finite, FiniteOnly, Tolerance, WithTolerance};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh, Vec3};
 use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 
@@ -27,8 +27,8 @@ use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 const CPU_CHUNK: usize = 1 << 20;
 
 /// The `**options` of `tetloc.Locator` this version knows, and those that are planned.
-const KNOWN_OPTIONS: &str = "split, compact";
-const PLANNED_OPTIONS: [&str; 2] = ["tolerance", "precision"];
+const KNOWN_OPTIONS: &str = "tolerance, split, compact";
+const PLANNED_OPTIONS: [&str; 1] = ["precision"];
 
 type Backend = Box<dyn BatchLocator + Send>;
 type IdsAndValues<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f32>>);
@@ -63,9 +63,10 @@ pub struct PyLocator {
 }
 
 /// The Vulkan options from `**options`; unknown names are a `TypeError` as for any keyword.
-fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<LocatorOptions> {
+fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOptions, Tolerance)> {
     let mut opts = LocatorOptions::default();
-    let Some(options) = options else { return Ok(opts) };
+    let mut tolerance = Tolerance::default();
+    let Some(options) = options else { return Ok((opts, tolerance)) };
     for (key, value) in options.iter() {
         let key: String = key.extract()?;
         match key.as_str() {
@@ -84,6 +85,16 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<LocatorOptions
                     }
                 }
             }
+            "tolerance" => {
+                // A distance in mesh units, or a string such as "1%" (of the mean edge length).
+                let text = match value.extract::<f64>() {
+                    Ok(d) => d.to_string(),
+                    Err(_) => value.extract::<String>().map_err(|_| {
+                        PyTypeError::new_err(format!("tolerance: expected a number or a string like '1%', got {value}"))
+                    })?,
+                };
+                tolerance = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
+            }
             "compact" => {
                 opts.compact = value
                     .extract::<bool>()
@@ -101,7 +112,7 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<LocatorOptions
             }
         }
     }
-    Ok(opts)
+    Ok((opts, tolerance))
 }
 
 fn build_cpu(mesh: Arc<Mesh>, stages: &Stages<Built>) -> Built {
@@ -199,17 +210,23 @@ impl PyLocator {
     }
 }
 
-/// The points of a (K, 3) float32 C-contiguous array, without a copy; every one finite.
+/// The points of a (K, 3) float32 C-contiguous array, without a copy. Points with a NaN or
+/// infinite coordinate (also float64 values beyond float32's range) are answered -1 / NaN, with
+/// a `RuntimeWarning` that counts them.
 fn points_of<'a>(py: Python<'_>, points: &'a PyReadonlyArray2<'_, f32>) -> PyResult<&'a [Vec3]> {
     if points.shape()[1] != 3 {
         return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
     }
     let pts: &[Vec3] = bytemuck::cast_slice(contiguous(points, "points")?);
-    if let Some(i) = py.detach(|| pts.par_iter().position_first(|p| !p.iter().all(|c| c.is_finite()))) {
-        return Err(PyValueError::new_err(format!(
-            "points: point {i} is not finite ({:?}): coordinates must be finite numbers within float32 range",
-            pts[i]
-        )));
+    let bad = py.detach(|| count_non_finite(pts));
+    if bad > 0 {
+        let msg = format!(
+            "points: {bad} of {} points have a NaN or infinite coordinate (or one beyond float32 range); \
+             they are answered -1 (and NaN values)",
+            pts.len()
+        );
+        let category = py.get_type::<pyo3::exceptions::PyRuntimeWarning>();
+        PyErr::warn(py, &category, &std::ffi::CString::new(msg).unwrap_or_default(), 1)?;
     }
     Ok(pts)
 }
@@ -230,8 +247,9 @@ impl PyLocator {
         progress: Option<Bound<'_, PyAny>>,
     ) -> PyResult<PyLocator> {
         let choice = Choice::parse(backend)?;
-        let opts = parse_options(options)?;
+        let (opts, tolerance) = parse_options(options)?;
         let mesh = mesh.mesh.clone();
+        let mesh_arc = mesh.clone();
         let built = background::run(py, "building a locator", progress.as_ref(), move |stages| {
             let (choice, note) = match choice {
                 Choice::Auto => {
@@ -247,9 +265,17 @@ impl PyLocator {
             Ok(Built { note, ..built })
         })?;
         let name = built.backend.name().to_string();
+        // Points with a NaN or infinite coordinate are answered -1 / NaN (as pyvista and the
+        // CLI do) and never reach a backend; points within `tolerance` of the boundary get the
+        // nearest boundary cell (tetloc_core::locate::tolerance).
+        let exact: Backend = Box::new(FiniteOnly::new(built.backend));
+        let backend: Backend = match tolerance.distance(&mesh_arc) {
+            d if d > 0.0 => Box::new(WithTolerance::new(exact, mesh_arc.clone(), tolerance)),
+            _ => exact,
+        };
         let chunk = if name == backend::CPU { CPU_CHUNK } else { LocatorOptions::default().chunk_points };
         Ok(PyLocator {
-            backend: Mutex::new(Some(built.backend)),
+            backend: Mutex::new(Some(backend)),
             name,
             chunk,
             memory: built.memory,

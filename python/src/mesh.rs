@@ -112,15 +112,13 @@ impl PyMesh {
         PyArray1::from_vec(py, flat).reshape([self.mesh.n_tets(), 4])
     }
 
-    /// The JSON of `tetloc info --json`: the mesh facts, face counts and fields. Computes
+    /// The JSON of `tetloc info --json`: the mesh facts, face counts and fields with their
+    /// value ranges (one definition: `Mesh::summary`). Computes
     /// the shared faces on first use (a sort of 4 faces per tet).
     fn info_json(&self, py: Python<'_>) -> PyResult<String> {
         let mesh = &self.mesh;
-        let faces = py.detach(|| mesh.faces().stats);
-        let fields: Vec<_> =
-            mesh.fields.iter().map(|f| serde_json::json!({"name": f.name, "location": f.location})).collect();
-        let out = serde_json::json!({"mesh": mesh.info, "faces": faces, "fields": fields});
-        serde_json::to_string(&out).map_err(|e| PyValueError::new_err(e.to_string()))
+        let summary = py.detach(|| mesh.summary());
+        serde_json::to_string(&summary).map_err(|e| PyValueError::new_err(e.to_string()))
     }
 }
 

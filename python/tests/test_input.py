@@ -117,9 +117,6 @@ def test_empty_points(loc):
         (np.zeros((5, 3), np.complex64), "points: dtype complex64"),
         (np.array([["a", "b", "c"]]), "points: dtype <U1"),
         ([[0, 0], [1, 1, 1]], "points: not an array of numbers"),
-        (np.array([[0, 0, 0], [1, np.nan, 1]]), r"points: point 1 is not finite"),
-        (np.array([[0, 0, np.inf]]), r"points: point 0 is not finite"),
-        (np.array([[0, 0, 1e300]]), r"points: point 0 is not finite .*float32 range"),
     ],
 )
 def test_bad_points_raise_value_error(loc, bad, match):
@@ -127,6 +124,22 @@ def test_bad_points_raise_value_error(loc, bad, match):
         loc.locate(bad)
     with pytest.raises(ValueError, match=match):
         loc.sample(bad, "f")
+
+
+@pytest.mark.parametrize(
+    "coords", [[0.5, np.nan, 0.5], [0.5, 0.5, np.inf], [0.5, 0.5, 1e300]], ids=["nan", "inf", "beyond-float32"]
+)
+def test_non_finite_points_are_outside_with_a_warning(loc, pts, coords):
+    # As pyvista and the CLI: that point is -1 / NaN, the others are answered as without it.
+    batch = np.vstack([pts[:3], [coords], pts[3:6]]).astype(np.float64)
+    with pytest.warns(RuntimeWarning, match=r"1 of 7 points have a NaN or infinite coordinate"):
+        ids = loc.locate(batch)
+    with pytest.warns(RuntimeWarning):
+        vals = loc.sample(batch, "f")
+    good = np.delete(batch, 3, axis=0)
+    np.testing.assert_array_equal(np.delete(ids, 3), loc.locate(good))
+    np.testing.assert_array_equal(np.delete(vals, 3), loc.sample(good, "f"))
+    assert ids[3] == -1 and np.isnan(vals[3])
 
 
 def test_unknown_field(loc, pts):
@@ -141,8 +154,8 @@ def test_unknown_backend_device_and_options(grid_mesh):
         tetloc.Locator(grid_mesh, backend="gpu")
     with pytest.raises(TypeError, match="unexpected option 'leaf'"):
         tetloc.Locator(grid_mesh, backend="cpu", leaf=4)
-    with pytest.raises(TypeError, match="option 'tolerance' is planned"):
-        tetloc.Locator(grid_mesh, tolerance=1e-6)
+    with pytest.raises(TypeError, match="option 'precision' is planned"):
+        tetloc.Locator(grid_mesh, precision="f64")
     with pytest.raises(ValueError, match="split: expected a positive number"):
         tetloc.Locator(grid_mesh, split=0)
     with pytest.raises(TypeError, match="expected a tetloc.Mesh"):
@@ -214,3 +227,21 @@ def test_bad_mesh_arrays():
     for dt in (np.int8, np.uint16, np.int64, np.uint64):
         assert tetloc.Mesh(points, cells.astype(dt)).n_cells == 1
     assert tetloc.Mesh(np.asfortranarray(points), np.asfortranarray(cells)).n_cells == 1
+
+
+def test_tolerance_answers_points_just_outside(grid_mesh):
+    # The grid spans [0, 6]^3 and f = x + 2y + 3z. A point 0.01 outside the face x = 6 is
+    # outside exactly; within a tolerance of 0.05 (or 5% of the mean edge, about 0.06) it gets
+    # a tet on that face and f at the closest boundary point (6, 2.5, 3.5).
+    p = np.array([[6.01, 2.5, 3.5], [3.0, 3.0, 3.0], [7.0, 3.0, 3.0]])
+    exact = tetloc.Locator(grid_mesh, backend="cpu")
+    assert exact.locate(p)[0] == -1
+    for tolerance in (0.05, "5%"):
+        loc = tetloc.Locator(grid_mesh, backend="cpu", tolerance=tolerance)
+        ids, vals = loc.locate_and_sample(p, "f")
+        assert ids[0] >= 0 and vals[0] == pytest.approx(6 + 2 * 2.5 + 3 * 3.5, rel=1e-6)
+        assert ids[1] == exact.locate(p)[1]  # inside: unchanged
+        assert ids[2] == -1  # farther than the tolerance
+    for bad, err in [(-1.0, ValueError), ("x%", ValueError), ([1], TypeError)]:
+        with pytest.raises(err, match="tolerance"):
+            tetloc.Locator(grid_mesh, backend="cpu", tolerance=bad)

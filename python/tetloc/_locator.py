@@ -32,6 +32,10 @@ class Locator:
     **options
         ``progress=True``: show a progress bar on stderr during long builds and batches (or a
         callable, called as ``progress(stage, fraction or None, seconds)``).
+        ``tolerance``: points outside the mesh but within this distance of its boundary get
+        the nearest boundary tet and the value at the closest boundary point, as VTK's probe
+        filter does with its tolerance: a distance in mesh units, or a string such as
+        ``"1%"`` (of the mean edge length); default 0, exact.
         ``split`` (rt kernels: primitives per bottom-level acceleration structure, or None
         for one structure; default 1M), ``compact`` (rt kernels: compact the structures;
         default True). Unknown options raise ``TypeError``.
@@ -39,7 +43,8 @@ class Locator:
     Points are any array-like of shape (K, 3) (or (..., 3)), float32 or float64, C or
     Fortran order, including CPU tensors (DLPack or ``__array__``). They are located as
     float32; a C-contiguous float32 array is used without a copy. Results have the points'
-    leading shape. A point on a face shared by two tets gets one of them, always the same
+    leading shape. A point with a NaN or infinite coordinate (or beyond float32 range) is
+    answered -1 and NaN, as pyvista does, with a ``RuntimeWarning`` counting them. A point on a face shared by two tets gets one of them, always the same
     for a backend. Calls release the GIL (a Locator may be used from several threads; calls
     on one Locator run one at a time) and can be interrupted with Ctrl-C.
     """

@@ -47,5 +47,5 @@ def as_points(points: Any, arg: str = "points") -> Tuple[np.ndarray, Tuple[int, 
         raise ValueError(f"{arg}: shape {a.shape}; expected (K, 3) (or (..., 3))")
     lead = a.shape[:-1]
     flat = a if a.ndim == 2 else a.reshape(-1, 3)  # a view unless the layout forbids it
-    with np.errstate(over="ignore"):  # beyond float32 range: refused as not finite
+    with np.errstate(over="ignore"):  # beyond float32 range: inf, answered -1 / NaN
         return np.ascontiguousarray(flat, dtype=np.float32), lead

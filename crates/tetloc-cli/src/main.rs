@@ -259,20 +259,12 @@ fn devices() -> Result<()> {
 
 fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> {
     let m = mesh_arg::load(mesh, format, 1)?;
-    let faces = progress::with_spinner("computing shared faces", || m.faces().stats);
+    let summary = progress::with_spinner("computing shared faces", || m.summary());
     if json {
-        let fields: Vec<_> = m
-            .fields
-            .iter()
-            .map(|f| {
-                let (min, max) = finite_range(&f.values).unzip();
-                serde_json::json!({"name": f.name, "location": f.location, "min": min, "max": max})
-            })
-            .collect();
-        let out = serde_json::json!({"mesh": m.info, "faces": faces, "fields": fields});
-        println!("{}", serde_json::to_string_pretty(&out)?);
+        println!("{}", serde_json::to_string_pretty(&summary)?);
         return Ok(());
     }
+    let faces = summary.faces;
     let i = &m.info;
     println!("{}", i.source);
     println!("  tets        {}", i.n_tets);
@@ -293,21 +285,13 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
         println!("  fields      none");
     }
     for f in &m.fields {
-        let range = match finite_range(&f.values) {
+        let range = match f.finite_range() {
             Some((lo, hi)) => format!("range {lo} .. {hi}"),
             None => "no finite values".to_string(),
         };
         println!("  field       '{}' per {:?}, {range}", f.name, f.location);
     }
     Ok(())
-}
-
-/// The smallest and largest finite values, if there are any.
-fn finite_range(values: &[f32]) -> Option<(f32, f32)> {
-    values.iter().filter(|v| v.is_finite()).fold(None, |r, &v| match r {
-        None => Some((v, v)),
-        Some((lo, hi)) => Some((lo.min(v), hi.max(v))),
-    })
 }
 
 #[cfg(test)]

@@ -145,4 +145,42 @@ impl Device {
         let t = self.tracker.lock().unwrap_or_else(|e| e.into_inner());
         (t.items(), t.peak())
     }
+
+    /// GPU seconds of each of `runs` runs of `record`, from timestamps around each run (with
+    /// barriers), all in one submission. Every query is reset and then written before any is
+    /// read, after the fence: waiting on an unwritten query hangs some drivers.
+    pub fn time_runs(&mut self, runs: usize, record: impl Fn(&Recording)) -> VkResult<Vec<f64>> {
+        let ctx = self.ctx.clone();
+        let bits = ctx.limits.timestamp_valid_bits;
+        if bits == 0 {
+            return Err(VkError::NoTimestamps { device: ctx.info().name.clone() });
+        }
+        let queries = 2 * runs as u32;
+        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(queries);
+        // SAFETY: plain query-pool creation; destroyed below on every path.
+        let pool = unsafe { ctx.device.create_query_pool(&info, None) }.map_err(VkError::vk("vkCreateQueryPool"))?;
+        // SAFETY: recording with live objects; the pool outlives the submission (run waits).
+        let recorded = self.run(|r| unsafe {
+            r.dev.cmd_reset_query_pool(r.cmd, pool, 0, queries);
+            for k in 0..runs as u32 {
+                r.barrier();
+                r.dev.cmd_write_timestamp(r.cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 2 * k);
+                record(r);
+                r.barrier();
+                r.dev.cmd_write_timestamp(r.cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 2 * k + 1);
+            }
+        });
+        let mut ticks = vec![0u64; 2 * runs];
+        let read = recorded.and_then(|()| {
+            // SAFETY: all queries were written by the completed submission.
+            unsafe { ctx.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
+                .map_err(VkError::vk("vkGetQueryPoolResults"))
+        });
+        // SAFETY: the submission using the pool has completed.
+        unsafe { ctx.device.destroy_query_pool(pool, None) };
+        read?;
+        let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
+        let period = ctx.limits.timestamp_period_ns * 1e-9;
+        Ok((0..runs).map(|r| ((ticks[2 * r + 1].wrapping_sub(ticks[2 * r])) & mask) as f64 * period).collect())
+    }
 }

@@ -220,6 +220,12 @@ gpu_interface! {
         EMPTY: u32 = 0xFFFF_FFFF;
         LEAF_COUNT_SHIFT: u32 = 29;
         LEAF_FIRST_MAX: u32 = (1 << 29) - 1;
+        /// Memory probe modes (memprobe.rs, Params::counts.w): fill the array, then read it
+        /// coalesced, at independent hashed addresses, or at addresses hashed from the value read.
+        MEMPROBE_INIT: u32 = 0;
+        MEMPROBE_SEQUENTIAL: u32 = 1;
+        MEMPROBE_INDEPENDENT: u32 = 2;
+        MEMPROBE_DEPENDENT: u32 = 3;
         /// Volume marcher flags (MarchParams::size.z).
         MARCH_SKIP: u32 = 1;
         MARCH_SURFACE: u32 = 2;

@@ -30,6 +30,7 @@ mod kernels;
 mod locator;
 mod march;
 mod memory;
+pub mod memprobe;
 mod nvml;
 mod pipeline;
 mod shaders;

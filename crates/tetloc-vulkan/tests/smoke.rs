@@ -22,3 +22,23 @@ fn soft_bvh_matches_cpu_on_tet_centres() {
     assert!(ctx.validation_enabled());
     let _ = Kernel::ALL;
 }
+
+/// The memory probe (issue 12's random-read microbenchmark) reads what the host says it
+/// reads, for every address pattern, with its array in one buffer and split over four.
+#[test]
+fn memory_probe_reads_the_host_sequence() {
+    use tetloc_vulkan::memprobe::{expected_sums, MemProbe, Pattern, ELEMENT_BYTES};
+    let Some(ctx) = common::context("memory_probe_reads_the_host_sequence") else { return };
+    let span = 3 * 4096 + 160; // with a 4 KiB buffer limit: four buffers, the last one short
+    for max_buffer in [Some(4096), None] {
+        let mut probe = MemProbe::new(&ctx, span, 512, max_buffer).unwrap();
+        for pattern in Pattern::ALL {
+            for sub_span in [span, 1000] {
+                let got = probe.sums(pattern, 7, sub_span).unwrap();
+                let want = expected_sums(pattern, 512, 7, (sub_span / ELEMENT_BYTES) as u32);
+                assert_eq!(got, want, "{pattern:?}, span {sub_span}, buffer limit {max_buffer:?}");
+            }
+        }
+    }
+    common::assert_no_validation_errors(&ctx);
+}

@@ -92,7 +92,10 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     let file = std::fs::File::open(path).map_err(io)?;
     let meta = file.metadata().map_err(io)?;
     if meta.is_dir() {
-        return Err(Error::format(path, "is a directory, not a file"));
+        // The OS's own error (EISDIR: "Is a directory"), so callers see an I/O error kind
+        // (Python raises IsADirectoryError).
+        let os_error = (&file).read(&mut [0u8; 1]).err();
+        return Err(io(os_error.unwrap_or_else(|| std::io::ErrorKind::IsADirectory.into())));
     }
     if !meta.is_file() {
         let cap = available_memory_bytes().map_or(NON_REGULAR_READ_CAP, |a| (a / 2).min(NON_REGULAR_READ_CAP));

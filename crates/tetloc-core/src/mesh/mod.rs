@@ -3,10 +3,12 @@
 
 mod faces;
 mod neighbors;
+mod summary;
 #[cfg(test)]
 mod tests;
 
 pub use faces::{Face, FaceSet};
+pub use summary::{FieldSummary, MeshSummary};
 
 use crate::error::{Error, Result};
 use crate::geom::{self, Vec3};

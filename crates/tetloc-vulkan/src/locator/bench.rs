@@ -3,10 +3,9 @@
 //! clock with their transfers; warm-up runs, repeats, medians; optionally board power.
 
 use super::{sample_mode, Variant, VulkanLocator};
-use crate::error::{VkError, VkResult};
+use crate::error::VkResult;
 use crate::interface::{Params, OUT_CELL, OUT_IDS, OUT_VERTEX};
 use crate::nvml::{Nvml, PowerSampler};
-use ash::vk;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tetloc_core::geom::Vec3;
@@ -190,11 +189,6 @@ impl VulkanLocator {
         n: usize,
         nvml: Option<Arc<Nvml>>,
     ) -> VkResult<(Vec<f64>, usize, Option<f64>)> {
-        let ctx = self.dev.ctx().clone();
-        let bits = ctx.limits.timestamp_valid_bits;
-        if bits == 0 {
-            return Err(VkError::NoTimestamps { device: ctx.info().name.clone() });
-        }
         let v = Variant { sample: sample_mode(mode), output, record: false };
         self.pipeline(v)?;
         let chunk = self.launch_limit().min(n.max(1));
@@ -213,38 +207,12 @@ impl VulkanLocator {
             })?;
         }
         let runs = opts.warmup + opts.repeats;
-        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(2 * runs as u32);
-        // SAFETY: plain query-pool creation; destroyed below on every path.
-        let pool = unsafe { ctx.device.create_query_pool(&info, None) }.map_err(VkError::vk("vkCreateQueryPool"))?;
-        // One submission: reset every query, then write all of them, so that no query is
-        // ever waited on unwritten (that hangs some drivers); we read after the fence.
-        // SAFETY: recording with live objects; the pool outlives the submission (run waits).
-        let recorded = self.dev.run(|r| unsafe {
-            r.dev.cmd_reset_query_pool(r.cmd, pool, 0, 2 * runs as u32);
-            for k in 0..runs as u32 {
-                r.barrier();
-                r.dev.cmd_write_timestamp(r.cmd, vk::PipelineStageFlags::TOP_OF_PIPE, pool, 2 * k);
-                for p in &launches {
-                    l.record(r, p);
-                }
-                r.barrier();
-                r.dev.cmd_write_timestamp(r.cmd, vk::PipelineStageFlags::BOTTOM_OF_PIPE, pool, 2 * k + 1);
+        let times = self.dev.time_runs(runs, |r| {
+            for p in &launches {
+                l.record(r, p);
             }
-        });
-        let mut ticks = vec![0u64; 2 * runs];
-        let read = recorded.and_then(|()| {
-            // SAFETY: all queries were written by the completed submission.
-            unsafe { ctx.device.get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64) }
-                .map_err(VkError::vk("vkGetQueryPoolResults"))
-        });
-        // SAFETY: the submission using the pool has completed.
-        unsafe { ctx.device.destroy_query_pool(pool, None) };
-        read?;
-        let mask = if bits >= 64 { u64::MAX } else { (1u64 << bits) - 1 };
-        let period = ctx.limits.timestamp_period_ns * 1e-9;
-        let times: Vec<f64> = (opts.warmup..runs)
-            .map(|r| ((ticks[2 * r + 1].wrapping_sub(ticks[2 * r])) & mask) as f64 * period)
-            .collect();
+        })?;
+        let times = times[opts.warmup..].to_vec();
 
         // Power: keep the GPU busy for about a second, one run per submission.
         let power = match nvml {
