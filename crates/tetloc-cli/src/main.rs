@@ -108,6 +108,10 @@ enum Command {
         /// Vulkan device index (see `tetloc devices`).
         #[arg(long)]
         device: Option<usize>,
+        /// Also run the ray-tracing kernels on a CPU-emulated Vulkan device (lavapipe), where
+        /// they take minutes; by default only soft-bvh cross-checks the cpu backend there.
+        #[arg(long)]
+        all_backends: bool,
     },
 }
 
@@ -195,10 +199,11 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Render(args) => render::run(args),
-        Command::Demo { tets, points, seed, device } => demo::run(
+        Command::Demo { tets, points, seed, device, all_backends } => demo::run(
             mesh_arg::parse_count(&tets)?,
             mesh_arg::parse_count(&points)?,
             seed,
+            all_backends,
             &BackendOptions { device, ..Default::default() },
         ),
     }
