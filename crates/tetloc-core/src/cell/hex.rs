@@ -1,8 +1,8 @@
 //! The linear hexahedron (VTK 12, Gmsh 5): vtkHexahedron's trilinear shape functions. Its
 //! faces are bilinear and may be warped (non-planar).
 
-use super::scalar::{self, Scalar};
-use super::{Bound, CellDef, GmshType, PCoords, Shape};
+use super::scalar::Scalar;
+use super::{Bound, GmshType, Shape};
 use std::borrow::Cow;
 
 pub static SHAPE: Shape = Shape {
@@ -44,29 +44,4 @@ fn functions<T: Scalar>(pc: [T; 3], w: &mut [T]) {
     }
 }
 
-impl CellDef for Hex {
-    fn name(&self) -> &'static str {
-        "hexahedron"
-    }
-    fn vtk_type(&self) -> u8 {
-        12
-    }
-    fn gmsh_types(&self) -> &[GmshType] {
-        GMSH
-    }
-    fn shape(&self) -> &'static Shape {
-        &SHAPE
-    }
-    fn order(&self) -> u8 {
-        1
-    }
-    fn node_pcoords(&self) -> &[PCoords] {
-        SHAPE.corners
-    }
-    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
-        functions(pc, w);
-    }
-    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
-        scalar::derivatives(pc, d, functions);
-    }
-}
+cell_def!(Hex { name: "hexahedron", vtk: 12, shape: &SHAPE, order: 1, nodes: SHAPE.corners });

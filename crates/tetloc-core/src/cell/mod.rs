@@ -14,6 +14,40 @@
 //! Higher-order cells are *located* by their corners (the linear cell of the same shape) and
 //! *interpolate* with all their nodes.
 
+/// The [`CellDef`] of a cell type whose shape functions are its module's generic
+/// `functions` (derivatives by dual numbers, [`scalar::derivatives`]) and whose Gmsh codes are
+/// its module's `GMSH`: the facts that differ, once per module.
+macro_rules! cell_def {
+    ($ty:ty { name: $name:expr, vtk: $vtk:expr, shape: $shape:expr, order: $order:expr, nodes: $nodes:expr $(,)? }) => {
+        impl super::CellDef for $ty {
+            fn name(&self) -> &'static str {
+                $name
+            }
+            fn vtk_type(&self) -> u8 {
+                $vtk
+            }
+            fn gmsh_types(&self) -> &[super::GmshType] {
+                GMSH
+            }
+            fn shape(&self) -> &'static super::Shape {
+                $shape
+            }
+            fn order(&self) -> u8 {
+                $order
+            }
+            fn node_pcoords(&self) -> &[super::PCoords] {
+                $nodes
+            }
+            fn shape_functions(&self, pc: super::PCoords, w: &mut [f64]) {
+                functions(pc, w);
+            }
+            fn shape_derivatives(&self, pc: super::PCoords, d: &mut [[f64; 3]]) {
+                super::scalar::derivatives(pc, d, functions);
+            }
+        }
+    };
+}
+
 mod decompose;
 mod lattice;
 mod newton;

@@ -2,8 +2,8 @@
 //! collapsed to the apex. The domain is VTK's `[0,1]³`; its side `t ≤ 1` is the apex, not a
 //! face. Only the base quad can be warped: the four sides are triangles.
 
-use super::scalar::{self, Scalar};
-use super::{Bound, CellDef, GmshType, PCoords, Shape};
+use super::scalar::Scalar;
+use super::{Bound, GmshType, Shape};
 use std::borrow::Cow;
 
 pub static SHAPE: Shape = Shape {
@@ -35,29 +35,4 @@ fn functions<T: Scalar>([r, s, t]: [T; 3], w: &mut [T]) {
     w.copy_from_slice(&[rm * sm * tm, r * sm * tm, r * s * tm, rm * s * tm, t]);
 }
 
-impl CellDef for Pyramid {
-    fn name(&self) -> &'static str {
-        "pyramid"
-    }
-    fn vtk_type(&self) -> u8 {
-        14
-    }
-    fn gmsh_types(&self) -> &[GmshType] {
-        GMSH
-    }
-    fn shape(&self) -> &'static Shape {
-        &SHAPE
-    }
-    fn order(&self) -> u8 {
-        1
-    }
-    fn node_pcoords(&self) -> &[PCoords] {
-        SHAPE.corners
-    }
-    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
-        functions(pc, w);
-    }
-    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
-        scalar::derivatives(pc, d, functions);
-    }
-}
+cell_def!(Pyramid { name: "pyramid", vtk: 14, shape: &SHAPE, order: 1, nodes: SHAPE.corners });

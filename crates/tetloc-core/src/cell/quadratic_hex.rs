@@ -2,8 +2,8 @@
 //! (hex20). Corners, then the midpoints of the edges (0,1) (1,2) (2,3) (3,0) (4,5) (5,6) (6,7)
 //! (7,4) (0,4) (1,5) (2,6) (3,7).
 
-use super::scalar::{self, Scalar};
-use super::{hex, CellDef, GmshType, PCoords, Shape};
+use super::scalar::Scalar;
+use super::{hex, GmshType, PCoords};
 use std::borrow::Cow;
 
 const NODES: [PCoords; 20] = [
@@ -56,29 +56,4 @@ fn functions<T: Scalar>(pc: [T; 3], w: &mut [T]) {
     }
 }
 
-impl CellDef for QuadraticHex {
-    fn name(&self) -> &'static str {
-        "quadratic hexahedron"
-    }
-    fn vtk_type(&self) -> u8 {
-        25
-    }
-    fn gmsh_types(&self) -> &[GmshType] {
-        GMSH
-    }
-    fn shape(&self) -> &'static Shape {
-        &hex::SHAPE
-    }
-    fn order(&self) -> u8 {
-        2
-    }
-    fn node_pcoords(&self) -> &[PCoords] {
-        &NODES
-    }
-    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
-        functions(pc, w);
-    }
-    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
-        scalar::derivatives(pc, d, functions);
-    }
-}
+cell_def!(QuadraticHex { name: "quadratic hexahedron", vtk: 25, shape: &hex::SHAPE, order: 2, nodes: &NODES });

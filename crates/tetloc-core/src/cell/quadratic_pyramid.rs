@@ -6,8 +6,8 @@
 //! The functions are those of current VTK (polynomial, 2021 on). Its `InterpolationDerivs` was
 //! not updated with them; here the derivatives are those of the functions.
 
-use super::scalar::{self, Scalar};
-use super::{pyramid, CellDef, GmshType, PCoords, Shape};
+use super::scalar::Scalar;
+use super::{pyramid, GmshType, PCoords};
 use std::borrow::Cow;
 
 const NODES: [PCoords; 13] = [
@@ -68,29 +68,4 @@ fn functions<T: Scalar>(pc: [T; 3], w: &mut [T]) {
     ]);
 }
 
-impl CellDef for QuadraticPyramid {
-    fn name(&self) -> &'static str {
-        "quadratic pyramid"
-    }
-    fn vtk_type(&self) -> u8 {
-        27
-    }
-    fn gmsh_types(&self) -> &[GmshType] {
-        GMSH
-    }
-    fn shape(&self) -> &'static Shape {
-        &pyramid::SHAPE
-    }
-    fn order(&self) -> u8 {
-        2
-    }
-    fn node_pcoords(&self) -> &[PCoords] {
-        &NODES
-    }
-    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
-        functions(pc, w);
-    }
-    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
-        scalar::derivatives(pc, d, functions);
-    }
-}
+cell_def!(QuadraticPyramid { name: "quadratic pyramid", vtk: 27, shape: &pyramid::SHAPE, order: 2, nodes: &NODES });

@@ -2,8 +2,8 @@
 //! midpoints of the triangle edges (0,1) (1,2) (2,0) (3,4) (4,5) (5,3), then of the vertical
 //! edges (0,3) (1,4) (2,5).
 
-use super::scalar::{self, Scalar};
-use super::{wedge, CellDef, GmshType, PCoords, Shape};
+use super::scalar::Scalar;
+use super::{wedge, GmshType, PCoords};
 use std::borrow::Cow;
 
 const NODES: [PCoords; 15] = [
@@ -57,29 +57,4 @@ fn functions<T: Scalar>([r, s, t]: [T; 3], w: &mut [T]) {
     ]);
 }
 
-impl CellDef for QuadraticWedge {
-    fn name(&self) -> &'static str {
-        "quadratic wedge"
-    }
-    fn vtk_type(&self) -> u8 {
-        26
-    }
-    fn gmsh_types(&self) -> &[GmshType] {
-        GMSH
-    }
-    fn shape(&self) -> &'static Shape {
-        &wedge::SHAPE
-    }
-    fn order(&self) -> u8 {
-        2
-    }
-    fn node_pcoords(&self) -> &[PCoords] {
-        &NODES
-    }
-    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
-        functions(pc, w);
-    }
-    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
-        scalar::derivatives(pc, d, functions);
-    }
-}
+cell_def!(QuadraticWedge { name: "quadratic wedge", vtk: 26, shape: &wedge::SHAPE, order: 2, nodes: &NODES });

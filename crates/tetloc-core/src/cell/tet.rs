@@ -1,7 +1,7 @@
 //! The linear tetrahedron (VTK 10, Gmsh 4): vtkTetra's barycentric shape functions.
 
-use super::scalar::{self, Scalar};
-use super::{Bound, CellDef, GmshType, PCoords, Shape};
+use super::scalar::Scalar;
+use super::{Bound, GmshType, Shape};
 use std::borrow::Cow;
 
 pub static SHAPE: Shape = Shape {
@@ -27,29 +27,4 @@ fn functions<T: Scalar>([r, s, t]: [T; 3], w: &mut [T]) {
     w.copy_from_slice(&[T::from(1.0) - r - s - t, r, s, t]);
 }
 
-impl CellDef for Tet {
-    fn name(&self) -> &'static str {
-        "tetra"
-    }
-    fn vtk_type(&self) -> u8 {
-        10
-    }
-    fn gmsh_types(&self) -> &[GmshType] {
-        GMSH
-    }
-    fn shape(&self) -> &'static Shape {
-        &SHAPE
-    }
-    fn order(&self) -> u8 {
-        1
-    }
-    fn node_pcoords(&self) -> &[PCoords] {
-        SHAPE.corners
-    }
-    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
-        functions(pc, w);
-    }
-    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
-        scalar::derivatives(pc, d, functions);
-    }
-}
+cell_def!(Tet { name: "tetra", vtk: 10, shape: &SHAPE, order: 1, nodes: SHAPE.corners });

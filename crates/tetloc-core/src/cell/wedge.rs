@@ -2,8 +2,8 @@
 //! triangle (r, s) times linear in t. Its three quad faces are bilinear and may be warped.
 //! The triangle (0, 1, 2) turns counterclockwise seen from (3, 4, 5) in VTK and Gmsh alike.
 
-use super::scalar::{self, Scalar};
-use super::{Bound, CellDef, GmshType, PCoords, Shape};
+use super::scalar::Scalar;
+use super::{Bound, GmshType, Shape};
 use std::borrow::Cow;
 
 pub static SHAPE: Shape = Shape {
@@ -32,29 +32,4 @@ fn functions<T: Scalar>([r, s, t]: [T; 3], w: &mut [T]) {
     w.copy_from_slice(&[u * (one - t), r * (one - t), s * (one - t), u * t, r * t, s * t]);
 }
 
-impl CellDef for Wedge {
-    fn name(&self) -> &'static str {
-        "wedge"
-    }
-    fn vtk_type(&self) -> u8 {
-        13
-    }
-    fn gmsh_types(&self) -> &[GmshType] {
-        GMSH
-    }
-    fn shape(&self) -> &'static Shape {
-        &SHAPE
-    }
-    fn order(&self) -> u8 {
-        1
-    }
-    fn node_pcoords(&self) -> &[PCoords] {
-        SHAPE.corners
-    }
-    fn shape_functions(&self, pc: PCoords, w: &mut [f64]) {
-        functions(pc, w);
-    }
-    fn shape_derivatives(&self, pc: PCoords, d: &mut [[f64; 3]]) {
-        scalar::derivatives(pc, d, functions);
-    }
-}
+cell_def!(Wedge { name: "wedge", vtk: 13, shape: &SHAPE, order: 1, nodes: SHAPE.corners });
