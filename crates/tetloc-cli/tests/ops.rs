@@ -1,0 +1,137 @@
+//! `resample`, `probe` and `trace` end to end, against VTK itself (vtkResampleToImage,
+//! vtkResampleWithDataSet, vtkStreamTracer through `scripts/vtk_ops.py`), on the oracle
+//! meshes; and their bad inputs.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use tetloc_testdata::require_data;
+
+fn tetloc(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("tetloc-ops-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Runs `scripts/vtk_ops.py` with `TETLOC_PYTHON` (default `python3`); `None` (after a
+/// SKIPPED line) when Python or its `vtk` module is missing outside CI, a failure in CI.
+fn vtk_ops(test: &str, args: &[&str]) -> Option<()> {
+    let python = std::env::var("TETLOC_PYTHON").unwrap_or_else(|_| "python3".into());
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/vtk_ops.py");
+    let missing = |why: String| {
+        assert!(!tetloc_testdata::in_ci(), "{test}: {why}; CI needs Python with vtk (set TETLOC_PYTHON)");
+        eprintln!("SKIPPED {test}: {why} (set TETLOC_PYTHON to a Python with vtk and numpy)");
+        None
+    };
+    let out = match Command::new(&python).arg(&script).args(args).output() {
+        Ok(o) => o,
+        Err(e) => return missing(format!("cannot run {python}: {e}")),
+    };
+    if out.status.code() == Some(3) {
+        return missing(format!("{python} has no vtk module"));
+    }
+    assert!(out.status.success(), "{test}: vtk_ops.py failed: {}", String::from_utf8_lossy(&out.stderr));
+    Some(())
+}
+
+fn f64s(path: &Path) -> Vec<f64> {
+    bytemuck::pod_collect_to_vec(&std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())))
+}
+
+fn close(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-5 * (1.0 + a.abs().max(b.abs()))
+}
+
+/// The image of every field and the valid mask are VTK's; the .npy of one field is the
+/// .vti's array; the grid is VTK's (bounds nudged inwards, points on both ends).
+#[test]
+fn resample_matches_vtk() {
+    const TEST: &str = "resample_matches_vtk";
+    let Some(data) = require_data(TEST) else { return };
+    for name in ["torus_s", "part_s"] {
+        let dir = tmp_dir(&format!("resample-{name}"));
+        let mesh = data.join(format!("{name}.vtu"));
+        let (vti, npy) = (dir.join("r.vti"), dir.join("f.npy"));
+        let (ok, _, err) = tetloc(&["resample", s(&mesh), "--dims", "23,19,11", "-o", s(&vti), "--backend", "cpu"]);
+        assert!(ok, "{err}");
+        let (ok, _, err) =
+            tetloc(&["resample", s(&mesh), "--dims", "23,19,11", "--field", "f", "-o", s(&npy), "--backend", "cpu"]);
+        assert!(ok, "{err}");
+        let Some(()) = vtk_ops(TEST, &["resample", s(&mesh), "23,19,11", s(&vti), s(&dir)]) else { return };
+        let geometry = |who: &str| -> serde_json::Value {
+            serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{who}.geometry.json"))).unwrap()).unwrap()
+        };
+        let (vg, tg) = (geometry("vtk"), geometry("tetloc"));
+        assert_eq!(vg["dims"], tg["dims"]);
+        for key in ["origin", "spacing"] {
+            for k in 0..3 {
+                let (a, b) = (vg[key][k].as_f64().unwrap(), tg[key][k].as_f64().unwrap());
+                assert!((a - b).abs() <= 1e-12 * (1.0 + a.abs()), "{name}: {key}: VTK {vg} vs {tg}");
+            }
+        }
+        let mask = f64s(&dir.join("vtk.vtkValidPointMask.bin"));
+        let ours = f64s(&dir.join("tetloc.vtkValidPointMask.bin"));
+        let differ = (0..mask.len()).filter(|&i| mask[i] != ours[i]).count();
+        assert_eq!(differ, 0, "{name}: the valid mask differs from VTK's at {differ} of {} points", mask.len());
+        let valid = ours.iter().filter(|&&m| m == 1.0).count();
+        assert!(valid > mask.len() / 20 && valid < mask.len(), "{name}: {valid} valid");
+        for field in ["f", "cellval"] {
+            let (v, t) = (f64s(&dir.join(format!("vtk.{field}.bin"))), f64s(&dir.join(format!("tetloc.{field}.bin"))));
+            for i in (0..v.len()).filter(|&i| ours[i] == 1.0) {
+                assert!(close(v[i], t[i]), "{name}: {field} at grid point {i}: VTK {} vs {}", v[i], t[i]);
+            }
+            assert!((0..v.len()).filter(|&i| ours[i] == 0.0).all(|i| t[i].is_nan()), "{name}: NaN outside");
+        }
+        let bytes = std::fs::read(&npy).unwrap();
+        let header_len = 10 + u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+        let header = String::from_utf8_lossy(&bytes[10..header_len]);
+        assert!(header.contains("'shape': (11, 19, 23)") && header.contains("'<f4'"), "{header}");
+        let f: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes[header_len..]);
+        let vti_f = f64s(&dir.join("tetloc.f.bin"));
+        assert!(f.iter().zip(&vti_f).all(|(&a, &b)| (a.is_nan() && b.is_nan()) || a as f64 == b), "{name}: npy vs vti");
+    }
+}
+
+/// Bad input gets a clear error and no output.
+#[test]
+fn bad_inputs_are_refused() {
+    let dir = tmp_dir("bad");
+    let out = dir.join("x.vti");
+    let (ok, _, err) = tetloc(&["resample", "jets:2000", "--dims", "4,0,4", "-o", s(&out), "--backend", "cpu"]);
+    assert!(!ok && err.contains("at least 1"), "{err}");
+    let (ok, _, err) =
+        tetloc(&["resample", "jets:2000", "--dims", "4,4,4", "-o", "/nonexistent-dir/x.vti", "--backend", "cpu"]);
+    assert!(!ok && err.contains("does not exist"), "{err}");
+    let (ok, _, err) = tetloc(&["resample", "jets:2000", "--dims", "4,4", "-o", s(&out), "--backend", "cpu"]);
+    assert!(!ok && err.contains("three"), "{err}");
+    let (ok, _, err) =
+        tetloc(&["resample", "jets:2000", "--dims", "4,4,4", "--field", "nope", "-o", s(&out), "--backend", "cpu"]);
+    assert!(!ok && err.contains("'nope'") && err.contains("'f'"), "{err}");
+    assert!(!out.exists());
+    let vtp = dir.join("l.vtp");
+    let (ok, _, err) =
+        tetloc(&["trace", "jets:2000", "--vector", "nope", "--seeds", "line:0,0,0,1,1,1,3", "-o", s(&vtp)]);
+    assert!(!ok && err.contains("'nope'"), "{err}");
+    let (ok, _, err) = tetloc(&["trace", "jets:2000", "--vector", "f", "--seeds", "line:0,0,0,1,1,1,3", "-o", s(&vtp)]);
+    assert!(!ok && err.contains("3 components"), "{err}");
+    let (ok, _, err) = tetloc(&[
+        "trace",
+        "jets:2000",
+        "--vector",
+        "f",
+        "--seeds",
+        "line:0,0,0,1,1,1,3",
+        "-o",
+        "/nonexistent-dir/l.vtp",
+    ]);
+    assert!(!ok && err.contains("does not exist"), "{err}");
+    assert!(!vtp.exists());
+}
