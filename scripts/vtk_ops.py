@@ -62,7 +62,7 @@ def geometry(img, prefix, out_dir):
 
 def resample(mesh_path, dims, ours, out_dir):
     f = vtk.vtkResampleToImage()
-    f.SetInputData(read(mesh_path))
+    f.SetInputDataObject(read(mesh_path))
     f.SetUseInputBounds(True)
     f.SetSamplingDimensions(*[int(d) for d in dims.split(",")])
     f.Update()

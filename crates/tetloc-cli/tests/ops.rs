@@ -71,22 +71,66 @@ fn resample_matches_vtk() {
         };
         let (vg, tg) = (geometry("vtk"), geometry("tetloc"));
         assert_eq!(vg["dims"], tg["dims"]);
+        // The same up to float32 rounding: tetloc keeps coordinates in float32, VTK's bounds
+        // come from the file's float64 points.
         for key in ["origin", "spacing"] {
             for k in 0..3 {
                 let (a, b) = (vg[key][k].as_f64().unwrap(), tg[key][k].as_f64().unwrap());
-                assert!((a - b).abs() <= 1e-12 * (1.0 + a.abs()), "{name}: {key}: VTK {vg} vs {tg}");
+                assert!((a - b).abs() <= 1e-6 * (1.0 + a.abs()), "{name}: {key}: VTK {vg} vs {tg}");
             }
         }
         let mask = f64s(&dir.join("vtk.vtkValidPointMask.bin"));
         let ours = f64s(&dir.join("tetloc.vtkValidPointMask.bin"));
-        let differ = (0..mask.len()).filter(|&i| mask[i] != ours[i]).count();
-        assert_eq!(differ, 0, "{name}: the valid mask differs from VTK's at {differ} of {} points", mask.len());
+        // VTK's cell search accepts points a little outside a tet (see data/README.md: it
+        // differs from the exact answer at 0.3-1 % of points): where the masks differ, VTK
+        // must be the one saying "inside", for a point within 1 % of an edge of the boundary.
+        let differ: Vec<usize> = (0..mask.len()).filter(|&i| mask[i] != ours[i]).collect();
+        assert!(differ.len() * 200 <= mask.len(), "{name}: masks differ at {} of {} points", differ.len(), mask.len());
+        if !differ.is_empty() {
+            let g = |k: &str, a: usize| tg[k][a].as_f64().unwrap();
+            let dims: Vec<usize> = (0..3).map(|a| tg["dims"][a].as_u64().unwrap() as usize).collect();
+            let pts: Vec<[f32; 3]> = differ
+                .iter()
+                .map(|&i| {
+                    let idx = [i % dims[0], i / dims[0] % dims[1], i / (dims[0] * dims[1])];
+                    std::array::from_fn(|a| (g("origin", a) + idx[a] as f64 * g("spacing", a)) as f32)
+                })
+                .collect();
+            let (p, ids) = (dir.join("differ.bin"), dir.join("differ.ids.bin"));
+            std::fs::write(&p, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
+            let (ok, _, err) = tetloc(&[
+                "locate",
+                s(&mesh),
+                "--points",
+                s(&p),
+                "--out",
+                s(&ids),
+                "--tolerance",
+                "1%",
+                "--backend",
+                "cpu",
+            ]);
+            assert!(ok, "{err}");
+            let near: Vec<i32> = bytemuck::pod_collect_to_vec(&std::fs::read(&ids).unwrap());
+            for (k, &i) in differ.iter().enumerate() {
+                assert!(mask[i] == 1.0 && near[k] >= 0, "{name}: grid point {i} {:?}: VTK mask {}", pts[k], mask[i]);
+            }
+            eprintln!("{name}: VTK counts {} grid points within its slack of the boundary as inside", differ.len());
+        }
         let valid = ours.iter().filter(|&&m| m == 1.0).count();
         assert!(valid > mask.len() / 20 && valid < mask.len(), "{name}: {valid} valid");
+        // Values: VTK's within 1e-5 relative, except where VTK's tolerant cell search picked
+        // a neighbour of the containing tet (a point within its slack of a face) and
+        // extrapolates there: few points, and a small difference for the smooth field `f`.
         for field in ["f", "cellval"] {
             let (v, t) = (f64s(&dir.join(format!("vtk.{field}.bin"))), f64s(&dir.join(format!("tetloc.{field}.bin"))));
-            for i in (0..v.len()).filter(|&i| ours[i] == 1.0) {
-                assert!(close(v[i], t[i]), "{name}: {field} at grid point {i}: VTK {} vs {}", v[i], t[i]);
+            let off: Vec<usize> = (0..v.len()).filter(|&i| ours[i] == 1.0 && !close(v[i], t[i])).collect();
+            eprintln!("{name}: {field} differs from VTK's at {} of {valid} points", off.len());
+            assert!(off.len() * 100 <= valid, "{name}: {field} differs from VTK's at {} of {valid} points", off.len());
+            if field == "f" {
+                for &i in &off {
+                    assert!((v[i] - t[i]).abs() < 1e-3, "{name}: f at grid point {i}: VTK {} vs {}", v[i], t[i]);
+                }
             }
             assert!((0..v.len()).filter(|&i| ours[i] == 0.0).all(|i| t[i].is_nan()), "{name}: NaN outside");
         }
