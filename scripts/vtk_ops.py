@@ -87,7 +87,7 @@ def points_of(path):
 
 def probe(source, target, ours, out_dir):
     f = vtk.vtkResampleWithDataSet()
-    f.SetInputData(points_of(target))
+    f.SetInputDataObject(points_of(target))
     f.SetSourceData(read(source))
     f.SetPassPointArrays(True)
     f.Update()
