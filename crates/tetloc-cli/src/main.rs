@@ -5,8 +5,11 @@ mod bench;
 mod demo;
 mod locate;
 mod mesh_arg;
+mod probe;
 mod progress;
 mod render;
+mod resample;
+mod trace;
 
 use anyhow::{Context, Result};
 use backend::BackendOptions;
@@ -60,6 +63,13 @@ enum Command {
     },
     /// Locate points (and sample a field) and write the tet ids (and values).
     Locate(locate::LocateArgs),
+    /// Sample fields on a regular image (as ParaView's Resample To Image): .vti or .npy.
+    Resample(resample::ResampleArgs),
+    /// Sample one mesh's fields at another mesh's (or a point set's) points (as ParaView's
+    /// Resample With Dataset).
+    Probe(probe::ProbeArgs),
+    /// Trace streamlines through a vector field (as ParaView's Stream Tracer, RK4).
+    Trace(trace::TraceArgs),
     /// Measure samples/s per backend and query set.
     Bench {
         /// A mesh file, or SHAPE:N to generate one (e.g. fusion:1.4M).
@@ -172,6 +182,9 @@ fn run(cli: Cli) -> Result<()> {
             gen(&shape, &tets, &out, seed, zlib, terrain.as_deref())
         }
         Command::Locate(args) => locate::run(&args),
+        Command::Resample(args) => resample::run(&args),
+        Command::Probe(args) => probe::run(&args),
+        Command::Trace(args) => trace::run(&args),
         Command::Devices => devices(),
         Command::Bench { mesh, queries, n, repeats, field, json, power, backend, common } => {
             let opts = common.opts()?;

@@ -9,6 +9,7 @@ pub mod geom;
 pub mod io;
 pub mod locate;
 pub mod mesh;
+pub mod ops;
 pub mod queries;
 #[cfg(test)]
 mod test_support;

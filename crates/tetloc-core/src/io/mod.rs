@@ -3,6 +3,7 @@
 
 pub(crate) mod cursor;
 pub mod gmsh;
+pub mod image;
 pub mod output;
 pub mod points;
 #[cfg(test)]

@@ -174,6 +174,36 @@ impl CpuLocator {
     }
 }
 
+impl CpuLocator {
+    /// The tet containing `p`, searched from `hint` (a walk through neighbours, the BVH when
+    /// the walk fails), which becomes the answer: one particle's lookups, each near the last.
+    #[inline]
+    pub fn locate_from(&self, p: Vec3, hint: &mut Option<u32>) -> Option<(u32, Bary)> {
+        if !super::is_finite(p) {
+            return None;
+        }
+        let found = hint.and_then(|h| self.walk(h, p)).or_else(|| self.locate_point(p));
+        if let Some((t, _)) = found {
+            *hint = Some(t);
+        }
+        found
+    }
+
+    /// The three fields `components` as one vector at a point, looked up from a hint (see
+    /// [`Self::locate_from`]): the field a particle tracer follows.
+    pub fn vector_field(
+        &self,
+        components: [&str; 3],
+    ) -> Result<impl Fn(Vec3, &mut Option<u32>) -> Option<[f32; 3]> + Sync + '_> {
+        let [x, y, z] = components.map(|c| self.value_fn(c));
+        let (x, y, z) = (x?, y?, z?);
+        Ok(move |p: Vec3, hint: &mut Option<u32>| {
+            let found = self.locate_from(p, hint);
+            found.map(|_| [x(found), y(found), z(found)])
+        })
+    }
+}
+
 impl BatchLocator for CpuLocator {
     fn name(&self) -> &str {
         "cpu"
@@ -200,6 +230,22 @@ impl BatchLocator for CpuLocator {
         self.locate_batch(points, &mut both, |found| (found.map_or(OUTSIDE, |(t, _)| t as i32), value(found)));
         for ((id, v), (i, x)) in ids.iter_mut().zip(values.iter_mut()).zip(both) {
             (*id, *v) = (i, x);
+        }
+        Ok(())
+    }
+
+    /// One lookup per point for every field.
+    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
+        let value_fns = fields.iter().map(|f| self.value_fn(f)).collect::<Result<Vec<_>>>()?;
+        let mut found = vec![None; points.len()];
+        self.locate_batch(points, &mut found, |f| f);
+        ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
+        if !fields.is_empty() {
+            values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
+                out.iter_mut().zip(&value_fns).for_each(|(v, value)| *v = value(f));
+            });
         }
         Ok(())
     }

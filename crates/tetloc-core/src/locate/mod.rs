@@ -37,6 +37,21 @@ pub trait BatchLocator {
         self.locate(points, ids)?;
         self.sample(points, field, values)
     }
+    /// Ids and several fields at once (each field one component: a vector is its `NAME[i]`
+    /// fields): `values` holds `fields.len()` values per point, point after point (VTK's tuple
+    /// order), NaN outside. The default locates, then samples each field; backends that
+    /// interpolate every field from one lookup override it.
+    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
+        self.locate(points, ids)?;
+        let mut one = vec![0f32; points.len()];
+        for (j, f) in fields.iter().enumerate() {
+            self.sample(points, f, &mut one)?;
+            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
+        }
+        Ok(())
+    }
 }
 
 impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
@@ -51,6 +66,9 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     }
     fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
         (**self).locate_and_sample(points, field, ids, values)
+    }
+    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        (**self).sample_many(points, fields, ids, values)
     }
 }
 
@@ -103,9 +121,14 @@ impl Compacted {
 
     /// Spreads the answers for the compacted points back; the others get `none`.
     fn scatter<T: Copy>(&self, answers: &[T], out: &mut [T], none: T) {
+        self.scatter_k(1, answers, out, none);
+    }
+
+    /// [`Self::scatter`] for `k` answers per point.
+    fn scatter_k<T: Copy>(&self, k: usize, answers: &[T], out: &mut [T], none: T) {
         out.fill(none);
-        for (&i, &a) in self.index.iter().zip(answers) {
-            out[i] = a;
+        for (&i, a) in self.index.iter().zip(answers.chunks_exact(k.max(1))) {
+            out[i * k..(i + 1) * k].copy_from_slice(&a[..k]);
         }
     }
 }
@@ -141,6 +164,18 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         self.inner.locate_and_sample(&c.points, field, &mut sub_ids, &mut sub_values)?;
         c.scatter(&sub_ids, ids, OUTSIDE);
         c.scatter(&sub_values, values, f32::NAN);
+        Ok(())
+    }
+
+    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
+        let Some(c) = Compacted::of(points) else { return self.inner.sample_many(points, fields, ids, values) };
+        let k = fields.len();
+        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len() * k]);
+        self.inner.sample_many(&c.points, fields, &mut sub_ids, &mut sub_values)?;
+        c.scatter(&sub_ids, ids, OUTSIDE);
+        c.scatter_k(k, &sub_values, values, f32::NAN);
         Ok(())
     }
 }

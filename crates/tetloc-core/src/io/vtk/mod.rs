@@ -7,6 +7,7 @@ pub(crate) mod num;
 pub(crate) mod xml;
 
 pub mod legacy;
+pub mod vti;
 pub mod vtu;
 pub mod write;
 

@@ -286,7 +286,7 @@ fn bench_load_10m_tets() {
     for (label, zlib, wide) in [("int32", false, false), ("int64", false, true), ("zlib", true, false)] {
         let path = std::env::temp_dir().join(format!("tetloc-bench-10m-{label}.vtu"));
         let t = Instant::now();
-        vtu_write::write_mesh(&path, &mesh, zlib, wide).unwrap();
+        vtu_write::write_mesh(&path, &mesh, &[], zlib, wide).unwrap();
         let w = t.elapsed().as_secs_f64();
         let size = std::fs::metadata(&path).unwrap().len() as f64 / 1e6;
         let (mut best, mut cpu) = (f64::INFINITY, f64::INFINITY);
@@ -474,7 +474,7 @@ fn write_samples() {
     for (name, zlib, wide) in
         [("grid", false, false), ("grid_zlib", true, false), ("grid_i64", false, true), ("grid_i64_zlib", true, true)]
     {
-        vtu_write::write_mesh(&dir.join(format!("{name}.vtu")), &mesh, zlib, wide).unwrap();
+        vtu_write::write_mesh(&dir.join(format!("{name}.vtu")), &mesh, &[], zlib, wide).unwrap();
     }
     let pts: Vec<[f32; 3]> = (0..100).map(|i| mesh.tet_center(i * 7)).collect();
     let ids: Vec<i32> = (0..100).map(|i| if i % 10 == 9 { -1 } else { i * 7 }).collect();

@@ -24,27 +24,124 @@ const ZLIB_BLOCK: usize = 1 << 18;
 
 /// Writes a mesh: Float32 points, Int32 connectivity and offsets (Int64 when the mesh is too
 /// large for Int32), VTK_TETRA types, and every field as a Float32 PointData or CellData
-/// array. Tets are written positively oriented in VTK's convention.
+/// array (the runs `NAME[0]` … `NAME[k-1]` as one k-component array `NAME`). Tets are written
+/// positively oriented in VTK's convention.
 pub fn write_mesh_vtu(path: &Path, mesh: &Mesh, zlib: bool) -> Result<()> {
-    write_mesh(path, mesh, zlib, false)
+    write_mesh(path, mesh, &[], zlib, false)
 }
 
-/// [`write_mesh_vtu`] with `wide_ids` forcing Int64 connectivity and offsets (as VTK writes).
-pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, zlib: bool, wide_ids: bool) -> Result<()> {
+/// [`write_mesh_vtu`] with more point data: `extra` arrays (one tuple per vertex) are written
+/// after the mesh's own, and replace a mesh array of the same name.
+pub fn write_mesh_with(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: bool) -> Result<()> {
+    write_mesh(path, mesh, extra, zlib, false)
+}
+
+/// Values of an array to write.
+#[derive(Clone, Copy, Debug)]
+pub enum ArrayData<'a> {
+    F32(&'a [f32]),
+    F64(&'a [f64]),
+    I32(&'a [i32]),
+    U8(&'a [u8]),
+}
+
+/// A named array of `n_components` values per tuple, tuple after tuple.
+#[derive(Clone, Debug)]
+pub struct NamedArray<'a> {
+    pub name: String,
+    pub n_components: usize,
+    pub data: ArrayData<'a>,
+}
+
+impl<'a> NamedArray<'a> {
+    fn n_tuples(&self) -> usize {
+        let n = match self.data {
+            ArrayData::F32(v) => v.len(),
+            ArrayData::F64(v) => v.len(),
+            ArrayData::I32(v) => v.len(),
+            ArrayData::U8(v) => v.len(),
+        };
+        n / self.n_components.max(1)
+    }
+
+    fn out(&self) -> OutArray<'a> {
+        let (name, k) = (self.name.as_str(), self.n_components);
+        match self.data {
+            ArrayData::F32(v) => OutArray::floats(name, k, v),
+            ArrayData::F64(v) => OutArray::new(name, NumType::F64, k, v.len(), move |r, out| {
+                out.extend_from_slice(bytemuck::cast_slice(&v[r]))
+            }),
+            ArrayData::I32(v) => OutArray::new(name, NumType::I32, k, v.len(), move |r, out| {
+                out.extend_from_slice(bytemuck::cast_slice(&v[r]))
+            }),
+            ArrayData::U8(v) => {
+                OutArray::new(name, NumType::U8, k, v.len(), move |r, out| out.extend_from_slice(&v[r]))
+            }
+        }
+    }
+
+    /// An error unless the array has `n` whole tuples.
+    fn check(&self, n: usize, what: &str) -> Result<()> {
+        if self.n_components == 0 || self.n_tuples() != n || self.n_tuples() * self.n_components != self.len() {
+            return Err(Error::Invalid(format!(
+                "array '{}' has {} values of {} components, but there are {n} {what}",
+                self.name,
+                self.len(),
+                self.n_components
+            )));
+        }
+        Ok(())
+    }
+
+    fn len(&self) -> usize {
+        match self.data {
+            ArrayData::F32(v) => v.len(),
+            ArrayData::F64(v) => v.len(),
+            ArrayData::I32(v) => v.len(),
+            ArrayData::U8(v) => v.len(),
+        }
+    }
+}
+
+/// The mesh's fields as arrays: each run `NAME[0]` … `NAME[k-1]` interleaved into one.
+fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<OutArray<'a>>) {
+    let (mut point_data, mut cell_data) = (Vec::new(), Vec::new());
+    for g in crate::ops::fields::groups_of(&mesh.fields) {
+        if skip.contains(&g.name.as_str()) {
+            continue;
+        }
+        let comps: Vec<&'a [f32]> =
+            g.components.iter().map(|c| mesh.field(c).map(|f| f.values.as_slice()).unwrap_or(&[])).collect();
+        let arr = match comps.as_slice() {
+            [one] => OutArray::floats(&g.name, 1, one),
+            _ => {
+                let k = comps.len();
+                OutArray::new(&g.name, NumType::F32, k, k * comps[0].len(), move |r, out| {
+                    r.for_each(|i| out.extend_from_slice(&comps[i % k][i / k].to_ne_bytes()))
+                })
+            }
+        };
+        match g.location {
+            FieldLocation::Vertex => point_data.push(arr),
+            FieldLocation::Cell => cell_data.push(arr),
+        }
+    }
+    (point_data, cell_data)
+}
+
+/// [`write_mesh_with`] with `wide_ids` forcing Int64 connectivity and offsets (as VTK writes).
+pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: bool, wide_ids: bool) -> Result<()> {
     let n_tets = mesh.tets.len();
     let wide = wide_ids || (4 * n_tets).max(mesh.points.len()) as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
     let tets = &mesh.tets;
 
-    let mut point_data = Vec::new();
-    let mut cell_data = Vec::new();
-    for f in &mesh.fields {
-        let arr = OutArray::floats(&f.name, 1, &f.values);
-        match f.location {
-            FieldLocation::Vertex => point_data.push(arr),
-            FieldLocation::Cell => cell_data.push(arr),
-        }
+    for a in extra {
+        a.check(mesh.points.len(), "vertices")?;
     }
+    let replaced: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
+    let (mut point_data, cell_data) = field_arrays(mesh, &replaced);
+    point_data.extend(extra.iter().map(NamedArray::out));
     let grid = Grid {
         kind: Kind::Unstructured,
         n_points: mesh.points.len(),
@@ -110,13 +207,21 @@ fn point_set<'a>(
     point_data.push(OutArray::new(VALID_MASK, NumType::U8, 1, n, |r, out| {
         out.extend(ids[r].iter().map(|&i| u8::from(i >= 0)))
     }));
+    let mut grid = point_cloud(kind, points);
+    grid.point_data = point_data;
+    Ok(grid)
+}
+
+/// Points, one vertex cell each, and no data yet.
+fn point_cloud(kind: Kind, points: &[[f32; 3]]) -> Grid<'_> {
+    let n = points.len();
     let wide = n as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
-    Ok(Grid {
+    Grid {
         kind,
         n_points: n,
         n_cells: n,
-        point_data,
+        point_data: Vec::new(),
         cell_data: Vec::new(),
         points: OutArray::floats("Points", 3, bytemuck::cast_slice(points)),
         connectivity: OutArray::new("connectivity", id_type, 1, n, move |r, out| {
@@ -128,7 +233,53 @@ fn point_set<'a>(
         types: (kind == Kind::Unstructured).then(|| {
             OutArray::new("types", NumType::U8, 1, n, |r, out| out.resize(out.len() + r.len(), cells::VERTEX))
         }),
-    })
+    }
+}
+
+/// Writes a point set with any arrays of point data, as `.vtu` (one VTK_VERTEX cell per
+/// point) or `.vtp` (polydata, one vertex per point), by the extension of `path`.
+pub fn write_point_set(path: &Path, points: &[[f32; 3]], arrays: &[NamedArray], zlib: bool) -> Result<()> {
+    let kind = match crate::io::output::extension(path).as_str() {
+        "vtu" => Kind::Unstructured,
+        "vtp" => Kind::PolyVerts,
+        _ => return Err(Error::format(path, "a point set is written as .vtu or .vtp")),
+    };
+    for a in arrays {
+        a.check(points.len(), "points")?;
+    }
+    let mut grid = point_cloud(kind, points);
+    grid.point_data = arrays.iter().map(NamedArray::out).collect();
+    grid.write(path, zlib)
+}
+
+/// Writes polylines as VTK polydata (`.vtp`): line `i` is points `ends[i-1]..ends[i]`, with
+/// point data and one tuple of cell data per line (stream tracer output).
+pub fn write_polylines(
+    path: &Path,
+    points: &[[f32; 3]],
+    ends: &[usize],
+    point_data: &[NamedArray],
+    cell_data: &[NamedArray],
+    zlib: bool,
+) -> Result<()> {
+    if ends.windows(2).any(|w| w[0] > w[1]) || ends.last().is_some_and(|&e| e != points.len()) {
+        return Err(Error::Invalid(format!("{} points do not split into lines ending at {ends:?}", points.len())));
+    }
+    for a in point_data {
+        a.check(points.len(), "points")?;
+    }
+    for a in cell_data {
+        a.check(ends.len(), "lines")?;
+    }
+    let mut grid = point_cloud(Kind::PolyLines, points);
+    let wide = grid.offsets.ty == NumType::I64;
+    grid.n_cells = ends.len();
+    grid.offsets = OutArray::new("offsets", grid.offsets.ty, 1, ends.len(), move |r, out| {
+        r.for_each(|i| push_id(out, ends[i] as u64, wide))
+    });
+    grid.point_data = point_data.iter().map(NamedArray::out).collect();
+    grid.cell_data = cell_data.iter().map(NamedArray::out).collect();
+    grid.write(path, zlib)
 }
 
 fn push_id(out: &mut Vec<u8>, v: u64, wide: bool) {
@@ -200,6 +351,8 @@ enum Kind {
     Unstructured,
     /// `PolyData` whose cells are all vertices (`Verts`: connectivity and offsets).
     PolyVerts,
+    /// `PolyData` whose cells are all polylines (`Lines`).
+    PolyLines,
 }
 
 struct Grid<'a> {
@@ -271,6 +424,14 @@ impl Grid<'_> {
                     self.n_cells
                 ),
             ),
+            Kind::PolyLines => (
+                "PolyData",
+                "Lines",
+                format!(
+                    "NumberOfVerts=\"0\" NumberOfLines=\"{}\" NumberOfStrips=\"0\" NumberOfPolys=\"0\"",
+                    self.n_cells
+                ),
+            ),
         };
         let _ = writeln!(
             s,
@@ -307,7 +468,7 @@ impl Grid<'_> {
 }
 
 /// Escapes a name for an XML attribute value.
-fn escape(s: &str) -> String {
+pub(crate) fn escape(s: &str) -> String {
     let mut out = String::with_capacity(s.len());
     for c in s.chars() {
         match c {
@@ -350,7 +511,7 @@ mod tests {
 
     fn round_trip(mesh: &Mesh, zlib: bool, wide: bool) {
         let tmp = TempPath::new("mesh");
-        write_mesh(&tmp.0, mesh, zlib, wide).unwrap();
+        write_mesh(&tmp.0, mesh, &[], zlib, wide).unwrap();
         let back = vtu::read(&tmp.0).unwrap();
         assert_eq!(back.points, mesh.points);
         // Canonical tets are written as they are (right-handed, VTK's orientation).
@@ -457,6 +618,39 @@ mod tests {
         assert!(write_points_vtu(&tmp.0, &[[0.; 3]], &[1], Some(("v", &[]))).is_err());
         let e = write_mesh_vtu(Path::new("/nonexistent-dir/x.vtu"), &small_mesh(), false).unwrap_err();
         assert!(e.to_string().starts_with("/nonexistent-dir/x.vtu"), "{e}");
+    }
+
+    /// Runs `NAME[0]` … `NAME[k-1]` are written as one k-component array and read back as
+    /// the same fields; extra point arrays replace a mesh array of the same name.
+    #[test]
+    fn vectors_are_written_as_one_array() {
+        let m = small_mesh();
+        let mut raw = RawMesh { points: m.points.clone(), tets: m.tets.clone(), ..Default::default() };
+        for c in 0..3 {
+            let values = (0..5).map(|i| (10 * c + i) as f32).collect();
+            raw.fields.push(Field { name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
+        }
+        raw.fields.push(Field { name: "g".into(), location: FieldLocation::Vertex, values: vec![1.0; 5] });
+        let mesh = Mesh::new(raw, "v").unwrap();
+        let tmp = TempPath::new("vector");
+        let mask = [1u8, 0, 1, 1, 0];
+        let g2: Vec<f32> = (0..10).map(|i| i as f32).collect();
+        let extra = [
+            NamedArray { name: "g".into(), n_components: 2, data: ArrayData::F32(&g2) },
+            NamedArray { name: VALID_MASK.into(), n_components: 1, data: ArrayData::U8(&mask) },
+        ];
+        write_mesh_with(&tmp.0, &mesh, &extra, true).unwrap();
+        let text = String::from_utf8_lossy(&std::fs::read(&tmp.0).unwrap()).into_owned();
+        assert!(text.contains("Name=\"v\" NumberOfComponents=\"3\""), "{text:.600}");
+        let back = vtu::read(&tmp.0).unwrap();
+        let names: Vec<&str> = back.fields.iter().map(|f| f.name.as_str()).collect();
+        assert_eq!(names, ["v[0]", "v[1]", "v[2]", "g[0]", "g[1]", VALID_MASK]);
+        for c in 0..3 {
+            assert_eq!(back.fields[c].values, mesh.fields[c].values);
+        }
+        assert_eq!(back.fields[4].values, [1.0, 3.0, 5.0, 7.0, 9.0]);
+        let short = [NamedArray { name: "s".into(), n_components: 3, data: ArrayData::F32(&g2) }];
+        assert!(write_mesh_with(&tmp.0, &mesh, &short, false).is_err());
     }
 
     #[test]

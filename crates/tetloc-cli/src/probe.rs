@@ -1,0 +1,108 @@
+//! `tetloc probe SOURCE TARGET -o OUT`: SOURCE's fields at TARGET's points (ParaView's
+//! Resample With Dataset). OUT is TARGET (a mesh with its cells and data, or a point set)
+//! plus the sampled arrays and `vtkValidPointMask`.
+
+use crate::{backend, mesh_arg, progress, Common};
+use anyhow::{bail, Context, Result};
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+use tetloc_core::io::output::{self, FileArg};
+use tetloc_core::io::points;
+use tetloc_core::locate::{Tolerance, WithTolerance};
+use tetloc_core::ops::{fields, probe};
+use tetloc_core::BatchLocator;
+
+#[derive(clap::Args)]
+pub struct ProbeArgs {
+    /// The mesh whose fields are sampled (.vtu, .vtk, .msh, .node/.ele, or SHAPE:N).
+    source: OsString,
+    /// Where they are sampled: a mesh file (its vertices; OUT keeps its cells and data), or a
+    /// point set (.npy (N,3), .csv x,y,z, .bin raw float32 triplets).
+    target: OsString,
+    /// The result: .vtu (a mesh TARGET, or a point set), or .vtp (a point set only).
+    #[arg(short, long)]
+    out: PathBuf,
+    /// Fields of SOURCE to sample, comma-separated (a vector by its name); all by default.
+    #[arg(long, value_delimiter = ',')]
+    field: Vec<String>,
+    /// Boundary tolerance, as for `locate`: points outside SOURCE but within this distance
+    /// (mesh units, or a percentage of the mean edge such as 1%) get the closest boundary value.
+    #[arg(long, default_value = "0")]
+    tolerance: Tolerance,
+    /// zlib-compress the output's arrays.
+    #[arg(long)]
+    zlib: bool,
+    /// The backend: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, or auto.
+    #[arg(long, default_value = "auto")]
+    backend: String,
+    /// TARGET's mesh format, overriding its extension (vtu, vtk, msh, node).
+    #[arg(long)]
+    target_format: Option<String>,
+    #[command(flatten)]
+    common: Common,
+}
+
+/// Whether TARGET names a point set (by its extension) rather than a mesh.
+fn is_point_set(target: &Path) -> bool {
+    points::POINT_EXTENSIONS.contains(&output::extension(target).as_str())
+}
+
+pub fn run(a: &ProbeArgs) -> Result<()> {
+    let target = Path::new(&a.target);
+    let point_set = is_point_set(target) && a.target_format.is_none();
+    let out_exts: &[&str] = if point_set { &["vtu", "vtp"] } else { &["vtu"] };
+    output::check_output(&a.out, out_exts).with_context(|| {
+        format!("--out: {} is written as {}", if point_set { "a point set" } else { "a mesh" }, out_exts.join(" or "))
+    })?;
+    let mut inputs = mesh_arg::input_files(&a.source, a.common.format.as_deref());
+    if point_set {
+        inputs.push(target.to_path_buf());
+    } else {
+        inputs.extend(mesh_arg::input_files(&a.target, a.target_format.as_deref()));
+    }
+    let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("input", p)).collect();
+    output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    let opts = a.common.opts()?;
+
+    let source = mesh_arg::load(&a.source, a.common.format.as_deref(), a.common.seed)?;
+    let groups = if a.field.is_empty() {
+        fields::groups(&source)
+    } else {
+        a.field.iter().map(|f| fields::resolve(&source, f)).collect::<Result<Vec<_>, _>>()?
+    };
+    if groups.is_empty() {
+        bail!("{}: the source mesh has no fields to probe", source.info.source);
+    }
+    let (target_mesh, pts) = if point_set {
+        (None, points::read_points(target)?)
+    } else {
+        let m = mesh_arg::load(&a.target, a.target_format.as_deref(), a.common.seed)?;
+        let pts = m.points.clone();
+        (Some(m), pts)
+    };
+    let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
+    let exact = progress::with_spinner("building the locator", || backend::make(&name, &source, &opts))?;
+    let mut loc: Box<dyn BatchLocator> = match a.tolerance.distance(&source) {
+        d if d > 0.0 => Box::new(WithTolerance::new(exact, source.clone(), a.tolerance)),
+        _ => exact,
+    };
+    let pb = progress::bar(pts.len() as u64, format!("probing on {}", loc.name()));
+    let t0 = Instant::now();
+    let probed = probe::probe(loc.as_mut(), &pts, &groups, |d| pb.set_position(d as u64))?;
+    pb.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+    progress::with_spinner(format!("writing {}", a.out.display()), || {
+        probe::write_probed(&a.out, &probed, target_mesh.as_deref(), &pts, a.zlib)
+    })?;
+    if !a.common.quiet {
+        eprintln!(
+            "{}: {} points probed on {} in {secs:.3} s; {} got values",
+            a.out.display(),
+            pts.len(),
+            loc.name(),
+            probed.n_valid()
+        );
+    }
+    Ok(())
+}

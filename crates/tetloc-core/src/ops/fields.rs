@@ -1,0 +1,136 @@
+//! Fields of k components. The mesh stores scalar fields; a file's k-component array is read
+//! as the k fields `NAME[0]` … `NAME[k-1]` (in this order, next to each other), and the
+//! writers turn such runs back into one k-component array. A [`FieldGroup`] is one such
+//! array: a scalar field, or the components of a vector.
+
+use crate::error::{Error, Result};
+use crate::mesh::{Field, FieldLocation, Mesh};
+
+/// One array as files see it: a name, where it lives and its scalar components in order.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FieldGroup {
+    pub name: String,
+    pub location: FieldLocation,
+    /// The mesh's scalar fields, one per component: `[name]`, or `NAME[0]`, `NAME[1]`, ….
+    pub components: Vec<String>,
+}
+
+impl FieldGroup {
+    pub fn n_components(&self) -> usize {
+        self.components.len()
+    }
+
+    /// The component names as `&str`, for [`crate::BatchLocator::sample_many`].
+    pub fn component_refs(&self) -> Vec<&str> {
+        self.components.iter().map(String::as_str).collect()
+    }
+}
+
+/// The field named `name` in `fields`: a scalar field of that name, or the run `NAME[0]` …
+/// `NAME[k-1]` (k ≥ 2) of a vector. Errors list the arrays there are.
+pub fn resolve_in(fields: &[Field], name: &str) -> Result<FieldGroup> {
+    groups_of(fields).into_iter().find(|g| g.name == name).ok_or_else(|| Error::NoSuchField {
+        name: name.to_string(),
+        available: if fields.is_empty() {
+            "none".to_string()
+        } else {
+            groups_of(fields).iter().map(describe).collect::<Vec<_>>().join(", ")
+        },
+    })
+}
+
+/// [`resolve_in`] over a mesh's fields.
+pub fn resolve(mesh: &Mesh, name: &str) -> Result<FieldGroup> {
+    resolve_in(&mesh.fields, name)
+}
+
+/// Every array of a mesh, in file order: runs `NAME[0]` … `NAME[k-1]` (k ≥ 2, one location)
+/// become one group; every other field is a scalar group of its own.
+pub fn groups(mesh: &Mesh) -> Vec<FieldGroup> {
+    groups_of(&mesh.fields)
+}
+
+/// [`groups`] over a list of fields (what writers hold).
+pub fn groups_of(fields: &[Field]) -> Vec<FieldGroup> {
+    let mut out = Vec::new();
+    let mut i = 0;
+    while i < fields.len() {
+        let k = run_length(fields, i);
+        let f = &fields[i];
+        let name = if k > 1 { base_name(&f.name).unwrap_or(&f.name).to_string() } else { f.name.clone() };
+        out.push(FieldGroup {
+            name,
+            location: f.location,
+            components: fields[i..i + k].iter().map(|f| f.name.clone()).collect(),
+        });
+        i += k;
+    }
+    out
+}
+
+/// The name in `'NAME' (k components, per vertex)` form for error messages.
+fn describe(g: &FieldGroup) -> String {
+    let loc = match g.location {
+        FieldLocation::Vertex => "point",
+        FieldLocation::Cell => "cell",
+    };
+    match g.n_components() {
+        1 => format!("'{}' ({loc})", g.name),
+        k => format!("'{}' ({loc}, {k} components)", g.name),
+    }
+}
+
+/// `NAME` of `NAME[0]`.
+fn base_name(name: &str) -> Option<&str> {
+    name.strip_suffix("[0]").filter(|b| !b.is_empty())
+}
+
+/// How many fields from `i` on form the run `NAME[0]`, `NAME[1]`, … (1 when `fields[i]` does
+/// not start a run of at least two).
+fn run_length(fields: &[Field], i: usize) -> usize {
+    let Some(base) = base_name(&fields[i].name) else { return 1 };
+    let location = fields[i].location;
+    let k = fields[i..]
+        .iter()
+        .enumerate()
+        .take_while(|(c, f)| f.location == location && f.name == format!("{base}[{c}]"))
+        .count();
+    if k >= 2 {
+        k
+    } else {
+        1
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn field(name: &str, location: FieldLocation) -> Field {
+        Field { name: name.into(), location, values: vec![] }
+    }
+
+    #[test]
+    fn runs_of_components_group_and_lone_ones_do_not() {
+        use FieldLocation::{Cell, Vertex};
+        let fields = [
+            field("v[0]", Vertex),
+            field("v[1]", Vertex),
+            field("v[2]", Vertex),
+            field("f", Vertex),
+            field("c[0]", Cell), // a lone `[0]` is a scalar named so
+            field("w[0]", Vertex),
+            field("w[1]", Cell), // another location: not the same array
+            field("[0]", Vertex),
+            field("[1]", Vertex),
+        ];
+        let g = groups_of(&fields);
+        let names: Vec<(&str, usize)> = g.iter().map(|g| (g.name.as_str(), g.n_components())).collect();
+        assert_eq!(names, [("v", 3), ("f", 1), ("c[0]", 1), ("w[0]", 1), ("w[1]", 1), ("[0]", 1), ("[1]", 1)]);
+        assert_eq!(g[0].components, ["v[0]", "v[1]", "v[2]"]);
+        assert_eq!(resolve_in(&fields, "v").unwrap().components.len(), 3);
+        assert_eq!(resolve_in(&fields, "c[0]").unwrap().components, ["c[0]"]);
+        let e = resolve_in(&fields, "nope").unwrap_err().to_string();
+        assert!(e.contains("'nope'") && e.contains("'v' (point, 3 components)") && e.contains("'f' (point)"), "{e}");
+    }
+}

@@ -1,0 +1,134 @@
+//! Probing (vtkResampleWithDataSet): a source mesh's fields sampled at a target's points.
+//! The result is the target (a mesh with its cells and data, or a point set) plus one
+//! array per source field (cell fields become point data, as VTK's probe makes them) and
+//! `vtkValidPointMask`.
+
+use super::{FieldGroup, CHUNK};
+use crate::error::Result;
+use crate::geom::Vec3;
+use crate::io::points::VALID_MASK;
+use crate::io::vtk::write::{self, ArrayData, NamedArray};
+use crate::locate::BatchLocator;
+use crate::mesh::Mesh;
+use std::path::Path;
+
+/// The source's fields at the target's points.
+pub struct Probed {
+    /// The containing source tet of each point (-1: no value).
+    pub ids: Vec<i32>,
+    /// Each field with its values, k per point (NaN where the point got none).
+    pub arrays: Vec<(FieldGroup, Vec<f32>)>,
+}
+
+impl Probed {
+    /// `vtkValidPointMask`: 1 where a point got values.
+    pub fn mask(&self) -> Vec<u8> {
+        self.ids.iter().map(|&i| u8::from(i >= 0)).collect()
+    }
+
+    pub fn n_valid(&self) -> usize {
+        self.ids.iter().filter(|&&i| i >= 0).count()
+    }
+
+    /// The arrays to write (the mask last), borrowing `mask`.
+    pub fn named<'a>(&'a self, mask: &'a [u8]) -> Vec<NamedArray<'a>> {
+        let mut out: Vec<NamedArray> = self
+            .arrays
+            .iter()
+            .map(|(g, v)| NamedArray { name: g.name.clone(), n_components: g.n_components(), data: ArrayData::F32(v) })
+            .collect();
+        out.push(NamedArray { name: VALID_MASK.into(), n_components: 1, data: ArrayData::U8(mask) });
+        out
+    }
+}
+
+/// Samples `fields` (of the mesh `loc` locates in) at `points`, in chunks; `progress` gets the
+/// number of points done so far.
+pub fn probe(
+    loc: &mut dyn BatchLocator,
+    points: &[Vec3],
+    fields: &[FieldGroup],
+    mut progress: impl FnMut(usize),
+) -> Result<Probed> {
+    let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
+    let width = names.len();
+    let mut ids = vec![0i32; points.len()];
+    let mut values = vec![0f32; points.len() * width];
+    for (c, p) in points.chunks(CHUNK).enumerate() {
+        let r = c * CHUNK..c * CHUNK + p.len();
+        loc.sample_many(p, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
+        progress(r.end);
+    }
+    // One array per field, its components together.
+    let mut at = 0;
+    let arrays = fields
+        .iter()
+        .map(|g| {
+            let k = g.n_components();
+            let v: Vec<f32> = values.chunks_exact(width.max(1)).flat_map(|p| p[at..at + k].iter().copied()).collect();
+            at += k;
+            (g.clone(), v)
+        })
+        .collect();
+    Ok(Probed { ids, arrays })
+}
+
+/// Writes the probe's result: `target` with its cells and data plus the probed arrays (a
+/// `.vtu`; probed arrays replace target arrays of the same name), or, without a target mesh,
+/// the point set `points` with the probed arrays (`.vtu` or `.vtp`).
+pub fn write_probed(path: &Path, probed: &Probed, target: Option<&Mesh>, points: &[Vec3], zlib: bool) -> Result<()> {
+    let mask = probed.mask();
+    let arrays = probed.named(&mask);
+    match target {
+        Some(mesh) => write::write_mesh_with(path, mesh, &arrays, zlib),
+        None => write::write_point_set(path, points, &arrays, zlib),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::ops::fields;
+    use crate::test_support::KuhnGrid;
+    use crate::CpuLocator;
+    use std::sync::Arc;
+
+    /// Probing a mesh at its own vertices gives back its point field; points beyond it get
+    /// NaN and mask 0; a cell field becomes point data; the written mesh keeps its own data.
+    #[test]
+    fn probing_a_mesh_onto_itself_and_beyond() {
+        let m = Arc::new(KuhnGrid::new(3).mesh("cube"));
+        let groups = fields::groups(&m);
+        let mut points = m.points.clone();
+        points.push([2.0, 0.5, 0.5]);
+        let mut loc = CpuLocator::new(m.clone());
+        let mut last = 0;
+        let p = probe(&mut loc, &points, &groups, |d| last = d).unwrap();
+        assert_eq!(last, points.len());
+        assert_eq!(p.n_valid(), m.points.len());
+        let (g, f) = &p.arrays[0];
+        assert_eq!(g.name, "f");
+        let want = &m.field("f").unwrap().values;
+        assert!(want.iter().zip(f).all(|(a, b)| (a - b).abs() <= 1e-6 * (1.0 + a.abs())));
+        assert!(f.last().unwrap().is_nan() && *p.mask().last().unwrap() == 0);
+        // Onto the mesh itself, as a mesh: its own arrays, the probed ones replacing
+        // those of the same name, and the mask.
+        let mut renamed = groups.clone();
+        renamed[0].name = "f_probed".into();
+        let onto = probe(&mut loc, &m.points, &renamed, |_| {}).unwrap();
+        let tmp = std::env::temp_dir().join(format!("tetloc-probe-{}.vtu", std::process::id()));
+        write_probed(&tmp, &onto, Some(&m), &m.points, false).unwrap();
+        let back = crate::io::vtk::vtu::read(&tmp).unwrap();
+        let names: Vec<&str> = back.fields.iter().map(|f| f.name.as_str()).collect();
+        let mut want: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
+        want.retain(|n| !renamed.iter().skip(1).any(|g| g.name == *n));
+        want.extend(renamed.iter().map(|g| g.name.as_str()));
+        want.push(VALID_MASK);
+        let (mut names, mut want) = (names, want);
+        names.sort();
+        want.sort();
+        assert_eq!(names, want);
+        assert_eq!(back.tets.len(), m.tets.len());
+        std::fs::remove_file(&tmp).unwrap();
+    }
+}
