@@ -70,6 +70,29 @@ fn every_gpu_kernel_renders_like_the_cpu() {
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
 }
 
+/// Higher-order tets: the GPU marcher samples a quadratic field on quadratic tets with the
+/// tets' own shape functions, like the CPU; by the corners alone the image differs clearly.
+#[test]
+fn gpu_marcher_samples_higher_order_tets_like_the_cpu() {
+    let Some(ctx) = context("gpu_marcher_samples_higher_order_tets_like_the_cpu") else { return };
+    let f = |p: [f32; 3]| 4.0 * ((p[0] - 0.5).powi(2) + (p[1] - 0.5).powi(2) + (p[2] - 0.5).powi(2));
+    let raw = tetloc_testdata::KuhnGrid::new(3).order(2).vertex_field(f).raw();
+    let linear = tetloc_core::RawMesh { cells: None, higher_order: None, ..raw.clone() };
+    let mesh = Arc::new(Mesh::new(raw, "quadratic").unwrap());
+    let linear = Arc::new(Mesh::new(linear, "by corners").unwrap());
+    let opts = RenderOptions { width: 64, height: 48, azimuth: 30.0, elevation: 25.0, ..Default::default() };
+    let renderer = Renderer::new(mesh.clone(), "f", &opts).unwrap();
+    let mut cpu = CpuLocator::new(mesh.clone());
+    let by_corners = compare_locators(&renderer, &mut cpu, &mut CpuLocator::new(linear)).unwrap().psnr_db;
+    for kernel in kernels(&ctx) {
+        let mut march = gpu_marcher(&ctx, &mesh, kernel, &renderer);
+        let gpu = compare_locators(&renderer, &mut cpu, &mut march).unwrap().psnr_db;
+        eprintln!("{kernel}: GPU marcher PSNR {gpu:.1} dB against the CPU (by the corners: {by_corners:.1} dB)");
+        assert!(gpu >= 40.0 && gpu > by_corners + 6.0, "{kernel}: PSNR {gpu:.1} dB (by the corners {by_corners:.1})");
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}
+
 /// Skipping on and off give the same image on the GPU, with fewer samples.
 #[test]
 fn gpu_skipping_is_exact() {

@@ -8,6 +8,7 @@
 //! core's types. So the parts they need, [`KuhnGrid`] and the data folder, are written once
 //! in core's private `test_support` module and included here by path.
 
+use tetloc_core::cell::{barycentric_lattice, CellBlock, CellType};
 use tetloc_core::mesh::{Field, FieldLocation};
 use tetloc_core::{Mesh, RawMesh, Vec3};
 

@@ -189,6 +189,10 @@ gpu_interface! {
         B_NEIGHBORS_HI = 19;
         /// soft-bvh with deferred exact tests: the samples the f32 pass could not decide.
         B_DEFER = 20;
+        /// Higher-order tets (high_order.glsl): HO_NODES node ids per tet after its corners,
+        /// and each node's barycentric lattice index (4 bytes, corner 0 lowest).
+        B_HO_NODES = 21;
+        B_HO_LATTICE = 22;
         /// Most buffers one array is split over.
         MAX_CHUNKS = 16;
         /// The volume marcher's compute shader runs in tiles of MARCH_TILE x MARCH_TILE pixels.
@@ -267,6 +271,11 @@ gpu_interface! {
         /// soft-bvh: the f32 pass defers undecided samples (DEFERRED) to the exact pass.
         DEFER_EXACT = 18: bool = false;
         EXACT_PASS = 19: bool = false;
+        /// Higher-order tets: nodes per tet beyond the corners (0: linear tets), the order,
+        /// and whether the shape functions are Bernstein polynomials (Bezier tets).
+        HO_NODES = 20: uint = 0;
+        HO_ORDER = 21: uint = 1;
+        HO_BEZIER = 22: bool = false;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

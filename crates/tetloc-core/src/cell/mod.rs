@@ -52,6 +52,7 @@ mod decompose;
 mod lattice;
 mod newton;
 mod scalar;
+mod tet_nodes;
 
 mod bezier_tet;
 mod biquadratic_wedge;
@@ -79,6 +80,7 @@ pub use decompose::{
     classify_face, classify_quad, decompose, face_split, tet_faces, warped_faces, Decomposition, FaceKind,
 };
 pub use newton::{forward, interpolate, invert, InverseError};
+pub use tet_nodes::{barycentric_lattice, corner_permutation, TetPermutations};
 
 use std::borrow::Cow;
 use std::sync::OnceLock;

@@ -6,14 +6,17 @@
 //! vertex fields `attr[i]`; boundary markers are read and dropped.
 //!
 //! `.ele`: a header `<#tets> [<nodes per tet 4|10> [<#attributes>]]`, then one line per tet:
-//! `<id> <nodes...> [attributes]`. 10-node (quadratic) tets keep their 4 corners and set
-//! `higher_order = Some(2)`. One attribute (TetGen's region number) becomes the cell field
+//! `<id> <nodes...> [attributes]`. 10-node (quadratic, `tetgen -o2`) tets keep their corners
+//! in `tets`, set `higher_order = Some(2)`, and keep all 10 nodes in `cells` as VTK quadratic
+//! tets: TetGen puts the 6 extra nodes at edge midpoints, so each is matched to the edge whose
+//! midpoint it is (a node at no edge midpoint is an error). One attribute (TetGen's region number) becomes the cell field
 //! `region`; several become `region[i]`.
 //!
 //! `#` starts a comment anywhere on a line; blank lines are skipped. Errors name the file and
 //! the line.
 
 use super::cursor::{Cursor, Line};
+use crate::cell::{CellBlock, CellType};
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::path::{Path, PathBuf};
@@ -45,7 +48,47 @@ pub fn parse(node: &[u8], ele: &[u8], path: &Path) -> Result<RawMesh> {
             format!("region[{i}]")
         }
     }));
-    Ok(RawMesh { points: nodes.points, tets: tets.tets, fields, higher_order: tets.higher_order, cells: None })
+    let cells = match tets.higher_order {
+        Some(_) => {
+            Some(quadratic_cells(&tets.tets, &tets.extra, &nodes.points).map_err(|m| Error::format(&ele_path, m))?)
+        }
+        None => None,
+    };
+    Ok(RawMesh { points: nodes.points, tets: tets.tets, fields, higher_order: tets.higher_order, cells })
+}
+
+/// 10-node tets as VTK quadratic tets: each extra node goes to the edge (VTK's order (0,1),
+/// (1,2), (2,0), (0,3), (1,3), (2,3)) whose midpoint is nearest to it, which must be a
+/// one-to-one match with every node within rounding of its midpoint.
+fn quadratic_cells(tets: &[[u32; 4]], extra: &[u32], points: &[[f32; 3]]) -> std::result::Result<CellBlock, String> {
+    const EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]];
+    let ty = CellType::from_vtk(24, 10).expect("the quadratic tet is a cell type");
+    let p = |i: u32| points[i as usize].map(f64::from);
+    let mut block = CellBlock::default();
+    for (t, (c, x)) in tets.iter().zip(extra.chunks_exact(6)).enumerate() {
+        let mut nodes = [0u32; 10];
+        nodes[..4].copy_from_slice(c);
+        let mut used = [false; 6];
+        for (e, [a, b]) in EDGES.iter().enumerate() {
+            let (pa, pb) = (p(c[*a]), p(c[*b]));
+            let mid: [f64; 3] = std::array::from_fn(|k| 0.5 * (pa[k] + pb[k]));
+            let len2: f64 = (0..3).map(|k| (pa[k] - pb[k]).powi(2)).sum();
+            let dist2 = |i: u32| (0..3).map(|k| (p(i)[k] - mid[k]).powi(2)).sum::<f64>();
+            let k = (0..6).filter(|&k| !used[k]).min_by(|&i, &j| dist2(x[i]).total_cmp(&dist2(x[j]))).unwrap();
+            // TetGen writes exact midpoints; the slack covers f32 rounding far from the origin.
+            if dist2(x[k]) > 0.0625 * len2 {
+                return Err(format!(
+                    "tetrahedron {}: none of its extra nodes is at the midpoint of its edge {a}-{b}; \
+                     tetloc reads the midpoint nodes of `tetgen -o2`",
+                    t + 1
+                ));
+            }
+            used[k] = true;
+            nodes[4 + e] = x[k];
+        }
+        block.push(ty, &nodes);
+    }
+    Ok(block)
 }
 
 fn siblings(path: &Path) -> (PathBuf, PathBuf) {
@@ -145,6 +188,8 @@ fn read_nodes(c: &mut Cursor) -> Result<Nodes> {
 struct Tets {
     /// Corners only.
     tets: Vec<[u32; 4]>,
+    /// The 6 other nodes of 10-node tets, as the file lists them.
+    extra: Vec<u32>,
     higher_order: Option<u8>,
     /// `n_attrs` per tet, row-major.
     attrs: Vec<f32>,
@@ -171,6 +216,7 @@ fn read_tets(c: &mut Cursor, nodes: &Nodes) -> Result<Tets> {
     let n = c.check_room(n, 2 * (1 + per_tet + n_attrs), "tetrahedra")?;
     let n_points = nodes.points.len() as u64;
     let mut tets = Vec::with_capacity(n);
+    let mut extra = Vec::with_capacity(n * (per_tet - 4));
     let mut attrs = Vec::with_capacity(n * n_attrs);
     for i in 0..n {
         let mut r = expect_line(c, &format!("tetrahedron {} of {n}", i + 1))?;
@@ -185,8 +231,9 @@ fn read_tets(c: &mut Cursor, nodes: &Nodes) -> Result<Tets> {
                     nodes.base + n_points - 1
                 )));
             };
-            if let Some(corner) = t.get_mut(k) {
-                *corner = index as u32;
+            match t.get_mut(k) {
+                Some(corner) => *corner = index as u32,
+                None => extra.push(index as u32),
             }
         }
         tets.push(t);
@@ -196,7 +243,7 @@ fn read_tets(c: &mut Cursor, nodes: &Nodes) -> Result<Tets> {
         r.expect_end(MORE_VALUES_AFTER_TET)?;
     }
     expect_no_more(c, n, "tetrahedra")?;
-    Ok(Tets { tets, higher_order: (per_tet == 10).then_some(2), attrs, n_attrs })
+    Ok(Tets { tets, extra, higher_order: (per_tet == 10).then_some(2), attrs, n_attrs })
 }
 
 #[cfg(test)]
@@ -287,11 +334,22 @@ mod tests {
             node += &format!("{} {} {} {}\n", i + 1, i % 2, (i / 2) % 2, i / 4);
         }
         let ele = "1 10\n1 1 2 3 5 4 6 7 8 8 8\n";
+        let err = parse(node.as_bytes(), ele.as_bytes(), Path::new("q.node")).unwrap_err().to_string();
+        assert!(err.contains("q.ele") && err.contains("midpoint"), "{err}");
+        // The corners (0,0,0) (1,0,0) (0,1,0) (0,0,1), then their edge midpoints in another order.
+        let mut node = String::from("10\n");
+        let pts = [[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.], [0.5, 0.5, 0.], [0.5, 0., 0.]];
+        let more = [[0., 0.5, 0.], [0., 0., 0.5], [0.5, 0., 0.5], [0., 0.5, 0.5]];
+        for (i, p) in pts.iter().chain(&more).enumerate() {
+            node += &format!("{} {} {} {}\n", i + 1, p[0], p[1], p[2]);
+        }
+        let ele = "1 10\n1 1 2 3 4 5 6 7 8 9 10\n";
         let m = parse(node.as_bytes(), ele.as_bytes(), Path::new("q.node")).unwrap();
-        assert_eq!(m.tets, vec![[0, 1, 2, 4]]);
+        assert_eq!(m.tets, vec![[0, 1, 2, 3]]);
         assert_eq!(m.higher_order, Some(2));
         assert!(m.fields.is_empty());
-        assert_eq!(m.points[7], [1.0, 1.0, 1.0]);
+        // VTK's edges (0,1) (1,2) (2,0) (0,3) (1,3) (2,3).
+        assert_eq!(m.cells.unwrap().nodes(0), &[0, 1, 2, 3, 5, 4, 6, 7, 8, 9]);
     }
 
     #[test]

@@ -161,14 +161,14 @@ pub(super) fn is_coherent(points: &[Vec3], mean_edge: f32) -> bool {
 }
 
 impl CpuLocator {
-    /// The value of `field` for a locate answer: interpolated (per vertex) or looked up (per
-    /// cell); NaN outside.
+    /// The value of `field` for a locate answer: interpolated (per vertex, with all the nodes
+    /// of higher-order tets) or looked up (per cell); NaN outside.
     fn value_fn(&self, field: &str) -> Result<impl Fn(Option<(u32, Bary)>) -> f32 + Sync + '_> {
         let f = self.mesh.field(field)?;
-        let (tets, vals, location) = (&self.mesh.tets, &f.values, f.location);
+        let (mesh, vals, location) = (&self.mesh, &f.values, f.location);
         Ok(move |found: Option<(u32, Bary)>| match (found, location) {
             (None, _) => f32::NAN,
-            (Some((t, b)), FieldLocation::Vertex) => geom::interpolate(tets[t as usize], b, vals),
+            (Some((t, b)), FieldLocation::Vertex) => mesh.interpolate(t as usize, b, vals),
             (Some((t, _)), FieldLocation::Cell) => vals[t as usize],
         })
     }

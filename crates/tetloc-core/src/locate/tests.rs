@@ -173,3 +173,50 @@ fn coherent_batches_give_the_same_answers() {
     loc.locate(&shuffled, &mut ids).unwrap();
     assert!(perm.iter().enumerate().all(|(k, &i)| ids[k] == want[i]));
 }
+
+/// Issue 9 item 8: f = x² + y² + z² (and a cubic, on cubic tets) given at the nodes of
+/// straight-sided higher-order tets is sampled exactly (to f32 rounding) by the CPU locator,
+/// alone and with the tolerance post-pass; the corners alone would miss it.
+#[test]
+fn higher_order_tets_interpolate_their_polynomials_exactly() {
+    use crate::test_support::KuhnGrid;
+    fn quadratic(p: [f64; 3]) -> f64 {
+        p[0] * p[0] + p[1] * p[1] + p[2] * p[2]
+    }
+    fn cubic(p: [f64; 3]) -> f64 {
+        p[0] * p[0] * p[0] - 2.0 * p[0] * p[1] * p[2] + p[2] * p[2] + p[1]
+    }
+    type Field = fn([f64; 3]) -> f64;
+    let cases: [(u8, Field); 3] = [(2, quadratic), (3, cubic), (4, cubic)];
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(8);
+    for (order, f) in cases {
+        let f32_of = |p: Vec3| f(p.map(f64::from)) as f32;
+        let m = Arc::new(KuhnGrid::new(3).jitter(0.15, 3).order(order).vertex_field(f32_of).mesh("elevated"));
+        let points: Vec<Vec3> = (0..4000).map(|_| std::array::from_fn(|_| rng.gen_range(0.0..1.0f32))).collect();
+        let (mut ids, mut values) = (vec![0; points.len()], vec![0.0; points.len()]);
+        let mut loc = CpuLocator::new(m.clone());
+        loc.locate_and_sample(&points, "f", &mut ids, &mut values).unwrap();
+        let (mut worst, mut linear_worst) = (0.0f64, 0.0f64);
+        for ((p, &t), &v) in points.iter().zip(&ids).zip(&values) {
+            assert!(t >= 0, "{p:?} is inside the unit cube");
+            let want = f(p.map(f64::from));
+            worst = worst.max((f64::from(v) - want).abs());
+            let b = geom::point_in_tet(m.tets[t as usize], &m.points, *p).unwrap();
+            let linear = geom::interpolate(m.tets[t as usize], b, &m.field("f").unwrap().values);
+            linear_worst = linear_worst.max((f64::from(linear) - want).abs());
+        }
+        eprintln!("order {order}: worst error {worst:.2e} (corners only: {linear_worst:.2e})");
+        assert!(worst < 2e-6, "order {order}: the tet's polynomial is missed by {worst}");
+        assert!(linear_worst > 1e-3, "order {order}: the corners alone should miss it");
+
+        // Just outside the face x = 1: the tolerance post-pass gives f at the closest point.
+        let outside: Vec<Vec3> = points.iter().map(|p| [1.0 + 1e-3, p[1], p[2]]).collect();
+        let mut tol = WithTolerance::new(CpuLocator::new(m.clone()), m.clone(), Tolerance::Absolute(0.01));
+        let mut values = vec![0.0; outside.len()];
+        tol.sample(&outside, "f", &mut values).unwrap();
+        for (p, &v) in outside.iter().zip(&values) {
+            let want = f([1.0, f64::from(p[1]), f64::from(p[2])]);
+            assert!((f64::from(v) - want).abs() < 2e-6, "order {order}: {p:?} gives {v}, closest point {want}");
+        }
+    }
+}

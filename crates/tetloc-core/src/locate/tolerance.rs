@@ -253,6 +253,13 @@ impl<L: BatchLocator> WithTolerance<L> {
             FieldLocation::Cell => field.values[n.tet as usize],
             FieldLocation::Vertex => {
                 let tri = self.boundary.get().expect("built by rescue").triangles[n.triangle];
+                if self.mesh.tet_nodes.is_some() {
+                    // The boundary point's barycentrics in its tet (0 at the corner off the
+                    // face), for the tet's own shape functions.
+                    let corners = self.mesh.tets[n.tet as usize];
+                    let bary = corners.map(|c| tri.iter().position(|&v| v == c).map_or(0.0, |j| n.weights[j] as f32));
+                    return self.mesh.interpolate(n.tet as usize, bary, &field.values);
+                }
                 (0..3).map(|j| n.weights[j] * field.values[tri[j] as usize] as f64).sum::<f64>() as f32
             }
         }

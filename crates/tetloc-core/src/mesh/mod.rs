@@ -6,9 +6,11 @@ mod neighbors;
 mod summary;
 #[cfg(test)]
 mod tests;
+mod tet_nodes;
 
 pub use faces::{Face, FaceSet};
 pub use summary::{FieldSummary, MeshSummary};
+pub use tet_nodes::TetNodes;
 
 use crate::error::{Error, Result};
 use crate::geom::{self, Vec3};
@@ -43,10 +45,12 @@ pub struct RawMesh {
     /// The tets' corners, for a mesh of tets (of any order); empty when `cells` holds other types.
     pub tets: Vec<[u32; 4]>,
     pub fields: Vec<Field>,
-    /// `Some(k)` when the file held cells of polynomial order k > 1, located by their corners.
+    /// `Some(k)` when the file held cells of polynomial order k > 1 (located by their corners,
+    /// interpolated with all their nodes).
     pub higher_order: Option<u8>,
     /// Every volume cell with all its nodes, in file order, when some cell is not a linear tet
-    /// (`None` for linear tets only). Cell fields have one value per cell of this block.
+    /// (`None` for linear tets only). Cell fields have one value per cell of this block. For a
+    /// mesh of higher-order tets `tets` holds their corners and this block all their nodes.
     pub cells: Option<crate::cell::CellBlock>,
 }
 
@@ -76,6 +80,8 @@ pub struct Mesh {
     /// Tets in file order, each in canonical vertex order (see [`geom::canonical_tet`]).
     pub tets: Vec<[u32; 4]>,
     pub fields: Vec<Field>,
+    /// The nodes of higher-order tets beyond their corners (`None`: linear tets).
+    pub tet_nodes: Option<TetNodes>,
     pub info: MeshInfo,
     faces: OnceLock<FaceSet>,
     neighbors: OnceLock<Vec<[i32; 4]>>,
@@ -91,7 +97,7 @@ impl Mesh {
         if let Some(counts) = raw.cells.as_ref().and_then(|c| c.non_tet_counts()) {
             return Err(Error::NonTetCells { path: source.into(), counts });
         }
-        let RawMesh { points, mut tets, fields, higher_order, cells: _ } = raw;
+        let RawMesh { points, mut tets, fields, higher_order, cells } = raw;
         if tets.is_empty() {
             return Err(err("the mesh has no tetrahedra".into()));
         }
@@ -125,6 +131,16 @@ impl Mesh {
                 )));
             }
         }
+
+        // Higher-order nodes follow their corners into canonical order.
+        let tet_nodes = match &cells {
+            Some(cells) if higher_order.is_some() => {
+                let canonical: Vec<[u32; 4]> = tets.par_iter().map(|&t| geom::canonical_tet(t, &points).0).collect();
+                TetNodes::build(cells, &tets, &canonical, points.len()).map_err(err)?
+            }
+            _ => None,
+        };
+        drop(cells);
 
         // Canonical order; count inversions and degenerates; accumulate bounds and edges.
         #[derive(Clone, Copy)]
@@ -186,7 +202,7 @@ impl Mesh {
             higher_order,
             total_volume: acc.volume,
         };
-        Ok(Mesh { points, tets, fields, info, faces: OnceLock::new(), neighbors: OnceLock::new() })
+        Ok(Mesh { points, tets, fields, tet_nodes, info, faces: OnceLock::new(), neighbors: OnceLock::new() })
     }
 
     pub fn n_tets(&self) -> usize {
@@ -203,6 +219,16 @@ impl Mesh {
                 self.fields.iter().map(|f| format!("'{}'", f.name)).collect::<Vec<_>>().join(", ")
             },
         })
+    }
+
+    /// A per-vertex field's value at barycentrics `bary` of tet `t`: barycentric for linear
+    /// tets, with the tet's own shape functions (all its nodes) for higher-order ones.
+    #[inline]
+    pub fn interpolate(&self, t: usize, bary: geom::Bary, values: &[f32]) -> f32 {
+        match &self.tet_nodes {
+            None => geom::interpolate(self.tets[t], bary, values),
+            Some(nodes) => nodes.interpolate(t, self.tets[t], bary, values),
+        }
     }
 
     /// Unique faces with their front and back tets, computed on first use (a parallel sort

@@ -5,7 +5,7 @@
 //! includer supplies the mesh types through its own imports (`super::`), so core's tests get
 //! core's own types and nothing is written twice.
 
-use super::{Field, FieldLocation, Mesh, RawMesh, Vec3};
+use super::{barycentric_lattice, CellBlock, CellType, Field, FieldLocation, Mesh, RawMesh, Vec3};
 
 /// The one test-mesh builder of every crate: a grid of `n`³ cubes, each split into the 6
 /// Kuhn tets `[v0, v0 + e_a, v0 + e_a + e_b, v7]` (one per axis order, all sharing the
@@ -29,6 +29,7 @@ pub struct KuhnGrid<'a> {
     vertex_field: Box<dyn Fn(Vec3) -> f32 + 'a>,
     cell_name: String,
     cell_field: Box<dyn Fn(usize, Vec3) -> f32 + 'a>,
+    order: u8,
 }
 
 impl<'a> KuhnGrid<'a> {
@@ -45,7 +46,16 @@ impl<'a> KuhnGrid<'a> {
             vertex_field: Box::new(|p| p[0] + 2.0 * p[1] + 3.0 * p[2]),
             cell_name: "c".into(),
             cell_field: Box::new(|t, _| t as f32),
+            order: 1,
         }
+    }
+
+    /// Makes every tet a straight-sided Lagrange tet of order `p` (2: VTK's quadratic tet,
+    /// 3 and up: VTK's Lagrange tet): nodes on each tet's lattice, shared between the tets
+    /// that share the edge or face, appended after the grid's vertices, in `cells`.
+    pub fn order(mut self, p: u8) -> Self {
+        self.order = p;
+        self
     }
 
     /// Cube edge length per axis: the grid spans `[0, n · spacing[a]]` along axis `a`.
@@ -129,8 +139,9 @@ impl<'a> KuhnGrid<'a> {
                 }
             }
         }
-        let f = points.iter().map(|&p| (self.vertex_field)(p)).collect();
         let cell = tets.iter().enumerate().map(|(t, ids)| (self.cell_field)(t, centroid(ids))).collect();
+        let cells = (self.order > 1).then(|| elevate(&mut points, &tets, self.order));
+        let f = points.iter().map(|&p| (self.vertex_field)(p)).collect();
         RawMesh {
             fields: vec![
                 Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
@@ -138,8 +149,8 @@ impl<'a> KuhnGrid<'a> {
             ],
             points,
             tets,
-            higher_order: None,
-            cells: None,
+            higher_order: (self.order > 1).then_some(self.order),
+            cells,
         }
     }
 
@@ -147,4 +158,42 @@ impl<'a> KuhnGrid<'a> {
     pub fn mesh(&self, name: &str) -> Mesh {
         Mesh::new(self.raw(), name).expect("Kuhn grids are valid meshes")
     }
+}
+
+/// The tets as straight-sided Lagrange tets of order `p`: each node at `Σ α_j v_j / p` for its
+/// barycentric lattice index `α`, one vertex per distinct (corner ids, α) so that neighbours
+/// share their edge and face nodes; new vertices are appended to `points`.
+fn elevate(points: &mut Vec<Vec3>, tets: &[[u32; 4]], p: u8) -> CellBlock {
+    let ty = if p == 2 {
+        CellType::from_vtk(24, 10)
+    } else {
+        CellType::from_vtk(71, usize::from(p + 1) * usize::from(p + 2) * usize::from(p + 3) / 6)
+    }
+    .expect("a Lagrange tet of this order");
+    let lattice = barycentric_lattice(ty.def());
+    let mut shared: std::collections::HashMap<Vec<(u32, u8)>, u32> = std::collections::HashMap::new();
+    let mut block = CellBlock::default();
+    let mut nodes = Vec::with_capacity(lattice.len());
+    for t in tets {
+        nodes.clear();
+        for alpha in &lattice {
+            let mut key: Vec<(u32, u8)> = (0..4).filter(|&j| alpha[j] > 0).map(|j| (t[j], alpha[j])).collect();
+            if key.len() == 1 {
+                nodes.push(key[0].0); // a corner
+                continue;
+            }
+            key.sort_unstable();
+            let id = *shared.entry(key).or_insert_with(|| {
+                let x = std::array::from_fn(|k| {
+                    (0..4).map(|j| f64::from(alpha[j]) * f64::from(points[t[j] as usize][k])).sum::<f64>()
+                        / f64::from(p)
+                });
+                points.push(x.map(|c: f64| c as f32));
+                (points.len() - 1) as u32
+            });
+            nodes.push(id);
+        }
+        block.push(ty, &nodes);
+    }
+    block
 }

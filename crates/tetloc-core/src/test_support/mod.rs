@@ -16,6 +16,7 @@ pub(crate) use kuhn::KuhnGrid;
 pub(crate) use query_sets::{query_sets, QuerySet};
 
 // What kuhn.rs takes from its includer.
+use crate::cell::{barycentric_lattice, CellBlock, CellType};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
 

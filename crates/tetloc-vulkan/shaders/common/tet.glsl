@@ -136,13 +136,19 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
     return tl_point_in_tet_stage(ids, p, false, bary, exit_face) == TL_TEST_INSIDE;
 }
 
-// geom::interpolate for a per-vertex field, or the per-cell value; NaN outside.
+#include "common/high_order.glsl"
+
+// Mesh::interpolate for a per-vertex field (geom::interpolate for linear tets, the tet's own
+// shape functions for higher-order ones), or the per-cell value; NaN outside.
 float tl_value(int tet, uvec4 ids, vec4 bary) {
     if (tet < 0) {
         return uintBitsToFloat(0x7fc00000u);
     }
     if (OUTPUT_MODE == TL_OUT_CELL) {
         return tl_field[tet];
+    }
+    if (HO_NODES > 0u) {
+        return tl_ho_value(tet, ids, bary);
     }
     precise float v = bary.x * tl_field[ids.x] + bary.y * tl_field[ids.y]
         + bary.z * tl_field[ids.z] + bary.w * tl_field[ids.w];

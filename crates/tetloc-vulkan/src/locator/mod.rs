@@ -123,10 +123,19 @@ pub struct VulkanLocator {
     dev: Device,
 }
 
-/// The mesh's vertices and tets on the device (split over buffers when large).
+/// The mesh's vertices and tets on the device (split over buffers when large), and for
+/// higher-order tets their other nodes and the shape functions' lattice (high_order.glsl).
 struct MeshOnDevice {
     points: Split,
     tets: Split,
+    high_order: Option<HighOrder>,
+}
+
+struct HighOrder {
+    nodes: Buffer,
+    lattice: Buffer,
+    /// Nodes per tet after the corners, order, Bezier.
+    spec: (u32, u32, bool),
 }
 
 /// The query points and results of launches of up to `capacity` points, and with deferred
@@ -273,13 +282,13 @@ impl VulkanLocator {
     /// marcher's too): the test's constants, how the arrays are split over buffers, and the
     /// kernel's own.
     fn spec(&self, output: i32) -> Spec {
-        Spec::default()
+        let spec = Spec::default()
             .set(sc::OUTPUT_MODE, output as u32)
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
             .set(sc::POINTS_CHUNK, self.mesh_on_device.points.per_chunk)
-            .set(sc::TETS_CHUNK, self.mesh_on_device.tets.per_chunk)
-            .concat(&self.plan.spec)
+            .set(sc::TETS_CHUNK, self.mesh_on_device.tets.per_chunk);
+        self.mesh_on_device.spec(spec).concat(&self.plan.spec)
     }
 
     /// Push constants for a launch of `n` points starting at global sample index `base`.
@@ -446,13 +455,38 @@ impl MeshOnDevice {
         let points =
             dev.upload_split("mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points), 12)?;
         let tets = dev.upload_split("mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16)?;
-        Ok(MeshOnDevice { points, tets })
+        let high_order = match &mesh.tet_nodes {
+            None => None,
+            Some(n) => {
+                let def = n.cell_type().def();
+                let nodes =
+                    dev.upload("higher-order nodes", MemKind::Mesh, storage, bytemuck::cast_slice(n.table()))?;
+                let lattice: Vec<u32> =
+                    tetloc_core::cell::barycentric_lattice(def).iter().map(|a| u32::from_le_bytes(*a)).collect();
+                let lattice =
+                    dev.upload("higher-order lattice", MemKind::Mesh, storage, bytemuck::cast_slice(&lattice))?;
+                let spec = (n.n_extra() as u32, u32::from(def.order()), !def.interpolates_nodes());
+                Some(HighOrder { nodes, lattice, spec })
+            }
+        };
+        Ok(MeshOnDevice { points, tets, high_order })
     }
 
     fn bindings(&self, unbound: &Buffer) -> Vec<Binding> {
         let mut b = Binding::split(B_POINTS, B_POINTS_HI, Some(&self.points), unbound).to_vec();
         b.extend(Binding::split(B_TETS, B_TETS_HI, Some(&self.tets), unbound));
+        let ho = self.high_order.as_ref();
+        b.push(Binding::buffer(B_HO_NODES, ho.map_or(unbound, |h| &h.nodes)));
+        b.push(Binding::buffer(B_HO_LATTICE, ho.map_or(unbound, |h| &h.lattice)));
         b
+    }
+
+    /// The higher-order specialization constants (linear tets: the defaults).
+    fn spec(&self, spec: Spec) -> Spec {
+        match &self.high_order {
+            None => spec,
+            Some(h) => spec.set(sc::HO_NODES, h.spec.0).set(sc::HO_ORDER, h.spec.1).set(sc::HO_BEZIER, h.spec.2 as u32),
+        }
     }
 }
 

@@ -5,7 +5,8 @@
 //!   Parametric coordinates of 4.1 node blocks are skipped.
 //! - `$Elements`: tetrahedra of any order (types 4, 11, 29, 30, 31, the incomplete and
 //!   order 6–10 variants): the first four nodes are the corners, and `higher_order` is the
-//!   highest order seen. Points, lines and surface elements are ignored. Any other volume
+//!   highest order seen. Complete higher-order tets keep all their nodes, in VTK's order, in
+//!   `RawMesh::cells` (incomplete ones are refused: tetloc has no shape functions for them). Points, lines and surface elements are ignored. Any other volume
 //!   element (hexahedra, prisms, pyramids, ...) is an [`Error::NonTetCells`] that counts them.
 //!   Cell ids are 0-based in file order of the tetrahedra.
 //! - `$NodeData` / `$ElementData`: vertex / cell fields named by their first string tag, with
@@ -89,6 +90,9 @@ struct Cells {
     /// Built on the first `$ElementData`.
     map: Option<TagMap>,
     order: u8,
+    /// The nodes after the corners, Gmsh's order; node counts per tet, run-length encoded.
+    extra: Vec<u32>,
+    runs: Vec<(usize, usize)>,
 }
 
 struct Parser<'a> {
@@ -214,7 +218,15 @@ impl Parser<'_> {
         let Some(nodes) = &self.nodes else {
             return Err(self.c.fail_at(start, "$Elements comes before $Nodes"));
         };
-        let mut acc = ElementSink { nodes, tets: Vec::new(), tags: Vec::new(), order: 1, others: Vec::new() };
+        let mut acc = ElementSink {
+            nodes,
+            tets: Vec::new(),
+            tags: Vec::new(),
+            extra: Vec::new(),
+            runs: Vec::new(),
+            order: 1,
+            others: Vec::new(),
+        };
         match self.version {
             Version::V2 => v2::read_elements(&mut self.c, &mut acc, self.min_parallel)?,
             Version::V41 => v4::read_elements(&mut self.c, &mut acc, start, self.min_parallel)?,
@@ -222,8 +234,8 @@ impl Parser<'_> {
         if !acc.others.is_empty() {
             return Err(Error::NonTetCells { path: self.c.path.to_path_buf(), counts: acc.others });
         }
-        let ElementSink { tets, tags, order, .. } = acc;
-        self.cells = Some(Cells { tets, tags, map: None, order });
+        let ElementSink { tets, tags, order, extra, runs, .. } = acc;
+        self.cells = Some(Cells { tets, tags, map: None, order, extra, runs });
         Ok(())
     }
 
@@ -238,12 +250,16 @@ impl Parser<'_> {
         if cells.tets.is_empty() {
             return Err(Error::format(c.path, "no tetrahedra: the file holds only points, lines or surface elements"));
         }
+        let block = (cells.order > 1)
+            .then(|| tets::vtk_cells(&cells.tets, &cells.extra, &cells.runs))
+            .transpose()
+            .map_err(|m| Error::format(c.path, m))?;
         Ok(RawMesh {
             points: nodes.points,
             tets: cells.tets,
             fields: self.fields.into_iter().flat_map(FieldAcc::into_fields).collect(),
             higher_order: (cells.order > 1).then_some(cells.order),
-            cells: None,
+            cells: block,
         })
     }
 }

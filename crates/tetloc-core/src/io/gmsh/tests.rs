@@ -274,19 +274,48 @@ fn err_of(bytes: &[u8]) -> String {
     msgs[1].clone()
 }
 
+/// A tetra10 keeps all its nodes, reordered from Gmsh's edge order (0,1) (1,2) (2,0) (0,3)
+/// (2,3) (1,3) to VTK's (… (1,3) (2,3)), in every encoding.
 #[test]
-fn higher_order_tets_use_their_corners() {
+fn higher_order_tets_keep_their_nodes() {
     let mut s = spec();
-    s.nodes.extend((0..6).map(|i| (200 + i, [0.5, 0.5, 0.1 * i as f64])));
+    // Midpoints of the first tet's edges (corners 10, 3, 7, 100), in Gmsh's order.
+    let mids = [[0.5, 0.0, 0.0], [0.5, 0.5, 0.0], [0.0, 0.5, 0.0], [0.0, 0.0, 0.5], [0.0, 0.5, 0.5], [0.5, 0.0, 0.5]];
+    s.nodes.extend(mids.iter().enumerate().map(|(i, &x)| (200 + i as u64, x)));
     s.elems[1] = (9, 11, vec![10, 3, 7, 100, 200, 201, 202, 203, 204, 205]);
+    s.elems.pop(); // the linear tet: one order per mesh
     s.node_data.clear();
     s.elem_data.clear();
     for (e, min_parallel) in ENCODINGS.iter().flat_map(|&e| [(e, 1), (e, usize::MAX)]) {
         let m = parse_with(&write(&s, e), &p(), min_parallel).unwrap();
-        assert_eq!(m.tets, vec![[0, 1, 2, 3], [1, 2, 3, 4]], "{e:?}");
+        assert_eq!(m.tets, vec![[0, 1, 2, 3]], "{e:?}");
         assert_eq!(m.higher_order, Some(2), "{e:?}");
         assert_eq!(m.points.len(), 11);
+        let cells = m.cells.as_ref().unwrap();
+        assert_eq!(cells.nodes(0), &[0, 1, 2, 3, 5, 6, 7, 8, 10, 9], "{e:?}");
+        assert_eq!(cells.types[0].def().name(), "quadratic tetra");
     }
+    // With the linear tet too: tets of two orders are refused by the mesh, naming both.
+    let mut s2 = spec();
+    s2.nodes.extend(mids.iter().enumerate().map(|(i, &x)| (200 + i as u64, x)));
+    s2.elems[1] = (9, 11, vec![10, 3, 7, 100, 200, 201, 202, 203, 204, 205]);
+    s2.elem_data.clear();
+    let raw = parse_with(&write(&s2, ENCODINGS[0]), &p(), 1).unwrap();
+    let err = Mesh::new(raw, "test.msh").unwrap_err().to_string();
+    assert!(err.contains("test.msh") && err.contains("quadratic tetra") && err.contains("one kind of tet"), "{err}");
+}
+
+/// Incomplete (serendipity) tets have no shape functions in tetloc: a clear error.
+#[test]
+fn incomplete_tets_are_refused() {
+    let mut s = spec();
+    s.nodes.extend((0..12).map(|i| (300 + i, [0.1 * i as f64, 0.2, 0.3])));
+    s.elems[1] = (9, 137, [10, 3, 7, 100].into_iter().chain(300..312).collect());
+    s.elems.pop();
+    s.node_data.clear();
+    s.elem_data.clear();
+    let err = err_of(&write(&s, ENCODINGS[0]));
+    assert!(err.contains("16 nodes") && err.contains("incomplete"), "{err}");
 }
 
 #[test]

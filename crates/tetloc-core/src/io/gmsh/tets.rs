@@ -1,10 +1,12 @@
 //! The tetrahedra of `$Elements`, collected for both format versions: corners mapped to
-//! dense vertex indices, element tags kept for `$ElementData`, the highest order seen, and
-//! the other volume elements counted by type (they make the file an error that lists them).
+//! dense vertex indices, the nodes of higher-order tets beyond their corners likewise (in
+//! Gmsh's order), element tags kept for `$ElementData`, the highest order seen, and the other
+//! volume elements counted by type (they make the file an error that lists them).
 
 use super::elements::Kind;
 use super::tags::TagMap;
 use super::Nodes;
+use crate::cell::{CellBlock, CellType};
 use crate::error::Result;
 use crate::io::cursor::{Cursor, Words};
 use rayon::prelude::*;
@@ -14,13 +16,15 @@ use rayon::prelude::*;
 pub(super) struct Chunk {
     tets: Vec<[u32; 4]>,
     tags: Vec<u64>,
+    extra: Vec<u32>,
+    runs: Vec<(usize, usize)>,
     order: u8,
     /// (family, nodes, count)
     others: Vec<(&'static str, usize, usize)>,
 }
 
 impl Chunk {
-    /// Reads an element's `nn` node tags; keeps its corners if it is a tetrahedron.
+    /// Reads an element's `nn` node tags; keeps its nodes if it is a tetrahedron.
     pub fn element(&mut self, t: &mut Words, map: &TagMap, tag: u64, kind: Kind, nn: usize) -> Option<()> {
         match kind {
             Kind::Tet(order) => {
@@ -28,9 +32,14 @@ impl Chunk {
                 for v in &mut c {
                     *v = map.get(t.u64()?)?;
                 }
+                for _ in 4..nn {
+                    self.extra.push(map.get(t.u64()?)?);
+                }
                 self.tets.push(c);
                 self.tags.push(tag);
+                add_run(&mut self.runs, nn, 1);
                 self.order = self.order.max(order);
+                return Some(());
             }
             Kind::Volume(name) => match self.others.iter_mut().find(|o| o.0 == name && o.1 == nn) {
                 Some(o) => o.2 += 1,
@@ -38,11 +47,18 @@ impl Chunk {
             },
             Kind::Lower => {}
         }
-        let skip = if let Kind::Tet(_) = kind { nn - 4 } else { nn };
-        for _ in 0..skip {
+        for _ in 0..nn {
             t.u64()?;
         }
         Some(())
+    }
+}
+
+/// Appends `count` tets of `nn` nodes to run-length encoded node counts.
+fn add_run(runs: &mut Vec<(usize, usize)>, nn: usize, count: usize) {
+    match runs.last_mut() {
+        Some((n, c)) if *n == nn => *c += count,
+        _ => runs.push((nn, count)),
     }
 }
 
@@ -51,6 +67,10 @@ pub(super) struct ElementSink<'n> {
     pub nodes: &'n Nodes,
     pub tets: Vec<[u32; 4]>,
     pub tags: Vec<u64>,
+    /// The nodes of the tets after their 4 corners, in Gmsh's order (none for linear tets).
+    pub extra: Vec<u32>,
+    /// The tets' node counts, run-length encoded: (nodes per tet, tets).
+    pub runs: Vec<(usize, usize)>,
     pub order: u8,
     /// Volume elements that are not tetrahedra, by type name.
     pub others: Vec<(String, usize)>,
@@ -63,24 +83,42 @@ impl ElementSink<'_> {
         self.nodes.map.get(tag).ok_or_else(|| format!("element {elem} refers to node {tag}, which is not in $Nodes"))
     }
 
-    /// Adds a block of binary tetrahedron records, decoded in parallel: they are the bulk of a
-    /// large binary file. `tag(r)` and `node(r, k)` read a record's element tag and k-th node.
+    /// Adds a tet read from an ASCII line: its corners, its other nodes, its tag.
+    pub fn push_tet(&mut self, corners: [u32; 4], extra: &[u32], tag: u64) {
+        self.tets.push(corners);
+        self.extra.extend_from_slice(extra);
+        self.tags.push(tag);
+        add_run(&mut self.runs, 4 + extra.len(), 1);
+    }
+
+    /// Adds a block of binary records of tets with `nn` nodes, decoded in parallel: they are
+    /// the bulk of a large binary file. `tag(r)` and `node(r, k)` read a record's element tag
+    /// and k-th node.
     pub fn add_binary_tets(
         &mut self,
         data: &[u8],
         record: usize,
+        nn: usize,
         tag: impl Fn(&[u8]) -> u64 + Sync + Send,
         node: impl Fn(&[u8], usize) -> u64 + Sync + Send,
     ) -> Result<(), String> {
         const MISSING: u32 = u32::MAX; // never an index: there are fewer than u32::MAX nodes
         let map = &self.nodes.map;
-        let start = self.tets.len();
+        let (start, extra_start) = (self.tets.len(), self.extra.len());
         let records = || data.par_chunks_exact(record);
         self.tets.par_extend(records().map(|r| std::array::from_fn(|k| map.get(node(r, k)).unwrap_or(MISSING))));
+        let node = &node;
+        self.extra
+            .par_extend(records().flat_map_iter(|r| (4..nn).map(move |k| map.get(node(r, k)).unwrap_or(MISSING))));
         self.tags.par_extend(records().map(&tag));
-        if let Some(i) = self.tets[start..].par_iter().position_first(|t| t.contains(&MISSING)) {
+        add_run(&mut self.runs, nn, data.len() / record);
+        let bad = self.tets[start..].par_iter().position_first(|t| t.contains(&MISSING)).or_else(|| {
+            let i = self.extra[extra_start..].par_iter().position_first(|&v| v == MISSING)?;
+            Some(i / (nn - 4))
+        });
+        if let Some(i) = bad {
             let r = &data[i * record..];
-            let k = (0..4).find(|&k| map.get(node(r, k)).is_none()).unwrap_or(0);
+            let k = (0..nn).find(|&k| map.get(node(r, k)).is_none()).unwrap_or(0);
             return Err(self.node(tag(r), node(r, k)).err().unwrap_or_default());
         }
         Ok(())
@@ -94,6 +132,8 @@ impl ElementSink<'_> {
         for c in chunks {
             self.tets.extend_from_slice(&c.tets);
             self.tags.extend_from_slice(&c.tags);
+            self.extra.extend_from_slice(&c.extra);
+            c.runs.iter().for_each(|&(nn, k)| add_run(&mut self.runs, nn, k));
             self.order = self.order.max(c.order);
             if count_others {
                 c.others.iter().for_each(|&(name, nn, n)| self.other(name, nn, n));
@@ -118,7 +158,8 @@ impl ElementSink<'_> {
     }
 }
 
-/// Reads the `nn` node tags of an ASCII element; the corners if it is a tetrahedron.
+/// Reads the `nn` node tags of an ASCII element; if it is a tetrahedron, its corners, and
+/// its other nodes into `extra` (cleared first).
 pub(super) fn read_ascii_nodes(
     c: &mut Cursor,
     acc: &ElementSink,
@@ -126,14 +167,54 @@ pub(super) fn read_ascii_nodes(
     nn: usize,
     tag: u64,
     pos: usize,
+    extra: &mut Vec<u32>,
 ) -> Result<[u32; 4]> {
     let mut t = [0u32; 4];
-    let corners = if let Kind::Tet(_) = kind { 4 } else { 0 };
-    for v in &mut t[..corners] {
-        *v = acc.node(tag, c.ascii_u64("a node tag")?).map_err(|m| c.fail_at(pos, m))?;
+    extra.clear();
+    if let Kind::Tet(_) = kind {
+        for k in 0..nn {
+            let v = acc.node(tag, c.ascii_u64("a node tag")?).map_err(|m| c.fail_at(pos, m))?;
+            match t.get_mut(k) {
+                Some(corner) => *corner = v,
+                None => extra.push(v),
+            }
+        }
+        return Ok(t);
     }
-    for _ in corners..nn {
+    for _ in 0..nn {
         c.ascii_u64("a node tag")?;
     }
     Ok(t)
+}
+
+/// The tets with all their nodes in VTK's order, from their corners, their other nodes in
+/// Gmsh's order, and their node counts (run-length encoded). Errors are messages.
+pub(super) fn vtk_cells(tets: &[[u32; 4]], extra: &[u32], runs: &[(usize, usize)]) -> Result<CellBlock, String> {
+    let mut block = CellBlock::default();
+    let (mut t, mut e) = (0, 0);
+    let mut gmsh = Vec::new();
+    for &(nn, count) in runs {
+        // The complete tet of this node count (its Gmsh type follows from it).
+        let (ty, g) = CellType::all()
+            .filter(|t| t.shape().is_tet())
+            .find_map(|t| t.def().gmsh_types().iter().find(|g| g.n_nodes == nn).map(|g| (t, g)))
+            .ok_or_else(|| {
+                format!(
+                    "tetrahedra with {nn} nodes are incomplete (serendipity) elements, whose values \
+                     tetloc cannot interpolate; use complete ones (Mesh.SecondOrderIncomplete = 0)"
+                )
+            })?;
+        let mut vtk = vec![0u32; nn];
+        for _ in 0..count {
+            gmsh.clear();
+            gmsh.extend_from_slice(&tets[t]);
+            gmsh.extend_from_slice(&extra[e..e + nn - 4]);
+            for (v, &i) in vtk.iter_mut().zip(g.vtk_from_gmsh.iter()) {
+                *v = gmsh[usize::from(i)];
+            }
+            block.push(ty, &vtk);
+            (t, e) = (t + 1, e + nn - 4);
+        }
+    }
+    Ok(block)
 }

@@ -72,7 +72,7 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
                     // A negative tag becomes a huge one, which no node or data section matches.
                     let first = 4 * (1 + ntags as usize);
                     let int = move |b: &[u8]| get_i32(b, big) as i64 as u64;
-                    acc.add_binary_tets(data, record, int, |r, k| int(&r[first + 4 * k..]))
+                    acc.add_binary_tets(data, record, nn, int, |r, k| int(&r[first + 4 * k..]))
                         .map_err(|m| c.fail_at(pos, m))?;
                 }
             }
@@ -91,6 +91,7 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
             acc.merge(chunks, true);
             return Ok(());
         }
+        let mut extra = Vec::new();
         for _ in 0..n {
             let pos = c.here();
             let tag = c.ascii_u64("an element tag")?;
@@ -101,14 +102,11 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
                 c.token("an element tag")?;
             }
             acc.reserve(kind, 1);
-            let t = read_ascii_nodes(c, acc, kind, nn, tag, pos)?;
+            let t = read_ascii_nodes(c, acc, kind, nn, tag, pos, &mut extra)?;
             match kind {
                 Kind::Lower => {}
                 Kind::Volume(name) => acc.other(name, nn, 1),
-                Kind::Tet(_) => {
-                    acc.tets.push(t);
-                    acc.tags.push(tag);
-                }
+                Kind::Tet(_) => acc.push_tet(t, &extra, tag),
             }
         }
     }

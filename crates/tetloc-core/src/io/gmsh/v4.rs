@@ -119,7 +119,7 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
             let data = c.take_records(count, record, "elements")?;
             acc.reserve(kind, count as usize);
             if let Kind::Tet(_) = kind {
-                acc.add_binary_tets(data, record, |r| get_u64(r, big), |r, k| get_u64(&r[8 + 8 * k..], big))
+                acc.add_binary_tets(data, record, nn, |r| get_u64(r, big), |r, k| get_u64(&r[8 + 8 * k..], big))
                     .map_err(|m| c.fail_at(pos, m))?;
             }
         } else {
@@ -133,13 +133,13 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
                 continue;
             }
             acc.reserve(kind, count);
+            let mut extra = Vec::new();
             for _ in 0..count {
                 let epos = c.here();
                 let tag = c.ascii_u64("an element tag")?;
-                let t = read_ascii_nodes(c, acc, kind, nn, tag, epos)?;
+                let t = read_ascii_nodes(c, acc, kind, nn, tag, epos, &mut extra)?;
                 if let Kind::Tet(_) = kind {
-                    acc.tets.push(t);
-                    acc.tags.push(tag);
+                    acc.push_tet(t, &extra, tag);
                 }
             }
         }

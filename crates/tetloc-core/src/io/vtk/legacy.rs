@@ -230,7 +230,7 @@ impl Grid<'_> {
                 f.values = cells::filter_cells(std::mem::take(&mut f.values), ex.kept.as_deref());
             }
         }
-        Ok(RawMesh { points, tets: ex.tets, fields, higher_order: ex.higher_order, cells: None })
+        Ok(RawMesh { points, tets: ex.tets, fields, higher_order: ex.higher_order, cells: ex.cells })
     }
 }
 

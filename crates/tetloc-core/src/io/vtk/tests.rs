@@ -272,6 +272,56 @@ fn written_grid_reads_back() {
     }
 }
 
+/// Higher-order tets keep all their nodes through the VTU writer and reader (raw, zlib and
+/// every other encoding) and through a legacy file: the same node rows come back.
+#[test]
+fn higher_order_tets_round_trip() {
+    use crate::io::vtk::write as vtu_write;
+    use crate::test_support::KuhnGrid;
+    for order in [2u8, 3] {
+        let mesh = KuhnGrid::new(3).jitter(0.1, 2).order(order).mesh("elevated");
+        let nodes = mesh.tet_nodes.as_ref().unwrap();
+        let same = |back: &crate::Mesh, what: &str| {
+            assert_eq!(back.tets, mesh.tets, "{what}");
+            assert_eq!(back.points, mesh.points, "{what}");
+            let b = back.tet_nodes.as_ref().unwrap_or_else(|| panic!("{what}: the nodes were dropped"));
+            assert_eq!(b.cell_type(), nodes.cell_type(), "{what}");
+            assert_eq!(b.table(), nodes.table(), "{what}");
+        };
+        for zlib in [false, true] {
+            let path = std::env::temp_dir().join(format!("tetloc-{}-ho{order}-{zlib}.vtu", std::process::id()));
+            vtu_write::write_mesh_vtu(&path, &mesh, zlib).unwrap();
+            let bytes = std::fs::read(&path).unwrap();
+            std::fs::remove_file(&path).unwrap();
+            same(
+                &crate::Mesh::new(vtu::parse(&bytes, &path).unwrap(), "back").unwrap(),
+                &format!("order {order} zlib {zlib}"),
+            );
+            if !zlib {
+                for enc in [Enc::AppendedBase64, Enc::BigEndian, Enc::Header32, Enc::Ascii, Enc::Inline] {
+                    let raw = vtu::parse(&reencode(&bytes, enc), &path).unwrap();
+                    same(&crate::Mesh::new(raw, "back").unwrap(), &format!("order {order} {enc:?}"));
+                }
+            }
+        }
+        // Legacy ASCII, the cells as VTK lists them: count, then the node ids.
+        let n = 4 + nodes.n_extra();
+        let mut text = format!(
+            "# vtk DataFile Version 3.0\nho\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS {} float\n",
+            mesh.points.len()
+        );
+        mesh.points.iter().for_each(|p| text += &format!("{:?} {:?} {:?}\n", p[0], p[1], p[2]));
+        text += &format!("CELLS {} {}\n", mesh.n_tets(), (n + 1) * mesh.n_tets());
+        for (t, &c) in mesh.tets.iter().enumerate() {
+            text += &format!("{n} {}\n", nodes.nodes(t, c).map(|i| i.to_string()).collect::<Vec<_>>().join(" "));
+        }
+        text += &format!("CELL_TYPES {}\n", mesh.n_tets());
+        text += &format!("{}\n", nodes.cell_type().def().vtk_type()).repeat(mesh.n_tets());
+        let raw = vtk_legacy::parse(text.as_bytes(), Path::new("ho.vtk")).unwrap();
+        same(&crate::Mesh::new(raw, "legacy").unwrap(), &format!("order {order} legacy"));
+    }
+}
+
 /// Load speed of a ~10M-tet appended raw file (run with `--ignored --nocapture`; set
 /// TETLOC_BENCH_KEEP=1 to keep the files in the temp folder).
 #[test]

@@ -466,7 +466,9 @@ mod tests {
         let m = parse_str(&second).unwrap();
         assert_eq!(m.tets, vec![[0, 1, 2, 3], [0, 1, 2, 3]]);
         assert_eq!(m.cells.as_ref().unwrap().nodes(0).len(), 10);
-        assert!(crate::Mesh::new(m, "test.vtu").is_ok());
+        // A quadratic and a linear tet: one kind of tet per mesh, or the values would be wrong.
+        let e = crate::Mesh::new(m, "test.vtu").unwrap_err().to_string();
+        assert!(e.starts_with("test.vtu: ") && e.contains("quadratic tetra") && e.contains("one kind of tet"), "{e}");
 
         // A polyhedron (or any type tetloc does not read) is refused by the reader, counted.
         let poly = ASCII_MIXED.replace("12 13 14 5<", "12 42 14 5<");

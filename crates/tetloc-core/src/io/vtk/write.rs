@@ -23,8 +23,9 @@ use std::path::Path;
 const ZLIB_BLOCK: usize = 1 << 18;
 
 /// Writes a mesh: Float32 points, Int32 connectivity and offsets (Int64 when the mesh is too
-/// large for Int32), VTK_TETRA types, and every field as a Float32 PointData or CellData
-/// array (the runs `NAME[0]` … `NAME[k-1]` as one k-component array `NAME`). Tets are written
+/// large for Int32), VTK_TETRA types (or the higher-order tets' own type, with all their
+/// nodes), and every field as a Float32 PointData or CellData array (the runs `NAME[0]` …
+/// `NAME[k-1]` as one k-component array `NAME`). Tets are written
 /// positively oriented in VTK's convention.
 pub fn write_mesh_vtu(path: &Path, mesh: &Mesh, zlib: bool) -> Result<()> {
     write_mesh(path, mesh, &[], zlib, false)
@@ -132,9 +133,14 @@ fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<Ou
 /// [`write_mesh_with`] with `wide_ids` forcing Int64 connectivity and offsets (as VTK writes).
 pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: bool, wide_ids: bool) -> Result<()> {
     let n_tets = mesh.tets.len();
-    let wide = wide_ids || (4 * n_tets).max(mesh.points.len()) as u64 > i32::MAX as u64;
+    // Nodes per tet, and the VTK type: all of one type.
+    let (per_tet, vtk_type) = match &mesh.tet_nodes {
+        Some(n) => (4 + n.n_extra(), n.cell_type().def().vtk_type()),
+        None => (4, cells::TETRA),
+    };
+    let wide = wide_ids || (per_tet * n_tets).max(mesh.points.len()) as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
-    let tets = &mesh.tets;
+    let (tets, nodes) = (&mesh.tets, &mesh.tet_nodes);
 
     for a in extra {
         a.check(mesh.points.len(), "vertices")?;
@@ -149,22 +155,32 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
         point_data,
         cell_data,
         points: OutArray::floats("Points", 3, bytemuck::cast_slice(&mesh.points)),
-        // Canonical tets are right-handed, as VTK expects: written as they are.
+        // Canonical tets are right-handed, as VTK expects: written as they are (higher-order
+        // nodes are stored in VTK's order over the canonical corners).
         // (Chunks hold whole tets: they start at multiples of CHUNK, a multiple of 4.)
-        connectivity: OutArray::new("connectivity", id_type, 1, 4 * n_tets, move |r, out| {
-            let tets = &tets[r.start / 4..r.end / 4];
-            if wide {
-                tets.iter().for_each(|t| out.extend_from_slice(bytemuck::bytes_of(&t.map(i64::from))));
-            } else {
-                // Ids below 2^31 (checked above): their u32 bytes are their i32 bytes.
-                out.extend_from_slice(bytemuck::cast_slice(tets));
+        connectivity: OutArray::new("connectivity", id_type, 1, per_tet * n_tets, move |r, out| match nodes {
+            Some(nodes) => {
+                for i in r {
+                    let (t, k) = (i / per_tet, i % per_tet);
+                    let id = if k < 4 { tets[t][k] } else { nodes.extra(t)[k - 4] };
+                    push_id(out, u64::from(id), wide);
+                }
+            }
+            None => {
+                let tets = &tets[r.start / 4..r.end / 4];
+                if wide {
+                    tets.iter().for_each(|t| out.extend_from_slice(bytemuck::bytes_of(&t.map(i64::from))));
+                } else {
+                    // Ids below 2^31 (checked above): their u32 bytes are their i32 bytes.
+                    out.extend_from_slice(bytemuck::cast_slice(tets));
+                }
             }
         }),
         offsets: OutArray::new("offsets", id_type, 1, n_tets, move |r, out| {
-            r.for_each(|i| push_id(out, 4 * (i as u64 + 1), wide))
+            r.for_each(|i| push_id(out, (per_tet * (i + 1)) as u64, wide))
         }),
-        types: Some(OutArray::new("types", NumType::U8, 1, n_tets, |r, out| {
-            out.resize(out.len() + r.len(), cells::TETRA)
+        types: Some(OutArray::new("types", NumType::U8, 1, n_tets, move |r, out| {
+            out.resize(out.len() + r.len(), vtk_type)
         })),
     };
     grid.write(path, zlib)
