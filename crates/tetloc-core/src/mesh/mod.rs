@@ -152,38 +152,34 @@ impl Mesh {
             volume: f64,
         }
         let zero = Acc { reoriented: 0, degenerate: 0, max_edge2: 0.0, sum_edge: 0.0, volume: 0.0 };
-        let acc = tets
-            .par_iter_mut()
-            .fold(
-                || zero,
-                |mut a, t| {
-                    let (canon, vol6) = geom::canonical_tet(*t, &points);
-                    *t = canon;
-                    if vol6 < 0.0 {
-                        a.reoriented += 1;
-                    } else if vol6 == 0.0 {
-                        a.degenerate += 1;
-                    }
-                    a.volume += vol6.abs() / 6.0;
-                    for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
-                        let (p, q) = (points[t[i] as usize], points[t[j] as usize]);
-                        let e2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
-                        a.max_edge2 = a.max_edge2.max(e2);
-                        a.sum_edge += (e2 as f64).sqrt();
-                    }
-                    a
-                },
-            )
-            .reduce(
-                || zero,
-                |a, b| Acc {
-                    reoriented: a.reoriented + b.reoriented,
-                    degenerate: a.degenerate + b.degenerate,
-                    max_edge2: a.max_edge2.max(b.max_edge2),
-                    sum_edge: a.sum_edge + b.sum_edge,
-                    volume: a.volume + b.volume,
-                },
-            );
+        // Fixed chunks, summed in order: the f64 sums (volume, edge lengths) do not depend on
+        // how rayon splits the work, so the same file gives the same info on every run.
+        let per_tet = |mut a: Acc, t: &mut [u32; 4]| {
+            let (canon, vol6) = geom::canonical_tet(*t, &points);
+            *t = canon;
+            if vol6 < 0.0 {
+                a.reoriented += 1;
+            } else if vol6 == 0.0 {
+                a.degenerate += 1;
+            }
+            a.volume += vol6.abs() / 6.0;
+            for (i, j) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
+                let (p, q) = (points[t[i] as usize], points[t[j] as usize]);
+                let e2 = (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) + (p[2] - q[2]).powi(2);
+                a.max_edge2 = a.max_edge2.max(e2);
+                a.sum_edge += (e2 as f64).sqrt();
+            }
+            a
+        };
+        let combine = |a: Acc, b: Acc| Acc {
+            reoriented: a.reoriented + b.reoriented,
+            degenerate: a.degenerate + b.degenerate,
+            max_edge2: a.max_edge2.max(b.max_edge2),
+            sum_edge: a.sum_edge + b.sum_edge,
+            volume: a.volume + b.volume,
+        };
+        let chunks: Vec<Acc> = tets.par_chunks_mut(1 << 14).map(|c| c.iter_mut().fold(zero, per_tet)).collect();
+        let acc = chunks.into_iter().fold(zero, combine);
         // Bounds over the vertices that tets use (unused vertices do not widen the box).
         let (bounds_min, bounds_max) = tets.par_iter().map(|&t| geom::tet_bounds(t, &points)).reduce(
             || ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]),
