@@ -54,4 +54,6 @@ rm -f target/wheels/tetloc-*.whl
 "$venv/bin/maturin" build --quiet --release --manifest-path python/Cargo.toml --interpreter "$TETLOC_PYTHON" \
   --out target/wheels
 "$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/tetloc-*.whl
-TETLOC_CLI="$PWD/target/debug/tetloc" "$venv/bin/python" -m pytest -q python/tests
+# The binary `cargo test` built, wherever cargo puts its builds (CARGO_TARGET_DIR).
+cargo_target=$(cargo metadata --format-version 1 --no-deps | "$venv/bin/python" -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
+TETLOC_CLI="$cargo_target/debug/tetloc" "$venv/bin/python" -m pytest -q python/tests

@@ -54,6 +54,12 @@ pub fn vulkan(device: Option<usize>) -> Result<Arc<Context>, String> {
     CTX.get_or_init(|| Context::new(device).map_err(|e| e.to_string())).clone()
 }
 
+/// Whether the Vulkan device is Vulkan's CPU device type (lavapipe, llvmpipe, SwiftShader):
+/// its kernels compete with the cpu backend for the same cores.
+pub fn runs_on_cpu(ctx: &Context) -> bool {
+    ctx.info().device_type == "cpu"
+}
+
 /// Backends that can run here: the Vulkan kernels this device supports, then `cpu`.
 pub fn available(opts: &BackendOptions) -> Vec<&'static str> {
     let mut out = Vec::new();
@@ -111,7 +117,7 @@ fn decide(opts: &BackendOptions) -> Result<(String, String)> {
         Err(e) => return Ok((CPU.into(), format!("no Vulkan device: {e}"))),
     };
     let info = ctx.info();
-    if info.device_type == "cpu" {
+    if runs_on_cpu(&ctx) {
         return Ok((CPU.into(), format!("the Vulkan device, {}, runs on the CPU", info.name)));
     }
     let key = format!("{} {}", info.name, info.driver);

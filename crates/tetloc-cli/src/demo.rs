@@ -20,7 +20,7 @@ pub fn run(n_tets: usize, n_points: usize, seed: u64, all_backends: bool, opts: 
     // On a Vulkan device that runs on the CPU (lavapipe) the ray-tracing kernels are emulated
     // twice over and take minutes on a million points: soft-bvh alone cross-checks the cpu.
     if let (Ok(ctx), false) = (backend::vulkan(opts.device), all_backends) {
-        if ctx.info().device_type == "cpu" {
+        if backend::runs_on_cpu(&ctx) {
             names.retain(|n| *n == backend::CPU || *n == Kernel::SoftBvh.name());
             println!(
                 "Vulkan device {} runs on the CPU: the rt kernels are skipped (--all-backends runs them)",

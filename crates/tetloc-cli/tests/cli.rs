@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 use std::process::Command;
-use tetloc_testdata::{query_sets, require_data};
+use tetloc_testdata::{query_sets, read_f64s, require_data, run_vtk_script};
 
 fn tetloc(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
@@ -532,32 +532,6 @@ fn small_defects() {
     assert!(!ok && err.contains("one backend"), "{err}");
 }
 
-/// Runs `scripts/vtk_probe.py` with `TETLOC_PYTHON` (default `python3`). `None` (after a
-/// SKIPPED line) when Python or its `vtk` module is missing outside CI; a failure in CI.
-fn vtk_probe(test: &str, args: &[&str]) -> Option<()> {
-    let python = std::env::var("TETLOC_PYTHON").unwrap_or_else(|_| "python3".into());
-    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/vtk_probe.py");
-    let missing = |why: String| {
-        assert!(!tetloc_testdata::in_ci(), "{test}: {why}; CI needs Python with vtk (set TETLOC_PYTHON)");
-        eprintln!("SKIPPED {test}: {why} (set TETLOC_PYTHON to a Python with vtk and numpy)");
-        None
-    };
-    let out = match Command::new(&python).arg(&script).args(args).output() {
-        Ok(o) => o,
-        Err(e) => return missing(format!("cannot run {python}: {e}")),
-    };
-    let err = String::from_utf8_lossy(&out.stderr);
-    if out.status.code() == Some(3) {
-        return missing(format!("{python} has no vtk module: {err}"));
-    }
-    assert!(out.status.success(), "{test}: vtk_probe.py failed: {err}");
-    Some(())
-}
-
-fn read_f64(path: &std::path::Path) -> Vec<f64> {
-    bytemuck::pod_collect_to_vec(&std::fs::read(path).unwrap())
-}
-
 /// The boundary tolerance against VTK's probe filter with the same tolerance, on the oracle
 /// meshes: at the centroids of the boundary faces (on the boundary up to rounding, where the
 /// exact answer is "outside" for about half of them) every point gets the boundary tet and
@@ -612,20 +586,22 @@ fn boundary_tolerance_matches_vtk_probe() {
         locate(&vtp, "f", "1%");
         locate(&csv, "cellval", "1%");
         locate(&exact, "f", "0");
-        let Some(()) =
-            vtk_probe(TEST, &[s(&mesh_path), s(&points), &format!("{d:e}"), s(&vtp), s(&dir), "f", "cellval"])
-        else {
+        let Some(()) = run_vtk_script(
+            TEST,
+            "vtk_probe.py",
+            &[s(&mesh_path), s(&points), &format!("{d:e}"), s(&vtp), s(&dir), "f", "cellval"],
+        ) else {
             return;
         };
         let vtk_mask = std::fs::read(dir.join("vtk.vtkValidPointMask.bin")).unwrap();
-        let (vtk_f, vtk_cell) = (read_f64(&dir.join("vtk.f.bin")), read_f64(&dir.join("vtk.cellval.bin")));
+        let (vtk_f, vtk_cell) = (read_f64s(&dir.join("vtk.f.bin")), read_f64s(&dir.join("vtk.cellval.bin")));
         // Our .vtp as VTK read it.
-        let back: Vec<f64> = read_f64(&dir.join("tetloc.points.bin"));
+        let back: Vec<f64> = read_f64s(&dir.join("tetloc.points.bin"));
         assert!(back.chunks(3).zip(&pts).all(|(b, p)| (0..3).all(|a| b[a] == p[a] as f64)), "{name}: points");
         let (our_mask, our_f, our_id) = (
-            read_f64(&dir.join("tetloc.vtkValidPointMask.bin")),
-            read_f64(&dir.join("tetloc.f.bin")),
-            read_f64(&dir.join("tetloc.tet_id.bin")),
+            read_f64s(&dir.join("tetloc.vtkValidPointMask.bin")),
+            read_f64s(&dir.join("tetloc.f.bin")),
+            read_f64s(&dir.join("tetloc.tet_id.bin")),
         );
         let table = std::fs::read_to_string(&csv).unwrap();
         let our_cell: Vec<f64> = table.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use tetloc_testdata::require_data;
+use tetloc_testdata::{read_f64s, require_data, run_vtk_script};
 
 fn tetloc(args: &[&str]) -> (bool, String, String) {
     let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
@@ -19,31 +19,6 @@ fn tmp_dir(name: &str) -> PathBuf {
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-/// Runs `scripts/vtk_ops.py` with `TETLOC_PYTHON` (default `python3`); `None` (after a
-/// SKIPPED line) when Python or its `vtk` module is missing outside CI, a failure in CI.
-fn vtk_ops(test: &str, args: &[&str]) -> Option<()> {
-    let python = std::env::var("TETLOC_PYTHON").unwrap_or_else(|_| "python3".into());
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts/vtk_ops.py");
-    let missing = |why: String| {
-        assert!(!tetloc_testdata::in_ci(), "{test}: {why}; CI needs Python with vtk (set TETLOC_PYTHON)");
-        eprintln!("SKIPPED {test}: {why} (set TETLOC_PYTHON to a Python with vtk and numpy)");
-        None
-    };
-    let out = match Command::new(&python).arg(&script).args(args).output() {
-        Ok(o) => o,
-        Err(e) => return missing(format!("cannot run {python}: {e}")),
-    };
-    if out.status.code() == Some(3) {
-        return missing(format!("{python} has no vtk module"));
-    }
-    assert!(out.status.success(), "{test}: vtk_ops.py failed: {}", String::from_utf8_lossy(&out.stderr));
-    Some(())
-}
-
-fn f64s(path: &Path) -> Vec<f64> {
-    bytemuck::pod_collect_to_vec(&std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())))
 }
 
 fn close(a: f64, b: f64) -> bool {
@@ -65,7 +40,9 @@ fn resample_matches_vtk() {
         let (ok, _, err) =
             tetloc(&["resample", s(&mesh), "--dims", "23,19,11", "--field", "f", "-o", s(&npy), "--backend", "cpu"]);
         assert!(ok, "{err}");
-        let Some(()) = vtk_ops(TEST, &["resample", s(&mesh), "23,19,11", s(&vti), s(&dir)]) else { return };
+        let Some(()) = run_vtk_script(TEST, "vtk_ops.py", &["resample", s(&mesh), "23,19,11", s(&vti), s(&dir)]) else {
+            return;
+        };
         let geometry = |who: &str| -> serde_json::Value {
             serde_json::from_str(&std::fs::read_to_string(dir.join(format!("{who}.geometry.json"))).unwrap()).unwrap()
         };
@@ -79,8 +56,8 @@ fn resample_matches_vtk() {
                 assert!((a - b).abs() <= 1e-6 * (1.0 + a.abs()), "{name}: {key}: VTK {vg} vs {tg}");
             }
         }
-        let mask = f64s(&dir.join("vtk.vtkValidPointMask.bin"));
-        let ours = f64s(&dir.join("tetloc.vtkValidPointMask.bin"));
+        let mask = read_f64s(&dir.join("vtk.vtkValidPointMask.bin"));
+        let ours = read_f64s(&dir.join("tetloc.vtkValidPointMask.bin"));
         // VTK's cell search accepts points a little outside a tet (see data/README.md: it
         // differs from the exact answer at 0.3-1 % of points): where the masks differ, VTK
         // must be the one saying "inside", for a point within 1 % of an edge of the boundary.
@@ -123,7 +100,8 @@ fn resample_matches_vtk() {
         // a neighbour of the containing tet (a point within its slack of a face) and
         // extrapolates there: few points, and a small difference for the smooth field `f`.
         for field in ["f", "cellval"] {
-            let (v, t) = (f64s(&dir.join(format!("vtk.{field}.bin"))), f64s(&dir.join(format!("tetloc.{field}.bin"))));
+            let (v, t) =
+                (read_f64s(&dir.join(format!("vtk.{field}.bin"))), read_f64s(&dir.join(format!("tetloc.{field}.bin"))));
             let off: Vec<usize> = (0..v.len()).filter(|&i| ours[i] == 1.0 && !close(v[i], t[i])).collect();
             eprintln!("{name}: {field} differs from VTK's at {} of {valid} points", off.len());
             assert!(off.len() * 100 <= valid, "{name}: {field} differs from VTK's at {} of {valid} points", off.len());
@@ -139,7 +117,7 @@ fn resample_matches_vtk() {
         let header = String::from_utf8_lossy(&bytes[10..header_len]);
         assert!(header.contains("'shape': (11, 19, 23)") && header.contains("'<f4'"), "{header}");
         let f: Vec<f32> = bytemuck::pod_collect_to_vec(&bytes[header_len..]);
-        let vti_f = f64s(&dir.join("tetloc.f.bin"));
+        let vti_f = read_f64s(&dir.join("tetloc.f.bin"));
         assert!(f.iter().zip(&vti_f).all(|(&a, &b)| (a.is_nan() && b.is_nan()) || a as f64 == b), "{name}: npy vs vti");
     }
 }
@@ -226,10 +204,14 @@ fn trace_matches_vtk() {
     ]);
     assert!(ok, "{err}");
     assert!(err.contains("2 of 10 lines"), "the seed at the origin is outside: {err}");
-    let Some(()) = vtk_ops(TEST, &["trace", s(&mesh), "v", s(&seeds), "0.01", "400", "both", s(&out), s(&dir)]) else {
+    let Some(()) = run_vtk_script(
+        TEST,
+        "vtk_ops.py",
+        &["trace", s(&mesh), "v", s(&seeds), "0.01", "400", "both", s(&out), s(&dir)],
+    ) else {
         return;
     };
-    let read = |who: &str, what: &str| f64s(&dir.join(format!("{who}.{what}.bin")));
+    let read = |who: &str, what: &str| read_f64s(&dir.join(format!("{who}.{what}.bin")));
     let offsets = |who: &str| -> Vec<i64> {
         bytemuck::pod_collect_to_vec(&std::fs::read(dir.join(format!("{who}.offsets.bin"))).unwrap())
     };
@@ -266,8 +248,9 @@ fn probe_matches_vtk() {
     let out = dir.join("p.vtp");
     let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&pts), "-o", s(&out), "--backend", "cpu"]);
     assert!(ok, "{err}");
-    let Some(()) = vtk_ops(TEST, &["probe", s(&mesh), s(&pts), s(&out), s(&dir)]) else { return };
-    let (vm, tm) = (f64s(&dir.join("vtk.vtkValidPointMask.bin")), f64s(&dir.join("tetloc.vtkValidPointMask.bin")));
+    let Some(()) = run_vtk_script(TEST, "vtk_ops.py", &["probe", s(&mesh), s(&pts), s(&out), s(&dir)]) else { return };
+    let (vm, tm) =
+        (read_f64s(&dir.join("vtk.vtkValidPointMask.bin")), read_f64s(&dir.join("tetloc.vtkValidPointMask.bin")));
     let valid = tm.iter().filter(|&&m| m == 1.0).count();
     assert!(valid > tm.len() / 10 && valid < tm.len(), "{valid} of {} valid", tm.len());
     let differ: Vec<usize> = (0..vm.len()).filter(|&i| vm[i] != tm[i]).collect();
@@ -276,11 +259,11 @@ fn probe_matches_vtk() {
     let flags = std::fs::read(data.join("torus_s.bbox.flags.bin")).unwrap();
     let wrong = (0..tm.len()).filter(|&i| flags[i] & 1 == 0 && (tm[i] == 1.0) != (oracle[i] >= 0)).count();
     assert_eq!(wrong, 0, "the mask differs from the exact answer at {wrong} points");
-    let (vf, tf) = (f64s(&dir.join("vtk.f.bin")), f64s(&dir.join("tetloc.f.bin")));
+    let (vf, tf) = (read_f64s(&dir.join("vtk.f.bin")), read_f64s(&dir.join("tetloc.f.bin")));
     // f: the exact interpolation (the oracle's f64 value) wherever the point is not within
     // rounding of a face; VTK's value where both have one, but where VTK's tolerant search
     // took a neighbouring tet and extrapolates.
-    let exact = f64s(&data.join("torus_s.bbox.value.bin"));
+    let exact = read_f64s(&data.join("torus_s.bbox.value.bin"));
     let inexact = (0..tf.len()).filter(|&i| flags[i] & 1 == 0 && oracle[i] >= 0 && !close(exact[i], tf[i])).count();
     assert_eq!(inexact, 0, "f differs from the exact interpolation at {inexact} points");
     let both = (0..vf.len()).filter(|&i| tm[i] == 1.0 && vm[i] == 1.0).count();

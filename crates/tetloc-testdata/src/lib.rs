@@ -24,6 +24,35 @@ pub use data_dir::{data_dir, in_ci, require_data};
 pub use kuhn::KuhnGrid;
 pub use query_sets::{query_sets, QuerySet};
 
+/// Runs `scripts/SCRIPT` (a VTK reference: `vtk_probe.py`, `vtk_ops.py`) with `args` under
+/// `TETLOC_PYTHON` (default `python3`). `None` (after a SKIPPED line) when that Python or its
+/// `vtk` module is missing (the scripts exit 3), outside CI; in CI that fails the test, as does
+/// any failure of the script.
+pub fn run_vtk_script(test: &str, script: &str, args: &[&str]) -> Option<()> {
+    let python = std::env::var("TETLOC_PYTHON").unwrap_or_else(|_| "python3".into());
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts").join(script);
+    let missing = |why: String| {
+        assert!(!in_ci(), "{test}: {why}; CI needs Python with vtk (set TETLOC_PYTHON)");
+        eprintln!("SKIPPED {test}: {why} (set TETLOC_PYTHON to a Python with vtk and numpy)");
+        None
+    };
+    let out = match std::process::Command::new(&python).arg(&path).args(args).output() {
+        Ok(o) => o,
+        Err(e) => return missing(format!("cannot run {python}: {e}")),
+    };
+    let err = String::from_utf8_lossy(&out.stderr);
+    if out.status.code() == Some(3) {
+        return missing(format!("{python} has no vtk module: {err}"));
+    }
+    assert!(out.status.success(), "{test}: {script} failed: {err}");
+    Some(())
+}
+
+/// A file of little-endian f64 values (what the VTK scripts write).
+pub fn read_f64s(path: &std::path::Path) -> Vec<f64> {
+    bytemuck::pod_collect_to_vec(&std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display())))
+}
+
 /// The value of a per-vertex field at `p` by barycentric interpolation in tet `t`, with the
 /// barycentrics computed in f64 on the stored (f32) vertices: the reference a locator's
 /// value must match. The oracle's own values use the file's f64 vertices; in slivers the

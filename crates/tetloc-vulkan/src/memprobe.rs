@@ -73,12 +73,11 @@ pub struct MemProbeOptions {
 
 impl Default for MemProbeOptions {
     fn default() -> Self {
-        let gib = 1u64 << 30;
         MemProbeOptions {
-            spans: [1, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384, 32768, 49152]
+            // 1 MiB to 48 GiB.
+            spans: [1u64, 2, 4, 8, 16, 32, 64, 128, 256, 512, 1024, 2048, 4096, 8192, 16384, 32768, 49152]
                 .iter()
-                .map(|mib| mib * (1 << 20))
-                .filter(|&b| b <= 48 * gib)
+                .map(|mib| mib << 20)
                 .collect(),
             invocations: 1 << 18,
             reads: 32,
