@@ -37,6 +37,8 @@ const SHADERS: &[Shader] = &[
     shader("SOFT_BVH", "soft_bvh.comp", ShaderStage::Compute, true),
     shader("MARCH", "march.comp", ShaderStage::Compute, true),
     shader("MEMPROBE", "memprobe.comp", ShaderStage::Compute, false),
+    // Query ordering (a counting sort along the Morton curve) before a locate launch.
+    shader("ORDER", "order.comp", ShaderStage::Compute, false),
     // The ray-tracing kernels: ray generation (locate, march) and miss shared, hit groups per kernel.
     shader("RT_RGEN", "rt.rgen", ShaderStage::RayGeneration, false),
     shader("MARCH_RGEN", "march.rgen", ShaderStage::RayGeneration, false),

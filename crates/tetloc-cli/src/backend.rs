@@ -31,6 +31,8 @@ pub struct BackendOptions {
     /// rt kernels: primitives per bottom-level structure (`None`: one structure).
     pub split: Option<usize>,
     pub compact: bool,
+    /// GPU kernels: sort each batch along the Morton curve before locating it.
+    pub order_queries: bool,
     /// Do not say which backend `auto` chose.
     pub quiet: bool,
 }
@@ -38,13 +40,24 @@ pub struct BackendOptions {
 impl Default for BackendOptions {
     fn default() -> Self {
         let d = LocatorOptions::default();
-        BackendOptions { device: None, split: d.split, compact: d.compact, quiet: false }
+        BackendOptions {
+            device: None,
+            split: d.split,
+            compact: d.compact,
+            order_queries: d.order_queries,
+            quiet: false,
+        }
     }
 }
 
 impl BackendOptions {
     fn locator_options(&self) -> LocatorOptions {
-        LocatorOptions { split: self.split, compact: self.compact, ..LocatorOptions::default() }
+        LocatorOptions {
+            split: self.split,
+            compact: self.compact,
+            order_queries: self.order_queries,
+            ..LocatorOptions::default()
+        }
     }
 }
 

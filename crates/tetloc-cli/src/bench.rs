@@ -30,6 +30,8 @@ pub struct BenchRow {
     pub final_bytes: Option<u64>,
     pub peak_bytes: Option<u64>,
     pub timing: String,
+    /// GPU kernels: the batch was sorted along the Morton curve on the GPU first (inside the timing).
+    pub ordered: bool,
     pub repeats: usize,
     pub power_watts: Option<f64>,
 }
@@ -43,6 +45,8 @@ pub struct BenchArgs {
     pub seed: u64,
     pub json: bool,
     pub power: bool,
+    /// GPU kernels: time every query set with and without query ordering.
+    pub compare_order: bool,
     pub opts: BackendOptions,
 }
 
@@ -106,6 +110,7 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                     final_bytes: None,
                     peak_bytes: None,
                     timing: "host clock".into(),
+                    ordered: false,
                     repeats: args.repeats,
                     power_watts: None,
                 };
@@ -117,7 +122,9 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
             bail!("unknown backend '{name}' (known: {}, auto, all)", backend::names().join(", "));
         };
         let mut loc = backend::make_vulkan(kernel, mesh, &args.opts)?;
-        for &q in &args.queries {
+        let orders = if args.compare_order { vec![true, false] } else { vec![args.opts.order_queries] };
+        for (&q, &ordered) in args.queries.iter().flat_map(|q| orders.iter().map(move |o| (q, o))) {
+            loc.set_order_queries(ordered);
             let host = (q == QueryKind::Host).then(|| queries::generate(mesh, q, n, args.seed));
             let opts = BenchOptions {
                 mode: q,
@@ -130,7 +137,8 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
             };
             let r = loc.bench(&opts, host.as_deref())?;
             let row = BenchRow {
-                backend: name.clone(),
+                // Compared: the unordered runs get rows of their own in the tables.
+                backend: if args.compare_order && !ordered { format!("{name} unordered") } else { name.clone() },
                 device: r.device.clone(),
                 driver: r.driver.clone(),
                 mesh: mesh.info.source.clone(),
@@ -145,6 +153,7 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                 final_bytes: Some(r.final_bytes),
                 peak_bytes: Some(r.peak_bytes),
                 timing: r.timing.to_string(),
+                ordered: r.ordered,
                 repeats: opts.repeats,
                 power_watts: r.power_watts,
             };
@@ -180,13 +189,14 @@ pub fn print_tables(rows: &[BenchRow], queries: &[QueryKind]) {
             backends.push(&r.backend);
         }
     }
-    print!("{:<16}", "samples/s");
+    let w = backends.iter().map(|b| b.len()).max().unwrap_or(0).max(16);
+    print!("{:<w$}", "samples/s");
     for q in queries {
         print!(" {:>12}", q.name());
     }
     println!("  device");
     for b in &backends {
-        print!("{b:<16}");
+        print!("{b:<w$}");
         let mut device = String::new();
         for q in queries {
             match rows.iter().find(|r| r.backend == *b && r.queries == q.name()) {
@@ -199,14 +209,14 @@ pub fn print_tables(rows: &[BenchRow], queries: &[QueryKind]) {
         }
         println!("  {device}");
     }
-    println!("\n{:<16} {:>9} {:>11} {:>11} {:>10}", "build/memory", "build s", "final MiB", "peak MiB", "outside");
+    println!("\n{:<w$} {:>9} {:>11} {:>11} {:>10}", "build/memory", "build s", "final MiB", "peak MiB", "outside");
     for b in &backends {
         if let Some(r) = rows.iter().find(|r| r.backend == *b) {
             let mib = |x: Option<u64>| x.map_or("-".to_string(), |v| format!("{:.1}", v as f64 / (1 << 20) as f64));
             let outside: Vec<String> =
                 rows.iter().filter(|x| x.backend == *b).map(|x| format!("{}:{}", x.queries, x.outside)).collect();
             println!(
-                "{b:<16} {:>9.3} {:>11} {:>11} {:>10}",
+                "{b:<w$} {:>9.3} {:>11} {:>11} {:>10}",
                 r.build_s,
                 mib(r.final_bytes),
                 mib(r.peak_bytes),

@@ -92,6 +92,10 @@ enum Command {
         /// Read board power through NVML while GPU kernels run (where NVML is present).
         #[arg(long)]
         power: bool,
+        /// GPU kernels: time each query set twice, with and without sorting the batch along
+        /// the Morton curve first (rows "KERNEL unordered").
+        #[arg(long)]
+        compare_order: bool,
         /// Backends, comma-separated: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto (the one
         /// `locate` would choose here), or all (every backend this machine can run).
         #[arg(long, default_value = "auto")]
@@ -134,6 +138,10 @@ struct Common {
     /// rt kernels: do not compact the acceleration structures.
     #[arg(long)]
     no_compact: bool,
+    /// GPU kernels: locate points in the order given, without sorting each batch along the
+    /// Morton curve first (for comparisons; sorting keeps random points over large meshes fast).
+    #[arg(long)]
+    no_order: bool,
     /// Vulkan device index (see `tetloc devices`).
     #[arg(long)]
     device: Option<usize>,
@@ -151,7 +159,13 @@ struct Common {
 impl Common {
     fn opts(&self) -> Result<BackendOptions> {
         let split = if self.split == "off" { None } else { Some(mesh_arg::parse_count(&self.split)?) };
-        Ok(BackendOptions { device: self.device, split, compact: !self.no_compact, quiet: self.quiet })
+        Ok(BackendOptions {
+            device: self.device,
+            split,
+            compact: !self.no_compact,
+            order_queries: !self.no_order,
+            quiet: self.quiet,
+        })
     }
 }
 
@@ -186,7 +200,7 @@ fn run(cli: Cli) -> Result<()> {
         Command::Probe(args) => probe::run(&args),
         Command::Trace(args) => trace::run(&args),
         Command::Devices => devices(),
-        Command::Bench { mesh, queries, n, repeats, field, json, power, backend, common } => {
+        Command::Bench { mesh, queries, n, repeats, field, json, power, compare_order, backend, common } => {
             let opts = common.opts()?;
             let m = mesh_arg::load(&mesh, common.format.as_deref(), common.seed)?;
             if let Some(f) = &field {
@@ -206,6 +220,7 @@ fn run(cli: Cli) -> Result<()> {
                 seed: common.seed,
                 json,
                 power,
+                compare_order,
                 opts,
             };
             bench::run(&m, &args)?;

@@ -129,6 +129,23 @@ impl Device {
         self.staging.upload(&mut self.cmds, dst, offset, data)
     }
 
+    /// A launch's round trip in one submission: `input` into `dst`, the commands `record`
+    /// records, `out.len()` bytes of `src` back into `out` (together at most
+    /// [`Device::round_trip_bytes`]).
+    pub fn round_trip(
+        &mut self,
+        input: (&[u8], &Buffer),
+        output: (&Buffer, &mut [u8]),
+        record: impl FnOnce(&Recording),
+    ) -> VkResult<()> {
+        self.staging.round_trip(&mut self.cmds, input, output, record)
+    }
+
+    /// The most bytes one round trip moves (in and out together).
+    pub fn round_trip_bytes(&self) -> usize {
+        self.staging.bytes()
+    }
+
     /// Copies `out.len()` bytes of `src` from byte `offset` into `out`.
     pub fn download(&mut self, src: &Buffer, offset: u64, out: &mut [u8]) -> VkResult<()> {
         self.staging.download(&mut self.cmds, src, offset, out)

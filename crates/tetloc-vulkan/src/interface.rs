@@ -193,6 +193,20 @@ gpu_interface! {
         /// and each node's barycentric lattice index (4 bytes, corner 0 lowest).
         B_HO_NODES = 21;
         B_HO_LATTICE = 22;
+        /// Query ordering (order.comp): the batch's points in the order they are located, the
+        /// original index of each, each point's bin, the bins' counts then offsets, and the
+        /// offsets of each ORDER_GROUP bins.
+        B_ORDER_POINTS = 23;
+        B_ORDER_PERM = 24;
+        B_ORDER_KEYS = 25;
+        B_ORDER_BINS = 26;
+        B_ORDER_BLOCKS = 27;
+        /// Query ordering: bits of each axis's cell index in the Morton key, bins (all keys),
+        /// invocations of its workgroups, and the bin blocks one workgroup scans.
+        ORDER_AXIS_BITS = 6;
+        ORDER_BINS = 262144;
+        ORDER_GROUP = 256;
+        ORDER_BLOCKS = 1024;
         /// Most buffers one array is split over.
         MAX_CHUNKS = 16;
         /// The volume marcher's compute shader runs in tiles of MARCH_TILE x MARCH_TILE pixels.
@@ -233,6 +247,12 @@ gpu_interface! {
         /// Volume marcher flags (MarchParams::size.z).
         MARCH_SKIP: u32 = 1;
         MARCH_SURFACE: u32 = 2;
+        /// Query ordering passes (ORDER_PASS): bin each point and count the bins; scan each
+        /// block of bins; scan the blocks; move each point to its slot.
+        ORDER_KEYS: u32 = 0;
+        ORDER_SCAN_BINS: u32 = 1;
+        ORDER_SCAN_BLOCKS: u32 = 2;
+        ORDER_SCATTER: u32 = 3;
     }
     spec_constants {
         /// Where this kernel's points come from (SAMPLE_*).
@@ -276,6 +296,10 @@ gpu_interface! {
         HO_NODES = 20: uint = 0;
         HO_ORDER = 21: uint = 1;
         HO_BEZIER = 22: bool = false;
+        /// Query ordering: which pass order.comp runs (ORDER_*), and whether a locate kernel
+        /// reads the ordered points and writes each answer to its original index.
+        ORDER_PASS = 23: uint = 0;
+        ORDERED = 24: bool = false;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

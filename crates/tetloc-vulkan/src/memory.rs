@@ -355,6 +355,40 @@ impl Staging {
         Ok(())
     }
 
+    /// One launch's round trip in one submission: `input` into `dst` from byte 0, the
+    /// commands `record` records, then the first `out.len()` bytes of `src` into `out`. The
+    /// host copies use every core (the staging buffer is host memory the device copies from
+    /// and to directly); both must fit in the staging buffer together.
+    pub fn round_trip(
+        &mut self,
+        cmds: &mut Commands,
+        (input, dst): (&[u8], &Buffer),
+        (src, out): (&Buffer, &mut [u8]),
+        record: impl FnOnce(&Recording),
+    ) -> VkResult<()> {
+        let (n_in, n_out) = (input.len(), out.len());
+        assert!(n_in + n_out <= self.buf.size as usize, "a round trip larger than the staging buffer");
+        par_copy(&mut self.buf.mapped()[..n_in], input);
+        let stage = self.buf.buffer;
+        let up = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: n_in as u64 };
+        let down = vk::BufferCopy { src_offset: 0, dst_offset: n_in as u64, size: n_out as u64 };
+        cmds.run(|r| {
+            // SAFETY: live buffers, large enough (asserted above); the work completes before return.
+            unsafe { r.dev.cmd_copy_buffer(r.cmd, stage, dst.buffer, &[up]) };
+            r.barrier();
+            record(r);
+            r.barrier();
+            // SAFETY: as above.
+            unsafe { r.dev.cmd_copy_buffer(r.cmd, src.buffer, stage, &[down]) };
+        })?;
+        par_copy(out, &self.buf.mapped()[n_in..n_in + n_out]);
+        Ok(())
+    }
+
+    pub fn bytes(&self) -> usize {
+        self.buf.size as usize
+    }
+
     /// Copies `out.len()` bytes of `src` from `offset` into `out`.
     pub fn download(&mut self, cmds: &mut Commands, src: &Buffer, offset: u64, out: &mut [u8]) -> VkResult<()> {
         let step = self.buf.size as usize;
@@ -368,6 +402,12 @@ impl Staging {
         }
         Ok(())
     }
+}
+
+/// `dst.copy_from_slice(src)` on every core, in 1 MiB pieces.
+fn par_copy(dst: &mut [u8], src: &[u8]) {
+    use rayon::prelude::*;
+    dst.par_chunks_mut(1 << 20).zip(src.par_chunks(1 << 20)).for_each(|(d, s)| d.copy_from_slice(s));
 }
 
 #[cfg(test)]

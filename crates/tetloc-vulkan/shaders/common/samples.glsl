@@ -8,6 +8,10 @@
 
 layout(std430, binding = TL_B_QUERIES) buffer TlQueries { float tl_queries[]; };
 layout(std430, binding = TL_B_OUT) writeonly buffer TlOut { uint tl_out[]; };
+// With ORDERED, a launch locates the points order.comp sorted along the Morton curve and
+// writes each answer at the point's original index.
+layout(std430, binding = TL_B_ORDER_POINTS) buffer TlOrderPoints { float tl_order_points[]; };
+layout(std430, binding = TL_B_ORDER_PERM) buffer TlOrderPerm { uint tl_order_perm[]; };
 
 // PCG hash (O'Neill's RXS-M-XS output of one LCG step): cheap and well mixed.
 uint tl_hash(uint x) {
@@ -25,7 +29,9 @@ float tl_unit(inout uint s) {
 // The sample point for point `i` of this launch.
 vec3 tl_sample(uint i) {
     uint g = params.counts.y + i; // global sample index: chunked launches give the same points
-    if (SAMPLE_MODE == TL_SAMPLE_HOST) {
+    if (ORDERED) {
+        return vec3(tl_order_points[3 * i], tl_order_points[3 * i + 1], tl_order_points[3 * i + 2]);
+    } else if (SAMPLE_MODE == TL_SAMPLE_HOST) {
         return vec3(tl_queries[3 * i], tl_queries[3 * i + 1], tl_queries[3 * i + 2]);
     } else if (SAMPLE_MODE == TL_SAMPLE_CENTERS) {
         // Mesh::tet_center: the vertices summed in order, then scaled.
@@ -71,6 +77,9 @@ void tl_record(uint i, vec3 p) {
 
 // The answer for point i: the tet id (TL_OUTSIDE outside) or the field value (NaN outside).
 void tl_store(uint i, int tet, float value) {
+    if (ORDERED) {
+        i = tl_order_perm[i];
+    }
     tl_out[i] = OUTPUT_MODE == TL_OUT_IDS ? uint(tet) : floatBitsToUint(value);
 }
 

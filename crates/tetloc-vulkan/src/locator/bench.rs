@@ -66,6 +66,9 @@ pub struct BenchResult {
     pub outside: usize,
     /// "gpu timestamps" or "host clock (transfers included)".
     pub timing: &'static str,
+    /// The points were sorted along the Morton curve on the GPU before being located (query
+    /// ordering, inside the timing).
+    pub ordered: bool,
     pub build_seconds: f64,
     pub final_bytes: u64,
     pub peak_bytes: u64,
@@ -127,6 +130,7 @@ impl VulkanLocator {
             samples_per_second: samples as f64 / seconds,
             outside,
             timing,
+            ordered: self.orders(sample_mode(opts.mode), samples),
             build_seconds: self.build_seconds(),
             final_bytes: self.memory_report().final_bytes,
             peak_bytes: self.memory_report().peak_bytes,
@@ -189,27 +193,37 @@ impl VulkanLocator {
         n: usize,
         nvml: Option<Arc<Nvml>>,
     ) -> VkResult<(Vec<f64>, usize, Option<f64>)> {
-        let v = Variant { sample: sample_mode(mode), output, record: false };
-        self.pipeline(v)?;
+        let sample = sample_mode(mode);
+        let v = Variant { sample, output, record: false, ordered: self.orders(sample, n) };
         let chunk = self.launch_limit().min(n.max(1));
         self.ensure_io(chunk)?;
+        self.pipeline(v)?;
         let launches: Vec<Params> =
             (0..n).step_by(chunk).map(|base| self.params(chunk.min(n - base), base, opts.seed)).collect();
-        let deferred = self.io.as_ref().and_then(|io| io.deferred.as_ref()).map(|d| d.buffer);
-        let l = self.launcher.launch(v, deferred);
+        let io = self.io.as_ref().expect("ensure_io made it");
+        let deferred = io.deferred.as_ref().map(|d| d.buffer);
+        let launch = self.launcher.launch(v, deferred);
+        // Ordered: each launch's points are generated and sorted first, inside the timing.
+        let order = io.order.as_ref().filter(|_| v.ordered);
+        let l = |r: &crate::device::Recording, p: &Params| {
+            if let Some(o) = order {
+                o.record(r, p, sample);
+            }
+            launch.record(r, p)
+        };
         // Warm up by time, one run per submission, until the clocks have ramped up.
         let t = Instant::now();
         while t.elapsed().as_secs_f64() < opts.warmup_seconds {
             self.dev.run(|r| {
                 for p in &launches {
-                    l.record(r, p);
+                    l(r, p);
                 }
             })?;
         }
         let runs = opts.warmup + opts.repeats;
         let times = self.dev.time_runs(runs, |r| {
             for p in &launches {
-                l.record(r, p);
+                l(r, p);
             }
         })?;
         let times = times[opts.warmup..].to_vec();
@@ -222,7 +236,7 @@ impl VulkanLocator {
                 while t.elapsed() < Duration::from_secs(1) {
                     self.dev.run(|r| {
                         for p in &launches {
-                            l.record(r, p);
+                            l(r, p);
                         }
                     })?;
                 }
@@ -270,7 +284,7 @@ impl BenchResult {
         format!(
             "{:<16} {:<8} {:<8} {:>11} {:>10.3} {:>12} {:>8} {:>9.2} {:>10.1} {:>10.1} {:>7}",
             self.kernel,
-            self.mode.name(),
+            format!("{}{}", self.mode.name(), if self.ordered { "/o" } else { "" }),
             self.variant,
             self.samples,
             self.seconds * 1e3,

@@ -15,6 +15,8 @@ pub(crate) struct Variant {
     pub output: i32,
     /// Write generated points back (tests).
     pub record: bool,
+    /// Locate the points query ordering sorted (order.rs), answers to their original indices.
+    pub ordered: bool,
 }
 
 /// The locate pipelines of a locator and the descriptor set they bind.
@@ -71,13 +73,7 @@ impl Launch<'_> {
         }
         bind(p);
         match &p.sbt {
-            None => {
-                // 2D grid of workgroups when one row is not enough; the shader linearises it.
-                let groups = n.div_ceil(self.workgroup as u64);
-                let x = groups.min(r.ctx.limits.max_workgroup_count[0] as u64).max(1);
-                // SAFETY: as above.
-                unsafe { dev.cmd_dispatch(cmd, x as u32, groups.div_ceil(x) as u32, 1) };
-            }
+            None => dispatch_points(r, n, self.workgroup),
             Some(sbt) => {
                 let l = &r.ctx.limits;
                 let max_width = l.max_workgroup_count[0] as u64 * l.max_workgroup_size[0] as u64;
@@ -97,4 +93,13 @@ impl Launch<'_> {
             unsafe { dev.cmd_dispatch_indirect(cmd, list, 0) };
         }
     }
+}
+
+/// Dispatches a compute pipeline over `n` points, one invocation each, in workgroups of
+/// `workgroup`: a 2D grid of workgroups when one row is not enough (the shader linearises it).
+pub(crate) fn dispatch_points(r: &Recording, n: u64, workgroup: u32) {
+    let groups = n.div_ceil(workgroup as u64);
+    let x = groups.min(r.ctx.limits.max_workgroup_count[0] as u64).max(1);
+    // SAFETY: recording into a command buffer in the recording state, a compute pipeline bound.
+    unsafe { r.dev.cmd_dispatch(r.cmd, x as u32, groups.div_ceil(x) as u32, 1) };
 }

@@ -4,9 +4,11 @@
 
 mod bench;
 mod launch;
+mod order;
 
 pub use bench::{si, BenchOptions, BenchResult};
 use launch::{Launcher, Variant};
+use order::{Ordering, ORDER_MIN_POINTS};
 
 use crate::context::Context;
 use crate::device::{Device, Split};
@@ -66,6 +68,10 @@ pub struct LocatorOptions {
     /// exact dispatch (indirect, over a list the first pass appends to); same answers, and the
     /// first pass holds no f64 code. Not yet measured on a GPU: off by default (NOTES.md).
     pub defer_exact: bool,
+    /// Sort each launch's points along the Morton curve on the GPU before locating them
+    /// (batches of random or host points of at least `ORDER_MIN_POINTS`; answers keep the
+    /// given order): keeps random queries on few pages of a large mesh (NOTES.md).
+    pub order_queries: bool,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
     /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
@@ -87,6 +93,7 @@ impl Default for LocatorOptions {
             grid_tets_per_cell: GRID_TETS_PER_CELL,
             f32_first: false,
             defer_exact: false,
+            order_queries: true,
             staging_bytes: STAGING_BYTES,
             max_buffer_bytes: None,
         }
@@ -145,6 +152,8 @@ struct Io {
     queries: Buffer,
     results: Buffer,
     deferred: Option<Buffer>,
+    /// Query ordering's passes and buffers, when the options ask for it.
+    order: Option<Ordering>,
     capacity: usize,
 }
 
@@ -169,7 +178,10 @@ impl VulkanLocator {
         let t0 = Instant::now();
         check(&ctx, &mesh, kernel, &opts)?;
         let mesh_bytes = (mesh.points.len() * 12).max(mesh.tets.len() * 16) as u64;
-        let mut dev = Device::new(&ctx, opts.staging_bytes.min(mesh_bytes.max(1 << 16)), opts.max_buffer_bytes)?;
+        // Small meshes get a smaller staging buffer, but one that still moves large batches
+        // of points in few round trips.
+        let staging = opts.staging_bytes.min(mesh_bytes.max(16 << 20));
+        let mut dev = Device::new(&ctx, staging, opts.max_buffer_bytes)?;
         let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, kernel.needs_ray_tracing())?;
         let f64 = opts.float64 && ctx.info().float64;
         let inputs = Inputs { mesh: &mesh, points: &mesh_on_device.points, opts: &opts, f64 };
@@ -200,7 +212,7 @@ impl VulkanLocator {
             dev,
         };
         // Compile the id variant now, so that building includes pipeline creation.
-        loc.pipeline(Variant { sample: SAMPLE_HOST, output: OUT_IDS, record: false })?;
+        loc.pipeline(Variant { sample: SAMPLE_HOST, output: OUT_IDS, record: false, ordered: false })?;
         loc.build_seconds = t0.elapsed().as_secs_f64();
         Ok(loc)
     }
@@ -210,7 +222,10 @@ impl VulkanLocator {
     fn locate_bindings(dev: &Device, mesh: &MeshOnDevice, plan: &Plan) -> Vec<Binding> {
         let unbound = dev.unbound();
         let mut b = mesh.bindings(unbound);
-        b.extend([B_FIELD, B_QUERIES, B_OUT, B_DEFER].map(|slot| Binding::buffer(slot, unbound)));
+        b.extend(
+            [B_FIELD, B_QUERIES, B_OUT, B_DEFER, B_ORDER_POINTS, B_ORDER_PERM]
+                .map(|slot| Binding::buffer(slot, unbound)),
+        );
         b.extend(plan.bindings.iter().cloned());
         b
     }
@@ -263,7 +278,16 @@ impl VulkanLocator {
 
     /// The pipeline for `v`, created on first use (with its exact second pass when deferring).
     fn pipeline(&mut self, v: Variant) -> VkResult<&Pipeline> {
-        let spec = self.spec(v.output).set(sc::SAMPLE_MODE, v.sample as u32).set(sc::RECORD_POINTS, v.record as u32);
+        let spec = self
+            .spec(v.output)
+            .set(sc::SAMPLE_MODE, v.sample as u32)
+            .set(sc::RECORD_POINTS, v.record as u32)
+            .set(sc::ORDERED, v.ordered as u32);
+        if v.ordered {
+            let order_spec = self.spec(OUT_IDS);
+            let io = self.io.as_mut().expect("ensure_io runs before ordered pipelines are made");
+            io.order.as_mut().expect("ordering is on").prepare(&mut self.dev, v.sample, &order_spec)?;
+        }
         let layout = self.launcher.desc.layout;
         if let Some(exact) = &self.plan.exact_pass {
             if !self.launcher.exact_pipelines.contains_key(&v) {
@@ -317,7 +341,7 @@ impl VulkanLocator {
 
     /// Makes sure the query and result buffers hold `n` points and are bound.
     fn ensure_io(&mut self, n: usize) -> VkResult<()> {
-        if self.io.as_ref().is_none_or(|io| io.capacity < n) {
+        if self.io.as_ref().is_none_or(|io| io.capacity < n || io.order.is_some() != self.opts.order_queries) {
             self.io = None;
             let queries =
                 self.dev.create_buffer(BufferDesc::io(MemKind::Query, (n * 12) as u64), "query points", None)?;
@@ -336,7 +360,19 @@ impl VulkanLocator {
                 }
                 None => None,
             };
-            self.io = Some(Io { queries, results, deferred, capacity: n });
+            let order = match self.opts.order_queries {
+                true => {
+                    let mut bindings = self.mesh_on_device.bindings(self.dev.unbound());
+                    bindings.push(Binding::buffer(B_QUERIES, &queries));
+                    let o = Ordering::new(&mut self.dev, n, &bindings)?;
+                    self.launcher
+                        .desc
+                        .write(&[Binding::buffer(B_ORDER_POINTS, &o.points), Binding::buffer(B_ORDER_PERM, &o.perm)]);
+                    Some(o)
+                }
+                false => None,
+            };
+            self.io = Some(Io { queries, results, deferred, order, capacity: n });
         }
         Ok(())
     }
@@ -364,17 +400,23 @@ impl VulkanLocator {
 
     /// Runs host points through variant `output`, writing 4 bytes per point into `out`.
     fn run_host(&mut self, points: &[Vec3], output: i32, out: &mut [u8]) -> VkResult<()> {
-        let v = Variant { sample: SAMPLE_HOST, output, record: false };
-        self.pipeline(v)?;
-        let chunk = self.launch_limit().min(points.len().max(1));
+        let v = Variant { sample: SAMPLE_HOST, output, record: false, ordered: self.orders(SAMPLE_HOST, points.len()) };
+        // Each launch is one submission: points in, (ordering,) kernel, answers out, 16 bytes
+        // a point through the staging buffer.
+        let chunk = self.launch_limit().min(self.dev.round_trip_bytes() / 16).min(points.len()).max(1);
         self.ensure_io(chunk)?;
+        self.pipeline(v)?;
         for (pts, res) in points.chunks(chunk).zip(out.chunks_mut(chunk * 4)) {
             let params = self.params(pts.len(), 0, 0);
             let io = self.io.as_ref().expect("ensure_io made it");
-            self.dev.write(&io.queries, 0, bytemuck::cast_slice(pts))?;
             let launch = self.launcher.launch(v, io.deferred.as_ref().map(|d| d.buffer));
-            self.dev.run(|r| launch.record(r, &params))?;
-            self.dev.download(&io.results, 0, res)?;
+            let order = io.order.as_ref().filter(|_| v.ordered);
+            self.dev.round_trip((bytemuck::cast_slice(pts), &io.queries), (&io.results, res), |r| {
+                if let Some(o) = order {
+                    o.record(r, &params, v.sample);
+                }
+                launch.record(r, &params)
+            })?;
         }
         Ok(())
     }
@@ -383,13 +425,16 @@ impl VulkanLocator {
     /// returns the generated points with their tet ids (-1 outside). For checks: benchmarks
     /// time the same kernels without recording points.
     pub fn locate_generated(&mut self, kind: QueryKind, n: usize, seed: u32) -> VkResult<(Vec<Vec3>, Vec<i32>)> {
-        let v = Variant { sample: sample_mode(kind), output: OUT_IDS, record: true };
-        if v.sample == SAMPLE_HOST {
+        let sample = sample_mode(kind);
+        if sample == SAMPLE_HOST {
             return Err(VkError::Mesh("locate_generated needs a query set the kernel generates, not host".into()));
         }
-        self.pipeline(v)?;
+        // Ordered: the ordering's keys pass records the points, the kernel does not.
+        let ordered = self.orders(sample, n);
+        let v = Variant { sample, output: OUT_IDS, record: !ordered, ordered };
         let chunk = self.launch_limit().min(n.max(1));
         self.ensure_io(chunk)?;
+        self.pipeline(v)?;
         let mut points = vec![[0f32; 3]; n];
         let mut ids = vec![0i32; n];
         for base in (0..n).step_by(chunk) {
@@ -397,11 +442,40 @@ impl VulkanLocator {
             let params = self.params(len, base, seed);
             let io = self.io.as_ref().expect("ensure_io made it");
             let launch = self.launcher.launch(v, io.deferred.as_ref().map(|d| d.buffer));
-            self.dev.run(|r| launch.record(r, &params))?;
+            let order = io.order.as_ref().filter(|_| v.ordered);
+            self.dev.run(|r| {
+                if let Some(o) = order {
+                    o.record(r, &params, v.sample);
+                }
+                launch.record(r, &params)
+            })?;
             self.dev.download(&io.queries, 0, bytemuck::cast_slice_mut(&mut points[base..base + len]))?;
             self.dev.download(&io.results, 0, bytemuck::cast_slice_mut(&mut ids[base..base + len]))?;
         }
         Ok((points, ids))
+    }
+}
+
+impl VulkanLocator {
+    /// The order in which the last ordered launch located its first `n` points (each slot's
+    /// index in the launch), or `None` when no ordering buffers exist. For tests.
+    pub fn last_order(&mut self, n: usize) -> VkResult<Option<Vec<u32>>> {
+        let Some(order) = self.io.as_ref().and_then(|io| io.order.as_ref()) else { return Ok(None) };
+        let mut perm = vec![0u32; n];
+        self.dev.download(&order.perm, 0, bytemuck::cast_slice_mut(&mut perm))?;
+        Ok(Some(perm))
+    }
+
+    /// Turns query ordering on or off for the next batches (benchmarks compare both).
+    pub fn set_order_queries(&mut self, on: bool) {
+        self.opts.order_queries = on;
+    }
+
+    /// Whether a batch of `n` points of `sample` mode is ordered before it is located: when
+    /// the options say so, for host and random points (centres come in mesh order, already
+    /// coherent) and batches large enough to pay for the passes.
+    fn orders(&self, sample: i32, n: usize) -> bool {
+        self.opts.order_queries && sample != SAMPLE_CENTERS && n >= ORDER_MIN_POINTS
     }
 }
 
@@ -424,10 +498,11 @@ fn check(ctx: &Context, mesh: &Mesh, kernel: Kernel, opts: &LocatorOptions) -> V
         || ![1, 4].contains(&opts.leaf_size)
         || opts.workgroup_size == 0
         || opts.grid_tets_per_cell == 0
+        || opts.staging_bytes < 1 << 10
     {
         return Err(VkError::Mesh(format!(
-            "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0), grid_tets_per_cell {} (> 0)",
-            opts.chunk_points, opts.leaf_size, opts.workgroup_size, opts.grid_tets_per_cell
+            "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0), grid_tets_per_cell {} (> 0), staging_bytes {} (>= 1 KiB)",
+            opts.chunk_points, opts.leaf_size, opts.workgroup_size, opts.grid_tets_per_cell, opts.staging_bytes
         )));
     }
     if !ctx.info().nonuniform_buffers {
