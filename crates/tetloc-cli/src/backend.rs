@@ -33,6 +33,8 @@ pub struct BackendOptions {
     pub compact: bool,
     /// GPU kernels: sort each batch along the Morton curve before locating it.
     pub order_queries: bool,
+    /// soft-bvh layout (tetloc_vulkan::PRESETS).
+    pub preset: String,
     /// Do not say which backend `auto` chose.
     pub quiet: bool,
 }
@@ -45,6 +47,7 @@ impl Default for BackendOptions {
             split: d.split,
             compact: d.compact,
             order_queries: d.order_queries,
+            preset: "fast".into(),
             quiet: false,
         }
     }
@@ -52,12 +55,9 @@ impl Default for BackendOptions {
 
 impl BackendOptions {
     fn locator_options(&self) -> LocatorOptions {
-        LocatorOptions {
-            split: self.split,
-            compact: self.compact,
-            order_queries: self.order_queries,
-            ..LocatorOptions::default()
-        }
+        // The CLI offers only the known names (clap checks them).
+        let base = LocatorOptions::preset(&self.preset).unwrap_or_default();
+        LocatorOptions { split: self.split, compact: self.compact, order_queries: self.order_queries, ..base }
     }
 }
 

@@ -138,6 +138,11 @@ struct Common {
     /// rt kernels: do not compact the acceleration structures.
     #[arg(long)]
     no_compact: bool,
+    /// soft-bvh layout: fast (default), compact (about 30 % less GPU memory, as fast on random
+    /// points, 20 % slower on coherent ones, 2.5x quicker to build) or small (about half the
+    /// memory, half the speed on random points). See BENCHMARKS.md.
+    #[arg(long, default_value = "fast", value_parser = clap::builder::PossibleValuesParser::new(tetloc_vulkan::PRESETS))]
+    preset: String,
     /// GPU kernels: locate points in the order given, without sorting each batch along the
     /// Morton curve first (for comparisons; sorting keeps random points over large meshes fast).
     #[arg(long)]
@@ -164,6 +169,7 @@ impl Common {
             split,
             compact: !self.no_compact,
             order_queries: !self.no_order,
+            preset: self.preset.clone(),
             quiet: self.quiet,
         })
     }

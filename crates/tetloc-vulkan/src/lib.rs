@@ -39,7 +39,9 @@ pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
 pub use kernels::rt::AsReport;
 pub use kernels::Kernel;
-pub use locator::{si, BenchOptions, BenchResult, LocatorOptions, MemoryReport, VulkanLocator, GRID_TETS_PER_CELL};
+pub use locator::{
+    si, BenchOptions, BenchResult, LocatorOptions, MemoryReport, VulkanLocator, GRID_TETS_PER_CELL, PRESETS,
+};
 pub use march::{MarchGrid, MarchScene, MarchStats, MarchView, VolumeMarcher};
 pub use memory::{MemItem, MemKind, STAGING_BYTES};
 /// The query sets (`centers`, `random`, `bbox` generated in the kernels; `host` uploaded).

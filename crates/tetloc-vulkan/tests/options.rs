@@ -62,8 +62,10 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             variants.push(("entry grid, four per leaf", grid4));
             let coarse = LocatorOptions { walk_start: true, grid_tets_per_cell: 3, chunk_points: 997, ..base.clone() };
             variants.push(("walk start, 3 tets a cell, chunks of 997", coarse));
-            variants
-                .push(("walk start, four per leaf", LocatorOptions { walk_start: true, leaf_size: 4, ..base.clone() }));
+            // The named layouts (compact: walk start, four per leaf, 4 tets a cell).
+            for p in ["compact", "small"] {
+                variants.push((p, LocatorOptions::preset(p).expect("a preset")));
+            }
             variants
                 .push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
             variants.push(("root, f32 first", LocatorOptions { walk_start: false, f32_first: true, ..base.clone() }));

@@ -100,6 +100,29 @@ impl Default for LocatorOptions {
     }
 }
 
+/// Named soft-bvh layouts (structure size against speed), measured on the H200 at jets 62M
+/// (BENCHMARKS.md): `fast`, the default (leaf 1, walk start, 1 tet a grid cell: 4.12 GiB,
+/// random 2.48 G/s, centres 24.4 G/s, build 53 s); `compact` (leaf 4, walk start, 4 tets a
+/// cell: 2.93 GiB, random 2.47 G/s, centres 19.5 G/s, build 21 s); `small` (leaf 4,
+/// traversal from the entry grid's node, no neighbour table: 1.95 GiB, random 1.30 G/s,
+/// centres 4.0 G/s, build 19 s). The rt kernels ignore them.
+pub const PRESETS: [&str; 3] = ["fast", "compact", "small"];
+
+impl LocatorOptions {
+    /// The options of preset `name` (see [`PRESETS`]), or `None` for an unknown name.
+    pub fn preset(name: &str) -> Option<LocatorOptions> {
+        let d = LocatorOptions::default();
+        match name {
+            "fast" => Some(d),
+            "compact" => Some(LocatorOptions { leaf_size: 4, grid_tets_per_cell: 4, ..d }),
+            "small" => {
+                Some(LocatorOptions { leaf_size: 4, walk_start: false, grid_start: true, grid_tets_per_cell: 4, ..d })
+            }
+            _ => None,
+        }
+    }
+}
+
 /// GPU memory of one locator, like the paper's Table 2.
 #[derive(Clone, Debug)]
 pub struct MemoryReport {
