@@ -15,11 +15,12 @@ pub fn parse_count(s: &str) -> Result<usize> {
     let (num, mult) = match s.chars().last() {
         Some('k' | 'K') => (&s[..s.len() - 1], 1e3),
         Some('m' | 'M') => (&s[..s.len() - 1], 1e6),
-        Some('g' | 'G') => (&s[..s.len() - 1], 1e9),
+        // G or B: a billion (jets:1B).
+        Some('g' | 'G' | 'b' | 'B') => (&s[..s.len() - 1], 1e9),
         _ => (s, 1.0),
     };
     let v: f64 =
-        num.replace('_', "").parse().with_context(|| format!("'{s}' is not a count (e.g. 1000, 1.4M, 250k)"))?;
+        num.replace('_', "").parse().with_context(|| format!("'{s}' is not a count (e.g. 1000, 1.4M, 250k, 1B)"))?;
     if v.is_nan() || v <= 0.0 {
         bail!("'{s}': the count must be positive");
     }
