@@ -49,6 +49,7 @@ fn is_point_set(target: &Path) -> bool {
 }
 
 pub fn run(a: &ProbeArgs) -> Result<()> {
+    progress::set_quiet(a.common.quiet);
     let target = Path::new(&a.target);
     let point_set = is_point_set(target) && a.target_format.is_none();
     let out_exts: &[&str] = if point_set { &["vtu", "vtp"] } else { &["vtu"] };
