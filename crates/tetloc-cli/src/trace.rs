@@ -5,15 +5,14 @@
 //! fields at the line points are sampled on the same backend.
 
 use crate::{backend, mesh_arg, progress, Common};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points;
 use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
-use tetloc_core::ops::{fields, FieldGroup};
-use tetloc_core::{BatchLocator, CpuLocator, FieldLocation};
+use tetloc_core::{BatchLocator, CpuLocator};
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
@@ -92,15 +91,9 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let opts = a.common.opts()?;
 
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
-    let vector = fields::resolve(&m, &a.vector)?;
-    let [x, y, z] = vector.component_refs()[..] else {
-        bail!(
-            "--vector {}: a vector field has 3 components, '{}' has {}",
-            a.vector,
-            vector.name,
-            vector.n_components()
-        );
-    };
+    let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
+    let c = vector.component_refs();
+    let [x, y, z] = [c[0], c[1], c[2]];
     let o = TraceOptions {
         step: a.step.unwrap_or(0.1 * m.info.mean_edge_length as f64),
         max_steps: a.max_steps,
@@ -120,7 +113,10 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
         let t0 = Instant::now();
-        let lines = trace::trace(&seeds, &o, &cpu.vector_field([x, y, z])?, &|d| pb.set_position(d as u64))?;
+        let lines = trace::trace(&seeds, &o, &cpu.vector_field([x, y, z])?, &|d| {
+            pb.set_position(d as u64);
+            Ok(())
+        })?;
         pb.finish_and_clear();
         let loc: Box<dyn BatchLocator> = Box::new(tetloc_core::locate::FiniteOnly::new(cpu));
         (lines, t0.elapsed().as_secs_f64(), loc)
@@ -136,12 +132,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         (lines, t0.elapsed().as_secs_f64(), loc)
     };
     let n_points: usize = lines.iter().map(|l| l.points.len()).sum();
-    // The point fields at the line points, as VTK interpolates them (and the vector, wherever it lives).
-    let mut out_fields: Vec<FieldGroup> =
-        fields::groups(&m).into_iter().filter(|g| g.location == FieldLocation::Vertex).collect();
-    if !out_fields.contains(&vector) {
-        out_fields.push(vector.clone());
-    }
+    let out_fields = trace::line_fields(&m, &vector);
     progress::with_spinner(format!("writing {}", a.out.display()), || {
         trace::write_lines(&a.out, &lines, loc.as_mut(), &out_fields, a.zlib)
     })?;

@@ -222,12 +222,12 @@ pub fn integrate(seed: u32, point: Vec3, backward: bool, o: &TraceOptions, field
 
 /// Every line from `seeds`, in VTK's order (with `Both`: the forward lines, then the
 /// backward ones), traced in parallel, particle by particle. `progress` gets the number of
-/// lines done so far (from any thread).
+/// lines done so far (from any thread; an error from it stops the tracing).
 pub fn trace(
     seeds: &[Vec3],
     o: &TraceOptions,
     field: &impl VectorField,
-    progress: &(impl Fn(usize) + Sync),
+    progress: &(impl Fn(usize) -> Result<()> + Sync),
 ) -> Result<Vec<Line>> {
     o.check()?;
     let done = std::sync::atomic::AtomicUsize::new(0);
@@ -237,10 +237,10 @@ pub fn trace(
         .with_min_len(16)
         .map(|&(seed, backward)| {
             let line = integrate(seed, seeds[seed as usize], backward, o, field);
-            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1);
-            line
+            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1)?;
+            Ok(line)
         })
-        .collect();
+        .collect::<Result<_>>()?;
     Ok(lines.into_iter().flatten().collect())
 }
 
@@ -281,40 +281,97 @@ pub fn trace_batch(
     Ok(done.into_iter().filter_map(|(_, p)| p.finish()).collect())
 }
 
-/// Writes lines as VTK polydata (`.vtp`), as vtkStreamTracer gives them: the points (float32),
-/// `fields` sampled at them through `loc` (point data), `IntegrationTime` (Float64 point
-/// data), `ReasonForTermination` and `SeedIds` (Int32 cell data).
+/// Lines as vtkStreamTracer outputs them: the points (float32, line after line), where each
+/// line ends, `IntegrationTime` per point, `ReasonForTermination` and `SeedIds` per line, and
+/// `fields` sampled at the points (point data).
+pub struct LineArrays {
+    pub points: Vec<Vec3>,
+    /// One past the last point of each line.
+    pub ends: Vec<usize>,
+    pub time: Vec<f64>,
+    pub reasons: Vec<i32>,
+    pub seeds: Vec<i32>,
+    pub fields: super::probe::Probed,
+}
+
+impl LineArrays {
+    /// The arrays of `lines`, with `fields` sampled through `loc`.
+    pub fn new(lines: &[Line], loc: &mut dyn BatchLocator, fields: &[super::FieldGroup]) -> Result<LineArrays> {
+        let points: Vec<Vec3> = lines.iter().flat_map(|l| l.points.iter().map(|&p| to_f32(p))).collect();
+        let ends = lines
+            .iter()
+            .scan(0, |end, l| {
+                *end += l.points.len();
+                Some(*end)
+            })
+            .collect();
+        let fields = super::probe::probe(loc, &points, fields, |_| Ok(()))?;
+        Ok(LineArrays {
+            ends,
+            time: lines.iter().flat_map(|l| l.time.iter().copied()).collect(),
+            reasons: lines.iter().map(|l| l.reason as i32).collect(),
+            seeds: lines.iter().map(|l| l.seed as i32).collect(),
+            points,
+            fields,
+        })
+    }
+
+    /// Writes them as VTK polydata (`.vtp`): `IntegrationTime` Float64 point data,
+    /// `ReasonForTermination` and `SeedIds` Int32 cell data.
+    pub fn write(&self, path: &std::path::Path, zlib: bool) -> Result<()> {
+        use crate::io::vtk::write::{write_polylines, ArrayData, NamedArray};
+        let mut point_data: Vec<NamedArray> = self
+            .fields
+            .arrays
+            .iter()
+            .map(|(g, v)| NamedArray { name: g.name.clone(), n_components: g.n_components(), data: ArrayData::F32(v) })
+            .collect();
+        point_data.push(NamedArray {
+            name: "IntegrationTime".into(),
+            n_components: 1,
+            data: ArrayData::F64(&self.time),
+        });
+        let cell_data = [
+            NamedArray { name: "ReasonForTermination".into(), n_components: 1, data: ArrayData::I32(&self.reasons) },
+            NamedArray { name: "SeedIds".into(), n_components: 1, data: ArrayData::I32(&self.seeds) },
+        ];
+        write_polylines(path, &self.points, &self.ends, &point_data, &cell_data, zlib)
+    }
+}
+
+/// Writes lines as vtkStreamTracer gives them (see [`LineArrays`]), `fields` sampled through `loc`.
 pub fn write_lines(
     path: &std::path::Path,
     lines: &[Line],
-    loc: &mut dyn crate::BatchLocator,
+    loc: &mut dyn BatchLocator,
     fields: &[super::FieldGroup],
     zlib: bool,
 ) -> Result<()> {
-    use crate::io::vtk::write::{write_polylines, ArrayData, NamedArray};
-    let points: Vec<Vec3> = lines.iter().flat_map(|l| l.points.iter().map(|&p| to_f32(p))).collect();
-    let ends: Vec<usize> = lines
-        .iter()
-        .scan(0, |end, l| {
-            *end += l.points.len();
-            Some(*end)
-        })
-        .collect();
-    let time: Vec<f64> = lines.iter().flat_map(|l| l.time.iter().copied()).collect();
-    let reasons: Vec<i32> = lines.iter().map(|l| l.reason as i32).collect();
-    let seeds: Vec<i32> = lines.iter().map(|l| l.seed as i32).collect();
-    let probed = super::probe::probe(loc, &points, fields, |_| {})?;
-    let mut point_data: Vec<NamedArray> = probed
-        .arrays
-        .iter()
-        .map(|(g, v)| NamedArray { name: g.name.clone(), n_components: g.n_components(), data: ArrayData::F32(v) })
-        .collect();
-    point_data.push(NamedArray { name: "IntegrationTime".into(), n_components: 1, data: ArrayData::F64(&time) });
-    let cell_data = [
-        NamedArray { name: "ReasonForTermination".into(), n_components: 1, data: ArrayData::I32(&reasons) },
-        NamedArray { name: "SeedIds".into(), n_components: 1, data: ArrayData::I32(&seeds) },
-    ];
-    write_polylines(path, &points, &ends, &point_data, &cell_data, zlib)
+    LineArrays::new(lines, loc, fields)?.write(path, zlib)
+}
+
+/// The vector field `name` of `mesh`, which must have 3 components.
+pub fn vector_field(mesh: &crate::Mesh, name: &str) -> Result<super::FieldGroup> {
+    let g = super::fields::resolve(mesh, name)?;
+    if g.n_components() != 3 {
+        return Err(Error::Invalid(format!(
+            "'{name}' is not a vector field: a vector field has 3 components, '{}' has {}",
+            g.name,
+            g.n_components()
+        )));
+    }
+    Ok(g)
+}
+
+/// The fields lines carry, as vtkStreamTracer interpolates them: every point field, and the
+/// traced vector wherever it lives.
+pub fn line_fields(mesh: &crate::Mesh, vector: &super::FieldGroup) -> Vec<super::FieldGroup> {
+    let mut out: Vec<_> =
+        super::fields::groups(mesh).into_iter().filter(|g| g.location == crate::FieldLocation::Vertex).collect();
+    if !out.contains(vector) {
+        out.push(vector.clone());
+    }
+    out
 }
 
 /// Seeds from a specification: `line:X0,Y0,Z0,X1,Y1,Z1,N` (N points from P0 to P1, both
@@ -382,7 +439,7 @@ mod tests {
     fn constant_field_gives_straight_lines_of_the_right_length() {
         let f = Analytic { lo: [0.0; 3], hi: [1.0; 3], v: |_| [2.0, 0.0, 0.0] };
         let o = TraceOptions { step: 0.03, max_length: 0.5, max_steps: 1000, ..Default::default() };
-        let lines = trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| {}).unwrap();
+        let lines = trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| Ok(())).unwrap();
         let l = &lines[0];
         assert_eq!(l.reason, Reason::OutOfLength);
         let end = l.points.last().unwrap();
@@ -391,7 +448,7 @@ mod tests {
         assert!((l.time.last().unwrap() - 0.25).abs() < 1e-7);
         // To the boundary: the last point is within a step of it; backward goes the other way.
         let o = TraceOptions { step: 0.03, direction: Direction::Both, ..Default::default() };
-        let lines = trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| {}).unwrap();
+        let lines = trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| Ok(())).unwrap();
         assert_eq!(lines.len(), 2);
         let (fw, bw) = (&lines[0], &lines[1]);
         assert_eq!((fw.reason, bw.reason, bw.backward), (Reason::OutOfDomain, Reason::OutOfDomain, true));
@@ -399,12 +456,12 @@ mod tests {
         assert!(*bw.time.last().unwrap() < 0.0);
         // Steps: VTK takes max_steps + 1.
         let o = TraceOptions { step: 0.01, max_steps: 10, ..Default::default() };
-        let l = &trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| {}).unwrap()[0];
+        let l = &trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| Ok(())).unwrap()[0];
         assert_eq!((l.reason, l.points.len()), (Reason::OutOfSteps, 12));
         // Zero velocity: no step, no line; a seed outside: no line either.
         let zero = Analytic { lo: [0.0; 3], hi: [1.0; 3], v: |_| [0.0; 3] };
-        assert!(trace(&[[0.5; 3]], &o, &zero, &|_| {}).unwrap().is_empty());
-        assert!(trace(&[[2.0, 0.5, 0.5]], &o, &f, &|_| {}).unwrap().is_empty());
+        assert!(trace(&[[0.5; 3]], &o, &zero, &|_| Ok(())).unwrap().is_empty());
+        assert!(trace(&[[2.0, 0.5, 0.5]], &o, &f, &|_| Ok(())).unwrap().is_empty());
     }
 
     /// A rigid rotation: circles that close. RK4's local error is O(h⁵), so one turn of
@@ -416,7 +473,7 @@ mod tests {
             let r = 1.0;
             let turn = 2.0 * std::f64::consts::PI * r;
             let o = TraceOptions { step: h, max_length: turn, max_steps: 100_000, ..Default::default() };
-            let l = &trace(&[[r as f32, 0.0, 0.0]], &o, &f, &|_| {}).unwrap()[0];
+            let l = &trace(&[[r as f32, 0.0, 0.0]], &o, &f, &|_| Ok(())).unwrap()[0];
             let end = l.points.last().unwrap();
             let gap = ((end[0] - r).powi(2) + end[1].powi(2)).sqrt();
             // f32 lookups add about 1e-7 per step.
@@ -434,14 +491,14 @@ mod tests {
         let f = Analytic { lo: [0.0; 3], hi: [1.0; 3], v: |_| [2.0, 0.0, 0.0] };
         for integrator in [Integrator::Rk45, Integrator::CashKarp, Integrator::Rk4] {
             let o = TraceOptions { step: 0.03, max_length: 0.5, integrator, ..Default::default() };
-            let l = &trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| {}).unwrap()[0];
+            let l = &trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| Ok(())).unwrap()[0];
             let end = l.points.last().unwrap();
             assert_eq!(l.reason, Reason::OutOfLength, "{integrator:?}");
             assert!((end[0] - (0.1f32 as f64 + 0.5)).abs() < 1e-12 && end[1] == 0.5, "{integrator:?}: {end:?}");
             assert!((l.time.last().unwrap() - 0.25).abs() < 1e-12);
             // The time limit: 0.1 time units at speed 2 are 0.2 long; backward too.
             let o = TraceOptions { max_time: 0.1, direction: Direction::Both, ..o };
-            let lines = trace(&[[0.5, 0.5, 0.5]], &o, &f, &|_| {}).unwrap();
+            let lines = trace(&[[0.5, 0.5, 0.5]], &o, &f, &|_| Ok(())).unwrap();
             for (l, want) in lines.iter().zip([0.7, 0.3]) {
                 assert_eq!(l.reason, Reason::OutOfTime, "{integrator:?}");
                 assert!((l.points.last().unwrap()[0] - want).abs() < 1e-12, "{integrator:?}: {:?}", l.points.last());
@@ -450,7 +507,7 @@ mod tests {
         }
         // The step bounds: the adaptive step grows to the maximum on a constant field.
         let o = TraceOptions { step: 0.01, max_step: Some(0.04), integrator: Integrator::Rk45, ..Default::default() };
-        let l = &trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| {}).unwrap()[0];
+        let l = &trace(&[[0.1, 0.5, 0.5]], &o, &f, &|_| Ok(())).unwrap()[0];
         let gaps: Vec<f64> = l.points.windows(2).map(|w| w[1][0] - w[0][0]).collect();
         assert!(gaps[..gaps.len() - 1].iter().all(|&g| (g - 0.04).abs() < 1e-12), "{:?}", &gaps[..gaps.len().min(5)]);
         for bad in [
@@ -459,7 +516,7 @@ mod tests {
             TraceOptions { max_time: -1.0, ..o.clone() },
             TraceOptions { step: f64::NAN, ..o.clone() },
         ] {
-            assert!(trace(&[[0.5; 3]], &bad, &f, &|_| {}).is_err(), "{bad:?}");
+            assert!(trace(&[[0.5; 3]], &bad, &f, &|_| Ok(())).is_err(), "{bad:?}");
         }
     }
 
@@ -482,7 +539,7 @@ mod tests {
                     max_error,
                     ..Default::default()
                 };
-                let l = &trace(&[[1.0, 0.0, 0.0]], &o, &f, &|_| {}).unwrap()[0];
+                let l = &trace(&[[1.0, 0.0, 0.0]], &o, &f, &|_| Ok(())).unwrap()[0];
                 assert_eq!(l.reason, Reason::OutOfLength);
                 let end = l.points.last().unwrap();
                 let gap = ((end[0] - 1.0).powi(2) + end[1].powi(2)).sqrt();
@@ -524,7 +581,7 @@ mod tests {
                 integrator,
                 ..Default::default()
             };
-            let one = trace(&outside, &o, &cpu.vector_field(["v[0]", "v[1]", "v[2]"]).unwrap(), &|_| {}).unwrap();
+            let one = trace(&outside, &o, &cpu.vector_field(["v[0]", "v[1]", "v[2]"]).unwrap(), &|_| Ok(())).unwrap();
             let mut rounds = 0;
             let all = trace_batch(&outside, &o, &mut cpu, ["v[0]", "v[1]", "v[2]"], |_| {
                 rounds += 1;
