@@ -88,14 +88,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         Some(s) => s.context("--seeds")?,
         None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
     };
-    let opts = a.common.opts()?;
-
-    let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
-    let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
-    let c = vector.component_refs();
-    let [x, y, z] = [c[0], c[1], c[2]];
-    let o = TraceOptions {
-        step: a.step.unwrap_or(0.1 * m.info.mean_edge_length as f64),
+    let mut o = TraceOptions {
+        step: a.step.unwrap_or(1.0), // checked now, the default set once the mesh is read
         max_steps: a.max_steps,
         max_length: a.max_length.unwrap_or(f64::INFINITY),
         max_time: a.max_time.unwrap_or(f64::INFINITY),
@@ -107,6 +101,16 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         max_step: a.max_step,
     };
     o.check()?;
+    let opts = a.common.opts()?;
+
+    let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
+    if a.step.is_none() {
+        o.step = 0.1 * m.info.mean_edge_length as f64;
+        o.check()?;
+    }
+    let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
+    let c = vector.component_refs();
+    let [x, y, z] = [c[0], c[1], c[2]];
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
     let (lines, secs, mut loc) = if name == "cpu" {
@@ -144,7 +148,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     }
     if !a.common.quiet {
         eprintln!(
-            "{}: {} lines, {n_points} points ({} steps/s) on {name} in {secs:.3} s",
+            "{}: {} lines, {n_points} points (steps at {}) on {name} in {secs:.3} s",
             a.out.display(),
             lines.len(),
             crate::bench::fmt_rate((n_points - lines.len()) as f64 / secs)

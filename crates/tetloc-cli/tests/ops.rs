@@ -155,7 +155,38 @@ fn bad_inputs_are_refused() {
         "/nonexistent-dir/l.vtp",
     ]);
     assert!(!ok && err.contains("does not exist"), "{err}");
+    let trace = |extra: &[&str]| {
+        let mut args = vec!["trace", "jets:2000", "--vector", "v", "-o", s(&vtp)];
+        if !extra.contains(&"--seeds") {
+            args.extend(["--seeds", "line:0,0,0,1,1,1,3"]);
+        }
+        args.extend(extra);
+        tetloc(&args)
+    };
+    for (extra, want) in [
+        (&["--integrator", "euler"][..], "integrator 'euler'"),
+        (&["--integrator", "rk45", "--min-step", "0.1", "--max-step", "0.01"], "min <= max"),
+        (&["--max-time=-1"], "maximum time"),
+        (&["--step", "0"], "positive length"),
+        (&["--seeds", "line:0,0,0,1,1,x,3"], "not a number"),
+        (&["--seeds", "/nonexistent-dir/seeds.npy"], "nonexistent-dir"),
+    ] {
+        let (ok, _, err) = trace(extra);
+        assert!(!ok && err.contains(want), "{extra:?}: {err}");
+    }
     assert!(!vtp.exists());
+    // probe: a field that does not exist, an output directory that does not exist, a mesh
+    // target written as .vtp.
+    let pts = dir.join("p.csv");
+    std::fs::write(&pts, "0.5,0.5,0.5\n").unwrap();
+    let vtu = dir.join("p.vtu");
+    let (ok, _, err) = tetloc(&["probe", "jets:2000", s(&pts), "-o", s(&vtu), "--field", "nope", "--backend", "cpu"]);
+    assert!(!ok && err.contains("'nope'"), "{err}");
+    let (ok, _, err) = tetloc(&["probe", "jets:2000", s(&pts), "-o", "/nonexistent-dir/p.vtu", "--backend", "cpu"]);
+    assert!(!ok && err.contains("does not exist"), "{err}");
+    let (ok, _, err) = tetloc(&["probe", "jets:2000", "jets:1000", "-o", s(&dir.join("p.vtp")), "--backend", "cpu"]);
+    assert!(!ok && err.contains("vtu") && err.contains("p.vtp"), "{err}");
+    assert!(!vtu.exists());
 }
 
 /// The swirl on the torus (v = (-y + 0.2x, x + 0.2y, 0.3), so lines spiral outwards and
@@ -232,6 +263,49 @@ fn trace_matches_vtk() {
     let Some((vtk, ours, err)) = trace_both("trace_matches_vtk", "trace", &[], &[]) else { return };
     assert!(err.contains("2 of 10 lines"), "the seed at the origin is outside: {err}");
     same_lines(&vtk, &ours, 1e-4 * TORUS_SIZE);
+}
+
+/// `tetloc trace --backend soft-bvh` (every particle advanced together, one batched lookup
+/// per stage on the GPU) gives the cpu backend's lines: the same lines, reasons and point
+/// counts, every point within 1e-5 of the domain (float32 sampling on the device against
+/// the CPU's: ~1e-7 per lookup, over a few hundred steps). Skipped without a Vulkan device
+/// (failed in CI).
+#[test]
+fn trace_on_the_gpu_matches_cpu() {
+    const TEST: &str = "trace_on_the_gpu_matches_cpu";
+    let Some(data) = require_data(TEST) else { return };
+    let (ok, out, _) = tetloc(&["devices"]);
+    if !ok || !out.contains("Vulkan") {
+        assert!(!tetloc_testdata::in_ci(), "{TEST}: no Vulkan device in CI");
+        eprintln!("SKIPPED {TEST}: no Vulkan device");
+        return;
+    }
+    let dir = tmp_dir("trace-gpu");
+    let (mesh, seeds) = swirl_case(&data, &dir);
+    let mut dumped = Vec::new();
+    for (backend, integrator) in [("cpu", "rk4"), ("soft-bvh", "rk4"), ("cpu", "rk45"), ("soft-bvh", "rk45")] {
+        let out = dir.join(format!("{backend}-{integrator}.vtp"));
+        let mut args = vec!["trace", s(&mesh), "--vector", "v", "--seeds", s(&seeds), "-o", s(&out)];
+        args.extend(["--step", "0.01", "--max-steps", "300", "--direction", "both", "--quiet"]);
+        args.extend(["--backend", backend, "--integrator", integrator]);
+        let (ok, _, err) = tetloc(&args);
+        assert!(ok, "{backend}: {err}");
+        let sub = dir.join(format!("{backend}-{integrator}"));
+        std::fs::create_dir_all(&sub).unwrap();
+        let vtk_args = ["trace", s(&mesh), "v", s(&seeds), "0.01", "300", "both", s(&out), s(&sub)];
+        let Some(()) = run_vtk_script(TEST, "vtk_ops.py", &vtk_args) else { return };
+        dumped.push(dumped_lines(&sub, "tetloc"));
+    }
+    for pair in dumped.chunks(2) {
+        let ((co, cp, ct, cs, cr), (go, gp, gt, gs, gr)) = (&pair[0], &pair[1]);
+        assert_eq!((co, cs, cr), (go, gs, gr), "lines, seeds, reasons and point counts");
+        let worst = cp.iter().zip(gp).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        eprintln!(
+            "{TEST}: points within {worst:e}, times within {:e}",
+            ct.iter().zip(gt).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+        );
+        assert!(worst <= 1e-5 * TORUS_SIZE, "a point {worst:e} from the cpu's");
+    }
 }
 
 /// The torus' extent.
