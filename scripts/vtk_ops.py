@@ -3,11 +3,12 @@
 
     vtk_ops.py resample MESH.vtu NX,NY,NZ OURS.vti OUT_DIR
     vtk_ops.py probe SOURCE.vtu TARGET OURS.vtu|.vtp OUT_DIR
-    vtk_ops.py trace MESH.vtu VECTOR SEEDS.bin STEP MAX_STEPS DIRECTION OURS.vtp OUT_DIR
+    vtk_ops.py trace MESH.vtu VECTOR SEEDS.bin STEP MAX_STEPS DIRECTION OURS.vtp OUT_DIR [rk45 MIN MAX MAX_ERROR]
 
 resample: vtkResampleToImage over the mesh's bounds; probe: vtkResampleWithDataSet of SOURCE
 onto TARGET (a .vtu mesh, or raw float32 x,y,z points in a .bin); trace: vtkStreamTracer with
-RK4, a fixed step in length units and seeds from SEEDS.bin (raw float32 x,y,z).
+RK4 (or RK45, vtkRungeKutta45, with the step bounds and maximum error given), steps in length
+units and seeds from SEEDS.bin (raw float32 x,y,z).
 
 Writes to OUT_DIR VTK's arrays as vtk.NAME.bin (float64, point data, components
 interleaved) and the file tetloc wrote, read by VTK's own XML reader, as tetloc.NAME.bin;
@@ -116,14 +117,20 @@ def lines(poly, prefix, out_dir):
         vtk_to_numpy(a).astype(np.float64).tofile(os.path.join(out_dir, f"{prefix}.{a.GetName()}.bin"))
 
 
-def trace(mesh_path, vector, seeds, step, max_steps, direction, ours, out_dir):
+def trace(mesh_path, vector, seeds, step, max_steps, direction, ours, out_dir, *rk45):
     mesh = read(mesh_path)
     mesh.GetPointData().SetActiveVectors(vector)
     t = vtk.vtkStreamTracer()
     t.SetInputData(mesh)
     t.SetSourceData(points_of(seeds))
     t.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, vector)
-    t.SetIntegratorTypeToRungeKutta4()
+    if rk45:
+        t.SetIntegratorTypeToRungeKutta45()
+        t.SetMinimumIntegrationStep(float(rk45[1]))
+        t.SetMaximumIntegrationStep(float(rk45[2]))
+        t.SetMaximumError(float(rk45[3]))
+    else:
+        t.SetIntegratorTypeToRungeKutta4()
     t.SetIntegrationStepUnit(vtk.vtkStreamTracer.LENGTH_UNIT)
     t.SetInitialIntegrationStep(float(step))
     t.SetMaximumNumberOfSteps(int(max_steps))
@@ -137,7 +144,7 @@ def trace(mesh_path, vector, seeds, step, max_steps, direction, ours, out_dir):
 
 
 if __name__ == "__main__":
-    ops = {"resample": (resample, 4), "probe": (probe, 4), "trace": (trace, 8)}
-    if len(sys.argv) < 2 or sys.argv[1] not in ops or len(sys.argv) != 2 + ops[sys.argv[1]][1]:
+    ops = {"resample": (resample, [4]), "probe": (probe, [4]), "trace": (trace, [8, 12])}
+    if len(sys.argv) < 2 or sys.argv[1] not in ops or len(sys.argv) - 2 not in ops[sys.argv[1]][1]:
         sys.exit(__doc__)
     ops[sys.argv[1]][0](*sys.argv[2:])

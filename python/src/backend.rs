@@ -96,6 +96,20 @@ pub fn resolve_auto(device: Option<usize>) -> (Choice, Option<String>) {
     }
 }
 
+/// The backend name a choice runs on: "auto" resolved as a Locator would (without building
+/// anything), other names checked.
+#[pyfunction]
+#[pyo3(signature = (name, device=None))]
+pub fn resolve(name: &str, device: Option<usize>) -> PyResult<String> {
+    Ok(match Choice::parse(name)? {
+        Choice::Auto => match resolve_auto(device).0 {
+            Choice::Gpu(k) => k.name().to_string(),
+            _ => CPU.to_string(),
+        },
+        _ => name.to_string(),
+    })
+}
+
 /// The context for a GPU kernel, or `DeviceError` saying why there is none.
 pub fn gpu_context(kernel: Kernel, device: Option<usize>) -> PyResult<Arc<Context>> {
     let ctx = context(device).map_err(|e| device_error(kernel.name(), format!("no Vulkan device: {}", e.msg)))?;

@@ -9,6 +9,7 @@ mod background;
 mod errors;
 mod locator;
 mod mesh;
+mod ops;
 
 use pyo3::prelude::*;
 
@@ -28,6 +29,10 @@ fn _tetloc(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mesh::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(backend::devices, m)?)?;
     m.add_function(wrap_pyfunction!(validation_errors, m)?)?;
+    m.add_function(wrap_pyfunction!(ops::resample_to_image, m)?)?;
+    m.add_function(wrap_pyfunction!(ops::probe_fields, m)?)?;
+    m.add_function(wrap_pyfunction!(ops::trace_lines, m)?)?;
+    m.add_function(wrap_pyfunction!(backend::resolve, m)?)?;
     m.add("DeviceError", m.py().get_type::<errors::DeviceError>())?;
     m.add("BACKENDS", backend::names())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

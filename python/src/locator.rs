@@ -30,7 +30,7 @@ const CPU_CHUNK: usize = 1 << 20;
 const KNOWN_OPTIONS: &str = "tolerance, split, compact";
 const PLANNED_OPTIONS: [&str; 1] = ["precision"];
 
-type Backend = Box<dyn BatchLocator + Send>;
+pub(crate) type Backend = Box<dyn BatchLocator + Send>;
 type IdsAndValues<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f32>>);
 
 /// Memory of a locator: device memory for the GPU kernels, host heap for `cpu`.
@@ -53,8 +53,9 @@ struct Built {
 #[pyclass(name = "_Locator", module = "tetloc._tetloc", frozen)]
 pub struct PyLocator {
     /// `None` after a panic inside the backend: its state is unknown, so it is not used again.
-    backend: Mutex<Option<Backend>>,
-    name: String,
+    pub(crate) backend: Mutex<Option<Backend>>,
+    pub(crate) name: String,
+    pub(crate) mesh: Arc<Mesh>,
     chunk: usize,
     memory: Memory,
     build_seconds: f64,
@@ -277,6 +278,7 @@ impl PyLocator {
         Ok(PyLocator {
             backend: Mutex::new(Some(backend)),
             name,
+            mesh: mesh_arc,
             chunk,
             memory: built.memory,
             build_seconds: built.build_seconds,

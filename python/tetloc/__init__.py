@@ -7,6 +7,8 @@ there? On GPUs (Vulkan) and CPUs.
 >>> ids = loc.locate(points)                           # (K, 3) -> (K,) int32, -1 outside
 >>> f = loc.sample(points, "f")                        # float32, NaN outside
 
+``resample_to_image``, ``probe`` and ``trace`` are ParaView's Resample To Image, Resample With
+Dataset and Stream Tracer (numpy or pyvista out).
 ``Mesh.from_pyvista``, ``Mesh.to_pyvista`` and ``Mesh.from_meshio`` convert meshes;
 ``devices()`` lists the Vulkan devices. Errors: ``FileNotFoundError`` (``OSError``),
 ``ValueError`` naming the file or argument, ``DeviceError`` for the GPU.
@@ -14,6 +16,7 @@ there? On GPUs (Vulkan) and CPUs.
 
 from ._locator import Locator
 from ._mesh import Mesh, read
+from ._ops import REASONS, probe, resample_to_image, trace
 from ._tetloc import BACKENDS, DeviceError, __version__
 from ._tetloc import devices as _devices
 
@@ -29,4 +32,16 @@ def devices() -> List[Dict[str, Any]]:
     return _devices()
 
 
-__all__ = ["BACKENDS", "DeviceError", "Locator", "Mesh", "__version__", "devices", "read"]
+__all__ = [
+    "BACKENDS",
+    "DeviceError",
+    "Locator",
+    "Mesh",
+    "REASONS",
+    "__version__",
+    "devices",
+    "probe",
+    "read",
+    "resample_to_image",
+    "trace",
+]

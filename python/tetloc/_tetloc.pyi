@@ -58,5 +58,39 @@ class _Locator:
     ) -> Tuple[npt.NDArray[np.int32], npt.NDArray[np.float32]]: ...
 
 def read_mesh(path: str, format: Optional[str] = None) -> _Mesh: ...
+
+FieldArrays = List[Tuple[str, int, npt.NDArray[np.float32]]]
+
+def resample_to_image(
+    locator: _Locator,
+    names: List[str],
+    dims: Tuple[int, int, int],
+    bounds: Optional[List[float]] = None,
+    progress: Optional[Progress] = None,
+) -> Tuple[FieldArrays, npt.NDArray[np.uint8], List[float], List[float]]: ...
+def probe(
+    locator: _Locator,
+    points: npt.NDArray[np.float32],
+    names: List[str],
+    progress: Optional[Progress] = None,
+) -> Tuple[FieldArrays, npt.NDArray[np.uint8]]: ...
+def trace(
+    mesh: _Mesh,
+    locator: Optional[_Locator],
+    vector: str,
+    seeds: npt.NDArray[np.float32],
+    step: Optional[float],
+    max_steps: int,
+    max_length: Optional[float],
+    max_time: Optional[float],
+    direction: str,
+    integrator: str,
+    max_error: float,
+    min_step: Optional[float],
+    max_step: Optional[float],
+    terminal_speed: float,
+    progress: Optional[Progress] = None,
+) -> Dict[str, Any]: ...
+def resolve(name: str, device: Optional[int] = None) -> str: ...
 def devices() -> List[Dict[str, Any]]: ...
 def validation_errors() -> int: ...

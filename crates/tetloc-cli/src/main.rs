@@ -68,7 +68,7 @@ enum Command {
     /// Sample one mesh's fields at another mesh's (or a point set's) points (as ParaView's
     /// Resample With Dataset).
     Probe(probe::ProbeArgs),
-    /// Trace streamlines through a vector field (as ParaView's Stream Tracer, RK4).
+    /// Trace streamlines through a vector field (as ParaView's Stream Tracer: RK4 or adaptive RK45).
     Trace(trace::TraceArgs),
     /// Measure samples/s per backend and query set.
     Bench {

@@ -49,6 +49,7 @@ fn is_point_set(target: &Path) -> bool {
 }
 
 pub fn run(a: &ProbeArgs) -> Result<()> {
+    progress::set_quiet(a.common.quiet);
     let target = Path::new(&a.target);
     let point_set = is_point_set(target) && a.target_format.is_none();
     let out_exts: &[&str] = if point_set { &["vtu", "vtp"] } else { &["vtu"] };
@@ -89,7 +90,10 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     };
     let pb = progress::bar(pts.len() as u64, format!("probing on {}", loc.name()));
     let t0 = Instant::now();
-    let probed = probe::probe(loc.as_mut(), &pts, &groups, |d| pb.set_position(d as u64))?;
+    let probed = probe::probe(loc.as_mut(), &pts, &groups, |d| {
+        pb.set_position(d as u64);
+        Ok(())
+    })?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     progress::with_spinner(format!("writing {}", a.out.display()), || {

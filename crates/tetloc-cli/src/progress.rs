@@ -1,10 +1,26 @@
-//! Progress bars for anything that may run longer than a second (hidden when stderr is not a terminal).
+//! Progress bars for anything that may run longer than a second (hidden when stderr is not a
+//! terminal, and after [`set_quiet`]).
 
 use indicatif::{ProgressBar, ProgressStyle};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
+
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// Hides every bar and spinner from now on (`--quiet`).
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::Relaxed);
+}
+
+fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
 
 /// A spinner with a message, for steps whose length we cannot count.
 pub fn spinner(msg: impl Into<String>) -> ProgressBar {
+    if quiet() {
+        return ProgressBar::hidden();
+    }
     let pb = ProgressBar::new_spinner();
     pb.set_style(ProgressStyle::with_template("{spinner} {msg} [{elapsed}]").unwrap());
     pb.set_message(msg.into());
@@ -14,6 +30,9 @@ pub fn spinner(msg: impl Into<String>) -> ProgressBar {
 
 /// A bar over `len` items.
 pub fn bar(len: u64, msg: impl Into<String>) -> ProgressBar {
+    if quiet() {
+        return ProgressBar::hidden();
+    }
     let pb = ProgressBar::new(len);
     pb.set_style(
         ProgressStyle::with_template("{msg} [{bar:40}] {percent}% ({eta} left)").unwrap().progress_chars("=> "),

@@ -40,6 +40,7 @@ pub struct ResampleArgs {
 }
 
 pub fn run(a: &ResampleArgs) -> Result<()> {
+    progress::set_quiet(a.common.quiet);
     let [nx, ny, nz] = a.dims[..] else { bail!("--dims takes three counts NX,NY,NZ, got {:?}", a.dims) };
     if a.dims.contains(&0) {
         bail!("--dims {nx},{ny},{nz}: every dimension must be at least 1");

@@ -1,18 +1,18 @@
 //! `tetloc trace MESH --vector NAME --seeds SEEDS -o OUT.vtp`: streamlines through a vector
-//! field (ParaView's Stream Tracer with RK4 and a fixed step in length units), traced on the
-//! CPU with each particle's last tet as the start of its next lookup; the fields at the
-//! line points are sampled on the chosen backend.
+//! field (ParaView's Stream Tracer, RK4 with a fixed step or RK45 with an adaptive one, in
+//! length units). On `cpu` each particle starts its lookups from its last tet; on a GPU
+//! backend all particles advance together, one batched lookup per Runge–Kutta stage. The
+//! fields at the line points are sampled on the same backend.
 
 use crate::{backend, mesh_arg, progress, Common};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points;
-use tetloc_core::ops::trace::{self, Direction, TraceOptions};
-use tetloc_core::ops::{fields, FieldGroup};
-use tetloc_core::{CpuLocator, FieldLocation};
+use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
+use tetloc_core::{BatchLocator, CpuLocator};
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
@@ -29,15 +29,33 @@ pub struct TraceArgs {
     /// ReasonForTermination and SeedIds, as vtkStreamTracer writes them.
     #[arg(short, long)]
     out: PathBuf,
-    /// Step length (mesh units; by default a tenth of the mean edge).
+    /// Step length (mesh units; by default a tenth of the mean edge); with rk45 the first step.
     #[arg(long)]
     step: Option<f64>,
+    /// rk4 (fixed step, vtkRungeKutta4), rk45 (adaptive, Dormand-Prince 5(4)) or cash-karp
+    /// (adaptive, the Cash-Karp tableau of VTK's vtkRungeKutta45), both adaptive ones with
+    /// vtkRungeKutta45's step control.
+    #[arg(long, default_value = "rk4")]
+    integrator: String,
+    /// Adaptive steps: the largest error estimate of a step (mesh units).
+    #[arg(long, default_value_t = 1e-6)]
+    max_error: f64,
+    /// Adaptive steps: the smallest step (by default step / 50, as VTK's 0.01 around its 0.5).
+    #[arg(long)]
+    min_step: Option<f64>,
+    /// Adaptive steps: the largest step (by default 2 step, as VTK's 1 around its 0.5).
+    #[arg(long)]
+    max_step: Option<f64>,
     /// Steps per line before it stops (OUT_OF_STEPS; VTK takes one more).
     #[arg(long, default_value_t = 2000)]
     max_steps: usize,
     /// Longest line (mesh units; VTK's maximum propagation). Unlimited by default.
     #[arg(long)]
     max_length: Option<f64>,
+    /// Longest integration time: the last step lands on it, reason 7 (VTK has no such limit;
+    /// 7 is its first code for custom criteria). Unlimited by default.
+    #[arg(long)]
+    max_time: Option<f64>,
     /// forward, backward or both (two lines per seed: the forward ones, then the backward ones).
     #[arg(long, default_value = "forward")]
     direction: String,
@@ -47,7 +65,8 @@ pub struct TraceArgs {
     /// zlib-compress the output's arrays.
     #[arg(long)]
     zlib: bool,
-    /// The backend that samples the fields at the line points: cpu, soft-bvh, …, or auto.
+    /// The backend: cpu (each particle walks from its last tet), a GPU kernel (soft-bvh, …:
+    /// every particle advanced together, one batch per stage), or auto.
     #[arg(long, default_value = "auto")]
     backend: String,
     #[command(flatten)]
@@ -55,6 +74,7 @@ pub struct TraceArgs {
 }
 
 pub fn run(a: &TraceArgs) -> Result<()> {
+    progress::set_quiet(a.common.quiet);
     let direction: Direction = a.direction.parse()?;
     output::check_output(&a.out, &["vtp"]).context("--out: streamlines are written as VTK polydata")?;
     let spec = trace::seeds_from_spec(&a.seeds);
@@ -68,43 +88,55 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         Some(s) => s.context("--seeds")?,
         None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
     };
+    let mut o = TraceOptions {
+        step: a.step.unwrap_or(1.0), // checked now, the default set once the mesh is read
+        max_steps: a.max_steps,
+        max_length: a.max_length.unwrap_or(f64::INFINITY),
+        max_time: a.max_time.unwrap_or(f64::INFINITY),
+        terminal_speed: a.terminal_speed,
+        direction,
+        integrator: a.integrator.parse::<Integrator>().context("--integrator")?,
+        max_error: a.max_error,
+        min_step: a.min_step,
+        max_step: a.max_step,
+    };
+    o.check()?;
     let opts = a.common.opts()?;
 
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
-    let vector = fields::resolve(&m, &a.vector)?;
-    let [x, y, z] = vector.component_refs()[..] else {
-        bail!(
-            "--vector {}: a vector field has 3 components, '{}' has {}",
-            a.vector,
-            vector.name,
-            vector.n_components()
-        );
-    };
-    let o = TraceOptions {
-        step: a.step.unwrap_or(0.1 * m.info.mean_edge_length as f64),
-        max_steps: a.max_steps,
-        max_length: a.max_length.unwrap_or(f64::INFINITY),
-        terminal_speed: a.terminal_speed,
-        direction,
-    };
-    o.check()?;
-    let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
-    let field = cpu.vector_field([x, y, z])?;
-    let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
-    let pb = progress::bar(n_lines as u64, "tracing");
-    let t0 = Instant::now();
-    let lines = trace::trace(&seeds, &o, &field, &|d| pb.set_position(d as u64))?;
-    pb.finish_and_clear();
-    let secs = t0.elapsed().as_secs_f64();
-    let n_points: usize = lines.iter().map(|l| l.points.len()).sum();
-    // The point fields at the line points, as VTK interpolates them (and the vector, wherever it lives).
-    let mut out_fields: Vec<FieldGroup> =
-        fields::groups(&m).into_iter().filter(|g| g.location == FieldLocation::Vertex).collect();
-    if !out_fields.contains(&vector) {
-        out_fields.push(vector.clone());
+    if a.step.is_none() {
+        o.step = 0.1 * m.info.mean_edge_length as f64;
+        o.check()?;
     }
+    let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
+    let c = vector.component_refs();
+    let [x, y, z] = [c[0], c[1], c[2]];
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
-    let mut loc = backend::make(&name, &m, &opts)?;
+    let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
+    let (lines, secs, mut loc) = if name == "cpu" {
+        let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
+        let pb = progress::bar(n_lines as u64, "tracing on cpu");
+        let t0 = Instant::now();
+        let lines = trace::trace(&seeds, &o, &cpu.vector_field([x, y, z])?, &|d| {
+            pb.set_position(d as u64);
+            Ok(())
+        })?;
+        pb.finish_and_clear();
+        let loc: Box<dyn BatchLocator> = Box::new(tetloc_core::locate::FiniteOnly::new(cpu));
+        (lines, t0.elapsed().as_secs_f64(), loc)
+    } else {
+        let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
+        let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
+        let t0 = Instant::now();
+        let lines = trace::trace_batch(&seeds, &o, loc.as_mut(), [x, y, z], |d| {
+            pb.set_position(d as u64);
+            Ok(())
+        })?;
+        pb.finish_and_clear();
+        (lines, t0.elapsed().as_secs_f64(), loc)
+    };
+    let n_points: usize = lines.iter().map(|l| l.points.len()).sum();
+    let out_fields = trace::line_fields(&m, &vector);
     progress::with_spinner(format!("writing {}", a.out.display()), || {
         trace::write_lines(&a.out, &lines, loc.as_mut(), &out_fields, a.zlib)
     })?;
@@ -116,7 +148,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     }
     if !a.common.quiet {
         eprintln!(
-            "{}: {} lines, {n_points} points ({} steps/s) in {secs:.3} s",
+            "{}: {} lines, {n_points} points (steps at {}) on {name} in {secs:.3} s",
             a.out.display(),
             lines.len(),
             crate::bench::fmt_rate((n_points - lines.len()) as f64 / secs)

@@ -155,18 +155,43 @@ fn bad_inputs_are_refused() {
         "/nonexistent-dir/l.vtp",
     ]);
     assert!(!ok && err.contains("does not exist"), "{err}");
+    let trace = |extra: &[&str]| {
+        let mut args = vec!["trace", "jets:2000", "--vector", "v", "-o", s(&vtp)];
+        if !extra.contains(&"--seeds") {
+            args.extend(["--seeds", "line:0,0,0,1,1,1,3"]);
+        }
+        args.extend(extra);
+        tetloc(&args)
+    };
+    for (extra, want) in [
+        (&["--integrator", "euler"][..], "integrator 'euler'"),
+        (&["--integrator", "rk45", "--min-step", "0.1", "--max-step", "0.01"], "min <= max"),
+        (&["--max-time=-1"], "maximum time"),
+        (&["--step", "0"], "positive length"),
+        (&["--seeds", "line:0,0,0,1,1,x,3"], "not a number"),
+        (&["--seeds", "/nonexistent-dir/seeds.npy"], "nonexistent-dir"),
+    ] {
+        let (ok, _, err) = trace(extra);
+        assert!(!ok && err.contains(want), "{extra:?}: {err}");
+    }
     assert!(!vtp.exists());
+    // probe: a field that does not exist, an output directory that does not exist, a mesh
+    // target written as .vtp.
+    let pts = dir.join("p.csv");
+    std::fs::write(&pts, "0.5,0.5,0.5\n").unwrap();
+    let vtu = dir.join("p.vtu");
+    let (ok, _, err) = tetloc(&["probe", "jets:2000", s(&pts), "-o", s(&vtu), "--field", "nope", "--backend", "cpu"]);
+    assert!(!ok && err.contains("'nope'"), "{err}");
+    let (ok, _, err) = tetloc(&["probe", "jets:2000", s(&pts), "-o", "/nonexistent-dir/p.vtu", "--backend", "cpu"]);
+    assert!(!ok && err.contains("does not exist"), "{err}");
+    let (ok, _, err) = tetloc(&["probe", "jets:2000", "jets:1000", "-o", s(&dir.join("p.vtp")), "--backend", "cpu"]);
+    assert!(!ok && err.contains("vtu") && err.contains("p.vtp"), "{err}");
+    assert!(!vtu.exists());
 }
 
-/// Streamlines through a swirl on the torus (v = (-y + 0.2x, x + 0.2y, 0.3), so lines spiral
-/// outwards and leave through the boundary) against vtkStreamTracer with the same RK4 step:
-/// the same lines (seed, reason), the same points within 1e-4 of the domain size, ending at
-/// the same boundary. A seed outside the mesh gives no line and a warning.
-#[test]
-fn trace_matches_vtk() {
-    const TEST: &str = "trace_matches_vtk";
-    let Some(data) = require_data(TEST) else { return };
-    let dir = tmp_dir("trace");
+/// The swirl on the torus (v = (-y + 0.2x, x + 0.2y, 0.3), so lines spiral outwards and
+/// leave through the boundary) as a mesh file, and five seeds (the last, the origin, outside).
+fn swirl_case(data: &Path, dir: &Path) -> (PathBuf, PathBuf) {
     let mut m = tetloc_core::io::read_mesh(&data.join("torus_s.vtu"), None).unwrap();
     let swirl = |p: [f32; 3]| [-p[1] + 0.2 * p[0], p[0] + 0.2 * p[1], 0.3];
     for c in 0..3 {
@@ -183,56 +208,193 @@ fn trace_matches_vtk() {
     let pts: Vec<[f32; 3]> =
         vec![[0.8, 0.0, 0.0], [1.0, 0.1, 0.1], [0.0, 1.2, -0.1], [-1.1, 0.0, 0.2], [0.0, 0.0, 0.0]];
     std::fs::write(&seeds, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
+    (mesh, seeds)
+}
+
+/// Lines as `vtk_ops.py trace` dumps them: (offsets, points, times, seeds, reasons).
+type Lines = (Vec<i64>, Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+fn dumped_lines(dir: &Path, who: &str) -> Lines {
+    let read = |what: &str| read_f64s(&dir.join(format!("{who}.{what}.bin")));
+    let offsets = bytemuck::pod_collect_to_vec(&std::fs::read(dir.join(format!("{who}.offsets.bin"))).unwrap());
+    (offsets, read("points"), read("IntegrationTime"), read("SeedIds"), read("ReasonForTermination"))
+}
+
+/// Traces the swirl case with `extra` options, and VTK with `vtk_extra`; both lines dumped.
+fn trace_both(test: &str, name: &str, extra: &[&str], vtk_extra: &[&str]) -> Option<(Lines, Lines, String)> {
+    let data = require_data(test)?;
+    let dir = tmp_dir(name);
+    let (mesh, seeds) = swirl_case(&data, &dir);
     let out = dir.join("lines.vtp");
-    let (ok, _, err) = tetloc(&[
-        "trace",
-        s(&mesh),
-        "--vector",
-        "v",
-        "--seeds",
-        s(&seeds),
-        "-o",
-        s(&out),
-        "--step",
-        "0.01",
-        "--max-steps",
-        "400",
-        "--direction",
-        "both",
-        "--backend",
-        "cpu",
-    ]);
+    let mut args = vec!["trace", s(&mesh), "--vector", "v", "--seeds", s(&seeds), "-o", s(&out), "--step", "0.01"];
+    args.extend(["--max-steps", "400", "--direction", "both", "--backend", "cpu"]);
+    args.extend(extra);
+    let (ok, _, err) = tetloc(&args);
     assert!(ok, "{err}");
-    assert!(err.contains("2 of 10 lines"), "the seed at the origin is outside: {err}");
-    let Some(()) = run_vtk_script(
-        TEST,
-        "vtk_ops.py",
-        &["trace", s(&mesh), "v", s(&seeds), "0.01", "400", "both", s(&out), s(&dir)],
-    ) else {
-        return;
-    };
-    let read = |who: &str, what: &str| read_f64s(&dir.join(format!("{who}.{what}.bin")));
-    let offsets = |who: &str| -> Vec<i64> {
-        bytemuck::pod_collect_to_vec(&std::fs::read(dir.join(format!("{who}.offsets.bin"))).unwrap())
-    };
-    let (vo, to) = (offsets("vtk"), offsets("tetloc"));
+    let mut vtk_args = vec!["trace", s(&mesh), "v", s(&seeds), "0.01", "400", "both", s(&out), s(&dir)];
+    vtk_args.extend(vtk_extra);
+    run_vtk_script(test, "vtk_ops.py", &vtk_args)?;
+    Some((dumped_lines(&dir, "vtk"), dumped_lines(&dir, "tetloc"), err))
+}
+
+/// The same lines (seeds, reasons), every point within `tol` of VTK's, the times within
+/// 1e-4; ending at the same boundary (at most one step apart: VTK's cell search accepts a
+/// point just outside).
+fn same_lines(vtk: &Lines, ours: &Lines, tol: f64) {
+    let ((vo, vp, vt, vs, vr), (to, tp, tt, ts, tr)) = (vtk, ours);
     assert_eq!(vo.len(), to.len(), "lines: VTK {} vs {}", vo.len() - 1, to.len() - 1);
-    assert_eq!(read("vtk", "SeedIds"), read("tetloc", "SeedIds"));
-    assert_eq!(read("vtk", "ReasonForTermination"), read("tetloc", "ReasonForTermination"));
-    let (vp, tp) = (read("vtk", "points"), read("tetloc", "points"));
-    let (vt, tt) = (read("vtk", "IntegrationTime"), read("tetloc", "IntegrationTime"));
-    let size = 2.7; // the torus' extent
+    assert_eq!((vs, vr), (ts, tr), "seeds and reasons");
     for l in 0..vo.len() - 1 {
         let (va, vb, ta, tb) = (vo[l] as usize, vo[l + 1] as usize, to[l] as usize, to[l + 1] as usize);
-        // Ending at the same boundary: at most one step apart at the end (VTK's cell search
-        // accepts a point just outside).
         assert!((vb - va).abs_diff(tb - ta) <= 1, "line {l}: {} points in VTK, {} here", vb - va, tb - ta);
         for k in 0..(vb - va).min(tb - ta) {
             let d = (0..3).map(|a| (vp[3 * (va + k) + a] - tp[3 * (ta + k) + a]).powi(2)).sum::<f64>().sqrt();
-            assert!(d <= 1e-4 * size, "line {l}, point {k}: {d:e} from VTK's");
+            assert!(d <= tol, "line {l}, point {k}: {d:e} from VTK's");
             assert!((vt[va + k] - tt[ta + k]).abs() <= 1e-4 * (1.0 + vt[va + k].abs()), "line {l}, point {k}: time");
         }
     }
+}
+
+/// The swirl's streamlines against vtkStreamTracer with the same RK4 step: the same lines
+/// (seed, reason), the same points within 1e-4 of the domain size, ending at the same
+/// boundary. A seed outside the mesh gives no line and a warning.
+#[test]
+fn trace_matches_vtk() {
+    let Some((vtk, ours, err)) = trace_both("trace_matches_vtk", "trace", &[], &[]) else { return };
+    assert!(err.contains("2 of 10 lines"), "the seed at the origin is outside: {err}");
+    same_lines(&vtk, &ours, 1e-4 * TORUS_SIZE);
+}
+
+/// `tetloc trace --backend soft-bvh` (every particle advanced together, one batched lookup
+/// per stage on the GPU) gives the cpu backend's lines: the same lines, reasons and point
+/// counts, every point within 1e-5 of the domain (float32 sampling on the device against
+/// the CPU's: ~1e-7 per lookup, over a few hundred steps). Skipped without a Vulkan device
+/// (failed in CI).
+#[test]
+fn trace_on_the_gpu_matches_cpu() {
+    const TEST: &str = "trace_on_the_gpu_matches_cpu";
+    let Some(data) = require_data(TEST) else { return };
+    let (ok, out, _) = tetloc(&["devices"]);
+    if !ok || !out.contains("Vulkan") {
+        assert!(!tetloc_testdata::in_ci(), "{TEST}: no Vulkan device in CI");
+        eprintln!("SKIPPED {TEST}: no Vulkan device");
+        return;
+    }
+    let dir = tmp_dir("trace-gpu");
+    let (mesh, seeds) = swirl_case(&data, &dir);
+    let mut dumped = Vec::new();
+    for (backend, integrator) in [("cpu", "rk4"), ("soft-bvh", "rk4"), ("cpu", "rk45"), ("soft-bvh", "rk45")] {
+        let out = dir.join(format!("{backend}-{integrator}.vtp"));
+        let mut args = vec!["trace", s(&mesh), "--vector", "v", "--seeds", s(&seeds), "-o", s(&out)];
+        args.extend(["--step", "0.01", "--max-steps", "300", "--direction", "both", "--quiet"]);
+        args.extend(["--backend", backend, "--integrator", integrator]);
+        let (ok, _, err) = tetloc(&args);
+        assert!(ok, "{backend}: {err}");
+        let sub = dir.join(format!("{backend}-{integrator}"));
+        std::fs::create_dir_all(&sub).unwrap();
+        let vtk_args = ["trace", s(&mesh), "v", s(&seeds), "0.01", "300", "both", s(&out), s(&sub)];
+        let Some(()) = run_vtk_script(TEST, "vtk_ops.py", &vtk_args) else { return };
+        dumped.push(dumped_lines(&sub, "tetloc"));
+    }
+    for pair in dumped.chunks(2) {
+        let ((co, cp, ct, cs, cr), (go, gp, gt, gs, gr)) = (&pair[0], &pair[1]);
+        assert_eq!((co, cs, cr), (go, gs, gr), "lines, seeds, reasons and point counts");
+        let worst = cp.iter().zip(gp).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+        eprintln!(
+            "{TEST}: points within {worst:e}, times within {:e}",
+            ct.iter().zip(gt).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
+        );
+        assert!(worst <= 1e-5 * TORUS_SIZE, "a point {worst:e} from the cpu's");
+    }
+}
+
+/// The torus' extent.
+const TORUS_SIZE: f64 = 2.7;
+
+/// The adaptive step against vtkStreamTracer's RK45 (vtkRungeKutta45). Where the error
+/// allows the maximum step (bounds 0.001 and 0.05, maximum error 1e-6), Cash-Karp gives VTK's
+/// lines point by point (the same tableau and loop). Where the error controls the step (bounds
+/// 0.001 and 0.5, maximum error 1e-7), the step sizes differ a little: the field reaches the
+/// integrator as float32 (the locators' values; VTK interpolates in float64), whose rounding
+/// (~6e-8 relative) adds ~1e-11 to the error estimate of the small first step; so there both
+/// integrators give the same lines (seeds, reasons) on the same paths: each point within
+/// 1e-4 of the domain from VTK's polyline.
+#[test]
+fn trace_rk45_matches_vtk() {
+    const TEST: &str = "trace_rk45_matches_vtk";
+    let clamped = ["--integrator", "cash-karp", "--min-step", "0.001", "--max-step", "0.05", "--max-error", "1e-6"];
+    let Some((vtk, ours, _)) = trace_both(TEST, "trace-ck", &clamped, &["rk45", "0.001", "0.05", "1e-6"]) else {
+        return;
+    };
+    same_lines(&vtk, &ours, 1e-4 * TORUS_SIZE);
+    for integrator in ["cash-karp", "rk45"] {
+        let controlled =
+            ["--integrator", integrator, "--min-step", "0.001", "--max-step", "0.5", "--max-error", "1e-7"];
+        let vtk_args = ["rk45", "0.001", "0.5", "1e-7"];
+        let name = format!("trace-{integrator}");
+        let Some((vtk, ours, _)) = trace_both(TEST, &name, &controlled, &vtk_args) else { return };
+        let worst = on_the_same_paths(&tmp_dir(&name), &vtk, &ours);
+        eprintln!("{integrator}: every point within {worst:e} of VTK's RK45 lines");
+        assert!(worst <= 1e-4 * TORUS_SIZE, "{integrator}: a point {worst:e} from VTK's line");
+    }
+}
+
+/// The same lines (seeds, reasons); the largest distance of a point of ours from VTK's path,
+/// up to VTK's last point (in time: the last step to the boundary differs with the steps).
+/// VTK's path between two of its points is the cubic Hermite curve through them along the
+/// field (`v`, dumped with the lines): its error, ~h⁴/384 of the fourth derivative, is far
+/// below the tolerance, where the chord's sagitta (h²/8R, 6e-3 for the 0.2 steps) is not.
+fn on_the_same_paths(dir: &Path, vtk: &Lines, ours: &Lines) -> f64 {
+    let ((vo, vp, vt, vs, vr), (to, tp, tt, ts, tr)) = (vtk, ours);
+    assert_eq!((vo.len(), vs, vr), (to.len(), ts, tr), "lines, seeds and reasons");
+    let vv = read_f64s(&dir.join("vtk.v.bin"));
+    let point = |k: usize| -> [f64; 3] { std::array::from_fn(|a| vp[3 * k + a]) };
+    let tangent = |k: usize| -> [f64; 3] {
+        let v: [f64; 3] = std::array::from_fn(|a| vv[3 * k + a]);
+        let n = v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        v.map(|x| x / n)
+    };
+    // VTK's path of line `l` sampled finely.
+    let path = |l: usize| -> Vec<[f64; 3]> {
+        let mut out = Vec::new();
+        for j in vo[l] as usize..vo[l + 1] as usize - 1 {
+            let (a, b, mut ta, mut tb) = (point(j), point(j + 1), tangent(j), tangent(j + 1));
+            let h = (0..3).map(|i| (b[i] - a[i]).powi(2)).sum::<f64>().sqrt();
+            if (0..3).map(|i| ta[i] * (b[i] - a[i])).sum::<f64>() < 0.0 {
+                (ta, tb) = (ta.map(|x| -x), tb.map(|x| -x)); // a backward line
+            }
+            for q in 0..=64 {
+                let s = q as f64 / 64.0;
+                let (h00, h10, h01, h11) = (
+                    2.0 * s.powi(3) - 3.0 * s * s + 1.0,
+                    s.powi(3) - 2.0 * s * s + s,
+                    -2.0 * s.powi(3) + 3.0 * s * s,
+                    s.powi(3) - s * s,
+                );
+                out.push(std::array::from_fn(|i| h00 * a[i] + h10 * h * ta[i] + h01 * b[i] + h11 * h * tb[i]));
+            }
+        }
+        out
+    };
+    let mut worst = 0f64;
+    for l in 0..vo.len() - 1 {
+        let fine = path(l);
+        let end = vt[vo[l + 1] as usize - 1].abs();
+        for k in (to[l] as usize..to[l + 1] as usize).filter(|&k| tt[k].abs() <= end) {
+            let p: [f64; 3] = std::array::from_fn(|a| tp[3 * k + a]);
+            let d = fine.windows(2).map(|w| point_segment_distance(p, (w[0], w[1]))).fold(f64::INFINITY, f64::min);
+            worst = worst.max(d);
+        }
+    }
+    worst
+}
+
+fn point_segment_distance(p: [f64; 3], (a, b): ([f64; 3], [f64; 3])) -> f64 {
+    let ab: [f64; 3] = std::array::from_fn(|i| b[i] - a[i]);
+    let ap: [f64; 3] = std::array::from_fn(|i| p[i] - a[i]);
+    let len2: f64 = ab.iter().map(|x| x * x).sum();
+    let t = if len2 > 0.0 { (ap.iter().zip(&ab).map(|(x, y)| x * y).sum::<f64>() / len2).clamp(0.0, 1.0) } else { 0.0 };
+    (0..3).map(|i| (ap[i] - t * ab[i]).powi(2)).sum::<f64>().sqrt()
 }
 
 /// Probing the torus at its `bbox` query points (many outside) against vtkResampleWithDataSet:

@@ -43,12 +43,12 @@ impl Probed {
 }
 
 /// Samples `fields` (of the mesh `loc` locates in) at `points`, in chunks; `progress` gets the
-/// number of points done so far.
+/// number of points done so far (an error from it stops the probe: an interruption).
 pub fn probe(
     loc: &mut dyn BatchLocator,
     points: &[Vec3],
     fields: &[FieldGroup],
-    mut progress: impl FnMut(usize),
+    mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<Probed> {
     let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
     let width = names.len();
@@ -57,7 +57,7 @@ pub fn probe(
     for (c, p) in points.chunks(CHUNK).enumerate() {
         let r = c * CHUNK..c * CHUNK + p.len();
         loc.sample_many(p, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
-        progress(r.end);
+        progress(r.end)?;
     }
     // One array per field, its components together.
     let mut at = 0;
@@ -103,7 +103,11 @@ mod tests {
         points.push([2.0, 0.5, 0.5]);
         let mut loc = CpuLocator::new(m.clone());
         let mut last = 0;
-        let p = probe(&mut loc, &points, &groups, |d| last = d).unwrap();
+        let p = probe(&mut loc, &points, &groups, |d| {
+            last = d;
+            Ok(())
+        })
+        .unwrap();
         assert_eq!(last, points.len());
         assert_eq!(p.n_valid(), m.points.len());
         let (g, f) = &p.arrays[0];
@@ -115,7 +119,7 @@ mod tests {
         // those of the same name, and the mask.
         let mut renamed = groups.clone();
         renamed[0].name = "f_probed".into();
-        let onto = probe(&mut loc, &m.points, &renamed, |_| {}).unwrap();
+        let onto = probe(&mut loc, &m.points, &renamed, |_| Ok(())).unwrap();
         let tmp = std::env::temp_dir().join(format!("tetloc-probe-{}.vtu", std::process::id()));
         write_probed(&tmp, &onto, Some(&m), &m.points, false).unwrap();
         let back = crate::io::vtk::vtu::read(&tmp).unwrap();

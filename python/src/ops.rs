@@ -1,0 +1,281 @@
+//! `tetloc.resample_to_image`, `tetloc.probe` and `tetloc.trace` (python/tetloc/_ops.py) on
+//! the core's operations (`tetloc_core::ops`, what the CLI runs): each runs on a worker
+//! thread without the GIL while the calling thread checks for Ctrl-C and reports progress.
+
+use crate::errors::{internal_error, to_py};
+use crate::locator::{Backend, PyLocator};
+use crate::mesh::{contiguous, PyMesh};
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::sync::MutexExt;
+use pyo3::types::PyDict;
+use std::panic::{catch_unwind, AssertUnwindSafe};
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
+use tetloc_core::locate::FiniteOnly;
+use tetloc_core::ops::trace::{self, Integrator, LineArrays, TraceOptions};
+use tetloc_core::ops::{fields, probe, resample, FieldGroup, ImageGrid};
+use tetloc_core::{BatchLocator, CpuLocator, Vec3};
+
+/// Points per batch between two progress ticks (and chances to stop).
+const TICK_POINTS: usize = 1 << 20;
+
+/// What a job and the waiting thread share: work done so far, and the request to stop.
+#[derive(Default)]
+struct Ticker {
+    done: AtomicUsize,
+    cancel: AtomicBool,
+}
+
+impl Ticker {
+    /// Records progress; an error (ending the job) once the caller asked to stop.
+    fn tick(&self, done: usize) -> tetloc_core::Result<()> {
+        self.done.store(done, Ordering::Relaxed);
+        if self.cancel.load(Ordering::Relaxed) {
+            return Err(tetloc_core::Error::Invalid("interrupted".into()));
+        }
+        Ok(())
+    }
+}
+
+/// Runs `job` on a scoped worker thread while this thread, every 100 ms, checks for Ctrl-C
+/// (which stops the job at its next tick and raises `KeyboardInterrupt`) and calls
+/// `progress(stage, done / total, seconds)`.
+fn run_job<T: Send>(
+    py: Python<'_>,
+    stage: &str,
+    total: usize,
+    progress: Option<&Bound<'_, PyAny>>,
+    job: impl FnOnce(&Ticker) -> tetloc_core::Result<T> + Send,
+) -> PyResult<T> {
+    let ticker = Ticker::default();
+    let t0 = Instant::now();
+    std::thread::scope(|scope| {
+        let handle = scope.spawn(|| catch_unwind(AssertUnwindSafe(|| job(&ticker))));
+        let mut stop: Option<PyErr> = None;
+        while !handle.is_finished() {
+            py.detach(|| {
+                let until = Instant::now() + Duration::from_millis(100);
+                while !handle.is_finished() && Instant::now() < until {
+                    std::thread::sleep(Duration::from_millis(2));
+                }
+            });
+            if stop.is_some() || handle.is_finished() {
+                continue;
+            }
+            let fraction = ticker.done.load(Ordering::Relaxed) as f64 / total.max(1) as f64;
+            let ticked = py.check_signals().and_then(|()| {
+                progress.map(|p| p.call1((stage, fraction.min(1.0), t0.elapsed().as_secs_f64()))).transpose()
+            });
+            if let Err(e) = ticked {
+                ticker.cancel.store(true, Ordering::Relaxed);
+                stop = Some(e);
+            }
+        }
+        let result = py.detach(|| handle.join());
+        if let Some(e) = stop {
+            return Err(e);
+        }
+        if let Some(p) = progress {
+            p.call1(("done", 1.0, t0.elapsed().as_secs_f64()))?;
+        }
+        match result {
+            Ok(Ok(r)) => r.map_err(to_py),
+            Ok(Err(panic)) | Err(panic) => Err(internal_error(stage, &*panic)),
+        }
+    })
+}
+
+/// The locator's backend for one call (waiting for another thread's call without the GIL).
+fn with_backend<T>(
+    py: Python<'_>,
+    locator: &PyLocator,
+    f: impl FnOnce(&mut (dyn BatchLocator + Send)) -> PyResult<T>,
+) -> PyResult<T> {
+    let mut guard = locator.backend.lock_py_attached(py).unwrap_or_else(|p| p.into_inner());
+    let Some(loc) = guard.as_mut() else {
+        return Err(PyRuntimeError::new_err(format!(
+            "this {} Locator is unusable after an internal error; build a new one",
+            locator.name
+        )));
+    };
+    let loc: &mut Backend = loc;
+    f(&mut **loc)
+}
+
+/// The named fields of `mesh` (all when `names` is empty), as the core groups them.
+fn field_groups(mesh: &tetloc_core::Mesh, names: &[String]) -> PyResult<Vec<FieldGroup>> {
+    if names.is_empty() {
+        return Ok(fields::groups(mesh));
+    }
+    names.iter().map(|n| fields::resolve(mesh, n).map_err(to_py)).collect()
+}
+
+type FieldArrays<'py> = Vec<(String, usize, Bound<'py, PyArray1<f32>>)>;
+
+/// `(arrays, vtkValidPointMask, origin, spacing)`: every field sampled at the grid points of
+/// `dims` over `bounds` (x0, x1, y0, y1, z0, z1; the mesh's, nudged inwards as
+/// vtkResampleToImage does, when `None`), x fastest; each array holds k values per point.
+#[pyfunction]
+#[pyo3(signature = (locator, names, dims, bounds=None, progress=None))]
+#[allow(clippy::type_complexity)]
+pub fn resample_to_image<'py>(
+    py: Python<'py>,
+    locator: &PyLocator,
+    names: Vec<String>,
+    dims: [usize; 3],
+    bounds: Option<[f64; 6]>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<(FieldArrays<'py>, Bound<'py, PyArray1<u8>>, [f64; 3], [f64; 3])> {
+    let mesh = locator.mesh.clone();
+    let groups = field_groups(&mesh, &names)?;
+    let grid = match bounds {
+        Some(b) => ImageGrid::spanning([b[0], b[2], b[4]], [b[1], b[3], b[5]], dims),
+        None => ImageGrid::over_bounds(mesh.info.bounds_min.map(f64::from), mesh.info.bounds_max.map(f64::from), dims),
+    }
+    .map_err(to_py)?;
+    let n = grid.n_points();
+    let widths: Vec<usize> = groups.iter().map(FieldGroup::n_components).collect();
+    let width: usize = widths.iter().sum();
+    let size = |k: usize| {
+        n.checked_mul(k).ok_or_else(|| PyValueError::new_err(format!("dims {dims:?}: too many points for memory")))
+    };
+    size(width.max(1))?;
+    let mut mask = vec![0u8; n];
+    let mut values: Vec<Vec<f32>> = widths.iter().map(|&k| vec![0f32; n * k]).collect();
+    with_backend(py, locator, |loc| {
+        run_job(py, "resampling", n, progress.as_ref(), |ticker| {
+            let mut at = 0;
+            resample::resample(loc, &grid, &groups, TICK_POINTS, |ids, vals| {
+                for (i, &id) in ids.iter().enumerate() {
+                    mask[at + i] = u8::from(id >= 0);
+                }
+                let mut offset = 0;
+                for (out, &k) in values.iter_mut().zip(&widths) {
+                    for (i, row) in vals.chunks_exact(width).enumerate() {
+                        out[(at + i) * k..(at + i + 1) * k].copy_from_slice(&row[offset..offset + k]);
+                    }
+                    offset += k;
+                }
+                at += ids.len();
+                ticker.tick(at)
+            })
+        })
+    })?;
+    let arrays = groups.iter().zip(values).map(|(g, v)| (g.name.clone(), g.n_components(), PyArray1::from_vec(py, v)));
+    Ok((arrays.collect(), PyArray1::from_vec(py, mask), grid.origin, grid.spacing))
+}
+
+/// `(arrays, vtkValidPointMask)`: the fields of the locator's mesh at `points` (K, 3).
+#[pyfunction(name = "probe")]
+#[pyo3(signature = (locator, points, names, progress=None))]
+pub fn probe_fields<'py>(
+    py: Python<'py>,
+    locator: &PyLocator,
+    points: PyReadonlyArray2<'_, f32>,
+    names: Vec<String>,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<(FieldArrays<'py>, Bound<'py, PyArray1<u8>>)> {
+    let pts = points_of(&points)?;
+    let groups = field_groups(&locator.mesh, &names)?;
+    let probed = with_backend(py, locator, |loc| {
+        run_job(py, "probing", pts.len(), progress.as_ref(), |ticker| {
+            probe::probe(loc, pts, &groups, |d| ticker.tick(d))
+        })
+    })?;
+    let mask = PyArray1::from_vec(py, probed.mask());
+    let arrays = probed.arrays.into_iter().map(|(g, v)| (g.name.clone(), g.n_components(), PyArray1::from_vec(py, v)));
+    Ok((arrays.collect(), mask))
+}
+
+fn points_of<'a>(points: &'a PyReadonlyArray2<'_, f32>) -> PyResult<&'a [Vec3]> {
+    if points.shape()[1] != 3 {
+        return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
+    }
+    Ok(bytemuck::cast_slice(contiguous(points, "points")?))
+}
+
+/// Streamlines of the vector field `vector` of `mesh` from `seeds` (K, 3): on the CPU with
+/// each particle walking from its last tet when `locator` is `None`, else step-synchronous
+/// through the locator's backend. Returns a dict: `points` (P, 3) float32, `offsets` (L + 1)
+/// int64, `IntegrationTime` (P) float64, `ReasonForTermination` and `SeedIds` (L) int32,
+/// and `fields`: (name, k, values) of the fields sampled at the points.
+#[pyfunction(name = "trace")]
+#[pyo3(signature = (mesh, locator, vector, seeds, step, max_steps, max_length, max_time, direction, integrator,
+    max_error, min_step, max_step, terminal_speed, progress=None))]
+#[allow(clippy::too_many_arguments)]
+pub fn trace_lines<'py>(
+    py: Python<'py>,
+    mesh: &PyMesh,
+    locator: Option<&PyLocator>,
+    vector: &str,
+    seeds: PyReadonlyArray2<'_, f32>,
+    step: Option<f64>,
+    max_steps: usize,
+    max_length: Option<f64>,
+    max_time: Option<f64>,
+    direction: &str,
+    integrator: &str,
+    max_error: f64,
+    min_step: Option<f64>,
+    max_step: Option<f64>,
+    terminal_speed: f64,
+    progress: Option<Bound<'py, PyAny>>,
+) -> PyResult<Bound<'py, PyDict>> {
+    let m = mesh.mesh.clone();
+    let seeds = points_of(&seeds)?;
+    let vector = trace::vector_field(&m, vector).map_err(to_py)?;
+    let o = TraceOptions {
+        step: step.unwrap_or(0.1 * m.info.mean_edge_length as f64),
+        max_steps,
+        max_length: max_length.unwrap_or(f64::INFINITY),
+        max_time: max_time.unwrap_or(f64::INFINITY),
+        terminal_speed,
+        direction: direction.parse().map_err(to_py)?,
+        integrator: integrator.parse::<Integrator>().map_err(to_py)?,
+        max_error,
+        min_step,
+        max_step,
+    };
+    o.check().map_err(to_py)?;
+    let c = vector.component_refs();
+    let xyz = [c[0], c[1], c[2]];
+    let n_lines = seeds.len() * if o.direction == trace::Direction::Both { 2 } else { 1 };
+    let out_fields = trace::line_fields(&m, &vector);
+    let arrays = match locator {
+        None => {
+            let cpu = py.detach(|| CpuLocator::new(m.clone()));
+            let field = cpu.vector_field(xyz).map_err(to_py)?;
+            let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
+                trace::trace(seeds, &o, &field, &|d| ticker.tick(d))
+            })?;
+            drop(field);
+            let mut loc = FiniteOnly::new(cpu);
+            py.detach(|| LineArrays::new(&lines, &mut loc, &out_fields)).map_err(to_py)?
+        }
+        Some(locator) => with_backend(py, locator, |loc| {
+            let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
+                trace::trace_batch(seeds, &o, &mut *loc, xyz, |d| ticker.tick(d))
+            })?;
+            py.detach(|| LineArrays::new(&lines, &mut *loc, &out_fields)).map_err(to_py)
+        })?,
+    };
+    let out = PyDict::new(py);
+    let flat = PyArray1::from_slice(py, bytemuck::cast_slice::<Vec3, f32>(&arrays.points));
+    let points: Bound<'py, PyArray2<f32>> = flat.reshape([arrays.points.len(), 3])?;
+    out.set_item("points", points)?;
+    let offsets: Vec<i64> = std::iter::once(0).chain(arrays.ends.iter().map(|&e| e as i64)).collect();
+    out.set_item("offsets", PyArray1::from_vec(py, offsets))?;
+    out.set_item("IntegrationTime", PyArray1::from_slice(py, &arrays.time))?;
+    out.set_item("ReasonForTermination", PyArray1::from_slice(py, &arrays.reasons))?;
+    out.set_item("SeedIds", PyArray1::from_slice(py, &arrays.seeds))?;
+    let fields: FieldArrays = arrays
+        .fields
+        .arrays
+        .iter()
+        .map(|(g, v)| (g.name.clone(), g.n_components(), PyArray1::from_slice(py, v)))
+        .collect();
+    out.set_item("fields", fields)?;
+    Ok(out)
+}

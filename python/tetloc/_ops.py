@@ -1,0 +1,257 @@
+"""``tetloc.resample_to_image``, ``tetloc.probe`` and ``tetloc.trace``: ParaView's Resample To
+Image, Resample With Dataset and Stream Tracer, on the core's operations (the CLI's
+``tetloc resample``, ``probe`` and ``trace``). numpy out by default; pyvista objects when asked
+(``as_pyvista=True``) or when the input is a pyvista dataset, with ParaView's array names
+(``vtkValidPointMask``, ``IntegrationTime``, ``ReasonForTermination``, ``SeedIds``)."""
+
+from __future__ import annotations
+
+from typing import Any, Dict, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from . import _tetloc
+from ._locator import Locator
+from ._mesh import Mesh
+from ._points import as_points
+from ._progress import ProgressBar
+
+ArrayLike = Any
+MeshLike = Any  # tetloc.Mesh, tetloc.Locator or a pyvista dataset
+VALID_MASK = "vtkValidPointMask"
+
+#: ``ReasonForTermination`` codes, as vtkStreamTracer's (7: the integration time reached
+#: ``max_time``, a limit VTK does not have).
+REASONS = {1: "OUT_OF_DOMAIN", 2: "NOT_INITIALIZED", 3: "UNEXPECTED_VALUE", 4: "OUT_OF_LENGTH",
+           5: "OUT_OF_STEPS", 6: "STAGNATION", 7: "OUT_OF_TIME"}
+
+
+def _is_pyvista(obj: Any) -> bool:
+    pv = __import__("sys").modules.get("pyvista")
+    return pv is not None and isinstance(obj, pv.DataSet)
+
+
+def _mesh_of(mesh: MeshLike, arg: str) -> Mesh:
+    if isinstance(mesh, Locator):
+        return mesh.mesh
+    if isinstance(mesh, Mesh):
+        return mesh
+    if _is_pyvista(mesh):
+        return Mesh.from_pyvista(mesh)
+    raise TypeError(f"{arg}: expected a tetloc.Mesh, a tetloc.Locator or a pyvista dataset, got {type(mesh).__name__}")
+
+
+def _locator(mesh: MeshLike, backend: str, device: Optional[int], arg: str) -> Locator:
+    if isinstance(mesh, Locator):
+        return mesh
+    return Locator(_mesh_of(mesh, arg), backend=backend, device=device)
+
+
+def _progress(progress: Any, title: str) -> Any:
+    if progress is True:
+        return ProgressBar(title)
+    if progress is False or progress is None:
+        return None
+    if not callable(progress):
+        raise TypeError(f"progress: expected True, False or a callable, got {type(progress).__name__}")
+    return progress
+
+
+def _names(fields: Union[None, str, Sequence[str]]) -> Tuple[list, bool]:
+    """(field names, whether one field was named as a string)."""
+    if fields is None:
+        return [], False
+    if isinstance(fields, str):
+        return [fields], True
+    names = list(fields)
+    if not all(isinstance(n, str) for n in names):
+        raise TypeError(f"fields: expected a field name or a list of names, got {fields!r}")
+    return names, False
+
+
+def _shaped(values: np.ndarray, k: int, lead: Tuple[int, ...]) -> np.ndarray:
+    return values.reshape(lead) if k == 1 else values.reshape(lead + (k,))
+
+
+def resample_to_image(
+    mesh: MeshLike,
+    fields: Union[None, str, Sequence[str]] = None,
+    dims: Sequence[int] = (64, 64, 64),
+    bounds: Optional[Sequence[float]] = None,
+    *,
+    backend: str = "auto",
+    device: Optional[int] = None,
+    as_pyvista: Optional[bool] = None,
+    progress: Any = False,
+) -> Any:
+    """Samples fields of `mesh` on a regular grid (vtkResampleToImage): `dims` = (NX, NY, NZ)
+    points spanning `bounds` (xmin, xmax, ymin, ymax, zmin, zmax; by default the mesh's,
+    nudged inwards by 1e-6 of their size as VTK does), points on both ends of each axis.
+
+    Returns, for one field named as a string, a float32 array of shape (NZ, NY, NX) or
+    (NZ, NY, NX, k) (x fastest), NaN outside the mesh; for a list of names (or all fields,
+    the default) a dict of such arrays plus ``"vtkValidPointMask"`` (uint8, 1 inside). With
+    ``as_pyvista=True`` (the default for a pyvista input) a ``pyvista.ImageData`` with the
+    fields and ``vtkValidPointMask`` as point data. `mesh` is a tetloc.Mesh, a pyvista dataset
+    or a tetloc.Locator (reused, with its backend).
+    """
+    names, one = _names(fields)
+    d = tuple(int(x) for x in np.asarray(dims).ravel())
+    if len(d) != 3 or min(d) < 1:
+        raise ValueError(f"dims: expected three counts (NX, NY, NZ), each at least 1; got {tuple(dims)}")
+    b = None
+    if bounds is not None:
+        b = [float(x) for x in np.asarray(bounds, dtype=np.float64).ravel()]
+        if len(b) != 6:
+            raise ValueError(f"bounds: expected six numbers (xmin, xmax, ymin, ymax, zmin, zmax), got {len(b)}")
+    pyvista_out = _is_pyvista(mesh) if as_pyvista is None else as_pyvista
+    loc = _locator(mesh, backend, device, "mesh")
+    arrays, mask, origin, spacing = _tetloc.resample_to_image(
+        loc._raw, names, d, b, _progress(progress, "tetloc resample")
+    )
+    lead = (d[2], d[1], d[0])
+    if pyvista_out:
+        import pyvista as pv
+
+        img = pv.ImageData(dimensions=d, origin=origin, spacing=spacing)
+        for name, k, values in arrays:
+            img.point_data[name] = values if k == 1 else values.reshape(-1, k)
+        img.point_data[VALID_MASK] = mask
+        return img
+    out = {name: _shaped(values, k, lead) for name, k, values in arrays}
+    if one:
+        return out[arrays[0][0]]
+    out[VALID_MASK] = mask.reshape(lead)
+    return out
+
+
+def probe(
+    source: MeshLike,
+    target: Any,
+    fields: Union[None, str, Sequence[str]] = None,
+    *,
+    backend: str = "auto",
+    device: Optional[int] = None,
+    as_pyvista: Optional[bool] = None,
+    progress: Any = False,
+) -> Any:
+    """Samples fields of `source` at the points of `target` (vtkResampleWithDataSet).
+
+    `target` is a (K, 3) array of points (or (..., 3)), a tetloc.Mesh (its vertices) or a
+    pyvista dataset (its points). Returns, for one field named as a string, its values
+    (float32, (K,) or (K, k), NaN where a point is outside `source`); else a dict of the
+    fields' values plus ``"vtkValidPointMask"``. For a pyvista target (or ``as_pyvista=True``)
+    a copy of the target (a ``pyvista.PolyData`` of the points for an array target) with the
+    probed arrays and ``vtkValidPointMask`` as point data; probed arrays replace arrays of the
+    same name, as VTK's. `source` is a tetloc.Mesh, a pyvista dataset or a tetloc.Locator
+    (reused: its backend and tolerance).
+    """
+    names, one = _names(fields)
+    if isinstance(target, Mesh):
+        pts, lead = target.points, (target.n_points,)
+    elif _is_pyvista(target):
+        pts, lead = as_points(np.asarray(target.points), "target")
+    else:
+        pts, lead = as_points(target, "target")
+    pyvista_out = _is_pyvista(target) if as_pyvista is None else as_pyvista
+    loc = _locator(source, backend, device, "source")
+    arrays, mask = _tetloc.probe(loc._raw, np.ascontiguousarray(pts, dtype=np.float32), names,
+                                 _progress(progress, "tetloc probe"))
+    if pyvista_out:
+        import pyvista as pv
+
+        if _is_pyvista(target):
+            out = target.copy()
+        elif isinstance(target, Mesh):
+            out = target.to_pyvista()
+        else:
+            out = pv.PolyData(np.asarray(pts, dtype=np.float32))
+        for name, k, values in arrays:
+            out.point_data[name] = values if k == 1 else values.reshape(-1, k)
+        out.point_data[VALID_MASK] = mask
+        return out
+    result = {name: _shaped(values, k, lead) for name, k, values in arrays}
+    if one:
+        return result[arrays[0][0]]
+    result[VALID_MASK] = mask.reshape(lead)
+    return result
+
+
+def trace(
+    mesh: MeshLike,
+    vector: str,
+    seeds: Any,
+    *,
+    step: Optional[float] = None,
+    max_steps: int = 2000,
+    max_length: Optional[float] = None,
+    max_time: Optional[float] = None,
+    direction: str = "forward",
+    integrator: str = "rk4",
+    max_error: float = 1e-6,
+    min_step: Optional[float] = None,
+    max_step: Optional[float] = None,
+    terminal_speed: float = 1e-12,
+    backend: str = "auto",
+    device: Optional[int] = None,
+    as_pyvista: Optional[bool] = None,
+    progress: Any = False,
+) -> Any:
+    """Streamlines of the 3-component field `vector` from `seeds` (vtkStreamTracer with steps
+    in length units): `integrator` ``"rk4"`` (fixed `step`), ``"rk45"`` (adaptive,
+    Dormand-Prince 5(4)) or ``"cash-karp"`` (adaptive, VTK's vtkRungeKutta45 tableau); the
+    adaptive ones start with `step` and keep each step's error estimate within `max_error`
+    between `min_step` and `max_step` (by default step / 50 and 2 step). `step` defaults to a
+    tenth of the mean edge. A line stops when it leaves the mesh, stagnates (speed at most
+    `terminal_speed`), after `max_steps` + 1 steps, or when its length or integration time
+    reaches `max_length` / `max_time` (the last step shortened to land on it). `direction`:
+    ``"forward"``, ``"backward"`` or ``"both"`` (all forward lines, then all backward ones).
+    Seeds outside the mesh give no line (as VTK).
+
+    `seeds` is a (K, 3) array of points or a pyvista dataset (its points). On ``cpu`` each
+    particle walks from its last tet; on a GPU backend all particles advance together, one
+    batched lookup per Runge-Kutta stage (the same lines up to float32 rounding).
+
+    Returns a dict of numpy arrays: ``points`` (P, 3) float32 (line after line), ``offsets``
+    (L + 1,) int64 (line i is ``points[offsets[i]:offsets[i+1]]``), ``IntegrationTime`` (P,)
+    float64, ``ReasonForTermination`` and ``SeedIds`` (L,) int32 (codes in
+    ``tetloc.REASONS``), and the mesh's point fields at the points under their names. With
+    ``as_pyvista=True`` (the default for a pyvista mesh) a ``pyvista.PolyData`` of lines with
+    those point and cell arrays, as ParaView's Stream Tracer outputs.
+    """
+    if not isinstance(vector, str):
+        raise TypeError(f"vector: expected a field name, got {type(vector).__name__}")
+    m = _mesh_of(mesh, "mesh")
+    pts, _ = as_points(np.asarray(seeds.points) if _is_pyvista(seeds) else seeds, "seeds")
+    pyvista_out = _is_pyvista(mesh) if as_pyvista is None else as_pyvista
+    if isinstance(mesh, Locator):
+        raw_loc = mesh._raw
+    elif _tetloc.resolve(backend, device) == "cpu":
+        raw_loc = None  # each particle walks from its last tet
+    else:
+        raw_loc = Locator(m, backend=backend, device=device)._raw
+    out = _tetloc.trace(
+        m._raw, raw_loc, vector, pts, step, int(max_steps), max_length, max_time, direction, integrator,
+        float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
+    )
+    fields = out.pop("fields")
+    n = len(out["points"])
+    for name, k, values in fields:
+        out[name] = _shaped(values, k, (n,))
+    if not pyvista_out:
+        return out
+    import pyvista as pv
+
+    offsets = out["offsets"]
+    sizes = np.diff(offsets)
+    cells = np.insert(np.arange(n, dtype=np.int64), offsets[:-1], sizes) if n else np.zeros(0, np.int64)
+    poly = pv.PolyData(out["points"], lines=cells)
+    for name, _, _ in fields:
+        poly.point_data[name] = out[name]
+    poly.point_data["IntegrationTime"] = out["IntegrationTime"]
+    poly.cell_data["ReasonForTermination"] = out["ReasonForTermination"]
+    poly.cell_data["SeedIds"] = out["SeedIds"]
+    return poly
+
+
+__all__ = ["REASONS", "probe", "resample_to_image", "trace"]
