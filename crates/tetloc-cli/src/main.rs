@@ -285,7 +285,14 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
     let faces = summary.faces;
     let i = &m.info;
     println!("{}", i.source);
-    println!("  tets        {}", i.n_tets);
+    if m.cells.is_some() {
+        let types: Vec<String> = i.cell_types.iter().map(|(t, n)| format!("{n} {t}")).collect();
+        println!("  cells       {}: {}", i.n_cells, types.join(", "));
+        println!("  tets        {} (the cells' conforming decomposition, located in)", i.n_tets);
+        println!("  warped      {} cells with a non-planar quad face", i.n_warped_cells);
+    } else {
+        println!("  tets        {}", i.n_tets);
+    }
     println!("  vertices    {}", i.n_points);
     println!("  bounds      {:?} .. {:?}", i.bounds_min, i.bounds_max);
     println!("  volume      {:.6e}", i.total_volume);
@@ -294,10 +301,11 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
         "  faces       {} unique, {} on the boundary, {} non-manifold",
         faces.n_faces, faces.n_boundary, faces.n_non_manifold
     );
-    println!("  reoriented  {} inverted tets (kept, reoriented)", i.n_reoriented);
-    println!("  degenerate  {} zero-volume tets (they contain no point)", i.n_degenerate);
+    let what = if m.cells.is_some() { "cells" } else { "tets" };
+    println!("  reoriented  {} inverted {what} (kept, reoriented)", i.n_reoriented);
+    println!("  degenerate  {} zero-volume {what} (they contain no point)", i.n_degenerate);
     if let Some(k) = i.higher_order {
-        println!("  order       {k}: higher-order tets, located by their 4 corner vertices");
+        println!("  order       {k}: higher-order {what}, located by their corner vertices");
     }
     if m.fields.is_empty() {
         println!("  fields      none");
