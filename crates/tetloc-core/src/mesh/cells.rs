@@ -34,6 +34,8 @@ pub(super) struct Built {
     pub reoriented: usize,
     /// Cells of zero volume (repeated or coplanar corners): they hold no point.
     pub degenerate: usize,
+    /// Cells that fold over themselves (decomposition tets of both signs).
+    pub tangled: usize,
 }
 
 /// Tets per cell of a shape (1, 2, 3, 6): the decomposition's count does not depend on ids.
@@ -71,6 +73,7 @@ impl Cells {
                 .map(|t| geom::canonical_tet(t.map(|k| ids[usize::from(k)]), points))
                 .collect::<Vec<_>>()
         };
+        // Signs of the decomposition tets' volumes, as the cell lists its corners.
         let signs: Vec<(usize, usize)> = (0..block.len())
             .into_par_iter()
             .map(|c| {
@@ -78,13 +81,9 @@ impl Cells {
                 (tets.iter().filter(|t| t.1 > 0.0).count(), tets.iter().filter(|t| t.1 < 0.0).count())
             })
             .collect();
-        if let Some(c) = signs.par_iter().position_first(|&(pos, neg)| pos > 0 && neg > 0) {
-            return Err(format!(
-                "cell {c} ({}) is tangled: its corners fold over (its tets have volumes of both signs); \
-                 tetloc cannot locate in it",
-                block.types[c].def().name()
-            ));
-        }
+        // Tangled cells (tets of both signs: the cell folds over itself, as in crushed meshes)
+        // are kept, located by their decomposition, and counted.
+        let tangled = signs.par_iter().filter(|&&(pos, neg)| pos > 0 && neg > 0).count();
         let reoriented = signs.par_iter().filter(|&&(pos, neg)| neg > 0 && pos == 0).count();
         let degenerate = signs.par_iter().filter(|&&(pos, neg)| pos == 0 && neg == 0).count();
         let tets: Vec<[u32; 4]> =
@@ -100,7 +99,7 @@ impl Cells {
             })
             .collect();
         let cells = Cells { block, tet_parent, warped, neighbors: OnceLock::new() };
-        Ok(Built { cells, tets, reoriented, degenerate })
+        Ok(Built { cells, tets, reoriented, degenerate, tangled })
     }
 
     pub fn len(&self) -> usize {

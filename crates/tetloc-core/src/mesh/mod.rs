@@ -80,6 +80,9 @@ pub struct MeshInfo {
     pub n_reoriented: usize,
     /// Cells with zero volume (repeated or coplanar vertices): they contain no point.
     pub n_degenerate: usize,
+    /// Mixed cells that fold over themselves (their decomposition tets have volumes of both
+    /// signs): located by their decomposition as they are; VTK's answers there may differ.
+    pub n_tangled: usize,
     pub higher_order: Option<u8>,
     pub total_volume: f64,
 }
@@ -126,7 +129,7 @@ impl Mesh {
         if is_mixed {
             let built = Cells::build(cells.take().expect("a mixed mesh has cells"), &points).map_err(err)?;
             tets = built.tets;
-            cell_repairs = Some((built.reoriented, built.degenerate));
+            cell_repairs = Some((built.reoriented, built.degenerate, built.tangled));
             mixed = Some(built.cells);
         }
         let n = points.len() as u32;
@@ -222,6 +225,7 @@ impl Mesh {
             mean_edge_length: (acc.sum_edge / (6.0 * tets.len() as f64)) as f32,
             n_reoriented: cell_repairs.map_or(acc.reoriented, |r| r.0),
             n_degenerate: cell_repairs.map_or(acc.degenerate, |r| r.1),
+            n_tangled: cell_repairs.map_or(0, |r| r.2),
             higher_order,
             total_volume: acc.volume,
         };

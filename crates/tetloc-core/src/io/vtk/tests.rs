@@ -133,6 +133,7 @@ fn real_files() {
         assert_eq!(m.info.cell_types, want, "{file}");
         assert_eq!(m.n_cells(), want.values().sum::<usize>(), "{file}");
         assert!(m.info.total_volume > 0.0 && m.info.n_degenerate == 0, "{file}");
+        eprintln!("{file}: {} cells, {} tangled, {} reoriented", m.n_cells(), m.info.n_tangled, m.info.n_reoriented);
     }
     match read_mesh(&real.join("penta_hexa.vtk")) {
         Err(Error::NonTetCells { path, counts }) => {
