@@ -89,7 +89,7 @@ impl Cells {
         let tets: Vec<[u32; 4]> =
             (0..block.len()).into_par_iter().flat_map_iter(|c| per_cell(c).into_iter().map(|t| t.0)).collect();
         let tet_parent: Vec<u32> =
-            (0..block.len()).into_par_iter().flat_map_iter(|c| std::iter::repeat(c as u32).take(counts[c])).collect();
+            (0..block.len()).into_par_iter().flat_map_iter(|c| std::iter::repeat_n(c as u32, counts[c])).collect();
         debug_assert_eq!(tets.len(), total);
         let warped = (0..block.len())
             .into_par_iter()
