@@ -19,7 +19,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tetloc_core::bvh::BvhNode;
-use tetloc_core::locate::{count_non_finite, FiniteOnly, Tolerance, WithTolerance};
+use tetloc_core::locate::{count_non_finite, CellLocator, FiniteOnly, Tolerance, WithTolerance};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh, Vec3};
 use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 
@@ -269,7 +269,8 @@ impl PyLocator {
         // Points with a NaN or infinite coordinate are answered -1 / NaN (as pyvista and the
         // CLI do) and never reach a backend; points within `tolerance` of the boundary get the
         // nearest boundary cell (tetloc_core::locate::tolerance).
-        let exact: Backend = Box::new(FiniteOnly::new(built.backend));
+        // Mixed meshes: answers in the tet decomposition become cells (CellLocator).
+        let exact: Backend = Box::new(CellLocator::new(FiniteOnly::new(built.backend), mesh_arc.clone()));
         let backend: Backend = match tolerance.distance(&mesh_arc) {
             d if d > 0.0 => Box::new(WithTolerance::new(exact, mesh_arc.clone(), tolerance)),
             _ => exact,

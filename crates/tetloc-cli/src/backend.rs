@@ -12,7 +12,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex, OnceLock};
 use std::time::Instant;
-use tetloc_core::locate::FiniteOnly;
+use tetloc_core::locate::{CellLocator, FiniteOnly};
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
 use tetloc_vulkan::{Context, Kernel, LocatorOptions, VulkanLocator};
@@ -85,18 +85,19 @@ pub fn available(opts: &BackendOptions) -> Vec<&'static str> {
 }
 
 /// Builds the named backend over `mesh`. Points with a NaN or infinite coordinate are
-/// answered -1 / NaN before any backend sees them.
+/// answered -1 / NaN before any backend sees them; on mixed meshes the answers in the tet
+/// decomposition become cells ([`CellLocator`]).
 pub fn make(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<dyn BatchLocator>> {
     if name == "auto" {
         let best = auto_choice(opts)?;
         return make(&best, mesh, opts);
     }
     if name == CPU {
-        return Ok(Box::new(FiniteOnly::new(CpuLocator::new(mesh.clone()))));
+        return Ok(Box::new(CellLocator::new(FiniteOnly::new(CpuLocator::new(mesh.clone())), mesh.clone())));
     }
     let kernel: Kernel =
         name.parse().map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto)", names().join(", ")))?;
-    Ok(Box::new(FiniteOnly::new(make_vulkan(kernel, mesh, opts)?)))
+    Ok(Box::new(CellLocator::new(FiniteOnly::new(make_vulkan(kernel, mesh, opts)?), mesh.clone())))
 }
 
 pub fn make_vulkan(kernel: Kernel, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<VulkanLocator> {

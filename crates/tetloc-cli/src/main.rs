@@ -42,10 +42,11 @@ enum Command {
     },
     /// Generate a synthetic mesh shaped like the paper's data sets and write it as .vtu.
     Gen {
-        /// jets, fusion, agulhas or japan.
+        /// jets, fusion, agulhas or japan; SHAPE-hex, SHAPE-wedge or SHAPE-hybrid for a mesh
+        /// of hexahedra, of wedges, or of hexes, pyramids, tets and wedges in layers.
         shape: String,
-        /// Approximate number of tets (e.g. 1M, 12M).
-        #[arg(long)]
+        /// Approximate number of tets, or of cells for SHAPE-KIND (e.g. 1M, 12M).
+        #[arg(long, alias = "cells")]
         tets: String,
         /// The mesh file to write: .vtu.
         #[arg(short, long)]
@@ -244,7 +245,8 @@ fn run(cli: Cli) -> Result<()> {
 }
 
 fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Option<&Path>) -> Result<()> {
-    let shape: tetloc_core::gen::Shape = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let spec: tetloc_core::gen::Spec = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    let shape = spec.shape;
     let n = mesh_arg::parse_count(tets)?;
     // Every output is checked before the (possibly long) generation.
     output::check_output(out, &["vtu"]).context("-o/--out: gen writes VTK XML unstructured grids")?;
@@ -261,14 +263,14 @@ fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Opti
         eprintln!("{}: terrain with {} triangles", path.display(), ground.triangles.len());
     }
     let t0 = Instant::now();
-    let mesh = mesh_arg::generate(shape, n, seed)?;
+    let mesh = mesh_arg::generate(spec, n, seed)?;
     let gen_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     progress::with_spinner(format!("writing {}", out.display()), || vtu_write::write_mesh_vtu(out, &mesh, zlib))?;
     eprintln!(
-        "{}: {shape} with {} tets, {} vertices (generated in {gen_s:.2} s, written in {:.2} s)",
+        "{}: {spec} with {} cells, {} vertices (generated in {gen_s:.2} s, written in {:.2} s)",
         out.display(),
-        mesh.n_tets(),
+        mesh.n_cells(),
         mesh.points.len(),
         t1.elapsed().as_secs_f64()
     );
@@ -306,7 +308,14 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
     let faces = summary.faces;
     let i = &m.info;
     println!("{}", i.source);
-    println!("  tets        {}", i.n_tets);
+    if m.cells.is_some() {
+        let types: Vec<String> = i.cell_types.iter().map(|(t, n)| format!("{n} {t}")).collect();
+        println!("  cells       {}: {}", i.n_cells, types.join(", "));
+        println!("  tets        {} (the cells' conforming decomposition, located in)", i.n_tets);
+        println!("  warped      {} cells with a non-planar quad face", i.n_warped_cells);
+    } else {
+        println!("  tets        {}", i.n_tets);
+    }
     println!("  vertices    {}", i.n_points);
     println!("  bounds      {:?} .. {:?}", i.bounds_min, i.bounds_max);
     println!("  volume      {:.6e}", i.total_volume);
@@ -315,10 +324,14 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
         "  faces       {} unique, {} on the boundary, {} non-manifold",
         faces.n_faces, faces.n_boundary, faces.n_non_manifold
     );
-    println!("  reoriented  {} inverted tets (kept, reoriented)", i.n_reoriented);
-    println!("  degenerate  {} zero-volume tets (they contain no point)", i.n_degenerate);
+    let what = if m.cells.is_some() { "cells" } else { "tets" };
+    println!("  reoriented  {} inverted {what} (kept, reoriented)", i.n_reoriented);
+    println!("  degenerate  {} zero-volume {what} (they contain no point)", i.n_degenerate);
+    if i.n_tangled > 0 {
+        println!("  tangled     {} cells fold over themselves (located by their tets as they are)", i.n_tangled);
+    }
     if let Some(k) = i.higher_order {
-        println!("  order       {k}: higher-order tets, located by their 4 corner vertices");
+        println!("  order       {k}: higher-order {what}, located by their corner vertices");
     }
     if m.fields.is_empty() {
         println!("  fields      none");

@@ -1,11 +1,12 @@
-//! A mesh argument: a file, or a generated shape written `SHAPE:N` (e.g. `fusion:1.4M`).
+//! A mesh argument: a file, or a generated shape written `SHAPE:N` (e.g. `fusion:1.4M`), or
+//! `SHAPE-KIND:N` for N cells of another kind (`jets-hex:12M`, `jets-hybrid:12M`).
 
 use crate::progress;
 use anyhow::{bail, Context, Result};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use tetloc_core::gen::{self, Shape};
+use tetloc_core::gen::{self, CellKind, Shape, Spec};
 use tetloc_core::io::{self, MeshFormat};
 use tetloc_core::Mesh;
 
@@ -28,7 +29,7 @@ pub fn parse_count(s: &str) -> Result<usize> {
 }
 
 /// `SHAPE:N` when `arg` is not an existing file and parses that way.
-pub fn parse_generated(arg: &OsStr) -> Option<(Shape, usize)> {
+pub fn parse_generated(arg: &OsStr) -> Option<(Spec, usize)> {
     if Path::new(arg).exists() {
         return None;
     }
@@ -57,21 +58,30 @@ pub fn input_files(arg: &OsStr, format: Option<&str>) -> Vec<PathBuf> {
 /// fields and temporaries, measured: 1.42 GB at 62M tets), with headroom.
 const GEN_BYTES_PER_TET: u64 = 40;
 
-pub fn generate(shape: Shape, n: usize, seed: u64) -> Result<Mesh> {
+pub fn generate(spec: impl Into<Spec>, n: usize, seed: u64) -> Result<Mesh> {
+    let spec = spec.into();
     if let Some(avail) = tetloc_core::io::available_memory_bytes() {
-        let need = n as u64 * GEN_BYTES_PER_TET;
+        // Mixed cells: their decomposition tets (6 per hex, 3 per wedge) and the cells.
+        let tets_per_cell = match spec.cells {
+            CellKind::Tets => 1,
+            CellKind::Hexes => 7,
+            CellKind::Wedges => 4,
+            CellKind::Hybrid => 5,
+        };
+        let need = n as u64 * tets_per_cell * GEN_BYTES_PER_TET;
         if need > avail {
             bail!(
-                "{shape}:{n}: generating {n} tets needs about {:.1} GB of memory, {:.1} GB are available",
+                "{spec}:{n}: generating {n} cells needs about {:.1} GB of memory, {:.1} GB are available",
                 need as f64 / 1e9,
                 avail as f64 / 1e9
             );
         }
     }
-    let pb = progress::bar(1000, format!("generating {shape} with ~{n} tets"));
-    let raw = gen::generate_with_progress(shape, n, seed, &|f| pb.set_position((f * 1000.0) as u64));
+    let what = if spec.cells == CellKind::Tets { "tets" } else { "cells" };
+    let pb = progress::bar(1000, format!("generating {spec} with ~{n} {what}"));
+    let raw = gen::generate_spec(spec, n, seed, &|f| pb.set_position((f * 1000.0) as u64));
     pb.finish_and_clear();
-    let mesh = progress::with_spinner("validating mesh", || Mesh::new(raw, format!("{shape}:{n}")))?;
+    let mesh = progress::with_spinner("validating mesh", || Mesh::new(raw, format!("{spec}:{n}")))?;
     Ok(mesh)
 }
 
@@ -93,8 +103,8 @@ pub fn terrain_shape_check(shape: Shape) -> Result<()> {
 /// Loads a mesh file (format from the extension unless given) or generates `SHAPE:N`.
 /// File names need not be UTF-8.
 pub fn load(arg: &OsStr, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
-    if let Some((shape, n)) = parse_generated(arg) {
-        return Ok(Arc::new(generate(shape, n, seed)?));
+    if let Some((spec, n)) = parse_generated(arg) {
+        return Ok(Arc::new(generate(spec, n, seed)?));
     }
     let format = match format {
         Some(f) => Some(

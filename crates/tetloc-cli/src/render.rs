@@ -104,13 +104,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     o.surface = match a.surface.as_deref() {
         Some("terrain") => {
-            let Some((shape, n)) = mesh_arg::parse_generated(&a.mesh) else {
+            let Some((spec, n)) = mesh_arg::parse_generated(&a.mesh) else {
                 anyhow::bail!(
                     "--surface terrain: {} is not a generated shape (SHAPE:N)",
                     std::path::Path::new(&a.mesh).display()
                 );
             };
-            let ground = mesh_arg::terrain(shape, n, a.seed)?;
+            let ground = mesh_arg::terrain(spec.shape, n, a.seed)?;
             Some(tr::SurfaceSpec::Mesh(std::sync::Arc::new(ground.into())))
         }
         s => s.map(tr::SurfaceSpec::parse),

@@ -10,12 +10,14 @@
 
 use tetloc_core::cell::{barycentric_lattice, CellBlock, CellType};
 use tetloc_core::mesh::{Field, FieldLocation};
-use tetloc_core::{Mesh, RawMesh, Vec3};
+use tetloc_core::{BatchLocator, Mesh, RawMesh, Vec3};
 
 #[path = "../../tetloc-core/src/test_support/data_dir.rs"]
 mod data_dir;
 #[path = "../../tetloc-core/src/test_support/kuhn.rs"]
 mod kuhn;
+#[path = "../../tetloc-core/src/test_support/mixed.rs"]
+pub mod mixed;
 #[path = "../../tetloc-core/src/test_support/query_sets.rs"]
 mod query_sets;
 pub mod testmesh;

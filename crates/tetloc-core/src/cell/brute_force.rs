@@ -10,7 +10,7 @@ use std::collections::HashMap;
 use std::path::Path;
 
 /// A mixed mesh as the reader hands it over, with f64 copies of its (f32) vertices.
-pub(super) struct Mixed {
+pub(crate) struct Mixed {
     pub points32: Vec<Vec3>,
     pub points: Vec<Point>,
     pub cells: CellBlock,
@@ -93,7 +93,7 @@ impl Mixed {
 /// warped face, the cell's parametric coordinates decide, stepping across a violated warped
 /// face to the neighbour, and to outside across a warped boundary face; points outside every
 /// decomposition tet are tested in the cells with a warped boundary face whose box holds them.
-pub(super) struct Design {
+pub(crate) struct Design {
     /// The decomposition's tets, canonical, cell by cell: cell c has tets[first[c]..first[c + 1]].
     tets: Vec<[u32; 4]>,
     first: Vec<usize>,
@@ -242,7 +242,7 @@ impl Grid {
 
 /// How a set's answers compare with the oracle's, outside the ambiguous points.
 #[derive(Default, Debug, PartialEq)]
-pub(super) struct Mismatches {
+pub(crate) struct Mismatches {
     /// Oracle inside, answer outside: a crack.
     pub lost: usize,
     /// Oracle outside, answer inside.
@@ -257,7 +257,7 @@ impl Mismatches {
     }
 }
 
-pub(super) fn compare(set: &QuerySet, answer: impl Fn(Vec3) -> i32) -> Mismatches {
+pub(crate) fn compare(set: &QuerySet, answer: impl Fn(Vec3) -> i32) -> Mismatches {
     let mut m = Mismatches::default();
     for (i, (&p, &want)) in set.points.iter().zip(&set.cell).enumerate() {
         let got = answer(p);

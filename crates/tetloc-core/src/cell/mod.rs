@@ -70,7 +70,7 @@ mod triquadratic_hex;
 mod wedge;
 
 #[cfg(test)]
-mod brute_force;
+pub(crate) mod brute_force;
 #[cfg(test)]
 mod oracle_tests;
 #[cfg(test)]

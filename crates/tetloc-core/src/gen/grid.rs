@@ -1,5 +1,7 @@
-//! The machinery every shape shares: a structured grid of `ni × nj` columns of `nk` cells,
-//! some columns kept, each kept cell split into the 6 Kuhn tets of its cube.
+//! The machinery every shape shares: a structured grid of `ni × nj` columns of `nk` cubes,
+//! some columns kept, each kept cube split into the 6 Kuhn tets of its cube, or made into
+//! other cells ([`CellKind`]): a hexahedron, two wedges, or, in the hybrid, layers of both with
+//! a pyramid transition into Kuhn tets (see [`cube_cells`] for why those are conforming too).
 //!
 //! **Why it is conforming.** The Kuhn split (all six tets share the cube's main diagonal) is
 //! the same in every cell, so the diagonal it puts on a cube face is the same one the
@@ -15,7 +17,8 @@
 //! is (edge length × projected triangle area)/3 in the straight-column shapes and close to
 //! it in the gently swept torus, so it stays positive.
 
-use super::{Phase, Progress};
+use super::{CellKind, Phase, Progress};
+use crate::cell::{CellBlock, CellType};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, RawMesh};
 use rayon::prelude::*;
@@ -49,6 +52,54 @@ const KUHN: [[usize; 4]; 6] = [
     [0, 4, 5, 7], // z x y (even)
     [0, 4, 7, 6], // z y x
 ];
+
+/// A cell of a cube: its VTK type code and its corners (`c = dx | dy << 1 | dz << 2`) in VTK's
+/// node order, right-handed.
+type CubeCell = (u8, &'static [usize]);
+
+const HEX: &[CubeCell] = &[(12, &[0, 1, 3, 2, 4, 5, 7, 6])];
+/// Two wedges over the plan triangles of the Kuhn diagonal (plan corners 0–3), so that their
+/// top and bottom triangles match the Kuhn tets' faces on a cube's top and bottom.
+const WEDGES: &[CubeCell] = &[(13, &[0, 1, 3, 4, 5, 7]), (13, &[0, 3, 2, 4, 7, 6])];
+/// From a quad below to Kuhn tets above: a pyramid on the bottom quad with its apex at corner
+/// 4, and the cone from corner 4 over the two far side faces. Its side faces carry the
+/// diagonals 1–4, 2–4 (its own pyramid) and 3–5, 3–6 (the cones), which are the same faces
+/// of the neighbouring transition cubes seen from the other side; its top carries 4–7, the
+/// Kuhn diagonal of the cube above.
+const TRANSITION: &[CubeCell] =
+    &[(14, &[0, 1, 3, 2, 4]), (10, &[4, 1, 3, 5]), (10, &[4, 3, 7, 5]), (10, &[4, 3, 2, 6]), (10, &[4, 7, 3, 6])];
+/// [`TRANSITION`] upside down (corners `c ^ 4`, orientation restored): from Kuhn tets below to a
+/// quad above, for the wrap of periodic columns.
+const TRANSITION_DOWN: &[CubeCell] =
+    &[(14, &[4, 6, 7, 5, 0]), (10, &[0, 5, 1, 7]), (10, &[0, 7, 1, 3]), (10, &[0, 7, 2, 6]), (10, &[0, 3, 2, 7])];
+const KUHN_CELLS: &[CubeCell] =
+    &[(10, &KUHN[0]), (10, &KUHN[1]), (10, &KUHN[2]), (10, &KUHN[3]), (10, &KUHN[4]), (10, &KUHN[5])];
+
+/// The cells of the cube at level `k` of a column of `nk` (`periodic`: level `nk` is level 0).
+///
+/// The hybrid stacks, bottom to top: hexahedra (the lowest quarter), one transition layer,
+/// Kuhn tets, and wedges (the top quarter: a prism boundary layer). Every interface is
+/// conforming: hex and transition share a quad, transition and Kuhn the diagonal 4–7, Kuhn and
+/// wedges the diagonal 0–3 of the plan, and cells of one layer repeat by translation. Periodic
+/// columns end with [`TRANSITION_DOWN`] instead of wedges, back to the hexes at level 0.
+pub(super) fn cube_cells(kind: CellKind, k: usize, nk: usize, periodic: bool) -> &'static [CubeCell] {
+    match kind {
+        CellKind::Tets => KUHN_CELLS,
+        CellKind::Hexes => HEX,
+        CellKind::Wedges => WEDGES,
+        CellKind::Hybrid => {
+            let hexes = (nk / 4).max(1);
+            let wedges_from = if periodic { nk } else { (nk - nk / 4).max(hexes + 1) };
+            match k {
+                k if k < hexes => HEX,
+                k if k == hexes => TRANSITION,
+                k if periodic && k + 1 == nk => TRANSITION_DOWN,
+                k if k >= wedges_from => WEDGES,
+                _ => KUHN_CELLS,
+            }
+        }
+    }
+}
 
 /// How a thin layer over a `width × length` rectangle is cut into columns: `n_keep` kept
 /// columns (a `kept_fraction` of all) of `nk` cubes each, square in plan with side `h`, so that
@@ -165,8 +216,8 @@ fn cellval(id: usize) -> f32 {
 }
 
 /// Builds the mesh: only the vertex columns that a kept column touches get vertices;
-/// vertices are numbered column by column, tets kept column by kept column.
-pub(super) fn build(shape: &dyn ColumnShape, progress: &Progress) -> RawMesh {
+/// vertices are numbered column by column, cells kept column by kept column.
+pub(super) fn build(shape: &dyn ColumnShape, kind: CellKind, progress: &Progress) -> RawMesh {
     let g = shape.columns();
     let (ni, nj, nk) = (g.ni, g.nj, g.nk);
     let levels = g.levels();
@@ -212,41 +263,100 @@ pub(super) fn build(shape: &dyn ColumnShape, progress: &Progress) -> RawMesh {
         },
     );
 
+    let fields = |f: Vec<f32>, n_cells: usize| {
+        let mut cv = vec![0f32; n_cells];
+        cv.par_iter_mut().enumerate().for_each(|(t, v)| *v = cellval(t));
+        vec![
+            Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
+            Field { name: "cellval".into(), location: FieldLocation::Cell, values: cv },
+        ]
+    };
+    // First vertex id of each corner's vertex column of column (i, j), corners as in KUHN (dx, dy).
+    let bases = |i: usize, j: usize| -> [u32; 4] {
+        std::array::from_fn(|c| {
+            let (vi, vj) = (i + (c & 1), j + (c >> 1));
+            vindex[vj * vni + vi] * levels as u32
+        })
+    };
+    let corner_at = |base: &[u32; 4], k: usize, c: usize| {
+        let k1 = if k + 1 == levels { 0 } else { k + 1 }; // periodic wrap
+        base[c & 3] + if c & 4 == 0 { k as u32 } else { k1 as u32 }
+    };
+    if kind != CellKind::Tets {
+        let block = cell_block(g, kind, &cells, &bases, &corner_at, &Phase::new(progress, p_end, t_end, cells.len()));
+        progress.report(1.0);
+        let n = block.len();
+        return RawMesh { points, tets: Vec::new(), fields: fields(f, n), higher_order: None, cells: Some(block) };
+    }
+
     let mut tets = vec![[0u32; 4]; n_tets];
     let phase = Phase::new(progress, p_end, t_end, cells.len());
     tets.par_chunks_mut(6 * nk * BLOCK).enumerate().for_each(|(b, out)| {
         for (c, col) in out.chunks_mut(6 * nk).enumerate() {
             let (i, j) = (cells[b * BLOCK + c].0 as usize, cells[b * BLOCK + c].1 as usize);
-            // First vertex id of each corner's vertex column, corners as in KUHN (dx, dy).
-            let base: [u32; 4] = std::array::from_fn(|c| {
-                let (vi, vj) = (i + (c & 1), j + (c >> 1));
-                vindex[vj * vni + vi] * levels as u32
-            });
+            let base = bases(i, j);
             for k in 0..nk {
-                let k1 = if k + 1 == levels { 0 } else { k + 1 }; // periodic wrap
-                let corner = |c: usize| base[c & 3] + if c & 4 == 0 { k as u32 } else { k1 as u32 };
                 for (t, tet) in KUHN.iter().enumerate() {
-                    col[6 * k + t] = tet.map(corner);
+                    col[6 * k + t] = tet.map(|c| corner_at(&base, k, c));
                 }
             }
         }
         phase.advance(out.len() / (6 * nk));
     });
-
-    let mut cv = vec![0f32; n_tets];
-    cv.par_iter_mut().enumerate().for_each(|(t, v)| *v = cellval(t));
     progress.report(1.0);
+    RawMesh { points, tets, fields: fields(f, n_tets), higher_order: None, cells: None }
+}
 
-    RawMesh {
-        points,
-        tets,
-        fields: vec![
-            Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
-            Field { name: "cellval".into(), location: FieldLocation::Cell, values: cv },
-        ],
-        higher_order: None,
-        cells: None,
-    }
+/// The cells of every kept column, as a cell block: every column has the same cells (by
+/// level), so each column's share of the arrays has a fixed size and columns fill in parallel.
+fn cell_block(
+    g: &Columns,
+    kind: CellKind,
+    columns: &[(u32, u32)],
+    bases: &(dyn Fn(usize, usize) -> [u32; 4] + Sync),
+    corner_at: &(dyn Fn(&[u32; 4], usize, usize) -> u32 + Sync),
+    phase: &Phase,
+) -> CellBlock {
+    let layers: Vec<&[CubeCell]> = (0..g.nk).map(|k| cube_cells(kind, k, g.nk, g.periodic_k)).collect();
+    let per_col: usize = layers.iter().map(|l| l.len()).sum();
+    let nodes_per_col: usize = layers.iter().flat_map(|l| l.iter()).map(|c| c.1.len()).sum();
+    let types_of = |code: u8, n: usize| CellType::from_vtk(code, n).expect("linear cells are known");
+    let col_types: Vec<CellType> = layers.iter().flat_map(|l| l.iter()).map(|c| types_of(c.0, c.1.len())).collect();
+    // Ends within a column, then shifted by the column's start.
+    let col_ends: Vec<u64> = layers
+        .iter()
+        .flat_map(|l| l.iter())
+        .scan(0u64, |e, c| {
+            *e += c.1.len() as u64;
+            Some(*e)
+        })
+        .collect();
+    let n = columns.len();
+    let mut types = vec![CellType::tet(); n * per_col];
+    types.par_chunks_mut(per_col).for_each(|t| t.copy_from_slice(&col_types));
+    let mut ends = vec![0u64; n * per_col];
+    ends.par_chunks_mut(per_col).enumerate().for_each(|(c, e)| {
+        let start = (c * nodes_per_col) as u64;
+        e.iter_mut().zip(&col_ends).for_each(|(e, &ce)| *e = start + ce);
+    });
+    let mut conn = vec![0u32; n * nodes_per_col];
+    conn.par_chunks_mut(nodes_per_col * BLOCK).enumerate().for_each(|(b, out)| {
+        for (c, col) in out.chunks_mut(nodes_per_col).enumerate() {
+            let (i, j) = columns[b * BLOCK + c];
+            let base = bases(i as usize, j as usize);
+            let mut at = 0;
+            for (k, layer) in layers.iter().enumerate() {
+                for cell in layer.iter() {
+                    for &corner in cell.1 {
+                        col[at] = corner_at(&base, k, corner);
+                        at += 1;
+                    }
+                }
+            }
+        }
+        phase.advance(out.len() / nodes_per_col);
+    });
+    CellBlock { types, ends, conn }
 }
 
 #[cfg(test)]
@@ -264,6 +374,32 @@ mod tests {
             total += v;
         }
         assert_eq!(total, 6.0, "the six tets do not fill the unit cube");
+    }
+
+    /// Every cube pattern's cells are right-handed and fill the unit cube exactly.
+    #[test]
+    fn cube_cells_are_positive_and_fill_the_cube() {
+        use crate::cell::decompose;
+        let corner = |c: usize| [(c & 1) as f32, ((c >> 1) & 1) as f32, ((c >> 2) & 1) as f32];
+        for (name, cells) in [
+            ("hex", HEX),
+            ("wedges", WEDGES),
+            ("transition", TRANSITION),
+            ("down", TRANSITION_DOWN),
+            ("kuhn", KUHN_CELLS),
+        ] {
+            let mut total = 0.0;
+            for &(code, corners) in cells {
+                let ty = CellType::from_vtk(code, corners.len()).unwrap();
+                let ids: Vec<u32> = corners.iter().map(|&c| c as u32).collect();
+                for t in decompose(ty.shape(), &ids).tets() {
+                    let v = tet_volume6(t.map(|k| corner(corners[usize::from(k)])));
+                    assert!(v > 0.0, "{name}: a {code} cell {corners:?} has a tet of volume×6 {v}");
+                    total += v;
+                }
+            }
+            assert_eq!(total, 6.0, "{name} does not fill the unit cube");
+        }
     }
 
     #[test]

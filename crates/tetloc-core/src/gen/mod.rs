@@ -12,6 +12,12 @@
 //! (except the box faces of `jets`, which must be flat to fill the box), a smooth vertex
 //! field `f` and a cell field `cellval` (the formulas of the shared test data).
 //!
+//! Each shape is made of tets by default, or of other cells ([`CellKind`], written
+//! `SHAPE-KIND`: `jets-hex`, `fusion-wedge`, `agulhas-hybrid`): hexahedra (warped: the jittered
+//! levels make their top and bottom faces bilinear), wedges (two per cube, a prism mesh), or a
+//! hybrid of hexes, pyramids, tets and wedges in layers (see `grid::cube_cells`). They use the
+//! same grid of cubes as the tets, so `jets-hex:N` has the vertices of `jets:6N`.
+//!
 //! Deterministic for a seed, independent of the number of threads. The tet count lands
 //! within a few percent of the target from about 5,000 tets up; tiny targets give the
 //! smallest grid the shape has. Memory is the output arrays (36 B per tet and ~16 B per
@@ -97,21 +103,104 @@ pub fn generate(shape: Shape, target_tets: usize, seed: u64) -> RawMesh {
     generate_with_progress(shape, target_tets, seed, &|_| {})
 }
 
-/// [`generate`], calling `progress` with the fraction done (increasing, ending with 1.0),
-/// from whichever thread gets there, at most about a thousand times.
-pub fn generate_with_progress(shape: Shape, target_tets: usize, seed: u64, progress: &(dyn Fn(f64) + Sync)) -> RawMesh {
+/// What a generated shape is made of.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CellKind {
+    /// Six Kuhn tets per cube (the default).
+    Tets,
+    /// One hexahedron per cube.
+    Hexes,
+    /// Two wedges per cube, their triangles in the plan of the columns.
+    Wedges,
+    /// Layers of hexes, a pyramid transition, tets and wedges (`grid::cube_cells`).
+    Hybrid,
+}
+
+impl CellKind {
+    pub const ALL: [CellKind; 4] = [CellKind::Tets, CellKind::Hexes, CellKind::Wedges, CellKind::Hybrid];
+
+    /// The suffix that names it (`jets-hex`); tets have none.
+    pub fn name(self) -> &'static str {
+        match self {
+            CellKind::Tets => "tet",
+            CellKind::Hexes => "hex",
+            CellKind::Wedges => "wedge",
+            CellKind::Hybrid => "hybrid",
+        }
+    }
+
+    /// Cells per cube of the grid (the hybrid's mix, for a column of many levels).
+    pub fn cells_per_cube(self) -> f64 {
+        match self {
+            CellKind::Tets => 6.0,
+            CellKind::Hexes => 1.0,
+            CellKind::Wedges => 2.0,
+            // A quarter hexes (1), a half Kuhn tets (6), a quarter wedges (2).
+            CellKind::Hybrid => 0.25 + 3.0 + 0.5,
+        }
+    }
+}
+
+/// A generated mesh: a shape and what it is made of, written `SHAPE` (tets) or `SHAPE-KIND`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Spec {
+    pub shape: Shape,
+    pub cells: CellKind,
+}
+
+impl From<Shape> for Spec {
+    fn from(shape: Shape) -> Spec {
+        Spec { shape, cells: CellKind::Tets }
+    }
+}
+
+impl fmt::Display for Spec {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self.cells {
+            CellKind::Tets => write!(f, "{}", self.shape),
+            k => write!(f, "{}-{}", self.shape, k.name()),
+        }
+    }
+}
+
+impl FromStr for Spec {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Spec, Error> {
+        let (shape, kind) = s.trim().split_once('-').unwrap_or((s.trim(), "tet"));
+        let cells = CellKind::ALL.into_iter().find(|k| k.name().eq_ignore_ascii_case(kind)).ok_or_else(|| {
+            Error::Invalid(format!(
+                "unknown cells '{kind}' in '{s}' (SHAPE or SHAPE-KIND, KIND one of: {})",
+                CellKind::ALL.map(|k| k.name()).join(", ")
+            ))
+        })?;
+        Ok(Spec { shape: shape.parse()?, cells })
+    }
+}
+
+/// A mesh of `spec` with about `target_cells` cells (tets, hexes, wedges, or the hybrid's
+/// cells of all types), the same for the same seed, calling `progress` as
+/// [`generate_with_progress`] does.
+pub fn generate_spec(spec: Spec, target_cells: usize, seed: u64, progress: &(dyn Fn(f64) + Sync)) -> RawMesh {
     let progress = Progress { callback: progress, last: Mutex::new(-1.0) };
     progress.report(0.0);
-    // Every shape is made of cells of 6 tets.
-    let cells = target_tets.min(MAX_TETS) / 6;
-    let mesh = match shape {
-        Shape::Jets => grid::build(&jets::Jets::new(cells, seed), &progress),
-        Shape::Fusion => grid::build(&fusion::Fusion::new(cells, seed), &progress),
-        Shape::Agulhas => grid::build(&agulhas::Agulhas::new(cells, seed), &progress),
-        Shape::Japan => grid::build(&japan::Japan::new(cells, seed), &progress),
+    let cubes = (target_cells.min(MAX_TETS) as f64 / spec.cells.cells_per_cube()) as usize;
+    // The decomposition of a cube's cells is at most 6 tets: ids stay within i32.
+    let cubes = cubes.min(MAX_TETS / 6);
+    let kind = spec.cells;
+    let mesh = match spec.shape {
+        Shape::Jets => grid::build(&jets::Jets::new(cubes, seed), kind, &progress),
+        Shape::Fusion => grid::build(&fusion::Fusion::new(cubes, seed), kind, &progress),
+        Shape::Agulhas => grid::build(&agulhas::Agulhas::new(cubes, seed), kind, &progress),
+        Shape::Japan => grid::build(&japan::Japan::new(cubes, seed), kind, &progress),
     };
     progress.report(1.0);
     mesh
+}
+
+/// [`generate`], calling `progress` with the fraction done (increasing, ending with 1.0),
+/// from whichever thread gets there, at most about a thousand times.
+pub fn generate_with_progress(shape: Shape, target_tets: usize, seed: u64, progress: &(dyn Fn(f64) + Sync)) -> RawMesh {
+    generate_spec(shape.into(), target_tets, seed, progress)
 }
 
 /// The ground a generated shape is drawn over, for the shapes that have one

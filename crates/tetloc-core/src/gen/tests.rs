@@ -344,3 +344,51 @@ fn agulhas_terrain_lies_under_the_sea_and_rises_into_land() {
     assert_eq!(text.lines().filter(|l| l.starts_with("v ")).count(), t.positions.len());
     assert_eq!(text.lines().filter(|l| l.starts_with("f ")).count(), t.triangles.len());
 }
+
+/// Hex, wedge and hybrid meshes of every shape: valid (no inverted, degenerate or tangled
+/// cells), conforming (the decomposition has a true boundary and the tet mesh's boundary face
+/// count on the same grid), the same volume as the tets of the same grid, near the target
+/// count, and every cell's vertex centroid located in that cell through the cell wrapper.
+#[test]
+fn mixed_shapes_are_valid_conforming_and_located() {
+    use crate::locate::{BatchLocator, CellLocator};
+    for shape in Shape::ALL {
+        for kind in [CellKind::Hexes, CellKind::Wedges, CellKind::Hybrid] {
+            let spec = Spec { shape, cells: kind };
+            assert_eq!(spec.to_string().parse::<Spec>().unwrap(), spec);
+            let target = 6_000;
+            let m = Arc::new(Mesh::new(generate_spec(spec, target, 5, &|_| {}), spec.to_string()).unwrap());
+            let cells = m.cells.as_ref().expect("a mixed mesh");
+            let (i, label) = (&m.info, format!("{spec} {target}"));
+            assert_eq!((i.n_reoriented, i.n_degenerate), (0, 0), "{label}");
+            let n = m.n_cells() as f64;
+            assert!((n / target as f64 - 1.0).abs() < 0.35, "{label}: {n} cells");
+            if kind == CellKind::Hybrid {
+                assert!(i.cell_types.len() >= 3, "{label}: {:?}", i.cell_types);
+            }
+            assert_eq!(m.faces().stats.n_non_manifold, 0, "{label}");
+            assert!(boundary_faces_inside(&m).is_empty(), "{label}: cracks in the decomposition");
+            // The tets of the same grid: same boundary (split the same way or not), same volume.
+            let cubes = (target as f64 / kind.cells_per_cube()) as usize;
+            let tets = mesh(shape, cubes * 6, 5);
+            assert_eq!(m.points.len(), tets.points.len(), "{label}: the same grid");
+            assert_eq!(m.faces().stats.n_boundary, tets.faces().stats.n_boundary, "{label}");
+            let dv = (i.total_volume / tets.info.total_volume - 1.0).abs();
+            assert!(dv < 1e-3, "{label}: volume {} vs the tets' {}", i.total_volume, tets.info.total_volume);
+            // Vertex centroids through the wrapper: in their own cell.
+            let centres: Vec<Vec3> = (0..cells.len())
+                .map(|c| {
+                    let ids = cells.block.corners(c);
+                    std::array::from_fn(|k| {
+                        ids.iter().map(|&v| m.points[v as usize][k]).sum::<f32>() / ids.len() as f32
+                    })
+                })
+                .collect();
+            let mut loc = CellLocator::new(CpuLocator::new(m.clone()), m.clone());
+            let mut ids = vec![0; centres.len()];
+            loc.locate(&centres, &mut ids).unwrap();
+            let wrong = ids.iter().enumerate().filter(|&(c, &id)| id != c as i32).count();
+            assert_eq!(wrong, 0, "{label}: {wrong} centroids not in their cell");
+        }
+    }
+}

@@ -15,6 +15,19 @@
 //! a forward error bound (Shewchuk's orient3d stage-A bound). Only when the f32 value is
 //! within that bound of zero (the point is within rounding of the face, or the tet is a
 //! sliver) is it recomputed in f64, where the products of f32 differences are exact.
+//!
+//! **Mixed cells: the tie rule on warped faces.** A mesh of pyramids, wedges and hexes is
+//! located in its conforming tet decomposition (`cell::decompose`), with this same test, so
+//! every point is first in at most one decomposition tet, by the rule above. Where a quad face
+//! is warped (bilinear), VTK's cells meet on the bilinear patch, not on its two triangles; the
+//! answer moves from the decomposition's cell `C` to the neighbour `N` across that face only
+//! when `C`'s converged f64 parametric coordinates (Newton from the shape's centre, no fused
+//! multiply-adds) are strictly outside `C` through that face (margin < 0) *and* `N`'s are
+//! inside `N` (margin ≥ 0). A point on a shared warped face is therefore `C`'s when `C`'s
+//! coordinates put it on the face, and each point has exactly one answer. Points of a warped
+//! boundary face that bulges outward are the cell's; points of the decomposition outside a
+//! warped boundary face that dents inward are outside. (`locate::CellLocator` does this for
+//! every backend.)
 
 pub mod predicates;
 

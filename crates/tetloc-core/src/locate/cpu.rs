@@ -169,7 +169,8 @@ impl CpuLocator {
         Ok(move |found: Option<(u32, Bary)>| match (found, location) {
             (None, _) => f32::NAN,
             (Some((t, b)), FieldLocation::Vertex) => mesh.interpolate(t as usize, b, vals),
-            (Some((t, _)), FieldLocation::Cell) => vals[t as usize],
+            // A mixed mesh's tets are its cells' decomposition: the value of the tet's cell.
+            (Some((t, _)), FieldLocation::Cell) => vals[mesh.cell_of_tet(t as usize)],
         })
     }
 }

@@ -1,9 +1,11 @@
 //! The seam every backend plugs into: a batch locator takes points and returns tet ids, or
 //! values of a field. The CPU implementation lives here; the Vulkan backend implements the
-//! same trait in `tetloc-vulkan`. Two wrappers add what is the same for every backend:
-//! [`FiniteOnly`] answers points with NaN or infinite coordinates, and
+//! same trait in `tetloc-vulkan`. Three wrappers add what is the same for every backend:
+//! [`FiniteOnly`] answers points with NaN or infinite coordinates, [`CellLocator`] turns
+//! answers in a mixed mesh's tet decomposition into answers on its cells, and
 //! [`WithTolerance`] assigns points just outside the boundary to the nearest boundary cell.
 
+mod cells;
 mod cpu;
 #[cfg(test)]
 use cpu::is_coherent;
@@ -11,6 +13,7 @@ use cpu::is_coherent;
 mod tests;
 pub mod tolerance;
 
+pub use cells::CellLocator;
 pub use cpu::CpuLocator;
 pub use tolerance::{Tolerance, WithTolerance};
 

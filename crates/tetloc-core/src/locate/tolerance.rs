@@ -249,6 +249,15 @@ impl<L: BatchLocator> WithTolerance<L> {
 
     /// The field's value at a boundary point.
     fn value_at(&self, field: &crate::Field, n: &Nearest) -> f32 {
+        if self.mesh.cells.is_some() {
+            // A mixed mesh: the cell's own shape functions at the boundary point.
+            let cell = self.mesh.cell_of_tet(n.tet as usize);
+            let tri = self.boundary.get().expect("built by rescue").triangles[n.triangle];
+            let q: [f64; 3] = std::array::from_fn(|a| {
+                (0..3).map(|j| n.weights[j] * f64::from(self.mesh.points[tri[j] as usize][a])).sum()
+            });
+            return super::cells::value_in_cell(&self.mesh, cell, q, field).unwrap_or(f32::NAN);
+        }
         match field.location {
             FieldLocation::Cell => field.values[n.tet as usize],
             FieldLocation::Vertex => {
@@ -274,7 +283,7 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
     fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
         self.inner.locate(points, ids)?;
         for (i, n) in self.rescue(points, ids) {
-            ids[i] = n.tet as i32;
+            ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
         }
         Ok(())
     }
@@ -289,7 +298,7 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
         self.inner.locate_and_sample(points, field, ids, values)?;
         let f = self.mesh.field(field)?;
         for (i, n) in self.rescue(points, ids) {
-            ids[i] = n.tet as i32;
+            ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
             values[i] = self.value_at(f, &n);
         }
         Ok(())

@@ -1,6 +1,7 @@
 //! The mesh model: f32 vertices, canonical u32×4 tets, named scalar fields, and what is
 //! derived from them (bounds, edge lengths, shared faces).
 
+mod cells;
 mod faces;
 mod neighbors;
 mod summary;
@@ -8,6 +9,7 @@ mod summary;
 mod tests;
 mod tet_nodes;
 
+pub use cells::{tets_per_cell, Cells};
 pub use faces::{Face, FaceSet};
 pub use summary::{FieldSummary, MeshSummary};
 pub use tet_nodes::TetNodes;
@@ -16,6 +18,7 @@ use crate::error::{Error, Result};
 use crate::geom::{self, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
+use std::collections::BTreeMap;
 use std::sync::OnceLock;
 
 /// Where a scalar field lives.
@@ -24,7 +27,7 @@ use std::sync::OnceLock;
 pub enum FieldLocation {
     /// One value per vertex, interpolated barycentrically.
     Vertex,
-    /// One value per tet, constant inside it.
+    /// One value per cell (tet, or the file's volume cell in a mixed mesh), constant inside it.
     Cell,
 }
 
@@ -60,15 +63,26 @@ pub struct MeshInfo {
     /// The file (or generator) the mesh came from; used in error messages.
     pub source: String,
     pub n_points: usize,
+    /// The tets located in: the mesh's own, or the conforming decomposition of its cells.
     pub n_tets: usize,
+    /// The file's volume cells (cell ids `0..n_cells`); `n_tets` for a mesh of tets.
+    pub n_cells: usize,
+    /// Cells by type name (VTK's names: "tetra", "hexahedron", "quadratic wedge", ...).
+    pub cell_types: BTreeMap<String, usize>,
+    /// Cells with a warped (non-planar) quad face: located with their own parametric
+    /// coordinates near those faces.
+    pub n_warped_cells: usize,
     pub bounds_min: Vec3,
     pub bounds_max: Vec3,
     pub max_edge_length: f32,
     pub mean_edge_length: f32,
-    /// Tets that were inverted in the file and have been reoriented (kept, not dropped).
+    /// Cells that were inverted in the file and have been reoriented (kept, not dropped).
     pub n_reoriented: usize,
-    /// Tets with zero volume (repeated or coplanar vertices): they contain no point.
+    /// Cells with zero volume (repeated or coplanar vertices): they contain no point.
     pub n_degenerate: usize,
+    /// Mixed cells that fold over themselves (their decomposition tets have volumes of both
+    /// signs): located by their decomposition as they are; VTK's answers there may differ.
+    pub n_tangled: usize,
     pub higher_order: Option<u8>,
     pub total_volume: f64,
 }
@@ -80,8 +94,11 @@ pub struct Mesh {
     /// Tets in file order, each in canonical vertex order (see [`geom::canonical_tet`]).
     pub tets: Vec<[u32; 4]>,
     pub fields: Vec<Field>,
-    /// The nodes of higher-order tets beyond their corners (`None`: linear tets).
+    /// The nodes of higher-order tets beyond their corners (`None`: linear tets, or a mixed mesh).
     pub tet_nodes: Option<TetNodes>,
+    /// A mesh with cells other than tets: the cells, and the map from `tets` (their conforming
+    /// decomposition) to them. `None` for a mesh of tets: it pays nothing for mixed cells.
+    pub cells: Option<Cells>,
     pub info: MeshInfo,
     faces: OnceLock<FaceSet>,
     neighbors: OnceLock<Vec<[i32; 4]>>,
@@ -93,12 +110,9 @@ impl Mesh {
     pub fn new(raw: RawMesh, source: impl Into<String>) -> Result<Mesh> {
         let source = source.into();
         let err = |msg: String| Error::Mesh { source_name: source.clone(), msg };
-        // Mixed cells are read but not yet located: refuse them, counted by type.
-        if let Some(counts) = raw.cells.as_ref().and_then(|c| c.non_tet_counts()) {
-            return Err(Error::NonTetCells { path: source.into(), counts });
-        }
         let RawMesh { points, mut tets, fields, higher_order, cells } = raw;
-        if tets.is_empty() {
+        let is_mixed = cells.as_ref().is_some_and(|c| c.non_tet_counts().is_some());
+        if tets.is_empty() && !is_mixed {
             return Err(err("the mesh has no tetrahedra".into()));
         }
         if points.len() > u32::MAX as usize {
@@ -110,6 +124,14 @@ impl Mesh {
                 points[i]
             )));
         }
+        // A mixed mesh: its tets are its cells' conforming decomposition, mapped back to them.
+        let (mut mixed, mut cells, mut cell_repairs) = (None, cells, None);
+        if is_mixed {
+            let built = Cells::build(cells.take().expect("a mixed mesh has cells"), &points).map_err(err)?;
+            tets = built.tets;
+            cell_repairs = Some((built.reoriented, built.degenerate, built.tangled));
+            mixed = Some(built.cells);
+        }
         let n = points.len() as u32;
         if let Some(t) = tets.par_iter().position_first(|t| t.iter().any(|&i| i >= n)) {
             return Err(err(format!(
@@ -117,10 +139,11 @@ impl Mesh {
                 tets[t].iter().max().unwrap()
             )));
         }
+        let n_cells = mixed.as_ref().map_or(tets.len(), Cells::len);
         for f in &fields {
             let want = match f.location {
                 FieldLocation::Vertex => points.len(),
-                FieldLocation::Cell => tets.len(),
+                FieldLocation::Cell => n_cells,
             };
             if f.values.len() != want {
                 return Err(err(format!(
@@ -189,20 +212,48 @@ impl Mesh {
             source,
             n_points: points.len(),
             n_tets: tets.len(),
+            n_cells,
+            cell_types: match (&mixed, &tet_nodes) {
+                (Some(c), _) => c.type_counts(),
+                (None, Some(nodes)) => [(nodes.cell_type().def().name().to_string(), tets.len())].into(),
+                (None, None) => [("tetra".to_string(), tets.len())].into(),
+            },
+            n_warped_cells: mixed.as_ref().map_or(0, Cells::n_warped),
             bounds_min,
             bounds_max,
             max_edge_length: acc.max_edge2.sqrt(),
             mean_edge_length: (acc.sum_edge / (6.0 * tets.len() as f64)) as f32,
-            n_reoriented: acc.reoriented,
-            n_degenerate: acc.degenerate,
+            n_reoriented: cell_repairs.map_or(acc.reoriented, |r| r.0),
+            n_degenerate: cell_repairs.map_or(acc.degenerate, |r| r.1),
+            n_tangled: cell_repairs.map_or(0, |r| r.2),
             higher_order,
             total_volume: acc.volume,
         };
-        Ok(Mesh { points, tets, fields, tet_nodes, info, faces: OnceLock::new(), neighbors: OnceLock::new() })
+        Ok(Mesh {
+            points,
+            tets,
+            fields,
+            tet_nodes,
+            cells: mixed,
+            info,
+            faces: OnceLock::new(),
+            neighbors: OnceLock::new(),
+        })
     }
 
     pub fn n_tets(&self) -> usize {
         self.tets.len()
+    }
+
+    /// The file's volume cells: the tets, or a mixed mesh's cells.
+    pub fn n_cells(&self) -> usize {
+        self.cells.as_ref().map_or(self.tets.len(), Cells::len)
+    }
+
+    /// The cell that tet `t` is (a tet mesh) or belongs to (a mixed mesh's decomposition).
+    #[inline]
+    pub fn cell_of_tet(&self, t: usize) -> usize {
+        self.cells.as_ref().map_or(t, |c| c.cell_of(t))
     }
 
     /// The field named `name`, or an error that lists the fields there are.

@@ -10,6 +10,7 @@ mod query_sets;
 // Shared whole with tetloc-testdata: core's tests use only part of the builder.
 #[allow(dead_code)]
 mod kuhn;
+pub(crate) mod mixed;
 
 pub(crate) use data_dir::require_data;
 pub(crate) use kuhn::KuhnGrid;
@@ -19,6 +20,8 @@ pub(crate) use query_sets::{query_sets, QuerySet};
 use crate::cell::{barycentric_lattice, CellBlock, CellType};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
+// What mixed.rs takes from its includer.
+use crate::locate::BatchLocator;
 
 /// `n`³ cubes on [0,1]³, interior vertices jittered by up to `jitter` × spacing, with a
 /// smooth vertex field `f` and the tet ids as cell field `cellval`.

@@ -47,7 +47,7 @@ impl Parser<'_> {
         };
         let n_items = match location {
             FieldLocation::Vertex => self.nodes.as_ref().map(|n| n.points.len()),
-            FieldLocation::Cell => self.cells.as_ref().map(|c| c.tets.len()),
+            FieldLocation::Cell => self.cells.as_ref().map(|c| c.tags.len()),
         };
         let Some(n_items) = n_items else {
             return Err(self.c.fail_at(start, format!("{what} comes before the mesh it refers to")));

@@ -1,6 +1,7 @@
-//! Gmsh's element types: how many nodes each has, and whether it is a tetrahedron (of which
-//! order), another volume element, or a lower-dimensional one that the reader ignores.
+//! Gmsh's element types: how many nodes each has, and whether it is a volume cell tetloc reads
+//! (of which order), another volume element, or a lower-dimensional one that the reader ignores.
 
+use crate::cell::CellType;
 use crate::error::Error;
 use crate::io::cursor::Cursor;
 
@@ -8,9 +9,10 @@ use crate::io::cursor::Cursor;
 pub(super) enum Kind {
     /// 0-D, 1-D and 2-D elements: ignored.
     Lower,
-    /// A tetrahedron of this polynomial order; its first four nodes are the corners.
-    Tet(u8),
-    /// Any other volume element, by family name.
+    /// A volume cell tetloc reads (a tetrahedron of any order, or a type `CellType::from_gmsh`
+    /// knows), with its Gmsh type code and polynomial order.
+    Cell { code: u8, order: u8 },
+    /// Any other volume element, by family name: the file is refused, counting them.
     Volume(&'static str),
 }
 
@@ -20,8 +22,11 @@ pub(super) enum Kind {
 pub(super) fn element_type(t: i64) -> Option<(usize, Kind)> {
     use Kind::*;
     let lower = |n: usize| (n, Lower);
-    let tet = |n: usize, order: i64| (n, Tet(order as u8));
-    let vol = |n: usize, name| (n, Volume(name));
+    let tet = |n: usize, order: i64| (n, Cell { code: t as u8, order: order as u8 });
+    let vol = |n: usize, name| match u8::try_from(t).ok().and_then(CellType::from_gmsh) {
+        Some((ty, _)) => (n, Cell { code: t as u8, order: ty.def().order() }),
+        None => (n, Volume(name)),
+    };
     Some(match t {
         15 => lower(1),
         1 => lower(2),
@@ -130,16 +135,30 @@ mod tests {
         let tet = |k: usize| (k + 1) * (k + 2) * (k + 3) / 6;
         let complete_tets = [(4, 1), (11, 2), (29, 3), (30, 4), (31, 5), (71, 6), (72, 7), (73, 8), (74, 9), (75, 10)];
         for (ty, order) in complete_tets {
-            assert_eq!(element_type(ty), Some((tet(order), Kind::Tet(order as u8))), "type {ty}");
+            assert_eq!(element_type(ty), Some((tet(order), Kind::Cell { code: ty as u8, order: order as u8 })));
         }
         // Incomplete tets: corners and edge nodes only.
         for (ty, order) in [(137, 3), (32, 4), (33, 5), (79, 6), (83, 10)] {
-            assert_eq!(element_type(ty), Some((4 + 6 * (order - 1), Kind::Tet(order as u8))), "type {ty}");
+            let kind = Kind::Cell { code: ty as u8, order: order as u8 };
+            assert_eq!(element_type(ty), Some((4 + 6 * (order - 1), kind)), "type {ty}");
         }
         let hex = |k: usize| (k + 1).pow(3);
-        for (ty, order) in [(5, 1), (12, 2), (92, 3), (93, 4), (94, 5), (98, 9)] {
+        // Hexahedra tetloc reads are cells; those of order 3 and up are refused.
+        for (ty, order) in [(5, 1), (12, 2)] {
+            assert_eq!(element_type(ty), Some((hex(order), Kind::Cell { code: ty as u8, order: order as u8 })));
+        }
+        for (ty, order) in [(92, 3), (93, 4), (94, 5), (98, 9)] {
             assert_eq!(element_type(ty), Some((hex(order), Kind::Volume("hexahedron"))), "type {ty}");
         }
+        let cell = |code: u8, order: u8| Kind::Cell { code, order };
+        assert_eq!(element_type(17), Some((20, cell(17, 2))));
+        assert_eq!(element_type(6), Some((6, cell(6, 1))));
+        assert_eq!(element_type(18), Some((15, cell(18, 2))));
+        assert_eq!(element_type(13), Some((18, cell(13, 2))));
+        assert_eq!(element_type(7), Some((5, cell(7, 1))));
+        assert_eq!(element_type(19), Some((13, cell(19, 2))));
+        assert_eq!(element_type(14), Some((14, cell(14, 2))));
+        assert_eq!(element_type(140), Some((4, Kind::Volume("trihedron"))));
         assert_eq!(element_type(2), Some((3, Kind::Lower)));
         assert_eq!(element_type(15), Some((1, Kind::Lower)));
         for unknown in [0, 67, 200, -1] {

@@ -3,12 +3,15 @@
 //! What is read:
 //! - `$Nodes`: any node tags (sparse, unordered); vertices are numbered densely in file order.
 //!   Parametric coordinates of 4.1 node blocks are skipped.
-//! - `$Elements`: tetrahedra of any order (types 4, 11, 29, 30, 31, the incomplete and
-//!   order 6–10 variants): the first four nodes are the corners, and `higher_order` is the
-//!   highest order seen. Complete higher-order tets keep all their nodes, in VTK's order, in
-//!   `RawMesh::cells` (incomplete ones are refused: tetloc has no shape functions for them). Points, lines and surface elements are ignored. Any other volume
-//!   element (hexahedra, prisms, pyramids, ...) is an [`Error::NonTetCells`] that counts them.
-//!   Cell ids are 0-based in file order of the tetrahedra.
+//! - `$Elements`: volume cells: tetrahedra of any order (types 4, 11, 29, 30, 31, the
+//!   incomplete and order 6–10 variants), hexahedra (5, hex20 17, hex27 12), prisms (6,
+//!   prism15 18, prism18 13) and pyramids (7, pyramid13 19, pyramid14 14, whose base centre
+//!   VTK's quadratic pyramid has no place for). `higher_order` is the highest order seen. A
+//!   file of linear tets gives `tets`; any other file keeps every cell with all its nodes, in
+//!   VTK's order, in `RawMesh::cells` (incomplete tets are refused: tetloc has no shape
+//!   functions for them). Points, lines and surface elements are ignored. Any other volume
+//!   element (higher-order hexahedra, trihedra, ...) is an [`Error::NonTetCells`] that counts
+//!   them. Cell ids are 0-based in file order of the volume cells.
 //! - `$NodeData` / `$ElementData`: vertex / cell fields named by their first string tag, with
 //!   `NAME[i]` per component when there are several. Element data is matched to tetrahedra by
 //!   element tag; values on other elements are dropped. Nodes or cells that a view gives no
@@ -28,22 +31,23 @@
 //! table; `tets.rs` collects the tetrahedra; `tags.rs` maps tags to indices; `data.rs` reads
 //! the fields. Words, numbers and binary blocks come from the shared `io/cursor.rs`.
 
+mod cells;
 mod data;
 mod elements;
 mod tags;
 #[cfg(test)]
 mod tests;
-mod tets;
 mod v2;
 mod v4;
 
+use crate::cell::CellType;
 use crate::error::{Error, Result};
 use crate::io::cursor::{get_i32, show, Cursor};
 use crate::mesh::{FieldLocation, RawMesh};
+use cells::ElementSink;
 use data::FieldAcc;
 use std::path::Path;
 use tags::TagMap;
-use tets::ElementSink;
 
 pub fn read(path: &Path) -> Result<RawMesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
@@ -84,15 +88,16 @@ struct Nodes {
 }
 
 struct Cells {
+    /// Each cell's first four nodes (a tet's corners).
     tets: Vec<[u32; 4]>,
-    /// Element tag of each tet, for `$ElementData`.
+    /// Element tag of each cell, for `$ElementData`.
     tags: Vec<u64>,
     /// Built on the first `$ElementData`.
     map: Option<TagMap>,
     order: u8,
-    /// The nodes after the corners, Gmsh's order; node counts per tet, run-length encoded.
+    /// The nodes after the first four, Gmsh's order; the cells' Gmsh types, run-length encoded.
     extra: Vec<u32>,
-    runs: Vec<(usize, usize)>,
+    runs: Vec<cells::Run>,
 }
 
 struct Parser<'a> {
@@ -248,15 +253,20 @@ impl Parser<'_> {
             return Err(Error::format(c.path, "no $Elements section"));
         };
         if cells.tets.is_empty() {
-            return Err(Error::format(c.path, "no tetrahedra: the file holds only points, lines or surface elements"));
+            return Err(Error::format(
+                c.path,
+                "no volume cells: the file holds only points, lines or surface elements",
+            ));
         }
-        let block = (cells.order > 1)
-            .then(|| tets::vtk_cells(&cells.tets, &cells.extra, &cells.runs))
+        // Linear tets only: the corners say it all. Otherwise every cell with all its nodes.
+        let all_tets = cells.runs.iter().all(|r| CellType::from_gmsh(r.0).is_some_and(|(t, _)| t.shape().is_tet()));
+        let block = (cells.order > 1 || !all_tets)
+            .then(|| cells::vtk_cells(&cells.tets, &cells.extra, &cells.runs))
             .transpose()
             .map_err(|m| Error::format(c.path, m))?;
         Ok(RawMesh {
             points: nodes.points,
-            tets: cells.tets,
+            tets: if all_tets { cells.tets } else { Vec::new() },
             fields: self.fields.into_iter().flat_map(FieldAcc::into_fields).collect(),
             higher_order: (cells.order > 1).then_some(cells.order),
             cells: block,

@@ -3,8 +3,8 @@
 //! each behind a header of type, count and number of tags). Binary numbers are 4-byte ints
 //! and 8-byte doubles.
 
+use super::cells::{read_ascii_nodes, Chunk, ElementSink};
 use super::elements::{element_type, unknown_type, Kind};
-use super::tets::{read_ascii_nodes, Chunk, ElementSink};
 use crate::error::Result;
 use crate::io::cursor::{get_f64, get_i32, Cursor};
 
@@ -68,11 +68,11 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
             match kind {
                 Kind::Lower => {}
                 Kind::Volume(name) => acc.other(name, nn, count as usize),
-                Kind::Tet(_) => {
+                Kind::Cell { code, .. } => {
                     // A negative tag becomes a huge one, which no node or data section matches.
                     let first = 4 * (1 + ntags as usize);
                     let int = move |b: &[u8]| get_i32(b, big) as i64 as u64;
-                    acc.add_binary_tets(data, record, nn, int, |r, k| int(&r[first + 4 * k..]))
+                    acc.add_binary_cells(data, record, code, nn, int, |r, k| int(&r[first + 4 * k..]))
                         .map_err(|m| c.fail_at(pos, m))?;
                 }
             }
@@ -106,7 +106,7 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
             match kind {
                 Kind::Lower => {}
                 Kind::Volume(name) => acc.other(name, nn, 1),
-                Kind::Tet(_) => acc.push_tet(t, &extra, tag),
+                Kind::Cell { code, .. } => acc.push_cell(code, t, &extra, tag),
             }
         }
     }

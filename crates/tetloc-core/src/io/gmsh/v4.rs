@@ -3,8 +3,8 @@
 //! tags, then their coordinates. In binary files the headers are binary too: `int`s of 4
 //! bytes and `size_t`s of 8, as are the tags.
 
+use super::cells::{read_ascii_nodes, Chunk, ElementSink};
 use super::elements::{element_type, unknown_type, Kind};
-use super::tets::{read_ascii_nodes, Chunk, ElementSink};
 use crate::error::Result;
 use crate::io::cursor::{get_f64, get_i32, get_u64, Cursor};
 
@@ -118,9 +118,9 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
             let record = 8 * (1 + nn);
             let data = c.take_records(count, record, "elements")?;
             acc.reserve(kind, count as usize);
-            if let Kind::Tet(_) = kind {
-                acc.add_binary_tets(data, record, nn, |r| get_u64(r, big), |r, k| get_u64(&r[8 + 8 * k..], big))
-                    .map_err(|m| c.fail_at(pos, m))?;
+            if let Kind::Cell { code, .. } = kind {
+                let (tag, node) = (|r: &[u8]| get_u64(r, big), |r: &[u8], k: usize| get_u64(&r[8 + 8 * k..], big));
+                acc.add_binary_cells(data, record, code, nn, tag, node).map_err(|m| c.fail_at(pos, m))?;
             }
         } else {
             let count = c.check_room(count, 2 * (1 + nn), "elements")?;
@@ -138,8 +138,8 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
                 let epos = c.here();
                 let tag = c.ascii_u64("an element tag")?;
                 let t = read_ascii_nodes(c, acc, kind, nn, tag, epos, &mut extra)?;
-                if let Kind::Tet(_) = kind {
-                    acc.push_tet(t, &extra, tag);
+                if let Kind::Cell { code, .. } = kind {
+                    acc.push_cell(code, t, &extra, tag);
                 }
             }
         }

@@ -209,7 +209,7 @@ impl Grid<'_> {
             }
         };
         let ex = cells::extract(&types, &ends, conn).map_err(fail)?;
-        if !ex.other.is_empty() {
+        if ex.unsupported {
             return Err(cells::non_tet_error(path, &ex.other));
         }
         let mut fields = self.fields;
@@ -230,7 +230,9 @@ impl Grid<'_> {
                 f.values = cells::filter_cells(std::mem::take(&mut f.values), ex.kept.as_deref());
             }
         }
-        Ok(RawMesh { points, tets: ex.tets, fields, higher_order: ex.higher_order, cells: ex.cells })
+        // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
+        let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
+        Ok(RawMesh { points, tets, fields, higher_order: ex.higher_order, cells: ex.cells })
     }
 }
 

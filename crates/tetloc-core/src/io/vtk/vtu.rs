@@ -452,31 +452,11 @@ mod tests {
         assert!(m.tets.is_empty(), "tets are for tet meshes");
         assert_eq!(m.higher_order, Some(2));
         assert_eq!(m.fields[0].values, vec![0., 1., 2., 4., 5.], "the triangle's value is dropped");
-        // The mesh model refuses them for now, counted by type.
-        let e = crate::Mesh::new(m, "test.vtu").unwrap_err().to_string();
-        assert_eq!(
-            e,
-            "test.vtu: the mesh has volume cells that are not tetrahedra (1 hexahedron, 1 wedge, 1 pyramid); \
-             tetloc locates points in tetrahedral meshes only"
-        );
-
-        // Tets of higher order: corner tets as before, and the cells with every node.
-        let second = ASCII_MIXED.replacen("<Piece NumberOfPoints=\"12\"", "<Skipped NumberOfPoints=\"12\"", 1);
-        let second = second.replacen("</Piece>\n  <Piece", "</Skipped>\n  <Piece", 1);
-        let m = parse_str(&second).unwrap();
-        assert_eq!(m.tets, vec![[0, 1, 2, 3], [0, 1, 2, 3]]);
-        assert_eq!(m.cells.as_ref().unwrap().nodes(0).len(), 10);
-        // A quadratic and a linear tet: one kind of tet per mesh, or the values would be wrong.
-        let e = crate::Mesh::new(m, "test.vtu").unwrap_err().to_string();
-        assert!(e.starts_with("test.vtu: ") && e.contains("quadratic tetra") && e.contains("one kind of tet"), "{e}");
-
-        // A polyhedron (or any type tetloc does not read) is refused by the reader, counted.
-        let poly = ASCII_MIXED.replace("12 13 14 5<", "12 42 14 5<");
-        let e = parse_str(&poly).unwrap_err().to_string();
-        assert!(e.contains("1 hexahedron, 1 pyramid, 1 polyhedron"), "{e}");
-        // A cell whose point count its type does not have.
-        let e = parse_str(&ASCII_MIXED.replace("8 14 19 22", "8 13 19 22")).unwrap_err().to_string();
-        assert!(e.contains("cell 1 (wedge) has 5 points"), "{e}");
+        // The mesh model decomposes them, counted by type.
+        let m = crate::Mesh::new(m, "test.vtu").unwrap();
+        assert_eq!(m.n_cells(), 5);
+        assert_eq!(m.info.cell_types.values().sum::<usize>(), 5);
+        assert_eq!(m.n_tets(), 6 + 3 + 2 + 1 + 1);
     }
 
     /// The shared data's meshes with cells other than tets, counted independently (the files'

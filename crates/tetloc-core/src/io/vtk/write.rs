@@ -132,6 +132,9 @@ fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<Ou
 
 /// [`write_mesh_with`] with `wide_ids` forcing Int64 connectivity and offsets (as VTK writes).
 pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: bool, wide_ids: bool) -> Result<()> {
+    if let Some(cells) = &mesh.cells {
+        return write_cells(path, mesh, cells, extra, zlib, wide_ids);
+    }
     let n_tets = mesh.tets.len();
     // Nodes per tet, and the VTK type: all of one type.
     let (per_tet, vtk_type) = match &mesh.tet_nodes {
@@ -181,6 +184,45 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
         }),
         types: Some(OutArray::new("types", NumType::U8, 1, n_tets, move |r, out| {
             out.resize(out.len() + r.len(), vtk_type)
+        })),
+    };
+    grid.write(path, zlib)
+}
+
+/// [`write_mesh`] for a mixed mesh: its cells as the file had them (all their nodes, VTK's
+/// types), not their decomposition.
+fn write_cells(
+    path: &Path,
+    mesh: &Mesh,
+    cells: &crate::mesh::Cells,
+    extra: &[NamedArray],
+    zlib: bool,
+    wide_ids: bool,
+) -> Result<()> {
+    let block = &cells.block;
+    let wide = wide_ids || (block.conn.len()).max(mesh.points.len()) as u64 > i32::MAX as u64;
+    let id_type = if wide { NumType::I64 } else { NumType::I32 };
+    for a in extra {
+        a.check(mesh.points.len(), "vertices")?;
+    }
+    let replaced: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
+    let (mut point_data, cell_data) = field_arrays(mesh, &replaced);
+    point_data.extend(extra.iter().map(NamedArray::out));
+    let grid = Grid {
+        kind: Kind::Unstructured,
+        n_points: mesh.points.len(),
+        n_cells: block.len(),
+        point_data,
+        cell_data,
+        points: OutArray::floats("Points", 3, bytemuck::cast_slice(&mesh.points)),
+        connectivity: OutArray::new("connectivity", id_type, 1, block.conn.len(), move |r, out| {
+            block.conn[r].iter().for_each(|&id| push_id(out, u64::from(id), wide))
+        }),
+        offsets: OutArray::new("offsets", id_type, 1, block.len(), move |r, out| {
+            block.ends[r].iter().for_each(|&e| push_id(out, e, wide))
+        }),
+        types: Some(OutArray::new("types", NumType::U8, 1, block.len(), move |r, out| {
+            out.extend(block.types[r].iter().map(|t| t.def().vtk_type()))
         })),
     };
     grid.write(path, zlib)

@@ -1,7 +1,8 @@
-//! The tetrahedra of `$Elements`, collected for both format versions: corners mapped to
-//! dense vertex indices, the nodes of higher-order tets beyond their corners likewise (in
-//! Gmsh's order), element tags kept for `$ElementData`, the highest order seen, and the other
-//! volume elements counted by type (they make the file an error that lists them).
+//! The volume cells of `$Elements`, collected for both format versions: each cell's first four
+//! nodes (a tet's corners) mapped to dense vertex indices, its other nodes likewise (in Gmsh's
+//! order), its Gmsh type (run-length encoded), element tags kept for `$ElementData`, the
+//! highest order seen, and the volume elements tetloc does not read counted by type (they
+//! make the file an error that lists them). Cell ids are the volume cells' file order.
 
 use super::elements::Kind;
 use super::tags::TagMap;
@@ -11,23 +12,23 @@ use crate::error::Result;
 use crate::io::cursor::{Cursor, Words};
 use rayon::prelude::*;
 
-/// The tetrahedra and other volume elements of one chunk of ASCII element lines.
+/// The volume cells and other volume elements of one chunk of ASCII element lines.
 #[derive(Default)]
 pub(super) struct Chunk {
     tets: Vec<[u32; 4]>,
     tags: Vec<u64>,
     extra: Vec<u32>,
-    runs: Vec<(usize, usize)>,
+    runs: Vec<Run>,
     order: u8,
     /// (family, nodes, count)
     others: Vec<(&'static str, usize, usize)>,
 }
 
 impl Chunk {
-    /// Reads an element's `nn` node tags; keeps its nodes if it is a tetrahedron.
+    /// Reads an element's `nn` node tags; keeps its nodes if it is a volume cell tetloc reads.
     pub fn element(&mut self, t: &mut Words, map: &TagMap, tag: u64, kind: Kind, nn: usize) -> Option<()> {
         match kind {
-            Kind::Tet(order) => {
+            Kind::Cell { code, order } => {
                 let mut c = [0u32; 4];
                 for v in &mut c {
                     *v = map.get(t.u64()?)?;
@@ -37,7 +38,7 @@ impl Chunk {
                 }
                 self.tets.push(c);
                 self.tags.push(tag);
-                add_run(&mut self.runs, nn, 1);
+                add_run(&mut self.runs, code, nn, 1);
                 self.order = self.order.max(order);
                 return Some(());
             }
@@ -54,23 +55,27 @@ impl Chunk {
     }
 }
 
-/// Appends `count` tets of `nn` nodes to run-length encoded node counts.
-fn add_run(runs: &mut Vec<(usize, usize)>, nn: usize, count: usize) {
+/// A run of consecutive cells of one Gmsh type: (type code, nodes per cell, cells).
+pub(super) type Run = (u8, usize, usize);
+
+/// Appends `count` cells of Gmsh type `code` with `nn` nodes to run-length encoded types.
+fn add_run(runs: &mut Vec<Run>, code: u8, nn: usize, count: usize) {
     match runs.last_mut() {
-        Some((n, c)) if *n == nn => *c += count,
-        _ => runs.push((nn, count)),
+        Some((t, n, c)) if *t == code && *n == nn => *c += count,
+        _ => runs.push((code, nn, count)),
     }
 }
 
-/// Collects the tetrahedra of `$Elements` and counts other volume elements.
+/// Collects the volume cells of `$Elements` and counts the volume elements tetloc does not read.
 pub(super) struct ElementSink<'n> {
     pub nodes: &'n Nodes,
+    /// Each cell's first four nodes: a tet's corners.
     pub tets: Vec<[u32; 4]>,
     pub tags: Vec<u64>,
-    /// The nodes of the tets after their 4 corners, in Gmsh's order (none for linear tets).
+    /// The cells' nodes after their first four, in Gmsh's order (none for linear tets).
     pub extra: Vec<u32>,
-    /// The tets' node counts, run-length encoded: (nodes per tet, tets).
-    pub runs: Vec<(usize, usize)>,
+    /// The cells' Gmsh types, run-length encoded.
+    pub runs: Vec<Run>,
     pub order: u8,
     /// Volume elements that are not tetrahedra, by type name.
     pub others: Vec<(String, usize)>,
@@ -83,21 +88,23 @@ impl ElementSink<'_> {
         self.nodes.map.get(tag).ok_or_else(|| format!("element {elem} refers to node {tag}, which is not in $Nodes"))
     }
 
-    /// Adds a tet read from an ASCII line: its corners, its other nodes, its tag.
-    pub fn push_tet(&mut self, corners: [u32; 4], extra: &[u32], tag: u64) {
-        self.tets.push(corners);
+    /// Adds a cell of Gmsh type `code` read from an ASCII line: its first four nodes, its other
+    /// nodes, its tag.
+    pub fn push_cell(&mut self, code: u8, first: [u32; 4], extra: &[u32], tag: u64) {
+        self.tets.push(first);
         self.extra.extend_from_slice(extra);
         self.tags.push(tag);
-        add_run(&mut self.runs, 4 + extra.len(), 1);
+        add_run(&mut self.runs, code, 4 + extra.len(), 1);
     }
 
-    /// Adds a block of binary records of tets with `nn` nodes, decoded in parallel: they are
-    /// the bulk of a large binary file. `tag(r)` and `node(r, k)` read a record's element tag
-    /// and k-th node.
-    pub fn add_binary_tets(
+    /// Adds a block of binary records of cells of Gmsh type `code` with `nn` nodes, decoded in
+    /// parallel: they are the bulk of a large binary file. `tag(r)` and `node(r, k)` read a
+    /// record's element tag and k-th node.
+    pub fn add_binary_cells(
         &mut self,
         data: &[u8],
         record: usize,
+        code: u8,
         nn: usize,
         tag: impl Fn(&[u8]) -> u64 + Sync + Send,
         node: impl Fn(&[u8], usize) -> u64 + Sync + Send,
@@ -111,7 +118,7 @@ impl ElementSink<'_> {
         self.extra
             .par_extend(records().flat_map_iter(|r| (4..nn).map(move |k| map.get(node(r, k)).unwrap_or(MISSING))));
         self.tags.par_extend(records().map(&tag));
-        add_run(&mut self.runs, nn, data.len() / record);
+        add_run(&mut self.runs, code, nn, data.len() / record);
         let bad = self.tets[start..].par_iter().position_first(|t| t.contains(&MISSING)).or_else(|| {
             let i = self.extra[extra_start..].par_iter().position_first(|&v| v == MISSING)?;
             Some(i / (nn - 4))
@@ -133,7 +140,7 @@ impl ElementSink<'_> {
             self.tets.extend_from_slice(&c.tets);
             self.tags.extend_from_slice(&c.tags);
             self.extra.extend_from_slice(&c.extra);
-            c.runs.iter().for_each(|&(nn, k)| add_run(&mut self.runs, nn, k));
+            c.runs.iter().for_each(|&(code, nn, k)| add_run(&mut self.runs, code, nn, k));
             self.order = self.order.max(c.order);
             if count_others {
                 c.others.iter().for_each(|&(name, nn, n)| self.other(name, nn, n));
@@ -150,7 +157,7 @@ impl ElementSink<'_> {
     }
 
     pub fn reserve(&mut self, kind: Kind, count: usize) {
-        if let (Kind::Tet(order), 1..) = (kind, count) {
+        if let (Kind::Cell { order, .. }, 1..) = (kind, count) {
             self.order = self.order.max(order);
             self.tets.reserve(count);
             self.tags.reserve(count);
@@ -158,8 +165,8 @@ impl ElementSink<'_> {
     }
 }
 
-/// Reads the `nn` node tags of an ASCII element; if it is a tetrahedron, its corners, and
-/// its other nodes into `extra` (cleared first).
+/// Reads the `nn` node tags of an ASCII element; if it is a volume cell tetloc reads, its first
+/// four nodes, and its other nodes into `extra` (cleared first).
 pub(super) fn read_ascii_nodes(
     c: &mut Cursor,
     acc: &ElementSink,
@@ -171,7 +178,7 @@ pub(super) fn read_ascii_nodes(
 ) -> Result<[u32; 4]> {
     let mut t = [0u32; 4];
     extra.clear();
-    if let Kind::Tet(_) = kind {
+    if let Kind::Cell { .. } = kind {
         for k in 0..nn {
             let v = acc.node(tag, c.ascii_u64("a node tag")?).map_err(|m| c.fail_at(pos, m))?;
             match t.get_mut(k) {
@@ -187,33 +194,29 @@ pub(super) fn read_ascii_nodes(
     Ok(t)
 }
 
-/// The tets with all their nodes in VTK's order, from their corners, their other nodes in
-/// Gmsh's order, and their node counts (run-length encoded). Errors are messages.
-pub(super) fn vtk_cells(tets: &[[u32; 4]], extra: &[u32], runs: &[(usize, usize)]) -> Result<CellBlock, String> {
+/// The cells with all their nodes in VTK's order, from their first four nodes, their other
+/// nodes in Gmsh's order, and their Gmsh types (run-length encoded). Errors are messages.
+pub(super) fn vtk_cells(first: &[[u32; 4]], extra: &[u32], runs: &[Run]) -> Result<CellBlock, String> {
     let mut block = CellBlock::default();
     let (mut t, mut e) = (0, 0);
     let mut gmsh = Vec::new();
-    for &(nn, count) in runs {
-        // The complete tet of this node count (its Gmsh type follows from it).
-        let (ty, g) = CellType::all()
-            .filter(|t| t.shape().is_tet())
-            .find_map(|t| t.def().gmsh_types().iter().find(|g| g.n_nodes == nn).map(|g| (t, g)))
-            .ok_or_else(|| {
-                format!(
-                    "tetrahedra with {nn} nodes are incomplete (serendipity) elements, whose values \
-                     tetloc cannot interpolate; use complete ones (Mesh.SecondOrderIncomplete = 0)"
-                )
-            })?;
-        let mut vtk = vec![0u32; nn];
+    for &(code, nn, count) in runs {
+        let (ty, g) = CellType::from_gmsh(code).ok_or_else(|| {
+            format!(
+                "tetrahedra with {nn} nodes are incomplete (serendipity) elements, whose values \
+                 tetloc cannot interpolate; use complete ones (Mesh.SecondOrderIncomplete = 0)"
+            )
+        })?;
+        let mut vtk = vec![0u32; g.vtk_from_gmsh.len()];
         for _ in 0..count {
             gmsh.clear();
-            gmsh.extend_from_slice(&tets[t]);
-            gmsh.extend_from_slice(&extra[e..e + nn - 4]);
+            gmsh.extend_from_slice(&first[t][..nn.min(4)]);
+            gmsh.extend_from_slice(&extra[e..e + nn.saturating_sub(4)]);
             for (v, &i) in vtk.iter_mut().zip(g.vtk_from_gmsh.iter()) {
                 *v = gmsh[usize::from(i)];
             }
             block.push(ty, &vtk);
-            (t, e) = (t + 1, e + nn - 4);
+            (t, e) = (t + 1, e + nn.saturating_sub(4));
         }
     }
     Ok(block)

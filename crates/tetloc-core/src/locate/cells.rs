@@ -1,0 +1,304 @@
+//! Mixed meshes on every backend: the one wrapper that turns a backend's answers in the
+//! conforming tet decomposition ([`crate::mesh::Cells`]) into VTK's answers on the cells.
+//!
+//! For each point, with `t` the decomposition tet the backend found:
+//! 1. `t`'s cell `C` answers, unless `C` has a warped quad face and the point lies within
+//!    that face's *gap* of it: the decomposition and the bilinear face differ only in a
+//!    sliver within `g = |a − b + c − d| / 4` of the face's two triangles (the largest
+//!    distance between the bilinear patch and its split), so farther points need no more.
+//! 2. Near a warped face, `C`'s parametric coordinates (Newton, f64, by its corners) decide:
+//!    inside `C`'s domain → `C`; outside through warped faces → the neighbour across one of
+//!    them that holds the point (all violated faces are tried), or outside when one of them is
+//!    on the boundary; otherwise `C` (a point inside the mesh is never "outside").
+//! 3. A point in no tet may still lie in a cell whose warped boundary face bulges out of the
+//!    decomposition: the cells with a warped boundary face whose box holds it are tested by
+//!    Newton (the smallest id that holds it answers).
+//!
+//! Values: per-vertex fields with the cell's own shape functions at its parametric
+//! coordinates (all its nodes for higher-order cells); per-cell fields looked up by cell id.
+//! Where Newton fails (a singular Jacobian: a degenerate cell, a pyramid's apex) the value is
+//! interpolated linearly in the decomposition tet.
+//!
+//! Meshes of tets only pass through untouched. GPU kernels answer decomposition tet ids
+//! only: values on mixed meshes are always computed here, on the CPU.
+
+use super::{check_lengths, is_finite, BatchLocator, OUTSIDE};
+use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
+use crate::cell::{face_split, interpolate, invert, PCoords, Point};
+use crate::error::Result;
+use crate::geom::{self, Vec3};
+use crate::mesh::{Cells, Field, FieldLocation, Mesh};
+use rayon::prelude::*;
+use std::sync::{Arc, OnceLock};
+
+/// Where a point is: its cell, and its parametric coordinates there when they were computed.
+#[derive(Clone, Copy, Debug)]
+struct Found {
+    cell: usize,
+    pc: Option<PCoords>,
+}
+
+/// Any backend on a mixed mesh: ids are cell ids, values come from the cells' shape functions
+/// (see the module documentation). Meshes without cells pass through to `inner`.
+pub struct CellLocator<L> {
+    inner: L,
+    mesh: Arc<Mesh>,
+    bulges: OnceLock<Bulges>,
+}
+
+impl<L: BatchLocator> CellLocator<L> {
+    /// `inner` must locate in `mesh`'s tets.
+    pub fn new(inner: L, mesh: Arc<Mesh>) -> Self {
+        CellLocator { inner, mesh, bulges: OnceLock::new() }
+    }
+
+    pub fn inner(&self) -> &L {
+        &self.inner
+    }
+
+    pub fn into_inner(self) -> L {
+        self.inner
+    }
+
+    /// The backend's tets, refined to cells.
+    fn find(&mut self, points: &[Vec3], tets: &mut [i32]) -> Result<Vec<Option<Found>>> {
+        self.inner.locate(points, tets)?;
+        let cells = self.mesh.cells.as_ref().expect("called on mixed meshes");
+        let mesh = &self.mesh;
+        if tets.par_iter().any(|&t| t < 0) && cells.warped.par_iter().any(|&w| w != 0) {
+            self.bulges.get_or_init(|| Bulges::build(mesh, cells));
+        }
+        let bulges = self.bulges.get();
+        Ok(points.par_iter().zip(tets.par_iter()).map(|(&p, &t)| refine(mesh, cells, bulges, p, t)).collect())
+    }
+}
+
+/// Step 1–3 of the module documentation for one point.
+fn refine(mesh: &Mesh, cells: &Cells, bulges: Option<&Bulges>, p: Vec3, t: i32) -> Option<Found> {
+    if !is_finite(p) {
+        return None;
+    }
+    if t < 0 {
+        return bulges.and_then(|b| b.find(mesh, cells, p));
+    }
+    let c = cells.cell_of(t as usize);
+    let warped = cells.warped[c];
+    if warped == 0 || !near_warped_face(mesh, cells, c, warped, p) {
+        return Some(Found { cell: c, pc: None });
+    }
+    let p64 = p.map(f64::from);
+    let Some(pc) = pcoords(mesh, cells, c, p64) else { return Some(Found { cell: c, pc: None }) };
+    let shape = cells.block.types[c].shape();
+    if shape.contains(pc) {
+        return Some(Found { cell: c, pc: Some(pc) });
+    }
+    let neighbors = &cells.warped_neighbors()[c];
+    let mut through_boundary = false;
+    for (face, _) in shape.violated(pc) {
+        let Some(f) = face.map(usize::from) else { continue };
+        if warped & (1 << f) == 0 {
+            continue;
+        }
+        let n = neighbors[f];
+        if n < 0 {
+            through_boundary = true;
+            continue;
+        }
+        let n = n as usize;
+        if let Some(pn) = pcoords(mesh, cells, n, p64).filter(|&pn| cells.block.types[n].shape().contains(pn)) {
+            return Some(Found { cell: n, pc: Some(pn) });
+        }
+    }
+    // Out through a warped boundary face: outside, as VTK says. Otherwise the decomposition's
+    // cell keeps the point (a point inside the mesh is never "outside").
+    (!through_boundary).then_some(Found { cell: c, pc: Some(pc) })
+}
+
+/// `p`'s parametric coordinates in cell `c`, located by its corners (`None`: Newton failed).
+fn pcoords(mesh: &Mesh, cells: &Cells, c: usize, p: Point) -> Option<PCoords> {
+    let corners = cells.corner_points(c, &mesh.points);
+    invert(cells.block.types[c].shape().linear, &corners, p).ok()
+}
+
+/// Whether `p` is within the gap of one of the faces in `faces` (a bit set) of cell `c`: only
+/// there can the decomposition and the cell's bilinear faces disagree.
+fn near_warped_face(mesh: &Mesh, cells: &Cells, c: usize, faces: u8, p: Vec3) -> bool {
+    let shape = cells.block.types[c].shape();
+    let ids = cells.block.corners(c);
+    let x = |k: u8| mesh.points[ids[usize::from(k)] as usize].map(f64::from);
+    let p = p.map(f64::from);
+    (0..shape.faces.len()).filter(|&f| faces & (1 << f) != 0).any(|f| {
+        let face = shape.faces[f];
+        let q = [x(face[0]), x(face[1]), x(face[2]), x(face[3])];
+        let twist: Point = std::array::from_fn(|k| q[0][k] - q[1][k] + q[2][k] - q[3][k]);
+        let scale = q.iter().chain([&p]).flat_map(|v| v.iter()).fold(0.0f64, |m, v| m.max(v.abs()));
+        // Rounding of the f32 tet tests and of these f64 distances, well covered.
+        let gap = norm(twist) / 4.0 * (1.0 + 1e-9) + 1e-12 * scale;
+        face_split(face, ids).iter().any(|&[a, b, c]| {
+            let (a, b, c) = (x(a), x(b), x(c));
+            let n = cross(sub(b, a), sub(c, a));
+            let len = norm(n);
+            len == 0.0 || dot(n, sub(p, a)).abs() <= gap * len
+        })
+    })
+}
+
+fn sub(a: Point, b: Point) -> Point {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn dot(a: Point, b: Point) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross(a: Point, b: Point) -> Point {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+fn norm(a: Point) -> f64 {
+    dot(a, a).sqrt()
+}
+
+/// The cells with a warped boundary face, by their boxes: where points outside the
+/// decomposition may still be inside a cell.
+struct Bulges {
+    cells: Vec<u32>,
+    bvh: Bvh,
+}
+
+impl Bulges {
+    fn build(mesh: &Mesh, cells: &Cells) -> Bulges {
+        let ids: Vec<u32> =
+            (0..cells.len() as u32).into_par_iter().filter(|&c| cells.has_warped_boundary(c as usize)).collect();
+        let boxes: Vec<Aabb> = ids
+            .par_iter()
+            .map(|&c| {
+                let corners: Vec<Vec3> =
+                    cells.block.corners(c as usize).iter().map(|&i| mesh.points[i as usize]).collect();
+                Aabb::of_points(&corners)
+            })
+            .collect();
+        Bulges { bvh: Bvh::build_boxes(&boxes, BuildPreset::Fast), cells: ids }
+    }
+
+    /// The smallest cell id among the bulging cells that hold `p`.
+    fn find(&self, mesh: &Mesh, cells: &Cells, p: Vec3) -> Option<Found> {
+        struct Search<'a> {
+            b: &'a Bulges,
+            mesh: &'a Mesh,
+            cells: &'a Cells,
+            p: Vec3,
+            best: Option<Found>,
+        }
+        impl Visitor for Search<'_> {
+            fn enter(&mut self, b: &Aabb) -> bool {
+                (0..3).all(|k| b.min[k] <= self.p[k] && self.p[k] <= b.max[k])
+            }
+            fn prim(&mut self, id: u32) -> bool {
+                let c = self.b.cells[id as usize] as usize;
+                if self.best.is_some_and(|b| b.cell <= c) {
+                    return false;
+                }
+                let (cells, mesh) = (self.cells, self.mesh);
+                let n = &cells.warped_neighbors()[c];
+                let boundary =
+                    (0..6).filter(|&f| cells.warped[c] & (1 << f) != 0 && n[f] < 0).fold(0u8, |m, f| m | 1 << f);
+                if !near_warped_face(mesh, cells, c, boundary, self.p) {
+                    return false;
+                }
+                let pc = pcoords(mesh, cells, c, self.p.map(f64::from));
+                if let Some(pc) = pc.filter(|&pc| cells.block.types[c].shape().contains(pc)) {
+                    self.best = Some(Found { cell: c, pc: Some(pc) });
+                }
+                false
+            }
+        }
+        let mut s = Search { b: self, mesh, cells, p, best: None };
+        self.bvh.traverse(&mut s);
+        s.best
+    }
+}
+
+/// The value of `field` at `p` where it was found.
+fn value(mesh: &Mesh, cells: &Cells, field: &Field, p: Vec3, found: &Found) -> f32 {
+    let c = found.cell;
+    match field.location {
+        FieldLocation::Cell => field.values[c],
+        FieldLocation::Vertex => match found.pc.or_else(|| pcoords(mesh, cells, c, p.map(f64::from))) {
+            Some(pc) => {
+                let nodes = cells.block.nodes(c);
+                let def = cells.block.types[c].def();
+                interpolate(def, pc, |i| f64::from(field.values[nodes[i] as usize])) as f32
+            }
+            // Newton failed: linearly in the cell's decomposition tet that holds the point (the
+            // corners' values).
+            None => {
+                let tets = &mesh.tets[cells.tets_of(c)];
+                let held = tets.iter().find_map(|&t| Some((t, geom::point_in_tet(t, &mesh.points, p)?)));
+                held.map_or(f32::NAN, |(t, bary)| geom::interpolate(t, bary, &field.values))
+            }
+        },
+    }
+}
+
+/// The value of `field` at the point `p` of cell `c` (for the boundary tolerance: `p` is a
+/// point of `c`'s boundary). `None` when the mesh has no cells.
+pub(crate) fn value_in_cell(mesh: &Mesh, c: usize, p: Point, field: &Field) -> Option<f32> {
+    let cells = mesh.cells.as_ref()?;
+    let found = Found { cell: c, pc: pcoords(mesh, cells, c, p) };
+    Some(value(mesh, cells, field, p.map(|x| x as f32), &found))
+}
+
+impl<L: BatchLocator> BatchLocator for CellLocator<L> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+
+    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.locate(points, ids);
+        }
+        check_lengths(points.len(), ids.len())?;
+        let found = self.find(points, ids)?;
+        ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |f| f.cell as i32));
+        Ok(())
+    }
+
+    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.sample(points, field, values);
+        }
+        let mut ids = vec![OUTSIDE; points.len()];
+        self.locate_and_sample(points, field, &mut ids, values)
+    }
+
+    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.locate_and_sample(points, field, ids, values);
+        }
+        self.sample_many(points, &[field], ids, values)
+    }
+
+    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.sample_many(points, fields, ids, values);
+        }
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
+        let mesh = self.mesh.clone();
+        let fields: Vec<&Field> = fields.iter().map(|f| mesh.field(f)).collect::<Result<_>>()?;
+        let found = self.find(points, ids)?;
+        let cells = mesh.cells.as_ref().expect("checked above");
+        let k = fields.len();
+        ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |f| f.cell as i32));
+        values.par_chunks_mut(k.max(1)).zip(points.par_iter().zip(&found)).for_each(|(out, (&p, f))| {
+            for (v, field) in out.iter_mut().zip(&fields) {
+                *v = f.as_ref().map_or(f32::NAN, |f| value(&mesh, cells, field, p, f));
+            }
+        });
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests;
