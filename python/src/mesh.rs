@@ -72,9 +72,10 @@ impl PyMesh {
         self.mesh.points.len()
     }
 
+    /// The file's volume cells (a mixed mesh's cells, not their tet decomposition).
     #[getter]
     fn n_cells(&self) -> usize {
-        self.mesh.n_tets()
+        self.mesh.n_cells()
     }
 
     /// (min, max) corners of the box around the vertices that tets use.

@@ -189,8 +189,10 @@ def test_bad_meshes(data_dir, tmp_path):
     with pytest.raises(FileNotFoundError) as e:
         tetloc.read(tmp_path / "missing.vtu")
     assert e.value.filename == str(tmp_path / "missing.vtu")
-    with pytest.raises(ValueError, match=r"can.vtu: the mesh has volume cells that are not tetrahedra \(4800 hexahedron"):
-        tetloc.read(data_dir / "real" / "can.vtu")
+    # Mixed meshes read (issue 13); cells tetloc does not read are refused, counted by type.
+    assert tetloc.read(data_dir / "real" / "can.vtu").info()["mesh"]["cell_types"] == {"hexahedron": 4800}
+    with pytest.raises(ValueError, match=r"penta_hexa.vtk: the mesh has volume cells that tetloc does not read \(60 pentagonal prism"):
+        tetloc.read(data_dir / "real" / "penta_hexa.vtk")
     truncated = tmp_path / "truncated.vtu"
     truncated.write_bytes((data_dir / "torus_s.vtu").read_bytes()[:50_000])
     with pytest.raises(ValueError, match="truncated.vtu"):

@@ -96,8 +96,11 @@ fn bad_input_is_a_clear_error_and_a_nonzero_exit() {
     let (ok, _, err) = tetloc(&["bench", "jets:1000", "--backend", "warp-drive"]);
     assert!(!ok && err.contains("unknown backend 'warp-drive'"), "{err}");
     if let Some(dir) = require_data("bad_input_is_a_clear_error_and_a_nonzero_exit") {
-        let (ok, _, err) = tetloc(&["info", dir.join("real/can.vtu").to_str().unwrap()]);
-        assert!(!ok && err.contains("4800 hexahedron"), "{err}");
+        // Mixed meshes read (counted by type); cells tetloc does not read are refused, counted.
+        let (ok, out, err) = tetloc(&["info", dir.join("real/can.vtu").to_str().unwrap()]);
+        assert!(ok && out.contains("4800 hexahedron"), "{out}{err}");
+        let (ok, _, err) = tetloc(&["info", dir.join("real/penta_hexa.vtk").to_str().unwrap()]);
+        assert!(!ok && err.contains("60 pentagonal prism"), "{err}");
     }
 }
 
@@ -661,5 +664,27 @@ fn boundary_tolerance_matches_vtk_probe() {
         eprintln!("{name}: VTK's probe disagrees at {vtk_disagrees} of {} points", 3 * n);
         assert!(compared > 2 * n * 9 / 10, "{name}: {compared} of {} compared", 2 * n);
         assert!(valid[0] > n * 9 / 10 && valid[1] < n / 10, "{name}: valid at 0.5 D and 1.5 D: {valid:?} of {n}");
+    }
+}
+
+/// `gen SHAPE-KIND` writes a mixed mesh that reads back with its cells, and `locate` answers
+/// cell ids on it.
+#[test]
+fn gen_mixed_shapes_read_back_and_locate() {
+    for spec in ["jets-hex", "agulhas-wedge", "japan-hybrid"] {
+        let out = tmp(&format!("{spec}.vtu"));
+        let (ok, _, err) = tetloc(&["gen", spec, "--cells", "3000", "-o", out.to_str().unwrap()]);
+        assert!(ok, "{spec}: {err}");
+        let (ok, text, err) = tetloc(&["info", out.to_str().unwrap()]);
+        assert!(ok && text.contains("cells ") && text.contains("decomposition"), "{spec}: {text}{err}");
+        let pts = tmp(&format!("{spec}.csv"));
+        std::fs::write(&pts, "x,y,z\n1e9,0,0\n").unwrap();
+        let ids = tmp(&format!("{spec}.ids.csv"));
+        let args = ["locate", out.to_str().unwrap(), "--points", pts.to_str().unwrap(), "--out", ids.to_str().unwrap()];
+        let (ok, _, err) = tetloc(&[&args[..], &["--backend", "cpu"]].concat());
+        assert!(ok, "{spec}: {err}");
+        for p in [out, pts, ids] {
+            let _ = std::fs::remove_file(p);
+        }
     }
 }

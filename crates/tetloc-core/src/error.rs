@@ -16,8 +16,8 @@ pub enum Error {
     #[error("{path}: unknown file format (known: {known})")]
     UnknownFormat { path: PathBuf, known: &'static str },
 
-    /// Volume cells other than tetrahedra: we count them by type instead of dropping them.
-    #[error("{path}: the mesh has volume cells that are not tetrahedra ({}); tetloc locates points in tetrahedral meshes only", fmt_counts(.counts))]
+    /// Volume cells tetloc does not read: we count them by type instead of dropping them.
+    #[error("{path}: the mesh has volume cells that tetloc does not read ({}); tetloc reads tetrahedra, pyramids, wedges and hexahedra (linear, quadratic and Lagrange)", fmt_counts(.counts))]
     NonTetCells { path: PathBuf, counts: Vec<(String, usize)> },
 
     /// The mesh itself is unusable (empty, indices out of range, NaN coordinates, ...).
