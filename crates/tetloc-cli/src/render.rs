@@ -143,8 +143,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         let first = i == 0;
         let name = if name == "auto" { backend::auto_choice(&opts)? } else { name.to_string() };
         let mut marcher: Box<dyn tr::Marcher> = match name.parse::<tetloc_vulkan::Kernel>() {
-            // GPU backends march whole frames on the GPU.
-            Ok(kernel) if !a.host_march => {
+            // GPU backends march whole frames on the GPU: for tet meshes only, since the GPU
+            // marcher samples tets, not the cells of a mixed mesh.
+            Ok(kernel) if !a.host_march && mesh.cells.is_none() => {
                 let mut m = tr::GpuMarcher::new(backend::make_vulkan(kernel, &mesh, &opts)?, &renderer)?;
                 if a.fps.is_some() {
                     // Keep the GPU busy between frames (image downloads), so its clocks stay up.
@@ -152,7 +153,12 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 }
                 Box::new(m)
             }
-            _ => {
+            parsed => {
+                if parsed.is_ok() && mesh.cells.is_some() && !a.host_march && !a.quiet {
+                    eprintln!(
+                        "note: a mixed mesh is marched on the host through {name} (the GPU marcher samples tets only)"
+                    );
+                }
                 let loc = backend::make(&name, &mesh, &opts)?;
                 Box::new(HostMarch(loc))
             }

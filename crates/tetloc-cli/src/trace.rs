@@ -113,7 +113,9 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let [x, y, z] = [c[0], c[1], c[2]];
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
-    let (lines, secs, mut loc) = if name == "cpu" {
+    // The per-particle walk runs on tets: mixed meshes take the batch path, whose locator maps
+    // answers to cells and interpolates with the cells' shape functions.
+    let (lines, secs, mut loc) = if name == "cpu" && m.cells.is_none() {
         let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
         let t0 = Instant::now();
