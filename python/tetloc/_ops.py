@@ -114,10 +114,21 @@ def resample_to_image(
         import pyvista as pv
 
         img = pv.ImageData(dimensions=d, origin=origin, spacing=spacing)
-        for name, k, values in arrays:
-            img.point_data[name] = values if k == 1 else values.reshape(-1, k)
-        img.point_data[VALID_MASK] = mask
-        return img
+        return _with_arrays(img, arrays, mask)
+    return _numpy_result(arrays, mask, lead, one)
+
+
+
+def _with_arrays(dataset: Any, arrays: Any, mask: np.ndarray) -> Any:
+    """`dataset` with the sampled arrays and vtkValidPointMask as point data (ParaView's names)."""
+    for name, k, values in arrays:
+        dataset.point_data[name] = values if k == 1 else values.reshape(-1, k)
+    dataset.point_data[VALID_MASK] = mask
+    return dataset
+
+
+def _numpy_result(arrays: Any, mask: np.ndarray, lead: Tuple[int, ...], one: bool) -> Any:
+    """One array when one field was asked for as a string, else a dict with the mask too."""
     out = {name: _shaped(values, k, lead) for name, k, values in arrays}
     if one:
         return out[arrays[0][0]]
@@ -166,15 +177,8 @@ def probe(
             out = target.to_pyvista()
         else:
             out = pv.PolyData(np.asarray(pts, dtype=np.float32))
-        for name, k, values in arrays:
-            out.point_data[name] = values if k == 1 else values.reshape(-1, k)
-        out.point_data[VALID_MASK] = mask
-        return out
-    result = {name: _shaped(values, k, lead) for name, k, values in arrays}
-    if one:
-        return result[arrays[0][0]]
-    result[VALID_MASK] = mask.reshape(lead)
-    return result
+        return _with_arrays(out, arrays, mask)
+    return _numpy_result(arrays, mask, lead, one)
 
 
 def trace(

@@ -145,12 +145,7 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
     let (tets, nodes) = (&mesh.tets, &mesh.tet_nodes);
 
-    for a in extra {
-        a.check(mesh.points.len(), "vertices")?;
-    }
-    let replaced: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
-    let (mut point_data, cell_data) = field_arrays(mesh, &replaced);
-    point_data.extend(extra.iter().map(NamedArray::out));
+    let (point_data, cell_data) = data_arrays(mesh, extra)?;
     let grid = Grid {
         kind: Kind::Unstructured,
         n_points: mesh.points.len(),
@@ -189,6 +184,18 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
     grid.write(path, zlib)
 }
 
+/// The mesh's fields and `extra` (per vertex, replacing fields of the same name) as the
+/// point and cell data arrays of a written mesh.
+fn data_arrays<'a>(mesh: &'a Mesh, extra: &'a [NamedArray]) -> Result<(Vec<OutArray<'a>>, Vec<OutArray<'a>>)> {
+    for a in extra {
+        a.check(mesh.points.len(), "vertices")?;
+    }
+    let replaced: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
+    let (mut point_data, cell_data) = field_arrays(mesh, &replaced);
+    point_data.extend(extra.iter().map(NamedArray::out));
+    Ok((point_data, cell_data))
+}
+
 /// [`write_mesh`] for a mixed mesh: its cells as the file had them (all their nodes, VTK's
 /// types), not their decomposition.
 fn write_cells(
@@ -202,12 +209,7 @@ fn write_cells(
     let block = &cells.block;
     let wide = wide_ids || (block.conn.len()).max(mesh.points.len()) as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
-    for a in extra {
-        a.check(mesh.points.len(), "vertices")?;
-    }
-    let replaced: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
-    let (mut point_data, cell_data) = field_arrays(mesh, &replaced);
-    point_data.extend(extra.iter().map(NamedArray::out));
+    let (point_data, cell_data) = data_arrays(mesh, extra)?;
     let grid = Grid {
         kind: Kind::Unstructured,
         n_points: mesh.points.len(),
