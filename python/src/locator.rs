@@ -8,7 +8,7 @@ use crate::backend::{self, Choice};
 use crate::background::{self, Stages};
 use crate::errors::{device_error, internal_error, to_py};
 use crate::mesh::{contiguous, PyMesh};
-use numpy::{PyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::MutexExt;
@@ -61,6 +61,9 @@ pub struct PyLocator {
     build_seconds: f64,
     note: Option<String>,
     progress: Option<Py<PyAny>>,
+    /// float64 points go through `sample_many64` (not with a tolerance, whose rescue of
+    /// points near the boundary works in float32).
+    takes_f64: bool,
 }
 
 /// The Vulkan options from `**options`; unknown names are a `TypeError` as for any keyword.
@@ -271,7 +274,8 @@ impl PyLocator {
         // nearest boundary cell (tetloc_core::locate::tolerance).
         // Mixed meshes: answers in the tet decomposition become cells (CellLocator).
         let exact: Backend = Box::new(CellLocator::new(FiniteOnly::new(built.backend), mesh_arc.clone()));
-        let backend: Backend = match tolerance.distance(&mesh_arc) {
+        let distance = tolerance.distance(&mesh_arc);
+        let backend: Backend = match distance {
             d if d > 0.0 => Box::new(WithTolerance::new(exact, mesh_arc.clone(), tolerance)),
             _ => exact,
         };
@@ -285,6 +289,7 @@ impl PyLocator {
             build_seconds: built.build_seconds,
             note: built.note,
             progress: progress.map(Bound::unbind),
+            takes_f64: distance <= 0.0,
         })
     }
 
@@ -337,6 +342,37 @@ impl PyLocator {
         let out = &mut values;
         self.chunked(py, pts.len(), |loc, r| loc.sample(&pts[r.clone()], name, &mut out[r]))?;
         Ok(PyArray1::from_vec(py, values))
+    }
+
+    /// Whether float64 points keep their precision (`sample_many64`).
+    #[getter]
+    fn takes_f64(&self) -> bool {
+        self.takes_f64
+    }
+
+    /// Ids and the values of every field of `names` (one component each) at (K, 3) float64
+    /// C-contiguous points, located at that precision: ((K,) int32, (K, len(names)) float32).
+    fn sample_many64<'py>(
+        &self,
+        py: Python<'py>,
+        points: PyReadonlyArray2<'_, f64>,
+        names: Vec<String>,
+    ) -> PyResult<(Bound<'py, PyArray1<i32>>, Bound<'py, PyArray2<f32>>)> {
+        if points.shape()[1] != 3 {
+            return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
+        }
+        let pts: &[[f64; 3]] = bytemuck::cast_slice(contiguous(&points, "points")?);
+        let k = names.len();
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        let (mut ids, mut values) = (vec![0i32; pts.len()], vec![0f32; pts.len() * k]);
+        let (ids_out, values_out) = (&mut ids, &mut values);
+        self.chunked(py, pts.len(), |loc, r| {
+            let v = &mut values_out[r.start * k..r.end * k];
+            loc.sample_many64(&pts[r.clone()], &names, &mut ids_out[r], v)
+        })?;
+        let values = numpy::ndarray::Array2::from_shape_vec((pts.len(), k), values)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
+        Ok((PyArray1::from_vec(py, ids), PyArray2::from_owned_array(py, values)))
     }
 
     /// Ids and values of the scalar field `name` in one pass.

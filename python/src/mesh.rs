@@ -35,16 +35,19 @@ pub fn contiguous<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
 
 #[pymethods]
 impl PyMesh {
-    /// Validates and builds a mesh. `points`: (N, 3) float32; `cells`: (M, 4) uint32 vertex
-    /// ids; `fields`: (name, "point" or "cell", float32 values). `source` names the mesh in
-    /// error messages.
+    /// Validates and builds a mesh. `points`: (N, 3) float32; `points64`: the same points in
+    /// float64 when the caller has them (kept where float32 rounds them); `cells`: (M, 4)
+    /// uint32 vertex ids; `fields`: (name, "point" or "cell", float32 values). `source` names
+    /// the mesh in error messages.
     #[new]
+    #[pyo3(signature = (points, cells, fields, source, points64=None))]
     fn new(
         py: Python<'_>,
         points: PyReadonlyArray2<'_, f32>,
         cells: PyReadonlyArray2<'_, u32>,
         fields: Vec<(String, String, PyReadonlyArray1<'_, f32>)>,
         source: String,
+        points64: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<PyMesh> {
         if points.shape()[1] != 3 || cells.shape()[1] != 4 {
             return Err(PyValueError::new_err("points must be (N, 3) and cells (M, 4)"));
@@ -62,7 +65,15 @@ impl PyMesh {
                 Ok(Field { name: name.clone(), location, values: contiguous(values, name)?.to_vec() })
             })
             .collect::<PyResult<Vec<_>>>()?;
-        let raw = RawMesh { points, tets, fields, higher_order: None, cells: None };
+        let points64 = match &points64 {
+            Some(p) if p.shape() == [points.len(), 3] => {
+                let p: &[[f64; 3]] = bytemuck::cast_slice(contiguous(p, "points64")?);
+                tetloc_core::io::points64_if_needed(p.to_vec())
+            }
+            Some(p) => return Err(PyValueError::new_err(format!("points64: shape {:?}; expected (N, 3)", p.shape()))),
+            None => None,
+        };
+        let raw = RawMesh { points, points64, tets, fields, higher_order: None, cells: None };
         let mesh = py.detach(|| Mesh::new(raw, source)).map_err(to_py)?;
         Ok(PyMesh { mesh: Arc::new(mesh) })
     }
@@ -81,7 +92,8 @@ impl PyMesh {
     /// (min, max) corners of the box around the vertices that tets use.
     #[getter]
     fn bounds(&self) -> (Vec3, Vec3) {
-        (self.mesh.info.bounds_min, self.mesh.info.bounds_max)
+        let (lo, hi) = self.mesh.file_bounds();
+        (lo.map(|x| x as f32), hi.map(|x| x as f32))
     }
 
     /// The file (or description) the mesh came from.

@@ -132,7 +132,10 @@ pub fn resample_to_image<'py>(
     let groups = field_groups(&mesh, &names)?;
     let grid = match bounds {
         Some(b) => ImageGrid::spanning([b[0], b[2], b[4]], [b[1], b[3], b[5]], dims),
-        None => ImageGrid::over_bounds(mesh.info.bounds_min.map(f64::from), mesh.info.bounds_max.map(f64::from), dims),
+        None => {
+            let (lo, hi) = mesh.file_bounds();
+            ImageGrid::over_bounds(lo, hi, dims)
+        }
     }
     .map_err(to_py)?;
     let n = grid.n_points();

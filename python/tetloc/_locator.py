@@ -9,7 +9,7 @@ import numpy as np
 
 from . import _fields
 from ._mesh import Mesh
-from ._points import as_points
+from ._points import as_points, as_points64
 from ._progress import ProgressBar
 from ._tetloc import _Locator
 
@@ -41,8 +41,10 @@ class Locator:
         default True). Unknown options raise ``TypeError``.
 
     Points are any array-like of shape (K, 3) (or (..., 3)), float32 or float64, C or
-    Fortran order, including CPU tensors (DLPack or ``__array__``). They are located as
-    float32; a C-contiguous float32 array is used without a copy. Results have the points'
+    Fortran order, including CPU tensors (DLPack or ``__array__``). float32 points are
+    located as they are (a C-contiguous array without a copy); float64 points keep their
+    precision (exact decisions on the mesh's float64 coordinates on the CPU; on the GPU the
+    kernels search the mesh's working frame, centred on meshes far from the origin). Results have the points'
     leading shape. A point with a NaN or infinite coordinate (or beyond float32 range) is
     answered -1 and NaN, as pyvista does, with a ``RuntimeWarning`` counting them. A point on a face shared by two tets gets one of them, always the same
     for a backend. Calls release the GIL (a Locator may be used from several threads; calls
@@ -86,9 +88,31 @@ class Locator:
         memory tracked by the backend; cpu: the extension's heap, measured)."""
         return self._raw.memory()
 
+    def _sample64(self, points: ArrayLike, comps: list) -> Optional[Tuple[np.ndarray, np.ndarray, Tuple[int, ...]]]:
+        """float64 points at their precision: (ids, values (K, len(comps)), leading shape),
+        or None for other points (and with a tolerance)."""
+        if not self._raw.takes_f64:
+            return None
+        p64 = as_points64(points)
+        if p64 is None:
+            return None
+        flat, lead = p64
+        bad = int((~np.isfinite(flat)).any(axis=1).sum())
+        if bad:
+            warnings.warn(
+                f"points: {bad} of {len(flat)} points have a NaN or infinite coordinate; they are answered -1 (and NaN values)",
+                RuntimeWarning,
+                stacklevel=3,
+            )
+        ids, values = self._raw.sample_many64(flat, comps)
+        return ids, values, lead
+
     def locate(self, points: ArrayLike) -> np.ndarray:
         """Ids of the tets containing `points` (0-based, the mesh's order), -1 outside: an
         int32 array of the points' leading shape."""
+        got = self._sample64(points, [])
+        if got is not None:
+            return got[0].reshape(got[2])
         flat, lead = as_points(points)
         return self._raw.locate(flat).reshape(lead)
 
@@ -98,6 +122,11 @@ class Locator:
         cell fields are constant in each tet. (A k-component field is sampled one
         component at a time for now.)"""
         comps, k = self._mesh._index.components(name)
+        got = self._sample64(points, comps)
+        if got is not None:
+            _, values, lead = got
+            values = values[:, 0] if k is None else values
+            return values.reshape(lead + values.shape[1:])
         flat, lead = as_points(points)
         values = _fields.join([self._raw.sample(flat, c) for c in comps], k)
         return values.reshape(lead + values.shape[1:])
@@ -105,6 +134,11 @@ class Locator:
     def locate_and_sample(self, points: ArrayLike, name: str) -> Tuple[np.ndarray, np.ndarray]:
         """``(locate(points), sample(points, name))`` in one pass (per component)."""
         comps, k = self._mesh._index.components(name)
+        got = self._sample64(points, comps)
+        if got is not None:
+            ids, values, lead = got
+            values = values[:, 0] if k is None else values
+            return ids.reshape(lead), values.reshape(lead + values.shape[1:])
         flat, lead = as_points(points)
         ids, first = self._raw.locate_and_sample(flat, comps[0])
         values = _fields.join([first] + [self._raw.sample(flat, c) for c in comps[1:]], k)

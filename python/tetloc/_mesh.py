@@ -20,7 +20,8 @@ class Mesh:
     Parameters
     ----------
     points : array-like, shape (N, 3)
-        Vertex coordinates, float32 or float64 (stored as float32, like meshes read from files).
+        Vertex coordinates, float32 or float64 (float64 ones are kept where float32 would round
+        them, as for meshes read from files).
     cells : array-like, shape (M, 4)
         Vertex ids of each tetrahedron, any integer dtype. Inverted tets are reoriented
         and kept; cell ids are the rows' order.
@@ -63,6 +64,9 @@ class Mesh:
             np.ascontiguousarray(cells_, dtype=np.uint32),
             fields,
             "tetloc.Mesh(points, cells)",
+            # float64 coordinates are kept where float32 would round them: answers are then
+            # exact on them (and a mesh far from the origin keeps its precision).
+            np.ascontiguousarray(pts, dtype=np.float64) if pts.dtype == np.float64 else None,
         )
         self._index = _fields.FieldIndex(self._raw.fields())
 

@@ -1,8 +1,9 @@
 """Query points in: any array-like of shape (..., 3), float32 or float64, C or Fortran
 order, numpy arrays, lists, and CPU tensors (DLPack or ``__array__``, e.g. torch).
 
-The core locates float32 points; a C-contiguous float32 array is handed over as it is,
-anything else is copied once (converted and/or made contiguous).
+float32 points are located as they are (a C-contiguous float32 array is handed over without
+a copy); float64 points keep their precision (exact decisions on the CPU; the GPU kernels
+search them in the mesh's working frame, centred on meshes far from the origin).
 """
 
 from __future__ import annotations
@@ -49,3 +50,14 @@ def as_points(points: Any, arg: str = "points") -> Tuple[np.ndarray, Tuple[int, 
     flat = a if a.ndim == 2 else a.reshape(-1, 3)  # a view unless the layout forbids it
     with np.errstate(over="ignore"):  # beyond float32 range: inf, answered -1 / NaN
         return np.ascontiguousarray(flat, dtype=np.float32), lead
+
+
+def as_points64(points: Any, arg: str = "points") -> Tuple[np.ndarray, Tuple[int, ...]] | None:
+    """(a (K, 3) float64 C-contiguous array, the leading shape) when `points` is float64
+    (located exactly at that precision), else None (use :func:`as_points`)."""
+    a = _to_numpy(points, arg)
+    if a.dtype != np.float64 or a.ndim == 0 or a.shape[-1] != 3:
+        return None
+    lead = a.shape[:-1]
+    flat = a if a.ndim == 2 else a.reshape(-1, 3)
+    return np.ascontiguousarray(flat, dtype=np.float64), lead

@@ -317,7 +317,13 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
         println!("  tets        {}", i.n_tets);
     }
     println!("  vertices    {}", i.n_points);
-    println!("  bounds      {:?} .. {:?}", i.bounds_min, i.bounds_max);
+    if i.frame.is_identity() {
+        println!("  bounds      {:?} .. {:?}", i.bounds_min, i.bounds_max);
+    } else {
+        let (lo, hi) = m.file_bounds();
+        println!("  bounds      {lo:?} .. {hi:?}");
+        println!("  frame       origin {:?}, scale {} (the f32 copy is centred there)", i.frame.origin, i.frame.scale);
+    }
     println!("  volume      {:.6e}", i.total_volume);
     println!("  edges       max {:.4e}, mean {:.4e}", i.max_edge_length, i.mean_edge_length);
     println!(

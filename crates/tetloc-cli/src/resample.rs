@@ -68,7 +68,8 @@ pub fn run(a: &ResampleArgs) -> Result<()> {
     let grid = match bounds {
         Some((lo, hi)) => ImageGrid::spanning(lo, hi, [nx, ny, nz])?,
         None => {
-            ImageGrid::over_bounds(m.info.bounds_min.map(f64::from), m.info.bounds_max.map(f64::from), [nx, ny, nz])?
+            let (lo, hi) = m.file_bounds();
+            ImageGrid::over_bounds(lo, hi, [nx, ny, nz])?
         }
     };
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };

@@ -84,3 +84,22 @@ fn cpu_locator_matches_the_oracle() {
     eprintln!("{}", report.join("\n"));
     assert!(failures.is_empty(), "oracle disagreements in {failures:?}");
 }
+
+/// A mesh far from the origin (`utm/`: the `part_s` mesh ×1000 and shifted to UTM-like
+/// coordinates, f64 vertices and points): the CPU, deciding exactly on the f64 data, gives
+/// the oracle's cells and values, as at the origin.
+#[test]
+fn cpu_locator_matches_the_oracle_far_from_the_origin() {
+    let Some(dir) = require_data("cpu_locator_matches_the_oracle_far_from_the_origin") else { return };
+    let sets = tetloc_testdata::utm_sets(&dir);
+    assert!(sets.len() >= 3, "expected the utm query sets, found {}", sets.len());
+    let mesh = Arc::new(io::read_mesh(&sets[0].mesh_path, None).unwrap());
+    assert!(!mesh.info.frame.is_identity() && mesh.points64.is_some(), "a far mesh gets a centred frame");
+    assert_eq!(mesh.info.n_degenerate, 0, "no tet collapses");
+    let mut loc = CpuLocator::new(mesh);
+    for set in &sets {
+        let (mismatches, bad_values, lost) = tetloc_testdata::compare_f64_set(&mut loc, set);
+        eprintln!("{}: {mismatches} id mismatches, {bad_values} bad values, {lost} lost", set.label);
+        assert_eq!((mismatches, bad_values, lost), (0, 0, 0), "{}", set.label);
+    }
+}

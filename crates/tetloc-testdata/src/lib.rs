@@ -24,7 +24,7 @@ pub mod testmesh;
 
 pub use data_dir::{data_dir, in_ci, require_data};
 pub use kuhn::KuhnGrid;
-pub use query_sets::{query_sets, QuerySet};
+pub use query_sets::{query_sets, utm_sets, QuerySet};
 
 /// Runs `scripts/SCRIPT` (a VTK reference: `vtk_probe.py`, `vtk_ops.py`) with `args` under
 /// `TETLOC_PYTHON` (default `python3`). `None` (after a SKIPPED line) when that Python or its
@@ -56,18 +56,61 @@ pub fn read_f64s(path: &std::path::Path) -> Vec<f64> {
 }
 
 /// The value of a per-vertex field at `p` by barycentric interpolation in tet `t`, with the
-/// barycentrics computed in f64 on the stored (f32) vertices: the reference a locator's
-/// value must match. The oracle's own values use the file's f64 vertices; in slivers the
-/// rounding of the vertices to f32 alone moves them by more than 1e-5.
+/// barycentrics computed in f64 on the file's coordinates (`Mesh::vertex64`): the reference
+/// a locator's value must match.
 pub fn exact_value(mesh: &Mesh, t: usize, p: Vec3, values: &[f32]) -> f64 {
+    use tetloc_core::geom::predicates::orient3d;
     let ids = mesh.tets[t];
-    let v: [Vec3; 4] = ids.map(|i| mesh.points[i as usize]);
-    let vol = tetloc_core::geom::tet_volume6(v);
+    let v: [[f64; 3]; 4] = ids.map(|i| mesh.vertex64(i));
+    let vol6 = |w: [[f64; 3]; 4]| -orient3d(w[0], w[1], w[2], w[3]);
+    let vol = vol6(v);
     (0..4)
         .map(|i| {
             let mut w = v;
-            w[i] = p;
-            tetloc_core::geom::tet_volume6(w) / vol * values[ids[i] as usize] as f64
+            w[i] = p.map(f64::from);
+            vol6(w) / vol * values[ids[i] as usize] as f64
         })
         .sum()
+}
+
+/// A UTM set ([`utm_sets`]) through `loc`'s f64 path: (id mismatches outside flags bit0,
+/// values off the oracle's by more than 1e-5 relative, interior points lost), printing the
+/// first few of each.
+pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, usize, usize) {
+    let points = set.points64.as_ref().expect("an f64 query set");
+    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f32; points.len()]);
+    loc.sample_many64(points, &["f"], &mut ids, &mut values).unwrap_or_else(|e| panic!("{}: {e}", set.label));
+    let (mut mismatches, mut bad_values, mut lost) = (0, 0, 0);
+    for i in 0..points.len() {
+        if set.cell[i] >= 0 && ids[i] < 0 {
+            lost += 1;
+        }
+        if set.ambiguous(i) {
+            continue;
+        }
+        if ids[i] != set.cell[i] {
+            mismatches += 1;
+            if mismatches <= 3 {
+                eprintln!(
+                    "{} {}: point {i} {:?}: got {} want {}",
+                    loc.name(),
+                    set.label,
+                    points[i],
+                    ids[i],
+                    set.cell[i]
+                );
+            }
+        }
+        if let Some(want) = &set.value {
+            let (g, w) = (values[i] as f64, want[i]);
+            let ok = if w.is_nan() { g.is_nan() } else { (g - w).abs() <= 1e-5 * w.abs().max(1.0) };
+            if !ok {
+                bad_values += 1;
+                if bad_values <= 3 {
+                    eprintln!("{} {}: point {i}: value {g} want {w}", loc.name(), set.label);
+                }
+            }
+        }
+    }
+    (mismatches, bad_values, lost)
 }

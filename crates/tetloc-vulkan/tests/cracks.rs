@@ -80,3 +80,63 @@ fn regular_grid_vertices_edges_and_faces() {
 fn jittered_mesh_vertices_edges_and_faces() {
     check_mesh("jittered_mesh_vertices_edges_and_faces", common::jets(6000, 7));
 }
+
+/// f64 data far from the origin (a jittered grid ×1000, shifted to UTM-like coordinates, no
+/// vertex exact in f32), queried in f64 within 1e-7 of faces: every kernel gives the ids of
+/// the CPU's exact arithmetic on the f64 data (the kernels search the centred working copy;
+/// the host checks each answer exactly and corrects the rare one within rounding of a face).
+#[test]
+fn f64_points_near_faces_far_from_the_origin_are_exact() {
+    let Some(ctx) = common::context("f64_points_near_faces_far_from_the_origin_are_exact") else { return };
+    let raw = tetloc_testdata::KuhnGrid::new(4).jitter(0.25, 3).vertex_field(|p| p[0] + 2.0 * p[1]).raw();
+    let shift = [512_345.037_5, 4_123_456.062_5, 0.3];
+    let file: Vec<[f64; 3]> = raw
+        .points
+        .iter()
+        .map(|p| std::array::from_fn(|k| p[k] as f64 * 1000.0 + shift[k] + 1e-7 * p[k] as f64))
+        .collect();
+    let raw = tetloc_core::RawMesh {
+        points: file.iter().map(|p| p.map(|c| c as f32)).collect(),
+        points64: Some(file.clone()),
+        ..raw
+    };
+    let mesh = Arc::new(Mesh::new(raw, "shifted grid").unwrap());
+    // A small xorshift: uniform in [0, 1).
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut unit = move || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let queries: Vec<[f64; 3]> = (0..3000)
+        .map(|_| {
+            let t = mesh.tets[(unit() * mesh.n_tets() as f64) as usize];
+            let f = tetloc_core::geom::ascending_faces(t)[(unit() * 4.0) as usize].0;
+            let w: [f64; 3] = std::array::from_fn(|_| 0.05 + unit());
+            let s: f64 = w.iter().sum();
+            let on: [f64; 3] = std::array::from_fn(|k| (0..3).map(|i| w[i] / s * file[f[i] as usize][k]).sum::<f64>());
+            on.map(|c| c + (unit() - 0.5) * 2e-7)
+        })
+        .collect();
+    let run = |loc: &mut dyn BatchLocator| {
+        let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f32; queries.len()]);
+        loc.sample_many64(&queries, &["f"], &mut ids, &mut values).unwrap();
+        (ids, values)
+    };
+    let (cpu_ids, cpu_values) = run(&mut CpuLocator::new(mesh.clone()));
+    for k in common::kernels(&ctx, "f64_points_near_faces_far_from_the_origin_are_exact") {
+        let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
+        let (ids, values) = run(&mut loc);
+        let wrong = ids.iter().zip(&cpu_ids).filter(|(a, b)| a != b).count();
+        assert_eq!(wrong, 0, "{}: {wrong} ids differ from exact arithmetic", k.name());
+        for (i, (a, b)) in values.iter().zip(&cpu_values).enumerate() {
+            assert!(
+                (a - b).abs() <= 1e-5 * b.abs().max(1.0) || (a.is_nan() && b.is_nan()),
+                "{} point {i}: {a} vs {b}",
+                k.name()
+            );
+        }
+    }
+    common::assert_no_validation_errors(&ctx);
+}

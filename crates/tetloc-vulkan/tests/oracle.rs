@@ -119,3 +119,23 @@ fn every_kernel_matches_the_oracle() {
     }
     common::assert_no_validation_errors(&ctx);
 }
+
+/// A mesh far from the origin (`utm/`, f64 vertices and points): every kernel searches the
+/// mesh's centred working frame and gives the oracle's cells and values, as at the origin.
+#[test]
+fn every_kernel_matches_the_oracle_far_from_the_origin() {
+    let test = "every_kernel_matches_the_oracle_far_from_the_origin";
+    let Some(dir) = require_data(test) else { return };
+    let Some(ctx) = common::context(test) else { return };
+    let sets = tetloc_testdata::utm_sets(&dir);
+    assert!(sets.len() >= 3, "expected the utm query sets in {}", dir.display());
+    let mesh = Arc::new(tetloc_core::io::read_mesh(&sets[0].mesh_path, None).unwrap());
+    for k in common::kernels(&ctx, test) {
+        let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
+        for set in &sets {
+            let (mismatches, bad_values, lost) = tetloc_testdata::compare_f64_set(&mut loc, set);
+            assert_eq!((mismatches, bad_values, lost), (0, 0, 0), "{} {}", k.name(), set.label);
+        }
+    }
+    common::assert_no_validation_errors(&ctx);
+}

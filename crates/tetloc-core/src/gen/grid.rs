@@ -286,7 +286,14 @@ pub(super) fn build(shape: &dyn ColumnShape, kind: CellKind, progress: &Progress
         let block = cell_block(g, kind, &cells, &bases, &corner_at, &Phase::new(progress, p_end, t_end, cells.len()));
         progress.report(1.0);
         let n = block.len();
-        return RawMesh { points, tets: Vec::new(), fields: fields(f, n), higher_order: None, cells: Some(block) };
+        return RawMesh {
+            points,
+            points64: None,
+            tets: Vec::new(),
+            fields: fields(f, n),
+            higher_order: None,
+            cells: Some(block),
+        };
     }
 
     let mut tets = vec![[0u32; 4]; n_tets];
@@ -304,7 +311,7 @@ pub(super) fn build(shape: &dyn ColumnShape, kind: CellKind, progress: &Progress
         phase.advance(out.len() / (6 * nk));
     });
     progress.report(1.0);
-    RawMesh { points, tets, fields: fields(f, n_tets), higher_order: None, cells: None }
+    RawMesh { points, points64: None, tets, fields: fields(f, n_tets), higher_order: None, cells: None }
 }
 
 /// The cells of every kept column, as a cell block: every column has the same cells (by

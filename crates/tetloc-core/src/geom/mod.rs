@@ -183,6 +183,95 @@ pub fn test_point(ids: [u32; 4], points: &[Vec3], p: Vec3) -> TetTest {
     TetTest::Inside(bary)
 }
 
+/// What [`test_point_with`] needs beyond the working f32 vertices: the file's f64
+/// coordinates (`None`: the working copy is them) and the frame between the two.
+#[derive(Clone, Copy, Debug)]
+pub struct Exact<'a> {
+    pub file: Option<&'a [[f64; 3]]>,
+    pub frame: &'a crate::mesh::Frame,
+}
+
+impl Exact<'_> {
+    #[inline]
+    fn vertex(&self, points: &[Vec3], i: u32) -> [f64; 3] {
+        match self.file {
+            Some(f) => f[i as usize],
+            None => self.frame.to_file(points[i as usize]),
+        }
+    }
+
+    /// A query point given in the file's coordinates, with its working coordinates.
+    #[inline]
+    pub fn query(&self, file: [f64; 3]) -> predicates::Query {
+        predicates::Query { local: self.frame.to_working(file), file }
+    }
+}
+
+/// The point-in-tet test on the file's data: [`test_point`] when the working copy and the
+/// point are exactly the file's (the f32 path every backend shares); otherwise each face is
+/// decided in f32 with a bound that also covers the rounding of vertices and point to the
+/// working copy ([`crate::mesh::Frame`]), and where that bound cannot decide, by the exact
+/// sign of orient3d on the f64 coordinates. The tie rule is [`test_point`]'s: a point on a
+/// face (exact zero) is inside, and the search's order picks among the tets that claim it.
+/// Barycentrics are computed in f64 on the file's coordinates.
+pub fn test_point_with(ids: [u32; 4], points: &[Vec3], exact: &Exact, q: &predicates::Query) -> TetTest {
+    let exact_query = exact.frame.is_identity() && q.local.map(f64::from) == q.file;
+    if exact.file.is_none() && exact_query {
+        return test_point(ids, points, q.local);
+    }
+    let swapped = ids[3] < ids[2];
+    let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
+    let orientation = if swapped { 1.0f64 } else { -1.0 };
+    let stored = |i: usize| if swapped && i >= 2 { 5 - i } else { i };
+    let v = asc.map(|i| points[i as usize]);
+    let mut v64: Option<[[f64; 3]; 4]> = None;
+    let mut d = [0f64; 4];
+    for (i, &(f, parity)) in SORTED_FACES.iter().enumerate() {
+        let sign = parity as f64 * orientation;
+        let (det, bound) = predicates::orient3d_local(v[f[0]], v[f[1]], v[f[2]], q.local, exact.frame.delta);
+        let signed = if det.abs() > bound {
+            sign * det as f64
+        } else {
+            let w = *v64.get_or_insert_with(|| asc.map(|i| exact.vertex(points, i)));
+            sign * predicates::orient3d(w[f[0]], w[f[1]], w[f[2]], q.file)
+        };
+        if signed < 0.0 {
+            return TetTest::Outside { face: stored(i) };
+        }
+        d[i] = signed;
+    }
+    // Inside: barycentrics in f64 on the file's coordinates.
+    let w = v64.unwrap_or_else(|| asc.map(|i| exact.vertex(points, i)));
+    for (i, &(f, parity)) in SORTED_FACES.iter().enumerate() {
+        d[i] = (parity as f64 * orientation * predicates::orient3d(w[f[0]], w[f[1]], w[f[2]], q.file)).max(0.0);
+    }
+    let total: f64 = d.iter().sum();
+    if total <= 0.0 {
+        return TetTest::Outside { face: 0 }; // zero-volume tet: contains no point
+    }
+    let mut bary = d.map(|x| (x / total) as f32);
+    if swapped {
+        bary.swap(2, 3);
+    }
+    TetTest::Inside(bary)
+}
+
+/// Puts a tet into canonical order like [`canonical_tet`], with orientations decided exactly
+/// on the file's f64 coordinates.
+pub fn canonical_tet_exact(ids: [u32; 4], file: &[[f64; 3]]) -> ([u32; 4], f64) {
+    let vol6 = |t: [u32; 4]| -> f64 {
+        let p = t.map(|i| file[i as usize]);
+        -predicates::orient3d(p[0], p[1], p[2], p[3])
+    };
+    let input_vol = vol6(ids);
+    let mut s = ids;
+    s.sort_unstable();
+    if vol6(s) < 0.0 {
+        s.swap(2, 3);
+    }
+    (s, input_vol)
+}
+
 /// The point-in-tet test: the barycentric coordinates when `p` is inside or on the
 /// boundary of the (canonical) tet `ids`.
 #[inline]

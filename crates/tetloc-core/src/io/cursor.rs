@@ -289,6 +289,9 @@ impl<'a> Words<'a> {
     pub fn f32(&mut self) -> Option<f32> {
         parse_f64(self.next_word()?).map(|v| v as f32)
     }
+    pub fn f64(&mut self) -> Option<f64> {
+        parse_f64(self.next_word()?)
+    }
     /// Whether only whitespace is left.
     pub fn done(&self) -> bool {
         self.0.iter().all(|b| b.is_ascii_whitespace())

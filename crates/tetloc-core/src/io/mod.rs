@@ -83,6 +83,13 @@ fn check_fits_in_memory(path: &Path) -> Result<()> {
 /// `/dev/zero`), whose size cannot be known in advance; less when memory is short.
 pub const NON_REGULAR_READ_CAP: u64 = 1 << 30;
 
+/// The file's f64 coordinates for `RawMesh::points64`: `None` when every one rounds to f32
+/// exactly (then the f32 copy is the data).
+pub fn points64_if_needed(points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
+    use rayon::prelude::*;
+    points.par_iter().any(|p| p.iter().any(|&x| x.is_finite() && (x as f32) as f64 != x)).then_some(points)
+}
+
 /// Reads a whole file, boundedly: a regular file must fit in memory (its size is known),
 /// and anything else (pipes, devices) is read up to [`NON_REGULAR_READ_CAP`] and refused
 /// beyond. Large regular files are read by all threads at once: copying from the page cache

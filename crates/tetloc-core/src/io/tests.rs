@@ -97,6 +97,7 @@ fn every_encoding_of_a_mesh_reads_the_same() {
 fn differences_are_found() {
     use crate::mesh::{Field, FieldLocation};
     let a = RawMesh {
+        points64: None,
         points: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         tets: vec![[0, 1, 2, 3]],
         fields: vec![Field {

@@ -54,16 +54,18 @@ pub fn parse(node: &[u8], ele: &[u8], path: &Path) -> Result<RawMesh> {
         }
         None => None,
     };
-    Ok(RawMesh { points: nodes.points, tets: tets.tets, fields, higher_order: tets.higher_order, cells })
+    let points = nodes.points.iter().map(|p| p.map(|x| x as f32)).collect();
+    let points64 = super::points64_if_needed(nodes.points);
+    Ok(RawMesh { points, points64, tets: tets.tets, fields, higher_order: tets.higher_order, cells })
 }
 
 /// 10-node tets as VTK quadratic tets: each extra node goes to the edge (VTK's order (0,1),
 /// (1,2), (2,0), (0,3), (1,3), (2,3)) whose midpoint is nearest to it, which must be a
 /// one-to-one match with every node within rounding of its midpoint.
-fn quadratic_cells(tets: &[[u32; 4]], extra: &[u32], points: &[[f32; 3]]) -> std::result::Result<CellBlock, String> {
+fn quadratic_cells(tets: &[[u32; 4]], extra: &[u32], points: &[[f64; 3]]) -> std::result::Result<CellBlock, String> {
     const EDGES: [[usize; 2]; 6] = [[0, 1], [1, 2], [2, 0], [0, 3], [1, 3], [2, 3]];
     let ty = CellType::from_vtk(24, 10).expect("the quadratic tet is a cell type");
-    let p = |i: u32| points[i as usize].map(f64::from);
+    let p = |i: u32| points[i as usize];
     let mut block = CellBlock::default();
     for (t, (c, x)) in tets.iter().zip(extra.chunks_exact(6)).enumerate() {
         let mut nodes = [0u32; 10];
@@ -117,7 +119,7 @@ fn expect_no_more(c: &mut Cursor, count: usize, what: &str) -> Result<()> {
 }
 
 struct Nodes {
-    points: Vec<[f32; 3]>,
+    points: Vec<[f64; 3]>,
     /// `n_attrs` per point, row-major.
     attrs: Vec<f32>,
     n_attrs: usize,
@@ -171,8 +173,7 @@ fn read_nodes(c: &mut Cursor) -> Result<Nodes> {
                 base + i as u64
             )));
         }
-        let p = [r.f64("x")?, r.f64("y")?, r.f64("z")?];
-        points.push(p.map(|c| c as f32));
+        points.push([r.f64("x")?, r.f64("y")?, r.f64("z")?]);
         for _ in 0..n_attrs {
             attrs.push(r.f64("a point attribute")? as f32);
         }
@@ -288,6 +289,7 @@ mod tests {
     fn expected() -> RawMesh {
         let f = |name: &str, location, values: Vec<f32>| Field { name: name.into(), location, values };
         RawMesh {
+            points64: None,
             points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
             tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
             fields: vec![

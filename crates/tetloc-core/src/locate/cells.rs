@@ -298,6 +298,22 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         });
         Ok(())
     }
+
+    /// Tet meshes: the inner backend's f64 path. Mixed meshes keep the identity frame (their
+    /// cells' parametric coordinates are solved on the f32 vertices): points are rounded to f32.
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.sample_many64(points, fields, ids, values);
+        }
+        let points: Vec<Vec3> = points.par_iter().map(|p| p.map(|c| c as f32)).collect();
+        self.sample_many(&points, fields, ids, values)
+    }
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@
 use super::{check_lengths, BatchLocator, OUTSIDE};
 use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
+use crate::geom::predicates::Query;
 use crate::geom::{self, Bary, TetTest, Vec3};
 use crate::mesh::{FieldLocation, Mesh};
 use rayon::prelude::*;
@@ -48,6 +49,30 @@ impl CpuLocator {
     /// (the canonical answer: the first containing tet in traversal order).
     #[inline]
     pub fn locate_point(&self, p: Vec3) -> Option<(u32, Bary)> {
+        self.find(&self.query(p))
+    }
+
+    /// [`Self::locate_point`] of a point given in f64.
+    pub fn locate_point64(&self, p: [f64; 3]) -> Option<(u32, Bary)> {
+        self.find(&self.mesh.exact().query(p))
+    }
+
+    /// A point given in f32 file coordinates, with its working coordinates.
+    #[inline]
+    fn query(&self, p: Vec3) -> Query {
+        Query { local: self.mesh.info.frame.to_working_f32(p), file: p.map(f64::from) }
+    }
+
+    /// The point-in-tet test on the file's data (`geom::test_point_with`).
+    #[inline]
+    fn test(&self, t: u32, q: &Query) -> TetTest {
+        geom::test_point_with(self.mesh.tets[t as usize], &self.mesh.points, &self.mesh.exact(), q)
+    }
+
+    /// BVH traversal in the working frame (boxes of rounded vertices hold the rounded point
+    /// whenever the file's box holds the file's point: rounding is monotone).
+    fn find(&self, q: &Query) -> Option<(u32, Bary)> {
+        let p = q.local;
         let nodes = &self.bvh.nodes;
         if nodes.is_empty() || !nodes[0].contains(p) {
             return None;
@@ -59,7 +84,7 @@ impl CpuLocator {
             let n = &nodes[i as usize];
             if n.is_leaf() {
                 for &t in &self.bvh.prim_ids[n.first as usize..(n.first + n.count) as usize] {
-                    if let Some(b) = geom::point_in_tet(self.mesh.tets[t as usize], &self.mesh.points, p) {
+                    if let TetTest::Inside(b) = self.test(t, q) {
                         return Some((t, b));
                     }
                 }
@@ -89,11 +114,11 @@ impl CpuLocator {
     /// Walks from tet `start` towards `p`. Returns the tet only when `p` is strictly inside
     /// it (no zero weight), so that the answer is the unique one.
     #[inline]
-    fn walk(&self, start: u32, p: Vec3) -> Option<(u32, Bary)> {
+    fn walk(&self, start: u32, q: &Query) -> Option<(u32, Bary)> {
         let neighbors = self.mesh.neighbors();
         let mut t = start;
         for _ in 0..MAX_WALK {
-            match geom::test_point(self.mesh.tets[t as usize], &self.mesh.points, p) {
+            match self.test(t, q) {
                 TetTest::Inside(b) => return (!b.contains(&0.0)).then_some((t, b)),
                 TetTest::Outside { face } => {
                     let next = neighbors[t as usize][face];
@@ -117,15 +142,26 @@ impl CpuLocator {
         out: &mut [T],
         f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
     ) {
+        self.locate_batch_of(points, |p| self.query(*p), out, f)
+    }
+
+    /// [`Self::locate_batch`] over points of any precision, `query` giving their two forms.
+    fn locate_batch_of<P: Sync, T: Send + Copy>(
+        &self,
+        points: &[P],
+        query: impl Fn(&P) -> Query + Sync,
+        out: &mut [T],
+        f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
+    ) {
         let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<T> {
             let mut hint: Option<u32> = None;
             idx.map(|i| {
-                let p = points[i];
+                let q = query(&points[i]);
                 // A NaN or infinite coordinate is in no tet (and would lead a walk astray).
-                if !super::is_finite(p) {
+                if !q.file.iter().all(|c| c.is_finite()) || !super::is_finite(q.local) {
                     return f(None);
                 }
-                let found = hint.and_then(|h| self.walk(h, p)).or_else(|| self.locate_point(p));
+                let found = hint.and_then(|h| self.walk(h, &q)).or_else(|| self.find(&q));
                 if let Some((t, _)) = found {
                     hint = Some(t);
                 }
@@ -133,13 +169,14 @@ impl CpuLocator {
             })
             .collect()
         };
-        if is_coherent(points, self.mesh.info.mean_edge_length) {
+        let working: Vec<Vec3> = points.par_iter().map(|p| query(p).local).collect();
+        if is_coherent(&working, self.mesh.info.mean_edge_length) {
             out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
                 o.copy_from_slice(&walk_chunk(&mut (c * CHUNK..c * CHUNK + o.len())));
             });
             return;
         }
-        let order = morton::order(points, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+        let order = morton::order(&working, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
         let sorted: Vec<T> =
             order.par_chunks(CHUNK).flat_map_iter(|chunk| walk_chunk(&mut chunk.iter().map(|&i| i as usize))).collect();
         for (k, &i) in order.iter().enumerate() {
@@ -183,7 +220,8 @@ impl CpuLocator {
         if !super::is_finite(p) {
             return None;
         }
-        let found = hint.and_then(|h| self.walk(h, p)).or_else(|| self.locate_point(p));
+        let q = self.query(p);
+        let found = hint.and_then(|h| self.walk(h, &q)).or_else(|| self.find(&q));
         if let Some((t, _)) = found {
             *hint = Some(t);
         }
@@ -237,11 +275,37 @@ impl BatchLocator for CpuLocator {
 
     /// One lookup per point for every field.
     fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        self.sample_many_of(points, |p| self.query(*p), fields, ids, values)
+    }
+
+    /// Exact on the file's data: every face sign that the f32 filter cannot decide is
+    /// decided on the f64 coordinates of the mesh and the point.
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        let exact = self.mesh.exact();
+        self.sample_many_of(points, |p| exact.query(*p), fields, ids, values)
+    }
+}
+
+impl CpuLocator {
+    fn sample_many_of<P: Sync>(
+        &self,
+        points: &[P],
+        query: impl Fn(&P) -> Query + Sync,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
         let value_fns = fields.iter().map(|f| self.value_fn(f)).collect::<Result<Vec<_>>>()?;
         let mut found = vec![None; points.len()];
-        self.locate_batch(points, &mut found, |f| f);
+        self.locate_batch_of(points, query, &mut found, |f| f);
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
         if !fields.is_empty() {
             values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {

@@ -6,6 +6,7 @@
 //! [`WithTolerance`] assigns points just outside the boundary to the nearest boundary cell.
 
 mod cells;
+pub mod certify;
 mod cpu;
 #[cfg(test)]
 use cpu::is_coherent;
@@ -17,7 +18,7 @@ pub use cells::CellLocator;
 pub use cpu::CpuLocator;
 pub use tolerance::{Tolerance, WithTolerance};
 
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::geom::Vec3;
 use rayon::prelude::*;
 
@@ -55,6 +56,20 @@ pub trait BatchLocator {
         }
         Ok(())
     }
+    /// [`Self::sample_many`] of points given in the file's coordinates at f64 precision
+    /// (points far from the origin keep their precision). The CPU backend decides exactly on
+    /// them and on the mesh's f64 coordinates; the GPU backends search them in the mesh's
+    /// working frame (`mesh::Frame`). Backends without f64 input say so.
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        let _ = (points, fields, ids, values);
+        Err(Error::Invalid(format!("the {} backend takes f32 points only", self.name())))
+    }
 }
 
 impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
@@ -72,6 +87,15 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     }
     fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
         (**self).sample_many(points, fields, ids, values)
+    }
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        (**self).sample_many64(points, fields, ids, values)
     }
 }
 
@@ -179,6 +203,32 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         self.inner.sample_many(&c.points, fields, &mut sub_ids, &mut sub_values)?;
         c.scatter(&sub_ids, ids, OUTSIDE);
         c.scatter_k(k, &sub_values, values, f32::NAN);
+        Ok(())
+    }
+
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
+        let finite: Vec<usize> = (0..points.len()).filter(|&i| points[i].iter().all(|c| c.is_finite())).collect();
+        if finite.len() == points.len() {
+            return self.inner.sample_many64(points, fields, ids, values);
+        }
+        let k = fields.len();
+        let sub: Vec<[f64; 3]> = finite.iter().map(|&i| points[i]).collect();
+        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; sub.len()], vec![f32::NAN; sub.len() * k]);
+        self.inner.sample_many64(&sub, fields, &mut sub_ids, &mut sub_values)?;
+        ids.fill(OUTSIDE);
+        values.fill(f32::NAN);
+        for (j, &i) in finite.iter().enumerate() {
+            ids[i] = sub_ids[j];
+            values[i * k..(i + 1) * k].copy_from_slice(&sub_values[j * k..(j + 1) * k]);
+        }
         Ok(())
     }
 }

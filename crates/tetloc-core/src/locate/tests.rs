@@ -220,3 +220,58 @@ fn higher_order_tets_interpolate_their_polynomials_exactly() {
         }
     }
 }
+
+/// Exact on the file's f64 data, from a fresh clone (no oracle files): a jittered grid mapped
+/// in f64 to UTM-like coordinates (×1000, then shifted by (512345.0375, 4123456.0625, 0.3)),
+/// so that no vertex rounds to f32 exactly, queried at points within 1e-7 of faces and at
+/// random, through the f64 path. Every answer equals the exact brute-force reference's
+/// (`geom::predicates::reference`, rational arithmetic).
+#[test]
+fn f64_points_far_from_the_origin_follow_exact_arithmetic() {
+    use crate::geom::predicates::reference;
+    let raw = crate::test_support::jittered_grid(4, 0.25, 7);
+    let shift = [512_345.037_5, 4_123_456.062_5, 0.3];
+    let file: Vec<[f64; 3]> = raw
+        .points
+        .iter()
+        .map(|p| std::array::from_fn(|k| p[k] as f64 * 1000.0 + shift[k] + 1e-7 * p[k] as f64))
+        .collect();
+    let raw =
+        crate::RawMesh { points: file.iter().map(|p| p.map(|c| c as f32)).collect(), points64: Some(file), ..raw };
+    let m = Arc::new(crate::Mesh::new(raw, "shifted grid").unwrap());
+    assert!(!m.info.frame.is_identity());
+    let file = m.points64.clone().unwrap();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+    let mut queries: Vec<[f64; 3]> = Vec::new();
+    for _ in 0..400 {
+        // A point on a random face (random weights of its three vertices), nudged off it by
+        // up to 1e-7 m along a random direction (the mesh is 4 km wide: 1e-11 relative).
+        let t = m.tets[rng.gen_range(0..m.n_tets())];
+        let f = geom::ascending_faces(t)[rng.gen_range(0..4)].0;
+        let w: [f64; 3] = std::array::from_fn(|_| rng.gen_range(0.05..1.0));
+        let s: f64 = w.iter().sum();
+        let on: [f64; 3] = std::array::from_fn(|k| (0..3).map(|i| w[i] / s * file[f[i] as usize][k]).sum());
+        queries.push(std::array::from_fn(|k| on[k] + rng.gen_range(-1e-7..1e-7)));
+    }
+    let (lo, hi) = (m.info.frame.to_file(m.info.bounds_min), m.info.frame.to_file(m.info.bounds_max));
+    for _ in 0..200 {
+        queries.push(std::array::from_fn(|k| rng.gen_range(lo[k] - 10.0..hi[k] + 10.0)));
+    }
+    let mut loc = CpuLocator::new(m.clone());
+    let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f32; queries.len()]);
+    loc.sample_many64(&queries, &["f"], &mut ids, &mut values).unwrap();
+    let mut near_face_hits = 0;
+    for (i, q) in queries.iter().enumerate() {
+        let want = reference::locate_all(&m.tets, &file, *q);
+        assert!(want.len() <= 1, "point {i} in several tets: {want:?}");
+        let want = want.first().map_or(-1, |&t| t as i32);
+        assert_eq!(ids[i], want, "point {i} {q:?}");
+        near_face_hits += (i < 400 && want >= 0) as usize;
+    }
+    assert!(near_face_hits > 300, "most near-face points are inside: {near_face_hits}");
+    // The same points through the f32 path lose them: the f64 path is what makes them exact.
+    let rounded: Vec<Vec3> = queries.iter().map(|q| q.map(|c| c as f32)).collect();
+    let mut ids32 = vec![0i32; rounded.len()];
+    loc.locate(&rounded, &mut ids32).unwrap();
+    assert!(ids32.iter().zip(&ids).filter(|(a, b)| a != b).count() > 10, "f32 points are rounded by up to 0.25 m");
+}

@@ -1,8 +1,10 @@
-//! The mesh model: f32 vertices, canonical u32×4 tets, named scalar fields, and what is
-//! derived from them (bounds, edge lengths, shared faces).
+//! The mesh model: f32 vertices in a working frame (and the file's f64 coordinates where
+//! they differ), canonical u32×4 tets, named scalar fields, and what is derived from them
+//! (bounds, edge lengths, shared faces).
 
 mod cells;
 mod faces;
+mod frame;
 mod neighbors;
 mod summary;
 #[cfg(test)]
@@ -11,6 +13,7 @@ mod tet_nodes;
 
 pub use cells::{tets_per_cell, Cells};
 pub use faces::{Face, FaceSet};
+pub use frame::Frame;
 pub use summary::{FieldSummary, MeshSummary};
 pub use tet_nodes::TetNodes;
 
@@ -44,7 +47,11 @@ pub struct Field {
 /// validated. `Mesh::new` turns it into a usable mesh or a clear error.
 #[derive(Clone, Debug, Default)]
 pub struct RawMesh {
+    /// The vertices in f32 (the file's coordinates rounded to nearest).
     pub points: Vec<Vec3>,
+    /// The file's coordinates, when it stored them in f64 and some do not round to f32
+    /// exactly (`None`: `points` is the file's data).
+    pub points64: Option<Vec<[f64; 3]>>,
     /// The tets' corners, for a mesh of tets (of any order); empty when `cells` holds other types.
     pub tets: Vec<[u32; 4]>,
     pub fields: Vec<Field>,
@@ -72,8 +79,12 @@ pub struct MeshInfo {
     /// Cells with a warped (non-planar) quad face: located with their own parametric
     /// coordinates near those faces.
     pub n_warped_cells: usize,
+    /// Bounds of the vertices in the working frame (`frame`): the file's coordinates when
+    /// the frame is the identity, which it is unless the mesh is far from the origin.
     pub bounds_min: Vec3,
     pub bounds_max: Vec3,
+    /// Where the working f32 copy lives relative to the file's coordinates.
+    pub frame: Frame,
     pub max_edge_length: f32,
     pub mean_edge_length: f32,
     /// Cells that were inverted in the file and have been reoriented (kept, not dropped).
@@ -90,7 +101,11 @@ pub struct MeshInfo {
 /// A validated tetrahedral mesh, ready for point location.
 #[derive(Debug)]
 pub struct Mesh {
+    /// The vertices in the working frame (`info.frame`), f32: what every backend searches.
     pub points: Vec<Vec3>,
+    /// The file's f64 coordinates when the working copy is not exactly them: exact decisions
+    /// use them where the f32 filter cannot decide.
+    pub points64: Option<Vec<[f64; 3]>>,
     /// Tets in file order, each in canonical vertex order (see [`geom::canonical_tet`]).
     pub tets: Vec<[u32; 4]>,
     pub fields: Vec<Field>,
@@ -110,7 +125,7 @@ impl Mesh {
     pub fn new(raw: RawMesh, source: impl Into<String>) -> Result<Mesh> {
         let source = source.into();
         let err = |msg: String| Error::Mesh { source_name: source.clone(), msg };
-        let RawMesh { points, mut tets, fields, higher_order, cells } = raw;
+        let RawMesh { points, points64, mut tets, fields, higher_order, cells } = raw;
         let is_mixed = cells.as_ref().is_some_and(|c| c.non_tet_counts().is_some());
         if tets.is_empty() && !is_mixed {
             return Err(err("the mesh has no tetrahedra".into()));
@@ -124,6 +139,21 @@ impl Mesh {
                 points[i]
             )));
         }
+        if let Some(p64) = &points64 {
+            if p64.len() != points.len() {
+                return Err(err(format!("{} f64 vertices for {} f32 ones", p64.len(), points.len())));
+            }
+            if let Some(i) = p64.par_iter().position_first(|p| !p.iter().all(|&c| geom::predicates::in_domain(c))) {
+                return Err(err(format!(
+                    "vertex {i} has a coordinate outside what exact arithmetic supports ({:?}: 0 or 2^-240 to 2^240 in magnitude)",
+                    p64[i]
+                )));
+            }
+        }
+        // Mixed cells are solved on the f32 vertices in the file's frame (their parametric
+        // coordinates, warped faces): they keep the f32 copy as their data.
+        let points64 = if is_mixed { None } else { points64 };
+        let (points, points64, frame) = working_copy(points, points64);
         // A mixed mesh: its tets are its cells' conforming decomposition, mapped back to them.
         let (mut mixed, mut cells, mut cell_repairs) = (None, cells, None);
         if is_mixed {
@@ -178,7 +208,10 @@ impl Mesh {
         // Fixed chunks, summed in order: the f64 sums (volume, edge lengths) do not depend on
         // how rayon splits the work, so the same file gives the same info on every run.
         let per_tet = |mut a: Acc, t: &mut [u32; 4]| {
-            let (canon, vol6) = geom::canonical_tet(*t, &points);
+            let (canon, vol6) = match &points64 {
+                Some(file) => geom::canonical_tet_exact(*t, file),
+                None => geom::canonical_tet(*t, &points),
+            };
             *t = canon;
             if vol6 < 0.0 {
                 a.reoriented += 1;
@@ -221,6 +254,7 @@ impl Mesh {
             n_warped_cells: mixed.as_ref().map_or(0, Cells::n_warped),
             bounds_min,
             bounds_max,
+            frame,
             max_edge_length: acc.max_edge2.sqrt(),
             mean_edge_length: (acc.sum_edge / (6.0 * tets.len() as f64)) as f32,
             n_reoriented: cell_repairs.map_or(acc.reoriented, |r| r.0),
@@ -231,6 +265,7 @@ impl Mesh {
         };
         Ok(Mesh {
             points,
+            points64,
             tets,
             fields,
             tet_nodes,
@@ -290,6 +325,27 @@ impl Mesh {
         self.neighbors.get_or_init(|| neighbors::build(&self.tets))
     }
 
+    /// The vertices' bounds in the file's coordinates (`info.bounds_*` are the working frame's).
+    pub fn file_bounds(&self) -> ([f64; 3], [f64; 3]) {
+        let f = &self.info.frame;
+        (f.to_file(self.info.bounds_min), f.to_file(self.info.bounds_max))
+    }
+
+    /// Vertex `i` as the file has it (f64).
+    #[inline]
+    pub fn vertex64(&self, i: u32) -> [f64; 3] {
+        match &self.points64 {
+            Some(p) => p[i as usize],
+            None => self.info.frame.to_file(self.points[i as usize]),
+        }
+    }
+
+    /// The exact-decision context of `geom::test_point_with` for this mesh's tets.
+    #[inline]
+    pub fn exact(&self) -> geom::Exact<'_> {
+        geom::Exact { file: self.points64.as_deref(), frame: &self.info.frame }
+    }
+
     /// The centroid of tet `t`.
     pub fn tet_center(&self, t: usize) -> Vec3 {
         let ids = self.tets[t];
@@ -301,4 +357,43 @@ impl Mesh {
         }
         c.map(|x| x * 0.25)
     }
+}
+
+/// The working f32 copy of the vertices and its frame, and the file's f64 coordinates when
+/// the copy is not exactly them (see [`Frame`]).
+fn working_copy(points: Vec<Vec3>, points64: Option<Vec<[f64; 3]>>) -> (Vec<Vec3>, Option<Vec<[f64; 3]>>, Frame) {
+    let Some(file) = points64 else {
+        // f32 data is its own working copy; the frame's delta bounds the rounding of f64 queries.
+        let frame = points_bounds(&points)
+            .map_or(Frame::IDENTITY, |(lo, hi)| Frame { delta: Frame::for_bounds(lo, hi).delta, ..Frame::IDENTITY });
+        return (points, None, frame);
+    };
+    let Some((lo, hi)) = bounds64(&file) else {
+        return (points, None, Frame::IDENTITY);
+    };
+    let frame = Frame::for_bounds(lo, hi);
+    let working: Vec<Vec3> = file.par_iter().map(|&p| frame.to_working(p)).collect();
+    let exact = frame.is_identity() && file.par_iter().zip(&working).all(|(p, w)| w.map(f64::from) == *p);
+    if exact {
+        (working, None, Frame { delta: Frame::for_bounds(lo, hi).delta, ..Frame::IDENTITY })
+    } else {
+        (working, Some(file), frame)
+    }
+}
+
+/// The bounds of f64 points (`None` for none).
+fn bounds64(points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3])> {
+    if points.is_empty() {
+        return None;
+    }
+    Some(points.par_iter().map(|&p| (p, p)).reduce(
+        || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
+        |(a0, a1), (b0, b1)| (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k]))),
+    ))
+}
+
+/// The bounds of f32 points, in f64.
+fn points_bounds(points: &[Vec3]) -> Option<([f64; 3], [f64; 3])> {
+    let wide: Vec<[f64; 3]> = points.par_iter().map(|p| p.map(f64::from)).collect();
+    bounds64(&wide)
 }

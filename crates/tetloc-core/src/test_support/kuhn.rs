@@ -148,6 +148,7 @@ impl<'a> KuhnGrid<'a> {
                 Field { name: self.cell_name.clone(), location: FieldLocation::Cell, values: cell },
             ],
             points,
+            points64: None,
             tets,
             higher_order: (self.order > 1).then_some(self.order),
             cells,

@@ -14,7 +14,8 @@ pub(crate) mod mixed;
 
 pub(crate) use data_dir::require_data;
 pub(crate) use kuhn::KuhnGrid;
-pub(crate) use query_sets::{query_sets, QuerySet};
+#[allow(unused_imports)]
+pub(crate) use query_sets::{query_sets, utm_sets, QuerySet};
 
 // What kuhn.rs takes from its includer.
 use crate::cell::{barycentric_lattice, CellBlock, CellType};

@@ -12,6 +12,9 @@ pub struct QuerySet {
     /// The mesh file the answers refer to.
     pub mesh_path: PathBuf,
     pub points: Vec<Vec3>,
+    /// The points in f64 when the set stores them so (`utm/`: far from the origin, where f32
+    /// cannot hold them).
+    pub points64: Option<Vec<[f64; 3]>>,
     /// Expected tet id, -1 outside.
     pub cell: Vec<i32>,
     /// Expected interpolated value of point field `f` (generated meshes only), NaN outside.
@@ -60,6 +63,7 @@ pub fn query_sets(dir: &Path) -> Vec<QuerySet> {
                 label: format!("{mesh}.{set}"),
                 mesh_path,
                 points: points.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                points64: None,
                 cell: read_le(&arr("cell").unwrap()),
                 value: arr("value").map(|p| read_le(&p)),
                 flags: read_le(&arr("flags").unwrap()),
@@ -67,4 +71,49 @@ pub fn query_sets(dir: &Path) -> Vec<QuerySet> {
         }
     }
     out
+}
+
+/// The sets of `dir/utm`: a mesh far from the origin (UTM-like coordinates) with float64
+/// `.npy` query points (see that folder's README).
+pub fn utm_sets(dir: &Path) -> Vec<QuerySet> {
+    let folder = dir.join("utm");
+    let Ok(rd) = std::fs::read_dir(&folder) else { return Vec::new() };
+    let mut jsons: Vec<PathBuf> =
+        rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.extension().is_some_and(|e| e == "json")).collect();
+    jsons.sort();
+    jsons
+        .iter()
+        .map(|j| {
+            let meta: serde_json::Value = serde_json::from_slice(&std::fs::read(j).unwrap()).unwrap();
+            let (mesh, set) = (meta["mesh"].as_str().unwrap(), meta["set"].as_str().unwrap());
+            let stem = folder.join(format!("{mesh}.{set}"));
+            let with = |ext: &str| PathBuf::from(format!("{}.{ext}", stem.display()));
+            let points64 = read_npy_f64_points(&with("points.npy"));
+            let value = with("value.bin");
+            QuerySet {
+                label: format!("utm/{mesh}.{set}"),
+                mesh_path: folder.join(format!("{mesh}.vtu")),
+                points: points64.iter().map(|p| p.map(|c| c as f32)).collect(),
+                points64: Some(points64),
+                cell: read_le(&with("cell.bin")),
+                value: value.exists().then(|| read_le(&value)),
+                flags: read_le(&with("flags.bin")),
+            }
+        })
+        .collect()
+}
+
+/// A little-endian float64 (N, 3) C-order `.npy` file.
+fn read_npy_f64_points(path: &Path) -> Vec<[f64; 3]> {
+    let bytes = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert!(bytes.starts_with(b"\x93NUMPY"), "{}: not an .npy file", path.display());
+    let (len, start) = if bytes[6] == 1 {
+        (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10)
+    } else {
+        (u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize, 12)
+    };
+    let header = String::from_utf8_lossy(&bytes[start..start + len]);
+    assert!(header.contains("'<f8'") && header.contains("False"), "{}: expected C-order <f8: {header}", path.display());
+    let data: Vec<f64> = bytemuck::pod_collect_to_vec(&bytes[start + len..]);
+    data.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect()
 }

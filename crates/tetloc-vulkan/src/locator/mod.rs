@@ -19,10 +19,12 @@ use crate::memory::{Buffer, BufferDesc, MemItem, MemKind, STAGING_BYTES};
 use crate::pipeline::{Binding, Descriptors, Pipeline, Spec};
 use crate::AsReport;
 use ash::vk;
+use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::geom::Vec3;
+use tetloc_core::locate::certify;
 use tetloc_core::mesh::{FieldLocation, Mesh};
 use tetloc_core::queries::QueryKind;
 use tetloc_core::BatchLocator;
@@ -421,8 +423,20 @@ impl VulkanLocator {
         Ok(mode)
     }
 
-    /// Runs host points through variant `output`, writing 4 bytes per point into `out`.
+    /// Runs host points (the file's coordinates) through variant `output`, writing 4 bytes per
+    /// point into `out`. The kernels search the mesh's working frame: points go there first
+    /// (nothing to do for the identity frame, almost every mesh).
     fn run_host(&mut self, points: &[Vec3], output: i32, out: &mut [u8]) -> VkResult<()> {
+        let frame = self.mesh.info.frame;
+        if frame.is_identity() {
+            return self.run_working(points, output, out);
+        }
+        let working: Vec<Vec3> = points.par_iter().map(|&p| frame.to_working_f32(p)).collect();
+        self.run_working(&working, output, out)
+    }
+
+    /// [`Self::run_host`] of points already in the working frame.
+    fn run_working(&mut self, points: &[Vec3], output: i32, out: &mut [u8]) -> VkResult<()> {
         let v = Variant { sample: SAMPLE_HOST, output, record: false, ordered: self.orders(SAMPLE_HOST, points.len()) };
         // Each launch is one submission: points in, (ordering,) kernel, answers out, 16 bytes
         // a point through the staging buffer.
@@ -621,6 +635,55 @@ impl BatchLocator for VulkanLocator {
             return Ok(());
         }
         self.run_host(points, mode, bytemuck::cast_slice_mut(values))?;
+        Ok(())
+    }
+
+    /// f64 points go to the working frame in f64, then to f32: a mesh far from the origin is
+    /// searched as precisely as one at it. (The kernels decide on the working f32 copy.)
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> tetloc_core::Result<()> {
+        if points.len() != ids.len() || points.len() * fields.len() != values.len() {
+            return Err(tetloc_core::Error::Invalid(format!(
+                "{} points but output buffers for {} ids and {} values ({} fields)",
+                points.len(),
+                ids.len(),
+                values.len(),
+                fields.len()
+            )));
+        }
+        if points.is_empty() {
+            return Ok(());
+        }
+        let frame = self.mesh.info.frame;
+        let working: Vec<Vec3> = points.par_iter().map(|&p| frame.to_working(p)).collect();
+        self.run_working(&working, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
+        let mut one = vec![0f32; points.len()];
+        for (j, f) in fields.iter().enumerate() {
+            let mode = self.ensure_field(f)?;
+            self.run_working(&working, mode, bytemuck::cast_slice_mut(&mut one))?;
+            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
+        }
+        // The kernels decided on the working copy: where it or the points are not the file's
+        // data exactly, each answer is checked (and the rare wrong one corrected) on the host.
+        let mesh = self.mesh.clone();
+        if certify::needs_certifying(&mesh, points) {
+            for (i, bary) in certify::certify(&mesh, points, ids) {
+                let found = bary.map(|b| (ids[i] as usize, b));
+                for (j, f) in fields.iter().enumerate() {
+                    let field = mesh.field(f)?;
+                    values[i * fields.len() + j] = match (found, field.location) {
+                        (None, _) => f32::NAN,
+                        (Some((t, b)), FieldLocation::Vertex) => mesh.interpolate(t, b, &field.values),
+                        (Some((t, _)), FieldLocation::Cell) => field.values[mesh.cell_of_tet(t)],
+                    };
+                }
+            }
+        }
         Ok(())
     }
 }

@@ -83,7 +83,7 @@ enum Version {
 }
 
 struct Nodes {
-    points: Vec<[f32; 3]>,
+    points: Vec<[f64; 3]>,
     map: TagMap,
 }
 
@@ -265,7 +265,8 @@ impl Parser<'_> {
             .transpose()
             .map_err(|m| Error::format(c.path, m))?;
         Ok(RawMesh {
-            points: nodes.points,
+            points: nodes.points.iter().map(|p| p.map(|x| x as f32)).collect(),
+            points64: super::points64_if_needed(nodes.points),
             tets: if all_tets { cells.tets } else { Vec::new() },
             fields: self.fields.into_iter().flat_map(FieldAcc::into_fields).collect(),
             higher_order: (cells.order > 1).then_some(cells.order),

@@ -48,6 +48,7 @@ fn expected() -> RawMesh {
     let nan = f32::NAN;
     let field = |name: &str, location, values: Vec<f32>| Field { name: name.into(), location, values };
     RawMesh {
+        points64: None,
         points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
         tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
         fields: vec![

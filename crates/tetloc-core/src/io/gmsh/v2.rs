@@ -8,7 +8,7 @@ use super::elements::{element_type, unknown_type, Kind};
 use crate::error::Result;
 use crate::io::cursor::{get_f64, get_i32, Cursor};
 
-pub(super) fn read_nodes(c: &mut Cursor, min_parallel: usize) -> Result<(Vec<[f32; 3]>, Vec<u64>)> {
+pub(super) fn read_nodes(c: &mut Cursor, min_parallel: usize) -> Result<(Vec<[f64; 3]>, Vec<u64>)> {
     let declared = c.ascii_u64("the number of nodes")?;
     c.line(); // binary data starts on the next line
     let n = c.check_room(declared, if c.binary { 28 } else { 8 }, "nodes")?;
@@ -23,11 +23,11 @@ pub(super) fn read_nodes(c: &mut Cursor, min_parallel: usize) -> Result<(Vec<[f3
                 return Err(c.fail(format!("negative node tag {tag}")));
             }
             tags.push(tag as u64);
-            points.push([get_f64(&r[4..], big) as f32, get_f64(&r[12..], big) as f32, get_f64(&r[20..], big) as f32]);
+            points.push([get_f64(&r[4..], big), get_f64(&r[12..], big), get_f64(&r[20..], big)]);
         }
-    } else if let Some(chunks) = c.par_lines(n, min_parallel, |t, s: &mut (Vec<u64>, Vec<[f32; 3]>)| {
+    } else if let Some(chunks) = c.par_lines(n, min_parallel, |t, s: &mut (Vec<u64>, Vec<[f64; 3]>)| {
         s.0.push(t.u64()?);
-        s.1.push([t.f32()?, t.f32()?, t.f32()?]);
+        s.1.push([t.f64()?, t.f64()?, t.f64()?]);
         Some(())
     }) {
         for (t, p) in chunks {
@@ -37,8 +37,7 @@ pub(super) fn read_nodes(c: &mut Cursor, min_parallel: usize) -> Result<(Vec<[f3
     } else {
         for _ in 0..n {
             tags.push(c.ascii_u64("a node tag")?);
-            let p = [c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?];
-            points.push(p.map(|v| v as f32));
+            points.push([c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?]);
         }
     }
     Ok((points, tags))

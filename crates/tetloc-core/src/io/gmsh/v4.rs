@@ -27,7 +27,7 @@ fn size(c: &mut Cursor, what: &str) -> Result<u64> {
 }
 
 /// `start`: where the section begins, for errors about it as a whole.
-pub(super) fn read_nodes(c: &mut Cursor, start: usize, min_parallel: usize) -> Result<(Vec<[f32; 3]>, Vec<u64>)> {
+pub(super) fn read_nodes(c: &mut Cursor, start: usize, min_parallel: usize) -> Result<(Vec<[f64; 3]>, Vec<u64>)> {
     let blocks = size(c, "the number of node blocks")?;
     let declared = size(c, "the number of nodes")?;
     size(c, "the smallest node tag")?;
@@ -55,7 +55,7 @@ pub(super) fn read_nodes(c: &mut Cursor, start: usize, min_parallel: usize) -> R
             tags.extend(tag_bytes.chunks_exact(8).map(|b| get_u64(b, big)));
             points.extend(
                 xyz.chunks_exact(8 * per_node)
-                    .map(|r| [get_f64(r, big) as f32, get_f64(&r[8..], big) as f32, get_f64(&r[16..], big) as f32]),
+                    .map(|r| [get_f64(r, big), get_f64(&r[8..], big), get_f64(&r[16..], big)]),
             );
         } else {
             let count = count as usize;
@@ -69,15 +69,14 @@ pub(super) fn read_nodes(c: &mut Cursor, start: usize, min_parallel: usize) -> R
                     tags.push(c.ascii_u64("a node tag")?);
                 }
             }
-            if let Some(chunks) = c.par_lines(count, min_parallel, |t, s: &mut Vec<[f32; 3]>| {
-                s.push([t.f32()?, t.f32()?, t.f32()?]);
+            if let Some(chunks) = c.par_lines(count, min_parallel, |t, s: &mut Vec<[f64; 3]>| {
+                s.push([t.f64()?, t.f64()?, t.f64()?]);
                 (3..per_node).try_for_each(|_| t.f32().map(drop))
             }) {
                 chunks.into_iter().for_each(|ch| points.extend(ch));
             } else {
                 for _ in 0..count {
-                    let p = [c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?];
-                    points.push(p.map(|v| v as f32));
+                    points.push([c.ascii_f64("x")?, c.ascii_f64("y")?, c.ascii_f64("z")?]);
                     for _ in 3..per_node {
                         c.ascii_f64("a parametric coordinate")?;
                     }

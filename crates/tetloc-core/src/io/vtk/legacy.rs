@@ -60,7 +60,9 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
             "POINTS" => {
                 let n = r.count(arg(0), "POINTS count")?;
                 let ty = r.num_type(arg(1))?;
-                g.points = Some(num::to_points(&r.values(ty, n.saturating_mul(3), "POINTS")?));
+                let a = r.values(ty, n.saturating_mul(3), "POINTS")?;
+                g.points64 = num::to_points64(&a);
+                g.points = Some(num::to_points(&a));
             }
             "CELLS" => {
                 let (a, b) = (r.count(arg(0), "CELLS count")?, r.count(arg(1), "CELLS size")?);
@@ -154,6 +156,7 @@ enum Cells<'a> {
 #[derive(Default)]
 struct Grid<'a> {
     points: Option<Vec<[f32; 3]>>,
+    points64: Option<Vec<[f64; 3]>>,
     cells: Option<Cells<'a>>,
     types: Option<Vec<u8>>,
     fields: Vec<Field>,
@@ -232,7 +235,7 @@ impl Grid<'_> {
         }
         // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
         let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
-        Ok(RawMesh { points, tets, fields, higher_order: ex.higher_order, cells: ex.cells })
+        Ok(RawMesh { points, points64: self.points64, tets, fields, higher_order: ex.higher_order, cells: ex.cells })
     }
 }
 

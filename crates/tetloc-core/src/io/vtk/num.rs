@@ -262,6 +262,16 @@ pub(crate) fn to_points(a: &Array) -> Vec<[f32; 3]> {
     with_type!(a.ty, T => map_tuples::<T, 3, _, _>(&a.bytes, |t| Some(t.map(Elem::to_f32))).unwrap_or_default())
 }
 
+/// Triples of f64 values as points, when some value does not round to f32 exactly (`None`
+/// for other types, or when [`to_points`] is the data exactly).
+pub(crate) fn to_points64(a: &Array) -> Option<Vec<[f64; 3]>> {
+    if a.ty != NumType::F64 {
+        return None;
+    }
+    let pts = map_tuples::<f64, 3, _, _>(&a.bytes, Some).unwrap_or_default();
+    pts.par_iter().any(|p| p.iter().any(|&x| (x as f32) as f64 != x && x.is_finite())).then_some(pts)
+}
+
 /// Integer values mapped through `f`, which returns `None` for values out of the caller's
 /// range. On a float array or a rejected value: the index of the first bad value.
 pub(crate) fn map_ints<U, F>(a: &Array, f: F) -> Result<Vec<U>, usize>

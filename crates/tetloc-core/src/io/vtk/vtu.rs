@@ -203,14 +203,15 @@ impl<'a> Ctx<'a, '_> {
         let n_points = self.count(piece, "NumberOfPoints", k)?;
         let n_cells = self.count(piece, "NumberOfCells", k)?;
 
-        let points = match piece.child("Points").and_then(|p| p.child("DataArray")) {
+        let (points, points64) = match piece.child("Points").and_then(|p| p.child("DataArray")) {
             Some(da) => {
                 if ncomp(da) != Some(3) {
                     return Err(self.fail(format!("piece {k}: the points do not have 3 components")));
                 }
-                num::to_points(&self.array(da, n_points.saturating_mul(3))?)
+                let a = self.array(da, n_points.saturating_mul(3))?;
+                (num::to_points(&a), num::to_points64(&a))
             }
-            None if n_points == 0 => Vec::new(),
+            None if n_points == 0 => (Vec::new(), None),
             None => return Err(self.fail(format!("piece {k}: no <Points> array"))),
         };
 
@@ -271,7 +272,7 @@ impl<'a> Ctx<'a, '_> {
         }
         // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
         let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
-        let raw = RawMesh { points, tets, fields, higher_order: ex.higher_order, cells: ex.cells };
+        let raw = RawMesh { points, points64, tets, fields, higher_order: ex.higher_order, cells: ex.cells };
         Ok(Part { raw, refused: BTreeMap::new() })
     }
 }
@@ -320,6 +321,14 @@ fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
             }
         }
         out.tets.extend(p.raw.tets.iter().map(|t| t.map(|i| i + base)));
+        // f64 coordinates for all pieces when some piece has them (f32 ones widen exactly).
+        if p.raw.points64.is_some() || out.points64.is_some() {
+            let file = out.points64.get_or_insert_with(|| out.points.iter().map(|q| q.map(f64::from)).collect());
+            match &p.raw.points64 {
+                Some(p64) => file.extend_from_slice(p64),
+                None => file.extend(p.raw.points.iter().map(|q| q.map(f64::from))),
+            }
+        }
         out.points.extend(p.raw.points);
         out.higher_order = out.higher_order.max(p.raw.higher_order);
         for f in &mut out.fields {

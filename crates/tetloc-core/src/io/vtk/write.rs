@@ -607,6 +607,7 @@ mod tests {
     fn small_mesh() -> Mesh {
         // Two tets sharing a face, one given inverted; fields with awkward names.
         let raw = RawMesh {
+            points64: None,
             points: vec![[0., 0., 0.], [1., 0., 0.], [0., 1., 0.], [0., 0., 1.], [0.7, 0.7, 0.7]],
             tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
             fields: vec![
