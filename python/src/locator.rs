@@ -32,6 +32,8 @@ const PLANNED_OPTIONS: [&str; 1] = ["precision"];
 
 pub(crate) type Backend = Box<dyn BatchLocator + Send>;
 type IdsAndValues<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f32>>);
+/// Ids, and one row of field values per point.
+type IdsAndRows<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray2<f32>>);
 
 /// Memory of a locator: device memory for the GPU kernels, host heap for `cpu`.
 #[derive(Clone, Debug)]
@@ -357,7 +359,7 @@ impl PyLocator {
         py: Python<'py>,
         points: PyReadonlyArray2<'_, f64>,
         names: Vec<String>,
-    ) -> PyResult<(Bound<'py, PyArray1<i32>>, Bound<'py, PyArray2<f32>>)> {
+    ) -> PyResult<IdsAndRows<'py>> {
         if points.shape()[1] != 3 {
             return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
         }
