@@ -115,8 +115,21 @@ impl PyMesh {
 
     /// A copy of the vertices, (N, 3) float32.
     fn points<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let flat = PyArray1::from_slice(py, bytemuck::cast_slice::<Vec3, f32>(&self.mesh.points));
-        flat.reshape([self.mesh.points.len(), 3])
+        let m = &self.mesh;
+        let flat = if m.info.frame.is_identity() {
+            PyArray1::from_slice(py, bytemuck::cast_slice::<Vec3, f32>(&m.points))
+        } else {
+            // The search's copy is centred (mesh::Frame): users get the file's coordinates.
+            PyArray1::from_vec(py, (0..m.points.len() as u32).flat_map(|i| m.vertex64(i).map(|c| c as f32)).collect())
+        };
+        flat.reshape([m.points.len(), 3])
+    }
+
+    /// A copy of the vertices as the file has them, (N, 3) float64.
+    fn points64<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<f64>>> {
+        let m = &self.mesh;
+        let flat: Vec<f64> = (0..m.points.len() as u32).flat_map(|i| m.vertex64(i)).collect();
+        PyArray1::from_vec(py, flat).reshape([m.points.len(), 3])
     }
 
     /// A copy of the tets, (M, 4) int64, in file order with canonical vertex order.

@@ -4,9 +4,12 @@ API: ids exact except within rounding of a face, no interior point lost, values 
 
 from __future__ import annotations
 
+import json
+import pathlib
+
 import numpy as np
 import pytest
-from conftest import exact_values
+from conftest import QuerySet, exact_values
 
 import tetloc
 
@@ -31,7 +34,8 @@ def check_set(loc: tetloc.Locator, mesh: tetloc.Mesh, s) -> np.ndarray:
         ids2, got = loc.locate_and_sample(s.points, "f")
         np.testing.assert_array_equal(ids2, ids)
         assert got.dtype == np.float32
-        exact = exact_values(mesh, ids, s.points, mesh.field("f"))
+        # The CPU interpolates on the file's f64 vertices, the GPU kernels on their f32 copy.
+        exact = exact_values(mesh, ids, s.points, mesh.field("f"), working=loc.backend != "cpu")
         np.testing.assert_array_equal(np.isnan(got), ids < 0)
         inside = ids >= 0
         assert close(got[inside], exact[inside]).all(), f"{label}: values off f64 interpolation"
@@ -81,3 +85,44 @@ def test_format_overrides_the_extension(data_dir, tmp_path):
         tetloc.read(renamed)
     with pytest.raises(ValueError, match="format 'xyz': unknown mesh format"):
         tetloc.read(renamed, format="xyz")
+
+
+def utm_sets(data: pathlib.Path):
+    """The sets of `utm/`: a mesh far from the origin, float64 query points (.npy)."""
+    out = []
+    for meta_path in sorted((data / "utm").glob("*.json")):
+        meta = json.loads(meta_path.read_text())
+        stem = data / "utm" / f"{meta['mesh']}.{meta['set']}"
+        read = lambda ext, dtype: np.fromfile(f"{stem}.{ext}", dtype=dtype)  # noqa: E731
+        value = pathlib.Path(f"{stem}.value.bin")
+        out.append(
+            QuerySet(
+                f"utm/{meta['mesh']}.{meta['set']}",
+                data / "utm" / f"{meta['mesh']}.vtu",
+                np.load(f"{stem}.points.npy"),
+                read("cell.bin", np.int32),
+                np.fromfile(value, dtype=np.float64) if value.exists() else None,
+                read("flags.bin", np.uint8),
+            )
+        )
+    assert len(out) >= 3, f"expected the utm query sets in {data}"
+    return out
+
+
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh", "rt-bvh", "rt-rep-faces", "rt-shared-faces"])
+def test_far_from_the_origin_float64_points_keep_their_precision(data_dir, backend, request):
+    """UTM-like coordinates (x*1000 + (512345, 4123456, 0)): float64 points through every
+    backend give the oracle's cells and values, as the same mesh at the origin does."""
+    if backend != "cpu":
+        request.getfixturevalue("vulkan")
+    sets = utm_sets(data_dir)
+    mesh = tetloc.read(sets[0].mesh_path)
+    assert np.abs(mesh.points64 - mesh.points).max() > 0.01, "float32 cannot hold these coordinates"
+    loc = tetloc.Locator(mesh, backend=backend)
+    for s in sets:
+        assert s.points.dtype == np.float64
+        ids, values = loc.locate_and_sample(s.points, "f")
+        wrong = np.flatnonzero((ids != s.cell) & ~s.ambiguous)
+        assert wrong.size == 0, f"{backend} {s.label}: {wrong.size} ids differ, e.g. point {wrong[:3]}"
+        ok = close(values, s.value) | (np.isnan(values) & np.isnan(s.value))
+        assert (ok | s.ambiguous).all(), f"{backend} {s.label}: values off the oracle"

@@ -97,10 +97,12 @@ class Locator:
         if p64 is None:
             return None
         flat, lead = p64
-        bad = int((~np.isfinite(flat)).any(axis=1).sum())
+        # Beyond float32's range is beyond every mesh (whose float32 copy is finite).
+        bad = int((~(np.abs(flat) <= np.finfo(np.float32).max)).any(axis=1).sum())
         if bad:
             warnings.warn(
-                f"points: {bad} of {len(flat)} points have a NaN or infinite coordinate; they are answered -1 (and NaN values)",
+                f"points: {bad} of {len(flat)} points have a NaN or infinite coordinate (or one beyond float32 range); "
+                "they are answered -1 (and NaN values)",
                 RuntimeWarning,
                 stacklevel=3,
             )

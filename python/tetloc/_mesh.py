@@ -132,6 +132,12 @@ class Mesh:
         return self._raw.points()
 
     @property
+    def points64(self) -> np.ndarray:
+        """A copy of the vertices at the precision the file (or the arrays given) has them,
+        (N, 3) float64: what exact answers are decided on."""
+        return self._raw.points64()
+
+    @property
     def cells(self) -> np.ndarray:
         """A copy of the tets, (M, 4) int64, in the input's order; each tet's vertices in
         tetloc's canonical (right-handed, VTK) order."""

@@ -215,7 +215,9 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     ) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
-        let finite: Vec<usize> = (0..points.len()).filter(|&i| points[i].iter().all(|c| c.is_finite())).collect();
+        // Beyond f32's range is beyond every mesh (whose f32 copy is finite), like NaN.
+        let finite: Vec<usize> =
+            (0..points.len()).filter(|&i| points[i].iter().all(|c| c.abs() <= f32::MAX as f64)).collect();
         if finite.len() == points.len() {
             return self.inner.sample_many64(points, fields, ids, values);
         }
