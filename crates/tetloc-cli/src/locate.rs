@@ -107,7 +107,8 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     if let Some(f) = &a.field {
         m.field(f)?;
     }
-    let pts = points::read_points(&a.points)?;
+    let pts64 = points::read_points64(&a.points)?;
+    let pts: Vec<[f32; 3]> = pts64.iter().map(|p| p.map(|c| c as f32)).collect();
     let non_finite = count_non_finite(&pts);
     if non_finite > 0 {
         let first = pts.iter().position(|&p| !is_finite(p)).unwrap_or(0);
@@ -129,9 +130,17 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     let mut values = vec![0f32; if a.field.is_some() { pts.len() } else { 0 }];
     let pb = progress::bar(pts.len() as u64, format!("locating on {}", loc.name()));
     let t0 = Instant::now();
+    // Without a tolerance the points go in at the file's precision (exact on the CPU; the
+    // mesh's working frame on the GPU); the tolerance's rescue works in f32.
+    let at_f64 = a.tolerance.distance(&m) <= 0.0;
+    let fields: Vec<&str> = a.field.as_deref().into_iter().collect();
     for (c, p) in pts.chunks(CHUNK).enumerate() {
         let r = c * CHUNK..c * CHUNK + p.len();
         match &a.field {
+            _ if at_f64 => {
+                let v = if fields.is_empty() { &mut values[..0] } else { &mut values[r.clone()] };
+                loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r], v)?
+            }
             Some(f) => loc.locate_and_sample(p, f, &mut ids[r.clone()], &mut values[r])?,
             None => loc.locate(p, &mut ids[r])?,
         }

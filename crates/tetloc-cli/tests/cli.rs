@@ -75,6 +75,33 @@ fn locate_writes_the_oracle_answers() {
     assert!(String::from_utf8_lossy(&text[..2000.min(text.len())]).contains("tet_id"));
 }
 
+/// A mesh in UTM-like coordinates with float64 query points (`utm/`): `info` reports the
+/// file's bounds and the centred frame, and `locate` answers at the points' f64 precision.
+#[test]
+fn locate_keeps_float64_points_far_from_the_origin() {
+    let Some(dir) = require_data("locate_keeps_float64_points_far_from_the_origin") else { return };
+    let set = tetloc_testdata::utm_sets(&dir).into_iter().find(|s| s.label.ends_with(".random")).unwrap();
+    let mesh = dir.join("utm/part_utm.vtu");
+    let (ok, out, err) = tetloc(&["info", mesh.to_str().unwrap()]);
+    assert!(ok && out.contains("frame       origin") && out.contains("512"), "{out}{err}");
+    let ids = tmp("utm-ids.bin");
+    let (ok, _, err) = tetloc(&[
+        "locate",
+        mesh.to_str().unwrap(),
+        "--points",
+        dir.join("utm/part_utm.random.points.npy").to_str().unwrap(),
+        "--out",
+        ids.to_str().unwrap(),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(ok, "{err}");
+    let got: Vec<i32> =
+        std::fs::read(&ids).unwrap().chunks_exact(4).map(|c| i32::from_le_bytes(c.try_into().unwrap())).collect();
+    let wrong = (0..got.len()).filter(|&i| got[i] != set.cell[i] && !set.ambiguous(i)).count();
+    assert_eq!(wrong, 0, "ids differ from the oracle");
+}
+
 #[test]
 fn bad_input_is_a_clear_error_and_a_nonzero_exit() {
     let (ok, _, err) = tetloc(&["info", "/nonexistent/mesh.vtu"]);

@@ -29,6 +29,12 @@ pub const VALID_MASK: &str = "vtkValidPointMask";
 /// optional `x,y,z` header line) or `.bin`/`.f32` (raw little-endian f32 triplets). Reads are
 /// bounded (see [`super::read_file`]).
 pub fn read_points(path: &Path) -> Result<Vec<Vec3>> {
+    Ok(read_points64(path)?.into_iter().map(|p| p.map(|c| c as f32)).collect())
+}
+
+/// [`read_points`] at the file's precision: f64 `.npy` and text keep every digit (f32 data
+/// widens exactly).
+pub fn read_points64(path: &Path) -> Result<Vec<[f64; 3]>> {
     let ext = extension(path);
     if !POINT_EXTENSIONS.contains(&ext.as_str()) {
         return Err(Error::UnknownFormat { path: path.to_path_buf(), known: "points: npy, csv, bin/f32" });
@@ -46,13 +52,13 @@ pub fn read_points(path: &Path) -> Result<Vec<Vec3>> {
             }
             Ok(bytes
                 .chunks_exact(12)
-                .map(|c| std::array::from_fn(|k| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap())))
+                .map(|c| std::array::from_fn(|k| f32::from_le_bytes(c[4 * k..4 * k + 4].try_into().unwrap()) as f64))
                 .collect())
         }
     }
 }
 
-fn read_points_npy(path: &Path, bytes: &[u8]) -> Result<Vec<Vec3>> {
+fn read_points_npy(path: &Path, bytes: &[u8]) -> Result<Vec<[f64; 3]>> {
     let mut data = bytes;
     let header = npyz::NpyHeader::from_reader(&mut data)
         .map_err(|e| Error::format(path, format!("not a valid .npy file: {e}")))?;
@@ -88,10 +94,10 @@ fn read_points_npy(path: &Path, bytes: &[u8]) -> Result<Vec<Vec3>> {
         ));
     }
     let npy = npyz::NpyFile::with_header(header, data);
-    let flat: Vec<f32> = if item == 4 {
-        npy.into_vec::<f32>().map_err(|e| Error::format(path, e.to_string()))?
+    let flat: Vec<f64> = if item == 4 {
+        npy.into_vec::<f32>().map_err(|e| Error::format(path, e.to_string()))?.into_iter().map(f64::from).collect()
     } else {
-        npy.into_vec::<f64>().map_err(|e| Error::format(path, e.to_string()))?.into_iter().map(|x| x as f32).collect()
+        npy.into_vec::<f64>().map_err(|e| Error::format(path, e.to_string()))?
     };
     Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
 }
@@ -100,7 +106,7 @@ fn read_points_npy(path: &Path, bytes: &[u8]) -> Result<Vec<Vec3>> {
 /// lines and `#` comments are skipped. The first line may be a header only when it is not
 /// numeric and names the columns x, y, z; any other line that does not parse is an error
 /// with its line number, so that output rows always line up with input rows.
-fn read_points_csv(path: &Path, bytes: &[u8]) -> Result<Vec<Vec3>> {
+fn read_points_csv(path: &Path, bytes: &[u8]) -> Result<Vec<[f64; 3]>> {
     let text = std::str::from_utf8(bytes).map_err(|e| {
         let line = 1 + bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
         Error::format(path, format!("line {line}: not UTF-8 text"))
@@ -114,7 +120,7 @@ fn read_points_csv(path: &Path, bytes: &[u8]) -> Result<Vec<Vec3>> {
         }
         let fields: Vec<&str> =
             line.split(|c: char| c == ',' || c == ';' || c.is_whitespace()).filter(|s| !s.is_empty()).collect();
-        let parsed: std::result::Result<Vec<f32>, _> = fields.iter().map(|s| s.parse::<f32>()).collect();
+        let parsed: std::result::Result<Vec<f64>, _> = fields.iter().map(|s| s.parse::<f64>()).collect();
         match parsed {
             Ok(v) if v.len() == 3 => out.push([v[0], v[1], v[2]]),
             _ if first && is_xyz_header(&fields) => {}
