@@ -223,7 +223,9 @@ def compare(args) -> Dict[str, object]:
 
 
 def gpu(args) -> Dict[str, object]:
-    """The numpy-array path on a GPU: points/s with transfers, from float32 and float64 arrays."""
+    """The numpy-array path on a GPU: points/s with transfers, from float32 and float64 arrays
+    (`f64`: float32 values widened, decided as float32; `f64x`: one ulp off, so every answer
+    is checked exactly on the host)."""
     path = pathlib.Path(args.mesh) if args.mesh else fusion_mesh(args.tets, args.cli, REPO / "target/bench")
     mesh = tetloc.read(path)
     field = next(iter(mesh.point_data), None)
@@ -240,9 +242,16 @@ def gpu(args) -> Dict[str, object]:
         for n in sizes:
             p32 = points[:n]
             p64 = p32.astype(np.float64)
-            cases = {"locate f32": lambda: loc.locate(p32), "locate f64": lambda: loc.locate(p64)}
+            # One f64 ulp off float32: the f64 path checks every answer exactly (certify).
+            p64x = np.nextafter(p64, np.inf)
+            cases = {
+                "locate f32": lambda: loc.locate(p32),
+                "locate f64": lambda: loc.locate(p64),
+                "locate f64x": lambda: loc.locate(p64x),
+            }
             if field:
                 cases["sample f32"] = lambda: loc.sample(p32, field)
+                cases["sample f64x"] = lambda: loc.sample(p64x, field)
             for case, f in cases.items():
                 s, _ = timed(f, args.repeats)
                 rows.append({"backend": backend, "case": case, "points": n, "seconds": s, "points_per_s": n / s})
