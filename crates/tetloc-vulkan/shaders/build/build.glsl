@@ -16,8 +16,16 @@ layout(std430, binding = TL_B_BUILD_LEVELS) buffer TlBuildLevels { uint tl_level
 // Binary nodes: first and end sorted prim, first child (the second is next to it) or
 // BUILD_LEAF, 4-wide nodes in the subtree when this node heads one (0 for leaves).
 layout(std430, binding = TL_B_BUILD_NODES) buffer TlBuildNodes { uvec4 tl_bnodes[]; };
-// Their boxes: min, max (xyz) per node.
-layout(std430, binding = TL_B_BUILD_BOXES) buffer TlBuildBoxes { vec4 tl_bboxes[]; };
+// Their boxes: min xyz, max xyz (6 floats a node).
+layout(std430, binding = TL_B_BUILD_BOXES) buffer TlBuildBoxes { float tl_bboxes[]; };
+
+vec3 tl_box_lo(uint b) {
+    return vec3(tl_bboxes[6u * b], tl_bboxes[6u * b + 1u], tl_bboxes[6u * b + 2u]);
+}
+
+vec3 tl_box_hi(uint b) {
+    return vec3(tl_bboxes[6u * b + 3u], tl_bboxes[6u * b + 4u], tl_bboxes[6u * b + 5u]);
+}
 
 uint tl_build_index() {
     return (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * TL_BUILD_GROUP + gl_LocalInvocationID.x;

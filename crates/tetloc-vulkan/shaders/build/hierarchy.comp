@@ -59,7 +59,7 @@ bool tl_is_leaf(uint b) {
 
 // bvh/wide.rs `area` (no FMA: the CPU's order of operations).
 float tl_area(uint b) {
-    precise vec3 d = tl_bboxes[2u * b + 1u].xyz - tl_bboxes[2u * b].xyz;
+    precise vec3 d = tl_box_hi(b) - tl_box_lo(b);
     precise float a = d.x * d.y + d.y * d.z + d.z * d.x;
     return a;
 }
@@ -206,8 +206,8 @@ void main() {
                 hi = max(hi, h);
             }
         } else {
-            lo = min(tl_bboxes[2u * node.z].xyz, tl_bboxes[2u * node.z + 2u].xyz);
-            hi = max(tl_bboxes[2u * node.z + 1u].xyz, tl_bboxes[2u * node.z + 3u].xyz);
+            lo = min(tl_box_lo(node.z), tl_box_lo(node.z + 1u));
+            hi = max(tl_box_hi(node.z), tl_box_hi(node.z + 1u));
             uint kids[4];
             uint nk = tl_kids(b, kids);
             uint count = 1u;
@@ -216,8 +216,10 @@ void main() {
             }
             tl_bnodes[b].w = count;
         }
-        tl_bboxes[2u * b] = vec4(lo, 0.0);
-        tl_bboxes[2u * b + 1u] = vec4(hi, 0.0);
+        for (int a = 0; a < 3; a++) {
+            tl_bboxes[6u * b + a] = lo[a];
+            tl_bboxes[6u * b + 3u + a] = hi[a];
+        }
     } else if (BUILD_PASS == TL_BUILD_COLLAPSE) {
         uvec2 item = tl_work[entry];
         uint w = item.x, b = item.y;
@@ -227,7 +229,7 @@ void main() {
         if (!tl_is_leaf(b)) {
             nk = tl_kids(b, kids);
         }
-        vec3 origin = tl_bboxes[2u * b].xyz, top = tl_bboxes[2u * b + 1u].xyz;
+        vec3 origin = tl_box_lo(b), top = tl_box_hi(b);
         vec3 scale = vec3(tl_axis_scale(origin.x, top.x), tl_axis_scale(origin.y, top.y),
                           tl_axis_scale(origin.z, top.z));
         uint q[6] = uint[6](0u, 0u, 0u, 0u, 0u, 0u);
@@ -241,7 +243,7 @@ void main() {
                 continue;
             }
             uint kid = kids[c];
-            vec3 lo = tl_bboxes[2u * kid].xyz, hi = tl_bboxes[2u * kid + 1u].xyz;
+            vec3 lo = tl_box_lo(kid), hi = tl_box_hi(kid);
             for (int a = 0; a < 3; a++) {
                 uvec2 qa = tl_quantize(origin[a], scale[a], lo[a], hi[a]);
                 q[2 * a] |= qa.x << (8u * c);

@@ -30,7 +30,8 @@ pub(super) struct Tree {
     pub scan: Buffer,
 }
 
-pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -> VkResult<Tree> {
+/// The tree, or `None` when its 4-wide nodes would not fit one buffer.
+pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -> VkResult<Option<Tree>> {
     let (n, nn) = (b.n as u64, b.n);
     let direct = max_leaf == 1 || nn == 1;
     let spec = Spec::default().set(sc::BUILD_MAX_LEAF, max_leaf).set(sc::DIRECT_LEAVES, direct as u32);
@@ -38,13 +39,15 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     b.prepare(dev, HIERARCHY, &passes, &spec)?;
     let max_nodes = 2 * n - 1;
     let bnodes = scratch(dev, "build binary nodes", 16 * max_nodes)?;
-    let boxes = scratch(dev, "build binary boxes", 32 * max_nodes)?;
+    let boxes = scratch(dev, "build binary boxes", 24 * max_nodes)?;
     dev.write(&bnodes, 0, bytemuck::cast_slice(&[0, nn, 0, 0]))?;
     b.bind(B_BUILD_NODES, &bnodes);
     b.bind(B_BUILD_BOXES, &boxes);
 
-    // Top down: split ranges until the leaves.
+    // Top down: split ranges until the leaves. The keys are not read after that.
     let binary_levels = levels(b, dev, &s.levels, false, [BUILD_SPLIT, BUILD_NEXT_LEVEL], [nn, 0, s.half, 0])?;
+    b.bind(B_BUILD_KEYS, dev.unbound());
+    drop(s.keys);
     // Bottom up: boxes and 4-wide counts.
     dev.run(|r| {
         for k in (0..binary_levels).rev() {
@@ -55,6 +58,9 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     })?;
     let root = read_words(dev, &bnodes, 0, 4)?;
     let n_wide = if root[2] == BUILD_LEAF { 1 } else { root[3] as u64 };
+    if 64 * n_wide > dev.max_buffer() {
+        return Ok(None); // the nodes would not fit one buffer (the caller builds on the CPU)
+    }
 
     // Top down: the 4-wide nodes.
     let nodes = structure(dev, "bvh nodes", 64 * n_wide)?;
@@ -85,11 +91,21 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     };
     // Free the scratch no later stage reads (unbound first: the set stays in use).
     let unbound = dev.unbound();
-    for slot in [B_BUILD_KEYS, B_BUILD_IDS, B_BUILD_NODES, B_BUILD_BOXES, B_BUILD_WORK, B_BUILD_WIDE] {
+    for slot in [B_BUILD_IDS, B_BUILD_NODES, B_BUILD_BOXES, B_BUILD_WORK, B_BUILD_WIDE] {
         b.bind(slot, unbound);
     }
-    drop((s.keys, s.ids, bnodes, boxes, work));
-    Ok(Tree { nodes, prims, direct, depth: depth as usize, binary_levels, tree, home, _levels: s.levels, scan: s.scan })
+    drop((s.ids, bnodes, boxes, work));
+    Ok(Some(Tree {
+        nodes,
+        prims,
+        direct,
+        depth: depth as usize,
+        binary_levels,
+        tree,
+        home,
+        _levels: s.levels,
+        scan: s.scan,
+    }))
 }
 
 /// Byte offset of level `k`'s dispatch size in the level table.

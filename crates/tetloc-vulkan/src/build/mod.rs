@@ -113,7 +113,7 @@ pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<
     let sorted = sort::run(&mut b, dev, input)?;
     timed("gpu: Morton codes, radix sort (pipelines included)".into(), t);
     let t = Instant::now();
-    let tree = hierarchy::run(&mut b, dev, sorted, want.max_leaf)?;
+    let Some(tree) = hierarchy::run(&mut b, dev, sorted, want.max_leaf)? else { return Ok(None) };
     timed(format!("gpu: binary tree ({} levels), 4-wide nodes ({} levels)", tree.binary_levels, tree.depth), t);
     let t = Instant::now();
     let grid = want.grid.then(|| grid::run(&mut b, dev, input, &tree, want)).transpose()?;
