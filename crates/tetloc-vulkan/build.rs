@@ -39,6 +39,13 @@ const SHADERS: &[Shader] = &[
     shader("MEMPROBE", "memprobe.comp", ShaderStage::Compute, false),
     // Query ordering (a counting sort along the Morton curve) before a locate launch.
     shader("ORDER", "order.comp", ShaderStage::Compute, false),
+    // The GPU build of soft-bvh's structure (src/build).
+    shader("BUILD_SORT", "build/sort.comp", ShaderStage::Compute, false),
+    shader("BUILD_SCAN", "build/scan.comp", ShaderStage::Compute, false),
+    shader("BUILD_HIERARCHY", "build/hierarchy.comp", ShaderStage::Compute, false),
+    shader("BUILD_GRID", "build/grid.comp", ShaderStage::Compute, false),
+    shader("BUILD_GRID_STARTS", "build/grid_starts.comp", ShaderStage::Compute, true),
+    shader("BUILD_NEIGHBORS", "build/neighbors.comp", ShaderStage::Compute, false),
     // The ray-tracing kernels: ray generation (locate, march) and miss shared, hit groups per kernel.
     shader("RT_RGEN", "rt.rgen", ShaderStage::RayGeneration, false),
     shader("MARCH_RGEN", "march.rgen", ShaderStage::RayGeneration, false),
@@ -70,7 +77,7 @@ fn main() {
     let out = PathBuf::from(std::env::var("OUT_DIR").unwrap());
     println!("cargo:rerun-if-changed={}", root.join("src/interface.rs").display());
     println!("cargo:rerun-if-changed={}", dir.display());
-    for sub in ["", "common"] {
+    for sub in ["", "common", "build"] {
         for e in std::fs::read_dir(dir.join(sub)).unwrap() {
             println!("cargo:rerun-if-changed={}", e.unwrap().path().display());
         }

@@ -15,7 +15,7 @@ use std::time::Instant;
 use tetloc_core::locate::{CellLocator, FiniteOnly};
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
-use tetloc_vulkan::{Context, Kernel, LocatorOptions, VulkanLocator};
+use tetloc_vulkan::{BuildOn, Context, Kernel, LocatorOptions, VulkanLocator};
 
 pub const CPU: &str = "cpu";
 
@@ -35,6 +35,8 @@ pub struct BackendOptions {
     pub order_queries: bool,
     /// soft-bvh layout (tetloc_vulkan::PRESETS).
     pub preset: String,
+    /// soft-bvh: build its structure on the GPU or on the CPU.
+    pub build: BuildOn,
     /// Do not say which backend `auto` chose.
     pub quiet: bool,
 }
@@ -48,6 +50,7 @@ impl Default for BackendOptions {
             compact: d.compact,
             order_queries: d.order_queries,
             preset: "fast".into(),
+            build: d.build,
             quiet: false,
         }
     }
@@ -57,7 +60,13 @@ impl BackendOptions {
     fn locator_options(&self) -> LocatorOptions {
         // The CLI offers only the known names (clap checks them).
         let base = LocatorOptions::preset(&self.preset).unwrap_or_default();
-        LocatorOptions { split: self.split, compact: self.compact, order_queries: self.order_queries, ..base }
+        LocatorOptions {
+            split: self.split,
+            compact: self.compact,
+            order_queries: self.order_queries,
+            build: self.build,
+            ..base
+        }
     }
 }
 

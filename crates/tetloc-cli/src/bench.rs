@@ -122,6 +122,11 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
             bail!("unknown backend '{name}' (known: {}, auto, all)", backend::names().join(", "));
         };
         let mut loc = backend::make_vulkan(kernel, mesh, &args.opts)?;
+        if !args.opts.quiet {
+            for (stage, s) in loc.build_stages() {
+                eprintln!("{name} build: {s:>8.3} s  {stage}");
+            }
+        }
         let orders = if args.compare_order { vec![true, false] } else { vec![args.opts.order_queries] };
         for (&q, &ordered) in args.queries.iter().flat_map(|q| orders.iter().map(move |o| (q, o))) {
             loc.set_order_queries(ordered);

@@ -144,6 +144,10 @@ struct Common {
     /// memory, half the speed on random points). See BENCHMARKS.md.
     #[arg(long, default_value = "fast", value_parser = clap::builder::PossibleValuesParser::new(tetloc_vulkan::PRESETS))]
     preset: String,
+    /// soft-bvh: where to build its structure (BVH, entry grid, neighbours): gpu (compute
+    /// shaders, the default) or cpu (the reference builder); the same structure either way.
+    #[arg(long, default_value = "gpu", value_parser = ["gpu", "cpu"])]
+    build: String,
     /// GPU kernels: locate points in the order given, without sorting each batch along the
     /// Morton curve first (for comparisons; sorting keeps random points over large meshes fast).
     #[arg(long)]
@@ -171,6 +175,7 @@ impl Common {
             compact: !self.no_compact,
             order_queries: !self.no_order,
             preset: self.preset.clone(),
+            build: self.build.parse().map_err(anyhow::Error::msg)?,
             quiet: self.quiet,
         })
     }

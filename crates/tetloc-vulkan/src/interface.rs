@@ -207,6 +207,34 @@ gpu_interface! {
         ORDER_BINS = 262144;
         ORDER_GROUP = 256;
         ORDER_BLOCKS = 1024;
+        /// The GPU build of soft-bvh's structure (shaders/build, src/build): Morton keys and
+        /// prim ids (two halves each, a radix sort's source and destination), the scan's
+        /// scratch, counters and per-level ranges with their indirect dispatch sizes, the
+        /// binary nodes (range, first child, 4-wide nodes below) and their boxes, the 4-wide
+        /// nodes being written, the worklist of the collapse, each 4-wide node's parent and
+        /// level, each prim's home node, the entry grid being written and its per-cell
+        /// scratch, the face records of the neighbour search, the neighbours being written.
+        B_BUILD_KEYS = 28;
+        B_BUILD_IDS = 29;
+        B_BUILD_SCAN = 30;
+        B_BUILD_LEVELS = 31;
+        B_BUILD_NODES = 32;
+        B_BUILD_BOXES = 33;
+        B_BUILD_WIDE = 34;
+        B_BUILD_WORK = 35;
+        B_BUILD_TREE = 36;
+        B_BUILD_HOME = 37;
+        B_BUILD_GRID = 38;
+        B_BUILD_CELLS = 39;
+        B_BUILD_FACES = 40;
+        B_BUILD_NEIGHBORS = 41;
+        /// GPU build: invocations per workgroup, elements one scan workgroup scans, levels of
+        /// the binary tree and of the 4-wide tree the level table holds (each), and the word
+        /// of the level table where level 0 starts (words before it: counters, bounds).
+        BUILD_GROUP = 256;
+        SCAN_CHUNK = 1024;
+        BUILD_MAX_LEVELS = 160;
+        BUILD_LEVELS_AT = 16;
         /// Most buffers one array is split over.
         MAX_CHUNKS = 16;
         /// The volume marcher's compute shader runs in tiles of MARCH_TILE x MARCH_TILE pixels.
@@ -253,6 +281,41 @@ gpu_interface! {
         ORDER_SCAN_BINS: u32 = 1;
         ORDER_SCAN_BLOCKS: u32 = 2;
         ORDER_SCATTER: u32 = 3;
+        /// GPU build passes (BUILD_PASS), in the order they run: the bounds of the tets' box
+        /// centres; Morton keys; one bit of the radix sort: count zeros per block, scatter;
+        /// the scan (each chunk, then add the chunks' offsets); the binary tree top down, one
+        /// level a dispatch, then the next level's range; boxes and 4-wide counts bottom up;
+        /// 4-wide nodes top down, then the next level's range; the entry grid (clear, rasterize
+        /// the tets' boxes, each cell's node, each cell's walk start: grid_starts.comp); the
+        /// neighbours (count faces by smallest vertex, scatter them, match them).
+        BUILD_BOUNDS: u32 = 0;
+        BUILD_KEYS: u32 = 1;
+        BUILD_SORT_COUNT: u32 = 2;
+        BUILD_SORT_SCATTER: u32 = 3;
+        BUILD_SCAN_LOCAL: u32 = 4;
+        BUILD_SCAN_ADD: u32 = 5;
+        BUILD_SPLIT: u32 = 6;
+        BUILD_NEXT_LEVEL: u32 = 7;
+        BUILD_REFIT: u32 = 8;
+        BUILD_COLLAPSE: u32 = 9;
+        BUILD_NEXT_WIDE_LEVEL: u32 = 10;
+        BUILD_GRID_CLEAR: u32 = 11;
+        BUILD_GRID_RASTER: u32 = 12;
+        BUILD_GRID_CELLS: u32 = 13;
+        BUILD_NB_COUNT: u32 = 14;
+        BUILD_NB_SCATTER: u32 = 15;
+        BUILD_NB_MATCH: u32 = 16;
+        /// GPU build: the level table's counters (words): binary nodes made, 4-wide worklist
+        /// entries made, error bits (BUILD_ERR_*); the centre bounds (6 order-preserving words).
+        BUILD_AT_NODES: u32 = 0;
+        BUILD_AT_WORK: u32 = 1;
+        BUILD_AT_ERROR: u32 = 2;
+        BUILD_AT_BOUNDS: u32 = 8;
+        /// A binary node that is a leaf (its first-child word).
+        BUILD_LEAF: u32 = 0xFFFF_FFFF;
+        /// Error bits: a node box too large for f32 scales; a leaf reference that does not fit.
+        BUILD_ERR_EXTENT: u32 = 1;
+        BUILD_ERR_LEAF: u32 = 2;
     }
     spec_constants {
         /// Where this kernel's points come from (SAMPLE_*).
@@ -300,6 +363,9 @@ gpu_interface! {
         /// reads the ordered points and writes each answer to its original index.
         ORDER_PASS = 23: uint = 0;
         ORDERED = 24: bool = false;
+        /// GPU build: which pass runs (BUILD_*), and the most prims a binary leaf holds.
+        BUILD_PASS = 25: uint = 0;
+        BUILD_MAX_LEAF = 26: uint = 1;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

@@ -22,6 +22,7 @@
 //! # Ok(()) }
 //! ```
 
+mod build;
 mod context;
 mod device;
 mod error;
@@ -35,6 +36,7 @@ mod nvml;
 mod pipeline;
 mod shaders;
 
+pub use build::BuildOn;
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
 pub use kernels::rt::AsReport;

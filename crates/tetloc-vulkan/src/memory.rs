@@ -345,7 +345,8 @@ impl Staging {
     pub fn upload(&mut self, cmds: &mut Commands, dst: &Buffer, offset: u64, data: &[u8]) -> VkResult<()> {
         let step = self.buf.size as usize;
         for (k, piece) in data.chunks(step).enumerate() {
-            self.buf.mapped()[..piece.len()].copy_from_slice(piece);
+            // On every core: one core copies ~10 GB/s, the mesh of 62M tets is 1.1 GB.
+            par_copy(&mut self.buf.mapped()[..piece.len()], piece);
             let region =
                 vk::BufferCopy { src_offset: 0, dst_offset: offset + (k * step) as u64, size: piece.len() as u64 };
             let src = self.buf.buffer;

@@ -45,17 +45,7 @@ impl EntryGrid {
         prims_per_cell: usize,
         contains: Option<&(dyn Fn(u32, Vec3) -> bool + Sync)>,
     ) -> EntryGrid {
-        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0) as f64);
-        let cells_wanted = (n_prims / prims_per_cell.max(1)).max(1) as f64;
-        let used: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
-        let h = if used.is_empty() {
-            1.0
-        } else {
-            (used.iter().product::<f64>() / cells_wanted).powf(1.0 / used.len() as f64)
-        };
-        let dims: [u32; 3] = std::array::from_fn(|a| ((extent[a] / h).round() as u32).clamp(1, 1024));
-        let inv: [f32; 3] =
-            std::array::from_fn(|a| if extent[a] > 0.0 { dims[a] as f32 / (hi[a] - lo[a]) } else { 0.0 });
+        let (dims, inv) = EntryGrid::shape(n_prims, (lo, hi), prims_per_cell);
         let n_cells = (dims[0] * dims[1] * dims[2]) as usize;
         let mut grid = EntryGrid { lo, dims, inv, cells: vec![EMPTY; n_cells], starts: vec![] };
         // Per cell, some primitive whose box overlaps it (the first in id order): the walk
@@ -108,6 +98,23 @@ impl EntryGrid {
         grid
     }
 
+    /// Cells per axis and cells per unit length of the grid over [lo, hi] with about one
+    /// cell per `prims_per_cell` of `n_prims` primitives (the GPU build uses it too).
+    pub fn shape(n_prims: usize, (lo, hi): (Vec3, Vec3), prims_per_cell: usize) -> ([u32; 3], [f32; 3]) {
+        let extent: [f64; 3] = std::array::from_fn(|a| (hi[a] - lo[a]).max(0.0) as f64);
+        let cells_wanted = (n_prims / prims_per_cell.max(1)).max(1) as f64;
+        let used: Vec<f64> = extent.iter().copied().filter(|&e| e > 0.0).collect();
+        let h = if used.is_empty() {
+            1.0
+        } else {
+            (used.iter().product::<f64>() / cells_wanted).powf(1.0 / used.len() as f64)
+        };
+        let dims: [u32; 3] = std::array::from_fn(|a| ((extent[a] / h).round() as u32).clamp(1, 1024));
+        let inv: [f32; 3] =
+            std::array::from_fn(|a| if extent[a] > 0.0 { dims[a] as f32 / (hi[a] - lo[a]) } else { 0.0 });
+        (dims, inv)
+    }
+
     /// As uploaded: header (dims, number of cells if walk starts follow else 0, inv as bits,
     /// 0), the cells' entry nodes, then the walk starts if any.
     pub fn words(&self) -> Vec<u32> {
@@ -130,15 +137,17 @@ impl EntryGrid {
     pub fn centre(&self, i: usize) -> Vec3 {
         let (nx, ny) = (self.dims[0] as usize, self.dims[1] as usize);
         let c = [i % nx, (i / nx) % ny, i / (nx * ny)];
-        std::array::from_fn(
-            |a| {
-                if self.inv[a] > 0.0 {
-                    self.lo[a] + (c[a] as f32 + 0.5) / self.inv[a]
-                } else {
-                    self.lo[a]
-                }
-            },
-        )
+        std::array::from_fn(|a| EntryGrid::centre_coord(self.lo[a], self.inv[a], c[a] as u32))
+    }
+
+    /// On one axis (origin `lo`, `inv` cells per unit length), the centre of the cells at
+    /// index `c` (the GPU build uses it too).
+    pub fn centre_coord(lo: f32, inv: f32, c: u32) -> f32 {
+        if inv > 0.0 {
+            lo + (c as f32 + 0.5) / inv
+        } else {
+            lo
+        }
     }
 
     /// The CPU reference of soft-bvh's `tl_locate` (shaders/common/soft_bvh.glsl): in `p`'s

@@ -22,6 +22,12 @@ impl Morton {
         Morton { lo, scale, max }
     }
 
+    /// The box's minimum and the factor from it to cell units, per axis (for the GPU build,
+    /// which computes the same codes with the same two operations).
+    pub fn lo_scale(&self) -> (Vec3, Vec3) {
+        (self.lo, self.scale)
+    }
+
     /// The code of `p`; points outside the box (and NaN) get the nearest cell's.
     #[inline]
     pub fn code(&self, p: Vec3) -> u64 {

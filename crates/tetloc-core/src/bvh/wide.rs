@@ -132,6 +132,12 @@ impl WideBvh {
         Ok(WideBvh { nodes: c.nodes, prims, direct, depth: c.depth, parent: c.parent, level: c.level, home: c.home })
     }
 
+    /// A wide BVH from its parts (read back from a GPU build, say), for traversal and
+    /// [`WideBvh::validate`]; it has no links for an entry grid.
+    pub fn from_parts(nodes: Vec<QNode4>, prims: Vec<u32>, direct: bool, depth: usize) -> WideBvh {
+        WideBvh { nodes, prims, direct, depth, parent: vec![], level: vec![], home: vec![] }
+    }
+
     /// Traversal stack entries that always suffice: a node pushes at most 3 children.
     pub fn stack_size(&self) -> u32 {
         (3 * self.depth + 1) as u32
@@ -192,6 +198,75 @@ impl WideBvh {
         }
     }
 
+    /// Checks the tree against the primitives' boxes: every primitive in exactly one leaf,
+    /// every used child box (dequantized as the shader does) holding the boxes of all the
+    /// primitives below it, empty slots empty (reference `EMPTY`, lower byte 255 > upper 0),
+    /// node references in range and depth levels as counted. Returns the first violation.
+    pub fn validate(&self, boxes: &[Aabb]) -> std::result::Result<(), String> {
+        let mut seen = vec![false; boxes.len()];
+        let mut depth = 0;
+        self.validate_node(0, 1, boxes, &mut seen, &mut depth)?;
+        if depth != self.depth {
+            return Err(format!("depth {} recorded, {depth} found", self.depth));
+        }
+        match seen.iter().position(|s| !s) {
+            Some(t) => Err(format!("primitive {t} is in no leaf")),
+            None => Ok(()),
+        }
+    }
+
+    /// The union of the primitive boxes below node `i` (at `level`), checking as it goes.
+    fn validate_node(
+        &self,
+        i: u32,
+        level: usize,
+        boxes: &[Aabb],
+        seen: &mut [bool],
+        depth: &mut usize,
+    ) -> std::result::Result<Aabb, String> {
+        let n = self.nodes.get(i as usize).ok_or(format!("node {i} out of range"))?;
+        *depth = (*depth).max(level);
+        let mut all = Aabb { min: [f32::INFINITY; 3], max: [f32::NEG_INFINITY; 3] };
+        for c in 0..4 {
+            let r = n.child[c];
+            let byte = |w: u32| (w >> (8 * c)) & 0xFF;
+            if r == EMPTY {
+                if (0..3).any(|a| byte(n.q[2 * a]) != 255 || byte(n.q[2 * a + 1]) != 0) {
+                    return Err(format!("node {i} slot {c}: empty reference with a non-empty box"));
+                }
+                continue;
+            }
+            let below = if r & LEAF != 0 {
+                let (first, count) = leaf_range(r);
+                let mut u = Aabb { min: [f32::INFINITY; 3], max: [f32::NEG_INFINITY; 3] };
+                for k in 0..count {
+                    let p = if self.direct {
+                        first
+                    } else {
+                        *self.prims.get((first + k) as usize).ok_or(format!("node {i}: prim index out of range"))?
+                    };
+                    let s = seen.get_mut(p as usize).ok_or(format!("node {i}: primitive {p} out of range"))?;
+                    if *s {
+                        return Err(format!("primitive {p} is in two leaves"));
+                    }
+                    *s = true;
+                    u = u.union(&boxes[p as usize]);
+                }
+                u
+            } else {
+                if r <= i {
+                    return Err(format!("node {i} slot {c}: child {r} is not below it in depth-first order"));
+                }
+                self.validate_node(r, level + 1, boxes, seen, depth)?
+            };
+            if !n.child_box(c).holds(&below) {
+                return Err(format!("node {i} slot {c}: the child box does not hold what is below it"));
+            }
+            all = all.union(&below);
+        }
+        Ok(all)
+    }
+
     /// The lowest common ancestor of nodes `a` and `b`.
     pub(super) fn lca(&self, mut a: u32, mut b: u32) -> u32 {
         while self.level[a as usize] > self.level[b as usize] {
@@ -213,12 +288,18 @@ fn area(n: &BvhNode) -> f32 {
     d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
 }
 
-/// The scale for one axis: the smallest step with `origin + 255 * scale >= hi`.
+/// The scale for one axis: the smallest step with `lo + 255 * scale >= hi`. Defined by
+/// `dequantize` alone (monotone in the step), not by the division that estimates it, so that
+/// the GPU build (shaders/build/hierarchy.comp), whose division may round differently, finds
+/// the same bits.
 fn axis_scale(lo: f32, hi: f32) -> Result<f32> {
     if hi <= lo {
         return Ok(0.0);
     }
     let mut s = (hi - lo) / 255.0;
+    while s > 0.0 && s.is_finite() && dequantize(lo, 255, s.next_down()) >= hi {
+        s = s.next_down();
+    }
     while dequantize(lo, 255, s) < hi {
         s = s.next_up();
     }
@@ -228,16 +309,24 @@ fn axis_scale(lo: f32, hi: f32) -> Result<f32> {
     Ok(s)
 }
 
-/// Conservative bytes for [lo, hi] on an axis: dequantized lower <= lo and upper >= hi.
+/// Conservative bytes for [lo, hi] on an axis, the tightest: the largest lower byte whose
+/// value is <= lo and the smallest upper byte whose value is >= hi. Like `axis_scale`, defined
+/// by `dequantize` alone (the division only estimates), so the GPU build finds the same bytes.
 fn quantize(origin: f32, scale: f32, lo: f32, hi: f32) -> (u8, u8) {
     if scale == 0.0 {
         return (0, 0);
     }
     let mut ql = ((lo - origin) / scale).floor().clamp(0.0, 255.0) as u8;
+    while ql < 255 && dequantize(origin, ql + 1, scale) <= lo {
+        ql += 1;
+    }
     while ql > 0 && dequantize(origin, ql, scale) > lo {
         ql -= 1;
     }
     let mut qh = ((hi - origin) / scale).ceil().clamp(0.0, 255.0) as u8;
+    while qh > 0 && dequantize(origin, qh - 1, scale) >= hi {
+        qh -= 1;
+    }
     while qh < 255 && dequantize(origin, qh, scale) < hi {
         qh += 1;
     }
@@ -333,6 +422,20 @@ mod tests {
             assert!(dequantize(lo, ql, s) <= mid && dequantize(lo, qh, s) >= hi);
         }
         assert!(axis_scale(-f32::MAX, f32::MAX).is_err(), "an infinite extent is refused");
+    }
+
+    /// The tightest bytes: one step in would no longer hold the interval.
+    #[test]
+    fn quantization_is_tight() {
+        let (lo, hi) = (0.1f32, 0.7f32);
+        let s = axis_scale(lo, hi).unwrap();
+        assert!(dequantize(lo, 255, s.next_down()) < hi, "the smallest scale that reaches hi");
+        for (a, b) in [(0.2f32, 0.3f32), (0.1, 0.7), (0.45, 0.45)] {
+            let (ql, qh) = quantize(lo, s, a, b);
+            assert!(dequantize(lo, ql, s) <= a && dequantize(lo, qh, s) >= b);
+            assert!(ql == 255 || dequantize(lo, ql + 1, s) > a);
+            assert!(qh == 0 || dequantize(lo, qh - 1, s) < b);
+        }
     }
 
     #[test]

@@ -33,6 +33,9 @@ pub(crate) struct KernelDef {
 pub(crate) struct Inputs<'a> {
     pub mesh: &'a Arc<Mesh>,
     pub points: &'a Split,
+    pub tets: &'a Split,
+    /// The mesh's descriptor bindings (vertices, tets, higher-order nodes).
+    pub mesh_bindings: &'a [Binding],
     pub opts: &'a LocatorOptions,
     /// The point-in-tet test runs with its exact f64 fallback.
     pub f64: bool,
@@ -63,6 +66,8 @@ pub(crate) struct Plan {
     pub ray: Ray,
     /// Acceleration-structure sizes for the memory report.
     pub accel: Option<AsReport>,
+    /// Wall seconds of each stage of the structure's build, in order (the build report).
+    pub build_stages: Vec<(String, f64)>,
 }
 
 /// A ray's length and unit direction.

@@ -5,6 +5,7 @@
 //! shaders/common/soft_bvh.glsl). The volume marcher runs the same traversal (march.comp).
 
 use super::{Inputs, KernelDef, Plan, Ray};
+use crate::build::{self, BuildOn, Structure};
 use crate::device::Device;
 use crate::error::{VkError, VkResult};
 use crate::interface::{self, sc, B_ACCEL, B_ACCEL_HI, B_GRID, B_NEIGHBORS, B_NEIGHBORS_HI, B_PRIMS};
@@ -12,6 +13,7 @@ use crate::memory::MemKind;
 use crate::pipeline::{Binding, Program, Spec};
 use crate::shaders;
 use ash::vk;
+use std::time::Instant;
 use tetloc_core::bvh::{wide, Aabb, BuildPreset, Bvh, EntryGrid, WideBvh};
 use tetloc_core::geom::{self, Vec3};
 
@@ -31,39 +33,29 @@ const _: () = assert!(
 );
 
 fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
-    let (mesh, opts) = (input.mesh, input.opts);
-    let preset = if opts.leaf_size == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
-    let wide = WideBvh::collapse(&Bvh::build(&mesh.points, &mesh.tets, preset))
-        .map_err(|e| VkError::Mesh(format!("soft-bvh: {e}")))?;
-    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let nodes = dev.upload_split("bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&wide.nodes), 64)?;
-    let prims = if wide.direct {
-        None
-    } else {
-        Some(dev.upload("bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&wide.prims))?)
+    let opts = input.opts;
+    let want = build::Wanted {
+        max_leaf: opts.leaf_size as u32,
+        grid: opts.grid_start || opts.walk_start,
+        walk: opts.walk_start,
+        tets_per_cell: opts.grid_tets_per_cell,
     };
-    let grid = if opts.grid_start || opts.walk_start {
-        let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
-            &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
-        let g = EntryGrid::new(
-            &wide,
-            mesh.n_tets(),
-            |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
-            (mesh.info.bounds_min, mesh.info.bounds_max),
-            opts.grid_tets_per_cell,
-            opts.walk_start.then_some(holds),
-        );
-        Some(dev.upload("entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()))?)
-    } else {
-        None
+    let built = match opts.build {
+        BuildOn::Gpu => build::build(dev, input, want)?,
+        BuildOn::Cpu => None,
     };
-    let neighbors = if opts.walk_start {
-        let nb = bytemuck::cast_slice(mesh.neighbors());
-        Some(dev.upload_split("tet neighbours", MemKind::Structure, storage, nb, 16)?)
-    } else {
-        None
+    let s = match built {
+        Some(s) => s,
+        None => {
+            let mut s = cpu_structure(dev, input, want)?;
+            if opts.build == BuildOn::Gpu {
+                s.stages.insert(0, ("gpu build: an array exceeds one buffer, built on the cpu".into(), 0.0));
+            }
+            s
+        }
     };
-
+    let (nodes, prims, grid, neighbors) = (s.nodes, s.prims, s.grid, s.neighbors);
+    let stack_size = (3 * s.depth + 1) as u32;
     let unbound = dev.unbound();
     let mut bindings = vec![
         Binding::buffer(B_PRIMS, prims.as_ref().unwrap_or(unbound)),
@@ -76,8 +68,8 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         .set(sc::NEIGHBORS_CHUNK, neighbors.as_ref().map_or(0, |n| n.per_chunk))
         .set(sc::WALK_MAX, WALK_MAX as u32)
         .set(sc::WALK_START, opts.walk_start as u32)
-        .set(sc::STACK_SIZE, wide.stack_size())
-        .set(sc::DIRECT_LEAVES, wide.direct as u32)
+        .set(sc::STACK_SIZE, stack_size)
+        .set(sc::DIRECT_LEAVES, s.direct as u32)
         .set(sc::GRID_START, grid.is_some() as u32);
     // Deferred exact tests need the f64 test to defer to.
     let defer = opts.defer_exact && input.f64;
@@ -100,7 +92,64 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         march_needs_neighbors: !opts.walk_start,
         ray: Ray::default(),
         accel: None,
+        build_stages: s.stages,
     })
+}
+
+/// The structure built on the host by tetloc_core (the reference), then uploaded.
+fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkResult<Structure> {
+    let mesh = input.mesh;
+    let mut stages = vec![];
+    let mut timed = |name: &str, t: Instant| stages.push((format!("cpu: {name}"), t.elapsed().as_secs_f64()));
+    let preset = if want.max_leaf == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
+    let t = Instant::now();
+    let bvh = Bvh::build(&mesh.points, &mesh.tets, preset);
+    timed("binary BVH", t);
+    let t = Instant::now();
+    let wide = WideBvh::collapse(&bvh).map_err(|e| VkError::Mesh(format!("soft-bvh: {e}")))?;
+    drop(bvh);
+    timed("collapse", t);
+    let t = Instant::now();
+    let grid = want.grid.then(|| {
+        let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
+            &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
+        EntryGrid::new(
+            &wide,
+            mesh.n_tets(),
+            |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
+            (mesh.info.bounds_min, mesh.info.bounds_max),
+            want.tets_per_cell,
+            want.walk.then_some(holds),
+        )
+    });
+    if want.grid {
+        timed("entry grid", t);
+    }
+    let t = Instant::now();
+    if want.walk {
+        mesh.neighbors();
+        timed("neighbours", t);
+    }
+    let t = Instant::now();
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let nodes = dev.upload_split("bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&wide.nodes), 64)?;
+    let prims = if wide.direct {
+        None
+    } else {
+        Some(dev.upload("bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&wide.prims))?)
+    };
+    let grid = match grid {
+        Some(g) => Some(dev.upload("entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()))?),
+        None => None,
+    };
+    let neighbors = if want.walk {
+        let nb = bytemuck::cast_slice(mesh.neighbors());
+        Some(dev.upload_split("tet neighbours", MemKind::Structure, storage, nb, 16)?)
+    } else {
+        None
+    };
+    timed("uploads", t);
+    Ok(Structure { nodes, prims, direct: wide.direct, depth: wide.depth, grid, neighbors, stages })
 }
 
 #[cfg(test)]

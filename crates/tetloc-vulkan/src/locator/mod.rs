@@ -10,6 +10,7 @@ pub use bench::{si, BenchOptions, BenchResult};
 use launch::{Launcher, Variant};
 use order::{Ordering, ORDER_MIN_POINTS};
 
+use crate::build::BuildOn;
 use crate::context::Context;
 use crate::device::{Device, Split};
 use crate::error::{VkError, VkResult};
@@ -74,6 +75,10 @@ pub struct LocatorOptions {
     /// (batches of random or host points of at least `ORDER_MIN_POINTS`; answers keep the
     /// given order): keeps random queries on few pages of a large mesh (NOTES.md).
     pub order_queries: bool,
+    /// soft-bvh: where its structure (BVH, entry grid, neighbours) is built: on the GPU (the
+    /// default; meshes whose build arrays exceed one buffer fall back to the CPU) or with
+    /// tetloc_core's CPU builder, the reference. Both give the same structure, bit for bit.
+    pub build: BuildOn,
     /// Size of the staging buffer that all uploads and downloads go through.
     pub staging_bytes: u64,
     /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
@@ -96,6 +101,7 @@ impl Default for LocatorOptions {
             f32_first: false,
             defer_exact: false,
             order_queries: true,
+            build: BuildOn::Gpu,
             staging_bytes: STAGING_BYTES,
             max_buffer_bytes: None,
         }
@@ -151,6 +157,9 @@ pub struct VulkanLocator {
     opts: LocatorOptions,
     f64: bool,
     build_seconds: f64,
+    /// Wall seconds of each stage of `new`: the mesh upload, the kernel's structure, the
+    /// first pipeline.
+    build_stages: Vec<(String, f64)>,
     memory: MemoryReport,
     dev: Device,
 }
@@ -207,10 +216,21 @@ impl VulkanLocator {
         // of points in few round trips.
         let staging = opts.staging_bytes.min(mesh_bytes.max(16 << 20));
         let mut dev = Device::new(&ctx, staging, opts.max_buffer_bytes)?;
+        let t_upload = Instant::now();
         let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, kernel.needs_ray_tracing())?;
+        let mut stages = vec![("mesh upload".to_string(), t_upload.elapsed().as_secs_f64())];
         let f64 = opts.float64 && ctx.info().float64;
-        let inputs = Inputs { mesh: &mesh, points: &mesh_on_device.points, opts: &opts, f64 };
-        let plan = (kernel.def().plan)(&mut dev, &inputs)?;
+        let mesh_bindings = mesh_on_device.bindings(dev.unbound());
+        let inputs = Inputs {
+            mesh: &mesh,
+            points: &mesh_on_device.points,
+            tets: &mesh_on_device.tets,
+            mesh_bindings: &mesh_bindings,
+            opts: &opts,
+            f64,
+        };
+        let mut plan = (kernel.def().plan)(&mut dev, &inputs)?;
+        stages.append(&mut plan.build_stages);
         let desc = Descriptors::new(&ctx, &Self::locate_bindings(&dev, &mesh_on_device, &plan), plan.locate.stages())?;
         let (items, peak_bytes) = dev.memory();
         let final_bytes =
@@ -233,11 +253,15 @@ impl VulkanLocator {
             opts,
             f64,
             build_seconds: 0.0,
+            build_stages: vec![],
             memory,
             dev,
         };
         // Compile the id variant now, so that building includes pipeline creation.
+        let t_pipeline = Instant::now();
         loc.pipeline(Variant { sample: SAMPLE_HOST, output: OUT_IDS, record: false, ordered: false })?;
+        stages.push(("locate pipeline".to_string(), t_pipeline.elapsed().as_secs_f64()));
+        loc.build_stages = stages;
         loc.build_seconds = t0.elapsed().as_secs_f64();
         Ok(loc)
     }
@@ -266,6 +290,12 @@ impl VulkanLocator {
     /// Seconds spent in `new`: uploads, structure build (and compaction), first pipeline.
     pub fn build_seconds(&self) -> f64 {
         self.build_seconds
+    }
+
+    /// Wall seconds of each stage of `new`: the mesh upload, the kernel's structure (soft-bvh
+    /// names its build's stages, `gpu: ...` or `cpu: ...`), the first locate pipeline.
+    pub fn build_stages(&self) -> &[(String, f64)] {
+        &self.build_stages
     }
 
     /// GPU memory after the build (final) and during it (peak), with every allocation named.

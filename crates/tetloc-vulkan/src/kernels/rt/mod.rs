@@ -140,6 +140,7 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
         march_needs_neighbors: false,
         ray: (k.ray)(mesh),
         accel,
+        build_stages: vec![],
     })
 }
 

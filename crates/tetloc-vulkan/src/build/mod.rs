@@ -1,0 +1,284 @@
+//! The GPU build of soft-bvh's structure (issue 12.1): the same structure that
+//! `tetloc_core`'s CPU builder makes (`Bvh::build`, `WideBvh::collapse`, `EntryGrid::new`,
+//! `Mesh::neighbors`), bit for bit, in compute shaders (`shaders/build/`), from the mesh
+//! already on the device. One module a stage:
+//!
+//! - [`sort`]: Morton codes of the tets' box centres, radix-sorted with their ids;
+//! - [`hierarchy`]: the binary tree top down (a level a dispatch), boxes and 4-wide counts
+//!   bottom up, the 4-wide quantized nodes top down in the CPU's depth-first numbering;
+//! - [`grid`]: the entry grid's nodes and walk starts;
+//! - [`neighbors`]: the tets' face neighbours (faces bucketed by their smallest vertex);
+//! - [`scan`]: the prefix sums the sort and the neighbours use.
+//!
+//! Why the same bits: the answers on faces follow the traversal order, so a GPU-built tree
+//! that is the CPU's gives the same ids everywhere, and the tests compare the two exactly.
+
+mod grid;
+mod hierarchy;
+mod neighbors;
+mod scan;
+mod sort;
+#[cfg(test)]
+mod tests;
+
+use crate::device::{Device, Recording, Split};
+use crate::error::{VkError, VkResult};
+use crate::interface::*;
+use crate::kernels::Inputs;
+use crate::memory::{Buffer, BufferDesc, MemKind};
+use crate::pipeline::{Binding, Descriptors, Pipeline, Program, Spec};
+use crate::shaders::{self, Shader};
+use ash::vk;
+use std::collections::HashMap;
+use std::fmt;
+use std::str::FromStr;
+use std::time::Instant;
+
+/// Where soft-bvh builds its structure.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum BuildOn {
+    /// In compute shaders, from the mesh on the device (the default). Meshes whose build
+    /// arrays do not fit one buffer each are built on the CPU (said in the build stages).
+    #[default]
+    Gpu,
+    /// On the host with tetloc_core's builder (the reference), then uploaded.
+    Cpu,
+}
+
+impl fmt::Display for BuildOn {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            BuildOn::Gpu => "gpu",
+            BuildOn::Cpu => "cpu",
+        })
+    }
+}
+
+impl FromStr for BuildOn {
+    type Err = String;
+    fn from_str(s: &str) -> Result<BuildOn, String> {
+        match s {
+            "gpu" => Ok(BuildOn::Gpu),
+            "cpu" => Ok(BuildOn::Cpu),
+            _ => Err(format!("unknown build '{s}' (known: gpu, cpu)")),
+        }
+    }
+}
+
+/// soft-bvh's structure on the device, however it was built.
+pub(crate) struct Structure {
+    /// The 4-wide nodes (`QNode4`).
+    pub nodes: Split,
+    /// Leaf prims, unless every leaf holds one tet (`direct`).
+    pub prims: Option<Buffer>,
+    pub direct: bool,
+    /// Levels of 4-wide nodes (the traversal stack is 3 depth + 1).
+    pub depth: usize,
+    /// The entry grid's words (`EntryGrid::words`) and the neighbours, when asked for.
+    pub grid: Option<Buffer>,
+    pub neighbors: Option<Split>,
+    /// Wall seconds of each stage, in order.
+    pub stages: Vec<(String, f64)>,
+}
+
+/// What the GPU build makes, from the options.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Wanted {
+    pub max_leaf: u32,
+    /// The entry grid (about `tets_per_cell` tets a cell) and, with walk starts, the neighbours.
+    pub grid: bool,
+    pub walk: bool,
+    pub tets_per_cell: usize,
+}
+
+/// Builds soft-bvh's structure on the GPU, or `None` when one of its arrays would not fit
+/// one buffer (the caller builds on the CPU then).
+pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<Option<Structure>> {
+    let n = input.mesh.n_tets() as u64;
+    let n_points = input.mesh.points.len() as u64;
+    let biggest = [
+        16 * n,       // keys
+        32 * (2 * n), // binary boxes
+        64 * n,       // 4-wide nodes (at most one a tet)
+        4 * scan::words(n_points.max(n.div_ceil(SCAN_CHUNK as u64))),
+        if want.walk { 48 * n } else { 0 }, // face records
+    ];
+    if biggest.iter().any(|&b| b > dev.max_buffer()) {
+        return Ok(None);
+    }
+    let mut stages = vec![];
+    let mut timed = |name: String, t: Instant| stages.push((name, t.elapsed().as_secs_f64()));
+    let t = Instant::now();
+    let mut b = Builder::new(dev, input)?;
+    let sorted = sort::run(&mut b, dev, input)?;
+    timed("gpu: Morton codes, radix sort (pipelines included)".into(), t);
+    let t = Instant::now();
+    let Some(tree) = hierarchy::run(&mut b, dev, sorted, want.max_leaf)? else { return Ok(None) };
+    timed(format!("gpu: binary tree ({} levels), 4-wide nodes ({} levels)", tree.binary_levels, tree.depth), t);
+    let t = Instant::now();
+    let grid = want.grid.then(|| grid::run(&mut b, dev, input, &tree, want)).transpose()?;
+    if want.grid {
+        timed("gpu: entry grid".into(), t);
+    }
+    let t = Instant::now();
+    let neighbors = want.walk.then(|| neighbors::run(&mut b, dev, input, &tree.scan)).transpose()?;
+    if want.walk {
+        timed("gpu: neighbours".into(), t);
+    }
+    Ok(Some(Structure {
+        nodes: Split { parts: vec![tree.nodes], per_chunk: 0 },
+        prims: tree.prims,
+        direct: tree.direct,
+        depth: tree.depth,
+        grid,
+        neighbors,
+        stages,
+    }))
+}
+
+/// A build program: its name (the pipelines' key) and shader.
+#[derive(Clone, Copy)]
+pub(crate) struct Prog(&'static str, Shader);
+
+const SORT: Prog = Prog("sort", shaders::BUILD_SORT);
+const SCAN: Prog = Prog("scan", shaders::BUILD_SCAN);
+const HIERARCHY: Prog = Prog("hierarchy", shaders::BUILD_HIERARCHY);
+const GRID: Prog = Prog("grid", shaders::BUILD_GRID);
+const GRID_STARTS: Prog = Prog("grid starts", shaders::BUILD_GRID_STARTS);
+const NEIGHBORS: Prog = Prog("neighbours", shaders::BUILD_NEIGHBORS);
+
+/// How many workgroups a pass runs.
+pub(crate) enum Groups<'a> {
+    /// One invocation per item.
+    Items(u64),
+    /// This many workgroups.
+    Workgroups(u64),
+    /// As many as the words at this byte offset of the buffer say.
+    Indirect(&'a Buffer, u64),
+}
+
+/// The build's descriptor set (every build binding, the mesh's, and the locate bindings the
+/// shared GLSL declares) and its pipelines, made on first use.
+pub(crate) struct Builder {
+    // Field order is drop order: the pipelines before their layout.
+    pipelines: HashMap<(&'static str, u32), Pipeline>,
+    desc: Descriptors,
+    spec: Spec,
+    f64: bool,
+    /// Tets.
+    n: u32,
+}
+
+impl Builder {
+    fn new(dev: &mut Device, input: &Inputs) -> VkResult<Builder> {
+        let unbound = dev.unbound();
+        let mut bindings = input.mesh_bindings.to_vec();
+        bindings.extend(
+            [
+                B_FIELD,
+                B_QUERIES,
+                B_OUT,
+                B_DEFER,
+                B_ORDER_POINTS,
+                B_ORDER_PERM,
+                B_PRIMS,
+                B_GRID,
+                B_BUILD_KEYS,
+                B_BUILD_IDS,
+                B_BUILD_SCAN,
+                B_BUILD_LEVELS,
+                B_BUILD_NODES,
+                B_BUILD_BOXES,
+                B_BUILD_WIDE,
+                B_BUILD_WORK,
+                B_BUILD_TREE,
+                B_BUILD_HOME,
+                B_BUILD_GRID,
+                B_BUILD_CELLS,
+                B_BUILD_FACES,
+                B_BUILD_NEIGHBORS,
+            ]
+            .map(|slot| Binding::buffer(slot, unbound)),
+        );
+        bindings.extend(Binding::split(B_ACCEL, B_ACCEL_HI, None, unbound));
+        bindings.extend(Binding::split(B_NEIGHBORS, B_NEIGHBORS_HI, None, unbound));
+        let desc = Descriptors::new(dev.ctx(), &bindings, vk::ShaderStageFlags::COMPUTE)?;
+        let spec = Spec::default()
+            .set(sc::POINTS_CHUNK, input.points.per_chunk)
+            .set(sc::TETS_CHUNK, input.tets.per_chunk)
+            .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
+            .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits());
+        Ok(Builder { pipelines: HashMap::new(), desc, spec, f64: input.f64, n: input.mesh.n_tets() as u32 })
+    }
+
+    /// Points `slot` at `buf` (or at nothing, before `buf` is freed).
+    fn bind(&self, slot: u32, buf: &Buffer) {
+        self.desc.write(&[Binding::buffer(slot, buf)]);
+    }
+
+    /// Makes the pipelines of `prog`'s `passes`, with `extra` constants on top of the build's.
+    fn prepare(&mut self, dev: &mut Device, prog: Prog, passes: &[u32], extra: &Spec) -> VkResult<()> {
+        for &pass in passes {
+            if !self.pipelines.contains_key(&(prog.0, pass)) {
+                let spec = self.spec.clone().concat(extra).set(sc::BUILD_PASS, pass);
+                let p = Program::Compute(prog.1).pipeline(dev, self.desc.layout, self.f64, &spec)?;
+                self.pipelines.insert((prog.0, pass), p);
+            }
+        }
+        Ok(())
+    }
+
+    /// Records pass `pass` of `prog` (prepared) with push constants `counts` (and `lo`, `hi`).
+    fn record(&self, r: &Recording, prog: Prog, pass: u32, counts: [u32; 4], lo_hi: [[f32; 4]; 2], groups: Groups) {
+        let p = &self.pipelines[&(prog.0, pass)];
+        let params = Params { counts, lo_tmin: lo_hi[0], hi_tmax: lo_hi[1], dir: [0.0; 4] };
+        let (dev, cmd) = (r.dev, r.cmd);
+        // SAFETY: recording into a command buffer in the recording state, with a live pipeline
+        // and descriptor set of the same layout.
+        unsafe {
+            dev.cmd_bind_pipeline(cmd, p.bind_point, p.pipeline);
+            dev.cmd_bind_descriptor_sets(cmd, p.bind_point, self.desc.layout, 0, &[self.desc.set], &[]);
+            dev.cmd_push_constants(cmd, self.desc.layout, self.desc.stages, 0, bytemuck::bytes_of(&params));
+        }
+        let groups = match groups {
+            Groups::Items(n) => n.div_ceil(BUILD_GROUP as u64),
+            Groups::Workgroups(g) => g,
+            Groups::Indirect(buf, offset) => {
+                // SAFETY: as above; the buffer holds a dispatch size at `offset` (written by an
+                // earlier pass, behind a barrier).
+                unsafe { dev.cmd_dispatch_indirect(cmd, buf.buffer, offset) };
+                return;
+            }
+        };
+        let x = groups.min(r.ctx.limits.max_workgroup_count[0] as u64).max(1);
+        // SAFETY: as above.
+        unsafe { dev.cmd_dispatch(cmd, x as u32, groups.div_ceil(x) as u32, 1) };
+    }
+}
+
+/// A scratch buffer of the build (device-local, transfers in and out).
+fn scratch(dev: &mut Device, name: &str, bytes: u64) -> VkResult<Buffer> {
+    dev.create_buffer(BufferDesc::io(MemKind::Scratch, bytes), name, None)
+}
+
+/// A buffer of the finished structure.
+fn structure(dev: &mut Device, name: &str, bytes: u64) -> VkResult<Buffer> {
+    dev.create_buffer(BufferDesc::io(MemKind::Structure, bytes), name, None)
+}
+
+/// Fills `bytes` of `buf` from `offset` with the word `value`.
+fn fill(r: &Recording, buf: &Buffer, offset: u64, bytes: u64, value: u32) {
+    // SAFETY: recording; the buffer is live, a transfer destination, and holds the range.
+    unsafe { r.dev.cmd_fill_buffer(r.cmd, buf.buffer, offset, bytes, value) };
+}
+
+/// Reads `n` words of `buf` from word `at`.
+fn read_words(dev: &mut Device, buf: &Buffer, at: u64, n: usize) -> VkResult<Vec<u32>> {
+    let mut w = vec![0u32; n];
+    dev.download(buf, 4 * at, bytemuck::cast_slice_mut(&mut w))?;
+    Ok(w)
+}
+
+fn fail(msg: String) -> VkError {
+    VkError::Mesh(format!("soft-bvh GPU build: {msg}"))
+}

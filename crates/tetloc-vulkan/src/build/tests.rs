@@ -1,0 +1,173 @@
+//! The GPU build against tetloc_core's CPU builder, on lavapipe in CI: the same nodes, leaf
+//! prims, depth, entry-grid words and neighbours, bit for bit, on meshes of several shapes
+//! (a jittered grid, a regular one with many equal codes, a mixed mesh's decomposition, one
+//! tet, tets that all have the same box), with one and four tets a leaf; the GPU tree also
+//! passes `WideBvh::validate` on its own; and locators built both ways answer alike.
+
+use super::*;
+use crate::context::{Context, ContextOptions};
+use crate::locator::LocatorOptions;
+use crate::Kernel;
+use crate::VulkanLocator;
+use std::sync::Arc;
+use tetloc_core::bvh::{Aabb, BuildPreset, Bvh, EntryGrid, QNode4, WideBvh};
+use tetloc_core::gen::{self, CellKind, Shape};
+use tetloc_core::geom::{self, Vec3};
+use tetloc_core::mesh::{Mesh, RawMesh};
+use tetloc_core::BatchLocator;
+
+fn context(test: &str) -> Option<Arc<Context>> {
+    match Context::with_options(ContextOptions { device_index: None, validation: true }) {
+        Ok(c) => Some(c),
+        Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) if !tetloc_testdata::in_ci() => {
+            eprintln!("SKIPPED {test}: {e}");
+            None
+        }
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
+fn meshes() -> Vec<Mesh> {
+    let spec = gen::Spec { shape: Shape::Fusion, cells: CellKind::Hybrid };
+    let tet = RawMesh {
+        points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
+        tets: vec![[0, 1, 2, 3]],
+        ..Default::default()
+    };
+    // Five copies of one tet: every box, centre and Morton code the same.
+    let same = RawMesh { tets: vec![[0, 1, 2, 3]; 5], ..tet.clone() };
+    vec![
+        Mesh::new(gen::generate(Shape::Jets, 20_000, 3), "jets").unwrap(),
+        tetloc_testdata::KuhnGrid::new(8).mesh("regular grid"),
+        Mesh::new(gen::generate_spec(spec, 3_000, 1, &|_| {}), "fusion-hybrid").unwrap(),
+        Mesh::new(tet, "one tet").unwrap(),
+        Mesh::new(same, "five equal tets").unwrap(),
+    ]
+}
+
+/// Builds `mesh`'s structure on the GPU and reads it back: nodes, prims, grid words, neighbours.
+#[allow(clippy::type_complexity)]
+fn gpu_build(
+    ctx: &Arc<Context>,
+    mesh: &Arc<Mesh>,
+    want: Wanted,
+) -> (WideBvh, Option<Vec<u32>>, Option<Vec<[i32; 4]>>, Vec<(String, f64)>) {
+    let mut dev = Device::new(ctx, 1 << 20, None).unwrap();
+    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let points = dev.upload_split("points", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.points), 12).unwrap();
+    let tets = dev.upload_split("tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16).unwrap();
+    let unbound = dev.unbound();
+    let mut mesh_bindings = Binding::split(B_POINTS, B_POINTS_HI, Some(&points), unbound).to_vec();
+    mesh_bindings.extend(Binding::split(B_TETS, B_TETS_HI, Some(&tets), unbound));
+    mesh_bindings.extend([B_HO_NODES, B_HO_LATTICE].map(|slot| Binding::buffer(slot, unbound)));
+    let opts = LocatorOptions::default();
+    let input = Inputs {
+        mesh,
+        points: &points,
+        tets: &tets,
+        mesh_bindings: &mesh_bindings,
+        opts: &opts,
+        f64: ctx.info().float64,
+    };
+    let s = build(&mut dev, &input, want).unwrap().expect("small meshes fit");
+    let words = |dev: &mut Device, buf: &Buffer| {
+        let mut w = vec![0u32; (buf.size / 4) as usize];
+        dev.download(buf, 0, bytemuck::cast_slice_mut(&mut w)).unwrap();
+        w
+    };
+    let node_words = words(&mut dev, &s.nodes.parts[0]);
+    let nodes: Vec<QNode4> = bytemuck::cast_slice(&node_words).to_vec();
+    let prims = s.prims.as_ref().map_or(vec![], |p| words(&mut dev, p)[..mesh.n_tets()].to_vec());
+    let wide = WideBvh::from_parts(nodes, prims, s.direct, s.depth);
+    let grid = s.grid.as_ref().map(|g| words(&mut dev, g));
+    let neighbors = s.neighbors.as_ref().map(|n| {
+        let w = words(&mut dev, &n.parts[0]);
+        bytemuck::cast_slice::<u32, [i32; 4]>(&w)[..mesh.n_tets()].to_vec()
+    });
+    (wide, grid, neighbors, s.stages)
+}
+
+/// Every mesh, both leaf sizes, with and without walk starts: the CPU's structure, bit for bit.
+#[test]
+fn gpu_build_is_the_cpu_build() {
+    let Some(ctx) = context("gpu_build_is_the_cpu_build") else { return };
+    for mesh in meshes() {
+        let mesh = Arc::new(mesh);
+        let boxes = Aabb::of_tets(&mesh.tets, &mesh.points);
+        for (max_leaf, walk) in [(1, true), (4, true), (4, false)] {
+            let label = format!("{} ({} tets), leaf {max_leaf}, walk {walk}", mesh.info.source, mesh.n_tets());
+            let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 } };
+            let (wide, grid, neighbors, _) = gpu_build(&ctx, &mesh, want);
+            wide.validate(&boxes).unwrap_or_else(|e| panic!("{label}: the GPU tree is invalid: {e}"));
+
+            let preset = if max_leaf == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
+            let cpu = WideBvh::collapse(&Bvh::build(&mesh.points, &mesh.tets, preset)).unwrap();
+            assert_eq!((wide.direct, wide.depth), (cpu.direct, cpu.depth), "{label}");
+            assert_eq!(wide.nodes.len(), cpu.nodes.len(), "{label}: node count");
+            if let Some(i) = (0..cpu.nodes.len()).find(|&i| wide.nodes[i] != cpu.nodes[i]) {
+                panic!("{label}: node {i} differs:\n gpu {:?}\n cpu {:?}", wide.nodes[i], cpu.nodes[i]);
+            }
+            assert_eq!(wide.prims, cpu.prims, "{label}: leaf prims");
+
+            let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
+                &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
+            let cpu_grid = EntryGrid::new(
+                &cpu,
+                mesh.n_tets(),
+                |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
+                (mesh.info.bounds_min, mesh.info.bounds_max),
+                want.tets_per_cell,
+                walk.then_some(holds),
+            );
+            let words = cpu_grid.words();
+            let grid = grid.expect("asked for");
+            assert_eq!(grid.len(), words.len(), "{label}: grid size");
+            if let Some(i) = (0..words.len()).find(|&i| grid[i] != words[i]) {
+                panic!("{label}: grid word {i} of {}: gpu {} cpu {}", words.len(), grid[i], words[i]);
+            }
+            if walk {
+                assert_eq!(neighbors.as_deref(), Some(mesh.neighbors()), "{label}: neighbours");
+            }
+        }
+    }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
+}
+
+/// Locators built on the GPU and on the CPU give the same ids and values on random points,
+/// tet centres and every vertex (points on faces and edges included).
+#[test]
+fn gpu_built_locator_answers_like_cpu_built() {
+    let Some(ctx) = context("gpu_built_locator_answers_like_cpu_built") else { return };
+    let mesh = Arc::new(Mesh::new(gen::generate(Shape::Agulhas, 15_000, 2), "agulhas").unwrap());
+    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+    let mut rng = 12345u64;
+    let mut unit = || {
+        rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (rng >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut points: Vec<Vec3> =
+        (0..20_000).map(|_| std::array::from_fn(|a| lo[a] + unit() * (hi[a] - lo[a]))).collect();
+    points.extend((0..mesh.n_tets()).step_by(3).map(|t| mesh.tet_center(t)));
+    points.extend(mesh.points.iter().copied());
+    let field = mesh.fields.first().map(|f| f.name.clone());
+    let mut answers = vec![];
+    for build in [BuildOn::Gpu, BuildOn::Cpu] {
+        let opts = LocatorOptions { build, ..LocatorOptions::default() };
+        let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), Kernel::SoftBvh, opts).unwrap();
+        let built_on = |on: BuildOn| loc.build_stages().iter().any(|(s, _)| s.starts_with(&format!("{on}:")));
+        assert!(built_on(build) && !built_on(if build == BuildOn::Gpu { BuildOn::Cpu } else { BuildOn::Gpu }));
+        let mut ids = vec![0; points.len()];
+        loc.locate(&points, &mut ids).unwrap();
+        let mut values = vec![0f32; points.len()];
+        if let Some(f) = &field {
+            loc.sample(&points, f, &mut values).unwrap();
+        }
+        answers.push((ids, values));
+    }
+    let inside = answers[0].0.iter().filter(|&&t| t >= 0).count();
+    assert!(inside > points.len() / 3, "{inside} of {} points inside: the test needs more", points.len());
+    assert_eq!(answers[0].0, answers[1].0, "ids of GPU-built and CPU-built soft-bvh");
+    let same = answers[0].1.iter().zip(&answers[1].1).all(|(a, b)| a.to_bits() == b.to_bits());
+    assert!(same, "values of GPU-built and CPU-built soft-bvh");
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
+}
