@@ -63,8 +63,9 @@ pub struct PyLocator {
     build_seconds: f64,
     note: Option<String>,
     progress: Option<Py<PyAny>>,
-    /// float64 points go through `sample_many64` (not with a tolerance, whose rescue of
-    /// points near the boundary works in float32).
+    /// float64 points go through `sample_many64` when the mesh's data is f64 or far from the
+    /// origin (`Mesh::wants_f64_points`), and not with a tolerance, whose rescue of points near
+    /// the boundary works in float32.
     takes_f64: bool,
 }
 
@@ -281,6 +282,7 @@ impl PyLocator {
             d if d > 0.0 => Box::new(WithTolerance::new(exact, mesh_arc.clone(), tolerance)),
             _ => exact,
         };
+        let takes_f64 = distance <= 0.0 && mesh_arc.wants_f64_points();
         let chunk = if name == backend::CPU { CPU_CHUNK } else { LocatorOptions::default().chunk_points };
         Ok(PyLocator {
             backend: Mutex::new(Some(backend)),
@@ -291,7 +293,7 @@ impl PyLocator {
             build_seconds: built.build_seconds,
             note: built.note,
             progress: progress.map(Bound::unbind),
-            takes_f64: distance <= 0.0,
+            takes_f64,
         })
     }
 

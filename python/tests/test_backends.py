@@ -50,7 +50,8 @@ def test_vector_fields_and_shapes_on_the_gpu(vulkan, grid_mesh):
     cpu = tetloc.Locator(grid_mesh, backend="cpu")
     assert gpu.locate(pts).shape == (2, 50)
     np.testing.assert_array_equal(gpu.locate(pts), cpu.locate(pts))
-    # float64 points: the CPU interpolates with f64 barycentrics, the GPU in f32.
+    # float64 points: on a float64 mesh the CPU interpolates with f64 barycentrics and the
+    # GPU in f32 (this float32 mesh rounds them to float32 first).
     np.testing.assert_allclose(gpu.sample(pts, "v"), cpu.sample(pts, "v"), rtol=1e-6, atol=1e-5)
     np.testing.assert_array_equal(gpu.sample(pts, "w"), cpu.sample(pts, "w"))
     # float32 points: one definition, the same bits.

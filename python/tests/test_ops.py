@@ -115,8 +115,8 @@ def test_probe_points_and_meshes(swirl_mesh):
     assert np.isnan(res["v"][~inside]).all() and res["v"].shape == (2000, 3)
     loc = tetloc.Locator(swirl_mesh, backend="cpu")
     np.testing.assert_array_equal(tetloc.probe(loc, pts, "f"), res["f"])
-    # probe samples at float32 precision; float64 points through Locator keep theirs (exact
-    # barycentrics on the CPU), so the same points in float32 give the same values.
+    # probe samples at float32 precision; float64 points through Locator keep theirs on
+    # float64 meshes (exact barycentrics on the CPU), so compare the same float32 points.
     np.testing.assert_array_equal(res["f"], loc.sample(pts.astype(np.float32), "f"))
     np.testing.assert_allclose(res["f"], loc.sample(pts, "f"), rtol=1e-6, atol=1e-6)
     # A mesh as target: its vertices.

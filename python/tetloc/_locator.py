@@ -42,9 +42,11 @@ class Locator:
 
     Points are any array-like of shape (K, 3) (or (..., 3)), float32 or float64, C or
     Fortran order, including CPU tensors (DLPack or ``__array__``). float32 points are
-    located as they are (a C-contiguous array without a copy); float64 points keep their
-    precision (exact decisions on the mesh's float64 coordinates on the CPU; on the GPU the
-    kernels search the mesh's working frame, centred on meshes far from the origin). Results have the points'
+    located as they are (a C-contiguous array without a copy). On a mesh with float64
+    coordinates (or far from the origin) float64 points keep their precision: exact decisions
+    on the mesh's float64 coordinates on the CPU; on the GPU the kernels search the mesh's
+    working frame, centred on meshes far from the origin, and each answer is checked exactly
+    on the host. On float32 meshes near the origin they are rounded to float32 (the fast path). Results have the points'
     leading shape. A point with a NaN or infinite coordinate (or beyond float32 range) is
     answered -1 and NaN, as pyvista does, with a ``RuntimeWarning`` counting them. A point on a face shared by two tets gets one of them, always the same
     for a backend. Calls release the GIL (a Locator may be used from several threads; calls

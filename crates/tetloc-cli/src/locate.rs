@@ -130,9 +130,10 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     let mut values = vec![0f32; if a.field.is_some() { pts.len() } else { 0 }];
     let pb = progress::bar(pts.len() as u64, format!("locating on {}", loc.name()));
     let t0 = Instant::now();
-    // Without a tolerance the points go in at the file's precision (exact on the CPU; the
-    // mesh's working frame on the GPU); the tolerance's rescue works in f32.
-    let at_f64 = a.tolerance.distance(&m) <= 0.0;
+    // On f64 data (or far from the origin), without a tolerance, the points go in at the
+    // file's precision (exact on the CPU; the mesh's working frame on the GPU); the
+    // tolerance's rescue works in f32, and f32 data near the origin takes the f32 path.
+    let at_f64 = a.tolerance.distance(&m) <= 0.0 && m.wants_f64_points();
     let fields: Vec<&str> = a.field.as_deref().into_iter().collect();
     for (c, p) in pts.chunks(CHUNK).enumerate() {
         let r = c * CHUNK..c * CHUNK + p.len();

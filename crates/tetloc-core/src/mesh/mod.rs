@@ -331,6 +331,13 @@ impl Mesh {
         (f.to_file(self.info.bounds_min), f.to_file(self.info.bounds_max))
     }
 
+    /// Whether f64 query points should keep their precision: the file's coordinates are not
+    /// its f32 copy (f64 data, or a centred frame). On f32 data near the origin, rounding
+    /// the points to f32 first keeps the f32 path (several times faster) and its answers.
+    pub fn wants_f64_points(&self) -> bool {
+        self.points64.is_some() || !self.info.frame.is_identity()
+    }
+
     /// Vertex `i` as the file has it (f64).
     #[inline]
     pub fn vertex64(&self, i: u32) -> [f64; 3] {
