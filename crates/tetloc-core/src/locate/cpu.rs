@@ -12,7 +12,7 @@ use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
 use crate::geom::predicates::Query;
 use crate::geom::{self, Bary, TetTest, Vec3};
-use crate::mesh::{FieldLocation, Mesh};
+use crate::mesh::Mesh;
 use rayon::prelude::*;
 use std::sync::Arc;
 
@@ -201,14 +201,8 @@ impl CpuLocator {
     /// The value of `field` for a locate answer: interpolated (per vertex, with all the nodes
     /// of higher-order tets) or looked up (per cell); NaN outside.
     fn value_fn(&self, field: &str) -> Result<impl Fn(Option<(u32, Bary)>) -> f32 + Sync + '_> {
-        let f = self.mesh.field(field)?;
-        let (mesh, vals, location) = (&self.mesh, &f.values, f.location);
-        Ok(move |found: Option<(u32, Bary)>| match (found, location) {
-            (None, _) => f32::NAN,
-            (Some((t, b)), FieldLocation::Vertex) => mesh.interpolate(t as usize, b, vals),
-            // A mixed mesh's tets are its cells' decomposition: the value of the tet's cell.
-            (Some((t, _)), FieldLocation::Cell) => vals[mesh.cell_of_tet(t as usize)],
-        })
+        let (mesh, f) = (&self.mesh, self.mesh.field(field)?);
+        Ok(move |found: Option<(u32, Bary)>| mesh.value_at(f, found.map(|(t, b)| (t as usize, b))))
     }
 }
 

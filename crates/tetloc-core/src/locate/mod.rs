@@ -129,19 +129,20 @@ impl<L: BatchLocator> FiniteOnly<L> {
     }
 }
 
-/// The finite points of a batch that has others, and the batch index of each.
-struct Compacted {
+/// The points of a batch to hand to the backend (finite ones) when it has others, and the
+/// batch index of each.
+struct Compacted<P> {
     index: Vec<usize>,
-    points: Vec<Vec3>,
+    points: Vec<P>,
 }
 
-impl Compacted {
-    /// `None` when every point is finite (nothing to compact).
-    fn of(points: &[Vec3]) -> Option<Compacted> {
-        if points.par_iter().all(|&p| is_finite(p)) {
+impl<P: Copy + Send + Sync> Compacted<P> {
+    /// `None` when every point is kept (nothing to compact).
+    fn of(points: &[P], keep: impl Fn(&P) -> bool + Sync) -> Option<Compacted<P>> {
+        if points.par_iter().all(&keep) {
             return None;
         }
-        let index: Vec<usize> = (0..points.len()).into_par_iter().filter(|&i| is_finite(points[i])).collect();
+        let index: Vec<usize> = (0..points.len()).into_par_iter().filter(|&i| keep(&points[i])).collect();
         let points = index.par_iter().map(|&i| points[i]).collect();
         Some(Compacted { index, points })
     }
@@ -167,7 +168,7 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
 
     fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
-        let Some(c) = Compacted::of(points) else { return self.inner.locate(points, ids) };
+        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else { return self.inner.locate(points, ids) };
         let mut sub = vec![OUTSIDE; c.points.len()];
         self.inner.locate(&c.points, &mut sub)?;
         c.scatter(&sub, ids, OUTSIDE);
@@ -176,7 +177,7 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
 
     fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
         check_lengths(points.len(), values.len())?;
-        let Some(c) = Compacted::of(points) else { return self.inner.sample(points, field, values) };
+        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else { return self.inner.sample(points, field, values) };
         let mut sub = vec![f32::NAN; c.points.len()];
         self.inner.sample(&c.points, field, &mut sub)?;
         c.scatter(&sub, values, f32::NAN);
@@ -186,7 +187,9 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len(), values.len())?;
-        let Some(c) = Compacted::of(points) else { return self.inner.locate_and_sample(points, field, ids, values) };
+        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else {
+            return self.inner.locate_and_sample(points, field, ids, values);
+        };
         let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len()]);
         self.inner.locate_and_sample(&c.points, field, &mut sub_ids, &mut sub_values)?;
         c.scatter(&sub_ids, ids, OUTSIDE);
@@ -197,7 +200,9 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
-        let Some(c) = Compacted::of(points) else { return self.inner.sample_many(points, fields, ids, values) };
+        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else {
+            return self.inner.sample_many(points, fields, ids, values);
+        };
         let k = fields.len();
         let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len() * k]);
         self.inner.sample_many(&c.points, fields, &mut sub_ids, &mut sub_values)?;
@@ -216,21 +221,15 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
         // Beyond f32's range is beyond every mesh (whose f32 copy is finite), like NaN.
-        let finite: Vec<usize> =
-            (0..points.len()).filter(|&i| points[i].iter().all(|c| c.abs() <= f32::MAX as f64)).collect();
-        if finite.len() == points.len() {
+        let in_range = |p: &[f64; 3]| p.iter().all(|c| c.abs() <= f32::MAX as f64);
+        let Some(c) = Compacted::of(points, in_range) else {
             return self.inner.sample_many64(points, fields, ids, values);
-        }
+        };
         let k = fields.len();
-        let sub: Vec<[f64; 3]> = finite.iter().map(|&i| points[i]).collect();
-        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; sub.len()], vec![f32::NAN; sub.len() * k]);
-        self.inner.sample_many64(&sub, fields, &mut sub_ids, &mut sub_values)?;
-        ids.fill(OUTSIDE);
-        values.fill(f32::NAN);
-        for (j, &i) in finite.iter().enumerate() {
-            ids[i] = sub_ids[j];
-            values[i * k..(i + 1) * k].copy_from_slice(&sub_values[j * k..(j + 1) * k]);
-        }
+        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len() * k]);
+        self.inner.sample_many64(&c.points, fields, &mut sub_ids, &mut sub_values)?;
+        c.scatter(&sub_ids, ids, OUTSIDE);
+        c.scatter_k(k, &sub_values, values, f32::NAN);
         Ok(())
     }
 }

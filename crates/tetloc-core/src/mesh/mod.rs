@@ -313,6 +313,18 @@ impl Mesh {
         }
     }
 
+    /// `field`'s value for a point at barycentrics `bary` of tet `t` (None: outside, NaN):
+    /// interpolated for a per-vertex field, the tet's cell's value for a per-cell one.
+    #[inline]
+    pub fn value_at(&self, field: &Field, found: Option<(usize, geom::Bary)>) -> f32 {
+        match (found, field.location) {
+            (None, _) => f32::NAN,
+            (Some((t, b)), FieldLocation::Vertex) => self.interpolate(t, b, &field.values),
+            // A mixed mesh's tets are its cells' decomposition: the value of the tet's cell.
+            (Some((t, _)), FieldLocation::Cell) => field.values[self.cell_of_tet(t)],
+        }
+    }
+
     /// Unique faces with their front and back tets, computed on first use (a parallel sort
     /// of all 4·T tet faces: memory-hungry on huge meshes, so only when a kernel needs it).
     pub fn faces(&self) -> &FaceSet {
@@ -371,36 +383,28 @@ impl Mesh {
 fn working_copy(points: Vec<Vec3>, points64: Option<Vec<[f64; 3]>>) -> (Vec<Vec3>, Option<Vec<[f64; 3]>>, Frame) {
     let Some(file) = points64 else {
         // f32 data is its own working copy; the frame's delta bounds the rounding of f64 queries.
-        let frame = points_bounds(&points)
-            .map_or(Frame::IDENTITY, |(lo, hi)| Frame { delta: Frame::for_bounds(lo, hi).delta, ..Frame::IDENTITY });
-        return (points, None, frame);
+        let (lo, hi) = bounds_of(&points, |p| p.map(f64::from));
+        let delta = if points.is_empty() { 0.0 } else { Frame::for_bounds(lo, hi).delta };
+        return (points, None, Frame { delta, ..Frame::IDENTITY });
     };
-    let Some((lo, hi)) = bounds64(&file) else {
+    if file.is_empty() {
         return (points, None, Frame::IDENTITY);
-    };
+    }
+    let (lo, hi) = bounds_of(&file, |p| *p);
     let frame = Frame::for_bounds(lo, hi);
     let working: Vec<Vec3> = file.par_iter().map(|&p| frame.to_working(p)).collect();
     let exact = frame.is_identity() && file.par_iter().zip(&working).all(|(p, w)| w.map(f64::from) == *p);
     if exact {
-        (working, None, Frame { delta: Frame::for_bounds(lo, hi).delta, ..Frame::IDENTITY })
+        (working, None, frame)
     } else {
         (working, Some(file), frame)
     }
 }
 
-/// The bounds of f64 points (`None` for none).
-fn bounds64(points: &[[f64; 3]]) -> Option<([f64; 3], [f64; 3])> {
-    if points.is_empty() {
-        return None;
-    }
-    Some(points.par_iter().map(|&p| (p, p)).reduce(
+/// The f64 bounds of points (infinite ones for none).
+fn bounds_of<P: Sync>(points: &[P], f64_of: impl Fn(&P) -> [f64; 3] + Sync) -> ([f64; 3], [f64; 3]) {
+    points.par_iter().map(|p| (f64_of(p), f64_of(p))).reduce(
         || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]),
         |(a0, a1), (b0, b1)| (std::array::from_fn(|k| a0[k].min(b0[k])), std::array::from_fn(|k| a1[k].max(b1[k]))),
-    ))
-}
-
-/// The bounds of f32 points, in f64.
-fn points_bounds(points: &[Vec3]) -> Option<([f64; 3], [f64; 3])> {
-    let wide: Vec<[f64; 3]> = points.par_iter().map(|p| p.map(f64::from)).collect();
-    bounds64(&wide)
+    )
 }

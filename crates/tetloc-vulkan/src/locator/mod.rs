@@ -705,12 +705,7 @@ impl BatchLocator for VulkanLocator {
             for (i, bary) in certify::certify(&mesh, points, ids) {
                 let found = bary.map(|b| (ids[i] as usize, b));
                 for (j, f) in fields.iter().enumerate() {
-                    let field = mesh.field(f)?;
-                    values[i * fields.len() + j] = match (found, field.location) {
-                        (None, _) => f32::NAN,
-                        (Some((t, b)), FieldLocation::Vertex) => mesh.interpolate(t, b, &field.values),
-                        (Some((t, _)), FieldLocation::Cell) => field.values[mesh.cell_of_tet(t)],
-                    };
+                    values[i * fields.len() + j] = mesh.value_at(mesh.field(f)?, found);
                 }
             }
         }
