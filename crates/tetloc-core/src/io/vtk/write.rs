@@ -43,6 +43,7 @@ pub enum ArrayData<'a> {
     F32(&'a [f32]),
     F64(&'a [f64]),
     I32(&'a [i32]),
+    I64(&'a [i64]),
     U8(&'a [u8]),
 }
 
@@ -60,6 +61,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F32(v) => v.len(),
             ArrayData::F64(v) => v.len(),
             ArrayData::I32(v) => v.len(),
+            ArrayData::I64(v) => v.len(),
             ArrayData::U8(v) => v.len(),
         };
         n / self.n_components.max(1)
@@ -73,6 +75,9 @@ impl<'a> NamedArray<'a> {
                 out.extend_from_slice(bytemuck::cast_slice(&v[r]))
             }),
             ArrayData::I32(v) => OutArray::new(name, NumType::I32, k, v.len(), move |r, out| {
+                out.extend_from_slice(bytemuck::cast_slice(&v[r]))
+            }),
+            ArrayData::I64(v) => OutArray::new(name, NumType::I64, k, v.len(), move |r, out| {
                 out.extend_from_slice(bytemuck::cast_slice(&v[r]))
             }),
             ArrayData::U8(v) => {
@@ -99,6 +104,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F32(v) => v.len(),
             ArrayData::F64(v) => v.len(),
             ArrayData::I32(v) => v.len(),
+            ArrayData::I64(v) => v.len(),
             ArrayData::U8(v) => v.len(),
         }
     }
@@ -132,8 +138,32 @@ fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<Ou
 
 /// [`write_mesh_with`] with `wide_ids` forcing Int64 connectivity and offsets (as VTK writes).
 pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: bool, wide_ids: bool) -> Result<()> {
+    write_mesh_full(path, mesh, extra, &[], zlib, wide_ids)
+}
+
+/// [`write_mesh_with`] with more cell data too: `cell_extra` arrays (one tuple per cell, in
+/// the mesh's cell order) after the mesh's own cell fields; a piece of a partitioned mesh
+/// carries its `GlobalCellIds` this way.
+pub fn write_mesh_with_cell_data(
+    path: &Path,
+    mesh: &Mesh,
+    extra: &[NamedArray],
+    cell_extra: &[NamedArray],
+    zlib: bool,
+) -> Result<()> {
+    write_mesh_full(path, mesh, extra, cell_extra, zlib, false)
+}
+
+fn write_mesh_full(
+    path: &Path,
+    mesh: &Mesh,
+    extra: &[NamedArray],
+    cell_extra: &[NamedArray],
+    zlib: bool,
+    wide_ids: bool,
+) -> Result<()> {
     if let Some(cells) = &mesh.cells {
-        return write_cells(path, mesh, cells, extra, zlib, wide_ids);
+        return write_cells(path, mesh, cells, extra, cell_extra, zlib, wide_ids);
     }
     let n_tets = mesh.tets.len();
     // Nodes per tet, and the VTK type: all of one type.
@@ -145,7 +175,7 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
     let (tets, nodes) = (&mesh.tets, &mesh.tet_nodes);
 
-    let (point_data, cell_data) = data_arrays(mesh, extra)?;
+    let (point_data, cell_data) = data_arrays(mesh, extra, cell_extra)?;
     let grid = Grid {
         kind: Kind::Unstructured,
         n_points: mesh.points.len(),
@@ -186,13 +216,21 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
 
 /// The mesh's fields and `extra` (per vertex, replacing fields of the same name) as the
 /// point and cell data arrays of a written mesh.
-fn data_arrays<'a>(mesh: &'a Mesh, extra: &'a [NamedArray]) -> Result<(Vec<OutArray<'a>>, Vec<OutArray<'a>>)> {
+fn data_arrays<'a>(
+    mesh: &'a Mesh,
+    extra: &'a [NamedArray],
+    cell_extra: &'a [NamedArray],
+) -> Result<(Vec<OutArray<'a>>, Vec<OutArray<'a>>)> {
     for a in extra {
         a.check(mesh.points.len(), "vertices")?;
     }
-    let replaced: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
-    let (mut point_data, cell_data) = field_arrays(mesh, &replaced);
+    for a in cell_extra {
+        a.check(mesh.n_cells(), "cells")?;
+    }
+    let replaced: Vec<&str> = extra.iter().chain(cell_extra).map(|a| a.name.as_str()).collect();
+    let (mut point_data, mut cell_data) = field_arrays(mesh, &replaced);
     point_data.extend(extra.iter().map(NamedArray::out));
+    cell_data.extend(cell_extra.iter().map(NamedArray::out));
     Ok((point_data, cell_data))
 }
 
@@ -203,13 +241,14 @@ fn write_cells(
     mesh: &Mesh,
     cells: &crate::mesh::Cells,
     extra: &[NamedArray],
+    cell_extra: &[NamedArray],
     zlib: bool,
     wide_ids: bool,
 ) -> Result<()> {
     let block = &cells.block;
     let wide = wide_ids || (block.conn.len()).max(mesh.points.len()) as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
-    let (point_data, cell_data) = data_arrays(mesh, extra)?;
+    let (point_data, cell_data) = data_arrays(mesh, extra, cell_extra)?;
     let grid = Grid {
         kind: Kind::Unstructured,
         n_points: mesh.points.len(),
