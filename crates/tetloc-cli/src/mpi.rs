@@ -74,7 +74,21 @@ fn build<'c>(
             if name == "auto" { backend::auto_choice(&opts).map_err(|e| e.to_string())? } else { name.to_string() };
         backend::make(&name, mesh, &opts).map_err(|e| error_text(&e))
     };
-    Ok(DistLocator::new(cluster, part, make)?)
+    let loc = DistLocator::new(cluster, part, make)?;
+    // Which backend and device each rank took (said by rank 0).
+    let mine = match (loc.local(), opts.device) {
+        (None, _) => "no pieces".to_string(),
+        (Some(l), Some(d)) if l.name() != backend::CPU => format!("{} on device {d}", l.name()),
+        (Some(l), _) => l.name().to_string(),
+    };
+    let placed = cluster.all_gather_strings(&format!(
+        "rank {} (local rank {} of {}): {mine}",
+        cluster.rank, cluster.local_rank, cluster.local_size
+    ));
+    if cluster.is_root() && !common.quiet {
+        placed.iter().for_each(|p| eprintln!("{p}"));
+    }
+    Ok(loc)
 }
 
 fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {

@@ -46,8 +46,8 @@ pub fn write_pvtu(mesh: &Mesh, parts: usize, path: &std::path::Path, zlib: bool,
     part.iter().enumerate().for_each(|(c, &k)| cells[k as usize].push(c as u32));
     let name = path.display().to_string();
     let pieces = cells.into_iter().enumerate().map(|(k, cells)| {
-        let mesh = piece(mesh, &cells, format!("{name} piece {k}").as_str())?;
-        Ok((mesh, cells.into_iter().map(u64::from).collect()))
+        let (piece, points) = piece_with_points(mesh, &cells, format!("{name} piece {k}").as_str())?;
+        Ok((piece, cells.into_iter().map(u64::from).collect(), points))
     });
     crate::io::vtk::write_pieces::write_pvtu(path, pieces, zlib, done)
 }
@@ -110,6 +110,11 @@ fn split(points: &[Vec3], idx: &mut [u32], parts: usize) {
 /// The piece of `mesh` made of `cells` (ascending cell ids): those cells with every node
 /// they use, vertices in ascending order, and the fields restricted to them.
 pub fn piece(mesh: &Mesh, cells: &[u32], name: &str) -> Result<Mesh> {
+    piece_with_points(mesh, cells, name).map(|(m, _)| m)
+}
+
+/// [`piece`], and the id in `mesh` of each of its vertices (its global point ids).
+pub fn piece_with_points(mesh: &Mesh, cells: &[u32], name: &str) -> Result<(Mesh, Vec<u64>)> {
     if cells.windows(2).any(|w| w[0] >= w[1]) {
         return Err(Error::Invalid("a piece's cells must be ascending".into()));
     }
@@ -164,7 +169,7 @@ pub fn piece(mesh: &Mesh, cells: &[u32], name: &str) -> Result<Mesh> {
         None => (cells.iter().map(|&c| mesh.tets[c as usize].map(|i| local[i as usize])).collect(), None),
     };
     let raw = RawMesh { points, tets, fields, higher_order, cells: cell_block };
-    Mesh::new(raw, name)
+    Ok((Mesh::new(raw, name)?, kept.into_iter().map(|i| i as u64).collect()))
 }
 
 /// Every cell with all its nodes when a tet list does not say it all: a mixed mesh's cells,

@@ -9,6 +9,7 @@ use mpi::datatype::{Partition, PartitionMut};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
+use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
@@ -277,12 +278,12 @@ impl<'c, L: BatchLocator> DistLocator<'c, L> {
         let (world, k) = (&self.cluster.world, fields.len());
         // Out: each point to every rank whose region may hold it.
         let routes = Routes::plan(points, &self.regions);
-        let send: Vec<f32> = routes.gather(points).into_iter().flatten().collect();
+        let send = routes.gather(points);
         let send_counts: Vec<Count> = routes.counts.iter().map(|&c| c as Count).collect();
         let mut recv_counts = vec![0 as Count; self.cluster.size];
         world.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
         let recv_points = exchange(world, &send, &send_counts, &recv_counts, 3);
-        let recv_points: Vec<Vec3> = recv_points.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let recv_points: Vec<Vec3> = recv_points.par_chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
 
         // Answer what was sent here.
         let n = recv_points.len();
@@ -296,7 +297,7 @@ impl<'c, L: BatchLocator> DistLocator<'c, L> {
             self.stats.answered += n as u64;
         }
         let global: Vec<i64> =
-            ids.iter().map(|&i| if i < 0 { -1 } else { self.global_ids[i as usize] as i64 }).collect();
+            ids.par_iter().map(|&i| if i < 0 { -1 } else { self.global_ids[i as usize] as i64 }).collect();
 
         // Back: the answers to the ranks that asked, in the order they asked.
         let back_ids = exchange(world, &global, &recv_counts, &send_counts, 1);

@@ -113,15 +113,16 @@ impl Routes {
     pub fn plan(points: &[Vec3], regions: &[Region]) -> Routes {
         use rayon::prelude::*;
         let per_rank: Vec<Vec<u32>> = regions
-            .par_iter()
-            .map(|r| (0..points.len() as u32).filter(|&i| r.may_hold(points[i as usize])).collect())
+            .iter()
+            .map(|r| (0..points.len() as u32).into_par_iter().filter(|&i| r.may_hold(points[i as usize])).collect())
             .collect();
         Routes { counts: per_rank.iter().map(Vec::len).collect(), index: per_rank.into_iter().flatten().collect() }
     }
 
-    /// The points to send, rank after rank.
-    pub fn gather(&self, points: &[Vec3]) -> Vec<Vec3> {
-        self.index.iter().map(|&i| points[i as usize]).collect()
+    /// The coordinates of the points to send, rank after rank.
+    pub fn gather(&self, points: &[Vec3]) -> Vec<f32> {
+        use rayon::prelude::*;
+        self.index.par_iter().flat_map_iter(|&i| points[i as usize]).collect()
     }
 }
 

@@ -8,12 +8,18 @@
 //! mesh's cells are renumbered by them (cell `g` is the cell with global id `g`), so every
 //! command answers in global ids; the ids must then be `0..N` once each.
 //!
-//! **Vertices are not merged.** A vertex on a face between two pieces is in both pieces, and
-//! in the mesh read whole it is two vertices at the same coordinates. Location does not mind:
-//! the two copies of a shared face have the same coordinates, so the point-in-tet test and
-//! the tie rule treat them as the same face (a point on it is claimed by the tets on both
-//! sides exactly as if they were neighbours, and the tie rule picks one; see `geom`). Walks
-//! stop at piece boundaries and fall back to the BVH, which costs a little speed only.
+//! **Vertices.** A vertex on a face between two pieces is in both pieces. When every piece
+//! has global point ids (an integer point array `GlobalPointIds` or `vtkGlobalIds`, or the one
+//! `<PointData GlobalIds="NAME">` names; `tetloc partition` writes them), the copies are
+//! merged into one vertex (numbered in global id order: a partitioned mesh read whole is the
+//! mesh it was cut from); copies of one id at different coordinates are an error. Without
+//! them the copies stay two vertices at the same coordinates. Tets do not mind: the two copies
+//! of a shared face have the same coordinates, so the point-in-tet test and the tie rule treat
+//! them as one face (a point on it is claimed by the tets on both sides exactly as if they were
+//! neighbours, and the tie rule picks one; see `geom`), and walks fall back to the BVH at such
+//! faces. Mixed cells do mind where a *warped* quad face lies between two pieces: the step to
+//! the neighbour across it (`locate::CellLocator`) needs the shared vertices, so a point in the
+//! sliver between the face's two triangles and its bilinear patch may come back outside.
 
 use super::vtu;
 use crate::cell::CellBlock;
@@ -75,6 +81,8 @@ pub struct Piece {
     pub path: PathBuf,
     pub raw: RawMesh,
     pub global_ids: Option<Vec<u64>>,
+    /// One global id per point, when the piece has them.
+    pub global_point_ids: Option<Vec<u64>>,
 }
 
 impl Piece {
@@ -91,13 +99,14 @@ fn n_cells(raw: &RawMesh) -> usize {
 pub fn read_piece(listing: &Path, index: usize, path: &Path) -> Result<Piece> {
     let in_listing = |e: Error| Error::format(listing, format!("piece {index} ({}): {e}", path.display()));
     let bytes = super::read_file(path).map_err(in_listing)?;
-    let (raw, global_ids) = vtu::parse_with_ids(&bytes, path).map_err(in_listing)?;
+    let (raw, ids) = vtu::parse_with_ids(&bytes, path).map_err(in_listing)?;
+    let (global_ids, global_point_ids) = (ids.cells, ids.points);
     if let Some(ids) = &global_ids {
         if ids.len() != n_cells(&raw) {
             return Err(in_listing(Error::format(path, "the global cell ids are not one per volume cell")));
         }
     }
-    Ok(Piece { path: path.to_path_buf(), raw, global_ids })
+    Ok(Piece { path: path.to_path_buf(), raw, global_ids, global_point_ids })
 }
 
 /// What a piece carries, for comparing pieces: its fields (name, location) in order, and
@@ -152,16 +161,65 @@ pub fn join(listing: &Path, pieces: Vec<(usize, Piece)>, first_ids: &[u64]) -> R
     check_same_arrays(listing, &pieces)?;
     let mut ids = Vec::with_capacity(pieces.iter().map(|(_, p)| p.n_cells()).sum());
     let mut raws = Vec::with_capacity(pieces.len());
+    let mut point_ids = pieces.iter().all(|(_, p)| p.global_point_ids.is_some()).then(Vec::new);
     for ((_, p), &first) in pieces.into_iter().zip(first_ids) {
         match &p.global_ids {
             Some(g) => ids.extend_from_slice(g),
             None => ids.extend(first..first + p.n_cells() as u64),
         }
+        if let (Some(all), Some(g)) = (&mut point_ids, &p.global_point_ids) {
+            all.extend_from_slice(g);
+        }
         raws.push(p.raw);
     }
     let mut raw = vtu::join(raws, listing)?;
-    raw.fields.retain(|f| !(f.location == FieldLocation::Cell && vtu::GLOBAL_CELL_IDS.contains(&f.name.as_str())));
+    raw.fields.retain(|f| match f.location {
+        FieldLocation::Cell => !vtu::GLOBAL_CELL_IDS.contains(&f.name.as_str()),
+        FieldLocation::Vertex => point_ids.is_none() || !vtu::GLOBAL_POINT_IDS.contains(&f.name.as_str()),
+    });
+    if let Some(point_ids) = point_ids {
+        raw = weld(raw, &point_ids, listing)?;
+    }
     Ok((raw, ids))
+}
+
+/// Merges the points that share a global point id into one, numbered in ascending global id.
+fn weld(mut raw: RawMesh, ids: &[u64], listing: &Path) -> Result<RawMesh> {
+    use rayon::prelude::*;
+    if ids.len() != raw.points.len() {
+        return Err(Error::format(listing, "the pieces' global point ids are not one per point"));
+    }
+    let mut order: Vec<u32> = (0..ids.len() as u32).collect();
+    order.par_sort_unstable_by_key(|&i| (ids[i as usize], i));
+    let mut new_of = vec![0u32; ids.len()];
+    let mut kept: Vec<u32> = Vec::new();
+    for (k, &i) in order.iter().enumerate() {
+        let i = i as usize;
+        if k == 0 || ids[order[k - 1] as usize] != ids[i] {
+            kept.push(i as u32);
+        } else {
+            let first = *kept.last().unwrap() as usize;
+            if raw.points[first] != raw.points[i] {
+                return Err(Error::format(
+                    listing,
+                    format!(
+                        "global point id {} is at {:?} in one piece and at {:?} in another",
+                        ids[i], raw.points[first], raw.points[i]
+                    ),
+                ));
+            }
+        }
+        new_of[i] = (kept.len() - 1) as u32;
+    }
+    raw.points = kept.iter().map(|&i| raw.points[i as usize]).collect();
+    for f in raw.fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
+        f.values = kept.iter().map(|&i| f.values[i as usize]).collect();
+    }
+    raw.tets.par_iter_mut().for_each(|t| *t = t.map(|i| new_of[i as usize]));
+    if let Some(b) = &mut raw.cells {
+        b.conn.par_iter_mut().for_each(|i| *i = new_of[*i as usize]);
+    }
+    Ok(raw)
 }
 
 /// Reads a whole partitioned mesh (`.pvtu`, `.vtm`), cells numbered by their global ids.
@@ -264,7 +322,8 @@ mod tests {
         assert_eq!(list(&out).unwrap().len(), 5);
         let back = crate::io::read_mesh(&out, None).unwrap();
         assert_eq!(back.n_cells(), m.n_cells());
-        assert!(back.points.len() > m.points.len(), "vertices on piece faces are in two pieces");
+        assert_eq!(back.points, m.points, "the copies of a vertex are merged by GlobalPointIds, in id order");
+        assert_eq!(back.tets, m.tets);
         assert_eq!(back.field("c").unwrap().values, m.field("c").unwrap().values, "cells renumbered by global id");
         assert!(back.field("GlobalCellIds").is_err(), "the ids are the numbering, not a field");
         for (a, b) in back.tets.iter().zip(&m.tets) {

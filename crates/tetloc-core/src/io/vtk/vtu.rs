@@ -33,11 +33,22 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
 /// Names of a cell array of global cell ids (`vtkGenerateGlobalIds` writes `GlobalCellIds`;
 /// `<CellData GlobalIds="NAME">` names any other).
 pub(crate) const GLOBAL_CELL_IDS: [&str; 2] = ["GlobalCellIds", "vtkGlobalIds"];
+/// Names of a point array of global point ids (`<PointData GlobalIds="NAME">` names any other).
+pub(crate) const GLOBAL_POINT_IDS: [&str; 2] = ["GlobalPointIds", "vtkGlobalIds"];
 
-/// [`parse`], and the file's global cell ids when it has an integer cell array of them (one
-/// per volume cell, exact; the array also stays a field as in [`parse`]). Partitioned meshes
-/// (`io::vtk::pieces`) number their cells by them.
-pub(crate) fn parse_with_ids(bytes: &[u8], path: &Path) -> Result<(RawMesh, Option<Vec<u64>>)> {
+/// A file's global ids, exact, when it has integer arrays of them.
+#[derive(Default)]
+pub(crate) struct GlobalIds {
+    /// One per volume cell.
+    pub cells: Option<Vec<u64>>,
+    /// One per point.
+    pub points: Option<Vec<u64>>,
+}
+
+/// [`parse`], and the file's global cell and point ids (the arrays also stay fields as in
+/// [`parse`]). Partitioned meshes (`io::vtk::pieces`) number their cells by them and merge
+/// the copies of a vertex that several pieces hold.
+pub(crate) fn parse_with_ids(bytes: &[u8], path: &Path) -> Result<(RawMesh, GlobalIds)> {
     let fail = |msg: String| Error::format(path, msg);
     let doc = xml::parse(bytes, "AppendedData").map_err(fail)?;
     let root = &doc.root;
@@ -83,11 +94,9 @@ pub(crate) fn parse_with_ids(bytes: &[u8], path: &Path) -> Result<(RawMesh, Opti
         return Err(fail("<UnstructuredGrid> has no <Piece>".into()));
     }
     let parts = pieces.iter().enumerate().map(|(k, p)| ctx.piece(p, k)).collect::<Result<Vec<_>>>()?;
-    let ids = match parts.iter().map(|p| p.global_ids.as_ref()).collect::<Option<Vec<_>>>() {
-        Some(all) => Some(all.into_iter().flatten().copied().collect()),
-        None => None,
-    };
-    Ok((merge(parts, path)?, ids))
+    let cells = parts.iter().map(|p| p.ids.cells.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
+    let points = parts.iter().map(|p| p.ids.points.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
+    Ok((merge(parts, path)?, GlobalIds { cells, points }))
 }
 
 /// Where the appended data lies.
@@ -151,8 +160,8 @@ struct Ctx<'a, 'p> {
 struct Part {
     raw: RawMesh,
     refused: BTreeMap<u8, usize>,
-    /// The volume cells' global ids, when the piece has an integer array of them.
-    global_ids: Option<Vec<u64>>,
+    /// The global ids, when the piece has integer arrays of them.
+    ids: GlobalIds,
 }
 
 impl<'a> Ctx<'a, '_> {
@@ -260,12 +269,11 @@ impl<'a> Ctx<'a, '_> {
         };
         if ex.unsupported {
             // The mesh is unusable: skip reading its fields.
-            return Ok(Part { raw: RawMesh::default(), refused: ex.other, global_ids: None });
+            return Ok(Part { raw: RawMesh::default(), refused: ex.other, ids: GlobalIds::default() });
         }
 
         let mut fields = Vec::new();
-        let mut global_ids = None;
-        let ids_name = piece.child("CellData").and_then(|c| c.attr("GlobalIds"));
+        let mut ids = GlobalIds::default();
         for (section, location, n) in
             [("PointData", FieldLocation::Vertex, n_points), ("CellData", FieldLocation::Cell, n_cells)]
         {
@@ -278,14 +286,23 @@ impl<'a> Ctx<'a, '_> {
                     self.fail(format!("DataArray '{name}': NumberOfComponents is not a positive count"))
                 })?;
                 let arr = self.array(da, n.saturating_mul(nc))?;
-                let is_ids = GLOBAL_CELL_IDS.contains(&name) || ids_name == Some(name);
-                if location == FieldLocation::Cell && nc == 1 && is_ids && !arr.ty.is_float() {
-                    let ids = num::map_ints(&arr, |v| u64::try_from(v).ok())
-                        .map_err(|i| bad_value(name, &arr, i, "is not a global cell id"))?;
-                    global_ids = Some(match ex.kept.as_deref() {
-                        None => ids,
-                        Some(k) => ids.into_iter().zip(k).filter(|(_, &k)| k).map(|(v, _)| v).collect(),
-                    });
+                let named = piece.child(section).and_then(|c| c.attr("GlobalIds")) == Some(name);
+                let is_ids = match location {
+                    FieldLocation::Cell => GLOBAL_CELL_IDS.contains(&name) || named,
+                    FieldLocation::Vertex => GLOBAL_POINT_IDS.contains(&name) || named,
+                };
+                if nc == 1 && is_ids && !arr.ty.is_float() {
+                    let got = num::map_ints(&arr, |v| u64::try_from(v).ok())
+                        .map_err(|i| bad_value(name, &arr, i, "is not a global id"))?;
+                    match location {
+                        FieldLocation::Cell => {
+                            ids.cells = Some(match ex.kept.as_deref() {
+                                None => got,
+                                Some(k) => got.into_iter().zip(k).filter(|(_, &k)| k).map(|(v, _)| v).collect(),
+                            })
+                        }
+                        FieldLocation::Vertex => ids.points = Some(got),
+                    }
                 }
                 for c in 0..nc {
                     let mut values = num::component_f32(&arr, nc, c);
@@ -300,7 +317,7 @@ impl<'a> Ctx<'a, '_> {
         // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
         let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
         let raw = RawMesh { points, tets, fields, higher_order: ex.higher_order, cells: ex.cells };
-        Ok(Part { raw, refused: BTreeMap::new(), global_ids })
+        Ok(Part { raw, refused: BTreeMap::new(), ids })
     }
 }
 

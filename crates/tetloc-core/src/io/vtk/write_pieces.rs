@@ -1,6 +1,7 @@
 //! Writes a partitioned mesh: a `.pvtu` listing and, in the folder of the same name beside
 //! it, one VTU piece per part (ParaView's layout: `OUT.pvtu`, `OUT/OUT_0.vtu`, ...), each
-//! piece with its cells' global ids in an integer `GlobalCellIds` cell array.
+//! piece with its cells' and points' global ids in the integer arrays `GlobalCellIds` and
+//! `GlobalPointIds` (VTK's names).
 //!
 //! Complete or absent: the pieces are written into a temporary folder, which replaces the
 //! pieces folder only when all are written; the listing is written last (atomically), and an
@@ -43,11 +44,11 @@ pub fn check_pvtu_output(path: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Writes `pieces` (meshes and the global id of each of their cells) as `path` (`.pvtu`) and
-/// its pieces folder; `done(k)` after each piece.
+/// Writes `pieces` (meshes, the global id of each of their cells and of each of their points)
+/// as `path` (`.pvtu`) and its pieces folder; `done(k)` after each piece.
 pub fn write_pvtu(
     path: &Path,
-    pieces: impl ExactSizeIterator<Item = Result<(Mesh, Vec<u64>)>>,
+    pieces: impl ExactSizeIterator<Item = Result<(Mesh, Vec<u64>, Vec<u64>)>>,
     zlib: bool,
     done: impl Fn(usize),
 ) -> Result<()> {
@@ -69,9 +70,9 @@ pub fn write_pvtu(
     let n = pieces.len();
     let mut declared: Option<String> = None;
     for (k, piece) in pieces.enumerate() {
-        let (mesh, ids) = piece?;
+        let (mesh, ids, point_ids) = piece?;
         let name = format!("{stem}_{k}.vtu");
-        let wide = ids.iter().any(|&g| g > i32::MAX as u64);
+        let wide = ids.iter().chain(&point_ids).any(|&g| g > i32::MAX as u64);
         let (ids32, ids64): (Vec<i32>, Vec<i64>) = if wide {
             (Vec::new(), ids.iter().map(|&g| g as i64).collect())
         } else {
@@ -79,7 +80,14 @@ pub fn write_pvtu(
         };
         let data = if wide { ArrayData::I64(&ids64) } else { ArrayData::I32(&ids32) };
         let global = NamedArray { name: "GlobalCellIds".into(), n_components: 1, data };
-        write_mesh_with_cell_data(&tmp.path().join(&name), &mesh, &[], &[global], zlib)?;
+        let (p32, p64): (Vec<i32>, Vec<i64>) = if wide {
+            (Vec::new(), point_ids.iter().map(|&g| g as i64).collect())
+        } else {
+            (point_ids.iter().map(|&g| g as i32).collect(), Vec::new())
+        };
+        let data = if wide { ArrayData::I64(&p64) } else { ArrayData::I32(&p32) };
+        let points = NamedArray { name: "GlobalPointIds".into(), n_components: 1, data };
+        write_mesh_with_cell_data(&tmp.path().join(&name), &mesh, &[points], &[global], zlib)?;
         if declared.is_none() {
             declared = Some(declarations(&mesh, if wide { "Int64" } else { "Int32" }));
         }
@@ -121,16 +129,18 @@ fn declarations(mesh: &Mesh, id_type: &str) -> String {
     let mut out = String::new();
     for (tag, location) in [("PPointData", FieldLocation::Vertex), ("PCellData", FieldLocation::Cell)] {
         out += &format!("    <{tag}>\n");
-        for g in groups.iter().filter(|g| g.location == location && g.name != "GlobalCellIds") {
+        for g in groups
+            .iter()
+            .filter(|g| g.location == location && !["GlobalCellIds", "GlobalPointIds"].contains(&g.name.as_str()))
+        {
             out += &format!(
                 "      <PDataArray type=\"Float32\" Name=\"{}\" NumberOfComponents=\"{}\"/>\n",
                 super::write::escape(&g.name),
                 g.n_components()
             );
         }
-        if location == FieldLocation::Cell {
-            out += &format!("      <PDataArray type=\"{id_type}\" Name=\"GlobalCellIds\"/>\n");
-        }
+        let ids = if location == FieldLocation::Cell { "GlobalCellIds" } else { "GlobalPointIds" };
+        out += &format!("      <PDataArray type=\"{id_type}\" Name=\"{ids}\"/>\n");
         out += &format!("    </{tag}>\n");
     }
     out += "    <PPoints><PDataArray type=\"Float32\" NumberOfComponents=\"3\"/></PPoints>\n";
