@@ -204,7 +204,8 @@ fn distributed(cli: Cli, size: usize) -> i32 {
         _ => None,
     };
     let is_listing = listing.as_ref().is_some_and(|m| tetloc_core::io::vtk::pieces::is_listing(Path::new(m)));
-    if !is_listing && size == 1 {
+    // One rank runs as one process, unless it is to load a partitioned mesh through MPI.
+    if size == 1 && !(is_listing && cfg!(feature = "mpi")) {
         return main_exit(run(cli));
     }
     #[cfg(feature = "mpi")]

@@ -1,26 +1,11 @@
-//! What the launcher (mpirun, srun) tells a process through its environment, read before MPI
-//! is initialised: whether it runs as one rank of several, and its rank on its node.
+//! What the launcher (mpirun) tells a process through its environment, read before MPI is
+//! initialised: whether it runs as one rank of several; and which pieces a rank loads.
 
-/// The number of ranks when this process was started by an MPI launcher (OpenMPI, MPICH,
-/// Slurm), `None` otherwise.
+/// The number of ranks when this process was started by an MPI launcher (OpenMPI's mpirun,
+/// MPICH's Hydra, a PMIx launcher), `None` otherwise. (Slurm's `SLURM_NTASKS` is not asked:
+/// it is set in every step of a batch script, also where tetloc runs as one plain process.)
 pub fn world_size() -> Option<usize> {
-    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE", "SLURM_NTASKS"]
-        .iter()
-        .find_map(|k| std::env::var(k).ok()?.trim().parse().ok())
-}
-
-/// This process's rank among those of its node, and how many there are on the node, when the
-/// launcher says (OpenMPI, MPICH's Hydra, Slurm). The MPI path computes them itself (a
-/// shared-memory split) where it can; this is for choosing before MPI starts.
-pub fn local_rank() -> Option<(usize, usize)> {
-    let var = |k: &str| std::env::var(k).ok()?.trim().parse::<usize>().ok();
-    [
-        ("OMPI_COMM_WORLD_LOCAL_RANK", "OMPI_COMM_WORLD_LOCAL_SIZE"),
-        ("MPI_LOCALRANKID", "MPI_LOCALNRANKS"),
-        ("SLURM_LOCALID", "SLURM_NTASKS_PER_NODE"),
-    ]
-    .iter()
-    .find_map(|(r, n)| Some((var(r)?, var(n)?)))
+    ["OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_SIZE"].iter().find_map(|k| std::env::var(k).ok()?.trim().parse().ok())
 }
 
 /// The pieces rank `rank` of `size` loads: a contiguous run (RCB numbers neighbouring pieces
