@@ -2,8 +2,9 @@
 # Installs what the tests need on Debian: lavapipe (Mesa's CPU Vulkan driver, with
 # ray-tracing pipelines since Mesa 25) and the Vulkan loader from bookworm-backports,
 # plus the validation layers (the GPU tests run with them on, and the smoke test checks
-# that they are). Each part is checked on its own, so a machine that already has lavapipe
-# still gets the layers. The backports source reuses the URIs of the machine's own Debian
+# that they are), and OpenMPI with its headers and libclang (the MPI tests: rsmpi binds the
+# system's MPI through bindgen). Each part is checked on its own, so a machine that already
+# has lavapipe still gets the layers. The backports source reuses the URIs of the machine's own Debian
 # sources, so no registry host is named here.
 set -euo pipefail
 [ "$(id -u)" = 0 ] && SUDO= || SUDO=sudo
@@ -15,14 +16,20 @@ have_layers() {
   ls /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json >/dev/null 2>&1
 }
 
+have_mpi() {
+  command -v mpirun >/dev/null 2>&1 && command -v mpicc >/dev/null 2>&1 && ldconfig -p | grep -q 'libclang'
+}
+
 need_driver=1
 need_layers=1
+need_mpi=1
 if [ -z "${TETLOC_REINSTALL_DEPS:-}" ]; then
   have_driver && need_driver=
   have_layers && need_layers=
+  have_mpi && need_mpi=
 fi
-if [ -z "$need_driver$need_layers" ]; then
-  echo "install-test-deps: Vulkan loader, lavapipe and validation layers already present"
+if [ -z "$need_driver$need_layers$need_mpi" ]; then
+  echo "install-test-deps: Vulkan loader, lavapipe, validation layers and OpenMPI already present"
   exit 0
 fi
 
@@ -51,8 +58,12 @@ if [ -n "$need_layers" ]; then
   $SUDO apt-get install -y -qq -t bookworm-backports vulkan-validationlayers >/dev/null 2>&1 \
     || $SUDO apt-get install -y -qq vulkan-validationlayers >/dev/null
 fi
-if ! have_driver || ! have_layers; then
-  echo "install-test-deps: lavapipe or the validation layers are still missing after the install" >&2
+if [ -n "$need_mpi" ]; then
+  echo "install-test-deps: installing OpenMPI and libclang"
+  $SUDO apt-get install -y -qq openmpi-bin libopenmpi-dev libclang-dev >/dev/null
+fi
+if ! have_driver || ! have_layers || ! have_mpi; then
+  echo "install-test-deps: lavapipe, the validation layers or OpenMPI are still missing after the install" >&2
   exit 1
 fi
 echo "install-test-deps: done"

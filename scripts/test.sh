@@ -5,7 +5,8 @@
 # need (the Vulkan loader and lavapipe, Mesa's CPU Vulkan driver with ray-tracing pipelines,
 # from bookworm-backports, and the validation layers) and runs `cargo test`. The GPU tests
 # run on whatever Vulkan device there is; with CI set, a test that finds no device or no
-# oracle data fails instead of skipping. Arguments go to the workspace's `cargo test`.
+# oracle data fails instead of skipping. Arguments go to the workspace's `cargo test`. The MPI
+# tests (OpenMPI installed with the rest) run last, with the feature `mpi` on.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
@@ -47,6 +48,13 @@ export TETLOC_PYTHON="$PWD/$venv/bin/python"
 # the fuzz crate is its own workspace so that cargo-fuzz can build it with nightly).
 cargo test --locked --manifest-path fuzz/Cargo.toml --lib
 cargo test --workspace --locked "$@"
+
+# --- MPI (feature `mpi`, off by default): lints with the feature, then `mpirun -n 1, 2, 4` of
+# the binary built with it over partitioned oracle sets (crates/tetloc-cli/tests/mpi.rs).
+gate "clippy (mpi)" "see the messages above" \
+  cargo clippy -p tetloc-mpi -p tetloc-cli --features mpi --all-targets --locked -- -D warnings
+cargo test -p tetloc-mpi --features mpi --locked
+cargo test -p tetloc-cli --features mpi --locked --test mpi
 
 # --- Python: build the release wheel once (what `pip install ./python` builds), install it
 # into the virtualenv, and run pytest; the CLI tests compare with the binary `cargo test` built.

@@ -15,36 +15,36 @@ use tetloc_core::BatchLocator;
 #[derive(clap::Args)]
 pub struct LocateArgs {
     /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M).
-    mesh: OsString,
+    pub(crate) mesh: OsString,
     /// Query points: .npy (f32/f64, (N,3)), .csv (x,y,z per line, an optional `x,y,z` header) or
     /// .bin/.f32 (raw little-endian f32 triplets). Points with a NaN coordinate get no answer.
     #[arg(long)]
-    points: PathBuf,
+    pub(crate) points: PathBuf,
     /// Where the answers go: tet ids (-1: no answer) as .npy (int32) or .bin (raw i32); a table
     /// as .csv (tet_id, the values with --field, vtkValidPointMask); or a point set for ParaView
     /// as .vtu or .vtp (the points with the same arrays).
     #[arg(long)]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// A field to sample at the points (NaN where a point gets no answer).
     #[arg(long)]
-    field: Option<String>,
+    pub(crate) field: Option<String>,
     /// Where the sampled values go: .npy/.bin/.f32 (float32) or .csv (the field and
     /// vtkValidPointMask). Not needed when --out is .csv, .vtu or .vtp, which carry the values.
     #[arg(long)]
-    values: Option<PathBuf>,
+    pub(crate) values: Option<PathBuf>,
     /// Boundary tolerance: a point outside the mesh but within this distance of its boundary
     /// gets the nearest boundary cell and the value at the closest boundary point (as VTK's
     /// probe filter with a tolerance). A distance in mesh units, or a percentage of the mean
     /// edge length (e.g. 1%). 0, the default, is the exact answer.
     #[arg(long, default_value = "0")]
-    tolerance: Tolerance,
+    pub(crate) tolerance: Tolerance,
     /// The backend: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, or auto (cpu where the
     /// only Vulkan device runs on the CPU, else the fastest in a short measurement, cached per
     /// device and driver).
     #[arg(long, default_value = "auto")]
-    backend: String,
+    pub(crate) backend: String,
     #[command(flatten)]
-    common: Common,
+    pub(crate) common: Common,
 }
 
 /// What `--out` is, by its extension.
@@ -74,7 +74,9 @@ fn out_extensions() -> Vec<&'static str> {
     points::ID_EXTENSIONS.iter().copied().chain(["vtu", "vtp"]).collect()
 }
 
-pub fn run(a: &LocateArgs) -> Result<()> {
+/// Checks the arguments and every path before anything is read or computed (also for the
+/// distributed `locate` under mpirun).
+pub(crate) fn check_args(a: &LocateArgs) -> Result<()> {
     let kind = OutKind::of(&a.out);
     match (&a.field, &a.values) {
         (None, Some(_)) => bail!("--values needs --field NAME"),
@@ -101,6 +103,25 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
     inputs.push(FileArg::new("--points", &a.points));
     output::check_distinct(&inputs, &outputs)?;
+    Ok(())
+}
+
+/// Writes `--out` (and `--values`): the ids and, with `--field`, the values.
+pub(crate) fn write_results(a: &LocateArgs, pts: &[[f32; 3]], ids: &[i32], values: &[f32]) -> Result<()> {
+    let results = Results { ids, values: a.field.as_deref().map(|f| (f, values)) };
+    match OutKind::of(&a.out) {
+        OutKind::Vtu => vtk_write::write_points_vtu(&a.out, pts, ids, results.values)?,
+        OutKind::Vtp => vtk_write::write_points_vtp(&a.out, pts, ids, results.values)?,
+        OutKind::Csv | OutKind::Array => points::write_ids(&a.out, &results)?,
+    }
+    if let Some(v) = &a.values {
+        points::write_values(v, &results)?;
+    }
+    Ok(())
+}
+
+pub fn run(a: &LocateArgs) -> Result<()> {
+    check_args(a)?;
     let opts = a.common.opts()?;
 
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
@@ -150,15 +171,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
 
-    let results = Results { ids: &ids, values: a.field.as_deref().map(|f| (f, values.as_slice())) };
-    match kind {
-        OutKind::Vtu => vtk_write::write_points_vtu(&a.out, &pts, &ids, results.values)?,
-        OutKind::Vtp => vtk_write::write_points_vtp(&a.out, &pts, &ids, results.values)?,
-        OutKind::Csv | OutKind::Array => points::write_ids(&a.out, &results)?,
-    }
-    if let Some(v) = &a.values {
-        points::write_values(v, &results)?;
-    }
+    write_results(a, &pts, &ids, &values)?;
     if !a.common.quiet {
         let none = ids.iter().filter(|&&i| i < 0).count();
         let within = match a.tolerance.distance(&m) {

@@ -5,6 +5,9 @@ mod bench;
 mod demo;
 mod locate;
 mod mesh_arg;
+#[cfg(feature = "mpi")]
+mod mpi;
+mod partition;
 mod probe;
 mod progress;
 mod render;
@@ -64,6 +67,9 @@ enum Command {
     },
     /// Locate points (and sample a field) and write the tet ids (and values).
     Locate(locate::LocateArgs),
+    /// Cut a mesh into N pieces (recursive coordinate bisection) and write them as OUT.pvtu,
+    /// for `mpirun -n N tetloc locate OUT.pvtu ...`.
+    Partition(partition::PartitionArgs),
     /// Sample fields on a regular image (as ParaView's Resample To Image): .vti or .npy.
     Resample(resample::ResampleArgs),
     /// Sample one mesh's fields at another mesh's (or a point set's) points (as ParaView's
@@ -182,9 +188,53 @@ impl Common {
 }
 
 fn main() {
-    if let Err(e) = run(Cli::parse()) {
+    let cli = Cli::parse();
+    // Started by mpirun (or srun): one rank of a distributed run.
+    if let Some(size) = tetloc_mpi::launch::world_size() {
+        std::process::exit(distributed(cli, size));
+    }
+    if let Err(e) = run(cli) {
         eprintln!("error: {}", error_text(&e));
         std::process::exit(1);
+    }
+}
+
+/// A rank's run under an MPI launcher: `locate` and `bench` of a partitioned mesh (`.pvtu`,
+/// `.vtm`) run distributed; anything else runs as usual when it is the only rank. Returns the
+/// exit code.
+fn distributed(cli: Cli, size: usize) -> i32 {
+    let listing = match &cli.command {
+        Command::Locate(a) => Some(a.mesh.clone()),
+        Command::Bench { mesh, .. } => Some(mesh.clone()),
+        _ => None,
+    };
+    let is_listing = listing.as_ref().is_some_and(|m| tetloc_core::io::vtk::pieces::is_listing(Path::new(m)));
+    // One rank runs as one process, unless it is to load a partitioned mesh through MPI.
+    if size == 1 && !(is_listing && cfg!(feature = "mpi")) {
+        return main_exit(run(cli));
+    }
+    #[cfg(feature = "mpi")]
+    if is_listing {
+        return mpi::run(cli);
+    }
+    let why = if is_listing {
+        "this tetloc was built without MPI (build it with `--features mpi`)".to_string()
+    } else if listing.is_some() {
+        "under mpirun the mesh must be partitioned: a .pvtu or .vtm (see `tetloc partition`)".to_string()
+    } else {
+        "this command does not run distributed; run it without mpirun".to_string()
+    };
+    eprintln!("error: {size} ranks: {why}");
+    1
+}
+
+fn main_exit(r: Result<()>) -> i32 {
+    match r {
+        Ok(()) => 0,
+        Err(e) => {
+            eprintln!("error: {}", error_text(&e));
+            1
+        }
     }
 }
 
@@ -208,6 +258,7 @@ fn run(cli: Cli) -> Result<()> {
             gen(&shape, &tets, &out, seed, zlib, terrain.as_deref())
         }
         Command::Locate(args) => locate::run(&args),
+        Command::Partition(args) => partition::run(&args),
         Command::Resample(args) => resample::run(&args),
         Command::Probe(args) => probe::run(&args),
         Command::Trace(args) => trace::run(&args),

@@ -10,6 +10,7 @@ pub mod io;
 pub mod locate;
 pub mod mesh;
 pub mod ops;
+pub mod partition;
 pub mod queries;
 #[cfg(test)]
 mod test_support;

@@ -21,6 +21,9 @@ use std::path::Path;
 pub enum MeshFormat {
     /// VTK XML unstructured grid (`.vtu`).
     Vtu,
+    /// A partitioned mesh: VTK's parallel unstructured grid (`.pvtu`) or multiblock data set
+    /// (`.vtm`) listing VTU pieces, read as one mesh with cells numbered by global id.
+    Pieces,
     /// VTK legacy (`.vtk`), versions up to 5.1, ascii or binary.
     VtkLegacy,
     /// Gmsh `.msh` 2.2 and 4.1, ascii or binary.
@@ -29,12 +32,13 @@ pub enum MeshFormat {
     TetGen,
 }
 
-pub const KNOWN_MESH_FORMATS: &str = "vtu, vtk, msh, node/ele";
+pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele";
 
 impl MeshFormat {
     pub fn from_name(name: &str) -> Option<MeshFormat> {
         match name.to_ascii_lowercase().as_str() {
             "vtu" => Some(MeshFormat::Vtu),
+            "pvtu" | "vtm" => Some(MeshFormat::Pieces),
             "vtk" => Some(MeshFormat::VtkLegacy),
             "msh" | "gmsh" => Some(MeshFormat::Gmsh),
             "node" | "ele" | "tetgen" => Some(MeshFormat::TetGen),
@@ -159,6 +163,7 @@ pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
     }
     match format {
         MeshFormat::Vtu => vtk::vtu::read(path),
+        MeshFormat::Pieces => vtk::pieces::read(path),
         MeshFormat::VtkLegacy => vtk::legacy::read(path),
         MeshFormat::Gmsh => gmsh::read(path),
         MeshFormat::TetGen => tetgen::read(path),

@@ -1,4 +1,5 @@
-//! The VTK family: the XML reader ([`vtu`]), the legacy reader ([`legacy`]), the VTU writers
+//! The VTK family: the XML reader ([`vtu`]), partitioned meshes ([`pieces`], listed by [`pvtu`]
+//! and [`vtm`]), the legacy reader ([`legacy`]), the VTU writers
 //! ([`write`]), and what they share: element types, cell types, XML and binary blocks.
 
 pub(crate) mod blocks;
@@ -7,9 +8,13 @@ pub(crate) mod num;
 pub(crate) mod xml;
 
 pub mod legacy;
+pub mod pieces;
+pub mod pvtu;
 pub mod vti;
+pub mod vtm;
 pub mod vtu;
 pub mod write;
+pub mod write_pieces;
 
 #[cfg(test)]
 mod tests;

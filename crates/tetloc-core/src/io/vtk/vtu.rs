@@ -27,6 +27,28 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 
 /// Parses a whole file held in memory; `path` only names it in errors.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
+    parse_with_ids(bytes, path).map(|(raw, _)| raw)
+}
+
+/// Names of a cell array of global cell ids (`vtkGenerateGlobalIds` writes `GlobalCellIds`;
+/// `<CellData GlobalIds="NAME">` names any other).
+pub(crate) const GLOBAL_CELL_IDS: [&str; 2] = ["GlobalCellIds", "vtkGlobalIds"];
+/// Names of a point array of global point ids (`<PointData GlobalIds="NAME">` names any other).
+pub(crate) const GLOBAL_POINT_IDS: [&str; 2] = ["GlobalPointIds", "vtkGlobalIds"];
+
+/// A file's global ids, exact, when it has integer arrays of them.
+#[derive(Default)]
+pub(crate) struct GlobalIds {
+    /// One per volume cell.
+    pub cells: Option<Vec<u64>>,
+    /// One per point.
+    pub points: Option<Vec<u64>>,
+}
+
+/// [`parse`], and the file's global cell and point ids (the arrays also stay fields as in
+/// [`parse`]). Partitioned meshes (`io::vtk::pieces`) number their cells by them and merge
+/// the copies of a vertex that several pieces hold.
+pub(crate) fn parse_with_ids(bytes: &[u8], path: &Path) -> Result<(RawMesh, GlobalIds)> {
     let fail = |msg: String| Error::format(path, msg);
     let doc = xml::parse(bytes, "AppendedData").map_err(fail)?;
     let root = &doc.root;
@@ -72,7 +94,9 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
         return Err(fail("<UnstructuredGrid> has no <Piece>".into()));
     }
     let parts = pieces.iter().enumerate().map(|(k, p)| ctx.piece(p, k)).collect::<Result<Vec<_>>>()?;
-    merge(parts, path)
+    let cells = parts.iter().map(|p| p.ids.cells.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
+    let points = parts.iter().map(|p| p.ids.points.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
+    Ok((merge(parts, path)?, GlobalIds { cells, points }))
 }
 
 /// Where the appended data lies.
@@ -136,6 +160,8 @@ struct Ctx<'a, 'p> {
 struct Part {
     raw: RawMesh,
     refused: BTreeMap<u8, usize>,
+    /// The global ids, when the piece has integer arrays of them.
+    ids: GlobalIds,
 }
 
 impl<'a> Ctx<'a, '_> {
@@ -244,10 +270,11 @@ impl<'a> Ctx<'a, '_> {
         };
         if ex.unsupported {
             // The mesh is unusable: skip reading its fields.
-            return Ok(Part { raw: RawMesh::default(), refused: ex.other });
+            return Ok(Part { raw: RawMesh::default(), refused: ex.other, ids: GlobalIds::default() });
         }
 
         let mut fields = Vec::new();
+        let mut ids = GlobalIds::default();
         for (section, location, n) in
             [("PointData", FieldLocation::Vertex, n_points), ("CellData", FieldLocation::Cell, n_cells)]
         {
@@ -260,6 +287,24 @@ impl<'a> Ctx<'a, '_> {
                     self.fail(format!("DataArray '{name}': NumberOfComponents is not a positive count"))
                 })?;
                 let arr = self.array(da, n.saturating_mul(nc))?;
+                let named = piece.child(section).and_then(|c| c.attr("GlobalIds")) == Some(name);
+                let is_ids = match location {
+                    FieldLocation::Cell => GLOBAL_CELL_IDS.contains(&name) || named,
+                    FieldLocation::Vertex => GLOBAL_POINT_IDS.contains(&name) || named,
+                };
+                if nc == 1 && is_ids && !arr.ty.is_float() {
+                    let got = num::map_ints(&arr, |v| u64::try_from(v).ok())
+                        .map_err(|i| bad_value(name, &arr, i, "is not a global id"))?;
+                    match location {
+                        FieldLocation::Cell => {
+                            ids.cells = Some(match ex.kept.as_deref() {
+                                None => got,
+                                Some(k) => got.into_iter().zip(k).filter(|(_, &k)| k).map(|(v, _)| v).collect(),
+                            })
+                        }
+                        FieldLocation::Vertex => ids.points = Some(got),
+                    }
+                }
                 for c in 0..nc {
                     let mut values = num::component_f32(&arr, nc, c);
                     if location == FieldLocation::Cell {
@@ -273,7 +318,7 @@ impl<'a> Ctx<'a, '_> {
         // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
         let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
         let raw = RawMesh { points, points64, tets, fields, higher_order: ex.higher_order, cells: ex.cells };
-        Ok(Part { raw, refused: BTreeMap::new() })
+        Ok(Part { raw, refused: BTreeMap::new(), ids })
     }
 }
 
@@ -299,40 +344,50 @@ fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
     if parts.len() == 1 {
         return Ok(parts.pop().unwrap().raw);
     }
+    join(parts.into_iter().map(|p| p.raw).collect(), path)
+}
+
+/// Joins meshes into one, point ids shifted, cells in order (the pieces of one file, or the
+/// files of a partitioned mesh). Fields that some mesh lacks are dropped.
+pub(crate) fn join(mut parts: Vec<RawMesh>, path: &Path) -> Result<RawMesh> {
+    if parts.len() == 1 {
+        return Ok(parts.pop().unwrap());
+    }
     let mut out = RawMesh::default();
-    for f in &parts[0].raw.fields {
-        let in_all = parts.iter().all(|p| p.raw.fields.iter().any(|g| g.name == f.name && g.location == f.location));
+    let Some(first) = parts.first() else { return Ok(out) };
+    for f in &first.fields {
+        let in_all = parts.iter().all(|p| p.fields.iter().any(|g| g.name == f.name && g.location == f.location));
         if in_all {
             out.fields.push(Field { name: f.name.clone(), location: f.location, values: Vec::new() });
         }
     }
     // When some piece has a cell block, every piece goes into one (linear tets as tet cells).
-    let mut block = parts.iter().any(|p| p.raw.cells.is_some()).then(CellBlock::default);
+    let mut block = parts.iter().any(|p| p.cells.is_some()).then(CellBlock::default);
     for p in parts {
         let base = out.points.len() as u64;
-        if base + p.raw.points.len() as u64 > u32::MAX as u64 {
+        if base + p.points.len() as u64 > u32::MAX as u64 {
             return Err(Error::format(path, "the pieces hold more points than u32 ids can address"));
         }
         let base = base as u32;
         if let Some(block) = &mut block {
-            match &p.raw.cells {
+            match &p.cells {
                 Some(c) => block.append(c, base),
-                None => p.raw.tets.iter().for_each(|t| block.push(CellType::tet(), &t.map(|i| i + base))),
+                None => p.tets.iter().for_each(|t| block.push(CellType::tet(), &t.map(|i| i + base))),
             }
         }
-        out.tets.extend(p.raw.tets.iter().map(|t| t.map(|i| i + base)));
+        out.tets.extend(p.tets.iter().map(|t| t.map(|i| i + base)));
         // f64 coordinates for all pieces when some piece has them (f32 ones widen exactly).
-        if p.raw.points64.is_some() || out.points64.is_some() {
+        if p.points64.is_some() || out.points64.is_some() {
             let file = out.points64.get_or_insert_with(|| out.points.iter().map(|q| q.map(f64::from)).collect());
-            match &p.raw.points64 {
+            match &p.points64 {
                 Some(p64) => file.extend_from_slice(p64),
-                None => file.extend(p.raw.points.iter().map(|q| q.map(f64::from))),
+                None => file.extend(p.points.iter().map(|q| q.map(f64::from))),
             }
         }
-        out.points.extend(p.raw.points);
-        out.higher_order = out.higher_order.max(p.raw.higher_order);
+        out.points.extend(p.points);
+        out.higher_order = out.higher_order.max(p.higher_order);
         for f in &mut out.fields {
-            let g = p.raw.fields.iter().find(|g| g.name == f.name && g.location == f.location).unwrap();
+            let g = p.fields.iter().find(|g| g.name == f.name && g.location == f.location).unwrap();
             f.values.extend_from_slice(&g.values);
         }
     }

@@ -43,6 +43,7 @@ pub enum ArrayData<'a> {
     F32(&'a [f32]),
     F64(&'a [f64]),
     I32(&'a [i32]),
+    I64(&'a [i64]),
     U8(&'a [u8]),
 }
 
@@ -60,6 +61,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F32(v) => v.len(),
             ArrayData::F64(v) => v.len(),
             ArrayData::I32(v) => v.len(),
+            ArrayData::I64(v) => v.len(),
             ArrayData::U8(v) => v.len(),
         };
         n / self.n_components.max(1)
@@ -73,6 +75,9 @@ impl<'a> NamedArray<'a> {
                 out.extend_from_slice(bytemuck::cast_slice(&v[r]))
             }),
             ArrayData::I32(v) => OutArray::new(name, NumType::I32, k, v.len(), move |r, out| {
+                out.extend_from_slice(bytemuck::cast_slice(&v[r]))
+            }),
+            ArrayData::I64(v) => OutArray::new(name, NumType::I64, k, v.len(), move |r, out| {
                 out.extend_from_slice(bytemuck::cast_slice(&v[r]))
             }),
             ArrayData::U8(v) => {
@@ -99,6 +104,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F32(v) => v.len(),
             ArrayData::F64(v) => v.len(),
             ArrayData::I32(v) => v.len(),
+            ArrayData::I64(v) => v.len(),
             ArrayData::U8(v) => v.len(),
         }
     }
@@ -132,8 +138,32 @@ fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<Ou
 
 /// [`write_mesh_with`] with `wide_ids` forcing Int64 connectivity and offsets (as VTK writes).
 pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: bool, wide_ids: bool) -> Result<()> {
+    write_mesh_full(path, mesh, extra, &[], zlib, wide_ids)
+}
+
+/// [`write_mesh_with`] with more cell data too: `cell_extra` arrays (one tuple per cell, in
+/// the mesh's cell order) after the mesh's own cell fields; a piece of a partitioned mesh
+/// carries its `GlobalCellIds` this way.
+pub fn write_mesh_with_cell_data(
+    path: &Path,
+    mesh: &Mesh,
+    extra: &[NamedArray],
+    cell_extra: &[NamedArray],
+    zlib: bool,
+) -> Result<()> {
+    write_mesh_full(path, mesh, extra, cell_extra, zlib, false)
+}
+
+fn write_mesh_full(
+    path: &Path,
+    mesh: &Mesh,
+    extra: &[NamedArray],
+    cell_extra: &[NamedArray],
+    zlib: bool,
+    wide_ids: bool,
+) -> Result<()> {
     if let Some(cells) = &mesh.cells {
-        return write_cells(path, mesh, cells, extra, zlib, wide_ids);
+        return write_cells(path, mesh, cells, extra, cell_extra, zlib, wide_ids);
     }
     let n_tets = mesh.tets.len();
     // Nodes per tet, and the VTK type: all of one type.
@@ -145,14 +175,14 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
     let (tets, nodes) = (&mesh.tets, &mesh.tet_nodes);
 
-    let (point_data, cell_data) = data_arrays(mesh, extra)?;
+    let (point_data, cell_data) = data_arrays(mesh, extra, cell_extra)?;
     let grid = Grid {
         kind: Kind::Unstructured,
         n_points: mesh.points.len(),
         n_cells: n_tets,
         point_data,
         cell_data,
-        points: OutArray::floats("Points", 3, bytemuck::cast_slice(&mesh.points)),
+        points: points_array(mesh),
         // Canonical tets are right-handed, as VTK expects: written as they are (higher-order
         // nodes are stored in VTK's order over the canonical corners).
         // (Chunks hold whole tets: they start at multiples of CHUNK, a multiple of 4.)
@@ -184,15 +214,44 @@ pub(crate) fn write_mesh(path: &Path, mesh: &Mesh, extra: &[NamedArray], zlib: b
     grid.write(path, zlib)
 }
 
+/// The mesh's vertices as the file had them: Float32 when the working copy is the file's data,
+/// else Float64 in the file's coordinates (never the centred working frame).
+fn points_array(mesh: &Mesh) -> OutArray<'_> {
+    if !mesh.wants_f64_points() {
+        return OutArray::floats("Points", 3, bytemuck::cast_slice(&mesh.points));
+    }
+    OutArray::new("Points", NumType::F64, 3, 3 * mesh.points.len(), move |r, out| {
+        // A chunk may start inside a point: one coordinate at a time.
+        r.for_each(|j| out.extend_from_slice(&mesh.vertex64((j / 3) as u32)[j % 3].to_le_bytes()))
+    })
+}
+
+/// The VTK type name of [`points_array`]'s values.
+pub(crate) fn points_type(mesh: &Mesh) -> &'static str {
+    if mesh.wants_f64_points() {
+        "Float64"
+    } else {
+        "Float32"
+    }
+}
+
 /// The mesh's fields and `extra` (per vertex, replacing fields of the same name) as the
 /// point and cell data arrays of a written mesh.
-fn data_arrays<'a>(mesh: &'a Mesh, extra: &'a [NamedArray]) -> Result<(Vec<OutArray<'a>>, Vec<OutArray<'a>>)> {
+fn data_arrays<'a>(
+    mesh: &'a Mesh,
+    extra: &'a [NamedArray],
+    cell_extra: &'a [NamedArray],
+) -> Result<(Vec<OutArray<'a>>, Vec<OutArray<'a>>)> {
     for a in extra {
         a.check(mesh.points.len(), "vertices")?;
     }
-    let replaced: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
-    let (mut point_data, cell_data) = field_arrays(mesh, &replaced);
+    for a in cell_extra {
+        a.check(mesh.n_cells(), "cells")?;
+    }
+    let replaced: Vec<&str> = extra.iter().chain(cell_extra).map(|a| a.name.as_str()).collect();
+    let (mut point_data, mut cell_data) = field_arrays(mesh, &replaced);
     point_data.extend(extra.iter().map(NamedArray::out));
+    cell_data.extend(cell_extra.iter().map(NamedArray::out));
     Ok((point_data, cell_data))
 }
 
@@ -203,20 +262,21 @@ fn write_cells(
     mesh: &Mesh,
     cells: &crate::mesh::Cells,
     extra: &[NamedArray],
+    cell_extra: &[NamedArray],
     zlib: bool,
     wide_ids: bool,
 ) -> Result<()> {
     let block = &cells.block;
     let wide = wide_ids || (block.conn.len()).max(mesh.points.len()) as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
-    let (point_data, cell_data) = data_arrays(mesh, extra)?;
+    let (point_data, cell_data) = data_arrays(mesh, extra, cell_extra)?;
     let grid = Grid {
         kind: Kind::Unstructured,
         n_points: mesh.points.len(),
         n_cells: block.len(),
         point_data,
         cell_data,
-        points: OutArray::floats("Points", 3, bytemuck::cast_slice(&mesh.points)),
+        points: points_array(mesh),
         connectivity: OutArray::new("connectivity", id_type, 1, block.conn.len(), move |r, out| {
             block.conn[r].iter().for_each(|&id| push_id(out, u64::from(id), wide))
         }),

@@ -1,0 +1,249 @@
+//! `mpirun -n N tetloc ...` end to end (feature `mpi`; `scripts/test.sh` runs these with
+//! OpenMPI installed): on the oracle sets partitioned by `tetloc partition`, every rank count
+//! gives the one-process answers and no oracle mismatch; a failing, panicking or killed rank
+//! ends the job with an error, within a time limit. Without `mpirun` these skip, except in CI.
+#![cfg(feature = "mpi")]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+use tetloc_testdata::{in_ci, query_sets, require_data, QuerySet};
+
+/// Longest a job may take before it counts as hung.
+const LIMIT_S: u64 = 120;
+
+fn have_mpirun(test: &str) -> bool {
+    let ok = Command::new("mpirun").arg("--version").output().is_ok_and(|o| o.status.success());
+    if !ok {
+        assert!(!in_ci(), "{test}: no mpirun; CI installs OpenMPI (scripts/install-test-deps.sh)");
+        eprintln!("SKIPPED {test}: no mpirun (install openmpi-bin)");
+    }
+    ok
+}
+
+fn tetloc(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc")
+}
+
+/// `mpirun -n N tetloc ARGS` with `env` passed to every rank, killed after [`LIMIT_S`].
+fn mpirun(n: usize, env: &[(&str, &str)], args: &[&str]) -> (Output, Duration) {
+    let mut cmd = Command::new("timeout");
+    cmd.args(["-k", "5", &LIMIT_S.to_string(), "mpirun", "--oversubscribe", "--allow-run-as-root"]);
+    cmd.args(["--mca", "btl", "self,vader", "-n", &n.to_string()]);
+    for (k, v) in env {
+        cmd.env(k, v).args(["-x", k]);
+    }
+    cmd.arg(env!("CARGO_BIN_EXE_tetloc")).args(args).env("RAYON_NUM_THREADS", "1");
+    let t = Instant::now();
+    let out = cmd.output().expect("run mpirun");
+    (out, t.elapsed())
+}
+
+fn text(o: &Output) -> String {
+    format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+}
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("tetloc-mpi-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn read<T: bytemuck::Pod>(p: &Path) -> Vec<T> {
+    bytemuck::pod_collect_to_vec(&std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())))
+}
+
+/// `mesh` cut into 4 pieces in `dir`.
+fn partition(dir: &Path, mesh: &Path, name: &str, parts: usize) -> PathBuf {
+    let out = dir.join(format!("{name}.pvtu"));
+    let o = tetloc(&["partition", s(mesh), "--parts", &parts.to_string(), "-o", s(&out)]);
+    assert!(o.status.success(), "{}", text(&o));
+    out
+}
+
+/// The oracle sets of one mesh as one points file, with their oracle answers and flags.
+fn join_sets(dir: &Path, sets: &[&QuerySet]) -> (PathBuf, Vec<i32>, Vec<u8>) {
+    let pts: Vec<[f32; 3]> = sets.iter().flat_map(|s| s.points.iter().copied()).collect();
+    let path = dir.join(format!("{}.points.bin", sets[0].label));
+    std::fs::write(&path, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
+    (
+        path,
+        sets.iter().flat_map(|s| s.cell.iter().copied()).collect(),
+        sets.iter().flat_map(|s| s.flags.iter().copied()).collect(),
+    )
+}
+
+/// On torus, part, delaunay (tets) and hybrid (hexes, wedges, pyramids, tets), each in 4
+/// pieces: 1, 2 and 4 ranks give the ids and values one process gives on the whole file
+/// (points within rounding of a face, flags bit0, may go to either cell), and no mismatch
+/// with the oracle outside flags bit0.
+#[test]
+fn ranks_answer_as_one_process() {
+    let test = "ranks_answer_as_one_process";
+    let Some(data) = require_data(test) else { return };
+    if !have_mpirun(test) {
+        return;
+    }
+    let dir = tmp_dir("oracle");
+    let mut all = query_sets(&data);
+    all.extend(query_sets(&data.join("mixed")));
+    for mesh in ["torus_s", "part_s", "delaunay_s", "hybrid"] {
+        let sets: Vec<&QuerySet> = all.iter().filter(|s| s.label.starts_with(&format!("{mesh}."))).collect();
+        assert_eq!(sets.len(), 3, "{mesh}: centers, random, bbox");
+        let field = if mesh == "hybrid" { "g" } else { "cellval" };
+        let (points, oracle, flags) = join_sets(&dir, &sets);
+        let pvtu = partition(&dir, &sets[0].mesh_path, mesh, 4);
+        let (ref_ids, ref_vals) = (dir.join(format!("{mesh}.ref.ids.bin")), dir.join(format!("{mesh}.ref.f.bin")));
+        let o = tetloc(&[
+            "locate",
+            s(&sets[0].mesh_path),
+            "--points",
+            s(&points),
+            "--backend",
+            "cpu",
+            "--field",
+            field,
+            "--out",
+            s(&ref_ids),
+            "--values",
+            s(&ref_vals),
+        ]);
+        assert!(o.status.success(), "{}", text(&o));
+        let (want_ids, want_vals): (Vec<i32>, Vec<f32>) = (read(&ref_ids), read(&ref_vals));
+        for n in [1, 2, 4] {
+            let (ids, vals) = (dir.join(format!("{mesh}.{n}.ids.bin")), dir.join(format!("{mesh}.{n}.f.bin")));
+            let (o, _) = mpirun(
+                n,
+                &[],
+                &[
+                    "locate",
+                    s(&pvtu),
+                    "--points",
+                    s(&points),
+                    "--backend",
+                    "cpu",
+                    "--field",
+                    field,
+                    "--out",
+                    s(&ids),
+                    "--values",
+                    s(&vals),
+                ],
+            );
+            assert!(o.status.success(), "{mesh}, {n} ranks: {}", text(&o));
+            let (ids, vals): (Vec<i32>, Vec<f32>) = (read(&ids), read(&vals));
+            assert_eq!(ids.len(), want_ids.len());
+            let (mut ties, mut oracle_mismatch) = (0, 0);
+            for i in 0..ids.len() {
+                let on_face = flags[i] & 1 != 0;
+                if ids[i] != want_ids[i] {
+                    assert!(on_face, "{mesh}, {n} ranks, point {i}: {} but one process says {}", ids[i], want_ids[i]);
+                    ties += 1;
+                } else {
+                    assert_eq!(vals[i].to_bits(), want_vals[i].to_bits(), "{mesh}, {n} ranks, point {i}: value");
+                }
+                if !on_face && ids[i] != oracle[i] {
+                    oracle_mismatch += 1;
+                }
+            }
+            assert_eq!(oracle_mismatch, 0, "{mesh}, {n} ranks: oracle mismatches outside flags bit0");
+            eprintln!("{mesh}, {n} ranks: {} points, {ties} on a face answered by the other cell", ids.len());
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A small generated mesh in 4 pieces.
+fn small_pvtu(dir: &Path) -> PathBuf {
+    let mesh = dir.join("jets.vtu");
+    let o = tetloc(&["gen", "jets", "--tets", "20000", "-o", s(&mesh)]);
+    assert!(o.status.success(), "{}", text(&o));
+    partition(dir, &mesh, "jets", 4)
+}
+
+fn points_file(dir: &Path) -> PathBuf {
+    let pts: Vec<[f32; 3]> =
+        (0..5000).map(|i| std::array::from_fn(|k| ((i * 7919 + k * 104729) % 1000) as f32 / 1000.0)).collect();
+    let path = dir.join("p.bin");
+    std::fs::write(&path, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
+    path
+}
+
+/// A rank that cannot load its piece, a rank that panics and a rank that dies on a signal:
+/// each ends the whole job with a non-zero exit and a message naming the rank, well within
+/// the time limit (no rank is left waiting).
+#[test]
+fn a_failing_rank_ends_the_job() {
+    let test = "a_failing_rank_ends_the_job";
+    if !have_mpirun(test) {
+        return;
+    }
+    let dir = tmp_dir("fail");
+    let pvtu = small_pvtu(&dir);
+    let points = points_file(&dir);
+    let out = dir.join("ids.bin");
+    let args = ["locate", s(&pvtu), "--points", s(&points), "--backend", "cpu", "--out", s(&out)];
+    for (fault, want) in [("panic:1", "rank 1 of 4 panicked"), ("abort:2", "rank 2")] {
+        let (o, took) = mpirun(4, &[("TETLOC_MPI_FAULT", fault)], &args);
+        assert!(!o.status.success(), "{fault}: {}", text(&o));
+        assert!(took.as_secs() < LIMIT_S - 10, "{fault}: took {took:?}");
+        assert!(text(&o).contains(want), "{fault}: {}", text(&o));
+        assert!(!out.exists(), "{fault}: no output from a failed job");
+    }
+    // A piece missing: rank 3 (4 pieces, one each) fails to load, and says why.
+    std::fs::remove_file(dir.join("jets/jets_3.vtu")).unwrap();
+    let (o, took) = mpirun(4, &[], &args);
+    let t = text(&o);
+    assert!(!o.status.success() && took.as_secs() < LIMIT_S - 10, "{t}");
+    assert!(t.contains("rank 3 of 4 failed to load") && t.contains("jets_3.vtu"), "{t}");
+    assert_eq!(t.matches("failed to load").count(), 1, "said once, by rank 0: {t}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `bench` under mpirun: one JSON row per query set with the documented keys, every point
+/// answered once; and `locate` of a file that is not partitioned is refused with a hint.
+#[test]
+fn bench_and_refusals() {
+    let test = "bench_and_refusals";
+    if !have_mpirun(test) {
+        return;
+    }
+    let dir = tmp_dir("bench");
+    let pvtu = small_pvtu(&dir);
+    let (o, _) = mpirun(
+        2,
+        &[],
+        &["bench", s(&pvtu), "--backend", "cpu", "--queries", "centers,random,bbox", "--json", "--repeats", "1"],
+    );
+    assert!(o.status.success(), "{}", text(&o));
+    let rows: Vec<serde_json::Value> =
+        String::from_utf8_lossy(&o.stdout).lines().map(|l| serde_json::from_str(l).unwrap()).collect();
+    assert_eq!(rows.len(), 3, "{}", text(&o));
+    for r in &rows {
+        for key in [
+            "ranks",
+            "queries",
+            "points",
+            "samples_per_s",
+            "total_s",
+            "local_s",
+            "routing_s",
+            "ties",
+            "load_s",
+            "build_s",
+        ] {
+            assert!(r.get(key).is_some(), "{key} missing: {r}");
+        }
+        assert_eq!(r["ranks"], 2);
+        assert!(r["points"].as_u64().unwrap() > 10_000);
+    }
+    assert_eq!(rows[0]["ties"], 0, "centres lie on no face");
+    let (o, _) = mpirun(2, &[], &["locate", s(&dir.join("jets.vtu")), "--points", "p.bin", "--out", "x.bin"]);
+    assert!(!o.status.success() && text(&o).contains("tetloc partition"), "{}", text(&o));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,483 @@
+//! Partitioned meshes: the VTU pieces that a `.pvtu` ([`super::pvtu`]) or `.vtm`
+//! ([`super::vtm`]) lists, read as one mesh, or a subset of them as one rank's part of it
+//! (`tetloc-mpi`).
+//!
+//! **Cell ids are global ids.** A piece's cells carry them in an integer cell array
+//! `GlobalCellIds` or `vtkGlobalIds` (or the one `<CellData GlobalIds="NAME">` names); without
+//! one in any piece, the global id is the position in piece order × cell order. Read whole, the
+//! mesh's cells are renumbered by them (cell `g` is the cell with global id `g`), so every
+//! command answers in global ids; the ids must then be `0..N` once each.
+//!
+//! **Vertices.** A vertex on a face between two pieces is in both pieces. When every piece
+//! has global point ids (an integer point array `GlobalPointIds` or `vtkGlobalIds`, or the one
+//! `<PointData GlobalIds="NAME">` names; `tetloc partition` writes them), the copies are
+//! merged into one vertex (numbered in global id order: a partitioned mesh read whole is the
+//! mesh it was cut from); copies of one id at different coordinates are an error. Without
+//! them the copies stay two vertices at the same coordinates. Tets do not mind: the two copies
+//! of a shared face have the same coordinates, so the point-in-tet test and the tie rule treat
+//! them as one face (a point on it is claimed by the tets on both sides exactly as if they were
+//! neighbours, and the tie rule picks one; see `geom`), and walks fall back to the BVH at such
+//! faces. Mixed cells do mind where a *warped* quad face lies between two pieces: the step to
+//! the neighbour across it (`locate::CellLocator`) needs the shared vertices, so a point in the
+//! sliver between the face's two triangles and its bilinear patch may come back outside.
+
+use super::vtu;
+use crate::cell::CellBlock;
+use crate::error::{Error, Result};
+use crate::mesh::{FieldLocation, RawMesh};
+use std::path::{Path, PathBuf};
+
+/// How deep listings may nest (a `.vtm` of `.pvtu`s is 2): a listing that lists itself stops here.
+const MAX_NESTING: usize = 4;
+
+/// `file` as named in the listing `listing`: relative paths are relative to its folder.
+pub fn resolve(listing: &Path, file: &str) -> PathBuf {
+    let file = Path::new(file);
+    match listing.parent() {
+        Some(dir) if file.is_relative() => dir.join(file),
+        _ => file.to_path_buf(),
+    }
+}
+
+/// Whether `path` names a listing of pieces (`.pvtu`, `.vtm`).
+pub fn is_listing(path: &Path) -> bool {
+    matches!(crate::io::output::extension(path).as_str(), "pvtu" | "vtm")
+}
+
+/// The VTU pieces of a `.pvtu` or `.vtm`, in order (listings inside a `.vtm` expanded).
+pub fn list(path: &Path) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    list_into(path, 0, &mut out)?;
+    Ok(out)
+}
+
+fn list_into(path: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<()> {
+    if depth > MAX_NESTING {
+        return Err(Error::format(path, format!("listings nest more than {MAX_NESTING} deep (does one list itself?)")));
+    }
+    let bytes = super::read_file(path)?;
+    let files = match crate::io::output::extension(path).as_str() {
+        "pvtu" => super::pvtu::parse(&bytes, path)?,
+        "vtm" => super::vtm::parse(&bytes, path)?,
+        other => return Err(Error::format(path, format!("'.{other}' is not a listing of pieces (.pvtu, .vtm)"))),
+    };
+    for f in files {
+        match crate::io::output::extension(&f).as_str() {
+            "vtu" => out.push(f),
+            "pvtu" | "vtm" => list_into(&f, depth + 1, out)?,
+            _ => {
+                return Err(Error::format(
+                    path,
+                    format!("lists {}: tetloc reads pieces that are unstructured grids (.vtu)", f.display()),
+                ))
+            }
+        }
+    }
+    Ok(())
+}
+
+/// One piece as read: its mesh (cells in the piece's order) and its global cell ids, if it has them.
+pub struct Piece {
+    pub path: PathBuf,
+    pub raw: RawMesh,
+    pub global_ids: Option<Vec<u64>>,
+    /// One global id per point, when the piece has them.
+    pub global_point_ids: Option<Vec<u64>>,
+}
+
+impl Piece {
+    pub fn n_cells(&self) -> usize {
+        n_cells(&self.raw)
+    }
+}
+
+fn n_cells(raw: &RawMesh) -> usize {
+    raw.cells.as_ref().map_or(raw.tets.len(), CellBlock::len)
+}
+
+/// Reads piece `index` of `listing` (errors name both).
+pub fn read_piece(listing: &Path, index: usize, path: &Path) -> Result<Piece> {
+    let in_listing = |e: Error| Error::format(listing, format!("piece {index} ({}): {e}", path.display()));
+    let bytes = super::read_file(path).map_err(in_listing)?;
+    let (raw, ids) = vtu::parse_with_ids(&bytes, path).map_err(in_listing)?;
+    let (global_ids, global_point_ids) = (ids.cells, ids.points);
+    if let Some(ids) = &global_ids {
+        if ids.len() != n_cells(&raw) {
+            return Err(in_listing(Error::format(path, "the global cell ids are not one per volume cell")));
+        }
+    }
+    Ok(Piece { path: path.to_path_buf(), raw, global_ids, global_point_ids })
+}
+
+/// What a piece carries, for comparing pieces: its fields (name, location) in order, and
+/// whether it has global ids.
+fn signature(p: &Piece) -> (Vec<(&str, FieldLocation)>, bool) {
+    (p.raw.fields.iter().map(|f| (f.name.as_str(), f.location)).collect(), p.global_ids.is_some())
+}
+
+/// Every piece must carry the same arrays as the first: a field missing in one piece would
+/// have no value there.
+pub fn check_same_arrays(listing: &Path, pieces: &[(usize, Piece)]) -> Result<()> {
+    let Some((k0, first)) = pieces.first() else { return Ok(()) };
+    let (fields0, ids0) = signature(first);
+    for (k, p) in &pieces[1..] {
+        let (fields, ids) = signature(p);
+        if ids != ids0 {
+            let (with, without) = if ids0 { ((k0, first), (k, p)) } else { ((k, p), (k0, first)) };
+            return Err(Error::format(
+                listing,
+                format!(
+                    "piece {} ({}) has global cell ids and piece {} ({}) has none",
+                    with.0,
+                    with.1.path.display(),
+                    without.0,
+                    without.1.path.display()
+                ),
+            ));
+        }
+        if fields != fields0 {
+            let show = |f: &[(&str, FieldLocation)]| {
+                f.iter().map(|(n, l)| format!("{n} ({l:?})").to_lowercase()).collect::<Vec<_>>().join(", ")
+            };
+            return Err(Error::format(
+                listing,
+                format!(
+                    "piece {k} ({}) has the arrays [{}] but piece {k0} ({}) has [{}]",
+                    p.path.display(),
+                    show(&fields),
+                    first.path.display(),
+                    show(&fields0)
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Joins pieces (each with its index in the listing and the default global id of its first
+/// cell: the cells of the pieces before it) into one mesh in piece order, and returns each
+/// cell's global id. The global-id arrays are dropped from the fields (the ids say it).
+pub fn join(listing: &Path, pieces: Vec<(usize, Piece)>, first_ids: &[u64]) -> Result<(RawMesh, Vec<u64>)> {
+    check_same_arrays(listing, &pieces)?;
+    let mut ids = Vec::with_capacity(pieces.iter().map(|(_, p)| p.n_cells()).sum());
+    let mut raws = Vec::with_capacity(pieces.len());
+    let mut point_ids = pieces.iter().all(|(_, p)| p.global_point_ids.is_some()).then(Vec::new);
+    for ((_, p), &first) in pieces.into_iter().zip(first_ids) {
+        match &p.global_ids {
+            Some(g) => ids.extend_from_slice(g),
+            None => ids.extend(first..first + p.n_cells() as u64),
+        }
+        if let (Some(all), Some(g)) = (&mut point_ids, &p.global_point_ids) {
+            all.extend_from_slice(g);
+        }
+        raws.push(p.raw);
+    }
+    let mut raw = vtu::join(raws, listing)?;
+    raw.fields.retain(|f| match f.location {
+        FieldLocation::Cell => !vtu::GLOBAL_CELL_IDS.contains(&f.name.as_str()),
+        FieldLocation::Vertex => point_ids.is_none() || !vtu::GLOBAL_POINT_IDS.contains(&f.name.as_str()),
+    });
+    if let Some(point_ids) = point_ids {
+        raw = weld(raw, &point_ids, listing)?;
+    }
+    Ok((raw, ids))
+}
+
+/// Merges the points that share a global point id into one, numbered in ascending global id.
+fn weld(mut raw: RawMesh, ids: &[u64], listing: &Path) -> Result<RawMesh> {
+    use rayon::prelude::*;
+    if ids.len() != raw.points.len() {
+        return Err(Error::format(listing, "the pieces' global point ids are not one per point"));
+    }
+    let mut order: Vec<u32> = (0..ids.len() as u32).collect();
+    order.par_sort_unstable_by_key(|&i| (ids[i as usize], i));
+    let mut new_of = vec![0u32; ids.len()];
+    let mut kept: Vec<u32> = Vec::new();
+    for (k, &i) in order.iter().enumerate() {
+        let i = i as usize;
+        if k == 0 || ids[order[k - 1] as usize] != ids[i] {
+            kept.push(i as u32);
+        } else {
+            let first = *kept.last().unwrap() as usize;
+            let differ = match &raw.points64 {
+                Some(p64) => p64[first] != p64[i],
+                None => raw.points[first] != raw.points[i],
+            };
+            if differ {
+                return Err(Error::format(
+                    listing,
+                    format!(
+                        "global point id {} is at {:?} in one piece and at {:?} in another",
+                        ids[i], raw.points[first], raw.points[i]
+                    ),
+                ));
+            }
+        }
+        new_of[i] = (kept.len() - 1) as u32;
+    }
+    raw.points = kept.iter().map(|&i| raw.points[i as usize]).collect();
+    if let Some(p64) = &mut raw.points64 {
+        *p64 = kept.iter().map(|&i| p64[i as usize]).collect();
+    }
+    for f in raw.fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
+        f.values = kept.iter().map(|&i| f.values[i as usize]).collect();
+    }
+    raw.tets.par_iter_mut().for_each(|t| *t = t.map(|i| new_of[i as usize]));
+    if let Some(b) = &mut raw.cells {
+        b.conn.par_iter_mut().for_each(|i| *i = new_of[*i as usize]);
+    }
+    Ok(raw)
+}
+
+/// Reads a whole partitioned mesh (`.pvtu`, `.vtm`), cells numbered by their global ids.
+pub fn read(path: &Path) -> Result<RawMesh> {
+    let files = list(path)?;
+    let pieces = files.iter().enumerate().map(|(k, f)| Ok((k, read_piece(path, k, f)?))).collect::<Result<Vec<_>>>()?;
+    let mut first_ids = Vec::with_capacity(pieces.len());
+    let mut n = 0u64;
+    for (_, p) in &pieces {
+        first_ids.push(n);
+        n += p.n_cells() as u64;
+    }
+    let (raw, ids) = join(path, pieces, &first_ids)?;
+    renumber(raw, &ids, path, &first_ids)
+}
+
+/// The mesh with cell `c` moved to position `ids[c]`; `ids` must hold `0..N` once each
+/// (errors name the piece, found from `first_ids`, the piece starts).
+fn renumber(mut raw: RawMesh, ids: &[u64], listing: &Path, first_ids: &[u64]) -> Result<RawMesh> {
+    let n = ids.len();
+    let piece_of = |c: usize| first_ids.partition_point(|&f| f <= c as u64).saturating_sub(1);
+    let mut cell_of = vec![usize::MAX; n];
+    let mut identity = true;
+    for (c, &g) in ids.iter().enumerate() {
+        let bad = |why: String| {
+            let k = piece_of(c);
+            Error::format(
+                listing,
+                format!(
+                    "piece {k}, cell {}: global cell id {g} {why}",
+                    c as u64 - first_ids.get(k).copied().unwrap_or(0)
+                ),
+            )
+        };
+        if g >= n as u64 {
+            return Err(bad(format!("is not below the number of cells, {n} (ids must be 0..{n} once each)")));
+        }
+        let slot = &mut cell_of[g as usize];
+        if *slot != usize::MAX {
+            let (k, other) = (piece_of(*slot), *slot as u64);
+            let local = other - first_ids.get(k).copied().unwrap_or(0);
+            return Err(bad(format!("is also the id of piece {k}, cell {local} (ghost cells?)")));
+        }
+        *slot = c;
+        identity &= g == c as u64;
+    }
+    if identity {
+        return Ok(raw);
+    }
+    if !raw.tets.is_empty() {
+        raw.tets = cell_of.iter().map(|&c| raw.tets[c]).collect();
+    }
+    if let Some(block) = &raw.cells {
+        let mut out = CellBlock::default();
+        cell_of.iter().for_each(|&c| out.push(block.types[c], block.nodes(c)));
+        raw.cells = Some(out);
+    }
+    for f in raw.fields.iter_mut().filter(|f| f.location == FieldLocation::Cell) {
+        f.values = cell_of.iter().map(|&c| f.values[c]).collect();
+    }
+    Ok(raw)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::locate::{BatchLocator, CpuLocator};
+    use crate::test_support::KuhnGrid;
+    use crate::Mesh;
+    use std::sync::Arc;
+
+    /// A fresh folder, removed at the end.
+    struct TempDir(PathBuf);
+    impl TempDir {
+        fn new(tag: &str) -> TempDir {
+            let d = std::env::temp_dir().join(format!("tetloc-pieces-{}-{tag}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&d);
+            std::fs::create_dir_all(&d).unwrap();
+            TempDir(d)
+        }
+    }
+    impl Drop for TempDir {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+
+    fn cube() -> Mesh {
+        KuhnGrid::new(6).jitter(0.2, 3).cell_field("c", |i, _| i as f32).mesh("cube")
+    }
+
+    /// Partitioned and read back whole, the mesh has the same cells under the same ids (its
+    /// cell field says so), and every point gets the same cell and value as in the original.
+    #[test]
+    fn partition_round_trip() {
+        let dir = TempDir::new("round");
+        let m = cube();
+        let out = dir.0.join("cube.pvtu");
+        crate::partition::write_pvtu(&m, 5, &out, true, |_| {}).unwrap();
+        assert_eq!(list(&out).unwrap().len(), 5);
+        let back = crate::io::read_mesh(&out, None).unwrap();
+        assert_eq!(back.n_cells(), m.n_cells());
+        assert_eq!(back.points, m.points, "the copies of a vertex are merged by GlobalPointIds, in id order");
+        assert_eq!(back.tets, m.tets);
+        assert_eq!(back.field("c").unwrap().values, m.field("c").unwrap().values, "cells renumbered by global id");
+        assert!(back.field("GlobalCellIds").is_err(), "the ids are the numbering, not a field");
+        for (a, b) in back.tets.iter().zip(&m.tets) {
+            assert_eq!(a.map(|i| back.points[i as usize]), b.map(|i| m.points[i as usize]));
+        }
+        let pts: Vec<[f32; 3]> =
+            (0..20_000).map(|i| [(i % 97) as f32 / 96.0, (i % 89) as f32 / 88.0, (i % 83) as f32 / 82.0]).collect();
+        let (mut a, mut b, mut va, mut vb) =
+            (vec![0; pts.len()], vec![0; pts.len()], vec![0.0; pts.len()], vec![0.0; pts.len()]);
+        CpuLocator::new(Arc::new(m)).locate_and_sample(&pts, "f", &mut a, &mut va).unwrap();
+        let back = Arc::new(back);
+        CpuLocator::new(back.clone()).locate_and_sample(&pts, "f", &mut b, &mut vb).unwrap();
+        for i in 0..pts.len() {
+            if a[i] != b[i] {
+                // Only a point on a face between pieces may go either way: both tets hold it.
+                let t = back.tets[a[i] as usize];
+                assert!(crate::geom::point_in_tet(t, &back.points, pts[i]).is_some(), "{:?}", pts[i]);
+            } else {
+                assert_eq!(va[i].to_bits(), vb[i].to_bits(), "{:?}", pts[i]);
+            }
+        }
+        // Written again over itself: replaced, still complete.
+        crate::partition::write_pvtu(&back, 2, &out, false, |_| {}).unwrap();
+        assert_eq!(list(&out).unwrap().len(), 2);
+        assert_eq!(std::fs::read_dir(dir.0.join("cube")).unwrap().count(), 2, "the old pieces are gone");
+        assert_eq!(
+            crate::io::read_mesh(&out, None).unwrap().field("c").unwrap().values,
+            back.field("c").unwrap().values
+        );
+    }
+
+    /// A mesh far from the origin (UTM-like, f64 coordinates that do not round to f32) keeps
+    /// its file coordinates through partition and read-back: the pieces are written in Float64
+    /// file coordinates (not the centred working copy), welded by GlobalPointIds in f64.
+    #[test]
+    fn far_from_the_origin_pieces_keep_the_file_coordinates() {
+        let dir = TempDir::new("far");
+        let raw = crate::test_support::jittered_grid(4, 0.25, 7);
+        let shift = [512_345.037_5, 4_123_456.062_5, 0.3];
+        let file: Vec<[f64; 3]> =
+            raw.points.iter().map(|p| std::array::from_fn(|k| p[k] as f64 * 1000.0 + shift[k] + 1e-7)).collect();
+        let raw = RawMesh { points: file.iter().map(|p| p.map(|c| c as f32)).collect(), points64: Some(file), ..raw };
+        let m = Mesh::new(raw, "far grid").unwrap();
+        assert!(!m.info.frame.is_identity());
+        let out = dir.0.join("far.pvtu");
+        crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
+        for piece in list(&out).unwrap() {
+            let p = crate::io::read_mesh(&piece, None).unwrap();
+            assert!(p.points64.is_some(), "{}: written in f64", piece.display());
+        }
+        let back = crate::io::read_mesh(&out, None).unwrap();
+        assert_eq!(back.points64, m.points64, "the file's coordinates, welded in f64");
+        assert_eq!(back.tets, m.tets);
+    }
+
+    /// Mixed cells and higher-order tets keep every node through a partition.
+    fn hybrid() -> Mesh {
+        use crate::gen::{generate_spec, CellKind, Shape, Spec};
+        Mesh::new(generate_spec(Spec { shape: Shape::Jets, cells: CellKind::Hybrid }, 3000, 1, &|_| {}), "hybrid")
+            .unwrap()
+    }
+
+    #[test]
+    fn mixed_and_higher_order_pieces() {
+        let dir = TempDir::new("mixed");
+        for (name, m) in [("p2", KuhnGrid::new(3).order(2).mesh("p2")), ("hybrid", hybrid())] {
+            let out = dir.0.join(format!("{name}.pvtu"));
+            crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
+            let back = crate::io::read_mesh(&out, None).unwrap();
+            assert_eq!((back.n_cells(), back.n_tets()), (m.n_cells(), m.n_tets()), "{name}");
+            assert_eq!(back.info.cell_types, m.info.cell_types, "{name}");
+            assert_eq!(back.info.total_volume, m.info.total_volume, "{name}");
+        }
+    }
+
+    #[test]
+    fn vtm_and_order_without_ids() {
+        let dir = TempDir::new("vtm");
+        let m = cube();
+        crate::partition::write_pvtu(&m, 2, &dir.0.join("a.pvtu"), false, |_| {}).unwrap();
+        // Pieces without global ids: numbered in piece order × cell order.
+        let plain = |k: usize| {
+            let raw = crate::io::vtk::vtu::read(&dir.0.join(format!("a/a_{k}.vtu"))).unwrap();
+            let mut mesh = Mesh::new(raw, "p").unwrap();
+            mesh.fields.retain(|f| f.name != "GlobalCellIds");
+            let p = dir.0.join(format!("plain_{k}.vtu"));
+            crate::io::vtk::write::write_mesh_vtu(&p, &mesh, false).unwrap();
+            mesh
+        };
+        let (p0, p1) = (plain(0), plain(1));
+        let vtm = r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
+            <Block index="0"><DataSet index="0" file="plain_0.vtu"/></Block><DataSet index="1" file="plain_1.vtu"/>
+            </vtkMultiBlockDataSet></VTKFile>"#;
+        std::fs::write(dir.0.join("b.vtm"), vtm).unwrap();
+        let back = crate::io::read_mesh(&dir.0.join("b.vtm"), None).unwrap();
+        let c = &back.field("c").unwrap().values;
+        assert_eq!(c[..p0.n_cells()], p0.field("c").unwrap().values[..]);
+        assert_eq!(c[p0.n_cells()..], p1.field("c").unwrap().values[..]);
+        // A .vtm of the .pvtu: its pieces, with their ids.
+        std::fs::write(
+            dir.0.join("c.vtm"),
+            vtm.replace("plain_0.vtu", "a.pvtu").replace("<DataSet index=\"1\" file=\"plain_1.vtu\"/>", ""),
+        )
+        .unwrap();
+        assert_eq!(
+            crate::io::read_mesh(&dir.0.join("c.vtm"), None).unwrap().field("c").unwrap().values,
+            m.field("c").unwrap().values
+        );
+    }
+
+    #[test]
+    fn errors_name_the_file() {
+        let dir = TempDir::new("errors");
+        let m = cube();
+        let out = dir.0.join("e.pvtu");
+        crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
+        let err = |p: &Path| crate::io::read_mesh(p, None).unwrap_err().to_string();
+        // A piece missing.
+        std::fs::rename(dir.0.join("e/e_1.vtu"), dir.0.join("e1.vtu")).unwrap();
+        let e = err(&out);
+        assert!(e.starts_with(&out.display().to_string()) && e.contains("piece 1") && e.contains("e_1.vtu"), "{e}");
+        // A piece with other arrays.
+        let raw = crate::io::vtk::vtu::read(&dir.0.join("e1.vtu")).unwrap();
+        let mut other = Mesh::new(raw, "x").unwrap();
+        other.fields.retain(|f| f.name != "c");
+        let gids: Vec<i32> = other.field("GlobalCellIds").unwrap().values.iter().map(|&v| v as i32).collect();
+        other.fields.retain(|f| f.name != "GlobalCellIds");
+        let ids = crate::io::vtk::write::NamedArray {
+            name: "GlobalCellIds".into(),
+            n_components: 1,
+            data: crate::io::vtk::write::ArrayData::I32(&gids),
+        };
+        crate::io::vtk::write::write_mesh_with_cell_data(&dir.0.join("e/e_1.vtu"), &other, &[], &[ids], false).unwrap();
+        let e = err(&out);
+        assert!(e.contains("piece 1") && e.contains("e_1.vtu") && e.contains("has the arrays"), "{e}");
+        // Global ids twice.
+        std::fs::copy(dir.0.join("e/e_0.vtu"), dir.0.join("e/e_1.vtu")).unwrap();
+        assert!(err(&out).contains("is also the id of piece 0"), "{}", err(&out));
+        // Bad XML.
+        std::fs::write(&out, "<VTKFile type=\"PUnstructuredGrid\"><PUnstructuredGrid>").unwrap();
+        assert!(err(&out).starts_with(&out.display().to_string()), "{}", err(&out));
+        // A listing that lists itself.
+        std::fs::write(dir.0.join("self.vtm"), "<VTKFile type=\"vtkMultiBlockDataSet\"><vtkMultiBlockDataSet><DataSet file=\"self.vtm\"/></vtkMultiBlockDataSet></VTKFile>").unwrap();
+        assert!(err(&dir.0.join("self.vtm")).contains("nest more than"));
+        // An output folder that holds other files is not replaced.
+        std::fs::write(dir.0.join("e/notes.txt"), "mine").unwrap();
+        let e = crate::partition::write_pvtu(&m, 2, &out, false, |_| {}).unwrap_err().to_string();
+        assert!(e.contains("notes.txt") && e.contains("refusing"), "{e}");
+    }
+}
