@@ -199,13 +199,15 @@ fn main() {
     }
 }
 
-/// A rank's run under an MPI launcher: `locate` and `bench` of a partitioned mesh (`.pvtu`,
+/// A rank's run under an MPI launcher: `locate`, `bench`, `resample` and `probe` of a partitioned mesh (`.pvtu`,
 /// `.vtm`) run distributed; anything else runs as usual when it is the only rank. Returns the
 /// exit code.
 fn distributed(cli: Cli, size: usize) -> i32 {
     let listing = match &cli.command {
         Command::Locate(a) => Some(a.mesh.clone()),
         Command::Bench { mesh, .. } => Some(mesh.clone()),
+        Command::Resample(a) => Some(a.mesh.clone()),
+        Command::Probe(a) => Some(a.source.clone()),
         _ => None,
     };
     let is_listing = listing.as_ref().is_some_and(|m| tetloc_core::io::vtk::pieces::is_listing(Path::new(m)));

@@ -11,12 +11,13 @@ use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points;
 use tetloc_core::locate::{Tolerance, WithTolerance};
 use tetloc_core::ops::{fields, probe};
-use tetloc_core::BatchLocator;
+use tetloc_core::{BatchLocator, Mesh};
 
 #[derive(clap::Args)]
 pub struct ProbeArgs {
-    /// The mesh whose fields are sampled (.vtu, .vtk, .msh, .node/.ele, or SHAPE:N).
-    source: OsString,
+    /// The mesh whose fields are sampled (.vtu, .vtk, .msh, .node/.ele, SHAPE:N, or a
+    /// partitioned .pvtu/.vtm, which runs distributed under mpirun).
+    pub(crate) source: OsString,
     /// Where they are sampled: a mesh file (its vertices; OUT keeps its cells and data), or a
     /// point set (.npy (N,3), .csv x,y,z, .bin raw float32 triplets).
     target: OsString,
@@ -29,18 +30,18 @@ pub struct ProbeArgs {
     /// Boundary tolerance, as for `locate`: points outside SOURCE but within this distance
     /// (mesh units, or a percentage of the mean edge such as 1%) get the closest boundary value.
     #[arg(long, default_value = "0")]
-    tolerance: Tolerance,
+    pub(crate) tolerance: Tolerance,
     /// zlib-compress the output's arrays.
     #[arg(long)]
     zlib: bool,
     /// The backend: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, or auto.
     #[arg(long, default_value = "auto")]
-    backend: String,
+    pub(crate) backend: String,
     /// TARGET's mesh format, overriding its extension (vtu, vtk, msh, node).
     #[arg(long)]
     target_format: Option<String>,
     #[command(flatten)]
-    common: Common,
+    pub(crate) common: Common,
 }
 
 /// Whether TARGET names a point set (by its extension) rather than a mesh.
@@ -48,8 +49,9 @@ fn is_point_set(target: &Path) -> bool {
     points::POINT_EXTENSIONS.contains(&output::extension(target).as_str())
 }
 
-pub fn run(a: &ProbeArgs) -> Result<()> {
-    progress::set_quiet(a.common.quiet);
+/// Checks the arguments and the output; whether TARGET is a point set (every rank of a
+/// distributed run does the same).
+pub(crate) fn check(a: &ProbeArgs) -> Result<bool> {
     let target = Path::new(&a.target);
     let point_set = is_point_set(target) && a.target_format.is_none();
     let out_exts: &[&str] = if point_set { &["vtu", "vtp"] } else { &["vtu"] };
@@ -64,33 +66,47 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     }
     let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("input", p)).collect();
     output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
-    let opts = a.common.opts()?;
+    Ok(point_set)
+}
 
+pub fn run(a: &ProbeArgs) -> Result<()> {
+    progress::set_quiet(a.common.quiet);
+    let point_set = check(a)?;
+    let opts = a.common.opts()?;
     let source = mesh_arg::load(&a.source, a.common.format.as_deref(), a.common.seed)?;
-    let groups = if a.field.is_empty() {
-        fields::groups(&source)
-    } else {
-        a.field.iter().map(|f| fields::resolve(&source, f)).collect::<Result<Vec<_>, _>>()?
-    };
-    if groups.is_empty() {
-        bail!("{}: the source mesh has no fields to probe", source.info.source);
-    }
-    let (target_mesh, pts) = if point_set {
-        (None, points::read_points(target)?)
-    } else {
-        let m = mesh_arg::load(&a.target, a.target_format.as_deref(), a.common.seed)?;
-        let pts = m.points.clone();
-        (Some(m), pts)
-    };
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let exact = progress::with_spinner("building the locator", || backend::make(&name, &source, &opts))?;
     let mut loc: Box<dyn BatchLocator> = match a.tolerance.distance(&source) {
         d if d > 0.0 => Box::new(WithTolerance::new(exact, source.clone(), a.tolerance)),
         _ => exact,
     };
+    execute(a, point_set, &source, loc.as_mut())
+}
+
+/// Probes through `loc`: `fields_of` names SOURCE's fields (the mesh, or one piece of it).
+/// TARGET is read here.
+pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mut dyn BatchLocator) -> Result<()> {
+    let source = fields_of;
+    let groups = if a.field.is_empty() {
+        fields::groups(source)
+    } else {
+        a.field.iter().map(|f| fields::resolve(source, f)).collect::<Result<Vec<_>, _>>()?
+    };
+    if groups.is_empty() {
+        bail!("{}: the source mesh has no fields to probe", source.info.source);
+    }
+    let target = Path::new(&a.target);
+    let (target_mesh, pts) = if point_set {
+        (None, points::read_points(target)?)
+    } else {
+        let m = mesh_arg::load(&a.target, a.target_format.as_deref(), a.common.seed)?;
+        // The target's vertices in the file's coordinates (a far mesh's working copy is centred).
+        let pts = (0..m.points.len() as u32).map(|i| m.vertex64(i).map(|c| c as f32)).collect();
+        (Some(m), pts)
+    };
     let pb = progress::bar(pts.len() as u64, format!("probing on {}", loc.name()));
     let t0 = Instant::now();
-    let probed = probe::probe(loc.as_mut(), &pts, &groups, |d| {
+    let probed = probe::probe(loc, &pts, &groups, |d| {
         pb.set_position(d as u64);
         Ok(())
     })?;

@@ -9,11 +9,13 @@ use std::time::Instant;
 use tetloc_core::io::image::IMAGE_EXTENSIONS;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::ops::{fields, resample, ImageGrid};
+use tetloc_core::{BatchLocator, Mesh};
 
 #[derive(clap::Args)]
 pub struct ResampleArgs {
-    /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M).
-    mesh: OsString,
+    /// A mesh file (.vtu, .vtk, .msh, .node/.ele, or a partitioned .pvtu/.vtm, which runs
+    /// distributed under mpirun), or SHAPE:N to generate one (e.g. fusion:1M).
+    pub(crate) mesh: OsString,
     /// Fields to sample, comma-separated (a vector field by its name: `v` for `v[0]`, `v[1]`,
     /// `v[2]`); every field of the mesh when left out. `.npy` takes exactly one.
     #[arg(long, value_delimiter = ',')]
@@ -34,13 +36,19 @@ pub struct ResampleArgs {
     zlib: bool,
     /// The backend: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, or auto.
     #[arg(long, default_value = "auto")]
-    backend: String,
+    pub(crate) backend: String,
     #[command(flatten)]
-    common: Common,
+    pub(crate) common: Common,
 }
 
-pub fn run(a: &ResampleArgs) -> Result<()> {
-    progress::set_quiet(a.common.quiet);
+/// What the arguments ask for, checked before any mesh is read.
+pub(crate) struct Plan {
+    dims: [usize; 3],
+    bounds: Option<([f64; 3], [f64; 3])>,
+}
+
+/// Checks the arguments and the output (every rank of a distributed run does the same).
+pub(crate) fn check(a: &ResampleArgs) -> Result<Plan> {
     let [nx, ny, nz] = a.dims[..] else { bail!("--dims takes three counts NX,NY,NZ, got {:?}", a.dims) };
     if a.dims.contains(&0) {
         bail!("--dims {nx},{ny},{nz}: every dimension must be at least 1");
@@ -57,27 +65,42 @@ pub fn run(a: &ResampleArgs) -> Result<()> {
     if output::extension(&a.out) == "npy" && a.field.len() != 1 {
         bail!("--out {}: .npy holds one array; name one --field (or write .vti)", a.out.display());
     }
-    let opts = a.common.opts()?;
+    Ok(Plan { dims: [nx, ny, nz], bounds })
+}
 
+pub fn run(a: &ResampleArgs) -> Result<()> {
+    progress::set_quiet(a.common.quiet);
+    let plan = check(a)?;
+    let opts = a.common.opts()?;
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
-    let groups = if a.field.is_empty() {
-        fields::groups(&m)
-    } else {
-        a.field.iter().map(|f| fields::resolve(&m, f)).collect::<Result<Vec<_>, _>>()?
-    };
-    let grid = match bounds {
-        Some((lo, hi)) => ImageGrid::spanning(lo, hi, [nx, ny, nz])?,
-        None => {
-            let (lo, hi) = m.file_bounds();
-            ImageGrid::over_bounds(lo, hi, [nx, ny, nz])?
-        }
-    };
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
+    execute(a, &plan, &m, m.file_bounds(), loc.as_mut())
+}
+
+/// Resamples through `loc`: `fields_of` names the fields (the mesh, or one piece of it),
+/// `mesh_bounds` are the whole mesh's bounds in the file's coordinates.
+pub(crate) fn execute(
+    a: &ResampleArgs,
+    plan: &Plan,
+    fields_of: &Mesh,
+    mesh_bounds: ([f64; 3], [f64; 3]),
+    loc: &mut dyn BatchLocator,
+) -> Result<()> {
+    let m = fields_of;
+    let [nx, ny, nz] = plan.dims;
+    let groups = if a.field.is_empty() {
+        fields::groups(m)
+    } else {
+        a.field.iter().map(|f| fields::resolve(m, f)).collect::<Result<Vec<_>, _>>()?
+    };
+    let grid = match plan.bounds {
+        Some((lo, hi)) => ImageGrid::spanning(lo, hi, plan.dims)?,
+        None => ImageGrid::over_bounds(mesh_bounds.0, mesh_bounds.1, plan.dims)?,
+    };
     let pb = progress::bar(grid.n_points() as u64, format!("resampling on {}", loc.name()));
     let t0 = Instant::now();
-    let stats =
-        resample::resample_to_file(loc.as_mut(), &grid, &groups, &a.out, a.zlib, |d| pb.set_position(d as u64))?;
+    let stats = resample::resample_to_file(loc, &grid, &groups, &a.out, a.zlib, |d| pb.set_position(d as u64))?;
     pb.finish_and_clear();
     if !a.common.quiet {
         eprintln!(

@@ -247,3 +247,76 @@ fn bench_and_refusals() {
     assert!(!o.status.success() && text(&o).contains("tetloc partition"), "{}", text(&o));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The float32 values of a `.npy` written by `resample` (after its header).
+fn npy_values(p: &Path) -> Vec<f32> {
+    let bytes = std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    let header = u16::from_le_bytes([bytes[8], bytes[9]]) as usize;
+    bytemuck::pod_collect_to_vec(&bytes[10 + header..])
+}
+
+/// Two values agree: both NaN (outside), or within float32 rounding of the interpolation (a
+/// point on a face between pieces may be answered by the other cell: the same value, computed
+/// from the other cell's corners).
+fn same_value(a: f32, b: f32) -> bool {
+    (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-5 * (1.0 + a.abs())
+}
+
+/// `resample` and `probe` of a partitioned mesh under mpirun (rank 0 drives, the others
+/// serve) write what one process writes on the whole mesh: the same valid points, the same
+/// values; and options that do not run distributed are refused on every rank.
+#[test]
+fn resample_and_probe_run_distributed() {
+    let test = "resample_and_probe_run_distributed";
+    if !have_mpirun(test) {
+        return;
+    }
+    let dir = tmp_dir("ops");
+    let pvtu = small_pvtu(&dir);
+    let whole = dir.join("jets.vtu");
+    let one = dir.join("one.npy");
+    let o = tetloc(&["resample", s(&whole), "--field", "f", "--dims", "23,19,17", "--backend", "cpu", "-o", s(&one)]);
+    assert!(o.status.success(), "{}", text(&o));
+    let want = npy_values(&one);
+    for n in [2, 3] {
+        let got_path = dir.join(format!("ranks{n}.npy"));
+        let args = ["resample", s(&pvtu), "--field", "f", "--dims", "23,19,17", "--backend", "cpu", "-o", s(&got_path)];
+        let (o, _) = mpirun(n, &[], &args);
+        assert!(o.status.success(), "{n} ranks: {}", text(&o));
+        let got = npy_values(&got_path);
+        assert_eq!(got.len(), want.len());
+        let valid = want.iter().filter(|v| !v.is_nan()).count();
+        assert!(valid > 1000, "most of the grid is inside: {valid}");
+        let differ = (0..got.len()).filter(|&i| !same_value(got[i], want[i])).count();
+        assert_eq!(differ, 0, "{n} ranks: {differ} grid points differ from one process");
+    }
+
+    // probe onto a coarser mesh of the same shape: the target's vertices get f.
+    let target = dir.join("target.vtu");
+    let o = tetloc(&["gen", "jets", "--tets", "3000", "-o", s(&target)]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (one, two) = (dir.join("probe1.vtu"), dir.join("probe2.vtu"));
+    let o = tetloc(&["probe", s(&whole), s(&target), "--field", "f", "--backend", "cpu", "-o", s(&one)]);
+    assert!(o.status.success(), "{}", text(&o));
+    let (o, _) = mpirun(2, &[], &["probe", s(&pvtu), s(&target), "--field", "f", "--backend", "cpu", "-o", s(&two)]);
+    assert!(o.status.success(), "{}", text(&o));
+    let read = |p: &Path| tetloc_core::io::read_mesh(p, None).unwrap_or_else(|e| panic!("{e}"));
+    let (a, b) = (read(&one), read(&two));
+    for name in ["f", "vtkValidPointMask"] {
+        let (fa, fb) = (&a.field(name).unwrap().values, &b.field(name).unwrap().values);
+        assert_eq!(fa.len(), fb.len());
+        assert!((0..fa.len()).all(|i| same_value(fa[i], fb[i])), "{name} differs");
+    }
+    assert_eq!(a.points, b.points, "the target's points are written as they were");
+
+    // A tolerance needs the nearest boundary cell over all ranks: refused on every rank.
+    let (o, _) = mpirun(
+        2,
+        &[],
+        &["probe", s(&pvtu), s(&target), "--tolerance", "1%", "--backend", "cpu", "-o", s(&dir.join("t.vtu"))],
+    );
+    let t = text(&o);
+    assert!(!o.status.success() && t.contains("--tolerance does not run distributed"), "{t}");
+    assert!(!dir.join("t.vtu").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

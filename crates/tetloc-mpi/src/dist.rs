@@ -282,15 +282,15 @@ impl<'c, L: BatchLocator> DistLocator<'c, L> {
         let send_counts: Vec<Count> = routes.counts.iter().map(|&c| c as Count).collect();
         let mut recv_counts = vec![0 as Count; self.cluster.size];
         world.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
-        let recv_points = exchange(world, &send, &send_counts, &recv_counts, 3);
-        let recv_points: Vec<Vec3> = recv_points.par_chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+        let recv_points = exchange(world, bytemuck::cast_slice::<Vec3, f32>(&send), &send_counts, &recv_counts, 3);
+        let recv_points: &[Vec3] = bytemuck::cast_slice(&recv_points);
 
         // Answer what was sent here.
         let n = recv_points.len();
         let (mut ids, mut values) = (vec![-1i32; n], vec![f32::NAN; n * k]);
         if let (Some(local), true) = (&mut self.local, n > 0) {
             let t = Instant::now();
-            if let Err(e) = local.sample_many(&recv_points, fields, &mut ids, &mut values) {
+            if let Err(e) = local.sample_many(recv_points, fields, &mut ids, &mut values) {
                 self.cluster.abort(&format!("locating {n} points: {e}"));
             }
             self.stats.local_secs += t.elapsed().as_secs_f64();

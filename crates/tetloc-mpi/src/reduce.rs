@@ -27,24 +27,53 @@ pub struct Reduced {
 
 /// Picks, for each of `n` points, the claim with the lowest global id. `index[s]` is the
 /// batch index of the `s`-th answer, `ids[s]` its global id (< 0: not claimed) and
-/// `values[s·k..(s+1)·k]` its values.
+/// `values[s·k..(s+1)·k]` its values. The answers come rank after rank, each rank's in
+/// ascending batch index (as `Routes::plan` sends them): blocks of points are reduced in
+/// parallel, each from its own slice of every rank's answers.
 pub fn reduce(n: usize, index: &[u32], ids: &[i64], values: &[f32], k: usize) -> Reduced {
-    let mut out = Reduced { ids: vec![OUTSIDE as i64; n], values: vec![f32::NAN; n * k], ties: 0 };
-    let mut claims = vec![0u8; n];
-    for (s, (&i, &id)) in index.iter().zip(ids).enumerate() {
-        if id < 0 {
-            continue;
-        }
-        let i = i as usize;
-        claims[i] = claims[i].saturating_add(1);
-        if out.ids[i] < 0 || id < out.ids[i] {
-            out.ids[i] = id;
-            out.values[i * k..(i + 1) * k].copy_from_slice(&values[s * k..(s + 1) * k]);
-        }
-    }
-    out.ties = claims.iter().filter(|&&c| c > 1).count();
+    use rayon::prelude::*;
+    // Each rank's run of answers: where the batch index stops ascending.
+    let mut runs = vec![0];
+    runs.extend((1..index.len()).filter(|&s| index[s] <= index[s - 1]));
+    runs.push(index.len());
+    // Blocks of ids and of values go in step; without fields, a placeholder value per point
+    // keeps them so (dropped at the end).
+    let per = k.max(1);
+    let mut out = Reduced { ids: vec![OUTSIDE as i64; n], values: vec![f32::NAN; n * per], ties: 0 };
+    let ties: usize = out
+        .ids
+        .par_chunks_mut(BLOCK)
+        .zip(out.values.par_chunks_mut(BLOCK * per))
+        .enumerate()
+        .map(|(b, (out_ids, out_values))| {
+            let (lo, hi) = ((b * BLOCK) as u32, (b * BLOCK + out_ids.len()) as u32);
+            let mut claims = vec![0u8; out_ids.len()];
+            for w in runs.windows(2) {
+                let run = &index[w[0]..w[1]];
+                let (from, to) = (run.partition_point(|&i| i < lo), run.partition_point(|&i| i < hi));
+                for s in w[0] + from..w[0] + to {
+                    let id = ids[s];
+                    if id < 0 {
+                        continue;
+                    }
+                    let i = (index[s] - lo) as usize;
+                    claims[i] = claims[i].saturating_add(1);
+                    if out_ids[i] < 0 || id < out_ids[i] {
+                        out_ids[i] = id;
+                        out_values[i * k..(i + 1) * k].copy_from_slice(&values[s * k..(s + 1) * k]);
+                    }
+                }
+            }
+            claims.iter().filter(|&&c| c > 1).count()
+        })
+        .sum();
+    out.ties = ties;
+    out.values.truncate(n * k);
     out
 }
+
+/// Points a task reduces at once.
+const BLOCK: usize = 1 << 16;
 
 #[cfg(test)]
 mod tests {
@@ -65,5 +94,28 @@ mod tests {
         // The order in which the answers come does not matter.
         let r2 = reduce(4, &[0, 0], &[3, 7], &[3.0, 3.5, 7.0, 7.5], 2);
         assert_eq!((r2.ids[0], r2.values[0]), (3, 3.0));
+        // Several blocks, no fields: three ranks' runs, the middle one claiming every third
+        // point with a lower id than the first, which claims all.
+        let n = 3 * BLOCK + 17;
+        let mut index: Vec<u32> = (0..n as u32).collect();
+        index.extend((0..n as u32).step_by(3));
+        index.extend((0..n as u32).filter(|i| i % 5 == 0));
+        let ids: Vec<i64> = index
+            .iter()
+            .enumerate()
+            .map(|(s, &i)| {
+                if s < n {
+                    1000 + i as i64
+                } else if s < n + n.div_ceil(3) {
+                    i as i64
+                } else {
+                    -1
+                }
+            })
+            .collect();
+        let r = reduce(n, &index, &ids, &[], 0);
+        assert!(r.values.is_empty());
+        assert!((0..n).all(|i| r.ids[i] == if i % 3 == 0 { i as i64 } else { 1000 + i as i64 }));
+        assert_eq!(r.ties, n.div_ceil(3));
     }
 }

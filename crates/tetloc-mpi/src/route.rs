@@ -118,22 +118,49 @@ pub struct Routes {
 }
 
 impl Routes {
-    /// Routes every point to each rank whose region may hold it.
+    /// Routes every point to each rank whose region may hold it. Blocks of points are
+    /// routed in parallel and their lists joined rank after rank, so each rank's points stay
+    /// in the batch's order (the reduction relies on it).
     pub fn plan(points: &[Vec3], regions: &[Region]) -> Routes {
         use rayon::prelude::*;
-        let per_rank: Vec<Vec<u32>> = regions
-            .iter()
-            .map(|r| (0..points.len() as u32).into_par_iter().filter(|&i| r.may_hold(points[i as usize])).collect())
+        let blocks: Vec<Vec<Vec<u32>>> = points
+            .par_chunks(BLOCK)
+            .enumerate()
+            .map(|(b, block)| {
+                let base = (b * BLOCK) as u32;
+                regions
+                    .iter()
+                    .map(|r| {
+                        (0..block.len() as u32).filter(|&i| r.may_hold(block[i as usize])).map(|i| base + i).collect()
+                    })
+                    .collect()
+            })
             .collect();
-        Routes { counts: per_rank.iter().map(Vec::len).collect(), index: per_rank.into_iter().flatten().collect() }
+        let counts: Vec<usize> = (0..regions.len()).map(|r| blocks.iter().map(|b| b[r].len()).sum()).collect();
+        // Each (rank, block) list to its place in `index`, in parallel.
+        let mut index = vec![0u32; counts.iter().sum()];
+        let mut slots: Vec<(&[u32], &mut [u32])> = Vec::with_capacity(regions.len() * blocks.len());
+        let mut rest = &mut index[..];
+        for r in 0..regions.len() {
+            for b in &blocks {
+                let (head, tail) = rest.split_at_mut(b[r].len());
+                slots.push((&b[r], head));
+                rest = tail;
+            }
+        }
+        slots.into_par_iter().for_each(|(from, to)| to.copy_from_slice(from));
+        Routes { counts, index }
     }
 
     /// The coordinates of the points to send, rank after rank.
-    pub fn gather(&self, points: &[Vec3]) -> Vec<f32> {
+    pub fn gather(&self, points: &[Vec3]) -> Vec<Vec3> {
         use rayon::prelude::*;
-        self.index.par_iter().flat_map_iter(|&i| points[i as usize]).collect()
+        self.index.par_iter().map(|&i| points[i as usize]).collect()
     }
 }
+
+/// Points a task routes at once.
+const BLOCK: usize = 1 << 16;
 
 /// The largest f32 not above `x`.
 fn f32_down(x: f64) -> f32 {
@@ -216,5 +243,29 @@ mod tests {
             assert!(r.may_hold(c.map(|x| x as f32)));
         }
         assert!(!r.may_hold(m.points[0]), "a working-frame point is far from the file's mesh");
+    }
+
+    /// Routed in parallel blocks, the plan is the serial one: each rank's points in order.
+    #[test]
+    fn plans_of_many_blocks_keep_the_order() {
+        let m = KuhnGrid::new(4).mesh("cube");
+        let parts = partition::rcb(&partition::cell_centroids(&m), 2);
+        let regions: Vec<Region> = (0..2)
+            .map(|k| {
+                let cells: Vec<u32> = (0..m.n_cells() as u32).filter(|&c| parts[c as usize] == k).collect();
+                Region::of_mesh(&partition::piece(&m, &cells, "p").unwrap())
+            })
+            .collect();
+        let pts: Vec<Vec3> = (0..3 * BLOCK + 5)
+            .map(|i| std::array::from_fn(|k| ((i * 7919 + k * 104_729) % 1013) as f32 / 1000.0))
+            .collect();
+        let routes = Routes::plan(&pts, &regions);
+        let serial: Vec<u32> = regions
+            .iter()
+            .flat_map(|r| (0..pts.len() as u32).filter(|&i| r.may_hold(pts[i as usize])).collect::<Vec<_>>())
+            .collect();
+        assert_eq!(routes.index, serial);
+        assert_eq!(routes.counts.iter().sum::<usize>(), serial.len());
+        assert_eq!(routes.gather(&pts)[5], pts[serial[5] as usize]);
     }
 }

@@ -1,11 +1,13 @@
-//! One rank of a distributed run (feature `mpi`): `mpirun -n N tetloc locate MESH.pvtu ...`
-//! and `mpirun -n N tetloc bench MESH.pvtu ...`. Each rank loads its pieces and builds its
+//! One rank of a distributed run (feature `mpi`): `mpirun -n N tetloc locate MESH.pvtu ...`,
+//! `bench`, and `resample` and `probe` (rank 0 drives them, `driven.rs`). Each rank loads its pieces and builds its
 //! locator (`tetloc_mpi::dist`); rank 0 reads the points, scatters them, gathers the answers
 //! and writes them; progress and timings come from rank 0 only. Any failure before the query
 //! ends every rank with an error naming the rank and its cause (said once, by rank 0); a
 //! failure during a query aborts the job (MPI_Abort).
 
-use crate::{backend, bench, error_text, locate, mesh_arg, progress, Cli, Command, Common};
+mod driven;
+
+use crate::{backend, bench, error_text, locate, mesh_arg, probe, progress, resample, Cli, Command, Common};
 use anyhow::{bail, Result};
 use rand::{Rng, SeedableRng};
 use std::path::Path;
@@ -39,7 +41,9 @@ pub fn run(cli: Cli) -> i32 {
                 run_bench(&cluster, Path::new(&mesh), &args)
             })
         }
-        _ => unreachable!("main runs only locate and bench distributed"),
+        Command::Resample(a) => run_resample(&cluster, &a),
+        Command::Probe(a) => run_probe(&cluster, &a),
+        _ => unreachable!("main runs only locate, bench, resample and probe distributed"),
     };
     match r {
         Ok(()) => 0,
@@ -143,6 +147,72 @@ fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// `resample` of a partitioned mesh: every rank checks the arguments and loads its pieces;
+/// rank 0 resamples through the ranks (the grid over the whole mesh's bounds) and writes the
+/// image.
+fn run_resample(cluster: &Cluster, a: &resample::ResampleArgs) -> Result<()> {
+    let plan = cluster.agree("check the arguments", resample::check(a).map_err(|e| error_text(&e)))?;
+    let part = load_part(cluster, Path::new(&a.mesh))?;
+    let bounds = whole_bounds(cluster, part.as_ref());
+    let loc = build(cluster, &a.backend, &a.common, part.as_ref())?;
+    drive(cluster, part.as_ref(), loc, |m, loc| resample::execute(a, &plan, m, bounds, loc))
+}
+
+/// `probe` with a partitioned SOURCE: rank 0 reads TARGET, probes through the ranks and writes.
+fn run_probe(cluster: &Cluster, a: &probe::ProbeArgs) -> Result<()> {
+    let checked = probe::check(a).and_then(|point_set| {
+        use tetloc_core::locate::Tolerance;
+        match a.tolerance {
+            Tolerance::Absolute(d) | Tolerance::PercentOfMeanEdge(d) if d == 0.0 => Ok(point_set),
+            _ => bail!("--tolerance does not run distributed yet (the nearest boundary cell over all ranks)"),
+        }
+    });
+    let point_set = cluster.agree("check the arguments", checked.map_err(|e| error_text(&e)))?;
+    let part = load_part(cluster, Path::new(&a.source))?;
+    let loc = build(cluster, &a.backend, &a.common, part.as_ref())?;
+    drive(cluster, part.as_ref(), loc, |m, loc| probe::execute(a, point_set, m, loc))
+}
+
+/// Runs `command` on rank 0 with the ranks' locator while the others serve it; every rank
+/// returns rank 0's outcome. Rank 0 names the fields from its own pieces (they all carry the
+/// same fields).
+fn drive(
+    cluster: &Cluster,
+    part: Option<&Part>,
+    loc: DistLocator<'_, Box<dyn BatchLocator>>,
+    command: impl FnOnce(&Mesh, &mut dyn BatchLocator) -> Result<()>,
+) -> Result<()> {
+    let outcome = if cluster.is_root() {
+        let mut driven = driven::Driven::new(cluster, loc);
+        let r = match part {
+            Some(p) => command(&p.mesh, &mut driven),
+            None => Err(anyhow::anyhow!("rank 0 holds no piece: run fewer ranks than pieces")),
+        };
+        driven.finish();
+        r.map_err(|e| error_text(&e))
+    } else {
+        let mut loc = loc;
+        driven::serve(cluster, &mut loc);
+        Ok(())
+    };
+    Ok(cluster.agree("run", outcome)?)
+}
+
+/// The whole mesh's bounds in the file's coordinates: the union of the ranks' pieces.
+fn whole_bounds(cluster: &Cluster, part: Option<&Part>) -> ([f64; 3], [f64; 3]) {
+    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
+    if let Some(m) = part.map(|p| &p.mesh) {
+        for i in 0..m.points.len() as u32 {
+            let v = m.vertex64(i);
+            for k in 0..3 {
+                lo[k] = lo[k].min(v[k]);
+                hi[k] = hi[k].max(v[k]);
+            }
+        }
+    }
+    (lo.map(|x| -cluster.max_f64(-x)), hi.map(|x| cluster.max_f64(x)))
 }
 
 /// Rank 0's points, a contiguous slice to each rank.

@@ -1,0 +1,115 @@
+//! Commands written against one locator (`resample`, `probe`) run distributed: rank 0 runs
+//! the command with a [`Driven`] locator, whose every call is announced to the other ranks,
+//! which [`serve`] it; the points are scattered, located collectively (`DistLocator::query`)
+//! and the answers gathered back on rank 0, which alone writes the output.
+
+use super::{gather, scatter};
+use tetloc_core::{BatchLocator, Vec3};
+use tetloc_mpi::dist::{Cluster, DistLocator};
+use tetloc_mpi::mpi::traits::*;
+
+/// The length that ends [`serve`]'s loop instead of announcing a call.
+const DONE: u64 = u64::MAX;
+
+/// Rank 0's locator: one batch call of the command is one collective query of all ranks.
+pub struct Driven<'c> {
+    cluster: &'c Cluster,
+    loc: DistLocator<'c, Box<dyn BatchLocator>>,
+    name: String,
+}
+
+impl<'c> Driven<'c> {
+    pub fn new(cluster: &'c Cluster, loc: DistLocator<'c, Box<dyn BatchLocator>>) -> Driven<'c> {
+        let local = loc.local().map_or("-".to_string(), |l| l.name().to_string());
+        let name = format!("{local} on {} ranks", cluster.size);
+        Driven { cluster, loc, name }
+    }
+
+    /// Ends the other ranks' [`serve`] loops (the command is done, or failed on rank 0).
+    pub fn finish(self) {
+        announce(self.cluster, None);
+    }
+}
+
+impl BatchLocator for Driven<'_> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<(), tetloc_core::Error> {
+        self.sample_many(points, &[], ids, &mut [])
+    }
+
+    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<(), tetloc_core::Error> {
+        let mut ids = vec![0; points.len()];
+        self.sample_many(points, &[field], &mut ids, values)
+    }
+
+    fn sample_many(
+        &mut self,
+        points: &[Vec3],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<(), tetloc_core::Error> {
+        // Checked before the collective call: every rank must take part in it or none.
+        if ids.len() != points.len() || values.len() != points.len() * fields.len() {
+            return Err(tetloc_core::Error::Invalid(format!(
+                "{} points, {} ids and {} values for {} fields",
+                points.len(),
+                ids.len(),
+                values.len(),
+                fields.len()
+            )));
+        }
+        announce(self.cluster, Some(fields));
+        let mine = scatter(self.cluster, points);
+        let got = self.loc.query(&mine, fields);
+        let all_ids = gather(self.cluster, &got.ids);
+        let all_values = gather(self.cluster, &got.values);
+        for (out, &g) in ids.iter_mut().zip(&all_ids) {
+            *out = i32::try_from(g).map_err(|_| {
+                tetloc_core::Error::Invalid(format!("global cell id {g} does not fit the int32 outputs"))
+            })?;
+        }
+        values.copy_from_slice(&all_values);
+        Ok(())
+    }
+}
+
+/// On every rank but 0: answers rank 0's calls until it says it is done.
+pub fn serve(cluster: &Cluster, loc: &mut DistLocator<'_, Box<dyn BatchLocator>>) {
+    while let Some(fields) = announcement(cluster) {
+        let names: Vec<&str> = fields.iter().map(String::as_str).collect();
+        let mine = scatter(cluster, &[]);
+        let got = loc.query(&mine, &names);
+        gather(cluster, &got.ids);
+        gather(cluster, &got.values);
+    }
+}
+
+/// Rank 0 tells the others what comes next: a call sampling `fields`, or the end (`None`).
+fn announce(cluster: &Cluster, fields: Option<&[&str]>) {
+    let root = cluster.world.process_at_rank(0);
+    let text = fields.map(|f| f.join("\n"));
+    let mut len = text.as_ref().map_or(DONE, |t| t.len() as u64);
+    root.broadcast_into(&mut len);
+    if let Some(t) = text {
+        let mut bytes = t.into_bytes();
+        root.broadcast_into(&mut bytes[..]);
+    }
+}
+
+/// The other side of [`announce`]: the fields of the next call, or `None` at the end.
+fn announcement(cluster: &Cluster) -> Option<Vec<String>> {
+    let root = cluster.world.process_at_rank(0);
+    let mut len = 0u64;
+    root.broadcast_into(&mut len);
+    if len == DONE {
+        return None;
+    }
+    let mut bytes = vec![0u8; len as usize];
+    root.broadcast_into(&mut bytes[..]);
+    let text = String::from_utf8_lossy(&bytes);
+    Some(if text.is_empty() { Vec::new() } else { text.split('\n').map(str::to_string).collect() })
+}
