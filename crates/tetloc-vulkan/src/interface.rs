@@ -263,7 +263,8 @@ gpu_interface! {
         DEFERRED: i32 = -3;
         /// Wide-BVH child references (tetloc_core::bvh::wide): interior nodes are plain
         /// indices; a leaf has LEAF set, its count - 1 from bit LEAF_COUNT_SHIFT and its first
-        /// prim index (or, with DIRECT_LEAVES, the tet id) in LEAF_FIRST_MAX; empty slots are
+        /// prim index in LEAF_FIRST_MAX (with DIRECT_LEAVES: the tet id in all 31 bits below
+        /// LEAF, tetloc_core::bvh::wide::direct_leaf_ref); empty slots are
         /// EMPTY (also "no node" in the entry grid).
         LEAF: u32 = 0x8000_0000;
         EMPTY: u32 = 0xFFFF_FFFF;

@@ -247,10 +247,12 @@ void main() {
                     tl_home_set(tl_id(half_at + j), w);
                 }
                 uint first = DIRECT_LEAVES ? tl_id(half_at + kn.x) : kn.x;
-                if (first > TL_LEAF_FIRST_MAX || kn.y - kn.x > 4u) {
+                // wide.rs `leaf_ref`, `direct_leaf_ref`: a direct leaf's tet id takes 31 bits.
+                if (DIRECT_LEAVES ? first >= ~TL_LEAF : (first > TL_LEAF_FIRST_MAX || kn.y - kn.x > 4u)) {
                     atomicOr(tl_levels[TL_BUILD_AT_ERROR], TL_BUILD_ERR_LEAF);
                 }
-                child[c] = TL_LEAF | ((kn.y - kn.x - 1u) << TL_LEAF_COUNT_SHIFT) | (first & TL_LEAF_FIRST_MAX);
+                child[c] = DIRECT_LEAVES ? TL_LEAF | (first & ~TL_LEAF)
+                                         : TL_LEAF | ((kn.y - kn.x - 1u) << TL_LEAF_COUNT_SHIFT) | (first & TL_LEAF_FIRST_MAX);
             } else {
                 child[c] = next;
                 tl_work_set(atomicAdd(tl_levels[TL_BUILD_AT_WORK], 1u), uvec2(next, kid));

@@ -46,8 +46,10 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     let binary_levels = levels(b, dev, &s.levels, false, [BUILD_SPLIT, BUILD_NEXT_LEVEL], [nn, 0, s.half, 0])?;
     b.bind_split(B_BUILD_KEYS, None, dev.unbound());
     drop(s.keys);
-    // The boxes only now (the refit writes them), after the keys are gone: the peak is lower.
-    let boxes = b.split(dev, MemKind::Scratch, "build binary boxes", max_nodes, 24)?;
+    // The boxes only now (the refit writes them), after the keys are gone and for the nodes
+    // made (far fewer than 2n with four tets a leaf): the build's peak is lower.
+    let made = read_words(dev, &s.levels, BUILD_AT_NODES as u64, 1)?[0] as u64;
+    let boxes = b.split(dev, MemKind::Scratch, "build binary boxes", made, 24)?;
     b.bind_split(B_BUILD_BOXES, Some(&boxes), dev.unbound());
     // Bottom up: boxes and 4-wide counts.
     dev.run(|r| {
@@ -76,7 +78,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
         return Err(fail("a node box is too large for f32 node scales".into()));
     }
     if err & BUILD_ERR_LEAF != 0 {
-        return Err(fail(format!("{n} tets: leaf references hold ids below 2^29")));
+        return Err(fail(format!("{n} tets: leaves of several tets hold prim indices below 2^29 (one tet a leaf, the default preset, takes ids up to 2^31)")));
     }
     let prims = if direct {
         None
