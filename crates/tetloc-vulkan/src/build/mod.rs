@@ -39,8 +39,9 @@ use std::time::Instant;
 /// Where soft-bvh builds its structure.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BuildOn {
-    /// In compute shaders, from the mesh on the device (the default). Meshes whose build
-    /// arrays do not fit one buffer each are built on the CPU (said in the build stages).
+    /// In compute shaders, from the mesh on the device (the default), its arrays split over
+    /// up to MAX_CHUNKS buffers each. Meshes beyond that (or past ~1.07B tets) are built on
+    /// the CPU (said in the build stages).
     #[default]
     Gpu,
     /// On the host with tetloc_core's builder (the reference), then uploaded.

@@ -55,7 +55,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         None => {
             let mut s = cpu_structure(dev, input, want)?;
             if opts.build == BuildOn::Gpu {
-                s.stages.insert(0, ("gpu build: an array exceeds one buffer, built on the cpu".into(), 0.0));
+                s.stages.insert(0, ("gpu build: the mesh is beyond what it addresses, built on the cpu".into(), 0.0));
             }
             s
         }
