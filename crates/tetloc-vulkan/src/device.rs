@@ -22,6 +22,8 @@ pub(crate) struct Device {
     tracker: SharedTracker,
     /// Split arrays above this size (device limits, or a test's smaller one).
     max_buffer: u64,
+    /// The largest buffer the device allows a shader to bind (no test hook).
+    device_max_buffer: u64,
     ctx: Arc<Context>,
 }
 
@@ -44,9 +46,9 @@ impl Device {
         let unbound = Buffer::new(ctx, &tracker, desc, "unbound")?;
         let l = &ctx.limits;
         let alloc = if l.max_allocation > 0 { l.max_allocation } else { u64::MAX };
-        let max = alloc.min(l.max_storage_buffer_range).min(max_buffer_bytes.unwrap_or(u64::MAX));
-        let max_buffer = (max & !63).max(64);
-        Ok(Device { cmds, staging, unbound, tracker, max_buffer, ctx: ctx.clone() })
+        let device_max_buffer = alloc.min(l.max_storage_buffer_range);
+        let max_buffer = (device_max_buffer.min(max_buffer_bytes.unwrap_or(u64::MAX)) & !63).max(64);
+        Ok(Device { cmds, staging, unbound, tracker, max_buffer, device_max_buffer, ctx: ctx.clone() })
     }
 
     pub fn ctx(&self) -> &Arc<Context> {
@@ -56,6 +58,12 @@ impl Device {
     /// Arrays larger than this many bytes are split.
     pub fn max_buffer(&self) -> u64 {
         self.max_buffer
+    }
+
+    /// The largest buffer a shader may bind on this device (arrays that are never split
+    /// must fit it).
+    pub fn device_max_buffer(&self) -> u64 {
+        self.device_max_buffer
     }
 
     /// A small buffer for bindings that a pipeline declares but does not use.

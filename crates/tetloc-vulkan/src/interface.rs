@@ -228,6 +228,9 @@ gpu_interface! {
         B_BUILD_CELLS = 39;
         B_BUILD_FACES = 40;
         B_BUILD_NEIGHBORS = 41;
+        /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
+        /// 4-wide nodes, worklist, node levels, homes, faces, neighbours) are bound as arrays
+        /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
         /// GPU build: invocations per workgroup, elements one scan workgroup scans, levels of
         /// the binary tree and of the 4-wide tree the level table holds (each), and the word
         /// of the level table where level 0 starts (words before it: counters, bounds).
@@ -260,7 +263,8 @@ gpu_interface! {
         DEFERRED: i32 = -3;
         /// Wide-BVH child references (tetloc_core::bvh::wide): interior nodes are plain
         /// indices; a leaf has LEAF set, its count - 1 from bit LEAF_COUNT_SHIFT and its first
-        /// prim index (or, with DIRECT_LEAVES, the tet id) in LEAF_FIRST_MAX; empty slots are
+        /// prim index in LEAF_FIRST_MAX (with DIRECT_LEAVES: the tet id in all 31 bits below
+        /// LEAF, tetloc_core::bvh::wide::direct_leaf_ref); empty slots are
         /// EMPTY (also "no node" in the entry grid).
         LEAF: u32 = 0x8000_0000;
         EMPTY: u32 = 0xFFFF_FFFF;
@@ -366,6 +370,9 @@ gpu_interface! {
         /// GPU build: which pass runs (BUILD_*), and the most prims a binary leaf holds.
         BUILD_PASS = 25: uint = 0;
         BUILD_MAX_LEAF = 26: uint = 1;
+        /// GPU build: bytes of each buffer of a split build array (a multiple of 192, so
+        /// that every element size the build uses divides it; src/build/mod.rs `split`).
+        BUILD_CHUNK_BYTES = 27: uint = 0xC000_0000;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

@@ -45,6 +45,13 @@ impl Binding {
         ]
     }
 
+    /// A split array bound whole at the array binding `slot` (MAX_CHUNKS buffers, `unbound`
+    /// past its last; `None`: all `unbound`), as the GPU build declares its arrays.
+    pub fn parts(slot: u32, array: Option<&Split>, unbound: &Buffer) -> Binding {
+        let part = |k: usize| array.and_then(|a| a.parts.get(k)).unwrap_or(unbound).info();
+        Binding { slot, bound: Bound::Buffers((0..MAX_CHUNKS as usize).map(part).collect()) }
+    }
+
     fn layout(&self, stages: vk::ShaderStageFlags) -> vk::DescriptorSetLayoutBinding<'static> {
         let (ty, n) = match &self.bound {
             Bound::Buffers(infos) => (vk::DescriptorType::STORAGE_BUFFER, infos.len() as u32),

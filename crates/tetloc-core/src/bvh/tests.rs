@@ -84,7 +84,7 @@ fn wide_leaves(q: &WideBvh) -> Vec<(u32, Aabb)> {
                 continue;
             }
             if r & wide::LEAF != 0 {
-                let (first, count) = wide::leaf_range(r);
+                let (first, count) = wide::leaf_range(r, q.direct);
                 if q.direct {
                     out.push((first, n.child_box(c)));
                     continue;

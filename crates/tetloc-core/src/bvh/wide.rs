@@ -18,7 +18,8 @@ pub const LEAF: u32 = 0x8000_0000;
 pub const EMPTY: u32 = 0xFFFF_FFFF;
 /// A leaf reference holds `count - 1` (up to 4 primitives) from this bit...
 pub const LEAF_COUNT_SHIFT: u32 = 29;
-/// ...and its first primitive index (or, with direct leaves, the primitive id) below it.
+/// ...and its first primitive index below it. A direct leaf (one primitive, no prims array)
+/// holds the primitive id in all 31 bits below `LEAF`: ids up to 2^31 - 2, so jets 1B fits.
 pub const LEAF_FIRST_MAX: u32 = (1 << LEAF_COUNT_SHIFT) - 1;
 
 /// A 4-wide BVH node with child boxes quantized to 8 bits per coordinate relative to the
@@ -58,10 +59,22 @@ pub fn leaf_ref(first: u32, count: u32) -> Result<u32> {
     Ok(LEAF | (count - 1) << LEAF_COUNT_SHIFT | first)
 }
 
-/// (first, count) of a leaf reference.
+/// The reference of a direct leaf: primitive `prim` itself (below 2^31 - 1, never `EMPTY`).
+pub fn direct_leaf_ref(prim: u32) -> Result<u32> {
+    if prim >= !LEAF {
+        return Err(Error::Invalid(format!("wide BVH direct leaf: primitive {prim} is not below 2^31 - 1")));
+    }
+    Ok(LEAF | prim)
+}
+
+/// (first, count) of a leaf reference (`direct`: of a direct leaf, the primitive id and 1).
 #[inline]
-pub fn leaf_range(r: u32) -> (u32, u32) {
-    (r & LEAF_FIRST_MAX, ((r >> LEAF_COUNT_SHIFT) & 3) + 1)
+pub fn leaf_range(r: u32, direct: bool) -> (u32, u32) {
+    if direct {
+        (r & !LEAF, 1)
+    } else {
+        (r & LEAF_FIRST_MAX, ((r >> LEAF_COUNT_SHIFT) & 3) + 1)
+    }
 }
 
 /// Dequantization as the shader does it: one f32 multiply, then one add (no FMA: `precise`).
@@ -159,7 +172,7 @@ impl WideBvh {
         let mut r = start;
         loop {
             if r & LEAF != 0 {
-                let (first, count) = leaf_range(r);
+                let (first, count) = leaf_range(r, self.direct);
                 for k in 0..count {
                     let prim = if self.direct { first } else { self.prims[(first + k) as usize] };
                     if accept(prim) {
@@ -237,7 +250,7 @@ impl WideBvh {
                 continue;
             }
             let below = if r & LEAF != 0 {
-                let (first, count) = leaf_range(r);
+                let (first, count) = leaf_range(r, self.direct);
                 let mut u = Aabb { min: [f32::INFINITY; 3], max: [f32::NEG_INFINITY; 3] };
                 for k in 0..count {
                     let p = if self.direct {
@@ -401,7 +414,7 @@ impl Collapse<'_> {
 
     fn leaf(&self, n: BvhNode) -> Result<u32> {
         if self.direct {
-            leaf_ref(self.bvh.prim_ids[n.first as usize], 1)
+            direct_leaf_ref(self.bvh.prim_ids[n.first as usize])
         } else {
             leaf_ref(n.first, n.count)
         }
@@ -443,9 +456,16 @@ mod tests {
         for (first, count) in [(0, 1), (7, 4), (LEAF_FIRST_MAX, 2)] {
             let r = leaf_ref(first, count).unwrap();
             assert!(r & LEAF != 0 && r != EMPTY);
-            assert_eq!(leaf_range(r), (first, count));
+            assert_eq!(leaf_range(r, false), (first, count));
         }
         assert!(leaf_ref(LEAF_FIRST_MAX + 1, 1).is_err());
         assert!(leaf_ref(0, 5).is_err() && leaf_ref(0, 0).is_err());
+        // Direct leaves: any id below 2^31 - 1 (a billion tets and more), never EMPTY.
+        for prim in [0, LEAF_FIRST_MAX + 1, 1_100_000_000, !LEAF - 1] {
+            let r = direct_leaf_ref(prim).unwrap();
+            assert!(r & LEAF != 0 && r != EMPTY);
+            assert_eq!(leaf_range(r, true), (prim, 1));
+        }
+        assert!(direct_leaf_ref(!LEAF).is_err());
     }
 }

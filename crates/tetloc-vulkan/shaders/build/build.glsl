@@ -4,10 +4,41 @@
 #ifndef TL_BUILD_GLSL
 #define TL_BUILD_GLSL
 
+// The arrays that grow with the mesh are split (src/build/mod.rs `split`): element i of an
+// array of S-byte elements lives in buffer i / (BUILD_CHUNK_BYTES / S) of its binding array,
+// so no buffer passes the device's limit and no index passes 32 bits (indices count
+// elements, never words). Read and write them through their accessors: NAME(i), NAME_set(i, x).
+#define TL_SPLIT_ARRAY(T, name, slot)                                                           \
+    layout(std430, binding = slot) buffer name##_block { T v[]; } name##_parts[TL_MAX_CHUNKS]; \
+    const uint name##_per = BUILD_CHUNK_BYTES / uint(sizeof_##T);                                \
+    T name(uint i) { return name##_parts[nonuniformEXT(i / name##_per)].v[i % name##_per]; }   \
+    void name##_set(uint i, T x) { name##_parts[nonuniformEXT(i / name##_per)].v[i % name##_per] = x; }
+
+// Element sizes in bytes (std430, arrays of these are tightly packed).
+const uint sizeof_uint = 4u;
+const uint sizeof_uvec2 = 8u;
+const uint sizeof_uvec4 = 16u;
+const uint sizeof_ivec4 = 16u;
+// A binary node's box: min xyz, max xyz.
+struct TlBox {
+    float lx, ly, lz, hx, hy, hz;
+};
+const uint sizeof_TlBox = 24u;
+// A face record of the neighbour search: its other two vertices, 4 tet + local face.
+struct TlFace {
+    uint b, c, code;
+};
+const uint sizeof_TlFace = 12u;
+// A 4-wide node (tetloc_core::bvh::QNode4) as four uvec4.
+struct TlQNode {
+    uvec4 w[4];
+};
+const uint sizeof_TlQNode = 64u;
+
 // Morton keys (low word, high word of a 63-bit code) and prim ids: two halves of n each, the
 // radix sort's source and destination (params name the half).
-layout(std430, binding = TL_B_BUILD_KEYS) buffer TlBuildKeys { uvec2 tl_keys[]; };
-layout(std430, binding = TL_B_BUILD_IDS) buffer TlBuildIds { uint tl_ids[]; };
+TL_SPLIT_ARRAY(uvec2, tl_key, TL_B_BUILD_KEYS)
+TL_SPLIT_ARRAY(uint, tl_id, TL_B_BUILD_IDS)
 // Scan scratch: the values being scanned, then each level's chunk sums (src/build/scan.rs).
 layout(std430, binding = TL_B_BUILD_SCAN) buffer TlBuildScan { uint tl_scan[]; };
 // Counters (BUILD_AT_*), then per level 8 words: indirect dispatch size (x, y, z), 0, the
@@ -15,16 +46,27 @@ layout(std430, binding = TL_B_BUILD_SCAN) buffer TlBuildScan { uint tl_scan[]; }
 layout(std430, binding = TL_B_BUILD_LEVELS) buffer TlBuildLevels { uint tl_levels[]; };
 // Binary nodes: first and end sorted prim, first child (the second is next to it) or
 // BUILD_LEAF, 4-wide nodes in the subtree when this node heads one (0 for leaves).
-layout(std430, binding = TL_B_BUILD_NODES) buffer TlBuildNodes { uvec4 tl_bnodes[]; };
-// Their boxes: min xyz, max xyz (6 floats a node).
-layout(std430, binding = TL_B_BUILD_BOXES) buffer TlBuildBoxes { float tl_bboxes[]; };
+TL_SPLIT_ARRAY(uvec4, tl_bnode, TL_B_BUILD_NODES)
+// Their boxes.
+TL_SPLIT_ARRAY(TlBox, tl_bbox, TL_B_BUILD_BOXES)
+// The 4-wide nodes, the collapse's worklist (4-wide node, binary node), each 4-wide node's
+// parent and level, each prim's home node.
+TL_SPLIT_ARRAY(TlQNode, tl_wide, TL_B_BUILD_WIDE)
+TL_SPLIT_ARRAY(uvec2, tl_work, TL_B_BUILD_WORK)
+TL_SPLIT_ARRAY(uvec2, tl_tree, TL_B_BUILD_TREE)
+TL_SPLIT_ARRAY(uint, tl_home, TL_B_BUILD_HOME)
+// The neighbour search's face records and the neighbours (a tet's four, as the walk reads them).
+TL_SPLIT_ARRAY(TlFace, tl_face_rec, TL_B_BUILD_FACES)
+TL_SPLIT_ARRAY(ivec4, tl_build_nb, TL_B_BUILD_NEIGHBORS)
 
 vec3 tl_box_lo(uint b) {
-    return vec3(tl_bboxes[6u * b], tl_bboxes[6u * b + 1u], tl_bboxes[6u * b + 2u]);
+    TlBox x = tl_bbox(b);
+    return vec3(x.lx, x.ly, x.lz);
 }
 
 vec3 tl_box_hi(uint b) {
-    return vec3(tl_bboxes[6u * b + 3u], tl_bboxes[6u * b + 4u], tl_bboxes[6u * b + 5u]);
+    TlBox x = tl_bbox(b);
+    return vec3(x.hx, x.hy, x.hz);
 }
 
 uint tl_build_index() {

@@ -14,8 +14,6 @@
 
 layout(local_size_x = TL_BUILD_GROUP) in;
 
-layout(std430, binding = TL_B_BUILD_TREE) readonly buffer TlBuildTree { uvec2 tl_tree[]; };
-layout(std430, binding = TL_B_BUILD_HOME) readonly buffer TlBuildHome { uint tl_home[]; };
 layout(std430, binding = TL_B_BUILD_GRID) buffer TlBuildGrid { uint tl_build_grid[]; };
 layout(std430, binding = TL_B_BUILD_CELLS) buffer TlBuildCells { uint tl_cells[]; };
 
@@ -26,15 +24,15 @@ uint tl_cell_coord(float p, float lo, float inv, uint dim) {
 
 // WideBvh::lca: climb from the deeper node, then from both.
 uint tl_lca(uint a, uint b) {
-    while (tl_tree[a].y > tl_tree[b].y) {
-        a = tl_tree[a].x;
+    while (tl_tree(a).y > tl_tree(b).y) {
+        a = tl_tree(a).x;
     }
-    while (tl_tree[b].y > tl_tree[a].y) {
-        b = tl_tree[b].x;
+    while (tl_tree(b).y > tl_tree(a).y) {
+        b = tl_tree(b).x;
     }
     while (a != b) {
-        a = tl_tree[a].x;
-        b = tl_tree[b].x;
+        a = tl_tree(a).x;
+        b = tl_tree(b).x;
     }
     return a;
 }
@@ -55,7 +53,7 @@ void main() {
             c0[a] = tl_cell_coord(lo[a], org[a], inv[a], dims[a]);
             c1[a] = tl_cell_coord(hi[a], org[a], inv[a], dims[a]);
         }
-        uint home = tl_home[i];
+        uint home = tl_home(i);
         for (uint z = c0.z; z <= c1.z; z++) {
             for (uint y = c0.y; y <= c1.y; y++) {
                 for (uint x = c0.x; x <= c1.x; x++) {

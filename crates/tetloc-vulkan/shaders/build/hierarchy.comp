@@ -19,20 +19,13 @@
 
 layout(local_size_x = TL_BUILD_GROUP) in;
 
-// 4-wide nodes as four uvec4 (tetloc_core::bvh::QNode4), the collapse's worklist (4-wide
-// node, binary node), each 4-wide node's parent and level, each prim's home node.
-layout(std430, binding = TL_B_BUILD_WIDE) buffer TlBuildWide { uvec4 tl_wide[]; };
-layout(std430, binding = TL_B_BUILD_WORK) buffer TlBuildWork { uvec2 tl_work[]; };
-layout(std430, binding = TL_B_BUILD_TREE) buffer TlBuildTree { uvec2 tl_tree[]; };
-layout(std430, binding = TL_B_BUILD_HOME) buffer TlBuildHome { uint tl_home[]; };
-
 bool tl_less(uvec2 a, uvec2 b) {
     return a.y < b.y || (a.y == b.y && a.x < b.x);
 }
 
 // bvh/build.rs `split`: the first index of the upper half of sorted prims s..e.
 uint tl_split(uint s, uint e, uint keys) {
-    uvec2 a = tl_keys[keys + s], b = tl_keys[keys + e - 1u];
+    uvec2 a = tl_key(keys + s), b = tl_key(keys + e - 1u);
     if (a == b) {
         return (s + e) / 2u;
     }
@@ -44,7 +37,7 @@ uint tl_split(uint s, uint e, uint keys) {
     uint lo = s, hi = e; // partition point: the first key >= target
     while (lo < hi) {
         uint mid = lo + (hi - lo) / 2u;
-        if (tl_less(tl_keys[keys + mid], target)) {
+        if (tl_less(tl_key(keys + mid), target)) {
             lo = mid + 1u;
         } else {
             hi = mid;
@@ -54,7 +47,7 @@ uint tl_split(uint s, uint e, uint keys) {
 }
 
 bool tl_is_leaf(uint b) {
-    return tl_bnodes[b].z == TL_BUILD_LEAF;
+    return tl_bnode(b).z == TL_BUILD_LEAF;
 }
 
 // bvh/wide.rs `area` (no FMA: the CPU's order of operations).
@@ -68,7 +61,7 @@ float tl_area(uint b) {
 // child (the last of equal ones, as Iterator::max_by) until there are four, removing it as
 // Vec::swap_remove does and appending its two children.
 uint tl_kids(uint b, out uint kids[4]) {
-    uint c = tl_bnodes[b].z;
+    uint c = tl_bnode(b).z;
     kids[0] = c;
     kids[1] = c + 1u;
     uint nk = 2u;
@@ -89,7 +82,7 @@ uint tl_kids(uint b, out uint kids[4]) {
         }
         uint open = kids[best];
         kids[best] = kids[nk - 1u];
-        uint oc = tl_bnodes[open].z;
+        uint oc = tl_bnode(open).z;
         kids[nk - 1u] = oc;
         kids[nk] = oc + 1u;
         nk++;
@@ -183,25 +176,26 @@ void main() {
     }
     if (BUILD_PASS == TL_BUILD_SPLIT) {
         uint b = entry;
-        uvec2 range = tl_bnodes[b].xy;
+        uvec4 node = tl_bnode(b);
+        uvec2 range = node.xy;
         if (range.y - range.x <= BUILD_MAX_LEAF) {
-            tl_bnodes[b].z = TL_BUILD_LEAF;
+            tl_bnode_set(b, uvec4(node.xy, TL_BUILD_LEAF, node.w));
             return;
         }
         uint m = tl_split(range.x, range.y, half_at);
         uint c = atomicAdd(tl_levels[TL_BUILD_AT_NODES], 2u);
-        tl_bnodes[c] = uvec4(range.x, m, 0u, 0u);
-        tl_bnodes[c + 1u] = uvec4(m, range.y, 0u, 0u);
-        tl_bnodes[b].z = c;
+        tl_bnode_set(c, uvec4(range.x, m, 0u, 0u));
+        tl_bnode_set(c + 1u, uvec4(m, range.y, 0u, 0u));
+        tl_bnode_set(b, uvec4(node.xy, c, node.w));
     } else if (BUILD_PASS == TL_BUILD_REFIT) {
         uint b = entry;
-        uvec4 node = tl_bnodes[b];
+        uvec4 node = tl_bnode(b);
         vec3 lo, hi;
         if (node.z == TL_BUILD_LEAF) {
-            tl_tet_box(tl_ids[half_at + node.x], lo, hi);
+            tl_tet_box(tl_id(half_at + node.x), lo, hi);
             for (uint j = node.x + 1u; j < node.y; j++) {
                 vec3 l, h;
-                tl_tet_box(tl_ids[half_at + j], l, h);
+                tl_tet_box(tl_id(half_at + j), l, h);
                 lo = min(lo, l);
                 hi = max(hi, h);
             }
@@ -212,16 +206,14 @@ void main() {
             uint nk = tl_kids(b, kids);
             uint count = 1u;
             for (uint j = 0u; j < nk; j++) {
-                count += tl_bnodes[kids[j]].w;
+                count += tl_bnode(kids[j]).w;
             }
-            tl_bnodes[b].w = count;
+            node.w = count;
+            tl_bnode_set(b, node);
         }
-        for (int a = 0; a < 3; a++) {
-            tl_bboxes[6u * b + a] = lo[a];
-            tl_bboxes[6u * b + 3u + a] = hi[a];
-        }
+        tl_bbox_set(b, TlBox(lo.x, lo.y, lo.z, hi.x, hi.y, hi.z));
     } else if (BUILD_PASS == TL_BUILD_COLLAPSE) {
-        uvec2 item = tl_work[entry];
+        uvec2 item = tl_work(entry);
         uint w = item.x, b = item.y;
         uint kids[4];
         uint nk = 1u;
@@ -249,26 +241,27 @@ void main() {
                 q[2 * a] |= qa.x << (8u * c);
                 q[2 * a + 1] |= qa.y << (8u * c);
             }
-            uvec4 kn = tl_bnodes[kid];
+            uvec4 kn = tl_bnode(kid);
             if (kn.z == TL_BUILD_LEAF) {
                 for (uint j = kn.x; j < kn.y; j++) {
-                    tl_home[tl_ids[half_at + j]] = w;
+                    tl_home_set(tl_id(half_at + j), w);
                 }
-                uint first = DIRECT_LEAVES ? tl_ids[half_at + kn.x] : kn.x;
-                if (first > TL_LEAF_FIRST_MAX || kn.y - kn.x > 4u) {
+                uint first = DIRECT_LEAVES ? tl_id(half_at + kn.x) : kn.x;
+                // wide.rs `leaf_ref`, `direct_leaf_ref`: a direct leaf's tet id takes 31 bits.
+                if (DIRECT_LEAVES ? first >= ~TL_LEAF : (first > TL_LEAF_FIRST_MAX || kn.y - kn.x > 4u)) {
                     atomicOr(tl_levels[TL_BUILD_AT_ERROR], TL_BUILD_ERR_LEAF);
                 }
-                child[c] = TL_LEAF | ((kn.y - kn.x - 1u) << TL_LEAF_COUNT_SHIFT) | (first & TL_LEAF_FIRST_MAX);
+                child[c] = DIRECT_LEAVES ? TL_LEAF | (first & ~TL_LEAF)
+                                         : TL_LEAF | ((kn.y - kn.x - 1u) << TL_LEAF_COUNT_SHIFT) | (first & TL_LEAF_FIRST_MAX);
             } else {
                 child[c] = next;
-                tl_work[atomicAdd(tl_levels[TL_BUILD_AT_WORK], 1u)] = uvec2(next, kid);
-                tl_tree[next] = uvec2(w, k + 2u);
+                tl_work_set(atomicAdd(tl_levels[TL_BUILD_AT_WORK], 1u), uvec2(next, kid));
+                tl_tree_set(next, uvec2(w, k + 2u));
                 next += kn.w;
             }
         }
-        tl_wide[4u * w] = uvec4(floatBitsToUint(origin), floatBitsToUint(scale.x));
-        tl_wide[4u * w + 1u] = uvec4(floatBitsToUint(scale.y), floatBitsToUint(scale.z), q[0], q[1]);
-        tl_wide[4u * w + 2u] = uvec4(q[2], q[3], q[4], q[5]);
-        tl_wide[4u * w + 3u] = child;
+        tl_wide_set(w, TlQNode(uvec4[4](uvec4(floatBitsToUint(origin), floatBitsToUint(scale.x)),
+                                       uvec4(floatBitsToUint(scale.y), floatBitsToUint(scale.z), q[0], q[1]),
+                                       uvec4(q[2], q[3], q[4], q[5]), child)));
     }
 }

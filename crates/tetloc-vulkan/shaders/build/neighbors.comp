@@ -15,9 +15,6 @@
 
 layout(local_size_x = TL_BUILD_GROUP) in;
 
-layout(std430, binding = TL_B_BUILD_FACES) buffer TlBuildFaces { uint tl_faces[]; };
-layout(std430, binding = TL_B_BUILD_NEIGHBORS) buffer TlBuildNeighbors { int tl_build_neighbors[]; };
-
 // The face opposite local vertex f % 4 of tet f / 4, its vertices ascending.
 uvec3 tl_face(uint f) {
     uvec4 t = tl_tet(f / 4u);
@@ -37,15 +34,14 @@ void main() {
         atomicAdd(tl_scan[v.x], 1u);
     } else if (BUILD_PASS == TL_BUILD_NB_SCATTER) {
         uint slot = atomicAdd(tl_scan[v.x], 1u);
-        tl_faces[3u * slot] = v.y;
-        tl_faces[3u * slot + 1u] = v.z;
-        tl_faces[3u * slot + 2u] = f;
+        tl_face_rec_set(slot, TlFace(v.y, v.z, f));
     } else {
         uint first = v.x == 0u ? 0u : tl_scan[v.x - 1u], end = tl_scan[v.x];
         uint low = TL_EMPTY, second = TL_EMPTY; // the two lowest codes of this face
         for (uint j = first; j < end; j++) {
-            if (tl_faces[3u * j] == v.y && tl_faces[3u * j + 1u] == v.z) {
-                uint code = tl_faces[3u * j + 2u];
+            TlFace r = tl_face_rec(j);
+            if (r.b == v.y && r.c == v.z) {
+                uint code = r.code;
                 if (code < low) {
                     second = low;
                     low = code;
@@ -55,6 +51,7 @@ void main() {
             }
         }
         uint other = f == low ? second : f == second ? low : TL_EMPTY;
-        tl_build_neighbors[f] = other == TL_EMPTY ? -1 : int(other / 4u);
+        int nb = other == TL_EMPTY ? -1 : int(other / 4u);
+        tl_build_nb_parts[nonuniformEXT((f / 4u) / tl_build_nb_per)].v[(f / 4u) % tl_build_nb_per][f % 4u] = nb;
     }
 }

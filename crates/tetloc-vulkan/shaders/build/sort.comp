@@ -63,8 +63,8 @@ void main() {
             vec3 c = tl_centre(t);
             precise vec3 x = (c - params.lo_tmin.xyz) * params.hi_tmax.xyz;
             uvec3 q = uvec3(min(x, vec3(2097151.0)));
-            tl_keys[t] = tl_spread(q.x, 0u) | tl_spread(q.y, 1u) | tl_spread(q.z, 2u);
-            tl_ids[t] = t;
+            tl_key_set(t, tl_spread(q.x, 0u) | tl_spread(q.y, 1u) | tl_spread(q.z, 2u));
+            tl_id_set(t, t);
         }
     } else {
         uint bit = params.counts.y, src = params.counts.z * n, dst = (1u - params.counts.z) * n;
@@ -77,7 +77,7 @@ void main() {
         uint zeros = 0u;
         for (uint k = 0u; k < PER; k++) {
             if (first + k < n) {
-                uvec2 key = tl_keys[src + first + k];
+                uvec2 key = tl_key(src + first + k);
                 uint b = bit < 32u ? (key.x >> bit) & 1u : (key.y >> (bit - 32u)) & 1u;
                 zeros += 1u - b;
             }
@@ -95,12 +95,12 @@ void main() {
         for (uint k = 0u; k < PER; k++) {
             uint i = first + k;
             if (i < n) {
-                uvec2 key = tl_keys[src + i];
+                uvec2 key = tl_key(src + i);
                 uint b = bit < 32u ? (key.x >> bit) & 1u : (key.y >> (bit - 32u)) & 1u;
                 uint slot = b == 0u ? z : all_zeros + i - z;
                 z += 1u - b;
-                tl_keys[dst + slot] = key;
-                tl_ids[dst + slot] = tl_ids[src + i];
+                tl_key_set(dst + slot, key);
+                tl_id_set(dst + slot, tl_id(src + i));
             }
         }
     }

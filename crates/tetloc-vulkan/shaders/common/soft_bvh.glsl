@@ -50,8 +50,9 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
     uint sp = 0u;
     while (true) {
         if ((ref & TL_LEAF) != 0u) {
-            uint first = ref & TL_LEAF_FIRST_MAX;
-            uint count = ((ref >> TL_LEAF_COUNT_SHIFT) & 3u) + 1u;
+            // A direct leaf holds its tet id in all 31 bits (tetloc_core::bvh::wide).
+            uint first = DIRECT_LEAVES ? ref & ~TL_LEAF : ref & TL_LEAF_FIRST_MAX;
+            uint count = DIRECT_LEAVES ? 1u : ((ref >> TL_LEAF_COUNT_SHIFT) & 3u) + 1u;
             for (uint k = 0u; k < count; k++) {
                 uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
                 ids = tl_tet(tet);

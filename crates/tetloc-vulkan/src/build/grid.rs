@@ -29,18 +29,19 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, tree: &Tree
         (0..3).flat_map(|a| (0..dims[a]).map(move |c| EntryGrid::centre_coord(lo[a], inv[a], c).to_bits())).collect();
     let scratch_cells = scratch(dev, "build grid cells", 4 * (3 * cells as u64 + centres.len() as u64))?;
     dev.write(&scratch_cells, 4 * 3 * cells as u64, bytemuck::cast_slice(&centres))?;
-    b.bind(B_BUILD_TREE, &tree.tree);
-    b.bind(B_BUILD_HOME, &tree.home);
+    b.bind_split(B_BUILD_TREE, Some(&tree.tree), dev.unbound());
+    b.bind_split(B_BUILD_HOME, Some(&tree.home), dev.unbound());
     b.bind(B_BUILD_GRID, &grid);
     b.bind(B_BUILD_CELLS, &scratch_cells);
     b.bind(B_GRID, &grid);
     b.prepare(dev, GRID, &[BUILD_GRID_RASTER, BUILD_GRID_CELLS], &Spec::default())?;
     if want.walk {
-        let spec =
-            Spec::default().set(sc::STACK_SIZE, (3 * tree.depth + 1) as u32).set(sc::DIRECT_LEAVES, tree.direct as u32);
+        let spec = Spec::default()
+            .set(sc::STACK_SIZE, (3 * tree.depth + 1) as u32)
+            .set(sc::DIRECT_LEAVES, tree.direct as u32)
+            .set(sc::NODES_CHUNK, tree.nodes.per_chunk);
         b.prepare(dev, GRID_STARTS, &[0], &spec)?;
-        b.desc.write(&Binding::split(B_ACCEL, B_ACCEL_HI, None, dev.unbound()));
-        b.bind(B_ACCEL, &tree.nodes);
+        b.desc.write(&Binding::split(B_ACCEL, B_ACCEL_HI, Some(&tree.nodes), dev.unbound()));
         b.bind(B_PRIMS, tree.prims.as_ref().unwrap_or(dev.unbound()));
     }
     let (n, c4) = (b.n, cells as u64 * 4);
@@ -66,8 +67,25 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, tree: &Tree
         }
     })?;
     let unbound = dev.unbound();
-    for slot in [B_BUILD_GRID, B_BUILD_CELLS, B_GRID, B_ACCEL, B_PRIMS] {
+    for slot in [B_BUILD_GRID, B_BUILD_CELLS, B_GRID, B_PRIMS] {
         b.bind(slot, unbound);
     }
+    b.desc.write(&Binding::split(B_ACCEL, B_ACCEL_HI, None, unbound));
     Ok(grid)
+}
+
+/// The tets a cell of the entry grid holds on average: `wanted`, or more when the grid's
+/// words or the build's cell scratch (12 B a cell) would not fit one buffer of `limit`
+/// bytes (the query shaders read the grid as one buffer). Both builders take this value.
+pub(crate) fn tets_per_cell(n_tets: usize, bounds: ([f32; 3], [f32; 3]), wanted: usize, limit: u64) -> usize {
+    let mut per = wanted.max(1);
+    loop {
+        let (dims, _) = EntryGrid::shape(n_tets, bounds, per);
+        let cells = dims.iter().map(|&d| d as u64).product::<u64>();
+        let centres = dims.iter().map(|&d| d as u64).sum::<u64>();
+        if 4 * (3 * cells + centres) <= limit && 4 * (8 + 2 * cells) <= limit {
+            return per;
+        }
+        per += 1;
+    }
 }

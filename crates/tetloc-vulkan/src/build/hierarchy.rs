@@ -4,11 +4,11 @@
 //! the level table back every `BATCH` levels to see where the tree ends.
 
 use super::sort::Sorted;
-use super::{fail, read_words, scratch, structure, Builder, Groups, HIERARCHY};
-use crate::device::Device;
+use super::{fail, read_words, structure, Builder, Groups, HIERARCHY};
+use crate::device::{Device, Split};
 use crate::error::VkResult;
 use crate::interface::*;
-use crate::memory::Buffer;
+use crate::memory::{Buffer, MemKind};
 use crate::pipeline::Spec;
 
 /// Levels recorded per submission before the host looks whether the tree has ended.
@@ -18,36 +18,39 @@ const BATCH: u32 = 8;
 /// 4-wide node's parent and level, each tet's home node), with the scratch the grid and the
 /// neighbours reuse.
 pub(super) struct Tree {
-    pub nodes: Buffer,
+    pub nodes: Split,
     pub prims: Option<Buffer>,
     pub direct: bool,
     pub depth: usize,
     pub binary_levels: u32,
-    pub tree: Buffer,
-    pub home: Buffer,
+    pub tree: Split,
+    pub home: Split,
     /// Only held: the descriptor set names it until the build ends.
     pub _levels: Buffer,
     pub scan: Buffer,
 }
 
-/// The tree, or `None` when its 4-wide nodes would not fit one buffer.
-pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -> VkResult<Option<Tree>> {
+/// The tree (its 4-wide nodes, at most one a tet, fit: `build` checked).
+pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -> VkResult<Tree> {
     let (n, nn) = (b.n as u64, b.n);
     let direct = max_leaf == 1 || nn == 1;
     let spec = Spec::default().set(sc::BUILD_MAX_LEAF, max_leaf).set(sc::DIRECT_LEAVES, direct as u32);
     let passes = [BUILD_SPLIT, BUILD_NEXT_LEVEL, BUILD_REFIT, BUILD_COLLAPSE, BUILD_NEXT_WIDE_LEVEL];
     b.prepare(dev, HIERARCHY, &passes, &spec)?;
     let max_nodes = 2 * n - 1;
-    let bnodes = scratch(dev, "build binary nodes", 16 * max_nodes)?;
-    let boxes = scratch(dev, "build binary boxes", 24 * max_nodes)?;
-    dev.write(&bnodes, 0, bytemuck::cast_slice(&[0, nn, 0, 0]))?;
-    b.bind(B_BUILD_NODES, &bnodes);
-    b.bind(B_BUILD_BOXES, &boxes);
+    let bnodes = b.split(dev, MemKind::Scratch, "build binary nodes", max_nodes, 16)?;
+    dev.write(&bnodes.parts[0], 0, bytemuck::cast_slice(&[0, nn, 0, 0]))?;
+    b.bind_split(B_BUILD_NODES, Some(&bnodes), dev.unbound());
 
     // Top down: split ranges until the leaves. The keys are not read after that.
     let binary_levels = levels(b, dev, &s.levels, false, [BUILD_SPLIT, BUILD_NEXT_LEVEL], [nn, 0, s.half, 0])?;
-    b.bind(B_BUILD_KEYS, dev.unbound());
+    b.bind_split(B_BUILD_KEYS, None, dev.unbound());
     drop(s.keys);
+    // The boxes only now (the refit writes them), after the keys are gone and for the nodes
+    // made (far fewer than 2n with four tets a leaf): the build's peak is lower.
+    let made = read_words(dev, &s.levels, BUILD_AT_NODES as u64, 1)?[0] as u64;
+    let boxes = b.split(dev, MemKind::Scratch, "build binary boxes", made, 24)?;
+    b.bind_split(B_BUILD_BOXES, Some(&boxes), dev.unbound());
     // Bottom up: boxes and 4-wide counts.
     dev.run(|r| {
         for k in (0..binary_levels).rev() {
@@ -56,21 +59,18 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
             r.barrier();
         }
     })?;
-    let root = read_words(dev, &bnodes, 0, 4)?;
+    let root = read_words(dev, &bnodes.parts[0], 0, 4)?;
     let n_wide = if root[2] == BUILD_LEAF { 1 } else { root[3] as u64 };
-    if 64 * n_wide > dev.max_buffer() {
-        return Ok(None); // the nodes would not fit one buffer (the caller builds on the CPU)
-    }
 
     // Top down: the 4-wide nodes.
-    let nodes = structure(dev, "bvh nodes", 64 * n_wide)?;
-    let work = scratch(dev, "build worklist", 8 * n_wide)?;
-    let tree = scratch(dev, "build node levels", 8 * n_wide)?;
-    let home = scratch(dev, "build homes", 4 * n)?;
-    dev.write(&tree, 0, bytemuck::cast_slice(&[0u32, 1]))?; // the root: its own parent, level 1
-    dev.write(&work, 0, bytemuck::cast_slice(&[0u32, 0]))?; // 4-wide node 0 from binary node 0
-    for (slot, buf) in [(B_BUILD_WIDE, &nodes), (B_BUILD_WORK, &work), (B_BUILD_TREE, &tree), (B_BUILD_HOME, &home)] {
-        b.bind(slot, buf);
+    let nodes = b.split(dev, MemKind::Structure, "bvh nodes", n_wide, 64)?;
+    let work = b.split(dev, MemKind::Scratch, "build worklist", n_wide, 8)?;
+    let tree = b.split(dev, MemKind::Scratch, "build node levels", n_wide, 8)?;
+    let home = b.split(dev, MemKind::Scratch, "build homes", n, 4)?;
+    dev.write(&tree.parts[0], 0, bytemuck::cast_slice(&[0u32, 1]))?; // the root: its own parent, level 1
+    dev.write(&work.parts[0], 0, bytemuck::cast_slice(&[0u32, 0]))?; // 4-wide node 0 from binary node 0
+    for (slot, array) in [(B_BUILD_WIDE, &nodes), (B_BUILD_WORK, &work), (B_BUILD_TREE, &tree), (B_BUILD_HOME, &home)] {
+        b.bind_split(slot, Some(array), dev.unbound());
     }
     let depth = levels(b, dev, &s.levels, true, [BUILD_COLLAPSE, BUILD_NEXT_WIDE_LEVEL], [nn, 0, s.half, 0])?;
     let err = read_words(dev, &s.levels, BUILD_AT_ERROR as u64, 1)?[0];
@@ -78,34 +78,23 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
         return Err(fail("a node box is too large for f32 node scales".into()));
     }
     if err & BUILD_ERR_LEAF != 0 {
-        return Err(fail(format!("{n} tets: leaf references hold ids below 2^29")));
+        return Err(fail(format!("{n} tets: leaves of several tets hold prim indices below 2^29 (one tet a leaf, the default preset, takes ids up to 2^31)")));
     }
     let prims = if direct {
         None
     } else {
         let p = structure(dev, "bvh prims", 4 * n)?;
-        let region = ash::vk::BufferCopy { src_offset: 4 * n * s.half as u64, dst_offset: 0, size: 4 * n };
-        // SAFETY: live buffers holding the region; the copy completes before run returns.
-        dev.run(|r| unsafe { r.dev.cmd_copy_buffer(r.cmd, s.ids.buffer, p.buffer, &[region]) })?;
+        let chunk = b.chunk;
+        dev.run(|r| super::copy_out(r, &s.ids, chunk, 4, n * s.half as u64, n, &p))?;
         Some(p)
     };
     // Free the scratch no later stage reads (unbound first: the set stays in use).
     let unbound = dev.unbound();
     for slot in [B_BUILD_IDS, B_BUILD_NODES, B_BUILD_BOXES, B_BUILD_WORK, B_BUILD_WIDE] {
-        b.bind(slot, unbound);
+        b.bind_split(slot, None, unbound);
     }
     drop((s.ids, bnodes, boxes, work));
-    Ok(Some(Tree {
-        nodes,
-        prims,
-        direct,
-        depth: depth as usize,
-        binary_levels,
-        tree,
-        home,
-        _levels: s.levels,
-        scan: s.scan,
-    }))
+    Ok(Tree { nodes, prims, direct, depth: depth as usize, binary_levels, tree, home, _levels: s.levels, scan: s.scan })
 }
 
 /// Byte offset of level `k`'s dispatch size in the level table.

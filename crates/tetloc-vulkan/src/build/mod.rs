@@ -21,6 +21,8 @@ mod sort;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use grid::tets_per_cell;
+
 use crate::device::{Device, Recording, Split};
 use crate::error::{VkError, VkResult};
 use crate::interface::*;
@@ -37,8 +39,9 @@ use std::time::Instant;
 /// Where soft-bvh builds its structure.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum BuildOn {
-    /// In compute shaders, from the mesh on the device (the default). Meshes whose build
-    /// arrays do not fit one buffer each are built on the CPU (said in the build stages).
+    /// In compute shaders, from the mesh on the device (the default), its arrays split over
+    /// up to MAX_CHUNKS buffers each. Meshes beyond that (or past ~1.07B tets) are built on
+    /// the CPU (said in the build stages).
     #[default]
     Gpu,
     /// On the host with tetloc_core's builder (the reference), then uploaded.
@@ -91,29 +94,36 @@ pub(crate) struct Wanted {
     pub tets_per_cell: usize,
 }
 
-/// Builds soft-bvh's structure on the GPU, or `None` when one of its arrays would not fit
-/// one buffer (the caller builds on the CPU then).
+/// Bytes of each buffer of a split build array: the device's largest buffer (or a test's
+/// smaller one), rounded down to a multiple of 192 so that every element size divides it.
+fn chunk_bytes(dev: &Device) -> u64 {
+    (dev.max_buffer() / 192 * 192).clamp(192, 0xFFFF_FF40)
+}
+
+/// Builds soft-bvh's structure on the GPU, or `None` when the mesh is beyond what it
+/// addresses (an array over MAX_CHUNKS buffers, a single buffer over the device's limit, or
+/// 4 faces a tet past 32-bit indices); the caller builds on the CPU then.
 pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<Option<Structure>> {
     let n = input.mesh.n_tets() as u64;
     let n_points = input.mesh.points.len() as u64;
-    let biggest = [
-        16 * n,       // keys
-        32 * (2 * n), // binary boxes
-        64 * n,       // 4-wide nodes (at most one a tet)
-        4 * scan::words(n_points.max(n.div_ceil(SCAN_CHUNK as u64))),
-        if want.walk { 48 * n } else { 0 }, // face records
-    ];
-    if biggest.iter().any(|&b| b > dev.max_buffer()) {
+    let chunk = chunk_bytes(dev);
+    // Split arrays: elements and element bytes (the 4-wide nodes: at most one a tet).
+    let split = [(2 * n, 8), (2 * n, 4), (2 * n, 24), (2 * n, 16), (n, 64), (n, 8), (4 * n, 12), (n, 16)];
+    let too_many = split.iter().any(|&(elems, bytes)| elems.div_ceil(chunk / bytes) > MAX_CHUNKS as u64);
+    // Arrays in one buffer: the scan (sized by vertices), the leaf prims.
+    let single = [4 * scan::words(n_points.max(n.div_ceil(SCAN_CHUNK as u64))), 4 * n];
+    let too_big = single.iter().any(|&b| b > dev.device_max_buffer());
+    if too_many || too_big || 4 * n + BUILD_GROUP as u64 * 65535 > u32::MAX as u64 {
         return Ok(None);
     }
     let mut stages = vec![];
     let mut timed = |name: String, t: Instant| stages.push((name, t.elapsed().as_secs_f64()));
     let t = Instant::now();
-    let mut b = Builder::new(dev, input)?;
+    let mut b = Builder::new(dev, input, chunk)?;
     let sorted = sort::run(&mut b, dev, input)?;
     timed("gpu: Morton codes, radix sort (pipelines included)".into(), t);
     let t = Instant::now();
-    let Some(tree) = hierarchy::run(&mut b, dev, sorted, want.max_leaf)? else { return Ok(None) };
+    let tree = hierarchy::run(&mut b, dev, sorted, want.max_leaf)?;
     timed(format!("gpu: binary tree ({} levels), 4-wide nodes ({} levels)", tree.binary_levels, tree.depth), t);
     let t = Instant::now();
     let grid = want.grid.then(|| grid::run(&mut b, dev, input, &tree, want)).transpose()?;
@@ -126,7 +136,7 @@ pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<
         timed("gpu: neighbours".into(), t);
     }
     Ok(Some(Structure {
-        nodes: Split { parts: vec![tree.nodes], per_chunk: 0 },
+        nodes: tree.nodes,
         prims: tree.prims,
         direct: tree.direct,
         depth: tree.depth,
@@ -167,10 +177,12 @@ pub(crate) struct Builder {
     f64: bool,
     /// Tets.
     n: u32,
+    /// Bytes of each buffer of a split array.
+    chunk: u64,
 }
 
 impl Builder {
-    fn new(dev: &mut Device, input: &Inputs) -> VkResult<Builder> {
+    fn new(dev: &mut Device, input: &Inputs, chunk: u64) -> VkResult<Builder> {
         let unbound = dev.unbound();
         let mut bindings = input.mesh_bindings.to_vec();
         bindings.extend(
@@ -183,23 +195,14 @@ impl Builder {
                 B_ORDER_PERM,
                 B_PRIMS,
                 B_GRID,
-                B_BUILD_KEYS,
-                B_BUILD_IDS,
                 B_BUILD_SCAN,
                 B_BUILD_LEVELS,
-                B_BUILD_NODES,
-                B_BUILD_BOXES,
-                B_BUILD_WIDE,
-                B_BUILD_WORK,
-                B_BUILD_TREE,
-                B_BUILD_HOME,
                 B_BUILD_GRID,
                 B_BUILD_CELLS,
-                B_BUILD_FACES,
-                B_BUILD_NEIGHBORS,
             ]
             .map(|slot| Binding::buffer(slot, unbound)),
         );
+        bindings.extend(SPLIT_SLOTS.map(|slot| Binding::parts(slot, None, unbound)));
         bindings.extend(Binding::split(B_ACCEL, B_ACCEL_HI, None, unbound));
         bindings.extend(Binding::split(B_NEIGHBORS, B_NEIGHBORS_HI, None, unbound));
         let desc = Descriptors::new(dev.ctx(), &bindings, vk::ShaderStageFlags::COMPUTE)?;
@@ -207,13 +210,35 @@ impl Builder {
             .set(sc::POINTS_CHUNK, input.points.per_chunk)
             .set(sc::TETS_CHUNK, input.tets.per_chunk)
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
-            .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits());
-        Ok(Builder { pipelines: HashMap::new(), desc, spec, f64: input.f64, n: input.mesh.n_tets() as u32 })
+            .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
+            .set(sc::BUILD_CHUNK_BYTES, chunk as u32);
+        Ok(Builder { pipelines: HashMap::new(), desc, spec, f64: input.f64, n: input.mesh.n_tets() as u32, chunk })
     }
 
     /// Points `slot` at `buf` (or at nothing, before `buf` is freed).
     fn bind(&self, slot: u32, buf: &Buffer) {
         self.desc.write(&[Binding::buffer(slot, buf)]);
+    }
+
+    /// Points the split array binding `slot` at `array`'s buffers (`None`: at nothing).
+    fn bind_split(&self, slot: u32, array: Option<&Split>, unbound: &Buffer) {
+        self.desc.write(&[Binding::parts(slot, array, unbound)]);
+    }
+
+    /// A split array of `elems` elements of `elem` bytes, in buffers of `self.chunk` bytes
+    /// (the last one shorter); `per_chunk` is 0 when it fits one buffer, as the locate
+    /// shaders read it.
+    fn split(&self, dev: &mut Device, kind: MemKind, name: &str, elems: u64, elem: u64) -> VkResult<Split> {
+        let per = self.chunk / elem;
+        let n_parts = elems.div_ceil(per).max(1);
+        let parts = (0..n_parts)
+            .map(|k| {
+                let bytes = elem * (elems - k * per).min(per).max(1);
+                let label = if n_parts == 1 { name.to_string() } else { format!("{name} {}/{n_parts}", k + 1) };
+                dev.create_buffer(BufferDesc::io(kind, bytes), label, None)
+            })
+            .collect::<VkResult<Vec<_>>>()?;
+        Ok(Split { parts, per_chunk: if n_parts == 1 { 0 } else { per as u32 } })
     }
 
     /// Makes the pipelines of `prog`'s `passes`, with `extra` constants on top of the build's.
@@ -253,6 +278,36 @@ impl Builder {
         let x = groups.min(r.ctx.limits.max_workgroup_count[0] as u64).max(1);
         // SAFETY: as above.
         unsafe { dev.cmd_dispatch(cmd, x as u32, groups.div_ceil(x) as u32, 1) };
+    }
+}
+
+/// The bindings of the split build arrays (shaders/build/build.glsl `TL_SPLIT_ARRAY`).
+const SPLIT_SLOTS: [u32; 10] = [
+    B_BUILD_KEYS,
+    B_BUILD_IDS,
+    B_BUILD_NODES,
+    B_BUILD_BOXES,
+    B_BUILD_WIDE,
+    B_BUILD_WORK,
+    B_BUILD_TREE,
+    B_BUILD_HOME,
+    B_BUILD_FACES,
+    B_BUILD_NEIGHBORS,
+];
+
+/// Copies `count` elements of `elem` bytes of the split array `src` (buffers of `chunk`
+/// bytes) from element `first` into `dst` at byte 0, buffer by buffer.
+fn copy_out(r: &Recording, src: &Split, chunk: u64, elem: u64, first: u64, count: u64, dst: &Buffer) {
+    let per = chunk / elem;
+    let (mut at, end) = (first, first + count);
+    while at < end {
+        let (part, offset) = ((at / per) as usize, at % per);
+        let take = (per - offset).min(end - at);
+        let region = vk::BufferCopy { src_offset: offset * elem, dst_offset: (at - first) * elem, size: take * elem };
+        // SAFETY: recording; both buffers are live and hold the regions (the split's buffers
+        // hold `per` elements each, the last its remainder).
+        unsafe { r.dev.cmd_copy_buffer(r.cmd, src.parts[part].buffer, dst.buffer, &[region]) };
+        at += take;
     }
 }
 

@@ -4,24 +4,21 @@
 //! of three or more tets links only the first two (in order of 4 tet + face), as the CPU's
 //! sort does. Work per face is its bucket's size (about 24 faces a vertex in a tet mesh).
 
-use super::{scan, scratch, Builder, Groups, NEIGHBORS};
+use super::{scan, Builder, Groups, NEIGHBORS};
 use crate::device::{Device, Split};
 use crate::error::VkResult;
 use crate::interface::*;
 use crate::kernels::Inputs;
-use crate::memory::{Buffer, BufferDesc, MemKind};
+use crate::memory::{Buffer, MemKind};
 use crate::pipeline::Spec;
 
 pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, scan_buf: &Buffer) -> VkResult<Split> {
     let n = b.n as u64;
     let points = input.mesh.points.len() as u32;
-    let faces = scratch(dev, "build faces", 12 * 4 * n)?;
-    let usage = ash::vk::BufferUsageFlags::STORAGE_BUFFER
-        | ash::vk::BufferUsageFlags::TRANSFER_SRC
-        | ash::vk::BufferUsageFlags::TRANSFER_DST;
-    let out = dev.create_buffer(BufferDesc::device(MemKind::Structure, 16 * n, usage), "tet neighbours", None)?;
-    b.bind(B_BUILD_FACES, &faces);
-    b.bind(B_BUILD_NEIGHBORS, &out);
+    let faces = b.split(dev, MemKind::Scratch, "build faces", 4 * n, 12)?;
+    let out = b.split(dev, MemKind::Structure, "tet neighbours", n, 16)?;
+    b.bind_split(B_BUILD_FACES, Some(&faces), dev.unbound());
+    b.bind_split(B_BUILD_NEIGHBORS, Some(&out), dev.unbound());
     b.prepare(dev, NEIGHBORS, &[BUILD_NB_COUNT, BUILD_NB_SCATTER, BUILD_NB_MATCH], &Spec::default())?;
     scan::prepare(b, dev)?;
     let f = (4 * n) as u32;
@@ -36,8 +33,8 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, scan_buf: &
         r.barrier();
         b.record(r, NEIGHBORS, BUILD_NB_MATCH, [f, 0, 0, 0], none, Groups::Items(f as u64));
     })?;
-    b.bind(B_BUILD_FACES, dev.unbound());
-    b.bind(B_BUILD_NEIGHBORS, dev.unbound());
+    b.bind_split(B_BUILD_FACES, None, dev.unbound());
+    b.bind_split(B_BUILD_NEIGHBORS, None, dev.unbound());
     drop(faces);
-    Ok(Split { parts: vec![out], per_chunk: 0 })
+    Ok(out)
 }

@@ -5,7 +5,7 @@
 //! that equal codes keep tet order: the CPU builder's order.
 
 use super::{read_words, scan, scratch, Builder, Groups, SORT};
-use crate::device::Device;
+use crate::device::{Device, Split};
 use crate::error::VkResult;
 use crate::interface::*;
 use crate::kernels::Inputs;
@@ -18,8 +18,8 @@ const CODE_BITS: u32 = 63;
 
 /// The sorted keys and ids, the buffers the later stages share, and which half holds them.
 pub(super) struct Sorted {
-    pub keys: Buffer,
-    pub ids: Buffer,
+    pub keys: Split,
+    pub ids: Split,
     pub levels: Buffer,
     pub scan: Buffer,
     pub half: u32,
@@ -47,16 +47,17 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs) -> VkResult
     let n = b.n as u64;
     let points = input.mesh.points.len() as u64;
     let levels_words = initial_levels();
-    let keys = scratch(dev, "build keys", 2 * 8 * n)?;
-    let ids = scratch(dev, "build ids", 2 * 4 * n)?;
+    let keys = b.split(dev, MemKind::Scratch, "build keys", 2 * n, 8)?;
+    let ids = b.split(dev, MemKind::Scratch, "build ids", 2 * n, 4)?;
     let mut desc = BufferDesc::io(MemKind::Scratch, 4 * levels_words.len() as u64);
     desc.usage |= ash::vk::BufferUsageFlags::INDIRECT_BUFFER; // the levels' dispatch sizes
     let levels = dev.create_buffer(desc, "build levels", None)?;
     let scan = scratch(dev, "build scan", 4 * scan::words(points.max(n.div_ceil(SCAN_CHUNK as u64))))?;
     dev.write(&levels, 0, bytemuck::cast_slice(&levels_words))?;
-    for (slot, buf) in [(B_BUILD_KEYS, &keys), (B_BUILD_IDS, &ids), (B_BUILD_LEVELS, &levels), (B_BUILD_SCAN, &scan)] {
-        b.bind(slot, buf);
-    }
+    b.bind_split(B_BUILD_KEYS, Some(&keys), dev.unbound());
+    b.bind_split(B_BUILD_IDS, Some(&ids), dev.unbound());
+    b.bind(B_BUILD_LEVELS, &levels);
+    b.bind(B_BUILD_SCAN, &scan);
     b.prepare(dev, SORT, &[BUILD_BOUNDS, BUILD_KEYS, BUILD_SORT_COUNT, BUILD_SORT_SCATTER], &Spec::default())?;
     scan::prepare(b, dev)?;
     let nn = b.n;

@@ -47,12 +47,14 @@ fn meshes() -> Vec<Mesh> {
 
 /// Builds `mesh`'s structure on the GPU and reads it back: nodes, prims, grid words, neighbours.
 #[allow(clippy::type_complexity)]
+/// `max_buffer`: the test hook that splits every array larger than it over several buffers.
 fn gpu_build(
     ctx: &Arc<Context>,
     mesh: &Arc<Mesh>,
     want: Wanted,
-) -> (WideBvh, Option<Vec<u32>>, Option<Vec<[i32; 4]>>, Vec<(String, f64)>) {
-    let mut dev = Device::new(ctx, 1 << 20, None).unwrap();
+    max_buffer: Option<u64>,
+) -> (WideBvh, Option<Vec<u32>>, Option<Vec<[i32; 4]>>, usize) {
+    let mut dev = Device::new(ctx, 1 << 20, max_buffer).unwrap();
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let points = dev.upload_split("points", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.points), 12).unwrap();
     let tets = dev.upload_split("tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16).unwrap();
@@ -75,16 +77,19 @@ fn gpu_build(
         dev.download(buf, 0, bytemuck::cast_slice_mut(&mut w)).unwrap();
         w
     };
-    let node_words = words(&mut dev, &s.nodes.parts[0]);
+    // A split array's buffers hold whole elements: their words in order are the array's.
+    let split_words = |dev: &mut Device, a: &Split| a.parts.iter().flat_map(|p| words(dev, p)).collect::<Vec<u32>>();
+    let node_words = split_words(&mut dev, &s.nodes);
     let nodes: Vec<QNode4> = bytemuck::cast_slice(&node_words).to_vec();
     let prims = s.prims.as_ref().map_or(vec![], |p| words(&mut dev, p)[..mesh.n_tets()].to_vec());
     let wide = WideBvh::from_parts(nodes, prims, s.direct, s.depth);
     let grid = s.grid.as_ref().map(|g| words(&mut dev, g));
     let neighbors = s.neighbors.as_ref().map(|n| {
-        let w = words(&mut dev, &n.parts[0]);
+        let w = split_words(&mut dev, n);
         bytemuck::cast_slice::<u32, [i32; 4]>(&w)[..mesh.n_tets()].to_vec()
     });
-    (wide, grid, neighbors, s.stages)
+    let parts = s.nodes.parts.len().max(s.neighbors.as_ref().map_or(0, |n| n.parts.len()));
+    (wide, grid, neighbors, parts)
 }
 
 /// Every mesh, both leaf sizes, with and without walk starts: the CPU's structure, bit for bit.
@@ -93,43 +98,124 @@ fn gpu_build_is_the_cpu_build() {
     let Some(ctx) = context("gpu_build_is_the_cpu_build") else { return };
     for mesh in meshes() {
         let mesh = Arc::new(mesh);
-        let boxes = Aabb::of_tets(&mesh.tets, &mesh.points);
         for (max_leaf, walk) in [(1, true), (4, true), (4, false)] {
-            let label = format!("{} ({} tets), leaf {max_leaf}, walk {walk}", mesh.info.source, mesh.n_tets());
-            let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 } };
-            let (wide, grid, neighbors, _) = gpu_build(&ctx, &mesh, want);
-            wide.validate(&boxes).unwrap_or_else(|e| panic!("{label}: the GPU tree is invalid: {e}"));
-
-            let preset = if max_leaf == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
-            let cpu = WideBvh::collapse(&Bvh::build(&mesh.points, &mesh.tets, preset)).unwrap();
-            assert_eq!((wide.direct, wide.depth), (cpu.direct, cpu.depth), "{label}");
-            assert_eq!(wide.nodes.len(), cpu.nodes.len(), "{label}: node count");
-            if let Some(i) = (0..cpu.nodes.len()).find(|&i| wide.nodes[i] != cpu.nodes[i]) {
-                panic!("{label}: node {i} differs:\n gpu {:?}\n cpu {:?}", wide.nodes[i], cpu.nodes[i]);
-            }
-            assert_eq!(wide.prims, cpu.prims, "{label}: leaf prims");
-
-            let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
-                &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
-            let cpu_grid = EntryGrid::new(
-                &cpu,
-                mesh.n_tets(),
-                |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
-                (mesh.info.bounds_min, mesh.info.bounds_max),
-                want.tets_per_cell,
-                walk.then_some(holds),
-            );
-            let words = cpu_grid.words();
-            let grid = grid.expect("asked for");
-            assert_eq!(grid.len(), words.len(), "{label}: grid size");
-            if let Some(i) = (0..words.len()).find(|&i| grid[i] != words[i]) {
-                panic!("{label}: grid word {i} of {}: gpu {} cpu {}", words.len(), grid[i], words[i]);
-            }
-            if walk {
-                assert_eq!(neighbors.as_deref(), Some(mesh.neighbors()), "{label}: neighbours");
-            }
+            assert_builds_like_cpu(&ctx, &mesh, max_leaf, walk, None);
         }
     }
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
+}
+
+/// Builds `mesh` on the GPU (arrays split at `max_buffer` bytes when given) and compares it
+/// with the CPU builder's structure, bit for bit; returns the most buffers an output array
+/// was split over.
+fn assert_builds_like_cpu(
+    ctx: &Arc<Context>,
+    mesh: &Arc<Mesh>,
+    max_leaf: u32,
+    walk: bool,
+    max_buffer: Option<u64>,
+) -> usize {
+    let boxes = Aabb::of_tets(&mesh.tets, &mesh.points);
+    let label = format!(
+        "{} ({} tets), leaf {max_leaf}, walk {walk}, buffers of {max_buffer:?} B",
+        mesh.info.source,
+        mesh.n_tets()
+    );
+    let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 } };
+    let (wide, grid, neighbors, parts) = gpu_build(ctx, mesh, want, max_buffer);
+    wide.validate(&boxes).unwrap_or_else(|e| panic!("{label}: the GPU tree is invalid: {e}"));
+
+    let preset = if max_leaf == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
+    let cpu = WideBvh::collapse(&Bvh::build(&mesh.points, &mesh.tets, preset)).unwrap();
+    assert_eq!((wide.direct, wide.depth), (cpu.direct, cpu.depth), "{label}");
+    assert_eq!(wide.nodes.len(), cpu.nodes.len(), "{label}: node count");
+    if let Some(i) = (0..cpu.nodes.len()).find(|&i| wide.nodes[i] != cpu.nodes[i]) {
+        panic!("{label}: node {i} differs:\n gpu {:?}\n cpu {:?}", wide.nodes[i], cpu.nodes[i]);
+    }
+    assert_eq!(wide.prims, cpu.prims, "{label}: leaf prims");
+
+    let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
+        &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
+    let cpu_grid = EntryGrid::new(
+        &cpu,
+        mesh.n_tets(),
+        |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
+        (mesh.info.bounds_min, mesh.info.bounds_max),
+        want.tets_per_cell,
+        walk.then_some(holds),
+    );
+    let words = cpu_grid.words();
+    let grid = grid.expect("asked for");
+    assert_eq!(grid.len(), words.len(), "{label}: grid size");
+    if let Some(i) = (0..words.len()).find(|&i| grid[i] != words[i]) {
+        panic!("{label}: grid word {i} of {}: gpu {} cpu {}", words.len(), grid[i], words[i]);
+    }
+    if walk {
+        assert_eq!(neighbors.as_deref(), Some(mesh.neighbors()), "{label}: neighbours");
+    }
+    parts
+}
+
+/// Streamed uploads: split buffers and chunked batches give the same answers. With buffers
+/// of a few KiB (a test hook), every build array that grows with the mesh is split over
+/// several buffers, as at a billion tets on a 4 GiB-buffer device: the GPU build still makes
+/// the CPU's structure bit for bit, and a locator built that way (mesh, structure and its
+/// build split, host batches in small chunks) answers as the CPU-built one with whole buffers.
+#[test]
+fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
+    let Some(ctx) = context("streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers") else {
+        return;
+    };
+    let meshes = [
+        Mesh::new(gen::generate(Shape::Jets, 12_000, 5), "jets").unwrap(),
+        Mesh::new(
+            gen::generate_spec(gen::Spec { shape: Shape::Fusion, cells: CellKind::Hybrid }, 2_000, 1, &|_| {}),
+            "fusion-hybrid",
+        )
+        .unwrap(),
+    ];
+    for mesh in meshes {
+        let mesh = Arc::new(mesh);
+        // About 6 B a tet a buffer: the binary boxes (48 B a tet) and faces (48) in about 8
+        // buffers, keys (16) in 3, nodes and neighbours (16) in 3: within MAX_CHUNKS.
+        let limit = (6 * mesh.n_tets() as u64).next_multiple_of(192);
+        for (max_leaf, walk) in [(1, true), (4, true)] {
+            let parts = assert_builds_like_cpu(&ctx, &mesh, max_leaf, walk, Some(limit));
+            assert!(parts >= 2, "{}: the structure was not split ({parts} buffers)", mesh.info.source);
+        }
+    }
+
+    let mesh = Arc::new(Mesh::new(gen::generate(Shape::Agulhas, 8_000, 4), "agulhas").unwrap());
+    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+    let mut rng = 99u64;
+    let mut unit = || {
+        rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (rng >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let mut points: Vec<Vec3> =
+        (0..12_000).map(|_| std::array::from_fn(|a| lo[a] + unit() * (hi[a] - lo[a]))).collect();
+    points.extend(mesh.points.iter().copied());
+    let split = LocatorOptions {
+        max_buffer_bytes: Some((6 * mesh.n_tets() as u64).next_multiple_of(192)),
+        chunk_points: 1000,
+        ..LocatorOptions::default()
+    };
+    let whole = LocatorOptions { build: BuildOn::Cpu, ..LocatorOptions::default() };
+    let mut answers = vec![];
+    for opts in [split, whole] {
+        let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), Kernel::SoftBvh, opts.clone()).unwrap();
+        let on_gpu = loc.build_stages().iter().all(|(s, _)| !s.starts_with("gpu build:") && !s.starts_with("cpu:"));
+        assert_eq!(on_gpu, opts.build == BuildOn::Gpu, "{:?}", loc.build_stages());
+        let split_parts = |name: &str| loc.memory_report().items.iter().filter(|m| m.name.starts_with(name)).count();
+        if opts.build == BuildOn::Gpu {
+            assert!(split_parts("bvh nodes") > 1 && split_parts("tet neighbours") > 1, "the structure is not split");
+        }
+        let mut ids = vec![0; points.len()];
+        loc.locate(&points, &mut ids).unwrap();
+        answers.push(ids);
+    }
+    assert!(answers[0].iter().filter(|&&t| t >= 0).count() > points.len() / 3, "too few points inside");
+    assert_eq!(answers[0], answers[1], "ids with split buffers and chunks against whole buffers");
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
 }
 

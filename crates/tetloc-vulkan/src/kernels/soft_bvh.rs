@@ -38,7 +38,13 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         max_leaf: opts.leaf_size as u32,
         grid: opts.grid_start || opts.walk_start,
         walk: opts.walk_start,
-        tets_per_cell: opts.grid_tets_per_cell,
+        // The query shaders read the grid as one buffer: at a billion tets a cell holds more.
+        tets_per_cell: build::tets_per_cell(
+            input.mesh.n_tets(),
+            (input.mesh.info.bounds_min, input.mesh.info.bounds_max),
+            opts.grid_tets_per_cell,
+            dev.device_max_buffer(),
+        ),
     };
     let built = match opts.build {
         BuildOn::Gpu => build::build(dev, input, want)?,
@@ -49,7 +55,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         None => {
             let mut s = cpu_structure(dev, input, want)?;
             if opts.build == BuildOn::Gpu {
-                s.stages.insert(0, ("gpu build: an array exceeds one buffer, built on the cpu".into(), 0.0));
+                s.stages.insert(0, ("gpu build: the mesh is beyond what it addresses, built on the cpu".into(), 0.0));
             }
             s
         }
