@@ -64,6 +64,10 @@ enum Command {
         /// surface, for `tetloc render --surface FILE`.
         #[arg(long)]
         terrain: Option<PathBuf>,
+        /// Also write a closed-form vector field `v` for `tetloc trace` (fusion: toroidal plus
+        /// poloidal flow around the centre line; other shapes: a rotation about the vertical axis).
+        #[arg(long)]
+        vector: bool,
     },
     /// Locate points (and sample a field) and write the tet ids (and values).
     Locate(locate::LocateArgs),
@@ -81,7 +85,8 @@ enum Command {
     Bench {
         /// A mesh file, or SHAPE:N to generate one (e.g. fusion:1.4M).
         mesh: OsString,
-        /// Query sets: centers (the paper's uniform), random, bbox (generated in the GPU kernel), host (uploaded).
+        /// Query sets: centers (the paper's uniform), random, bbox, grid (resample's grid over the bounds, N³ ≥ n
+        /// points), all generated in the GPU kernel; host (uploaded).
         #[arg(long, value_delimiter = ',', default_value = "centers,random,bbox")]
         queries: Vec<tetloc_core::queries::QueryKind>,
         /// Number of queries per run (default: one per tet).
@@ -256,8 +261,8 @@ fn error_text(e: &anyhow::Error) -> String {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { mesh, json, format } => info(&mesh, json, format.as_deref()),
-        Command::Gen { shape, tets, out, seed, zlib, terrain } => {
-            gen(&shape, &tets, &out, seed, zlib, terrain.as_deref())
+        Command::Gen { shape, tets, out, seed, zlib, terrain, vector } => {
+            gen(&shape, &tets, &out, seed, zlib, terrain.as_deref(), vector)
         }
         Command::Locate(args) => locate::run(&args),
         Command::Partition(args) => partition::run(&args),
@@ -302,7 +307,7 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Option<&Path>) -> Result<()> {
+fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Option<&Path>, vector: bool) -> Result<()> {
     let spec: tetloc_core::gen::Spec = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let shape = spec.shape;
     let n = mesh_arg::parse_count(tets)?;
@@ -321,7 +326,11 @@ fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Opti
         eprintln!("{}: terrain with {} triangles", path.display(), ground.triangles.len());
     }
     let t0 = Instant::now();
-    let mesh = mesh_arg::generate(spec, n, seed)?;
+    let mut mesh = mesh_arg::generate(spec, n, seed)?;
+    if vector {
+        let v = tetloc_core::gen::flow::vector_fields(shape, &mesh.points);
+        mesh.fields.extend(v);
+    }
     let gen_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     progress::with_spinner(format!("writing {}", out.display()), || vtu_write::write_mesh_vtu(out, &mesh, zlib))?;

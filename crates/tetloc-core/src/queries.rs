@@ -1,12 +1,14 @@
 //! Query point sets for benchmarks and checks, the paper's synthetic ones and more:
 //! `centers` (the paper's "uniform": one sample at every tet centre), `random` (a random
 //! tet, a uniformly random point inside it), `bbox` (uniform in the bounding box) and `host`
-//! (the `random` points, made on the host and handed over as a batch). The one enum that
+//! (the `random` points, made on the host and handed over as a batch), and `grid` (the
+//! regular grid over the bounding box that `resample` samples, N³ ≥ n points, its first n). The one enum that
 //! names them: the CLI, the GPU kernels (which generate the first three themselves) and the
 //! benchmarks all use [`QueryKind`].
 
 use crate::geom::Vec3;
 use crate::mesh::Mesh;
+use crate::ops::ImageGrid;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde::Serialize;
@@ -25,10 +27,14 @@ pub enum QueryKind {
     /// The `random` points made on the host and handed to the locator as a batch: GPU
     /// benchmarks then time the transfers too, where the others generate points in the kernel.
     Host,
+    /// The first n points of the N×N×N grid over the mesh's bounds ([`grid`]), x fastest:
+    /// resampling to an image (n = N³ gives the whole grid).
+    Grid,
 }
 
 impl QueryKind {
-    pub const ALL: [QueryKind; 4] = [QueryKind::Centers, QueryKind::Random, QueryKind::Bbox, QueryKind::Host];
+    pub const ALL: [QueryKind; 5] =
+        [QueryKind::Centers, QueryKind::Random, QueryKind::Bbox, QueryKind::Host, QueryKind::Grid];
 
     pub fn name(self) -> &'static str {
         match self {
@@ -36,6 +42,7 @@ impl QueryKind {
             QueryKind::Random => "random",
             QueryKind::Bbox => "bbox",
             QueryKind::Host => "host",
+            QueryKind::Grid => "grid",
         }
     }
 }
@@ -54,7 +61,8 @@ impl FromStr for QueryKind {
             "random" => Ok(QueryKind::Random),
             "bbox" => Ok(QueryKind::Bbox),
             "host" => Ok(QueryKind::Host),
-            _ => Err(format!("unknown query set '{s}' (known: centers (alias uniform), random, bbox, host)")),
+            "grid" => Ok(QueryKind::Grid),
+            _ => Err(format!("unknown query set '{s}' (known: centers (alias uniform), random, bbox, host, grid)")),
         }
     }
 }
@@ -94,6 +102,26 @@ pub fn random_point_in_tet(v: [Vec3; 4], rng: &mut impl Rng) -> Vec3 {
     std::array::from_fn(|k| (0..4).map(|i| w[i] * v[i][k] as f64).sum::<f64>() as f32)
 }
 
+/// The grid of the `grid` query set for `n` points: N per axis, the smallest N with N³ ≥ n,
+/// over the mesh's bounds (working frame) as `resample` lays it out.
+pub fn grid(mesh: &Mesh, n: usize) -> ImageGrid {
+    let mut side = (n as f64).cbrt().round().max(1.0) as usize;
+    while side.saturating_pow(3) < n {
+        side += 1;
+    }
+    let (lo, hi) = (mesh.info.bounds_min.map(f64::from), mesh.info.bounds_max.map(f64::from));
+    ImageGrid::over_bounds(lo, hi, [side; 3]).expect("finite bounds and a positive size")
+}
+
+/// Point `i` of `grid` as the GPU kernels generate it (shaders/common/samples.glsl): origin
+/// and spacing rounded to f32, then `origin + index * spacing` in f32 (`ImageGrid::point`
+/// computes in f64; the two differ by float32 rounding).
+pub fn grid_point(grid: &ImageGrid, i: usize) -> Vec3 {
+    let [nx, ny, _] = grid.dims;
+    let idx = [i % nx, i / nx % ny, i / (nx * ny)];
+    std::array::from_fn(|k| grid.origin[k] as f32 + idx[k] as f32 * grid.spacing[k] as f32)
+}
+
 /// `n` query points of the given kind (for `centers`, tet centres in order, cycling if `n`
 /// exceeds the tet count; `host` makes the `random` points). Deterministic for a seed.
 pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> {
@@ -104,6 +132,7 @@ pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> 
             let mut rng = rand_pcg::Pcg64::seed_from_u64(seed ^ (b as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15));
             let range = b * BLOCK..((b + 1) * BLOCK).min(n);
             let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+            let image = (kind == QueryKind::Grid).then(|| grid(mesh, n));
             range
                 .map(move |i| match kind {
                     QueryKind::Centers => mesh.tet_center(i % mesh.n_tets()),
@@ -112,6 +141,7 @@ pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> 
                         random_point_in_tet(t.map(|i| mesh.points[i as usize]), &mut rng)
                     }
                     QueryKind::Bbox => std::array::from_fn(|k| lo[k] + rng.gen::<f32>() * (hi[k] - lo[k])),
+                    QueryKind::Grid => grid_point(image.as_ref().expect("made above"), i),
                 })
                 .collect::<Vec<_>>()
         })
@@ -148,6 +178,16 @@ mod tests {
         assert_eq!(generate(&mesh, QueryKind::Host, 100, 5), generate(&mesh, QueryKind::Random, 100, 5));
         for kind in QueryKind::ALL {
             assert_eq!(kind.name().parse::<QueryKind>(), Ok(kind));
+        }
+        // The grid of 8 points: the box's corners (nudged inwards by 1e-6), x fastest.
+        assert_eq!(grid(&mesh, 8).dims, [2; 3]);
+        assert_eq!(grid(&mesh, 9).dims, [3; 3]);
+        let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+        for (i, p) in generate(&mesh, QueryKind::Grid, 8, 0).iter().enumerate() {
+            for k in 0..3 {
+                let want = if (i >> k) & 1 == 1 { hi[k] } else { lo[k] };
+                assert!((p[k] - want).abs() < 1e-5, "corner {i}: {p:?}");
+            }
         }
         assert_eq!("uniform".parse::<QueryKind>().unwrap(), QueryKind::Centers);
         assert!("nope".parse::<QueryKind>().is_err());

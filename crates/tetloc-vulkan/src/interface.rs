@@ -250,6 +250,9 @@ gpu_interface! {
         SAMPLE_CENTERS: i32 = 1;
         SAMPLE_RANDOM: i32 = 2;
         SAMPLE_BBOX: i32 = 3;
+        /// The points of a regular grid, x fastest (Params::grid_origin, grid_spacing; NX and
+        /// NY in counts.z and counts.w): resampling to an image.
+        SAMPLE_GRID: i32 = 4;
         /// What a kernel writes per point (OUTPUT_MODE): the tet id, or the field value of a
         /// per-vertex or per-cell field.
         OUT_IDS: i32 = 0;
@@ -377,7 +380,8 @@ gpu_interface! {
     push_constants
     /// The push constants of every locate and march pipeline.
     Params as params {
-        /// Points in this launch, global index of its first point, number of tets, seed.
+        /// Points in this launch, global index of its first point, number of tets, seed (a
+        /// grid's NX, NY with SAMPLE_GRID).
         counts: [u32; 4],
         /// Mesh bounding box min, ray tmin.
         lo_tmin: [f32; 4],
@@ -385,6 +389,9 @@ gpu_interface! {
         hi_tmax: [f32; 4],
         /// Ray direction (xyz).
         dir: [f32; 4],
+        /// SAMPLE_GRID: the grid's first point and spacing (xyz), in the working frame.
+        grid_origin: [f32; 4],
+        grid_spacing: [f32; 4],
     }
     structs {
         /// The volume marcher's frame parameters (march.glsl).

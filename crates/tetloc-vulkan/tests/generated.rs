@@ -1,4 +1,4 @@
-//! Samples generated inside the kernels (the benchmarks' centers, random and bbox sets):
+//! Samples generated inside the kernels (the benchmarks' centers, random, bbox and grid sets):
 //! the points are what the CPU computes, and every kernel locates them correctly.
 
 mod common;
@@ -22,7 +22,7 @@ fn generated_samples_are_located_correctly() {
             LocatorOptions { chunk_points: 1000, ..Default::default() },
         )
         .unwrap();
-        for mode in [QueryKind::Centers, QueryKind::Random, QueryKind::Bbox] {
+        for mode in [QueryKind::Centers, QueryKind::Random, QueryKind::Bbox, QueryKind::Grid] {
             let n = if mode == QueryKind::Centers { mesh.n_tets() } else { 20_000 };
             let (points, ids) = loc.locate_generated(mode, n, 42).unwrap();
             let mut cpu = vec![0; n];
@@ -49,13 +49,27 @@ fn generated_samples_are_located_correctly() {
                         "{label}: outside the box"
                     );
                 }
+                QueryKind::Grid => {
+                    // The kernel computes queries::grid_point bit for bit (n = 20000: the
+                    // first points of the 28³ grid, all its z slices but a part of the last).
+                    let want = tetloc_core::queries::generate(&mesh, mode, n, 42);
+                    assert!(points == want, "{label}: grid points differ from the CPU's");
+                    let g = tetloc_core::queries::grid(&mesh, n);
+                    assert_eq!(g.dims, [28; 3]);
+                    for (i, p) in points.iter().enumerate().step_by(97) {
+                        let exact = g.point(i);
+                        assert!((0..3).all(|k| (p[k] - exact[k]).abs() <= 4.0 * f32::EPSILON * exact[k].abs().max(1.0)));
+                    }
+                    let inside = ids.iter().filter(|&&t| t >= 0).count();
+                    assert!(inside > n / 2, "{label}: only {inside} grid points inside a box-filling mesh");
+                }
                 QueryKind::Host => unreachable!(),
             }
             // Launches in chunks generate the same points (global sample index).
             let (p2, ids2) = chunked.locate_generated(mode, n, 42).unwrap();
             assert!(p2 == points && ids2 == ids, "{label}: chunked launches differ");
             // Another seed, other points.
-            if mode != QueryKind::Centers {
+            if mode != QueryKind::Centers && mode != QueryKind::Grid {
                 assert!(loc.locate_generated(mode, 100, 43).unwrap().0 != points[..100], "{label}: seed ignored");
             }
         }

@@ -15,8 +15,10 @@ use std::f64::consts::{PI, TAU};
 /// (independent of the elongation); ρ = 0.4786 gives the 54 % we aim for.
 pub(super) const OCCUPANCY: f64 = 0.54;
 const MINOR: f64 = 0.4786;
+/// The torus's major radius (the centre line's).
+pub(super) const MAJOR: f64 = 1.0;
 /// Vertical stretch of the cross-section (tokamak plasmas are taller than wide).
-const ELONGATION: f64 = 1.4;
+pub(super) const ELONGATION: f64 = 1.4;
 /// Radial warp: spacing at the centre line over the mean spacing...
 const CORE_SPACING: f64 = 0.1;
 /// ...reached within about √CORE_RADIUS2 of the minor radius.
@@ -71,7 +73,7 @@ impl ColumnShape for Fusion {
         let b = (j as f64 - m + XY_JITTER * jb) / m;
         let w = MINOR * warp(a * a + b * b);
         // (a, b, -φ) is right-handed in (radius, height, toroidal angle): φ decreases with k.
-        let (radius, z) = (1.0 + a * w, ELONGATION * b * w);
+        let (radius, z) = (MAJOR + a * w, ELONGATION * b * w);
         for (k, p) in out.iter_mut().enumerate() {
             let phi = PHI0 - (k as f64 + LEVEL_JITTER * level_jitter(self.seed, i, j, k)) * TAU / nk as f64;
             *p = [(radius * phi.cos()) as f32, (radius * phi.sin()) as f32, z as f32];

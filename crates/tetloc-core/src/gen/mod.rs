@@ -24,6 +24,7 @@
 //! vertex, vertices ≈ tets / 5) plus a few bytes per column.
 
 mod agulhas;
+pub mod flow;
 mod fusion;
 mod grid;
 mod japan;

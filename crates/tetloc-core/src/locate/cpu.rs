@@ -162,9 +162,10 @@ impl CpuLocator {
                     return f(None);
                 }
                 let found = hint.and_then(|h| self.walk(h, &q)).or_else(|| self.find(&q));
-                if let Some((t, _)) = found {
-                    hint = Some(t);
-                }
+                // After a point outside the mesh the next one starts afresh: walking from the
+                // last tet inside towards points beyond the boundary (a grid's rows crossing
+                // the holes of a torus) fails only after a long walk, every time.
+                hint = found.map(|(t, _)| t);
                 f(found)
             })
             .collect()

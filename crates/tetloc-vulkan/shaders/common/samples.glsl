@@ -1,8 +1,9 @@
 // Where a kernel's points come from and where its answers go: host points from the
 // queries buffer, or samples generated in the kernel as in the paper (`uniform`: the centre
 // of every tet; `random`: a random point in a random tet) plus `bbox` (uniform in the
-// mesh's bounding box). Generated points use only +, -, * (precise), so the CPU can
-// reproduce them; RECORD_POINTS writes them out for the tests.
+// mesh's bounding box) and `grid` (a regular grid's points, x fastest). Generated points
+// use only +, -, * (precise), so the CPU can reproduce them; RECORD_POINTS writes them out
+// for the tests.
 #ifndef TL_SAMPLES_GLSL
 #define TL_SAMPLES_GLSL
 
@@ -58,6 +59,12 @@ vec3 tl_sample(uint i) {
         }
         precise float w = 1.0 - a - b - c;
         precise vec3 p = w * tl_vertex(t.x) + a * tl_vertex(t.y) + b * tl_vertex(t.z) + c * tl_vertex(t.w);
+        return p;
+    } else if (SAMPLE_MODE == TL_SAMPLE_GRID) {
+        // queries::grid_point: the same f32 operations, so the CPU has the same points.
+        uint nx = params.counts.z, ny = params.counts.w;
+        vec3 idx = vec3(uvec3(g % nx, (g / nx) % ny, g / (nx * ny)));
+        precise vec3 p = params.grid_origin.xyz + idx * params.grid_spacing.xyz;
         return p;
     } else {
         uint s = tl_hash(g ^ tl_hash(params.counts.w ^ 0x9e3779b9u));

@@ -256,7 +256,7 @@ impl Builder {
     /// Records pass `pass` of `prog` (prepared) with push constants `counts` (and `lo`, `hi`).
     fn record(&self, r: &Recording, prog: Prog, pass: u32, counts: [u32; 4], lo_hi: [[f32; 4]; 2], groups: Groups) {
         let p = &self.pipelines[&(prog.0, pass)];
-        let params = Params { counts, lo_tmin: lo_hi[0], hi_tmax: lo_hi[1], dir: [0.0; 4] };
+        let params = Params { counts, lo_tmin: lo_hi[0], hi_tmax: lo_hi[1], ..Default::default() };
         let (dev, cmd) = (r.dev, r.cmd);
         // SAFETY: recording into a command buffer in the recording state, with a live pipeline
         // and descriptor set of the same layout.

@@ -113,6 +113,7 @@ impl VulkanLocator {
                     QueryKind::Centers => self.mesh.n_tets(),
                     _ => opts.samples.unwrap_or(self.mesh.n_tets()),
                 };
+                super::check_generated_count(n)?;
                 let (times, outside, power) = self.bench_gpu(opts, mode, output, n, nvml)?;
                 (times, n, outside, "gpu timestamps", power)
             }
@@ -198,8 +199,10 @@ impl VulkanLocator {
         let chunk = self.launch_limit().min(n.max(1));
         self.ensure_io(chunk)?;
         self.pipeline(v)?;
-        let launches: Vec<Params> =
-            (0..n).step_by(chunk).map(|base| self.params(chunk.min(n - base), base, opts.seed)).collect();
+        let launches: Vec<Params> = (0..n)
+            .step_by(chunk)
+            .map(|base| self.generated_params(mode, chunk.min(n - base), base, n, opts.seed))
+            .collect();
         let io = self.io.as_ref().expect("ensure_io made it");
         let deferred = io.deferred.as_ref().map(|d| d.buffer);
         let launch = self.launcher.launch(v, deferred);

@@ -379,7 +379,22 @@ impl VulkanLocator {
             lo_tmin: [lo[0], lo[1], lo[2], 0.0],
             hi_tmax: [hi[0], hi[1], hi[2], ray.tmax],
             dir: [ray.dir[0], ray.dir[1], ray.dir[2], 0.0],
+            ..Default::default()
         }
+    }
+
+    /// Push constants for a launch of `len` generated points of `kind` from global index
+    /// `base`, of `n` in all (the `grid` set's grid depends on `n`).
+    fn generated_params(&self, kind: QueryKind, len: usize, base: usize, n: usize, seed: u32) -> Params {
+        let mut p = self.params(len, base, seed);
+        if kind == QueryKind::Grid {
+            let g = tetloc_core::queries::grid(&self.mesh, n);
+            p.counts[2] = g.dims[0] as u32;
+            p.counts[3] = g.dims[1] as u32;
+            p.grid_origin = [g.origin[0] as f32, g.origin[1] as f32, g.origin[2] as f32, 0.0];
+            p.grid_spacing = [g.spacing[0] as f32, g.spacing[1] as f32, g.spacing[2] as f32, 0.0];
+        }
+        p
     }
 
     /// Most points one launch may take: the chunk size, capped by the device's dispatch limits.
@@ -496,6 +511,7 @@ impl VulkanLocator {
         if sample == SAMPLE_HOST {
             return Err(VkError::Mesh("locate_generated needs a query set the kernel generates, not host".into()));
         }
+        check_generated_count(n)?;
         // Ordered: the ordering's keys pass records the points, the kernel does not.
         let ordered = self.orders(sample, n);
         let v = Variant { sample, output: OUT_IDS, record: !ordered, ordered };
@@ -506,7 +522,7 @@ impl VulkanLocator {
         let mut ids = vec![0i32; n];
         for base in (0..n).step_by(chunk) {
             let len = chunk.min(n - base);
-            let params = self.params(len, base, seed);
+            let params = self.generated_params(kind, len, base, n, seed);
             let io = self.io.as_ref().expect("ensure_io made it");
             let launch = self.launcher.launch(v, io.deferred.as_ref().map(|d| d.buffer));
             let order = io.order.as_ref().filter(|_| v.ordered);
@@ -542,8 +558,16 @@ impl VulkanLocator {
     /// the options say so, for host and random points (centres come in mesh order, already
     /// coherent) and batches large enough to pay for the passes.
     fn orders(&self, sample: i32, n: usize) -> bool {
-        self.opts.order_queries && sample != SAMPLE_CENTERS && n >= ORDER_MIN_POINTS
+        self.opts.order_queries && sample != SAMPLE_CENTERS && sample != SAMPLE_GRID && n >= ORDER_MIN_POINTS
     }
+}
+
+/// Generated samples are numbered by a u32 global index in the kernels.
+fn check_generated_count(n: usize) -> VkResult<()> {
+    if n > u32::MAX as usize {
+        return Err(VkError::Mesh(format!("{n} generated samples: the kernels number them in 32 bits")));
+    }
+    Ok(())
 }
 
 /// SAMPLE_* of a query set: generated in the kernel, or host points.
@@ -553,6 +577,7 @@ fn sample_mode(kind: QueryKind) -> i32 {
         QueryKind::Random => SAMPLE_RANDOM,
         QueryKind::Bbox => SAMPLE_BBOX,
         QueryKind::Host => SAMPLE_HOST,
+        QueryKind::Grid => SAMPLE_GRID,
     }
 }
 
