@@ -248,16 +248,30 @@ impl VulkanLocator {
             None => None,
         };
 
-        // Outside count of the last chunk of the last run (all chunks are alike samples).
-        let last = launches.last().map_or(0, |p| p.counts[0] as usize);
-        let mut out = vec![0u32; last];
-        let io = self.io.as_ref().expect("ensure_io made it");
-        self.dev.download(&io.results, 0, bytemuck::cast_slice_mut(&mut out))?;
-        let outside_last = match output {
+        let count_outside = |out: &[u32]| match output {
             OUT_IDS => out.iter().filter(|&&t| t as i32 == -1).count(),
             _ => out.iter().filter(|&&b| f32::from_bits(b).is_nan()).count(),
         };
-        let outside = (outside_last as f64 * n as f64 / last.max(1) as f64).round() as usize;
+        let outside = if mode == QueryKind::Grid {
+            // A grid's slabs are not alike (the last one may lie above the mesh): every
+            // launch again, untimed, each one's answers counted.
+            let mut outside = 0;
+            for p in &launches {
+                self.dev.run(|r| l(r, p))?;
+                let io = self.io.as_ref().expect("ensure_io made it");
+                let mut out = vec![0u32; p.counts[0] as usize];
+                self.dev.download(&io.results, 0, bytemuck::cast_slice_mut(&mut out))?;
+                outside += count_outside(&out);
+            }
+            outside
+        } else {
+            // The last chunk of the last run, scaled (the other sets' chunks are alike samples).
+            let last = launches.last().map_or(0, |p| p.counts[0] as usize);
+            let mut out = vec![0u32; last];
+            let io = self.io.as_ref().expect("ensure_io made it");
+            self.dev.download(&io.results, 0, bytemuck::cast_slice_mut(&mut out))?;
+            (count_outside(&out) as f64 * n as f64 / last.max(1) as f64).round() as usize
+        };
         Ok((times, outside, power))
     }
 }
