@@ -31,15 +31,7 @@ impl Region {
     /// The region of `mesh`'s cells.
     /// In the file's coordinates (the points' own), boxes rounded outward to f32.
     pub fn of_mesh(mesh: &Mesh) -> Region {
-        // The vertices' own box (not the working frame's bounds mapped back, which round).
-        let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-        for i in 0..mesh.points.len() as u32 {
-            let p = mesh.vertex64(i);
-            for k in 0..3 {
-                lo[k] = lo[k].min(p[k]);
-                hi[k] = hi[k].max(p[k]);
-            }
-        }
+        let (lo, hi) = mesh.file_box();
         let mut r = Region { lo: lo.map(f32_down), hi: hi.map(f32_up), occupied: vec![0; WORDS] };
         let mut mark = |corners: &mut dyn Iterator<Item = u32>| {
             let (mut a, mut b) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);

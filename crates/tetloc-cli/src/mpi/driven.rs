@@ -4,6 +4,7 @@
 //! and the answers gathered back on rank 0, which alone writes the output.
 
 use super::{gather, scatter};
+use tetloc_core::locate::check_lengths;
 use tetloc_core::{BatchLocator, Vec3};
 use tetloc_mpi::dist::{Cluster, DistLocator};
 use tetloc_mpi::mpi::traits::*;
@@ -53,15 +54,8 @@ impl BatchLocator for Driven<'_> {
         values: &mut [f32],
     ) -> Result<(), tetloc_core::Error> {
         // Checked before the collective call: every rank must take part in it or none.
-        if ids.len() != points.len() || values.len() != points.len() * fields.len() {
-            return Err(tetloc_core::Error::Invalid(format!(
-                "{} points, {} ids and {} values for {} fields",
-                points.len(),
-                ids.len(),
-                values.len(),
-                fields.len()
-            )));
-        }
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
         announce(self.cluster, Some(fields));
         let mine = scatter(self.cluster, points);
         let got = self.loc.query(&mine, fields);

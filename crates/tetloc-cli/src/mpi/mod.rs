@@ -96,14 +96,7 @@ fn build<'c>(
 }
 
 fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {
-    let checked = locate::check_args(a).and_then(|()| {
-        use tetloc_core::locate::Tolerance;
-        if matches!(a.tolerance, Tolerance::Absolute(d) | Tolerance::PercentOfMeanEdge(d) if d == 0.0) {
-            Ok(())
-        } else {
-            bail!("--tolerance does not run distributed yet (the nearest boundary cell over all ranks)")
-        }
-    });
+    let checked = locate::check_args(a).and_then(|()| no_tolerance(a.tolerance));
     cluster.agree("check the arguments", checked.map_err(|e| error_text(&e)))?;
     let listing = Path::new(&a.mesh);
     let t0 = Instant::now();
@@ -149,6 +142,15 @@ fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {
     Ok(())
 }
 
+/// Refuses a boundary tolerance: it needs the nearest boundary cell over all ranks.
+fn no_tolerance(t: tetloc_core::locate::Tolerance) -> Result<()> {
+    use tetloc_core::locate::Tolerance;
+    match t {
+        Tolerance::Absolute(d) | Tolerance::PercentOfMeanEdge(d) if d == 0.0 => Ok(()),
+        _ => bail!("--tolerance does not run distributed yet (the nearest boundary cell over all ranks)"),
+    }
+}
+
 /// `resample` of a partitioned mesh: every rank checks the arguments and loads its pieces;
 /// rank 0 resamples through the ranks (the grid over the whole mesh's bounds) and writes the
 /// image.
@@ -162,13 +164,7 @@ fn run_resample(cluster: &Cluster, a: &resample::ResampleArgs) -> Result<()> {
 
 /// `probe` with a partitioned SOURCE: rank 0 reads TARGET, probes through the ranks and writes.
 fn run_probe(cluster: &Cluster, a: &probe::ProbeArgs) -> Result<()> {
-    let checked = probe::check(a).and_then(|point_set| {
-        use tetloc_core::locate::Tolerance;
-        match a.tolerance {
-            Tolerance::Absolute(d) | Tolerance::PercentOfMeanEdge(d) if d == 0.0 => Ok(point_set),
-            _ => bail!("--tolerance does not run distributed yet (the nearest boundary cell over all ranks)"),
-        }
-    });
+    let checked = probe::check(a).and_then(|point_set| no_tolerance(a.tolerance).map(|()| point_set));
     let point_set = cluster.agree("check the arguments", checked.map_err(|e| error_text(&e)))?;
     let part = load_part(cluster, Path::new(&a.source))?;
     let loc = build(cluster, &a.backend, &a.common, part.as_ref())?;
@@ -202,16 +198,7 @@ fn drive(
 
 /// The whole mesh's bounds in the file's coordinates: the union of the ranks' pieces.
 fn whole_bounds(cluster: &Cluster, part: Option<&Part>) -> ([f64; 3], [f64; 3]) {
-    let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    if let Some(m) = part.map(|p| &p.mesh) {
-        for i in 0..m.points.len() as u32 {
-            let v = m.vertex64(i);
-            for k in 0..3 {
-                lo[k] = lo[k].min(v[k]);
-                hi[k] = hi[k].max(v[k]);
-            }
-        }
-    }
+    let (lo, hi) = part.map_or(([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]), |p| p.mesh.file_box());
     (lo.map(|x| -cluster.max_f64(-x)), hi.map(|x| cluster.max_f64(x)))
 }
 

@@ -234,7 +234,8 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     }
 }
 
-pub(crate) fn check_lengths(points: usize, out: usize) -> Result<()> {
+/// An error unless an output buffer holds one entry per point (`out == points`).
+pub fn check_lengths(points: usize, out: usize) -> Result<()> {
     if points != out {
         return Err(crate::Error::Invalid(format!("{points} points but an output buffer for {out}")));
     }

@@ -343,6 +343,16 @@ impl Mesh {
         (f.to_file(self.info.bounds_min), f.to_file(self.info.bounds_max))
     }
 
+    /// The vertices' exact box in the file's coordinates ([`Self::file_bounds`] maps the
+    /// working copy's bounds back, within its rounding). One pass over the f64 coordinates
+    /// when the mesh has them; without them the working copy is the file's data.
+    pub fn file_box(&self) -> ([f64; 3], [f64; 3]) {
+        match &self.points64 {
+            Some(p) => bounds_of(p, |p| *p),
+            None => (self.info.frame.to_file(self.info.bounds_min), self.info.frame.to_file(self.info.bounds_max)),
+        }
+    }
+
     /// Whether f64 query points should keep their precision: the file's coordinates are not
     /// its f32 copy (f64 data, or a centred frame). On f32 data near the origin, rounding
     /// the points to f32 first keeps the f32 path (several times faster) and its answers.

@@ -25,7 +25,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::geom::Vec3;
-use tetloc_core::locate::certify;
+use tetloc_core::locate::{certify, check_lengths};
 use tetloc_core::mesh::{FieldLocation, Mesh};
 use tetloc_core::queries::QueryKind;
 use tetloc_core::BatchLocator;
@@ -663,13 +663,7 @@ impl BatchLocator for VulkanLocator {
     }
 
     fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> tetloc_core::Result<()> {
-        if points.len() != ids.len() {
-            return Err(tetloc_core::Error::Invalid(format!(
-                "{} points but an output buffer for {}",
-                points.len(),
-                ids.len()
-            )));
-        }
+        check_lengths(points.len(), ids.len())?;
         if points.is_empty() {
             return Ok(());
         }
@@ -678,13 +672,7 @@ impl BatchLocator for VulkanLocator {
     }
 
     fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> tetloc_core::Result<()> {
-        if points.len() != values.len() {
-            return Err(tetloc_core::Error::Invalid(format!(
-                "{} points but an output buffer for {}",
-                points.len(),
-                values.len()
-            )));
-        }
+        check_lengths(points.len(), values.len())?;
         let mode = self.ensure_field(field)?;
         if points.is_empty() {
             return Ok(());
@@ -702,15 +690,8 @@ impl BatchLocator for VulkanLocator {
         ids: &mut [i32],
         values: &mut [f32],
     ) -> tetloc_core::Result<()> {
-        if points.len() != ids.len() || points.len() * fields.len() != values.len() {
-            return Err(tetloc_core::Error::Invalid(format!(
-                "{} points but output buffers for {} ids and {} values ({} fields)",
-                points.len(),
-                ids.len(),
-                values.len(),
-                fields.len()
-            )));
-        }
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
         if points.is_empty() {
             return Ok(());
         }
