@@ -1,8 +1,10 @@
 //! `tetloc trace MESH --vector NAME --seeds SEEDS -o OUT.vtp`: streamlines through a vector
 //! field (ParaView's Stream Tracer, RK4 with a fixed step or RK45 with an adaptive one, in
-//! length units). On `cpu` each particle starts its lookups from its last tet; on a GPU
-//! backend all particles advance together, one batched lookup per Runge–Kutta stage. The
-//! fields at the line points are sampled on the same backend.
+//! length units). On `cpu` each particle starts its lookups from its last tet; on soft-bvh
+//! with RK4 one GPU kernel runs every particle to its end, each lookup walking from the
+//! particle's last tet; on the other GPU backends (and the adaptive integrators) all particles
+//! advance together, one batched lookup per Runge–Kutta stage. The fields at the line points
+//! are sampled on the same backend.
 
 use crate::{backend, mesh_arg, progress, Common};
 use anyhow::{Context, Result};
@@ -65,7 +67,8 @@ pub struct TraceArgs {
     /// zlib-compress the output's arrays.
     #[arg(long)]
     zlib: bool,
-    /// The backend: cpu (each particle walks from its last tet), a GPU kernel (soft-bvh, …:
+    /// The backend: cpu (each particle walks from its last tet), a GPU kernel (soft-bvh with
+    /// rk4: whole lines in one kernel, each particle walking from its last tet; otherwise
     /// every particle advanced together, one batch per stage), or auto.
     #[arg(long, default_value = "auto")]
     backend: String,
@@ -130,7 +133,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
         let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
         let t0 = Instant::now();
-        let lines = trace::trace_batch(&seeds, &o, loc.as_mut(), [x, y, z], |d| {
+        let lines = trace::trace_with(&seeds, &o, loc.as_mut(), [x, y, z], |d| {
             pb.set_position(d as u64);
             Ok(())
         })?;

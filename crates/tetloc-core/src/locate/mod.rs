@@ -20,6 +20,7 @@ pub use tolerance::{Tolerance, WithTolerance};
 
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
+use crate::ops::trace::{Line, TraceOptions};
 use rayon::prelude::*;
 
 /// Id returned for a point outside every tet.
@@ -70,6 +71,21 @@ pub trait BatchLocator {
         let _ = (points, fields, ids, values);
         Err(Error::Invalid(format!("the {} backend takes f32 points only", self.name())))
     }
+
+    /// Whole streamlines traced by the backend itself (a GPU kernel that runs every particle
+    /// to its end), or `None` where it has no tracer of its own for these options: then
+    /// [`crate::ops::trace::trace_with`] drives it one Runge–Kutta stage at a time.
+    /// `progress` gets the number of lines done so far.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>> {
+        let _ = (seeds, o, vector, progress);
+        Ok(None)
+    }
 }
 
 impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
@@ -96,6 +112,15 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
         values: &mut [f32],
     ) -> Result<()> {
         (**self).sample_many64(points, fields, ids, values)
+    }
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>> {
+        (**self).trace_lines(seeds, o, vector, progress)
     }
 }
 
@@ -231,6 +256,27 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         c.scatter(&sub_ids, ids, OUTSIDE);
         c.scatter_k(k, &sub_values, values, f32::NAN);
         Ok(())
+    }
+
+    /// The backend's own tracer gets only the finite seeds (the others give no line, as a
+    /// seed outside the mesh), with the lines' seed indices mapped back.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>> {
+        let Some(c) = Compacted::of(seeds, |p| is_finite(*p)) else {
+            return self.inner.trace_lines(seeds, o, vector, progress);
+        };
+        let Some(mut lines) = self.inner.trace_lines(&c.points, o, vector, progress)? else { return Ok(None) };
+        for l in &mut lines {
+            l.seed = c.index[l.seed as usize] as u32;
+        }
+        // VTK's order: by direction, then by seed.
+        lines.sort_by_key(|l| (l.backward, l.seed));
+        Ok(Some(lines))
     }
 }
 

@@ -309,6 +309,10 @@ impl VulkanLocator {
     }
 
     /// The device object (the volume marcher submits its frames through it).
+    pub fn mesh(&self) -> &Arc<Mesh> {
+        &self.mesh
+    }
+
     pub(crate) fn device(&mut self) -> &mut Device {
         &mut self.dev
     }
@@ -317,10 +321,20 @@ impl VulkanLocator {
     /// `field` (uploaded now if it is not on the GPU), the kernel's structure and plan.
     pub(crate) fn resources(&mut self, field: &str) -> tetloc_core::Result<Resources<'_>> {
         let output = self.ensure_field(field)?;
+        Ok(self.resources_for(output, true))
+    }
+
+    /// [`Self::resources`] for a shader specialised to `output` that reads the uploaded field
+    /// (`with_field`) or brings its own data (the field binding then names no field).
+    pub(crate) fn resources_for(&mut self, output: i32, with_field: bool) -> Resources<'_> {
         let mut bindings = self.mesh_on_device.bindings(self.dev.unbound());
-        bindings.push(Binding::buffer(B_FIELD, &self.field.as_ref().expect("ensure_field uploads the field").1));
+        let field = match (&self.field, with_field) {
+            (Some((_, buf)), true) => buf,
+            _ => self.dev.unbound(),
+        };
+        bindings.push(Binding::buffer(B_FIELD, field));
         bindings.extend(self.plan.bindings.iter().cloned());
-        Ok(Resources {
+        Resources {
             spec: self.spec(output),
             params: self.params(0, 0, 0),
             bindings,
@@ -328,7 +342,7 @@ impl VulkanLocator {
             mesh: &self.mesh,
             f64: self.f64,
             dev: &mut self.dev,
-        })
+        }
     }
 
     /// The pipeline for `v`, created on first use (with its exact second pass when deferring).
@@ -716,5 +730,16 @@ impl BatchLocator for VulkanLocator {
             }
         }
         Ok(())
+    }
+
+    /// RK4 lines on the kernel's stream shader (soft-bvh), `None` elsewhere.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &tetloc_core::ops::trace::TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> tetloc_core::Result<()>,
+    ) -> tetloc_core::Result<Option<Vec<tetloc_core::ops::trace::Line>>> {
+        Ok(self.trace_rk4(seeds, o, vector, progress)?.map(|(lines, _)| lines))
     }
 }

@@ -171,7 +171,7 @@ impl TraceOptions {
 
     /// The lines to trace, in VTK's order: (seed, backward) — with `Both`, every forward line
     /// and then every backward one.
-    fn jobs(&self, n_seeds: usize) -> Vec<(u32, bool)> {
+    pub fn jobs(&self, n_seeds: usize) -> Vec<(u32, bool)> {
         let dirs: &[bool] = match self.direction {
             Direction::Forward => &[false],
             Direction::Backward => &[true],
@@ -242,6 +242,23 @@ pub fn trace(
         })
         .collect::<Result<_>>()?;
     Ok(lines.into_iter().flatten().collect())
+}
+
+/// The lines of [`trace`] through `loc`: by the backend's own tracer where it has one for
+/// these options (soft-bvh with RK4: every particle run to its end in one GPU kernel,
+/// [`BatchLocator::trace_lines`]), else by [`trace_batch`].
+pub fn trace_with(
+    seeds: &[Vec3],
+    o: &TraceOptions,
+    loc: &mut dyn BatchLocator,
+    vector: [&str; 3],
+    mut progress: impl FnMut(usize) -> Result<()>,
+) -> Result<Vec<Line>> {
+    o.check()?;
+    match loc.trace_lines(seeds, o, vector, &mut progress)? {
+        Some(lines) => Ok(lines),
+        None => trace_batch(seeds, o, loc, vector, progress),
+    }
 }
 
 /// The same lines as [`trace`], step-synchronous: every live particle asks for its next
