@@ -234,6 +234,9 @@ gpu_interface! {
         B_STREAM_VECTOR = 43;
         B_STREAM_PARTICLES = 44;
         B_STREAM_LINES = 45;
+        /// The `grid` sample set's point coordinates: NX x values, NY y values, NZ z values
+        /// (working frame), which SAMPLE_GRID composes.
+        B_GRID_AXES = 46;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, worklist, node levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
@@ -256,8 +259,8 @@ gpu_interface! {
         SAMPLE_CENTERS: i32 = 1;
         SAMPLE_RANDOM: i32 = 2;
         SAMPLE_BBOX: i32 = 3;
-        /// The points of a regular grid, x fastest (Params::grid_origin, grid_spacing; NX and
-        /// NY in counts.z and counts.w): resampling to an image.
+        /// The points of a regular grid, x fastest (Params::grid, coordinates from
+        /// B_GRID_AXES): resampling to an image.
         SAMPLE_GRID: i32 = 4;
         /// What a kernel writes per point (OUTPUT_MODE): the tet id, or the field value of a
         /// per-vertex or per-cell field.
@@ -398,8 +401,7 @@ gpu_interface! {
     push_constants
     /// The push constants of every locate and march pipeline.
     Params as params {
-        /// Points in this launch, global index of its first point, number of tets, seed (a
-        /// grid's NX, NY with SAMPLE_GRID).
+        /// Points in this launch, global index of its first point, number of tets, seed.
         counts: [u32; 4],
         /// Mesh bounding box min, ray tmin.
         lo_tmin: [f32; 4],
@@ -407,9 +409,9 @@ gpu_interface! {
         hi_tmax: [f32; 4],
         /// Ray direction (xyz).
         dir: [f32; 4],
-        /// SAMPLE_GRID: the grid's first point and spacing (xyz), in the working frame.
-        grid_origin: [f32; 4],
-        grid_spacing: [f32; 4],
+        /// SAMPLE_GRID: points per row (NX), rows per slab (NY), and the slab that global
+        /// index 0 of this launch starts (the index counts from there), 0.
+        grid: [u32; 4],
     }
     structs {
         /// The volume marcher's frame parameters (march.glsl).

@@ -279,6 +279,20 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         self.sample_many(points, &[field], ids, values)
     }
 
+    fn sample_grid(
+        &mut self,
+        grid: &crate::ops::ImageGrid,
+        range: std::ops::Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.sample_grid(grid, range, fields, ids, values);
+        }
+        self.sample_many(&super::grid_points(grid, range), fields, ids, values)
+    }
+
     /// Only on pure tet meshes: a backend's own tracer interpolates in tets.
     fn trace_lines(
         &mut self,

@@ -21,7 +21,9 @@ pub use tolerance::{Tolerance, WithTolerance};
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
 use crate::ops::trace::{Line, TraceOptions};
+use crate::ops::ImageGrid;
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Id returned for a point outside every tet.
 pub const OUTSIDE: i32 = -1;
@@ -72,6 +74,20 @@ pub trait BatchLocator {
         Err(Error::Invalid(format!("the {} backend takes f32 points only", self.name())))
     }
 
+    /// [`Self::sample_many`] at points `range` of `grid` (x fastest, [`ImageGrid::point`]):
+    /// `resample`'s chunks. Backends that make the points themselves (the GPU kernels' grid
+    /// set) override it.
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        self.sample_many(&grid_points(grid, range), fields, ids, values)
+    }
+
     /// Whole streamlines traced by the backend itself (a GPU kernel that runs every particle
     /// to its end), or `None` where it has no tracer of its own for these options: then
     /// [`crate::ops::trace::trace_with`] drives it one Runge–Kutta stage at a time.
@@ -113,6 +129,16 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     ) -> Result<()> {
         (**self).sample_many64(points, fields, ids, values)
     }
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        (**self).sample_grid(grid, range, fields, ids, values)
+    }
     fn trace_lines(
         &mut self,
         seeds: &[Vec3],
@@ -122,6 +148,11 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     ) -> Result<Option<Vec<Line>>> {
         (**self).trace_lines(seeds, o, vector, progress)
     }
+}
+
+/// Points `range` of `grid`, as [`BatchLocator::sample_grid`] samples them.
+pub fn grid_points(grid: &ImageGrid, range: Range<usize>) -> Vec<Vec3> {
+    range.into_par_iter().map(|i| grid.point(i)).collect()
 }
 
 /// Whether all three coordinates are finite (not NaN, not infinite).
@@ -256,6 +287,18 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         c.scatter(&sub_ids, ids, OUTSIDE);
         c.scatter_k(k, &sub_values, values, f32::NAN);
         Ok(())
+    }
+
+    /// A grid's points are finite (its bounds are).
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        self.inner.sample_grid(grid, range, fields, ids, values)
     }
 
     /// The backend's own tracer gets only the finite seeds (the others give no line, as a
