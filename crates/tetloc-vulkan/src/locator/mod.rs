@@ -473,6 +473,8 @@ impl VulkanLocator {
                 true => {
                     let mut bindings = self.mesh_on_device.bindings(self.dev.unbound());
                     bindings.push(Binding::buffer(B_QUERIES, &queries));
+                    // The keys pass never generates grids (they are not ordered).
+                    bindings.push(Binding::buffer(B_GRID_AXES, self.dev.unbound()));
                     let o = Ordering::new(&mut self.dev, n, &bindings)?;
                     self.launcher
                         .desc
