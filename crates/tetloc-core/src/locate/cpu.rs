@@ -296,11 +296,13 @@ impl CpuLocator {
         &self,
         components: [&str; 3],
     ) -> Result<impl Fn(Vec3, &mut Option<u32>) -> Option<[f32; 3]> + Sync + '_> {
-        let [x, y, z] = components.map(|c| self.value_fn(c));
-        let (x, y, z) = (x?, y?, z?);
+        let [x, y, z] = components.map(|c| self.mesh.field(c));
+        let xyz = [x?, y?, z?];
         Ok(move |p: Vec3, hint: &mut Option<u32>| {
-            let found = self.locate_from(p, hint);
-            found.map(|_| [x(found), y(found), z(found)])
+            let found = self.locate_from(p, hint)?;
+            let mut v = [0f32; 3];
+            self.mesh.values_at(&xyz, Some((found.0 as usize, found.1)), &mut v);
+            Some(v)
         })
     }
 }
@@ -365,13 +367,13 @@ impl CpuLocator {
     ) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
-        let value_fns = fields.iter().map(|f| self.value_fn(f)).collect::<Result<Vec<_>>>()?;
+        let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
         let mut found = vec![None; points.len()];
         self.locate_batch_of(points, query, &mut found, |f| f);
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
         if !fields.is_empty() {
             values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
-                out.iter_mut().zip(&value_fns).for_each(|(v, value)| *v = value(f));
+                self.mesh.values_at(&fields, f.map(|(t, b)| (t as usize, b)), out);
             });
         }
         Ok(())

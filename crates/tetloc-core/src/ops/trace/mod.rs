@@ -260,9 +260,23 @@ pub fn trace_sampled(
     o.check()?;
     let mesh = loc.mesh();
     let [vx, vy, vz] = vector.map(|c| mesh.field(c));
-    let (vx, vy, vz) = (vx?, vy?, vz?);
+    let xyz = [vx?, vy?, vz?];
+    let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
+    // The line fields other than the vector's components, which the step has at hand.
     let out: Vec<&crate::Field> =
-        fields.iter().flat_map(|g| g.component_refs()).map(|c| mesh.field(c)).collect::<Result<_>>()?;
+        names.iter().filter(|c| !vector.contains(*c)).map(|c| mesh.field(c)).collect::<Result<_>>()?;
+    // Where each line component comes from in `here` (below): the others, then the vector.
+    let mut rest = 0;
+    let source: Vec<usize> = names
+        .iter()
+        .map(|c| match vector.iter().position(|v| v == c) {
+            Some(k) => out.len() + k,
+            None => {
+                rest += 1;
+                rest - 1
+            }
+        })
+        .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
     // Each line with the tets of its points and the fields' values there.
     type Sampled = (Line, Vec<i32>, Vec<f32>);
@@ -273,16 +287,20 @@ pub fn trace_sampled(
         .map(|&(seed, backward)| {
             let mut p = Particle::new(seed, seeds[seed as usize], backward);
             let (mut hint, mut ids, mut values) = (None, Vec::new(), Vec::new());
+            // The other fields' values, then the vector's, at the last lookup.
+            let mut here = vec![0f32; out.len() + 3];
             while let Some(q) = p.query() {
                 let found = loc.locate_from(q, &mut hint);
                 let at = found.map(|(t, b)| (t as usize, b));
-                let v = found.map(|_| [vx, vy, vz].map(|f| mesh.value_at(f, at)));
+                let (rest, v) = here.split_at_mut(out.len());
+                mesh.values_at(&xyz, at, v);
                 let before = p.n_points();
-                p.answer(v, o);
+                p.answer(found.map(|_| [v[0], v[1], v[2]]), o);
                 // A point recorded by this answer is the point just looked up.
                 if let (true, Some((t, _))) = (p.n_points() > before, found) {
+                    mesh.values_at(&out, at, rest);
                     ids.push(t as i32);
-                    values.extend(out.iter().map(|f| mesh.value_at(f, at)));
+                    values.extend(source.iter().map(|&s| here[s]));
                 }
             }
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1)?;
