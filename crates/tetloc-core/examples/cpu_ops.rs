@@ -32,6 +32,13 @@ fn main() -> tetloc_core::Result<()> {
     let steps: usize = args.get(5).map_or(1000, |s| s.parse().unwrap());
     let only = std::env::var("OPS").unwrap_or_else(|_| "rpt".into());
     eprintln!("{} tets; f64 points: {}", mesh.tets.len(), mesh.points64.is_some());
+    if std::env::var("BUILD_PARTS").is_ok() {
+        let m = io::read_mesh(Path::new(&args[1]), None)?;
+        timed("  face neighbours", || m.neighbors().len());
+        timed("  BVH", || {
+            tetloc_core::bvh::Bvh::build(&m.points, &m.tets, tetloc_core::bvh::BuildPreset::Fast).nodes.len()
+        });
+    }
     let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
     let groups = fields::groups(&mesh);
     if only.contains('r') {
