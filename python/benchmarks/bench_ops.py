@@ -218,13 +218,15 @@ def main() -> None:
         return timed(t.Update)[0]
 
     theirs = vtk_time(vtk_trace)
-    t, ks = tracer["t"], tracer["seeds"]
     steps = len(lines["points"]) - (len(lines["offsets"]) - 1)
-    vtk_steps = t.GetOutput().GetNumberOfPoints() - t.GetOutput().GetNumberOfLines()
-    first = np.asarray(lines["SeedIds"]) < ks  # tetloc's lines from VTK's seeds
-    ours_part = int((np.diff(lines["offsets"]) - 1)[first].sum())
-    row("trace", f"{a.seeds} seeds, RK4, at most {a.max_steps} steps ({steps} steps here; {vtk_steps} in VTK "
-        f"against {ours_part} of tetloc's on the same seeds)", steps, ours, theirs, "vtkStreamTracer")
+    work = f"{a.seeds} seeds, RK4, at most {a.max_steps} steps ({steps} steps here"
+    if "t" in tracer:
+        t, ks = tracer["t"], tracer["seeds"]
+        vtk_steps = t.GetOutput().GetNumberOfPoints() - t.GetOutput().GetNumberOfLines()
+        first = np.asarray(lines["SeedIds"]) < ks  # tetloc's lines from VTK's seeds
+        ours_part = int((np.diff(lines["offsets"]) - 1)[first].sum())
+        work += f"; {vtk_steps} in VTK against {ours_part} of tetloc's on the same seeds"
+    row("trace", work + ")", steps, ours, theirs, "vtkStreamTracer")
 
     info = {"mesh": str(path), "tets": mesh.n_cells, "backend": a.backend, "cpus": os.cpu_count(),
             "cpu": cpu_model(), "vtk": vtk.vtkVersion.GetVTKVersion(), "tetloc": tetloc.__version__,

@@ -85,6 +85,35 @@ pub fn orient_faces_f32(v: [Vec3; 4], p: Vec3) -> ([f32; 4], [f32; 4]) {
     (f.map(|x| x.0), f.map(|x| x.1))
 }
 
+/// A walk's step towards `p` from tet `ids` (canonical) in plain f32, without error bounds:
+/// the stored index of the vertex opposite the face with the most negative orientation, or
+/// `None` when none is negative. Only a direction (a wrong one near a face costs steps, not
+/// answers): answers come from the exact test.
+#[inline]
+pub fn walk_face(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<usize> {
+    let swapped = ids[3] < ids[2];
+    let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
+    let orientation = if swapped { 1.0f32 } else { -1.0 };
+    let d = asc.map(|i| points[i as usize]).map(|u| [u[0] - p[0], u[1] - p[1], u[2] - p[2]]);
+    let m = |i: usize, j: usize| d[i][1] * d[j][2] - d[j][1] * d[i][2];
+    let (m01, m02, m03, m12, m13, m23) = (m(0, 1), m(0, 2), m(0, 3), m(1, 2), m(1, 3), m(2, 3));
+    // SORTED_FACES' orientations times their parities (-1, 1, -1, 1).
+    let signed = [
+        -(d[1][0] * m23 - d[2][0] * m13 + d[3][0] * m12),
+        d[0][0] * m23 - d[2][0] * m03 + d[3][0] * m02,
+        -(d[0][0] * m13 - d[1][0] * m03 + d[3][0] * m01),
+        d[0][0] * m12 - d[1][0] * m02 + d[2][0] * m01,
+    ]
+    .map(|x| orientation * x);
+    let (mut best, mut low) = (None, 0.0f32);
+    for (i, &x) in signed.iter().enumerate() {
+        if x < low {
+            (best, low) = (Some(i), x);
+        }
+    }
+    best.map(|i| if swapped && i >= 2 { 5 - i } else { i })
+}
+
 /// The same determinant in f64 (differences and products of f32 inputs are exact there).
 #[inline]
 pub fn orient_f64(a: Vec3, b: Vec3, c: Vec3, p: Vec3) -> f64 {
