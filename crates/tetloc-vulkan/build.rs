@@ -36,6 +36,7 @@ const SHADERS: &[Shader] = &[
     // soft-bvh (compute) and the volume marcher on it.
     shader("SOFT_BVH", "soft_bvh.comp", ShaderStage::Compute, true),
     shader("MARCH", "march.comp", ShaderStage::Compute, true),
+    shader("STREAM", "stream.comp", ShaderStage::Compute, true),
     shader("MEMPROBE", "memprobe.comp", ShaderStage::Compute, false),
     // Query ordering (a counting sort along the Morton curve) before a locate launch.
     shader("ORDER", "order.comp", ShaderStage::Compute, false),

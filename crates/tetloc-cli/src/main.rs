@@ -108,6 +108,17 @@ enum Command {
         /// the Morton curve first (rows "KERNEL unordered").
         #[arg(long)]
         compare_order: bool,
+        /// Also trace this many particles (RK4, random seeds inside the mesh, a tenth of the
+        /// mean edge a step) through `--vector`: RK4 samples/s, and on soft-bvh how many
+        /// lookups the hint's walk answers (rows with and without it).
+        #[arg(long)]
+        trace: Option<String>,
+        /// `--trace`: steps per line.
+        #[arg(long, default_value_t = 1000)]
+        steps: usize,
+        /// `--trace`: the vector field (3 components).
+        #[arg(long, default_value = "v")]
+        vector: String,
         /// Backends, comma-separated: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, auto (the one
         /// `locate` would choose here), or all (every backend this machine can run).
         #[arg(long, default_value = "auto")]
@@ -270,9 +281,26 @@ fn run(cli: Cli) -> Result<()> {
         Command::Probe(args) => probe::run(&args),
         Command::Trace(args) => trace::run(&args),
         Command::Devices => devices(),
-        Command::Bench { mesh, queries, n, repeats, field, json, power, compare_order, backend, common } => {
+        Command::Bench {
+            mesh,
+            queries,
+            n,
+            repeats,
+            field,
+            json,
+            power,
+            compare_order,
+            trace,
+            steps,
+            vector,
+            backend,
+            common,
+        } => {
             let opts = common.opts()?;
-            let m = mesh_arg::load(&mesh, common.format.as_deref(), common.seed)?;
+            let m = match trace {
+                Some(_) => mesh_arg::load_with_flow(&mesh, common.format.as_deref(), common.seed)?,
+                None => mesh_arg::load(&mesh, common.format.as_deref(), common.seed)?,
+            };
             if let Some(f) = &field {
                 m.field(f)?;
             }
@@ -291,6 +319,11 @@ fn run(cli: Cli) -> Result<()> {
                 json,
                 power,
                 compare_order,
+                trace: trace.map(|t| mesh_arg::parse_count(&t)).transpose()?.map(|lines| bench::trace::TraceBench {
+                    lines,
+                    max_steps: steps,
+                    vector,
+                }),
                 opts,
             };
             bench::run(&m, &args)?;

@@ -54,6 +54,16 @@ pub fn input_files(arg: &OsStr, format: Option<&str>) -> Vec<PathBuf> {
     }
 }
 
+/// [`load`], with the closed-form vector field `v` of `gen --vector` added to a generated mesh
+/// (`bench --trace`).
+pub fn load_with_flow(arg: &OsStr, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
+    let Some((spec, n)) = parse_generated(arg) else { return load(arg, format, seed) };
+    let mut m = generate(spec, n, seed)?;
+    let v = tetloc_core::gen::flow::vector_fields(spec.shape, &m.points);
+    m.fields.extend(v);
+    Ok(Arc::new(m))
+}
+
 /// Bytes a generated mesh of `n` tets takes while it is built and validated (tets, vertices,
 /// fields and temporaries, measured: 1.42 GB at 62M tets), with headroom.
 const GEN_BYTES_PER_TET: u64 = 40;

@@ -1,8 +1,10 @@
 //! `tetloc trace MESH --vector NAME --seeds SEEDS -o OUT.vtp`: streamlines through a vector
 //! field (ParaView's Stream Tracer, RK4 with a fixed step or RK45 with an adaptive one, in
-//! length units). On `cpu` each particle starts its lookups from its last tet; on a GPU
-//! backend all particles advance together, one batched lookup per Runge–Kutta stage. The
-//! fields at the line points are sampled on the same backend.
+//! length units). On `cpu` each particle starts its lookups from its last tet; on soft-bvh
+//! with RK4 one GPU kernel runs every particle to its end, each lookup walking from the
+//! particle's last tet; on the other GPU backends (and the adaptive integrators) all particles
+//! advance together, one batched lookup per Runge–Kutta stage. The fields at the line points
+//! are sampled on the same backend.
 
 use crate::{backend, mesh_arg, progress, Common};
 use anyhow::{Context, Result};
@@ -12,7 +14,7 @@ use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points;
 use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
-use tetloc_core::{BatchLocator, CpuLocator};
+use tetloc_core::CpuLocator;
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
@@ -65,7 +67,8 @@ pub struct TraceArgs {
     /// zlib-compress the output's arrays.
     #[arg(long)]
     zlib: bool,
-    /// The backend: cpu (each particle walks from its last tet), a GPU kernel (soft-bvh, …:
+    /// The backend: cpu (each particle walks from its last tet), a GPU kernel (soft-bvh with
+    /// rk4: whole lines in one kernel, each particle walking from its last tet; otherwise
     /// every particle advanced together, one batch per stage), or auto.
     #[arg(long, default_value = "auto")]
     backend: String,
@@ -113,36 +116,39 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let [x, y, z] = [c[0], c[1], c[2]];
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
-    // The per-particle walk runs on tets: mixed meshes take the batch path, whose locator maps
-    // answers to cells and interpolates with the cells' shape functions.
-    let (lines, secs, mut loc) = if name == "cpu" && m.cells.is_none() {
+    let out_fields = trace::line_fields(&m, &vector);
+    // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
+    // maps answers to cells and interpolates with the cells' shape functions.
+    let (arrays, secs) = if name == "cpu" && m.cells.is_none() {
         let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
         let t0 = Instant::now();
-        let lines = trace::trace(&seeds, &o, &cpu.vector_field([x, y, z])?, &|d| {
+        // The line fields come from the integrator's own lookups (no second pass).
+        let arrays = trace::trace_sampled(&seeds, &o, &cpu, [x, y, z], &out_fields, &|d| {
             pb.set_position(d as u64);
             Ok(())
         })?;
         pb.finish_and_clear();
-        let loc: Box<dyn BatchLocator> = Box::new(tetloc_core::locate::FiniteOnly::new(cpu));
-        (lines, t0.elapsed().as_secs_f64(), loc)
+        (arrays, t0.elapsed().as_secs_f64())
     } else {
         let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
         let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
         let t0 = Instant::now();
-        let lines = trace::trace_batch(&seeds, &o, loc.as_mut(), [x, y, z], |d| {
+        let lines = trace::trace_with(&seeds, &o, loc.as_mut(), [x, y, z], |d| {
             pb.set_position(d as u64);
             Ok(())
         })?;
         pb.finish_and_clear();
-        (lines, t0.elapsed().as_secs_f64(), loc)
+        let secs = t0.elapsed().as_secs_f64();
+        let arrays = progress::with_spinner("sampling the fields along the lines", || {
+            trace::LineArrays::new(&lines, loc.as_mut(), &out_fields)
+        })?;
+        (arrays, secs)
     };
-    let n_points: usize = lines.iter().map(|l| l.points.len()).sum();
-    let out_fields = trace::line_fields(&m, &vector);
-    progress::with_spinner(format!("writing {}", a.out.display()), || {
-        trace::write_lines(&a.out, &lines, loc.as_mut(), &out_fields, a.zlib)
-    })?;
-    let without = n_lines - lines.len();
+    let n_points = arrays.points.len();
+    let n_made = arrays.ends.len();
+    progress::with_spinner(format!("writing {}", a.out.display()), || arrays.write(&a.out, a.zlib))?;
+    let without = n_lines - n_made;
     if without > 0 {
         eprintln!(
             "warning: {without} of {n_lines} lines have no step inside the mesh (their seed is outside it, or on its boundary going out); VTK makes no line for them either"
@@ -152,8 +158,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         eprintln!(
             "{}: {} lines, {n_points} points (steps at {}) on {name} in {secs:.3} s",
             a.out.display(),
-            lines.len(),
-            crate::bench::fmt_rate((n_points - lines.len()) as f64 / secs)
+            n_made,
+            crate::bench::fmt_rate((n_points - n_made) as f64 / secs)
         );
     }
     Ok(())

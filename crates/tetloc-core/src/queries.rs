@@ -113,15 +113,6 @@ pub fn grid(mesh: &Mesh, n: usize) -> ImageGrid {
     ImageGrid::over_bounds(lo, hi, [side; 3]).expect("finite bounds and a positive size")
 }
 
-/// Point `i` of `grid` as the GPU kernels generate it (shaders/common/samples.glsl): origin
-/// and spacing rounded to f32, then `origin + index * spacing` in f32 (`ImageGrid::point`
-/// computes in f64; the two differ by float32 rounding).
-pub fn grid_point(grid: &ImageGrid, i: usize) -> Vec3 {
-    let [nx, ny, _] = grid.dims;
-    let idx = [i % nx, i / nx % ny, i / (nx * ny)];
-    std::array::from_fn(|k| grid.origin[k] as f32 + idx[k] as f32 * grid.spacing[k] as f32)
-}
-
 /// `n` query points of the given kind (for `centers`, tet centres in order, cycling if `n`
 /// exceeds the tet count; `host` makes the `random` points). Deterministic for a seed.
 pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> {
@@ -141,7 +132,7 @@ pub fn generate(mesh: &Mesh, kind: QueryKind, n: usize, seed: u64) -> Vec<Vec3> 
                         random_point_in_tet(t.map(|i| mesh.points[i as usize]), &mut rng)
                     }
                     QueryKind::Bbox => std::array::from_fn(|k| lo[k] + rng.gen::<f32>() * (hi[k] - lo[k])),
-                    QueryKind::Grid => grid_point(image.as_ref().expect("made above"), i),
+                    QueryKind::Grid => image.as_ref().expect("made above").point(i),
                 })
                 .collect::<Vec<_>>()
         })

@@ -228,6 +228,15 @@ gpu_interface! {
         B_BUILD_CELLS = 39;
         B_BUILD_FACES = 40;
         B_BUILD_NEIGHBORS = 41;
+        /// Stream tracing (stream.comp): its parameters, the traced vector (3 floats per
+        /// vertex or cell), each particle's state, and the line points of a segment.
+        B_STREAM = 42;
+        B_STREAM_VECTOR = 43;
+        B_STREAM_PARTICLES = 44;
+        B_STREAM_LINES = 45;
+        /// The `grid` sample set's point coordinates: NX x values, NY y values, NZ z values
+        /// (working frame), which SAMPLE_GRID composes.
+        B_GRID_AXES = 46;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, worklist, node levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
@@ -250,8 +259,8 @@ gpu_interface! {
         SAMPLE_CENTERS: i32 = 1;
         SAMPLE_RANDOM: i32 = 2;
         SAMPLE_BBOX: i32 = 3;
-        /// The points of a regular grid, x fastest (Params::grid_origin, grid_spacing; NX and
-        /// NY in counts.z and counts.w): resampling to an image.
+        /// The points of a regular grid, x fastest (Params::grid, coordinates from
+        /// B_GRID_AXES): resampling to an image.
         SAMPLE_GRID: i32 = 4;
         /// What a kernel writes per point (OUTPUT_MODE): the tet id, or the field value of a
         /// per-vertex or per-cell field.
@@ -323,6 +332,15 @@ gpu_interface! {
         /// Error bits: a node box too large for f32 scales; a leaf reference that does not fit.
         BUILD_ERR_EXTENT: u32 = 1;
         BUILD_ERR_LEAF: u32 = 2;
+        /// A traced particle's status (StreamParticle::state.z): at its seed, not yet looked
+        /// up; on its way; or done, with the reason (tetloc_core::ops::trace::Reason).
+        STREAM_SEED: i32 = -1;
+        STREAM_LIVE: i32 = 0;
+        REASON_OUT_OF_DOMAIN: i32 = 1;
+        REASON_OUT_OF_LENGTH: i32 = 4;
+        REASON_OUT_OF_STEPS: i32 = 5;
+        REASON_STAGNATION: i32 = 6;
+        REASON_OUT_OF_TIME: i32 = 7;
     }
     spec_constants {
         /// Where this kernel's points come from (SAMPLE_*).
@@ -376,12 +394,14 @@ gpu_interface! {
         /// GPU build: bytes of each buffer of a split build array (a multiple of 192, so
         /// that every element size the build uses divides it; src/build/mod.rs `split`).
         BUILD_CHUNK_BYTES = 27: uint = 0xC000_0000;
+        /// Stream tracing: each lookup walks from the particle's last tet first (off: every
+        /// lookup is a fresh one, for the benchmark's comparison).
+        STREAM_HINT = 28: bool = true;
     }
     push_constants
     /// The push constants of every locate and march pipeline.
     Params as params {
-        /// Points in this launch, global index of its first point, number of tets, seed (a
-        /// grid's NX, NY with SAMPLE_GRID).
+        /// Points in this launch, global index of its first point, number of tets, seed.
         counts: [u32; 4],
         /// Mesh bounding box min, ray tmin.
         lo_tmin: [f32; 4],
@@ -389,9 +409,9 @@ gpu_interface! {
         hi_tmax: [f32; 4],
         /// Ray direction (xyz).
         dir: [f32; 4],
-        /// SAMPLE_GRID: the grid's first point and spacing (xyz), in the working frame.
-        grid_origin: [f32; 4],
-        grid_spacing: [f32; 4],
+        /// SAMPLE_GRID: points per row (NX), rows per slab (NY), and the slab that global
+        /// index 0 of this launch starts (the index counts from there), 0.
+        grid: [u32; 4],
     }
     structs {
         /// The volume marcher's frame parameters (march.glsl).
@@ -422,6 +442,42 @@ gpu_interface! {
             occ_dims: [u32; 4],
             /// Blocks per axis, cells per block edge.
             occ_blocks: [u32; 4],
+        }
+        /// Stream tracing's parameters (stream.comp; tetloc_core::ops::trace::TraceOptions),
+        /// in file units: as f32, and as f64 bit pairs (low word first) for the shader's f64
+        /// variant, which integrates in f64 as the CPU does.
+        StreamParams {
+            /// Step, longest line, longest integration time, terminal speed.
+            limits: [f32; 4],
+            /// Step, longest line (f64 bits).
+            limits64_a: [u32; 4],
+            /// Longest integration time, terminal speed (f64 bits).
+            limits64_b: [u32; 4],
+            /// The working frame's scale (file lengths to working ones; a power of 2), 0, 0, 0.
+            frame: [f32; 4],
+            /// Particles, line points a particle writes per launch, most steps (VTK takes
+            /// one more), 0.
+            counts: [u32; 4],
+        }
+        /// One traced particle between launches, at its last recorded point.
+        StreamParticle {
+            /// The seed (working frame), 0: the host's part.
+            seed: [f32; 4],
+            /// The raw velocity at the position, 0.
+            v: [f32; 4],
+            /// Position x, y (working frame), then z and the integration time, then the length
+            /// travelled: each an f64 bit pair (low word first) in the shader's f64 variant, an
+            /// f32 in the first word of its pair in the f32 one. Tets the walks visited (the
+            /// hints' and the fresh searches' walk starts) in word 2 of `len_walk`.
+            x_xy: [u32; 4],
+            x_z_t: [u32; 4],
+            len_walk: [u32; 4],
+            /// The tet of its last lookup (the hint; OUTSIDE: none), steps begun, status
+            /// (STREAM_*, or the reason it ended), points recorded in all.
+            state: [i32; 4],
+            /// Points written in this launch, 1 for a backward line, lookups, lookups that
+            /// fell back to a fresh search (the hint's walk failed).
+            counts: [u32; 4],
         }
         /// One marched pixel.
         Pixel {

@@ -5,7 +5,7 @@
 //! watertight point-in-tet test of `tetloc_core::geom`, mirrored in `shaders/common/tet.glsl`.
 //!
 //! Layout: `kernels/` (one module per kernel, each building a `Plan`), `locator/` (the batch
-//! API over any plan, and the benchmarks), `march.rs` (the volume marcher over any plan),
+//! API over any plan, and the benchmarks), `march.rs` (the volume marcher over any plan), `stream.rs` (particle tracing on soft-bvh),
 //! `device.rs` (the device object: buffers, uploads, submissions), `interface.rs` (the one
 //! definition of the Rust/GLSL interface; build.rs writes its GLSL side).
 //!
@@ -35,6 +35,7 @@ pub mod memprobe;
 mod nvml;
 mod pipeline;
 mod shaders;
+mod stream;
 
 pub use build::BuildOn;
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
@@ -46,6 +47,7 @@ pub use locator::{
 };
 pub use march::{MarchGrid, MarchScene, MarchStats, MarchView, VolumeMarcher};
 pub use memory::{MemItem, MemKind, STAGING_BYTES};
+pub use stream::StreamStats;
 /// The query sets (`centers`, `random`, `bbox` generated in the kernels; `host` uploaded).
 pub use tetloc_core::queries::QueryKind;
 

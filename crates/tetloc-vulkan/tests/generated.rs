@@ -50,16 +50,13 @@ fn generated_samples_are_located_correctly() {
                     );
                 }
                 QueryKind::Grid => {
-                    // The kernel computes queries::grid_point bit for bit (n = 20000: the
+                    // The kernel's points are ImageGrid::point's, bit for bit (n = 20000: the
                     // first points of the 28³ grid, all its z slices but a part of the last).
                     let want = tetloc_core::queries::generate(&mesh, mode, n, 42);
                     assert!(points == want, "{label}: grid points differ from the CPU's");
                     let g = tetloc_core::queries::grid(&mesh, n);
                     assert_eq!(g.dims, [28; 3]);
-                    for (i, p) in points.iter().enumerate().step_by(97) {
-                        let exact = g.point(i);
-                        assert!((0..3).all(|k| (p[k] - exact[k]).abs() <= 4.0 * f32::EPSILON * exact[k].abs().max(1.0)));
-                    }
+                    assert!(points.iter().enumerate().all(|(i, p)| *p == g.point(i)));
                     let inside = ids.iter().filter(|&&t| t >= 0).count();
                     assert!(inside > n / 2, "{label}: only {inside} grid points inside a box-filling mesh");
                 }
@@ -72,6 +69,52 @@ fn generated_samples_are_located_correctly() {
             if mode != QueryKind::Centers && mode != QueryKind::Grid {
                 assert!(loc.locate_generated(mode, 100, 43).unwrap().0 != points[..100], "{label}: seed ignored");
             }
+        }
+    }
+    common::assert_no_validation_errors(&ctx);
+}
+
+/// `sample_grid` (the kernels make resample's grid points from its axes) answers exactly as
+/// `sample_many` of the host's points: the same ids and values, bit for bit, on every
+/// kernel, from launches that start inside a slab (chunks of 100), near the origin and far
+/// from it (a mesh in UTM-like coordinates, searched in its centred working frame).
+#[test]
+fn grid_samples_are_the_host_points() {
+    let name = "grid_samples_are_the_host_points";
+    let Some(ctx) = common::context(name) else { return };
+    let near = tetloc_testdata::KuhnGrid::new(5).jitter(0.25, 7).vertex_field(|p| p[0] + 2.0 * p[1]).raw();
+    let shift = [512_345.037_5, 4_123_456.062_5, 0.3];
+    let file: Vec<[f64; 3]> =
+        near.points.iter().map(|p| std::array::from_fn(|k| p[k] as f64 * 1000.0 + shift[k])).collect();
+    let far = tetloc_core::RawMesh {
+        points: file.iter().map(|p| p.map(|c| c as f32)).collect(),
+        points64: Some(file),
+        ..near.clone()
+    };
+    for raw in [near, far] {
+        let mesh = std::sync::Arc::new(tetloc_core::Mesh::new(raw, "grid").unwrap());
+        let (lo, hi) = mesh.file_bounds();
+        // A little beyond the mesh: some points outside.
+        let pad: [f64; 3] = std::array::from_fn(|k| 0.05 * (hi[k] - lo[k]));
+        let lo: [f64; 3] = std::array::from_fn(|k| lo[k] - pad[k]);
+        let hi: [f64; 3] = std::array::from_fn(|k| hi[k] + pad[k]);
+        let grid = tetloc_core::ops::ImageGrid::spanning(lo, hi, [13, 11, 9]).unwrap();
+        let range = 5..grid.n_points() - 3;
+        let points = tetloc_core::locate::grid_points(&grid, range.clone());
+        let fields = ["f", "f"];
+        for k in common::kernels(&ctx, name) {
+            let opts = LocatorOptions { chunk_points: 100, ..Default::default() };
+            let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();
+            let (mut ids, mut values) = (vec![0; points.len()], vec![0f32; 2 * points.len()]);
+            loc.sample_grid(&grid, range.clone(), &fields, &mut ids, &mut values).unwrap();
+            let (mut ids2, mut values2) = (vec![0; points.len()], vec![0f32; 2 * points.len()]);
+            loc.sample_many(&points, &fields, &mut ids2, &mut values2).unwrap();
+            let label = format!("{k} {}", mesh.info.frame.is_identity());
+            assert_eq!(ids, ids2, "{label}");
+            let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert_eq!(bits(&values), bits(&values2), "{label}");
+            let inside = ids.iter().filter(|&&t| t >= 0).count();
+            assert!(inside > points.len() / 2 && inside < points.len(), "{label}: {inside} inside");
         }
     }
     common::assert_no_validation_errors(&ctx);

@@ -34,6 +34,7 @@ pub fn run(cli: Cli) -> i32 {
     progress::set_quiet(!cluster.is_root());
     let r = match cli.command {
         Command::Locate(a) => run_locate(&cluster, &a),
+        Command::Bench { trace: Some(_), .. } => Err(anyhow::anyhow!("bench --trace does not run distributed")),
         Command::Bench { mesh, queries, n, repeats, field, json, backend, common, .. } => {
             let n = n.map(|s| mesh_arg::parse_count(&s)).transpose();
             n.and_then(|n| {

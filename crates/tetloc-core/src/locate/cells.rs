@@ -279,6 +279,34 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         self.sample_many(points, &[field], ids, values)
     }
 
+    fn sample_grid(
+        &mut self,
+        grid: &crate::ops::ImageGrid,
+        range: std::ops::Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.sample_grid(grid, range, fields, ids, values);
+        }
+        self.sample_many(&super::grid_points(grid, range), fields, ids, values)
+    }
+
+    /// Only on pure tet meshes: a backend's own tracer interpolates in tets.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &crate::ops::trace::TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<crate::ops::trace::Line>>> {
+        if self.mesh.cells.is_some() {
+            return Ok(None);
+        }
+        self.inner.trace_lines(seeds, o, vector, progress)
+    }
+
     fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
         if self.mesh.cells.is_none() {
             return self.inner.sample_many(points, fields, ids, values);

@@ -20,7 +20,10 @@ pub use tolerance::{Tolerance, WithTolerance};
 
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
+use crate::ops::trace::{Line, TraceOptions};
+use crate::ops::ImageGrid;
 use rayon::prelude::*;
+use std::ops::Range;
 
 /// Id returned for a point outside every tet.
 pub const OUTSIDE: i32 = -1;
@@ -70,6 +73,35 @@ pub trait BatchLocator {
         let _ = (points, fields, ids, values);
         Err(Error::Invalid(format!("the {} backend takes f32 points only", self.name())))
     }
+
+    /// [`Self::sample_many`] at points `range` of `grid` (x fastest, [`ImageGrid::point`]):
+    /// `resample`'s chunks. Backends that make the points themselves (the GPU kernels' grid
+    /// set) override it.
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        self.sample_many(&grid_points(grid, range), fields, ids, values)
+    }
+
+    /// Whole streamlines traced by the backend itself (a GPU kernel that runs every particle
+    /// to its end), or `None` where it has no tracer of its own for these options: then
+    /// [`crate::ops::trace::trace_with`] drives it one Runge–Kutta stage at a time.
+    /// `progress` gets the number of lines done so far.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>> {
+        let _ = (seeds, o, vector, progress);
+        Ok(None)
+    }
 }
 
 impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
@@ -97,6 +129,30 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     ) -> Result<()> {
         (**self).sample_many64(points, fields, ids, values)
     }
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        (**self).sample_grid(grid, range, fields, ids, values)
+    }
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>> {
+        (**self).trace_lines(seeds, o, vector, progress)
+    }
+}
+
+/// Points `range` of `grid`, as [`BatchLocator::sample_grid`] samples them.
+pub fn grid_points(grid: &ImageGrid, range: Range<usize>) -> Vec<Vec3> {
+    range.into_par_iter().map(|i| grid.point(i)).collect()
 }
 
 /// Whether all three coordinates are finite (not NaN, not infinite).
@@ -231,6 +287,39 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         c.scatter(&sub_ids, ids, OUTSIDE);
         c.scatter_k(k, &sub_values, values, f32::NAN);
         Ok(())
+    }
+
+    /// A grid's points are finite (its bounds are).
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        self.inner.sample_grid(grid, range, fields, ids, values)
+    }
+
+    /// The backend's own tracer gets only the finite seeds (the others give no line, as a
+    /// seed outside the mesh), with the lines' seed indices mapped back.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>> {
+        let Some(c) = Compacted::of(seeds, |p| is_finite(*p)) else {
+            return self.inner.trace_lines(seeds, o, vector, progress);
+        };
+        let Some(mut lines) = self.inner.trace_lines(&c.points, o, vector, progress)? else { return Ok(None) };
+        for l in &mut lines {
+            l.seed = c.index[l.seed as usize] as u32;
+        }
+        // VTK's order: by direction, then by seed.
+        lines.sort_by_key(|l| (l.backward, l.seed));
+        Ok(Some(lines))
     }
 }
 

@@ -6,7 +6,6 @@ use super::{FieldGroup, ImageGrid, CHUNK};
 use crate::error::Result;
 use crate::io::image::{ImageArray, ImageWriter};
 use crate::locate::BatchLocator;
-use rayon::prelude::*;
 use std::path::Path;
 
 /// Samples `fields` at every point of `grid`, `chunk` points at a time in grid order (x
@@ -22,16 +21,13 @@ pub fn resample(
     let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
     let n = grid.n_points();
     let chunk = chunk.clamp(1, n.max(1));
-    let mut points = Vec::with_capacity(chunk);
     let mut ids = Vec::with_capacity(chunk);
     let mut values = Vec::with_capacity(chunk * names.len());
     for start in (0..n).step_by(chunk) {
         let len = chunk.min(n - start);
-        points.clear();
-        points.par_extend((start..start + len).into_par_iter().map(|i| grid.point(i)));
         ids.resize(len, 0);
         values.resize(len * names.len(), 0.0);
-        loc.sample_many(&points, &names, &mut ids, &mut values)?;
+        loc.sample_grid(grid, start..start + len, &names, &mut ids, &mut values)?;
         sink(&ids, &values)?;
     }
     Ok(())

@@ -13,6 +13,9 @@ layout(std430, binding = TL_B_OUT) writeonly buffer TlOut { uint tl_out[]; };
 // writes each answer at the point's original index.
 layout(std430, binding = TL_B_ORDER_POINTS) buffer TlOrderPoints { float tl_order_points[]; };
 layout(std430, binding = TL_B_ORDER_PERM) buffer TlOrderPerm { uint tl_order_perm[]; };
+// The grid's coordinates per axis (x values, then y, then z), computed on the host as
+// ops::ImageGrid::point does: the same points as the CPU's, bit for bit.
+layout(std430, binding = TL_B_GRID_AXES) readonly buffer TlGridAxes { float tl_grid_axes[]; };
 
 // PCG hash (O'Neill's RXS-M-XS output of one LCG step): cheap and well mixed.
 uint tl_hash(uint x) {
@@ -61,11 +64,9 @@ vec3 tl_sample(uint i) {
         precise vec3 p = w * tl_vertex(t.x) + a * tl_vertex(t.y) + b * tl_vertex(t.z) + c * tl_vertex(t.w);
         return p;
     } else if (SAMPLE_MODE == TL_SAMPLE_GRID) {
-        // queries::grid_point: the same f32 operations, so the CPU has the same points.
-        uint nx = params.counts.z, ny = params.counts.w;
-        vec3 idx = vec3(uvec3(g % nx, (g / nx) % ny, g / (nx * ny)));
-        precise vec3 p = params.grid_origin.xyz + idx * params.grid_spacing.xyz;
-        return p;
+        uint nx = params.grid.x, ny = params.grid.y;
+        uint z = params.grid.z + g / (nx * ny);
+        return vec3(tl_grid_axes[g % nx], tl_grid_axes[nx + (g / nx) % ny], tl_grid_axes[nx + ny + z]);
     } else {
         uint s = tl_hash(g ^ tl_hash(params.counts.w ^ 0x9e3779b9u));
         precise vec3 u = vec3(tl_unit(s), tl_unit(s), tl_unit(s));

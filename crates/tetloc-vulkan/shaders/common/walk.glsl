@@ -46,12 +46,17 @@ bool tl_test(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
     return tl_point_in_tet(ids, p, bary, exit_face);
 }
 
+// Tets visited by this invocation's walks so far (stream.comp reports it; shaders that never
+// read it lose it to dead-code elimination).
+uint tl_walk_visits = 0u;
+
 // The tet containing p, found in at most `max_steps` tets from `tet`; TL_OUTSIDE when the walk
 // leaves the mesh or runs out of steps (the point may still be inside: the caller decides);
 // TL_DEFERRED only with DEFER_EXACT, when a test could not be decided in f32.
 int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
     for (int step = 0; step < max_steps && tet >= 0; step++) {
         ids = tl_tet(tet);
+        tl_walk_visits++;
         ivec4 next = tl_neighbors4(tet); // loaded beside the tet: one memory latency a step, not two
         int exit_face;
         if (tl_test(ids, p, bary, exit_face)) {

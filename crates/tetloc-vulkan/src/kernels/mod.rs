@@ -59,8 +59,10 @@ pub(crate) struct Plan {
     /// The shaders that locate points, and the ones that march a frame.
     pub locate: Program,
     pub march: Program,
-    /// The march shaders walk through tet neighbours, which `bindings` lacks: the marcher
-    /// must bind a table of its own.
+    /// The shader that traces particles (whole RK4 lines), where the kernel has one.
+    pub stream: Option<Program>,
+    /// The march and stream shaders walk through tet neighbours, which `bindings` lacks: the
+    /// marcher and the tracer must bind a table of their own.
     pub march_needs_neighbors: bool,
     /// The rays the rt kernels trace (push constants); unused by compute kernels.
     pub ray: Ray,

@@ -94,6 +94,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         exact_pass: defer.then(|| pass(false, true)),
         locate: Program::Compute(shaders::SOFT_BVH),
         march: Program::Compute(shaders::MARCH),
+        stream: Some(Program::Compute(shaders::STREAM)),
         // The marcher walks from sample to sample (march.comp), with or without the walk start.
         march_needs_neighbors: !opts.walk_start,
         ray: Ray::default(),

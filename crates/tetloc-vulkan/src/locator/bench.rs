@@ -196,6 +196,9 @@ impl VulkanLocator {
     ) -> VkResult<(Vec<f64>, usize, Option<f64>)> {
         let sample = sample_mode(mode);
         let v = Variant { sample, output, record: false, ordered: self.orders(sample, n) };
+        if mode == QueryKind::Grid {
+            self.ensure_grid_axes(&tetloc_core::queries::grid(&self.mesh, n), false)?;
+        }
         let chunk = self.launch_limit().min(n.max(1));
         self.ensure_io(chunk)?;
         self.pipeline(v)?;

@@ -27,6 +27,7 @@ use std::time::Instant;
 use tetloc_core::geom::Vec3;
 use tetloc_core::locate::{certify, check_lengths};
 use tetloc_core::mesh::{FieldLocation, Mesh};
+use tetloc_core::ops::ImageGrid;
 use tetloc_core::queries::QueryKind;
 use tetloc_core::BatchLocator;
 
@@ -150,6 +151,9 @@ pub struct VulkanLocator {
     launcher: Launcher,
     io: Option<Io>,
     field: Option<(String, Buffer)>,
+    /// The `grid` sample set's axes on the GPU, for this grid (in the file's coordinates or
+    /// the working frame).
+    grid_axes: Option<(ImageGrid, bool, Buffer)>,
     plan: Plan,
     mesh_on_device: MeshOnDevice,
     mesh: Arc<Mesh>,
@@ -246,6 +250,7 @@ impl VulkanLocator {
             launcher,
             io: None,
             field: None,
+            grid_axes: None,
             plan,
             mesh_on_device,
             mesh,
@@ -272,7 +277,7 @@ impl VulkanLocator {
         let unbound = dev.unbound();
         let mut b = mesh.bindings(unbound);
         b.extend(
-            [B_FIELD, B_QUERIES, B_OUT, B_DEFER, B_ORDER_POINTS, B_ORDER_PERM]
+            [B_FIELD, B_QUERIES, B_OUT, B_DEFER, B_ORDER_POINTS, B_ORDER_PERM, B_GRID_AXES]
                 .map(|slot| Binding::buffer(slot, unbound)),
         );
         b.extend(plan.bindings.iter().cloned());
@@ -309,6 +314,10 @@ impl VulkanLocator {
     }
 
     /// The device object (the volume marcher submits its frames through it).
+    pub fn mesh(&self) -> &Arc<Mesh> {
+        &self.mesh
+    }
+
     pub(crate) fn device(&mut self) -> &mut Device {
         &mut self.dev
     }
@@ -317,10 +326,20 @@ impl VulkanLocator {
     /// `field` (uploaded now if it is not on the GPU), the kernel's structure and plan.
     pub(crate) fn resources(&mut self, field: &str) -> tetloc_core::Result<Resources<'_>> {
         let output = self.ensure_field(field)?;
+        Ok(self.resources_for(output, true))
+    }
+
+    /// [`Self::resources`] for a shader specialised to `output` that reads the uploaded field
+    /// (`with_field`) or brings its own data (the field binding then names no field).
+    pub(crate) fn resources_for(&mut self, output: i32, with_field: bool) -> Resources<'_> {
         let mut bindings = self.mesh_on_device.bindings(self.dev.unbound());
-        bindings.push(Binding::buffer(B_FIELD, &self.field.as_ref().expect("ensure_field uploads the field").1));
+        let field = match (&self.field, with_field) {
+            (Some((_, buf)), true) => buf,
+            _ => self.dev.unbound(),
+        };
+        bindings.push(Binding::buffer(B_FIELD, field));
         bindings.extend(self.plan.bindings.iter().cloned());
-        Ok(Resources {
+        Resources {
             spec: self.spec(output),
             params: self.params(0, 0, 0),
             bindings,
@@ -328,7 +347,7 @@ impl VulkanLocator {
             mesh: &self.mesh,
             f64: self.f64,
             dev: &mut self.dev,
-        })
+        }
     }
 
     /// The pipeline for `v`, created on first use (with its exact second pass when deferring).
@@ -389,12 +408,32 @@ impl VulkanLocator {
         let mut p = self.params(len, base, seed);
         if kind == QueryKind::Grid {
             let g = tetloc_core::queries::grid(&self.mesh, n);
-            p.counts[2] = g.dims[0] as u32;
-            p.counts[3] = g.dims[1] as u32;
-            p.grid_origin = [g.origin[0] as f32, g.origin[1] as f32, g.origin[2] as f32, 0.0];
-            p.grid_spacing = [g.spacing[0] as f32, g.spacing[1] as f32, g.spacing[2] as f32, 0.0];
+            p.grid = [g.dims[0] as u32, g.dims[1] as u32, 0, 0];
         }
         p
+    }
+
+    /// Makes the kernels' `grid` sample set the points of `grid` (given in the file's
+    /// coordinates when `file_coords`, else in the working frame): each axis's coordinates
+    /// as `ImageGrid::point` computes them, taken to the working frame as host points are, so
+    /// that the kernel locates exactly the points the host would have sent.
+    fn ensure_grid_axes(&mut self, grid: &ImageGrid, file_coords: bool) -> VkResult<()> {
+        if self.grid_axes.as_ref().is_some_and(|(g, f, _)| g == grid && *f == file_coords) {
+            return Ok(());
+        }
+        self.grid_axes = None;
+        self.launcher.desc.write(&[Binding::buffer(B_GRID_AXES, self.dev.unbound())]);
+        let [nx, ny, nz] = grid.dims;
+        let frame = self.mesh.info.frame;
+        let working = |p: Vec3| if file_coords { frame.to_working_f32(p) } else { p };
+        let mut axes: Vec<f32> = (0..nx).map(|i| working(grid.point(i))[0]).collect();
+        axes.extend((0..ny).map(|j| working(grid.point(j * nx))[1]));
+        axes.extend((0..nz).map(|k| working(grid.point(k * nx * ny))[2]));
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let buf = self.dev.upload("grid axes", MemKind::Query, storage, bytemuck::cast_slice(&axes))?;
+        self.launcher.desc.write(&[Binding::buffer(B_GRID_AXES, &buf)]);
+        self.grid_axes = Some((grid.clone(), file_coords, buf));
+        Ok(())
     }
 
     /// Most points one launch may take: the chunk size, capped by the device's dispatch limits.
@@ -503,6 +542,29 @@ impl VulkanLocator {
         Ok(())
     }
 
+    /// Locates the points of `grid` (its axes uploaded) from index `start`, one answer per
+    /// 4 bytes of `out` (variant `output`), in launches that each begin at a slab and an index
+    /// within it (the kernel's index is u32; a slab has fewer than 2^31 points).
+    fn run_grid(&mut self, grid: &ImageGrid, start: usize, output: i32, out: &mut [u8]) -> VkResult<()> {
+        let v = Variant { sample: SAMPLE_GRID, output, record: false, ordered: false };
+        let chunk = self.launch_limit().min(1 << 30).min(out.len() / 4).max(1);
+        self.ensure_io(chunk)?;
+        self.pipeline(v)?;
+        let [nx, ny, _] = grid.dims;
+        let mut first = start;
+        for res in out.chunks_mut(chunk * 4) {
+            let len = res.len() / 4;
+            let mut params = self.params(len, first % (nx * ny), 0);
+            params.grid = [nx as u32, ny as u32, (first / (nx * ny)) as u32, 0];
+            let io = self.io.as_ref().expect("ensure_io made it");
+            let launch = self.launcher.launch(v, io.deferred.as_ref().map(|d| d.buffer));
+            self.dev.run(|r| launch.record(r, &params))?;
+            self.dev.download(&io.results, 0, res)?;
+            first += len;
+        }
+        Ok(())
+    }
+
     /// Runs `n` samples generated in the kernel (`kind` not `Host`) with seed `seed`, and
     /// returns the generated points with their tet ids (-1 outside). For checks: benchmarks
     /// time the same kernels without recording points.
@@ -512,6 +574,9 @@ impl VulkanLocator {
             return Err(VkError::Mesh("locate_generated needs a query set the kernel generates, not host".into()));
         }
         check_generated_count(n)?;
+        if kind == QueryKind::Grid {
+            self.ensure_grid_axes(&tetloc_core::queries::grid(&self.mesh, n), false)?;
+        }
         // Ordered: the ordering's keys pass records the points, the kernel does not.
         let ordered = self.orders(sample, n);
         let v = Variant { sample, output: OUT_IDS, record: !ordered, ordered };
@@ -716,5 +781,47 @@ impl BatchLocator for VulkanLocator {
             }
         }
         Ok(())
+    }
+
+    /// The kernel makes the grid's points itself (the `grid` sample set over the grid's axes):
+    /// nothing to upload but the axes, the same points as the host's.
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: std::ops::Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> tetloc_core::Result<()> {
+        check_lengths(range.len(), ids.len())?;
+        check_lengths(range.len() * fields.len(), values.len())?;
+        let slab = grid.dims[0] * grid.dims[1];
+        if slab >= 1 << 31 {
+            // Beyond the kernel's u32 index within a slab: host points.
+            return self.sample_many(&tetloc_core::locate::grid_points(grid, range), fields, ids, values);
+        }
+        if range.is_empty() {
+            return Ok(());
+        }
+        self.ensure_grid_axes(grid, true)?;
+        self.run_grid(grid, range.start, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
+        let mut one = vec![0f32; range.len()];
+        for (j, f) in fields.iter().enumerate() {
+            let mode = self.ensure_field(f)?;
+            self.run_grid(grid, range.start, mode, bytemuck::cast_slice_mut(&mut one))?;
+            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
+        }
+        Ok(())
+    }
+
+    /// RK4 lines on the kernel's stream shader (soft-bvh), `None` elsewhere.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &tetloc_core::ops::trace::TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> tetloc_core::Result<()>,
+    ) -> tetloc_core::Result<Option<Vec<tetloc_core::ops::trace::Line>>> {
+        Ok(self.trace_rk4(seeds, o, vector, progress)?.map(|(lines, _)| lines))
     }
 }

@@ -171,7 +171,7 @@ impl TraceOptions {
 
     /// The lines to trace, in VTK's order: (seed, backward) — with `Both`, every forward line
     /// and then every backward one.
-    fn jobs(&self, n_seeds: usize) -> Vec<(u32, bool)> {
+    pub fn jobs(&self, n_seeds: usize) -> Vec<(u32, bool)> {
         let dirs: &[bool] = match self.direction {
             Direction::Forward => &[false],
             Direction::Backward => &[true],
@@ -316,6 +316,23 @@ pub fn trace_sampled(
     Ok(LineArrays::with_values(&all, fields, ids, values))
 }
 
+/// The lines of [`trace`] through `loc`: by the backend's own tracer where it has one for
+/// these options (soft-bvh with RK4: every particle run to its end in one GPU kernel,
+/// [`BatchLocator::trace_lines`]), else by [`trace_batch`].
+pub fn trace_with(
+    seeds: &[Vec3],
+    o: &TraceOptions,
+    loc: &mut dyn BatchLocator,
+    vector: [&str; 3],
+    mut progress: impl FnMut(usize) -> Result<()>,
+) -> Result<Vec<Line>> {
+    o.check()?;
+    match loc.trace_lines(seeds, o, vector, &mut progress)? {
+        Some(lines) => Ok(lines),
+        None => trace_batch(seeds, o, loc, vector, progress),
+    }
+}
+
 /// The same lines as [`trace`], step-synchronous: every live particle asks for its next
 /// velocity, and all of them are answered by one `sample_many` of the vector's three
 /// components (`vector`) through `loc` — a round per Runge–Kutta stage, on any backend.
@@ -428,17 +445,6 @@ impl LineArrays {
         ];
         write_polylines(path, &self.points, &self.ends, &point_data, &cell_data, zlib)
     }
-}
-
-/// Writes lines as vtkStreamTracer gives them (see [`LineArrays`]), `fields` sampled through `loc`.
-pub fn write_lines(
-    path: &std::path::Path,
-    lines: &[Line],
-    loc: &mut dyn BatchLocator,
-    fields: &[super::FieldGroup],
-    zlib: bool,
-) -> Result<()> {
-    LineArrays::new(lines, loc, fields)?.write(path, zlib)
 }
 
 /// The vector field `name` of `mesh`, which must have 3 components.

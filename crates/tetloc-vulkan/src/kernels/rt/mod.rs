@@ -137,6 +137,8 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
         exact_pass: None,
         locate: program(shaders::RT_RGEN),
         march: program(shaders::MARCH_RGEN),
+        // Particles are traced in a compute shader, which cannot trace rays: the batch path.
+        stream: None,
         march_needs_neighbors: false,
         ray: (k.ray)(mesh),
         accel,

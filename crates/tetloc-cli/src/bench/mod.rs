@@ -2,7 +2,10 @@
 //! memory (its Table 2). GPU kernels are timed with GPU timestamps and, for `centers`,
 //! `random` and `bbox`, generate their sample points inside the kernel as the paper does;
 //! `host` uploads points from a host array and includes the transfers. The CPU backend is
-//! timed with the host clock. Warm-up, then the median of the repeats.
+//! timed with the host clock. Warm-up, then the median of the repeats. `--trace` adds
+//! particle tracing ([`trace`]).
+
+pub mod trace;
 
 use crate::backend::{self, BackendOptions};
 use anyhow::{bail, Result};
@@ -34,6 +37,9 @@ pub struct BenchRow {
     pub ordered: bool,
     pub repeats: usize,
     pub power_watts: Option<f64>,
+    /// `--trace` rows on the GPU: how the lookups went.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trace: Option<trace::TraceStats>,
 }
 
 pub struct BenchArgs {
@@ -47,10 +53,12 @@ pub struct BenchArgs {
     pub power: bool,
     /// GPU kernels: time every query set with and without query ordering.
     pub compare_order: bool,
+    /// Also time particle tracing.
+    pub trace: Option<trace::TraceBench>,
     pub opts: BackendOptions,
 }
 
-fn median(mut v: Vec<f64>) -> f64 {
+pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v.sort_by(f64::total_cmp);
     v[v.len() / 2]
 }
@@ -113,8 +121,12 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                     ordered: false,
                     repeats: args.repeats,
                     power_watts: None,
+                    trace: None,
                 };
                 emit(row, &mut rows)?;
+            }
+            if let Some(tb) = &args.trace {
+                emit(trace::cpu(mesh, &loc, args, tb)?, &mut rows)?;
             }
             continue;
         }
@@ -161,12 +173,22 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
                 ordered: r.ordered,
                 repeats: opts.repeats,
                 power_watts: r.power_watts,
+                trace: None,
             };
             emit(row, &mut rows)?;
         }
+        if let Some(tb) = &args.trace {
+            for row in trace::gpu(mesh, &mut loc, args, tb)? {
+                emit(row, &mut rows)?;
+            }
+        }
     }
     if !args.json {
-        print_tables(&rows, &args.queries);
+        let mut shown = args.queries.iter().map(|q| q.name()).collect::<Vec<_>>();
+        if args.trace.is_some() {
+            shown.push("trace");
+        }
+        print_tables(&rows, &shown);
     }
     Ok(rows)
 }
@@ -182,7 +204,7 @@ pub fn fmt_rate(r: f64) -> String {
 }
 
 /// The paper's Table 1 (samples/s, a column per query set) and Table 2 (build, memory).
-pub fn print_tables(rows: &[BenchRow], queries: &[QueryKind]) {
+pub fn print_tables(rows: &[BenchRow], queries: &[&str]) {
     let Some(first) = rows.first() else { return };
     println!(
         "\nmesh {} ({} tets), variant {}, median of {} runs",
@@ -197,14 +219,14 @@ pub fn print_tables(rows: &[BenchRow], queries: &[QueryKind]) {
     let w = backends.iter().map(|b| b.len()).max().unwrap_or(0).max(16);
     print!("{:<w$}", "samples/s");
     for q in queries {
-        print!(" {:>12}", q.name());
+        print!(" {q:>12}");
     }
     println!("  device");
     for b in &backends {
         print!("{b:<w$}");
         let mut device = String::new();
         for q in queries {
-            match rows.iter().find(|r| r.backend == *b && r.queries == q.name()) {
+            match rows.iter().find(|r| r.backend == *b && r.queries == *q) {
                 Some(r) => {
                     print!(" {:>12}", fmt_rate(r.samples_per_s));
                     device = format!("{} ({})", r.device, r.driver);
