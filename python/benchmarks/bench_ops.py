@@ -41,13 +41,21 @@ import tetloc
 REPO = pathlib.Path(__file__).resolve().parents[2]
 
 
-def timed(f: Callable[[], object], repeats: int = 1):
-    """(best seconds over `repeats`, the last result)."""
+CPU_S: Dict[str, float] = {}
+
+
+def timed(f: Callable[[], object], repeats: int = 1, key: str = ""):
+    """(best seconds over `repeats`, the last result); with `key`, the process's CPU seconds
+    (user + system, every thread) of that best run go to CPU_S[key]."""
     best, out = float("inf"), None
     for _ in range(repeats):
-        t = time.perf_counter()
+        t, c = time.perf_counter(), time.process_time()
         out = f()
-        best = min(best, time.perf_counter() - t)
+        wall, cpu = time.perf_counter() - t, time.process_time() - c
+        if wall < best:
+            best = wall
+            if key:
+                CPU_S[key] = cpu
     return best, out
 
 
@@ -90,7 +98,9 @@ def main() -> None:
     ap.add_argument("--backend", default="cpu", help="tetloc's backend (default cpu)")
     ap.add_argument("--repeats", type=int, default=3, help="tetloc runs, best taken (default 3)")
     ap.add_argument("--json", help="also write the results here")
+    ap.add_argument("--no-vtk", action="store_true", help="time tetloc only (VTK's columns are NaN)")
     a = ap.parse_args()
+    load_start = os.getloadavg()
 
     import pyvista as pv
     import vtk
@@ -127,6 +137,8 @@ def main() -> None:
     def vtk_time(run: Callable[[float], float]) -> float:
         """VTK's seconds for the whole work: one run, or with a fraction f < 1 runs on f/2 and f
         and the line through them (a fixed cost, its locator's build, plus a cost per item)."""
+        if a.no_vtk:
+            return float("nan")
         if frac >= 1.0:
             return run(1.0)
         t1, t2 = run(frac / 2), run(frac)
@@ -136,16 +148,19 @@ def main() -> None:
     def row(op: str, work: str, n: int, ours: float, theirs: float, vtk_name: str) -> None:
         if frac < 1.0:
             work += f"; VTK ran {frac / 2:.3g} and {frac:.3g} of it, its time extrapolated linearly"
-        rows.append({"op": op, "work": work, "n": n, "tetloc_s": ours, "vtk_s": theirs, "vtk": vtk_name,
-                     "ratio": theirs / ours})
-        print(f"  {op}: tetloc {ours:.3f} s, {vtk_name} {theirs:.3f} s: {theirs / ours:.1f}x", file=sys.stderr)
+        cpu = CPU_S.get(op, float("nan"))
+        rows.append({"op": op, "work": work, "n": n, "tetloc_s": ours, "tetloc_cpu_s": cpu, "vtk_s": theirs,
+                     "vtk": vtk_name, "ratio": theirs / ours})
+        print(f"  {op}: tetloc {ours:.3f} s ({cpu:.2f} s CPU), {vtk_name} {theirs:.3f} s: {theirs / ours:.1f}x",
+              file=sys.stderr)
 
     build, _ = timed(lambda: tetloc.Locator(mesh, backend=a.backend), a.repeats)
     print(f"  locator build alone: {build:.3f} s", file=sys.stderr)
 
     # Resample.
     d = a.dims
-    ours, img = timed(lambda: tetloc.resample_to_image(mesh, dims=(d, d, d), backend=a.backend), a.repeats)
+    ours, img = timed(lambda: tetloc.resample_to_image(mesh, dims=(d, d, d), backend=a.backend), a.repeats,
+                     "resample")
 
     def vtk_resample(share: float) -> float:
         # The same grid as tetloc's (the bounds nudged inwards by 1e-6, as UseInputBounds
@@ -171,7 +186,7 @@ def main() -> None:
     else:
         pts = rng.uniform(lo, hi, size=(a.probe_points, 3)).astype(np.float32)
         what = f"{a.probe_points} random points of the box"
-    ours, _ = timed(lambda: tetloc.probe(mesh, pts, backend=a.backend), a.repeats)
+    ours, _ = timed(lambda: tetloc.probe(mesh, pts, backend=a.backend), a.repeats, "probe")
 
     def vtk_probe(share: float) -> float:
         f = vtk.vtkResampleWithDataSet()
@@ -184,7 +199,7 @@ def main() -> None:
     # Trace: seeds at random tets' centres.
     centres = np.asarray(grid.cell_centers().points)[rng.integers(0, grid.n_cells, a.seeds)].astype(np.float32)
     trace = lambda: tetloc.trace(mesh, "v", centres, step=step, max_steps=a.max_steps, backend=a.backend)  # noqa: E731
-    ours, lines = timed(trace, a.repeats)
+    ours, lines = timed(trace, a.repeats, "trace")
     tracer = {}
 
     def vtk_trace(share: float) -> float:
@@ -203,25 +218,28 @@ def main() -> None:
         return timed(t.Update)[0]
 
     theirs = vtk_time(vtk_trace)
-    t, ks = tracer["t"], tracer["seeds"]
     steps = len(lines["points"]) - (len(lines["offsets"]) - 1)
-    vtk_steps = t.GetOutput().GetNumberOfPoints() - t.GetOutput().GetNumberOfLines()
-    first = np.asarray(lines["SeedIds"]) < ks  # tetloc's lines from VTK's seeds
-    ours_part = int((np.diff(lines["offsets"]) - 1)[first].sum())
-    row("trace", f"{a.seeds} seeds, RK4, at most {a.max_steps} steps ({steps} steps here; {vtk_steps} in VTK "
-        f"against {ours_part} of tetloc's on the same seeds)", steps, ours, theirs, "vtkStreamTracer")
+    work = f"{a.seeds} seeds, RK4, at most {a.max_steps} steps ({steps} steps here"
+    if "t" in tracer:
+        t, ks = tracer["t"], tracer["seeds"]
+        vtk_steps = t.GetOutput().GetNumberOfPoints() - t.GetOutput().GetNumberOfLines()
+        first = np.asarray(lines["SeedIds"]) < ks  # tetloc's lines from VTK's seeds
+        ours_part = int((np.diff(lines["offsets"]) - 1)[first].sum())
+        work += f"; {vtk_steps} in VTK against {ours_part} of tetloc's on the same seeds"
+    row("trace", work + ")", steps, ours, theirs, "vtkStreamTracer")
 
     info = {"mesh": str(path), "tets": mesh.n_cells, "backend": a.backend, "cpus": os.cpu_count(),
             "cpu": cpu_model(), "vtk": vtk.vtkVersion.GetVTKVersion(), "tetloc": tetloc.__version__,
             "locator_build_s": build, "date": time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()),
-            "load_average": os.getloadavg()}
+            "load_average": os.getloadavg(), "load_average_start": load_start}
     print(f"\n{path.name} ({mesh.n_cells} tets), tetloc {a.backend} vs VTK {info['vtk']}, {os.cpu_count()} CPUs "
-          f"({info['cpu']}, load average {info['load_average'][0]:.1f} at the end), {info['date']}; tetloc's times "
+          f"({info['cpu']}, load average {load_start[0]:.1f} at the start, {info['load_average'][0]:.1f} at the end), {info['date']}; tetloc's times "
           f"include its locator build ({build:.3f} s alone)")
-    print(f"| operation | work | tetloc (s) | VTK (s) | VTK filter | tetloc / VTK speed |")
-    print("|---|---|---|---|---|---|")
+    print(f"| operation | work | tetloc (s) | tetloc CPU (s) | VTK (s) | VTK filter | tetloc / VTK speed |")
+    print("|---|---|---|---|---|---|---|")
     for r in rows:
-        print(f"| {r['op']} | {r['work']} | {r['tetloc_s']:.3f} | {r['vtk_s']:.3f} | {r['vtk']} | {r['ratio']:.1f}x |")
+        print(f"| {r['op']} | {r['work']} | {r['tetloc_s']:.3f} | {r['tetloc_cpu_s']:.2f} | {r['vtk_s']:.3f} | "
+              f"{r['vtk']} | {r['ratio']:.1f}x |")
     if a.json:
         pathlib.Path(a.json).write_text(json.dumps({"machine": info, "rows": rows}, indent=1))
 

@@ -13,7 +13,6 @@ use pyo3::types::PyDict;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
-use tetloc_core::locate::FiniteOnly;
 use tetloc_core::ops::trace::{self, Integrator, LineArrays, TraceOptions};
 use tetloc_core::ops::{fields, probe, resample, FieldGroup, ImageGrid};
 use tetloc_core::{BatchLocator, CpuLocator, Vec3};
@@ -248,14 +247,11 @@ pub fn trace_lines<'py>(
     let out_fields = trace::line_fields(&m, &vector);
     let arrays = match locator {
         None => {
+            // The line arrays come from the integrator's own lookups (no second pass).
             let cpu = py.detach(|| CpuLocator::new(m.clone()));
-            let field = cpu.vector_field(xyz).map_err(to_py)?;
-            let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
-                trace::trace(seeds, &o, &field, &|d| ticker.tick(d))
-            })?;
-            drop(field);
-            let mut loc = FiniteOnly::new(cpu);
-            py.detach(|| LineArrays::new(&lines, &mut loc, &out_fields)).map_err(to_py)?
+            run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
+                trace::trace_sampled(seeds, &o, &cpu, xyz, &out_fields, &|d| ticker.tick(d))
+            })?
         }
         Some(locator) => with_backend(py, locator, |loc| {
             let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {

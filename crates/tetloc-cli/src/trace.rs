@@ -14,7 +14,7 @@ use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points;
 use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
-use tetloc_core::{BatchLocator, CpuLocator};
+use tetloc_core::CpuLocator;
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
@@ -116,19 +116,20 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let [x, y, z] = [c[0], c[1], c[2]];
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
-    // The per-particle walk runs on tets: mixed meshes take the batch path, whose locator maps
-    // answers to cells and interpolates with the cells' shape functions.
-    let (lines, secs, mut loc) = if name == "cpu" && m.cells.is_none() {
+    let out_fields = trace::line_fields(&m, &vector);
+    // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
+    // maps answers to cells and interpolates with the cells' shape functions.
+    let (arrays, secs) = if name == "cpu" && m.cells.is_none() {
         let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
         let t0 = Instant::now();
-        let lines = trace::trace(&seeds, &o, &cpu.vector_field([x, y, z])?, &|d| {
+        // The line fields come from the integrator's own lookups (no second pass).
+        let arrays = trace::trace_sampled(&seeds, &o, &cpu, [x, y, z], &out_fields, &|d| {
             pb.set_position(d as u64);
             Ok(())
         })?;
         pb.finish_and_clear();
-        let loc: Box<dyn BatchLocator> = Box::new(tetloc_core::locate::FiniteOnly::new(cpu));
-        (lines, t0.elapsed().as_secs_f64(), loc)
+        (arrays, t0.elapsed().as_secs_f64())
     } else {
         let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
         let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
@@ -138,14 +139,16 @@ pub fn run(a: &TraceArgs) -> Result<()> {
             Ok(())
         })?;
         pb.finish_and_clear();
-        (lines, t0.elapsed().as_secs_f64(), loc)
+        let secs = t0.elapsed().as_secs_f64();
+        let arrays = progress::with_spinner("sampling the fields along the lines", || {
+            trace::LineArrays::new(&lines, loc.as_mut(), &out_fields)
+        })?;
+        (arrays, secs)
     };
-    let n_points: usize = lines.iter().map(|l| l.points.len()).sum();
-    let out_fields = trace::line_fields(&m, &vector);
-    progress::with_spinner(format!("writing {}", a.out.display()), || {
-        trace::write_lines(&a.out, &lines, loc.as_mut(), &out_fields, a.zlib)
-    })?;
-    let without = n_lines - lines.len();
+    let n_points = arrays.points.len();
+    let n_made = arrays.ends.len();
+    progress::with_spinner(format!("writing {}", a.out.display()), || arrays.write(&a.out, a.zlib))?;
+    let without = n_lines - n_made;
     if without > 0 {
         eprintln!(
             "warning: {without} of {n_lines} lines have no step inside the mesh (their seed is outside it, or on its boundary going out); VTK makes no line for them either"
@@ -155,8 +158,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         eprintln!(
             "{}: {} lines, {n_points} points (steps at {}) on {name} in {secs:.3} s",
             a.out.display(),
-            lines.len(),
-            crate::bench::fmt_rate((n_points - lines.len()) as f64 / secs)
+            n_made,
+            crate::bench::fmt_rate((n_points - n_made) as f64 / secs)
         );
     }
     Ok(())

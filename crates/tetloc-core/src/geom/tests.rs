@@ -74,6 +74,26 @@ fn sliver_barycentrics_are_accurate() {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
 
+    /// The four faces' determinants and bounds at once are orient_f32's, face by face (the
+    /// bounds bit for bit; a zero determinant may differ in its sign, which no test reads: a
+    /// zero is never above its bound), for points anywhere, on a vertex, an edge or a face.
+    #[test]
+    fn four_faces_at_once_are_orient_f32(a in arb_point(), b in arb_point(), c in arb_point(), d in arb_point(),
+                                         q in arb_point(), w in prop::array::uniform4(0.0f64..1.0), which in 0usize..4) {
+        let v = [a, b, c, d];
+        let mut w = w;
+        w[which] = 0.0; // on the face opposite `which` (or an edge or vertex when more are 0)
+        let s: f64 = w.iter().sum();
+        let on = if s > 0.0 { from_bary(v, w.map(|x| x / s)) } else { v[which] };
+        for p in [q, on, v[which]] {
+            let (dets, bounds) = orient_faces_f32(v, p);
+            for (i, &(f, _)) in SORTED_FACES.iter().enumerate() {
+                let (det, bound) = orient_f32(v[f[0]], v[f[1]], v[f[2]], p);
+                prop_assert!(dets[i] == det && bounds[i].to_bits() == bound.to_bits(), "face {i}: {p:?}");
+            }
+        }
+    }
+
     /// Points built from positive barycentrics are found, with those weights.
     #[test]
     fn inside_points_are_found(a in arb_point(), b in arb_point(), c in arb_point(), d in arb_point(),

@@ -24,6 +24,7 @@ const MAX_WALK: usize = 24;
 pub struct CpuLocator {
     mesh: Arc<Mesh>,
     bvh: Bvh,
+    occupancy: Occupancy,
 }
 
 impl CpuLocator {
@@ -32,9 +33,14 @@ impl CpuLocator {
     }
 
     pub fn with_preset(mesh: Arc<Mesh>, preset: BuildPreset) -> CpuLocator {
-        let bvh = Bvh::build(&mesh.points, &mesh.tets, preset);
-        mesh.neighbors(); // build the adjacency now, not inside the first batch
-        CpuLocator { mesh, bvh }
+        let (bvh, occupancy) = rayon::join(
+            || Bvh::build(&mesh.points, &mesh.tets, preset),
+            || {
+                mesh.neighbors(); // build the adjacency now, not inside the first batch
+                Occupancy::build(&mesh)
+            },
+        );
+        CpuLocator { mesh, bvh, occupancy }
     }
 
     pub fn bvh(&self) -> &Bvh {
@@ -74,7 +80,7 @@ impl CpuLocator {
     fn find(&self, q: &Query) -> Option<(u32, Bary)> {
         let p = q.local;
         let nodes = &self.bvh.nodes;
-        if nodes.is_empty() || !nodes[0].contains(p) {
+        if nodes.is_empty() || !nodes[0].contains(p) || !self.occupancy.may_hold(p) {
             return None;
         }
         let mut stack = [0u32; 64];
@@ -117,7 +123,19 @@ impl CpuLocator {
     fn walk(&self, start: u32, q: &Query) -> Option<(u32, Bary)> {
         let neighbors = self.mesh.neighbors();
         let mut t = start;
-        for _ in 0..MAX_WALK {
+        for step in 0..MAX_WALK {
+            // After the first tet (usually the answer for a particle), steps in plain f32:
+            // the exact test only where no face points onwards.
+            if step > 0 {
+                if let Some(face) = geom::walk_face(self.mesh.tets[t as usize], &self.mesh.points, q.local) {
+                    let next = neighbors[t as usize][face];
+                    if next < 0 {
+                        return None;
+                    }
+                    t = next as u32;
+                    continue;
+                }
+            }
             match self.test(t, q) {
                 TetTest::Inside(b) => return (!b.contains(&0.0)).then_some((t, b)),
                 TetTest::Outside { face } => {
@@ -186,6 +204,67 @@ impl CpuLocator {
     }
 }
 
+/// A coarse grid over the mesh's box marking the cells that some tet's box meets: a point in
+/// an unmarked cell is in no tet, known from one bit instead of a BVH traversal (points of a
+/// grid in a torus' hole, particles leaving the mesh). Cell indices are monotone in the
+/// coordinate (a subtraction, a product and a floor, each rounding monotonically), so a point
+/// inside a tet's box (working coordinates) has its cell index within the box's on each axis:
+/// the test never refuses a point a tet holds.
+struct Occupancy {
+    lo: Vec3,
+    scale: Vec3,
+    n: [usize; 3],
+    bits: Vec<u64>,
+}
+
+impl Occupancy {
+    /// About one cell per mean edge length a side, at most 2^24 cells.
+    fn build(mesh: &Mesh) -> Occupancy {
+        use std::sync::atomic::{AtomicU64, Ordering};
+        let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+        let edge = (mesh.info.mean_edge_length as f64).max(1e-30);
+        let ext: [f64; 3] = std::array::from_fn(|k| (hi[k] - lo[k]) as f64);
+        let mut cell = edge;
+        let count = |cell: f64| -> [usize; 3] { ext.map(|e| ((e / cell).ceil() as usize).clamp(1, 1 << 12)) };
+        while count(cell).iter().product::<usize>() > 1 << 24 {
+            cell *= 1.25;
+        }
+        let n = count(cell);
+        let scale = std::array::from_fn(|k| if ext[k] > 0.0 { (n[k] as f64 / ext[k]) as f32 } else { 0.0 });
+        let mut occ = Occupancy { lo, scale, n, bits: Vec::new() };
+        let words: Vec<AtomicU64> = (0..(n[0] * n[1] * n[2]).div_ceil(64)).map(|_| AtomicU64::new(0)).collect();
+        mesh.tets.par_iter().for_each(|&t| {
+            let (a, b) = geom::tet_bounds(t, &mesh.points);
+            let (a, b) = (occ.index(a), occ.index(b));
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        let i = (z * n[1] + y) * n[0] + x;
+                        words[i / 64].fetch_or(1 << (i % 64), Ordering::Relaxed);
+                    }
+                }
+            }
+        });
+        occ.bits = words.into_iter().map(AtomicU64::into_inner).collect();
+        occ
+    }
+
+    /// The cell of a point of the mesh's box, clamped on each axis (also monotone; on
+    /// values clamped at 0 the cast's truncation is the floor).
+    #[inline]
+    fn index(&self, p: Vec3) -> [usize; 3] {
+        std::array::from_fn(|k| (((p[k] - self.lo[k]) * self.scale[k]).max(0.0) as usize).min(self.n[k] - 1))
+    }
+
+    /// False only when no tet's box holds `p` (a point in the mesh's box).
+    #[inline]
+    fn may_hold(&self, p: Vec3) -> bool {
+        let [x, y, z] = self.index(p);
+        let i = (z * self.n[1] + y) * self.n[0] + x;
+        self.bits[i / 64] >> (i % 64) & 1 != 0
+    }
+}
+
 /// Whether consecutive points are, on average, within a few tet sizes of each other, so
 /// that walking in the given order beats sorting first.
 pub(super) fn is_coherent(points: &[Vec3], mean_edge: f32) -> bool {
@@ -229,11 +308,13 @@ impl CpuLocator {
         &self,
         components: [&str; 3],
     ) -> Result<impl Fn(Vec3, &mut Option<u32>) -> Option<[f32; 3]> + Sync + '_> {
-        let [x, y, z] = components.map(|c| self.value_fn(c));
-        let (x, y, z) = (x?, y?, z?);
+        let [x, y, z] = components.map(|c| self.mesh.field(c));
+        let xyz = [x?, y?, z?];
         Ok(move |p: Vec3, hint: &mut Option<u32>| {
-            let found = self.locate_from(p, hint);
-            found.map(|_| [x(found), y(found), z(found)])
+            let found = self.locate_from(p, hint)?;
+            let mut v = [0f32; 3];
+            self.mesh.values_at(&xyz, Some((found.0 as usize, found.1)), &mut v);
+            Some(v)
         })
     }
 }
@@ -298,15 +379,87 @@ impl CpuLocator {
     ) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
-        let value_fns = fields.iter().map(|f| self.value_fn(f)).collect::<Result<Vec<_>>>()?;
+        let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
         let mut found = vec![None; points.len()];
         self.locate_batch_of(points, query, &mut found, |f| f);
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
         if !fields.is_empty() {
             values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
-                out.iter_mut().zip(&value_fns).for_each(|(v, value)| *v = value(f));
+                self.mesh.values_at(&fields, f.map(|(t, b)| (t as usize, b)), out);
             });
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::gen::{generate, Shape};
+    use rand::{Rng, SeedableRng};
+
+    /// Batches (walks from the previous answer, f32 steps, the exact test at the end) give
+    /// the BVH's own answer for every point: a grid aligned with a KuhnGrid's vertices (points
+    /// on vertices, edges and faces, where the tie rule decides), its rows in both directions,
+    /// and random points of a jittered mesh.
+    #[test]
+    fn walks_give_the_bvh_answers_on_faces_and_vertices() {
+        let kuhn = Arc::new(crate::test_support::KuhnGrid::new(4).mesh("cube"));
+        let jittered = Arc::new(crate::test_support::grid_mesh(5, 0.25, 7));
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(11);
+        for m in [kuhn, jittered] {
+            let mut loc = CpuLocator::new(m.clone());
+            // 1/8 steps from -1/8 to 9/8: every vertex, edge midpoint and face centre, and beyond.
+            let g: Vec<f32> = (-1..=9).map(|i| i as f32 / 8.0).collect();
+            let mut points: Vec<Vec3> = Vec::new();
+            for &z in &g {
+                for &y in &g {
+                    points.extend(g.iter().map(|&x| [x, y, z]));
+                }
+            }
+            let back: Vec<Vec3> = points.iter().rev().copied().collect();
+            points.extend(back);
+            let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
+            points.extend((0..3000).map(|_| -> Vec3 { std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k])) }));
+            let mut ids = vec![0i32; points.len()];
+            loc.locate(&points, &mut ids).unwrap();
+            let mut inside = 0;
+            for (p, &id) in points.iter().zip(&ids) {
+                let want = loc.locate_point(*p).map_or(OUTSIDE, |(t, _)| t as i32);
+                assert_eq!(id, want, "{p:?}");
+                inside += usize::from(id >= 0);
+            }
+            assert!(inside > points.len() / 2, "{inside}");
+        }
+    }
+
+    /// The occupancy grid never refuses a point of a tet (vertices, centroids, points on
+    /// edges and faces), and refuses points of the fusion torus' hole; the locator's answers
+    /// there agree with brute force over every tet.
+    #[test]
+    fn occupancy_keeps_every_point_of_a_tet() {
+        let m = Arc::new(Mesh::new(generate(Shape::Fusion, 20_000, 3), "fusion").unwrap());
+        let loc = CpuLocator::new(m.clone());
+        let occ = &loc.occupancy;
+        for &t in &m.tets {
+            let v = t.map(|i| m.points[i as usize]);
+            let mid = |a: Vec3, b: Vec3| -> Vec3 { std::array::from_fn(|k| 0.5 * (a[k] + b[k])) };
+            let c: Vec3 = std::array::from_fn(|k| 0.25 * v.iter().map(|p| p[k]).sum::<f32>());
+            let points = [v[0], v[1], v[2], v[3], c, mid(v[0], v[1]), mid(v[2], v[3]), mid(mid(v[0], v[1]), v[2])];
+            for p in points {
+                assert!(occ.may_hold(p), "{p:?} of tet {t:?}");
+            }
+        }
+        let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
+        let (mut refused, mut n) = (0, 0);
+        for _ in 0..4000 {
+            let p: Vec3 = std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k]));
+            refused += usize::from(!occ.may_hold(p));
+            let brute = (0..m.tets.len() as u32).find(|&t| matches!(loc.test(t, &loc.query(p)), TetTest::Inside(_)));
+            assert_eq!(loc.locate_point(p).map(|(t, _)| t), brute, "{p:?}");
+            n += 1;
+        }
+        assert!(refused > n / 10, "{refused} of {n} refused");
     }
 }

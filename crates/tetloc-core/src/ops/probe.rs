@@ -59,18 +59,27 @@ pub fn probe(
         loc.sample_many(p, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
         progress(r.end)?;
     }
-    // One array per field, its components together.
-    let mut at = 0;
-    let arrays = fields
-        .iter()
-        .map(|g| {
-            let k = g.n_components();
-            let v: Vec<f32> = values.chunks_exact(width.max(1)).flat_map(|p| p[at..at + k].iter().copied()).collect();
-            at += k;
-            (g.clone(), v)
-        })
-        .collect();
-    Ok(Probed { ids, arrays })
+    Ok(Probed::from_values(ids, fields, &values))
+}
+
+impl Probed {
+    /// One array per field, its components together, from `values` (every field's components
+    /// per point, fields in order).
+    pub(crate) fn from_values(ids: Vec<i32>, fields: &[FieldGroup], values: &[f32]) -> Probed {
+        let width: usize = fields.iter().map(FieldGroup::n_components).sum();
+        let mut at = 0;
+        let arrays = fields
+            .iter()
+            .map(|g| {
+                let k = g.n_components();
+                let v: Vec<f32> =
+                    values.chunks_exact(width.max(1)).flat_map(|p| p[at..at + k].iter().copied()).collect();
+                at += k;
+                (g.clone(), v)
+            })
+            .collect();
+        Probed { ids, arrays }
+    }
 }
 
 /// Writes the probe's result: `target` with its cells and data plus the probed arrays (a

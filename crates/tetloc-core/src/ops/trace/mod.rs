@@ -244,6 +244,78 @@ pub fn trace(
     Ok(lines.into_iter().flatten().collect())
 }
 
+/// [`trace`] on the CPU locator, returning the line arrays with `fields` sampled at the
+/// line points from the integrator's own lookups: each recorded point (the seed, each step's
+/// end) is the point of the lookup just answered, so its tet and weights are already known,
+/// and the values equal those [`LineArrays::new`] gets by locating every point again (the
+/// same tie rule: a walk's answer only strictly inside a tet, else the BVH's).
+pub fn trace_sampled(
+    seeds: &[Vec3],
+    o: &TraceOptions,
+    loc: &crate::CpuLocator,
+    vector: [&str; 3],
+    fields: &[super::FieldGroup],
+    progress: &(impl Fn(usize) -> Result<()> + Sync),
+) -> Result<LineArrays> {
+    o.check()?;
+    let mesh = loc.mesh();
+    let [vx, vy, vz] = vector.map(|c| mesh.field(c));
+    let xyz = [vx?, vy?, vz?];
+    let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
+    // The line fields other than the vector's components, which the step has at hand.
+    let out: Vec<&crate::Field> =
+        names.iter().filter(|c| !vector.contains(*c)).map(|c| mesh.field(c)).collect::<Result<_>>()?;
+    // Where each line component comes from in `here` (below): the others, then the vector.
+    let mut rest = 0;
+    let source: Vec<usize> = names
+        .iter()
+        .map(|c| match vector.iter().position(|v| v == c) {
+            Some(k) => out.len() + k,
+            None => {
+                rest += 1;
+                rest - 1
+            }
+        })
+        .collect();
+    let done = std::sync::atomic::AtomicUsize::new(0);
+    // Each line with the tets of its points and the fields' values there.
+    type Sampled = (Line, Vec<i32>, Vec<f32>);
+    let lines: Vec<Option<Sampled>> = o
+        .jobs(seeds.len())
+        .par_iter()
+        .with_min_len(16)
+        .map(|&(seed, backward)| {
+            let mut p = Particle::new(seed, seeds[seed as usize], backward);
+            let (mut hint, mut ids, mut values) = (None, Vec::new(), Vec::new());
+            // The other fields' values, then the vector's, at the last lookup.
+            let mut here = vec![0f32; out.len() + 3];
+            while let Some(q) = p.query() {
+                let found = loc.locate_from(q, &mut hint);
+                let at = found.map(|(t, b)| (t as usize, b));
+                let (rest, v) = here.split_at_mut(out.len());
+                mesh.values_at(&xyz, at, v);
+                let before = p.n_points();
+                p.answer(found.map(|_| [v[0], v[1], v[2]]), o);
+                // A point recorded by this answer is the point just looked up.
+                if let (true, Some((t, _))) = (p.n_points() > before, found) {
+                    mesh.values_at(&out, at, rest);
+                    ids.push(t as i32);
+                    values.extend(source.iter().map(|&s| here[s]));
+                }
+            }
+            progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1)?;
+            Ok(p.finish().map(|l| (l, ids, values)))
+        })
+        .collect::<Result<_>>()?;
+    let (mut all, mut ids, mut values) = (Vec::new(), Vec::new(), Vec::new());
+    for (l, i, v) in lines.into_iter().flatten() {
+        all.push(l);
+        ids.extend(i);
+        values.extend(v);
+    }
+    Ok(LineArrays::with_values(&all, fields, ids, values))
+}
+
 /// The lines of [`trace`] through `loc`: by the backend's own tracer where it has one for
 /// these options (soft-bvh with RK4: every particle run to its end in one GPU kernel,
 /// [`BatchLocator::trace_lines`]), else by [`trace_batch`].
@@ -323,14 +395,33 @@ impl LineArrays {
             })
             .collect();
         let fields = super::probe::probe(loc, &points, fields, |_| Ok(()))?;
-        Ok(LineArrays {
+        Ok(Self::of(lines, points, ends, fields))
+    }
+
+    /// The arrays of `lines` with the values of `fields` at their points already known
+    /// (every field's components per point, fields in order, line after line).
+    fn with_values(lines: &[Line], fields: &[super::FieldGroup], ids: Vec<i32>, values: Vec<f32>) -> LineArrays {
+        let points: Vec<Vec3> = lines.iter().flat_map(|l| l.points.iter().map(|&p| to_f32(p))).collect();
+        let ends = lines
+            .iter()
+            .scan(0, |end, l| {
+                *end += l.points.len();
+                Some(*end)
+            })
+            .collect();
+        let probed = super::probe::Probed::from_values(ids, fields, &values);
+        Self::of(lines, points, ends, probed)
+    }
+
+    fn of(lines: &[Line], points: Vec<Vec3>, ends: Vec<usize>, fields: super::probe::Probed) -> LineArrays {
+        LineArrays {
             ends,
             time: lines.iter().flat_map(|l| l.time.iter().copied()).collect(),
             reasons: lines.iter().map(|l| l.reason as i32).collect(),
             seeds: lines.iter().map(|l| l.seed as i32).collect(),
             points,
             fields,
-        })
+        }
     }
 
     /// Writes them as VTK polydata (`.vtp`): `IntegrationTime` Float64 point data,
@@ -354,17 +445,6 @@ impl LineArrays {
         ];
         write_polylines(path, &self.points, &self.ends, &point_data, &cell_data, zlib)
     }
-}
-
-/// Writes lines as vtkStreamTracer gives them (see [`LineArrays`]), `fields` sampled through `loc`.
-pub fn write_lines(
-    path: &std::path::Path,
-    lines: &[Line],
-    loc: &mut dyn BatchLocator,
-    fields: &[super::FieldGroup],
-    zlib: bool,
-) -> Result<()> {
-    LineArrays::new(lines, loc, fields)?.write(path, zlib)
 }
 
 /// The vector field `name` of `mesh`, which must have 3 components.
@@ -617,6 +697,56 @@ mod tests {
             }
             let reasons: std::collections::BTreeSet<i32> = one.iter().map(|l| l.reason as i32).collect();
             assert!(reasons.contains(&(Reason::OutOfDomain as i32)), "{integrator:?}: {reasons:?}");
+        }
+    }
+
+    /// The line arrays from the integrator's own lookups equal those of locating every line
+    /// point again: same points, tets and values (bit for bit), for every integrator, with
+    /// seeds on the mesh's vertices, edges and faces (a grid aligned with a KuhnGrid's).
+    #[test]
+    fn sampled_tracing_matches_probing_the_lines() {
+        use crate::test_support::KuhnGrid;
+        use crate::CpuLocator;
+        use std::sync::Arc;
+        let m = KuhnGrid::new(4).mesh("cube");
+        let mut fields = m.fields.clone();
+        let swirl = |p: Vec3| [-(p[1] - 0.5) + 0.1, (p[0] - 0.5) + 0.05 * p[2], 0.2 - 0.1 * p[0]];
+        for c in 0..3 {
+            let values = m.points.iter().map(|&p| swirl(p)[c]).collect();
+            fields.push(crate::Field { name: format!("v[{c}]"), location: crate::FieldLocation::Vertex, values });
+        }
+        let raw = crate::RawMesh { points: m.points.clone(), tets: m.tets.clone(), fields, ..Default::default() };
+        let m = Arc::new(crate::Mesh::new(raw, "cube+v").unwrap());
+        let vector = vector_field(&m, "v").unwrap();
+        let out = line_fields(&m, &vector);
+        assert!(out.len() >= 2);
+        let cpu = CpuLocator::new(m.clone());
+        let mut seeds = seeds_from_spec("grid:0,1,0,1,0,1,9,9,9").unwrap().unwrap();
+        seeds.push([3.0, 0.5, 0.5]);
+        for integrator in [Integrator::Rk4, Integrator::Rk45, Integrator::CashKarp] {
+            let o = TraceOptions {
+                step: 0.03,
+                max_steps: 200,
+                direction: Direction::Both,
+                integrator,
+                ..Default::default()
+            };
+            let xyz = ["v[0]", "v[1]", "v[2]"];
+            let lines = trace(&seeds, &o, &cpu.vector_field(xyz).unwrap(), &|_| Ok(())).unwrap();
+            let mut again = crate::locate::FiniteOnly::new(CpuLocator::new(m.clone()));
+            let want = LineArrays::new(&lines, &mut again, &out).unwrap();
+            let got = trace_sampled(&seeds, &o, &cpu, xyz, &out, &|_| Ok(())).unwrap();
+            assert!(want.points.len() > 1000, "{}", want.points.len());
+            assert_eq!((&got.points, &got.ends, &got.time), (&want.points, &want.ends, &want.time));
+            assert_eq!((&got.reasons, &got.seeds), (&want.reasons, &want.seeds));
+            assert_eq!(got.fields.ids, want.fields.ids, "{integrator:?}");
+            let bits = |p: &super::super::probe::Probed| {
+                p.arrays
+                    .iter()
+                    .map(|(g, v)| (g.name.clone(), v.iter().map(|x| x.to_bits()).collect::<Vec<_>>()))
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&got.fields), bits(&want.fields), "{integrator:?}");
         }
     }
 

@@ -177,6 +177,11 @@ impl Particle {
         }
     }
 
+    /// Points recorded so far (the seed, then each step's end).
+    pub fn n_points(&self) -> usize {
+        self.points.len()
+    }
+
     pub fn is_done(&self) -> bool {
         matches!(self.state, State::Done(_))
     }

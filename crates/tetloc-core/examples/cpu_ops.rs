@@ -1,0 +1,92 @@
+//! The CPU paths of resample, probe and trace on one mesh, timed (wall and process CPU
+//! seconds), for profiling without Python: `cargo run --release -p tetloc-core --example
+//! cpu_ops -- MESH.vtu [PROBE_MESH.vtu] [DIMS] [SEEDS] [STEPS]`.
+
+use std::path::Path;
+use std::sync::Arc;
+use std::time::Instant;
+use tetloc_core::ops::{fields, probe, resample, trace, ImageGrid};
+use tetloc_core::{io, CpuLocator, Vec3};
+
+/// User + system seconds of this process (all threads), from /proc/self/stat.
+fn cpu_seconds() -> f64 {
+    let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
+    let after = stat.rsplit_once(')').map_or("", |(_, s)| s);
+    let f: Vec<f64> = after.split_whitespace().map(|x| x.parse().unwrap_or(0.0)).collect();
+    // Fields 14 and 15 (utime, stime) are the 12th and 13th after the name; 100 ticks a second.
+    (f.get(11).copied().unwrap_or(0.0) + f.get(12).copied().unwrap_or(0.0)) / 100.0
+}
+
+fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
+    let (t, c) = (Instant::now(), cpu_seconds());
+    let out = f();
+    eprintln!("{what}: {:.3} s wall, {:.2} s CPU", t.elapsed().as_secs_f64(), cpu_seconds() - c);
+    out
+}
+
+fn main() -> tetloc_core::Result<()> {
+    let args: Vec<String> = std::env::args().collect();
+    let mesh = Arc::new(io::read_mesh(Path::new(&args[1]), None)?);
+    let dims: usize = args.get(3).map_or(256, |s| s.parse().unwrap());
+    let n_seeds: usize = args.get(4).map_or(10_000, |s| s.parse().unwrap());
+    let steps: usize = args.get(5).map_or(1000, |s| s.parse().unwrap());
+    let only = std::env::var("OPS").unwrap_or_else(|_| "rpt".into());
+    eprintln!("{} tets; f64 points: {}", mesh.tets.len(), mesh.points64.is_some());
+    if std::env::var("BUILD_PARTS").is_ok() {
+        let m = io::read_mesh(Path::new(&args[1]), None)?;
+        timed("  face neighbours", || m.neighbors().len());
+        timed("  BVH", || {
+            tetloc_core::bvh::Bvh::build(&m.points, &m.tets, tetloc_core::bvh::BuildPreset::Fast).nodes.len()
+        });
+    }
+    let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
+    let groups = fields::groups(&mesh);
+    if only.contains('r') {
+        let (lo, hi) = mesh.file_bounds();
+        let grid = ImageGrid::over_bounds(lo, hi, [dims; 3])?;
+        let mut valid = 0usize;
+        timed(&format!("resample {dims}^3, every field"), || {
+            resample::resample(&mut loc, &grid, &groups, 1 << 20, |ids, _| {
+                valid += ids.iter().filter(|&&i| i >= 0).count();
+                Ok(())
+            })
+        })?;
+        eprintln!("  {valid} inside");
+    }
+    if let (true, Some(p)) = (only.contains('p'), args.get(2)) {
+        let target = io::read_mesh(Path::new(p), None)?;
+        let probed = timed(&format!("probe {} points", target.points.len()), || {
+            probe::probe(&mut loc, &target.points, &groups, |_| Ok(()))
+        })?;
+        eprintln!("  {} inside", probed.n_valid());
+    }
+    if only.contains('t') {
+        // Seeds at the centres of pseudo-random tets (a fixed LCG, as reproducible as the bench's).
+        let mut s = 1u64;
+        let seeds: Vec<Vec3> = (0..n_seeds)
+            .map(|_| {
+                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                mesh.tet_center(((s >> 33) as usize) % mesh.tets.len())
+            })
+            .collect();
+        let vector = trace::vector_field(&mesh, "v")?;
+        let out = trace::line_fields(&mesh, &vector);
+        let o = trace::TraceOptions {
+            step: 0.1 * mesh.info.mean_edge_length as f64,
+            max_steps: steps,
+            ..Default::default()
+        };
+        let xyz = ["v[0]", "v[1]", "v[2]"];
+        let arrays = timed("trace (lookups reused for the line fields)", || {
+            trace::trace_sampled(&seeds, &o, &loc, xyz, &out, &|_| Ok(()))
+        })?;
+        eprintln!("  {} lines, {} steps", arrays.ends.len(), arrays.points.len() - arrays.ends.len());
+        if std::env::var("OLD_TRACE").is_ok() {
+            let field = loc.vector_field(xyz)?;
+            let lines = timed("trace (old: integrate)", || trace::trace(&seeds, &o, &field, &|_| Ok(())))?;
+            let mut again = tetloc_core::locate::FiniteOnly::new(CpuLocator::new(mesh.clone()));
+            timed("  line arrays by probing again", || trace::LineArrays::new(&lines, &mut again, &out))?;
+        }
+    }
+    Ok(())
+}
