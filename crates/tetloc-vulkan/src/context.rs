@@ -228,6 +228,20 @@ fn enumerate(instance: &ash::Instance) -> VkResult<Vec<(vk::PhysicalDevice, Prob
 
 /// Lists the Vulkan devices this machine exposes. A missing loader is an error; a loader
 /// without devices gives an empty list.
+/// The unit tests' context: validating, on the default device; `None` (after printing
+/// SKIPPED) where this machine has no Vulkan, except in CI, where that fails the test.
+#[cfg(test)]
+pub(crate) fn test_context(test: &str) -> Option<Arc<Context>> {
+    match Context::with_options(ContextOptions { device_index: None, validation: true }) {
+        Ok(c) => Some(c),
+        Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) if !tetloc_testdata::in_ci() => {
+            eprintln!("SKIPPED {test}: {e}");
+            None
+        }
+        Err(e) => panic!("{test}: {e}"),
+    }
+}
+
 pub fn devices() -> VkResult<Vec<DeviceInfo>> {
     let entry = load_entry()?;
     let (instance, _) = create_instance(&entry, false)?;

@@ -110,7 +110,10 @@ impl VolumeMarcher {
                 scene.step
             ));
         }
-        let res = loc.resources(&scene.field)?;
+        let mut res = loc.resources(&scene.field)?;
+        // A march program that walks between samples, on a structure without the neighbour
+        // table (soft-bvh without its walk start), brings its own.
+        let neighbors = res.bind_own_neighbors("march tet neighbours")?;
         let dev = res.dev;
         let ctx = dev.ctx().clone();
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
@@ -155,17 +158,6 @@ impl VolumeMarcher {
 
         // One descriptor set: the locator's resources, then the march's own.
         let mut bindings = res.bindings;
-        // A march program that walks between samples, on a structure without the neighbour
-        // table (soft-bvh without its walk start), brings its own (one buffer).
-        let neighbors = if res.plan.march_needs_neighbors {
-            let nb = bytemuck::cast_slice(res.mesh.neighbors());
-            let buf = dev.upload("march tet neighbours", MemKind::Structure, storage, nb)?;
-            bindings.retain(|b| b.slot != B_NEIGHBORS);
-            bindings.push(Binding::buffer(B_NEIGHBORS, &buf));
-            Some(buf)
-        } else {
-            None
-        };
         let unbound = dev.unbound();
         bindings.extend([
             Binding::buffer(B_MARCH, &params_buf),

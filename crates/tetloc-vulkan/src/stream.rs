@@ -131,8 +131,9 @@ impl Stream {
         };
         let n = fields[0].values.len();
         let interleaved: Vec<f32> = (0..n).flat_map(|i| fields.map(|f| f.values[i])).collect();
-        let res = loc.resources_for(output, false);
+        let mut res = loc.resources_for(output, false);
         let Some(program) = res.plan.stream else { return Ok(None) };
+        let neighbors = res.bind_own_neighbors("stream tet neighbours")?;
         let dev = res.dev;
         if (interleaved.len() * 4) as u64 > dev.device_max_buffer() {
             return Ok(None); // the batch path reads the components one buffer each
@@ -151,15 +152,6 @@ impl Stream {
         let lines =
             dev.create_buffer(BufferDesc::io(MemKind::Query, (group * seg * 16) as u64), "stream lines", None)?;
         let mut bindings = res.bindings;
-        let neighbors = if res.plan.march_needs_neighbors {
-            let nb = bytemuck::cast_slice(res.mesh.neighbors());
-            let buf = dev.upload("stream tet neighbours", MemKind::Structure, storage, nb)?;
-            bindings.retain(|b| b.slot != B_NEIGHBORS);
-            bindings.push(Binding::buffer(B_NEIGHBORS, &buf));
-            Some(buf)
-        } else {
-            None
-        };
         bindings.extend([
             Binding::buffer(B_STREAM, &params_buf),
             Binding::buffer(B_STREAM_VECTOR, &vector_buf),
@@ -375,24 +367,13 @@ fn reason(code: i32) -> VkResult<Reason> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::context::{Context, ContextOptions};
+    use crate::context::test_context;
     use crate::{Kernel, LocatorOptions};
     use std::sync::Arc;
     use tetloc_core::gen::{self, Shape};
     use tetloc_core::mesh::{Mesh, RawMesh};
     use tetloc_core::ops::trace::{self, Direction};
     use tetloc_core::{BatchLocator, CpuLocator};
-
-    fn context(test: &str) -> Option<Arc<Context>> {
-        match Context::with_options(ContextOptions { device_index: None, validation: true }) {
-            Ok(c) => Some(c),
-            Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) if !tetloc_testdata::in_ci() => {
-                eprintln!("SKIPPED {test}: {e}");
-                None
-            }
-            Err(e) => panic!("{test}: {e}"),
-        }
-    }
 
     /// A torus with the tokamak flow of `gen --vector`, and seeds: tet centres, one outside,
     /// one NaN.
@@ -439,7 +420,7 @@ mod tests {
     #[test]
     fn gpu_lines_are_the_cpu_lines() {
         const TEST: &str = "gpu_lines_are_the_cpu_lines";
-        let Some(ctx) = context(TEST) else { return };
+        let Some(ctx) = test_context(TEST) else { return };
         let (m, seeds) = fusion();
         let cpu = CpuLocator::new(m.clone());
         let mut gpu = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, LocatorOptions::default()).unwrap();
@@ -485,7 +466,7 @@ mod tests {
     #[test]
     fn segments_and_hints_change_nothing() {
         const TEST: &str = "segments_and_hints_change_nothing";
-        let Some(ctx) = context(TEST) else { return };
+        let Some(ctx) = test_context(TEST) else { return };
         let (m, seeds) = fusion();
         let mut gpu = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, LocatorOptions::default()).unwrap();
         let (o, _) = options(&m).remove(0);
@@ -515,7 +496,7 @@ mod tests {
     #[test]
     fn others_decline() {
         const TEST: &str = "others_decline";
-        let Some(ctx) = context(TEST) else { return };
+        let Some(ctx) = test_context(TEST) else { return };
         let (m, seeds) = fusion();
         let (mut o, _) = options(&m).remove(0);
         o.integrator = Integrator::Rk45;

@@ -5,7 +5,7 @@
 //! passes `WideBvh::validate` on its own; and locators built both ways answer alike.
 
 use super::*;
-use crate::context::{Context, ContextOptions};
+use crate::context::{test_context, Context};
 use crate::locator::LocatorOptions;
 use crate::Kernel;
 use crate::VulkanLocator;
@@ -15,17 +15,6 @@ use tetloc_core::gen::{self, CellKind, Shape};
 use tetloc_core::geom::{self, Vec3};
 use tetloc_core::mesh::{Mesh, RawMesh};
 use tetloc_core::BatchLocator;
-
-fn context(test: &str) -> Option<Arc<Context>> {
-    match Context::with_options(ContextOptions { device_index: None, validation: true }) {
-        Ok(c) => Some(c),
-        Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) if !tetloc_testdata::in_ci() => {
-            eprintln!("SKIPPED {test}: {e}");
-            None
-        }
-        Err(e) => panic!("{test}: {e}"),
-    }
-}
 
 fn meshes() -> Vec<Mesh> {
     let spec = gen::Spec { shape: Shape::Fusion, cells: CellKind::Hybrid };
@@ -95,7 +84,7 @@ fn gpu_build(
 /// Every mesh, both leaf sizes, with and without walk starts: the CPU's structure, bit for bit.
 #[test]
 fn gpu_build_is_the_cpu_build() {
-    let Some(ctx) = context("gpu_build_is_the_cpu_build") else { return };
+    let Some(ctx) = test_context("gpu_build_is_the_cpu_build") else { return };
     for mesh in meshes() {
         let mesh = Arc::new(mesh);
         for (max_leaf, walk) in [(1, true), (4, true), (4, false)] {
@@ -163,7 +152,7 @@ fn assert_builds_like_cpu(
 /// build split, host batches in small chunks) answers as the CPU-built one with whole buffers.
 #[test]
 fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
-    let Some(ctx) = context("streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers") else {
+    let Some(ctx) = test_context("streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers") else {
         return;
     };
     let meshes = [
@@ -223,7 +212,7 @@ fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
 /// tet centres and every vertex (points on faces and edges included).
 #[test]
 fn gpu_built_locator_answers_like_cpu_built() {
-    let Some(ctx) = context("gpu_built_locator_answers_like_cpu_built") else { return };
+    let Some(ctx) = test_context("gpu_built_locator_answers_like_cpu_built") else { return };
     let mesh = Arc::new(Mesh::new(gen::generate(Shape::Agulhas, 15_000, 2), "agulhas").unwrap());
     let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
     let mut rng = 12345u64;

@@ -210,6 +210,22 @@ pub(crate) struct Resources<'a> {
     pub f64: bool,
 }
 
+impl Resources<'_> {
+    /// Shaders that walk from tet to tet (the marcher, the tracer) on a plan whose bindings
+    /// lack the neighbour table (soft-bvh without its walk start) bind one of their own (one
+    /// buffer, named `name`); the buffer must live as long as the bindings are used.
+    pub fn bind_own_neighbors(&mut self, name: &str) -> VkResult<Option<Buffer>> {
+        if !self.plan.march_needs_neighbors {
+            return Ok(None);
+        }
+        let nb = bytemuck::cast_slice(self.mesh.neighbors());
+        let buf = self.dev.upload(name, MemKind::Structure, vk::BufferUsageFlags::STORAGE_BUFFER, nb)?;
+        self.bindings.retain(|b| b.slot != B_NEIGHBORS);
+        self.bindings.push(Binding::buffer(B_NEIGHBORS, &buf));
+        Ok(Some(buf))
+    }
+}
+
 impl VulkanLocator {
     /// Uploads the mesh and builds `kernel`'s search structure on `ctx`'s device.
     pub fn new(ctx: Arc<Context>, mesh: Arc<Mesh>, kernel: Kernel, opts: LocatorOptions) -> VkResult<VulkanLocator> {
