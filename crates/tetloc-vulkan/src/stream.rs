@@ -17,6 +17,7 @@ use crate::locator::VulkanLocator;
 use crate::memory::{Buffer, BufferDesc, MemKind, Recording};
 use crate::pipeline::{Binding, Descriptors, Pipeline};
 use ash::vk;
+use rayon::prelude::*;
 use std::time::Instant;
 use tetloc_core::geom::Vec3;
 use tetloc_core::mesh::FieldLocation;
@@ -265,12 +266,15 @@ impl VulkanLocator {
                 dev.download(&s.particles, 0, bytemuck::cast_slice_mut(&mut state))?;
                 let last = state.iter().rposition(|p| p.counts[0] > 0).map_or(0, |j| j + 1);
                 dev.download(&s.lines, 0, bytemuck::cast_slice_mut(&mut written[..last * seg]))?;
-                for (j, p) in state[..last].iter().enumerate() {
-                    for w in &written[j * seg..j * seg + p.counts[0] as usize] {
-                        points[j].push(frame.to_file([w.0[0], w.0[1], w.0[2]]));
-                        times[j].push(w.0[3] as f64);
-                    }
-                }
+                // Each particle's new points onto its line, on every core.
+                let segments = written[..last * seg].par_chunks(seg);
+                (points.par_iter_mut().zip(times.par_iter_mut()).zip(&state[..last]).zip(segments)).for_each(
+                    |(((points, times), p), w)| {
+                        let w = &w[..p.counts[0] as usize];
+                        points.extend(w.iter().map(|w| frame.to_file([w.0[0], w.0[1], w.0[2]])));
+                        times.extend(w.iter().map(|w| w.0[3] as f64));
+                    },
+                );
                 let live = state.iter().filter(|p| p.state[2] == STREAM_LIVE).count();
                 progress(done + n - live)?;
                 if live == 0 {
