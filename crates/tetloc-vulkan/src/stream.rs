@@ -130,15 +130,15 @@ impl Stream {
             FieldLocation::Vertex => OUT_VERTEX,
             FieldLocation::Cell => OUT_CELL,
         };
-        let n = fields[0].values.len();
-        let interleaved: Vec<f32> = (0..n).flat_map(|i| fields.map(|f| f.values[i])).collect();
         let mut res = loc.resources_for(output, false);
         let Some(program) = res.plan.stream else { return Ok(None) };
-        let neighbors = res.bind_own_neighbors("stream tet neighbours")?;
-        let dev = res.dev;
-        if (interleaved.len() * 4) as u64 > dev.device_max_buffer() {
+        let n = fields[0].values.len();
+        if (12 * n) as u64 > res.dev.device_max_buffer() {
             return Ok(None); // the batch path reads the components one buffer each
         }
+        let interleaved: Vec<f32> = (0..n).flat_map(|i| fields.map(|f| f.values[i])).collect();
+        let neighbors = res.bind_own_neighbors("stream tet neighbours")?;
+        let dev = res.dev;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let vector_buf =
             dev.upload("stream vector field", MemKind::Mesh, storage, bytemuck::cast_slice(&interleaved))?;

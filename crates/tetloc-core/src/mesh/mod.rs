@@ -325,22 +325,10 @@ impl Mesh {
         }
     }
 
-    /// [`Self::value_at`] of each of `fields` into `out`, the tet's vertex ids read once for
-    /// all of them (the same values, bit for bit).
+    /// [`Self::value_at`] of each of `fields` into `out`.
     #[inline]
     pub fn values_at(&self, fields: &[&Field], found: Option<(usize, geom::Bary)>, out: &mut [f32]) {
-        match found {
-            Some((t, b)) if self.tet_nodes.is_none() => {
-                let ids = self.tets[t];
-                for (o, f) in out.iter_mut().zip(fields) {
-                    *o = match f.location {
-                        FieldLocation::Vertex => geom::interpolate(ids, b, &f.values),
-                        FieldLocation::Cell => f.values[self.cell_of_tet(t)],
-                    };
-                }
-            }
-            _ => out.iter_mut().zip(fields).for_each(|(o, f)| *o = self.value_at(f, found)),
-        }
+        out.iter_mut().zip(fields).for_each(|(o, f)| *o = self.value_at(f, found));
     }
 
     /// Unique faces with their front and back tets, computed on first use (a parallel sort

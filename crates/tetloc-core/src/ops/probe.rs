@@ -13,6 +13,7 @@ use crate::mesh::Mesh;
 use std::path::Path;
 
 /// The source's fields at the target's points.
+#[derive(Default)]
 pub struct Probed {
     /// The containing source tet of each point (-1: no value).
     pub ids: Vec<i32>,

@@ -386,22 +386,19 @@ pub struct LineArrays {
 impl LineArrays {
     /// The arrays of `lines`, with `fields` sampled through `loc`.
     pub fn new(lines: &[Line], loc: &mut dyn BatchLocator, fields: &[super::FieldGroup]) -> Result<LineArrays> {
-        let points: Vec<Vec3> = lines.iter().flat_map(|l| l.points.iter().map(|&p| to_f32(p))).collect();
-        let ends = lines
-            .iter()
-            .scan(0, |end, l| {
-                *end += l.points.len();
-                Some(*end)
-            })
-            .collect();
-        let fields = super::probe::probe(loc, &points, fields, |_| Ok(()))?;
-        Ok(Self::of(lines, points, ends, fields))
+        let mut arrays = Self::of(lines, super::probe::Probed::default());
+        arrays.fields = super::probe::probe(loc, &arrays.points, fields, |_| Ok(()))?;
+        Ok(arrays)
     }
 
     /// The arrays of `lines` with the values of `fields` at their points already known
     /// (every field's components per point, fields in order, line after line).
     fn with_values(lines: &[Line], fields: &[super::FieldGroup], ids: Vec<i32>, values: Vec<f32>) -> LineArrays {
-        let points: Vec<Vec3> = lines.iter().flat_map(|l| l.points.iter().map(|&p| to_f32(p))).collect();
+        Self::of(lines, super::probe::Probed::from_values(ids, fields, &values))
+    }
+
+    /// The arrays of `lines` (points as float32, line after line) with `fields`.
+    fn of(lines: &[Line], fields: super::probe::Probed) -> LineArrays {
         let ends = lines
             .iter()
             .scan(0, |end, l| {
@@ -409,17 +406,12 @@ impl LineArrays {
                 Some(*end)
             })
             .collect();
-        let probed = super::probe::Probed::from_values(ids, fields, &values);
-        Self::of(lines, points, ends, probed)
-    }
-
-    fn of(lines: &[Line], points: Vec<Vec3>, ends: Vec<usize>, fields: super::probe::Probed) -> LineArrays {
         LineArrays {
+            points: lines.iter().flat_map(|l| l.points.iter().map(|&p| to_f32(p))).collect(),
             ends,
             time: lines.iter().flat_map(|l| l.time.iter().copied()).collect(),
             reasons: lines.iter().map(|l| l.reason as i32).collect(),
             seeds: lines.iter().map(|l| l.seed as i32).collect(),
-            points,
             fields,
         }
     }
@@ -650,14 +642,9 @@ mod tests {
         }
     }
 
-    /// The step-synchronous batch driver gives the per-particle driver's lines (both on the
-    /// CPU locator: the same tets, the same f64 arithmetic), for every integrator.
-    #[test]
-    fn batch_tracing_matches_particle_tracing() {
-        use crate::test_support::KuhnGrid;
-        use crate::CpuLocator;
-        use std::sync::Arc;
-        let m = KuhnGrid::new(6).mesh("cube");
+    /// A unit cube of n³ Kuhn cubes with its field `f` and a swirling vector field `v`.
+    fn swirl_cube(n: usize) -> std::sync::Arc<crate::Mesh> {
+        let m = crate::test_support::KuhnGrid::new(n).mesh("cube");
         let mut fields = m.fields.clone();
         let swirl = |p: Vec3| [-(p[1] - 0.5) + 0.1, (p[0] - 0.5) + 0.05 * p[2], 0.2 - 0.1 * p[0]];
         for c in 0..3 {
@@ -665,7 +652,15 @@ mod tests {
             fields.push(crate::Field { name: format!("v[{c}]"), location: crate::FieldLocation::Vertex, values });
         }
         let raw = crate::RawMesh { points: m.points.clone(), tets: m.tets.clone(), fields, ..Default::default() };
-        let m = Arc::new(crate::Mesh::new(raw, "cube+v").unwrap());
+        std::sync::Arc::new(crate::Mesh::new(raw, "cube+v").unwrap())
+    }
+
+    /// The step-synchronous batch driver gives the per-particle driver's lines (both on the
+    /// CPU locator: the same tets, the same f64 arithmetic), for every integrator.
+    #[test]
+    fn batch_tracing_matches_particle_tracing() {
+        use crate::CpuLocator;
+        let m = swirl_cube(6);
         let mut cpu = CpuLocator::new(m.clone());
         let seeds = seeds_from_spec("grid:0.1,0.9,0.1,0.9,0.2,0.8,3,3,2").unwrap().unwrap();
         let mut outside = seeds.clone();
@@ -705,18 +700,8 @@ mod tests {
     /// seeds on the mesh's vertices, edges and faces (a grid aligned with a KuhnGrid's).
     #[test]
     fn sampled_tracing_matches_probing_the_lines() {
-        use crate::test_support::KuhnGrid;
         use crate::CpuLocator;
-        use std::sync::Arc;
-        let m = KuhnGrid::new(4).mesh("cube");
-        let mut fields = m.fields.clone();
-        let swirl = |p: Vec3| [-(p[1] - 0.5) + 0.1, (p[0] - 0.5) + 0.05 * p[2], 0.2 - 0.1 * p[0]];
-        for c in 0..3 {
-            let values = m.points.iter().map(|&p| swirl(p)[c]).collect();
-            fields.push(crate::Field { name: format!("v[{c}]"), location: crate::FieldLocation::Vertex, values });
-        }
-        let raw = crate::RawMesh { points: m.points.clone(), tets: m.tets.clone(), fields, ..Default::default() };
-        let m = Arc::new(crate::Mesh::new(raw, "cube+v").unwrap());
+        let m = swirl_cube(4);
         let vector = vector_field(&m, "v").unwrap();
         let out = line_fields(&m, &vector);
         assert!(out.len() >= 2);
