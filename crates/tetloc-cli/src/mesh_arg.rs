@@ -55,7 +55,7 @@ pub fn input_files(arg: &OsStr, format: Option<&str>) -> Vec<PathBuf> {
 }
 
 /// [`load`], with the closed-form vector field `v` of `gen --vector` added to a generated mesh
-/// (`bench --trace`).
+/// (`bench --trace`, `trace`).
 pub fn load_with_flow(arg: &OsStr, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
     let Some((spec, n)) = parse_generated(arg) else { return load(arg, format, seed) };
     let mut m = generate(spec, n, seed)?;

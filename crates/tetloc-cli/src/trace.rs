@@ -4,7 +4,8 @@
 //! with RK4 one GPU kernel runs every particle to its end, each lookup walking from the
 //! particle's last tet; on the other GPU backends (and the adaptive integrators) all particles
 //! advance together, one batched lookup per Runge–Kutta stage. The fields at the line points
-//! are sampled on the same backend.
+//! are sampled on the same backend. Lines are traced and written in batches of seeds, so
+//! memory stays bounded whatever the number of seeds.
 
 use crate::{backend, mesh_arg, progress, Common};
 use anyhow::{Context, Result};
@@ -13,12 +14,14 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points;
+use tetloc_core::io::vtk::write::PolylineWriter;
 use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
 use tetloc_core::CpuLocator;
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
-    /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M).
+    /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M)
+    /// with its closed-form flow `v` (as `tetloc gen --vector`).
     mesh: OsString,
     /// The vector field to follow: a 3-component array of the mesh (point or cell data).
     #[arg(long)]
@@ -106,7 +109,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     o.check()?;
     let opts = a.common.opts()?;
 
-    let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
+    // Generated shapes come with their closed-form flow `v` (`gen --vector`).
+    let m = mesh_arg::load_with_flow(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
     if a.step.is_none() {
         o.step = 0.1 * m.info.mean_edge_length as f64;
         o.check()?;
@@ -117,37 +121,48 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
     let out_fields = trace::line_fields(&m, &vector);
+    // Lines go to the file batch after batch (temporary files until it is complete), so an
+    // output of any size needs the memory of one batch.
+    let mut writer = PolylineWriter::new(&a.out)?;
+    let batches = o.batches(seeds.len(), trace::BATCH_POINTS);
+    let mut secs = 0.0;
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
-    let (arrays, secs) = if name == "cpu" && m.cells.is_none() {
+    if name == "cpu" && m.cells.is_none() {
         let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
-        let t0 = Instant::now();
-        // The line fields come from the integrator's own lookups (no second pass).
-        let arrays = trace::trace_sampled(&seeds, &o, &cpu, [x, y, z], &out_fields, &|d| {
-            pb.set_position(d as u64);
-            Ok(())
-        })?;
+        let mut base = 0;
+        for (ob, seeds_in) in batches {
+            let t0 = Instant::now();
+            // The line fields come from the integrator's own lookups (no second pass).
+            let arrays = trace::trace_sampled(&seeds[seeds_in.clone()], &ob, &cpu, [x, y, z], &out_fields, &|d| {
+                pb.set_position((base + d) as u64);
+                Ok(())
+            })?;
+            secs += t0.elapsed().as_secs_f64();
+            arrays.push_to(&mut writer, seeds_in.start)?;
+            base += seeds_in.len();
+        }
         pb.finish_and_clear();
-        (arrays, t0.elapsed().as_secs_f64())
     } else {
         let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
         let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
-        let t0 = Instant::now();
-        let lines = trace::trace_with(&seeds, &o, loc.as_mut(), [x, y, z], |d| {
-            pb.set_position(d as u64);
-            Ok(())
-        })?;
+        let mut base = 0;
+        for (ob, seeds_in) in batches {
+            let t0 = Instant::now();
+            let lines = trace::trace_with(&seeds[seeds_in.clone()], &ob, loc.as_mut(), [x, y, z], |d| {
+                pb.set_position((base + d) as u64);
+                Ok(())
+            })?;
+            secs += t0.elapsed().as_secs_f64();
+            // The fields at the line points, sampled on the same backend.
+            trace::LineArrays::new(&lines, loc.as_mut(), &out_fields)?.push_to(&mut writer, seeds_in.start)?;
+            base += seeds_in.len();
+        }
         pb.finish_and_clear();
-        let secs = t0.elapsed().as_secs_f64();
-        let arrays = progress::with_spinner("sampling the fields along the lines", || {
-            trace::LineArrays::new(&lines, loc.as_mut(), &out_fields)
-        })?;
-        (arrays, secs)
-    };
-    let n_points = arrays.points.len();
-    let n_made = arrays.ends.len();
-    progress::with_spinner(format!("writing {}", a.out.display()), || arrays.write(&a.out, a.zlib))?;
+    }
+    let (n_points, n_made) = (writer.n_points(), writer.n_lines());
+    progress::with_spinner(format!("writing {}", a.out.display()), || writer.finish(a.zlib))?;
     let without = n_lines - n_made;
     if without > 0 {
         eprintln!(

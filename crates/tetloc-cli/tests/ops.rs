@@ -189,6 +189,43 @@ fn bad_inputs_are_refused() {
     assert!(!vtu.exists());
 }
 
+/// A trace written in batches (a huge --max-steps makes batches of 1024 lines) is the file
+/// one batch makes, byte for byte, when the lines stop by length before either step limit.
+#[test]
+fn trace_in_batches_is_one_file() {
+    let dir = tmp_dir("trace-batches");
+    let run = |max_steps: &str, out: &Path| {
+        let (ok, _, err) = tetloc(&[
+            "trace",
+            "jets:3000",
+            "--vector",
+            "v",
+            "--seeds",
+            "grid:0.1,0.9,0.1,0.9,0.1,0.9,13,13,13",
+            "--direction",
+            "both",
+            "--step",
+            "0.004",
+            "--max-length",
+            "0.02",
+            "--max-steps",
+            max_steps,
+            "--backend",
+            "cpu",
+            "-o",
+            s(out),
+        ]);
+        assert!(ok, "{err}");
+        std::fs::read(out).unwrap()
+    };
+    let (one, batched) = (dir.join("one.vtp"), dir.join("batched.vtp"));
+    let bytes = run("100", &one);
+    // Every seed is inside: 13³ lines each way, so the huge limit made 6 batches.
+    let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]).into_owned();
+    assert!(head.contains(&format!("NumberOfLines=\"{}\"", 2 * 13 * 13 * 13)), "{head}");
+    assert_eq!(bytes, run("100000000", &batched));
+}
+
 /// The swirl on the torus (v = (-y + 0.2x, x + 0.2y, 0.3), so lines spiral outwards and
 /// leave through the boundary) as a mesh file, and five seeds (the last, the origin, outside).
 fn swirl_case(data: &Path, dir: &Path) -> (PathBuf, PathBuf) {

@@ -88,7 +88,7 @@ pub fn write_atomically<E: From<Error>>(
 }
 
 /// The directory a file is in (`.` for a bare file name).
-fn parent_dir(path: &Path) -> &Path {
+pub(crate) fn parent_dir(path: &Path) -> &Path {
     match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),

@@ -99,6 +99,27 @@ impl<'a> NamedArray<'a> {
         Ok(())
     }
 
+    fn num_type(&self) -> NumType {
+        match self.data {
+            ArrayData::F32(_) => NumType::F32,
+            ArrayData::F64(_) => NumType::F64,
+            ArrayData::I32(_) => NumType::I32,
+            ArrayData::I64(_) => NumType::I64,
+            ArrayData::U8(_) => NumType::U8,
+        }
+    }
+
+    /// The values as native-endian bytes.
+    fn bytes(&self) -> &[u8] {
+        match self.data {
+            ArrayData::F32(v) => bytemuck::cast_slice(v),
+            ArrayData::F64(v) => bytemuck::cast_slice(v),
+            ArrayData::I32(v) => bytemuck::cast_slice(v),
+            ArrayData::I64(v) => bytemuck::cast_slice(v),
+            ArrayData::U8(v) => v,
+        }
+    }
+
     fn len(&self) -> usize {
         match self.data {
             ArrayData::F32(v) => v.len(),
@@ -372,34 +393,152 @@ pub fn write_point_set(path: &Path, points: &[[f32; 3]], arrays: &[NamedArray], 
     grid.write(path, zlib)
 }
 
-/// Writes polylines as VTK polydata (`.vtp`): line `i` is points `ends[i-1]..ends[i]`, with
-/// point data and one tuple of cell data per line (stream tracer output).
-pub fn write_polylines(
-    path: &Path,
-    points: &[[f32; 3]],
-    ends: &[usize],
-    point_data: &[NamedArray],
-    cell_data: &[NamedArray],
-    zlib: bool,
-) -> Result<()> {
-    if ends.windows(2).any(|w| w[0] > w[1]) || ends.last().is_some_and(|&e| e != points.len()) {
-        return Err(Error::Invalid(format!("{} points do not split into lines ending at {ends:?}", points.len())));
+/// Polylines written as they are made, so that an output of any size needs memory for one
+/// batch only: each batch's points and arrays are appended to temporary files in the output's
+/// directory (only the line ends stay in memory, 8 B a line), and [`PolylineWriter::finish`]
+/// writes the `.vtp`, header first, atomically (complete or absent; the temporary files go
+/// with the writer). Every batch has the same arrays; lines are numbered across batches.
+pub struct PolylineWriter {
+    path: std::path::PathBuf,
+    points: std::io::BufWriter<std::fs::File>,
+    ends: Vec<usize>,
+    point_data: Vec<Spilled>,
+    cell_data: Vec<Spilled>,
+}
+
+/// One array of a [`PolylineWriter`], in its temporary file.
+struct Spilled {
+    name: String,
+    ty: NumType,
+    ncomp: usize,
+    n_values: usize,
+    file: std::io::BufWriter<std::fs::File>,
+}
+
+impl PolylineWriter {
+    /// A writer of `path` (nothing is written there before `finish`).
+    pub fn new(path: &Path) -> Result<PolylineWriter> {
+        let path = path.to_path_buf();
+        let points = spill_file(&path)?;
+        Ok(PolylineWriter { path, points, ends: Vec::new(), point_data: Vec::new(), cell_data: Vec::new() })
     }
-    for a in point_data {
-        a.check(points.len(), "points")?;
+
+    /// Points so far.
+    pub fn n_points(&self) -> usize {
+        self.ends.last().copied().unwrap_or(0)
     }
-    for a in cell_data {
-        a.check(ends.len(), "lines")?;
+
+    /// Lines so far.
+    pub fn n_lines(&self) -> usize {
+        self.ends.len()
     }
-    let mut grid = point_cloud(Kind::PolyLines, points);
-    let wide = grid.offsets.ty == NumType::I64;
-    grid.n_cells = ends.len();
-    grid.offsets = OutArray::new("offsets", grid.offsets.ty, 1, ends.len(), move |r, out| {
-        r.for_each(|i| push_id(out, ends[i] as u64, wide))
-    });
-    grid.point_data = point_data.iter().map(NamedArray::out).collect();
-    grid.cell_data = cell_data.iter().map(NamedArray::out).collect();
-    grid.write(path, zlib)
+
+    /// Appends lines: line `i` of the batch is its points `ends[i-1]..ends[i]`, `point_data`
+    /// has a tuple per point and `cell_data` one per line, the same arrays as every batch.
+    pub fn push(
+        &mut self,
+        points: &[[f32; 3]],
+        ends: &[usize],
+        point_data: &[NamedArray],
+        cell_data: &[NamedArray],
+    ) -> Result<()> {
+        if ends.windows(2).any(|w| w[0] > w[1]) || ends.last().copied().unwrap_or(0) != points.len() {
+            return Err(Error::Invalid(format!("{} points do not split into lines ending at {ends:?}", points.len())));
+        }
+        for a in point_data {
+            a.check(points.len(), "points")?;
+        }
+        for a in cell_data {
+            a.check(ends.len(), "lines")?;
+        }
+        let io = |e| Error::io(&self.path, e);
+        if self.ends.is_empty() && self.point_data.is_empty() && self.cell_data.is_empty() {
+            self.point_data = point_data.iter().map(|a| Spilled::new(&self.path, a)).collect::<Result<_>>()?;
+            self.cell_data = cell_data.iter().map(|a| Spilled::new(&self.path, a)).collect::<Result<_>>()?;
+        }
+        // Every array checked before any is written: a refused batch leaves the file as it was.
+        for (have, new) in [(&self.point_data, point_data), (&self.cell_data, cell_data)] {
+            if have.len() != new.len() {
+                return Err(Error::Invalid(format!("a batch of lines with {} arrays after {}", new.len(), have.len())));
+            }
+            for (s, a) in have.iter().zip(new) {
+                s.check(a).map_err(|e| Error::Invalid(format!("{}: {e}", self.path.display())))?;
+            }
+        }
+        for (have, new) in [(&mut self.point_data, point_data), (&mut self.cell_data, cell_data)] {
+            for (s, a) in have.iter_mut().zip(new) {
+                s.n_values += a.len();
+                s.file.write_all(a.bytes()).map_err(io)?;
+            }
+        }
+        self.points.write_all(bytemuck::cast_slice(points)).map_err(io)?;
+        let base = self.n_points();
+        self.ends.extend(ends.iter().map(|e| base + e));
+        Ok(())
+    }
+
+    /// Writes the file: every line pushed, with its arrays.
+    pub fn finish(self, zlib: bool) -> Result<()> {
+        let io = |e: std::io::Error| Error::io(&self.path, e);
+        let done = |w: std::io::BufWriter<std::fs::File>| w.into_inner().map_err(|e| io(e.into_error()));
+        let n = self.n_points();
+        let points = done(self.points)?;
+        let arrays = |v: Vec<Spilled>| -> Result<Vec<_>> {
+            v.into_iter().map(|s| Ok((s.name, s.ty, s.ncomp, s.n_values, done(s.file)?))).collect()
+        };
+        let (point_data, cell_data) = (arrays(self.point_data)?, arrays(self.cell_data)?);
+        fn out(v: &[(String, NumType, usize, usize, std::fs::File)]) -> Vec<OutArray<'_>> {
+            v.iter().map(|(name, ty, k, n, f)| OutArray::spilled(name, *ty, *k, *n, f)).collect()
+        }
+        let ends = &self.ends;
+        let wide = n as u64 > i32::MAX as u64;
+        let id_type = if wide { NumType::I64 } else { NumType::I32 };
+        let grid = Grid {
+            kind: Kind::PolyLines,
+            n_points: n,
+            n_cells: ends.len(),
+            point_data: out(&point_data),
+            cell_data: out(&cell_data),
+            points: OutArray::spilled("Points", NumType::F32, 3, 3 * n, &points),
+            connectivity: OutArray::new("connectivity", id_type, 1, n, move |r, out| {
+                r.for_each(|i| push_id(out, i as u64, wide))
+            }),
+            offsets: OutArray::new("offsets", id_type, 1, ends.len(), move |r, out| {
+                r.for_each(|i| push_id(out, ends[i] as u64, wide))
+            }),
+            types: None,
+        };
+        grid.write(&self.path, zlib)
+    }
+}
+
+impl Spilled {
+    fn new(path: &Path, a: &NamedArray) -> Result<Spilled> {
+        let ty = a.num_type();
+        Ok(Spilled { name: a.name.clone(), ty, ncomp: a.n_components, n_values: 0, file: spill_file(path)? })
+    }
+
+    /// An error unless `a` is this array's next batch (same name, type and components).
+    fn check(&self, a: &NamedArray) -> std::result::Result<(), String> {
+        if a.name != self.name || a.num_type() != self.ty || a.n_components != self.ncomp {
+            return Err(format!(
+                "array '{}' ({} x{}) in a batch of lines where '{}' ({} x{}) was",
+                a.name,
+                a.num_type().name(),
+                a.n_components,
+                self.name,
+                self.ty.name(),
+                self.ncomp
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// A temporary file next to `path` (removed when closed, however the process ends).
+fn spill_file(path: &Path) -> Result<std::io::BufWriter<std::fs::File>> {
+    let f = tempfile::tempfile_in(crate::io::output::parent_dir(path)).map_err(|e| Error::io(path, e))?;
+    Ok(std::io::BufWriter::with_capacity(1 << 20, f))
 }
 
 fn push_id(out: &mut Vec<u8>, v: u64, wide: bool) {
@@ -416,6 +555,14 @@ const CHUNK: usize = 1 << 16;
 /// Appends values `range` (counted in values, not tuples) as native-endian bytes.
 type Fill<'a> = Box<dyn Fn(Range<usize>, &mut Vec<u8>) + Sync + 'a>;
 
+/// Where an array's bytes come from.
+enum Source<'a> {
+    /// Made on demand.
+    Fill(Fill<'a>),
+    /// Spilled to a file (native-endian, from its start): outputs larger than memory.
+    File(&'a std::fs::File),
+}
+
 /// One data array to write. Values are produced on demand, in native byte order (the file
 /// declares the machine's byte order).
 struct OutArray<'a> {
@@ -423,7 +570,7 @@ struct OutArray<'a> {
     ty: NumType,
     ncomp: usize,
     n_values: usize,
-    fill: Fill<'a>,
+    source: Source<'a>,
 }
 
 impl<'a> OutArray<'a> {
@@ -434,7 +581,12 @@ impl<'a> OutArray<'a> {
         n_values: usize,
         fill: impl Fn(Range<usize>, &mut Vec<u8>) + Sync + 'a,
     ) -> Self {
-        OutArray { name: name.to_string(), ty, ncomp, n_values, fill: Box::new(fill) }
+        OutArray { name: name.to_string(), ty, ncomp, n_values, source: Source::Fill(Box::new(fill)) }
+    }
+
+    /// An array of `n_values` values of `ty` spilled to `file`.
+    fn spilled(name: &str, ty: NumType, ncomp: usize, n_values: usize, file: &'a std::fs::File) -> Self {
+        OutArray { name: name.to_string(), ty, ncomp, n_values, source: Source::File(file) }
     }
 
     fn floats(name: &str, ncomp: usize, v: &'a [f32]) -> Self {
@@ -448,20 +600,44 @@ impl<'a> OutArray<'a> {
     /// Values in chunks, each passed to `sink`.
     fn chunks(&self, mut sink: impl FnMut(&[u8]) -> std::io::Result<()>) -> std::io::Result<()> {
         let mut buf = Vec::with_capacity(CHUNK * 8);
-        for start in (0..self.n_values).step_by(CHUNK) {
-            buf.clear();
-            (self.fill)(start..(start + CHUNK).min(self.n_values), &mut buf);
-            sink(&buf)?;
+        let ranges = (0..self.n_values).step_by(CHUNK).map(|start| start..(start + CHUNK).min(self.n_values));
+        match &self.source {
+            Source::Fill(fill) => ranges.into_iter().try_for_each(|r| {
+                buf.clear();
+                fill(r, &mut buf);
+                sink(&buf)
+            }),
+            Source::File(f) => {
+                let mut f = rewound(f)?;
+                ranges.into_iter().try_for_each(|r| {
+                    buf.resize(r.len() * self.ty.size(), 0);
+                    std::io::Read::read_exact(&mut f, &mut buf)?;
+                    sink(&buf)
+                })
+            }
         }
-        Ok(())
     }
 
-    /// The whole block, header included, compressed.
-    fn zlib_block(&self) -> Vec<u8> {
+    /// The whole block, header included, compressed (a spilled array is read back whole).
+    fn zlib_block(&self) -> std::io::Result<Vec<u8>> {
         let mut all = Vec::with_capacity(self.n_bytes());
-        (self.fill)(0..self.n_values, &mut all);
-        blocks::zlib_block(&all, ZLIB_BLOCK)
+        match &self.source {
+            Source::Fill(fill) => fill(0..self.n_values, &mut all),
+            Source::File(f) => {
+                all.resize(self.n_bytes(), 0);
+                std::io::Read::read_exact(&mut rewound(f)?, &mut all)?;
+            }
+        }
+        Ok(blocks::zlib_block(&all, ZLIB_BLOCK))
     }
+}
+
+/// `f` read from its start.
+fn rewound(f: &std::fs::File) -> std::io::Result<&std::fs::File> {
+    use std::io::Seek;
+    let mut f = f;
+    f.seek(std::io::SeekFrom::Start(0))?;
+    Ok(f)
 }
 
 /// The dataset type of a file.
@@ -501,7 +677,10 @@ impl Grid<'_> {
         let io = |e| Error::io(path, e);
         let arrays = self.arrays();
         use rayon::prelude::*;
-        let compressed: Option<Vec<Vec<u8>>> = zlib.then(|| arrays.par_iter().map(|a| a.zlib_block()).collect());
+        let compressed: Option<Vec<Vec<u8>>> = zlib
+            .then(|| arrays.par_iter().map(|a| a.zlib_block()).collect::<std::io::Result<_>>())
+            .transpose()
+            .map_err(io)?;
         let sizes: Vec<usize> = match &compressed {
             Some(c) => c.iter().map(Vec::len).collect(),
             None => arrays.iter().map(|a| 8 + a.n_bytes()).collect(),
@@ -730,6 +909,60 @@ mod tests {
             piece.child("Verts").unwrap().children_named("DataArray").map(|d| d.attr("Name").unwrap()).collect();
         assert_eq!(verts, ["connectivity", "offsets"]);
         assert!(piece.child("Cells").is_none());
+    }
+
+    /// Lines pushed in batches make the file one push of all of them makes, byte for byte;
+    /// nothing is at the path before `finish`, nor after a writer dropped unfinished.
+    #[test]
+    fn polylines_in_batches_are_one_file() {
+        let pts: Vec<[f32; 3]> = (0..7).map(|i| [i as f32, 0.5 * i as f32, 1.0]).collect();
+        let time: Vec<f64> = (0..7).map(|i| 0.1 * i as f64).collect();
+        let vec3: Vec<f32> = (0..21).map(|i| i as f32 * 0.25).collect();
+        let (ends, reasons) = ([2usize, 3, 7], [1i32, 2, 5]);
+        let arrays = |r: Range<usize>, lines: Range<usize>| {
+            let point = vec![
+                NamedArray { name: "v".into(), n_components: 3, data: ArrayData::F32(&vec3[3 * r.start..3 * r.end]) },
+                NamedArray { name: "IntegrationTime".into(), n_components: 1, data: ArrayData::F64(&time[r]) },
+            ];
+            let cell = vec![NamedArray {
+                name: "ReasonForTermination".into(),
+                n_components: 1,
+                data: ArrayData::I32(&reasons[lines]),
+            }];
+            (point, cell)
+        };
+        for zlib in [false, true] {
+            let (one, batched) = (TempPath::new("one"), TempPath::new("batched"));
+            let mut w = PolylineWriter::new(&one.0).unwrap();
+            let (p, c) = arrays(0..7, 0..3);
+            w.push(&pts, &ends, &p, &c).unwrap();
+            w.finish(zlib).unwrap();
+            let mut w = PolylineWriter::new(&batched.0).unwrap();
+            for (r, lines, local_ends) in [(0..3, 0..2, vec![2, 3]), (3..3, 2..2, vec![]), (3..7, 2..3, vec![4])] {
+                let (p, c) = arrays(r.clone(), lines);
+                w.push(&pts[r], &local_ends, &p, &c).unwrap();
+            }
+            assert!(!batched.0.exists());
+            assert_eq!((w.n_points(), w.n_lines()), (7, 3));
+            w.finish(zlib).unwrap();
+            let bytes = std::fs::read(&one.0).unwrap();
+            assert_eq!(bytes, std::fs::read(&batched.0).unwrap(), "zlib {zlib}");
+            let doc = super::super::xml::parse(&bytes, "AppendedData").unwrap();
+            let piece = doc.root.child("PolyData").unwrap().child("Piece").unwrap();
+            assert_eq!((piece.attr("NumberOfPoints"), piece.attr("NumberOfLines")), (Some("7"), Some("3")));
+        }
+        // Arrays that change between batches, lines that do not cover the points.
+        let tmp = TempPath::new("bad-lines");
+        let mut w = PolylineWriter::new(&tmp.0).unwrap();
+        let (p, c) = arrays(0..3, 0..2);
+        w.push(&pts[..3], &[2, 3], &p, &c).unwrap();
+        let err = w.push(&pts[..3], &[2, 3], &p[..1], &c).unwrap_err().to_string();
+        assert!(err.contains("1 arrays after 2"), "{err}");
+        let err = w.push(&pts[..3], &[2, 3], &[p[1].clone(), p[0].clone()], &c).unwrap_err().to_string();
+        assert!(err.contains("'IntegrationTime'") && err.contains("bad-lines"), "{err}");
+        assert!(w.push(&pts[..3], &[2], &p, &c).is_err());
+        drop(w);
+        assert!(!tmp.0.exists());
     }
 
     #[test]

@@ -25,6 +25,7 @@ use crate::geom::Vec3;
 use crate::locate::BatchLocator;
 use crate::ops::ImageGrid;
 use rayon::prelude::*;
+use std::ops::Range;
 
 mod particle;
 pub use particle::Particle;
@@ -178,6 +179,30 @@ impl TraceOptions {
             Direction::Both => &[false, true],
         };
         dirs.iter().flat_map(|&b| (0..n_seeds as u32).map(move |s| (s, b))).collect()
+    }
+}
+
+/// Points a batch of [`TraceOptions::batches`] may hold by default: about 1.5 GB of lines,
+/// whatever the number of seeds.
+pub const BATCH_POINTS: usize = 1 << 25;
+
+impl TraceOptions {
+    /// The lines of [`Self::jobs`] in batches whose lines hold at most about `points` points
+    /// together (a line has at most `max_steps + 2`; a batch at least 1024 lines): each
+    /// batch is these options for one direction and a range of seeds, in VTK's line order.
+    pub fn batches(&self, n_seeds: usize, points: usize) -> Vec<(TraceOptions, Range<usize>)> {
+        let per = (points / self.max_steps.saturating_add(2)).max(1024);
+        let dirs = match self.direction {
+            Direction::Both => vec![Direction::Forward, Direction::Backward],
+            d => vec![d],
+        };
+        dirs.into_iter()
+            .flat_map(|direction| {
+                (0..n_seeds)
+                    .step_by(per)
+                    .map(move |s| (TraceOptions { direction, ..self.clone() }, s..(s + per).min(n_seeds)))
+            })
+            .collect()
     }
 }
 
@@ -416,10 +441,11 @@ impl LineArrays {
         }
     }
 
-    /// Writes them as VTK polydata (`.vtp`): `IntegrationTime` Float64 point data,
-    /// `ReasonForTermination` and `SeedIds` Int32 cell data.
-    pub fn write(&self, path: &std::path::Path, zlib: bool) -> Result<()> {
-        use crate::io::vtk::write::{write_polylines, ArrayData, NamedArray};
+    /// Appends them to `w`, a VTK polydata (`.vtp`) file being written: the fields and
+    /// `IntegrationTime` (Float64) as point data, `ReasonForTermination` and `SeedIds` (Int32)
+    /// as cell data, as vtkStreamTracer writes them. Seed ids are `seed_base` + the line's.
+    pub fn push_to(&self, w: &mut crate::io::vtk::write::PolylineWriter, seed_base: usize) -> Result<()> {
+        use crate::io::vtk::write::{ArrayData, NamedArray};
         let mut point_data: Vec<NamedArray> = self
             .fields
             .arrays
@@ -431,11 +457,12 @@ impl LineArrays {
             n_components: 1,
             data: ArrayData::F64(&self.time),
         });
+        let seeds: Vec<i32> = self.seeds.iter().map(|&s| (s as usize + seed_base) as i32).collect();
         let cell_data = [
             NamedArray { name: "ReasonForTermination".into(), n_components: 1, data: ArrayData::I32(&self.reasons) },
-            NamedArray { name: "SeedIds".into(), n_components: 1, data: ArrayData::I32(&self.seeds) },
+            NamedArray { name: "SeedIds".into(), n_components: 1, data: ArrayData::I32(&seeds) },
         ];
-        write_polylines(path, &self.points, &self.ends, &point_data, &cell_data, zlib)
+        w.push(&self.points, &self.ends, &point_data, &cell_data)
     }
 }
 
@@ -508,6 +535,32 @@ pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Batches go through the lines in VTK's order (every forward line, then every backward
+    /// one), each seed once a direction, at least 1024 lines a batch.
+    #[test]
+    fn batches_keep_the_line_order() {
+        for (direction, max_steps, points, n) in [
+            (Direction::Both, 10, 12 * 100, 2500),
+            (Direction::Forward, 1 << 30, 1 << 20, 3000),
+            (Direction::Backward, 1000, 1 << 25, 10),
+            (Direction::Both, 1000, 1 << 25, 0),
+        ] {
+            let o = TraceOptions { direction, max_steps, ..Default::default() };
+            let batches = o.batches(n, points);
+            let jobs: Vec<(u32, bool)> = batches
+                .iter()
+                .flat_map(|(b, seeds)| {
+                    assert_ne!(b.direction, Direction::Both);
+                    assert!(seeds.len() <= (points / (max_steps + 2)).max(1024));
+                    b.jobs(seeds.len()).into_iter().map(move |(s, back)| (s + seeds.start as u32, back))
+                })
+                .collect();
+            assert_eq!(jobs, o.jobs(n), "{direction:?} {n}");
+        }
+        let o = TraceOptions { direction: Direction::Both, max_steps: 10, ..Default::default() };
+        assert_eq!(o.batches(2500, 12 * 100).len(), 6);
+    }
 
     /// An analytic field over a box, for the closed-form tests.
     struct Analytic<F: Fn([f64; 3]) -> [f64; 3] + Sync> {
