@@ -87,14 +87,32 @@ fn jittered_mesh_vertices_edges_and_faces() {
 /// the host checks each answer exactly and corrects the rare one within rounding of a face).
 #[test]
 fn f64_points_near_faces_far_from_the_origin_are_exact() {
-    let Some(ctx) = common::context("f64_points_near_faces_far_from_the_origin_are_exact") else { return };
-    let raw = tetloc_testdata::KuhnGrid::new(4).jitter(0.25, 3).vertex_field(|p| p[0] + 2.0 * p[1]).raw();
+    const TEST: &str = "f64_points_near_faces_far_from_the_origin_are_exact";
     let shift = [512_345.037_5, 4_123_456.062_5, 0.3];
-    let file: Vec<[f64; 3]> = raw
-        .points
-        .iter()
-        .map(|p| std::array::from_fn(|k| p[k] as f64 * 1000.0 + shift[k] + 1e-7 * p[k] as f64))
-        .collect();
+    near_face_points_are_exact(TEST, |p| std::array::from_fn(|k| p[k] * 1000.0 + shift[k] + 1e-7 * p[k]));
+}
+
+/// The same, on the grid turned about a skew axis first: its boundary faces are no longer
+/// axis-aligned, so points inside the file's mesh within rounding of its boundary can fall
+/// outside the working copy, which the kernels search (they must still come back inside).
+#[test]
+fn f64_points_near_tilted_boundary_faces_are_exact() {
+    const TEST: &str = "f64_points_near_tilted_boundary_faces_are_exact";
+    let (c, s) = (0.6f64, 0.8f64); // a rotation by atan(4/3) about z, then about x
+    let shift = [512_345.037_5, 4_123_456.062_5, 0.3];
+    near_face_points_are_exact(TEST, |p| {
+        let q = [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]];
+        let r = [q[0], c * q[1] - s * q[2], s * q[1] + c * q[2]];
+        std::array::from_fn(|k| r[k] * 1000.0 + shift[k] + 1e-7 * p[k])
+    });
+}
+
+/// A jittered grid placed in the file's f64 coordinates by `place`, queried in f64 within
+/// 1e-7 of its faces (3000 points, inside and outside): every kernel equals the CPU.
+fn near_face_points_are_exact(test: &str, place: impl Fn([f64; 3]) -> [f64; 3]) {
+    let Some(ctx) = common::context(test) else { return };
+    let raw = tetloc_testdata::KuhnGrid::new(4).jitter(0.25, 3).vertex_field(|p| p[0] + 2.0 * p[1]).raw();
+    let file: Vec<[f64; 3]> = raw.points.iter().map(|p| place(p.map(f64::from))).collect();
     let raw = tetloc_core::RawMesh {
         points: file.iter().map(|p| p.map(|c| c as f32)).collect(),
         points64: Some(file.clone()),
@@ -125,7 +143,7 @@ fn f64_points_near_faces_far_from_the_origin_are_exact() {
         (ids, values)
     };
     let (cpu_ids, cpu_values) = run(&mut CpuLocator::new(mesh.clone()));
-    for k in common::kernels(&ctx, "f64_points_near_faces_far_from_the_origin_are_exact") {
+    for k in common::kernels(&ctx, test) {
         let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
         let (ids, values) = run(&mut loc);
         let wrong = ids.iter().zip(&cpu_ids).filter(|(a, b)| a != b).count();

@@ -33,6 +33,12 @@ pub struct Aabb {
 const _: () = assert!(std::mem::size_of::<Aabb>() == 24);
 
 impl Aabb {
+    /// Whether `p` is in the box (its faces included).
+    #[inline]
+    pub fn contains(&self, p: Vec3) -> bool {
+        (0..3).all(|k| self.min[k] <= p[k] && p[k] <= self.max[k])
+    }
+
     /// The bounds of the tet with vertex ids `ids`.
     #[inline]
     pub fn of_tet(ids: [u32; 4], points: &[Vec3]) -> Aabb {

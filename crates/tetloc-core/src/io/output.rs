@@ -65,6 +65,22 @@ impl AtomicFile {
     }
 }
 
+impl AtomicFile {
+    /// Appends the first `len` bytes of `src` (a copy inside the kernel where the system has
+    /// one: spilled arrays of a large output are not read through user space).
+    pub fn append_file(&mut self, src: &File, len: u64) -> std::io::Result<()> {
+        use std::io::{Read, Seek};
+        self.tmp.flush()?;
+        let mut src = src;
+        src.seek(std::io::SeekFrom::Start(0))?;
+        let copied = std::io::copy(&mut src.take(len), self.tmp.get_mut().as_file_mut())?;
+        if copied != len {
+            return Err(std::io::Error::new(std::io::ErrorKind::UnexpectedEof, format!("{copied} of {len} bytes")));
+        }
+        Ok(())
+    }
+}
+
 impl Write for AtomicFile {
     fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
         self.tmp.write(buf)

@@ -192,7 +192,7 @@ impl Bulges {
         }
         impl Visitor for Search<'_> {
             fn enter(&mut self, b: &Aabb) -> bool {
-                (0..3).all(|k| b.min[k] <= self.p[k] && self.p[k] <= b.max[k])
+                b.contains(self.p)
             }
             fn prim(&mut self, id: u32) -> bool {
                 let c = self.b.cells[id as usize] as usize;

@@ -165,6 +165,8 @@ pub struct VulkanLocator {
     /// first pipeline.
     build_stages: Vec<(String, f64)>,
     memory: MemoryReport,
+    /// Makes f64 answers exact on the file's data (kept: its boundary boxes, once built).
+    certifier: certify::Certifier,
     dev: Device,
 }
 
@@ -276,6 +278,7 @@ impl VulkanLocator {
             build_seconds: 0.0,
             build_stages: vec![],
             memory,
+            certifier: certify::Certifier::default(),
             dev,
         };
         // Compile the id variant now, so that building includes pipeline creation.
@@ -791,7 +794,7 @@ impl BatchLocator for VulkanLocator {
         // data exactly, each answer is checked (and the rare wrong one corrected) on the host.
         let mesh = self.mesh.clone();
         if certify::needs_certifying(&mesh, points) {
-            for (i, bary) in certify::certify(&mesh, points, ids) {
+            for (i, bary) in self.certifier.certify(&mesh, points, ids) {
                 let found = bary.map(|b| (ids[i] as usize, b));
                 for (j, f) in fields.iter().enumerate() {
                     values[i * fields.len() + j] = mesh.value_at(mesh.field(f)?, found);

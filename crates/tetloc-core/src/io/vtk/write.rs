@@ -597,22 +597,16 @@ impl<'a> OutArray<'a> {
         self.n_values * self.ty.size()
     }
 
-    /// Values in chunks, each passed to `sink`.
-    fn chunks(&self, mut sink: impl FnMut(&[u8]) -> std::io::Result<()>) -> std::io::Result<()> {
-        let mut buf = Vec::with_capacity(CHUNK * 8);
-        let ranges = (0..self.n_values).step_by(CHUNK).map(|start| start..(start + CHUNK).min(self.n_values));
+    /// The values, uncompressed, to `w`: made in chunks, or copied from their spill file.
+    fn write_raw(&self, w: &mut crate::io::output::AtomicFile) -> std::io::Result<()> {
         match &self.source {
-            Source::Fill(fill) => ranges.into_iter().try_for_each(|r| {
-                buf.clear();
-                fill(r, &mut buf);
-                sink(&buf)
-            }),
-            Source::File(f) => {
-                let mut f = rewound(f)?;
-                ranges.into_iter().try_for_each(|r| {
-                    buf.resize(r.len() * self.ty.size(), 0);
-                    std::io::Read::read_exact(&mut f, &mut buf)?;
-                    sink(&buf)
+            Source::File(f) => w.append_file(f, self.n_bytes() as u64),
+            Source::Fill(fill) => {
+                let mut buf = Vec::with_capacity(CHUNK * 8);
+                (0..self.n_values).step_by(CHUNK).try_for_each(|start| {
+                    buf.clear();
+                    fill(start..(start + CHUNK).min(self.n_values), &mut buf);
+                    w.write_all(&buf)
                 })
             }
         }
@@ -699,7 +693,7 @@ impl Grid<'_> {
                 None => {
                     for a in &arrays {
                         w.write_all(&(a.n_bytes() as u64).to_ne_bytes()).map_err(io)?;
-                        a.chunks(|c| w.write_all(c)).map_err(io)?;
+                        a.write_raw(w).map_err(io)?;
                     }
                 }
             }
