@@ -125,7 +125,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     // output of any size needs the memory of one batch.
     let mut writer = PolylineWriter::new(&a.out)?;
     let batches = o.batches(seeds.len(), trace::BATCH_POINTS);
-    let mut secs = 0.0;
+    // Seconds tracing, sampling the line fields again (GPU path) and spilling the batches.
+    let (mut secs, mut sampling, mut spilling) = (0.0, 0.0, 0.0);
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
     if name == "cpu" && m.cells.is_none() {
@@ -140,7 +141,9 @@ pub fn run(a: &TraceArgs) -> Result<()> {
                 Ok(())
             })?;
             secs += t0.elapsed().as_secs_f64();
+            let t1 = Instant::now();
             arrays.push_to(&mut writer, seeds_in.start)?;
+            spilling += t1.elapsed().as_secs_f64();
             base += seeds_in.len();
         }
         pb.finish_and_clear();
@@ -156,13 +159,19 @@ pub fn run(a: &TraceArgs) -> Result<()> {
             })?;
             secs += t0.elapsed().as_secs_f64();
             // The fields at the line points, sampled on the same backend.
-            trace::LineArrays::new(&lines, loc.as_mut(), &out_fields)?.push_to(&mut writer, seeds_in.start)?;
+            let t1 = Instant::now();
+            let arrays = trace::LineArrays::new(&lines, loc.as_mut(), &out_fields)?;
+            let t2 = Instant::now();
+            arrays.push_to(&mut writer, seeds_in.start)?;
+            (sampling, spilling) = (sampling + (t2 - t1).as_secs_f64(), spilling + t2.elapsed().as_secs_f64());
             base += seeds_in.len();
         }
         pb.finish_and_clear();
     }
     let (n_points, n_made) = (writer.n_points(), writer.n_lines());
+    let t_write = Instant::now();
     progress::with_spinner(format!("writing {}", a.out.display()), || writer.finish(a.zlib))?;
+    let writing = t_write.elapsed().as_secs_f64();
     let without = n_lines - n_made;
     if without > 0 {
         eprintln!(
@@ -176,6 +185,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
             n_made,
             crate::bench::fmt_rate((n_points - n_made) as f64 / secs)
         );
+        eprintln!("  then: fields sampled again {sampling:.3} s, batches spilled {spilling:.3} s, file written {writing:.3} s");
     }
     Ok(())
 }
