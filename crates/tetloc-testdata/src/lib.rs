@@ -73,12 +73,29 @@ pub fn exact_value(mesh: &Mesh, t: usize, p: Vec3, values: &[f32]) -> f64 {
         .sum()
 }
 
-/// A UTM set ([`utm_sets`]) through `loc`'s f64 path: (id mismatches outside flags bit0,
-/// values off the oracle's by more than 1e-5 relative, interior points lost), printing the
-/// first few of each.
+/// Whether a value `got` matches the oracle's f64 value `want` within `rel` relative to
+/// |want| (floored at 1e-30: values near zero are held to their own size); NaN matches NaN.
+pub fn close_rel(got: f64, want: f64, rel: f64) -> bool {
+    if want.is_nan() || got.is_nan() {
+        return want.is_nan() && got.is_nan();
+    }
+    (got - want).abs() <= rel * want.abs().max(1e-30)
+}
+
+/// A set with f64 points (a UTM set of [`utm_sets`], or any set's f32 points widened)
+/// through `loc`'s f64 path: (id mismatches outside flags bit0, values off the oracle's by
+/// more than 1e-5 relative to |oracle| (the f64 path's promise, [`close_rel`]), interior
+/// points lost), printing the first few of each.
 pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, usize, usize) {
-    let points = set.points64.as_ref().expect("an f64 query set");
-    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f32; points.len()]);
+    let widened: Vec<[f64; 3]>;
+    let points = match &set.points64 {
+        Some(p) => p,
+        None => {
+            widened = set.points.iter().map(|p| p.map(f64::from)).collect();
+            &widened
+        }
+    };
+    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f64; points.len()]);
     loc.sample_many64(points, &["f"], &mut ids, &mut values).unwrap_or_else(|e| panic!("{}: {e}", set.label));
     let (mut mismatches, mut bad_values, mut lost) = (0, 0, 0);
     for i in 0..points.len() {
@@ -102,9 +119,8 @@ pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, us
             }
         }
         if let Some(want) = &set.value {
-            let (g, w) = (values[i] as f64, want[i]);
-            let ok = if w.is_nan() { g.is_nan() } else { (g - w).abs() <= 1e-5 * w.abs().max(1.0) };
-            if !ok {
+            let (g, w) = (values[i], want[i]);
+            if !close_rel(g, w, 1e-5) {
                 bad_values += 1;
                 if bad_values <= 3 {
                     eprintln!("{} {}: point {i}: value {g} want {w}", loc.name(), set.label);

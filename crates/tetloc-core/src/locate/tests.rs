@@ -258,7 +258,7 @@ fn f64_points_far_from_the_origin_follow_exact_arithmetic() {
         queries.push(std::array::from_fn(|k| rng.gen_range(lo[k] - 10.0..hi[k] + 10.0)));
     }
     let mut loc = CpuLocator::new(m.clone());
-    let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f32; queries.len()]);
+    let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f64; queries.len()]);
     loc.sample_many64(&queries, &["f"], &mut ids, &mut values).unwrap();
     let mut near_face_hits = 0;
     for (i, q) in queries.iter().enumerate() {

@@ -107,7 +107,7 @@ mod tests {
     use super::*;
 
     fn field(name: &str, location: FieldLocation) -> Field {
-        Field { name: name.into(), location, values: vec![] }
+        Field { values64: None, name: name.into(), location, values: vec![] }
     }
 
     #[test]

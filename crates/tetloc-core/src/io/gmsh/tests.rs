@@ -46,7 +46,7 @@ fn spec() -> Spec {
 
 fn expected() -> RawMesh {
     let nan = f32::NAN;
-    let field = |name: &str, location, values: Vec<f32>| Field { name: name.into(), location, values };
+    let field = |name: &str, location, values: Vec<f32>| Field::new(name, location, values);
     RawMesh {
         points64: None,
         points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],

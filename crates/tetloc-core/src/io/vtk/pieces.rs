@@ -220,7 +220,7 @@ fn weld(mut raw: RawMesh, ids: &[u64], listing: &Path) -> Result<RawMesh> {
         *p64 = kept.iter().map(|&i| p64[i as usize]).collect();
     }
     for f in raw.fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
-        f.values = kept.iter().map(|&i| f.values[i as usize]).collect();
+        *f = f.select(|j| kept[j] as usize, kept.len());
     }
     raw.tets.par_iter_mut().for_each(|t| *t = t.map(|i| new_of[i as usize]));
     if let Some(b) = &mut raw.cells {
@@ -285,7 +285,7 @@ fn renumber(mut raw: RawMesh, ids: &[u64], listing: &Path, first_ids: &[u64]) ->
         raw.cells = Some(out);
     }
     for f in raw.fields.iter_mut().filter(|f| f.location == FieldLocation::Cell) {
-        f.values = cell_of.iter().map(|&c| f.values[c]).collect();
+        *f = f.select(|j| cell_of[j], cell_of.len());
     }
     Ok(raw)
 }

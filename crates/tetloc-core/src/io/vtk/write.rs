@@ -672,11 +672,12 @@ mod tests {
             tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
             fields: vec![
                 Field {
+                    values64: None,
                     name: "p <&\"'> x".into(),
                     location: FieldLocation::Vertex,
                     values: vec![0.5, -1., 2., f32::NAN, 4.],
                 },
-                Field { name: "c[0]".into(), location: FieldLocation::Cell, values: vec![7., 8.] },
+                Field { values64: None, name: "c[0]".into(), location: FieldLocation::Cell, values: vec![7., 8.] },
             ],
             higher_order: None,
             cells: None,
@@ -749,9 +750,14 @@ mod tests {
         let mut raw = RawMesh { points: m.points.clone(), tets: m.tets.clone(), ..Default::default() };
         for c in 0..3 {
             let values = (0..5).map(|i| (10 * c + i) as f32).collect();
-            raw.fields.push(Field { name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
+            raw.fields.push(Field { values64: None, name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
         }
-        raw.fields.push(Field { name: "g".into(), location: FieldLocation::Vertex, values: vec![1.0; 5] });
+        raw.fields.push(Field {
+            values64: None,
+            name: "g".into(),
+            location: FieldLocation::Vertex,
+            values: vec![1.0; 5],
+        });
         let mesh = Mesh::new(raw, "v").unwrap();
         let tmp = TempPath::new("vector");
         let mask = [1u8, 0, 1, 1, 0];
