@@ -164,7 +164,9 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     // file's precision (exact on the CPU; the mesh's working frame on the GPU); the
     // tolerance's rescue works in f32, and f32 data near the origin takes the f32 path.
     // The values come back in f64 there (the file's values, if f64, interpolated in f64).
-    let at_f64 = a.tolerance.distance(&m) <= 0.0 && (m.wants_f64_points() || a.precision == Precision::F64);
+    let f64_field = a.field.as_deref().is_some_and(|f| m.field(f).is_ok_and(|f| f.values64.is_some()));
+    let at_f64 =
+        a.tolerance.distance(&m) <= 0.0 && (m.wants_f64_points() || a.precision == Precision::F64 || f64_field);
     let fields: Vec<&str> = a.field.as_deref().into_iter().collect();
     let mut v64 = Vec::new();
     for (c, p) in pts.chunks(CHUNK).enumerate() {

@@ -318,6 +318,32 @@ mod tests {
         KuhnGrid::new(6).jitter(0.2, 3).cell_field("c", |i, _| i as f32).mesh("cube")
     }
 
+    /// f64 fields (values f32 cannot hold, a point and a cell field) survive partitioning
+    /// into pieces and the pieces' merge, bit for bit, through .pvtu and .vtm.
+    #[test]
+    fn f64_fields_survive_the_pieces() {
+        use crate::mesh::{Field, FieldLocation};
+        let dir = TempDir::new("f64");
+        let mut m = cube();
+        let g = (0..m.points.len()).map(|i| 1e-9 + i as f64 * 1e-12 + 1e-17).collect();
+        m.fields.push(Field::from_f64("g", FieldLocation::Vertex, g));
+        m.fields.push(Field::from_f64("h", FieldLocation::Cell, (0..m.n_cells()).map(|t| t as f64 / 3.0).collect()));
+        crate::partition::write_pvtu(&m, 3, &dir.0.join("cube.pvtu"), false, |_| {}).unwrap();
+        let vtm = r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
+            <DataSet index="0" file="cube.pvtu"/></vtkMultiBlockDataSet></VTKFile>"#;
+        std::fs::write(dir.0.join("cube.vtm"), vtm).unwrap();
+        for ext in ["pvtu", "vtm"] {
+            let out = dir.0.join(format!("cube.{ext}"));
+            let back = crate::io::read_mesh(&out, None).unwrap();
+            assert_eq!(back.points, m.points, "{ext}");
+            for name in ["g", "h"] {
+                let bits = |m: &Mesh| m.field(name).unwrap().values64.clone().unwrap().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                assert_eq!(bits(&back), bits(&m), "{ext}: {name}");
+            }
+            assert!(back.field("c").unwrap().values64.is_none(), "{ext}: f32 data stays f32");
+        }
+    }
+
     /// Partitioned and read back whole, the mesh has the same cells under the same ids (its
     /// cell field says so), and every point gets the same cell and value as in the original.
     #[test]

@@ -110,23 +110,27 @@ impl<'a> NamedArray<'a> {
     }
 }
 
-/// The mesh's fields as arrays: each run `NAME[0]` … `NAME[k-1]` interleaved into one.
+/// The mesh's fields as arrays: each run `NAME[0]` … `NAME[k-1]` interleaved into one;
+/// Float64 when some component has f64 data (the file's values, kept), else Float32.
 fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<OutArray<'a>>) {
     let (mut point_data, mut cell_data) = (Vec::new(), Vec::new());
     for g in crate::ops::fields::groups_of(&mesh.fields) {
         if skip.contains(&g.name.as_str()) {
             continue;
         }
-        let comps: Vec<&'a [f32]> =
-            g.components.iter().map(|c| mesh.field(c).map(|f| f.values.as_slice()).unwrap_or(&[])).collect();
-        let arr = match comps.as_slice() {
-            [one] => OutArray::floats(&g.name, 1, one),
-            _ => {
-                let k = comps.len();
-                OutArray::new(&g.name, NumType::F32, k, k * comps[0].len(), move |r, out| {
-                    r.for_each(|i| out.extend_from_slice(&comps[i % k][i / k].to_ne_bytes()))
-                })
-            }
+        let fields: Vec<&'a crate::mesh::Field> = g.components.iter().filter_map(|c| mesh.field(c).ok()).collect();
+        let k = fields.len();
+        let n = fields.first().map_or(0, |f| f.values.len());
+        let arr = if fields.iter().any(|f| f.values64.is_some()) {
+            OutArray::new(&g.name, NumType::F64, k, k * n, move |r, out| {
+                r.for_each(|i| out.extend_from_slice(&fields[i % k].value64(i / k).to_ne_bytes()))
+            })
+        } else if k == 1 {
+            OutArray::floats(&g.name, 1, &fields[0].values)
+        } else {
+            OutArray::new(&g.name, NumType::F32, k, k * n, move |r, out| {
+                r.for_each(|i| out.extend_from_slice(&fields[i % k].values[i / k].to_ne_bytes()))
+            })
         };
         match g.location {
             FieldLocation::Vertex => point_data.push(arr),
