@@ -95,8 +95,10 @@ pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, us
             &widened
         }
     };
-    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f64; points.len()]);
-    loc.sample_many64(points, &["f"], &mut ids, &mut values).unwrap_or_else(|e| panic!("{}: {e}", set.label));
+    // Sets without values (meshes without the field `f`): ids only.
+    let fields: &[&str] = if set.value.is_some() { &["f"] } else { &[] };
+    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f64; points.len() * fields.len()]);
+    loc.sample_many64(points, fields, &mut ids, &mut values).unwrap_or_else(|e| panic!("{}: {e}", set.label));
     let (mut mismatches, mut bad_values, mut lost) = (0, 0, 0);
     for i in 0..points.len() {
         if set.cell[i] >= 0 && ids[i] < 0 {
