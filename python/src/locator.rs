@@ -106,9 +106,9 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOption
                 tolerance = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
             }
             "precision" => {
-                let text = value.extract::<String>().map_err(|_| {
-                    PyValueError::new_err(format!("precision: expected 'f32' or 'f64', got {value}"))
-                })?;
+                let text = value
+                    .extract::<String>()
+                    .map_err(|_| PyValueError::new_err(format!("precision: expected 'f32' or 'f64', got {value}")))?;
                 precision = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
             }
             "compact" => {

@@ -74,7 +74,8 @@ fn cpu_locator_matches_the_oracle() {
         }
         // The f64 path (the points widened exactly): exact ids, and values interpolated in f64
         // on the file's coordinates and values, within 1e-5 of |oracle| even near zero.
-        let (mismatches64, bad64, lost64) = tetloc_testdata::compare_f64_set(&mut loc, set);
+        let (mismatches64, bad64, lost64) =
+            tetloc_testdata::compare_f64_set(&mut loc, set, tetloc_testdata::F64_VALUES);
         if mismatches64 + bad64 + lost64 > 0 {
             eprintln!("{}: f64 path: {mismatches64} id mismatches, {bad64} bad values, {lost64} lost", set.label);
             failures.push(format!("{} (f64 path)", set.label));
@@ -107,7 +108,8 @@ fn cpu_locator_matches_the_oracle_far_from_the_origin() {
     assert_eq!(mesh.info.n_degenerate, 0, "no tet collapses");
     let mut loc = CpuLocator::new(mesh);
     for set in &sets {
-        let (mismatches, bad_values, lost) = tetloc_testdata::compare_f64_set(&mut loc, set);
+        let (mismatches, bad_values, lost) =
+            tetloc_testdata::compare_f64_set(&mut loc, set, tetloc_testdata::F64_VALUES);
         eprintln!("{}: {mismatches} id mismatches, {bad_values} bad values, {lost} lost", set.label);
         assert_eq!((mismatches, bad_values, lost), (0, 0, 0), "{}", set.label);
     }

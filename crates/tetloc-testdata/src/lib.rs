@@ -74,19 +74,26 @@ pub fn exact_value(mesh: &Mesh, t: usize, p: Vec3, values: &[f32]) -> f64 {
 }
 
 /// Whether a value `got` matches the oracle's f64 value `want` within `rel` relative to
-/// |want| (floored at 1e-30: values near zero are held to their own size); NaN matches NaN.
-pub fn close_rel(got: f64, want: f64, rel: f64) -> bool {
+/// max(|want|, `floor`) (a floor of 1e-30 holds values near zero to their own size); NaN
+/// matches NaN.
+pub fn close_rel(got: f64, want: f64, rel: f64, floor: f64) -> bool {
     if want.is_nan() || got.is_nan() {
         return want.is_nan() && got.is_nan();
     }
-    (got - want).abs() <= rel * want.abs().max(1e-30)
+    (got - want).abs() <= rel * want.abs().max(floor)
 }
+
+/// Value checks of [`compare_f64_set`]: 1e-5 relative to max(|oracle|, floor).
+pub const F64_VALUES: f64 = 1e-30;
+/// The default GPU path's f32 values: 1e-5 relative to max(|oracle|, 1).
+pub const F32_VALUES: f64 = 1.0;
 
 /// A set with f64 points (a UTM set of [`utm_sets`], or any set's f32 points widened)
 /// through `loc`'s f64 path: (id mismatches outside flags bit0, values off the oracle's by
-/// more than 1e-5 relative to |oracle| (the f64 path's promise, [`close_rel`]), interior
-/// points lost), printing the first few of each.
-pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, usize, usize) {
+/// more than 1e-5 relative to max(|oracle|, `floor`) ([`F64_VALUES`]: the f64 values'
+/// promise, even near zero; [`F32_VALUES`]: f32 values), interior points lost), printing the
+/// first few of each.
+pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet, floor: f64) -> (usize, usize, usize) {
     let widened: Vec<[f64; 3]>;
     let points = match &set.points64 {
         Some(p) => p,
@@ -122,7 +129,7 @@ pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, us
         }
         if let Some(want) = &set.value {
             let (g, w) = (values[i], want[i]);
-            if !close_rel(g, w, 1e-5) {
+            if !close_rel(g, w, 1e-5, floor) {
                 bad_values += 1;
                 if bad_values <= 3 {
                     eprintln!("{} {}: point {i}: value {g} want {w}", loc.name(), set.label);

@@ -120,7 +120,7 @@ fn f64_points_near_faces_far_from_the_origin_are_exact() {
         })
         .collect();
     let run = |loc: &mut dyn BatchLocator| {
-        let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f32; queries.len()]);
+        let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f64; queries.len()]);
         loc.sample_many64(&queries, &["f"], &mut ids, &mut values).unwrap();
         (ids, values)
     };

@@ -60,6 +60,9 @@ impl<L: BatchLocator> F64Values<L> {
     pub fn inner(&self) -> &L {
         &self.inner
     }
+    pub fn inner_mut(&mut self) -> &mut L {
+        &mut self.inner
+    }
     pub fn into_inner(self) -> L {
         self.inner
     }

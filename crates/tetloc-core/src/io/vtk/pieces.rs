@@ -337,7 +337,9 @@ mod tests {
             let back = crate::io::read_mesh(&out, None).unwrap();
             assert_eq!(back.points, m.points, "{ext}");
             for name in ["g", "h"] {
-                let bits = |m: &Mesh| m.field(name).unwrap().values64.clone().unwrap().iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+                let bits = |m: &Mesh| {
+                    m.field(name).unwrap().values64.clone().unwrap().iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+                };
                 assert_eq!(bits(&back), bits(&m), "{ext}: {name}");
             }
             assert!(back.field("c").unwrap().values64.is_none(), "{ext}: f32 data stays f32");

@@ -645,7 +645,9 @@ fn f64_fields_round_trip_exactly() {
                 false => put(&mut bytes, "10\n".into()),
             }
         }
-        for (section, names, n) in [("POINT_DATA", &["f", "g"][..], mesh.points.len()), ("CELL_DATA", &["cell id"][..], mesh.n_tets())] {
+        for (section, names, n) in
+            [("POINT_DATA", &["f", "g"][..], mesh.points.len()), ("CELL_DATA", &["cell id"][..], mesh.n_tets())]
+        {
             put(&mut bytes, format!("\n{section} {n}\n"));
             for name in names {
                 let f = mesh.field(name).unwrap();
