@@ -19,7 +19,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tetloc_core::bvh::BvhNode;
-use tetloc_core::locate::{count_non_finite, CellLocator, FiniteOnly, Tolerance, WithTolerance};
+use tetloc_core::locate::{count_non_finite, CellLocator, F64Values, FiniteOnly, Precision, Tolerance, WithTolerance};
 use tetloc_core::{BatchLocator, CpuLocator, Mesh, Vec3};
 use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 
@@ -27,13 +27,13 @@ use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 const CPU_CHUNK: usize = 1 << 20;
 
 /// The `**options` of `tetloc.Locator` this version knows, and those that are planned.
-const KNOWN_OPTIONS: &str = "tolerance, split, compact";
-const PLANNED_OPTIONS: [&str; 1] = ["precision"];
+const KNOWN_OPTIONS: &str = "tolerance, split, compact, precision";
+const PLANNED_OPTIONS: [&str; 0] = [];
 
 pub(crate) type Backend = Box<dyn BatchLocator + Send>;
 type IdsAndValues<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f32>>);
 /// Ids, and one row of field values per point.
-type IdsAndRows<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray2<f32>>);
+type IdsAndRows<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray2<f64>>);
 
 /// Memory of a locator: device memory for the GPU kernels, host heap for `cpu`.
 #[derive(Clone, Debug)]
@@ -65,15 +65,18 @@ pub struct PyLocator {
     progress: Option<Py<PyAny>>,
     /// float64 points go through `sample_many64` when the mesh's data is f64 or far from the
     /// origin (`Mesh::wants_f64_points`), and not with a tolerance, whose rescue of points near
-    /// the boundary works in float32.
+    /// the boundary works in float32; also on a mesh with f64 field data, or with
+    /// `precision="f64"`, for f64 values.
     takes_f64: bool,
+    precision: Precision,
 }
 
 /// The Vulkan options from `**options`; unknown names are a `TypeError` as for any keyword.
-fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOptions, Tolerance)> {
+fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOptions, Tolerance, Precision)> {
     let mut opts = LocatorOptions::default();
     let mut tolerance = Tolerance::default();
-    let Some(options) = options else { return Ok((opts, tolerance)) };
+    let mut precision = Precision::default();
+    let Some(options) = options else { return Ok((opts, tolerance, precision)) };
     for (key, value) in options.iter() {
         let key: String = key.extract()?;
         match key.as_str() {
@@ -102,6 +105,12 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOption
                 };
                 tolerance = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
             }
+            "precision" => {
+                let text = value
+                    .extract::<String>()
+                    .map_err(|_| PyValueError::new_err(format!("precision: expected 'f32' or 'f64', got {value}")))?;
+                precision = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
+            }
             "compact" => {
                 opts.compact = value
                     .extract::<bool>()
@@ -119,7 +128,7 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOption
             }
         }
     }
-    Ok((opts, tolerance))
+    Ok((opts, tolerance, precision))
 }
 
 fn build_cpu(mesh: Arc<Mesh>, stages: &Stages<Built>) -> Built {
@@ -254,7 +263,7 @@ impl PyLocator {
         progress: Option<Bound<'_, PyAny>>,
     ) -> PyResult<PyLocator> {
         let choice = Choice::parse(backend)?;
-        let (opts, tolerance) = parse_options(options)?;
+        let (opts, tolerance, precision) = parse_options(options)?;
         let mesh = mesh.mesh.clone();
         let mesh_arc = mesh.clone();
         let built = background::run(py, "building a locator", progress.as_ref(), move |stages| {
@@ -280,9 +289,14 @@ impl PyLocator {
         let distance = tolerance.distance(&mesh_arc);
         let backend: Backend = match distance {
             d if d > 0.0 => Box::new(WithTolerance::new(exact, mesh_arc.clone(), tolerance)),
+            // precision="f64": the backend's ids, the CPU's f64 values.
+            _ if precision == Precision::F64 => Box::new(F64Values::new(exact, mesh_arc.clone())),
             _ => exact,
         };
-        let takes_f64 = distance <= 0.0 && mesh_arc.wants_f64_points();
+        // float64 points take the f64 path also for f64 values: with precision="f64", or on a
+        // mesh with a field of f64 data.
+        let f64_values = precision == Precision::F64 || mesh_arc.fields.iter().any(|f| f.values64.is_some());
+        let takes_f64 = distance <= 0.0 && (mesh_arc.wants_f64_points() || f64_values);
         let chunk = if name == backend::CPU { CPU_CHUNK } else { LocatorOptions::default().chunk_points };
         Ok(PyLocator {
             backend: Mutex::new(Some(backend)),
@@ -294,6 +308,7 @@ impl PyLocator {
             note: built.note,
             progress: progress.map(Bound::unbind),
             takes_f64,
+            precision,
         })
     }
 
@@ -354,8 +369,23 @@ impl PyLocator {
         self.takes_f64
     }
 
+    /// "f32" or "f64": the `precision` option.
+    #[getter]
+    fn precision(&self) -> String {
+        self.precision.to_string()
+    }
+
+    /// Whether float64 points' values of field `name` (one component) come back as float64:
+    /// with `precision="f64"`, or when the field has f64 data.
+    fn values_f64(&self, name: &str) -> PyResult<bool> {
+        let f = self.mesh.field(name).map_err(to_py)?;
+        Ok(self.precision == Precision::F64 || f.values64.is_some())
+    }
+
     /// Ids and the values of every field of `names` (one component each) at (K, 3) float64
-    /// C-contiguous points, located at that precision: ((K,) int32, (K, len(names)) float32).
+    /// C-contiguous points, located at that precision: ((K,) int32, (K, len(names)) float64:
+    /// f64 interpolation of the file's values on the CPU and with `precision="f64"`, the
+    /// kernels' f32 values widened otherwise).
     fn sample_many64<'py>(
         &self,
         py: Python<'py>,
@@ -368,7 +398,7 @@ impl PyLocator {
         let pts: &[[f64; 3]] = bytemuck::cast_slice(contiguous(&points, "points")?);
         let k = names.len();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        let (mut ids, mut values) = (vec![0i32; pts.len()], vec![0f32; pts.len() * k]);
+        let (mut ids, mut values) = (vec![0i32; pts.len()], vec![0f64; pts.len() * k]);
         let (ids_out, values_out) = (&mut ids, &mut values);
         self.chunked(py, pts.len(), |loc, r| {
             let v = &mut values_out[r.start * k..r.end * k];

@@ -37,7 +37,7 @@ pub fn contiguous<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
 impl PyMesh {
     /// Validates and builds a mesh. `points`: (N, 3) float32; `points64`: the same points in
     /// float64 when the caller has them (kept where float32 rounds them); `cells`: (M, 4)
-    /// uint32 vertex ids; `fields`: (name, "point" or "cell", float32 values). `source` names
+    /// uint32 vertex ids; `fields`: (name, "point" or "cell", float32 or float64 values). `source` names
     /// the mesh in error messages.
     #[new]
     #[pyo3(signature = (points, cells, fields, source, points64=None))]
@@ -45,7 +45,7 @@ impl PyMesh {
         py: Python<'_>,
         points: PyReadonlyArray2<'_, f32>,
         cells: PyReadonlyArray2<'_, u32>,
-        fields: Vec<(String, String, PyReadonlyArray1<'_, f32>)>,
+        fields: Vec<(String, String, Bound<'_, PyAny>)>,
         source: String,
         points64: Option<PyReadonlyArray2<'_, f64>>,
     ) -> PyResult<PyMesh> {
@@ -62,7 +62,14 @@ impl PyMesh {
                     "cell" => FieldLocation::Cell,
                     other => return Err(PyValueError::new_err(format!("field '{name}': unknown location '{other}'"))),
                 };
-                Ok(Field { name: name.clone(), location, values: contiguous(values, name)?.to_vec() })
+                // float64 values are kept where float32 would round them (Field::from_f64).
+                if let Ok(v) = values.extract::<PyReadonlyArray1<'_, f64>>() {
+                    return Ok(Field::from_f64(name.clone(), location, contiguous(&v, name)?.to_vec()));
+                }
+                let v = values.extract::<PyReadonlyArray1<'_, f32>>().map_err(|_| {
+                    PyValueError::new_err(format!("field '{name}': expected a 1-D float32 or float64 array"))
+                })?;
+                Ok(Field::new(name.clone(), location, contiguous(&v, name)?.to_vec()))
             })
             .collect::<PyResult<Vec<_>>>()?;
         let points64 = match &points64 {

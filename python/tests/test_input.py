@@ -154,8 +154,8 @@ def test_unknown_backend_device_and_options(grid_mesh):
         tetloc.Locator(grid_mesh, backend="gpu")
     with pytest.raises(TypeError, match="unexpected option 'leaf'"):
         tetloc.Locator(grid_mesh, backend="cpu", leaf=4)
-    with pytest.raises(TypeError, match="option 'precision' is planned"):
-        tetloc.Locator(grid_mesh, precision="f64")
+    with pytest.raises(ValueError, match="precision 'bogus'"):
+        tetloc.Locator(grid_mesh, precision="bogus")
     with pytest.raises(ValueError, match="split: expected a positive number"):
         tetloc.Locator(grid_mesh, split=0)
     with pytest.raises(TypeError, match="expected a tetloc.Mesh"):

@@ -74,7 +74,8 @@ def split(
     data: Optional[Mapping[str, object]], location: str, n: int, arg: str
 ) -> List[Tuple[str, str, np.ndarray]]:
     """The core fields of a user's `point_data` or `cell_data` dict: (name, location,
-    float32 values) per component. `n` is the number of points or cells."""
+    values) per component, float64 for float64 data (kept where float32 would round it),
+    float32 otherwise. `n` is the number of points or cells."""
     out: List[Tuple[str, str, np.ndarray]] = []
     for name, values in (data or {}).items():
         if not isinstance(name, str) or not name:
@@ -88,13 +89,12 @@ def split(
             raise ValueError(
                 f"{arg}['{name}']: shape {a.shape}; expected ({n},) or ({n}, k), one row per {location}"
             )
+        dtype = np.float64 if a.dtype == np.float64 else np.float32
         if a.ndim == 1:
-            out.append((name, location, np.ascontiguousarray(a, dtype=np.float32)))
+            out.append((name, location, np.ascontiguousarray(a, dtype=dtype)))
         else:
             for i in range(a.shape[1]):
-                out.append(
-                    (component_name(name, i), location, np.ascontiguousarray(a[:, i], dtype=np.float32))
-                )
+                out.append((component_name(name, i), location, np.ascontiguousarray(a[:, i], dtype=dtype)))
     return out
 
 

@@ -38,7 +38,10 @@ class Locator:
         ``"1%"`` (of the mean edge length); default 0, exact.
         ``split`` (rt kernels: primitives per bottom-level acceleration structure, or None
         for one structure; default 1M), ``compact`` (rt kernels: compact the structures;
-        default True). Unknown options raise ``TypeError``.
+        default True). ``precision``: ``"f32"`` (default) or ``"f64"``: with ``"f64"``, float64
+        points get float64 values computed on the host in float64 from the backend's cells
+        (the CPU's values, bit for bit, on every backend); a bad value raises ``ValueError``.
+        Unknown options raise ``TypeError``.
 
     Points are any array-like of shape (K, 3) (or (..., 3)), float32 or float64, C or
     Fortran order, including CPU tensors (DLPack or ``__array__``). float32 points are
@@ -46,7 +49,11 @@ class Locator:
     coordinates (or far from the origin) float64 points keep their precision: exact decisions
     on the mesh's float64 coordinates on the CPU; on the GPU the kernels search the mesh's
     working frame, centred on meshes far from the origin, and each answer is checked exactly
-    on the host. On float32 meshes near the origin they are rounded to float32 (the fast path). Results have the points'
+    on the host. On float32 meshes near the origin they are rounded to float32 (the fast path),
+    unless a field has float64 data or ``precision="f64"``. Values of float64 points are
+    float64 when the field has float64 data (interpolated in float64 on the CPU; the GPU
+    kernels' float32 values unless ``precision="f64"``) or with ``precision="f64"``; else
+    float32, as for float32 points. Results have the points'
     leading shape. A point with a NaN or infinite coordinate (or beyond float32 range) is
     answered -1 and NaN, as pyvista does, with a ``RuntimeWarning`` counting them. A point on a face shared by two tets gets one of them, always the same
     for a backend. Calls release the GIL (a Locator may be used from several threads; calls
@@ -109,6 +116,9 @@ class Locator:
                 stacklevel=3,
             )
         ids, values = self._raw.sample_many64(flat, comps)
+        # float64 values where they carry more than float32 (precision="f64", or f64 data).
+        if not all(self._raw.values_f64(c) for c in comps):
+            values = values.astype(np.float32)
         return ids, values, lead
 
     def locate(self, points: ArrayLike) -> np.ndarray:
@@ -121,7 +131,8 @@ class Locator:
         return self._raw.locate(flat).reshape(lead)
 
     def sample(self, points: ArrayLike, name: str) -> np.ndarray:
-        """Values of field `name` at `points`, NaN outside: float32, shape (K,) for a scalar
+        """Values of field `name` at `points`, NaN outside: float32 (float64 for float64 points
+        on a float64 field or with ``precision="f64"``), shape (K,) for a scalar
         field, (K, k) for a k-component field. Point fields are interpolated barycentrically,
         cell fields are constant in each tet. (A k-component field is sampled one
         component at a time for now.)"""

@@ -9,7 +9,7 @@ use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points::{self, Results};
 use tetloc_core::io::vtk::write as vtk_write;
-use tetloc_core::locate::{count_non_finite, is_finite, Tolerance, WithTolerance};
+use tetloc_core::locate::{count_non_finite, is_finite, with_precision, Precision, Tolerance, WithTolerance};
 use tetloc_core::BatchLocator;
 
 #[derive(clap::Args)]
@@ -43,6 +43,15 @@ pub struct LocateArgs {
     /// device and driver).
     #[arg(long, default_value = "auto")]
     pub(crate) backend: String,
+    /// The values' precision: f32 (the default: the backend's own; GPU kernels interpolate
+    /// the f32 copy of the field, within 1e-6 of its range) or f64 (the backend finds the
+    /// cells, the values are interpolated on the host in f64 on the file's f64 values and
+    /// coordinates: the CPU's values on every backend). Value files stay float32 either way
+    /// (the f64 value rounded once). The CPU interpolates f64 fields in f64 at f64 points by
+    /// itself; f64 makes GPU backends do the same, and f32 data near the origin take the f64
+    /// path too.
+    #[arg(long, default_value = "f32")]
+    pub(crate) precision: Precision,
     #[command(flatten)]
     pub(crate) common: Common,
 }
@@ -143,7 +152,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     let exact = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
     let mut loc: Box<dyn BatchLocator> = match a.tolerance.distance(&m) {
         d if d > 0.0 => Box::new(WithTolerance::new(exact, m.clone(), a.tolerance)),
-        _ => exact,
+        _ => with_precision(exact, m.clone(), a.precision),
     };
     // Chunks keep the progress bar moving and bound GPU batch memory.
     const CHUNK: usize = 1 << 22;
@@ -154,14 +163,21 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     // On f64 data (or far from the origin), without a tolerance, the points go in at the
     // file's precision (exact on the CPU; the mesh's working frame on the GPU); the
     // tolerance's rescue works in f32, and f32 data near the origin takes the f32 path.
-    let at_f64 = a.tolerance.distance(&m) <= 0.0 && m.wants_f64_points();
+    // The values come back in f64 there (the file's values, if f64, interpolated in f64).
+    let f64_field = a.field.as_deref().is_some_and(|f| m.field(f).is_ok_and(|f| f.values64.is_some()));
+    let at_f64 =
+        a.tolerance.distance(&m) <= 0.0 && (m.wants_f64_points() || a.precision == Precision::F64 || f64_field);
     let fields: Vec<&str> = a.field.as_deref().into_iter().collect();
+    let mut v64 = Vec::new();
     for (c, p) in pts.chunks(CHUNK).enumerate() {
         let r = c * CHUNK..c * CHUNK + p.len();
         match &a.field {
             _ if at_f64 => {
-                let v = if fields.is_empty() { &mut values[..0] } else { &mut values[r.clone()] };
-                loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r], v)?
+                v64.resize(if fields.is_empty() { 0 } else { p.len() }, 0.0);
+                loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r.clone()], &mut v64)?;
+                if !fields.is_empty() {
+                    values[r].iter_mut().zip(&v64).for_each(|(v, &x)| *v = x as f32);
+                }
             }
             Some(f) => loc.locate_and_sample(p, f, &mut ids[r.clone()], &mut values[r])?,
             None => loc.locate(p, &mut ids[r])?,

@@ -234,6 +234,7 @@ fn swirl_case(data: &Path, dir: &Path) -> (PathBuf, PathBuf) {
     for c in 0..3 {
         let values = m.points.iter().map(|&p| swirl(p)[c]).collect();
         m.fields.push(tetloc_core::Field {
+            values64: None,
             name: format!("v[{c}]"),
             location: tetloc_core::FieldLocation::Vertex,
             values,

@@ -10,7 +10,7 @@
 use crate::cell::CellBlock;
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
-use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
+use crate::mesh::{FieldLocation, Mesh, RawMesh};
 use rayon::prelude::*;
 
 /// The centroid of every cell (the mean of its corners; a mixed mesh's own cells, not their
@@ -142,13 +142,9 @@ pub fn piece_with_points(mesh: &Mesh, cells: &[u32], name: &str) -> Result<(Mesh
     let fields = mesh
         .fields
         .iter()
-        .map(|f| Field {
-            name: f.name.clone(),
-            location: f.location,
-            values: match f.location {
-                FieldLocation::Vertex => kept.iter().map(|&i| f.values[i]).collect(),
-                FieldLocation::Cell => cells.iter().map(|&c| f.values[c as usize]).collect(),
-            },
+        .map(|f| match f.location {
+            FieldLocation::Vertex => f.select(|j| kept[j], kept.len()),
+            FieldLocation::Cell => f.select(|j| cells[j] as usize, cells.len()),
         })
         .collect();
     let remap = |ids: &[u32]| ids.iter().map(|&i| local[i as usize]).collect::<Vec<u32>>();

@@ -1,6 +1,8 @@
 //! The CPU locator against the oracle answers made with VTK, scipy and gmsh
 //! (`../shared/data`): no id mismatches except within rounding of a face (flags bit0),
-//! values within 1e-5 relative, and no interior point of `centers`/`random` lost.
+//! values within 1e-5 relative, and no interior point of `centers`/`random` lost. Through
+//! the f64 path (`sample_many64`, values interpolated in f64), values within 1e-5 relative to
+//! |oracle| (floored at 1e-30), even near zero.
 //!
 //! Values: every value must match f64 interpolation on the stored vertices
 //! ([`exact_value`]) within 1e-5; and that must match the oracle's value except where the
@@ -70,6 +72,14 @@ fn cpu_locator_matches_the_oracle() {
                 }
             }
         }
+        // The f64 path (the points widened exactly): exact ids, and values interpolated in f64
+        // on the file's coordinates and values, within 1e-5 of |oracle| even near zero.
+        let (mismatches64, bad64, lost64) =
+            tetloc_testdata::compare_f64_set(&mut loc, set, tetloc_testdata::F64_VALUES);
+        if mismatches64 + bad64 + lost64 > 0 {
+            eprintln!("{}: f64 path: {mismatches64} id mismatches, {bad64} bad values, {lost64} lost", set.label);
+            failures.push(format!("{} (f64 path)", set.label));
+        }
         let ambiguous = set.flags.iter().filter(|f| *f & 1 != 0).count();
         report.push(format!(
             "{:<22} {:>6} points: {mismatches} id mismatches, {lost} lost, {bad_values} bad values ({ambiguous} ambiguous skipped; f32 vertex rounding moves the oracle value at {oracle_off:?})",
@@ -98,7 +108,8 @@ fn cpu_locator_matches_the_oracle_far_from_the_origin() {
     assert_eq!(mesh.info.n_degenerate, 0, "no tet collapses");
     let mut loc = CpuLocator::new(mesh);
     for set in &sets {
-        let (mismatches, bad_values, lost) = tetloc_testdata::compare_f64_set(&mut loc, set);
+        let (mismatches, bad_values, lost) =
+            tetloc_testdata::compare_f64_set(&mut loc, set, tetloc_testdata::F64_VALUES);
         eprintln!("{}: {mismatches} id mismatches, {bad_values} bad values, {lost} lost", set.label);
         assert_eq!((mismatches, bad_values, lost), (0, 0, 0), "{}", set.label);
     }

@@ -73,13 +73,39 @@ pub fn exact_value(mesh: &Mesh, t: usize, p: Vec3, values: &[f32]) -> f64 {
         .sum()
 }
 
-/// A UTM set ([`utm_sets`]) through `loc`'s f64 path: (id mismatches outside flags bit0,
-/// values off the oracle's by more than 1e-5 relative, interior points lost), printing the
+/// Whether a value `got` matches the oracle's f64 value `want` within `rel` relative to
+/// max(|want|, `floor`) (a floor of 1e-30 holds values near zero to their own size); NaN
+/// matches NaN.
+pub fn close_rel(got: f64, want: f64, rel: f64, floor: f64) -> bool {
+    if want.is_nan() || got.is_nan() {
+        return want.is_nan() && got.is_nan();
+    }
+    (got - want).abs() <= rel * want.abs().max(floor)
+}
+
+/// Value checks of [`compare_f64_set`]: 1e-5 relative to max(|oracle|, floor).
+pub const F64_VALUES: f64 = 1e-30;
+/// The default GPU path's f32 values: 1e-5 relative to max(|oracle|, 1).
+pub const F32_VALUES: f64 = 1.0;
+
+/// A set with f64 points (a UTM set of [`utm_sets`], or any set's f32 points widened)
+/// through `loc`'s f64 path: (id mismatches outside flags bit0, values off the oracle's by
+/// more than 1e-5 relative to max(|oracle|, `floor`) ([`F64_VALUES`]: the f64 values'
+/// promise, even near zero; [`F32_VALUES`]: f32 values), interior points lost), printing the
 /// first few of each.
-pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, usize, usize) {
-    let points = set.points64.as_ref().expect("an f64 query set");
-    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f32; points.len()]);
-    loc.sample_many64(points, &["f"], &mut ids, &mut values).unwrap_or_else(|e| panic!("{}: {e}", set.label));
+pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet, floor: f64) -> (usize, usize, usize) {
+    let widened: Vec<[f64; 3]>;
+    let points = match &set.points64 {
+        Some(p) => p,
+        None => {
+            widened = set.points.iter().map(|p| p.map(f64::from)).collect();
+            &widened
+        }
+    };
+    // Sets without values (meshes without the field `f`): ids only.
+    let fields: &[&str] = if set.value.is_some() { &["f"] } else { &[] };
+    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f64; points.len() * fields.len()]);
+    loc.sample_many64(points, fields, &mut ids, &mut values).unwrap_or_else(|e| panic!("{}: {e}", set.label));
     let (mut mismatches, mut bad_values, mut lost) = (0, 0, 0);
     for i in 0..points.len() {
         if set.cell[i] >= 0 && ids[i] < 0 {
@@ -102,9 +128,8 @@ pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet) -> (usize, us
             }
         }
         if let Some(want) = &set.value {
-            let (g, w) = (values[i] as f64, want[i]);
-            let ok = if w.is_nan() { g.is_nan() } else { (g - w).abs() <= 1e-5 * w.abs().max(1.0) };
-            if !ok {
+            let (g, w) = (values[i], want[i]);
+            if !close_rel(g, w, 1e-5, floor) {
                 bad_values += 1;
                 if bad_values <= 3 {
                     eprintln!("{} {}: point {i}: value {g} want {w}", loc.name(), set.label);

@@ -390,6 +390,7 @@ mod tests {
         for c in 0..3 {
             let values = raw.points.iter().map(|p| sink[c] - p[c]).collect();
             fields.push(tetloc_core::Field {
+                values64: None,
                 name: format!("s[{c}]"),
                 location: tetloc_core::FieldLocation::Vertex,
                 values,

@@ -138,7 +138,7 @@ fn near_face_points_are_exact(test: &str, place: impl Fn([f64; 3]) -> [f64; 3]) 
         })
         .collect();
     let run = |loc: &mut dyn BatchLocator| {
-        let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f32; queries.len()]);
+        let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f64; queries.len()]);
         loc.sample_many64(&queries, &["f"], &mut ids, &mut values).unwrap();
         (ids, values)
     };

@@ -4,8 +4,9 @@ mod common;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
+use tetloc_core::locate::F64Values;
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
-use tetloc_testdata::{query_sets, require_data, QuerySet};
+use tetloc_testdata::{query_sets, require_data, QuerySet, F32_VALUES, F64_VALUES};
 use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 
 /// Relative tolerance of interpolated values (relative to max(|expected|, 1)).
@@ -111,14 +112,41 @@ fn every_kernel_matches_the_oracle() {
         // Deferred exact tests: the points near faces go through the second, exact pass.
         configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, ..Default::default() }));
         configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, walk_start: false, ..Default::default() }));
-        for (k, opts) in configs {
+        let n_kernels = kernels.len();
+        for (c, (k, opts)) in configs.into_iter().enumerate() {
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();
             for (set, cpu) in sets.iter().zip(&cpu) {
                 check_set(&mut loc, &mesh, set, cpu);
             }
+            // Each kernel's default options with the f64 option: the oracle's values within
+            // 1e-5 of |oracle| even near zero, and the CPU's f64 values bit for bit.
+            if c < n_kernels {
+                let mut f64_loc = F64Values::new(loc, mesh.clone());
+                for set in &sets {
+                    let (mismatches, bad_values, _) = tetloc_testdata::compare_f64_set(&mut f64_loc, set, F64_VALUES);
+                    assert_eq!((mismatches, bad_values), (0, 0), "{k:?} {} f64", set.label);
+                    let widened: Vec<[f64; 3]> = set.points.iter().map(|p| p.map(f64::from)).collect();
+                    same_as_cpu(&mut f64_loc, &mesh, &widened, &format!("{k:?} {}", set.label));
+                }
+            }
         }
     }
     common::assert_no_validation_errors(&ctx);
+}
+
+/// `loc`'s f64 path gives the CPU's ids and f64 values, bit for bit (the values of mesh `m`'s
+/// field `f`, when it has one).
+fn same_as_cpu(loc: &mut dyn BatchLocator, m: &Arc<Mesh>, points: &[[f64; 3]], label: &str) {
+    let fields: &[&str] = if m.field("f").is_ok() { &["f"] } else { &[] };
+    let n = points.len();
+    let run = |loc: &mut dyn BatchLocator| {
+        let (mut ids, mut values) = (vec![0i32; n], vec![0f64; n * fields.len()]);
+        loc.sample_many64(points, fields, &mut ids, &mut values).unwrap();
+        (ids, values.iter().map(|v| v.to_bits()).collect::<Vec<_>>())
+    };
+    let (gpu, cpu) = (run(loc), run(&mut CpuLocator::new(m.clone())));
+    assert_eq!(gpu.0, cpu.0, "{label}: ids");
+    assert!(gpu.1 == cpu.1, "{label}: f64 values differ from the CPU's");
 }
 
 /// A mesh far from the origin (`utm/`, f64 vertices and points): every kernel searches the
@@ -134,8 +162,16 @@ fn every_kernel_matches_the_oracle_far_from_the_origin() {
     for k in common::kernels(&ctx, test) {
         let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
         for set in &sets {
-            let (mismatches, bad_values, lost) = tetloc_testdata::compare_f64_set(&mut loc, set);
+            // The kernels' f32 values (widened): within 1e-5 of max(|oracle|, 1).
+            let (mismatches, bad_values, lost) = tetloc_testdata::compare_f64_set(&mut loc, set, F32_VALUES);
             assert_eq!((mismatches, bad_values, lost), (0, 0, 0), "{} {}", k.name(), set.label);
+        }
+        // The f64 option: within 1e-5 of |oracle| even near zero, the CPU's values bit for bit.
+        let mut f64_loc = F64Values::new(loc, mesh.clone());
+        for set in &sets {
+            let (mismatches, bad_values, lost) = tetloc_testdata::compare_f64_set(&mut f64_loc, set, F64_VALUES);
+            assert_eq!((mismatches, bad_values, lost), (0, 0, 0), "{} {} f64", k.name(), set.label);
+            same_as_cpu(&mut f64_loc, &mesh, set.points64.as_ref().unwrap(), &format!("{} {}", k.name(), set.label));
         }
     }
     common::assert_no_validation_errors(&ctx);

@@ -110,7 +110,7 @@ fn higher_order_files_sample_quadratics_exactly() {
     for file in ["real/quadratic_tetra.vtu", "real/kiefer.vtu", "real/P3.msh", "real/ArmadilloP4.msh"] {
         let mut raw = crate::io::read_raw(&dir.join(file), None).unwrap();
         let values: Vec<f32> = raw.points.iter().map(|p| f(p.map(f64::from)) as f32).collect();
-        raw.fields = vec![Field { name: "f".into(), location: FieldLocation::Vertex, values }];
+        raw.fields = vec![Field { values64: None, name: "f".into(), location: FieldLocation::Vertex, values }];
         let m = Arc::new(Mesh::new(raw, file).unwrap());
         let nodes = m.tet_nodes.as_ref().unwrap_or_else(|| panic!("{file}: no higher-order nodes"));
         let def = nodes.cell_type().def();

@@ -43,13 +43,7 @@ pub fn vector_fields(shape: Shape, points: &[Vec3]) -> Vec<Field> {
         }
     }
     let v: Vec<[f32; 3]> = points.par_iter().map(|&p| velocity(shape, p, lo, hi)).collect();
-    (0..3)
-        .map(|c| Field {
-            name: format!("v[{c}]"),
-            location: FieldLocation::Vertex,
-            values: v.iter().map(|x| x[c]).collect(),
-        })
-        .collect()
+    (0..3).map(|c| Field::new(format!("v[{c}]"), FieldLocation::Vertex, v.iter().map(|x| x[c]).collect())).collect()
 }
 
 #[cfg(test)]

@@ -266,10 +266,7 @@ pub(super) fn build(shape: &dyn ColumnShape, kind: CellKind, progress: &Progress
     let fields = |f: Vec<f32>, n_cells: usize| {
         let mut cv = vec![0f32; n_cells];
         cv.par_iter_mut().enumerate().for_each(|(t, v)| *v = cellval(t));
-        vec![
-            Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
-            Field { name: "cellval".into(), location: FieldLocation::Cell, values: cv },
-        ]
+        vec![Field::new("f", FieldLocation::Vertex, f), Field::new("cellval", FieldLocation::Cell, cv)]
     };
     // First vertex id of each corner's vertex column of column (i, j), corners as in KUHN (dx, dy).
     let bases = |i: usize, j: usize| -> [u32; 4] {

@@ -284,7 +284,6 @@ pub fn test_point_with(ids: [u32; 4], points: &[Vec3], exact: &Exact, q: &predic
     let stored = |i: usize| if swapped && i >= 2 { 5 - i } else { i };
     let v = asc.map(|i| points[i as usize]);
     let mut v64: Option<[[f64; 3]; 4]> = None;
-    let mut d = [0f64; 4];
     for (i, &(f, parity)) in SORTED_FACES.iter().enumerate() {
         let sign = parity as f64 * orientation;
         let (det, bound) = predicates::orient3d_local(v[f[0]], v[f[1]], v[f[2]], q.local, exact.frame.delta);
@@ -297,22 +296,48 @@ pub fn test_point_with(ids: [u32; 4], points: &[Vec3], exact: &Exact, q: &predic
         if signed < 0.0 {
             return TetTest::Outside { face: stored(i) };
         }
-        d[i] = signed;
     }
     // Inside: barycentrics in f64 on the file's coordinates.
     let w = v64.unwrap_or_else(|| asc.map(|i| exact.vertex(points, i)));
+    match bary64_of(w, swapped, q.file) {
+        Some(b) => TetTest::Inside(b.map(|x| x as f32)),
+        None => TetTest::Outside { face: 0 }, // zero-volume tet: contains no point
+    }
+}
+
+/// f64 barycentric weights (of the stored vertices v0..v3).
+pub type Bary64 = [f64; 4];
+
+/// The barycentrics of `p` (the file's coordinates) in tet `w` (its vertices in ascending id
+/// order, `swapped` as in canonical order) from f64 orientations on the file's coordinates,
+/// clamped to 0 and normalised; `None` for a zero-volume tet. [`test_point_with`]'s weights.
+#[inline]
+fn bary64_of(w: [[f64; 3]; 4], swapped: bool, p: [f64; 3]) -> Option<Bary64> {
+    let orientation = if swapped { 1.0f64 } else { -1.0 };
+    let mut d = [0f64; 4];
     for (i, &(f, parity)) in SORTED_FACES.iter().enumerate() {
-        d[i] = (parity as f64 * orientation * predicates::orient3d(w[f[0]], w[f[1]], w[f[2]], q.file)).max(0.0);
+        d[i] = (parity as f64 * orientation * predicates::orient3d(w[f[0]], w[f[1]], w[f[2]], p)).max(0.0);
     }
     let total: f64 = d.iter().sum();
     if total <= 0.0 {
-        return TetTest::Outside { face: 0 }; // zero-volume tet: contains no point
+        return None;
     }
-    let mut bary = d.map(|x| (x / total) as f32);
+    let mut bary = d.map(|x| x / total);
     if swapped {
         bary.swap(2, 3);
     }
-    TetTest::Inside(bary)
+    Some(bary)
+}
+
+/// The f64 barycentrics of `p` (the file's coordinates) in the canonical tet `ids`, on the
+/// file's coordinates (`exact`): the weights of every f64 value, computed once the tet is
+/// known (by any backend). `None` for a zero-volume tet. For a point outside the tet the
+/// weights are clamped to it.
+#[inline]
+pub fn bary64(ids: [u32; 4], points: &[Vec3], exact: &Exact, p: [f64; 3]) -> Option<Bary64> {
+    let swapped = ids[3] < ids[2];
+    let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
+    bary64_of(asc.map(|i| exact.vertex(points, i)), swapped, p)
 }
 
 /// Puts a tet into canonical order like [`canonical_tet`], with orientations decided exactly
@@ -344,10 +369,60 @@ pub fn point_in_tet(ids: [u32; 4], points: &[Vec3], p: Vec3) -> Option<Bary> {
 /// Barycentric interpolation of a per-vertex scalar.
 #[inline]
 pub fn interpolate(ids: [u32; 4], bary: Bary, values: &[f32]) -> f32 {
-    bary[0] * values[ids[0] as usize]
-        + bary[1] * values[ids[1] as usize]
-        + bary[2] * values[ids[2] as usize]
-        + bary[3] * values[ids[3] as usize]
+    interpolate_with(ids, bary, |i| values[i])
+}
+
+/// The float types values are computed in: f32 (what the GPU kernels compute, on the f32
+/// copy of the values) and f64 (on the file's values). The value definitions are generic over
+/// it, so that both precisions share one code path.
+pub trait Real: Copy + Send + Sync + std::ops::Mul<Output = Self> + std::ops::Add<Output = Self> + 'static {
+    const NAN: Self;
+    fn from_f64(x: f64) -> Self;
+    fn to_f64(self) -> f64;
+    /// Value `i` of a field in this precision.
+    fn of(field: &crate::mesh::Field, i: usize) -> Self;
+}
+
+impl Real for f32 {
+    const NAN: f32 = f32::NAN;
+    #[inline(always)]
+    fn from_f64(x: f64) -> f32 {
+        x as f32
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        f64::from(self)
+    }
+    #[inline(always)]
+    fn of(field: &crate::mesh::Field, i: usize) -> f32 {
+        field.values[i]
+    }
+}
+
+impl Real for f64 {
+    const NAN: f64 = f64::NAN;
+    #[inline(always)]
+    fn from_f64(x: f64) -> f64 {
+        x
+    }
+    #[inline(always)]
+    fn to_f64(self) -> f64 {
+        self
+    }
+    #[inline(always)]
+    fn of(field: &crate::mesh::Field, i: usize) -> f64 {
+        field.value64(i)
+    }
+}
+
+/// Barycentric interpolation of a per-vertex scalar (`value` of a vertex id) in any float
+/// type: f32 for [`interpolate`], f64 for the file's f64 values. One definition, one order.
+#[inline(always)]
+pub fn interpolate_with<T: Real>(ids: [u32; 4], bary: [T; 4], value: impl Fn(usize) -> T) -> T {
+    bary[0] * value(ids[0] as usize)
+        + bary[1] * value(ids[1] as usize)
+        + bary[2] * value(ids[2] as usize)
+        + bary[3] * value(ids[3] as usize)
 }
 
 #[inline]

@@ -101,6 +101,7 @@ fn differences_are_found() {
         points: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],
         tets: vec![[0, 1, 2, 3]],
         fields: vec![Field {
+            values64: None,
             name: "f".into(),
             location: FieldLocation::Vertex,
             values: vec![f32::NAN, 1.0, 2.0, 3.0],

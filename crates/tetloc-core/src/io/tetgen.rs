@@ -99,9 +99,7 @@ fn siblings(path: &Path) -> (PathBuf, PathBuf) {
 
 /// Splits row-major attributes (`n` per item) into one field each.
 fn attribute_fields(values: Vec<f32>, n: usize, location: FieldLocation, name: impl Fn(usize) -> String) -> Vec<Field> {
-    (0..n)
-        .map(|i| Field { name: name(i), location, values: values.iter().skip(i).step_by(n).copied().collect() })
-        .collect()
+    (0..n).map(|i| Field::new(name(i), location, values.iter().skip(i).step_by(n).copied().collect())).collect()
 }
 
 /// The next data line (`#` starts a comment; blank lines are skipped), which must be there:
@@ -287,7 +285,7 @@ mod tests {
     }
 
     fn expected() -> RawMesh {
-        let f = |name: &str, location, values: Vec<f32>| Field { name: name.into(), location, values };
+        let f = |name: &str, location, values: Vec<f32>| Field::new(name, location, values);
         RawMesh {
             points64: None,
             points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],

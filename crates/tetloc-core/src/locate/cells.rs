@@ -26,7 +26,7 @@ use super::{check_lengths, is_finite, BatchLocator, OUTSIDE};
 use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 use crate::cell::{face_split, interpolate, invert, PCoords, Point};
 use crate::error::Result;
-use crate::geom::{self, Vec3};
+use crate::geom::{self, Real, Vec3};
 use crate::mesh::{Cells, Field, FieldLocation, Mesh};
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
@@ -219,23 +219,26 @@ impl Bulges {
     }
 }
 
-/// The value of `field` at `p` where it was found.
-fn value(mesh: &Mesh, cells: &Cells, field: &Field, p: Vec3, found: &Found) -> f32 {
+/// The value of `field` at `p` where it was found, in f32 (the f32 values) or f64 (the file's
+/// values): shape functions in f64 either way.
+fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Vec3, found: &Found) -> T {
     let c = found.cell;
     match field.location {
-        FieldLocation::Cell => field.values[c],
+        FieldLocation::Cell => T::of(field, c),
         FieldLocation::Vertex => match found.pc.or_else(|| pcoords(mesh, cells, c, p.map(f64::from))) {
             Some(pc) => {
                 let nodes = cells.block.nodes(c);
                 let def = cells.block.types[c].def();
-                interpolate(def, pc, |i| f64::from(field.values[nodes[i] as usize])) as f32
+                T::from_f64(interpolate(def, pc, |i| T::of(field, nodes[i] as usize).to_f64()))
             }
             // Newton failed: linearly in the cell's decomposition tet that holds the point (the
             // corners' values).
             None => {
                 let tets = &mesh.tets[cells.tets_of(c)];
                 let held = tets.iter().find_map(|&t| Some((t, geom::point_in_tet(t, &mesh.points, p)?)));
-                held.map_or(f32::NAN, |(t, bary)| geom::interpolate(t, bary, &field.values))
+                held.map_or(T::NAN, |(t, bary)| {
+                    geom::interpolate_with(t, bary.map(|b| T::from_f64(b.into())), |i| T::of(field, i))
+                })
             }
         },
     }
@@ -311,6 +314,36 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         if self.mesh.cells.is_none() {
             return self.inner.sample_many(points, fields, ids, values);
         }
+        self.sample_cells(points, fields, ids, values)
+    }
+
+    /// Tet meshes: the inner backend's f64 path. Mixed meshes keep the identity frame (their
+    /// cells' parametric coordinates are solved on the f32 vertices): points are rounded to
+    /// f32, and values computed in f64 on the file's values.
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f64],
+    ) -> Result<()> {
+        if self.mesh.cells.is_none() {
+            return self.inner.sample_many64(points, fields, ids, values);
+        }
+        let points: Vec<Vec3> = points.par_iter().map(|p| p.map(|c| c as f32)).collect();
+        self.sample_cells(&points, fields, ids, values)
+    }
+}
+
+impl<L: BatchLocator> CellLocator<L> {
+    /// Ids and values on a mixed mesh, in either precision.
+    fn sample_cells<T: Real>(
+        &mut self,
+        points: &[Vec3],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [T],
+    ) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
         let mesh = self.mesh.clone();
@@ -321,26 +354,10 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |f| f.cell as i32));
         values.par_chunks_mut(k.max(1)).zip(points.par_iter().zip(&found)).for_each(|(out, (&p, f))| {
             for (v, field) in out.iter_mut().zip(&fields) {
-                *v = f.as_ref().map_or(f32::NAN, |f| value(&mesh, cells, field, p, f));
+                *v = f.as_ref().map_or(T::NAN, |f| value(&mesh, cells, field, p, f));
             }
         });
         Ok(())
-    }
-
-    /// Tet meshes: the inner backend's f64 path. Mixed meshes keep the identity frame (their
-    /// cells' parametric coordinates are solved on the f32 vertices): points are rounded to f32.
-    fn sample_many64(
-        &mut self,
-        points: &[[f64; 3]],
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f32],
-    ) -> Result<()> {
-        if self.mesh.cells.is_none() {
-            return self.inner.sample_many64(points, fields, ids, values);
-        }
-        let points: Vec<Vec3> = points.par_iter().map(|p| p.map(|c| c as f32)).collect();
-        self.sample_many(&points, fields, ids, values)
     }
 }
 

@@ -355,16 +355,22 @@ impl BatchLocator for CpuLocator {
     }
 
     /// Exact on the file's data: every face sign that the f32 filter cannot decide is
-    /// decided on the f64 coordinates of the mesh and the point.
+    /// decided on the f64 coordinates of the mesh and the point; values in f64 on the file's
+    /// values, at f64 barycentrics ([`Mesh::values_at_ids64`]).
     fn sample_many64(
         &mut self,
         points: &[[f64; 3]],
         fields: &[&str],
         ids: &mut [i32],
-        values: &mut [f32],
+        values: &mut [f64],
     ) -> Result<()> {
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
+        let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
         let exact = self.mesh.exact();
-        self.sample_many_of(points, |p| exact.query(*p), fields, ids, values)
+        self.locate_batch_of(points, |p| exact.query(*p), ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
+        self.mesh.values_at_ids64(points, ids, &fields, values);
+        Ok(())
     }
 }
 

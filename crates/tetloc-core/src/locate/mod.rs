@@ -8,6 +8,7 @@
 mod cells;
 pub mod certify;
 mod cpu;
+pub mod precision;
 #[cfg(test)]
 use cpu::is_coherent;
 #[cfg(test)]
@@ -16,6 +17,7 @@ pub mod tolerance;
 
 pub use cells::CellLocator;
 pub use cpu::CpuLocator;
+pub use precision::{with_precision, F64Values, Precision};
 pub use tolerance::{Tolerance, WithTolerance};
 
 use crate::error::{Error, Result};
@@ -60,15 +62,17 @@ pub trait BatchLocator {
         Ok(())
     }
     /// [`Self::sample_many`] of points given in the file's coordinates at f64 precision
-    /// (points far from the origin keep their precision). The CPU backend decides exactly on
-    /// them and on the mesh's f64 coordinates; the GPU backends search them in the mesh's
-    /// working frame (`mesh::Frame`). Backends without f64 input say so.
+    /// (points far from the origin keep their precision), with f64 values. The CPU backend
+    /// decides exactly on them and on the mesh's f64 coordinates, and interpolates the file's
+    /// values in f64 ([`crate::mesh::Mesh::values_at_ids64`]); the GPU backends search them
+    /// in the mesh's working frame (`mesh::Frame`) and give their f32 values widened, or the
+    /// CPU's f64 values with their f64 precision option. Backends without f64 input say so.
     fn sample_many64(
         &mut self,
         points: &[[f64; 3]],
         fields: &[&str],
         ids: &mut [i32],
-        values: &mut [f32],
+        values: &mut [f64],
     ) -> Result<()> {
         let _ = (points, fields, ids, values);
         Err(Error::Invalid(format!("the {} backend takes f32 points only", self.name())))
@@ -125,7 +129,7 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
         points: &[[f64; 3]],
         fields: &[&str],
         ids: &mut [i32],
-        values: &mut [f32],
+        values: &mut [f64],
     ) -> Result<()> {
         (**self).sample_many64(points, fields, ids, values)
     }
@@ -272,7 +276,7 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         points: &[[f64; 3]],
         fields: &[&str],
         ids: &mut [i32],
-        values: &mut [f32],
+        values: &mut [f64],
     ) -> Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
@@ -282,10 +286,10 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
             return self.inner.sample_many64(points, fields, ids, values);
         };
         let k = fields.len();
-        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len() * k]);
+        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f64::NAN; c.points.len() * k]);
         self.inner.sample_many64(&c.points, fields, &mut sub_ids, &mut sub_values)?;
         c.scatter(&sub_ids, ids, OUTSIDE);
-        c.scatter_k(k, &sub_values, values, f32::NAN);
+        c.scatter_k(k, &sub_values, values, f64::NAN);
         Ok(())
     }
 

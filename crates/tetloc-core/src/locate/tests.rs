@@ -258,7 +258,7 @@ fn f64_points_far_from_the_origin_follow_exact_arithmetic() {
         queries.push(std::array::from_fn(|k| rng.gen_range(lo[k] - 10.0..hi[k] + 10.0)));
     }
     let mut loc = CpuLocator::new(m.clone());
-    let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f32; queries.len()]);
+    let (mut ids, mut values) = (vec![0i32; queries.len()], vec![0f64; queries.len()]);
     loc.sample_many64(&queries, &["f"], &mut ids, &mut values).unwrap();
     let mut near_face_hits = 0;
     for (i, q) in queries.iter().enumerate() {
@@ -274,4 +274,70 @@ fn f64_points_far_from_the_origin_follow_exact_arithmetic() {
     let mut ids32 = vec![0i32; rounded.len()];
     loc.locate(&rounded, &mut ids32).unwrap();
     assert!(ids32.iter().zip(&ids).filter(|(a, b)| a != b).count() > 10, "f32 points are rounded by up to 0.25 m");
+}
+
+/// The exact barycentrics of `p` in tet `ids` (rational arithmetic on the file's
+/// coordinates, each weight rounded once to f64): the reference of every f64 value.
+fn exact_bary(m: &crate::Mesh, ids: [u32; 4], p: [f64; 3]) -> [f64; 4] {
+    use crate::geom::predicates::reference::{exact3, orient3d_exact};
+    let v = ids.map(|i| exact3(m.vertex64(i)));
+    let q = exact3(p);
+    let total = orient3d_exact(&v[0], &v[1], &v[2], &v[3]);
+    std::array::from_fn(|i| {
+        let mut w = v.clone();
+        w[i] = q.clone();
+        orient3d_exact(&w[0], &w[1], &w[2], &w[3]).ratio(&total)
+    })
+}
+
+/// A field of f64 values near zero where the points are (`1e-3 (x − x0) + 1e-12 y`, x0 not an
+/// f32), from a fresh clone: the f32 path (f32 values, f32 barycentrics, f32 points) is off
+/// by more than 1e-5 relative there, while `sample_many64` matches the independent reference
+/// (exact rational barycentrics times the f64 values, `geom::predicates::reference`) to 1e-12
+/// relative, and `F64Values` around the CPU gives the CPU's values bit for bit.
+#[test]
+fn f64_values_near_zero_match_exact_barycentrics() {
+    use crate::geom::predicates::reference;
+    use crate::mesh::{Field, FieldLocation};
+    let mut raw = crate::test_support::jittered_grid(4, 0.25, 5);
+    let x0 = 0.5 + 1e-9 / 3.0;
+    let g: Vec<f64> = raw.points.iter().map(|p| 1e-3 * (p[0] as f64 - x0) + 1e-12 * p[1] as f64).collect();
+    raw.fields.push(Field::from_f64("g", FieldLocation::Vertex, g));
+    let m = Arc::new(crate::Mesh::new(raw, "near zero").unwrap());
+    assert!(m.field("g").unwrap().values64.is_some());
+    let file: Vec<[f64; 3]> = (0..m.points.len() as u32).map(|i| m.vertex64(i)).collect();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+    let points: Vec<[f64; 3]> = (0..300)
+        .map(|i| {
+            let dx = rng.gen_range(1e-4..1e-3) * if i % 2 == 0 { 1.0 } else { -1.0 };
+            [x0 + dx, rng.gen_range(0.1..0.9), rng.gen_range(0.1..0.9)]
+        })
+        .collect();
+    let mut loc = CpuLocator::new(m.clone());
+    let (mut ids, mut values) = (vec![0i32; points.len()], vec![0f64; points.len()]);
+    loc.sample_many64(&points, &["g"], &mut ids, &mut values).unwrap();
+    let rounded: Vec<Vec3> = points.iter().map(|p| p.map(|c| c as f32)).collect();
+    let mut values32 = vec![0f32; points.len()];
+    loc.sample(&rounded, "g", &mut values32).unwrap();
+    let f = m.field("g").unwrap();
+    let (mut worst64, mut worst32) = (0f64, 0f64);
+    for (i, p) in points.iter().enumerate() {
+        let want_tet = reference::locate_all(&m.tets, &file, *p);
+        assert_eq!(want_tet.len(), 1, "point {i}: {want_tet:?}");
+        let t = want_tet[0];
+        assert_eq!(ids[i], t as i32, "point {i}");
+        let b = exact_bary(&m, m.tets[t], *p);
+        let want: f64 = (0..4).map(|k| b[k] * f.value64(m.tets[t][k] as usize)).sum();
+        assert!(want.abs() > 1e-8, "point {i}: the value is small but not lost: {want}");
+        worst64 = worst64.max((values[i] - want).abs() / want.abs());
+        worst32 = worst32.max((values32[i] as f64 - want).abs() / want.abs());
+    }
+    assert!(worst64 <= 1e-12, "f64 path: {worst64:e} relative");
+    assert!(worst32 > 1e-5, "the f32 path should not be this close: {worst32:e}");
+    // Any backend's ids with F64Values: the same values, bit for bit.
+    let mut wrapped = F64Values::new(CpuLocator::new(m.clone()), m.clone());
+    let (mut ids2, mut values2) = (vec![0i32; points.len()], vec![0f64; points.len()]);
+    wrapped.sample_many64(&points, &["g"], &mut ids2, &mut values2).unwrap();
+    assert_eq!(ids2, ids);
+    assert!(values2.iter().zip(&values).all(|(a, b)| a.to_bits() == b.to_bits()));
 }

@@ -40,7 +40,62 @@ pub enum FieldLocation {
 pub struct Field {
     pub name: String,
     pub location: FieldLocation,
+    /// The values in f32 (the file's rounded to nearest): what the GPU kernels upload.
     pub values: Vec<f32>,
+    /// The file's values, when it stored them in f64 and some do not round to f32 exactly
+    /// (`None`: `values` is the file's data; f32 data pays nothing). Same length as `values`.
+    pub values64: Option<Vec<f64>>,
+}
+
+impl Field {
+    /// A field of f32 data.
+    pub fn new(name: impl Into<String>, location: FieldLocation, values: Vec<f32>) -> Field {
+        Field { name: name.into(), location, values, values64: None }
+    }
+
+    /// A field of f64 data: rounded to f32 for `values`, kept in `values64` unless that
+    /// rounding is exact for every finite value.
+    pub fn from_f64(name: impl Into<String>, location: FieldLocation, values64: Vec<f64>) -> Field {
+        let values = values64.par_iter().map(|&x| x as f32).collect();
+        Field { name: name.into(), location, values, values64: f64_if_needed(values64) }
+    }
+
+    /// Value `i` as the file has it (f64).
+    #[inline]
+    pub fn value64(&self, i: usize) -> f64 {
+        match &self.values64 {
+            Some(v) => v[i],
+            None => f64::from(self.values[i]),
+        }
+    }
+
+    /// The field of the `n` values at `index(0..n)`, in both precisions.
+    pub fn select(&self, index: impl Fn(usize) -> usize + Sync, n: usize) -> Field {
+        Field {
+            name: self.name.clone(),
+            location: self.location,
+            values: (0..n).into_par_iter().map(|i| self.values[index(i)]).collect(),
+            values64: self.values64.as_ref().map(|v| (0..n).into_par_iter().map(|i| v[index(i)]).collect()),
+        }
+    }
+
+    /// Appends `other`'s values (f64 for both when either has them: f32 ones widen exactly).
+    pub fn extend_from(&mut self, other: &Field) {
+        if other.values64.is_some() || self.values64.is_some() {
+            let mine = self.values64.get_or_insert_with(|| self.values.iter().map(|&x| f64::from(x)).collect());
+            match &other.values64 {
+                Some(v) => mine.extend_from_slice(v),
+                None => mine.extend(other.values.iter().map(|&x| f64::from(x))),
+            }
+        }
+        self.values.extend_from_slice(&other.values);
+    }
+}
+
+/// f64 values, when some finite one does not round to f32 exactly (`None`: their f32 copy is
+/// the data).
+pub fn f64_if_needed(values: Vec<f64>) -> Option<Vec<f64>> {
+    values.par_iter().any(|&x| x.is_finite() && (x as f32) as f64 != x).then_some(values)
 }
 
 /// What readers and generators produce: tets in file order (corner vertices only), not yet
@@ -183,6 +238,9 @@ impl Mesh {
                     f.location
                 )));
             }
+            if let Some(v) = f.values64.as_ref().filter(|v| v.len() != want) {
+                return Err(err(format!("field '{}' has {} f64 values, expected {want}", f.name, v.len())));
+            }
         }
 
         // Higher-order nodes follow their corners into canonical order.
@@ -303,32 +361,77 @@ impl Mesh {
         })
     }
 
-    /// A per-vertex field's value at barycentrics `bary` of tet `t`: barycentric for linear
-    /// tets, with the tet's own shape functions (all its nodes) for higher-order ones.
+    /// A per-vertex field's value (`value` of a vertex id) at barycentrics `bary` of tet `t`:
+    /// barycentric for linear tets, with the tet's own shape functions (all its nodes, in
+    /// f64) for higher-order ones.
     #[inline]
-    pub fn interpolate(&self, t: usize, bary: geom::Bary, values: &[f32]) -> f32 {
+    pub fn interpolate_with<T: geom::Real>(&self, t: usize, bary: [T; 4], value: impl Fn(usize) -> T) -> T {
         match &self.tet_nodes {
-            None => geom::interpolate(self.tets[t], bary, values),
-            Some(nodes) => nodes.interpolate(t, self.tets[t], bary, values),
+            None => geom::interpolate_with(self.tets[t], bary, value),
+            Some(nodes) => {
+                T::from_f64(nodes.interpolate_with(t, self.tets[t], bary.map(T::to_f64), |i| value(i).to_f64()))
+            }
         }
     }
 
+    /// [`Self::interpolate_with`] of f32 values.
+    #[inline]
+    pub fn interpolate(&self, t: usize, bary: geom::Bary, values: &[f32]) -> f32 {
+        self.interpolate_with(t, bary, |i| values[i])
+    }
+
     /// `field`'s value for a point at barycentrics `bary` of tet `t` (None: outside, NaN):
-    /// interpolated for a per-vertex field, the tet's cell's value for a per-cell one.
+    /// interpolated for a per-vertex field, the tet's cell's value for a per-cell one. In f32
+    /// (`T = f32`: the f32 values, what the GPU kernels compute) or f64 (`T = f64`: the file's
+    /// values, [`Field::value64`]): one definition for both.
+    #[inline]
+    pub fn value_of<T: geom::Real>(&self, field: &Field, found: Option<(usize, [T; 4])>) -> T {
+        match (found, field.location) {
+            (None, _) => T::NAN,
+            (Some((t, b)), FieldLocation::Vertex) => self.interpolate_with(t, b, |i| T::of(field, i)),
+            // A mixed mesh's tets are its cells' decomposition: the value of the tet's cell.
+            (Some((t, _)), FieldLocation::Cell) => T::of(field, self.cell_of_tet(t)),
+        }
+    }
+
+    /// [`Self::value_of`] in f32.
     #[inline]
     pub fn value_at(&self, field: &Field, found: Option<(usize, geom::Bary)>) -> f32 {
-        match (found, field.location) {
-            (None, _) => f32::NAN,
-            (Some((t, b)), FieldLocation::Vertex) => self.interpolate(t, b, &field.values),
-            // A mixed mesh's tets are its cells' decomposition: the value of the tet's cell.
-            (Some((t, _)), FieldLocation::Cell) => field.values[self.cell_of_tet(t)],
-        }
+        self.value_of(field, found)
     }
 
     /// [`Self::value_at`] of each of `fields` into `out`.
     #[inline]
     pub fn values_at(&self, fields: &[&Field], found: Option<(usize, geom::Bary)>, out: &mut [f32]) {
         out.iter_mut().zip(fields).for_each(|(o, f)| *o = self.value_at(f, found));
+    }
+
+    /// [`Self::value_of`] in f64, on the file's values ([`Field::value64`]). Every
+    /// backend's f64 values are this, at the barycentrics of [`Self::bary64`].
+    #[inline]
+    pub fn value_at64(&self, field: &Field, found: Option<(usize, geom::Bary64)>) -> f64 {
+        self.value_of(field, found)
+    }
+
+    /// The f64 barycentrics of a point given in the file's coordinates in tet `t`, on the
+    /// file's coordinates ([`geom::bary64`]); `None` for a zero-volume tet.
+    #[inline]
+    pub fn bary64(&self, t: usize, p: [f64; 3]) -> Option<geom::Bary64> {
+        geom::bary64(self.tets[t], &self.points, &self.exact(), p)
+    }
+
+    /// The f64 values of `fields` (point after point) for points given in the file's
+    /// coordinates and their tets (`ids`, -1 outside): what every f64 path computes once the
+    /// tets are known.
+    pub fn values_at_ids64(&self, points: &[[f64; 3]], ids: &[i32], fields: &[&Field], out: &mut [f64]) {
+        let k = fields.len();
+        if k == 0 {
+            return;
+        }
+        out.par_chunks_mut(k).zip(points.par_iter().zip(ids)).for_each(|(o, (&p, &t))| {
+            let found = (t >= 0).then(|| self.bary64(t as usize, p).map(|b| (t as usize, b))).flatten();
+            o.iter_mut().zip(fields).for_each(|(o, f)| *o = self.value_at64(f, found));
+        });
     }
 
     /// Unique faces with their front and back tets, computed on first use (a parallel sort

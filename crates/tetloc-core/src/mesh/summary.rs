@@ -53,7 +53,7 @@ mod tests {
 
     #[test]
     fn ranges_skip_non_finite_values() {
-        let f = |values: Vec<f32>| Field { name: "f".into(), location: FieldLocation::Vertex, values };
+        let f = |values: Vec<f32>| Field { values64: None, name: "f".into(), location: FieldLocation::Vertex, values };
         assert_eq!(f(vec![2.0, f32::NAN, -1.0, f32::INFINITY, 0.5]).finite_range(), Some((-1.0, 2.0)));
         assert_eq!(f(vec![f32::NAN]).finite_range(), None);
         assert_eq!(f(vec![]).finite_range(), None);

@@ -8,7 +8,7 @@
 //! elevated from linear ones), an approximation for curved tets (see the README).
 
 use crate::cell::{self, corner_permutation, CellBlock, CellType, TetPermutations};
-use crate::geom::Bary;
+use crate::geom::Bary64;
 use rayon::prelude::*;
 
 /// The nodes of a mesh of higher-order tets, all of one type.
@@ -99,13 +99,13 @@ impl TetNodes {
         corners.into_iter().chain(self.extra(t).iter().copied())
     }
 
-    /// A per-vertex field at barycentrics `bary` (over the canonical corners) of tet `t`,
-    /// with the tet's shape functions, in f64.
-    pub fn interpolate(&self, t: usize, corners: [u32; 4], bary: Bary, values: &[f32]) -> f32 {
-        let pc = [bary[1], bary[2], bary[3]].map(f64::from);
+    /// A per-vertex field (`value` of a vertex id) at barycentrics `bary` (over the canonical
+    /// corners) of tet `t`, with the tet's shape functions, in f64.
+    pub fn interpolate_with(&self, t: usize, corners: [u32; 4], bary: Bary64, value: impl Fn(usize) -> f64) -> f64 {
+        let pc = [bary[1], bary[2], bary[3]];
         let extra = self.extra(t);
         let node = |i: usize| if i < 4 { corners[i] } else { extra[i - 4] };
-        cell::interpolate(self.ty.def(), pc, |i| f64::from(values[node(i) as usize])) as f32
+        cell::interpolate(self.ty.def(), pc, |i| value(node(i) as usize))
     }
 
     pub fn memory_bytes(&self) -> usize {

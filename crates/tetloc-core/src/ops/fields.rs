@@ -13,6 +13,9 @@ pub struct FieldGroup {
     pub location: FieldLocation,
     /// The mesh's scalar fields, one per component: `[name]`, or `NAME[0]`, `NAME[1]`, ….
     pub components: Vec<String>,
+    /// Whether some component has f64 data (`Field::values64`): probed as f64, written as
+    /// Float64 (as VTK's probe keeps the source array's type).
+    pub f64: bool,
 }
 
 impl FieldGroup {
@@ -62,6 +65,7 @@ pub fn groups_of(fields: &[Field]) -> Vec<FieldGroup> {
             name,
             location: f.location,
             components: fields[i..i + k].iter().map(|f| f.name.clone()).collect(),
+            f64: fields[i..i + k].iter().any(|f| f.values64.is_some()),
         });
         i += k;
     }
@@ -107,7 +111,7 @@ mod tests {
     use super::*;
 
     fn field(name: &str, location: FieldLocation) -> Field {
-        Field { name: name.into(), location, values: vec![] }
+        Field { values64: None, name: name.into(), location, values: vec![] }
     }
 
     #[test]

@@ -19,6 +19,9 @@ pub struct Probed {
     pub ids: Vec<i32>,
     /// Each field with its values, k per point (NaN where the point got none).
     pub arrays: Vec<(FieldGroup, Vec<f32>)>,
+    /// For each of `arrays`, its f64 values when the field has f64 data and the backend
+    /// takes f64 points (`None` otherwise): what the writers write, as Float64.
+    pub arrays64: Vec<Option<Vec<f64>>>,
 }
 
 impl Probed {
@@ -36,7 +39,15 @@ impl Probed {
         let mut out: Vec<NamedArray> = self
             .arrays
             .iter()
-            .map(|(g, v)| NamedArray { name: g.name.clone(), n_components: g.n_components(), data: ArrayData::F32(v) })
+            .enumerate()
+            .map(|(i, (g, v))| NamedArray {
+                name: g.name.clone(),
+                n_components: g.n_components(),
+                data: match self.arrays64.get(i) {
+                    Some(Some(v64)) => ArrayData::F64(v64),
+                    _ => ArrayData::F32(v),
+                },
+            })
             .collect();
         out.push(NamedArray { name: VALID_MASK.into(), n_components: 1, data: ArrayData::U8(mask) });
         out
@@ -54,6 +65,33 @@ pub fn probe(
     let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
     let width = names.len();
     let mut ids = vec![0i32; points.len()];
+    // Fields of f64 data are sampled through the f64 path (its f64 values) where the backend
+    // takes f64 points (an empty batch says whether it does): every field in one pass.
+    let wide = fields.iter().any(|g| g.f64) && loc.sample_many64(&[], &names, &mut [], &mut []).is_ok();
+    if wide {
+        let mut values = vec![0f64; points.len() * width];
+        for (c, p) in points.chunks(CHUNK).enumerate() {
+            let r = c * CHUNK..c * CHUNK + p.len();
+            let p64: Vec<[f64; 3]> = p.iter().map(|q| q.map(f64::from)).collect();
+            loc.sample_many64(&p64, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
+            progress(r.end)?;
+        }
+        let narrow: Vec<f32> = values.iter().map(|&v| v as f32).collect();
+        let mut probed = Probed::from_values(ids, fields, &narrow);
+        let mut at = 0;
+        probed.arrays64 = fields
+            .iter()
+            .map(|g| {
+                let k = g.n_components();
+                let v = g
+                    .f64
+                    .then(|| values.chunks_exact(width.max(1)).flat_map(|p| p[at..at + k].iter().copied()).collect());
+                at += k;
+                v
+            })
+            .collect();
+        return Ok(probed);
+    }
     let mut values = vec![0f32; points.len() * width];
     for (c, p) in points.chunks(CHUNK).enumerate() {
         let r = c * CHUNK..c * CHUNK + p.len();
@@ -79,7 +117,7 @@ impl Probed {
                 (g.clone(), v)
             })
             .collect();
-        Probed { ids, arrays }
+        Probed { ids, arrays, arrays64: Vec::new() }
     }
 }
 
@@ -144,5 +182,37 @@ mod tests {
         assert_eq!(names, want);
         assert_eq!(back.tets.len(), m.tets.len());
         std::fs::remove_file(&tmp).unwrap();
+    }
+
+    /// A field of f64 data is probed in f64 and written as Float64 (as VTK's probe keeps the
+    /// source array's type): at the mesh's own vertices it comes back exactly; f32 fields stay
+    /// Float32; with a backend that takes f32 points only (a tolerance) it is f32 as before.
+    #[test]
+    fn f64_fields_are_probed_and_written_as_f64() {
+        use crate::locate::{Tolerance, WithTolerance};
+        use crate::mesh::{Field, FieldLocation};
+        let mut m = KuhnGrid::new(3).mesh("cube");
+        let g: Vec<f64> = m.points.iter().map(|p| 1e-9 + p[0] as f64 * 1e-12 + 1e-17).collect();
+        m.fields.push(Field::from_f64("g", FieldLocation::Vertex, g.clone()));
+        let m = Arc::new(m);
+        let groups = fields::groups_of(&m.fields);
+        assert!(groups.iter().any(|g| g.f64) && groups.iter().any(|g| !g.f64));
+        let p = probe(&mut CpuLocator::new(m.clone()), &m.points, &groups, |_| Ok(())).unwrap();
+        let tmp = std::env::temp_dir().join(format!("tetloc-probe64-{}.vtp", std::process::id()));
+        write_probed(&tmp, &p, None, &m.points, false).unwrap();
+        let bytes = std::fs::read(&tmp).unwrap();
+        let text = String::from_utf8_lossy(&bytes[..bytes.len().min(4000)]).to_string();
+        std::fs::remove_file(&tmp).unwrap();
+        let i = groups.iter().position(|gr| gr.name == "g").unwrap();
+        let got = p.arrays64[i].as_ref().expect("probed in f64");
+        assert!(got.iter().zip(&g).all(|(a, b)| a.to_bits() == b.to_bits()));
+        assert!(
+            text.contains(r#"type="Float64" Name="g""#) || text.contains(r#"Name="g" type="Float64""#),
+            "{text:.400}"
+        );
+        assert!(text.contains(r#"Name="f" type="Float32""#) || text.contains(r#"type="Float32" Name="f""#));
+        let mut tol = WithTolerance::new(CpuLocator::new(m.clone()), m.clone(), "1%".parse::<Tolerance>().unwrap());
+        let p = probe(&mut tol, &m.points, &groups, |_| Ok(())).unwrap();
+        assert!(p.arrays64.iter().all(Option::is_none));
     }
 }

@@ -80,7 +80,7 @@ mod tests {
         let mut fields = m.fields.clone();
         for c in 0..3 {
             let values = m.points.iter().map(|p| (c + 1) as f32 * p[c]).collect();
-            fields.push(Field { name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
+            fields.push(Field { values64: None, name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
         }
         let raw = crate::RawMesh { points: m.points.clone(), tets: m.tets.clone(), fields, ..Default::default() };
         Arc::new(Mesh::new(raw, "cube+v").unwrap())

@@ -144,8 +144,8 @@ impl<'a> KuhnGrid<'a> {
         let f = points.iter().map(|&p| (self.vertex_field)(p)).collect();
         RawMesh {
             fields: vec![
-                Field { name: "f".into(), location: FieldLocation::Vertex, values: f },
-                Field { name: self.cell_name.clone(), location: FieldLocation::Cell, values: cell },
+                Field::new("f", FieldLocation::Vertex, f),
+                Field::new(self.cell_name.clone(), FieldLocation::Cell, cell),
             ],
             points,
             points64: None,

@@ -769,12 +769,14 @@ impl BatchLocator for VulkanLocator {
 
     /// f64 points go to the working frame in f64, then to f32: a mesh far from the origin is
     /// searched as precisely as one at it. (The kernels decide on the working f32 copy.)
+    /// Values are the kernels' f32 ones, widened; `tetloc_core::locate::F64Values` around
+    /// this backend gives the CPU's f64 values at these (certified) ids instead.
     fn sample_many64(
         &mut self,
         points: &[[f64; 3]],
         fields: &[&str],
         ids: &mut [i32],
-        values: &mut [f32],
+        values: &mut [f64],
     ) -> tetloc_core::Result<()> {
         check_lengths(points.len(), ids.len())?;
         check_lengths(points.len() * fields.len(), values.len())?;
@@ -788,7 +790,7 @@ impl BatchLocator for VulkanLocator {
         for (j, f) in fields.iter().enumerate() {
             let mode = self.ensure_field(f)?;
             self.run_working(&working, mode, bytemuck::cast_slice_mut(&mut one))?;
-            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
+            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = f64::from(x));
         }
         // The kernels decided on the working copy: where it or the points are not the file's
         // data exactly, each answer is checked (and the rare wrong one corrected) on the host.
@@ -797,7 +799,7 @@ impl BatchLocator for VulkanLocator {
             for (i, bary) in self.certifier.certify(&mesh, points, ids) {
                 let found = bary.map(|b| (ids[i] as usize, b));
                 for (j, f) in fields.iter().enumerate() {
-                    values[i * fields.len() + j] = mesh.value_at(mesh.field(f)?, found);
+                    values[i * fields.len() + j] = f64::from(mesh.value_at(mesh.field(f)?, found));
                 }
             }
         }

@@ -19,7 +19,8 @@ pub(super) struct FieldAcc {
     location: FieldLocation,
     step: i64,
     ncomp: usize,
-    values: Vec<f32>,
+    /// The file's values (f64 in every Gmsh file); fields keep them where f32 cannot.
+    values: Vec<f64>,
 }
 
 impl FieldAcc {
@@ -27,13 +28,15 @@ impl FieldAcc {
     pub fn into_fields(self) -> Vec<Field> {
         let FieldAcc { name, location, ncomp, values, .. } = self;
         if ncomp == 1 {
-            return vec![Field { name, location, values }];
+            return vec![Field::from_f64(name, location, values)];
         }
         (0..ncomp)
-            .map(|k| Field {
-                name: format!("{name}[{k}]"),
-                location,
-                values: values.iter().skip(k).step_by(ncomp).copied().collect(),
+            .map(|k| {
+                Field::from_f64(
+                    format!("{name}[{k}]"),
+                    location,
+                    values.iter().skip(k).step_by(ncomp).copied().collect(),
+                )
             })
             .collect()
     }
@@ -108,7 +111,7 @@ impl Parser<'_> {
                 if self.field_values > 64 * c.buf.len() + (1 << 20) {
                     return Err(c.fail(format!("too many field values for the file's size at {what} '{name}'")));
                 }
-                let acc = FieldAcc { name: name.clone(), location, step, ncomp, values: vec![f32::NAN; len] };
+                let acc = FieldAcc { name: name.clone(), location, step, ncomp, values: vec![f64::NAN; len] };
                 match existing {
                     Some(i) => {
                         self.fields[i] = acc;
@@ -149,7 +152,7 @@ impl Parser<'_> {
         let mut values = slot.map(|i| &mut self.fields[i].values);
         let mut store = |row: Option<usize>, comp: usize, v: f64| {
             if let (Some(row), Some(values)) = (row, values.as_deref_mut()) {
-                values[row * ncomp + comp] = v as f32;
+                values[row * ncomp + comp] = v;
             }
         };
         if c.binary {

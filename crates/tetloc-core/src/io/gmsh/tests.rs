@@ -46,7 +46,7 @@ fn spec() -> Spec {
 
 fn expected() -> RawMesh {
     let nan = f32::NAN;
-    let field = |name: &str, location, values: Vec<f32>| Field { name: name.into(), location, values };
+    let field = |name: &str, location, values: Vec<f32>| Field::new(name, location, values);
     RawMesh {
         points64: None,
         points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
@@ -263,6 +263,27 @@ fn every_encoding_gives_the_same_mesh() {
             let got = parse_with(&bytes, &p(), min_parallel).unwrap_or_else(|err| panic!("{e:?}: {err}"));
             assert_same(&got, &want, &format!("{e:?}, min_parallel {min_parallel}"));
         }
+    }
+}
+
+/// $NodeData and $ElementData values that f32 cannot hold come back exactly (the fields keep
+/// the file's f64 values) in Gmsh 2.2 and 4.1, ASCII and binary; values f32 holds exactly get
+/// no f64 copy.
+#[test]
+fn f64_values_read_back_exactly() {
+    let mut spec = spec();
+    let near_zero = |t: u64| 1e-9 + t as f64 * 1e-12 + 1e-17;
+    spec.node_data.push(("tiny", 0, 1, spec.nodes.iter().map(|&(t, _)| (t, vec![near_zero(t)])).collect()));
+    spec.elem_data.push(("third", 0, 2, vec![(9, vec![1.0 / 3.0, 0.1]), (2, vec![2.0 / 3.0, 0.2])]));
+    let tiny = [10u64, 3, 7, 100, 5000].map(near_zero);
+    for e in ENCODINGS {
+        let got = parse(&write(&spec, e), &p()).unwrap_or_else(|err| panic!("{e:?}: {err}"));
+        let field = |name: &str| got.fields.iter().find(|f| f.name == name).unwrap_or_else(|| panic!("{e:?}: {name}"));
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(field("tiny").values64.as_deref().map(bits), Some(bits(&tiny)), "{e:?}");
+        assert_eq!(field("third[0]").values64.as_deref().map(bits), Some(bits(&[1.0 / 3.0, 2.0 / 3.0])), "{e:?}");
+        assert_eq!(field("third[1]").values64.as_deref().map(bits), Some(bits(&[0.1, 0.2])), "{e:?}");
+        assert!(field("mat").values64.is_none() && field("vel[2]").values64.is_none(), "{e:?}");
     }
 }
 

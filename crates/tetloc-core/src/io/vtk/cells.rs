@@ -206,7 +206,7 @@ pub(crate) fn non_tet_error(path: &Path, other: &BTreeMap<u8, usize>) -> Error {
 }
 
 /// Keeps the values of the volume cells only, when some cells were not.
-pub(crate) fn filter_cells(values: Vec<f32>, kept: Option<&[bool]>) -> Vec<f32> {
+pub(crate) fn filter_cells<T: Copy>(values: Vec<T>, kept: Option<&[bool]>) -> Vec<T> {
     match kept {
         None => values,
         Some(k) => values.into_iter().zip(k).filter(|(_, &k)| k).map(|(v, _)| v).collect(),

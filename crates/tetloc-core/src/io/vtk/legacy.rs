@@ -231,6 +231,7 @@ impl Grid<'_> {
             }
             if f.location == FieldLocation::Cell {
                 f.values = cells::filter_cells(std::mem::take(&mut f.values), ex.kept.as_deref());
+                f.values64 = f.values64.take().map(|v| cells::filter_cells(v, ex.kept.as_deref()));
             }
         }
         // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
@@ -345,7 +346,7 @@ impl<'a> Reader<'a> {
                 values.iter_mut().for_each(|v| *v /= 255.0);
             }
             let name = if ncomp == 1 { name.to_string() } else { format!("{name}[{c}]") };
-            fields.push(Field { name, location, values });
+            fields.push(Field { name, location, values, values64: num::component_f64(&arr, ncomp, c) });
         }
         Ok(())
     }

@@ -257,6 +257,16 @@ pub(crate) fn component_f32(a: &Array, ncomp: usize, c: usize) -> Vec<f32> {
     with_type!(a.ty, T => go::<T>(&a.bytes, ncomp, c))
 }
 
+/// Component `c` of every tuple of `ncomp` values as f64, for an f64 array some of whose
+/// values do not round to f32 exactly (`None` otherwise: [`component_f32`] is the data).
+pub(crate) fn component_f64(a: &Array, ncomp: usize, c: usize) -> Option<Vec<f64>> {
+    if a.ty != NumType::F64 {
+        return None;
+    }
+    let v = a.bytes.par_chunks_exact(ncomp * 8).map(|t| f64::get(t, c)).collect();
+    crate::mesh::f64_if_needed(v)
+}
+
 /// Triples of values as f32 points.
 pub(crate) fn to_points(a: &Array) -> Vec<[f32; 3]> {
     with_type!(a.ty, T => map_tuples::<T, 3, _, _>(&a.bytes, |t| Some(t.map(Elem::to_f32))).unwrap_or_default())

@@ -220,7 +220,7 @@ fn weld(mut raw: RawMesh, ids: &[u64], listing: &Path) -> Result<RawMesh> {
         *p64 = kept.iter().map(|&i| p64[i as usize]).collect();
     }
     for f in raw.fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
-        f.values = kept.iter().map(|&i| f.values[i as usize]).collect();
+        *f = f.select(|j| kept[j] as usize, kept.len());
     }
     raw.tets.par_iter_mut().for_each(|t| *t = t.map(|i| new_of[i as usize]));
     if let Some(b) = &mut raw.cells {
@@ -285,7 +285,7 @@ fn renumber(mut raw: RawMesh, ids: &[u64], listing: &Path, first_ids: &[u64]) ->
         raw.cells = Some(out);
     }
     for f in raw.fields.iter_mut().filter(|f| f.location == FieldLocation::Cell) {
-        f.values = cell_of.iter().map(|&c| f.values[c]).collect();
+        *f = f.select(|j| cell_of[j], cell_of.len());
     }
     Ok(raw)
 }
@@ -316,6 +316,34 @@ mod tests {
 
     fn cube() -> Mesh {
         KuhnGrid::new(6).jitter(0.2, 3).cell_field("c", |i, _| i as f32).mesh("cube")
+    }
+
+    /// f64 fields (values f32 cannot hold, a point and a cell field) survive partitioning
+    /// into pieces and the pieces' merge, bit for bit, through .pvtu and .vtm.
+    #[test]
+    fn f64_fields_survive_the_pieces() {
+        use crate::mesh::{Field, FieldLocation};
+        let dir = TempDir::new("f64");
+        let mut m = cube();
+        let g = (0..m.points.len()).map(|i| 1e-9 + i as f64 * 1e-12 + 1e-17).collect();
+        m.fields.push(Field::from_f64("g", FieldLocation::Vertex, g));
+        m.fields.push(Field::from_f64("h", FieldLocation::Cell, (0..m.n_cells()).map(|t| t as f64 / 3.0).collect()));
+        crate::partition::write_pvtu(&m, 3, &dir.0.join("cube.pvtu"), false, |_| {}).unwrap();
+        let vtm = r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
+            <DataSet index="0" file="cube.pvtu"/></vtkMultiBlockDataSet></VTKFile>"#;
+        std::fs::write(dir.0.join("cube.vtm"), vtm).unwrap();
+        for ext in ["pvtu", "vtm"] {
+            let out = dir.0.join(format!("cube.{ext}"));
+            let back = crate::io::read_mesh(&out, None).unwrap();
+            assert_eq!(back.points, m.points, "{ext}");
+            for name in ["g", "h"] {
+                let bits = |m: &Mesh| {
+                    m.field(name).unwrap().values64.clone().unwrap().iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+                };
+                assert_eq!(bits(&back), bits(&m), "{ext}: {name}");
+            }
+            assert!(back.field("c").unwrap().values64.is_none(), "{ext}: f32 data stays f32");
+        }
     }
 
     /// Partitioned and read back whole, the mesh has the same cells under the same ids (its

@@ -571,3 +571,112 @@ fn compare_dir() {
         assert!(same_points && m.tets == first.tets && same_fields, "{}", p.display());
     }
 }
+
+/// f64 values that f32 cannot hold, and the mesh with them: a point field of values near
+/// zero and a 2-component cell field.
+fn with_f64_fields(mut mesh: crate::Mesh) -> crate::Mesh {
+    use crate::mesh::{Field, FieldLocation};
+    let n = mesh.points.len();
+    let g: Vec<f64> = (0..n).map(|i| 1e-9 + i as f64 * 1e-12 + 1.0 / 3.0 * 1e-15).collect();
+    mesh.fields.push(Field::from_f64("g", FieldLocation::Vertex, g));
+    for c in 0..2 {
+        let v = (0..mesh.n_cells()).map(|t| t as f64 / 3.0 + c as f64 * 0.1).collect();
+        mesh.fields.push(Field::from_f64(format!("w[{c}]"), FieldLocation::Cell, v));
+    }
+    assert!(mesh.fields.iter().skip(2).all(|f| f.values64.is_some()));
+    mesh
+}
+
+/// The f64 fields of `back` are `mesh`'s, bit for bit, and its f32 fields stay f32 only.
+fn same_f64_fields(back: &RawMesh, mesh: &crate::Mesh, what: &str) {
+    for f in &mesh.fields {
+        let g = back.fields.iter().find(|g| g.name == f.name).unwrap_or_else(|| panic!("{what}: no {}", f.name));
+        let bits = |v: &Option<Vec<f64>>| v.as_ref().map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
+        assert_eq!(bits(&g.values64), bits(&f.values64), "{what}: {}", f.name);
+        assert!(g.values.iter().zip(&f.values).all(|(a, b)| a.to_bits() == b.to_bits()), "{what}: {}", f.name);
+    }
+}
+
+/// A Float64 field that f32 cannot hold reads back exactly from a VTU in every encoding
+/// (appended raw, zlib, ascii, inline binary, appended base64, big-endian, UInt32 headers)
+/// and from a legacy file (ASCII and binary); Float32 fields get no f64 copy.
+#[test]
+fn f64_fields_round_trip_exactly() {
+    use crate::io::vtk::write as vtu_write;
+    let mesh = with_f64_fields(jittered_grid(3, 4));
+    for zlib in [false, true] {
+        let path = std::env::temp_dir().join(format!("tetloc-{}-f64-{zlib}.vtu", std::process::id()));
+        vtu_write::write_mesh_vtu(&path, &mesh, zlib).unwrap();
+        let bytes = std::fs::read(&path).unwrap();
+        std::fs::remove_file(&path).unwrap();
+        same_f64_fields(&vtu::parse(&bytes, &path).unwrap(), &mesh, &format!("zlib {zlib}"));
+        if !zlib {
+            for enc in [Enc::AppendedBase64, Enc::BigEndian, Enc::Header32, Enc::Ascii, Enc::Inline] {
+                same_f64_fields(&vtu::parse(&reencode(&bytes, enc), &path).unwrap(), &mesh, &format!("{enc:?}"));
+            }
+        }
+    }
+    // Legacy, ASCII and binary (big-endian doubles).
+    for binary in [false, true] {
+        let mut bytes = format!(
+            "# vtk DataFile Version 3.0\nf64\n{}\nDATASET UNSTRUCTURED_GRID\nPOINTS {} float\n",
+            if binary { "BINARY" } else { "ASCII" },
+            mesh.points.len()
+        )
+        .into_bytes();
+        let put = |bytes: &mut Vec<u8>, text: String| bytes.extend_from_slice(text.as_bytes());
+        for p in &mesh.points {
+            match binary {
+                true => p.iter().for_each(|c| bytes.extend_from_slice(&c.to_be_bytes())),
+                false => put(&mut bytes, format!("{:?} {:?} {:?}\n", p[0], p[1], p[2])),
+            }
+        }
+        put(&mut bytes, format!("\nCELLS {} {}\n", mesh.n_tets(), 5 * mesh.n_tets()));
+        for t in &mesh.tets {
+            match binary {
+                true => [4, t[0], t[1], t[2], t[3]].iter().for_each(|i| bytes.extend_from_slice(&i.to_be_bytes())),
+                false => put(&mut bytes, format!("4 {} {} {} {}\n", t[0], t[1], t[2], t[3])),
+            }
+        }
+        put(&mut bytes, format!("\nCELL_TYPES {}\n", mesh.n_tets()));
+        for _ in &mesh.tets {
+            match binary {
+                true => bytes.extend_from_slice(&10i32.to_be_bytes()),
+                false => put(&mut bytes, "10\n".into()),
+            }
+        }
+        for (section, names, n) in
+            [("POINT_DATA", &["f", "g"][..], mesh.points.len()), ("CELL_DATA", &["cell id"][..], mesh.n_tets())]
+        {
+            put(&mut bytes, format!("\n{section} {n}\n"));
+            for name in names {
+                let f = mesh.field(name).unwrap();
+                let ty = if f.values64.is_some() { "double" } else { "float" };
+                put(&mut bytes, format!("SCALARS {} {ty} 1\nLOOKUP_TABLE default\n", name.replace(' ', "%20")));
+                for i in 0..n {
+                    match (binary, f.values64.is_some()) {
+                        (true, true) => bytes.extend_from_slice(&f.value64(i).to_be_bytes()),
+                        (true, false) => bytes.extend_from_slice(&f.values[i].to_be_bytes()),
+                        (false, true) => put(&mut bytes, format!("{:?}\n", f.value64(i))),
+                        (false, false) => put(&mut bytes, format!("{:?}\n", f.values[i])),
+                    }
+                }
+            }
+            if section == "CELL_DATA" {
+                put(&mut bytes, "FIELD FieldData 1\n".into());
+                put(&mut bytes, format!("w 2 {n} double\n"));
+                let w: [&crate::Field; 2] = [mesh.field("w[0]").unwrap(), mesh.field("w[1]").unwrap()];
+                for i in 0..n {
+                    for f in w {
+                        match binary {
+                            true => bytes.extend_from_slice(&f.value64(i).to_be_bytes()),
+                            false => put(&mut bytes, format!("{:?}\n", f.value64(i))),
+                        }
+                    }
+                }
+            }
+        }
+        let back = vtk_legacy::parse(&bytes, Path::new("f64.vtk")).unwrap_or_else(|e| panic!("binary {binary}: {e}"));
+        same_f64_fields(&back, &mesh, &format!("legacy binary {binary}"));
+    }
+}

@@ -307,11 +307,13 @@ impl<'a> Ctx<'a, '_> {
                 }
                 for c in 0..nc {
                     let mut values = num::component_f32(&arr, nc, c);
+                    let mut values64 = num::component_f64(&arr, nc, c);
                     if location == FieldLocation::Cell {
                         values = cells::filter_cells(values, ex.kept.as_deref());
+                        values64 = values64.map(|v| cells::filter_cells(v, ex.kept.as_deref()));
                     }
                     let name = if nc == 1 { name.to_string() } else { format!("{name}[{c}]") };
-                    fields.push(Field { name, location, values });
+                    fields.push(Field { name, location, values, values64 });
                 }
             }
         }
@@ -358,7 +360,7 @@ pub(crate) fn join(mut parts: Vec<RawMesh>, path: &Path) -> Result<RawMesh> {
     for f in &first.fields {
         let in_all = parts.iter().all(|p| p.fields.iter().any(|g| g.name == f.name && g.location == f.location));
         if in_all {
-            out.fields.push(Field { name: f.name.clone(), location: f.location, values: Vec::new() });
+            out.fields.push(Field::new(f.name.clone(), f.location, Vec::new()));
         }
     }
     // When some piece has a cell block, every piece goes into one (linear tets as tet cells).
@@ -388,7 +390,7 @@ pub(crate) fn join(mut parts: Vec<RawMesh>, path: &Path) -> Result<RawMesh> {
         out.higher_order = out.higher_order.max(p.higher_order);
         for f in &mut out.fields {
             let g = p.fields.iter().find(|g| g.name == f.name && g.location == f.location).unwrap();
-            f.values.extend_from_slice(&g.values);
+            f.extend_from(g);
         }
     }
     if block.as_ref().is_some_and(|b| b.non_tet_counts().is_some()) {

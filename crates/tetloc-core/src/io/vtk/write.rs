@@ -131,23 +131,27 @@ impl<'a> NamedArray<'a> {
     }
 }
 
-/// The mesh's fields as arrays: each run `NAME[0]` … `NAME[k-1]` interleaved into one.
+/// The mesh's fields as arrays: each run `NAME[0]` … `NAME[k-1]` interleaved into one;
+/// Float64 when some component has f64 data (the file's values, kept), else Float32.
 fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<OutArray<'a>>) {
     let (mut point_data, mut cell_data) = (Vec::new(), Vec::new());
     for g in crate::ops::fields::groups_of(&mesh.fields) {
         if skip.contains(&g.name.as_str()) {
             continue;
         }
-        let comps: Vec<&'a [f32]> =
-            g.components.iter().map(|c| mesh.field(c).map(|f| f.values.as_slice()).unwrap_or(&[])).collect();
-        let arr = match comps.as_slice() {
-            [one] => OutArray::floats(&g.name, 1, one),
-            _ => {
-                let k = comps.len();
-                OutArray::new(&g.name, NumType::F32, k, k * comps[0].len(), move |r, out| {
-                    r.for_each(|i| out.extend_from_slice(&comps[i % k][i / k].to_ne_bytes()))
-                })
-            }
+        let fields: Vec<&'a crate::mesh::Field> = g.components.iter().filter_map(|c| mesh.field(c).ok()).collect();
+        let k = fields.len();
+        let n = fields.first().map_or(0, |f| f.values.len());
+        let arr = if fields.iter().any(|f| f.values64.is_some()) {
+            OutArray::new(&g.name, NumType::F64, k, k * n, move |r, out| {
+                r.for_each(|i| out.extend_from_slice(&fields[i % k].value64(i / k).to_ne_bytes()))
+            })
+        } else if k == 1 {
+            OutArray::floats(&g.name, 1, &fields[0].values)
+        } else {
+            OutArray::new(&g.name, NumType::F32, k, k * n, move |r, out| {
+                r.for_each(|i| out.extend_from_slice(&fields[i % k].values[i / k].to_ne_bytes()))
+            })
         };
         match g.location {
             FieldLocation::Vertex => point_data.push(arr),
@@ -845,11 +849,12 @@ mod tests {
             tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
             fields: vec![
                 Field {
+                    values64: None,
                     name: "p <&\"'> x".into(),
                     location: FieldLocation::Vertex,
                     values: vec![0.5, -1., 2., f32::NAN, 4.],
                 },
-                Field { name: "c[0]".into(), location: FieldLocation::Cell, values: vec![7., 8.] },
+                Field { values64: None, name: "c[0]".into(), location: FieldLocation::Cell, values: vec![7., 8.] },
             ],
             higher_order: None,
             cells: None,
@@ -976,9 +981,14 @@ mod tests {
         let mut raw = RawMesh { points: m.points.clone(), tets: m.tets.clone(), ..Default::default() };
         for c in 0..3 {
             let values = (0..5).map(|i| (10 * c + i) as f32).collect();
-            raw.fields.push(Field { name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
+            raw.fields.push(Field { values64: None, name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
         }
-        raw.fields.push(Field { name: "g".into(), location: FieldLocation::Vertex, values: vec![1.0; 5] });
+        raw.fields.push(Field {
+            values64: None,
+            name: "g".into(),
+            location: FieldLocation::Vertex,
+            values: vec![1.0; 5],
+        });
         let mesh = Mesh::new(raw, "v").unwrap();
         let tmp = TempPath::new("vector");
         let mask = [1u8, 0, 1, 1, 0];

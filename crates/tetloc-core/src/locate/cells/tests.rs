@@ -32,7 +32,8 @@ fn cpu_matches_vtk_on_the_mixed_sets() {
 /// A warped hex grid (interior vertices jittered, ids shuffled; `brute_force::Mixed`) as a mesh.
 fn warped_grid(n: usize, jitter: f64, seed: u64) -> (crate::cell::brute_force::Mixed, Arc<Mesh>) {
     let m = crate::cell::brute_force::Mixed::warped_hex_grid(n, jitter, seed);
-    let f = crate::mesh::Field { name: "f".into(), location: FieldLocation::Vertex, values: m.f.clone() };
+    let f =
+        crate::mesh::Field { values64: None, name: "f".into(), location: FieldLocation::Vertex, values: m.f.clone() };
     let raw = crate::RawMesh {
         points: m.points32.clone(),
         cells: Some(m.cells.clone()),
@@ -106,6 +107,7 @@ fn planar_hexes_answer_as_their_tet_split() {
     let cells = hexes.cells.as_ref().unwrap();
     let f = |p: Vec3| p[0] + 2.0 * p[1] - p[2];
     let field = |points: &[Vec3]| crate::mesh::Field {
+        values64: None,
         name: "f".into(),
         location: FieldLocation::Vertex,
         values: points.iter().map(|&p| f(p)).collect(),
@@ -155,6 +157,7 @@ fn bad_cells_are_repaired_or_refused() {
         let mut cells = CellBlock::default();
         cells.push(hex, &nodes);
         let f = crate::mesh::Field {
+            values64: None,
             name: "f".into(),
             location: FieldLocation::Vertex,
             values: cube.iter().map(|p| p[0] + p[2]).collect(),

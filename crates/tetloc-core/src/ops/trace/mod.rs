@@ -702,7 +702,12 @@ mod tests {
         let swirl = |p: Vec3| [-(p[1] - 0.5) + 0.1, (p[0] - 0.5) + 0.05 * p[2], 0.2 - 0.1 * p[0]];
         for c in 0..3 {
             let values = m.points.iter().map(|&p| swirl(p)[c]).collect();
-            fields.push(crate::Field { name: format!("v[{c}]"), location: crate::FieldLocation::Vertex, values });
+            fields.push(crate::Field {
+                values64: None,
+                name: format!("v[{c}]"),
+                location: crate::FieldLocation::Vertex,
+                values,
+            });
         }
         let raw = crate::RawMesh { points: m.points.clone(), tets: m.tets.clone(), fields, ..Default::default() };
         std::sync::Arc::new(crate::Mesh::new(raw, "cube+v").unwrap())

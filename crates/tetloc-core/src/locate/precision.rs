@@ -1,0 +1,136 @@
+//! The precision of the values of the f64 path ([`BatchLocator::sample_many64`]): every
+//! backend's own (`F32`: the GPU kernels' f32 values, widened; the CPU's are f64 anyway), or
+//! the CPU's f64 values at the backend's ids (`F64`): [`F64Values`] asks the backend for ids
+//! only (exact: the CPU's, or the GPU's certified ones) and computes the values on the host
+//! with [`Mesh::values_at_ids64`], the one f64 definition, so that they equal the CPU's bit
+//! for bit.
+
+use super::{check_lengths, BatchLocator};
+use crate::error::{Error, Result};
+use crate::geom::Vec3;
+use crate::mesh::Mesh;
+use crate::ops::trace::{Line, TraceOptions};
+use crate::ops::ImageGrid;
+use std::ops::Range;
+use std::sync::Arc;
+
+/// The values' precision on the f64 path.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum Precision {
+    /// The backend's own values: f32 on the GPU (within 1e-6 of the field's range), widened.
+    #[default]
+    F32,
+    /// f64 values computed on the host from the backend's ids: the CPU's, bit for bit.
+    F64,
+}
+
+impl std::str::FromStr for Precision {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Precision> {
+        match s {
+            "f32" => Ok(Precision::F32),
+            "f64" => Ok(Precision::F64),
+            other => Err(Error::Invalid(format!("precision '{other}': expected f32 or f64"))),
+        }
+    }
+}
+
+impl std::fmt::Display for Precision {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Precision::F32 => "f32",
+            Precision::F64 => "f64",
+        })
+    }
+}
+
+/// Any backend with f64 values on its f64 path (see the module documentation). Everything
+/// else passes through; so do mixed meshes, whose values [`super::CellLocator`] computes on
+/// the host in f64 already (wrap it inside this).
+pub struct F64Values<L> {
+    inner: L,
+    mesh: Arc<Mesh>,
+}
+
+impl<L: BatchLocator> F64Values<L> {
+    /// `inner` must locate in `mesh`'s tets (or cells).
+    pub fn new(inner: L, mesh: Arc<Mesh>) -> Self {
+        F64Values { inner, mesh }
+    }
+    pub fn inner(&self) -> &L {
+        &self.inner
+    }
+    pub fn inner_mut(&mut self) -> &mut L {
+        &mut self.inner
+    }
+    pub fn into_inner(self) -> L {
+        self.inner
+    }
+}
+
+/// `loc` with the values of `precision` on its f64 path.
+pub fn with_precision<'a>(
+    loc: Box<dyn BatchLocator + 'a>,
+    mesh: Arc<Mesh>,
+    precision: Precision,
+) -> Box<dyn BatchLocator + 'a> {
+    match precision {
+        Precision::F32 => loc,
+        Precision::F64 => Box::new(F64Values::new(loc, mesh)),
+    }
+}
+
+impl<L: BatchLocator> BatchLocator for F64Values<L> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
+        self.inner.locate(points, ids)
+    }
+    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
+        self.inner.sample(points, field, values)
+    }
+    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        self.inner.locate_and_sample(points, field, ids, values)
+    }
+    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+        self.inner.sample_many(points, fields, ids, values)
+    }
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f64],
+    ) -> Result<()> {
+        if self.mesh.cells.is_some() {
+            return self.inner.sample_many64(points, fields, ids, values);
+        }
+        check_lengths(points.len(), ids.len())?;
+        check_lengths(points.len() * fields.len(), values.len())?;
+        let mesh = self.mesh.clone();
+        let fields = fields.iter().map(|f| mesh.field(f)).collect::<Result<Vec<_>>>()?;
+        self.inner.sample_many64(points, &[], ids, &mut [])?;
+        mesh.values_at_ids64(points, ids, &fields, values);
+        Ok(())
+    }
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        self.inner.sample_grid(grid, range, fields, ids, values)
+    }
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>> {
+        self.inner.trace_lines(seeds, o, vector, progress)
+    }
+}
