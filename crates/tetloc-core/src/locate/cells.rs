@@ -22,7 +22,7 @@
 //! Meshes of tets only pass through untouched. GPU kernels answer decomposition tet ids
 //! only: values on mixed meshes are always computed here, on the CPU.
 
-use super::{check_lengths, is_finite, BatchLocator, OUTSIDE};
+use super::{check_lengths, BatchLocator, OUTSIDE};
 use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 use crate::cell::{face_split, interpolate, invert, PCoords, Point};
 use crate::error::Result;
@@ -60,22 +60,35 @@ impl<L: BatchLocator> CellLocator<L> {
         self.inner
     }
 
-    /// The backend's tets, refined to cells.
+    /// The backend's tets for points given in f32, refined to cells.
     fn find(&mut self, points: &[Vec3], tets: &mut [i32]) -> Result<Vec<Option<Found>>> {
         self.inner.locate(points, tets)?;
+        let points: Vec<Point> = points.par_iter().map(|p| p.map(f64::from)).collect();
+        Ok(self.refine_all(&points, tets))
+    }
+
+    /// The backend's tets for points given in f64 (exact on the file's data: the backend's
+    /// f64 path), refined to cells.
+    fn find64(&mut self, points: &[Point], tets: &mut [i32]) -> Result<Vec<Option<Found>>> {
+        self.inner.sample_many64(points, &[], tets, &mut [])?;
+        Ok(self.refine_all(points, tets))
+    }
+
+    fn refine_all(&self, points: &[Point], tets: &[i32]) -> Vec<Option<Found>> {
         let cells = self.mesh.cells.as_ref().expect("called on mixed meshes");
         let mesh = &self.mesh;
         if tets.par_iter().any(|&t| t < 0) && cells.warped.par_iter().any(|&w| w != 0) {
             self.bulges.get_or_init(|| Bulges::build(mesh, cells));
         }
         let bulges = self.bulges.get();
-        Ok(points.par_iter().zip(tets.par_iter()).map(|(&p, &t)| refine(mesh, cells, bulges, p, t)).collect())
+        points.par_iter().zip(tets.par_iter()).map(|(&p, &t)| refine(mesh, cells, bulges, p, t)).collect()
     }
 }
 
 /// Step 1–3 of the module documentation for one point.
-fn refine(mesh: &Mesh, cells: &Cells, bulges: Option<&Bulges>, p: Vec3, t: i32) -> Option<Found> {
-    if !is_finite(p) {
+/// `p` in the file's coordinates, as every step below (the backends searched the working copy).
+fn refine(mesh: &Mesh, cells: &Cells, bulges: Option<&Bulges>, p: Point, t: i32) -> Option<Found> {
+    if !p.iter().all(|c| c.is_finite()) {
         return None;
     }
     if t < 0 {
@@ -86,7 +99,7 @@ fn refine(mesh: &Mesh, cells: &Cells, bulges: Option<&Bulges>, p: Vec3, t: i32) 
     if warped == 0 || !near_warped_face(mesh, cells, c, warped, p) {
         return Some(Found { cell: c, pc: None });
     }
-    let p64 = p.map(f64::from);
+    let p64 = p;
     let Some(pc) = pcoords(mesh, cells, c, p64) else { return Some(Found { cell: c, pc: None }) };
     let shape = cells.block.types[c].shape();
     if shape.contains(pc) {
@@ -114,19 +127,19 @@ fn refine(mesh: &Mesh, cells: &Cells, bulges: Option<&Bulges>, p: Vec3, t: i32) 
     (!through_boundary).then_some(Found { cell: c, pc: Some(pc) })
 }
 
-/// `p`'s parametric coordinates in cell `c`, located by its corners (`None`: Newton failed).
+/// `p`'s parametric coordinates in cell `c`, located by its corners (`None`: Newton failed);
+/// `p` and the corners in the file's coordinates.
 fn pcoords(mesh: &Mesh, cells: &Cells, c: usize, p: Point) -> Option<PCoords> {
-    let corners = cells.corner_points(c, &mesh.points);
+    let corners: Vec<Point> = cells.block.corners(c).iter().map(|&i| mesh.vertex64(i)).collect();
     invert(cells.block.types[c].shape().linear, &corners, p).ok()
 }
 
 /// Whether `p` is within the gap of one of the faces in `faces` (a bit set) of cell `c`: only
 /// there can the decomposition and the cell's bilinear faces disagree.
-fn near_warped_face(mesh: &Mesh, cells: &Cells, c: usize, faces: u8, p: Vec3) -> bool {
+fn near_warped_face(mesh: &Mesh, cells: &Cells, c: usize, faces: u8, p: Point) -> bool {
     let shape = cells.block.types[c].shape();
     let ids = cells.block.corners(c);
-    let x = |k: u8| mesh.points[ids[usize::from(k)] as usize].map(f64::from);
-    let p = p.map(f64::from);
+    let x = |k: u8| mesh.vertex64(ids[usize::from(k)]);
     (0..shape.faces.len()).filter(|&f| faces & (1 << f) != 0).any(|f| {
         let face = shape.faces[f];
         let q = [x(face[0]), x(face[1]), x(face[2]), x(face[3])];
@@ -173,26 +186,31 @@ impl Bulges {
         let boxes: Vec<Aabb> = ids
             .par_iter()
             .map(|&c| {
+                // A cell lies in its corners' box (a bilinear face in its corners' hull), in
+                // the working copy up to rounding: grown by a few of its ulps.
                 let corners: Vec<Vec3> =
                     cells.block.corners(c as usize).iter().map(|&i| mesh.points[i as usize]).collect();
-                Aabb::of_points(&corners)
+                let b = Aabb::of_points(&corners);
+                let grow = (0..3).map(|k| b.min[k].abs().max(b.max[k].abs())).fold(0f32, f32::max) * 1e-6;
+                Aabb { min: b.min.map(|x| x - grow), max: b.max.map(|x| x + grow) }
             })
             .collect();
         Bulges { bvh: Bvh::build_boxes(&boxes, BuildPreset::Fast), cells: ids }
     }
 
-    /// The smallest cell id among the bulging cells that hold `p`.
-    fn find(&self, mesh: &Mesh, cells: &Cells, p: Vec3) -> Option<Found> {
+    /// The smallest cell id among the bulging cells that hold `p` (file coordinates).
+    fn find(&self, mesh: &Mesh, cells: &Cells, p: Point) -> Option<Found> {
         struct Search<'a> {
             b: &'a Bulges,
             mesh: &'a Mesh,
             cells: &'a Cells,
-            p: Vec3,
+            p: Point,
+            working: Vec3,
             best: Option<Found>,
         }
         impl Visitor for Search<'_> {
             fn enter(&mut self, b: &Aabb) -> bool {
-                b.contains(self.p)
+                b.contains(self.working)
             }
             fn prim(&mut self, id: u32) -> bool {
                 let c = self.b.cells[id as usize] as usize;
@@ -206,14 +224,14 @@ impl Bulges {
                 if !near_warped_face(mesh, cells, c, boundary, self.p) {
                     return false;
                 }
-                let pc = pcoords(mesh, cells, c, self.p.map(f64::from));
+                let pc = pcoords(mesh, cells, c, self.p);
                 if let Some(pc) = pc.filter(|&pc| cells.block.types[c].shape().contains(pc)) {
                     self.best = Some(Found { cell: c, pc: Some(pc) });
                 }
                 false
             }
         }
-        let mut s = Search { b: self, mesh, cells, p, best: None };
+        let mut s = Search { b: self, mesh, cells, p, working: mesh.info.frame.to_working(p), best: None };
         self.bvh.traverse(&mut s);
         s.best
     }
@@ -221,11 +239,11 @@ impl Bulges {
 
 /// The value of `field` at `p` where it was found, in f32 (the f32 values) or f64 (the file's
 /// values): shape functions in f64 either way.
-fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Vec3, found: &Found) -> T {
+fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Point, found: &Found) -> T {
     let c = found.cell;
     match field.location {
         FieldLocation::Cell => T::of(field, c),
-        FieldLocation::Vertex => match found.pc.or_else(|| pcoords(mesh, cells, c, p.map(f64::from))) {
+        FieldLocation::Vertex => match found.pc.or_else(|| pcoords(mesh, cells, c, p)) {
             Some(pc) => {
                 let nodes = cells.block.nodes(c);
                 let def = cells.block.types[c].def();
@@ -235,7 +253,8 @@ fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Vec3, found: &Fo
             // corners' values).
             None => {
                 let tets = &mesh.tets[cells.tets_of(c)];
-                let held = tets.iter().find_map(|&t| Some((t, geom::point_in_tet(t, &mesh.points, p)?)));
+                let w = mesh.info.frame.to_working(p);
+                let held = tets.iter().find_map(|&t| Some((t, geom::point_in_tet(t, &mesh.points, w)?)));
                 held.map_or(T::NAN, |(t, bary)| {
                     geom::interpolate_with(t, bary.map(|b| T::from_f64(b.into())), |i| T::of(field, i))
                 })
@@ -244,12 +263,13 @@ fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Vec3, found: &Fo
     }
 }
 
-/// The value of `field` at the point `p` of cell `c` (for the boundary tolerance: `p` is a
-/// point of `c`'s boundary). `None` when the mesh has no cells.
+/// The value of `field` at the point `p` (working coordinates) of cell `c` (for the boundary
+/// tolerance: `p` is a point of `c`'s boundary). `None` when the mesh has no cells.
 pub(crate) fn value_in_cell(mesh: &Mesh, c: usize, p: Point, field: &Field) -> Option<f32> {
     let cells = mesh.cells.as_ref()?;
+    let p = mesh.info.frame.to_file64(p);
     let found = Found { cell: c, pc: pcoords(mesh, cells, c, p) };
-    Some(value(mesh, cells, field, p.map(|x| x as f32), &found))
+    Some(value(mesh, cells, field, p, &found))
 }
 
 impl<L: BatchLocator> BatchLocator for CellLocator<L> {
@@ -314,12 +334,11 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         if self.mesh.cells.is_none() {
             return self.inner.sample_many(points, fields, ids, values);
         }
-        self.sample_cells(points, fields, ids, values)
+        self.sample_cells(Points::F32(points), fields, ids, values)
     }
 
-    /// Tet meshes: the inner backend's f64 path. Mixed meshes keep the identity frame (their
-    /// cells' parametric coordinates are solved on the f32 vertices): points are rounded to
-    /// f32, and values computed in f64 on the file's values.
+    /// The inner backend's f64 path (exact on the file's data), then the cells' parametric
+    /// coordinates on the file's f64 coordinates, and values in f64 on the file's values.
     fn sample_many64(
         &mut self,
         points: &[[f64; 3]],
@@ -330,25 +349,46 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         if self.mesh.cells.is_none() {
             return self.inner.sample_many64(points, fields, ids, values);
         }
-        let points: Vec<Vec3> = points.par_iter().map(|p| p.map(|c| c as f32)).collect();
-        self.sample_cells(&points, fields, ids, values)
+        self.sample_cells(Points::F64(points), fields, ids, values)
     }
+}
+
+/// Query points as a batch gives them.
+#[derive(Clone, Copy)]
+enum Points<'a> {
+    F32(&'a [Vec3]),
+    F64(&'a [Point]),
 }
 
 impl<L: BatchLocator> CellLocator<L> {
     /// Ids and values on a mixed mesh, in either precision.
     fn sample_cells<T: Real>(
         &mut self,
-        points: &[Vec3],
+        points: Points,
         fields: &[&str],
         ids: &mut [i32],
         values: &mut [T],
     ) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        let n = match points {
+            Points::F32(p) => p.len(),
+            Points::F64(p) => p.len(),
+        };
+        check_lengths(n, ids.len())?;
+        check_lengths(n * fields.len(), values.len())?;
         let mesh = self.mesh.clone();
         let fields: Vec<&Field> = fields.iter().map(|f| mesh.field(f)).collect::<Result<_>>()?;
-        let found = self.find(points, ids)?;
+        let (found, widened);
+        let points: &[Point] = match points {
+            Points::F32(p) => {
+                found = self.find(p, ids)?;
+                widened = p.par_iter().map(|p| p.map(f64::from)).collect::<Vec<_>>();
+                &widened
+            }
+            Points::F64(p) => {
+                found = self.find64(p, ids)?;
+                p
+            }
+        };
         let cells = mesh.cells.as_ref().expect("checked above");
         let k = fields.len();
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |f| f.cell as i32));

@@ -177,11 +177,6 @@ impl Cells {
         (0..6).any(|f| self.warped[c] & (1 << f) != 0 && n[f] < 0)
     }
 
-    /// Cell `c`'s corners in f64.
-    pub fn corner_points(&self, c: usize, points: &[Vec3]) -> Vec<Point> {
-        self.block.corners(c).iter().map(|&i| points[i as usize].map(f64::from)).collect()
-    }
-
     /// Bytes held (the decomposition tets are counted with the mesh's tets).
     pub fn memory_bytes(&self) -> usize {
         self.block.types.len()

@@ -87,7 +87,13 @@ impl Frame {
     /// A working point back in the file's coordinates (rounded in f64).
     #[inline]
     pub fn to_file(&self, w: Vec3) -> [f64; 3] {
-        std::array::from_fn(|k| w[k] as f64 / self.scale + self.origin[k])
+        self.to_file64(w.map(f64::from))
+    }
+
+    /// [`Frame::to_file`] of a working point held in f64 (a point computed from the copy).
+    #[inline]
+    pub fn to_file64(&self, w: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| w[k] / self.scale + self.origin[k])
     }
 }
 

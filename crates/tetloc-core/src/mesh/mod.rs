@@ -205,9 +205,8 @@ impl Mesh {
                 )));
             }
         }
-        // Mixed cells are solved on the f32 vertices in the file's frame (their parametric
-        // coordinates, warped faces): they keep the f32 copy as their data.
-        let points64 = if is_mixed { None } else { points64 };
+        // Mixed meshes too: backends search the working copy, and the cells' parametric
+        // coordinates are solved on the file's f64 coordinates (locate::CellLocator).
         let (points, points64, frame) = working_copy(points, points64);
         // A mixed mesh: its tets are its cells' conforming decomposition, mapped back to them.
         let (mut mixed, mut cells, mut cell_repairs) = (None, cells, None);

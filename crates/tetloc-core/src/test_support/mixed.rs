@@ -3,7 +3,7 @@
 //!
 //! `tetloc-testdata` includes this same file (`#[path]`) for every other crate's tests.
 
-use super::{query_sets, require_data, BatchLocator, Mesh, QuerySet};
+use super::{query_sets, read_raw, require_data, BatchLocator, Mesh, QuerySet};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -52,6 +52,60 @@ pub fn compare(loc: &mut dyn BatchLocator, mesh: &Mesh, set: &QuerySet) -> Misma
             (true, true) => {
                 let (got, want) = (f64::from(v[2 * i]), want_values[i]);
                 if (got - want).abs() > 1e-5 * want.abs() + 2e-6 * max_f {
+                    m.values += 1;
+                }
+            }
+            (false, false) => {}
+        }
+    }
+    m
+}
+
+/// Where [`compare_far`] moves a mixed mesh and its points: far from the origin (f32 cannot
+/// hold a cell of these meshes there), by powers of two, so that most coordinates move exactly.
+pub const FAR: [f64; 3] = [8_388_608.0, 16_777_216.0, -4_194_304.0];
+
+/// `file` read and moved by [`FAR`] in f64 (the f64 data a far mesh's file would hold).
+pub fn far_mesh(file: &std::path::Path) -> Mesh {
+    let mut raw = read_raw(file, None).unwrap_or_else(|e| panic!("{e}"));
+    let moved: Vec<[f64; 3]> = match raw.points64.take() {
+        Some(p) => p,
+        None => raw.points.iter().map(|p| p.map(f64::from)).collect(),
+    }
+    .iter()
+    .map(|p| std::array::from_fn(|k| p[k] + FAR[k]))
+    .collect();
+    raw.points = moved.iter().map(|p| p.map(|c| c as f32)).collect();
+    raw.points64 = Some(moved);
+    Mesh::new(raw, "far mixed mesh").unwrap_or_else(|e| panic!("{}: {e}", file.display()))
+}
+
+/// [`compare`] on [`far_mesh`], the set's points moved as the mesh and given in f64
+/// (`sample_many64`): the same answers as at the origin.
+pub fn compare_far(loc: &mut dyn BatchLocator, mesh: &Mesh, set: &QuerySet) -> Mismatch {
+    let points: Vec<[f64; 3]> = set.points.iter().map(|p| std::array::from_fn(|k| f64::from(p[k]) + FAR[k])).collect();
+    let n = points.len();
+    let (mut ids, mut v) = (vec![0; n], vec![0f64; 2 * n]);
+    loc.sample_many64(&points, &["f", "g"], &mut ids, &mut v).unwrap();
+    let max_f = mesh.field("f").unwrap().values.iter().fold(0f64, |a, &x| a.max(f64::from(x).abs()));
+    let g = &mesh.field("g").unwrap().values;
+    let want_values = set.value.as_ref().expect("mixed sets carry values");
+    let mut m = Mismatch::default();
+    for i in 0..n {
+        let (got, want) = (ids[i], set.cell[i]);
+        let cell_value_ok = if got >= 0 { v[2 * i + 1] as f32 == g[got as usize] } else { v[2 * i + 1].is_nan() };
+        if !cell_value_ok || (got < 0 && !v[2 * i].is_nan()) {
+            m.cell_values += 1;
+        }
+        if set.ambiguous(i) {
+            continue;
+        }
+        match (want >= 0, got >= 0) {
+            (true, false) => m.lost += 1,
+            (false, true) => m.extra += 1,
+            (true, true) if got != want => m.other += 1,
+            (true, true) => {
+                if (v[2 * i] - want_values[i]).abs() > 1e-5 * want_values[i].abs() + 2e-6 * max_f {
                     m.values += 1;
                 }
             }

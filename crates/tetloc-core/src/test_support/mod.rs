@@ -22,6 +22,7 @@ use crate::cell::{barycentric_lattice, CellBlock, CellType};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
 // What mixed.rs takes from its includer.
+use crate::io::read_raw;
 use crate::locate::BatchLocator;
 
 /// `n`³ cubes on [0,1]³, interior vertices jittered by up to `jitter` × spacing, with a
