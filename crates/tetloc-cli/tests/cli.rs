@@ -715,3 +715,26 @@ fn gen_mixed_shapes_read_back_and_locate() {
         }
     }
 }
+
+/// `--precision f64`: the same ids as the default, values interpolated in f64 (here on f32
+/// data: within f32 rounding of the default's); a bad value is an error that names it.
+#[test]
+fn locate_precision_f64() {
+    let dir = tmp_dir("precision");
+    let (mesh, points) = mesh_and_points(&dir);
+    let run = |p: &str| {
+        let (ids, vals) = (dir.join(format!("ids-{p}.bin")), dir.join(format!("v-{p}.bin")));
+        let args = ["locate", s(&mesh), "--points", s(&points), "--out", s(&ids), "--field", "f", "--values", s(&vals)];
+        let (ok, _, err) = tetloc(&[&args[..], &["--backend", "cpu", "--precision", p]].concat());
+        assert!(ok, "{p}: {err}");
+        (read_i32(&ids), bytemuck::pod_collect_to_vec::<u8, f32>(&std::fs::read(&vals).unwrap()))
+    };
+    let ((ids, v), (ids64, v64)) = (run("f32"), run("f64"));
+    assert_eq!(ids, ids64);
+    assert!(ids.iter().any(|&i| i >= 0) && ids.iter().any(|&i| i < 0));
+    for (a, b) in v.iter().zip(&v64) {
+        assert!((a - b).abs() <= 1e-6 * a.abs().max(1.0) || (a.is_nan() && b.is_nan()), "{a} vs {b}");
+    }
+    let (ok, _, err) = tetloc(&["locate", s(&mesh), "--points", s(&points), "--out", "x.bin", "--precision", "f16"]);
+    assert!(!ok && err.contains("f16"), "{err}");
+}
