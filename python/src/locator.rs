@@ -287,16 +287,20 @@ impl PyLocator {
         // Mixed meshes: answers in the tet decomposition become cells (CellLocator).
         let exact: Backend = Box::new(CellLocator::new(FiniteOnly::new(built.backend), mesh_arc.clone()));
         let distance = tolerance.distance(&mesh_arc);
+        // precision="f64": the backend's ids, the CPU's f64 values; the tolerance's post-pass
+        // over them.
+        let precise: Backend = match precision {
+            Precision::F64 => Box::new(F64Values::new(exact, mesh_arc.clone())),
+            Precision::F32 => exact,
+        };
         let backend: Backend = match distance {
-            d if d > 0.0 => Box::new(WithTolerance::new(exact, mesh_arc.clone(), tolerance)),
-            // precision="f64": the backend's ids, the CPU's f64 values.
-            _ if precision == Precision::F64 => Box::new(F64Values::new(exact, mesh_arc.clone())),
-            _ => exact,
+            d if d > 0.0 => Box::new(WithTolerance::new(precise, mesh_arc.clone(), tolerance)),
+            _ => precise,
         };
         // float64 points take the f64 path also for f64 values: with precision="f64", or on a
         // mesh with a field of f64 data.
         let f64_values = precision == Precision::F64 || mesh_arc.fields.iter().any(|f| f.values64.is_some());
-        let takes_f64 = distance <= 0.0 && (mesh_arc.wants_f64_points() || f64_values);
+        let takes_f64 = mesh_arc.wants_f64_points() || f64_values;
         let chunk = if name == backend::CPU { CPU_CHUNK } else { LocatorOptions::default().chunk_points };
         Ok(PyLocator {
             backend: Mutex::new(Some(backend)),

@@ -114,10 +114,14 @@ impl PyMesh {
         self.mesh.fields.iter().map(|f| (f.name.clone(), location_name(f.location))).collect()
     }
 
-    /// A copy of a scalar field's values.
-    fn field<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyArray1<f32>>> {
+    /// A copy of a scalar field's values as the file has them: float64 where it stored
+    /// them so (and they do not all round to f32 exactly), else float32.
+    fn field<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
         let f = self.mesh.field(name).map_err(to_py)?;
-        Ok(PyArray1::from_slice(py, &f.values))
+        Ok(match &f.values64 {
+            Some(v) => PyArray1::from_slice(py, v).into_any(),
+            None => PyArray1::from_slice(py, &f.values).into_any(),
+        })
     }
 
     /// A copy of the vertices, (N, 3) float32.

@@ -58,3 +58,25 @@ def test_a_bad_precision_is_a_value_error(grid_mesh):
         tetloc.Locator(grid_mesh, backend="cpu", precision="bogus")
     with pytest.raises(ValueError, match="precision"):
         tetloc.Locator(grid_mesh, backend="cpu", precision=64)
+
+
+def test_fields_come_back_as_the_file_holds_them(tmp_path):
+    """A float64 field comes back float64, bit for bit (also through pyvista and a file), a
+    float32 field float32."""
+    mesh = near_zero_mesh()
+    g = mesh.field("g")
+    assert g.dtype == np.float64 and mesh.field("g32").dtype == np.float32
+    want = 1e-9 + mesh.points64[:, 0] * 1e-12 + 1e-3 * (mesh.points64[:, 1] - (2.0 + 1e-7 / 3))
+    np.testing.assert_array_equal(g, want)
+    pv = pytest.importorskip("pyvista")
+    grid = mesh.to_pyvista()
+    assert isinstance(grid, pv.UnstructuredGrid) and grid.point_data["g"].dtype == np.float64
+    path = tmp_path / "near_zero.vtu"
+    grid.save(path)
+    back = tetloc.read(path)
+    np.testing.assert_array_equal(back.field("g"), g)
+    assert back.field("g32").dtype == np.float32
+    # Far from the origin the grid keeps the float64 coordinates.
+    points, cells = kuhn_grid(2)
+    far = tetloc.Mesh(points.astype(np.float64) + [512345.1, 4123456.3, 0.7], cells)
+    np.testing.assert_array_equal(far.to_pyvista().points, far.points64)

@@ -76,7 +76,10 @@ def from_pyvista(grid: Any) -> Arrays:
 def to_pyvista(mesh: "Mesh") -> Any:
     import pyvista as pv
 
-    grid = pv.UnstructuredGrid({pv.CellType.TETRA: mesh.cells}, mesh.points)
+    # The file's coordinates: float64 where float32 would round them (a mesh far from the origin).
+    points, points64 = mesh.points, mesh.points64
+    exact32 = np.array_equal(points.astype(np.float64), points64)
+    grid = pv.UnstructuredGrid({pv.CellType.TETRA: mesh.cells}, points if exact32 else points64)
     for name in mesh.point_data:
         grid.point_data[name] = mesh.field(name)
     for name in mesh.cell_data:

@@ -99,7 +99,7 @@ class Locator:
 
     def _sample64(self, points: ArrayLike, comps: list) -> Optional[Tuple[np.ndarray, np.ndarray, Tuple[int, ...]]]:
         """float64 points at their precision: (ids, values (K, len(comps)), leading shape),
-        or None for other points (and with a tolerance)."""
+        or None for other points."""
         if not self._raw.takes_f64:
             return None
         p64 = as_points64(points)
@@ -117,7 +117,7 @@ class Locator:
             )
         ids, values = self._raw.sample_many64(flat, comps)
         # float64 values where they carry more than float32 (precision="f64", or f64 data).
-        if not all(self._raw.values_f64(c) for c in comps):
+        if not any(self._raw.values_f64(c) for c in comps):
             values = values.astype(np.float32)
         return ids, values, lead
 

@@ -144,7 +144,8 @@ class Mesh:
         return self._raw.cells()
 
     def field(self, name: str) -> np.ndarray:
-        """A copy of field `name`'s values, (N,) or (N, k) float32."""
+        """A copy of field `name`'s values, (N,) or (N, k): float64 where the file stored
+        them in f64 (and they do not all round to f32 exactly), else float32."""
         comps, k = self._index.components(name)
         return _fields.join([self._raw.field(c) for c in comps], k)
 

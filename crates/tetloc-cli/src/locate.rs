@@ -150,9 +150,12 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     }
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
     let exact = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
+    // The tolerance's post-pass over the precision's answers (its rescued points get the
+    // file's values in f64 on the f64 path).
+    let precise = with_precision(exact, m.clone(), a.precision);
     let mut loc: Box<dyn BatchLocator> = match a.tolerance.distance(&m) {
-        d if d > 0.0 => Box::new(WithTolerance::new(exact, m.clone(), a.tolerance)),
-        _ => with_precision(exact, m.clone(), a.precision),
+        d if d > 0.0 => Box::new(WithTolerance::new(precise, m.clone(), a.tolerance)),
+        _ => precise,
     };
     // Chunks keep the progress bar moving and bound GPU batch memory.
     const CHUNK: usize = 1 << 22;
@@ -160,13 +163,12 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     let mut values = vec![0f32; if a.field.is_some() { pts.len() } else { 0 }];
     let pb = progress::bar(pts.len() as u64, format!("locating on {}", loc.name()));
     let t0 = Instant::now();
-    // On f64 data (or far from the origin), without a tolerance, the points go in at the
-    // file's precision (exact on the CPU; the mesh's working frame on the GPU); the
-    // tolerance's rescue works in f32, and f32 data near the origin takes the f32 path.
-    // The values come back in f64 there (the file's values, if f64, interpolated in f64).
+    // On f64 data (or far from the origin) the points go in at the file's precision (exact
+    // on the CPU; the mesh's working frame on the GPU); f32 data near the origin takes the
+    // f32 path. The values come back in f64 there (the file's values, if f64, interpolated
+    // in f64).
     let f64_field = a.field.as_deref().is_some_and(|f| m.field(f).is_ok_and(|f| f.values64.is_some()));
-    let at_f64 =
-        a.tolerance.distance(&m) <= 0.0 && (m.wants_f64_points() || a.precision == Precision::F64 || f64_field);
+    let at_f64 = m.wants_f64_points() || a.precision == Precision::F64 || f64_field;
     let fields: Vec<&str> = a.field.as_deref().into_iter().collect();
     let mut v64 = Vec::new();
     for (c, p) in pts.chunks(CHUNK).enumerate() {

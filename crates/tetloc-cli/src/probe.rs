@@ -96,24 +96,29 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
         bail!("{}: the source mesh has no fields to probe", source.info.source);
     }
     let target = Path::new(&a.target);
+    // The target's points as its file has them (f64 where it stores them so), so that a
+    // target far from the origin keeps its precision; a far mesh's working copy is centred.
     let (target_mesh, pts) = if point_set {
-        (None, points::read_points(target)?)
+        (None, points::read_points64(target)?)
     } else {
         let m = mesh_arg::load(&a.target, a.target_format.as_deref(), a.common.seed)?;
-        // The target's vertices in the file's coordinates (a far mesh's working copy is centred).
-        let pts = (0..m.points.len() as u32).map(|i| m.vertex64(i).map(|c| c as f32)).collect();
+        let pts = (0..m.points.len() as u32).map(|i| m.vertex64(i)).collect();
         (Some(m), pts)
     };
     let pb = progress::bar(pts.len() as u64, format!("probing on {}", loc.name()));
     let t0 = Instant::now();
-    let probed = probe::probe(loc, &pts, &groups, |d| {
+    let probed = probe::probe64(loc, &pts, &groups, |d| {
         pb.set_position(d as u64);
         Ok(())
     })?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     progress::with_spinner(format!("writing {}", a.out.display()), || {
-        probe::write_probed(&a.out, &probed, target_mesh.as_deref(), &pts, a.zlib)
+        let pts32: Vec<[f32; 3]> = match target_mesh {
+            Some(_) => Vec::new(), // the mesh writes its own coordinates
+            None => pts.iter().map(|p| p.map(|c| c as f32)).collect(),
+        };
+        probe::write_probed(&a.out, &probed, target_mesh.as_deref(), &pts32, a.zlib)
     })?;
     if !a.common.quiet {
         eprintln!(

@@ -203,8 +203,10 @@ impl Renderer {
         let surface = match &opts.surface {
             None => None,
             Some(SurfaceSpec::Boundary) => Some(SurfaceBvh::build(&TriMesh::boundary(&mesh))),
-            Some(SurfaceSpec::File(path)) => Some(SurfaceBvh::build(&TriMesh::load(path)?)),
-            Some(SurfaceSpec::Mesh(tris)) => Some(SurfaceBvh::build(tris)),
+            // Surfaces given by the user are in the file's coordinates; rays run in the
+            // working frame.
+            Some(SurfaceSpec::File(path)) => Some(SurfaceBvh::build(&TriMesh::load(path)?.in_frame(&mesh.info.frame))),
+            Some(SurfaceSpec::Mesh(tris)) => Some(SurfaceBvh::build(&tris.in_frame(&mesh.info.frame))),
         };
         Ok(Renderer { mesh, field: field.to_string(), opts: opts.clone(), table, range, step, grid, surface })
     }
@@ -254,6 +256,12 @@ impl Renderer {
         let turn = i as f32 * 360.0 / n.max(1) as f32;
         match o.camera {
             Some(look) => {
+                // The user places the camera in the file's coordinates; rays run in the
+                // mesh's working frame (mesh::Frame: centred and scaled for meshes far from
+                // the origin), which a positive scale maps without turning.
+                let frame = &self.mesh.info.frame;
+                let to_working = |x: Vec3| frame.to_working(x.map(f64::from));
+                let look = crate::camera::LookAt { eye: to_working(look.eye), target: to_working(look.target), ..look };
                 let eye = rotate_about(sub(look.eye, look.target), look.up, turn.to_radians());
                 let eye = std::array::from_fn(|k| look.target[k] + eye[k]);
                 Camera::look_at(crate::camera::LookAt { eye, ..look }, o.zoom, o.width, o.height)
@@ -339,7 +347,7 @@ impl Renderer {
             values.resize(batch.len(), 0.0);
             if !batch.is_empty() {
                 let t = Instant::now();
-                locator.sample(&batch, &self.field, &mut values)?;
+                self.sample(locator, &batch, &mut values)?;
                 stats.sample_seconds += t.elapsed().as_secs_f64();
                 stats.samples += batch.len() as u64;
                 stats.rounds += 1;
@@ -380,6 +388,23 @@ impl Renderer {
         });
         stats.seconds = start.elapsed().as_secs_f64();
         Ok((out, stats))
+    }
+
+    /// The field at sample points of the working frame. The locators take points in the
+    /// file's coordinates: at the identity frame these are the same f32 points; for a mesh
+    /// far from the origin they are taken to the file's coordinates in f64 (an f32 point
+    /// there would have lost the precision the working frame keeps).
+    fn sample(&self, locator: &mut dyn BatchLocator, points: &[Vec3], values: &mut [f32]) -> Result<()> {
+        let frame = &self.mesh.info.frame;
+        if frame.is_identity() {
+            return Ok(locator.sample(points, &self.field, values)?);
+        }
+        let file: Vec<[f64; 3]> = points.par_iter().map(|&p| frame.to_file(p)).collect();
+        let mut ids = vec![0i32; points.len()];
+        let mut wide = vec![0f64; points.len()];
+        locator.sample_many64(&file, &[self.field.as_str()], &mut ids, &mut wide)?;
+        values.par_iter_mut().zip(&wide).for_each(|(v, &w)| *v = w as f32);
+        Ok(())
     }
 
     /// The position of the ray's next sample that may be inside a tet, advancing `s.k` past

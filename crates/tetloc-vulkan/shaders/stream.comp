@@ -27,6 +27,14 @@ layout(std430, binding = TL_B_STREAM_VECTOR) readonly buffer TlVector { float tl
 layout(std430, binding = TL_B_STREAM_PARTICLES) buffer TlParticles { TlStreamParticle tl_particles[]; };
 // Per particle counts.y slots: position (working frame), integration time.
 layout(std430, binding = TL_B_STREAM_LINES) writeonly buffer TlLines { vec4 tl_lines[]; };
+// The tet of each of those points: the one its velocity came from.
+layout(std430, binding = TL_B_STREAM_TETS) writeonly buffer TlLineTets { int tl_line_tets[]; };
+
+// Records point x at integration time t, found in tet `tet`.
+void tl_record_point(uint at, vec3 x, float t, int tet) {
+    tl_lines[at] = vec4(x, t);
+    tl_line_tets[at] = tet;
+}
 
 uint tl_lookups = 0u, tl_fallbacks = 0u;
 
@@ -123,7 +131,7 @@ void main() {
         t = 0.0;
         len = 0.0;
         if (tl_velocity(x, hint, v)) {
-            tl_lines[base + written++] = vec4(vec3(x), float(t));
+            tl_record_point(base + written++, vec3(x), float(t), hint);
             points = 1;
             status = TL_STREAM_LIVE;
         } else {
@@ -202,7 +210,7 @@ void main() {
             status = TL_REASON_OUT_OF_DOMAIN; // the step's end is outside: not recorded
             break;
         }
-        tl_lines[base + written++] = vec4(vec3(x), float(t));
+        tl_record_point(base + written++, vec3(x), float(t), hint);
         points++;
     }
     q.v = vec4(v, 0.0);

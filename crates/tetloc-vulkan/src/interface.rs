@@ -237,6 +237,9 @@ gpu_interface! {
         /// The `grid` sample set's point coordinates: NX x values, NY y values, NZ z values
         /// (working frame), which SAMPLE_GRID composes.
         B_GRID_AXES = 46;
+        /// Stream tracing: the tet of each line point of a segment (the lookup that found its
+        /// velocity), so that the host samples the line fields there without a second search.
+        B_STREAM_TETS = 47;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, worklist, node levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).

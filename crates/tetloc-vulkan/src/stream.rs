@@ -3,7 +3,9 @@
 //! from the particle's last tet, the entry grid and BVH only when the walk fails. Lines come
 //! back in segments: a launch advances every particle until it has written a segment's points
 //! (or ended), the host collects them and launches the next, so memory stays bounded whatever
-//! the lines' length. Where the kernel has no stream shader (the rt kernels), the integrator
+//! the lines' length. Each point comes with the tet its velocity came from ([`Line::tets`]),
+//! so the line fields are sampled there on the host (`LineArrays::at_tets`) instead of by a
+//! second search. Where the kernel has no stream shader (the rt kernels), the integrator
 //! is adaptive or the mesh is mixed or higher-order, [`VulkanLocator::trace_lines`] declines
 //! and `trace_with` drives the locator one Runge–Kutta stage at a time instead.
 //!
@@ -78,6 +80,8 @@ struct Stream {
     params_buf: Buffer,
     particles: Buffer,
     lines: Buffer,
+    /// The tet of each line point.
+    tets: Buffer,
     _vector: Buffer,
     _neighbors: Option<Buffer>,
 }
@@ -152,12 +156,15 @@ impl Stream {
         let particles = dev.create_buffer(BufferDesc::io(MemKind::Query, particle_bytes), "stream particles", None)?;
         let lines =
             dev.create_buffer(BufferDesc::io(MemKind::Query, (group * seg * 16) as u64), "stream lines", None)?;
+        let tets =
+            dev.create_buffer(BufferDesc::io(MemKind::Query, (group * seg * 4) as u64), "stream line tets", None)?;
         let mut bindings = res.bindings;
         bindings.extend([
             Binding::buffer(B_STREAM, &params_buf),
             Binding::buffer(B_STREAM_VECTOR, &vector_buf),
             Binding::buffer(B_STREAM_PARTICLES, &particles),
             Binding::buffer(B_STREAM_LINES, &lines),
+            Binding::buffer(B_STREAM_TETS, &tets),
         ]);
         let ctx = dev.ctx().clone();
         let desc = Descriptors::new(&ctx, &bindings, program.stages())?;
@@ -183,6 +190,7 @@ impl Stream {
             params_buf,
             particles,
             lines,
+            tets,
             _vector: vector_buf,
             _neighbors: neighbors,
         }))
@@ -254,7 +262,9 @@ impl VulkanLocator {
             let mut state = init;
             let mut points: Vec<Vec<[f64; 3]>> = vec![Vec::new(); n];
             let mut times: Vec<Vec<f64>> = vec![Vec::new(); n];
+            let mut tets: Vec<Vec<i32>> = vec![Vec::new(); n];
             let mut written = vec![Vec4::default(); n * seg];
+            let mut written_tets = vec![0i32; n * seg];
             loop {
                 let t = Instant::now();
                 dev.run(|r| {
@@ -266,15 +276,16 @@ impl VulkanLocator {
                 dev.download(&s.particles, 0, bytemuck::cast_slice_mut(&mut state))?;
                 let last = state.iter().rposition(|p| p.counts[0] > 0).map_or(0, |j| j + 1);
                 dev.download(&s.lines, 0, bytemuck::cast_slice_mut(&mut written[..last * seg]))?;
+                dev.download(&s.tets, 0, bytemuck::cast_slice_mut(&mut written_tets[..last * seg]))?;
                 // Each particle's new points onto its line, on every core.
-                let segments = written[..last * seg].par_chunks(seg);
-                (points.par_iter_mut().zip(times.par_iter_mut()).zip(&state[..last]).zip(segments)).for_each(
-                    |(((points, times), p), w)| {
-                        let w = &w[..p.counts[0] as usize];
-                        points.extend(w.iter().map(|w| frame.to_file([w.0[0], w.0[1], w.0[2]])));
-                        times.extend(w.iter().map(|w| w.0[3] as f64));
-                    },
-                );
+                let segments = written[..last * seg].par_chunks(seg).zip(written_tets[..last * seg].par_chunks(seg));
+                let lines_so_far = points.par_iter_mut().zip(times.par_iter_mut()).zip(tets.par_iter_mut());
+                (lines_so_far.zip(&state[..last]).zip(segments)).for_each(|((((points, times), tets), p), (w, t))| {
+                    let k = p.counts[0] as usize;
+                    points.extend(w[..k].iter().map(|w| frame.to_file([w.0[0], w.0[1], w.0[2]])));
+                    times.extend(w[..k].iter().map(|w| w.0[3] as f64));
+                    tets.extend_from_slice(&t[..k]);
+                });
                 let live = state.iter().filter(|p| p.state[2] == STREAM_LIVE).count();
                 progress(done + n - live)?;
                 if live == 0 {
@@ -283,9 +294,11 @@ impl VulkanLocator {
             }
             done += n;
             stats.add(&state);
-            for (((&(seed, backward), p), points), time) in chunk.iter().zip(&state).zip(points).zip(times) {
+            for ((((&(seed, backward), p), points), time), tets) in
+                chunk.iter().zip(&state).zip(points).zip(times).zip(tets)
+            {
                 if points.len() > 1 {
-                    lines.push(Line { seed, backward, points, time, reason: reason(p.state[2])? });
+                    lines.push(Line { seed, backward, points, time, tets, reason: reason(p.state[2])? });
                 }
             }
         }
@@ -458,6 +471,15 @@ mod tests {
                 stats.lookups > 0 && 4 * stats.fallbacks.saturating_sub(2 * seeds.len() as u64) < stats.lookups,
                 "{stats:?}"
             );
+            // Each point carries the tet the locator gives it: the line fields sampled there
+            // on the host are those a second search on the GPU samples.
+            let fields = trace::line_fields(&m, &tetloc_core::ops::fields::resolve(&m, "v").unwrap());
+            let at = trace::LineArrays::at_tets(&got, &m, &fields).unwrap().expect("GPU lines carry their tets");
+            let again = trace::LineArrays::new(&got, &mut gpu, &fields).unwrap();
+            assert_eq!(at.fields.ids, again.fields.ids, "{o:?}");
+            for ((_, a), (_, b)) in at.fields.arrays.iter().zip(&again.fields.arrays) {
+                assert!(a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-5 * y.abs().max(1.0)), "{o:?}");
+            }
         }
         for r in [Reason::OutOfDomain, Reason::OutOfLength, Reason::OutOfTime, Reason::OutOfSteps, Reason::Stagnation] {
             assert!(reasons.contains(&(r as i32)), "no line ended {r:?}: {reasons:?}");

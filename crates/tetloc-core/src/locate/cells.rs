@@ -77,8 +77,14 @@ impl<L: BatchLocator> CellLocator<L> {
     fn refine_all(&self, points: &[Point], tets: &[i32]) -> Vec<Option<Found>> {
         let cells = self.mesh.cells.as_ref().expect("called on mixed meshes");
         let mesh = &self.mesh;
-        if tets.par_iter().any(|&t| t < 0) && cells.warped.par_iter().any(|&w| w != 0) {
-            self.bulges.get_or_init(|| Bulges::build(mesh, cells));
+        // The lazy structures are made before the parallel loop: their builds run on rayon
+        // too, and a worker waiting in one could be handed another point of the loop and
+        // re-enter the OnceLock it is initialising (a deadlock).
+        if cells.warped.par_iter().any(|&w| w != 0) {
+            cells.warped_neighbors();
+            if tets.par_iter().any(|&t| t < 0) {
+                self.bulges.get_or_init(|| Bulges::build(mesh, cells));
+            }
         }
         let bulges = self.bulges.get();
         points.par_iter().zip(tets.par_iter()).map(|(&p, &t)| refine(mesh, cells, bulges, p, t)).collect()

@@ -47,6 +47,13 @@ impl Certifier {
         let exact = mesh.exact();
         let neighbors = mesh.neighbors();
         let frame = &mesh.info.frame;
+        let finite = |p: &[f64; 3]| p.iter().all(|c| c.is_finite());
+        // The shell is built here, not inside the parallel loop: its build runs on rayon
+        // too, and a worker waiting in it could be handed another item of the loop and
+        // re-enter the OnceLock it is initialising (a deadlock).
+        if tets.par_iter().zip(points).any(|(&t, p)| t < 0 && finite(p)) {
+            self.shell.get_or_init(|| Shell::build(mesh));
+        }
         tets.par_iter_mut()
             .enumerate()
             .filter_map(|(i, t)| {
@@ -57,10 +64,10 @@ impl Certifier {
                 };
                 if *t < 0 {
                     // Inside only if within rounding of a boundary face: try the tets there.
-                    if !points[i].iter().all(|c| c.is_finite()) {
+                    if !finite(&points[i]) {
                         return None;
                     }
-                    let shell = self.shell.get_or_init(|| Shell::build(mesh));
+                    let shell = self.shell.get().expect("built before the loop");
                     let found = shell.find(frame.to_working(points[i]), |start| search(start, neighbors, &holds).0);
                     return found.map(|(n, b)| {
                         *t = n;

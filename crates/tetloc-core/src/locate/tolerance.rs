@@ -7,12 +7,16 @@
 //! over every backend; points inside are never changed, and tolerance 0 (the default) is the
 //! exact answer. Ties: the nearest boundary triangle, and among equally near ones the first
 //! in the mesh's face order (faces sorted by vertex ids), whatever the traversal order.
+//!
+//! The search runs in the mesh's working frame (`mesh::Frame`: centred and scaled for a mesh
+//! far from the origin), on query points taken there in f64; values are the file's, in f64
+//! for the f64 path (`sample_many64`) and rounded to f32 for the f32 one.
 
-use super::{check_lengths, is_finite, BatchLocator, OUTSIDE};
+use super::{check_lengths, BatchLocator, OUTSIDE};
 use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
-use crate::mesh::{FieldLocation, Mesh};
+use crate::mesh::Mesh;
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
 
@@ -143,13 +147,13 @@ impl Visitor for NearestSearch<'_> {
 }
 
 impl Boundary {
-    /// The nearest boundary point within `max_dist` of `p`, if any.
-    pub fn nearest(&self, points: &[Vec3], p: Vec3, max_dist: f64) -> Option<Nearest> {
-        if !is_finite(p) {
+    /// The nearest boundary point within `max_dist` of `p`, if any (`points`, `p` and
+    /// `max_dist` in the same coordinates: the mesh's working frame).
+    pub fn nearest(&self, points: &[Vec3], p: [f64; 3], max_dist: f64) -> Option<Nearest> {
+        if !p.iter().all(|c| c.is_finite()) {
             return None;
         }
-        let mut search =
-            NearestSearch { boundary: self, points, p: p.map(f64::from), bound: max_dist * max_dist, best: None };
+        let mut search = NearestSearch { boundary: self, points, p, bound: max_dist * max_dist, best: None };
         self.bvh.traverse(&mut search);
         search.best
     }
@@ -233,45 +237,38 @@ impl<L: BatchLocator> WithTolerance<L> {
         self.inner
     }
 
-    /// For the outside points of a batch, the nearest boundary point within the tolerance.
-    fn rescue(&self, points: &[Vec3], ids: &[i32]) -> Vec<(usize, Nearest)> {
+    /// For the outside points of a batch (`point(i)`: point `i` in the file's coordinates),
+    /// the nearest boundary point within the tolerance.
+    fn rescue(&self, ids: &[i32], point: impl Fn(usize) -> [f64; 3] + Sync) -> Vec<(usize, Nearest)> {
         if self.distance <= 0.0 || !ids.par_iter().any(|&i| i == OUTSIDE) {
             return Vec::new();
         }
         let boundary = self.boundary.get_or_init(|| build_boundary(&self.mesh));
-        let (mesh_points, distance) = (&self.mesh.points, self.distance);
-        (0..points.len())
+        let frame = &self.mesh.info.frame;
+        let (mesh_points, distance) = (&self.mesh.points, self.distance * frame.scale);
+        (0..ids.len())
             .into_par_iter()
             .filter(|&i| ids[i] == OUTSIDE)
-            .filter_map(|i| Some((i, boundary.nearest(mesh_points, points[i], distance)?)))
+            .filter_map(|i| Some((i, boundary.nearest(mesh_points, frame.to_working64(point(i)), distance)?)))
             .collect()
     }
 
-    /// The field's value at a boundary point.
-    fn value_at(&self, field: &crate::Field, n: &Nearest) -> f32 {
+    /// The field's value at a boundary point, from the file's values (in f64).
+    fn value_at(&self, field: &crate::Field, n: &Nearest) -> f64 {
+        let tri = self.boundary.get().expect("built by rescue").triangles[n.triangle];
         if self.mesh.cells.is_some() {
             // A mixed mesh: the cell's own shape functions at the boundary point.
             let cell = self.mesh.cell_of_tet(n.tet as usize);
-            let tri = self.boundary.get().expect("built by rescue").triangles[n.triangle];
             let q: [f64; 3] = std::array::from_fn(|a| {
                 (0..3).map(|j| n.weights[j] * f64::from(self.mesh.points[tri[j] as usize][a])).sum()
             });
-            return super::cells::value_in_cell(&self.mesh, cell, q, field).unwrap_or(f32::NAN);
+            return super::cells::value_in_cell(&self.mesh, cell, q, field).map_or(f64::NAN, f64::from);
         }
-        match field.location {
-            FieldLocation::Cell => field.values[n.tet as usize],
-            FieldLocation::Vertex => {
-                let tri = self.boundary.get().expect("built by rescue").triangles[n.triangle];
-                if self.mesh.tet_nodes.is_some() {
-                    // The boundary point's barycentrics in its tet (0 at the corner off the
-                    // face), for the tet's own shape functions.
-                    let corners = self.mesh.tets[n.tet as usize];
-                    let bary = corners.map(|c| tri.iter().position(|&v| v == c).map_or(0.0, |j| n.weights[j] as f32));
-                    return self.mesh.interpolate(n.tet as usize, bary, &field.values);
-                }
-                (0..3).map(|j| n.weights[j] * field.values[tri[j] as usize] as f64).sum::<f64>() as f32
-            }
-        }
+        // The boundary point's barycentrics in its tet (0 at the corner off the face), for
+        // the one definition of a value in a tet.
+        let corners = self.mesh.tets[n.tet as usize];
+        let bary = corners.map(|c| tri.iter().position(|&v| v == c).map_or(0.0, |j| n.weights[j]));
+        self.mesh.value_at64(field, Some((n.tet as usize, bary)))
     }
 }
 
@@ -282,7 +279,7 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
 
     fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
         self.inner.locate(points, ids)?;
-        for (i, n) in self.rescue(points, ids) {
+        for (i, n) in self.rescue(ids, |i| points[i].map(f64::from)) {
             ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
         }
         Ok(())
@@ -297,9 +294,27 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
     fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
         self.inner.locate_and_sample(points, field, ids, values)?;
         let f = self.mesh.field(field)?;
-        for (i, n) in self.rescue(points, ids) {
+        for (i, n) in self.rescue(ids, |i| points[i].map(f64::from)) {
             ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
-            values[i] = self.value_at(f, &n);
+            values[i] = self.value_at(f, &n) as f32;
+        }
+        Ok(())
+    }
+
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f64],
+    ) -> Result<()> {
+        self.inner.sample_many64(points, fields, ids, values)?;
+        let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
+        for (i, n) in self.rescue(ids, |i| points[i]) {
+            ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
+            for (j, f) in fields.iter().enumerate() {
+                values[i * fields.len() + j] = self.value_at(f, &n);
+            }
         }
         Ok(())
     }
@@ -424,5 +439,59 @@ mod tests {
         let mut v = vec![0.0; 4];
         loc.sample(&pts, "f", &mut v).unwrap();
         assert!((v[0] - 4.5).abs() < 1e-5, "f at (0.5, 0.5, 1) is 4.5, not {}", v[0]);
+    }
+
+    /// Far from the origin (UTM-like offsets, f64 coordinates) the tolerance answers as at
+    /// the origin: the search runs in the mesh's working frame on the f64 points (it used to
+    /// compare the file's coordinates with the working frame's, and had no f64 path).
+    #[test]
+    fn far_from_the_origin_the_tolerance_answers_as_at_the_origin() {
+        let grid = KuhnGrid::new(3).jitter(0.2, 5);
+        let near = Arc::new(grid.mesh("cube"));
+        let offset = [512_345.0, 4_123_456.0, 1_000.0];
+        let mut raw = grid.raw();
+        let p64: Vec<[f64; 3]> =
+            raw.points.iter().map(|p| std::array::from_fn(|k| f64::from(p[k]) + offset[k])).collect();
+        raw.points = p64.iter().map(|p| p.map(|c| c as f32)).collect();
+        raw.points64 = Some(p64);
+        let far = Arc::new(Mesh::new(raw, "far cube").unwrap());
+        assert!(!far.info.frame.is_identity(), "the far mesh has its own working frame");
+        let mut state = 7u64;
+        let mut unit = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let pts: Vec<[f64; 3]> = (0..2000).map(|_| std::array::from_fn(|_| -0.1 + 1.2 * unit())).collect();
+        let tol = 0.05;
+        let run = |m: &Arc<Mesh>, shift: [f64; 3]| {
+            let mut loc = WithTolerance::new(CpuLocator::new(m.clone()), m.clone(), Tolerance::Absolute(tol));
+            let p: Vec<[f64; 3]> = pts.iter().map(|p| std::array::from_fn(|k| p[k] + shift[k])).collect();
+            let (mut ids, mut v) = (vec![0; p.len()], vec![0.0; p.len()]);
+            loc.sample_many64(&p, &["f"], &mut ids, &mut v).unwrap();
+            (ids, v)
+        };
+        let ((ids0, v0), (ids1, v1)) = (run(&near, [0.0; 3]), run(&far, offset));
+        let mut rescued = 0;
+        for (i, p) in pts.iter().enumerate() {
+            let outside: Vec<f64> = p.iter().map(|&c| (-c).max(c - 1.0).max(0.0)).collect();
+            let dist = outside.iter().map(|d| d * d).sum::<f64>().sqrt();
+            if (dist - tol).abs() < 1e-6 {
+                continue; // on the edge of the tolerance, rounding decides
+            }
+            assert_eq!(ids1[i] >= 0, dist <= tol, "point {p:?} at {dist} from the cube");
+            assert_eq!(ids0[i] >= 0, ids1[i] >= 0, "point {p:?}");
+            if ids1[i] < 0 {
+                assert!(v1[i].is_nan());
+                continue;
+            }
+            rescued += usize::from(dist > 0.0);
+            // Off one face only, the closest point is inside one boundary triangle; off an
+            // edge or a corner, equally near triangles may tie within rounding.
+            if outside.iter().filter(|&&d| d > 0.0).count() <= 1 {
+                assert_eq!(ids0[i], ids1[i], "point {p:?}");
+            }
+            assert!((v0[i] - v1[i]).abs() < 1e-6, "point {p:?}: {} at the origin, {} far away", v0[i], v1[i]);
+        }
+        assert!(rescued > 100, "{rescued} points were within the tolerance outside the cube");
     }
 }

@@ -71,7 +71,13 @@ impl Frame {
     /// The working f32 coordinates of a point given in the file's coordinates.
     #[inline]
     pub fn to_working(&self, x: [f64; 3]) -> Vec3 {
-        std::array::from_fn(|k| ((x[k] - self.origin[k]) * self.scale) as f32)
+        self.to_working64(x).map(|c| c as f32)
+    }
+
+    /// [`Self::to_working`] before the rounding to f32.
+    #[inline]
+    pub fn to_working64(&self, x: [f64; 3]) -> [f64; 3] {
+        std::array::from_fn(|k| (x[k] - self.origin[k]) * self.scale)
     }
 
     /// [`Frame::to_working`] of a point given in f32 (exact when the frame is the identity).

@@ -10,6 +10,7 @@ use crate::io::points::VALID_MASK;
 use crate::io::vtk::write::{self, ArrayData, NamedArray};
 use crate::locate::BatchLocator;
 use crate::mesh::Mesh;
+use rayon::prelude::*;
 use std::path::Path;
 
 /// The source's fields at the target's points.
@@ -36,8 +37,14 @@ impl Probed {
 
     /// The arrays to write (the mask last), borrowing `mask`.
     pub fn named<'a>(&'a self, mask: &'a [u8]) -> Vec<NamedArray<'a>> {
-        let mut out: Vec<NamedArray> = self
-            .arrays
+        let mut out = self.fields_named();
+        out.push(NamedArray { name: VALID_MASK.into(), n_components: 1, data: ArrayData::U8(mask) });
+        out
+    }
+
+    /// The fields' arrays to write: Float64 where they were sampled in f64, else Float32.
+    pub fn fields_named(&self) -> Vec<NamedArray<'_>> {
+        self.arrays
             .iter()
             .enumerate()
             .map(|(i, (g, v))| NamedArray {
@@ -48,9 +55,7 @@ impl Probed {
                     _ => ArrayData::F32(v),
                 },
             })
-            .collect();
-        out.push(NamedArray { name: VALID_MASK.into(), n_components: 1, data: ArrayData::U8(mask) });
-        out
+            .collect()
     }
 }
 
@@ -60,48 +65,113 @@ pub fn probe(
     loc: &mut dyn BatchLocator,
     points: &[Vec3],
     fields: &[FieldGroup],
+    progress: impl FnMut(usize) -> Result<()>,
+) -> Result<Probed> {
+    probe_points(loc, Points::F32(points), fields, progress)
+}
+
+/// [`probe`] at points given in f64 (a target's coordinates as its file has them): a target
+/// far from the origin keeps its precision, on backends that take f64 points.
+pub fn probe64(
+    loc: &mut dyn BatchLocator,
+    points: &[[f64; 3]],
+    fields: &[FieldGroup],
+    progress: impl FnMut(usize) -> Result<()>,
+) -> Result<Probed> {
+    probe_points(loc, Points::F64(points), fields, progress)
+}
+
+#[derive(Clone, Copy)]
+enum Points<'a> {
+    F32(&'a [Vec3]),
+    F64(&'a [[f64; 3]]),
+}
+
+impl<'a> Points<'a> {
+    fn len(self) -> usize {
+        match self {
+            Points::F32(p) => p.len(),
+            Points::F64(p) => p.len(),
+        }
+    }
+    /// Points `r`, in f64 (f32 ones widen exactly).
+    fn wide(self, r: std::ops::Range<usize>) -> Vec<[f64; 3]> {
+        match self {
+            Points::F32(p) => p[r].iter().map(|q| q.map(f64::from)).collect(),
+            Points::F64(p) => p[r].to_vec(),
+        }
+    }
+    /// Points `r`, rounded to f32.
+    fn narrow(self, r: std::ops::Range<usize>) -> std::borrow::Cow<'a, [Vec3]> {
+        match self {
+            Points::F32(p) => std::borrow::Cow::Borrowed(&p[r]),
+            Points::F64(p) => std::borrow::Cow::Owned(p[r].iter().map(|q| q.map(|c| c as f32)).collect()),
+        }
+    }
+    /// Whether rounding to f32 would change some point.
+    fn need_f64(self) -> bool {
+        match self {
+            Points::F32(_) => false,
+            Points::F64(p) => p.par_iter().any(|q| q.iter().any(|&c| f64::from(c as f32) != c)),
+        }
+    }
+}
+
+fn probe_points(
+    loc: &mut dyn BatchLocator,
+    points: Points,
+    fields: &[FieldGroup],
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<Probed> {
     let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
     let width = names.len();
-    let mut ids = vec![0i32; points.len()];
-    // Fields of f64 data are sampled through the f64 path (its f64 values) where the backend
-    // takes f64 points (an empty batch says whether it does): every field in one pass.
-    let wide = fields.iter().any(|g| g.f64) && loc.sample_many64(&[], &names, &mut [], &mut []).is_ok();
+    let n = points.len();
+    let mut ids = vec![0i32; n];
+    // Fields of f64 data, and points f32 cannot hold, go through the f64 path (its exact
+    // ids and f64 values) where the backend takes f64 points (an empty batch says whether
+    // it does): every field in one pass.
+    let wide =
+        (fields.iter().any(|g| g.f64) || points.need_f64()) && loc.sample_many64(&[], &names, &mut [], &mut []).is_ok();
     if wide {
-        let mut values = vec![0f64; points.len() * width];
-        for (c, p) in points.chunks(CHUNK).enumerate() {
-            let r = c * CHUNK..c * CHUNK + p.len();
-            let p64: Vec<[f64; 3]> = p.iter().map(|q| q.map(f64::from)).collect();
+        let mut values = vec![0f64; n * width];
+        for start in (0..n).step_by(CHUNK) {
+            let r = start..(start + CHUNK).min(n);
+            let p64 = points.wide(r.clone());
             loc.sample_many64(&p64, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
             progress(r.end)?;
         }
-        let narrow: Vec<f32> = values.iter().map(|&v| v as f32).collect();
-        let mut probed = Probed::from_values(ids, fields, &narrow);
-        let mut at = 0;
-        probed.arrays64 = fields
-            .iter()
-            .map(|g| {
-                let k = g.n_components();
-                let v = g
-                    .f64
-                    .then(|| values.chunks_exact(width.max(1)).flat_map(|p| p[at..at + k].iter().copied()).collect());
-                at += k;
-                v
-            })
-            .collect();
-        return Ok(probed);
+        return Ok(Probed::from_values64(ids, fields, &values));
     }
-    let mut values = vec![0f32; points.len() * width];
-    for (c, p) in points.chunks(CHUNK).enumerate() {
-        let r = c * CHUNK..c * CHUNK + p.len();
-        loc.sample_many(p, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
+    let mut values = vec![0f32; n * width];
+    for start in (0..n).step_by(CHUNK) {
+        let r = start..(start + CHUNK).min(n);
+        let p = points.narrow(r.clone());
+        loc.sample_many(&p, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
         progress(r.end)?;
     }
     Ok(Probed::from_values(ids, fields, &values))
 }
 
 impl Probed {
+    /// [`Self::from_values`] of f64 values: rounded to f32 for `arrays`, kept in `arrays64`
+    /// for the fields of f64 data.
+    pub(crate) fn from_values64(ids: Vec<i32>, fields: &[FieldGroup], values: &[f64]) -> Probed {
+        let width: usize = fields.iter().map(FieldGroup::n_components).sum();
+        let narrow: Vec<f32> = values.par_iter().map(|&v| v as f32).collect();
+        let mut probed = Probed::from_values(ids, fields, &narrow);
+        let mut at = 0;
+        probed.arrays64 = fields
+            .iter()
+            .map(|g| {
+                let k = g.n_components();
+                let v = g.f64.then(|| components(values, width, at, k));
+                at += k;
+                v
+            })
+            .collect();
+        probed
+    }
+
     /// One array per field, its components together, from `values` (every field's components
     /// per point, fields in order).
     pub(crate) fn from_values(ids: Vec<i32>, fields: &[FieldGroup], values: &[f32]) -> Probed {
@@ -111,14 +181,18 @@ impl Probed {
             .iter()
             .map(|g| {
                 let k = g.n_components();
-                let v: Vec<f32> =
-                    values.chunks_exact(width.max(1)).flat_map(|p| p[at..at + k].iter().copied()).collect();
+                let v = components(values, width, at, k);
                 at += k;
                 (g.clone(), v)
             })
             .collect();
         Probed { ids, arrays, arrays64: Vec::new() }
     }
+}
+
+/// Components `at..at + k` of every point of `values` (`width` per point), on every core.
+fn components<T: Copy + Send + Sync>(values: &[T], width: usize, at: usize, k: usize) -> Vec<T> {
+    values.par_chunks_exact(width.max(1)).flat_map_iter(|p| p[at..at + k].iter().copied()).collect()
 }
 
 /// Writes the probe's result: `target` with its cells and data plus the probed arrays (a
@@ -186,7 +260,7 @@ mod tests {
 
     /// A field of f64 data is probed in f64 and written as Float64 (as VTK's probe keeps the
     /// source array's type): at the mesh's own vertices it comes back exactly; f32 fields stay
-    /// Float32; with a backend that takes f32 points only (a tolerance) it is f32 as before.
+    /// Float32; with a backend that takes f32 points only it is f32 as before.
     #[test]
     fn f64_fields_are_probed_and_written_as_f64() {
         use crate::locate::{Tolerance, WithTolerance};
@@ -211,8 +285,53 @@ mod tests {
             "{text:.400}"
         );
         assert!(text.contains(r#"Name="f" type="Float32""#) || text.contains(r#"type="Float32" Name="f""#));
+        // Through the boundary tolerance too.
         let mut tol = WithTolerance::new(CpuLocator::new(m.clone()), m.clone(), "1%".parse::<Tolerance>().unwrap());
         let p = probe(&mut tol, &m.points, &groups, |_| Ok(())).unwrap();
+        let got = p.arrays64[i].as_ref().expect("probed in f64 with a tolerance");
+        assert!(got.iter().zip(&g).all(|(a, b)| a.to_bits() == b.to_bits()));
+        // A backend that takes f32 points only gives f32 values.
+        struct Narrow(CpuLocator);
+        impl BatchLocator for Narrow {
+            fn name(&self) -> &str {
+                "narrow"
+            }
+            fn locate(&mut self, p: &[Vec3], ids: &mut [i32]) -> Result<()> {
+                self.0.locate(p, ids)
+            }
+            fn sample(&mut self, p: &[Vec3], field: &str, v: &mut [f32]) -> Result<()> {
+                self.0.sample(p, field, v)
+            }
+        }
+        let p = probe(&mut Narrow(CpuLocator::new(m.clone())), &m.points, &groups, |_| Ok(())).unwrap();
         assert!(p.arrays64.iter().all(Option::is_none));
+    }
+
+    /// A target far from the origin is probed at its f64 coordinates: a source vertex of a
+    /// UTM-like mesh gets the source's value there, as at the origin (its f32 rounding would
+    /// move it by up to a quarter of a unit).
+    #[test]
+    fn far_targets_are_probed_at_their_f64_coordinates() {
+        let grid = KuhnGrid::new(3).jitter(0.2, 9);
+        let offset = [512_345.0, 4_123_456.0, 1_000.0];
+        let mut raw = grid.raw();
+        let p64: Vec<[f64; 3]> =
+            raw.points.iter().map(|p| std::array::from_fn(|k| f64::from(p[k]) + offset[k])).collect();
+        raw.points = p64.iter().map(|p| p.map(|c| c as f32)).collect();
+        raw.points64 = Some(p64.clone());
+        let far = Arc::new(Mesh::new(raw, "far cube").unwrap());
+        let near = grid.mesh("cube");
+        let groups = fields::groups_of(&far.fields);
+        let p = probe64(&mut CpuLocator::new(far.clone()), &p64, &groups, |_| Ok(())).unwrap();
+        assert_eq!(p.n_valid(), p64.len(), "every vertex is in the mesh");
+        let (g, f) = &p.arrays[0];
+        assert_eq!(g.name, "f");
+        let want = &near.field("f").unwrap().values;
+        assert!(want.iter().zip(f).all(|(a, b)| (a - b).abs() <= 1e-6 * (1.0 + a.abs())), "{want:?} {f:?}");
+        // Rounded to f32 the same targets miss: some land outside or off their values.
+        let p32: Vec<Vec3> = p64.iter().map(|q| q.map(|c| c as f32)).collect();
+        let q = probe(&mut CpuLocator::new(far.clone()), &p32, &groups, |_| Ok(())).unwrap();
+        let off = want.iter().zip(&q.arrays[0].1).filter(|(a, b)| (*a - *b).abs() > 1e-3 || b.is_nan()).count();
+        assert!(off > 0, "f32 targets this far out lose precision");
     }
 }

@@ -393,3 +393,45 @@ fn a_paraview_preset_renders() {
     assert!(img.pixels.iter().all(|p| p[1] <= crate::colorspace::srgb_to_linear(0.1) + 1e-3));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A mesh far from the origin (UTM-like offsets, f64 coordinates) renders as the same mesh
+/// at the origin: rays run in the mesh's working frame, samples reach the locator in the
+/// file's coordinates, and an explicit camera is placed in the file's coordinates.
+#[test]
+fn a_mesh_far_from_the_origin_renders_as_at_the_origin() {
+    let near = testmesh::two_blobs(8, 3);
+    let offset = [512_345.0, 4_123_456.0, 0.0];
+    let points64: Vec<[f64; 3]> =
+        near.points.iter().map(|p| std::array::from_fn(|k| f64::from(p[k]) + offset[k])).collect();
+    let raw = tetloc_core::mesh::RawMesh {
+        points: points64.iter().map(|p| p.map(|x| x as f32)).collect(),
+        points64: Some(points64),
+        tets: near.tets.clone(),
+        fields: near.fields.clone(),
+        higher_order: None,
+        cells: None,
+    };
+    let far = Arc::new(Mesh::new(raw, "two-blobs far away").unwrap());
+    assert!(!far.info.frame.is_identity(), "the far mesh gets its own working frame");
+    let near = Arc::new(near);
+    let render = |mesh: &Arc<Mesh>, camera: Option<LookAt>| {
+        let opts = small(RenderOptions { opacity: 4.0, camera, ..Default::default() });
+        let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
+        r.render(&mut CpuLocator::new(mesh.clone()), &r.camera(0)).unwrap()
+    };
+    // The fitted view.
+    let ((a, sa), (b, sb)) = (render(&near, None), render(&far, None));
+    let db = psnr(&a, &b).unwrap();
+    eprintln!("fitted view: PSNR {db:.1} dB, in-mesh samples {} / {}", sa.in_mesh_samples, sb.in_mesh_samples);
+    assert!(sa.in_mesh_samples > 300, "the mesh is in view");
+    assert!(db >= 40.0, "PSNR {db}");
+    // An explicit camera (these shifted coordinates are exact in f32).
+    let look = LookAt { eye: [0.5, -3.0, 0.5], target: [0.5, 0.5, 0.5], up: [0.0, 0.0, 1.0] };
+    let shift = |p: Vec3| std::array::from_fn(|k| (f64::from(p[k]) + offset[k]) as f32);
+    let far_look = LookAt { eye: shift(look.eye), target: shift(look.target), ..look };
+    let ((a, _), (b, sb)) = (render(&near, Some(look)), render(&far, Some(far_look)));
+    let db = psnr(&a, &b).unwrap();
+    eprintln!("explicit camera: PSNR {db:.1} dB, in-mesh samples {}", sb.in_mesh_samples);
+    assert!(sb.in_mesh_samples > 300, "the mesh is in view");
+    assert!(db >= 40.0, "PSNR {db}");
+}

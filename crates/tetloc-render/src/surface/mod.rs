@@ -32,6 +32,12 @@ impl TriMesh {
         TriMesh { positions: mesh.points.clone(), triangles }
     }
 
+    /// The surface in a mesh's working frame (its positions are in the file's coordinates).
+    pub fn in_frame(&self, frame: &tetloc_core::mesh::Frame) -> TriMesh {
+        let positions = self.positions.iter().map(|&p| frame.to_working_f32(p)).collect();
+        TriMesh { positions, triangles: self.triangles.clone() }
+    }
+
     /// Reads a surface file chosen by extension: `.obj`, `.stl` (ascii or binary) or `.vtk`
     /// (legacy POLYDATA).
     pub fn load(path: &Path) -> Result<TriMesh> {

@@ -131,26 +131,33 @@ pub(crate) fn read_block(buf: &[u8], at: usize, layout: Layout, expected: usize)
 }
 
 /// Compresses `data` as VTK zlib blocks of `block_size` bytes, with UInt64 header ints:
-/// header and data in one buffer.
+/// header and data in one buffer (the writers stream theirs: `write.rs`).
+#[cfg(test)]
 pub(crate) fn zlib_block(data: &[u8], block_size: usize) -> Vec<u8> {
-    use std::io::Write;
-    let parts: Vec<Vec<u8>> = data
-        .par_chunks(block_size)
-        .map(|c| {
-            // Level 3: measured on a 10M-tet grid, as small as the default level and much
-            // faster; zlib-rs's level 1 gave a 70 % larger file.
-            let mut z = flate2::write::ZlibEncoder::new(Vec::with_capacity(c.len() / 2), flate2::Compression::new(3));
-            z.write_all(c).expect("writing to a Vec");
-            z.finish().expect("writing to a Vec")
-        })
-        .collect();
-    let last = data.len() % block_size;
-    let mut out = Vec::with_capacity(8 * (3 + parts.len()) + parts.iter().map(Vec::len).sum::<usize>());
-    for v in [parts.len(), block_size, last].into_iter().chain(parts.iter().map(Vec::len)) {
-        out.extend_from_slice(&(v as u64).to_le_bytes());
-    }
+    let parts: Vec<Vec<u8>> = data.par_chunks(block_size).map(zlib_compress).collect();
+    let mut out = zlib_header(data.len(), block_size, parts.iter().map(Vec::len));
     for p in &parts {
         out.extend_from_slice(p);
+    }
+    out
+}
+
+/// One block as a zlib stream.
+pub(crate) fn zlib_compress(block: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    // Level 3: measured on a 10M-tet grid, as small as the default level and much faster;
+    // zlib-rs's level 1 gave a 70 % larger file.
+    let mut z = flate2::write::ZlibEncoder::new(Vec::with_capacity(block.len() / 2), flate2::Compression::new(3));
+    z.write_all(block).expect("writing to a Vec");
+    z.finish().expect("writing to a Vec")
+}
+
+/// The UInt64 header of `n_bytes` compressed in blocks of `block_size`: the block count, the
+/// block size, the last block's size (0 when full) and each block's compressed size.
+pub(crate) fn zlib_header(n_bytes: usize, block_size: usize, sizes: impl ExactSizeIterator<Item = usize>) -> Vec<u8> {
+    let mut out = Vec::with_capacity(8 * (3 + sizes.len()));
+    for v in [sizes.len(), block_size, n_bytes % block_size].into_iter().chain(sizes) {
+        out.extend_from_slice(&(v as u64).to_le_bytes());
     }
     out
 }

@@ -4,8 +4,9 @@
 //! readable by ParaView and VTK. Files are written atomically (see [`crate::io::output`]).
 //!
 //! Uncompressed arrays stream through a `BufWriter` in chunks, so writing a large mesh needs
-//! no copy of it; compressed ones are compressed in parallel blocks first (their sizes go in
-//! the XML header).
+//! no copy of it; compressed ones are compressed first, a group of parallel blocks at a time,
+//! into anonymous files next to the output (their sizes go in the XML header, which is
+//! written before them): memory stays bounded for any size.
 
 use super::blocks;
 use super::cells;
@@ -22,11 +23,12 @@ use std::path::Path;
 /// little better and VTK reads any size).
 const ZLIB_BLOCK: usize = 1 << 18;
 
-/// Writes a mesh: Float32 points, Int32 connectivity and offsets (Int64 when the mesh is too
-/// large for Int32), VTK_TETRA types (or the higher-order tets' own type, with all their
-/// nodes), and every field as a Float32 PointData or CellData array (the runs `NAME[0]` …
-/// `NAME[k-1]` as one k-component array `NAME`). Tets are written
-/// positively oriented in VTK's convention.
+/// Writes a mesh: its points in the file's coordinates (Float32, or Float64 where f32
+/// cannot hold them), Int32 connectivity and offsets (Int64 when the mesh is too large for
+/// Int32), VTK_TETRA types (or the higher-order tets' own type, with all their nodes), and
+/// every field as a PointData or CellData array, Float32 or Float64 as its data (the runs
+/// `NAME[0]` … `NAME[k-1]` as one k-component array `NAME`). Tets are written positively
+/// oriented in VTK's convention.
 pub fn write_mesh_vtu(path: &Path, mesh: &Mesh, zlib: bool) -> Result<()> {
     write_mesh(path, mesh, &[], zlib, false)
 }
@@ -616,18 +618,50 @@ impl<'a> OutArray<'a> {
         }
     }
 
-    /// The whole block, header included, compressed (a spilled array is read back whole).
-    fn zlib_block(&self) -> std::io::Result<Vec<u8>> {
-        let mut all = Vec::with_capacity(self.n_bytes());
-        match &self.source {
-            Source::Fill(fill) => fill(0..self.n_values, &mut all),
-            Source::File(f) => {
-                all.resize(self.n_bytes(), 0);
-                std::io::Read::read_exact(&mut rewound(f)?, &mut all)?;
+    /// The values as VTK zlib blocks, compressed a group of blocks at a time into an
+    /// anonymous file next to `path` (so that memory stays bounded for any array size).
+    fn zlib_blocks(&self, path: &Path) -> std::io::Result<Compressed> {
+        // Blocks compressed at once (in parallel); a whole number of values of any type.
+        const GROUP_BYTES: usize = 64 * ZLIB_BLOCK;
+        let size = self.ty.size();
+        let file = tempfile::tempfile_in(crate::io::output::parent_dir(path))?;
+        let mut out = std::io::BufWriter::with_capacity(1 << 20, &file);
+        let mut src = match &self.source {
+            Source::File(f) => Some(rewound(f)?),
+            Source::Fill(_) => None,
+        };
+        let (n_bytes, mut sizes, mut buf) = (self.n_bytes(), Vec::new(), Vec::with_capacity(GROUP_BYTES));
+        for start in (0..n_bytes).step_by(GROUP_BYTES) {
+            let end = (start + GROUP_BYTES).min(n_bytes);
+            buf.clear();
+            match (&self.source, &mut src) {
+                (Source::Fill(fill), _) => fill(start / size..end / size, &mut buf),
+                (Source::File(_), Some(f)) => {
+                    buf.resize(end - start, 0);
+                    std::io::Read::read_exact(f, &mut buf)?;
+                }
+                (Source::File(_), None) => unreachable!("rewound above"),
+            }
+            use rayon::prelude::*;
+            let parts: Vec<Vec<u8>> = buf.par_chunks(ZLIB_BLOCK).map(blocks::zlib_compress).collect();
+            for p in parts {
+                sizes.push(p.len());
+                out.write_all(&p)?;
             }
         }
-        Ok(blocks::zlib_block(&all, ZLIB_BLOCK))
+        out.flush()?;
+        drop(out);
+        let len = sizes.iter().sum::<usize>() as u64;
+        Ok(Compressed { header: blocks::zlib_header(n_bytes, ZLIB_BLOCK, sizes.into_iter()), file, len })
     }
+}
+
+/// An array compressed as VTK zlib blocks: the header ints in memory, the zlib streams in an
+/// anonymous file (`len` bytes).
+struct Compressed {
+    header: Vec<u8>,
+    file: std::fs::File,
+    len: u64,
 }
 
 /// `f` read from its start.
@@ -675,12 +709,12 @@ impl Grid<'_> {
         let io = |e| Error::io(path, e);
         let arrays = self.arrays();
         use rayon::prelude::*;
-        let compressed: Option<Vec<Vec<u8>>> = zlib
-            .then(|| arrays.par_iter().map(|a| a.zlib_block()).collect::<std::io::Result<_>>())
+        let compressed: Option<Vec<Compressed>> = zlib
+            .then(|| arrays.par_iter().map(|a| a.zlib_blocks(path)).collect::<std::io::Result<_>>())
             .transpose()
             .map_err(io)?;
         let sizes: Vec<usize> = match &compressed {
-            Some(c) => c.iter().map(Vec::len).collect(),
+            Some(c) => c.iter().map(|c| c.header.len() + c.len as usize).collect(),
             None => arrays.iter().map(|a| 8 + a.n_bytes()).collect(),
         };
         let mut offsets = Vec::with_capacity(sizes.len());
@@ -693,7 +727,12 @@ impl Grid<'_> {
         write_atomically(path, |w| {
             w.write_all(self.header(&arrays, &offsets, zlib).as_bytes()).map_err(io)?;
             match compressed {
-                Some(blocks) => blocks.iter().try_for_each(|b| w.write_all(b)).map_err(io)?,
+                Some(blocks) => {
+                    for b in &blocks {
+                        w.write_all(&b.header).map_err(io)?;
+                        w.append_file(&b.file, b.len).map_err(io)?;
+                    }
+                }
                 None => {
                     for a in &arrays {
                         w.write_all(&(a.n_bytes() as u64).to_ne_bytes()).map_err(io)?;

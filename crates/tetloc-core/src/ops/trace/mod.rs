@@ -215,6 +215,9 @@ pub struct Line {
     pub points: Vec<[f64; 3]>,
     /// Integration time at each point (0 at the seed).
     pub time: Vec<f64>,
+    /// The tet of each point, where the tracer keeps them (the GPU's stream kernel: the tet
+    /// its velocity came from); empty otherwise.
+    pub tets: Vec<i32>,
     pub reason: Reason,
 }
 
@@ -416,6 +419,22 @@ impl LineArrays {
         Ok(arrays)
     }
 
+    /// The arrays of `lines` whose points all carry their tets ([`Line::tets`]), with the
+    /// values of `fields` computed there on the host, in f64 on the file's data
+    /// ([`crate::Mesh::values_at_ids64`]): no second search. `None` when some line has none.
+    pub fn at_tets(lines: &[Line], mesh: &crate::Mesh, fields: &[super::FieldGroup]) -> Result<Option<LineArrays>> {
+        if lines.iter().any(|l| l.tets.len() != l.points.len()) {
+            return Ok(None);
+        }
+        let points: Vec<[f64; 3]> = lines.par_iter().flat_map_iter(|l| l.points.iter().copied()).collect();
+        let ids: Vec<i32> = lines.par_iter().flat_map_iter(|l| l.tets.iter().copied()).collect();
+        let components =
+            fields.iter().flat_map(|g| g.component_refs()).map(|c| mesh.field(c)).collect::<Result<Vec<_>>>()?;
+        let mut values = vec![0f64; points.len() * components.len()];
+        mesh.values_at_ids64(&points, &ids, &components, &mut values);
+        Ok(Some(Self::of(lines, super::probe::Probed::from_values64(ids, fields, &values))))
+    }
+
     /// The arrays of `lines` with the values of `fields` at their points already known
     /// (every field's components per point, fields in order, line after line).
     fn with_values(lines: &[Line], fields: &[super::FieldGroup], ids: Vec<i32>, values: Vec<f32>) -> LineArrays {
@@ -432,32 +451,32 @@ impl LineArrays {
             })
             .collect();
         LineArrays {
-            points: lines.iter().flat_map(|l| l.points.iter().map(|&p| to_f32(p))).collect(),
+            points: lines.par_iter().flat_map_iter(|l| l.points.iter().map(|&p| to_f32(p))).collect(),
             ends,
-            time: lines.iter().flat_map(|l| l.time.iter().copied()).collect(),
+            time: lines.par_iter().flat_map_iter(|l| l.time.iter().copied()).collect(),
             reasons: lines.iter().map(|l| l.reason as i32).collect(),
             seeds: lines.iter().map(|l| l.seed as i32).collect(),
             fields,
         }
     }
 
-    /// Appends them to `w`, a VTK polydata (`.vtp`) file being written: the fields and
-    /// `IntegrationTime` (Float64) as point data, `ReasonForTermination` and `SeedIds` (Int32)
+    /// Appends them to `w`, a VTK polydata (`.vtp`) file being written: the fields (Float64
+    /// where sampled in f64) and `IntegrationTime` (Float64) as point data, `ReasonForTermination` and `SeedIds` (Int32)
     /// as cell data, as vtkStreamTracer writes them. Seed ids are `seed_base` + the line's.
     pub fn push_to(&self, w: &mut crate::io::vtk::write::PolylineWriter, seed_base: usize) -> Result<()> {
         use crate::io::vtk::write::{ArrayData, NamedArray};
-        let mut point_data: Vec<NamedArray> = self
-            .fields
-            .arrays
-            .iter()
-            .map(|(g, v)| NamedArray { name: g.name.clone(), n_components: g.n_components(), data: ArrayData::F32(v) })
-            .collect();
+        let mut point_data = self.fields.fields_named();
         point_data.push(NamedArray {
             name: "IntegrationTime".into(),
             n_components: 1,
             data: ArrayData::F64(&self.time),
         });
-        let seeds: Vec<i32> = self.seeds.iter().map(|&s| (s as usize + seed_base) as i32).collect();
+        let seeds = self
+            .seeds
+            .iter()
+            .map(|&s| i32::try_from(s as usize + seed_base))
+            .collect::<std::result::Result<Vec<i32>, _>>()
+            .map_err(|_| Error::Invalid("more than 2^31 seeds: SeedIds is an Int32 array, as VTK writes it".into()))?;
         let cell_data = [
             NamedArray { name: "ReasonForTermination".into(), n_components: 1, data: ArrayData::I32(&self.reasons) },
             NamedArray { name: "SeedIds".into(), n_components: 1, data: ArrayData::I32(&seeds) },

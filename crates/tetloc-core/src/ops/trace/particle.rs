@@ -219,6 +219,7 @@ impl Particle {
             backward: self.backward,
             points: self.points,
             time: self.time,
+            tets: Vec::new(),
             reason,
         })
     }
