@@ -428,9 +428,16 @@ impl Mesh {
             return;
         }
         out.par_chunks_mut(k).zip(points.par_iter().zip(ids)).for_each(|(o, (&p, &t))| {
-            let found = (t >= 0).then(|| self.bary64(t as usize, p).map(|b| (t as usize, b))).flatten();
+            let found = self.found64(p, t);
             o.iter_mut().zip(fields).for_each(|(o, f)| *o = self.value_at64(f, found));
         });
+    }
+
+    /// A point given in the file's coordinates with its tet `t` (-1: none): the tet and the
+    /// point's f64 barycentrics in it, what [`Self::value_at64`] takes.
+    #[inline]
+    pub fn found64(&self, p: [f64; 3], t: i32) -> Option<(usize, geom::Bary64)> {
+        (t >= 0).then(|| self.bary64(t as usize, p).map(|b| (t as usize, b))).flatten()
     }
 
     /// Unique faces with their front and back tets, computed on first use (a parallel sort

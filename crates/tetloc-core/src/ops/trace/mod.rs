@@ -426,13 +426,44 @@ impl LineArrays {
         if lines.iter().any(|l| l.tets.len() != l.points.len()) {
             return Ok(None);
         }
-        let points: Vec<[f64; 3]> = lines.par_iter().flat_map_iter(|l| l.points.iter().copied()).collect();
         let ids: Vec<i32> = lines.par_iter().flat_map_iter(|l| l.tets.iter().copied()).collect();
         let components =
             fields.iter().flat_map(|g| g.component_refs()).map(|c| mesh.field(c)).collect::<Result<Vec<_>>>()?;
-        let mut values = vec![0f64; points.len() * components.len()];
-        mesh.values_at_ids64(&points, &ids, &components, &mut values);
-        Ok(Some(Self::of(lines, super::probe::Probed::from_values64(ids, fields, &values))))
+        // Line by line into their slices of the values (no flat copy of the points); in f64
+        // only where some field has f64 data to keep.
+        fn fill<T: Copy + Default + Send>(
+            lines: &[Line],
+            mesh: &crate::Mesh,
+            k: usize,
+            value: impl Fn(&crate::Field, Option<(usize, crate::geom::Bary64)>) -> T + Sync,
+            components: &[&crate::Field],
+        ) -> Vec<T> {
+            let n: usize = lines.iter().map(|l| l.points.len()).sum();
+            let mut values = vec![T::default(); n * k];
+            let mut parts = Vec::with_capacity(lines.len());
+            let mut rest = &mut values[..];
+            for l in lines {
+                let (part, tail) = rest.split_at_mut(l.points.len() * k);
+                parts.push(part);
+                rest = tail;
+            }
+            lines.par_iter().zip(parts).for_each(|(l, part)| {
+                for ((o, &p), &t) in part.chunks_mut(k.max(1)).zip(&l.points).zip(&l.tets) {
+                    let found = mesh.found64(p, t);
+                    o.iter_mut().zip(components).for_each(|(o, f)| *o = value(f, found));
+                }
+            });
+            values
+        }
+        let k = components.len();
+        let probed = if fields.iter().any(|g| g.f64) {
+            let values = fill(lines, mesh, k, |f, found| mesh.value_at64(f, found), &components);
+            super::probe::Probed::from_values64(ids, fields, &values)
+        } else {
+            let values = fill(lines, mesh, k, |f, found| mesh.value_at64(f, found) as f32, &components);
+            super::probe::Probed::from_values(ids, fields, &values)
+        };
+        Ok(Some(Self::of(lines, probed)))
     }
 
     /// The arrays of `lines` with the values of `fields` at their points already known
