@@ -115,9 +115,10 @@ def test_probe_points_and_meshes(swirl_mesh):
     assert np.isnan(res["v"][~inside]).all() and res["v"].shape == (2000, 3)
     loc = tetloc.Locator(swirl_mesh, backend="cpu")
     np.testing.assert_array_equal(tetloc.probe(loc, pts, "f"), res["f"])
-    # probe samples at float32 precision; float64 points through Locator keep theirs on
-    # float64 meshes (exact barycentrics on the CPU), so compare the same float32 points.
-    np.testing.assert_array_equal(res["f"], loc.sample(pts.astype(np.float32), "f"))
+    # probe takes float32 points (float64 fields sampled through the f64 path, returned as
+    # float32); float64 points through Locator keep theirs, so compare the same points.
+    same = loc.sample(pts.astype(np.float32).astype(np.float64), "f")
+    np.testing.assert_array_equal(res["f"], same.astype(np.float32))
     np.testing.assert_allclose(res["f"], loc.sample(pts, "f"), rtol=1e-6, atol=1e-6)
     # A mesh as target: its vertices.
     onto = tetloc.probe(swirl_mesh, swirl_mesh, "f", backend="cpu")
@@ -133,8 +134,11 @@ def test_probe_matches_the_cli(cli, data_dir, tmp_path):
     subprocess.run([cli, "probe", str(mesh_path), str(pts_path), "-o", str(out), "--backend", "cpu", "--quiet"],
                    check=True)
     theirs = pv.read(out)
+    # The CLI writes the f64 field as Float64 (as VTK's probe keeps the type); Python's probe
+    # returns float32 arrays of the same f64 values.
     for name in ("f", "vtkValidPointMask"):
-        np.testing.assert_array_equal(np.asarray(ours.point_data[name]), np.asarray(theirs.point_data[name]))
+        theirs_a = np.asarray(theirs.point_data[name])
+        np.testing.assert_array_equal(np.asarray(ours.point_data[name]), theirs_a.astype(np.asarray(ours.point_data[name]).dtype))
 
 
 def test_probe_pyvista_target_keeps_its_data(swirl_mesh):
