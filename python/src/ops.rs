@@ -257,13 +257,7 @@ pub fn trace_lines<'py>(
             let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
                 trace::trace_with(seeds, &o, &mut *loc, xyz, |d| ticker.tick(d))
             })?;
-            // In the tets the tracer found the points in (the GPU's stream kernel), else
-            // sampled again on the same backend.
-            py.detach(|| match LineArrays::at_tets(&lines, &m, &out_fields)? {
-                Some(arrays) => Ok(arrays),
-                None => LineArrays::new(&lines, &mut *loc, &out_fields),
-            })
-            .map_err(to_py)
+            py.detach(|| LineArrays::sample(&lines, &m, &mut *loc, &out_fields)).map_err(to_py)
         })?,
     };
     let out = PyDict::new(py);

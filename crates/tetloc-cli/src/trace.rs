@@ -158,13 +158,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
                 Ok(())
             })?;
             secs += t0.elapsed().as_secs_f64();
-            // The fields at the line points: in the tets the tracer found them in (the GPU's
-            // stream kernel), else sampled on the same backend.
             let t1 = Instant::now();
-            let arrays = match trace::LineArrays::at_tets(&lines, &m, &out_fields)? {
-                Some(arrays) => arrays,
-                None => trace::LineArrays::new(&lines, loc.as_mut(), &out_fields)?,
-            };
+            let arrays = trace::LineArrays::sample(&lines, &m, loc.as_mut(), &out_fields)?;
             let t2 = Instant::now();
             arrays.push_to(&mut writer, seeds_in.start)?;
             (sampling, spilling) = (sampling + (t2 - t1).as_secs_f64(), spilling + t2.elapsed().as_secs_f64());

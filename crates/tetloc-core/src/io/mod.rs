@@ -90,8 +90,13 @@ pub const NON_REGULAR_READ_CAP: u64 = 1 << 30;
 /// The file's f64 coordinates for `RawMesh::points64`: `None` when every one rounds to f32
 /// exactly (then the f32 copy is the data).
 pub fn points64_if_needed(points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
+    needs_f64(&points).then_some(points)
+}
+
+/// Whether some finite coordinate of `points` does not round to f32 exactly.
+pub fn needs_f64(points: &[[f64; 3]]) -> bool {
     use rayon::prelude::*;
-    points.par_iter().any(|p| p.iter().any(|&x| x.is_finite() && (x as f32) as f64 != x)).then_some(points)
+    points.par_iter().any(|p| p.iter().any(|&x| x.is_finite() && (x as f32) as f64 != x))
 }
 
 /// Reads a whole file, boundedly: a regular file must fit in memory (its size is known),

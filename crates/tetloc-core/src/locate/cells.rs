@@ -22,7 +22,7 @@
 //! Meshes of tets only pass through untouched. GPU kernels answer decomposition tet ids
 //! only: values on mixed meshes are always computed here, on the CPU.
 
-use super::{check_lengths, BatchLocator, OUTSIDE};
+use super::{check_lengths, BatchLocator, Points, OUTSIDE};
 use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 use crate::cell::{face_split, interpolate, invert, PCoords, Point};
 use crate::error::Result;
@@ -359,13 +359,6 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
     }
 }
 
-/// Query points as a batch gives them.
-#[derive(Clone, Copy)]
-enum Points<'a> {
-    F32(&'a [Vec3]),
-    F64(&'a [Point]),
-}
-
 impl<L: BatchLocator> CellLocator<L> {
     /// Ids and values on a mixed mesh, in either precision.
     fn sample_cells<T: Real>(
@@ -375,26 +368,16 @@ impl<L: BatchLocator> CellLocator<L> {
         ids: &mut [i32],
         values: &mut [T],
     ) -> Result<()> {
-        let n = match points {
-            Points::F32(p) => p.len(),
-            Points::F64(p) => p.len(),
-        };
+        let n = points.len();
         check_lengths(n, ids.len())?;
         check_lengths(n * fields.len(), values.len())?;
         let mesh = self.mesh.clone();
         let fields: Vec<&Field> = fields.iter().map(|f| mesh.field(f)).collect::<Result<_>>()?;
-        let (found, widened);
-        let points: &[Point] = match points {
-            Points::F32(p) => {
-                found = self.find(p, ids)?;
-                widened = p.par_iter().map(|p| p.map(f64::from)).collect::<Vec<_>>();
-                &widened
-            }
-            Points::F64(p) => {
-                found = self.find64(p, ids)?;
-                p
-            }
+        let found = match points {
+            Points::F32(p) => self.find(p, ids)?,
+            Points::F64(p) => self.find64(p, ids)?,
         };
+        let points = points.wide(0..n);
         let cells = mesh.cells.as_ref().expect("checked above");
         let k = fields.len();
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |f| f.cell as i32));

@@ -327,6 +327,47 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     }
 }
 
+/// A batch's query points in the precision the caller has them: f32 (the `BatchLocator`
+/// methods' own) or the file's f64 (`sample_many64`).
+#[derive(Clone, Copy)]
+pub(crate) enum Points<'a> {
+    F32(&'a [Vec3]),
+    F64(&'a [[f64; 3]]),
+}
+
+impl<'a> Points<'a> {
+    pub fn len(self) -> usize {
+        match self {
+            Points::F32(p) => p.len(),
+            Points::F64(p) => p.len(),
+        }
+    }
+
+    /// Points `r` in f64 (f32 ones widen exactly).
+    pub fn wide(self, r: Range<usize>) -> std::borrow::Cow<'a, [[f64; 3]]> {
+        match self {
+            Points::F32(p) => std::borrow::Cow::Owned(p[r].par_iter().map(|q| q.map(f64::from)).collect()),
+            Points::F64(p) => std::borrow::Cow::Borrowed(&p[r]),
+        }
+    }
+
+    /// Points `r` rounded to f32.
+    pub fn narrow(self, r: Range<usize>) -> std::borrow::Cow<'a, [Vec3]> {
+        match self {
+            Points::F32(p) => std::borrow::Cow::Borrowed(&p[r]),
+            Points::F64(p) => std::borrow::Cow::Owned(p[r].par_iter().map(|q| q.map(|c| c as f32)).collect()),
+        }
+    }
+
+    /// Whether rounding them to f32 would change some (finite) point.
+    pub fn need_f64(self) -> bool {
+        match self {
+            Points::F32(_) => false,
+            Points::F64(p) => crate::io::needs_f64(p),
+        }
+    }
+}
+
 /// An error unless an output buffer holds one entry per point (`out == points`).
 pub fn check_lengths(points: usize, out: usize) -> Result<()> {
     if points != out {

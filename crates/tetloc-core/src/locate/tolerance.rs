@@ -325,6 +325,7 @@ mod tests {
     use super::*;
     use crate::geom;
     use crate::locate::{CpuLocator, FiniteOnly};
+    use crate::test_support::mixed::moved;
     use crate::test_support::KuhnGrid;
     use proptest::prelude::*;
 
@@ -449,12 +450,7 @@ mod tests {
         let grid = KuhnGrid::new(3).jitter(0.2, 5);
         let near = Arc::new(grid.mesh("cube"));
         let offset = [512_345.0, 4_123_456.0, 1_000.0];
-        let mut raw = grid.raw();
-        let p64: Vec<[f64; 3]> =
-            raw.points.iter().map(|p| std::array::from_fn(|k| f64::from(p[k]) + offset[k])).collect();
-        raw.points = p64.iter().map(|p| p.map(|c| c as f32)).collect();
-        raw.points64 = Some(p64);
-        let far = Arc::new(Mesh::new(raw, "far cube").unwrap());
+        let far = Arc::new(Mesh::new(moved(grid.raw(), offset), "far cube").unwrap());
         assert!(!far.info.frame.is_identity(), "the far mesh has its own working frame");
         let mut state = 7u64;
         let mut unit = || {

@@ -421,23 +421,16 @@ impl Mesh {
 
     /// The f64 values of `fields` (point after point) for points given in the file's
     /// coordinates and their tets (`ids`, -1 outside): what every f64 path computes once the
-    /// tets are known.
-    pub fn values_at_ids64(&self, points: &[[f64; 3]], ids: &[i32], fields: &[&Field], out: &mut [f64]) {
+    /// tets are known; `T = f32` rounds them for an f32 output.
+    pub fn values_at_ids64<T: geom::Real>(&self, points: &[[f64; 3]], ids: &[i32], fields: &[&Field], out: &mut [T]) {
         let k = fields.len();
         if k == 0 {
             return;
         }
         out.par_chunks_mut(k).zip(points.par_iter().zip(ids)).for_each(|(o, (&p, &t))| {
-            let found = self.found64(p, t);
-            o.iter_mut().zip(fields).for_each(|(o, f)| *o = self.value_at64(f, found));
+            let found = (t >= 0).then(|| self.bary64(t as usize, p).map(|b| (t as usize, b))).flatten();
+            o.iter_mut().zip(fields).for_each(|(o, f)| *o = T::from_f64(self.value_at64(f, found)));
         });
-    }
-
-    /// A point given in the file's coordinates with its tet `t` (-1: none): the tet and the
-    /// point's f64 barycentrics in it, what [`Self::value_at64`] takes.
-    #[inline]
-    pub fn found64(&self, p: [f64; 3], t: i32) -> Option<(usize, geom::Bary64)> {
-        (t >= 0).then(|| self.bary64(t as usize, p).map(|b| (t as usize, b))).flatten()
     }
 
     /// Unique faces with their front and back tets, computed on first use (a parallel sort

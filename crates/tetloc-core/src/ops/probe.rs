@@ -8,7 +8,7 @@ use crate::error::Result;
 use crate::geom::Vec3;
 use crate::io::points::VALID_MASK;
 use crate::io::vtk::write::{self, ArrayData, NamedArray};
-use crate::locate::BatchLocator;
+use crate::locate::{BatchLocator, Points};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
 use std::path::Path;
@@ -79,42 +79,6 @@ pub fn probe64(
     progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<Probed> {
     probe_points(loc, Points::F64(points), fields, progress)
-}
-
-#[derive(Clone, Copy)]
-enum Points<'a> {
-    F32(&'a [Vec3]),
-    F64(&'a [[f64; 3]]),
-}
-
-impl<'a> Points<'a> {
-    fn len(self) -> usize {
-        match self {
-            Points::F32(p) => p.len(),
-            Points::F64(p) => p.len(),
-        }
-    }
-    /// Points `r`, in f64 (f32 ones widen exactly).
-    fn wide(self, r: std::ops::Range<usize>) -> Vec<[f64; 3]> {
-        match self {
-            Points::F32(p) => p[r].iter().map(|q| q.map(f64::from)).collect(),
-            Points::F64(p) => p[r].to_vec(),
-        }
-    }
-    /// Points `r`, rounded to f32.
-    fn narrow(self, r: std::ops::Range<usize>) -> std::borrow::Cow<'a, [Vec3]> {
-        match self {
-            Points::F32(p) => std::borrow::Cow::Borrowed(&p[r]),
-            Points::F64(p) => std::borrow::Cow::Owned(p[r].iter().map(|q| q.map(|c| c as f32)).collect()),
-        }
-    }
-    /// Whether rounding to f32 would change some point.
-    fn need_f64(self) -> bool {
-        match self {
-            Points::F32(_) => false,
-            Points::F64(p) => p.par_iter().any(|q| q.iter().any(|&c| f64::from(c as f32) != c)),
-        }
-    }
 }
 
 fn probe_points(
@@ -313,12 +277,8 @@ mod tests {
     #[test]
     fn far_targets_are_probed_at_their_f64_coordinates() {
         let grid = KuhnGrid::new(3).jitter(0.2, 9);
-        let offset = [512_345.0, 4_123_456.0, 1_000.0];
-        let mut raw = grid.raw();
-        let p64: Vec<[f64; 3]> =
-            raw.points.iter().map(|p| std::array::from_fn(|k| f64::from(p[k]) + offset[k])).collect();
-        raw.points = p64.iter().map(|p| p.map(|c| c as f32)).collect();
-        raw.points64 = Some(p64.clone());
+        let raw = crate::test_support::mixed::moved(grid.raw(), [512_345.0, 4_123_456.0, 1_000.0]);
+        let p64 = raw.points64.clone().expect("moved meshes have f64 coordinates");
         let far = Arc::new(Mesh::new(raw, "far cube").unwrap());
         let near = grid.mesh("cube");
         let groups = fields::groups_of(&far.fields);

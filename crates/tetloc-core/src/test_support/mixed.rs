@@ -3,7 +3,7 @@
 //!
 //! `tetloc-testdata` includes this same file (`#[path]`) for every other crate's tests.
 
-use super::{query_sets, read_raw, require_data, BatchLocator, Mesh, QuerySet};
+use super::{query_sets, read_raw, require_data, BatchLocator, Mesh, QuerySet, RawMesh};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -67,17 +67,23 @@ pub const FAR: [f64; 3] = [8_388_608.0, 16_777_216.0, -4_194_304.0];
 
 /// `file` read and moved by [`FAR`] in f64 (the f64 data a far mesh's file would hold).
 pub fn far_mesh(file: &std::path::Path) -> Mesh {
-    let mut raw = read_raw(file, None).unwrap_or_else(|e| panic!("{e}"));
+    let raw = read_raw(file, None).unwrap_or_else(|e| panic!("{e}"));
+    Mesh::new(moved(raw, FAR), "far mixed mesh").unwrap_or_else(|e| panic!("{}: {e}", file.display()))
+}
+
+/// `raw` moved by `by` in f64: the f64 coordinates a file of the mesh far from the origin
+/// would hold, with their f32 rounding.
+pub fn moved(mut raw: RawMesh, by: [f64; 3]) -> RawMesh {
     let moved: Vec<[f64; 3]> = match raw.points64.take() {
         Some(p) => p,
         None => raw.points.iter().map(|p| p.map(f64::from)).collect(),
     }
     .iter()
-    .map(|p| std::array::from_fn(|k| p[k] + FAR[k]))
+    .map(|p| std::array::from_fn(|k| p[k] + by[k]))
     .collect();
     raw.points = moved.iter().map(|p| p.map(|c| c as f32)).collect();
     raw.points64 = Some(moved);
-    Mesh::new(raw, "far mixed mesh").unwrap_or_else(|e| panic!("{}: {e}", file.display()))
+    raw
 }
 
 /// [`compare`] on [`far_mesh`], the set's points moved as the mesh and given in f64

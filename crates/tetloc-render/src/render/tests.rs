@@ -401,17 +401,15 @@ fn a_paraview_preset_renders() {
 fn a_mesh_far_from_the_origin_renders_as_at_the_origin() {
     let near = testmesh::two_blobs(8, 3);
     let offset = [512_345.0, 4_123_456.0, 0.0];
-    let points64: Vec<[f64; 3]> =
-        near.points.iter().map(|p| std::array::from_fn(|k| f64::from(p[k]) + offset[k])).collect();
     let raw = tetloc_core::mesh::RawMesh {
-        points: points64.iter().map(|p| p.map(|x| x as f32)).collect(),
-        points64: Some(points64),
+        points: near.points.clone(),
+        points64: None,
         tets: near.tets.clone(),
         fields: near.fields.clone(),
         higher_order: None,
         cells: None,
     };
-    let far = Arc::new(Mesh::new(raw, "two-blobs far away").unwrap());
+    let far = Arc::new(Mesh::new(tetloc_testdata::mixed::moved(raw, offset), "two-blobs far away").unwrap());
     assert!(!far.info.frame.is_identity(), "the far mesh gets its own working frame");
     let near = Arc::new(near);
     let render = |mesh: &Arc<Mesh>, camera: Option<LookAt>| {

@@ -279,7 +279,7 @@ pub(crate) fn to_points64(a: &Array) -> Option<Vec<[f64; 3]>> {
         return None;
     }
     let pts = map_tuples::<f64, 3, _, _>(&a.bytes, Some).unwrap_or_default();
-    pts.par_iter().any(|p| p.iter().any(|&x| (x as f32) as f64 != x && x.is_finite())).then_some(pts)
+    crate::io::points64_if_needed(pts)
 }
 
 /// Integer values mapped through `f`, which returns `None` for values out of the caller's

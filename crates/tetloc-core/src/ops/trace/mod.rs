@@ -419,6 +419,20 @@ impl LineArrays {
         Ok(arrays)
     }
 
+    /// The arrays of `lines` with `fields`: at the tets the tracer found the points in
+    /// ([`Self::at_tets`]: the GPU's stream kernel), else sampled through `loc` ([`Self::new`]).
+    pub fn sample(
+        lines: &[Line],
+        mesh: &crate::Mesh,
+        loc: &mut dyn BatchLocator,
+        fields: &[super::FieldGroup],
+    ) -> Result<LineArrays> {
+        match Self::at_tets(lines, mesh, fields)? {
+            Some(arrays) => Ok(arrays),
+            None => Self::new(lines, loc, fields),
+        }
+    }
+
     /// The arrays of `lines` whose points all carry their tets ([`Line::tets`]), with the
     /// values of `fields` computed there on the host, in f64 on the file's data
     /// ([`crate::Mesh::values_at_ids64`]): no second search. `None` when some line has none.
@@ -431,15 +445,13 @@ impl LineArrays {
             fields.iter().flat_map(|g| g.component_refs()).map(|c| mesh.field(c)).collect::<Result<Vec<_>>>()?;
         // Line by line into their slices of the values (no flat copy of the points); in f64
         // only where some field has f64 data to keep.
-        fn fill<T: Copy + Default + Send>(
+        fn fill<T: crate::geom::Real + Default>(
             lines: &[Line],
             mesh: &crate::Mesh,
-            k: usize,
-            value: impl Fn(&crate::Field, Option<(usize, crate::geom::Bary64)>) -> T + Sync,
-            components: &[&crate::Field],
+            fields: &[&crate::Field],
         ) -> Vec<T> {
-            let n: usize = lines.iter().map(|l| l.points.len()).sum();
-            let mut values = vec![T::default(); n * k];
+            let k = fields.len();
+            let mut values = vec![T::default(); lines.iter().map(|l| l.points.len()).sum::<usize>() * k];
             let mut parts = Vec::with_capacity(lines.len());
             let mut rest = &mut values[..];
             for l in lines {
@@ -447,21 +459,13 @@ impl LineArrays {
                 parts.push(part);
                 rest = tail;
             }
-            lines.par_iter().zip(parts).for_each(|(l, part)| {
-                for ((o, &p), &t) in part.chunks_mut(k.max(1)).zip(&l.points).zip(&l.tets) {
-                    let found = mesh.found64(p, t);
-                    o.iter_mut().zip(components).for_each(|(o, f)| *o = value(f, found));
-                }
-            });
+            lines.par_iter().zip(parts).for_each(|(l, part)| mesh.values_at_ids64(&l.points, &l.tets, fields, part));
             values
         }
-        let k = components.len();
         let probed = if fields.iter().any(|g| g.f64) {
-            let values = fill(lines, mesh, k, |f, found| mesh.value_at64(f, found), &components);
-            super::probe::Probed::from_values64(ids, fields, &values)
+            super::probe::Probed::from_values64(ids, fields, &fill::<f64>(lines, mesh, &components))
         } else {
-            let values = fill(lines, mesh, k, |f, found| mesh.value_at64(f, found) as f32, &components);
-            super::probe::Probed::from_values(ids, fields, &values)
+            super::probe::Probed::from_values(ids, fields, &fill::<f32>(lines, mesh, &components))
         };
         Ok(Some(Self::of(lines, probed)))
     }
