@@ -56,8 +56,27 @@ fn det3(a: Point, b: Point, c: Point) -> f64 {
 /// may lie outside the domain (then `p` is outside the cell): test it with
 /// [`Shape::contains`](super::Shape::contains).
 ///
+/// A curved cell's map can have a second preimage just outside the domain, which Newton from
+/// the centre may find first (a cubic hex with nodes moved by 2 % does). So for higher-order
+/// cells an answer outside the domain is tried again from the midpoints between the centre and
+/// each corner, and a preimage inside wins.
+///
 /// To locate a higher-order cell by its corners, pass `cell.shape().linear` and the corners.
 pub fn invert(cell: &dyn CellDef, nodes: &[Point], p: Point) -> Result<PCoords, InverseError> {
+    let shape = cell.shape();
+    let first = newton(cell, nodes, p, shape.center);
+    if cell.order() == 1 || first.is_ok_and(|pc| shape.contains(pc)) {
+        return first;
+    }
+    let inside = shape.corners.iter().find_map(|corner| {
+        let start = std::array::from_fn(|k| 0.5 * (shape.center[k] + corner[k]));
+        newton(cell, nodes, p, start).ok().filter(|&pc| shape.contains(pc))
+    });
+    inside.map_or(first, Ok)
+}
+
+/// Newton's method for `x(pc) = p` from `start`.
+fn newton(cell: &dyn CellDef, nodes: &[Point], p: Point, start: PCoords) -> Result<PCoords, InverseError> {
     let n = nodes.len();
     debug_assert_eq!(n, cell.n_nodes());
     // Rounding in x(pc) is relative to the coordinates' size: a residual below it is converged.
@@ -65,7 +84,7 @@ pub fn invert(cell: &dyn CellDef, nodes: &[Point], p: Point) -> Result<PCoords, 
     let residual_tol = 8.0 * f64::EPSILON * scale;
     with_scratch(n, 0.0, |w| {
         with_scratch(n, [0.0; 3], |d| {
-            let mut pc = cell.shape().center;
+            let mut pc = start;
             for _ in 0..MAX_ITERATIONS {
                 cell.shape_functions(pc, w);
                 cell.shape_derivatives(pc, d);

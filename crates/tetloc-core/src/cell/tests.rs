@@ -288,7 +288,10 @@ proptest! {
             let back = forward(def, &nodes, got);
             let size = nodes.iter().flatten().fold(0.0f64, |m, c| m.max(c.abs()));
             prop_assert!((0..3).all(|k| (back[k] - x[k]).abs() <= 1e-12 * size), "{def:?}: x({got:?}) = {back:?}, not {x:?}");
-            prop_assert!((0..3).all(|k| (got[k] - pc[k]).abs() <= 1e-8), "{def:?}: {got:?} vs {pc:?}");
+            // A warped cell can fold elsewhere in its domain: then another preimage inside it
+            // is as right as `pc` (one outside is not).
+            let same = (0..3).all(|k| (got[k] - pc[k]).abs() <= 1e-8);
+            prop_assert!(same || def.shape().margin(got) >= -1e-12, "{def:?}: {got:?} vs {pc:?}");
         }
     }
 
