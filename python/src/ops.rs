@@ -169,29 +169,52 @@ pub fn resample_to_image<'py>(
     Ok((arrays.collect(), PyArray1::from_vec(py, mask), grid.origin, grid.spacing))
 }
 
-/// `(arrays, vtkValidPointMask)`: the fields of the locator's mesh at `points` (K, 3).
+/// `(arrays, vtkValidPointMask)`: the fields of the locator's mesh at `points`, (K, 3)
+/// float32 or float64 (located at that precision). Each array is float64 for a field of f64
+/// data sampled on the f64 path (as the CLI's probe writes it), else float32.
 #[pyfunction(name = "probe")]
 #[pyo3(signature = (locator, points, names, progress=None))]
 pub fn probe_fields<'py>(
     py: Python<'py>,
     locator: &PyLocator,
-    points: PyReadonlyArray2<'_, f32>,
+    points: Bound<'py, PyAny>,
     names: Vec<String>,
     progress: Option<Bound<'py, PyAny>>,
-) -> PyResult<(FieldArrays<'py>, Bound<'py, PyArray1<u8>>)> {
-    let pts = points_of(&points)?;
+) -> PyResult<(ProbedArrays<'py>, Bound<'py, PyArray1<u8>>)> {
     let groups = field_groups(&locator.mesh, &names)?;
-    let probed = with_backend(py, locator, |loc| {
-        run_job(py, "probing", pts.len(), progress.as_ref(), |ticker| {
-            probe::probe(loc, pts, &groups, |d| ticker.tick(d))
-        })
-    })?;
+    let probed = if let Ok(p64) = points.extract::<PyReadonlyArray2<'_, f64>>() {
+        let pts: &[[f64; 3]] = points_of(&p64)?;
+        with_backend(py, locator, |loc| {
+            run_job(py, "probing", pts.len(), progress.as_ref(), |ticker| {
+                probe::probe64(loc, pts, &groups, |d| ticker.tick(d))
+            })
+        })?
+    } else {
+        let p32 = points
+            .extract::<PyReadonlyArray2<'_, f32>>()
+            .map_err(|_| PyValueError::new_err("points: expected a (K, 3) float32 or float64 array".to_string()))?;
+        let pts: &[Vec3] = points_of(&p32)?;
+        with_backend(py, locator, |loc| {
+            run_job(py, "probing", pts.len(), progress.as_ref(), |ticker| {
+                probe::probe(loc, pts, &groups, |d| ticker.tick(d))
+            })
+        })?
+    };
     let mask = PyArray1::from_vec(py, probed.mask());
-    let arrays = probed.arrays.into_iter().map(|(g, v)| (g.name.clone(), g.n_components(), PyArray1::from_vec(py, v)));
+    let arrays = probed.arrays.into_iter().zip(probed.arrays64).map(|((g, v), v64)| {
+        let values = match v64 {
+            Some(v64) => PyArray1::from_vec(py, v64).into_any(),
+            None => PyArray1::from_vec(py, v).into_any(),
+        };
+        (g.name.clone(), g.n_components(), values)
+    });
     Ok((arrays.collect(), mask))
 }
 
-fn points_of<'a>(points: &'a PyReadonlyArray2<'_, f32>) -> PyResult<&'a [Vec3]> {
+type ProbedArrays<'py> = Vec<(String, usize, Bound<'py, PyAny>)>;
+
+/// (K, 3) C-contiguous points of either precision, without a copy.
+fn points_of<'a, T: numpy::Element + bytemuck::Pod>(points: &'a PyReadonlyArray2<'_, T>) -> PyResult<&'a [[T; 3]]> {
     if points.shape()[1] != 3 {
         return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
     }

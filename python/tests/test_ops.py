@@ -109,17 +109,18 @@ def test_probe_points_and_meshes(swirl_mesh):
     rng = np.random.default_rng(5)
     pts = rng.uniform(-0.2, 1.2, size=(2000, 3))
     res = tetloc.probe(swirl_mesh, pts, backend="cpu")
-    inside = ((pts.astype(np.float32) >= 0) & (pts.astype(np.float32) <= 1)).all(axis=1)
+    inside = ((pts >= 0) & (pts <= 1)).all(axis=1)
     np.testing.assert_array_equal(res["vtkValidPointMask"], inside.astype(np.uint8))
     np.testing.assert_allclose(res["f"][inside], (pts @ [1, 2, 3])[inside], atol=1e-4)
     assert np.isnan(res["v"][~inside]).all() and res["v"].shape == (2000, 3)
     loc = tetloc.Locator(swirl_mesh, backend="cpu")
     np.testing.assert_array_equal(tetloc.probe(loc, pts, "f"), res["f"])
-    # probe takes float32 points (float64 fields sampled through the f64 path, returned as
-    # float32); float64 points through Locator keep theirs, so compare the same points.
-    same = loc.sample(pts.astype(np.float32).astype(np.float64), "f")
-    np.testing.assert_array_equal(res["f"], same.astype(np.float32))
-    np.testing.assert_allclose(res["f"], loc.sample(pts, "f"), rtol=1e-6, atol=1e-6)
+    # float64 points keep their precision and a field of float64 data comes back float64,
+    # as Locator.sample gives it; float32 points are probed as they are.
+    assert swirl_mesh.field("f").dtype == np.float64 and res["f"].dtype == np.float64
+    np.testing.assert_array_equal(res["f"], loc.sample(pts, "f"))
+    p32 = pts.astype(np.float32)
+    np.testing.assert_array_equal(tetloc.probe(loc, p32, "f"), loc.sample(p32.astype(np.float64), "f"))
     # A mesh as target: its vertices.
     onto = tetloc.probe(swirl_mesh, swirl_mesh, "f", backend="cpu")
     np.testing.assert_allclose(onto, swirl_mesh.field("f"), atol=1e-5)
@@ -134,11 +135,11 @@ def test_probe_matches_the_cli(cli, data_dir, tmp_path):
     subprocess.run([cli, "probe", str(mesh_path), str(pts_path), "-o", str(out), "--backend", "cpu", "--quiet"],
                    check=True)
     theirs = pv.read(out)
-    # The CLI writes the f64 field as Float64 (as VTK's probe keeps the type); Python's probe
-    # returns float32 arrays of the same f64 values.
+    # Both keep the f64 field as float64 (as VTK's probe keeps the type).
     for name in ("f", "vtkValidPointMask"):
-        theirs_a = np.asarray(theirs.point_data[name])
-        np.testing.assert_array_equal(np.asarray(ours.point_data[name]), theirs_a.astype(np.asarray(ours.point_data[name]).dtype))
+        ours_a, theirs_a = np.asarray(ours.point_data[name]), np.asarray(theirs.point_data[name])
+        assert ours_a.dtype == theirs_a.dtype, name
+        np.testing.assert_array_equal(ours_a, theirs_a)
 
 
 def test_probe_pyvista_target_keeps_its_data(swirl_mesh):

@@ -13,7 +13,7 @@ import numpy as np
 from . import _tetloc
 from ._locator import Locator
 from ._mesh import Mesh
-from ._points import as_points
+from ._points import as_points, as_points64
 from ._progress import ProgressBar
 
 ArrayLike = Any
@@ -150,7 +150,8 @@ def probe(
 
     `target` is a (K, 3) array of points (or (..., 3)), a tetloc.Mesh (its vertices) or a
     pyvista dataset (its points). Returns, for one field named as a string, its values
-    (float32, (K,) or (K, k), NaN where a point is outside `source`); else a dict of the
+    ((K,) or (K, k), NaN where a point is outside `source`; float64 for a field `source`
+    holds in float64, sampled in f64 as the CLI's probe writes it, else float32); else a dict of the
     fields' values plus ``"vtkValidPointMask"``. For a pyvista target (or ``as_pyvista=True``)
     a copy of the target (a ``pyvista.PolyData`` of the points for an array target) with the
     probed arrays and ``vtkValidPointMask`` as point data; probed arrays replace arrays of the
@@ -158,16 +159,16 @@ def probe(
     (reused: its backend and tolerance).
     """
     names, one = _names(fields)
+    # The target's points at their precision: float64 ones (a mesh's file coordinates) keep
+    # every digit, so targets far from the origin are probed where they are.
     if isinstance(target, Mesh):
-        pts, lead = target.points, (target.n_points,)
-    elif _is_pyvista(target):
-        pts, lead = as_points(np.asarray(target.points), "target")
+        pts, lead = target.points64, (target.n_points,)
     else:
-        pts, lead = as_points(target, "target")
+        given = np.asarray(target.points) if _is_pyvista(target) else target
+        pts, lead = as_points64(given, "target") or as_points(given, "target")
     pyvista_out = _is_pyvista(target) if as_pyvista is None else as_pyvista
     loc = _locator(source, backend, device, "source")
-    arrays, mask = _tetloc.probe(loc._raw, np.ascontiguousarray(pts, dtype=np.float32), names,
-                                 _progress(progress, "tetloc probe"))
+    arrays, mask = _tetloc.probe(loc._raw, pts, names, _progress(progress, "tetloc probe"))
     if pyvista_out:
         import pyvista as pv
 
@@ -176,7 +177,7 @@ def probe(
         elif isinstance(target, Mesh):
             out = target.to_pyvista()
         else:
-            out = pv.PolyData(np.asarray(pts, dtype=np.float32))
+            out = pv.PolyData(pts)
         return _with_arrays(out, arrays, mask)
     return _numpy_result(arrays, mask, lead, one)
 

@@ -70,6 +70,8 @@ class _Locator:
 def read_mesh(path: str, format: Optional[str] = None) -> _Mesh: ...
 
 FieldArrays = List[Tuple[str, int, npt.NDArray[np.float32]]]
+# float64 for fields of f64 data sampled on the f64 path.
+ProbedArrays = List[Tuple[str, int, Union[npt.NDArray[np.float32], npt.NDArray[np.float64]]]]
 
 def resample_to_image(
     locator: _Locator,
@@ -80,10 +82,10 @@ def resample_to_image(
 ) -> Tuple[FieldArrays, npt.NDArray[np.uint8], List[float], List[float]]: ...
 def probe(
     locator: _Locator,
-    points: npt.NDArray[np.float32],
+    points: Union[npt.NDArray[np.float32], npt.NDArray[np.float64]],
     names: List[str],
     progress: Optional[Progress] = None,
-) -> Tuple[FieldArrays, npt.NDArray[np.uint8]]: ...
+) -> Tuple[ProbedArrays, npt.NDArray[np.uint8]]: ...
 def trace(
     mesh: _Mesh,
     locator: Optional[_Locator],

@@ -7,8 +7,8 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
-use tetloc_core::io::points::{self, Results};
-use tetloc_core::io::vtk::write as vtk_write;
+use tetloc_core::io::points::{self, Results, Values};
+use tetloc_core::io::vtk::write::{self as vtk_write, Coords};
 use tetloc_core::locate::{count_non_finite, is_finite, with_precision, Precision, Tolerance, WithTolerance};
 use tetloc_core::BatchLocator;
 
@@ -28,8 +28,10 @@ pub struct LocateArgs {
     /// A field to sample at the points (NaN where a point gets no answer).
     #[arg(long)]
     pub(crate) field: Option<String>,
-    /// Where the sampled values go: .npy/.bin/.f32 (float32) or .csv (the field and
-    /// vtkValidPointMask). Not needed when --out is .csv, .vtu or .vtp, which carry the values.
+    /// Where the sampled values go: .npy (float32; float64 for a field the file stores in f64,
+    /// or with --precision f64), .bin/.f32 (raw float32 always) or .csv (the field, every digit,
+    /// and vtkValidPointMask). Not needed when --out is .csv, .vtu or .vtp, which carry the
+    /// values (Float64 likewise).
     #[arg(long)]
     pub(crate) values: Option<PathBuf>,
     /// Boundary tolerance: a point outside the mesh but within this distance of its boundary
@@ -46,10 +48,9 @@ pub struct LocateArgs {
     /// The values' precision: f32 (the default: the backend's own; GPU kernels interpolate
     /// the f32 copy of the field, within 1e-6 of its range) or f64 (the backend finds the
     /// cells, the values are interpolated on the host in f64 on the file's f64 values and
-    /// coordinates: the CPU's values on every backend). Value files stay float32 either way
-    /// (the f64 value rounded once). The CPU interpolates f64 fields in f64 at f64 points by
-    /// itself; f64 makes GPU backends do the same, and f32 data near the origin take the f64
-    /// path too.
+    /// coordinates: the CPU's values on every backend), written as float64. The CPU
+    /// interpolates f64 fields in f64 at f64 points by itself (and writes them as float64);
+    /// f64 makes GPU backends do the same, and f32 data near the origin take the f64 path too.
     #[arg(long, default_value = "f32")]
     pub(crate) precision: Precision,
     #[command(flatten)]
@@ -115,8 +116,9 @@ pub(crate) fn check_args(a: &LocateArgs) -> Result<()> {
     Ok(())
 }
 
-/// Writes `--out` (and `--values`): the ids and, with `--field`, the values.
-pub(crate) fn write_results(a: &LocateArgs, pts: &[[f32; 3]], ids: &[i32], values: &[f32]) -> Result<()> {
+/// Writes `--out` (and `--values`): the ids and, with `--field`, the values; `pts` are the
+/// points of a .vtu or .vtp `--out`.
+pub(crate) fn write_results(a: &LocateArgs, pts: Coords, ids: &[i32], values: Values) -> Result<()> {
     let results = Results { ids, values: a.field.as_deref().map(|f| (f, values)) };
     match OutKind::of(&a.out) {
         OutKind::Vtu => vtk_write::write_points_vtu(&a.out, pts, ids, results.values)?,
@@ -160,25 +162,32 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     // Chunks keep the progress bar moving and bound GPU batch memory.
     const CHUNK: usize = 1 << 22;
     let mut ids = vec![0i32; pts.len()];
-    let mut values = vec![0f32; if a.field.is_some() { pts.len() } else { 0 }];
+    // f32 values, or f64 ones for a field the file stores in f64 or with --precision f64.
+    let f64_field = a.field.as_deref().is_some_and(|f| m.field(f).is_ok_and(|f| f.values64.is_some()));
+    let wide_values = a.field.is_some() && (a.precision == Precision::F64 || f64_field);
+    let mut values = vec![0f32; if a.field.is_some() && !wide_values { pts.len() } else { 0 }];
+    let mut values64 = vec![0f64; if wide_values { pts.len() } else { 0 }];
     let pb = progress::bar(pts.len() as u64, format!("locating on {}", loc.name()));
     let t0 = Instant::now();
     // On f64 data (or far from the origin) the points go in at the file's precision (exact
     // on the CPU; the mesh's working frame on the GPU); f32 data near the origin takes the
     // f32 path. The values come back in f64 there (the file's values, if f64, interpolated
     // in f64).
-    let f64_field = a.field.as_deref().is_some_and(|f| m.field(f).is_ok_and(|f| f.values64.is_some()));
-    let at_f64 = m.wants_f64_points() || a.precision == Precision::F64 || f64_field;
+    let at_f64 = m.wants_f64_points() || wide_values;
     let fields: Vec<&str> = a.field.as_deref().into_iter().collect();
     let mut v64 = Vec::new();
     for (c, p) in pts.chunks(CHUNK).enumerate() {
         let r = c * CHUNK..c * CHUNK + p.len();
         match &a.field {
             _ if at_f64 => {
-                v64.resize(if fields.is_empty() { 0 } else { p.len() }, 0.0);
-                loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r.clone()], &mut v64)?;
-                if !fields.is_empty() {
-                    values[r].iter_mut().zip(&v64).for_each(|(v, &x)| *v = x as f32);
+                if wide_values {
+                    loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r.clone()], &mut values64[r])?;
+                } else {
+                    v64.resize(if fields.is_empty() { 0 } else { p.len() }, 0.0);
+                    loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r.clone()], &mut v64)?;
+                    if !fields.is_empty() {
+                        values[r].iter_mut().zip(&v64).for_each(|(v, &x)| *v = x as f32);
+                    }
                 }
             }
             Some(f) => loc.locate_and_sample(p, f, &mut ids[r.clone()], &mut values[r])?,
@@ -189,7 +198,8 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
 
-    write_results(a, &pts, &ids, &values)?;
+    let values = if wide_values { Values::F64(&values64) } else { Values::F32(&values) };
+    write_results(a, Coords::of(&pts64, &pts), &ids, values)?;
     if !a.common.quiet {
         let none = ids.iter().filter(|&&i| i < 0).count();
         let within = match a.tolerance.distance(&m) {

@@ -9,6 +9,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points;
+use tetloc_core::io::vtk::write::Coords;
 use tetloc_core::locate::{Tolerance, WithTolerance};
 use tetloc_core::ops::{fields, probe};
 use tetloc_core::{BatchLocator, Mesh};
@@ -114,11 +115,15 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     progress::with_spinner(format!("writing {}", a.out.display()), || {
-        let pts32: Vec<[f32; 3]> = match target_mesh {
-            Some(_) => Vec::new(), // the mesh writes its own coordinates
-            None => pts.iter().map(|p| p.map(|c| c as f32)).collect(),
+        let pts32: Vec<[f32; 3]>;
+        let target = match target_mesh.as_deref() {
+            Some(m) => probe::Target::Mesh(m), // the mesh writes its own coordinates
+            None => {
+                pts32 = pts.iter().map(|p| p.map(|c| c as f32)).collect();
+                probe::Target::Points(Coords::of(&pts, &pts32))
+            }
         };
-        probe::write_probed(&a.out, &probed, target_mesh.as_deref(), &pts32, a.zlib)
+        probe::write_probed(&a.out, &probed, target, a.zlib)
     })?;
     if !a.common.quiet {
         eprintln!(

@@ -740,6 +740,23 @@ fn locate_precision_f64() {
     // The option does something: interpolated in f64, some values round differently.
     let differ = v.iter().zip(&v64).filter(|(a, b)| !a.is_nan() && a.to_bits() != b.to_bits()).count();
     assert!(differ > 0, "--precision f64 gave the f32 path's values bit for bit");
+    // .npy keeps the precision the values were interpolated in (raw .bin is always f32):
+    // float32 by default, float64 with f64, the same values the .bin files rounded.
+    for (p, want) in [("f32", &v), ("f64", &v64)] {
+        let (ids, npy) = (dir.join("ids.npy"), dir.join(format!("v-{p}.npy")));
+        let args = ["locate", s(&mesh), "--points", s(&points), "--out", s(&ids), "--field", "f", "--values", s(&npy)];
+        let (ok, _, err) = tetloc(&[&args[..], &["--backend", "cpu", "--precision", p]].concat());
+        assert!(ok, "{p}: {err}");
+        let npy = npyz::NpyFile::new(std::fs::File::open(&npy).unwrap()).unwrap();
+        let got: Vec<f64> = match (p, npy.dtype().num_bytes()) {
+            ("f32", Some(4)) => npy.into_vec::<f32>().unwrap().into_iter().map(f64::from).collect(),
+            ("f64", Some(8)) => npy.into_vec::<f64>().unwrap(),
+            (_, bytes) => panic!("{p}: values written with {bytes:?} bytes each"),
+        };
+        for (g, w) in got.iter().zip(want.iter()) {
+            assert!(*g as f32 == *w || (g.is_nan() && w.is_nan()), "{p}: {g} vs {w}");
+        }
+    }
     let (ok, _, err) = tetloc(&["locate", s(&mesh), "--points", s(&points), "--out", "x.bin", "--precision", "f16"]);
     assert!(!ok && err.contains("f16"), "{err}");
 }

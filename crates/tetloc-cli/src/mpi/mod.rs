@@ -13,7 +13,8 @@ use rand::{Rng, SeedableRng};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
-use tetloc_core::io::points;
+use tetloc_core::io::points::{self, Values};
+use tetloc_core::io::vtk::write::Coords;
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{BatchLocator, Mesh, Vec3};
 use tetloc_mpi::dist::{load_part, Cluster, DistLocator, Part};
@@ -130,7 +131,8 @@ fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {
         .iter()
         .map(|&g| i32::try_from(g).map_err(|_| anyhow::anyhow!("global cell id {g} does not fit the int32 outputs")))
         .collect::<Result<Vec<i32>>>()?;
-    locate::write_results(a, &pts, &ids, &values)?;
+    // Distributed locates sample in f32 (the partitions' kernels; f64 is not routed yet).
+    locate::write_results(a, Coords::F32(&pts), &ids, Values::F32(&values))?;
     if !a.common.quiet {
         let none = ids.iter().filter(|&&i| i < 0).count();
         eprintln!(

@@ -1,6 +1,7 @@
 //! Query points in, ids and values out: `.npy`, `.csv` and raw little-endian arrays
 //! (`.bin`/`.f32`: f32 x,y,z triplets in; `.bin`: i32 ids or f32 values out), the layout of
-//! the oracle data's `*.points.bin`.
+//! the oracle data's `*.points.bin`. Values keep their precision where the format says it:
+//! `.npy` and `.csv` carry f64 values as f64, raw files are always f32.
 //!
 //! Points with a NaN or infinite coordinate are read as they are: they are in no cell, and
 //! the locators answer them -1 / NaN (see [`crate::locate::FiniteOnly`]).
@@ -9,6 +10,7 @@
 //! `vtkValidPointMask` included, as ParaView's probe writes it), always written atomically.
 
 use super::output::{extension, write_atomically};
+use super::vtk::write::ArrayData;
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
 use std::io::Write;
@@ -148,7 +150,44 @@ fn is_xyz_header(fields: &[&str]) -> bool {
 #[derive(Clone, Copy, Debug)]
 pub struct Results<'a> {
     pub ids: &'a [i32],
-    pub values: Option<(&'a str, &'a [f32])>,
+    pub values: Option<(&'a str, Values<'a>)>,
+}
+
+/// Sampled values at the precision they were interpolated in: f64 where the file's field is
+/// f64 or f64 values were asked for, else f32.
+#[derive(Clone, Copy, Debug)]
+pub enum Values<'a> {
+    F32(&'a [f32]),
+    F64(&'a [f64]),
+}
+
+impl<'a> Values<'a> {
+    pub fn len(&self) -> usize {
+        match self {
+            Values::F32(v) => v.len(),
+            Values::F64(v) => v.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The values as a VTK array's data (Float32 or Float64).
+    pub fn array(self) -> ArrayData<'a> {
+        match self {
+            Values::F32(v) => ArrayData::F32(v),
+            Values::F64(v) => ArrayData::F64(v),
+        }
+    }
+
+    /// Value `i` as text: the shortest decimal that reads back to the same f32 or f64.
+    fn text(&self, i: usize) -> String {
+        match self {
+            Values::F32(v) => v[i].to_string(),
+            Values::F64(v) => v[i].to_string(),
+        }
+    }
 }
 
 impl Results<'_> {
@@ -179,8 +218,9 @@ pub fn write_ids(path: &Path, r: &Results) -> Result<()> {
     }
 }
 
-/// Writes the sampled values: `.npy` (float32) or `.bin`/`.f32` (raw little-endian f32), NaN
-/// where there is no answer; or `.csv`: the field's column and `vtkValidPointMask`.
+/// Writes the sampled values: `.npy` (float32, or float64 for f64 values) or `.bin`/`.f32`
+/// (raw little-endian f32, f64 values rounded once), NaN where there is no answer; or `.csv`:
+/// the field's column (every digit of f64 values) and `vtkValidPointMask`.
 pub fn write_values(path: &Path, r: &Results) -> Result<()> {
     r.check()?;
     let Some((_, values)) = r.values else {
@@ -188,7 +228,14 @@ pub fn write_values(path: &Path, r: &Results) -> Result<()> {
     };
     match extension(path).as_str() {
         "csv" | "txt" => write_csv(path, r, false),
-        "npy" | "bin" | "f32" | "raw" => write_array(path, values),
+        "npy" => match values {
+            Values::F32(v) => write_array(path, v),
+            Values::F64(v) => write_array(path, v),
+        },
+        "bin" | "f32" | "raw" => match values {
+            Values::F32(v) => write_array(path, v),
+            Values::F64(v) => write_array(path, &v.iter().map(|&x| x as f32).collect::<Vec<f32>>()),
+        },
         _ => Err(unknown_output(path, VALUE_EXTENSIONS)),
     }
 }
@@ -211,14 +258,14 @@ fn write_csv(path: &Path, r: &Results, with_ids: bool) -> Result<()> {
         }
         header.push(VALID_MASK.to_string());
         writeln!(w, "{}", header.join(",")).map_err(io)?;
-        for i in 0..r.ids.len() {
+        for (i, (id, m)) in r.ids.iter().zip(&mask).enumerate() {
             if with_ids {
-                write!(w, "{},", r.ids[i]).map_err(io)?;
+                write!(w, "{id},").map_err(io)?;
             }
             if let Some((_, v)) = r.values {
-                write!(w, "{},", v[i]).map_err(io)?;
+                write!(w, "{},", v.text(i)).map_err(io)?;
             }
-            writeln!(w, "{}", mask[i]).map_err(io)?;
+            writeln!(w, "{m}").map_err(io)?;
         }
         Ok(())
     })
@@ -312,7 +359,7 @@ mod tests {
         assert_eq!(std::fs::read_to_string(tmp("ids.csv")).unwrap(), "tet_id,vtkValidPointMask\n3,1\n-1,0\n7,1\n0,1\n");
         // Values: the field's column and the mask; a table with ids carries everything.
         let ids = [2, -1];
-        let r = Results { ids: &ids, values: Some(("f, g", &[1.5, f32::NAN])) };
+        let r = Results { ids: &ids, values: Some(("f, g", Values::F32(&[1.5, f32::NAN]))) };
         let p = tmp("v.csv");
         write_values(&p, &r).unwrap();
         assert_eq!(std::fs::read_to_string(&p).unwrap(), "\"f, g\",vtkValidPointMask\n1.5,1\nNaN,0\n");
@@ -323,6 +370,27 @@ mod tests {
         assert_eq!(std::fs::read(&p).unwrap().len(), 8);
     }
 
+    /// f64 values keep every digit in `.npy` (float64) and `.csv`; raw files stay f32.
+    #[test]
+    fn f64_values_keep_their_precision_where_the_format_can() {
+        let v = [0.1f64 + 1e-12, f64::NAN];
+        let r = Results { ids: &[0, -1], values: Some(("f", Values::F64(&v))) };
+        let p = tmp("v64.npy");
+        write_values(&p, &r).unwrap();
+        let got = npyz::NpyFile::new(std::fs::File::open(&p).unwrap()).unwrap().into_vec::<f64>().unwrap();
+        assert_eq!(got[0], v[0]);
+        assert!(got[1].is_nan());
+        let p = tmp("v64.csv");
+        write_values(&p, &r).unwrap();
+        let text = std::fs::read_to_string(&p).unwrap();
+        assert_eq!(text.lines().nth(1).unwrap().split(',').next().unwrap().parse::<f64>().unwrap(), v[0], "{text}");
+        let p = tmp("v64.f32");
+        write_values(&p, &r).unwrap();
+        let raw: Vec<f32> = bytemuck::pod_collect_to_vec(&std::fs::read(&p).unwrap());
+        assert_eq!(raw[0], v[0] as f32);
+        assert!(raw[1].is_nan());
+    }
+
     #[test]
     fn an_unknown_output_extension_creates_nothing() {
         let p = tmp("o.h5");
@@ -330,7 +398,8 @@ mod tests {
         let e = write_ids(&p, &Results { ids: &[1], values: None }).unwrap_err().to_string();
         assert!(e.contains("o.h5") && e.contains("unknown output format"), "{e}");
         assert!(!p.exists());
-        let e = write_values(&p, &Results { ids: &[1], values: Some(("f", &[1.0])) }).unwrap_err().to_string();
+        let e =
+            write_values(&p, &Results { ids: &[1], values: Some(("f", Values::F32(&[1.0]))) }).unwrap_err().to_string();
         assert!(e.contains("unknown output format"), "{e}");
         assert!(!p.exists());
     }

@@ -7,7 +7,7 @@ use super::{FieldGroup, CHUNK};
 use crate::error::Result;
 use crate::geom::Vec3;
 use crate::io::points::VALID_MASK;
-use crate::io::vtk::write::{self, ArrayData, NamedArray};
+use crate::io::vtk::write::{self, ArrayData, Coords, NamedArray};
 use crate::locate::{BatchLocator, Points};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
@@ -159,15 +159,22 @@ fn components<T: Copy + Send + Sync>(values: &[T], width: usize, at: usize, k: u
     values.par_chunks_exact(width.max(1)).flat_map_iter(|p| p[at..at + k].iter().copied()).collect()
 }
 
-/// Writes the probe's result: `target` with its cells and data plus the probed arrays (a
-/// `.vtu`; probed arrays replace target arrays of the same name), or, without a target mesh,
-/// the point set `points` with the probed arrays (`.vtu` or `.vtp`).
-pub fn write_probed(path: &Path, probed: &Probed, target: Option<&Mesh>, points: &[Vec3], zlib: bool) -> Result<()> {
+/// What the probed values were sampled at: a mesh's vertices, or a set of points.
+#[derive(Clone, Copy, Debug)]
+pub enum Target<'a> {
+    Mesh(&'a Mesh),
+    Points(Coords<'a>),
+}
+
+/// Writes the probe's result: a target mesh with its cells and data plus the probed arrays (a
+/// `.vtu`; probed arrays replace target arrays of the same name), or a target point set with
+/// the probed arrays (`.vtu` or `.vtp`; Float64 coordinates where f32 cannot hold them).
+pub fn write_probed(path: &Path, probed: &Probed, target: Target, zlib: bool) -> Result<()> {
     let mask = probed.mask();
     let arrays = probed.named(&mask);
     match target {
-        Some(mesh) => write::write_mesh_with(path, mesh, &arrays, zlib),
-        None => write::write_point_set(path, points, &arrays, zlib),
+        Target::Mesh(mesh) => write::write_mesh_with(path, mesh, &arrays, zlib),
+        Target::Points(points) => write::write_point_set(path, points, &arrays, zlib),
     }
 }
 
@@ -207,7 +214,7 @@ mod tests {
         renamed[0].name = "f_probed".into();
         let onto = probe(&mut loc, &m.points, &renamed, |_| Ok(())).unwrap();
         let tmp = std::env::temp_dir().join(format!("tetloc-probe-{}.vtu", std::process::id()));
-        write_probed(&tmp, &onto, Some(&m), &m.points, false).unwrap();
+        write_probed(&tmp, &onto, Target::Mesh(&m), false).unwrap();
         let back = crate::io::vtk::vtu::read(&tmp).unwrap();
         let names: Vec<&str> = back.fields.iter().map(|f| f.name.as_str()).collect();
         let mut want: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
@@ -237,7 +244,7 @@ mod tests {
         assert!(groups.iter().any(|g| g.f64) && groups.iter().any(|g| !g.f64));
         let p = probe(&mut CpuLocator::new(m.clone()), &m.points, &groups, |_| Ok(())).unwrap();
         let tmp = std::env::temp_dir().join(format!("tetloc-probe64-{}.vtp", std::process::id()));
-        write_probed(&tmp, &p, None, &m.points, false).unwrap();
+        write_probed(&tmp, &p, Target::Points(Coords::F32(&m.points)), false).unwrap();
         let bytes = std::fs::read(&tmp).unwrap();
         let text = String::from_utf8_lossy(&bytes[..bytes.len().min(4000)]).to_string();
         std::fs::remove_file(&tmp).unwrap();

@@ -13,7 +13,7 @@ use super::cells;
 use super::num::NumType;
 use crate::error::{Error, Result};
 use crate::io::output::write_atomically;
-use crate::io::points::VALID_MASK;
+use crate::io::points::{Values, VALID_MASK};
 use crate::mesh::{FieldLocation, Mesh};
 use std::io::Write;
 use std::ops::Range;
@@ -320,20 +320,20 @@ fn write_cells(
 /// Writes a point set as an unstructured grid: one VTK_VERTEX cell per point, point data
 /// `tet_id` (Int32, -1 for points without an answer), the named values (Float32) if given,
 /// and `vtkValidPointMask` (UInt8, 1 where a point got an answer).
-pub fn write_points_vtu(path: &Path, points: &[[f32; 3]], ids: &[i32], values: Option<(&str, &[f32])>) -> Result<()> {
+pub fn write_points_vtu(path: &Path, points: Coords, ids: &[i32], values: Option<(&str, Values)>) -> Result<()> {
     point_set(Kind::Unstructured, points, ids, values)?.write(path, false)
 }
 
 /// [`write_points_vtu`] as VTK polydata (`.vtp`): the same arrays, one vertex (`Verts`) per point.
-pub fn write_points_vtp(path: &Path, points: &[[f32; 3]], ids: &[i32], values: Option<(&str, &[f32])>) -> Result<()> {
+pub fn write_points_vtp(path: &Path, points: Coords, ids: &[i32], values: Option<(&str, Values)>) -> Result<()> {
     point_set(Kind::PolyVerts, points, ids, values)?.write(path, false)
 }
 
 fn point_set<'a>(
     kind: Kind,
-    points: &'a [[f32; 3]],
+    points: Coords<'a>,
     ids: &'a [i32],
-    values: Option<(&str, &'a [f32])>,
+    values: Option<(&str, Values<'a>)>,
 ) -> Result<Grid<'a>> {
     let n = points.len();
     if ids.len() != n {
@@ -349,7 +349,7 @@ fn point_set<'a>(
         if name == "tet_id" || name == VALID_MASK {
             return Err(Error::Invalid(format!("the value array cannot be named '{name}'")));
         }
-        point_data.push(OutArray::floats(name, 1, v));
+        point_data.push(NamedArray { name: name.into(), n_components: 1, data: v.array() }.out());
     }
     point_data.push(OutArray::new(VALID_MASK, NumType::U8, 1, n, |r, out| {
         out.extend(ids[r].iter().map(|&i| u8::from(i >= 0)))
@@ -359,8 +359,51 @@ fn point_set<'a>(
     Ok(grid)
 }
 
+/// A point set's coordinates at the precision they are written in (Float32 or Float64): f64
+/// where f32 cannot hold the points (far from the origin), so that ParaView shows them where
+/// they are.
+#[derive(Clone, Copy, Debug)]
+pub enum Coords<'a> {
+    F32(&'a [[f32; 3]]),
+    F64(&'a [[f64; 3]]),
+}
+
+impl<'a> Coords<'a> {
+    pub fn len(&self) -> usize {
+        match self {
+            Coords::F32(p) => p.len(),
+            Coords::F64(p) => p.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// f64 where some point does not round to f32 exactly, else f32.
+    pub fn of(points64: &'a [[f64; 3]], points32: &'a [[f32; 3]]) -> Coords<'a> {
+        if crate::io::needs_f64(points64) {
+            Coords::F64(points64)
+        } else {
+            Coords::F32(points32)
+        }
+    }
+
+    fn array(self) -> OutArray<'a> {
+        match self {
+            Coords::F32(p) => OutArray::floats("Points", 3, bytemuck::cast_slice(p)),
+            Coords::F64(p) => {
+                let v: &'a [f64] = bytemuck::cast_slice(p);
+                OutArray::new("Points", NumType::F64, 3, v.len(), move |r, out| {
+                    out.extend_from_slice(bytemuck::cast_slice(&v[r]))
+                })
+            }
+        }
+    }
+}
+
 /// Points, one vertex cell each, and no data yet.
-fn point_cloud(kind: Kind, points: &[[f32; 3]]) -> Grid<'_> {
+fn point_cloud(kind: Kind, points: Coords<'_>) -> Grid<'_> {
     let n = points.len();
     let wide = n as u64 > i32::MAX as u64;
     let id_type = if wide { NumType::I64 } else { NumType::I32 };
@@ -370,7 +413,7 @@ fn point_cloud(kind: Kind, points: &[[f32; 3]]) -> Grid<'_> {
         n_cells: n,
         point_data: Vec::new(),
         cell_data: Vec::new(),
-        points: OutArray::floats("Points", 3, bytemuck::cast_slice(points)),
+        points: points.array(),
         connectivity: OutArray::new("connectivity", id_type, 1, n, move |r, out| {
             r.for_each(|i| push_id(out, i as u64, wide))
         }),
@@ -385,7 +428,7 @@ fn point_cloud(kind: Kind, points: &[[f32; 3]]) -> Grid<'_> {
 
 /// Writes a point set with any arrays of point data, as `.vtu` (one VTK_VERTEX cell per
 /// point) or `.vtp` (polydata, one vertex per point), by the extension of `path`.
-pub fn write_point_set(path: &Path, points: &[[f32; 3]], arrays: &[NamedArray], zlib: bool) -> Result<()> {
+pub fn write_point_set(path: &Path, points: Coords, arrays: &[NamedArray], zlib: bool) -> Result<()> {
     let kind = match crate::io::output::extension(path).as_str() {
         "vtu" => Kind::Unstructured,
         "vtp" => Kind::PolyVerts,
@@ -905,7 +948,13 @@ mod tests {
     fn points_round_trip() {
         let tmp = TempPath::new("points");
         let pts = vec![[0.5, 1.5, 2.5], [3., 4., 5.], [-1., -2., -3.]];
-        write_points_vtu(&tmp.0, &pts, &[4, -1, 0], Some(("value of f", &[1.0, f32::NAN, 3.0]))).unwrap();
+        write_points_vtu(
+            &tmp.0,
+            Coords::F32(&pts),
+            &[4, -1, 0],
+            Some(("value of f", Values::F32(&[1.0, f32::NAN, 3.0]))),
+        )
+        .unwrap();
         let bytes = std::fs::read(&tmp.0).unwrap();
         let doc = super::super::xml::parse(&bytes, "AppendedData").unwrap();
         let piece = doc.root.child("UnstructuredGrid").unwrap().child("Piece").unwrap();
@@ -926,13 +975,33 @@ mod tests {
         assert_eq!(mask.attr("type"), Some("UInt8"));
     }
 
+    /// Points far from the origin and f64 values are written as Float64 and read back
+    /// exactly.
+    #[test]
+    fn f64_point_sets_keep_every_digit() {
+        let tmp = TempPath::new("points64");
+        let pts = [[512345.123456789, 4123456.987654321, -0.1], [1e7 + 0.25, 3.0, 4.0]];
+        let pts32: Vec<[f32; 3]> = pts.iter().map(|p| p.map(|c| c as f32)).collect();
+        let coords = Coords::of(&pts, &pts32);
+        assert!(matches!(coords, Coords::F64(_)));
+        let v = [0.1 + 1e-12, f64::NAN];
+        write_points_vtu(&tmp.0, coords, &[0, -1], Some(("f", Values::F64(&v)))).unwrap();
+        let back = vtu::read(&tmp.0).unwrap();
+        assert_eq!(back.points64.as_deref(), Some(&pts[..]));
+        let f = back.fields.iter().find(|f| f.name == "f").unwrap();
+        assert_eq!(f.values64.as_ref().unwrap()[0], v[0]);
+        // Points that f32 holds exactly stay Float32.
+        let near = [[0.5, 1.5, 2.5]];
+        assert!(matches!(Coords::of(&near, &[[0.5, 1.5, 2.5]]), Coords::F32(_)));
+    }
+
     /// The polydata point set: the same arrays, `Verts` instead of `Cells`. (VTK itself reads
     /// it in the CLI's boundary-tolerance test.)
     #[test]
     fn vtp_point_set() {
         let tmp = TempPath::new("points");
         let pts = vec![[0.5, 1.5, 2.5], [3., 4., 5.]];
-        write_points_vtp(&tmp.0, &pts, &[-1, 2], Some(("f", &[f32::NAN, 3.0]))).unwrap();
+        write_points_vtp(&tmp.0, Coords::F32(&pts), &[-1, 2], Some(("f", Values::F32(&[f32::NAN, 3.0])))).unwrap();
         let bytes = std::fs::read(&tmp.0).unwrap();
         let doc = super::super::xml::parse(&bytes, "AppendedData").unwrap();
         assert_eq!(doc.root.attr("type"), Some("PolyData"));
@@ -1006,8 +1075,8 @@ mod tests {
     #[test]
     fn bad_point_inputs() {
         let tmp = TempPath::new("bad");
-        assert!(write_points_vtu(&tmp.0, &[[0.; 3]], &[], None).is_err());
-        assert!(write_points_vtu(&tmp.0, &[[0.; 3]], &[1], Some(("v", &[]))).is_err());
+        assert!(write_points_vtu(&tmp.0, Coords::F32(&[[0.; 3]]), &[], None).is_err());
+        assert!(write_points_vtu(&tmp.0, Coords::F32(&[[0.; 3]]), &[1], Some(("v", Values::F32(&[])))).is_err());
         let e = write_mesh_vtu(Path::new("/nonexistent-dir/x.vtu"), &small_mesh(), false).unwrap_err();
         assert!(e.to_string().starts_with("/nonexistent-dir/x.vtu"), "{e}");
     }
