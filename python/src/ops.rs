@@ -13,6 +13,7 @@ use pyo3::types::PyDict;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
+use tetloc_core::locate::Points;
 use tetloc_core::ops::trace::{self, Integrator, LineArrays, TraceOptions};
 use tetloc_core::ops::{fields, probe, resample, FieldGroup, ImageGrid};
 use tetloc_core::{BatchLocator, CpuLocator, Vec3};
@@ -182,24 +183,22 @@ pub fn probe_fields<'py>(
     progress: Option<Bound<'py, PyAny>>,
 ) -> PyResult<(ProbedArrays<'py>, Bound<'py, PyArray1<u8>>)> {
     let groups = field_groups(&locator.mesh, &names)?;
-    let probed = if let Ok(p64) = points.extract::<PyReadonlyArray2<'_, f64>>() {
-        let pts: &[[f64; 3]] = points_of(&p64)?;
-        with_backend(py, locator, |loc| {
-            run_job(py, "probing", pts.len(), progress.as_ref(), |ticker| {
-                probe::probe64(loc, pts, &groups, |d| ticker.tick(d))
-            })
-        })?
+    // The points at the precision given (float64: the f64 path where it matters).
+    let (p64, p32);
+    let pts = if let Ok(a) = points.extract::<PyReadonlyArray2<'_, f64>>() {
+        p64 = a;
+        Points::F64(points_of(&p64)?)
     } else {
-        let p32 = points
+        p32 = points
             .extract::<PyReadonlyArray2<'_, f32>>()
             .map_err(|_| PyValueError::new_err("points: expected a (K, 3) float32 or float64 array".to_string()))?;
-        let pts: &[Vec3] = points_of(&p32)?;
-        with_backend(py, locator, |loc| {
-            run_job(py, "probing", pts.len(), progress.as_ref(), |ticker| {
-                probe::probe(loc, pts, &groups, |d| ticker.tick(d))
-            })
-        })?
+        Points::F32(points_of(&p32)?)
     };
+    let probed = with_backend(py, locator, |loc| {
+        run_job(py, "probing", pts.len(), progress.as_ref(), |ticker| {
+            probe::probe_points(loc, pts, &groups, |d| ticker.tick(d))
+        })
+    })?;
     let mask = PyArray1::from_vec(py, probed.mask());
     let arrays = probed.arrays.into_iter().zip(probed.arrays64).map(|((g, v), v64)| {
         let values = match v64 {

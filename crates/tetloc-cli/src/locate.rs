@@ -180,14 +180,16 @@ pub fn run(a: &LocateArgs) -> Result<()> {
         let r = c * CHUNK..c * CHUNK + p.len();
         match &a.field {
             _ if at_f64 => {
-                if wide_values {
-                    loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r.clone()], &mut values64[r])?;
+                // f64 values land in the output; f32 ones go through a chunk buffer, narrowed.
+                let out = if wide_values {
+                    &mut values64[r.clone()]
                 } else {
                     v64.resize(if fields.is_empty() { 0 } else { p.len() }, 0.0);
-                    loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r.clone()], &mut v64)?;
-                    if !fields.is_empty() {
-                        values[r].iter_mut().zip(&v64).for_each(|(v, &x)| *v = x as f32);
-                    }
+                    &mut v64[..]
+                };
+                loc.sample_many64(&pts64[r.clone()], &fields, &mut ids[r.clone()], out)?;
+                if !wide_values && !fields.is_empty() {
+                    values[r].iter_mut().zip(&v64).for_each(|(v, &x)| *v = x as f32);
                 }
             }
             Some(f) => loc.locate_and_sample(p, f, &mut ids[r.clone()], &mut values[r])?,

@@ -330,7 +330,7 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
 /// A batch's query points in the precision the caller has them: f32 (the `BatchLocator`
 /// methods' own) or the file's f64 (`sample_many64`).
 #[derive(Clone, Copy)]
-pub(crate) enum Points<'a> {
+pub enum Points<'a> {
     F32(&'a [Vec3]),
     F64(&'a [[f64; 3]]),
 }
@@ -341,6 +341,10 @@ impl<'a> Points<'a> {
             Points::F32(p) => p.len(),
             Points::F64(p) => p.len(),
         }
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.len() == 0
     }
 
     /// Points `r` in f64 (f32 ones widen exactly).

@@ -81,7 +81,9 @@ pub fn probe64(
     probe_points(loc, Points::F64(points), fields, progress)
 }
 
-fn probe_points(
+/// [`probe`] at points of either precision (what [`probe`] and [`probe64`] call; bindings
+/// that take both call it directly).
+pub fn probe_points(
     loc: &mut dyn BatchLocator,
     points: Points,
     fields: &[FieldGroup],

@@ -73,18 +73,10 @@ impl<'a> NamedArray<'a> {
         let (name, k) = (self.name.as_str(), self.n_components);
         match self.data {
             ArrayData::F32(v) => OutArray::floats(name, k, v),
-            ArrayData::F64(v) => OutArray::new(name, NumType::F64, k, v.len(), move |r, out| {
-                out.extend_from_slice(bytemuck::cast_slice(&v[r]))
-            }),
-            ArrayData::I32(v) => OutArray::new(name, NumType::I32, k, v.len(), move |r, out| {
-                out.extend_from_slice(bytemuck::cast_slice(&v[r]))
-            }),
-            ArrayData::I64(v) => OutArray::new(name, NumType::I64, k, v.len(), move |r, out| {
-                out.extend_from_slice(bytemuck::cast_slice(&v[r]))
-            }),
-            ArrayData::U8(v) => {
-                OutArray::new(name, NumType::U8, k, v.len(), move |r, out| out.extend_from_slice(&v[r]))
-            }
+            ArrayData::F64(v) => OutArray::slice(name, NumType::F64, k, v),
+            ArrayData::I32(v) => OutArray::slice(name, NumType::I32, k, v),
+            ArrayData::I64(v) => OutArray::slice(name, NumType::I64, k, v),
+            ArrayData::U8(v) => OutArray::slice(name, NumType::U8, k, v),
         }
     }
 
@@ -392,12 +384,7 @@ impl<'a> Coords<'a> {
     fn array(self) -> OutArray<'a> {
         match self {
             Coords::F32(p) => OutArray::floats("Points", 3, bytemuck::cast_slice(p)),
-            Coords::F64(p) => {
-                let v: &'a [f64] = bytemuck::cast_slice(p);
-                OutArray::new("Points", NumType::F64, 3, v.len(), move |r, out| {
-                    out.extend_from_slice(bytemuck::cast_slice(&v[r]))
-                })
-            }
+            Coords::F64(p) => OutArray::slice("Points", NumType::F64, 3, bytemuck::cast_slice::<_, f64>(p)),
         }
     }
 }
@@ -638,8 +625,13 @@ impl<'a> OutArray<'a> {
         OutArray { name: name.to_string(), ty, ncomp, n_values, source: Source::File(file) }
     }
 
+    /// An array of the values of `v`, which are of `ty`.
+    fn slice<T: bytemuck::Pod + Sync>(name: &str, ty: NumType, ncomp: usize, v: &'a [T]) -> Self {
+        Self::new(name, ty, ncomp, v.len(), move |r, out| out.extend_from_slice(bytemuck::cast_slice(&v[r])))
+    }
+
     fn floats(name: &str, ncomp: usize, v: &'a [f32]) -> Self {
-        Self::new(name, NumType::F32, ncomp, v.len(), move |r, out| out.extend_from_slice(bytemuck::cast_slice(&v[r])))
+        Self::slice(name, NumType::F32, ncomp, v)
     }
 
     fn n_bytes(&self) -> usize {
