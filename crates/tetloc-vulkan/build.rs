@@ -47,6 +47,7 @@ const SHADERS: &[Shader] = &[
     shader("BUILD_GRID", "build/grid.comp", ShaderStage::Compute, false),
     shader("BUILD_GRID_STARTS", "build/grid_starts.comp", ShaderStage::Compute, true),
     shader("BUILD_NEIGHBORS", "build/neighbors.comp", ShaderStage::Compute, false),
+    shader("BUILD_PACK", "build/pack.comp", ShaderStage::Compute, false),
     // The ray-tracing kernels: ray generation (locate, march) and miss shared, hit groups per kernel.
     shader("RT_RGEN", "rt.rgen", ShaderStage::RayGeneration, false),
     shader("MARCH_RGEN", "march.rgen", ShaderStage::RayGeneration, false),

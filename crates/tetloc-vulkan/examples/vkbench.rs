@@ -7,7 +7,7 @@
 //! n³ cubes, 6 Kuhn tets each, like the lead's throwaway probe), --mesh FILE, --seed S, --device I,
 //! --kernels a,b (default all the device runs), --modes centers,random,bbox,host (uniform: centers),
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
-//! --split N|none, --no-compact, --leaf 1|4, --workgroup N, --repeats R, --power,
+//! --split N|none, --no-compact, --leaf 1|4, --pack (ids in as few bits as the mesh needs), --workgroup N, --repeats R, --power,
 //! --grid (soft-bvh entry grid), --walk / --no-walk (soft-bvh walk start, the default),
 //! --cell-tets N (grid resolution), --f32-first, --f32 (pure-f32 test), --max-buffer BYTES
 //! (split arrays above this size over several buffers, as when they exceed the device's
@@ -78,6 +78,7 @@ fn parse() -> Result<Args, String> {
             }
             "--no-compact" => a.opts.compact = false,
             "--leaf" => a.opts.leaf_size = num(val()?)?,
+            "--pack" => a.opts.pack_ids = true,
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
             "--grid" => a.opts.grid_start = true,
             "--walk" => a.opts.walk_start = true,
@@ -279,6 +280,24 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             )
         });
         println!("{label:<28} final {:>9.1} peak {:>9.1}{accel}", mib(m.final_bytes), mib(m.peak_bytes));
+        // Where the final bytes go, per allocation (split buffers summed under one name).
+        let mut named: Vec<(String, u64)> = vec![];
+        for item in &m.items {
+            let name = match item.name.rsplit_once(' ') {
+                Some((base, part)) if part.contains('/') && part.chars().all(|c| c.is_ascii_digit() || c == '/') => {
+                    base
+                }
+                _ => item.name.as_str(),
+            }
+            .to_string();
+            match named.iter_mut().find(|(n, _)| *n == name) {
+                Some(entry) => entry.1 += item.bytes,
+                None => named.push((name, item.bytes)),
+            }
+        }
+        for (name, bytes) in named {
+            println!("    {name:<32} {:>9.1} MiB  {:>6.2} B a tet", mib(bytes), bytes as f64 / mesh.n_tets() as f64);
+        }
     }
     if ctx.validation_enabled() {
         println!("validation errors: {}", ctx.validation_errors());

@@ -240,6 +240,8 @@ gpu_interface! {
         /// Stream tracing: the tet of each line point of a segment (the lookup that found its
         /// velocity), so that the host samples the line fields there without a second search.
         B_STREAM_TETS = 47;
+        /// GPU build: the packed id array a pack pass writes (src/packed.rs).
+        B_PACKED = 48;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, worklist, node levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
@@ -324,6 +326,9 @@ gpu_interface! {
         BUILD_NB_COUNT: u32 = 14;
         BUILD_NB_SCATTER: u32 = 15;
         BUILD_NB_MATCH: u32 = 16;
+        /// GPU build: pack the neighbours or the leaf prims (build/pack.comp).
+        BUILD_PACK_NEIGHBORS: u32 = 17;
+        BUILD_PACK_PRIMS: u32 = 18;
         /// GPU build: the level table's counters (words): binary nodes made, 4-wide worklist
         /// entries made, error bits (BUILD_ERR_*); the centre bounds (6 order-preserving words).
         BUILD_AT_NODES: u32 = 0;
@@ -400,6 +405,11 @@ gpu_interface! {
         /// Stream tracing: each lookup walks from the particle's last tet first (off: every
         /// lookup is a fresh one, for the benchmark's comparison).
         STREAM_HINT = 28: bool = true;
+        /// Bits a field of the packed tets, neighbours (each + 1, so that -1 is 0) and leaf
+        /// prims (src/packed.rs, common/packed.glsl); 0: not packed (uvec4, ivec4, uint).
+        TET_BITS = 29: uint = 0;
+        NEIGHBOR_BITS = 30: uint = 0;
+        PRIM_BITS = 31: uint = 0;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

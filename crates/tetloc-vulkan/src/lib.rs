@@ -33,6 +33,7 @@ mod march;
 mod memory;
 pub mod memprobe;
 mod nvml;
+mod packed;
 mod pipeline;
 mod shaders;
 mod stream;

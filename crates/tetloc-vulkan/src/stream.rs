@@ -515,6 +515,13 @@ mod tests {
             assert_eq!((b.lookups, b.lines), (one.lookups, one.lines), "hint {hint}");
             assert!(b.seconds > 0.0);
         }
+        // Packed ids (compact; small binds its own neighbour table) change nothing either.
+        for preset in ["compact", "small"] {
+            let opts = LocatorOptions::preset(preset).expect("a preset");
+            let mut packed = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, opts).unwrap();
+            let traced = packed.trace_in_segments(&seeds, &o, V, o.max_steps + 3, true, &mut |_| Ok(()));
+            assert_eq!(traced.unwrap().unwrap().0, whole, "{preset}");
+        }
         assert_eq!(ctx.validation_errors(), 0);
     }
 

@@ -7,7 +7,7 @@ use std::sync::Arc;
 use tetloc_core::geom::Vec3;
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
 use tetloc_testdata::{query_sets, require_data};
-use tetloc_vulkan::{Kernel, LocatorOptions, MemKind, QueryKind, VulkanLocator};
+use tetloc_vulkan::{BuildOn, Kernel, LocatorOptions, MemKind, QueryKind, VulkanLocator};
 
 fn answers(loc: &mut VulkanLocator, points: &[Vec3]) -> (Vec<i32>, Vec<u32>) {
     let mut ids = vec![0; points.len()];
@@ -62,10 +62,14 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             variants.push(("entry grid, four per leaf", grid4));
             let coarse = LocatorOptions { walk_start: true, grid_tets_per_cell: 3, chunk_points: 997, ..base.clone() };
             variants.push(("walk start, 3 tets a cell, chunks of 997", coarse));
-            // The named layouts (compact: walk start, four per leaf, 4 tets a cell).
+            // The named layouts (compact: walk start, four per leaf, 4 tets a cell; both pack
+            // their ids), packed ids on their own (direct leaves: no prims) and built on the CPU.
             for p in ["compact", "small"] {
                 variants.push((p, LocatorOptions::preset(p).expect("a preset")));
             }
+            variants.push(("packed ids", LocatorOptions { pack_ids: true, ..base.clone() }));
+            let compact_cpu = LocatorOptions { build: BuildOn::Cpu, ..LocatorOptions::preset("compact").unwrap() };
+            variants.push(("compact, built on the CPU", compact_cpu));
             variants
                 .push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
             variants.push(("root, f32 first", LocatorOptions { walk_start: false, f32_first: true, ..base.clone() }));
@@ -79,6 +83,7 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
                 LocatorOptions { split: Some(5000), compact: false, ..base.clone() },
             ));
             variants.push(("one BLAS, not compacted", LocatorOptions { split: None, compact: false, ..base.clone() }));
+            variants.push(("packed ids", LocatorOptions { pack_ids: true, ..base.clone() }));
         }
         let mut first: Option<(Vec<i32>, Vec<u32>)> = None;
         for (label, opts) in variants {
@@ -92,7 +97,11 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
                 m.final_bytes,
                 m.peak_bytes
             );
-            assert!(m.items.iter().any(|i| i.name == "mesh tets" && i.kind == MemKind::Mesh));
+            let tets = if opts.pack_ids { "mesh tets (packed)" } else { "mesh tets" };
+            assert!(m.items.iter().any(|i| i.name == tets && i.kind == MemKind::Mesh), "{k} {label}: no {tets}");
+            if opts.pack_ids && k == Kernel::SoftBvh && opts.walk_start {
+                assert!(m.items.iter().any(|i| i.name == "tet neighbours (packed)"), "{k} {label}");
+            }
             if let Some(a) = m.accel {
                 // rep-faces keeps a tet's four triangles together: groups hold split / 4 tets.
                 let per_item = if k == Kernel::RtRepFaces { 4 } else { 1 };

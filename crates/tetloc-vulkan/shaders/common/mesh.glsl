@@ -1,8 +1,9 @@
 // The mesh as the GPU sees it: f32 vertices (3 floats each, tightly packed), canonical
-// u32x4 tets, and the scalar field being sampled (per vertex or per cell).
+// u32x4 tets (or packed, TET_BITS), and the scalar field being sampled (per vertex or per cell).
 #ifndef TL_MESH_GLSL
 #define TL_MESH_GLSL
 #extension GL_EXT_nonuniform_qualifier : require
+#include "common/packed.glsl"
 
 layout(std430, binding = TL_B_POINTS) readonly buffer TlPoints { float tl_points[]; };
 layout(std430, binding = TL_B_TETS) readonly buffer TlTets { uvec4 tl_tets[]; };
@@ -30,7 +31,16 @@ vec3 tl_vertex(uint i) {
     return vec3(tl_points_hi[nonuniformEXT(c)].v[o], tl_points_hi[nonuniformEXT(c)].v[o + 1u], tl_points_hi[nonuniformEXT(c)].v[o + 2u]);
 }
 
+// TET_BITS != 0: the tets packed (packed.glsl) in one buffer, 4 fields a tet.
+uint tl_tet_word(uint w) {
+    return tl_tets[w >> 2u][w & 3u];
+}
+TL_PACKED_READER(tl_tet_field, tl_tet_word, TET_BITS)
+
 uvec4 tl_tet(uint i) {
+    if (TET_BITS != 0u) {
+        return uvec4(tl_tet_field(4u * i), tl_tet_field(4u * i + 1u), tl_tet_field(4u * i + 2u), tl_tet_field(4u * i + 3u));
+    }
     if (TETS_CHUNK == 0u || i < TETS_CHUNK) {
         return tl_tets[i];
     }

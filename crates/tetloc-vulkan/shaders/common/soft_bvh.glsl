@@ -23,6 +23,11 @@ uvec4 tl_node_word(uint r, uint k) {
     TL_RETURN_HI(tl_nodes_hi, c, o)
 }
 layout(std430, binding = TL_B_PRIMS) readonly buffer TlPrims { uint tl_prims[]; };
+// PRIM_BITS != 0: the prims packed (packed.glsl).
+uint tl_prim_word(uint w) {
+    return tl_prims[w];
+}
+TL_PACKED_READER(tl_prim_field, tl_prim_word, PRIM_BITS)
 // DIRECT_LEAVES: one tet per leaf, its id in the reference itself (no tl_prims lookup).
 // GRID_START: start below the root, at the node the entry grid names for the point's cell
 // (tetloc_core::bvh::EntryGrid::words: header dims.xyz, 0, inv.xyz as bits, 0; then the cells).
@@ -54,7 +59,7 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
             uint first = DIRECT_LEAVES ? ref & ~TL_LEAF : ref & TL_LEAF_FIRST_MAX;
             uint count = DIRECT_LEAVES ? 1u : ((ref >> TL_LEAF_COUNT_SHIFT) & 3u) + 1u;
             for (uint k = 0u; k < count; k++) {
-                uint tet = DIRECT_LEAVES ? first : tl_prims[first + k];
+                uint tet = DIRECT_LEAVES ? first : PRIM_BITS != 0u ? tl_prim_field(first + k) : tl_prims[first + k];
                 ids = tl_tet(tet);
                 int exit_face;
                 if (tl_test(ids, p, bary, exit_face)) {

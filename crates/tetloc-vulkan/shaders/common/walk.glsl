@@ -11,7 +11,17 @@ layout(std430, binding = TL_B_NEIGHBORS) readonly buffer TlNeighbors { ivec4 tl_
 // one buffer.
 layout(std430, binding = TL_B_NEIGHBORS_HI) readonly buffer TlNeighborsHi { ivec4 v[]; } tl_neighbors_hi[TL_MAX_CHUNKS - 1];
 
+// NEIGHBOR_BITS != 0: packed (packed.glsl) in one buffer, each neighbour + 1.
+uint tl_neighbor_word(uint w) {
+    return uint(tl_neighbors[w >> 2u][w & 3u]);
+}
+TL_PACKED_READER(tl_neighbor_field, tl_neighbor_word, NEIGHBOR_BITS)
+
 ivec4 tl_neighbors4(uint t) {
+    if (NEIGHBOR_BITS != 0u) {
+        uvec4 n = uvec4(tl_neighbor_field(4u * t), tl_neighbor_field(4u * t + 1u), tl_neighbor_field(4u * t + 2u), tl_neighbor_field(4u * t + 3u));
+        return ivec4(n) - 1;
+    }
     if (NEIGHBORS_CHUNK == 0u || t < NEIGHBORS_CHUNK) {
         return tl_neighbors[t];
     }

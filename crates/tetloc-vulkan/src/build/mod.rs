@@ -8,7 +8,8 @@
 //!   bottom up, the 4-wide quantized nodes top down in the CPU's depth-first numbering;
 //! - [`grid`]: the entry grid's nodes and walk starts;
 //! - [`neighbors`]: the tets' face neighbours (faces bucketed by their smallest vertex);
-//! - [`scan`]: the prefix sums the sort and the neighbours use.
+//! - [`scan`]: the prefix sums the sort and the neighbours use;
+//! - [`pack`]: the neighbours and leaf prims packed to fewer bits (`compact`, `small`).
 //!
 //! Why the same bits: the answers on faces follow the traversal order, so a GPU-built tree
 //! that is the CPU's gives the same ids everywhere, and the tests compare the two exactly.
@@ -16,6 +17,7 @@
 mod grid;
 mod hierarchy;
 mod neighbors;
+mod pack;
 mod scan;
 mod sort;
 #[cfg(test)]
@@ -80,6 +82,9 @@ pub(crate) struct Structure {
     /// The entry grid's words (`EntryGrid::words`) and the neighbours, when asked for.
     pub grid: Option<Buffer>,
     pub neighbors: Option<Split>,
+    /// Bits a field of the packed neighbours and prims (`crate::packed`; 0: not packed).
+    pub neighbor_bits: u32,
+    pub prim_bits: u32,
     /// Wall seconds of each stage, in order.
     pub stages: Vec<(String, f64)>,
 }
@@ -92,6 +97,18 @@ pub(crate) struct Wanted {
     pub grid: bool,
     pub walk: bool,
     pub tets_per_cell: usize,
+    /// Pack the neighbours and leaf prims (`crate::packed`) where each fits one buffer.
+    pub pack: bool,
+}
+
+/// Bits a field of the packed neighbours (tet + 1) and leaf prims of `n` tets, when `want`
+/// packs them and each packed array fits a buffer of `max_buffer` bytes (0: not packed).
+pub(crate) fn packed_bits(want: &Wanted, n: u64, max_buffer: u64) -> (u32, u32) {
+    let fits = |fields: u64, bits: u32| 4 * crate::packed::words(fields, bits) <= max_buffer;
+    let nb = crate::packed::bits_for(n);
+    let prim = crate::packed::bits_for(n.saturating_sub(1));
+    let on = |fields: u64, bits: u32| if want.pack && bits < 32 && fits(fields, bits) { bits } else { 0 };
+    (on(4 * n, nb), on(n, prim))
 }
 
 /// Bytes of each buffer of a split build array: the device's largest buffer (or a test's
@@ -131,17 +148,36 @@ pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<
         timed("gpu: entry grid".into(), t);
     }
     let t = Instant::now();
-    let neighbors = want.walk.then(|| neighbors::run(&mut b, dev, input, &tree.scan)).transpose()?;
+    let mut neighbors = want.walk.then(|| neighbors::run(&mut b, dev, input, &tree.scan)).transpose()?;
     if want.walk {
         timed("gpu: neighbours".into(), t);
     }
+    let t = Instant::now();
+    let (mut neighbor_bits, mut prim_bits) = packed_bits(&want, n, dev.device_max_buffer());
+    let mut prims = tree.prims;
+    if let (Some(nb), true) = (&neighbors, neighbor_bits > 0) {
+        let packed = pack::run(&mut b, dev, pack::Source::Neighbors(nb), neighbor_bits, "tet neighbours (packed)")?;
+        neighbors = Some(Split { parts: vec![packed], per_chunk: 0 });
+    } else {
+        neighbor_bits = 0;
+    }
+    if let (Some(p), true) = (&prims, prim_bits > 0) {
+        prims = Some(pack::run(&mut b, dev, pack::Source::Prims(p), prim_bits, "bvh prims (packed)")?);
+    } else {
+        prim_bits = 0;
+    }
+    if neighbor_bits + prim_bits > 0 {
+        timed(format!("gpu: packed ids (neighbours {neighbor_bits} bits, prims {prim_bits} bits)"), t);
+    }
     Ok(Some(Structure {
         nodes: tree.nodes,
-        prims: tree.prims,
+        prims,
         direct: tree.direct,
         depth: tree.depth,
         grid,
         neighbors,
+        neighbor_bits,
+        prim_bits,
         stages,
     }))
 }
@@ -156,6 +192,7 @@ const HIERARCHY: Prog = Prog("hierarchy", shaders::BUILD_HIERARCHY);
 const GRID: Prog = Prog("grid", shaders::BUILD_GRID);
 const GRID_STARTS: Prog = Prog("grid starts", shaders::BUILD_GRID_STARTS);
 const NEIGHBORS: Prog = Prog("neighbours", shaders::BUILD_NEIGHBORS);
+const PACK: Prog = Prog("pack", shaders::BUILD_PACK);
 
 /// How many workgroups a pass runs.
 pub(crate) enum Groups<'a> {
@@ -199,6 +236,7 @@ impl Builder {
                 B_BUILD_LEVELS,
                 B_BUILD_GRID,
                 B_BUILD_CELLS,
+                B_PACKED,
             ]
             .map(|slot| Binding::buffer(slot, unbound)),
         );
@@ -209,6 +247,7 @@ impl Builder {
         let spec = Spec::default()
             .set(sc::POINTS_CHUNK, input.points.per_chunk)
             .set(sc::TETS_CHUNK, input.tets.per_chunk)
+            .set(sc::TET_BITS, input.tet_bits)
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
             .set(sc::BUILD_CHUNK_BYTES, chunk as u32);

@@ -7,6 +7,7 @@
 use super::*;
 use crate::context::{test_context, Context};
 use crate::locator::LocatorOptions;
+use crate::packed;
 use crate::Kernel;
 use crate::VulkanLocator;
 use std::sync::Arc;
@@ -56,6 +57,7 @@ fn gpu_build(
         mesh,
         points: &points,
         tets: &tets,
+        tet_bits: 0,
         mesh_bindings: &mesh_bindings,
         opts: &opts,
         f64: ctx.info().float64,
@@ -70,47 +72,64 @@ fn gpu_build(
     let split_words = |dev: &mut Device, a: &Split| a.parts.iter().flat_map(|p| words(dev, p)).collect::<Vec<u32>>();
     let node_words = split_words(&mut dev, &s.nodes);
     let nodes: Vec<QNode4> = bytemuck::cast_slice(&node_words).to_vec();
-    let prims = s.prims.as_ref().map_or(vec![], |p| words(&mut dev, p)[..mesh.n_tets()].to_vec());
+    // Packed arrays read back field by field as the shaders read them (crate::packed).
+    let n = mesh.n_tets();
+    let unpack = |w: &[u32], fields: usize, bits: u32| (0..fields).map(|j| packed::get(w, j as u64, bits)).collect();
+    assert_eq!(want.pack, s.neighbor_bits + s.prim_bits > 0, "packed as asked");
+    let prims = s.prims.as_ref().map_or(vec![], |p| match s.prim_bits {
+        0 => words(&mut dev, p)[..n].to_vec(),
+        bits => unpack(&words(&mut dev, p), n, bits),
+    });
     let wide = WideBvh::from_parts(nodes, prims, s.direct, s.depth);
     let grid = s.grid.as_ref().map(|g| words(&mut dev, g));
-    let neighbors = s.neighbors.as_ref().map(|n| {
-        let w = split_words(&mut dev, n);
-        bytemuck::cast_slice::<u32, [i32; 4]>(&w)[..mesh.n_tets()].to_vec()
+    let neighbors = s.neighbors.as_ref().map(|nb| {
+        let w = split_words(&mut dev, nb);
+        match s.neighbor_bits {
+            0 => bytemuck::cast_slice::<u32, [i32; 4]>(&w)[..n].to_vec(),
+            bits => {
+                let plus_one: Vec<u32> = unpack(&w, 4 * n, bits);
+                plus_one.chunks(4).map(|c| std::array::from_fn(|k| c[k] as i32 - 1)).collect()
+            }
+        }
     });
     let parts = s.nodes.parts.len().max(s.neighbors.as_ref().map_or(0, |n| n.parts.len()));
     (wide, grid, neighbors, parts)
 }
 
-/// Every mesh, both leaf sizes, with and without walk starts: the CPU's structure, bit for bit.
+/// Every mesh, both leaf sizes, with and without walk starts, with packed ids (neighbours and
+/// prims packed by the GPU read back as the shaders read them): the CPU's structure, bit for bit.
 #[test]
 fn gpu_build_is_the_cpu_build() {
     let Some(ctx) = test_context("gpu_build_is_the_cpu_build") else { return };
     for mesh in meshes() {
         let mesh = Arc::new(mesh);
-        for (max_leaf, walk) in [(1, true), (4, true), (4, false)] {
-            assert_builds_like_cpu(&ctx, &mesh, max_leaf, walk, None);
+        for (max_leaf, walk, pack) in [(1, true, false), (4, true, false), (4, false, false), (4, true, true)] {
+            assert_builds_like_cpu(&ctx, &mesh, Layout { max_leaf, walk, pack }, None);
         }
     }
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
 }
 
+/// What a test builds: tets a leaf, walk starts (the neighbours), packed ids.
+#[derive(Clone, Copy)]
+struct Layout {
+    max_leaf: u32,
+    walk: bool,
+    pack: bool,
+}
+
 /// Builds `mesh` on the GPU (arrays split at `max_buffer` bytes when given) and compares it
 /// with the CPU builder's structure, bit for bit; returns the most buffers an output array
 /// was split over.
-fn assert_builds_like_cpu(
-    ctx: &Arc<Context>,
-    mesh: &Arc<Mesh>,
-    max_leaf: u32,
-    walk: bool,
-    max_buffer: Option<u64>,
-) -> usize {
+fn assert_builds_like_cpu(ctx: &Arc<Context>, mesh: &Arc<Mesh>, layout: Layout, max_buffer: Option<u64>) -> usize {
+    let Layout { max_leaf, walk, pack } = layout;
     let boxes = Aabb::of_tets(&mesh.tets, &mesh.points);
     let label = format!(
-        "{} ({} tets), leaf {max_leaf}, walk {walk}, buffers of {max_buffer:?} B",
+        "{} ({} tets), leaf {max_leaf}, walk {walk}, pack {pack}, buffers of {max_buffer:?} B",
         mesh.info.source,
         mesh.n_tets()
     );
-    let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 } };
+    let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 }, pack };
     let (wide, grid, neighbors, parts) = gpu_build(ctx, mesh, want, max_buffer);
     wide.validate(&boxes).unwrap_or_else(|e| panic!("{label}: the GPU tree is invalid: {e}"));
 
@@ -169,7 +188,7 @@ fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
         // buffers, keys (16) in 3, nodes and neighbours (16) in 3: within MAX_CHUNKS.
         let limit = (6 * mesh.n_tets() as u64).next_multiple_of(192);
         for (max_leaf, walk) in [(1, true), (4, true)] {
-            let parts = assert_builds_like_cpu(&ctx, &mesh, max_leaf, walk, Some(limit));
+            let parts = assert_builds_like_cpu(&ctx, &mesh, Layout { max_leaf, walk, pack: false }, Some(limit));
             assert!(parts >= 2, "{}: the structure was not split ({parts} buffers)", mesh.info.source);
         }
     }

@@ -34,6 +34,8 @@ pub(crate) struct Inputs<'a> {
     pub mesh: &'a Arc<Mesh>,
     pub points: &'a Split,
     pub tets: &'a Split,
+    /// Bits a field of the packed tets (`crate::packed`; 0: u32x4 tets).
+    pub tet_bits: u32,
     /// The mesh's descriptor bindings (vertices, tets, higher-order nodes).
     pub mesh_bindings: &'a [Binding],
     pub opts: &'a LocatorOptions,

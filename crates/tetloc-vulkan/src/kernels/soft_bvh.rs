@@ -6,13 +6,15 @@
 
 use super::{Inputs, KernelDef, Plan, Ray};
 use crate::build::{self, BuildOn, Structure};
-use crate::device::Device;
+use crate::device::{Device, Split};
 use crate::error::{VkError, VkResult};
 use crate::interface::{self, sc, B_ACCEL, B_ACCEL_HI, B_GRID, B_NEIGHBORS, B_NEIGHBORS_HI, B_PRIMS};
 use crate::memory::MemKind;
+use crate::packed;
 use crate::pipeline::{Binding, Program, Spec};
 use crate::shaders;
 use ash::vk;
+use rayon::prelude::*;
 use std::time::Instant;
 use tetloc_core::bvh::{wide, Aabb, BuildPreset, Bvh, EntryGrid, WideBvh};
 use tetloc_core::geom::{self, Vec3};
@@ -45,6 +47,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
             opts.grid_tets_per_cell,
             dev.device_max_buffer(),
         ),
+        pack: opts.pack_ids,
     };
     let built = match opts.build {
         BuildOn::Gpu => build::build(dev, input, want)?,
@@ -61,6 +64,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         }
     };
     let (nodes, prims, grid, neighbors) = (s.nodes, s.prims, s.grid, s.neighbors);
+    let (neighbor_bits, prim_bits) = (s.neighbor_bits, s.prim_bits);
     let stack_size = (3 * s.depth + 1) as u32;
     let unbound = dev.unbound();
     let mut bindings = vec![
@@ -76,7 +80,9 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         .set(sc::WALK_START, opts.walk_start as u32)
         .set(sc::STACK_SIZE, stack_size)
         .set(sc::DIRECT_LEAVES, s.direct as u32)
-        .set(sc::GRID_START, grid.is_some() as u32);
+        .set(sc::GRID_START, grid.is_some() as u32)
+        .set(sc::NEIGHBOR_BITS, neighbor_bits)
+        .set(sc::PRIM_BITS, prim_bits);
     // Deferred exact tests need the f64 test to defer to.
     let defer = opts.defer_exact && input.f64;
     let pass = |defer: bool, exact: bool| {
@@ -139,9 +145,14 @@ fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkRes
     }
     let t = Instant::now();
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+    let (mut neighbor_bits, mut prim_bits) = build::packed_bits(&want, mesh.n_tets() as u64, dev.device_max_buffer());
     let nodes = dev.upload_split("bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&wide.nodes), 64)?;
     let prims = if wide.direct {
+        prim_bits = 0;
         None
+    } else if prim_bits > 0 {
+        let words = packed::pack(&wide.prims, prim_bits);
+        Some(dev.upload("bvh prims (packed)", MemKind::Structure, storage, bytemuck::cast_slice(&words))?)
     } else {
         Some(dev.upload("bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&wide.prims))?)
     };
@@ -149,20 +160,27 @@ fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkRes
         Some(g) => Some(dev.upload("entry grid", MemKind::Structure, storage, bytemuck::cast_slice(&g.words()))?),
         None => None,
     };
-    let neighbors = if want.walk {
+    let neighbors = if !want.walk {
+        neighbor_bits = 0;
+        None
+    } else if neighbor_bits > 0 {
+        // Stored + 1, so that no neighbour (-1) is 0.
+        let plus_one: Vec<u32> = mesh.neighbors().as_flattened().par_iter().map(|&t| (t + 1) as u32).collect();
+        let words = packed::pack(&plus_one, neighbor_bits);
+        let buf = dev.upload("tet neighbours (packed)", MemKind::Structure, storage, bytemuck::cast_slice(&words))?;
+        Some(Split { parts: vec![buf], per_chunk: 0 })
+    } else {
         let nb = bytemuck::cast_slice(mesh.neighbors());
         Some(dev.upload_split("tet neighbours", MemKind::Structure, storage, nb, 16)?)
-    } else {
-        None
     };
     timed("uploads", t);
-    Ok(Structure { nodes, prims, direct: wide.direct, depth: wide.depth, grid, neighbors, stages })
+    let direct = wide.direct;
+    Ok(Structure { nodes, prims, direct, depth: wide.depth, grid, neighbors, neighbor_bits, prim_bits, stages })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rayon::prelude::*;
 
     /// What one CPU-mirrored location cost (NOTES.md "counts"): 4-wide nodes loaded,
     /// point-in-tet tests, faces decided in f64, walk steps (tets tested by the walk).

@@ -17,6 +17,7 @@ use crate::error::{VkError, VkResult};
 use crate::interface::*;
 use crate::kernels::{Inputs, Kernel, Plan};
 use crate::memory::{Buffer, BufferDesc, MemItem, MemKind, STAGING_BYTES};
+use crate::packed;
 use crate::pipeline::{Binding, Descriptors, Pipeline, Spec};
 use crate::AsReport;
 use ash::vk;
@@ -85,6 +86,10 @@ pub struct LocatorOptions {
     /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
     /// device's limits, 4 GiB on the H100). Tests set it tiny to exercise the splitting.
     pub max_buffer_bytes: Option<u64>,
+    /// Store the tets' vertex ids, soft-bvh's neighbours and leaf prims in as many bits as
+    /// the mesh needs (`crate::packed`: 24 and 26 bits at jets 62M, 7.75 B a tet less), each
+    /// array where it fits one buffer; the same answers. On in `compact` and `small`.
+    pub pack_ids: bool,
 }
 
 impl Default for LocatorOptions {
@@ -105,6 +110,7 @@ impl Default for LocatorOptions {
             build: BuildOn::Gpu,
             staging_bytes: STAGING_BYTES,
             max_buffer_bytes: None,
+            pack_ids: false,
         }
     }
 }
@@ -123,10 +129,15 @@ impl LocatorOptions {
         let d = LocatorOptions::default();
         match name {
             "fast" => Some(d),
-            "compact" => Some(LocatorOptions { leaf_size: 4, grid_tets_per_cell: 4, ..d }),
-            "small" => {
-                Some(LocatorOptions { leaf_size: 4, walk_start: false, grid_start: true, grid_tets_per_cell: 4, ..d })
-            }
+            "compact" => Some(LocatorOptions { leaf_size: 4, grid_tets_per_cell: 4, pack_ids: true, ..d }),
+            "small" => Some(LocatorOptions {
+                leaf_size: 4,
+                walk_start: false,
+                grid_start: true,
+                grid_tets_per_cell: 4,
+                pack_ids: true,
+                ..d
+            }),
             _ => None,
         }
     }
@@ -175,6 +186,8 @@ pub struct VulkanLocator {
 struct MeshOnDevice {
     points: Split,
     tets: Split,
+    /// Bits a field of the packed tets (`crate::packed`; 0: u32x4 tets).
+    tet_bits: u32,
     high_order: Option<HighOrder>,
 }
 
@@ -239,7 +252,7 @@ impl VulkanLocator {
         let staging = opts.staging_bytes.min(mesh_bytes.max(16 << 20));
         let mut dev = Device::new(&ctx, staging, opts.max_buffer_bytes)?;
         let t_upload = Instant::now();
-        let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, kernel.needs_ray_tracing())?;
+        let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, kernel.needs_ray_tracing(), opts.pack_ids)?;
         let mut stages = vec![("mesh upload".to_string(), t_upload.elapsed().as_secs_f64())];
         let f64 = opts.float64 && ctx.info().float64;
         let mesh_bindings = mesh_on_device.bindings(dev.unbound());
@@ -247,6 +260,7 @@ impl VulkanLocator {
             mesh: &mesh,
             points: &mesh_on_device.points,
             tets: &mesh_on_device.tets,
+            tet_bits: mesh_on_device.tet_bits,
             mesh_bindings: &mesh_bindings,
             opts: &opts,
             f64,
@@ -404,7 +418,8 @@ impl VulkanLocator {
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
             .set(sc::POINTS_CHUNK, self.mesh_on_device.points.per_chunk)
-            .set(sc::TETS_CHUNK, self.mesh_on_device.tets.per_chunk);
+            .set(sc::TETS_CHUNK, self.mesh_on_device.tets.per_chunk)
+            .set(sc::TET_BITS, self.mesh_on_device.tet_bits);
         self.mesh_on_device.spec(spec).concat(&self.plan.spec)
     }
 
@@ -697,8 +712,9 @@ fn check(ctx: &Context, mesh: &Mesh, kernel: Kernel, opts: &LocatorOptions) -> V
 
 impl MeshOnDevice {
     /// Uploads vertices and tets; `build_input`: the vertices are also an
-    /// acceleration-structure build input (the rt kernels' triangles index them).
-    fn upload(dev: &mut Device, mesh: &Mesh, build_input: bool) -> VkResult<MeshOnDevice> {
+    /// acceleration-structure build input (the rt kernels' triangles index them); `pack`: the
+    /// tets' vertex ids in as many bits as the vertex count needs, where that fits one buffer.
+    fn upload(dev: &mut Device, mesh: &Mesh, build_input: bool, pack: bool) -> VkResult<MeshOnDevice> {
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let mut point_usage = storage;
         if build_input {
@@ -707,7 +723,17 @@ impl MeshOnDevice {
         }
         let points =
             dev.upload_split("mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points), 12)?;
-        let tets = dev.upload_split("mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16)?;
+        let bits = packed::bits_for((mesh.points.len() as u64).saturating_sub(1));
+        let fields = 4 * mesh.n_tets() as u64;
+        let tet_bits =
+            if pack && bits < 32 && 4 * packed::words(fields, bits) <= dev.device_max_buffer() { bits } else { 0 };
+        let tets = if tet_bits > 0 {
+            let words = packed::pack(bytemuck::cast_slice(&mesh.tets), tet_bits);
+            let buf = dev.upload("mesh tets (packed)", MemKind::Mesh, storage, bytemuck::cast_slice(&words))?;
+            Split { parts: vec![buf], per_chunk: 0 }
+        } else {
+            dev.upload_split("mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16)?
+        };
         let high_order = match &mesh.tet_nodes {
             None => None,
             Some(n) => {
@@ -722,7 +748,7 @@ impl MeshOnDevice {
                 Some(HighOrder { nodes, lattice, spec })
             }
         };
-        Ok(MeshOnDevice { points, tets, high_order })
+        Ok(MeshOnDevice { points, tets, tet_bits, high_order })
     }
 
     fn bindings(&self, unbound: &Buffer) -> Vec<Binding> {
