@@ -161,9 +161,9 @@ struct Common {
     /// rt kernels: do not compact the acceleration structures.
     #[arg(long)]
     no_compact: bool,
-    /// soft-bvh layout: fast (default), compact (about 30 % less GPU memory, as fast on random
-    /// points, 20 % slower on coherent ones, 2.5x quicker to build) or small (about half the
-    /// memory, half the speed on random points). See BENCHMARKS.md.
+    /// soft-bvh layout: fast (default), compact (40 % less GPU memory: four tets a leaf and ids
+    /// packed to the bits the mesh needs; 4 % slower on random points, 36 % on coherent ones)
+    /// or small (60 % less memory, half the speed on random points). See BENCHMARKS.md.
     #[arg(long, default_value = "fast", value_parser = clap::builder::PossibleValuesParser::new(tetloc_vulkan::PRESETS))]
     preset: String,
     /// soft-bvh: where to build its structure (BVH, entry grid, neighbours): gpu (compute

@@ -12,10 +12,11 @@ pub(crate) fn bits_for(max: u64) -> u32 {
     (64 - max.leading_zeros()).max(1)
 }
 
-/// Words of a packed array of `n` fields of `bits` bits, rounded up to whole uvec4 (the
-/// shaders read some arrays as uvec4).
+/// Words of a packed array of `n` fields of `bits` bits: the fields, 4 words of padding (the
+/// shaders read a record's five words at once), rounded up to whole uvec4 (some arrays are
+/// read as uvec4).
 pub(crate) fn words(n: u64, bits: u32) -> u64 {
-    (n * bits as u64).div_ceil(32).div_ceil(4) * 4
+    ((n * bits as u64).div_ceil(32) + 4).div_ceil(4) * 4
 }
 
 /// `values` packed at `bits` bits each; every value must fit.
@@ -65,8 +66,9 @@ mod tests {
         assert_eq!(bits_for(u32::MAX as u64), 32);
         // jets 62M: 10.5M vertices, 62M tets and their neighbours + 1
         assert_eq!((bits_for(10_500_000 - 1), bits_for(62_000_000)), (24, 26));
-        assert_eq!(words(5, 24), 4);
-        assert_eq!(words(17, 32), 20);
+        assert_eq!(words(5, 24), 8);
+        assert_eq!(words(17, 32), 24);
+        assert_eq!(words(0, 7), 4);
     }
 
     proptest! {

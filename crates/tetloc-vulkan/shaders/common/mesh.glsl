@@ -35,11 +35,11 @@ vec3 tl_vertex(uint i) {
 uint tl_tet_word(uint w) {
     return tl_tets[w >> 2u][w & 3u];
 }
-TL_PACKED_READER(tl_tet_field, tl_tet_word, TET_BITS)
+TL_PACKED4_READER(tl_tet_packed, tl_tet_word, TET_BITS)
 
 uvec4 tl_tet(uint i) {
     if (TET_BITS != 0u) {
-        return uvec4(tl_tet_field(4u * i), tl_tet_field(4u * i + 1u), tl_tet_field(4u * i + 2u), tl_tet_field(4u * i + 3u));
+        return tl_tet_packed(i);
     }
     if (TETS_CHUNK == 0u || i < TETS_CHUNK) {
         return tl_tets[i];

@@ -15,12 +15,11 @@ layout(std430, binding = TL_B_NEIGHBORS_HI) readonly buffer TlNeighborsHi { ivec
 uint tl_neighbor_word(uint w) {
     return uint(tl_neighbors[w >> 2u][w & 3u]);
 }
-TL_PACKED_READER(tl_neighbor_field, tl_neighbor_word, NEIGHBOR_BITS)
+TL_PACKED4_READER(tl_neighbors_packed, tl_neighbor_word, NEIGHBOR_BITS)
 
 ivec4 tl_neighbors4(uint t) {
     if (NEIGHBOR_BITS != 0u) {
-        uvec4 n = uvec4(tl_neighbor_field(4u * t), tl_neighbor_field(4u * t + 1u), tl_neighbor_field(4u * t + 2u), tl_neighbor_field(4u * t + 3u));
-        return ivec4(n) - 1;
+        return ivec4(tl_neighbors_packed(t)) - 1;
     }
     if (NEIGHBORS_CHUNK == 0u || t < NEIGHBORS_CHUNK) {
         return tl_neighbors[t];

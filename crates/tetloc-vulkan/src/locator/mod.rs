@@ -117,10 +117,10 @@ impl Default for LocatorOptions {
 
 /// Named soft-bvh layouts (structure size against speed), measured on the H200 at jets 62M
 /// (BENCHMARKS.md): `fast`, the default (leaf 1, walk start, 1 tet a grid cell: 4.12 GiB,
-/// random 2.48 G/s, centres 24.4 G/s, build 53 s); `compact` (leaf 4, walk start, 4 tets a
-/// cell: 2.93 GiB, random 2.47 G/s, centres 19.5 G/s, build 21 s); `small` (leaf 4,
-/// traversal from the entry grid's node, no neighbour table: 1.95 GiB, random 1.30 G/s,
-/// centres 4.0 G/s, build 19 s). The rt kernels ignore them.
+/// random 2.48 G/s, centres 25.9 G/s); `compact` (leaf 4, walk start, 4 tets a cell, packed
+/// ids: 2.48 GiB, random 2.38 G/s, centres 16.4 G/s); `small` (leaf 4, traversal from the
+/// entry grid's node, no neighbour table, packed ids: 1.67 GiB, random 1.28 G/s, centres
+/// 3.5 G/s). The rt kernels take only their packed tets.
 pub const PRESETS: [&str; 3] = ["fast", "compact", "small"];
 
 impl LocatorOptions {
