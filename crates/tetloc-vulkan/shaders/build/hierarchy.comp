@@ -9,9 +9,11 @@
 //   REFIT            bottom up, one level a dispatch: boxes, and each interior node's 4-wide
 //                    children (tl_kids) and the count of 4-wide nodes in its subtree;
 //   COLLAPSE         top down over the 4-wide levels: each 4-wide node from its binary node,
-//                    numbered in depth-first order (as the CPU emits them) from the counts;
+//                    numbered in depth-first order (as the CPU emits them) from the counts,
+//                    a level's nodes in that order;
 //   NEXT_WIDE_LEVEL  one invocation: the next 4-wide level's range and dispatch size.
-// params.counts: tets, the level, the half of keys and ids that holds the sorted ones, 0.
+// params.counts: tets, the level, the half of keys and ids that holds the sorted ones, and
+// (COLLAPSE) the number of 4-wide nodes.
 #extension GL_GOOGLE_include_directive : require
 #include "interface.glsl" // generated from src/interface.rs (build.rs)
 #include "common/mesh.glsl"
@@ -171,7 +173,7 @@ void main() {
         return;
     }
     uint entry = tl_levels[tl_level_word(wide, k, 4u)] + tl_build_index();
-    if (entry >= tl_levels[tl_level_word(wide, k, 5u)]) {
+    if (!wide && entry >= tl_levels[tl_level_word(wide, k, 5u)]) {
         return;
     }
     if (BUILD_PASS == TL_BUILD_SPLIT) {
@@ -213,8 +215,16 @@ void main() {
         }
         tl_bbox_set(b, TlBox(lo.x, lo.y, lo.z, hi.x, hi.y, hi.z));
     } else if (BUILD_PASS == TL_BUILD_COLLAPSE) {
-        uvec2 item = tl_work(entry);
-        uint w = item.x, b = item.y;
+        // Every 4-wide node (params.counts.w of them) looks whether it is on this level, so
+        // that a level's nodes run in depth-first order, which is key order: the arrays are
+        // then read and written nearly in order. (Run in the order of a worklist filled by
+        // atomics, the reads scattered over 30 GB at 250M tets and the level ran ~100x slower
+        // than its share, at the address-translation knee; BENCHMARKS.md.)
+        uint w = tl_build_index();
+        if (w >= params.counts.w || tl_tree(w).y != k + 1u) {
+            return;
+        }
+        uint b = tl_work(w).y;
         uint kids[4];
         uint nk = 1u;
         kids[0] = b; // a tiny input: the root is a leaf, the one child of one node
@@ -255,7 +265,8 @@ void main() {
                                          : TL_LEAF | ((kn.y - kn.x - 1u) << TL_LEAF_COUNT_SHIFT) | (first & TL_LEAF_FIRST_MAX);
             } else {
                 child[c] = next;
-                tl_work_set(atomicAdd(tl_levels[TL_BUILD_AT_WORK], 1u), uvec2(next, kid));
+                atomicAdd(tl_levels[TL_BUILD_AT_WORK], 1u); // counts the next level's nodes
+                tl_work_set(next, uvec2(next, kid));
                 tl_tree_set(next, uvec2(w, k + 2u));
                 next += kn.w;
             }

@@ -10,6 +10,7 @@ use crate::error::VkResult;
 use crate::interface::*;
 use crate::memory::{Buffer, MemKind};
 use crate::pipeline::Spec;
+use std::time::Instant;
 
 /// Levels recorded per submission before the host looks whether the tree has ended.
 const BATCH: u32 = 8;
@@ -23,6 +24,8 @@ pub(super) struct Tree {
     pub direct: bool,
     pub depth: usize,
     pub binary_levels: u32,
+    /// Wall seconds of the top-down split, the refit and the collapse.
+    pub seconds: [f64; 3],
     pub tree: Split,
     pub home: Split,
     /// Only held: the descriptor set names it until the build ends.
@@ -43,7 +46,9 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     b.bind_split(B_BUILD_NODES, Some(&bnodes), dev.unbound());
 
     // Top down: split ranges until the leaves. The keys are not read after that.
-    let binary_levels = levels(b, dev, &s.levels, false, [BUILD_SPLIT, BUILD_NEXT_LEVEL], [nn, 0, s.half, 0])?;
+    let t = Instant::now();
+    let binary_levels = levels(b, dev, &s.levels, None, [BUILD_SPLIT, BUILD_NEXT_LEVEL], [nn, 0, s.half, 0])?;
+    let mut seconds = [t.elapsed().as_secs_f64(), 0.0, 0.0];
     b.bind_split(B_BUILD_KEYS, None, dev.unbound());
     drop(s.keys);
     // The boxes only now (the refit writes them), after the keys are gone and for the nodes
@@ -52,6 +57,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     let boxes = b.split(dev, MemKind::Scratch, "build binary boxes", made, 24)?;
     b.bind_split(B_BUILD_BOXES, Some(&boxes), dev.unbound());
     // Bottom up: boxes and 4-wide counts.
+    let t = Instant::now();
     dev.run(|r| {
         for k in (0..binary_levels).rev() {
             let at = Groups::Indirect(&s.levels, level_offset(false, k));
@@ -60,6 +66,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
         }
     })?;
     let root = read_words(dev, &bnodes.parts[0], 0, 4)?;
+    seconds[1] = t.elapsed().as_secs_f64();
     let n_wide = if root[2] == BUILD_LEAF { 1 } else { root[3] as u64 };
 
     // Top down: the 4-wide nodes.
@@ -67,12 +74,17 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     let work = b.split(dev, MemKind::Scratch, "build worklist", n_wide, 8)?;
     let tree = b.split(dev, MemKind::Scratch, "build node levels", n_wide, 8)?;
     let home = b.split(dev, MemKind::Scratch, "build homes", n, 4)?;
+    // Level 0 marks "not made yet" (the collapse runs a level's nodes by their level).
+    dev.run(|r| tree.parts.iter().for_each(|p| super::fill(r, p, 0, p.size, 0)))?;
     dev.write(&tree.parts[0], 0, bytemuck::cast_slice(&[0u32, 1]))?; // the root: its own parent, level 1
     dev.write(&work.parts[0], 0, bytemuck::cast_slice(&[0u32, 0]))?; // 4-wide node 0 from binary node 0
     for (slot, array) in [(B_BUILD_WIDE, &nodes), (B_BUILD_WORK, &work), (B_BUILD_TREE, &tree), (B_BUILD_HOME, &home)] {
         b.bind_split(slot, Some(array), dev.unbound());
     }
-    let depth = levels(b, dev, &s.levels, true, [BUILD_COLLAPSE, BUILD_NEXT_WIDE_LEVEL], [nn, 0, s.half, 0])?;
+    let t = Instant::now();
+    let counts = [nn, 0, s.half, n_wide as u32];
+    let depth = levels(b, dev, &s.levels, Some(n_wide), [BUILD_COLLAPSE, BUILD_NEXT_WIDE_LEVEL], counts)?;
+    seconds[2] = t.elapsed().as_secs_f64();
     let err = read_words(dev, &s.levels, BUILD_AT_ERROR as u64, 1)?[0];
     if err & BUILD_ERR_EXTENT != 0 {
         return Err(fail("a node box is too large for f32 node scales".into()));
@@ -94,7 +106,8 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
         b.bind_split(slot, None, unbound);
     }
     drop((s.ids, bnodes, boxes, work));
-    Ok(Tree { nodes, prims, direct, depth: depth as usize, binary_levels, tree, home, _levels: s.levels, scan: s.scan })
+    let depth = depth as usize;
+    Ok(Tree { nodes, prims, direct, depth, binary_levels, seconds, tree, home, _levels: s.levels, scan: s.scan })
 }
 
 /// Byte offset of level `k`'s dispatch size in the level table.
@@ -103,22 +116,30 @@ fn level_offset(wide: bool, k: u32) -> u64 {
 }
 
 /// Runs `passes` (a level's pass, then the next-level pass) level by level from level 0 until
-/// a level is empty; returns the number of non-empty levels.
+/// a level is empty; returns the number of non-empty levels. The binary levels dispatch their
+/// entries (indirect); the 4-wide ones (`wide_nodes`: how many there are) every 4-wide node.
 fn levels(
     b: &Builder,
     dev: &mut Device,
     table: &Buffer,
-    wide: bool,
+    wide_nodes: Option<u64>,
     passes: [u32; 2],
     counts: [u32; 4],
 ) -> VkResult<u32> {
+    let wide = wide_nodes.is_some();
     let mut first = 0;
+    // TETLOC_BUILD_PROFILE=1: each batch's levels, entries and seconds on stderr (a measurement
+    // hook: the binary tree's time against its node counts, BENCHMARKS.md).
+    let profile = std::env::var_os("TETLOC_BUILD_PROFILE").is_some();
+    let batch = if profile { 1 } else { BATCH };
     loop {
-        let last = (first + BATCH).min(BUILD_MAX_LEVELS - 1);
+        let last = (first + batch).min(BUILD_MAX_LEVELS - 1);
+        let t = Instant::now();
         dev.run(|r| {
             for k in first..last {
                 let c = [counts[0], k, counts[2], counts[3]];
-                b.record(r, HIERARCHY, passes[0], c, [[0.0; 4]; 2], Groups::Indirect(table, level_offset(wide, k)));
+                let groups = wide_nodes.map_or(Groups::Indirect(table, level_offset(wide, k)), Groups::Items);
+                b.record(r, HIERARCHY, passes[0], c, [[0.0; 4]; 2], groups);
                 r.barrier();
                 b.record(r, HIERARCHY, passes[1], c, [[0.0; 4]; 2], Groups::Workgroups(1));
                 r.barrier();
@@ -126,6 +147,11 @@ fn levels(
         })?;
         // Each level's first and end entry.
         let words = read_words(dev, table, level_offset(wide, first) / 4, 8 * (last - first + 1) as usize)?;
+        if profile {
+            let sizes: Vec<u32> = (0..(last - first) as usize).map(|k| words[8 * k + 5] - words[8 * k + 4]).collect();
+            let what = if wide { "4-wide" } else { "binary" };
+            eprintln!("{what} levels {first}..{last}: {:.4} s, entries {sizes:?}", t.elapsed().as_secs_f64());
+        }
         for k in first..=last {
             let w = &words[8 * (k - first) as usize..];
             if w[4] == w[5] {

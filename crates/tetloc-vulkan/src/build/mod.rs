@@ -141,7 +141,14 @@ pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<
     timed("gpu: Morton codes, radix sort (pipelines included)".into(), t);
     let t = Instant::now();
     let tree = hierarchy::run(&mut b, dev, sorted, want.max_leaf)?;
-    timed(format!("gpu: binary tree ({} levels), 4-wide nodes ({} levels)", tree.binary_levels, tree.depth), t);
+    let [split, refit, collapse] = tree.seconds;
+    timed(
+        format!(
+            "gpu: binary tree ({} levels; split {split:.3} s, refit {refit:.3} s), 4-wide nodes ({} levels; {collapse:.3} s)",
+            tree.binary_levels, tree.depth
+        ),
+        t,
+    );
     let t = Instant::now();
     let grid = want.grid.then(|| grid::run(&mut b, dev, input, &tree, want)).transpose()?;
     if want.grid {
