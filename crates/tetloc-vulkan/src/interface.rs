@@ -211,7 +211,7 @@ gpu_interface! {
         /// prim ids (two halves each, a radix sort's source and destination), the scan's
         /// scratch, counters and per-level ranges with their indirect dispatch sizes, the
         /// binary nodes (range, first child, 4-wide nodes below) and their boxes, the 4-wide
-        /// nodes being written, the worklist of the collapse, each 4-wide node's parent and
+        /// nodes being written, each 4-wide node's binary node, each 4-wide node's parent and
         /// level, each prim's home node, the entry grid being written and its per-cell
         /// scratch, the face records of the neighbour search, the neighbours being written.
         B_BUILD_KEYS = 28;
@@ -243,7 +243,7 @@ gpu_interface! {
         /// GPU build: the packed id array a pack pass writes (src/packed.rs).
         B_PACKED = 48;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
-        /// 4-wide nodes, worklist, node levels, homes, faces, neighbours) are bound as arrays
+        /// 4-wide nodes, their binary nodes and levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
         /// GPU build: invocations per workgroup, elements one scan workgroup scans, levels of
         /// the binary tree and of the 4-wide tree the level table holds (each), and the word
@@ -329,8 +329,8 @@ gpu_interface! {
         /// GPU build: pack the neighbours or the leaf prims (build/pack.comp).
         BUILD_PACK_NEIGHBORS: u32 = 17;
         BUILD_PACK_PRIMS: u32 = 18;
-        /// GPU build: the level table's counters (words): binary nodes made, 4-wide worklist
-        /// entries made, error bits (BUILD_ERR_*); the centre bounds (6 order-preserving words).
+        /// GPU build: the level table's counters (words): binary nodes made, 4-wide nodes
+        /// made, error bits (BUILD_ERR_*); the centre bounds (6 order-preserving words).
         BUILD_AT_NODES: u32 = 0;
         BUILD_AT_WORK: u32 = 1;
         BUILD_AT_ERROR: u32 = 2;

@@ -2,14 +2,27 @@
 //! bit first, in 32-bit words (field j holds bits j·bits .. (j+1)·bits). Ids that need fewer
 //! than 32 bits (jets 62M: 24-bit vertex ids, 26-bit tet ids) take that much and no more; the
 //! `compact` and `small` layouts pack the tets, the neighbours and the leaf prims this way
-//! (BENCHMARKS.md). The shaders read them with `TL_PACKED_READER`
-//! (shaders/common/packed.glsl); the GPU build writes them with shaders/build/pack.comp.
+//! (BENCHMARKS.md). The shaders read them with `TL_PACKED_READER` (a field) and
+//! `TL_PACKED4_READER` (a tet's four) in shaders/common/packed.glsl; the GPU build writes them
+//! with shaders/build/pack.comp.
 
 use rayon::prelude::*;
 
 /// Bits that hold every value in `0..=max` (at least 1).
 pub(crate) fn bits_for(max: u64) -> u32 {
     (64 - max.leading_zeros()).max(1)
+}
+
+/// Bits a field of a packed array of `fields` values up to `max`, at least `min_bits` (a test
+/// hook: wider fields hold the same values), or 0 where packing is not worth it (32 bits) or
+/// the packed array would not fit one buffer of `max_buffer` bytes (the readers take one).
+pub(crate) fn width(max: u64, fields: u64, min_bits: u32, max_buffer: u64) -> u32 {
+    let bits = bits_for(max).max(min_bits);
+    if bits >= 32 || 4 * words(fields, bits) > max_buffer {
+        0
+    } else {
+        bits
+    }
 }
 
 /// Words of a packed array of `n` fields of `bits` bits: the fields, 4 words of padding (the
@@ -69,6 +82,10 @@ mod tests {
         assert_eq!(words(5, 24), 8);
         assert_eq!(words(17, 32), 24);
         assert_eq!(words(0, 7), 4);
+        assert_eq!(width(10_499_999, 4 * 62_000_000, 0, 4 << 30), 24);
+        assert_eq!(width(10_499_999, 4 * 62_000_000, 27, 4 << 30), 27);
+        assert_eq!(width(u32::MAX as u64, 4, 0, 4 << 30), 0);
+        assert_eq!(width(1000, 4 * 62_000_000, 0, 1 << 20), 0);
     }
 
     proptest! {

@@ -68,6 +68,10 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
                 variants.push((p, LocatorOptions::preset(p).expect("a preset")));
             }
             variants.push(("packed ids", LocatorOptions { pack_ids: true, ..base.clone() }));
+            // 27 bits a field: tets and neighbours read as five-word records.
+            let wide =
+                LocatorOptions { pack_ids: true, pack_min_bits: 27, ..LocatorOptions::preset("compact").unwrap() };
+            variants.push(("compact, 27-bit ids", wide));
             let compact_cpu = LocatorOptions { build: BuildOn::Cpu, ..LocatorOptions::preset("compact").unwrap() };
             variants.push(("compact, built on the CPU", compact_cpu));
             variants
@@ -84,6 +88,7 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             ));
             variants.push(("one BLAS, not compacted", LocatorOptions { split: None, compact: false, ..base.clone() }));
             variants.push(("packed ids", LocatorOptions { pack_ids: true, ..base.clone() }));
+            variants.push(("31-bit ids", LocatorOptions { pack_ids: true, pack_min_bits: 31, ..base.clone() }));
         }
         let mut first: Option<(Vec<i32>, Vec<u32>)> = None;
         for (label, opts) in variants {

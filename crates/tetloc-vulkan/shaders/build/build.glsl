@@ -49,8 +49,8 @@ layout(std430, binding = TL_B_BUILD_LEVELS) buffer TlBuildLevels { uint tl_level
 TL_SPLIT_ARRAY(uvec4, tl_bnode, TL_B_BUILD_NODES)
 // Their boxes.
 TL_SPLIT_ARRAY(TlBox, tl_bbox, TL_B_BUILD_BOXES)
-// The 4-wide nodes, the collapse's worklist (4-wide node, binary node), each 4-wide node's
-// parent and level, each prim's home node.
+// The 4-wide nodes, each 4-wide node's (own index, binary node) and (parent, level; 0 until
+// made), each prim's home node.
 TL_SPLIT_ARRAY(TlQNode, tl_wide, TL_B_BUILD_WIDE)
 TL_SPLIT_ARRAY(uvec2, tl_work, TL_B_BUILD_WORK)
 TL_SPLIT_ARRAY(uvec2, tl_tree, TL_B_BUILD_TREE)

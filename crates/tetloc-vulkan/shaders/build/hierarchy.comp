@@ -11,7 +11,8 @@
 //   COLLAPSE         top down over the 4-wide levels: each 4-wide node from its binary node,
 //                    numbered in depth-first order (as the CPU emits them) from the counts,
 //                    a level's nodes in that order;
-//   NEXT_WIDE_LEVEL  one invocation: the next 4-wide level's range and dispatch size.
+//   NEXT_WIDE_LEVEL  one invocation: the next 4-wide level's size and dispatch size (every
+//                    4-wide node, or none after the last level).
 // params.counts: tets, the level, the half of keys and ids that holds the sorted ones, and
 // (COLLAPSE) the number of 4-wide nodes.
 #extension GL_GOOGLE_include_directive : require
@@ -149,11 +150,13 @@ uvec2 tl_quantize(float origin, float scale, float lo, float hi) {
 }
 
 // Range and dispatch size of the level after `k` (`wide`: of the 4-wide tree), whose
-// entries are those made since level k's end.
+// entries are those made since level k's end. A binary level dispatches its entries; a
+// 4-wide level that has any dispatches all params.counts.w 4-wide nodes (COLLAPSE).
 void tl_next_level(bool wide, uint k) {
     uint first = tl_levels[tl_level_word(wide, k, 5u)];
     uint end = tl_levels[wide ? TL_BUILD_AT_WORK : TL_BUILD_AT_NODES];
-    uint groups = (end - first + TL_BUILD_GROUP - 1u) / TL_BUILD_GROUP;
+    uint items = wide && end > first ? params.counts.w : end - first;
+    uint groups = (items + TL_BUILD_GROUP - 1u) / TL_BUILD_GROUP;
     uint x = min(groups, 65535u);
     uint at = tl_level_word(wide, k + 1u, 0u);
     tl_levels[at] = x;

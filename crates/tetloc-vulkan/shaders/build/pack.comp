@@ -23,9 +23,8 @@ void main() {
     bool neighbors = BUILD_PASS == TL_BUILD_PACK_NEIGHBORS;
     uint bits = neighbors ? NEIGHBOR_BITS : PRIM_BITS;
     uint v = neighbors ? uint(tl_build_nb(j / 4u)[j % 4u] + 1) : tl_pack_prims[j];
-    uint hi, lo;
-    umulExtended(j, bits, hi, lo);
-    uint w = (hi << 27u) | (lo >> 5u), s = lo & 31u;
+    uint w, s;
+    tl_packed_at(j, bits, w, s);
     atomicOr(tl_packed[w], v << s);
     if (s + bits > 32u) {
         atomicOr(tl_packed[w + 1u], v >> (32u - s));

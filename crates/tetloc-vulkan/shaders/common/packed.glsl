@@ -17,12 +17,19 @@ uint tl_bits128(uvec4 a, uint p, uint b) {
     return b == 32u ? v : v & ((1u << b) - 1u);
 }
 
-// j * BITS may pass 32 bits (a billion fields of 26 bits), so the bit address is 64-bit.
+// Where element j of `stride` bits starts: word w, bit s. j * stride may pass 32 bits (a
+// billion fields of 26 bits), so the bit address is 64-bit (the writer, build/pack.comp, too).
+void tl_packed_at(uint j, uint stride, out uint w, out uint s) {
+    uint hi, lo;
+    umulExtended(j, stride, hi, lo);
+    w = (hi << 27u) | (lo >> 5u);
+    s = lo & 31u;
+}
+
 #define TL_PACKED_READER(name, WORD, BITS)                                                \
     uint name(uint j) {                                                                    \
-        uint hi, lo;                                                                       \
-        umulExtended(j, BITS, hi, lo);                                                     \
-        uint w = (hi << 27u) | (lo >> 5u), s = lo & 31u;                                   \
+        uint w, s;                                                                         \
+        tl_packed_at(j, BITS, w, s);                                                       \
         uint v = WORD(w) >> s;                                                             \
         if (s + BITS > 32u) {                                                              \
             v |= WORD(w + 1u) << (32u - s);                                                \
@@ -33,9 +40,8 @@ uint tl_bits128(uvec4 a, uint p, uint b) {
 // One record of four fields: its (up to) five words read at once and shifted to bit 0.
 #define TL_PACKED4_READER(name, WORD, BITS)                                               \
     uvec4 name(uint i) {                                                                   \
-        uint hi, lo;                                                                       \
-        umulExtended(i, 4u * BITS, hi, lo);                                                \
-        uint w = (hi << 27u) | (lo >> 5u), s = lo & 31u;                                   \
+        uint w, s;                                                                         \
+        tl_packed_at(i, 4u * BITS, w, s);                                                  \
         uvec4 a = uvec4(WORD(w), WORD(w + 1u), WORD(w + 2u), WORD(w + 3u));               \
         if (s != 0u) {                                                                     \
             a = (a >> s) | (uvec4(a.yzw, WORD(w + 4u)) << (32u - s));                      \

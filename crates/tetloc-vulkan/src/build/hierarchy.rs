@@ -47,7 +47,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
 
     // Top down: split ranges until the leaves. The keys are not read after that.
     let t = Instant::now();
-    let binary_levels = levels(b, dev, &s.levels, None, [BUILD_SPLIT, BUILD_NEXT_LEVEL], [nn, 0, s.half, 0])?;
+    let binary_levels = levels(b, dev, &s.levels, false, [BUILD_SPLIT, BUILD_NEXT_LEVEL], [nn, 0, s.half, 0])?;
     let mut seconds = [t.elapsed().as_secs_f64(), 0.0, 0.0];
     b.bind_split(B_BUILD_KEYS, None, dev.unbound());
     drop(s.keys);
@@ -71,7 +71,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
 
     // Top down: the 4-wide nodes.
     let nodes = b.split(dev, MemKind::Structure, "bvh nodes", n_wide, 64)?;
-    let work = b.split(dev, MemKind::Scratch, "build worklist", n_wide, 8)?;
+    let work = b.split(dev, MemKind::Scratch, "build 4-wide sources", n_wide, 8)?;
     let tree = b.split(dev, MemKind::Scratch, "build node levels", n_wide, 8)?;
     let home = b.split(dev, MemKind::Scratch, "build homes", n, 4)?;
     // Level 0 marks "not made yet" (the collapse runs a level's nodes by their level).
@@ -83,7 +83,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     }
     let t = Instant::now();
     let counts = [nn, 0, s.half, n_wide as u32];
-    let depth = levels(b, dev, &s.levels, Some(n_wide), [BUILD_COLLAPSE, BUILD_NEXT_WIDE_LEVEL], counts)?;
+    let depth = levels(b, dev, &s.levels, true, [BUILD_COLLAPSE, BUILD_NEXT_WIDE_LEVEL], counts)?;
     seconds[2] = t.elapsed().as_secs_f64();
     let err = read_words(dev, &s.levels, BUILD_AT_ERROR as u64, 1)?[0];
     if err & BUILD_ERR_EXTENT != 0 {
@@ -116,17 +116,17 @@ fn level_offset(wide: bool, k: u32) -> u64 {
 }
 
 /// Runs `passes` (a level's pass, then the next-level pass) level by level from level 0 until
-/// a level is empty; returns the number of non-empty levels. The binary levels dispatch their
-/// entries (indirect); the 4-wide ones (`wide_nodes`: how many there are) every 4-wide node.
+/// a level is empty; returns the number of non-empty levels. Each dispatch's size is the
+/// level table's (indirect): a binary level's entries, or every 4-wide node (`counts[3]` of
+/// them) for a 4-wide level, none past the last.
 fn levels(
     b: &Builder,
     dev: &mut Device,
     table: &Buffer,
-    wide_nodes: Option<u64>,
+    wide: bool,
     passes: [u32; 2],
     counts: [u32; 4],
 ) -> VkResult<u32> {
-    let wide = wide_nodes.is_some();
     let mut first = 0;
     // TETLOC_BUILD_PROFILE=1: each batch's levels, entries and seconds on stderr (a measurement
     // hook: the binary tree's time against its node counts, BENCHMARKS.md).
@@ -138,8 +138,7 @@ fn levels(
         dev.run(|r| {
             for k in first..last {
                 let c = [counts[0], k, counts[2], counts[3]];
-                let groups = wide_nodes.map_or(Groups::Indirect(table, level_offset(wide, k)), Groups::Items);
-                b.record(r, HIERARCHY, passes[0], c, [[0.0; 4]; 2], groups);
+                b.record(r, HIERARCHY, passes[0], c, [[0.0; 4]; 2], Groups::Indirect(table, level_offset(wide, k)));
                 r.barrier();
                 b.record(r, HIERARCHY, passes[1], c, [[0.0; 4]; 2], Groups::Workgroups(1));
                 r.barrier();

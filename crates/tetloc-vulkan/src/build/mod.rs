@@ -97,18 +97,20 @@ pub(crate) struct Wanted {
     pub grid: bool,
     pub walk: bool,
     pub tets_per_cell: usize,
-    /// Pack the neighbours and leaf prims (`crate::packed`) where each fits one buffer.
+    /// Pack the neighbours and leaf prims (`crate::packed`) where each fits one buffer, in at
+    /// least `pack_min_bits` bits (`LocatorOptions::pack_min_bits`).
     pub pack: bool,
+    pub pack_min_bits: u32,
 }
 
 /// Bits a field of the packed neighbours (tet + 1) and leaf prims of `n` tets, when `want`
 /// packs them and each packed array fits a buffer of `max_buffer` bytes (0: not packed).
 pub(crate) fn packed_bits(want: &Wanted, n: u64, max_buffer: u64) -> (u32, u32) {
-    let fits = |fields: u64, bits: u32| 4 * crate::packed::words(fields, bits) <= max_buffer;
-    let nb = crate::packed::bits_for(n);
-    let prim = crate::packed::bits_for(n.saturating_sub(1));
-    let on = |fields: u64, bits: u32| if want.pack && bits < 32 && fits(fields, bits) { bits } else { 0 };
-    (on(4 * n, nb), on(n, prim))
+    if !want.pack {
+        return (0, 0);
+    }
+    let width = |max: u64, fields: u64| crate::packed::width(max, fields, want.pack_min_bits, max_buffer);
+    (width(n, 4 * n), width(n.saturating_sub(1), n))
 }
 
 /// Bytes of each buffer of a split build array: the device's largest buffer (or a test's

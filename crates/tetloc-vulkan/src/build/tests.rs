@@ -47,7 +47,20 @@ fn gpu_build(
     let mut dev = Device::new(ctx, 1 << 20, max_buffer).unwrap();
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let points = dev.upload_split("points", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.points), 12).unwrap();
-    let tets = dev.upload_split("tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16).unwrap();
+    // Packed layouts get packed tets too, so that every build pass reads them.
+    let max_vertex = mesh.points.len() as u64 - 1;
+    let tet_bits = if want.pack {
+        packed::width(max_vertex, 4 * mesh.n_tets() as u64, want.pack_min_bits, dev.device_max_buffer())
+    } else {
+        0
+    };
+    let tets = if tet_bits > 0 {
+        let words = packed::pack(bytemuck::cast_slice(&mesh.tets), tet_bits);
+        let buf = dev.upload("tets (packed)", MemKind::Mesh, storage, bytemuck::cast_slice(&words)).unwrap();
+        Split { parts: vec![buf], per_chunk: 0 }
+    } else {
+        dev.upload_split("tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16).unwrap()
+    };
     let unbound = dev.unbound();
     let mut mesh_bindings = Binding::split(B_POINTS, B_POINTS_HI, Some(&points), unbound).to_vec();
     mesh_bindings.extend(Binding::split(B_TETS, B_TETS_HI, Some(&tets), unbound));
@@ -57,7 +70,7 @@ fn gpu_build(
         mesh,
         points: &points,
         tets: &tets,
-        tet_bits: 0,
+        tet_bits,
         mesh_bindings: &mesh_bindings,
         opts: &opts,
         f64: ctx.info().float64,
@@ -96,26 +109,29 @@ fn gpu_build(
     (wide, grid, neighbors, parts)
 }
 
-/// Every mesh, both leaf sizes, with and without walk starts, with packed ids (neighbours and
-/// prims packed by the GPU read back as the shaders read them): the CPU's structure, bit for bit.
+/// Every mesh, both leaf sizes, with and without walk starts, with packed ids (every pass on
+/// packed tets; neighbours and prims packed by the GPU read back as the shaders read them; 27
+/// bits a field: records of five words): the CPU's structure, bit for bit.
 #[test]
 fn gpu_build_is_the_cpu_build() {
     let Some(ctx) = test_context("gpu_build_is_the_cpu_build") else { return };
+    let layouts = [(1, true, None), (4, true, None), (4, false, None), (4, true, Some(0)), (1, true, Some(27))];
     for mesh in meshes() {
         let mesh = Arc::new(mesh);
-        for (max_leaf, walk, pack) in [(1, true, false), (4, true, false), (4, false, false), (4, true, true)] {
+        for (max_leaf, walk, pack) in layouts {
             assert_builds_like_cpu(&ctx, &mesh, Layout { max_leaf, walk, pack }, None);
         }
     }
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
 }
 
-/// What a test builds: tets a leaf, walk starts (the neighbours), packed ids.
+/// What a test builds: tets a leaf, walk starts (the neighbours), packed ids (at least this
+/// many bits a field).
 #[derive(Clone, Copy)]
 struct Layout {
     max_leaf: u32,
     walk: bool,
-    pack: bool,
+    pack: Option<u32>,
 }
 
 /// Builds `mesh` on the GPU (arrays split at `max_buffer` bytes when given) and compares it
@@ -123,13 +139,14 @@ struct Layout {
 /// was split over.
 fn assert_builds_like_cpu(ctx: &Arc<Context>, mesh: &Arc<Mesh>, layout: Layout, max_buffer: Option<u64>) -> usize {
     let Layout { max_leaf, walk, pack } = layout;
+    let (pack_min_bits, pack) = (pack.unwrap_or(0), pack.is_some());
     let boxes = Aabb::of_tets(&mesh.tets, &mesh.points);
     let label = format!(
         "{} ({} tets), leaf {max_leaf}, walk {walk}, pack {pack}, buffers of {max_buffer:?} B",
         mesh.info.source,
         mesh.n_tets()
     );
-    let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 }, pack };
+    let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 }, pack, pack_min_bits };
     let (wide, grid, neighbors, parts) = gpu_build(ctx, mesh, want, max_buffer);
     wide.validate(&boxes).unwrap_or_else(|e| panic!("{label}: the GPU tree is invalid: {e}"));
 
@@ -188,7 +205,7 @@ fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
         // buffers, keys (16) in 3, nodes and neighbours (16) in 3: within MAX_CHUNKS.
         let limit = (6 * mesh.n_tets() as u64).next_multiple_of(192);
         for (max_leaf, walk) in [(1, true), (4, true)] {
-            let parts = assert_builds_like_cpu(&ctx, &mesh, Layout { max_leaf, walk, pack: false }, Some(limit));
+            let parts = assert_builds_like_cpu(&ctx, &mesh, Layout { max_leaf, walk, pack: None }, Some(limit));
             assert!(parts >= 2, "{}: the structure was not split ({parts} buffers)", mesh.info.source);
         }
     }

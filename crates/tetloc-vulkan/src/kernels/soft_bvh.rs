@@ -48,6 +48,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
             dev.device_max_buffer(),
         ),
         pack: opts.pack_ids,
+        pack_min_bits: opts.pack_min_bits,
     };
     let built = match opts.build {
         BuildOn::Gpu => build::build(dev, input, want)?,

@@ -199,7 +199,7 @@ impl VulkanLocator {
         if mode == QueryKind::Grid {
             self.ensure_grid_axes(&tetloc_core::queries::grid(&self.mesh, n), false)?;
         }
-        let chunk = self.launch_limit().min(n.max(1));
+        let chunk = self.launch_limit(v.ordered).min(n.max(1));
         self.ensure_io(chunk)?;
         self.pipeline(v)?;
         let launches: Vec<Params> = (0..n)

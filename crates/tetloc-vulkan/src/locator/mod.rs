@@ -45,7 +45,9 @@ pub struct LocatorOptions {
     pub split: Option<usize>,
     /// rt kernels: compact each bottom-level structure after its build.
     pub compact: bool,
-    /// Points per kernel launch; larger batches run in chunks (bounds the query buffers).
+    /// Points per kernel launch; larger batches run in chunks (bounds the query buffers). On
+    /// meshes of 32M tets or more, ordered launches of generated points take at least a point
+    /// per 8 tets (up to 128M points and 1/32 of the device's memory; see `launch_points`).
     pub chunk_points: usize,
     /// soft-bvh: tets per BVH leaf: 1 (the paper's layout; the reference holds the tet id) or
     /// 4 (up to four, fewer nodes, an index list). 1 measured faster on the H100 (NOTES.md).
@@ -90,6 +92,9 @@ pub struct LocatorOptions {
     /// the mesh needs (`crate::packed`: 24 and 26 bits at jets 62M, 7.75 B a tet less), each
     /// array where it fits one buffer; the same answers. On in `compact` and `small`.
     pub pack_ids: bool,
+    /// With `pack_ids`: at least this many bits a field (a test hook: 25 to 31 bits take the
+    /// readers' five-word path; wider fields hold the same values). 0: as few as the mesh needs.
+    pub pack_min_bits: u32,
 }
 
 impl Default for LocatorOptions {
@@ -111,6 +116,7 @@ impl Default for LocatorOptions {
             staging_bytes: STAGING_BYTES,
             max_buffer_bytes: None,
             pack_ids: false,
+            pack_min_bits: 0,
         }
     }
 }
@@ -252,7 +258,8 @@ impl VulkanLocator {
         let staging = opts.staging_bytes.min(mesh_bytes.max(16 << 20));
         let mut dev = Device::new(&ctx, staging, opts.max_buffer_bytes)?;
         let t_upload = Instant::now();
-        let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, kernel.needs_ray_tracing(), opts.pack_ids)?;
+        let pack = opts.pack_ids.then_some(opts.pack_min_bits);
+        let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, kernel.needs_ray_tracing(), pack)?;
         let mut stages = vec![("mesh upload".to_string(), t_upload.elapsed().as_secs_f64())];
         let f64 = opts.float64 && ctx.info().float64;
         let mesh_bindings = mesh_on_device.bindings(dev.unbound());
@@ -470,13 +477,12 @@ impl VulkanLocator {
         Ok(())
     }
 
-    /// Most points one launch may take: the chunk size (grown for ordered launches over large
+    /// Most points one launch may take: the chunk size (grown for `ordered` launches over large
     /// meshes, [`launch_points`]), capped by the device's dispatch limits.
-    fn launch_limit(&self) -> usize {
+    fn launch_limit(&self, ordered: bool) -> usize {
         let ctx = self.dev.ctx();
         let l = &ctx.limits;
-        let chunk =
-            launch_points(self.opts.chunk_points, self.mesh.n_tets(), self.opts.order_queries, ctx.info().memory_bytes);
+        let chunk = launch_points(self.opts.chunk_points, self.mesh.n_tets(), ordered, ctx.info().memory_bytes);
         let mut lim = chunk.min(u32::MAX as usize);
         if let (Some(rt), true) = (&ctx.rt, self.plan.locate.ray_tracing()) {
             lim = lim.min(rt.max_dispatch as usize);
@@ -563,7 +569,8 @@ impl VulkanLocator {
         let v = Variant { sample: SAMPLE_HOST, output, record: false, ordered: self.orders(SAMPLE_HOST, points.len()) };
         // Each launch is one submission: points in, (ordering,) kernel, answers out, 16 bytes
         // a point through the staging buffer.
-        let chunk = self.launch_limit().min(self.dev.round_trip_bytes() / 16).min(points.len()).max(1);
+        // (Host launches stay within one staging round trip: 4M points with the default buffer.)
+        let chunk = self.launch_limit(v.ordered).min(self.dev.round_trip_bytes() / 16).min(points.len()).max(1);
         self.ensure_io(chunk)?;
         self.pipeline(v)?;
         for (pts, res) in points.chunks(chunk).zip(out.chunks_mut(chunk * 4)) {
@@ -586,7 +593,7 @@ impl VulkanLocator {
     /// within it (the kernel's index is u32; a slab has fewer than 2^31 points).
     fn run_grid(&mut self, grid: &ImageGrid, start: usize, output: i32, out: &mut [u8]) -> VkResult<()> {
         let v = Variant { sample: SAMPLE_GRID, output, record: false, ordered: false };
-        let chunk = self.launch_limit().min(1 << 30).min(out.len() / 4).max(1);
+        let chunk = self.launch_limit(false).min(1 << 30).min(out.len() / 4).max(1);
         self.ensure_io(chunk)?;
         self.pipeline(v)?;
         let [nx, ny, _] = grid.dims;
@@ -619,7 +626,7 @@ impl VulkanLocator {
         // Ordered: the ordering's keys pass records the points, the kernel does not.
         let ordered = self.orders(sample, n);
         let v = Variant { sample, output: OUT_IDS, record: !ordered, ordered };
-        let chunk = self.launch_limit().min(n.max(1));
+        let chunk = self.launch_limit(ordered).min(n.max(1));
         self.ensure_io(chunk)?;
         self.pipeline(v)?;
         let mut points = vec![[0f32; 3]; n];
@@ -679,6 +686,9 @@ const GROWN_LAUNCH_MAX: usize = 1 << 27;
 /// above), so that points sorted along the Morton curve lie close enough to share the mesh's
 /// pages. Past 16 GiB of mesh, a point that opens pages of its own costs a page walk: jets 1B,
 /// bbox points, 0.26 G/s in launches of 4M points, 2.63 G/s in launches of 128M (BENCHMARKS.md).
+/// Generated sets take it whole; host batches also stay within one staging round trip. The
+/// memory cap is of the device's total, not of what the structure leaves free (1/32: 4.4 GB
+/// on a 140 GiB card).
 fn launch_points(chunk: usize, n_tets: usize, ordered: bool, memory_bytes: u64) -> usize {
     if !ordered || n_tets < GROWN_LAUNCH_TETS {
         return chunk;
@@ -737,8 +747,9 @@ fn check(ctx: &Context, mesh: &Mesh, kernel: Kernel, opts: &LocatorOptions) -> V
 impl MeshOnDevice {
     /// Uploads vertices and tets; `build_input`: the vertices are also an
     /// acceleration-structure build input (the rt kernels' triangles index them); `pack`: the
-    /// tets' vertex ids in as many bits as the vertex count needs, where that fits one buffer.
-    fn upload(dev: &mut Device, mesh: &Mesh, build_input: bool, pack: bool) -> VkResult<MeshOnDevice> {
+    /// tets' vertex ids in as many bits as the vertex count needs (at least the bits given),
+    /// where that fits one buffer.
+    fn upload(dev: &mut Device, mesh: &Mesh, build_input: bool, pack: Option<u32>) -> VkResult<MeshOnDevice> {
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let mut point_usage = storage;
         if build_input {
@@ -747,10 +758,9 @@ impl MeshOnDevice {
         }
         let points =
             dev.upload_split("mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points), 12)?;
-        let bits = packed::bits_for((mesh.points.len() as u64).saturating_sub(1));
+        let max_vertex = (mesh.points.len() as u64).saturating_sub(1);
         let fields = 4 * mesh.n_tets() as u64;
-        let tet_bits =
-            if pack && bits < 32 && 4 * packed::words(fields, bits) <= dev.device_max_buffer() { bits } else { 0 };
+        let tet_bits = pack.map_or(0, |min| packed::width(max_vertex, fields, min, dev.device_max_buffer()));
         let tets = if tet_bits > 0 {
             let words = packed::pack(bytemuck::cast_slice(&mesh.tets), tet_bits);
             let buf = dev.upload("mesh tets (packed)", MemKind::Mesh, storage, bytemuck::cast_slice(&words))?;
@@ -910,7 +920,7 @@ mod tests {
         assert_eq!(launch_points(chunk, 20_000, true, h200), chunk);
         assert_eq!(launch_points(chunk, 1_000_000_000, false, h200), chunk);
         assert_eq!(launch_points(chunk, 62_000_000, true, h200), 7_750_000);
-        // jets 1B: 125M points, under the 128M and the memory caps (140 GiB / 32 / 40 = 117M)
+        // jets 1B: 125M points wanted, 117M given (the memory cap: 140 GiB / 32 / 40 B)
         assert_eq!(launch_points(chunk, 1_000_000_000, true, h200), (h200 / 32 / 40) as usize);
         assert_eq!(launch_points(chunk, 4_000_000_000, true, 1 << 40), GROWN_LAUNCH_MAX);
         // A small device keeps the chunk it was given.
