@@ -10,6 +10,10 @@
 //   SCAN_BLOCKS  one workgroup: block totals -> block offsets;
 //   SCATTER      each point to its slot (block offset + offset in the block, bumped).
 // The order inside a bin is that of the atomics; answers do not depend on it.
+// With ORDER_TET_FIRST (random points), the same counting sort runs first on the sample
+// indices, binned by their tet (TET_KEYS, the two scans, TET_SCATTER into tl_order_perm), and
+// KEYS then makes sample tl_order_perm[j] in invocation j: neighbouring invocations read
+// neighbouring tets (the points, keys and bins are the same; only who makes them changes).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #include "interface.glsl" // generated from src/interface.rs (build.rs)
@@ -60,8 +64,24 @@ uint tl_group_scan(uint v, out uint total) {
 
 void main() {
     uint i = (gl_WorkGroupID.y * gl_NumWorkGroups.x + gl_WorkGroupID.x) * gl_WorkGroupSize.x + gl_LocalInvocationID.x;
-    if (ORDER_PASS == TL_ORDER_KEYS) {
+    if (ORDER_PASS == TL_ORDER_TET_KEYS) {
         if (i < params.counts.x) {
+            // Bins of 2^shift consecutive tets, ORDER_BINS of them over the mesh.
+            int shift = max(findMSB(max(params.counts.z, 2u) - 1u) + 1 - 3 * TL_ORDER_AXIS_BITS, 0);
+            uint key = tl_random_tet(i) >> uint(shift);
+            tl_order_keys[i] = key;
+            atomicAdd(tl_order_bins[key], 1u);
+        }
+    } else if (ORDER_PASS == TL_ORDER_TET_SCATTER) {
+        if (i < params.counts.x) {
+            uint key = tl_order_keys[i];
+            tl_order_perm[tl_order_blocks[key / TL_ORDER_GROUP] + atomicAdd(tl_order_bins[key], 1u)] = i;
+        }
+    } else if (ORDER_PASS == TL_ORDER_KEYS) {
+        if (i < params.counts.x) {
+            if (ORDER_TET_FIRST) {
+                i = tl_order_perm[i];
+            }
             vec3 p = tl_sample(i);
             tl_record(i, p);
             uint key = tl_order_key(p);

@@ -302,6 +302,10 @@ gpu_interface! {
         ORDER_SCAN_BINS: u32 = 1;
         ORDER_SCAN_BLOCKS: u32 = 2;
         ORDER_SCATTER: u32 = 3;
+        /// Random points made in tet order first (ORDER_TET_FIRST): each sample's tet binned
+        /// (by tet index), then the sample indices moved to their bin's slots.
+        ORDER_TET_KEYS: u32 = 4;
+        ORDER_TET_SCATTER: u32 = 5;
         /// GPU build passes (BUILD_PASS), in the order they run: the bounds of the tets' box
         /// centres; Morton keys; one bit of the radix sort: count zeros per block, scatter;
         /// the scan (each chunk, then add the chunks' offsets); the binary tree top down, one
@@ -407,6 +411,10 @@ gpu_interface! {
         STREAM_HINT = 28: bool = true;
         /// Bits a field of the packed tets, neighbours (each + 1, so that -1 is 0) and leaf
         /// prims (src/packed.rs, common/packed.glsl); 0: not packed (uvec4, ivec4, uint).
+        /// Query ordering of random points: the keys pass makes them in the order of their tets
+        /// (the sample indices sorted by tet first), so that making them reads the mesh nearly
+        /// in order (the paper's random set over a mesh past the translation knee).
+        ORDER_TET_FIRST = 32: bool = false;
         TET_BITS = 29: uint = 0;
         NEIGHBOR_BITS = 30: uint = 0;
         PRIM_BITS = 31: uint = 0;

@@ -30,6 +30,12 @@ float tl_unit(inout uint s) {
     return float(s >> 8) * (1.0 / 16777216.0);
 }
 
+// The tet of random sample `i` of this launch (its point is made in it).
+uint tl_random_tet(uint i) {
+    uint s = tl_hash((params.counts.y + i) ^ tl_hash(params.counts.w));
+    return tl_hash(s) % params.counts.z;
+}
+
 // The sample point for point `i` of this launch.
 vec3 tl_sample(uint i) {
     uint g = params.counts.y + i; // global sample index: chunked launches give the same points
@@ -44,7 +50,7 @@ vec3 tl_sample(uint i) {
         return c;
     } else if (SAMPLE_MODE == TL_SAMPLE_RANDOM) {
         uint s = tl_hash(g ^ tl_hash(params.counts.w));
-        uvec4 t = tl_tet(tl_hash(s) % params.counts.z);
+        uvec4 t = tl_tet(tl_random_tet(i));
         precise float a = tl_unit(s), b = tl_unit(s), c = tl_unit(s);
         // Fold the unit cube into the tet's parameter domain (Rocchini & Cignoni).
         if (a + b > 1.0) {

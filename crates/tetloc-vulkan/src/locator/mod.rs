@@ -95,6 +95,11 @@ pub struct LocatorOptions {
     /// With `pack_ids`: at least this many bits a field (a test hook: 25 to 31 bits take the
     /// readers' five-word path; wider fields hold the same values). 0: as few as the mesh needs.
     pub pack_min_bits: u32,
+    /// With query ordering: make the paper's random points in the order of their tets (a
+    /// counting sort of the sample indices by tet first), so that making them reads the mesh
+    /// nearly in order. `None`: on meshes of 32M tets or more, where random reads of the mesh
+    /// pass the address-translation knee; the same points and answers either way.
+    pub random_in_tet_order: Option<bool>,
 }
 
 impl Default for LocatorOptions {
@@ -117,6 +122,7 @@ impl Default for LocatorOptions {
             max_buffer_bytes: None,
             pack_ids: false,
             pack_min_bits: 0,
+            random_in_tet_order: None,
         }
     }
 }
@@ -518,7 +524,9 @@ impl VulkanLocator {
                     bindings.push(Binding::buffer(B_QUERIES, &queries));
                     // The keys pass never generates grids (they are not ordered).
                     bindings.push(Binding::buffer(B_GRID_AXES, self.dev.unbound()));
-                    let o = Ordering::new(&mut self.dev, n, &bindings)?;
+                    let large = self.mesh.n_tets() >= GROWN_LAUNCH_TETS;
+                    let tet_first = self.opts.random_in_tet_order.unwrap_or(large);
+                    let o = Ordering::new(&mut self.dev, n, &bindings, tet_first)?;
                     self.launcher
                         .desc
                         .write(&[Binding::buffer(B_ORDER_POINTS, &o.points), Binding::buffer(B_ORDER_PERM, &o.perm)]);
@@ -912,6 +920,34 @@ impl BatchLocator for VulkanLocator {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::context::test_context;
+
+    /// Random points made in tet order (the sample indices sorted by tet first) are the same
+    /// points, in launches that start mid-set too, with the same answers, on every kernel.
+    #[test]
+    fn random_points_in_tet_order_are_the_same_points() {
+        let Some(ctx) = test_context("random_points_in_tet_order_are_the_same_points") else { return };
+        let mesh = Arc::new(
+            Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Agulhas, 12_000, 5), "agulhas").unwrap(),
+        );
+        let n = 3 * ORDER_MIN_POINTS + 17;
+        for kernel in [Kernel::SoftBvh, Kernel::RtBvh, Kernel::RtSharedFaces] {
+            let mut answers = vec![];
+            for (tet_first, chunk) in [(false, 1 << 22), (true, 1 << 22), (true, ORDER_MIN_POINTS + 5)] {
+                let opts =
+                    LocatorOptions { random_in_tet_order: Some(tet_first), chunk_points: chunk, ..Default::default() };
+                let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), kernel, opts).unwrap();
+                let got = loc.locate_generated(QueryKind::Random, n, 7).unwrap();
+                let order = loc.io.as_ref().and_then(|io| io.order.as_ref()).expect("ordering is on");
+                assert_eq!(order.tets_first(SAMPLE_RANDOM), tet_first);
+                assert!(got.1.iter().all(|&t| t >= 0), "{kernel}: a random point in a tet was lost");
+                answers.push(got);
+            }
+            assert!(answers[1] == answers[0], "{kernel}: tet order changed the points or answers");
+            assert!(answers[2] == answers[0], "{kernel}: tet order in short launches changed them");
+        }
+        assert_eq!(ctx.validation_errors(), 0);
+    }
 
     /// Launches grow only when ordered over a large mesh, to a point per 8 tets within the caps.
     #[test]

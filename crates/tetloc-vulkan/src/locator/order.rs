@@ -33,12 +33,15 @@ pub(crate) struct Ordering {
     /// The ordered points and the original index of each (the locate pipelines bind them).
     pub points: Buffer,
     pub perm: Buffer,
+    /// Random points are made in the order of their tets (`ORDER_TET_FIRST`).
+    tet_first: bool,
 }
 
 impl Ordering {
     /// Buffers for `capacity` points; `bindings`: the mesh's and the query points' (the keys
-    /// pass reads host points or generates them from the mesh).
-    pub fn new(dev: &mut Device, capacity: usize, bindings: &[Binding]) -> VkResult<Ordering> {
+    /// pass reads host points or generates them from the mesh); `tet_first`: random points
+    /// are made in the order of their tets (a counting sort of the sample indices first).
+    pub fn new(dev: &mut Device, capacity: usize, bindings: &[Binding], tet_first: bool) -> VkResult<Ordering> {
         let n = capacity as u64;
         let mut make = |name: &str, bytes: u64| dev.create_buffer(BufferDesc::io(MemKind::Query, bytes), name, None);
         let keys = make("order keys", 4 * n)?;
@@ -55,13 +58,23 @@ impl Ordering {
             Binding::buffer(B_ORDER_PERM, &perm),
         ]);
         let desc = Descriptors::new(dev.ctx(), &all, vk::ShaderStageFlags::COMPUTE)?;
-        Ok(Ordering { pipelines: HashMap::new(), desc, _keys: keys, _blocks: blocks, bins, points, perm })
+        Ok(Ordering { pipelines: HashMap::new(), desc, _keys: keys, _blocks: blocks, bins, points, perm, tet_first })
     }
 
-    /// Creates the four passes' pipelines for points of `sample` mode (SAMPLE_*), once;
-    /// `spec`: the mesh's split-array constants.
+    /// Whether points of `sample` mode are made in tet order first.
+    pub(super) fn tets_first(&self, sample: i32) -> bool {
+        self.tet_first && sample == SAMPLE_RANDOM
+    }
+
+    /// Creates the passes' pipelines for points of `sample` mode (SAMPLE_*), once; `spec`: the
+    /// mesh's split-array constants.
     pub fn prepare(&mut self, dev: &mut Device, sample: i32, spec: &Spec) -> VkResult<()> {
-        for pass in [ORDER_KEYS, ORDER_SCAN_BINS, ORDER_SCAN_BLOCKS, ORDER_SCATTER] {
+        let tet_first = self.tets_first(sample);
+        let mut passes = vec![ORDER_KEYS, ORDER_SCAN_BINS, ORDER_SCAN_BLOCKS, ORDER_SCATTER];
+        if tet_first {
+            passes.extend([ORDER_TET_KEYS, ORDER_TET_SCATTER]);
+        }
+        for pass in passes {
             if self.pipelines.contains_key(&(pass, sample)) {
                 continue;
             }
@@ -70,7 +83,8 @@ impl Ordering {
                 .clone()
                 .set(sc::ORDER_PASS, pass)
                 .set(sc::SAMPLE_MODE, sample as u32)
-                .set(sc::RECORD_POINTS, (sample != SAMPLE_HOST) as u32);
+                .set(sc::RECORD_POINTS, (sample != SAMPLE_HOST) as u32)
+                .set(sc::ORDER_TET_FIRST, tet_first as u32);
             let p = Program::Compute(shaders::ORDER).pipeline(dev, self.desc.layout, false, &spec)?;
             self.pipelines.insert((pass, sample), p);
         }
@@ -82,18 +96,32 @@ impl Ordering {
     pub fn record(&self, r: &Recording, params: &Params, sample: i32) {
         let (dev, cmd) = (r.dev, r.cmd);
         let n = params.counts[0] as u64;
-        // SAFETY: recording into a command buffer in the recording state; the bins buffer is
-        // live and a transfer destination.
-        unsafe { dev.cmd_fill_buffer(cmd, self.bins.buffer, 0, vk::WHOLE_SIZE, 0) };
-        r.barrier();
-        for (pass, groups) in [
-            (ORDER_KEYS, None),
-            (ORDER_SCAN_BINS, Some(ORDER_BLOCKS)),
-            (ORDER_SCAN_BLOCKS, Some(1)),
-            (ORDER_SCATTER, None),
-        ] {
+        // A counting sort: clear the bins, key and count, the two scans, scatter.
+        let sort = |keys: u32, scatter: u32| {
+            [
+                None,
+                Some((keys, None)),
+                Some((ORDER_SCAN_BINS, Some(ORDER_BLOCKS))),
+                Some((ORDER_SCAN_BLOCKS, Some(1))),
+                Some((scatter, None)),
+            ]
+        };
+        let mut steps = vec![];
+        if self.tets_first(sample) {
+            steps.extend(sort(ORDER_TET_KEYS, ORDER_TET_SCATTER));
+        }
+        steps.extend(sort(ORDER_KEYS, ORDER_SCATTER));
+        for step in steps {
+            let Some((pass, groups)) = step else {
+                // SAFETY: recording into a command buffer in the recording state; the bins
+                // buffer is live and a transfer destination.
+                unsafe { dev.cmd_fill_buffer(cmd, self.bins.buffer, 0, vk::WHOLE_SIZE, 0) };
+                r.barrier();
+                continue;
+            };
             let p = &self.pipelines[&(pass, sample)];
-            // SAFETY: as above, with live pipeline and descriptor set of the same layout.
+            // SAFETY: recording into a command buffer in the recording state, with a live
+            // pipeline and descriptor set of the same layout.
             unsafe {
                 dev.cmd_bind_pipeline(cmd, p.bind_point, p.pipeline);
                 dev.cmd_bind_descriptor_sets(cmd, p.bind_point, self.desc.layout, 0, &[self.desc.set], &[]);
