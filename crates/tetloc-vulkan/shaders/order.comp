@@ -68,7 +68,7 @@ void main() {
         if (i < params.counts.x) {
             // Bins of 2^shift consecutive tets, ORDER_BINS of them over the mesh.
             int shift = max(findMSB(max(params.counts.z, 2u) - 1u) + 1 - 3 * TL_ORDER_AXIS_BITS, 0);
-            uint key = tl_random_tet(i) >> uint(shift);
+            uint key = tl_random_tet(tl_random_state(i)) >> uint(shift);
             tl_order_keys[i] = key;
             atomicAdd(tl_order_bins[key], 1u);
         }

@@ -35,6 +35,13 @@ pub(crate) struct Split {
     pub per_chunk: u32,
 }
 
+impl Split {
+    /// An array in one buffer.
+    pub fn whole(buf: Buffer) -> Split {
+        Split { parts: vec![buf], per_chunk: 0 }
+    }
+}
+
 impl Device {
     /// A device object on `ctx` with a staging buffer of `staging_bytes`; arrays larger than
     /// one buffer may be (or than `max_buffer_bytes`, a test hook) are split.
@@ -112,7 +119,7 @@ impl Device {
     ) -> VkResult<Split> {
         let max_bytes = self.max_buffer;
         if data.len() as u64 <= max_bytes {
-            return Ok(Split { parts: vec![self.upload(name, kind, usage, data)?], per_chunk: 0 });
+            return Ok(Split::whole(self.upload(name, kind, usage, data)?));
         }
         let per = (max_bytes / elem_bytes as u64).min(u32::MAX as u64) as usize;
         let n_parts = (data.len() / elem_bytes).div_ceil(per.max(1));

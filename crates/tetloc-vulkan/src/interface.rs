@@ -411,13 +411,13 @@ gpu_interface! {
         STREAM_HINT = 28: bool = true;
         /// Bits a field of the packed tets, neighbours (each + 1, so that -1 is 0) and leaf
         /// prims (src/packed.rs, common/packed.glsl); 0: not packed (uvec4, ivec4, uint).
+        TET_BITS = 29: uint = 0;
+        NEIGHBOR_BITS = 30: uint = 0;
+        PRIM_BITS = 31: uint = 0;
         /// Query ordering of random points: the keys pass makes them in the order of their tets
         /// (the sample indices sorted by tet first), so that making them reads the mesh nearly
         /// in order (the paper's random set over a mesh past the translation knee).
         ORDER_TET_FIRST = 32: bool = false;
-        TET_BITS = 29: uint = 0;
-        NEIGHBOR_BITS = 30: uint = 0;
-        PRIM_BITS = 31: uint = 0;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

@@ -6,6 +6,10 @@
 //! `TL_PACKED4_READER` (a tet's four) in shaders/common/packed.glsl; the GPU build writes them
 //! with shaders/build/pack.comp.
 
+use crate::device::Device;
+use crate::error::VkResult;
+use crate::memory::{Buffer, MemKind};
+use ash::vk;
 use rayon::prelude::*;
 
 /// Bits that hold every value in `0..=max` (at least 1).
@@ -53,6 +57,12 @@ pub(crate) fn pack(values: &[u32], bits: u32) -> Vec<u32> {
         }
     });
     out
+}
+
+/// `values` packed at `bits` bits each, uploaded as one storage buffer named `name` (the
+/// packed readers take one buffer).
+pub(crate) fn upload(dev: &mut Device, name: &str, kind: MemKind, values: &[u32], bits: u32) -> VkResult<Buffer> {
+    dev.upload(name, kind, vk::BufferUsageFlags::STORAGE_BUFFER, bytemuck::cast_slice(&pack(values, bits)))
 }
 
 /// Field `j` of a packed array (what `TL_PACKED_READER` computes on the GPU; the tests read

@@ -30,9 +30,12 @@ float tl_unit(inout uint s) {
     return float(s >> 8) * (1.0 / 16777216.0);
 }
 
-// The tet of random sample `i` of this launch (its point is made in it).
-uint tl_random_tet(uint i) {
-    uint s = tl_hash((params.counts.y + i) ^ tl_hash(params.counts.w));
+// The random state of random sample `i` of this launch (by its global index: chunked
+// launches give the same points), and the tet that state picks (the point is made in it).
+uint tl_random_state(uint i) {
+    return tl_hash((params.counts.y + i) ^ tl_hash(params.counts.w));
+}
+uint tl_random_tet(uint s) {
     return tl_hash(s) % params.counts.z;
 }
 
@@ -49,8 +52,8 @@ vec3 tl_sample(uint i) {
         precise vec3 c = (((tl_vertex(t.x) + tl_vertex(t.y)) + tl_vertex(t.z)) + tl_vertex(t.w)) * 0.25;
         return c;
     } else if (SAMPLE_MODE == TL_SAMPLE_RANDOM) {
-        uint s = tl_hash(g ^ tl_hash(params.counts.w));
-        uvec4 t = tl_tet(tl_random_tet(i));
+        uint s = tl_random_state(i);
+        uvec4 t = tl_tet(tl_random_tet(s));
         precise float a = tl_unit(s), b = tl_unit(s), c = tl_unit(s);
         // Fold the unit cube into the tet's parameter domain (Rocchini & Cignoni).
         if (a + b > 1.0) {

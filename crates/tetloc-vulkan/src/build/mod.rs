@@ -104,13 +104,14 @@ pub(crate) struct Wanted {
 }
 
 /// Bits a field of the packed neighbours (tet + 1) and leaf prims of `n` tets, when `want`
-/// packs them and each packed array fits a buffer of `max_buffer` bytes (0: not packed).
-pub(crate) fn packed_bits(want: &Wanted, n: u64, max_buffer: u64) -> (u32, u32) {
-    if !want.pack {
-        return (0, 0);
-    }
-    let width = |max: u64, fields: u64| crate::packed::width(max, fields, want.pack_min_bits, max_buffer);
-    (width(n, 4 * n), width(n.saturating_sub(1), n))
+/// packs them, the structure has them (neighbours with walk starts, prims unless `direct`) and
+/// each packed array fits a buffer of `max_buffer` bytes (0: not packed).
+pub(crate) fn packed_bits(want: &Wanted, n: u64, direct: bool, max_buffer: u64) -> (u32, u32) {
+    let width = |on: bool, max: u64, fields: u64| match on && want.pack {
+        true => crate::packed::width(max, fields, want.pack_min_bits, max_buffer),
+        false => 0,
+    };
+    (width(want.walk, n, 4 * n), width(!direct, n.saturating_sub(1), n))
 }
 
 /// Bytes of each buffer of a split build array: the device's largest buffer (or a test's
@@ -162,18 +163,14 @@ pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<
         timed("gpu: neighbours".into(), t);
     }
     let t = Instant::now();
-    let (mut neighbor_bits, mut prim_bits) = packed_bits(&want, n, dev.device_max_buffer());
+    let (neighbor_bits, prim_bits) = packed_bits(&want, n, tree.direct, dev.device_max_buffer());
     let mut prims = tree.prims;
     if let (Some(nb), true) = (&neighbors, neighbor_bits > 0) {
         let packed = pack::run(&mut b, dev, pack::Source::Neighbors(nb), neighbor_bits, "tet neighbours (packed)")?;
-        neighbors = Some(Split { parts: vec![packed], per_chunk: 0 });
-    } else {
-        neighbor_bits = 0;
+        neighbors = Some(Split::whole(packed));
     }
     if let (Some(p), true) = (&prims, prim_bits > 0) {
         prims = Some(pack::run(&mut b, dev, pack::Source::Prims(p), prim_bits, "bvh prims (packed)")?);
-    } else {
-        prim_bits = 0;
     }
     if neighbor_bits + prim_bits > 0 {
         timed(format!("gpu: packed ids (neighbours {neighbor_bits} bits, prims {prim_bits} bits)"), t);

@@ -55,9 +55,10 @@ fn gpu_build(
         0
     };
     let tets = if tet_bits > 0 {
-        let words = packed::pack(bytemuck::cast_slice(&mesh.tets), tet_bits);
-        let buf = dev.upload("tets (packed)", MemKind::Mesh, storage, bytemuck::cast_slice(&words)).unwrap();
-        Split { parts: vec![buf], per_chunk: 0 }
+        Split::whole(
+            packed::upload(&mut dev, "tets (packed)", MemKind::Mesh, bytemuck::cast_slice(&mesh.tets), tet_bits)
+                .unwrap(),
+        )
     } else {
         dev.upload_split("tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16).unwrap()
     };

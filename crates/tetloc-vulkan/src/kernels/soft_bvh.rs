@@ -146,14 +146,13 @@ fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkRes
     }
     let t = Instant::now();
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let (mut neighbor_bits, mut prim_bits) = build::packed_bits(&want, mesh.n_tets() as u64, dev.device_max_buffer());
+    let (n, direct) = (mesh.n_tets() as u64, wide.direct);
+    let (neighbor_bits, prim_bits) = build::packed_bits(&want, n, direct, dev.device_max_buffer());
     let nodes = dev.upload_split("bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&wide.nodes), 64)?;
-    let prims = if wide.direct {
-        prim_bits = 0;
+    let prims = if direct {
         None
     } else if prim_bits > 0 {
-        let words = packed::pack(&wide.prims, prim_bits);
-        Some(dev.upload("bvh prims (packed)", MemKind::Structure, storage, bytemuck::cast_slice(&words))?)
+        Some(packed::upload(dev, "bvh prims (packed)", MemKind::Structure, &wide.prims, prim_bits)?)
     } else {
         Some(dev.upload("bvh prims", MemKind::Structure, storage, bytemuck::cast_slice(&wide.prims))?)
     };
@@ -162,20 +161,22 @@ fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkRes
         None => None,
     };
     let neighbors = if !want.walk {
-        neighbor_bits = 0;
         None
     } else if neighbor_bits > 0 {
         // Stored + 1, so that no neighbour (-1) is 0.
         let plus_one: Vec<u32> = mesh.neighbors().as_flattened().par_iter().map(|&t| (t + 1) as u32).collect();
-        let words = packed::pack(&plus_one, neighbor_bits);
-        let buf = dev.upload("tet neighbours (packed)", MemKind::Structure, storage, bytemuck::cast_slice(&words))?;
-        Some(Split { parts: vec![buf], per_chunk: 0 })
+        Some(Split::whole(packed::upload(
+            dev,
+            "tet neighbours (packed)",
+            MemKind::Structure,
+            &plus_one,
+            neighbor_bits,
+        )?))
     } else {
         let nb = bytemuck::cast_slice(mesh.neighbors());
         Some(dev.upload_split("tet neighbours", MemKind::Structure, storage, nb, 16)?)
     };
     timed("uploads", t);
-    let direct = wide.direct;
     Ok(Structure { nodes, prims, direct, depth: wide.depth, grid, neighbors, neighbor_bits, prim_bits, stages })
 }
 

@@ -770,9 +770,13 @@ impl MeshOnDevice {
         let fields = 4 * mesh.n_tets() as u64;
         let tet_bits = pack.map_or(0, |min| packed::width(max_vertex, fields, min, dev.device_max_buffer()));
         let tets = if tet_bits > 0 {
-            let words = packed::pack(bytemuck::cast_slice(&mesh.tets), tet_bits);
-            let buf = dev.upload("mesh tets (packed)", MemKind::Mesh, storage, bytemuck::cast_slice(&words))?;
-            Split { parts: vec![buf], per_chunk: 0 }
+            Split::whole(packed::upload(
+                dev,
+                "mesh tets (packed)",
+                MemKind::Mesh,
+                bytemuck::cast_slice(&mesh.tets),
+                tet_bits,
+            )?)
         } else {
             dev.upload_split("mesh tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16)?
         };
