@@ -7,7 +7,8 @@
 //! n³ cubes, 6 Kuhn tets each, like the lead's throwaway probe), --mesh FILE, --seed S, --device I,
 //! --kernels a,b (default all the device runs), --modes centers,random,bbox,host (uniform: centers),
 //! --field NAME (also the scalar variant), --check N (points checked per kernel, 0: none),
-//! --split N|none, --no-compact, --leaf 1|4, --pack (ids in as few bits as the mesh needs), --chunk N (points a launch), --workgroup N, --repeats R, --power,
+//! --split N|none, --no-compact, --leaf 1|4, --pack (ids in as few bits as the mesh needs), --tet-order on|off (random points
+//! made in tet order; default by mesh size), --chunk N (points a launch), --workgroup N, --repeats R, --power,
 //! --grid (soft-bvh entry grid), --walk / --no-walk (soft-bvh walk start, the default),
 //! --cell-tets N (grid resolution), --f32-first, --f32 (pure-f32 test), --max-buffer BYTES
 //! (split arrays above this size over several buffers, as when they exceed the device's
@@ -79,6 +80,7 @@ fn parse() -> Result<Args, String> {
             "--no-compact" => a.opts.compact = false,
             "--leaf" => a.opts.leaf_size = num(val()?)?,
             "--pack" => a.opts.pack_ids = true,
+            "--tet-order" => a.opts.random_in_tet_order = Some(val()? == "on"),
             "--chunk" => a.opts.chunk_points = num(val()?)?,
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
             "--grid" => a.opts.grid_start = true,

@@ -166,7 +166,7 @@ gpu_interface! {
         B_OUT = 4;
         /// soft-bvh nodes, or the top-level acceleration structure.
         B_ACCEL = 5;
-        /// soft-bvh leaf prims, or the rt kernels' primitive -> tet table.
+        /// soft-bvh leaf prims, or the rt kernels' primitive -> prim (tet, face or cell) table.
         B_PRIMS = 6;
         /// rt kernels: the first primitive-table index of each instance.
         B_INSTANCES = 7;
@@ -242,6 +242,9 @@ gpu_interface! {
         B_STREAM_TETS = 47;
         /// GPU build: the packed id array a pack pass writes (src/packed.rs).
         B_PACKED = 48;
+        /// A mixed mesh's cells: each one's first decomposition tet, then the tet count
+        /// (`Cells::first_tets`; mesh.glsl `tl_prim_tets`).
+        B_CELL_TETS = 49;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, their binary nodes and levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
@@ -418,6 +421,9 @@ gpu_interface! {
         /// (the sample indices sorted by tet first), so that making them reads the mesh nearly
         /// in order (the paper's random set over a mesh past the translation knee).
         ORDER_TET_FIRST = 32: bool = false;
+        /// soft-bvh and rt-bvh on a mixed mesh: their prims are the cells (one box a cell),
+        /// whose decomposition tets a leaf or hit tests in turn (mesh.glsl `tl_prim_tets`).
+        CELL_BOXES = 33: bool = false;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

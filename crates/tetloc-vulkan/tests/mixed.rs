@@ -60,3 +60,55 @@ fn every_kernel_matches_vtk_on_mixed_meshes_far_from_the_origin() {
     }
     common::assert_no_validation_errors(&ctx);
 }
+
+/// Generated mixed meshes (no ../shared needed): a hybrid (hex layers, pyramids, tets, wedges)
+/// and terrain-following hexes (warped faces), at cell centres and random points over the
+/// bounds. Every kernel (rt-bvh with one box a cell) gives the CPU's cells and values.
+#[test]
+fn every_kernel_gives_the_cpus_cells_on_generated_mixed_meshes() {
+    use tetloc_core::gen::{self, CellKind, Shape};
+    use tetloc_core::BatchLocator;
+    let test = "every_kernel_gives_the_cpus_cells_on_generated_mixed_meshes";
+    let Some(ctx) = common::context(test) else { return };
+    let specs = [(Shape::Fusion, CellKind::Hybrid, 3_000), (Shape::Japan, CellKind::Hexes, 2_000)];
+    for (shape, cells, n) in specs {
+        let raw = gen::generate_spec(gen::Spec { shape, cells }, n, 5, &|_| {});
+        let mesh = Arc::new(tetloc_core::mesh::Mesh::new(raw, "generated mixed").unwrap());
+        let block = &mesh.cells.as_ref().expect("a mixed mesh").block;
+        assert!(block.len() < mesh.n_tets(), "{shape:?} {cells:?}: cells of more than one tet");
+        let mut points: Vec<_> = (0..mesh.n_tets()).step_by(3).map(|t| mesh.tet_center(t)).collect();
+        let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+        let mut s = 0x9e37_79b9_u32;
+        for _ in 0..4_000 {
+            points.push(std::array::from_fn(|k| {
+                s ^= s << 13;
+                s ^= s >> 17;
+                s ^= s << 5;
+                lo[k] + (hi[k] - lo[k]) * (s as f32 / u32::MAX as f32)
+            }));
+        }
+        let run = |loc: &mut dyn BatchLocator| {
+            let (mut ids, mut values) = (vec![0; points.len()], vec![0.0; points.len()]);
+            loc.locate_and_sample(&points, "f", &mut ids, &mut values).unwrap();
+            (ids, values)
+        };
+        let cpu = tetloc_core::locate::CpuLocator::new(mesh.clone());
+        let (want_ids, want_values) = run(&mut CellLocator::new(FiniteOnly::new(cpu), mesh.clone()));
+        assert!(want_ids.iter().filter(|&&c| c >= 0).count() > points.len() / 2, "{shape:?}: most points inside");
+        for k in common::kernels(&ctx, test) {
+            let gpu = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
+            let (ids, values) = run(&mut CellLocator::new(FiniteOnly::new(gpu), mesh.clone()));
+            let differ = (0..points.len()).filter(|&i| ids[i] != want_ids[i]).count();
+            assert_eq!(differ, 0, "{k} on {shape:?} {cells:?}: cells differ from the CPU's");
+            for i in 0..points.len() {
+                assert!(
+                    values[i].to_bits() == want_values[i].to_bits() || (values[i].is_nan() && want_values[i].is_nan()),
+                    "{k} on {shape:?} {cells:?}: point {i} value {} vs the CPU's {}",
+                    values[i],
+                    want_values[i]
+                );
+            }
+        }
+    }
+    common::assert_no_validation_errors(&ctx);
+}

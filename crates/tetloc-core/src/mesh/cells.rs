@@ -122,6 +122,15 @@ impl Cells {
         self.tet_parent.partition_point(|&p| p < c)..self.tet_parent.partition_point(|&p| p <= c)
     }
 
+    /// Each cell's first decomposition tet, and the number of tets last (`len() + 1` entries):
+    /// cell `c`'s tets are `first_tets[c]..first_tets[c + 1]`. What the GPU kernels that take
+    /// one box a cell (soft-bvh, rt-bvh) read to test a cell's tets.
+    pub fn first_tets(&self) -> Vec<u32> {
+        let mut first: Vec<u32> = (0..self.len()).into_par_iter().map(|c| self.tets_of(c).start as u32).collect();
+        first.push(self.tet_parent.len() as u32);
+        first
+    }
+
     /// Cell counts by type name (VTK's names).
     pub fn type_counts(&self) -> BTreeMap<String, usize> {
         let mut by_type = BTreeMap::new();

@@ -90,6 +90,19 @@ void tl_tet_box(uint t, out vec3 lo, out vec3 hi) {
     }
 }
 
+// The box of prim p: tet p's, or with CELL_BOXES the union of cell p's decomposition tets'
+// (kernels::prim_box; min and max are exact, so any order gives the same box).
+void tl_prim_box(uint p, out vec3 lo, out vec3 hi) {
+    uvec2 tets = tl_prim_tets(p);
+    tl_tet_box(tets.x, lo, hi);
+    for (uint t = tets.x + 1u; t < tets.y; t++) {
+        vec3 l, h;
+        tl_tet_box(t, l, h);
+        lo = min(lo, l);
+        hi = max(hi, h);
+    }
+}
+
 // Exclusive prefix sum over the workgroup (Hillis-Steele in shared memory); `total`: the sum.
 shared uint tl_group[TL_BUILD_GROUP];
 uint tl_group_scan(uint v, out uint total) {

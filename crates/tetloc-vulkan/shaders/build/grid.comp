@@ -46,7 +46,7 @@ void main() {
     }
     if (BUILD_PASS == TL_BUILD_GRID_RASTER) {
         vec3 lo, hi;
-        tl_tet_box(i, lo, hi);
+        tl_prim_box(i, lo, hi);
         vec3 org = params.lo_tmin.xyz, inv = params.hi_tmax.xyz;
         uvec3 c0, c1;
         for (int a = 0; a < 3; a++) {

@@ -1,8 +1,9 @@
 #version 460
 // soft-bvh's entry grid, last pass (src/build/grid.rs): each cell's walk start, as
 // EntryGrid::new picks it: the tet holding the cell's centre, found by the shaders' own
-// traversal from the cell's node, else the lowest tet whose box overlaps the cell. The
-// centres come from the host per axis (EntryGrid::centre's arithmetic, no division here).
+// traversal from the cell's node, else the (first tet of the) lowest prim whose box overlaps
+// the cell. The centres come from the host per axis (EntryGrid::centre's arithmetic, no
+// division here).
 // params.counts: cells, dims.
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
@@ -14,7 +15,7 @@
 layout(local_size_x = TL_BUILD_GROUP) in;
 
 layout(std430, binding = TL_B_BUILD_GRID) buffer TlBuildGrid { uint tl_build_grid[]; };
-// Lowest home, highest home, lowest tet (cells each), then the centres' x, y, z coordinates.
+// Lowest home, highest home, lowest prim (cells each), then the centres' x, y, z coordinates.
 layout(std430, binding = TL_B_BUILD_CELLS) readonly buffer TlBuildCells { uint tl_cells[]; };
 
 void main() {
@@ -34,7 +35,8 @@ void main() {
         uvec4 ids;
         vec4 bary;
         int tet = tl_traverse(node, p, ids, bary);
-        start = tet >= 0 ? uint(tet) : tl_cells[2u * n + i];
+        // Else the lowest prim's (first) tet.
+        start = tet >= 0 ? uint(tet) : tl_prim_tets(tl_cells[2u * n + i]).x;
     }
     tl_build_grid[8u + n + i] = start;
 }

@@ -197,10 +197,10 @@ void main() {
         uvec4 node = tl_bnode(b);
         vec3 lo, hi;
         if (node.z == TL_BUILD_LEAF) {
-            tl_tet_box(tl_id(half_at + node.x), lo, hi);
+            tl_prim_box(tl_id(half_at + node.x), lo, hi);
             for (uint j = node.x + 1u; j < node.y; j++) {
                 vec3 l, h;
-                tl_tet_box(tl_id(half_at + j), l, h);
+                tl_prim_box(tl_id(half_at + j), l, h);
                 lo = min(lo, l);
                 hi = max(hi, h);
             }

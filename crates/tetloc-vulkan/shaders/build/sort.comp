@@ -37,10 +37,10 @@ uvec2 tl_spread(uint v, uint axis) {
     return code;
 }
 
-// The box centre of tet t, as Aabb::centre.
+// The box centre of prim t, as Aabb::centre.
 vec3 tl_centre(uint t) {
     vec3 lo, hi;
-    tl_tet_box(t, lo, hi);
+    tl_prim_box(t, lo, hi);
     precise vec3 c = 0.5 * (lo + hi);
     return c;
 }

@@ -8,6 +8,8 @@
 layout(std430, binding = TL_B_POINTS) readonly buffer TlPoints { float tl_points[]; };
 layout(std430, binding = TL_B_TETS) readonly buffer TlTets { uvec4 tl_tets[]; };
 layout(std430, binding = TL_B_FIELD) readonly buffer TlField { float tl_field[]; };
+// A mixed mesh's cells: each one's first decomposition tet, then the tet count.
+layout(std430, binding = TL_B_CELL_TETS) readonly buffer TlCellTets { uint tl_cell_tets[]; };
 
 // Arrays larger than one buffer may be (maxMemoryAllocationSize, maxStorageBufferRange: 4 GiB
 // on the H100) are split into buffers of a fixed number of elements N each (src/device.rs
@@ -46,6 +48,12 @@ uvec4 tl_tet(uint i) {
     }
     uint c = i / TETS_CHUNK - 1u, o = i % TETS_CHUNK;
     TL_RETURN_HI(tl_tets_hi, c, o)
+}
+
+// The tets [x, y) of BVH prim p: tet p itself, or with CELL_BOXES the decomposition tets of
+// cell p (consecutive), which the kernels that take one box a cell test in order.
+uvec2 tl_prim_tets(uint p) {
+    return CELL_BOXES ? uvec2(tl_cell_tets[p], tl_cell_tets[p + 1u]) : uvec2(p, p + 1u);
 }
 
 #endif

@@ -1,6 +1,7 @@
 // soft-bvh traversal (the paper's cuda-bvh), shared by the point-location kernel
 // (soft_bvh.comp) and the volume ray marcher: depth-first traversal of a 4-wide BVH with
 // quantized child boxes, in software, returning at the first tet that contains the point.
+// Its prims are tets, or the cells of a mixed mesh (CELL_BOXES: a leaf tests a cell's tets).
 // Needs interface.glsl, mesh.glsl and tet.glsl first, and GL_EXT_control_flow_attributes.
 #ifndef TL_SOFT_BVH_GLSL
 #define TL_SOFT_BVH_GLSL
@@ -59,14 +60,17 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
             uint first = DIRECT_LEAVES ? ref & ~TL_LEAF : ref & TL_LEAF_FIRST_MAX;
             uint count = DIRECT_LEAVES ? 1u : ((ref >> TL_LEAF_COUNT_SHIFT) & 3u) + 1u;
             for (uint k = 0u; k < count; k++) {
-                uint tet = DIRECT_LEAVES ? first : PRIM_BITS != 0u ? tl_prim_field(first + k) : tl_prims[first + k];
-                ids = tl_tet(tet);
-                int exit_face;
-                if (tl_test(ids, p, bary, exit_face)) {
-                    return int(tet);
-                }
-                if (DEFER_EXACT && tl_undecided) {
-                    return TL_DEFERRED;
+                uint prim = DIRECT_LEAVES ? first : PRIM_BITS != 0u ? tl_prim_field(first + k) : tl_prims[first + k];
+                uvec2 tets = tl_prim_tets(prim); // the tet, or a cell's tets (CELL_BOXES)
+                for (uint tet = tets.x; tet < tets.y; tet++) {
+                    ids = tl_tet(tet);
+                    int exit_face;
+                    if (tl_test(ids, p, bary, exit_face)) {
+                        return int(tet);
+                    }
+                    if (DEFER_EXACT && tl_undecided) {
+                        return TL_DEFERRED;
+                    }
                 }
             }
         } else {

@@ -1,7 +1,7 @@
 //! The entry grid (`shaders/build/grid.comp`, `grid_starts.comp`), as `EntryGrid::new`
 //! makes it: the grid's shape and the cells' centres per axis from the host (the same
-//! functions), each tet's box rasterized into the cells (lowest and highest home node, lowest
-//! tet, by atomics), each cell's node the common ancestor of its lowest and highest home (the
+//! functions), each prim's box rasterized into the cells (lowest and highest home node, lowest
+//! prim, by atomics), each cell's node the common ancestor of its lowest and highest home (the
 //! nodes are numbered depth first), and each cell's walk start by the shaders' traversal.
 
 use super::hierarchy::Tree;
@@ -17,7 +17,7 @@ use tetloc_core::bvh::EntryGrid;
 pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, tree: &Tree, want: Wanted) -> VkResult<Buffer> {
     let mesh = input.mesh;
     let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
-    let (dims, inv) = EntryGrid::shape(mesh.n_tets(), (lo, hi), want.tets_per_cell);
+    let (dims, inv) = EntryGrid::shape(b.n as usize, (lo, hi), want.prims_per_cell);
     let cells = dims[0] * dims[1] * dims[2];
     let starts_at = if want.walk { cells } else { 0 };
     let header = [dims[0], dims[1], dims[2], starts_at, inv[0].to_bits(), inv[1].to_bits(), inv[2].to_bits(), 0];
@@ -74,13 +74,14 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, tree: &Tree
     Ok(grid)
 }
 
-/// The tets a cell of the entry grid holds on average: `wanted`, or more when the grid's
-/// words or the build's cell scratch (12 B a cell) would not fit one buffer of `limit`
-/// bytes (the query shaders read the grid as one buffer). Both builders take this value.
-pub(crate) fn tets_per_cell(n_tets: usize, bounds: ([f32; 3], [f32; 3]), wanted: usize, limit: u64) -> usize {
+/// The prims (tets, or a mixed mesh's cells) a cell of the entry grid holds on average:
+/// `wanted`, or more when the grid's words or the build's cell scratch (12 B a cell) would not
+/// fit one buffer of `limit` bytes (the query shaders read the grid as one buffer). Both
+/// builders take this value.
+pub(crate) fn prims_per_cell(n_prims: usize, bounds: ([f32; 3], [f32; 3]), wanted: usize, limit: u64) -> usize {
     let mut per = wanted.max(1);
     loop {
-        let (dims, _) = EntryGrid::shape(n_tets, bounds, per);
+        let (dims, _) = EntryGrid::shape(n_prims, bounds, per);
         let cells = dims.iter().map(|&d| d as u64).product::<u64>();
         let centres = dims.iter().map(|&d| d as u64).sum::<u64>();
         if 4 * (3 * cells + centres) <= limit && 4 * (8 + 2 * cells) <= limit {

@@ -3,7 +3,8 @@
 //! `Mesh::neighbors`), bit for bit, in compute shaders (`shaders/build/`), from the mesh
 //! already on the device. One module a stage:
 //!
-//! - [`sort`]: Morton codes of the tets' box centres, radix-sorted with their ids;
+//! - [`sort`]: Morton codes of the prims' box centres (tets, or a mixed mesh's cells: one box
+//!   a cell), radix-sorted with their ids;
 //! - [`hierarchy`]: the binary tree top down (a level a dispatch), boxes and 4-wide counts
 //!   bottom up, the 4-wide quantized nodes top down in the CPU's depth-first numbering;
 //! - [`grid`]: the entry grid's nodes and walk starts;
@@ -23,7 +24,7 @@ mod sort;
 #[cfg(test)]
 mod tests;
 
-pub(crate) use grid::tets_per_cell;
+pub(crate) use grid::prims_per_cell;
 
 use crate::device::{Device, Recording, Split};
 use crate::error::{VkError, VkResult};
@@ -93,25 +94,26 @@ pub(crate) struct Structure {
 #[derive(Clone, Copy, Debug)]
 pub(crate) struct Wanted {
     pub max_leaf: u32,
-    /// The entry grid (about `tets_per_cell` tets a cell) and, with walk starts, the neighbours.
+    /// The entry grid (about `prims_per_cell` prims a cell) and, with walk starts, the neighbours.
     pub grid: bool,
     pub walk: bool,
-    pub tets_per_cell: usize,
+    pub prims_per_cell: usize,
     /// Pack the neighbours and leaf prims (`crate::packed`) where each fits one buffer, in at
     /// least `pack_min_bits` bits (`LocatorOptions::pack_min_bits`).
     pub pack: bool,
     pub pack_min_bits: u32,
 }
 
-/// Bits a field of the packed neighbours (tet + 1) and leaf prims of `n` tets, when `want`
-/// packs them, the structure has them (neighbours with walk starts, prims unless `direct`) and
-/// each packed array fits a buffer of `max_buffer` bytes (0: not packed).
-pub(crate) fn packed_bits(want: &Wanted, n: u64, direct: bool, max_buffer: u64) -> (u32, u32) {
+/// Bits a field of the packed neighbours (tet + 1) of `n_tets` tets and leaf prims of
+/// `n_prims` prims, when `want` packs them, the structure has them (neighbours with walk
+/// starts, prims unless `direct`) and each packed array fits a buffer of `max_buffer` bytes
+/// (0: not packed).
+pub(crate) fn packed_bits(want: &Wanted, n_tets: u64, n_prims: u64, direct: bool, max_buffer: u64) -> (u32, u32) {
     let width = |on: bool, max: u64, fields: u64| match on && want.pack {
         true => crate::packed::width(max, fields, want.pack_min_bits, max_buffer),
         false => 0,
     };
-    (width(want.walk, n, 4 * n), width(!direct, n.saturating_sub(1), n))
+    (width(want.walk, n_tets, 4 * n_tets), width(!direct, n_prims.saturating_sub(1), n_prims))
 }
 
 /// Bytes of each buffer of a split build array: the device's largest buffer (or a test's
@@ -124,16 +126,17 @@ fn chunk_bytes(dev: &Device) -> u64 {
 /// addresses (an array over MAX_CHUNKS buffers, a single buffer over the device's limit, or
 /// 4 faces a tet past 32-bit indices); the caller builds on the CPU then.
 pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<Option<Structure>> {
-    let n = input.mesh.n_tets() as u64;
+    // The tree's prims (tets, or a mixed mesh's cells), and the tets (the neighbours').
+    let (n, n_tets) = (crate::kernels::n_prims(input.mesh) as u64, input.mesh.n_tets() as u64);
     let n_points = input.mesh.points.len() as u64;
     let chunk = chunk_bytes(dev);
-    // Split arrays: elements and element bytes (the 4-wide nodes: at most one a tet).
-    let split = [(2 * n, 8), (2 * n, 4), (2 * n, 24), (2 * n, 16), (n, 64), (n, 8), (4 * n, 12), (n, 16)];
+    // Split arrays: elements and element bytes (the 4-wide nodes: at most one a prim).
+    let split = [(2 * n, 8), (2 * n, 4), (2 * n, 24), (2 * n, 16), (n, 64), (n, 8), (4 * n_tets, 12), (n_tets, 16)];
     let too_many = split.iter().any(|&(elems, bytes)| elems.div_ceil(chunk / bytes) > MAX_CHUNKS as u64);
     // Arrays in one buffer: the scan (sized by vertices), the leaf prims.
     let single = [4 * scan::words(n_points.max(n.div_ceil(SCAN_CHUNK as u64))), 4 * n];
     let too_big = single.iter().any(|&b| b > dev.device_max_buffer());
-    if too_many || too_big || 4 * n + BUILD_GROUP as u64 * 65535 > u32::MAX as u64 {
+    if too_many || too_big || 4 * n_tets + BUILD_GROUP as u64 * 65535 > u32::MAX as u64 {
         return Ok(None);
     }
     let mut stages = vec![];
@@ -163,7 +166,7 @@ pub(crate) fn build(dev: &mut Device, input: &Inputs, want: Wanted) -> VkResult<
         timed("gpu: neighbours".into(), t);
     }
     let t = Instant::now();
-    let (neighbor_bits, prim_bits) = packed_bits(&want, n, tree.direct, dev.device_max_buffer());
+    let (neighbor_bits, prim_bits) = packed_bits(&want, n_tets, n, tree.direct, dev.device_max_buffer());
     let mut prims = tree.prims;
     if let (Some(nb), true) = (&neighbors, neighbor_bits > 0) {
         let packed = pack::run(&mut b, dev, pack::Source::Neighbors(nb), neighbor_bits, "tet neighbours (packed)")?;
@@ -218,8 +221,9 @@ pub(crate) struct Builder {
     desc: Descriptors,
     spec: Spec,
     f64: bool,
-    /// Tets.
+    /// The tree's prims (`kernels::n_prims`: tets, or a mixed mesh's cells), and the tets.
     n: u32,
+    n_tets: u32,
     /// Bytes of each buffer of a split array.
     chunk: u64,
 }
@@ -256,8 +260,10 @@ impl Builder {
             .set(sc::TET_BITS, input.tet_bits)
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
-            .set(sc::BUILD_CHUNK_BYTES, chunk as u32);
-        Ok(Builder { pipelines: HashMap::new(), desc, spec, f64: input.f64, n: input.mesh.n_tets() as u32, chunk })
+            .set(sc::BUILD_CHUNK_BYTES, chunk as u32)
+            .set(sc::CELL_BOXES, input.mesh.cells.is_some() as u32);
+        let (n, n_tets) = (crate::kernels::n_prims(input.mesh) as u32, input.mesh.n_tets() as u32);
+        Ok(Builder { pipelines: HashMap::new(), desc, spec, f64: input.f64, n, n_tets, chunk })
     }
 
     /// Points `slot` at `buf` (or at nothing, before `buf` is freed).

@@ -13,7 +13,7 @@ use crate::memory::{Buffer, MemKind};
 use crate::pipeline::Spec;
 
 pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, scan_buf: &Buffer) -> VkResult<Split> {
-    let n = b.n as u64;
+    let n = b.n_tets as u64;
     let points = input.mesh.points.len() as u32;
     let faces = b.split(dev, MemKind::Scratch, "build faces", 4 * n, 12)?;
     let out = b.split(dev, MemKind::Structure, "tet neighbours", n, 16)?;

@@ -19,15 +19,14 @@ pub(super) enum Source<'a> {
 
 /// `source` packed at `bits` bits a field, in one buffer named `name`.
 pub(super) fn run(b: &mut Builder, dev: &mut Device, source: Source, bits: u32, name: &str) -> VkResult<Buffer> {
-    let n = b.n as u64;
     let (pass, fields, spec) = match source {
         Source::Neighbors(nb) => {
             b.bind_split(B_BUILD_NEIGHBORS, Some(nb), dev.unbound());
-            (BUILD_PACK_NEIGHBORS, 4 * n, Spec::default().set(sc::NEIGHBOR_BITS, bits))
+            (BUILD_PACK_NEIGHBORS, 4 * b.n_tets as u64, Spec::default().set(sc::NEIGHBOR_BITS, bits))
         }
         Source::Prims(p) => {
             b.bind(B_PRIMS, p);
-            (BUILD_PACK_PRIMS, n, Spec::default().set(sc::PRIM_BITS, bits))
+            (BUILD_PACK_PRIMS, b.n as u64, Spec::default().set(sc::PRIM_BITS, bits))
         }
     };
     let out = structure(dev, name, 4 * packed::words(fields, bits))?;

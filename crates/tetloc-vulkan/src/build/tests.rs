@@ -11,9 +11,9 @@ use crate::packed;
 use crate::Kernel;
 use crate::VulkanLocator;
 use std::sync::Arc;
-use tetloc_core::bvh::{Aabb, BuildPreset, Bvh, EntryGrid, QNode4, WideBvh};
+use tetloc_core::bvh::{Aabb, QNode4, WideBvh};
 use tetloc_core::gen::{self, CellKind, Shape};
-use tetloc_core::geom::{self, Vec3};
+use tetloc_core::geom::Vec3;
 use tetloc_core::mesh::{Mesh, RawMesh};
 use tetloc_core::BatchLocator;
 
@@ -66,6 +66,11 @@ fn gpu_build(
     let mut mesh_bindings = Binding::split(B_POINTS, B_POINTS_HI, Some(&points), unbound).to_vec();
     mesh_bindings.extend(Binding::split(B_TETS, B_TETS_HI, Some(&tets), unbound));
     mesh_bindings.extend([B_HO_NODES, B_HO_LATTICE].map(|slot| Binding::buffer(slot, unbound)));
+    let cell_tets = mesh.cells.as_ref().map(|c| {
+        dev.upload("cells' first tets", MemKind::Mesh, storage, bytemuck::cast_slice(&c.first_tets())).unwrap()
+    });
+    let unbound = dev.unbound();
+    mesh_bindings.push(Binding::buffer(B_CELL_TETS, cell_tets.as_ref().unwrap_or(unbound)));
     let opts = LocatorOptions::default();
     let input = Inputs {
         mesh,
@@ -87,7 +92,7 @@ fn gpu_build(
     let node_words = split_words(&mut dev, &s.nodes);
     let nodes: Vec<QNode4> = bytemuck::cast_slice(&node_words).to_vec();
     // Packed arrays read back field by field as the shaders read them (crate::packed).
-    let n = mesh.n_tets();
+    let (n, n_tets) = (crate::kernels::n_prims(mesh), mesh.n_tets());
     let unpack = |w: &[u32], fields: usize, bits: u32| (0..fields).map(|j| packed::get(w, j as u64, bits)).collect();
     assert_eq!(want.pack, s.neighbor_bits + s.prim_bits > 0, "packed as asked");
     let prims = s.prims.as_ref().map_or(vec![], |p| match s.prim_bits {
@@ -99,9 +104,9 @@ fn gpu_build(
     let neighbors = s.neighbors.as_ref().map(|nb| {
         let w = split_words(&mut dev, nb);
         match s.neighbor_bits {
-            0 => bytemuck::cast_slice::<u32, [i32; 4]>(&w)[..n].to_vec(),
+            0 => bytemuck::cast_slice::<u32, [i32; 4]>(&w)[..n_tets].to_vec(),
             bits => {
-                let plus_one: Vec<u32> = unpack(&w, 4 * n, bits);
+                let plus_one: Vec<u32> = unpack(&w, 4 * n_tets, bits);
                 plus_one.chunks(4).map(|c| std::array::from_fn(|k| c[k] as i32 - 1)).collect()
             }
         }
@@ -141,35 +146,25 @@ struct Layout {
 fn assert_builds_like_cpu(ctx: &Arc<Context>, mesh: &Arc<Mesh>, layout: Layout, max_buffer: Option<u64>) -> usize {
     let Layout { max_leaf, walk, pack } = layout;
     let (pack_min_bits, pack) = (pack.unwrap_or(0), pack.is_some());
-    let boxes = Aabb::of_tets(&mesh.tets, &mesh.points);
+    let boxes: Vec<Aabb> =
+        (0..crate::kernels::n_prims(mesh) as u32).map(|p| crate::kernels::prim_box(mesh, p)).collect();
     let label = format!(
         "{} ({} tets), leaf {max_leaf}, walk {walk}, pack {pack}, buffers of {max_buffer:?} B",
         mesh.info.source,
         mesh.n_tets()
     );
-    let want = Wanted { max_leaf, grid: true, walk, tets_per_cell: if walk { 1 } else { 4 }, pack, pack_min_bits };
+    let want = Wanted { max_leaf, grid: true, walk, prims_per_cell: if walk { 1 } else { 4 }, pack, pack_min_bits };
     let (wide, grid, neighbors, parts) = gpu_build(ctx, mesh, want, max_buffer);
     wide.validate(&boxes).unwrap_or_else(|e| panic!("{label}: the GPU tree is invalid: {e}"));
 
-    let preset = if max_leaf == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
-    let cpu = WideBvh::collapse(&Bvh::build(&mesh.points, &mesh.tets, preset)).unwrap();
+    let (cpu, cpu_grid) = crate::kernels::soft_bvh::host_tree(mesh, &want, &mut |_, _| {}).unwrap();
     assert_eq!((wide.direct, wide.depth), (cpu.direct, cpu.depth), "{label}");
     assert_eq!(wide.nodes.len(), cpu.nodes.len(), "{label}: node count");
     if let Some(i) = (0..cpu.nodes.len()).find(|&i| wide.nodes[i] != cpu.nodes[i]) {
         panic!("{label}: node {i} differs:\n gpu {:?}\n cpu {:?}", wide.nodes[i], cpu.nodes[i]);
     }
     assert_eq!(wide.prims, cpu.prims, "{label}: leaf prims");
-
-    let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
-        &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
-    let cpu_grid = EntryGrid::new(
-        &cpu,
-        mesh.n_tets(),
-        |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
-        (mesh.info.bounds_min, mesh.info.bounds_max),
-        want.tets_per_cell,
-        walk.then_some(holds),
-    );
+    let cpu_grid = cpu_grid.expect("asked for");
     let words = cpu_grid.words();
     let grid = grid.expect("asked for");
     assert_eq!(grid.len(), words.len(), "{label}: grid size");

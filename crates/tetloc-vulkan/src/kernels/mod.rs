@@ -15,6 +15,7 @@ use rt::AsReport;
 use std::fmt;
 use std::str::FromStr;
 use std::sync::Arc;
+use tetloc_core::bvh::Aabb;
 use tetloc_core::geom::Vec3;
 use tetloc_core::mesh::Mesh;
 
@@ -41,6 +42,22 @@ pub(crate) struct Inputs<'a> {
     pub opts: &'a LocatorOptions,
     /// The point-in-tet test runs with its exact f64 fallback.
     pub f64: bool,
+}
+
+/// The prims of the kernels that take one box a cell (soft-bvh, rt-bvh; `CELL_BOXES`): a
+/// mixed mesh's cells, else its tets.
+pub(crate) fn n_prims(mesh: &Mesh) -> usize {
+    mesh.cells.as_ref().map_or(mesh.n_tets(), |c| c.len())
+}
+
+/// The box of prim `p` (`n_prims`): tet `p`'s, or the union of cell `p`'s decomposition tets'
+/// (the same min and max as the GPU build's `tl_prim_box`, in any order).
+pub(crate) fn prim_box(mesh: &Mesh, p: u32) -> Aabb {
+    let tet_box = |t: usize| Aabb::of_tet(mesh.tets[t], &mesh.points);
+    match &mesh.cells {
+        None => tet_box(p as usize),
+        Some(cells) => cells.tets_of(p as usize).map(tet_box).reduce(|a, b| a.union(&b)).expect("a cell has tets"),
+    }
 }
 
 /// A kernel's structure on the device and how to run it.
@@ -119,7 +136,7 @@ macro_rules! kernels {
 kernels! {
     /// BVH traversal and point-in-tet in a compute shader (the paper's cuda-bvh).
     SoftBvh => soft_bvh::KERNEL,
-    /// Ray-tracing BVH over one box per tet, point-in-tet in an intersection shader.
+    /// Ray-tracing BVH over one box per tet (or cell), point-in-tet in an intersection shader.
     RtBvh => rt::bvh::KERNEL,
     /// Four inward-facing triangles per tet, closest hit with back faces culled.
     RtRepFaces => rt::rep_faces::KERNEL,

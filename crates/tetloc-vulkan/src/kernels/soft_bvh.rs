@@ -1,10 +1,11 @@
 //! soft-bvh (the paper's cuda-bvh): one compute-shader invocation per point traverses the
 //! wide quantized BVH of `tetloc_core::bvh` (4 children a node, child boxes in a byte a
-//! coordinate), entered through a uniform grid whose cells name a start tet for a walk through
-//! face neighbours and a node for the exact traversal fallback (shaders/soft_bvh.comp,
+//! coordinate; its prims are the tets, or the cells of a mixed mesh, one box a cell), entered
+//! through a uniform grid whose cells name a start tet for a walk through face neighbours and
+//! a node for the exact traversal fallback (shaders/soft_bvh.comp,
 //! shaders/common/soft_bvh.glsl). The volume marcher runs the same traversal (march.comp).
 
-use super::{Inputs, KernelDef, Plan, Ray};
+use super::{n_prims, prim_box, Inputs, KernelDef, Plan, Ray};
 use crate::build::{self, BuildOn, Structure};
 use crate::device::{Device, Split};
 use crate::error::{VkError, VkResult};
@@ -18,6 +19,7 @@ use rayon::prelude::*;
 use std::time::Instant;
 use tetloc_core::bvh::{wide, Aabb, BuildPreset, Bvh, EntryGrid, WideBvh};
 use tetloc_core::geom::{self, Vec3};
+use tetloc_core::mesh::Mesh;
 
 pub(crate) const KERNEL: KernelDef = KernelDef { name: "soft-bvh", ray_tracing: false, plan };
 
@@ -41,10 +43,10 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         grid: opts.grid_start || opts.walk_start,
         walk: opts.walk_start,
         // The query shaders read the grid as one buffer: at a billion tets a cell holds more.
-        tets_per_cell: build::tets_per_cell(
-            input.mesh.n_tets(),
+        prims_per_cell: build::prims_per_cell(
+            n_prims(input.mesh),
             (input.mesh.info.bounds_min, input.mesh.info.bounds_max),
-            opts.grid_tets_per_cell,
+            grid_prims_per_cell(input.mesh, opts.grid_tets_per_cell),
             dev.device_max_buffer(),
         ),
         pack: opts.pack_ids,
@@ -83,7 +85,8 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         .set(sc::DIRECT_LEAVES, s.direct as u32)
         .set(sc::GRID_START, grid.is_some() as u32)
         .set(sc::NEIGHBOR_BITS, neighbor_bits)
-        .set(sc::PRIM_BITS, prim_bits);
+        .set(sc::PRIM_BITS, prim_bits)
+        .set(sc::CELL_BOXES, input.mesh.cells.is_some() as u32);
     // Deferred exact tests need the f64 test to defer to.
     let defer = opts.defer_exact && input.f64;
     let pass = |defer: bool, exact: bool| {
@@ -110,35 +113,67 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
     })
 }
 
-/// The structure built on the host by tetloc_core (the reference), then uploaded.
-fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkResult<Structure> {
-    let mesh = input.mesh;
-    let mut stages = vec![];
-    let mut timed = |name: &str, t: Instant| stages.push((format!("cpu: {name}"), t.elapsed().as_secs_f64()));
+/// Prims a cell of the entry grid holds on average for `tets_per_cell` tets (the option): a
+/// mixed mesh's grid has about as many cells as its decomposition's would.
+fn grid_prims_per_cell(mesh: &Mesh, tets_per_cell: usize) -> usize {
+    (tets_per_cell * n_prims(mesh)).div_ceil(mesh.n_tets().max(1)).max(1)
+}
+
+/// The tree and entry grid that tetloc_core's builders make over the mesh's prims
+/// (`kernels::n_prims`: tets, or a mixed mesh's cells, one box each): the reference the GPU
+/// build matches bit for bit. A grid cell's walk start is a tet: with cells as prims, the
+/// first tet of the start cell that holds the grid cell's centre (else its first tet), which
+/// is the tet the build's traversal returns.
+pub(crate) fn host_tree(
+    mesh: &Mesh,
+    want: &build::Wanted,
+    timed: &mut dyn FnMut(&str, Instant),
+) -> VkResult<(WideBvh, Option<EntryGrid>)> {
     let preset = if want.max_leaf == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
     let t = Instant::now();
-    let bvh = Bvh::build(&mesh.points, &mesh.tets, preset);
+    let boxes: Vec<Aabb> = (0..n_prims(mesh) as u32).into_par_iter().map(|p| prim_box(mesh, p)).collect();
+    let bvh = Bvh::build_boxes(&boxes, preset);
     timed("binary BVH", t);
     let t = Instant::now();
     let wide = WideBvh::collapse(&bvh).map_err(|e| VkError::Mesh(format!("soft-bvh: {e}")))?;
     drop(bvh);
     timed("collapse", t);
-    let t = Instant::now();
-    let grid = want.grid.then(|| {
-        let holds: &(dyn Fn(u32, Vec3) -> bool + Sync) =
-            &|t, p| matches!(geom::test_point(mesh.tets[t as usize], &mesh.points, p), geom::TetTest::Inside(_));
-        EntryGrid::new(
-            &wide,
-            mesh.n_tets(),
-            |t| Aabb::of_tet(mesh.tets[t as usize], &mesh.points),
-            (mesh.info.bounds_min, mesh.info.bounds_max),
-            want.tets_per_cell,
-            want.walk.then_some(holds),
-        )
-    });
-    if want.grid {
-        timed("entry grid", t);
+    if !want.grid {
+        return Ok((wide, None));
     }
+    let t = Instant::now();
+    let tets_of = |p: u32| match &mesh.cells {
+        None => p as usize..p as usize + 1,
+        Some(cells) => cells.tets_of(p as usize),
+    };
+    let holds = |t: usize, p: Vec3| matches!(geom::test_point(mesh.tets[t], &mesh.points, p), geom::TetTest::Inside(_));
+    let prim_holds: &(dyn Fn(u32, Vec3) -> bool + Sync) = &|c, p| tets_of(c).any(|t| holds(t, p));
+    let bounds = (mesh.info.bounds_min, mesh.info.bounds_max);
+    let walk = want.walk.then_some(prim_holds);
+    let mut grid = EntryGrid::new(&wide, boxes.len(), |p| boxes[p as usize], bounds, want.prims_per_cell, walk);
+    if mesh.cells.is_some() {
+        grid.starts = (0..grid.starts.len())
+            .into_par_iter()
+            .map(|i| match grid.starts[i] {
+                wide::EMPTY => wide::EMPTY,
+                c => {
+                    let centre = grid.centre(i);
+                    let tets = tets_of(c);
+                    tets.clone().find(|&t| holds(t, centre)).unwrap_or(tets.start) as u32
+                }
+            })
+            .collect();
+    }
+    timed("entry grid", t);
+    Ok((wide, Some(grid)))
+}
+
+/// The structure built on the host by tetloc_core (the reference), then uploaded.
+fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkResult<Structure> {
+    let mesh = input.mesh;
+    let mut stages = vec![];
+    let mut timed = |name: &str, t: Instant| stages.push((format!("cpu: {name}"), t.elapsed().as_secs_f64()));
+    let (wide, grid) = host_tree(mesh, &want, &mut timed)?;
     let t = Instant::now();
     if want.walk {
         mesh.neighbors();
@@ -147,7 +182,8 @@ fn cpu_structure(dev: &mut Device, input: &Inputs, want: build::Wanted) -> VkRes
     let t = Instant::now();
     let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let (n, direct) = (mesh.n_tets() as u64, wide.direct);
-    let (neighbor_bits, prim_bits) = build::packed_bits(&want, n, direct, dev.device_max_buffer());
+    let (neighbor_bits, prim_bits) =
+        build::packed_bits(&want, n, n_prims(mesh) as u64, direct, dev.device_max_buffer());
     let nodes = dev.upload_split("bvh nodes", MemKind::Structure, storage, bytemuck::cast_slice(&wide.nodes), 64)?;
     let prims = if direct {
         None

@@ -97,8 +97,9 @@ pub struct LocatorOptions {
     pub pack_min_bits: u32,
     /// With query ordering: make the paper's random points in the order of their tets (a
     /// counting sort of the sample indices by tet first), so that making them reads the mesh
-    /// nearly in order. `None`: on meshes of 32M tets or more, where random reads of the mesh
-    /// pass the address-translation knee; the same points and answers either way.
+    /// nearly in order. `None`: on meshes whose tets and vertices pass 8 GiB (~450M tets),
+    /// where random reads of them approach the address-translation knee; the same points and
+    /// answers either way.
     pub random_in_tet_order: Option<bool>,
 }
 
@@ -201,6 +202,8 @@ struct MeshOnDevice {
     /// Bits a field of the packed tets (`crate::packed`; 0: u32x4 tets).
     tet_bits: u32,
     high_order: Option<HighOrder>,
+    /// A mixed mesh's `Cells::first_tets` (the kernels with one box a cell read it).
+    cell_tets: Option<Buffer>,
 }
 
 struct HighOrder {
@@ -524,8 +527,7 @@ impl VulkanLocator {
                     bindings.push(Binding::buffer(B_QUERIES, &queries));
                     // The keys pass never generates grids (they are not ordered).
                     bindings.push(Binding::buffer(B_GRID_AXES, self.dev.unbound()));
-                    let large = self.mesh.n_tets() >= GROWN_LAUNCH_TETS;
-                    let tet_first = self.opts.random_in_tet_order.unwrap_or(large);
+                    let tet_first = self.opts.random_in_tet_order.unwrap_or_else(|| random_reads_pass_knee(&self.mesh));
                     let o = Ordering::new(&mut self.dev, n, &bindings, tet_first)?;
                     self.launcher
                         .desc
@@ -705,6 +707,18 @@ fn launch_points(chunk: usize, n_tets: usize, ordered: bool, memory_bytes: u64) 
     chunk.max((n_tets / TETS_A_LAUNCH_POINT).min(GROWN_LAUNCH_MAX).min(by_memory))
 }
 
+/// Bytes of tets and vertices from which making the paper's random points (a random tet and
+/// its vertices a point) goes in tet order (`LocatorOptions::random_in_tet_order`): half the
+/// H200's address-translation knee (16 GiB, NOTES.md), since the counting sort costs more than
+/// it saves below it. Measured on jets, random rate off / on: 62M tets (1.1 GB) 2.48 / 1.91
+/// G/s, 250M (4.6 GB) 1.94 / 1.75, 1B (18.4 GB) 0.06 / 1.50 (BENCHMARKS.md).
+const TET_ORDER_MIN_BYTES: u64 = 8 << 30;
+
+/// Whether making random points reads more of the mesh than [`TET_ORDER_MIN_BYTES`].
+fn random_reads_pass_knee(mesh: &Mesh) -> bool {
+    16 * mesh.n_tets() as u64 + 12 * mesh.points.len() as u64 >= TET_ORDER_MIN_BYTES
+}
+
 /// Generated samples are numbered by a u32 global index in the kernels.
 fn check_generated_count(n: usize) -> VkResult<()> {
     if n > u32::MAX as usize {
@@ -794,7 +808,13 @@ impl MeshOnDevice {
                 Some(HighOrder { nodes, lattice, spec })
             }
         };
-        Ok(MeshOnDevice { points, tets, tet_bits, high_order })
+        let cell_tets = match &mesh.cells {
+            None => None,
+            Some(c) => {
+                Some(dev.upload("cells' first tets", MemKind::Mesh, storage, bytemuck::cast_slice(&c.first_tets()))?)
+            }
+        };
+        Ok(MeshOnDevice { points, tets, tet_bits, high_order, cell_tets })
     }
 
     fn bindings(&self, unbound: &Buffer) -> Vec<Binding> {
@@ -803,6 +823,7 @@ impl MeshOnDevice {
         let ho = self.high_order.as_ref();
         b.push(Binding::buffer(B_HO_NODES, ho.map_or(unbound, |h| &h.nodes)));
         b.push(Binding::buffer(B_HO_LATTICE, ho.map_or(unbound, |h| &h.lattice)));
+        b.push(Binding::buffer(B_CELL_TETS, self.cell_tets.as_ref().unwrap_or(unbound)));
         b
     }
 

@@ -1,9 +1,11 @@
-//! rt-bvh: the hardware (or driver) traverses a BVH over one box per tet; an intersection
-//! shader runs the point-in-tet test for each box an infinitesimal ray from the point starts
-//! in, and the ray ends at the first tet that holds it (shaders/rt_bvh.rint, rt_bvh.rchit).
+//! rt-bvh: the hardware (or driver) traverses a BVH over one box per tet, or per cell of a
+//! mixed mesh (`CELL_BOXES`); an intersection shader runs the point-in-tet test for each box
+//! an infinitesimal ray from the point starts in (on a cell's box, for each of its
+//! decomposition tets), and the ray ends at the first tet that holds it (shaders/rt_bvh.rint,
+//! rt_bvh.rchit).
 
 use super::{Geometry, RtKernel, OPAQUE, TERMINATE_ON_FIRST_HIT};
-use crate::kernels::{extent, KernelDef, Ray};
+use crate::kernels::{extent, n_prims, prim_box, KernelDef, Ray};
 use crate::shaders;
 use rayon::prelude::*;
 use tetloc_core::bvh::Aabb;
@@ -13,22 +15,26 @@ pub(crate) const KERNEL: KernelDef =
 
 const RT_BVH: RtKernel = RtKernel {
     geometry: Geometry::Boxes,
-    centres: super::tet_centres,
+    centres: |mesh| match mesh.cells {
+        None => super::tet_centres(mesh),
+        Some(_) => (0..n_prims(mesh) as u32).into_par_iter().map(|c| prim_box(mesh, c).centre()).collect(),
+    },
     prims_per_item: 1,
     input_bytes: std::mem::size_of::<Aabb>(),
-    input: |mesh, tets| {
-        let boxes: Vec<Aabb> = tets
+    input: |mesh, prims| {
+        let boxes: Vec<Aabb> = prims
             .par_iter()
-            .map(|&t| {
-                let b = Aabb::of_tet(mesh.tets[t as usize], &mesh.points);
+            .map(|&p| {
+                let b = prim_box(mesh, p);
                 // One ulp outwards: a point on the box's surface is strictly inside.
                 Aabb { min: b.min.map(f32::next_down), max: b.max.map(f32::next_up) }
             })
             .collect();
         bytemuck::cast_slice(&boxes).to_vec()
     },
-    // The tet of each box.
+    // The prim (tet, or cell) of each box.
     table: |_, order| bytemuck::cast_slice(order).to_vec(),
+    boxes_per_cell: true,
     walks: false,
     ray_flags: OPAQUE | TERMINATE_ON_FIRST_HIT,
     retry_on_miss: false,

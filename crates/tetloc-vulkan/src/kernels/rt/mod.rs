@@ -1,5 +1,5 @@
 //! The ray-tracing kernels (after Wald et al., "RTX Beyond Ray Tracing"): each puts
-//! primitives into acceleration structures — one box per tet (`bvh.rs`), four inward-facing
+//! primitives into acceleration structures — one box per tet or cell (`bvh.rs`), four inward-facing
 //! triangles per tet (`rep_faces.rs`) or each unique face once (`shared_faces.rs`) — and
 //! traces one short ray per point through its hit group. What they share lives here: the
 //! primitive order (Morton order of the items' centres), the tables that map a hit back to a
@@ -47,6 +47,9 @@ pub(crate) struct RtKernel {
     pub input: fn(&Mesh, &[u32]) -> Vec<u8>,
     /// The primitive table (`B_PRIMS`) of all items in order: how a hit finds its tet.
     pub table: fn(&Mesh, &[u32]) -> Vec<u8>,
+    /// On a mixed mesh, the items are its cells (one box each) rather than the decomposition's
+    /// tets, and the table holds each cell's tets (CELL_BOXES).
+    pub boxes_per_cell: bool,
     /// The hit shader walks through tet neighbours (to correct a hit off by rounding).
     pub walks: bool,
     /// Ray flags (SPIR-V RayFlags), and whether a ray that finds nothing is retried in the
@@ -121,7 +124,8 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
     let spec = Spec::default()
         .set(sc::WALK_MAX, WALK_MAX as u32)
         .set(sc::RAY_FLAGS, k.ray_flags)
-        .set(sc::RETRY_ON_MISS, k.retry_on_miss as u32);
+        .set(sc::RETRY_ON_MISS, k.retry_on_miss as u32)
+        .set(sc::CELL_BOXES, (k.boxes_per_cell && mesh.cells.is_some()) as u32);
     let program = |raygen| Program::RayTracing {
         raygen,
         miss: shaders::RT_RMISS,

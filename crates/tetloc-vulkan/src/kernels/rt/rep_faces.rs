@@ -22,6 +22,7 @@ const RT_REP_FACES: RtKernel = RtKernel {
     },
     // The tet of each group of four triangles.
     table: |_, order| bytemuck::cast_slice(order).to_vec(),
+    boxes_per_cell: false,
     walks: true,
     ray_flags: OPAQUE | CULL_BACK_FACING,
     retry_on_miss: true,

@@ -41,6 +41,7 @@ const RT_SHARED_FACES: RtKernel = RtKernel {
             order.par_iter().map(|&f| [faces[f as usize].front, faces[f as usize].back]).collect();
         bytemuck::cast_slice(&sides).to_vec()
     },
+    boxes_per_cell: false,
     walks: true,
     ray_flags: OPAQUE,
     retry_on_miss: true,
