@@ -309,7 +309,7 @@ gpu_interface! {
         /// (by tet index), then the sample indices moved to their bin's slots.
         ORDER_TET_KEYS: u32 = 4;
         ORDER_TET_SCATTER: u32 = 5;
-        /// GPU build passes (BUILD_PASS), in the order they run: the bounds of the tets' box
+        /// GPU build passes (BUILD_PASS), in the order they run: the bounds of the prims' box
         /// centres; Morton keys; one bit of the radix sort: count zeros per block, scatter;
         /// the scan (each chunk, then add the chunks' offsets); the binary tree top down, one
         /// level a dispatch, then the next level's range; boxes and 4-wide counts bottom up;

@@ -113,8 +113,9 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
     })
 }
 
-/// Prims a cell of the entry grid holds on average for `tets_per_cell` tets (the option): a
-/// mixed mesh's grid has about as many cells as its decomposition's would.
+/// Prims a cell of the entry grid holds on average for `tets_per_cell` tets (the option): as
+/// many as that many tets are, but at least one (a hex mesh's grid has a cell per hex, a sixth
+/// of its decomposition's: centres' walks start farther, BENCHMARKS.md).
 fn grid_prims_per_cell(mesh: &Mesh, tets_per_cell: usize) -> usize {
     (tets_per_cell * n_prims(mesh)).div_ceil(mesh.n_tets().max(1)).max(1)
 }
