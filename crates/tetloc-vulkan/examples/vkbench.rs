@@ -80,7 +80,13 @@ fn parse() -> Result<Args, String> {
             "--no-compact" => a.opts.compact = false,
             "--leaf" => a.opts.leaf_size = num(val()?)?,
             "--pack" => a.opts.pack_ids = true,
-            "--tet-order" => a.opts.random_in_tet_order = Some(val()? == "on"),
+            "--tet-order" => {
+                a.opts.random_in_tet_order = match val()?.as_str() {
+                    "on" => Some(true),
+                    "off" => Some(false),
+                    v => return Err(format!("--tet-order takes on or off, not {v}")),
+                }
+            }
             "--chunk" => a.opts.chunk_points = num(val()?)?,
             "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
             "--grid" => a.opts.grid_start = true,

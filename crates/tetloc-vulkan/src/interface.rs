@@ -242,8 +242,8 @@ gpu_interface! {
         B_STREAM_TETS = 47;
         /// GPU build: the packed id array a pack pass writes (src/packed.rs).
         B_PACKED = 48;
-        /// A mixed mesh's cells: each one's first decomposition tet, then the tet count
-        /// (`Cells::first_tets`; mesh.glsl `tl_prim_tets`).
+        /// A mixed mesh's cells: n_cells + 1 words, each cell's first decomposition tet, the
+        /// last the number of tets (`Cells::first_tets`; mesh.glsl `tl_prim_tets`).
         B_CELL_TETS = 49;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, their binary nodes and levels, homes, faces, neighbours) are bound as arrays
@@ -283,7 +283,7 @@ gpu_interface! {
         DEFERRED: i32 = -3;
         /// Wide-BVH child references (tetloc_core::bvh::wide): interior nodes are plain
         /// indices; a leaf has LEAF set, its count - 1 from bit LEAF_COUNT_SHIFT and its first
-        /// prim index in LEAF_FIRST_MAX (with DIRECT_LEAVES: the tet id in all 31 bits below
+        /// prim index in LEAF_FIRST_MAX (with DIRECT_LEAVES: the prim id in all 31 bits below
         /// LEAF, tetloc_core::bvh::wide::direct_leaf_ref); empty slots are
         /// EMPTY (also "no node" in the entry grid).
         LEAF: u32 = 0x8000_0000;
@@ -314,7 +314,7 @@ gpu_interface! {
         /// the scan (each chunk, then add the chunks' offsets); the binary tree top down, one
         /// level a dispatch, then the next level's range; boxes and 4-wide counts bottom up;
         /// 4-wide nodes top down, then the next level's range; the entry grid (clear, rasterize
-        /// the tets' boxes, each cell's node, each cell's walk start: grid_starts.comp); the
+        /// the prims' boxes, each cell's node, each cell's walk start: grid_starts.comp); the
         /// neighbours (count faces by smallest vertex, scatter them, match them).
         BUILD_BOUNDS: u32 = 0;
         BUILD_KEYS: u32 = 1;
@@ -378,7 +378,8 @@ gpu_interface! {
         /// opposite direction.
         RAY_FLAGS = 8: uint = 0;
         RETRY_ON_MISS = 9: bool = false;
-        /// soft-bvh: one tet per leaf, its id in the reference itself (no prims lookup).
+        /// soft-bvh: one prim (tet, or cell) per leaf, its id in the reference itself (no
+        /// prims lookup).
         DIRECT_LEAVES = 10: bool = false;
         /// soft-bvh: start below the root, at the node the entry grid names for the point's cell.
         GRID_START = 11: bool = false;

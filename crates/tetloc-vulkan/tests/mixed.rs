@@ -63,7 +63,8 @@ fn every_kernel_matches_vtk_on_mixed_meshes_far_from_the_origin() {
 
 /// Generated mixed meshes (no ../shared needed): a hybrid (hex layers, pyramids, tets, wedges)
 /// and terrain-following hexes (warped faces), at cell centres and random points over the
-/// bounds. Every kernel (rt-bvh with one box a cell) gives the CPU's cells and values.
+/// bounds. Every kernel (soft-bvh and rt-bvh with one box a cell) gives the CPU's cells and
+/// values.
 #[test]
 fn every_kernel_gives_the_cpus_cells_on_generated_mixed_meshes() {
     use tetloc_core::gen::{self, CellKind, Shape};

@@ -1,4 +1,4 @@
-//! Mixed meshes (layout A, see ARCHITECTURE.md): the file's volume cells of any type, kept
+//! Mixed meshes (see ARCHITECTURE.md, "Mixed cells"): the file's volume cells of any type, kept
 //! with all their nodes, and their conforming tet decomposition, which becomes the mesh's tets.
 //! Every tet kernel (CPU and GPU) locates in the decomposition unchanged; the answers map to
 //! cells through [`Cells::tet_parent`] and are refined with the cells' own parametric
@@ -126,8 +126,14 @@ impl Cells {
     /// cell `c`'s tets are `first_tets[c]..first_tets[c + 1]`. What the GPU kernels that take
     /// one box a cell (soft-bvh, rt-bvh) read to test a cell's tets.
     pub fn first_tets(&self) -> Vec<u32> {
-        let mut first: Vec<u32> = (0..self.len()).into_par_iter().map(|c| self.tets_of(c).start as u32).collect();
-        first.push(self.tet_parent.len() as u32);
+        // Every cell has at least one tet, and a cell's tets are consecutive.
+        let mut first = vec![0u32; self.len() + 1];
+        for (t, pair) in self.tet_parent.windows(2).enumerate() {
+            if pair[0] != pair[1] {
+                first[pair[1] as usize] = t as u32 + 1;
+            }
+        }
+        first[self.len()] = self.tet_parent.len() as u32;
         first
     }
 

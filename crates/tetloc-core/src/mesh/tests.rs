@@ -106,3 +106,19 @@ fn neighbors_are_symmetric_and_match_the_faces() {
     }
     assert_eq!(boundary, m.faces().stats.n_boundary);
 }
+
+#[test]
+fn first_tets_bound_each_cells_tets() {
+    use crate::gen::{generate_spec, CellKind, Shape, Spec};
+    for cells in [CellKind::Hexes, CellKind::Hybrid] {
+        let raw = generate_spec(Spec { shape: Shape::Fusion, cells }, 500, 3, &|_| {});
+        let mesh = Mesh::new(raw, "mixed").unwrap();
+        let c = mesh.cells.as_ref().unwrap();
+        let first = c.first_tets();
+        assert_eq!(first.len(), c.len() + 1);
+        assert_eq!(first[c.len()] as usize, mesh.n_tets());
+        for i in 0..c.len() {
+            assert_eq!(first[i] as usize..first[i + 1] as usize, c.tets_of(i), "{cells:?} cell {i}");
+        }
+    }
+}

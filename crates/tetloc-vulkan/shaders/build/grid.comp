@@ -2,11 +2,12 @@
 // soft-bvh's entry grid (src/build/grid.rs), the cells' nodes as tetloc_core's EntryGrid::new
 // makes them. The 4-wide nodes are numbered depth first, so the lowest common ancestor of a
 // cell's nodes is that of the lowest and the highest of them:
-//   GRID_RASTER  each tet's box over the cells it overlaps (grid::cell_coord's arithmetic):
-//                the lowest and highest home node, and the lowest tet id, per cell;
+//   GRID_RASTER  each prim's box over the cells it overlaps (grid::cell_coord's arithmetic):
+//                the lowest and highest home node, and the lowest prim id, per cell;
 //   GRID_CELLS   each cell's node: the common ancestor of those two, or EMPTY.
-// params.counts: tets (or cells), dims; params.lo_tmin.xyz: the grid's origin; hi_tmax.xyz:
-// cells per unit length. The cells' scratch: lowest home, highest home, lowest tet (n each).
+// params.counts: prims (GRID_RASTER) or cells (GRID_CELLS), dims; params.lo_tmin.xyz: the
+// grid's origin; hi_tmax.xyz: cells per unit length. The cells' scratch: lowest home, highest
+// home, lowest prim (a word a cell each).
 #extension GL_GOOGLE_include_directive : require
 #include "interface.glsl" // generated from src/interface.rs (build.rs)
 #include "common/mesh.glsl"

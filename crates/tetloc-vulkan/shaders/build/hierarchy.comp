@@ -13,7 +13,7 @@
 //                    a level's nodes in that order;
 //   NEXT_WIDE_LEVEL  one invocation: the next 4-wide level's size and dispatch size (every
 //                    4-wide node, or none after the last level).
-// params.counts: tets, the level, the half of keys and ids that holds the sorted ones, and
+// params.counts: prims, the level, the half of keys and ids that holds the sorted ones, and
 // (COLLAPSE) the number of 4-wide nodes.
 #extension GL_GOOGLE_include_directive : require
 #include "interface.glsl" // generated from src/interface.rs (build.rs)

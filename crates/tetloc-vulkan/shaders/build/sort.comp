@@ -1,12 +1,13 @@
 #version 460
-// Morton keys of the tets' box centres and their radix sort (src/build/sort.rs), the first
-// stage of the BVH build; the same codes as tetloc_core::bvh::morton (21 bits an axis over
-// the centres' bounds), sorted by code then tet id, so the tree is the CPU builder's.
+// Morton keys of the prims' box centres (tets, or a mixed mesh's cells: tl_prim_box) and
+// their radix sort (src/build/sort.rs), the first stage of the BVH build; the same codes as
+// tetloc_core::bvh::morton (21 bits an axis over the centres' bounds), sorted by code then
+// prim id, so the tree is the CPU builder's.
 //   BOUNDS        the centres' bounds, by atomics on order-preserving words;
-//   KEYS          each tet's code (params: the bounds' min and the host's scale) and id;
+//   KEYS          each prim's code (params: the bounds' min and the host's scale) and id;
 //   SORT_COUNT    one bit of an LSD radix sort: the zeros of each chunk of SCAN_CHUNK keys;
 //   SORT_SCATTER  (after the scan of those counts) each key and id to its stable slot.
-// params.counts: tets, the bit, the source half, 0.
+// params.counts: prims, the bit, the source half, 0.
 #extension GL_GOOGLE_include_directive : require
 #include "interface.glsl" // generated from src/interface.rs (build.rs)
 #include "common/mesh.glsl"

@@ -8,7 +8,8 @@
 layout(std430, binding = TL_B_POINTS) readonly buffer TlPoints { float tl_points[]; };
 layout(std430, binding = TL_B_TETS) readonly buffer TlTets { uvec4 tl_tets[]; };
 layout(std430, binding = TL_B_FIELD) readonly buffer TlField { float tl_field[]; };
-// A mixed mesh's cells: each one's first decomposition tet, then the tet count.
+// A mixed mesh's cells (CELL_BOXES): n_cells + 1 words, each cell's first decomposition tet,
+// the last the number of tets.
 layout(std430, binding = TL_B_CELL_TETS) readonly buffer TlCellTets { uint tl_cell_tets[]; };
 
 // Arrays larger than one buffer may be (maxMemoryAllocationSize, maxStorageBufferRange: 4 GiB

@@ -29,7 +29,8 @@ uint tl_prim_word(uint w) {
     return tl_prims[w];
 }
 TL_PACKED_READER(tl_prim_field, tl_prim_word, PRIM_BITS)
-// DIRECT_LEAVES: one tet per leaf, its id in the reference itself (no tl_prims lookup).
+// DIRECT_LEAVES: one prim (tet, or cell: CELL_BOXES) per leaf, its id in the reference itself
+// (no tl_prims lookup).
 // GRID_START: start below the root, at the node the entry grid names for the point's cell
 // (tetloc_core::bvh::EntryGrid::words: header dims.xyz, 0, inv.xyz as bits, 0; then the cells).
 layout(std430, binding = TL_B_GRID) readonly buffer TlGrid { uint tl_grid[]; };

@@ -24,7 +24,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, input: &Inputs, tree: &Tree
     let words = 8 + cells as u64 * if want.walk { 2 } else { 1 };
     let grid = structure(dev, "entry grid", 4 * words)?;
     dev.write(&grid, 0, bytemuck::cast_slice(&header))?;
-    // Per cell: lowest home, highest home, lowest tet; then the centres on each axis.
+    // Per cell: lowest home, highest home, lowest prim; then the centres on each axis.
     let centres: Vec<u32> =
         (0..3).flat_map(|a| (0..dims[a]).map(move |c| EntryGrid::centre_coord(lo[a], inv[a], c).to_bits())).collect();
     let scratch_cells = scratch(dev, "build grid cells", 4 * (3 * cells as u64 + centres.len() as u64))?;

@@ -16,7 +16,7 @@ use std::time::Instant;
 const BATCH: u32 = 8;
 
 /// The tree: 4-wide nodes, leaf prims (unless direct), and what the entry grid needs (each
-/// 4-wide node's parent and level, each tet's home node), with the scratch the grid and the
+/// 4-wide node's parent and level, each prim's home node), with the scratch the grid and the
 /// neighbours reuse.
 pub(super) struct Tree {
     pub nodes: Split,
@@ -33,7 +33,7 @@ pub(super) struct Tree {
     pub scan: Buffer,
 }
 
-/// The tree (its 4-wide nodes, at most one a tet, fit: `build` checked).
+/// The tree (its 4-wide nodes, at most one a prim, fit: `build` checked).
 pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -> VkResult<Tree> {
     let (n, nn) = (b.n as u64, b.n);
     let direct = max_leaf == 1 || nn == 1;
@@ -52,7 +52,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
     b.bind_split(B_BUILD_KEYS, None, dev.unbound());
     drop(s.keys);
     // The boxes only now (the refit writes them), after the keys are gone and for the nodes
-    // made (far fewer than 2n with four tets a leaf): the build's peak is lower.
+    // made (far fewer than 2n with four prims a leaf): the build's peak is lower.
     let made = read_words(dev, &s.levels, BUILD_AT_NODES as u64, 1)?[0] as u64;
     let boxes = b.split(dev, MemKind::Scratch, "build binary boxes", made, 24)?;
     b.bind_split(B_BUILD_BOXES, Some(&boxes), dev.unbound());
@@ -90,7 +90,7 @@ pub(super) fn run(b: &mut Builder, dev: &mut Device, s: Sorted, max_leaf: u32) -
         return Err(fail("a node box is too large for f32 node scales".into()));
     }
     if err & BUILD_ERR_LEAF != 0 {
-        return Err(fail(format!("{n} tets: leaves of several tets hold prim indices below 2^29 (one tet a leaf, the default preset, takes ids up to 2^31)")));
+        return Err(fail(format!("{n} prims (tets, or a mixed mesh's cells): leaves of several prims hold prim indices below 2^29 (one prim a leaf, the default preset, takes ids up to 2^31)")));
     }
     let prims = if direct {
         None

@@ -261,7 +261,7 @@ impl Builder {
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
             .set(sc::BUILD_CHUNK_BYTES, chunk as u32)
-            .set(sc::CELL_BOXES, input.mesh.cells.is_some() as u32);
+            .set(sc::CELL_BOXES, input.cell_boxes as u32);
         let (n, n_tets) = (crate::kernels::n_prims(input.mesh) as u32, input.mesh.n_tets() as u32);
         Ok(Builder { pipelines: HashMap::new(), desc, spec, f64: input.f64, n, n_tets, chunk })
     }

@@ -1,8 +1,8 @@
-//! Morton codes of the tets' box centres and their radix sort (`shaders/build/sort.comp`):
+//! Morton codes of the prims' box centres (tets, or a mixed mesh's cells) and their radix sort (`shaders/build/sort.comp`):
 //! the codes of `tetloc_core::bvh::morton` (21 bits an axis over the centres' bounds; the
 //! bounds come back to the host, which computes the scale exactly as `Morton::new`), then an
 //! LSD radix sort one bit a pass (count the zeros of each chunk, scan, scatter stably), so
-//! that equal codes keep tet order: the CPU builder's order.
+//! that equal codes keep prim order: the CPU builder's order.
 
 use super::{read_words, scan, scratch, Builder, Groups, SORT};
 use crate::device::{Device, Split};

@@ -1,17 +1,17 @@
 //! The GPU build against tetloc_core's CPU builder, on lavapipe in CI: the same nodes, leaf
 //! prims, depth, entry-grid words and neighbours, bit for bit, on meshes of several shapes
-//! (a jittered grid, a regular one with many equal codes, a mixed mesh's decomposition, one
-//! tet, tets that all have the same box), with one and four tets a leaf; the GPU tree also
+//! (a jittered grid, a regular one with many equal codes, a mixed mesh with one box a cell,
+//! one tet, tets that all have the same box), with one and four prims a leaf; the GPU tree also
 //! passes `WideBvh::validate` on its own; and locators built both ways answer alike.
 
 use super::*;
 use crate::context::{test_context, Context};
-use crate::locator::LocatorOptions;
+use crate::locator::{LocatorOptions, MeshOnDevice};
 use crate::packed;
 use crate::Kernel;
 use crate::VulkanLocator;
 use std::sync::Arc;
-use tetloc_core::bvh::{Aabb, QNode4, WideBvh};
+use tetloc_core::bvh::{QNode4, WideBvh};
 use tetloc_core::gen::{self, CellKind, Shape};
 use tetloc_core::geom::Vec3;
 use tetloc_core::mesh::{Mesh, RawMesh};
@@ -45,42 +45,12 @@ fn gpu_build(
     max_buffer: Option<u64>,
 ) -> (WideBvh, Option<Vec<u32>>, Option<Vec<[i32; 4]>>, usize) {
     let mut dev = Device::new(ctx, 1 << 20, max_buffer).unwrap();
-    let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let points = dev.upload_split("points", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.points), 12).unwrap();
     // Packed layouts get packed tets too, so that every build pass reads them.
-    let max_vertex = mesh.points.len() as u64 - 1;
-    let tet_bits = if want.pack {
-        packed::width(max_vertex, 4 * mesh.n_tets() as u64, want.pack_min_bits, dev.device_max_buffer())
-    } else {
-        0
-    };
-    let tets = if tet_bits > 0 {
-        Split::whole(
-            packed::upload(&mut dev, "tets (packed)", MemKind::Mesh, bytemuck::cast_slice(&mesh.tets), tet_bits)
-                .unwrap(),
-        )
-    } else {
-        dev.upload_split("tets", MemKind::Mesh, storage, bytemuck::cast_slice(&mesh.tets), 16).unwrap()
-    };
-    let unbound = dev.unbound();
-    let mut mesh_bindings = Binding::split(B_POINTS, B_POINTS_HI, Some(&points), unbound).to_vec();
-    mesh_bindings.extend(Binding::split(B_TETS, B_TETS_HI, Some(&tets), unbound));
-    mesh_bindings.extend([B_HO_NODES, B_HO_LATTICE].map(|slot| Binding::buffer(slot, unbound)));
-    let cell_tets = mesh.cells.as_ref().map(|c| {
-        dev.upload("cells' first tets", MemKind::Mesh, storage, bytemuck::cast_slice(&c.first_tets())).unwrap()
-    });
-    let unbound = dev.unbound();
-    mesh_bindings.push(Binding::buffer(B_CELL_TETS, cell_tets.as_ref().unwrap_or(unbound)));
+    let pack = want.pack.then_some(want.pack_min_bits);
+    let on_device = MeshOnDevice::upload(&mut dev, mesh, false, pack, true).unwrap();
+    let mesh_bindings = on_device.bindings(dev.unbound());
     let opts = LocatorOptions::default();
-    let input = Inputs {
-        mesh,
-        points: &points,
-        tets: &tets,
-        tet_bits,
-        mesh_bindings: &mesh_bindings,
-        opts: &opts,
-        f64: ctx.info().float64,
-    };
+    let input = on_device.inputs(mesh, &mesh_bindings, &opts, ctx.info().float64);
     let s = build(&mut dev, &input, want).unwrap().expect("small meshes fit");
     let words = |dev: &mut Device, buf: &Buffer| {
         let mut w = vec![0u32; (buf.size / 4) as usize];
@@ -146,8 +116,7 @@ struct Layout {
 fn assert_builds_like_cpu(ctx: &Arc<Context>, mesh: &Arc<Mesh>, layout: Layout, max_buffer: Option<u64>) -> usize {
     let Layout { max_leaf, walk, pack } = layout;
     let (pack_min_bits, pack) = (pack.unwrap_or(0), pack.is_some());
-    let boxes: Vec<Aabb> =
-        (0..crate::kernels::n_prims(mesh) as u32).map(|p| crate::kernels::prim_box(mesh, p)).collect();
+    let boxes = crate::kernels::prim_boxes(mesh);
     let label = format!(
         "{} ({} tets), leaf {max_leaf}, walk {walk}, pack {pack}, buffers of {max_buffer:?} B",
         mesh.info.source,
@@ -197,8 +166,9 @@ fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
     ];
     for mesh in meshes {
         let mesh = Arc::new(mesh);
-        // About 6 B a tet a buffer: the binary boxes (48 B a tet) and faces (48) in about 8
-        // buffers, keys (16) in 3, nodes and neighbours (16) in 3: within MAX_CHUNKS.
+        // About 6 B a tet a buffer: the binary boxes (48 B a prim) and faces (48 B a tet) in
+        // about 8 buffers, keys (16) in 3, nodes and neighbours (16) in 3: within MAX_CHUNKS
+        // (the mixed mesh's per-prim arrays, a prim a cell, are smaller still).
         let limit = (6 * mesh.n_tets() as u64).next_multiple_of(192);
         for (max_leaf, walk) in [(1, true), (4, true)] {
             let parts = assert_builds_like_cpu(&ctx, &mesh, Layout { max_leaf, walk, pack: None }, Some(limit));

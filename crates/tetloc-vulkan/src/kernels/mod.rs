@@ -26,6 +26,9 @@ pub(crate) struct KernelDef {
     /// Needs ray-tracing pipelines; then it builds from the vertex buffer (uploaded with
     /// acceleration-structure build-input usage).
     pub ray_tracing: bool,
+    /// On a mixed mesh, its BVH holds one box a cell (`CELL_BOXES`, [`n_prims`]): the
+    /// locator uploads the cells' first tets for it.
+    pub cell_boxes: bool,
     /// Builds the kernel's structure for a mesh on the device.
     pub plan: fn(&mut Device, &Inputs) -> VkResult<Plan>,
 }
@@ -42,22 +45,36 @@ pub(crate) struct Inputs<'a> {
     pub opts: &'a LocatorOptions,
     /// The point-in-tet test runs with its exact f64 fallback.
     pub f64: bool,
+    /// The kernel takes one box a cell of this (mixed) mesh: `CELL_BOXES`.
+    pub cell_boxes: bool,
 }
 
-/// The prims of the kernels that take one box a cell (soft-bvh, rt-bvh; `CELL_BOXES`): a
-/// mixed mesh's cells, else its tets.
+/// The prims of the kernels that take one box a cell (`KernelDef::cell_boxes`: soft-bvh,
+/// rt-bvh): a mixed mesh's cells, else its tets.
 pub(crate) fn n_prims(mesh: &Mesh) -> usize {
     mesh.cells.as_ref().map_or(mesh.n_tets(), |c| c.len())
 }
 
-/// The box of prim `p` (`n_prims`): tet `p`'s, or the union of cell `p`'s decomposition tets'
-/// (the same min and max as the GPU build's `tl_prim_box`, in any order).
+/// The tets of prim `p` ([`n_prims`]): tet `p`, or cell `p`'s decomposition tets (the host's
+/// `tl_prim_tets`).
+pub(crate) fn prim_tets(mesh: &Mesh, p: u32) -> std::ops::Range<usize> {
+    match &mesh.cells {
+        None => p as usize..p as usize + 1,
+        Some(cells) => cells.tets_of(p as usize),
+    }
+}
+
+/// The box of prim `p`: the union of its tets' boxes (the same min and max as the GPU build's
+/// `tl_prim_box`, in any order).
 pub(crate) fn prim_box(mesh: &Mesh, p: u32) -> Aabb {
     let tet_box = |t: usize| Aabb::of_tet(mesh.tets[t], &mesh.points);
-    match &mesh.cells {
-        None => tet_box(p as usize),
-        Some(cells) => cells.tets_of(p as usize).map(tet_box).reduce(|a, b| a.union(&b)).expect("a cell has tets"),
-    }
+    prim_tets(mesh, p).map(tet_box).reduce(|a, b| a.union(&b)).expect("a prim has tets")
+}
+
+/// Every prim's box, in parallel.
+pub(crate) fn prim_boxes(mesh: &Mesh) -> Vec<Aabb> {
+    use rayon::prelude::*;
+    (0..n_prims(mesh) as u32).into_par_iter().map(|p| prim_box(mesh, p)).collect()
 }
 
 /// A kernel's structure on the device and how to run it.

@@ -5,7 +5,7 @@
 //! a node for the exact traversal fallback (shaders/soft_bvh.comp,
 //! shaders/common/soft_bvh.glsl). The volume marcher runs the same traversal (march.comp).
 
-use super::{n_prims, prim_box, Inputs, KernelDef, Plan, Ray};
+use super::{n_prims, prim_boxes, prim_tets, Inputs, KernelDef, Plan, Ray};
 use crate::build::{self, BuildOn, Structure};
 use crate::device::{Device, Split};
 use crate::error::{VkError, VkResult};
@@ -17,11 +17,11 @@ use crate::shaders;
 use ash::vk;
 use rayon::prelude::*;
 use std::time::Instant;
-use tetloc_core::bvh::{wide, Aabb, BuildPreset, Bvh, EntryGrid, WideBvh};
+use tetloc_core::bvh::{wide, BuildPreset, Bvh, EntryGrid, WideBvh};
 use tetloc_core::geom::{self, Vec3};
 use tetloc_core::mesh::Mesh;
 
-pub(crate) const KERNEL: KernelDef = KernelDef { name: "soft-bvh", ray_tracing: false, plan };
+pub(crate) const KERNEL: KernelDef = KernelDef { name: "soft-bvh", ray_tracing: false, cell_boxes: true, plan };
 
 /// Most tets a walk start visits before traversal takes over (jets: 1.7-2.6 on average from
 /// a cell-centre start, NOTES.md).
@@ -85,8 +85,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         .set(sc::DIRECT_LEAVES, s.direct as u32)
         .set(sc::GRID_START, grid.is_some() as u32)
         .set(sc::NEIGHBOR_BITS, neighbor_bits)
-        .set(sc::PRIM_BITS, prim_bits)
-        .set(sc::CELL_BOXES, input.mesh.cells.is_some() as u32);
+        .set(sc::PRIM_BITS, prim_bits);
     // Deferred exact tests need the f64 test to defer to.
     let defer = opts.defer_exact && input.f64;
     let pass = |defer: bool, exact: bool| {
@@ -132,7 +131,7 @@ pub(crate) fn host_tree(
 ) -> VkResult<(WideBvh, Option<EntryGrid>)> {
     let preset = if want.max_leaf == 1 { BuildPreset::SingleTetLeaves } else { BuildPreset::Fast };
     let t = Instant::now();
-    let boxes: Vec<Aabb> = (0..n_prims(mesh) as u32).into_par_iter().map(|p| prim_box(mesh, p)).collect();
+    let boxes = prim_boxes(mesh);
     let bvh = Bvh::build_boxes(&boxes, preset);
     timed("binary BVH", t);
     let t = Instant::now();
@@ -143,12 +142,8 @@ pub(crate) fn host_tree(
         return Ok((wide, None));
     }
     let t = Instant::now();
-    let tets_of = |p: u32| match &mesh.cells {
-        None => p as usize..p as usize + 1,
-        Some(cells) => cells.tets_of(p as usize),
-    };
     let holds = |t: usize, p: Vec3| matches!(geom::test_point(mesh.tets[t], &mesh.points, p), geom::TetTest::Inside(_));
-    let prim_holds: &(dyn Fn(u32, Vec3) -> bool + Sync) = &|c, p| tets_of(c).any(|t| holds(t, p));
+    let prim_holds: &(dyn Fn(u32, Vec3) -> bool + Sync) = &|c, p| prim_tets(mesh, c).any(|t| holds(t, p));
     let bounds = (mesh.info.bounds_min, mesh.info.bounds_max);
     let walk = want.walk.then_some(prim_holds);
     let mut grid = EntryGrid::new(&wide, boxes.len(), |p| boxes[p as usize], bounds, want.prims_per_cell, walk);
@@ -159,7 +154,7 @@ pub(crate) fn host_tree(
                 wide::EMPTY => wide::EMPTY,
                 c => {
                     let centre = grid.centre(i);
-                    let tets = tets_of(c);
+                    let tets = prim_tets(mesh, c);
                     tets.clone().find(|&t| holds(t, centre)).unwrap_or(tets.start) as u32
                 }
             })
@@ -328,7 +323,14 @@ mod tests {
         let q = WideBvh::collapse(&Bvh::build(pts, tets, BuildPreset::SingleTetLeaves)).unwrap();
         let holds = |t: u32, p: Vec3| geom::point_in_tet(tets[t as usize], pts, p).is_some();
         let bounds = (mesh.info.bounds_min, mesh.info.bounds_max);
-        let g = EntryGrid::new(&q, tets.len(), |t| Aabb::of_tet(tets[t as usize], pts), bounds, per_cell, Some(&holds));
+        let g = EntryGrid::new(
+            &q,
+            tets.len(),
+            |t| tetloc_core::bvh::Aabb::of_tet(tets[t as usize], pts),
+            bounds,
+            per_cell,
+            Some(&holds),
+        );
         println!(
             "jets {} tets, {} nodes, depth {}, grid {:?} ({} tets/cell), walk <= {max_steps} steps",
             tets.len(),

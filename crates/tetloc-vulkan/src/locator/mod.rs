@@ -49,8 +49,9 @@ pub struct LocatorOptions {
     /// meshes of 32M tets or more, ordered launches of generated points take at least a point
     /// per 8 tets (up to 128M points and 1/32 of the device's memory; see `launch_points`).
     pub chunk_points: usize,
-    /// soft-bvh: tets per BVH leaf: 1 (the paper's layout; the reference holds the tet id) or
-    /// 4 (up to four, fewer nodes, an index list). 1 measured faster on the H100 (NOTES.md).
+    /// soft-bvh: prims (tets, or a mixed mesh's cells) per BVH leaf: 1 (the paper's layout; the
+    /// reference holds the prim id) or 4 (up to four, fewer nodes, an index list). 1 measured
+    /// faster on the H100 (NOTES.md).
     pub leaf_size: usize,
     /// Use the exact f64 fallback of the point-in-tet test when the device has shaderFloat64;
     /// `false` forces the pure-f32 test.
@@ -66,7 +67,8 @@ pub struct LocatorOptions {
     /// exact fallback; +4 B per cell and the neighbours (16 B per tet). Implies the grid. The
     /// default: on the H100 5.1x (uniform) and 2.0x (random) faster than traversal (NOTES.md).
     pub walk_start: bool,
-    /// soft-bvh entry grid resolution: about this many tets per cell.
+    /// soft-bvh entry grid resolution: about this many tets per cell (on a mixed mesh, as many
+    /// prims as that many tets are, at least one: a grid cell per hex at 1).
     pub grid_tets_per_cell: usize,
     /// soft-bvh: decide the point-in-tet test in f32 first and enter the full test (with its
     /// f64 fallback) only when f32 cannot; same answers, no f64 state on the hot path.
@@ -194,15 +196,17 @@ pub struct VulkanLocator {
     dev: Device,
 }
 
-/// The mesh's vertices and tets on the device (split over buffers when large), and for
-/// higher-order tets their other nodes and the shape functions' lattice (high_order.glsl).
-struct MeshOnDevice {
+/// The mesh's vertices and tets on the device (split over buffers when large), for
+/// higher-order tets their other nodes and the shape functions' lattice (high_order.glsl), and
+/// for a kernel that takes one box a cell of a mixed mesh the cells' first tets.
+pub(crate) struct MeshOnDevice {
     points: Split,
     tets: Split,
     /// Bits a field of the packed tets (`crate::packed`; 0: u32x4 tets).
     tet_bits: u32,
     high_order: Option<HighOrder>,
-    /// A mixed mesh's `Cells::first_tets` (the kernels with one box a cell read it).
+    /// `Cells::first_tets` (mesh.glsl `tl_prim_tets`): present when the kernel takes one box
+    /// a cell (`KernelDef::cell_boxes`) and the mesh has cells; sets `CELL_BOXES`.
     cell_tets: Option<Buffer>,
 }
 
@@ -268,19 +272,12 @@ impl VulkanLocator {
         let mut dev = Device::new(&ctx, staging, opts.max_buffer_bytes)?;
         let t_upload = Instant::now();
         let pack = opts.pack_ids.then_some(opts.pack_min_bits);
-        let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, kernel.needs_ray_tracing(), pack)?;
+        let def = kernel.def();
+        let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, def.ray_tracing, pack, def.cell_boxes)?;
         let mut stages = vec![("mesh upload".to_string(), t_upload.elapsed().as_secs_f64())];
         let f64 = opts.float64 && ctx.info().float64;
         let mesh_bindings = mesh_on_device.bindings(dev.unbound());
-        let inputs = Inputs {
-            mesh: &mesh,
-            points: &mesh_on_device.points,
-            tets: &mesh_on_device.tets,
-            tet_bits: mesh_on_device.tet_bits,
-            mesh_bindings: &mesh_bindings,
-            opts: &opts,
-            f64,
-        };
+        let inputs = mesh_on_device.inputs(&mesh, &mesh_bindings, &opts, f64);
         let mut plan = (kernel.def().plan)(&mut dev, &inputs)?;
         stages.append(&mut plan.build_stages);
         let desc = Descriptors::new(&ctx, &Self::locate_bindings(&dev, &mesh_on_device, &plan), plan.locate.stages())?;
@@ -527,7 +524,8 @@ impl VulkanLocator {
                     bindings.push(Binding::buffer(B_QUERIES, &queries));
                     // The keys pass never generates grids (they are not ordered).
                     bindings.push(Binding::buffer(B_GRID_AXES, self.dev.unbound()));
-                    let tet_first = self.opts.random_in_tet_order.unwrap_or_else(|| random_reads_pass_knee(&self.mesh));
+                    let past_knee = self.mesh_on_device.point_and_tet_bytes() >= TET_ORDER_MIN_BYTES;
+                    let tet_first = self.opts.random_in_tet_order.unwrap_or(past_knee);
                     let o = Ordering::new(&mut self.dev, n, &bindings, tet_first)?;
                     self.launcher
                         .desc
@@ -707,17 +705,13 @@ fn launch_points(chunk: usize, n_tets: usize, ordered: bool, memory_bytes: u64) 
     chunk.max((n_tets / TETS_A_LAUNCH_POINT).min(GROWN_LAUNCH_MAX).min(by_memory))
 }
 
-/// Bytes of tets and vertices from which making the paper's random points (a random tet and
-/// its vertices a point) goes in tet order (`LocatorOptions::random_in_tet_order`): half the
-/// H200's address-translation knee (16 GiB, NOTES.md), since the counting sort costs more than
-/// it saves below it. Measured on jets, random rate off / on: 62M tets (1.1 GB) 2.48 / 1.91
-/// G/s, 250M (4.6 GB) 1.94 / 1.75, 1B (18.4 GB) 0.06 / 1.50 (BENCHMARKS.md).
+/// Bytes of tets and vertices (as uploaded) from which the paper's random points (a random
+/// tet and its vertices a point) are made in tet order (`LocatorOptions::random_in_tet_order`):
+/// half the H200's address-translation knee (16 GiB, NOTES.md), since below it the counting
+/// sort costs more than it saves. Measured on jets (BENCHMARKS.md), random rate off / on:
+/// 62M tets (1.1 GB) 2.57 / 1.91 G/s, 250M (4.6 GB) 1.97 / 1.75, 500M (9.2 GB) 0.63 / 1.67,
+/// 1B (18.4 GB) 0.06 / 1.50.
 const TET_ORDER_MIN_BYTES: u64 = 8 << 30;
-
-/// Whether making random points reads more of the mesh than [`TET_ORDER_MIN_BYTES`].
-fn random_reads_pass_knee(mesh: &Mesh) -> bool {
-    16 * mesh.n_tets() as u64 + 12 * mesh.points.len() as u64 >= TET_ORDER_MIN_BYTES
-}
 
 /// Generated samples are numbered by a u32 global index in the kernels.
 fn check_generated_count(n: usize) -> VkResult<()> {
@@ -770,8 +764,14 @@ impl MeshOnDevice {
     /// Uploads vertices and tets; `build_input`: the vertices are also an
     /// acceleration-structure build input (the rt kernels' triangles index them); `pack`: the
     /// tets' vertex ids in as many bits as the vertex count needs (at least the bits given),
-    /// where that fits one buffer.
-    fn upload(dev: &mut Device, mesh: &Mesh, build_input: bool, pack: Option<u32>) -> VkResult<MeshOnDevice> {
+    /// where that fits one buffer; `cell_boxes`: the kernel takes one box a cell.
+    pub(crate) fn upload(
+        dev: &mut Device,
+        mesh: &Mesh,
+        build_input: bool,
+        pack: Option<u32>,
+        cell_boxes: bool,
+    ) -> VkResult<MeshOnDevice> {
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let mut point_usage = storage;
         if build_input {
@@ -809,15 +809,35 @@ impl MeshOnDevice {
             }
         };
         let cell_tets = match &mesh.cells {
-            None => None,
-            Some(c) => {
+            Some(c) if cell_boxes => {
                 Some(dev.upload("cells' first tets", MemKind::Mesh, storage, bytemuck::cast_slice(&c.first_tets()))?)
             }
+            _ => None,
         };
         Ok(MeshOnDevice { points, tets, tet_bits, high_order, cell_tets })
     }
 
-    fn bindings(&self, unbound: &Buffer) -> Vec<Binding> {
+    /// What a kernel's plan builds from.
+    pub(crate) fn inputs<'a>(
+        &'a self,
+        mesh: &'a Arc<Mesh>,
+        mesh_bindings: &'a [Binding],
+        opts: &'a LocatorOptions,
+        f64: bool,
+    ) -> Inputs<'a> {
+        Inputs {
+            mesh,
+            points: &self.points,
+            tets: &self.tets,
+            tet_bits: self.tet_bits,
+            mesh_bindings,
+            opts,
+            f64,
+            cell_boxes: self.cell_tets.is_some(),
+        }
+    }
+
+    pub(crate) fn bindings(&self, unbound: &Buffer) -> Vec<Binding> {
         let mut b = Binding::split(B_POINTS, B_POINTS_HI, Some(&self.points), unbound).to_vec();
         b.extend(Binding::split(B_TETS, B_TETS_HI, Some(&self.tets), unbound));
         let ho = self.high_order.as_ref();
@@ -827,12 +847,18 @@ impl MeshOnDevice {
         b
     }
 
-    /// The higher-order specialization constants (linear tets: the defaults).
+    /// The higher-order and cell-box specialization constants (linear tets: the defaults).
     fn spec(&self, spec: Spec) -> Spec {
+        let spec = spec.set(sc::CELL_BOXES, self.cell_tets.is_some() as u32);
         match &self.high_order {
             None => spec,
             Some(h) => spec.set(sc::HO_NODES, h.spec.0).set(sc::HO_ORDER, h.spec.1).set(sc::HO_BEZIER, h.spec.2 as u32),
         }
+    }
+
+    /// Bytes of the vertices and tets as uploaded: what making the paper's random points reads.
+    fn point_and_tet_bytes(&self) -> u64 {
+        self.points.parts.iter().chain(&self.tets.parts).map(|b| b.size).sum()
     }
 }
 

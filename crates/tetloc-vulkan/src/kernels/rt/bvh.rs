@@ -5,19 +5,23 @@
 //! rt_bvh.rchit).
 
 use super::{Geometry, RtKernel, OPAQUE, TERMINATE_ON_FIRST_HIT};
-use crate::kernels::{extent, n_prims, prim_box, KernelDef, Ray};
+use crate::kernels::{extent, prim_box, prim_boxes, KernelDef, Ray};
 use crate::shaders;
 use rayon::prelude::*;
 use tetloc_core::bvh::Aabb;
 
-pub(crate) const KERNEL: KernelDef =
-    KernelDef { name: "rt-bvh", ray_tracing: true, plan: |dev, input| super::plan(&RT_BVH, dev, input) };
+pub(crate) const KERNEL: KernelDef = KernelDef {
+    name: "rt-bvh",
+    ray_tracing: true,
+    cell_boxes: true,
+    plan: |dev, input| super::plan(&RT_BVH, dev, input),
+};
 
 const RT_BVH: RtKernel = RtKernel {
     geometry: Geometry::Boxes,
     centres: |mesh| match mesh.cells {
         None => super::tet_centres(mesh),
-        Some(_) => (0..n_prims(mesh) as u32).into_par_iter().map(|c| prim_box(mesh, c).centre()).collect(),
+        Some(_) => prim_boxes(mesh).iter().map(Aabb::centre).collect(),
     },
     prims_per_item: 1,
     input_bytes: std::mem::size_of::<Aabb>(),
@@ -34,7 +38,6 @@ const RT_BVH: RtKernel = RtKernel {
     },
     // The prim (tet, or cell) of each box.
     table: |_, order| bytemuck::cast_slice(order).to_vec(),
-    boxes_per_cell: true,
     walks: false,
     ray_flags: OPAQUE | TERMINATE_ON_FIRST_HIT,
     retry_on_miss: false,

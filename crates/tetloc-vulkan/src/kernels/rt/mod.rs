@@ -38,18 +38,17 @@ pub(crate) enum Geometry {
 /// One rt kernel: what it puts into the acceleration structures and how its rays find a tet.
 pub(crate) struct RtKernel {
     pub geometry: Geometry,
-    /// The items (tets or faces): their centres, which order them (Morton).
+    /// The items (tets, faces, or a mixed mesh's cells): their centres, which order them
+    /// (Morton).
     pub centres: fn(&Mesh) -> Vec<Vec3>,
     /// Primitives per item, and build-input bytes per item.
     pub prims_per_item: usize,
     pub input_bytes: usize,
     /// The build input of items (in this order).
     pub input: fn(&Mesh, &[u32]) -> Vec<u8>,
-    /// The primitive table (`B_PRIMS`) of all items in order: how a hit finds its tet.
+    /// The primitive table (`B_PRIMS`) of all items in order: how a hit finds its tet (or the
+    /// cell whose tets it tests).
     pub table: fn(&Mesh, &[u32]) -> Vec<u8>,
-    /// On a mixed mesh, the items are its cells (one box each) rather than the decomposition's
-    /// tets, and the table holds each cell's tets (CELL_BOXES).
-    pub boxes_per_cell: bool,
     /// The hit shader walks through tet neighbours (to correct a hit off by rounding).
     pub walks: bool,
     /// Ray flags (SPIR-V RayFlags), and whether a ray that finds nothing is retried in the
@@ -124,8 +123,7 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
     let spec = Spec::default()
         .set(sc::WALK_MAX, WALK_MAX as u32)
         .set(sc::RAY_FLAGS, k.ray_flags)
-        .set(sc::RETRY_ON_MISS, k.retry_on_miss as u32)
-        .set(sc::CELL_BOXES, (k.boxes_per_cell && mesh.cells.is_some()) as u32);
+        .set(sc::RETRY_ON_MISS, k.retry_on_miss as u32);
     let program = |raygen| Program::RayTracing {
         raygen,
         miss: shaders::RT_RMISS,

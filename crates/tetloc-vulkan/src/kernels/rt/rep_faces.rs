@@ -8,8 +8,12 @@ use crate::kernels::KernelDef;
 use crate::shaders;
 use rayon::prelude::*;
 
-pub(crate) const KERNEL: KernelDef =
-    KernelDef { name: "rt-rep-faces", ray_tracing: true, plan: |dev, input| super::plan(&RT_REP_FACES, dev, input) };
+pub(crate) const KERNEL: KernelDef = KernelDef {
+    name: "rt-rep-faces",
+    ray_tracing: true,
+    cell_boxes: false,
+    plan: |dev, input| super::plan(&RT_REP_FACES, dev, input),
+};
 
 const RT_REP_FACES: RtKernel = RtKernel {
     geometry: Geometry::Triangles,
@@ -22,7 +26,6 @@ const RT_REP_FACES: RtKernel = RtKernel {
     },
     // The tet of each group of four triangles.
     table: |_, order| bytemuck::cast_slice(order).to_vec(),
-    boxes_per_cell: false,
     walks: true,
     ray_flags: OPAQUE | CULL_BACK_FACING,
     retry_on_miss: true,

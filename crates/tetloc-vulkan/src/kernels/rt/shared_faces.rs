@@ -12,6 +12,7 @@ use tetloc_core::geom::Vec3;
 pub(crate) const KERNEL: KernelDef = KernelDef {
     name: "rt-shared-faces",
     ray_tracing: true,
+    cell_boxes: false,
     plan: |dev, input| super::plan(&RT_SHARED_FACES, dev, input),
 };
 
@@ -41,7 +42,6 @@ const RT_SHARED_FACES: RtKernel = RtKernel {
             order.par_iter().map(|&f| [faces[f as usize].front, faces[f as usize].back]).collect();
         bytemuck::cast_slice(&sides).to_vec()
     },
-    boxes_per_cell: false,
     walks: true,
     ray_flags: OPAQUE,
     retry_on_miss: true,
