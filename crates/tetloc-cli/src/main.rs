@@ -297,10 +297,17 @@ fn run(cli: Cli) -> Result<()> {
             common,
         } => {
             let opts = common.opts()?;
+            let read_start = std::time::Instant::now();
             let m = match trace {
                 Some(_) => mesh_arg::load_with_flow(&mesh, common.format.as_deref(), common.seed)?,
                 None => mesh_arg::load(&mesh, common.format.as_deref(), common.seed)?,
             };
+            // A file's read rate, so that loading is measured next to the kernels (issue 12).
+            if let (false, Ok(meta)) = (common.quiet, std::fs::metadata(&mesh)) {
+                let secs = read_start.elapsed().as_secs_f64();
+                let mb = meta.len() as f64 / 1e6;
+                eprintln!("mesh read: {mb:.0} MB in {secs:.2} s ({:.0} MB/s)", mb / secs);
+            }
             if let Some(f) = &field {
                 m.field(f)?;
             }
