@@ -27,7 +27,7 @@ use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
 const CPU_CHUNK: usize = 1 << 20;
 
 /// The `**options` of `tetloc.Locator` this version knows, and those that are planned.
-const KNOWN_OPTIONS: &str = "tolerance, split, compact, precision";
+const KNOWN_OPTIONS: &str = "tolerance, split, compact, precision, deferred";
 const PLANNED_OPTIONS: [&str; 0] = [];
 
 pub(crate) type Backend = Box<dyn BatchLocator + Send>;
@@ -71,12 +71,23 @@ pub struct PyLocator {
     precision: Precision,
 }
 
-/// The Vulkan options from `**options`; unknown names are a `TypeError` as for any keyword.
-fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOptions, Tolerance, Precision)> {
+/// What `**options` asks for, past the backend's name.
+#[derive(Default)]
+struct Options {
+    vulkan: LocatorOptions,
+    tolerance: Tolerance,
+    precision: Precision,
+    /// cpu: the search is built on first need (a resample's grid may need none).
+    deferred: bool,
+}
+
+/// The options from `**options`; unknown names are a `TypeError` as for any keyword.
+fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
     let mut opts = LocatorOptions::default();
     let mut tolerance = Tolerance::default();
     let mut precision = Precision::default();
-    let Some(options) = options else { return Ok((opts, tolerance, precision)) };
+    let mut deferred = false;
+    let Some(options) = options else { return Ok(Options::default()) };
     for (key, value) in options.iter() {
         let key: String = key.extract()?;
         match key.as_str() {
@@ -111,6 +122,11 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOption
                     .map_err(|_| PyValueError::new_err(format!("precision: expected 'f32' or 'f64', got {value}")))?;
                 precision = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
             }
+            "deferred" => {
+                deferred = value
+                    .extract::<bool>()
+                    .map_err(|_| PyTypeError::new_err(format!("deferred: expected True or False, got {value}")))?
+            }
             "compact" => {
                 opts.compact = value
                     .extract::<bool>()
@@ -128,24 +144,31 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<(LocatorOption
             }
         }
     }
-    Ok((opts, tolerance, precision))
+    Ok(Options { vulkan: opts, tolerance, precision, deferred })
 }
 
-fn build_cpu(mesh: Arc<Mesh>, stages: &Stages<Built>) -> Built {
+/// The CPU backend, built now or (`deferred`) on first need: then its memory counts only
+/// the mesh, and the build is timed inside the first call that needs it.
+fn build_cpu(mesh: Arc<Mesh>, deferred: bool, stages: &Stages<Built>) -> Built {
     let t0 = Instant::now();
     let meter = PeakMeter::start();
-    stages.enter("face neighbours");
-    let neighbors = mesh.neighbors().len();
-    stages.enter("BVH");
-    let loc = CpuLocator::new(mesh.clone());
     let size = |n: usize, each: usize| (n * each) as u64;
-    let items = BTreeMap::from([
+    let mut items = BTreeMap::from([
         ("mesh points".to_string(), size(mesh.points.len(), 12)),
         ("mesh tets".to_string(), size(mesh.n_tets(), 16)),
-        ("bvh nodes".to_string(), size(loc.bvh().nodes.len(), std::mem::size_of::<BvhNode>())),
-        ("bvh prims".to_string(), size(loc.bvh().prim_ids.len(), 4)),
-        ("tet neighbours".to_string(), size(neighbors, 16)),
     ]);
+    let loc = if deferred {
+        CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast)
+    } else {
+        stages.enter("face neighbours");
+        let neighbors = mesh.neighbors().len();
+        stages.enter("BVH");
+        let loc = CpuLocator::new(mesh.clone());
+        items.insert("bvh nodes".to_string(), size(loc.bvh().nodes.len(), std::mem::size_of::<BvhNode>()));
+        items.insert("bvh prims".to_string(), size(loc.bvh().prim_ids.len(), 4));
+        items.insert("tet neighbours".to_string(), size(neighbors, 16));
+        loc
+    };
     let final_bytes: u64 = items.values().sum();
     let mesh_bytes = items["mesh points"] + items["mesh tets"];
     let peak_bytes = final_bytes.max(mesh_bytes + meter.peak_since() as u64);
@@ -263,7 +286,7 @@ impl PyLocator {
         progress: Option<Bound<'_, PyAny>>,
     ) -> PyResult<PyLocator> {
         let choice = Choice::parse(backend)?;
-        let (opts, tolerance, precision) = parse_options(options)?;
+        let Options { vulkan: opts, tolerance, precision, deferred } = parse_options(options)?;
         let mesh = mesh.mesh.clone();
         let mesh_arc = mesh.clone();
         let built = background::run(py, "building a locator", progress.as_ref(), move |stages| {
@@ -276,7 +299,7 @@ impl PyLocator {
             };
             let built = match choice {
                 Choice::Gpu(kernel) => build_gpu(kernel, device, mesh, opts, stages)?,
-                _ => build_cpu(mesh, stages),
+                _ => build_cpu(mesh, deferred, stages),
             };
             Ok(Built { note, ..built })
         })?;

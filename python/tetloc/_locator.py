@@ -41,6 +41,9 @@ class Locator:
         default True). ``precision``: ``"f32"`` (default) or ``"f64"``: with ``"f64"``, float64
         points get float64 values computed on the host in float64 from the backend's cells
         (the CPU's values, bit for bit, on every backend); a bad value raises ``ValueError``.
+        ``deferred=True`` (cpu): build the search (BVH, face neighbours) when a call first
+        needs it, not now: ``resample_to_image`` on the CPU rasterizes the tets and needs it
+        only for grid points on faces (the tie rule); other backends ignore it.
         Unknown options raise ``TypeError``.
 
     Points are any array-like of shape (K, 3) (or (..., 3)), float32 or float64, C or

@@ -41,10 +41,10 @@ def _mesh_of(mesh: MeshLike, arg: str) -> Mesh:
     raise TypeError(f"{arg}: expected a tetloc.Mesh, a tetloc.Locator or a pyvista dataset, got {type(mesh).__name__}")
 
 
-def _locator(mesh: MeshLike, backend: str, device: Optional[int], arg: str) -> Locator:
+def _locator(mesh: MeshLike, backend: str, device: Optional[int], arg: str, **options: Any) -> Locator:
     if isinstance(mesh, Locator):
         return mesh
-    return Locator(_mesh_of(mesh, arg), backend=backend, device=device)
+    return Locator(_mesh_of(mesh, arg), backend=backend, device=device, **options)
 
 
 def _progress(progress: Any, title: str) -> Any:
@@ -105,7 +105,8 @@ def resample_to_image(
         if len(b) != 6:
             raise ValueError(f"bounds: expected six numbers (xmin, xmax, ymin, ymax, zmin, zmax), got {len(b)}")
     pyvista_out = _is_pyvista(mesh) if as_pyvista is None else as_pyvista
-    loc = _locator(mesh, backend, device, "mesh")
+    # The CPU rasterizes the grid: its search is built only if a grid point needs it.
+    loc = _locator(mesh, backend, device, "mesh", deferred=True)
     arrays, mask, origin, spacing = _tetloc.resample_to_image(
         loc._raw, names, d, b, _progress(progress, "tetloc resample")
     )

@@ -109,6 +109,17 @@ pub fn make(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<d
     Ok(Box::new(CellLocator::new(FiniteOnly::new(make_vulkan(kernel, mesh, opts)?), mesh.clone())))
 }
 
+/// [`make`] for a resample: on the CPU the search is built only if the grid needs it (its
+/// grid path rasterizes the tets; only grid points on faces need the search's tie rule).
+pub fn make_for_grid(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<dyn BatchLocator>> {
+    let name = if name == "auto" { auto_choice(opts)? } else { name.to_string() };
+    if name != CPU {
+        return make(&name, mesh, opts);
+    }
+    let cpu = CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast);
+    Ok(Box::new(CellLocator::new(FiniteOnly::new(cpu), mesh.clone())))
+}
+
 pub fn make_vulkan(kernel: Kernel, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<VulkanLocator> {
     let ctx = vulkan(opts.device).map_err(|e| anyhow::anyhow!("{}: no Vulkan device: {e}", kernel.name()))?;
     if kernel.needs_ray_tracing() && !ctx.info().ray_tracing {

@@ -74,7 +74,7 @@ pub fn run(a: &ResampleArgs) -> Result<()> {
     let opts = a.common.opts()?;
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
     let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
-    let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
+    let mut loc = progress::with_spinner("building the locator", || backend::make_for_grid(&name, &m, &opts))?;
     execute(a, &plan, &m, m.file_bounds(), loc.as_mut())
 }
 

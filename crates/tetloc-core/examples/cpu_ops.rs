@@ -39,20 +39,24 @@ fn main() -> tetloc_core::Result<()> {
             tetloc_core::bvh::Bvh::build(&m.points, &m.tets, tetloc_core::bvh::BuildPreset::Fast).nodes.len()
         });
     }
-    let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
     let groups = fields::groups(&mesh);
     if only.contains('r') {
         let (lo, hi) = mesh.file_bounds();
         let grid = ImageGrid::over_bounds(lo, hi, [dims; 3])?;
         let mut valid = 0usize;
-        timed(&format!("resample {dims}^3, every field"), || {
+        // A locator that builds only if some grid point needs its search (the grid's own
+        // path rasterizes the tets).
+        let mut loc = CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast);
+        timed(&format!("resample {dims}^3, every field (no build before)"), || {
             resample::resample(&mut loc, &grid, &groups, 1 << 20, |ids, _| {
                 valid += ids.iter().filter(|&&i| i >= 0).count();
                 Ok(())
             })
         })?;
-        eprintln!("  {valid} inside");
+        eprintln!("  {valid} inside; the search was built: {}", loc.index_built());
     }
+    let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
+    {}
     if let (true, Some(p)) = (only.contains('p'), args.get(2)) {
         let target = io::read_mesh(Path::new(p), None)?;
         let probed = timed(&format!("probe {} points", target.points.len()), || {

@@ -7,14 +7,17 @@
 //! the order: a point strictly inside a tet has exactly one containing tet, which the walk
 //! and the BVH agree on, and a point on a face always gets the BVH's answer.
 
+use super::grid_raster::{self, Cell, GridRaster};
 use super::{check_lengths, BatchLocator, OUTSIDE};
 use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
 use crate::geom::predicates::Query;
 use crate::geom::{self, Bary, TetTest, Vec3};
 use crate::mesh::Mesh;
+use crate::ops::ImageGrid;
 use rayon::prelude::*;
-use std::sync::Arc;
+use std::ops::Range;
+use std::sync::{Arc, OnceLock};
 
 /// Points handed to one rayon task: large enough to amortise scheduling, small enough to balance.
 const CHUNK: usize = 4096;
@@ -23,6 +26,15 @@ const MAX_WALK: usize = 24;
 
 pub struct CpuLocator {
     mesh: Arc<Mesh>,
+    preset: BuildPreset,
+    /// The BVH and the occupancy grid: built by [`Self::new`], or on first need by
+    /// [`Self::deferred`] (a resample on the CPU needs neither: [`GridRaster`]).
+    index: OnceLock<Index>,
+    /// The grid `sample_grid` rasterized last.
+    raster: Option<GridRaster>,
+}
+
+struct Index {
     bvh: Bvh,
     occupancy: Occupancy,
 }
@@ -33,18 +45,40 @@ impl CpuLocator {
     }
 
     pub fn with_preset(mesh: Arc<Mesh>, preset: BuildPreset) -> CpuLocator {
-        let (bvh, occupancy) = rayon::join(
-            || Bvh::build(&mesh.points, &mesh.tets, preset),
-            || {
-                mesh.neighbors(); // build the adjacency now, not inside the first batch
-                Occupancy::build(&mesh)
-            },
-        );
-        CpuLocator { mesh, bvh, occupancy }
+        let loc = Self::deferred(mesh, preset);
+        loc.index();
+        loc
+    }
+
+    /// A locator that builds its BVH, occupancy grid and face neighbours when a query first
+    /// needs them: nothing is built for a resample whose grid points all fall strictly
+    /// inside one tet or outside. The batch calls build before they go parallel; a caller of
+    /// [`Self::locate_point`] or [`Self::locate_from`] from parallel code builds first
+    /// ([`Self::bvh`]), so that no rayon task waits on a build its own thread is running.
+    pub fn deferred(mesh: Arc<Mesh>, preset: BuildPreset) -> CpuLocator {
+        CpuLocator { mesh, preset, index: OnceLock::new(), raster: None }
+    }
+
+    fn index(&self) -> &Index {
+        self.index.get_or_init(|| {
+            let (bvh, occupancy) = rayon::join(
+                || Bvh::build(&self.mesh.points, &self.mesh.tets, self.preset),
+                || {
+                    self.mesh.neighbors(); // build the adjacency now, not inside the first batch
+                    Occupancy::build(&self.mesh)
+                },
+            );
+            Index { bvh, occupancy }
+        })
     }
 
     pub fn bvh(&self) -> &Bvh {
-        &self.bvh
+        &self.index().bvh
+    }
+
+    /// Whether the BVH and occupancy grid exist yet.
+    pub fn index_built(&self) -> bool {
+        self.index.get().is_some()
     }
 
     pub fn mesh(&self) -> &Arc<Mesh> {
@@ -79,8 +113,9 @@ impl CpuLocator {
     /// whenever the file's box holds the file's point: rounding is monotone).
     fn find(&self, q: &Query) -> Option<(u32, Bary)> {
         let p = q.local;
-        let nodes = &self.bvh.nodes;
-        if nodes.is_empty() || !nodes[0].contains(p) || !self.occupancy.may_hold(p) {
+        let Index { bvh, occupancy } = self.index();
+        let nodes = &bvh.nodes;
+        if nodes.is_empty() || !nodes[0].contains(p) || !occupancy.may_hold(p) {
             return None;
         }
         let mut stack = [0u32; 64];
@@ -89,7 +124,7 @@ impl CpuLocator {
         loop {
             let n = &nodes[i as usize];
             if n.is_leaf() {
-                for &t in &self.bvh.prim_ids[n.first as usize..(n.first + n.count) as usize] {
+                for &t in &bvh.prim_ids[n.first as usize..(n.first + n.count) as usize] {
                     if let TetTest::Inside(b) = self.test(t, q) {
                         return Some((t, b));
                     }
@@ -171,6 +206,7 @@ impl CpuLocator {
         out: &mut [T],
         f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
     ) {
+        self.index();
         let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<T> {
             let mut hint: Option<u32> = None;
             idx.map(|i| {
@@ -310,6 +346,7 @@ impl CpuLocator {
     ) -> Result<impl Fn(Vec3, &mut Option<u32>) -> Option<[f32; 3]> + Sync + '_> {
         let [x, y, z] = components.map(|c| self.mesh.field(c));
         let xyz = [x?, y?, z?];
+        self.index();
         Ok(move |p: Vec3, hint: &mut Option<u32>| {
             let found = self.locate_from(p, hint)?;
             let mut v = [0f32; 3];
@@ -370,6 +407,56 @@ impl BatchLocator for CpuLocator {
         let exact = self.mesh.exact();
         self.locate_batch_of(points, |p| exact.query(*p), ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
         self.mesh.values_at_ids64(points, ids, &fields, values);
+        Ok(())
+    }
+
+    /// The grid's points located by rasterizing the tets ([`GridRaster`]), the ties by the
+    /// search: the same answers as [`Self::sample_many`] at the grid's points, bit for bit.
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()> {
+        check_lengths(range.len(), ids.len())?;
+        check_lengths(range.len() * fields.len(), values.len())?;
+        if self.mesh.n_tets() >= grid_raster::MAX_TETS {
+            return self.sample_many(&super::grid_points(grid, range), fields, ids, values);
+        }
+        let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
+        let mut raster = match self.raster.take() {
+            Some(r) if r.grid() == grid => r,
+            _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS),
+        };
+        let mut found = vec![None; range.len()];
+        let mut i = range.start;
+        while i < range.end {
+            let end = raster.hold(&self.mesh, i).end.min(range.end);
+            if raster.tied() {
+                // Built here, not inside the parallel loop (where a rayon task could be run
+                // by the thread that is building it).
+                self.index();
+            }
+            let raster = &raster;
+            found[i - range.start..end - range.start].par_iter_mut().zip(i..end).for_each(|(out, k)| {
+                *out = match raster.cell(k) {
+                    Cell::Outside => None,
+                    Cell::Inside(t, b) => Some((t, b)),
+                    // The search's order is the tie rule.
+                    Cell::Tie => self.find(&self.query(grid.point(k))),
+                };
+            });
+            i = end;
+        }
+        self.raster = Some(raster);
+        ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
+        if !fields.is_empty() {
+            values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
+                self.mesh.values_at(&fields, f.map(|(t, b)| (t as usize, b)), out);
+            });
+        }
         Ok(())
     }
 }
@@ -446,7 +533,7 @@ mod tests {
     fn occupancy_keeps_every_point_of_a_tet() {
         let m = Arc::new(Mesh::new(generate(Shape::Fusion, 20_000, 3), "fusion").unwrap());
         let loc = CpuLocator::new(m.clone());
-        let occ = &loc.occupancy;
+        let occ = &loc.index().occupancy;
         for &t in &m.tets {
             let v = t.map(|i| m.points[i as usize]);
             let mid = |a: Vec3, b: Vec3| -> Vec3 { std::array::from_fn(|k| 0.5 * (a[k] + b[k])) };

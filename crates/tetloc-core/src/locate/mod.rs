@@ -8,6 +8,7 @@
 mod cells;
 pub mod certify;
 mod cpu;
+mod grid_raster;
 pub mod precision;
 #[cfg(test)]
 use cpu::is_coherent;
