@@ -158,6 +158,8 @@ def test_unknown_backend_device_and_options(grid_mesh):
         tetloc.Locator(grid_mesh, precision="bogus")
     with pytest.raises(ValueError, match="split: expected a positive number"):
         tetloc.Locator(grid_mesh, split=0)
+    with pytest.raises(TypeError, match="deferred: expected True or False"):
+        tetloc.Locator(grid_mesh, backend="cpu", deferred="later")
     with pytest.raises(TypeError, match="expected a tetloc.Mesh"):
         tetloc.Locator("mesh.vtu")
 

@@ -74,6 +74,20 @@ def test_resample_matches_the_cli_and_vtk(cli, data_dir, tmp_path):
     assert close.mean() > 0.99
 
 
+def test_a_deferred_cpu_locator_answers_as_one_built_now(grid_mesh):
+    """deferred=True builds the search on first need: the same ids and values as a locator
+    built up front, for a grid (rasterized, the Kuhn grid's faces left to the search) and
+    for points."""
+    eager = tetloc.Locator(grid_mesh, backend="cpu")
+    lazy = tetloc.Locator(grid_mesh, backend="cpu", deferred=True)
+    for dims, bounds in [((9, 7, 5), None), ((13, 13, 13), (0, 6, 0, 6, 0, 6))]:
+        a = tetloc.resample_to_image(eager, "f", dims=dims, bounds=bounds)
+        b = tetloc.resample_to_image(lazy, "f", dims=dims, bounds=bounds)
+        np.testing.assert_array_equal(a, b)
+    pts = np.random.default_rng(3).uniform(-0.5, 6.5, (5000, 3)).astype(np.float32)
+    np.testing.assert_array_equal(eager.locate(pts), tetloc.Locator(grid_mesh, backend="cpu", deferred=True).locate(pts))
+
+
 def test_resample_to_pyvista(swirl_mesh):
     pv = need("pyvista")
     img = tetloc.resample_to_image(swirl_mesh, ["f", "v"], dims=(4, 4, 4), backend="cpu", as_pyvista=True)
