@@ -151,14 +151,18 @@ pub fn resample_to_image<'py>(
         run_job(py, "resampling", n, progress.as_ref(), |ticker| {
             let mut at = 0;
             resample::resample(loc, &grid, &groups, TICK_POINTS, |ids, vals| {
-                for (i, &id) in ids.iter().enumerate() {
-                    mask[at + i] = u8::from(id >= 0);
-                }
+                use rayon::prelude::*;
+                let n = ids.len();
+                mask[at..at + n].par_iter_mut().zip(ids).for_each(|(m, &id)| *m = u8::from(id >= 0));
+                // Each field's components out of the chunk's rows (all fields a point), on
+                // every core: a 256³ grid of four components is 67M copies.
                 let mut offset = 0;
                 for (out, &k) in values.iter_mut().zip(&widths) {
-                    for (i, row) in vals.chunks_exact(width).enumerate() {
-                        out[(at + i) * k..(at + i + 1) * k].copy_from_slice(&row[offset..offset + k]);
-                    }
+                    out[at * k..(at + n) * k].par_chunks_mut(k).zip(vals.par_chunks_exact(width)).for_each(
+                        |(o, row)| {
+                            o.copy_from_slice(&row[offset..offset + k]);
+                        },
+                    );
                     offset += k;
                 }
                 at += ids.len();

@@ -430,7 +430,13 @@ impl BatchLocator for CpuLocator {
             Some(r) if r.grid() == grid => r,
             _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS),
         };
-        let mut found = vec![None; range.len()];
+        let answer = |raster: &GridRaster, k: usize| match raster.cell(k) {
+            Cell::Outside => None,
+            Cell::Inside(t, b) => Some((t, b)),
+            // The search's order is the tie rule.
+            Cell::Tie => self.find(&self.query(grid.point(k))),
+        };
+        let nf = fields.len();
         let mut i = range.start;
         while i < range.end {
             let end = raster.hold(&self.mesh, i).end.min(range.end);
@@ -439,24 +445,21 @@ impl BatchLocator for CpuLocator {
                 // by the thread that is building it).
                 self.index();
             }
-            let raster = &raster;
-            found[i - range.start..end - range.start].par_iter_mut().zip(i..end).for_each(|(out, k)| {
-                *out = match raster.cell(k) {
-                    Cell::Outside => None,
-                    Cell::Inside(t, b) => Some((t, b)),
-                    // The search's order is the tie rule.
-                    Cell::Tie => self.find(&self.query(grid.point(k))),
-                };
-            });
+            let (raster, part) = (&raster, i - range.start..end - range.start);
+            let ids = ids[part.clone()].par_iter_mut().zip(i..end);
+            if nf == 0 {
+                ids.for_each(|(id, k)| *id = answer(raster, k).map_or(OUTSIDE, |(t, _)| t as i32));
+            } else {
+                let values = values[part.start * nf..part.end * nf].par_chunks_mut(nf);
+                ids.zip(values).for_each(|((id, k), out)| {
+                    let found = answer(raster, k);
+                    *id = found.map_or(OUTSIDE, |(t, _)| t as i32);
+                    self.mesh.values_at(&fields, found.map(|(t, b)| (t as usize, b)), out);
+                });
+            }
             i = end;
         }
         self.raster = Some(raster);
-        ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
-        if !fields.is_empty() {
-            values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
-                self.mesh.values_at(&fields, f.map(|(t, b)| (t as usize, b)), out);
-            });
-        }
         Ok(())
     }
 }
