@@ -178,17 +178,10 @@ impl GridRaster {
         let rows = RowClip::new(v, lo, hi, self.grid.spacing[0]);
         for k in zs {
             let z = az.at[k];
-            let mut seen = false;
             for j in ys.clone() {
-                // The rows a tet meets at one z are consecutive: the first empty one after
-                // others ends them.
-                let Some((x0, x1)) = rows.x_range(ay.at[j], z) else {
-                    if seen {
-                        break;
-                    }
-                    continue;
-                };
-                seen = true;
+                // (Every row of the box: stopping at the first empty row after others would
+                // rest on the rows' convexity, which rounding does not promise.)
+                let Some((x0, x1)) = rows.x_range(ay.at[j], z) else { continue };
                 for i in xs.start.max(ax.at_or_above(x0))..xs.end.min(ax.above(x1)) {
                     self.try_point(mesh, t, tet, [i, j, k]);
                 }
