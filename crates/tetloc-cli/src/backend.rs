@@ -97,27 +97,37 @@ pub fn available(opts: &BackendOptions) -> Vec<&'static str> {
 /// answered -1 / NaN before any backend sees them; on mixed meshes the answers in the tet
 /// decomposition become cells ([`CellLocator`]).
 pub fn make(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<dyn BatchLocator>> {
-    if name == "auto" {
-        let best = auto_choice(opts)?;
-        return make(&best, mesh, opts);
-    }
-    if name == CPU {
-        return Ok(Box::new(CellLocator::new(FiniteOnly::new(CpuLocator::new(mesh.clone())), mesh.clone())));
-    }
-    let kernel: Kernel =
-        name.parse().map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto)", names().join(", ")))?;
-    Ok(Box::new(CellLocator::new(FiniteOnly::new(make_vulkan(kernel, mesh, opts)?), mesh.clone())))
+    make_with(name, mesh, opts, false)
 }
 
 /// [`make`] for a resample: on the CPU the search is built only if the grid needs it (its
 /// grid path rasterizes the tets; only grid points on faces need the search's tie rule).
 pub fn make_for_grid(name: &str, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<Box<dyn BatchLocator>> {
-    let name = if name == "auto" { auto_choice(opts)? } else { name.to_string() };
-    if name != CPU {
-        return make(&name, mesh, opts);
+    make_with(name, mesh, opts, true)
+}
+
+/// [`make`], the CPU's search built on first need when `defer_cpu_build`.
+fn make_with(
+    name: &str,
+    mesh: &Arc<Mesh>,
+    opts: &BackendOptions,
+    defer_cpu_build: bool,
+) -> Result<Box<dyn BatchLocator>> {
+    if name == "auto" {
+        return make_with(&auto_choice(opts)?, mesh, opts, defer_cpu_build);
     }
-    let cpu = CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast);
-    Ok(Box::new(CellLocator::new(FiniteOnly::new(cpu), mesh.clone())))
+    let backend: Box<dyn BatchLocator> = if name == CPU {
+        Box::new(match defer_cpu_build {
+            true => CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast),
+            false => CpuLocator::new(mesh.clone()),
+        })
+    } else {
+        let kernel: Kernel = name
+            .parse()
+            .map_err(|_| anyhow::anyhow!("unknown backend '{name}' (known: {}, auto)", names().join(", ")))?;
+        Box::new(make_vulkan(kernel, mesh, opts)?)
+    };
+    Ok(Box::new(CellLocator::new(FiniteOnly::new(backend), mesh.clone())))
 }
 
 pub fn make_vulkan(kernel: Kernel, mesh: &Arc<Mesh>, opts: &BackendOptions) -> Result<VulkanLocator> {

@@ -56,7 +56,6 @@ fn main() -> tetloc_core::Result<()> {
         eprintln!("  {valid} inside; the search was built: {}", loc.index_built());
     }
     let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
-    {}
     if let (true, Some(p)) = (only.contains('p'), args.get(2)) {
         let target = io::read_mesh(Path::new(p), None)?;
         let probed = timed(&format!("probe {} points", target.points.len()), || {

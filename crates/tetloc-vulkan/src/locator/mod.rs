@@ -278,7 +278,7 @@ impl VulkanLocator {
         let f64 = opts.float64 && ctx.info().float64;
         let mesh_bindings = mesh_on_device.bindings(dev.unbound());
         let inputs = mesh_on_device.inputs(&mesh, &mesh_bindings, &opts, f64);
-        let mut plan = (kernel.def().plan)(&mut dev, &inputs)?;
+        let mut plan = (def.plan)(&mut dev, &inputs)?;
         stages.append(&mut plan.build_stages);
         let desc = Descriptors::new(&ctx, &Self::locate_bindings(&dev, &mesh_on_device, &plan), plan.locate.stages())?;
         let (items, peak_bytes) = dev.memory();
