@@ -30,7 +30,7 @@ pub(super) fn build(boxes: Cow<[Aabb]>, preset: BuildPreset) -> Bvh {
     drop(boxes);
 
     let ctx = Ctx { codes: &codes, boxes: &sorted_boxes, max_leaf: preset.max_leaf_size() };
-    let (mut nodes, _, max_depth) = ctx.subtree(0, codes.len(), 0);
+    let (mut nodes, max_depth) = ctx.nodes();
     // Right-child links were built relative to their parent; make them absolute.
     nodes.par_iter_mut().enumerate().for_each(|(i, n)| {
         if n.count == 0 {
@@ -59,13 +59,61 @@ struct Ctx<'a> {
 const PARALLEL_MIN: usize = 16 * 1024;
 
 impl Ctx<'_> {
-    /// Builds the subtree over sorted prims `s..e` as a depth-first node list whose interior
-    /// nodes hold their right child's offset *relative to themselves*, so that subtrees built
-    /// in parallel can be concatenated without fix-ups. Returns (nodes, bounds, depth).
-    fn subtree(&self, s: usize, e: usize, depth: usize) -> (Vec<BvhNode>, Aabb, usize) {
-        let mut nodes = Vec::with_capacity(2 * (e - s) / self.max_leaf.max(1) + 1);
-        let (b, d) = self.emit(s, e, depth, &mut nodes);
-        (nodes, b, d)
+    /// Every node, depth first. The ranges below [`PARALLEL_MIN`] prims are built in
+    /// parallel, each as its own depth-first list whose interior nodes hold their right
+    /// child's offset *relative to themselves*; the nodes above them are then laid out around
+    /// those lists in one pass, so that each node is copied once. Returns (nodes, depth).
+    fn nodes(&self) -> (Vec<BvhNode>, usize) {
+        let mut ranges = Vec::new();
+        self.parallel_ranges(0, self.codes.len(), 0, &mut ranges);
+        let built: Vec<(Vec<BvhNode>, Aabb, usize)> = ranges
+            .par_iter()
+            .map(|&(s, e, depth)| {
+                let mut nodes = Vec::with_capacity(2 * (e - s) / self.max_leaf.max(1) + 1);
+                let (b, d) = self.emit(s, e, depth, &mut nodes);
+                (nodes, b, d)
+            })
+            .collect();
+        let total = built.iter().map(|b| b.0.len()).sum::<usize>() + ranges.len();
+        let mut out = Vec::with_capacity(total);
+        let (_, depth) = self.lay_out(0, self.codes.len(), &mut built.iter(), &mut out);
+        (out, depth)
+    }
+
+    /// The ranges that [`Self::lay_out`] takes whole, in depth-first order, with their depth.
+    fn parallel_ranges(&self, s: usize, e: usize, depth: usize, out: &mut Vec<(usize, usize, usize)>) {
+        if e - s < PARALLEL_MIN {
+            out.push((s, e, depth));
+        } else {
+            let m = self.split(s, e);
+            self.parallel_ranges(s, m, depth + 1, out);
+            self.parallel_ranges(m, e, depth + 1, out);
+        }
+    }
+
+    /// The nodes above the ranges of [`Self::parallel_ranges`] (the same recursion), with
+    /// each range's list (`built`, in the same order) copied in where it falls.
+    fn lay_out<'b>(
+        &self,
+        s: usize,
+        e: usize,
+        built: &mut impl Iterator<Item = &'b (Vec<BvhNode>, Aabb, usize)>,
+        out: &mut Vec<BvhNode>,
+    ) -> (Aabb, usize) {
+        if e - s < PARALLEL_MIN {
+            let (nodes, b, d) = built.next().expect("one built list per range");
+            out.extend_from_slice(nodes);
+            return (*b, *d);
+        }
+        let me = out.len();
+        out.push(BvhNode::default());
+        let m = self.split(s, e);
+        let (lb, ld) = self.lay_out(s, m, built, out);
+        let rel = out.len() - me;
+        let (rb, rd) = self.lay_out(m, e, built, out);
+        let b = lb.union(&rb);
+        out[me] = BvhNode { min: b.min, first: rel as u32, max: b.max, count: 0 };
+        (b, ld.max(rd))
     }
 
     fn emit(&self, s: usize, e: usize, depth: usize, out: &mut Vec<BvhNode>) -> (Aabb, usize) {
@@ -77,19 +125,10 @@ impl Ctx<'_> {
             return (b, depth);
         }
         let m = self.split(s, e);
-        let (lb, rb, rel, d) = if e - s >= PARALLEL_MIN {
-            let ((ln, lb, ld), (rn, rb, rd)) =
-                rayon::join(|| self.subtree(s, m, depth + 1), || self.subtree(m, e, depth + 1));
-            let rel = 1 + ln.len();
-            out.extend_from_slice(&ln);
-            out.extend_from_slice(&rn);
-            (lb, rb, rel, ld.max(rd))
-        } else {
-            let (lb, ld) = self.emit(s, m, depth + 1, out);
-            let rel = out.len() - me;
-            let (rb, rd) = self.emit(m, e, depth + 1, out);
-            (lb, rb, rel, ld.max(rd))
-        };
+        let (lb, ld) = self.emit(s, m, depth + 1, out);
+        let rel = out.len() - me;
+        let (rb, rd) = self.emit(m, e, depth + 1, out);
+        let d = ld.max(rd);
         let b = lb.union(&rb);
         out[me] = BvhNode { min: b.min, first: rel as u32, max: b.max, count: 0 };
         (b, d)

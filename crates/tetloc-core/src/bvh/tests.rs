@@ -4,7 +4,8 @@ use crate::test_support::grid_mesh;
 
 #[test]
 fn builds_valid_trees_for_every_preset() {
-    for n in [1, 2, 5, 12] {
+    // 20^3 cubes (48,000 tets): ranges built in parallel, then laid out together.
+    for n in [1, 2, 5, 12, 20] {
         let m = grid_mesh(n, 0.3, n as u64);
         for preset in [BuildPreset::Fast, BuildPreset::SingleTetLeaves] {
             let bvh = Bvh::build(&m.points, &m.tets, preset);
