@@ -44,13 +44,15 @@ REPO = pathlib.Path(__file__).resolve().parents[2]
 CPU_S: Dict[str, float] = {}
 
 
-def timed(f: Callable[[], object], repeats: int = 1, key: str = ""):
+def timed(f: Callable[..., object], repeats: int = 1, key: str = "", setup: Optional[Callable[[], object]] = None):
     """(best seconds over `repeats`, the last result); with `key`, the process's CPU seconds
-    (user + system, every thread) of that best run go to CPU_S[key]."""
+    (user + system, every thread) of that best run go to CPU_S[key]. With `setup`, each run
+    is `f(setup())`, setup untimed."""
     best, out = float("inf"), None
     for _ in range(repeats):
+        arg = (setup(),) if setup else ()
         t, c = time.perf_counter(), time.process_time()
-        out = f()
+        out = f(*arg)
         wall, cpu = time.perf_counter() - t, time.process_time() - c
         if wall < best:
             best = wall
@@ -154,13 +156,25 @@ def main() -> None:
         print(f"  {op}: tetloc {ours:.3f} s ({cpu:.2f} s CPU), {vtk_name} {theirs:.3f} s: {theirs / ours:.1f}x",
               file=sys.stderr)
 
-    build, _ = timed(lambda: tetloc.Locator(mesh, backend=a.backend), a.repeats)
+    # Every tetloc run gets a mesh of its own, converted untimed: a mesh keeps what a locator
+    # derives from it (the face neighbours), which VTK's filters rebuild on every run.
+    def fresh() -> "tetloc.Mesh":
+        return tetloc.Mesh.from_pyvista(grid)
+
+    # VTK likewise: a dataset keeps the point locator and cell links its filters build, so
+    # each VTK run gets a deep copy of a grid none has searched yet (made here, untimed).
+    pristine = grid.copy(deep=True)
+
+    def vtk_source():
+        return pristine.copy(deep=True)
+
+    build, _ = timed(lambda m: tetloc.Locator(m, backend=a.backend), a.repeats, setup=fresh)
     print(f"  locator build alone: {build:.3f} s", file=sys.stderr)
 
     # Resample.
     d = a.dims
-    ours, img = timed(lambda: tetloc.resample_to_image(mesh, dims=(d, d, d), backend=a.backend), a.repeats,
-                     "resample")
+    ours, img = timed(lambda m: tetloc.resample_to_image(m, dims=(d, d, d), backend=a.backend), a.repeats,
+                     "resample", fresh)
 
     def vtk_resample(share: float) -> float:
         # The same grid as tetloc's (the bounds nudged inwards by 1e-6, as UseInputBounds
@@ -171,7 +185,7 @@ def main() -> None:
         lo_b, hi_b = mid - half, mid + half
         hi_b[2] = lo_b[2] + (hi_b[2] - lo_b[2]) * (nz - 1) / max(d - 1, 1)
         f = vtk.vtkResampleToImage()
-        f.SetInputDataObject(grid)
+        f.SetInputDataObject(vtk_source())
         f.SetUseInputBounds(False)
         f.SetSamplingBounds(lo_b[0], hi_b[0], lo_b[1], hi_b[1], lo_b[2], hi_b[2])
         f.SetSamplingDimensions(d, d, nz)
@@ -186,25 +200,25 @@ def main() -> None:
     else:
         pts = rng.uniform(lo, hi, size=(a.probe_points, 3)).astype(np.float32)
         what = f"{a.probe_points} random points of the box"
-    ours, _ = timed(lambda: tetloc.probe(mesh, pts, backend=a.backend), a.repeats, "probe")
+    ours, _ = timed(lambda m: tetloc.probe(m, pts, backend=a.backend), a.repeats, "probe", fresh)
 
     def vtk_probe(share: float) -> float:
         f = vtk.vtkResampleWithDataSet()
         f.SetInputDataObject(vtk_points(pts[: max(1, round(len(pts) * share))]))
-        f.SetSourceData(grid)
+        f.SetSourceData(vtk_source())
         return timed(f.Update)[0]
 
     row("probe", f"{what}, every field", len(pts), ours, vtk_time(vtk_probe), "vtkResampleWithDataSet")
 
     # Trace: seeds at random tets' centres.
     centres = np.asarray(grid.cell_centers().points)[rng.integers(0, grid.n_cells, a.seeds)].astype(np.float32)
-    trace = lambda: tetloc.trace(mesh, "v", centres, step=step, max_steps=a.max_steps, backend=a.backend)  # noqa: E731
-    ours, lines = timed(trace, a.repeats, "trace")
+    trace = lambda m: tetloc.trace(m, "v", centres, step=step, max_steps=a.max_steps, backend=a.backend)  # noqa: E731
+    ours, lines = timed(trace, a.repeats, "trace", fresh)
     tracer = {}
 
     def vtk_trace(share: float) -> float:
         t = vtk.vtkStreamTracer()
-        t.SetInputData(grid)
+        t.SetInputData(vtk_source())
         tracer["seeds"] = max(1, round(a.seeds * share))
         t.SetSourceData(vtk_points(centres[: tracer["seeds"]]))
         t.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")

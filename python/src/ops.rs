@@ -292,14 +292,17 @@ pub fn trace_lines<'py>(
     out.set_item("points", points)?;
     let offsets: Vec<i64> = std::iter::once(0).chain(arrays.ends.iter().map(|&e| e as i64)).collect();
     out.set_item("offsets", PyArray1::from_vec(py, offsets))?;
-    out.set_item("IntegrationTime", PyArray1::from_slice(py, &arrays.time))?;
-    out.set_item("ReasonForTermination", PyArray1::from_slice(py, &arrays.reasons))?;
-    out.set_item("SeedIds", PyArray1::from_slice(py, &arrays.seeds))?;
+    // The other arrays move into numpy as they are (no copy: fresh pages cost more than
+    // the copy itself here).
+    out.set_item("IntegrationTime", PyArray1::from_vec(py, arrays.time))?;
+    out.set_item("ReasonForTermination", PyArray1::from_vec(py, arrays.reasons))?;
+    out.set_item("SeedIds", PyArray1::from_vec(py, arrays.seeds))?;
     let fields: FieldArrays = arrays
         .fields
         .arrays
-        .iter()
-        .map(|(g, v)| (g.name.clone(), g.n_components(), PyArray1::from_slice(py, v)))
+        .into_iter()
+        .map(|(g, v)| (g.n_components(), g.name, v))
+        .map(|(k, name, v)| (name, k, PyArray1::from_vec(py, v)))
         .collect();
     out.set_item("fields", fields)?;
     Ok(out)

@@ -157,8 +157,12 @@ impl Probed {
 }
 
 /// Components `at..at + k` of every point of `values` (`width` per point), on every core.
-fn components<T: Copy + Send + Sync>(values: &[T], width: usize, at: usize, k: usize) -> Vec<T> {
-    values.par_chunks_exact(width.max(1)).flat_map_iter(|p| p[at..at + k].iter().copied()).collect()
+fn components<T: Copy + Default + Send + Sync>(values: &[T], width: usize, at: usize, k: usize) -> Vec<T> {
+    let mut out = vec![T::default(); values.len() / width.max(1) * k];
+    out.par_chunks_mut(k.max(1))
+        .zip(values.par_chunks_exact(width.max(1)))
+        .for_each(|(o, p)| o.copy_from_slice(&p[at..at + k]));
+    out
 }
 
 /// What the probed values were sampled at: a mesh's vertices, or a set of points.

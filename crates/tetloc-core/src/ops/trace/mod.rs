@@ -335,13 +335,28 @@ pub fn trace_sampled(
             Ok(p.finish().map(|l| (l, ids, values)))
         })
         .collect::<Result<_>>()?;
-    let (mut all, mut ids, mut values) = (Vec::new(), Vec::new(), Vec::new());
-    for (l, i, v) in lines.into_iter().flatten() {
-        all.push(l);
-        ids.extend(i);
-        values.extend(v);
-    }
-    Ok(LineArrays::with_values(&all, fields, ids, values))
+    let (lines, (ids, values)): (Vec<Line>, (Vec<Vec<i32>>, Vec<Vec<f32>>)) =
+        lines.into_iter().flatten().map(|(l, i, v)| (l, (i, v))).unzip();
+    let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
+    let ids = super::concat(&lens, |i, out| out.copy_from_slice(&ids[i]));
+    // Each field's components straight from the lines' interleaved values.
+    let width: usize = fields.iter().map(super::FieldGroup::n_components).sum();
+    let mut at = 0;
+    let arrays = fields
+        .iter()
+        .map(|g| {
+            let k = g.n_components();
+            let lens_k: Vec<usize> = lens.iter().map(|n| n * k).collect();
+            let v = super::concat(&lens_k, |i, out: &mut [f32]| {
+                for (o, p) in out.chunks_exact_mut(k).zip(values[i].chunks_exact(width)) {
+                    o.copy_from_slice(&p[at..at + k]);
+                }
+            });
+            at += k;
+            (g.clone(), v)
+        })
+        .collect();
+    Ok(LineArrays::of(&lines, super::probe::Probed { ids, arrays, arrays64: Vec::new() }))
 }
 
 /// The lines of [`trace`] through `loc`: by the backend's own tracer where it has one for
@@ -470,25 +485,24 @@ impl LineArrays {
         Ok(Some(Self::of(lines, probed)))
     }
 
-    /// The arrays of `lines` with the values of `fields` at their points already known
-    /// (every field's components per point, fields in order, line after line).
-    fn with_values(lines: &[Line], fields: &[super::FieldGroup], ids: Vec<i32>, values: Vec<f32>) -> LineArrays {
-        Self::of(lines, super::probe::Probed::from_values(ids, fields, &values))
-    }
-
     /// The arrays of `lines` (points as float32, line after line) with `fields`.
     fn of(lines: &[Line], fields: super::probe::Probed) -> LineArrays {
-        let ends = lines
+        let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
+        let ends = lens
             .iter()
-            .scan(0, |end, l| {
-                *end += l.points.len();
+            .scan(0, |end, n| {
+                *end += n;
                 Some(*end)
             })
             .collect();
         LineArrays {
-            points: lines.par_iter().flat_map_iter(|l| l.points.iter().map(|&p| to_f32(p))).collect(),
+            points: super::concat(&lens, |i, out| {
+                for (o, &p) in out.iter_mut().zip(&lines[i].points) {
+                    *o = to_f32(p);
+                }
+            }),
             ends,
-            time: lines.par_iter().flat_map_iter(|l| l.time.iter().copied()).collect(),
+            time: super::concat(&lens, |i, out| out.copy_from_slice(&lines[i].time)),
             reasons: lines.iter().map(|l| l.reason as i32).collect(),
             seeds: lines.iter().map(|l| l.seed as i32).collect(),
             fields,
