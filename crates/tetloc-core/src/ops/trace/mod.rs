@@ -335,8 +335,9 @@ pub fn trace_sampled(
             Ok(p.finish().map(|l| (l, ids, values)))
         })
         .collect::<Result<_>>()?;
-    let (lines, (ids, values)): (Vec<Line>, (Vec<Vec<i32>>, Vec<Vec<f32>>)) =
-        lines.into_iter().flatten().map(|(l, i, v)| (l, (i, v))).unzip();
+    let sampled: Vec<Sampled> = lines.into_iter().flatten().collect();
+    let (lines, (ids, values)): (Vec<Line>, (Vec<_>, Vec<_>)) =
+        sampled.into_iter().map(|(l, i, v)| (l, (i, v))).unzip();
     let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
     let ids = super::concat(&lens, |i, out| out.copy_from_slice(&ids[i]));
     // Each field's components straight from the lines' interleaved values.
