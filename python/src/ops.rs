@@ -301,8 +301,10 @@ pub fn trace_lines<'py>(
         .fields
         .arrays
         .into_iter()
-        .map(|(g, v)| (g.n_components(), g.name, v))
-        .map(|(k, name, v)| (name, k, PyArray1::from_vec(py, v)))
+        .map(|(g, v)| {
+            let k = g.n_components();
+            (g.name, k, PyArray1::from_vec(py, v))
+        })
         .collect();
     out.set_item("fields", fields)?;
     Ok(out)

@@ -466,17 +466,8 @@ impl LineArrays {
             mesh: &crate::Mesh,
             fields: &[&crate::Field],
         ) -> Vec<T> {
-            let k = fields.len();
-            let mut values = vec![T::default(); lines.iter().map(|l| l.points.len()).sum::<usize>() * k];
-            let mut parts = Vec::with_capacity(lines.len());
-            let mut rest = &mut values[..];
-            for l in lines {
-                let (part, tail) = rest.split_at_mut(l.points.len() * k);
-                parts.push(part);
-                rest = tail;
-            }
-            lines.par_iter().zip(parts).for_each(|(l, part)| mesh.values_at_ids64(&l.points, &l.tets, fields, part));
-            values
+            let lens: Vec<usize> = lines.iter().map(|l| l.points.len() * fields.len()).collect();
+            super::concat(&lens, |i, part| mesh.values_at_ids64(&lines[i].points, &lines[i].tets, fields, part))
         }
         let probed = if fields.iter().any(|g| g.f64) {
             super::probe::Probed::from_values64(ids, fields, &fill::<f64>(lines, mesh, &components))
