@@ -13,8 +13,10 @@ coordinates:
   - ``tetloc.trace`` (RK4, a fixed step of a tenth of the mean edge) from S seeds for at most
     M steps vs ``vtkStreamTracer`` with the same integrator, step and limits;
 
-each with the locator build included (VTK builds its own), the best of ``--repeats`` runs for
-tetloc, one run for VTK; printing seconds, points (or steps) per second and the ratio. VTK's
+each with the locator build included (VTK builds its own): every run, tetloc's and VTK's,
+starts from a fresh copy of the mesh, because both keep what their searches build on the
+mesh object (tetloc its face neighbours, VTK its point locator and cell links). The best of
+``--repeats`` runs for tetloc, one run for VTK; printing seconds, points (or steps) per second and the ratio. VTK's
 slow filters can run on a part of the work (``--vtk-fraction``: the first fraction of the
 probe points and seeds, and of the grid's z slices), their time scaled up linearly, and the
 table says so.
