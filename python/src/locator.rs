@@ -83,16 +83,18 @@ struct Options {
 
 /// The options from `**options`; unknown names are a `TypeError` as for any keyword.
 fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
-    let mut opts = LocatorOptions::default();
-    let mut tolerance = Tolerance::default();
-    let mut precision = Precision::default();
-    let mut deferred = false;
-    let Some(options) = options else { return Ok(Options::default()) };
+    let mut o = Options::default();
+    let Some(options) = options else { return Ok(o) };
+    let flag = |name: &str, value: &Bound<'_, PyAny>| {
+        value
+            .extract::<bool>()
+            .map_err(|_| PyTypeError::new_err(format!("{name}: expected True or False, got {value}")))
+    };
     for (key, value) in options.iter() {
         let key: String = key.extract()?;
         match key.as_str() {
             "split" => {
-                opts.split = if value.is_none() {
+                o.vulkan.split = if value.is_none() {
                     None
                 } else {
                     match value.extract::<usize>() {
@@ -114,24 +116,16 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
                         PyTypeError::new_err(format!("tolerance: expected a number or a string like '1%', got {value}"))
                     })?,
                 };
-                tolerance = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
+                o.tolerance = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
             }
             "precision" => {
                 let text = value
                     .extract::<String>()
                     .map_err(|_| PyValueError::new_err(format!("precision: expected 'f32' or 'f64', got {value}")))?;
-                precision = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
+                o.precision = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
             }
-            "deferred" => {
-                deferred = value
-                    .extract::<bool>()
-                    .map_err(|_| PyTypeError::new_err(format!("deferred: expected True or False, got {value}")))?
-            }
-            "compact" => {
-                opts.compact = value
-                    .extract::<bool>()
-                    .map_err(|_| PyTypeError::new_err(format!("compact: expected True or False, got {value}")))?
-            }
+            "deferred" => o.deferred = flag("deferred", &value)?,
+            "compact" => o.vulkan.compact = flag("compact", &value)?,
             k if PLANNED_OPTIONS.contains(&k) => {
                 return Err(PyTypeError::new_err(format!(
                     "Locator(): option '{k}' is planned but not supported by this version (known: {KNOWN_OPTIONS})"
@@ -144,7 +138,7 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
             }
         }
     }
-    Ok(Options { vulkan: opts, tolerance, precision, deferred })
+    Ok(o)
 }
 
 /// The CPU backend, built now or (`deferred`) on first need: then its memory counts only

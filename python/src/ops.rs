@@ -154,15 +154,10 @@ pub fn resample_to_image<'py>(
                 use rayon::prelude::*;
                 let n = ids.len();
                 mask[at..at + n].par_iter_mut().zip(ids).for_each(|(m, &id)| *m = u8::from(id >= 0));
-                // Each field's components out of the chunk's rows (all fields a point), on
-                // every core: a 256³ grid of four components is 67M copies.
+                // Each field's components out of the chunk's rows (all fields a point).
                 let mut offset = 0;
                 for (out, &k) in values.iter_mut().zip(&widths) {
-                    out[at * k..(at + n) * k].par_chunks_mut(k).zip(vals.par_chunks_exact(width)).for_each(
-                        |(o, row)| {
-                            o.copy_from_slice(&row[offset..offset + k]);
-                        },
-                    );
+                    tetloc_core::ops::copy_components(vals, width, offset..offset + k, &mut out[at * k..(at + n) * k]);
                     offset += k;
                 }
                 at += ids.len();

@@ -117,9 +117,10 @@ fn make_with(
         return make_with(&auto_choice(opts)?, mesh, opts, defer_cpu_build);
     }
     let backend: Box<dyn BatchLocator> = if name == CPU {
-        Box::new(match defer_cpu_build {
-            true => CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast),
-            false => CpuLocator::new(mesh.clone()),
+        Box::new(if defer_cpu_build {
+            CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast)
+        } else {
+            CpuLocator::new(mesh.clone())
         })
     } else {
         let kernel: Kernel = name

@@ -4,7 +4,7 @@
 //! and the answers gathered back on rank 0, which alone writes the output.
 
 use super::{gather, scatter};
-use tetloc_core::locate::check_lengths;
+use tetloc_core::locate::check_sample_lengths;
 use tetloc_core::{BatchLocator, Vec3};
 use tetloc_mpi::dist::{Cluster, DistLocator};
 use tetloc_mpi::mpi::traits::*;
@@ -54,8 +54,7 @@ impl BatchLocator for Driven<'_> {
         values: &mut [f32],
     ) -> Result<(), tetloc_core::Error> {
         // Checked before the collective call: every rank must take part in it or none.
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         announce(self.cluster, Some(fields));
         let mine = scatter(self.cluster, points);
         let got = self.loc.query(&mine, fields);

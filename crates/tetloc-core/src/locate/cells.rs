@@ -22,7 +22,7 @@
 //! Meshes of tets only pass through untouched. GPU kernels answer decomposition tet ids
 //! only: values on mixed meshes are always computed here, on the CPU.
 
-use super::{check_lengths, BatchLocator, Points, OUTSIDE};
+use super::{check_lengths, check_sample_lengths, BatchLocator, Points, OUTSIDE};
 use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 use crate::cell::{face_split, interpolate, invert, PCoords, Point};
 use crate::error::Result;
@@ -369,8 +369,7 @@ impl<L: BatchLocator> CellLocator<L> {
         values: &mut [T],
     ) -> Result<()> {
         let n = points.len();
-        check_lengths(n, ids.len())?;
-        check_lengths(n * fields.len(), values.len())?;
+        check_sample_lengths(n, fields.len(), ids.len(), values.len())?;
         let mesh = self.mesh.clone();
         let fields: Vec<&Field> = fields.iter().map(|f| mesh.field(f)).collect::<Result<_>>()?;
         let found = match points {

@@ -8,7 +8,7 @@
 //! and the BVH agree on, and a point on a face always gets the BVH's answer.
 
 use super::grid_raster::{self, Cell, GridRaster};
-use super::{check_lengths, BatchLocator, OUTSIDE};
+use super::{check_lengths, check_sample_lengths, BatchLocator, OUTSIDE};
 use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
 use crate::geom::predicates::Query;
@@ -401,8 +401,7 @@ impl BatchLocator for CpuLocator {
         ids: &mut [i32],
         values: &mut [f64],
     ) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
         let exact = self.mesh.exact();
         self.locate_batch_of(points, |p| exact.query(*p), ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
@@ -420,8 +419,7 @@ impl BatchLocator for CpuLocator {
         ids: &mut [i32],
         values: &mut [f32],
     ) -> Result<()> {
-        check_lengths(range.len(), ids.len())?;
-        check_lengths(range.len() * fields.len(), values.len())?;
+        check_sample_lengths(range.len(), fields.len(), ids.len(), values.len())?;
         if self.mesh.n_tets() >= grid_raster::MAX_TETS {
             return self.sample_many(&super::grid_points(grid, range), fields, ids, values);
         }
@@ -473,8 +471,7 @@ impl CpuLocator {
         ids: &mut [i32],
         values: &mut [f32],
     ) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
         let mut found = vec![None; points.len()];
         self.locate_batch_of(points, query, &mut found, |f| f);

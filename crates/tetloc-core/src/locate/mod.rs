@@ -52,8 +52,7 @@ pub trait BatchLocator {
     /// order), NaN outside. The default locates, then samples each field; backends that
     /// interpolate every field from one lookup override it.
     fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         self.locate(points, ids)?;
         let mut one = vec![0f32; points.len()];
         for (j, f) in fields.iter().enumerate() {
@@ -259,8 +258,7 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     }
 
     fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         let Some(c) = Compacted::of(points, |p| is_finite(*p)) else {
             return self.inner.sample_many(points, fields, ids, values);
         };
@@ -279,8 +277,7 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         ids: &mut [i32],
         values: &mut [f64],
     ) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         // Beyond f32's range is beyond every mesh (whose f32 copy is finite), like NaN.
         let in_range = |p: &[f64; 3]| p.iter().all(|c| c.abs() <= f32::MAX as f64);
         let Some(c) = Compacted::of(points, in_range) else {
@@ -379,6 +376,12 @@ pub fn check_lengths(points: usize, out: usize) -> Result<()> {
         return Err(crate::Error::Invalid(format!("{points} points but an output buffer for {out}")));
     }
     Ok(())
+}
+
+/// [`check_lengths`] of a `sample_many`'s outputs: an id a point, and `n_fields` values a point.
+pub fn check_sample_lengths(points: usize, n_fields: usize, ids: usize, values: usize) -> Result<()> {
+    check_lengths(points, ids)?;
+    check_lengths(points * n_fields, values)
 }
 
 #[cfg(test)]

@@ -5,7 +5,7 @@
 //! with [`Mesh::values_at_ids64`], the one f64 definition, so that they equal the CPU's bit
 //! for bit.
 
-use super::{check_lengths, BatchLocator};
+use super::{check_sample_lengths, BatchLocator};
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
 use crate::mesh::Mesh;
@@ -106,8 +106,7 @@ impl<L: BatchLocator> BatchLocator for F64Values<L> {
         if self.mesh.cells.is_some() {
             return self.inner.sample_many64(points, fields, ids, values);
         }
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         let mesh = self.mesh.clone();
         let fields = fields.iter().map(|f| mesh.field(f)).collect::<Result<Vec<_>>>()?;
         self.inner.sample_many64(points, &[], ids, &mut [])?;

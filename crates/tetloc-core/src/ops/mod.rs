@@ -33,3 +33,18 @@ pub(crate) fn concat<T: Copy + Default + Send + Sync>(lens: &[usize], fill: impl
     parts.into_par_iter().enumerate().for_each(|(i, part)| fill(i, part));
     out
 }
+
+/// Components `columns` of every row of `rows` (`width` values a row: every field's
+/// components of a point, fields in order) into `out`, row after row, on every core: one
+/// field's array out of a batch's interleaved values.
+pub fn copy_components<T: Copy + Send + Sync>(
+    rows: &[T],
+    width: usize,
+    columns: std::ops::Range<usize>,
+    out: &mut [T],
+) {
+    use rayon::prelude::*;
+    out.par_chunks_mut(columns.len().max(1))
+        .zip(rows.par_chunks_exact(width.max(1)))
+        .for_each(|(o, r)| o.copy_from_slice(&r[columns.clone()]));
+}

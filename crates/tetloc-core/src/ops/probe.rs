@@ -159,9 +159,7 @@ impl Probed {
 /// Components `at..at + k` of every point of `values` (`width` per point), on every core.
 fn components<T: Copy + Default + Send + Sync>(values: &[T], width: usize, at: usize, k: usize) -> Vec<T> {
     let mut out = vec![T::default(); values.len() / width.max(1) * k];
-    out.par_chunks_mut(k.max(1))
-        .zip(values.par_chunks_exact(width.max(1)))
-        .for_each(|(o, p)| o.copy_from_slice(&p[at..at + k]));
+    super::copy_components(values, width, at..at + k, &mut out);
     out
 }
 

@@ -26,7 +26,7 @@ use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::geom::Vec3;
-use tetloc_core::locate::{certify, check_lengths};
+use tetloc_core::locate::{certify, check_lengths, check_sample_lengths};
 use tetloc_core::mesh::{FieldLocation, Mesh};
 use tetloc_core::ops::ImageGrid;
 use tetloc_core::queries::QueryKind;
@@ -897,8 +897,7 @@ impl BatchLocator for VulkanLocator {
         ids: &mut [i32],
         values: &mut [f64],
     ) -> tetloc_core::Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len() * fields.len(), values.len())?;
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         if points.is_empty() {
             return Ok(());
         }
@@ -935,8 +934,7 @@ impl BatchLocator for VulkanLocator {
         ids: &mut [i32],
         values: &mut [f32],
     ) -> tetloc_core::Result<()> {
-        check_lengths(range.len(), ids.len())?;
-        check_lengths(range.len() * fields.len(), values.len())?;
+        check_sample_lengths(range.len(), fields.len(), ids.len(), values.len())?;
         let slab = grid.dims[0] * grid.dims[1];
         if slab >= 1 << 31 {
             // Beyond the kernel's u32 index within a slab: host points.

@@ -340,24 +340,9 @@ pub fn trace_sampled(
         sampled.into_iter().map(|(l, i, v)| (l, (i, v))).unzip();
     let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
     let ids = super::concat(&lens, |i, out| out.copy_from_slice(&ids[i]));
-    // Each field's components straight from the lines' interleaved values.
-    let width: usize = fields.iter().map(super::FieldGroup::n_components).sum();
-    let mut at = 0;
-    let arrays = fields
-        .iter()
-        .map(|g| {
-            let k = g.n_components();
-            let lens_k: Vec<usize> = lens.iter().map(|n| n * k).collect();
-            let v = super::concat(&lens_k, |i, out: &mut [f32]| {
-                for (o, p) in out.chunks_exact_mut(k).zip(values[i].chunks_exact(width)) {
-                    o.copy_from_slice(&p[at..at + k]);
-                }
-            });
-            at += k;
-            (g.clone(), v)
-        })
-        .collect();
-    Ok(LineArrays::of(&lines, super::probe::Probed { ids, arrays, arrays64: Vec::new() }))
+    let widths: Vec<usize> = values.iter().map(Vec::len).collect();
+    let values = super::concat(&widths, |i, out| out.copy_from_slice(&values[i]));
+    Ok(LineArrays::of(&lines, super::probe::Probed::from_values(ids, fields, &values)))
 }
 
 /// The lines of [`trace`] through `loc`: by the backend's own tracer where it has one for
