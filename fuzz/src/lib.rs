@@ -3,9 +3,9 @@
 //! succeeds, validates the mesh: any panic, overflow or runaway allocation is a bug.
 
 use std::path::Path;
-use tetloc_core::io::vtk::{legacy as vtk_legacy, pvtu, vtm, vtu};
-use tetloc_core::io::{gmsh, tetgen};
 use tetloc_core::{Mesh, RawMesh, Result};
+use tetloc_io::vtk::{legacy as vtk_legacy, pvtu, vtm, vtu};
+use tetloc_io::{gmsh, tetgen};
 
 fn validate(parsed: Result<RawMesh>) {
     if let Ok(raw) = parsed {

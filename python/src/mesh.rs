@@ -10,8 +10,8 @@ use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use std::path::PathBuf;
 use std::sync::Arc;
-use tetloc_core::io::{self, MeshFormat};
 use tetloc_core::{Field, FieldLocation, Mesh, RawMesh, Vec3};
+use tetloc_io::{self as io, MeshFormat};
 
 #[pyclass(name = "_Mesh", module = "tetloc._tetloc", frozen)]
 pub struct PyMesh {
@@ -75,7 +75,7 @@ impl PyMesh {
         let points64 = match &points64 {
             Some(p) if p.shape() == [points.len(), 3] => {
                 let p: &[[f64; 3]] = bytemuck::cast_slice(contiguous(p, "points64")?);
-                tetloc_core::io::points64_if_needed(p.to_vec())
+                tetloc_core::mesh::points64_if_needed(p.to_vec())
             }
             Some(p) => return Err(PyValueError::new_err(format!("points64: shape {:?}; expected (N, 3)", p.shape()))),
             None => None,

@@ -220,7 +220,7 @@ fn ranking(
                 .parent()
                 .map_or(Ok(()), std::fs::create_dir_all)
                 .map_err(|e| tetloc_core::Error::io(p.parent().unwrap_or(p), e))
-                .and_then(|_| tetloc_core::io::output::write_atomically(p, |f| write_all(f, p, &json)));
+                .and_then(|_| tetloc_io::output::write_atomically(p, |f| write_all(f, p, &json)));
             if let Err(e) = written {
                 eprintln!("warning: auto: cannot cache the measurement ({e}); it is kept for this run only");
             }

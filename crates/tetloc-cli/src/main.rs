@@ -20,8 +20,8 @@ use clap::{Parser, Subcommand};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::io::output::{self, FileArg};
-use tetloc_core::io::vtk::write as vtu_write;
+use tetloc_io::output::{self, FileArg};
+use tetloc_io::vtk::write as vtu_write;
 
 #[derive(Parser)]
 #[command(name = "tetloc", version, about = "Locate points in tetrahedral meshes and sample fields, on GPUs and CPUs")]
@@ -226,7 +226,7 @@ fn distributed(cli: Cli, size: usize) -> i32 {
         Command::Probe(a) => Some(a.source.clone()),
         _ => None,
     };
-    let is_listing = listing.as_ref().is_some_and(|m| tetloc_core::io::vtk::pieces::is_listing(Path::new(m)));
+    let is_listing = listing.as_ref().is_some_and(|m| tetloc_io::vtk::pieces::is_listing(Path::new(m)));
     // One rank runs as one process, unless it is to load a partitioned mesh through MPI.
     if size == 1 && !(is_listing && cfg!(feature = "mpi")) {
         return main_exit(run(cli));

@@ -7,8 +7,8 @@ use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tetloc_core::gen::{self, CellKind, Shape, Spec};
-use tetloc_core::io::{self, MeshFormat};
 use tetloc_core::Mesh;
+use tetloc_io::{self as io, MeshFormat};
 
 /// Parses counts like `1000`, `1.4M`, `250k`, `2G`.
 pub fn parse_count(s: &str) -> Result<usize> {
@@ -70,7 +70,7 @@ const GEN_BYTES_PER_TET: u64 = 40;
 
 pub fn generate(spec: impl Into<Spec>, n: usize, seed: u64) -> Result<Mesh> {
     let spec = spec.into();
-    if let Some(avail) = tetloc_core::io::available_memory_bytes() {
+    if let Some(avail) = tetloc_io::available_memory_bytes() {
         // Mixed cells: their decomposition tets (6 per hex, 3 per wedge) and the cells.
         let tets_per_cell = match spec.cells {
             CellKind::Tets => 1,

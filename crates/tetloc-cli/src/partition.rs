@@ -7,8 +7,8 @@ use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::PathBuf;
 use std::time::Instant;
-use tetloc_core::io::output::{self, FileArg};
-use tetloc_core::io::vtk::write_pieces;
+use tetloc_io::output::{self, FileArg};
+use tetloc_io::vtk::write_pieces;
 
 #[derive(clap::Args)]
 pub struct PartitionArgs {
@@ -44,7 +44,7 @@ pub fn run(a: &PartitionArgs) -> Result<()> {
     let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
     let t0 = Instant::now();
     let pb = progress::bar(a.parts as u64, format!("writing {} pieces", a.parts));
-    tetloc_core::partition::write_pvtu(&mesh, a.parts, &a.out, a.zlib, |_| pb.inc(1))?;
+    tetloc_io::partition::write_pvtu(&mesh, a.parts, &a.out, a.zlib, |_| pb.inc(1))?;
     pb.finish_and_clear();
     eprintln!(
         "{}: {} cells in {} pieces (recursive coordinate bisection), written in {:.2} s",

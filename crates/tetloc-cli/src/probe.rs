@@ -7,12 +7,13 @@ use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::io::output::{self, FileArg};
-use tetloc_core::io::points;
-use tetloc_core::io::vtk::write::Coords;
 use tetloc_core::locate::{Tolerance, WithTolerance};
 use tetloc_core::ops::{fields, probe};
 use tetloc_core::{BatchLocator, Mesh};
+use tetloc_io::ops_output;
+use tetloc_io::output::{self, FileArg};
+use tetloc_io::points;
+use tetloc_io::vtk::write::Coords;
 
 #[derive(clap::Args)]
 pub struct ProbeArgs {
@@ -117,13 +118,13 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
     progress::with_spinner(format!("writing {}", a.out.display()), || {
         let pts32: Vec<[f32; 3]>;
         let target = match target_mesh.as_deref() {
-            Some(m) => probe::Target::Mesh(m), // the mesh writes its own coordinates
+            Some(m) => ops_output::Target::Mesh(m), // the mesh writes its own coordinates
             None => {
                 pts32 = pts.iter().map(|p| p.map(|c| c as f32)).collect();
-                probe::Target::Points(Coords::of(&pts, &pts32))
+                ops_output::Target::Points(Coords::of(&pts, &pts32))
             }
         };
-        probe::write_probed(&a.out, &probed, target, a.zlib)
+        ops_output::write_probed(&a.out, &probed, target, a.zlib)
     })?;
     if !a.common.quiet {
         eprintln!(

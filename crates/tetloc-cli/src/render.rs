@@ -5,7 +5,7 @@ use crate::mesh_arg;
 use anyhow::Result;
 use std::ffi::OsString;
 use std::path::PathBuf;
-use tetloc_core::io::output::{self, FileArg};
+use tetloc_io::output::{self, FileArg};
 use tetloc_render as tr;
 
 #[derive(clap::Args)]

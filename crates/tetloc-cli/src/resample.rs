@@ -6,10 +6,11 @@ use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::PathBuf;
 use std::time::Instant;
-use tetloc_core::io::image::IMAGE_EXTENSIONS;
-use tetloc_core::io::output::{self, FileArg};
-use tetloc_core::ops::{fields, resample, ImageGrid};
+use tetloc_core::ops::{fields, ImageGrid};
 use tetloc_core::{BatchLocator, Mesh};
+use tetloc_io::image::IMAGE_EXTENSIONS;
+use tetloc_io::ops_output;
+use tetloc_io::output::{self, FileArg};
 
 #[derive(clap::Args)]
 pub struct ResampleArgs {
@@ -100,7 +101,7 @@ pub(crate) fn execute(
     };
     let pb = progress::bar(grid.n_points() as u64, format!("resampling on {}", loc.name()));
     let t0 = Instant::now();
-    let stats = resample::resample_to_file(loc, &grid, &groups, &a.out, a.zlib, |d| pb.set_position(d as u64))?;
+    let stats = ops_output::resample_to_file(loc, &grid, &groups, &a.out, a.zlib, |d| pb.set_position(d as u64))?;
     pb.finish_and_clear();
     if !a.common.quiet {
         eprintln!(

@@ -12,11 +12,12 @@ use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::io::output::{self, FileArg};
-use tetloc_core::io::points;
-use tetloc_core::io::vtk::write::PolylineWriter;
 use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
 use tetloc_core::CpuLocator;
+use tetloc_io::ops_output;
+use tetloc_io::output::{self, FileArg};
+use tetloc_io::points;
+use tetloc_io::vtk::write::PolylineWriter;
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
@@ -142,7 +143,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
             })?;
             secs += t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
-            arrays.push_to(&mut writer, seeds_in.start)?;
+            ops_output::push_lines(&mut writer, &arrays, seeds_in.start)?;
             spilling += t1.elapsed().as_secs_f64();
             base += seeds_in.len();
         }
@@ -161,7 +162,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
             let t1 = Instant::now();
             let arrays = trace::LineArrays::sample(&lines, &m, loc.as_mut(), &out_fields)?;
             let t2 = Instant::now();
-            arrays.push_to(&mut writer, seeds_in.start)?;
+            ops_output::push_lines(&mut writer, &arrays, seeds_in.start)?;
             (sampling, spilling) = (sampling + (t2 - t1).as_secs_f64(), spilling + t2.elapsed().as_secs_f64());
             base += seeds_in.len();
         }

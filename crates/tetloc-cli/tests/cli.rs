@@ -582,7 +582,7 @@ fn boundary_tolerance_matches_vtk_probe() {
     for name in ["torus_s", "part_s", "delaunay_s"] {
         let dir = tmp_dir(&format!("vtk-{name}"));
         let mesh_path = data.join(format!("{name}.vtu"));
-        let mesh = tetloc_core::io::read_mesh(&mesh_path, None).unwrap();
+        let mesh = tetloc_io::read_mesh(&mesh_path, None).unwrap();
         let tol = Tolerance::PercentOfMeanEdge(1.0);
         let d = tol.distance(&mesh);
         let boundary = build_boundary(&mesh);

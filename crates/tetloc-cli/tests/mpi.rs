@@ -300,7 +300,7 @@ fn resample_and_probe_run_distributed() {
     assert!(o.status.success(), "{}", text(&o));
     let (o, _) = mpirun(2, &[], &["probe", s(&pvtu), s(&target), "--field", "f", "--backend", "cpu", "-o", s(&two)]);
     assert!(o.status.success(), "{}", text(&o));
-    let read = |p: &Path| tetloc_core::io::read_mesh(p, None).unwrap_or_else(|e| panic!("{e}"));
+    let read = |p: &Path| tetloc_io::read_mesh(p, None).unwrap_or_else(|e| panic!("{e}"));
     let (a, b) = (read(&one), read(&two));
     for name in ["f", "vtkValidPointMask"] {
         let (fa, fb) = (&a.field(name).unwrap().values, &b.field(name).unwrap().values);

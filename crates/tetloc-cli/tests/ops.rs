@@ -229,7 +229,7 @@ fn trace_in_batches_is_one_file() {
 /// The swirl on the torus (v = (-y + 0.2x, x + 0.2y, 0.3), so lines spiral outwards and
 /// leave through the boundary) as a mesh file, and five seeds (the last, the origin, outside).
 fn swirl_case(data: &Path, dir: &Path) -> (PathBuf, PathBuf) {
-    let mut m = tetloc_core::io::read_mesh(&data.join("torus_s.vtu"), None).unwrap();
+    let mut m = tetloc_io::read_mesh(&data.join("torus_s.vtu"), None).unwrap();
     let swirl = |p: [f32; 3]| [-p[1] + 0.2 * p[0], p[0] + 0.2 * p[1], 0.3];
     for c in 0..3 {
         let values = m.points.iter().map(|&p| swirl(p)[c]).collect();
@@ -241,7 +241,7 @@ fn swirl_case(data: &Path, dir: &Path) -> (PathBuf, PathBuf) {
         });
     }
     let mesh = dir.join("swirl.vtu");
-    tetloc_core::io::vtk::write::write_mesh_vtu(&mesh, &m, false).unwrap();
+    tetloc_io::vtk::write::write_mesh_vtu(&mesh, &m, false).unwrap();
     let seeds = dir.join("seeds.bin");
     let pts: Vec<[f32; 3]> =
         vec![[0.8, 0.0, 0.0], [1.0, 0.1, 0.1], [0.0, 1.2, -0.1], [-1.1, 0.0, 0.2], [0.0, 0.0, 0.0]];

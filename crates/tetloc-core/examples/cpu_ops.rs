@@ -6,7 +6,8 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::ops::{fields, probe, resample, trace, ImageGrid};
-use tetloc_core::{io, CpuLocator, Vec3};
+use tetloc_core::{CpuLocator, Vec3};
+use tetloc_io as io;
 
 /// User + system seconds of this process (all threads), from /proc/self/stat.
 fn cpu_seconds() -> f64 {

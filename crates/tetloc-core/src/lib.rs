@@ -1,12 +1,12 @@
 //! tetloc-core: which tetrahedron of this mesh contains this point, and what is the field
-//! value there? The GPU-free core: mesh model, I/O, generators, BVH and the CPU locator.
+//! value there? The GPU-free core: mesh model, generators, BVH and the CPU locator. Files are
+//! read and written by `tetloc-io`, which sits above it.
 
 pub mod bvh;
 pub mod cell;
 pub mod error;
 pub mod gen;
 pub mod geom;
-pub mod io;
 pub mod locate;
 pub mod mesh;
 pub mod ops;

@@ -1,5 +1,6 @@
-//! Cutting a mesh into pieces (`tetloc partition`, and the pieces `tetloc-mpi` ranks load):
-//! recursive coordinate bisection (RCB) of the cells by their centroids, and the piece meshes.
+//! Cutting a mesh into pieces (`tetloc partition`, which `tetloc_io::partition` writes, and the
+//! pieces `tetloc-mpi` ranks load): recursive coordinate bisection (RCB) of the cells by their
+//! centroids, and the piece meshes.
 //!
 //! A piece keeps its cells in ascending global id and its vertices in ascending global
 //! vertex id, so every cell lists its vertices in the same relative order as in the whole
@@ -31,25 +32,6 @@ pub fn cell_centroids(mesh: &Mesh) -> Vec<Vec3> {
         }
         None => mesh.tets.par_iter().map(|t| mean(&mut t.iter().copied())).collect(),
     }
-}
-
-/// Cuts `mesh` into `parts` pieces by [`rcb`] of its cell centroids and writes them as the
-/// partitioned mesh `path` (`.pvtu` and its pieces folder, complete or absent); `done(k)`
-/// after piece `k`.
-pub fn write_pvtu(mesh: &Mesh, parts: usize, path: &std::path::Path, zlib: bool, done: impl Fn(usize)) -> Result<()> {
-    let n = mesh.n_cells();
-    if parts == 0 || parts > n {
-        return Err(Error::Invalid(format!("cannot cut {n} cells into {parts} pieces")));
-    }
-    let part = rcb(&cell_centroids(mesh), parts);
-    let mut cells: Vec<Vec<u32>> = vec![Vec::new(); parts];
-    part.iter().enumerate().for_each(|(c, &k)| cells[k as usize].push(c as u32));
-    let name = path.display().to_string();
-    let pieces = cells.into_iter().enumerate().map(|(k, cells)| {
-        let (piece, points) = piece_with_points(mesh, &cells, format!("{name} piece {k}").as_str())?;
-        Ok((piece, cells.into_iter().map(u64::from).collect(), points))
-    });
-    crate::io::vtk::write_pieces::write_pvtu(path, pieces, zlib, done)
 }
 
 /// The part (`0..parts`) of each point by recursive coordinate bisection: the set is cut
@@ -138,7 +120,7 @@ pub fn piece_with_points(mesh: &Mesh, cells: &[u32], name: &str) -> Result<(Mesh
     // The file's coordinates (a far mesh's working copy is centred: the piece has its own frame).
     let file: Vec<[f64; 3]> = kept.iter().map(|&i| mesh.vertex64(i as u32)).collect();
     let points = file.iter().map(|p| p.map(|c| c as f32)).collect();
-    let points64 = crate::io::points64_if_needed(file);
+    let points64 = crate::mesh::points64_if_needed(file);
     let fields = mesh
         .fields
         .iter()

@@ -6,9 +6,9 @@
 //! names them: the CLI, the GPU kernels (which generate the first three themselves) and the
 //! benchmarks all use [`QueryKind`].
 
+use crate::geom::ImageGrid;
 use crate::geom::Vec3;
 use crate::mesh::Mesh;
-use crate::ops::ImageGrid;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde::Serialize;

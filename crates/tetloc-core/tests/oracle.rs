@@ -11,7 +11,8 @@
 
 use std::collections::HashMap;
 use std::sync::Arc;
-use tetloc_core::{io, BatchLocator, CpuLocator, Mesh};
+use tetloc_core::{BatchLocator, CpuLocator, Mesh};
+use tetloc_io as io;
 use tetloc_testdata::{exact_value, query_sets, require_data};
 
 #[test]

@@ -13,8 +13,8 @@ use rayon::prelude::*;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
-use tetloc_core::io::vtk::pieces;
 use tetloc_core::{BatchLocator, Mesh, Vec3};
+use tetloc_io::vtk::pieces;
 
 /// This process's place in the job: the world communicator, its rank and its node's ranks.
 pub struct Cluster {

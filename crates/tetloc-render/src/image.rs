@@ -4,7 +4,7 @@
 use crate::colorspace::linear_to_srgb;
 use crate::error::{RenderError, Result};
 use std::path::Path;
-use tetloc_core::io::output::{write_atomically, AtomicFile};
+use tetloc_io::output::{write_atomically, AtomicFile};
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {

@@ -42,7 +42,7 @@ pub fn check_outputs(out: &Path, frames: u32) -> Result<Vec<PathBuf>> {
         _ => vec![out.to_path_buf()],
     };
     for f in &files {
-        tetloc_core::io::output::check_output(f, &["png", "gif"])?;
+        tetloc_io::output::check_output(f, &["png", "gif"])?;
     }
     Ok(files)
 }

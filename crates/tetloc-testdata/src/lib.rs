@@ -9,9 +9,9 @@
 //! in core's private `test_support` module and included here by path.
 
 use tetloc_core::cell::{barycentric_lattice, CellBlock, CellType};
-use tetloc_core::io::read_raw;
 use tetloc_core::mesh::{Field, FieldLocation};
 use tetloc_core::{BatchLocator, Mesh, RawMesh, Vec3};
+use tetloc_io::read_raw;
 
 #[path = "../../tetloc-core/src/test_support/data_dir.rs"]
 mod data_dir;

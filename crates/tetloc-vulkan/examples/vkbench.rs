@@ -156,7 +156,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
 
     let t = Instant::now();
     let mesh = Arc::new(match &args.mesh {
-        Some(path) => tetloc_core::io::read_mesh(std::path::Path::new(path), None)?,
+        Some(path) => tetloc_io::read_mesh(std::path::Path::new(path), None)?,
         None if args.regular => {
             let n = (args.tets as f64 / 6.0).cbrt().round().max(1.0) as usize;
             tetloc_testdata::KuhnGrid::new(n).mesh(&format!("regular {n}^3 cubes"))

@@ -20,7 +20,7 @@ fn every_kernel_matches_vtk_on_mixed_meshes() {
     let mut configs: Vec<_> = common::kernels(&ctx, test).into_iter().map(|k| (k, LocatorOptions::default())).collect();
     configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: false, ..Default::default() }));
     for (name, (files, sets)) in sets {
-        let mesh = Arc::new(tetloc_core::io::read_mesh(&files[0], None).unwrap());
+        let mesh = Arc::new(tetloc_io::read_mesh(&files[0], None).unwrap());
         assert!(mesh.cells.is_some(), "{name}: a mixed mesh");
         for (k, opts) in &configs {
             let gpu = VulkanLocator::new(ctx.clone(), mesh.clone(), *k, opts.clone()).unwrap();

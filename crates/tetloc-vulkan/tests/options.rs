@@ -140,7 +140,7 @@ fn pure_f32_test_agrees_outside_ambiguous_points() {
     let Some(dir) = require_data(name) else { return };
     let Some(ctx) = common::context(name) else { return };
     let sets: Vec<_> = query_sets(&dir).into_iter().filter(|s| s.label.starts_with("delaunay_s.")).collect();
-    let mesh = Arc::new(tetloc_core::io::read_mesh(&sets[0].mesh_path, None).unwrap());
+    let mesh = Arc::new(tetloc_io::read_mesh(&sets[0].mesh_path, None).unwrap());
     for k in common::kernels(&ctx, name) {
         let mut loc =
             VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions { float64: false, ..Default::default() })

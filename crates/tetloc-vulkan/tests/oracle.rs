@@ -91,7 +91,7 @@ fn every_kernel_matches_the_oracle() {
     }
     assert!(by_mesh.len() >= 3, "expected the oracle meshes in {}", dir.display());
     for (path, sets) in by_mesh {
-        let mesh = Arc::new(tetloc_core::io::read_mesh(&path, None).unwrap());
+        let mesh = Arc::new(tetloc_io::read_mesh(&path, None).unwrap());
         let mut cpu_loc = CpuLocator::new(mesh.clone());
         let cpu: Vec<Vec<i32>> = sets
             .iter()
@@ -158,7 +158,7 @@ fn every_kernel_matches_the_oracle_far_from_the_origin() {
     let Some(ctx) = common::context(test) else { return };
     let sets = tetloc_testdata::utm_sets(&dir);
     assert!(sets.len() >= 3, "expected the utm query sets in {}", dir.display());
-    let mesh = Arc::new(tetloc_core::io::read_mesh(&sets[0].mesh_path, None).unwrap());
+    let mesh = Arc::new(tetloc_io::read_mesh(&sets[0].mesh_path, None).unwrap());
     for k in common::kernels(&ctx, test) {
         let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
         for set in &sets {

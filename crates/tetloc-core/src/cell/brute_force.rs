@@ -4,7 +4,6 @@
 
 use super::*;
 use crate::geom::{self, Vec3};
-use crate::io::vtk::vtu;
 use crate::test_support::QuerySet;
 use std::collections::HashMap;
 use std::path::Path;
@@ -20,7 +19,7 @@ pub(crate) struct Mixed {
 
 impl Mixed {
     pub fn load(path: &Path) -> Mixed {
-        let raw = vtu::read(path).unwrap_or_else(|e| panic!("{e}"));
+        let raw = crate::test_support::read_raw(path, None).unwrap_or_else(|e| panic!("{e}"));
         let f = raw.fields.iter().find(|f| f.name == "f").expect("point field f").values.clone();
         let cells = raw.cells.expect("a mixed mesh has a cell block");
         let points = raw.points.iter().map(|p| p.map(f64::from)).collect();

@@ -108,7 +108,7 @@ fn higher_order_files_sample_quadratics_exactly() {
     let f = |x: Point| x[0] * x[0] + x[1] * x[1] + x[2] * x[2];
     let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
     for file in ["real/quadratic_tetra.vtu", "real/kiefer.vtu", "real/P3.msh", "real/ArmadilloP4.msh"] {
-        let mut raw = crate::io::read_raw(&dir.join(file), None).unwrap();
+        let mut raw = crate::test_support::read_raw(&dir.join(file), None).unwrap();
         let values: Vec<f32> = raw.points.iter().map(|p| f(p.map(f64::from)) as f32).collect();
         raw.fields = vec![Field { values64: None, name: "f".into(), location: FieldLocation::Vertex, values }];
         let m = Arc::new(Mesh::new(raw, file).unwrap());

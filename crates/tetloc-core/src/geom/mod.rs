@@ -29,7 +29,12 @@
 //! warped boundary face that dents inward are outside. (`locate::CellLocator` does this for
 //! every backend.)
 
+mod frame;
+mod image_grid;
 pub mod predicates;
+
+pub use frame::Frame;
+pub use image_grid::ImageGrid;
 
 pub type Vec3 = [f32; 3];
 
@@ -247,7 +252,7 @@ pub fn test_point(ids: [u32; 4], points: &[Vec3], p: Vec3) -> TetTest {
 #[derive(Clone, Copy, Debug)]
 pub struct Exact<'a> {
     pub file: Option<&'a [[f64; 3]]>,
-    pub frame: &'a crate::mesh::Frame,
+    pub frame: &'a Frame,
 }
 
 impl Exact<'_> {
@@ -269,7 +274,7 @@ impl Exact<'_> {
 /// The point-in-tet test on the file's data: [`test_point`] when the working copy and the
 /// point are exactly the file's (the f32 path every backend shares); otherwise each face is
 /// decided in f32 with a bound that also covers the rounding of vertices and point to the
-/// working copy ([`crate::mesh::Frame`]), and where that bound cannot decide, by the exact
+/// working copy ([`Frame`]), and where that bound cannot decide, by the exact
 /// sign of orient3d on the f64 coordinates. The tie rule is [`test_point`]'s: a point on a
 /// face (exact zero) is inside, and the search's order picks among the tets that claim it.
 /// Barycentrics are computed in f64 on the file's coordinates.
@@ -379,8 +384,9 @@ pub trait Real: Copy + Send + Sync + std::ops::Mul<Output = Self> + std::ops::Ad
     const NAN: Self;
     fn from_f64(x: f64) -> Self;
     fn to_f64(self) -> f64;
-    /// Value `i` of a field in this precision.
-    fn of(field: &crate::mesh::Field, i: usize) -> Self;
+    /// This precision's copy of a value kept in both (a field's value: `Field::value_in`):
+    /// the f32 one or the file's f64 one, only the one asked for computed.
+    fn pick(f32_copy: impl FnOnce() -> f32, file: impl FnOnce() -> f64) -> Self;
 }
 
 impl Real for f32 {
@@ -394,8 +400,8 @@ impl Real for f32 {
         f64::from(self)
     }
     #[inline(always)]
-    fn of(field: &crate::mesh::Field, i: usize) -> f32 {
-        field.values[i]
+    fn pick(f32_copy: impl FnOnce() -> f32, _file: impl FnOnce() -> f64) -> f32 {
+        f32_copy()
     }
 }
 
@@ -410,8 +416,8 @@ impl Real for f64 {
         self
     }
     #[inline(always)]
-    fn of(field: &crate::mesh::Field, i: usize) -> f64 {
-        field.value64(i)
+    fn pick(_f32_copy: impl FnOnce() -> f32, file: impl FnOnce() -> f64) -> f64 {
+        file()
     }
 }
 

@@ -248,12 +248,12 @@ impl Bulges {
 fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Point, found: &Found) -> T {
     let c = found.cell;
     match field.location {
-        FieldLocation::Cell => T::of(field, c),
+        FieldLocation::Cell => field.value_in(c),
         FieldLocation::Vertex => match found.pc.or_else(|| pcoords(mesh, cells, c, p)) {
             Some(pc) => {
                 let nodes = cells.block.nodes(c);
                 let def = cells.block.types[c].def();
-                T::from_f64(interpolate(def, pc, |i| T::of(field, nodes[i] as usize).to_f64()))
+                T::from_f64(interpolate(def, pc, |i| field.value_in::<T>(nodes[i] as usize).to_f64()))
             }
             // Newton failed: linearly in the cell's decomposition tet that holds the point (the
             // corners' values).
@@ -262,7 +262,7 @@ fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Point, found: &F
                 let w = mesh.info.frame.to_working(p);
                 let held = tets.iter().find_map(|&t| Some((t, geom::point_in_tet(t, &mesh.points, w)?)));
                 held.map_or(T::NAN, |(t, bary)| {
-                    geom::interpolate_with(t, bary.map(|b| T::from_f64(b.into())), |i| T::of(field, i))
+                    geom::interpolate_with(t, bary.map(|b| T::from_f64(b.into())), |i| field.value_in(i))
                 })
             }
         },
@@ -310,7 +310,7 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
 
     fn sample_grid(
         &mut self,
-        grid: &crate::ops::ImageGrid,
+        grid: &crate::geom::ImageGrid,
         range: std::ops::Range<usize>,
         fields: &[&str],
         ids: &mut [i32],

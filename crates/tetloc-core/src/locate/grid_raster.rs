@@ -13,9 +13,9 @@
 //!
 //! The grid is done a slab of z planes at a time, so memory stays bounded for any grid.
 
+use crate::geom::ImageGrid;
 use crate::geom::{self, predicates::Query, Bary, TetTest};
 use crate::mesh::Mesh;
-use crate::ops::ImageGrid;
 use rayon::prelude::*;
 use std::ops::Range;
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};

@@ -22,9 +22,9 @@ pub use precision::{with_precision, F64Values, Precision};
 pub use tolerance::{Tolerance, WithTolerance};
 
 use crate::error::{Error, Result};
+use crate::geom::ImageGrid;
 use crate::geom::Vec3;
 use crate::ops::trace::{Line, TraceOptions};
-use crate::ops::ImageGrid;
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -365,7 +365,7 @@ impl<'a> Points<'a> {
     pub fn need_f64(self) -> bool {
         match self {
             Points::F32(_) => false,
-            Points::F64(p) => crate::io::needs_f64(p),
+            Points::F64(p) => crate::mesh::needs_f64(p),
         }
     }
 }

@@ -7,10 +7,10 @@
 
 use super::{check_sample_lengths, BatchLocator};
 use crate::error::{Error, Result};
+use crate::geom::ImageGrid;
 use crate::geom::Vec3;
 use crate::mesh::Mesh;
 use crate::ops::trace::{Line, TraceOptions};
-use crate::ops::ImageGrid;
 use std::ops::Range;
 use std::sync::Arc;
 

@@ -4,7 +4,7 @@
 
 mod cells;
 mod faces;
-mod frame;
+pub mod field_groups;
 mod neighbors;
 mod summary;
 #[cfg(test)]
@@ -13,7 +13,8 @@ mod tet_nodes;
 
 pub use cells::{tets_per_cell, Cells};
 pub use faces::{Face, FaceSet};
-pub use frame::Frame;
+// The working frame is the geometry's (geom::Exact takes it); the mesh keeps one.
+pub use crate::geom::Frame;
 pub use summary::{FieldSummary, MeshSummary};
 pub use tet_nodes::TetNodes;
 
@@ -69,6 +70,12 @@ impl Field {
         }
     }
 
+    /// Value `i` in precision `T`: f32 (`values`) or f64 ([`Self::value64`]).
+    #[inline(always)]
+    pub fn value_in<T: geom::Real>(&self, i: usize) -> T {
+        T::pick(|| self.values[i], || self.value64(i))
+    }
+
     /// The field of the `n` values at `index(0..n)`, in both precisions.
     pub fn select(&self, index: impl Fn(usize) -> usize + Sync, n: usize) -> Field {
         Field {
@@ -117,6 +124,18 @@ pub struct RawMesh {
     /// (`None` for linear tets only). Cell fields have one value per cell of this block. For a
     /// mesh of higher-order tets `tets` holds their corners and this block all their nodes.
     pub cells: Option<crate::cell::CellBlock>,
+}
+
+/// A file's f64 coordinates for `RawMesh::points64`: `None` when every one rounds to f32
+/// exactly (then the f32 copy is the data).
+pub fn points64_if_needed(points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
+    needs_f64(&points).then_some(points)
+}
+
+/// Whether some finite coordinate of `points` does not round to f32 exactly.
+pub fn needs_f64(points: &[[f64; 3]]) -> bool {
+    use rayon::prelude::*;
+    points.par_iter().any(|p| p.iter().any(|&x| x.is_finite() && (x as f32) as f64 != x))
 }
 
 /// Facts computed on load, reported by `tetloc info`.
@@ -387,9 +406,9 @@ impl Mesh {
     pub fn value_of<T: geom::Real>(&self, field: &Field, found: Option<(usize, [T; 4])>) -> T {
         match (found, field.location) {
             (None, _) => T::NAN,
-            (Some((t, b)), FieldLocation::Vertex) => self.interpolate_with(t, b, |i| T::of(field, i)),
+            (Some((t, b)), FieldLocation::Vertex) => self.interpolate_with(t, b, |i| field.value_in(i)),
             // A mixed mesh's tets are its cells' decomposition: the value of the tet's cell.
-            (Some((t, _)), FieldLocation::Cell) => T::of(field, self.cell_of_tet(t)),
+            (Some((t, _)), FieldLocation::Cell) => field.value_in(self.cell_of_tet(t)),
         }
     }
 

@@ -3,14 +3,15 @@
 //! points (vtkResampleWithDataSet), and trace particles through a vector field
 //! (vtkStreamTracer). Each works over any [`crate::BatchLocator`], so on every backend.
 
-pub mod fields;
-mod grid;
 pub mod probe;
 pub mod resample;
 pub mod trace;
 
+// The field groups and the image grid live below the locators (the locators take them);
+// the operations' callers keep finding them here.
+pub use crate::geom::ImageGrid;
+pub use crate::mesh::field_groups as fields;
 pub use fields::FieldGroup;
-pub use grid::ImageGrid;
 
 /// Points per batch handed to a locator: large enough to keep a GPU busy, small enough to
 /// bound memory (a batch's points, ids and values) for any output size.

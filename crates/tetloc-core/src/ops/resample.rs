@@ -2,11 +2,9 @@
 //! located and the chosen fields sampled there, chunk by chunk in grid order, so the
 //! result streams into a file of any size with bounded memory.
 
-use super::{FieldGroup, ImageGrid, CHUNK};
+use super::{FieldGroup, ImageGrid};
 use crate::error::Result;
-use crate::io::image::{ImageArray, ImageWriter};
 use crate::locate::BatchLocator;
-use std::path::Path;
 
 /// Samples `fields` at every point of `grid`, `chunk` points at a time in grid order (x
 /// fastest), and hands each chunk's ids (-1: no value) and values (every field's components
@@ -31,39 +29,6 @@ pub fn resample(
         sink(&ids, &values)?;
     }
     Ok(())
-}
-
-/// What [`resample_to_file`] did.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct ResampleStats {
-    pub n_points: usize,
-    /// Points that got a value (`vtkValidPointMask` = 1).
-    pub n_valid: usize,
-}
-
-/// [`resample`] into `path`: `.vti` (every field and `vtkValidPointMask`; zlib-compressed
-/// when `zlib`) or `.npy` (one field). `progress` gets the number of points done so far.
-pub fn resample_to_file(
-    loc: &mut dyn BatchLocator,
-    grid: &ImageGrid,
-    fields: &[FieldGroup],
-    path: &Path,
-    zlib: bool,
-    mut progress: impl FnMut(usize),
-) -> Result<ResampleStats> {
-    let arrays: Vec<ImageArray> =
-        fields.iter().map(|g| ImageArray { name: g.name.clone(), n_components: g.n_components() }).collect();
-    let mut out = ImageWriter::create(path, grid, &arrays, zlib)?;
-    let (mut done, mut n_valid) = (0, 0);
-    resample(loc, grid, fields, CHUNK, |ids, values| {
-        out.push(ids, values)?;
-        done += ids.len();
-        n_valid += ids.iter().filter(|&&i| i >= 0).count();
-        progress(done);
-        Ok(())
-    })?;
-    out.finish()?;
-    Ok(ResampleStats { n_points: grid.n_points(), n_valid })
 }
 
 #[cfg(test)]
@@ -138,39 +103,5 @@ mod tests {
         }
         let (ids2, vals2) = collect(&mut Plain(CpuLocator::new(m.clone())), 11);
         assert_eq!((ids2, bits(&vals2)), (ids, bits(&vals)));
-    }
-
-    /// The .npy holds (NZ, NY, NX, 3) with NaN outside; the .vti reads back through the
-    /// header and holds the mask.
-    #[test]
-    fn resampled_files() {
-        let m = cube_with_vector();
-        let v = fields::resolve(&m, "v").unwrap();
-        let f = fields::resolve(&m, "f").unwrap();
-        let grid = ImageGrid::spanning([0.0; 3], [1.5, 1.0, 1.0], [4, 3, 2]).unwrap();
-        let dir = std::env::temp_dir();
-        let npy = dir.join(format!("tetloc-resample-{}.npy", std::process::id()));
-        let mut loc = CpuLocator::new(m.clone());
-        let mut seen = 0;
-        let stats = resample_to_file(&mut loc, &grid, std::slice::from_ref(&v), &npy, false, |d| seen = d).unwrap();
-        assert_eq!((stats.n_points, seen), (24, 24));
-        assert_eq!(stats.n_valid, 18); // x = 1.5 is outside
-        let bytes = std::fs::read(&npy).unwrap();
-        let arr = npyz::NpyFile::new(&bytes[..]).unwrap();
-        assert_eq!(arr.shape(), &[2, 3, 4, 3]);
-        let data = arr.into_vec::<f32>().unwrap();
-        assert_eq!(data[3 * 2], 1.0); // point (1, 0, 0): v = (x, 2y, 3z)
-        assert!(data[3 * 3].is_nan());
-        std::fs::remove_file(&npy).unwrap();
-        for zlib in [false, true] {
-            let vti = dir.join(format!("tetloc-resample-{}-{zlib}.vti", std::process::id()));
-            resample_to_file(&mut loc, &grid, &[f.clone(), v.clone()], &vti, zlib, |_| {}).unwrap();
-            let text = String::from_utf8_lossy(&std::fs::read(&vti).unwrap()).into_owned();
-            assert!(text.contains("WholeExtent=\"0 3 0 2 0 1\""), "{text:.400}");
-            assert!(text.contains("Spacing=\"0.5 0.5 1.0\""), "{text:.400}");
-            assert!(text.contains("Name=\"v\" NumberOfComponents=\"3\""));
-            assert!(text.contains("Name=\"vtkValidPointMask\""));
-            std::fs::remove_file(&vti).unwrap();
-        }
     }
 }

@@ -22,8 +22,40 @@ use crate::cell::{barycentric_lattice, CellBlock, CellType};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
 // What mixed.rs takes from its includer.
-use crate::io::read_raw;
 use crate::locate::BatchLocator;
+
+/// A mesh file read by tetloc-io, as this crate's own types. Core's unit tests see the core
+/// that tetloc-io links as another crate (tetloc-io depends on core), so its mesh is copied
+/// over; the enums by their `Debug` names, the only thing the two copies share.
+pub(crate) fn read_raw(path: &std::path::Path, format: Option<tetloc_io::MeshFormat>) -> Result<RawMesh, String> {
+    let raw = tetloc_io::read_raw(path, format).map_err(|e| e.to_string())?;
+    let fields = raw
+        .fields
+        .into_iter()
+        .map(|f| {
+            let location =
+                if format!("{:?}", f.location) == "Vertex" { FieldLocation::Vertex } else { FieldLocation::Cell };
+            Field { name: f.name, location, values: f.values, values64: f.values64 }
+        })
+        .collect();
+    let cells = raw.cells.map(|b| {
+        let type_of = |t: String| CellType::all().find(|c| format!("{c:?}") == t).expect("the same cell table");
+        CellBlock { types: b.types.iter().map(|t| type_of(format!("{t:?}"))).collect(), ends: b.ends, conn: b.conn }
+    });
+    Ok(RawMesh {
+        points: raw.points,
+        points64: raw.points64,
+        tets: raw.tets,
+        fields,
+        higher_order: raw.higher_order,
+        cells,
+    })
+}
+
+/// [`read_raw`], validated.
+pub(crate) fn read_mesh(path: &std::path::Path) -> Result<Mesh, String> {
+    Mesh::new(read_raw(path, None)?, path.display().to_string()).map_err(|e| e.to_string())
+}
 
 /// `n`³ cubes on [0,1]³, interior vertices jittered by up to `jitter` × spacing, with a
 /// smooth vertex field `f` and the tet ids as cell field `cellval`.

@@ -8,7 +8,7 @@ use crate::test_support::mixed::{compare, compare_far, far_mesh, mixed_sets, Mis
 use std::path::Path;
 
 fn load(path: &Path) -> Arc<Mesh> {
-    Arc::new(crate::io::read_mesh(path, None).unwrap_or_else(|e| panic!("{e}")))
+    Arc::new(crate::test_support::read_mesh(path).unwrap_or_else(|e| panic!("{e}")))
 }
 
 /// Every mixed oracle set, from both files of each mesh, through the CPU locator: VTK's ids
@@ -163,7 +163,8 @@ fn planar_hexes_answer_as_their_tet_split() {
 /// Bad cells: repeated vertices are kept (their zero-volume tets hold nothing; a hex collapsed
 /// to a wedge still holds its points), inverted hexes are located as they are (VTK's
 /// definition does not depend on orientation) and counted, tangled hexes are kept and
-/// counted, vertex ids out of range are an error naming the cell, and cell types tetloc does not read are refused counted by type.
+/// counted, and vertex ids out of range are an error naming the cell. (Cell types tetloc does
+/// not read: tetloc-io's `unsupported_cells_are_refused_counted_by_type`.)
 #[test]
 fn bad_cells_are_repaired_or_refused() {
     let hex = CellType::from_vtk(12, 8).unwrap();
@@ -224,17 +225,4 @@ fn bad_cells_are_repaired_or_refused() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("cell 0 references vertex 9"), "{e}");
-    // Unknown and unsupported types, counted by type: a legacy file with a hex, a voxel and a
-    // polyhedron-free pentagonal prism.
-    let legacy = "# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 float\n\
-        0 0 0 1 0 0 0 1 0 1 1 0 0 0 1 1 0 1 0 1 1 1 1 1\nCELLS 3 27\n8 0 1 3 2 4 5 7 6\n8 0 1 2 3 4 5 6 7\n8 0 1 3 2 4 5 7 6\n\
-        CELL_TYPES 3\n12\n11\n11\n";
-    match crate::io::vtk::legacy::parse(legacy.as_bytes(), Path::new("bad.vtk")) {
-        Err(crate::Error::NonTetCells { counts, .. }) => {
-            assert_eq!(counts, vec![("voxel".to_string(), 2), ("hexahedron".to_string(), 1)]);
-        }
-        other => panic!("expected NonTetCells, got {other:?}"),
-    }
-    let e = crate::io::vtk::legacy::parse(legacy.replace("\n11\n11\n", "\n12\n200\n").as_bytes(), Path::new("bad.vtk"));
-    assert!(e.unwrap_err().to_string().contains("200"));
 }

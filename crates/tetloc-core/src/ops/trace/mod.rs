@@ -485,30 +485,6 @@ impl LineArrays {
             fields,
         }
     }
-
-    /// Appends them to `w`, a VTK polydata (`.vtp`) file being written: the fields (Float64
-    /// where sampled in f64) and `IntegrationTime` (Float64) as point data, `ReasonForTermination` and `SeedIds` (Int32)
-    /// as cell data, as vtkStreamTracer writes them. Seed ids are `seed_base` + the line's.
-    pub fn push_to(&self, w: &mut crate::io::vtk::write::PolylineWriter, seed_base: usize) -> Result<()> {
-        use crate::io::vtk::write::{ArrayData, NamedArray};
-        let mut point_data = self.fields.fields_named();
-        point_data.push(NamedArray {
-            name: "IntegrationTime".into(),
-            n_components: 1,
-            data: ArrayData::F64(&self.time),
-        });
-        let seeds = self
-            .seeds
-            .iter()
-            .map(|&s| i32::try_from(s as usize + seed_base))
-            .collect::<std::result::Result<Vec<i32>, _>>()
-            .map_err(|_| Error::Invalid("more than 2^31 seeds: SeedIds is an Int32 array, as VTK writes it".into()))?;
-        let cell_data = [
-            NamedArray { name: "ReasonForTermination".into(), n_components: 1, data: ArrayData::I32(&self.reasons) },
-            NamedArray { name: "SeedIds".into(), n_components: 1, data: ArrayData::I32(&seeds) },
-        ];
-        w.push(&self.points, &self.ends, &point_data, &cell_data)
-    }
 }
 
 /// The vector field `name` of `mesh`, which must have 3 components.

@@ -264,7 +264,7 @@ pub(crate) fn component_f64(a: &Array, ncomp: usize, c: usize) -> Option<Vec<f64
         return None;
     }
     let v = a.bytes.par_chunks_exact(ncomp * 8).map(|t| f64::get(t, c)).collect();
-    crate::mesh::f64_if_needed(v)
+    tetloc_core::mesh::f64_if_needed(v)
 }
 
 /// Triples of values as f32 points.
@@ -279,7 +279,7 @@ pub(crate) fn to_points64(a: &Array) -> Option<Vec<[f64; 3]>> {
         return None;
     }
     let pts = map_tuples::<f64, 3, _, _>(&a.bytes, Some).unwrap_or_default();
-    crate::io::points64_if_needed(pts)
+    crate::points64_if_needed(pts)
 }
 
 /// Integer values mapped through `f`, which returns `None` for values out of the caller's

@@ -7,10 +7,10 @@
 use super::elements::Kind;
 use super::tags::TagMap;
 use super::Nodes;
-use crate::cell::{CellBlock, CellType};
-use crate::error::Result;
-use crate::io::cursor::{Cursor, Words};
+use crate::cursor::{Cursor, Words};
 use rayon::prelude::*;
+use tetloc_core::cell::{CellBlock, CellType};
+use tetloc_core::error::Result;
 
 /// The volume cells and other volume elements of one chunk of ASCII element lines.
 #[derive(Default)]

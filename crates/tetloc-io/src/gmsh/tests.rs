@@ -2,10 +2,10 @@
 //! truncated and corrupted files, and over the shared data files.
 
 use super::*;
-use crate::mesh::{Field, Mesh};
 use crate::test_support::require_data;
 use rand::{Rng, SeedableRng};
 use std::path::PathBuf;
+use tetloc_core::mesh::{Field, Mesh};
 
 // -----------------------------------------------------------------------------------------
 // A small mesh written in every encoding by a test-only writer

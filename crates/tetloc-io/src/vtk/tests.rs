@@ -1,20 +1,20 @@
 //! Tests of the VTK readers against the shared data: every file reads, encodings of one mesh
 //! agree bit for bit, higher-order and non-tet files, and damaged files fail cleanly.
 
-use crate::error::Error;
-use crate::io::vtk::{legacy as vtk_legacy, vtu};
-use crate::mesh::{FieldLocation, RawMesh};
 use crate::test_support::require_data;
+use crate::vtk::{legacy as vtk_legacy, vtu};
 use std::path::{Path, PathBuf};
+use tetloc_core::error::Error;
+use tetloc_core::mesh::{FieldLocation, RawMesh};
 
-fn read(path: &Path) -> crate::Result<RawMesh> {
+fn read(path: &Path) -> tetloc_core::Result<RawMesh> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("vtu") => vtu::read(path),
         _ => vtk_legacy::read(path),
     }
 }
 
-fn parse(bytes: &[u8], path: &Path) -> crate::Result<RawMesh> {
+fn parse(bytes: &[u8], path: &Path) -> tetloc_core::Result<RawMesh> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("vtu") => vtu::parse(bytes, path),
         _ => vtk_legacy::parse(bytes, path),
@@ -111,7 +111,7 @@ fn real_files() {
     for (file, n_tets, order) in tet_files {
         let m = read(&real.join(file)).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!((m.tets.len(), m.higher_order), (n_tets, order), "{file}");
-        let mesh = crate::Mesh::new(m, file).unwrap_or_else(|e| panic!("{e}"));
+        let mesh = tetloc_core::Mesh::new(m, file).unwrap_or_else(|e| panic!("{e}"));
         assert!(mesh.info.total_volume > 0.0);
     }
     let post = read(&real.join("post.vtk")).unwrap();
@@ -122,7 +122,7 @@ fn real_files() {
 
     // Counted independently from the files' type arrays: mixed meshes load, with their cells
     // counted by type; cells tetloc does not read are refused, counted by type.
-    let read_mesh = |p: &Path| read(p).and_then(|raw| crate::Mesh::new(raw, p.display().to_string()));
+    let read_mesh = |p: &Path| read(p).and_then(|raw| tetloc_core::Mesh::new(raw, p.display().to_string()));
     let mixed: [(&str, &[(&str, usize)]); 2] = [
         ("can.vtu", &[("hexahedron", 4800)]),
         ("notch_disp.vtu", &[("quadratic hexahedron", 2188), ("quadratic wedge", 4)]),
@@ -159,7 +159,7 @@ fn every_vtk_file_in_the_data_reads() {
 }
 
 /// Runs the parser, turning a panic into a test failure that names the input.
-fn parse_no_panic(bytes: &[u8], path: &Path, what: &str) -> crate::Result<RawMesh> {
+fn parse_no_panic(bytes: &[u8], path: &Path, what: &str) -> tetloc_core::Result<RawMesh> {
     std::panic::catch_unwind(|| parse(bytes, path))
         .unwrap_or_else(|_| panic!("{}: parser panicked on {what}", path.display()))
 }
@@ -252,7 +252,7 @@ fn gigantic_declared_sizes_fail_fast() {
 
 /// A grid of `n`³ cubes, 6 tets each (Kuhn split), every vertex jittered (boundary too),
 /// with a point and a cell field.
-pub(crate) fn jittered_grid(n: usize, seed: u64) -> crate::Mesh {
+pub(crate) fn jittered_grid(n: usize, seed: u64) -> tetloc_core::Mesh {
     crate::test_support::KuhnGrid::new(n)
         .jitter(0.15, seed)
         .jitter_boundary()
@@ -263,12 +263,12 @@ pub(crate) fn jittered_grid(n: usize, seed: u64) -> crate::Mesh {
 
 #[test]
 fn written_grid_reads_back() {
-    use crate::io::vtk::write as vtu_write;
+    use crate::vtk::write as vtu_write;
     let mesh = jittered_grid(12, 1);
     for zlib in [false, true] {
         let path = std::env::temp_dir().join(format!("tetloc-{}-grid-{zlib}.vtu", std::process::id()));
         vtu_write::write_mesh_vtu(&path, &mesh, zlib).unwrap();
-        let back = crate::Mesh::new(vtu::read(&path).unwrap(), "back").unwrap();
+        let back = tetloc_core::Mesh::new(vtu::read(&path).unwrap(), "back").unwrap();
         std::fs::remove_file(&path).unwrap();
         assert_eq!(back.tets, mesh.tets);
         assert_eq!(back.points, mesh.points);
@@ -280,12 +280,12 @@ fn written_grid_reads_back() {
 /// every other encoding) and through a legacy file: the same node rows come back.
 #[test]
 fn higher_order_tets_round_trip() {
-    use crate::io::vtk::write as vtu_write;
     use crate::test_support::KuhnGrid;
+    use crate::vtk::write as vtu_write;
     for order in [2u8, 3] {
         let mesh = KuhnGrid::new(3).jitter(0.1, 2).order(order).mesh("elevated");
         let nodes = mesh.tet_nodes.as_ref().unwrap();
-        let same = |back: &crate::Mesh, what: &str| {
+        let same = |back: &tetloc_core::Mesh, what: &str| {
             assert_eq!(back.tets, mesh.tets, "{what}");
             assert_eq!(back.points, mesh.points, "{what}");
             let b = back.tet_nodes.as_ref().unwrap_or_else(|| panic!("{what}: the nodes were dropped"));
@@ -298,13 +298,13 @@ fn higher_order_tets_round_trip() {
             let bytes = std::fs::read(&path).unwrap();
             std::fs::remove_file(&path).unwrap();
             same(
-                &crate::Mesh::new(vtu::parse(&bytes, &path).unwrap(), "back").unwrap(),
+                &tetloc_core::Mesh::new(vtu::parse(&bytes, &path).unwrap(), "back").unwrap(),
                 &format!("order {order} zlib {zlib}"),
             );
             if !zlib {
                 for enc in [Enc::AppendedBase64, Enc::BigEndian, Enc::Header32, Enc::Ascii, Enc::Inline] {
                     let raw = vtu::parse(&reencode(&bytes, enc), &path).unwrap();
-                    same(&crate::Mesh::new(raw, "back").unwrap(), &format!("order {order} {enc:?}"));
+                    same(&tetloc_core::Mesh::new(raw, "back").unwrap(), &format!("order {order} {enc:?}"));
                 }
             }
         }
@@ -322,7 +322,7 @@ fn higher_order_tets_round_trip() {
         text += &format!("CELL_TYPES {}\n", mesh.n_tets());
         text += &format!("{}\n", nodes.cell_type().def().vtk_type()).repeat(mesh.n_tets());
         let raw = vtk_legacy::parse(text.as_bytes(), Path::new("ho.vtk")).unwrap();
-        same(&crate::Mesh::new(raw, "legacy").unwrap(), &format!("order {order} legacy"));
+        same(&tetloc_core::Mesh::new(raw, "legacy").unwrap(), &format!("order {order} legacy"));
     }
 }
 
@@ -331,7 +331,7 @@ fn higher_order_tets_round_trip() {
 #[test]
 #[ignore]
 fn bench_load_10m_tets() {
-    use crate::io::vtk::write as vtu_write;
+    use crate::vtk::write as vtu_write;
     use std::time::Instant;
     let t = Instant::now();
     let mesh = jittered_grid(119, 2);
@@ -521,7 +521,7 @@ fn other_encodings_read_the_same() {
 #[test]
 #[ignore]
 fn write_samples() {
-    use crate::io::vtk::write as vtu_write;
+    use crate::vtk::write as vtu_write;
     let Some(dir) = std::env::var_os("TETLOC_WRITE_DIR").map(PathBuf::from) else { return };
     std::fs::create_dir_all(&dir).unwrap();
     let mesh = jittered_grid(10, 3);
@@ -533,7 +533,7 @@ fn write_samples() {
     let pts: Vec<[f32; 3]> = (0..100).map(|i| mesh.tet_center(i * 7)).collect();
     let ids: Vec<i32> = (0..100).map(|i| if i % 10 == 9 { -1 } else { i * 7 }).collect();
     let vals: Vec<f32> = ids.iter().map(|&i| i as f32 * 0.5).collect();
-    let (coords, values) = (vtu_write::Coords::F32(&pts), crate::io::points::Values::F32(&vals));
+    let (coords, values) = (vtu_write::Coords::F32(&pts), crate::points::Values::F32(&vals));
     vtu_write::write_points_vtu(&dir.join("points.vtu"), coords, &ids, Some(("value", values))).unwrap();
 }
 
@@ -575,8 +575,8 @@ fn compare_dir() {
 
 /// f64 values that f32 cannot hold, and the mesh with them: a point field of values near
 /// zero and a 2-component cell field.
-fn with_f64_fields(mut mesh: crate::Mesh) -> crate::Mesh {
-    use crate::mesh::{Field, FieldLocation};
+fn with_f64_fields(mut mesh: tetloc_core::Mesh) -> tetloc_core::Mesh {
+    use tetloc_core::mesh::{Field, FieldLocation};
     let n = mesh.points.len();
     let g: Vec<f64> = (0..n).map(|i| 1e-9 + i as f64 * 1e-12 + 1.0 / 3.0 * 1e-15).collect();
     mesh.fields.push(Field::from_f64("g", FieldLocation::Vertex, g));
@@ -589,7 +589,7 @@ fn with_f64_fields(mut mesh: crate::Mesh) -> crate::Mesh {
 }
 
 /// The f64 fields of `back` are `mesh`'s, bit for bit, and its f32 fields stay f32 only.
-fn same_f64_fields(back: &RawMesh, mesh: &crate::Mesh, what: &str) {
+fn same_f64_fields(back: &RawMesh, mesh: &tetloc_core::Mesh, what: &str) {
     for f in &mesh.fields {
         let g = back.fields.iter().find(|g| g.name == f.name).unwrap_or_else(|| panic!("{what}: no {}", f.name));
         let bits = |v: &Option<Vec<f64>>| v.as_ref().map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>());
@@ -603,7 +603,7 @@ fn same_f64_fields(back: &RawMesh, mesh: &crate::Mesh, what: &str) {
 /// and from a legacy file (ASCII and binary); Float32 fields get no f64 copy.
 #[test]
 fn f64_fields_round_trip_exactly() {
-    use crate::io::vtk::write as vtu_write;
+    use crate::vtk::write as vtu_write;
     let mesh = with_f64_fields(jittered_grid(3, 4));
     for zlib in [false, true] {
         let path = std::env::temp_dir().join(format!("tetloc-{}-f64-{zlib}.vtu", std::process::id()));
@@ -666,7 +666,7 @@ fn f64_fields_round_trip_exactly() {
             if section == "CELL_DATA" {
                 put(&mut bytes, "FIELD FieldData 1\n".into());
                 put(&mut bytes, format!("w 2 {n} double\n"));
-                let w: [&crate::Field; 2] = [mesh.field("w[0]").unwrap(), mesh.field("w[1]").unwrap()];
+                let w: [&tetloc_core::Field; 2] = [mesh.field("w[0]").unwrap(), mesh.field("w[1]").unwrap()];
                 for i in 0..n {
                     for f in w {
                         match binary {
@@ -680,4 +680,21 @@ fn f64_fields_round_trip_exactly() {
         let back = vtk_legacy::parse(&bytes, Path::new("f64.vtk")).unwrap_or_else(|e| panic!("binary {binary}: {e}"));
         same_f64_fields(&back, &mesh, &format!("legacy binary {binary}"));
     }
+}
+
+/// Cell types tetloc does not read are refused, counted by type; an unknown type code is named.
+#[test]
+fn unsupported_cells_are_refused_counted_by_type() {
+    // A legacy file with a hex, a voxel and a polyhedron-free pentagonal prism.
+    let legacy = "# vtk DataFile Version 3.0\nt\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS 8 float\n\
+        0 0 0 1 0 0 0 1 0 1 1 0 0 0 1 1 0 1 0 1 1 1 1 1\nCELLS 3 27\n8 0 1 3 2 4 5 7 6\n8 0 1 2 3 4 5 6 7\n8 0 1 3 2 4 5 7 6\n\
+        CELL_TYPES 3\n12\n11\n11\n";
+    match vtk_legacy::parse(legacy.as_bytes(), Path::new("bad.vtk")) {
+        Err(Error::NonTetCells { counts, .. }) => {
+            assert_eq!(counts, vec![("voxel".to_string(), 2), ("hexahedron".to_string(), 1)]);
+        }
+        other => panic!("expected NonTetCells, got {other:?}"),
+    }
+    let e = vtk_legacy::parse(legacy.replace("\n11\n11\n", "\n12\n200\n").as_bytes(), Path::new("bad.vtk"));
+    assert!(e.unwrap_err().to_string().contains("200"));
 }

@@ -4,17 +4,17 @@
 //! `.npy` and `.csv` carry f64 values as f64, raw files are always f32.
 //!
 //! Points with a NaN or infinite coordinate are read as they are: they are in no cell, and
-//! the locators answer them -1 / NaN (see [`crate::locate::FiniteOnly`]).
+//! the locators answer them -1 / NaN (see [`tetloc_core::locate::FiniteOnly`]).
 //!
 //! Outputs are arrays (`.npy`, `.bin`: one array a file) or tables (`.csv`: every column,
 //! `vtkValidPointMask` included, as ParaView's probe writes it), always written atomically.
 
 use super::output::{extension, write_atomically};
 use super::vtk::write::ArrayData;
-use crate::error::{Error, Result};
-use crate::geom::Vec3;
 use std::io::Write;
 use std::path::Path;
+use tetloc_core::error::{Error, Result};
+use tetloc_core::geom::Vec3;
 
 /// Extensions of the query-point files [`read_points`] reads.
 pub const POINT_EXTENSIONS: &[&str] = &["npy", "csv", "txt", "bin", "f32", "raw"];
@@ -484,10 +484,9 @@ mod tests {
         let e = read_points(Path::new("/dev/null.bin")).unwrap_err().to_string();
         assert!(e.contains("/dev/null.bin"), "{e}");
         // /dev/zero as a mesh: refused after the cap, quickly, with the file named.
-        let e = crate::io::read_mesh(Path::new("/dev/zero"), Some(crate::io::MeshFormat::Vtu)).unwrap_err().to_string();
+        let e = crate::read_mesh(Path::new("/dev/zero"), Some(crate::MeshFormat::Vtu)).unwrap_err().to_string();
         assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
-        let e =
-            crate::io::read_mesh(Path::new("/dev/zero"), Some(crate::io::MeshFormat::Gmsh)).unwrap_err().to_string();
+        let e = crate::read_mesh(Path::new("/dev/zero"), Some(crate::MeshFormat::Gmsh)).unwrap_err().to_string();
         assert!(e.contains("/dev/zero") && e.contains("not a regular file"), "{e}");
     }
 }

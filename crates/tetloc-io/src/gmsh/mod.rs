@@ -40,14 +40,14 @@ mod tests;
 mod v2;
 mod v4;
 
-use crate::cell::CellType;
-use crate::error::{Error, Result};
-use crate::io::cursor::{get_i32, show, Cursor};
-use crate::mesh::{FieldLocation, RawMesh};
+use crate::cursor::{get_i32, show, Cursor};
 use cells::ElementSink;
 use data::FieldAcc;
 use std::path::Path;
 use tags::TagMap;
+use tetloc_core::cell::CellType;
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{FieldLocation, RawMesh};
 
 pub fn read(path: &Path) -> Result<RawMesh> {
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;

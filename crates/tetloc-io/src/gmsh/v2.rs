@@ -5,8 +5,8 @@
 
 use super::cells::{read_ascii_nodes, Chunk, ElementSink};
 use super::elements::{element_type, unknown_type, Kind};
-use crate::error::Result;
-use crate::io::cursor::{get_f64, get_i32, Cursor};
+use crate::cursor::{get_f64, get_i32, Cursor};
+use tetloc_core::error::Result;
 
 pub(super) fn read_nodes(c: &mut Cursor, min_parallel: usize) -> Result<(Vec<[f64; 3]>, Vec<u64>)> {
     let declared = c.ascii_u64("the number of nodes")?;

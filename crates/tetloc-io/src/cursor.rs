@@ -5,10 +5,10 @@
 //!
 //! The whole file is one byte buffer: no per-line allocation, and words are slices of it.
 
-use crate::error::{Error, Result};
 use rayon::prelude::*;
 use std::fmt::Display;
 use std::path::Path;
+use tetloc_core::error::{Error, Result};
 
 pub(crate) struct Cursor<'a> {
     pub buf: &'a [u8],

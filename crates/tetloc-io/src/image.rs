@@ -6,10 +6,10 @@
 
 use super::output::{extension, AtomicFile};
 use super::vtk::vti::VtiWriter;
-use crate::error::{Error, Result};
-use crate::ops::ImageGrid;
 use std::io::Write;
 use std::path::Path;
+use tetloc_core::error::{Error, Result};
+use tetloc_core::geom::ImageGrid;
 
 /// Extensions [`ImageWriter`] writes.
 pub const IMAGE_EXTENSIONS: &[&str] = &["vti", "npy"];

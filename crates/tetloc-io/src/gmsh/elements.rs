@@ -1,9 +1,9 @@
 //! Gmsh's element types: how many nodes each has, and whether it is a volume cell tetloc reads
 //! (of which order), another volume element, or a lower-dimensional one that the reader ignores.
 
-use crate::cell::CellType;
-use crate::error::Error;
-use crate::io::cursor::Cursor;
+use crate::cursor::Cursor;
+use tetloc_core::cell::CellType;
+use tetloc_core::error::Error;
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Kind {

@@ -3,8 +3,8 @@
 //! pieces themselves are read by [`super::pieces`].
 
 use super::xml;
-use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
+use tetloc_core::error::{Error, Result};
 
 /// The piece files a `.pvtu` lists (`<Piece Source="...">`), relative paths resolved
 /// against the folder of the `.pvtu`; `path` names the file in errors and anchors them.

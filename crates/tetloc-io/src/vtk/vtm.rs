@@ -3,8 +3,8 @@
 //! whose pieces are) as the pieces of one mesh ([`super::pieces`]).
 
 use super::xml::{self, Node};
-use crate::error::{Error, Result};
 use std::path::{Path, PathBuf};
+use tetloc_core::error::{Error, Result};
 
 /// The block files a `.vtm` lists (`<DataSet file="...">` at any depth of `<Block>`s),
 /// relative paths resolved against the folder of the `.vtm`. Empty blocks (no `file`) are

@@ -22,10 +22,10 @@
 //! sliver between the face's two triangles and its bilinear patch may come back outside.
 
 use super::vtu;
-use crate::cell::CellBlock;
-use crate::error::{Error, Result};
-use crate::mesh::{FieldLocation, RawMesh};
 use std::path::{Path, PathBuf};
+use tetloc_core::cell::CellBlock;
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{FieldLocation, RawMesh};
 
 /// How deep listings may nest (a `.vtm` of `.pvtu`s is 2): a listing that lists itself stops here.
 const MAX_NESTING: usize = 4;
@@ -41,7 +41,7 @@ pub fn resolve(listing: &Path, file: &str) -> PathBuf {
 
 /// Whether `path` names a listing of pieces (`.pvtu`, `.vtm`).
 pub fn is_listing(path: &Path) -> bool {
-    matches!(crate::io::output::extension(path).as_str(), "pvtu" | "vtm")
+    matches!(crate::output::extension(path).as_str(), "pvtu" | "vtm")
 }
 
 /// The VTU pieces of a `.pvtu` or `.vtm`, in order (listings inside a `.vtm` expanded).
@@ -56,13 +56,13 @@ fn list_into(path: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<()> {
         return Err(Error::format(path, format!("listings nest more than {MAX_NESTING} deep (does one list itself?)")));
     }
     let bytes = super::read_file(path)?;
-    let files = match crate::io::output::extension(path).as_str() {
+    let files = match crate::output::extension(path).as_str() {
         "pvtu" => super::pvtu::parse(&bytes, path)?,
         "vtm" => super::vtm::parse(&bytes, path)?,
         other => return Err(Error::format(path, format!("'.{other}' is not a listing of pieces (.pvtu, .vtm)"))),
     };
     for f in files {
-        match crate::io::output::extension(&f).as_str() {
+        match crate::output::extension(&f).as_str() {
             "vtu" => out.push(f),
             "pvtu" | "vtm" => list_into(&f, depth + 1, out)?,
             _ => {
@@ -293,10 +293,10 @@ fn renumber(mut raw: RawMesh, ids: &[u64], listing: &Path, first_ids: &[u64]) ->
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::locate::{BatchLocator, CpuLocator};
     use crate::test_support::KuhnGrid;
-    use crate::Mesh;
     use std::sync::Arc;
+    use tetloc_core::locate::{BatchLocator, CpuLocator};
+    use tetloc_core::Mesh;
 
     /// A fresh folder, removed at the end.
     struct TempDir(PathBuf);
@@ -322,7 +322,7 @@ mod tests {
     /// into pieces and the pieces' merge, bit for bit, through .pvtu and .vtm.
     #[test]
     fn f64_fields_survive_the_pieces() {
-        use crate::mesh::{Field, FieldLocation};
+        use tetloc_core::mesh::{Field, FieldLocation};
         let dir = TempDir::new("f64");
         let mut m = cube();
         let g = (0..m.points.len()).map(|i| 1e-9 + i as f64 * 1e-12 + 1e-17).collect();
@@ -334,7 +334,7 @@ mod tests {
         std::fs::write(dir.0.join("cube.vtm"), vtm).unwrap();
         for ext in ["pvtu", "vtm"] {
             let out = dir.0.join(format!("cube.{ext}"));
-            let back = crate::io::read_mesh(&out, None).unwrap();
+            let back = crate::read_mesh(&out, None).unwrap();
             assert_eq!(back.points, m.points, "{ext}");
             for name in ["g", "h"] {
                 let bits = |m: &Mesh| {
@@ -355,7 +355,7 @@ mod tests {
         let out = dir.0.join("cube.pvtu");
         crate::partition::write_pvtu(&m, 5, &out, true, |_| {}).unwrap();
         assert_eq!(list(&out).unwrap().len(), 5);
-        let back = crate::io::read_mesh(&out, None).unwrap();
+        let back = crate::read_mesh(&out, None).unwrap();
         assert_eq!(back.n_cells(), m.n_cells());
         assert_eq!(back.points, m.points, "the copies of a vertex are merged by GlobalPointIds, in id order");
         assert_eq!(back.tets, m.tets);
@@ -375,7 +375,7 @@ mod tests {
             if a[i] != b[i] {
                 // Only a point on a face between pieces may go either way: both tets hold it.
                 let t = back.tets[a[i] as usize];
-                assert!(crate::geom::point_in_tet(t, &back.points, pts[i]).is_some(), "{:?}", pts[i]);
+                assert!(tetloc_core::geom::point_in_tet(t, &back.points, pts[i]).is_some(), "{:?}", pts[i]);
             } else {
                 assert_eq!(va[i].to_bits(), vb[i].to_bits(), "{:?}", pts[i]);
             }
@@ -384,10 +384,7 @@ mod tests {
         crate::partition::write_pvtu(&back, 2, &out, false, |_| {}).unwrap();
         assert_eq!(list(&out).unwrap().len(), 2);
         assert_eq!(std::fs::read_dir(dir.0.join("cube")).unwrap().count(), 2, "the old pieces are gone");
-        assert_eq!(
-            crate::io::read_mesh(&out, None).unwrap().field("c").unwrap().values,
-            back.field("c").unwrap().values
-        );
+        assert_eq!(crate::read_mesh(&out, None).unwrap().field("c").unwrap().values, back.field("c").unwrap().values);
     }
 
     /// A mesh far from the origin (UTM-like, f64 coordinates that do not round to f32) keeps
@@ -406,17 +403,17 @@ mod tests {
         let out = dir.0.join("far.pvtu");
         crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
         for piece in list(&out).unwrap() {
-            let p = crate::io::read_mesh(&piece, None).unwrap();
+            let p = crate::read_mesh(&piece, None).unwrap();
             assert!(p.points64.is_some(), "{}: written in f64", piece.display());
         }
-        let back = crate::io::read_mesh(&out, None).unwrap();
+        let back = crate::read_mesh(&out, None).unwrap();
         assert_eq!(back.points64, m.points64, "the file's coordinates, welded in f64");
         assert_eq!(back.tets, m.tets);
     }
 
     /// Mixed cells and higher-order tets keep every node through a partition.
     fn hybrid() -> Mesh {
-        use crate::gen::{generate_spec, CellKind, Shape, Spec};
+        use tetloc_core::gen::{generate_spec, CellKind, Shape, Spec};
         Mesh::new(generate_spec(Spec { shape: Shape::Jets, cells: CellKind::Hybrid }, 3000, 1, &|_| {}), "hybrid")
             .unwrap()
     }
@@ -427,7 +424,7 @@ mod tests {
         for (name, m) in [("p2", KuhnGrid::new(3).order(2).mesh("p2")), ("hybrid", hybrid())] {
             let out = dir.0.join(format!("{name}.pvtu"));
             crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
-            let back = crate::io::read_mesh(&out, None).unwrap();
+            let back = crate::read_mesh(&out, None).unwrap();
             assert_eq!((back.n_cells(), back.n_tets()), (m.n_cells(), m.n_tets()), "{name}");
             assert_eq!(back.info.cell_types, m.info.cell_types, "{name}");
             assert_eq!(back.info.total_volume, m.info.total_volume, "{name}");
@@ -441,11 +438,11 @@ mod tests {
         crate::partition::write_pvtu(&m, 2, &dir.0.join("a.pvtu"), false, |_| {}).unwrap();
         // Pieces without global ids: numbered in piece order × cell order.
         let plain = |k: usize| {
-            let raw = crate::io::vtk::vtu::read(&dir.0.join(format!("a/a_{k}.vtu"))).unwrap();
+            let raw = crate::vtk::vtu::read(&dir.0.join(format!("a/a_{k}.vtu"))).unwrap();
             let mut mesh = Mesh::new(raw, "p").unwrap();
             mesh.fields.retain(|f| f.name != "GlobalCellIds");
             let p = dir.0.join(format!("plain_{k}.vtu"));
-            crate::io::vtk::write::write_mesh_vtu(&p, &mesh, false).unwrap();
+            crate::vtk::write::write_mesh_vtu(&p, &mesh, false).unwrap();
             mesh
         };
         let (p0, p1) = (plain(0), plain(1));
@@ -453,7 +450,7 @@ mod tests {
             <Block index="0"><DataSet index="0" file="plain_0.vtu"/></Block><DataSet index="1" file="plain_1.vtu"/>
             </vtkMultiBlockDataSet></VTKFile>"#;
         std::fs::write(dir.0.join("b.vtm"), vtm).unwrap();
-        let back = crate::io::read_mesh(&dir.0.join("b.vtm"), None).unwrap();
+        let back = crate::read_mesh(&dir.0.join("b.vtm"), None).unwrap();
         let c = &back.field("c").unwrap().values;
         assert_eq!(c[..p0.n_cells()], p0.field("c").unwrap().values[..]);
         assert_eq!(c[p0.n_cells()..], p1.field("c").unwrap().values[..]);
@@ -464,7 +461,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(
-            crate::io::read_mesh(&dir.0.join("c.vtm"), None).unwrap().field("c").unwrap().values,
+            crate::read_mesh(&dir.0.join("c.vtm"), None).unwrap().field("c").unwrap().values,
             m.field("c").unwrap().values
         );
     }
@@ -475,23 +472,23 @@ mod tests {
         let m = cube();
         let out = dir.0.join("e.pvtu");
         crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
-        let err = |p: &Path| crate::io::read_mesh(p, None).unwrap_err().to_string();
+        let err = |p: &Path| crate::read_mesh(p, None).unwrap_err().to_string();
         // A piece missing.
         std::fs::rename(dir.0.join("e/e_1.vtu"), dir.0.join("e1.vtu")).unwrap();
         let e = err(&out);
         assert!(e.starts_with(&out.display().to_string()) && e.contains("piece 1") && e.contains("e_1.vtu"), "{e}");
         // A piece with other arrays.
-        let raw = crate::io::vtk::vtu::read(&dir.0.join("e1.vtu")).unwrap();
+        let raw = crate::vtk::vtu::read(&dir.0.join("e1.vtu")).unwrap();
         let mut other = Mesh::new(raw, "x").unwrap();
         other.fields.retain(|f| f.name != "c");
         let gids: Vec<i32> = other.field("GlobalCellIds").unwrap().values.iter().map(|&v| v as i32).collect();
         other.fields.retain(|f| f.name != "GlobalCellIds");
-        let ids = crate::io::vtk::write::NamedArray {
+        let ids = crate::vtk::write::NamedArray {
             name: "GlobalCellIds".into(),
             n_components: 1,
-            data: crate::io::vtk::write::ArrayData::I32(&gids),
+            data: crate::vtk::write::ArrayData::I32(&gids),
         };
-        crate::io::vtk::write::write_mesh_with_cell_data(&dir.0.join("e/e_1.vtu"), &other, &[], &[ids], false).unwrap();
+        crate::vtk::write::write_mesh_with_cell_data(&dir.0.join("e/e_1.vtu"), &other, &[], &[ids], false).unwrap();
         let e = err(&out);
         assert!(e.contains("piece 1") && e.contains("e_1.vtu") && e.contains("has the arrays"), "{e}");
         // Global ids twice.

@@ -16,10 +16,10 @@
 //! the line.
 
 use super::cursor::{Cursor, Line};
-use crate::cell::{CellBlock, CellType};
-use crate::error::{Error, Result};
-use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::path::{Path, PathBuf};
+use tetloc_core::cell::{CellBlock, CellType};
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{Field, FieldLocation, RawMesh};
 
 /// Reads `NAME.node` and `NAME.ele` (either may be named).
 pub fn read(path: &Path) -> Result<RawMesh> {
@@ -248,8 +248,8 @@ fn read_tets(c: &mut Cursor, nodes: &Nodes) -> Result<Tets> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::Mesh;
     use rand::{Rng, SeedableRng};
+    use tetloc_core::mesh::Mesh;
 
     /// A fresh temporary folder for one test.
     fn temp_dir(test: &str) -> PathBuf {

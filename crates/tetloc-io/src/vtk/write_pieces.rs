@@ -9,11 +9,11 @@
 //! old and new pieces or at pieces still being written.
 
 use super::write::{write_mesh_with_cell_data, ArrayData, NamedArray};
-use crate::error::{Error, Result};
-use crate::io::output::write_atomically;
-use crate::mesh::{FieldLocation, Mesh};
+use crate::output::write_atomically;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{FieldLocation, Mesh};
 
 /// The pieces folder of a listing `OUT.pvtu` (`OUT`) and the name stem of its pieces.
 fn pieces_dir(path: &Path) -> Result<(PathBuf, String)> {
@@ -125,7 +125,7 @@ pub fn write_pvtu(
 
 /// The listing's `<PPointData>`, `<PCellData>` and `<PPoints>`: what every piece carries.
 fn declarations(mesh: &Mesh, id_type: &str) -> String {
-    let groups = crate::ops::fields::groups_of(&mesh.fields);
+    let groups = tetloc_core::mesh::field_groups::groups_of(&mesh.fields);
     let mut out = String::new();
     for (tag, location) in [("PPointData", FieldLocation::Vertex), ("PCellData", FieldLocation::Cell)] {
         out += &format!("    <{tag}>\n");

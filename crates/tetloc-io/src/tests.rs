@@ -8,8 +8,8 @@
 //! there one unit in the last place is allowed.
 
 use super::read_raw;
-use crate::mesh::RawMesh;
 use crate::test_support::require_data;
+use tetloc_core::mesh::RawMesh;
 
 /// Files whose numbers are decimal text.
 const ASCII: &[&str] = &["part_s.msh22.msh"];
@@ -95,7 +95,7 @@ fn every_encoding_of_a_mesh_reads_the_same() {
 /// The comparison itself must see a difference in any array.
 #[test]
 fn differences_are_found() {
-    use crate::mesh::{Field, FieldLocation};
+    use tetloc_core::mesh::{Field, FieldLocation};
     let a = RawMesh {
         points64: None,
         points: vec![[0.0; 3], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]],

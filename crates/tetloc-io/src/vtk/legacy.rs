@@ -9,11 +9,11 @@
 
 use super::cells;
 use super::num::{self, Array, NumType};
-use crate::error::{Error, Result};
-use crate::io::cursor::Cursor;
-use crate::mesh::{Field, FieldLocation, RawMesh};
+use crate::cursor::Cursor;
 use std::borrow::Cow;
 use std::path::Path;
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{Field, FieldLocation, RawMesh};
 
 pub fn read(path: &Path) -> Result<RawMesh> {
     let bytes = super::read_file(path)?;

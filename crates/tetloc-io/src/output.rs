@@ -9,11 +9,11 @@
 //! A process killed outright (SIGKILL, power loss) can leave its temporary file behind, named
 //! `.NAME.XXXXXX.tmp` next to NAME; never a partial NAME.
 
-use crate::error::{Error, Result};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use tempfile::NamedTempFile;
+use tetloc_core::error::{Error, Result};
 
 /// A file written to a temporary name next to its target and renamed over the target on
 /// [`commit`](AtomicFile::commit). Dropped without `commit`, the temporary file is removed

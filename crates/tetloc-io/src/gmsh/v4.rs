@@ -5,8 +5,8 @@
 
 use super::cells::{read_ascii_nodes, Chunk, ElementSink};
 use super::elements::{element_type, unknown_type, Kind};
-use crate::error::Result;
-use crate::io::cursor::{get_f64, get_i32, get_u64, Cursor};
+use crate::cursor::{get_f64, get_i32, get_u64, Cursor};
+use tetloc_core::error::Result;
 
 /// An `int` in the file's data encoding (ASCII word or 4 binary bytes).
 fn int(c: &mut Cursor, what: &str) -> Result<i64> {

@@ -1,20 +1,25 @@
-//! Mesh readers and writers, chosen by file extension (or an explicit [`MeshFormat`]), and
-//! query-point / result array I/O.
+//! tetloc-io: the mesh readers and writers, chosen by file extension (or an explicit
+//! [`MeshFormat`]), query-point / result array I/O, and the files the operations write. It
+//! sits above the mesh model (`tetloc-core`), which never reads or writes a file itself.
 
 pub(crate) mod cursor;
 pub mod gmsh;
 pub mod image;
+pub mod ops_output;
 pub mod output;
+pub mod partition;
 pub mod points;
+#[cfg(test)]
+mod test_support;
 #[cfg(test)]
 mod tests;
 pub mod tetgen;
 /// The VTK family: XML (`.vtu`) and legacy (`.vtk`) readers, the VTU writers, and what they share.
 pub mod vtk;
 
-use crate::error::{Error, Result};
-use crate::mesh::{Mesh, RawMesh};
 use std::path::Path;
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{Mesh, RawMesh};
 
 /// The mesh formats tetloc reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -87,17 +92,8 @@ fn check_fits_in_memory(path: &Path) -> Result<()> {
 /// `/dev/zero`), whose size cannot be known in advance; less when memory is short.
 pub const NON_REGULAR_READ_CAP: u64 = 1 << 30;
 
-/// The file's f64 coordinates for `RawMesh::points64`: `None` when every one rounds to f32
-/// exactly (then the f32 copy is the data).
-pub fn points64_if_needed(points: Vec<[f64; 3]>) -> Option<Vec<[f64; 3]>> {
-    needs_f64(&points).then_some(points)
-}
-
-/// Whether some finite coordinate of `points` does not round to f32 exactly.
-pub fn needs_f64(points: &[[f64; 3]]) -> bool {
-    use rayon::prelude::*;
-    points.par_iter().any(|p| p.iter().any(|&x| x.is_finite() && (x as f32) as f64 != x))
-}
+// The readers' test of whether a file's coordinates need f64; the mesh model owns it.
+pub(crate) use tetloc_core::mesh::{needs_f64, points64_if_needed};
 
 /// Reads a whole file, boundedly: a regular file must fit in memory (its size is known),
 /// and anything else (pipes, devices) is read up to [`NON_REGULAR_READ_CAP`] and refused

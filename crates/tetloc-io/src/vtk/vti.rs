@@ -8,14 +8,14 @@
 //! when asked) and copied into the output at the end, so memory stays bounded.
 
 use super::num::NumType;
-use crate::error::{Error, Result};
-use crate::io::image::ImageArray;
-use crate::io::output::AtomicFile;
-use crate::io::points::VALID_MASK;
-use crate::ops::ImageGrid;
+use crate::image::ImageArray;
+use crate::output::AtomicFile;
+use crate::points::VALID_MASK;
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
 use std::path::{Path, PathBuf};
+use tetloc_core::error::{Error, Result};
+use tetloc_core::geom::ImageGrid;
 
 /// Uncompressed bytes per zlib block (VTK reads any size).
 const ZLIB_BLOCK: usize = 1 << 18;

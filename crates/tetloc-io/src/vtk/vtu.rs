@@ -13,12 +13,12 @@ use super::blocks::{self, Layout};
 use super::cells;
 use super::num::{self, Array, NumType};
 use super::xml::{self, Node};
-use crate::cell::{CellBlock, CellType};
-use crate::error::{Error, Result};
-use crate::mesh::{Field, FieldLocation, RawMesh};
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
+use tetloc_core::cell::{CellBlock, CellType};
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{Field, FieldLocation, RawMesh};
 
 pub fn read(path: &Path) -> Result<RawMesh> {
     let bytes = super::read_file(path)?;
@@ -519,7 +519,7 @@ mod tests {
         assert_eq!(m.higher_order, Some(2));
         assert_eq!(m.fields[0].values, vec![0., 1., 2., 4., 5.], "the triangle's value is dropped");
         // The mesh model decomposes them, counted by type.
-        let m = crate::Mesh::new(m, "test.vtu").unwrap();
+        let m = tetloc_core::Mesh::new(m, "test.vtu").unwrap();
         assert_eq!(m.n_cells(), 5);
         assert_eq!(m.info.cell_types.values().sum::<usize>(), 5);
         assert_eq!(m.n_tets(), 6 + 3 + 2 + 1 + 1);

@@ -1,7 +1,7 @@
 //! VTK XML writers: a mesh with its fields (`.vtu`), and a point set with the located tet
 //! ids, values and `vtkValidPointMask` (`.vtu` with vertex cells, or `.vtp` polydata with
 //! verts), with appended raw data (UInt64 block headers, optionally zlib-compressed),
-//! readable by ParaView and VTK. Files are written atomically (see [`crate::io::output`]).
+//! readable by ParaView and VTK. Files are written atomically (see [`crate::output`]).
 //!
 //! Uncompressed arrays stream through a `BufWriter` in chunks, so writing a large mesh needs
 //! no copy of it; compressed ones are compressed first, a group of parallel blocks at a time,
@@ -11,13 +11,13 @@
 use super::blocks;
 use super::cells;
 use super::num::NumType;
-use crate::error::{Error, Result};
-use crate::io::output::write_atomically;
-use crate::io::points::{Values, VALID_MASK};
-use crate::mesh::{FieldLocation, Mesh};
+use crate::output::write_atomically;
+use crate::points::{Values, VALID_MASK};
 use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
+use tetloc_core::error::{Error, Result};
+use tetloc_core::mesh::{FieldLocation, Mesh};
 
 /// Block size of compressed arrays (VTK's own default is 32 KiB; larger blocks compress a
 /// little better and VTK reads any size).
@@ -129,11 +129,12 @@ impl<'a> NamedArray<'a> {
 /// Float64 when some component has f64 data (the file's values, kept), else Float32.
 fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<OutArray<'a>>) {
     let (mut point_data, mut cell_data) = (Vec::new(), Vec::new());
-    for g in crate::ops::fields::groups_of(&mesh.fields) {
+    for g in tetloc_core::mesh::field_groups::groups_of(&mesh.fields) {
         if skip.contains(&g.name.as_str()) {
             continue;
         }
-        let fields: Vec<&'a crate::mesh::Field> = g.components.iter().filter_map(|c| mesh.field(c).ok()).collect();
+        let fields: Vec<&'a tetloc_core::mesh::Field> =
+            g.components.iter().filter_map(|c| mesh.field(c).ok()).collect();
         let k = fields.len();
         let n = fields.first().map_or(0, |f| f.values.len());
         let arr = if fields.iter().any(|f| f.values64.is_some()) {
@@ -279,7 +280,7 @@ fn data_arrays<'a>(
 fn write_cells(
     path: &Path,
     mesh: &Mesh,
-    cells: &crate::mesh::Cells,
+    cells: &tetloc_core::mesh::Cells,
     extra: &[NamedArray],
     cell_extra: &[NamedArray],
     zlib: bool,
@@ -374,7 +375,7 @@ impl<'a> Coords<'a> {
 
     /// f64 where some point does not round to f32 exactly, else f32.
     pub fn of(points64: &'a [[f64; 3]], points32: &'a [[f32; 3]]) -> Coords<'a> {
-        if crate::io::needs_f64(points64) {
+        if crate::needs_f64(points64) {
             Coords::F64(points64)
         } else {
             Coords::F32(points32)
@@ -416,7 +417,7 @@ fn point_cloud(kind: Kind, points: Coords<'_>) -> Grid<'_> {
 /// Writes a point set with any arrays of point data, as `.vtu` (one VTK_VERTEX cell per
 /// point) or `.vtp` (polydata, one vertex per point), by the extension of `path`.
 pub fn write_point_set(path: &Path, points: Coords, arrays: &[NamedArray], zlib: bool) -> Result<()> {
-    let kind = match crate::io::output::extension(path).as_str() {
+    let kind = match crate::output::extension(path).as_str() {
         "vtu" => Kind::Unstructured,
         "vtp" => Kind::PolyVerts,
         _ => return Err(Error::format(path, "a point set is written as .vtu or .vtp")),
@@ -573,7 +574,7 @@ impl Spilled {
 
 /// A temporary file next to `path` (removed when closed, however the process ends).
 fn spill_file(path: &Path) -> Result<std::io::BufWriter<std::fs::File>> {
-    let f = tempfile::tempfile_in(crate::io::output::parent_dir(path)).map_err(|e| Error::io(path, e))?;
+    let f = tempfile::tempfile_in(crate::output::parent_dir(path)).map_err(|e| Error::io(path, e))?;
     Ok(std::io::BufWriter::with_capacity(1 << 20, f))
 }
 
@@ -639,7 +640,7 @@ impl<'a> OutArray<'a> {
     }
 
     /// The values, uncompressed, to `w`: made in chunks, or copied from their spill file.
-    fn write_raw(&self, w: &mut crate::io::output::AtomicFile) -> std::io::Result<()> {
+    fn write_raw(&self, w: &mut crate::output::AtomicFile) -> std::io::Result<()> {
         match &self.source {
             Source::File(f) => w.append_file(f, self.n_bytes() as u64),
             Source::Fill(fill) => {
@@ -659,7 +660,7 @@ impl<'a> OutArray<'a> {
         // Blocks compressed at once (in parallel); a whole number of values of any type.
         const GROUP_BYTES: usize = 64 * ZLIB_BLOCK;
         let size = self.ty.size();
-        let file = tempfile::tempfile_in(crate::io::output::parent_dir(path))?;
+        let file = tempfile::tempfile_in(crate::output::parent_dir(path))?;
         let mut out = std::io::BufWriter::with_capacity(1 << 20, &file);
         let mut src = match &self.source {
             Source::File(f) => Some(rewound(f)?),
@@ -860,9 +861,9 @@ pub(crate) fn escape(s: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::io::vtk::vtu;
-    use crate::mesh::{Field, RawMesh};
+    use crate::vtk::vtu;
     use std::path::PathBuf;
+    use tetloc_core::mesh::{Field, RawMesh};
 
     /// A unique path in the temp folder, removed on drop.
     pub(crate) struct TempPath(pub PathBuf);

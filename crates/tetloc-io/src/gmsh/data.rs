@@ -6,9 +6,9 @@
 
 use super::tags::TagMap;
 use super::Parser;
-use crate::error::Result;
-use crate::io::cursor::{get_f64, get_i32};
-use crate::mesh::{Field, FieldLocation};
+use crate::cursor::{get_f64, get_i32};
+use tetloc_core::error::Result;
+use tetloc_core::mesh::{Field, FieldLocation};
 
 /// Gmsh allows 1 (scalar), 3 (vector) and 9 (tensor) components.
 const MAX_COMPONENTS: usize = 9;

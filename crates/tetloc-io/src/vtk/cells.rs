@@ -1,10 +1,10 @@
 //! VTK cell types, and picking the volume cells out of a VTK cell list.
 
 use super::num::{self, Array};
-use crate::cell::{CellBlock, CellType};
-use crate::error::Error;
 use std::collections::BTreeMap;
 use std::path::Path;
+use tetloc_core::cell::{CellBlock, CellType};
+use tetloc_core::error::Error;
 
 /// What tetloc does with one VTK cell type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
