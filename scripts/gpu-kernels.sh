@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# One device call's worth of measurements (see crates/tetloc-vulkan/NOTES.md): a 12M-tet jets mesh through every
+# One device call's worth of measurements (see docs/design/kernels.md): a 12M-tet jets mesh through every
 # kernel (checked against the CPU, then benchmarked), and soft-bvh layout variants.
 # Usage, from the repository root on the device machine:
 #   bash scripts/gpu-kernels.sh .devbin/vkbench "$OUT"

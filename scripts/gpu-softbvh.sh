@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# soft-bvh on the device (crates/tetloc-vulkan/NOTES.md, H100 runs 3 and 4), every benchmark warmed up for 0.5 s:
+# soft-bvh on the device (docs/design/soft-bvh.md, the H100 runs), every benchmark warmed up for 0.5 s:
 #   part 1: soft-bvh variants at jets 12M (root traversal, entry grid, walk start at 1 and 2
 #           tets a cell, f32-first and pure-f32 tests), japan 62M root vs walk;
 #   part 2: a regular unjittered 13.2M grid (the probe's mesh kind) with rt-bvh and
