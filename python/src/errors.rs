@@ -29,11 +29,6 @@ pub fn to_py(e: tetloc_core::Error) -> PyErr {
     }
 }
 
-/// A Vulkan backend error as `tetloc.DeviceError`, prefixed with the backend's name.
-pub fn device_error(backend: &str, e: impl std::fmt::Display) -> PyErr {
-    DeviceError::new_err(format!("{backend}: {e}"))
-}
-
 /// The message of a caught panic.
 pub fn panic_message(payload: &(dyn std::any::Any + Send)) -> String {
     payload

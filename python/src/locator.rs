@@ -4,24 +4,22 @@
 //! (python/tetloc/_locator.py) wraps it.
 
 use crate::alloc::PeakMeter;
-use crate::backend::{self, Choice};
-use crate::background::{self, Stages};
-use crate::errors::{device_error, internal_error, to_py};
+use crate::backend;
+use crate::background;
+use crate::errors::{internal_error, to_py};
 use crate::mesh::{contiguous, PyMesh};
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::MutexExt;
 use pyo3::types::PyDict;
-use std::collections::BTreeMap;
 use std::ops::Range;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
-use tetloc_core::bvh::BvhNode;
-use tetloc_core::locate::{count_non_finite, CellLocator, F64Values, FiniteOnly, Precision, Tolerance, WithTolerance};
-use tetloc_core::{BatchLocator, CpuLocator, Mesh, Vec3};
-use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
+use tetloc_core::locate::{count_non_finite, Precision, Tolerance};
+use tetloc_core::{BatchLocator, Mesh, Vec3};
+use tetloc_locator::{AutoReason, Layer, Locator, LocatorOptions, Memory};
 
 /// Points per call into the backend between two checks for Ctrl-C: about 0.2 s on two cores.
 const CPU_CHUNK: usize = 1 << 20;
@@ -35,23 +33,6 @@ type IdsAndValues<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f32>>);
 /// Ids, and one row of field values per point.
 type IdsAndRows<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray2<f64>>);
 
-/// Memory of a locator: device memory for the GPU kernels, host heap for `cpu`.
-#[derive(Clone, Debug)]
-struct Memory {
-    on: &'static str,
-    final_bytes: u64,
-    peak_bytes: u64,
-    items: BTreeMap<String, u64>,
-}
-
-struct Built {
-    backend: Backend,
-    memory: Memory,
-    build_seconds: f64,
-    /// Why `auto` did not use a device that is there.
-    note: Option<String>,
-}
-
 #[pyclass(name = "_Locator", module = "tetloc._tetloc", frozen)]
 pub struct PyLocator {
     /// `None` after a panic inside the backend: its state is unknown, so it is not used again.
@@ -62,6 +43,8 @@ pub struct PyLocator {
     memory: Memory,
     build_seconds: f64,
     note: Option<String>,
+    /// The backend and its layers, innermost first (the front door's `Built::describe`).
+    stack: Vec<String>,
     progress: Option<Py<PyAny>>,
     /// float64 points go through `sample_many64` when the mesh's data is f64 or far from the
     /// origin (`Mesh::wants_f64_points`), and not with a tolerance, whose rescue of points near
@@ -139,63 +122,6 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
         }
     }
     Ok(o)
-}
-
-/// The CPU backend, built now or (`deferred`) on first need: then its memory counts only
-/// the mesh, and the build is timed inside the first call that needs it.
-fn build_cpu(mesh: Arc<Mesh>, deferred: bool, stages: &Stages<Built>) -> Built {
-    let t0 = Instant::now();
-    let meter = PeakMeter::start();
-    let size = |n: usize, each: usize| (n * each) as u64;
-    let mut items = BTreeMap::from([
-        ("mesh points".to_string(), size(mesh.points.len(), 12)),
-        ("mesh tets".to_string(), size(mesh.n_tets(), 16)),
-    ]);
-    let loc = if deferred {
-        CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast)
-    } else {
-        stages.enter("face neighbours");
-        let neighbors = mesh.neighbors().len();
-        stages.enter("BVH");
-        let loc = CpuLocator::new(mesh.clone());
-        items.insert("bvh nodes".to_string(), size(loc.bvh().nodes.len(), std::mem::size_of::<BvhNode>()));
-        items.insert("bvh prims".to_string(), size(loc.bvh().prim_ids.len(), 4));
-        items.insert("tet neighbours".to_string(), size(neighbors, 16));
-        loc
-    };
-    let final_bytes: u64 = items.values().sum();
-    let mesh_bytes = items["mesh points"] + items["mesh tets"];
-    let peak_bytes = final_bytes.max(mesh_bytes + meter.peak_since() as u64);
-    Built {
-        backend: Box::new(loc),
-        memory: Memory { on: "host", final_bytes, peak_bytes, items },
-        build_seconds: t0.elapsed().as_secs_f64(),
-        note: None,
-    }
-}
-
-fn build_gpu(
-    kernel: Kernel,
-    device: Option<usize>,
-    mesh: Arc<Mesh>,
-    opts: LocatorOptions,
-    stages: &Stages<Built>,
-) -> PyResult<Built> {
-    stages.enter("opening the Vulkan device");
-    let ctx = backend::gpu_context(kernel, device)?;
-    if kernel == Kernel::SoftBvh && opts.walk_start {
-        stages.enter("face neighbours");
-        mesh.neighbors();
-    }
-    stages.enter("search structure on the GPU");
-    let loc = VulkanLocator::new(ctx, mesh, kernel, opts).map_err(|e| device_error(kernel.name(), e))?;
-    let report = loc.memory_report();
-    let mut items = BTreeMap::new();
-    for item in &report.items {
-        *items.entry(item.name.clone()).or_default() += item.bytes;
-    }
-    let memory = Memory { on: "device", final_bytes: report.final_bytes, peak_bytes: report.peak_bytes, items };
-    Ok(Built { build_seconds: loc.build_seconds(), backend: Box::new(loc), memory, note: None })
 }
 
 impl PyLocator {
@@ -279,46 +205,51 @@ impl PyLocator {
         options: Option<&Bound<'_, PyDict>>,
         progress: Option<Bound<'_, PyAny>>,
     ) -> PyResult<PyLocator> {
-        let choice = Choice::parse(backend)?;
+        let choice = backend::parse(backend)?;
         let Options { vulkan: opts, tolerance, precision, deferred } = parse_options(options)?;
-        let mesh = mesh.mesh.clone();
-        let mesh_arc = mesh.clone();
-        let built = background::run(py, "building a locator", progress.as_ref(), move |stages| {
-            let (choice, note) = match choice {
-                Choice::Auto => {
-                    stages.enter("looking for a Vulkan device");
-                    backend::resolve_auto(device)
-                }
-                c => (c, None),
-            };
-            let built = match choice {
-                Choice::Gpu(kernel) => build_gpu(kernel, device, mesh, opts, stages)?,
-                _ => build_cpu(mesh, deferred, stages),
-            };
-            Ok(Built { note, ..built })
+        let mesh_arc = mesh.mesh.clone();
+        // The front door (tetloc_locator) builds the backend and its layers as for every front
+        // end: points with a NaN or infinite coordinate answered -1 / NaN, answers in a mixed
+        // mesh's tet decomposition turned into cells, precision="f64"'s values, the
+        // tolerance's post-pass over them.
+        let mesh = mesh_arc.clone();
+        let mut built = background::run(py, "building a locator", progress.as_ref(), move |stages| {
+            // The host's heap, measured while the CPU builds (the GPU's memory is tracked).
+            let meter = PeakMeter::start();
+            let stage = |name| stages.enter(name);
+            let builder = Locator::builder(mesh)
+                .backend(choice)
+                .device(device)
+                .precision(precision)
+                .tolerance(tolerance)
+                .vulkan_options(opts)
+                .defer_cpu_build(deferred)
+                .quiet(true)
+                .stages(&stage);
+            let mut built = builder.build().map_err(backend::py_error)?;
+            let m = &mut built.memory;
+            if m.on == "host" {
+                let mesh_bytes = m.items["mesh points"] + m.items["mesh tets"];
+                m.peak_bytes = m.final_bytes.max(mesh_bytes + meter.peak_since() as u64);
+            }
+            Ok(built)
         })?;
         let name = built.backend.name().to_string();
-        // Points with a NaN or infinite coordinate are answered -1 / NaN (as pyvista and the
-        // CLI do) and never reach a backend; points within `tolerance` of the boundary get the
-        // nearest boundary cell (tetloc_core::locate::tolerance).
-        // Mixed meshes: answers in the tet decomposition become cells (CellLocator).
-        let exact: Backend = Box::new(CellLocator::new(FiniteOnly::new(built.backend), mesh_arc.clone()));
-        let distance = tolerance.distance(&mesh_arc);
-        // precision="f64": the backend's ids, the CPU's f64 values; the tolerance's post-pass
-        // over them.
-        let precise: Backend = match precision {
-            Precision::F64 => Box::new(F64Values::new(exact, mesh_arc.clone())),
-            Precision::F32 => exact,
+        // Why `auto` did not use a device that is there (no Vulkan at all is no news).
+        let note = match built.auto.take().map(|c| c.reason) {
+            Some(AutoReason::Unusable(e)) => {
+                Some(format!("backend 'auto' uses cpu: the Vulkan device cannot be used ({e})"))
+            }
+            _ => None,
         };
-        let backend: Backend = match distance {
-            d if d > 0.0 => Box::new(WithTolerance::new(precise, mesh_arc.clone(), tolerance)),
-            _ => precise,
-        };
+        let stack =
+            std::iter::once(name.clone()).chain(built.stack.iter().map(|l: &Layer| l.name().to_string())).collect();
+        let backend: Backend = built.locator;
         // float64 points take the f64 path also for f64 values: with precision="f64", or on a
         // mesh with a field of f64 data.
         let f64_values = precision == Precision::F64 || mesh_arc.fields.iter().any(|f| f.values64.is_some());
         let takes_f64 = mesh_arc.wants_f64_points() || f64_values;
-        let chunk = if name == backend::CPU { CPU_CHUNK } else { LocatorOptions::default().chunk_points };
+        let chunk = if name == tetloc_locator::CPU { CPU_CHUNK } else { LocatorOptions::default().chunk_points };
         Ok(PyLocator {
             backend: Mutex::new(Some(backend)),
             name,
@@ -326,7 +257,8 @@ impl PyLocator {
             chunk,
             memory: built.memory,
             build_seconds: built.build_seconds,
-            note: built.note,
+            note,
+            stack,
             progress: progress.map(Bound::unbind),
             takes_f64,
             precision,
@@ -343,6 +275,13 @@ impl PyLocator {
     #[getter]
     fn auto_note(&self) -> Option<&str> {
         self.note.as_deref()
+    }
+
+    /// The backend and the layers around it, innermost first: ["cpu", "FiniteOnly",
+    /// "CellLocator", ...] (as `TETLOC_EXPLAIN=1 tetloc locate ...` says for the same options).
+    #[getter]
+    fn stack(&self) -> Vec<String> {
+        self.stack.clone()
     }
 
     /// Seconds the build took.

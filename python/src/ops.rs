@@ -16,7 +16,8 @@ use std::time::{Duration, Instant};
 use tetloc_core::locate::Points;
 use tetloc_core::ops::trace::{self, Integrator, LineArrays, TraceOptions};
 use tetloc_core::ops::{fields, probe, resample, FieldGroup, ImageGrid};
-use tetloc_core::{BatchLocator, CpuLocator, Vec3};
+use tetloc_core::{BatchLocator, Vec3};
+use tetloc_locator::{BareLocator, Locator};
 
 /// Points per batch between two progress ticks (and chances to stop).
 const TICK_POINTS: usize = 1 << 20;
@@ -268,8 +269,12 @@ pub fn trace_lines<'py>(
     let out_fields = trace::line_fields(&m, &vector);
     let arrays = match locator {
         None => {
-            // The line arrays come from the integrator's own lookups (no second pass).
-            let cpu = py.detach(|| CpuLocator::new(m.clone()));
+            // The line arrays come from the integrator's own lookups (no second pass), through
+            // the CPU's locator itself (each particle walks from its last tet).
+            let bare = py.detach(|| Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build_bare());
+            let BareLocator::Cpu(cpu) = bare.map_err(crate::backend::py_error)?.locator else {
+                return Err(PyRuntimeError::new_err("cpu: not the CPU's locator"));
+            };
             run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
                 trace::trace_sampled(seeds, &o, &cpu, xyz, &out_fields, &|d| ticker.tick(d))
             })?

@@ -37,3 +37,25 @@ def test_locate_and_sample_match_the_cli(cli, data_dir, oracle_sets, tmp_path, n
 def test_info_is_the_clis_info_json(cli, data_dir, name):
     path = str(data_dir / name)
     assert tetloc.read(path).info() == json.loads(run(cli, "info", path, "--json"))
+
+
+@pytest.mark.parametrize("backend", ["cpu", "auto"])
+@pytest.mark.parametrize("options", [{}, {"tolerance": "1%"}, {"precision": "f64", "tolerance": 0.01}])
+def test_the_same_options_build_the_same_stack(cli, data_dir, tmp_path, backend, options):
+    """Python and the CLI build their locators through one front door: the same backend and
+    options give the same layers (TETLOC_EXPLAIN=1 makes the CLI say its stack)."""
+    import os
+
+    np.save(tmp_path / "p.npy", np.zeros((1, 3)))
+    args = [cli, "locate", str(data_dir / "torus_s.vtu"), "--points", str(tmp_path / "p.npy"), "--out",
+            str(tmp_path / "ids.npy"), "--backend", backend, "--quiet"]
+    for k, v in options.items():
+        args += [f"--{k}", str(v)]
+    out = subprocess.run(args, capture_output=True, text=True, env={**os.environ, "TETLOC_EXPLAIN": "1"})
+    assert out.returncode == 0, out.stderr
+    said = [line for line in out.stderr.splitlines() if line.startswith("locator: ")]
+    assert len(said) == 1, out.stderr
+    loc = tetloc.Locator(tetloc.read(data_dir / "torus_s.vtu"), backend=backend, **options)
+    assert said[0] == "locator: " + " > ".join(loc.stack)
+    want = ["FiniteOnly", "CellLocator"] + ["F64Values"] * ("precision" in options) + ["WithTolerance"] * bool(options)
+    assert loc.stack[1:] == want

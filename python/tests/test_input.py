@@ -150,7 +150,7 @@ def test_unknown_field(loc, pts):
 
 
 def test_unknown_backend_device_and_options(grid_mesh):
-    with pytest.raises(ValueError, match=r"backend 'gpu': unknown \(known: cpu, soft-bvh"):
+    with pytest.raises(ValueError, match=r"unknown backend 'gpu' \(known: cpu, soft-bvh"):
         tetloc.Locator(grid_mesh, backend="gpu")
     with pytest.raises(TypeError, match="unexpected option 'leaf'"):
         tetloc.Locator(grid_mesh, backend="cpu", leaf=4)

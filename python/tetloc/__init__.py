@@ -3,7 +3,7 @@ there? On GPUs (Vulkan) and CPUs.
 
 >>> import tetloc
 >>> mesh = tetloc.read("mesh.vtu")                    # .vtu, .vtk, .msh, .node/.ele
->>> loc = tetloc.Locator(mesh)                         # backend="auto": a GPU if there is one
+>>> loc = tetloc.Locator(mesh)                         # backend="auto": the fastest here, as the CLI
 >>> ids = loc.locate(points)                           # (K, 3) -> (K,) int32, -1 outside
 >>> f = loc.sample(points, "f")                        # float32, NaN outside
 

@@ -1,13 +1,13 @@
 //! `tetloc demo`: the main job on a built-in default mesh, on every available backend.
 
-use crate::backend::{self, BackendOptions};
+use crate::backend::BackendOptions;
 use crate::{bench, mesh_arg};
 use anyhow::{bail, Result};
 use std::time::Instant;
 use tetloc_core::gen::Shape;
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{geom, BatchLocator};
-use tetloc_vulkan::Kernel;
+use tetloc_locator::{Backend, Kernel};
 
 pub fn run(n_tets: usize, n_points: usize, seed: u64, all_backends: bool, opts: &BackendOptions) -> Result<()> {
     let mesh = std::sync::Arc::new(mesh_arg::generate(Shape::Fusion, n_tets, seed)?);
@@ -16,12 +16,12 @@ pub fn run(n_tets: usize, n_points: usize, seed: u64, all_backends: bool, opts: 
     println!("queries: {} random points inside random tets", points.len());
     let mut reference: Option<(String, Vec<i32>)> = None;
     let mut failures = 0;
-    let mut names = backend::available(opts);
+    let mut names = tetloc_locator::available(opts.device);
     // On a Vulkan device that runs on the CPU (lavapipe) the ray-tracing kernels are emulated
     // twice over and take minutes on a million points: soft-bvh alone cross-checks the cpu.
-    if let (Ok(ctx), false) = (backend::vulkan(opts.device), all_backends) {
-        if backend::runs_on_cpu(&ctx) {
-            names.retain(|n| *n == backend::CPU || *n == Kernel::SoftBvh.name());
+    if let (Ok(ctx), false) = (tetloc_locator::context(opts.device), all_backends) {
+        if ctx.info().device_type == "cpu" {
+            names.retain(|n| matches!(n, Backend::Cpu | Backend::Kernel(Kernel::SoftBvh)));
             println!(
                 "Vulkan device {} runs on the CPU: the rt kernels are skipped (--all-backends runs them)",
                 ctx.info().name
@@ -30,7 +30,8 @@ pub fn run(n_tets: usize, n_points: usize, seed: u64, all_backends: bool, opts: 
     }
     for name in names {
         let t0 = Instant::now();
-        let mut loc: Box<dyn BatchLocator> = backend::make(name, &mesh, opts)?;
+        let (_, builder) = opts.builder(&mesh, name.name())?;
+        let mut loc: Box<dyn BatchLocator> = builder.build()?.locator;
         let build = t0.elapsed().as_secs_f64();
         let mut ids = vec![0; points.len()];
         let mut vals = vec![0f32; points.len()];

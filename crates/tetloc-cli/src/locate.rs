@@ -6,11 +6,11 @@ use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::locate::{count_non_finite, is_finite, with_precision, Precision, Tolerance, WithTolerance};
-use tetloc_core::BatchLocator;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points::{self, Results, Values};
 use tetloc_io::vtk::write::{self as vtk_write, Coords};
+use tetloc_core::locate::{count_non_finite, is_finite, Precision, Tolerance};
+use tetloc_core::BatchLocator;
 
 #[derive(clap::Args)]
 pub struct LocateArgs {
@@ -150,15 +150,9 @@ pub fn run(a: &LocateArgs) -> Result<()> {
             pts.len()
         );
     }
-    let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
-    let exact = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
-    // The tolerance's post-pass over the precision's answers (its rescued points get the
-    // file's values in f64 on the f64 path).
-    let precise = with_precision(exact, m.clone(), a.precision);
-    let mut loc: Box<dyn BatchLocator> = match a.tolerance.distance(&m) {
-        d if d > 0.0 => Box::new(WithTolerance::new(precise, m.clone(), a.tolerance)),
-        _ => precise,
-    };
+    let (_, builder) = opts.builder(&m, &a.backend)?;
+    let builder = builder.precision(a.precision).tolerance(a.tolerance);
+    let mut loc: Box<dyn BatchLocator> = progress::with_spinner("building the locator", || builder.build())?.locator;
     // Chunks keep the progress bar moving and bound GPU batch memory.
     const CHUNK: usize = 1 << 22;
     let mut ids = vec![0i32; pts.len()];

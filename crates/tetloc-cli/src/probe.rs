@@ -2,18 +2,18 @@
 //! Resample With Dataset). OUT is TARGET (a mesh with its cells and data, or a point set)
 //! plus the sampled arrays and `vtkValidPointMask`.
 
-use crate::{backend, mesh_arg, progress, Common};
+use crate::{mesh_arg, progress, Common};
 use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::locate::{Tolerance, WithTolerance};
-use tetloc_core::ops::{fields, probe};
-use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
 use tetloc_io::vtk::write::Coords;
+use tetloc_core::locate::Tolerance;
+use tetloc_core::ops::{fields, probe};
+use tetloc_core::{BatchLocator, Mesh};
 
 #[derive(clap::Args)]
 pub struct ProbeArgs {
@@ -76,12 +76,9 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     let point_set = check(a)?;
     let opts = a.common.opts()?;
     let source = mesh_arg::load(&a.source, a.common.format.as_deref(), a.common.seed)?;
-    let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
-    let exact = progress::with_spinner("building the locator", || backend::make(&name, &source, &opts))?;
-    let mut loc: Box<dyn BatchLocator> = match a.tolerance.distance(&source) {
-        d if d > 0.0 => Box::new(WithTolerance::new(exact, source.clone(), a.tolerance)),
-        _ => exact,
-    };
+    let (_, builder) = opts.builder(&source, &a.backend)?;
+    let builder = builder.tolerance(a.tolerance);
+    let mut loc: Box<dyn BatchLocator> = progress::with_spinner("building the locator", || builder.build())?.locator;
     execute(a, point_set, &source, loc.as_mut())
 }
 

@@ -1,11 +1,12 @@
 //! `tetloc render`: the volume ray marcher over any backend.
 
-use crate::backend::{self, BackendOptions};
+use crate::backend::BackendOptions;
 use crate::mesh_arg;
 use anyhow::Result;
 use std::ffi::OsString;
 use std::path::PathBuf;
 use tetloc_io::output::{self, FileArg};
+use tetloc_locator::{Backend, BareLocator};
 use tetloc_render as tr;
 
 #[derive(clap::Args)]
@@ -141,27 +142,27 @@ pub fn run(a: RenderArgs) -> Result<()> {
     let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
     for (i, name) in a.backend.split(',').enumerate() {
         let first = i == 0;
-        let name = if name == "auto" { backend::auto_choice(&opts)? } else { name.to_string() };
-        let mut marcher: Box<dyn tr::Marcher> = match name.parse::<tetloc_vulkan::Kernel>() {
-            // GPU backends march whole frames on the GPU: for tet meshes only, since the GPU
-            // marcher samples tets, not the cells of a mixed mesh.
-            Ok(kernel) if !a.host_march && mesh.cells.is_none() => {
-                let mut m = tr::GpuMarcher::new(backend::make_vulkan(kernel, &mesh, &opts)?, &renderer)?;
-                if a.fps.is_some() {
-                    // Keep the GPU busy between frames (image downloads), so its clocks stay up.
-                    m.set_busy_dispatches(FPS_BUSY_DISPATCHES);
-                }
-                Box::new(m)
+        let (backend, builder) = opts.builder(&mesh, name)?;
+        let gpu = matches!(backend, Backend::Kernel(_));
+        // GPU backends march whole frames on the GPU: for tet meshes only, since the GPU
+        // marcher samples tets, not the cells of a mixed mesh.
+        let mut marcher: Box<dyn tr::Marcher> = if gpu && !a.host_march && mesh.cells.is_none() {
+            let BareLocator::Vulkan(loc) = builder.build_bare()?.locator else {
+                anyhow::bail!("{backend}: not a Vulkan kernel")
+            };
+            let mut m = tr::GpuMarcher::new(*loc, &renderer)?;
+            if a.fps.is_some() {
+                // Keep the GPU busy between frames (image downloads), so its clocks stay up.
+                m.set_busy_dispatches(FPS_BUSY_DISPATCHES);
             }
-            parsed => {
-                if parsed.is_ok() && mesh.cells.is_some() && !a.host_march && !a.quiet {
-                    eprintln!(
-                        "note: a mixed mesh is marched on the host through {name} (the GPU marcher samples tets only)"
-                    );
-                }
-                let loc = backend::make(&name, &mesh, &opts)?;
-                Box::new(HostMarch(loc))
+            Box::new(m)
+        } else {
+            if gpu && mesh.cells.is_some() && !a.host_march && !a.quiet {
+                eprintln!(
+                    "note: a mixed mesh is marched on the host through {backend} (the GPU marcher samples tets only)"
+                );
             }
+            Box::new(HostMarch(builder.build()?.locator))
         };
         match a.fps {
             Some(frames) => {

@@ -1,7 +1,7 @@
 //! `tetloc resample`: a mesh's fields on a regular image (vtkResampleToImage), written as
 //! `.vti` or `.npy` chunk by chunk (memory bounded for any image size).
 
-use crate::{backend, mesh_arg, progress, Common};
+use crate::{mesh_arg, progress, Common};
 use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::PathBuf;
@@ -74,8 +74,11 @@ pub fn run(a: &ResampleArgs) -> Result<()> {
     let plan = check(a)?;
     let opts = a.common.opts()?;
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
-    let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
-    let mut loc = progress::with_spinner("building the locator", || backend::make_for_grid(&name, &m, &opts))?;
+    // On the CPU the search is built only if the grid needs it (its grid path rasterizes the
+    // tets; only grid points on faces need the search's tie rule).
+    let (_, builder) = opts.builder(&m, &a.backend)?;
+    let builder = builder.defer_cpu_build(true);
+    let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
     execute(a, &plan, &m, m.file_bounds(), loc.as_mut())
 }
 

@@ -7,17 +7,17 @@
 //! are sampled on the same backend. Lines are traced and written in batches of seeds, so
 //! memory stays bounded whatever the number of seeds.
 
-use crate::{backend, mesh_arg, progress, Common};
+use crate::{mesh_arg, progress, Common};
 use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
-use tetloc_core::CpuLocator;
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
 use tetloc_io::vtk::write::PolylineWriter;
+use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
+use tetloc_locator::{Backend, BareLocator};
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
@@ -119,7 +119,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
     let c = vector.component_refs();
     let [x, y, z] = [c[0], c[1], c[2]];
-    let name = if a.backend == "auto" { backend::auto_choice(&opts)? } else { a.backend.clone() };
+    let (backend, builder) = opts.builder(&m, &a.backend)?;
+    let name = backend.name();
     let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
     let out_fields = trace::line_fields(&m, &vector);
     // Lines go to the file batch after batch (temporary files until it is complete), so an
@@ -130,8 +131,9 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let (mut secs, mut sampling, mut spilling) = (0.0, 0.0, 0.0);
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
-    if name == "cpu" && m.cells.is_none() {
-        let cpu = progress::with_spinner("building the locator", || CpuLocator::new(m.clone()));
+    if backend == Backend::Cpu && m.cells.is_none() {
+        let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
+        let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
         let mut base = 0;
         for (ob, seeds_in) in batches {
@@ -149,7 +151,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         }
         pb.finish_and_clear();
     } else {
-        let mut loc = progress::with_spinner("building the locator", || backend::make(&name, &m, &opts))?;
+        let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
         let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
         let mut base = 0;
         for (ob, seeds_in) in batches {

@@ -7,14 +7,15 @@
 
 pub mod trace;
 
-use crate::backend::{self, BackendOptions};
-use anyhow::{bail, Result};
+use crate::backend::BackendOptions;
+use anyhow::Result;
 use serde::Serialize;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{BatchLocator, Mesh};
-use tetloc_vulkan::{BenchOptions, Kernel};
+use tetloc_locator::BareLocator;
+use tetloc_vulkan::BenchOptions;
 
 #[derive(Debug, Serialize)]
 pub struct BenchRow {
@@ -77,63 +78,62 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
         Ok(())
     };
     for name in &args.backends {
-        let name = if name == "auto" { backend::auto_choice(&args.opts)? } else { name.clone() };
-        if name == backend::CPU {
-            let t0 = Instant::now();
-            let mut loc = tetloc_core::CpuLocator::new(mesh.clone());
-            let build_s = t0.elapsed().as_secs_f64();
-            eprintln!("{}", loc.bvh().stats.report());
-            for &q in &args.queries {
-                let points = queries::generate(mesh, q, n, args.seed);
-                let mut ids = vec![0i32; n];
-                let mut values = vec![0f32; n];
-                let mut run_once = |loc: &mut tetloc_core::CpuLocator| -> Result<f64> {
-                    let t = Instant::now();
-                    match &args.field {
-                        Some(f) => loc.sample(&points, f, &mut values)?,
-                        None => loc.locate(&points, &mut ids)?,
-                    }
-                    Ok(t.elapsed().as_secs_f64())
-                };
-                run_once(&mut loc)?; // warm-up
-                let times: Vec<f64> = (0..args.repeats).map(|_| run_once(&mut loc)).collect::<Result<_>>()?;
-                let med = median(times);
-                let outside = match &args.field {
-                    Some(_) => values.iter().filter(|v| v.is_nan()).count(),
-                    None => ids.iter().filter(|&&i| i < 0).count(),
-                };
-                let row = BenchRow {
-                    backend: name.clone(),
-                    device: format!("{} CPU threads", rayon::current_num_threads()),
-                    driver: "rayon".into(),
-                    mesh: mesh.info.source.clone(),
-                    n_tets: mesh.n_tets(),
-                    queries: q.name().to_string(),
-                    variant: variant.clone(),
-                    n,
-                    samples_per_s: n as f64 / med,
-                    median_s: med,
-                    outside,
-                    build_s,
-                    final_bytes: None,
-                    peak_bytes: None,
-                    timing: "host clock".into(),
-                    ordered: false,
-                    repeats: args.repeats,
-                    power_watts: None,
-                    trace: None,
-                };
-                emit(row, &mut rows)?;
+        let (backend, builder) = args.opts.builder(mesh, name)?;
+        let name = backend.name().to_string();
+        let bare = builder.build_bare()?;
+        let mut loc = match bare.locator {
+            BareLocator::Vulkan(loc) => *loc,
+            BareLocator::Cpu(mut loc) => {
+                let build_s = bare.build_seconds;
+                eprintln!("{}", loc.bvh().stats.report());
+                for &q in &args.queries {
+                    let points = queries::generate(mesh, q, n, args.seed);
+                    let mut ids = vec![0i32; n];
+                    let mut values = vec![0f32; n];
+                    let mut run_once = |loc: &mut tetloc_core::CpuLocator| -> Result<f64> {
+                        let t = Instant::now();
+                        match &args.field {
+                            Some(f) => loc.sample(&points, f, &mut values)?,
+                            None => loc.locate(&points, &mut ids)?,
+                        }
+                        Ok(t.elapsed().as_secs_f64())
+                    };
+                    run_once(&mut loc)?; // warm-up
+                    let times: Vec<f64> = (0..args.repeats).map(|_| run_once(&mut loc)).collect::<Result<_>>()?;
+                    let med = median(times);
+                    let outside = match &args.field {
+                        Some(_) => values.iter().filter(|v| v.is_nan()).count(),
+                        None => ids.iter().filter(|&&i| i < 0).count(),
+                    };
+                    let row = BenchRow {
+                        backend: name.clone(),
+                        device: format!("{} CPU threads", rayon::current_num_threads()),
+                        driver: "rayon".into(),
+                        mesh: mesh.info.source.clone(),
+                        n_tets: mesh.n_tets(),
+                        queries: q.name().to_string(),
+                        variant: variant.clone(),
+                        n,
+                        samples_per_s: n as f64 / med,
+                        median_s: med,
+                        outside,
+                        build_s,
+                        final_bytes: None,
+                        peak_bytes: None,
+                        timing: "host clock".into(),
+                        ordered: false,
+                        repeats: args.repeats,
+                        power_watts: None,
+                        trace: None,
+                    };
+                    emit(row, &mut rows)?;
+                }
+                if let Some(tb) = &args.trace {
+                    emit(trace::cpu(mesh, &loc, args, tb)?, &mut rows)?;
+                }
+                continue;
             }
-            if let Some(tb) = &args.trace {
-                emit(trace::cpu(mesh, &loc, args, tb)?, &mut rows)?;
-            }
-            continue;
-        }
-        let Ok(kernel) = name.parse::<Kernel>() else {
-            bail!("unknown backend '{name}' (known: {}, auto, all)", backend::names().join(", "));
         };
-        let mut loc = backend::make_vulkan(kernel, mesh, &args.opts)?;
         if !args.opts.quiet {
             for (stage, s) in loc.build_stages() {
                 eprintln!("{name} build: {s:>8.3} s  {stage}");
@@ -193,15 +193,7 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
     Ok(rows)
 }
 
-pub fn fmt_rate(r: f64) -> String {
-    if r >= 1e9 {
-        format!("{:.2} G/s", r / 1e9)
-    } else if r >= 1e6 {
-        format!("{:.1} M/s", r / 1e6)
-    } else {
-        format!("{:.0} k/s", r / 1e3)
-    }
-}
+pub use tetloc_locator::fmt_rate;
 
 /// The paper's Table 1 (samples/s, a column per query set) and Table 2 (build, memory).
 pub fn print_tables(rows: &[BenchRow], queries: &[&str]) {

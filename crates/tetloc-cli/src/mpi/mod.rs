@@ -7,7 +7,7 @@
 
 mod driven;
 
-use crate::{backend, bench, error_text, locate, mesh_arg, probe, progress, resample, Cli, Command, Common};
+use crate::{bench, error_text, locate, mesh_arg, probe, progress, resample, Cli, Command, Common};
 use anyhow::{bail, Result};
 use rand::{Rng, SeedableRng};
 use std::path::Path;
@@ -69,22 +69,21 @@ fn build<'c>(
 ) -> Result<DistLocator<'c, Box<dyn BatchLocator>>> {
     let mut opts = common.opts()?;
     opts.quiet |= !cluster.is_root();
-    if opts.device.is_none() && name != backend::CPU {
+    if opts.device.is_none() && name != tetloc_locator::CPU {
         let n = tetloc_vulkan::devices().map_or(0, |d| d.len());
         if n > 0 {
             opts.device = Some(cluster.local_rank % n);
         }
     }
     let make = |mesh: &Arc<Mesh>| -> Result<Box<dyn BatchLocator>, String> {
-        let name =
-            if name == "auto" { backend::auto_choice(&opts).map_err(|e| e.to_string())? } else { name.to_string() };
-        backend::make(&name, mesh, &opts).map_err(|e| error_text(&e))
+        let built = opts.builder(mesh, name).and_then(|(_, b)| Ok(b.build()?));
+        built.map(|b| -> Box<dyn BatchLocator> { b.locator }).map_err(|e| error_text(&e))
     };
     let loc = DistLocator::new(cluster, part, make)?;
     // Which backend and device each rank took (said by rank 0).
     let mine = match (loc.local(), opts.device) {
         (None, _) => "no pieces".to_string(),
-        (Some(l), Some(d)) if l.name() != backend::CPU => format!("{} on device {d}", l.name()),
+        (Some(l), Some(d)) if l.name() != tetloc_locator::CPU => format!("{} on device {d}", l.name()),
         (Some(l), _) => l.name().to_string(),
     };
     let placed = cluster.all_gather_strings(&format!(
