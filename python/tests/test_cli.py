@@ -37,3 +37,23 @@ def test_locate_and_sample_match_the_cli(cli, data_dir, oracle_sets, tmp_path, n
 def test_info_is_the_clis_info_json(cli, data_dir, name):
     path = str(data_dir / name)
     assert tetloc.read(path).info() == json.loads(run(cli, "info", path, "--json"))
+
+
+def test_the_readmes_trace_example_runs_on_a_generated_mesh(cli, tmp_path):
+    """python/README.md says how to make a mesh with a vector field (`gen ... --vector`) for
+    its `trace` example; that mesh traces."""
+    readme = (tetloc_root() / "python" / "README.md").read_text()
+    assert "--vector" in readme and "tetloc.trace(" in readme
+    path = tmp_path / "fusion.vtu"
+    run(cli, "gen", "fusion", "--tets", "20k", "--vector", "-o", path)
+    mesh = tetloc.read(path)
+    assert mesh.point_data["v"] == (mesh.n_points, 3)
+    seeds = mesh.points[mesh.tets[::2000]].mean(axis=1)
+    lines = tetloc.trace(mesh, "v", seeds, max_steps=20, backend="cpu")
+    assert len(lines["offsets"]) - 1 == len(seeds) and len(lines["points"]) > len(seeds)
+
+
+def tetloc_root():
+    import pathlib
+
+    return pathlib.Path(__file__).resolve().parents[2]
