@@ -81,7 +81,7 @@ def fusion_mesh(tets: str, cli: Optional[str], cache: pathlib.Path) -> pathlib.P
 def random_points_inside(mesh: tetloc.Mesh, n: int, seed: int) -> np.ndarray:
     """`n` points, each uniform in a random tet (the CLI's `random` query set), float32."""
     rng = np.random.default_rng(seed)
-    corners = mesh.points.astype(np.float64)[mesh.cells[rng.integers(0, mesh.n_cells, n)]]
+    corners = mesh.points.astype(np.float64)[mesh.tets[rng.integers(0, mesh.n_tets, n)]]
     w = -np.log(rng.random((n, 4)))  # Dirichlet(1,1,1,1): uniform barycentrics
     w /= w.sum(axis=1, keepdims=True)
     return np.einsum("nk,nkd->nd", w, corners).astype(np.float32)
@@ -232,10 +232,13 @@ def gpu(args) -> Dict[str, object]:
     field = next(iter(mesh.point_data), None)
     sizes = [count(s) for s in args.sizes.split(",")]
     points = random_points_inside(mesh, max(sizes), args.seed)
-    print(f"mesh {path}: {mesh.n_cells} tets; point field {field!r}")
+    print(f"mesh {path}: {mesh.n_cells} cells, {mesh.n_tets} tets; point field {field!r}")
     # The same mesh with float64 vertices that float32 cannot hold.
     mesh64 = tetloc.Mesh(
-        np.nextafter(mesh.points64, np.inf), mesh.cells, point_data={field: mesh.field(field)} if field else None
+        np.nextafter(mesh.points64, np.inf),
+        mesh.cells,
+        point_data={field: mesh.field(field)} if field else None,
+        celltypes=mesh.celltypes,
     )
     rows = []
     for backend in args.backends.split(","):

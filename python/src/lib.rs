@@ -1,11 +1,12 @@
 //! `tetloc._tetloc`, the extension module under the `tetloc` Python package: meshes
-//! ([`mesh`]), locators on every backend ([`locator`], [`backend`]), errors as Python
+//! ([`mesh`], VTK cell lists in and out: [`cells`]), locators on every backend ([`locator`], [`backend`]), errors as Python
 //! exceptions ([`errors`]). The public API, vector fields and pyvista/meshio conversion are
 //! Python (`python/tetloc`).
 
 mod alloc;
 mod backend;
 mod background;
+mod cells;
 mod errors;
 mod locator;
 mod mesh;
@@ -22,6 +23,19 @@ fn validation_errors() -> usize {
     backend::validation_errors()
 }
 
+/// Every VTK cell type tetloc reads: (code, points, name).
+#[pyfunction]
+fn vtk_cell_types() -> Vec<(u8, usize, &'static str)> {
+    cells::vtk_cell_types()
+}
+
+/// The VTK cell type of a Gmsh element type, if tetloc reads it: (VTK code, Gmsh nodes,
+/// VTK node i = Gmsh node vtk_from_gmsh[i]).
+#[pyfunction]
+fn gmsh_cell_type(code: u8) -> Option<(u8, usize, Vec<u16>)> {
+    cells::gmsh_cell_type(code)
+}
+
 #[pymodule]
 fn _tetloc(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mesh::PyMesh>()?;
@@ -29,6 +43,8 @@ fn _tetloc(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(mesh::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(backend::devices, m)?)?;
     m.add_function(wrap_pyfunction!(validation_errors, m)?)?;
+    m.add_function(wrap_pyfunction!(vtk_cell_types, m)?)?;
+    m.add_function(wrap_pyfunction!(gmsh_cell_type, m)?)?;
     m.add_function(wrap_pyfunction!(ops::resample_to_image, m)?)?;
     m.add_function(wrap_pyfunction!(ops::probe_fields, m)?)?;
     m.add_function(wrap_pyfunction!(ops::trace_lines, m)?)?;

@@ -24,8 +24,9 @@ use tetloc_locator::{AutoReason, Layer, Locator, LocatorOptions, Memory};
 /// Points per call into the backend between two checks for Ctrl-C: about 0.2 s on two cores.
 const CPU_CHUNK: usize = 1 << 20;
 
-/// The `**options` of `tetloc.Locator` this version knows, and those that are planned.
-const KNOWN_OPTIONS: &str = "tolerance, split, compact, precision, deferred";
+/// Every keyword `tetloc.Locator` takes (its named arguments, then the `**options` this
+/// version knows), listed when an option is misspelt; and the options that are planned.
+const KNOWN_OPTIONS: &str = "backend, device, progress, tolerance, split, compact, precision, deferred";
 const PLANNED_OPTIONS: [&str; 0] = [];
 
 pub(crate) type Backend = Box<dyn BatchLocator + Send>;

@@ -2,16 +2,21 @@
 //! arrays or read from a file. The public `tetloc.Mesh` (python/tetloc/_mesh.py) wraps it.
 
 use crate::background;
+use crate::cells;
 use crate::errors::to_py;
 use numpy::{
     PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
 };
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
+use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
 use tetloc_core::{Field, FieldLocation, Mesh, RawMesh, Vec3};
 use tetloc_io::{self as io, MeshFormat};
+
+/// A VTK cell list: types, offsets, connectivity.
+type CellArrays<'py> = (Bound<'py, PyArray1<u8>>, Bound<'py, PyArray1<i64>>, Bound<'py, PyArray1<i64>>);
 
 #[pyclass(name = "_Mesh", module = "tetloc._tetloc", frozen)]
 pub struct PyMesh {
@@ -36,24 +41,44 @@ pub fn contiguous<'a, T: numpy::Element, D: numpy::ndarray::Dimension>(
 #[pymethods]
 impl PyMesh {
     /// Validates and builds a mesh. `points`: (N, 3) float32; `points64`: the same points in
-    /// float64 when the caller has them (kept where float32 rounds them); `cells`: (M, 4)
-    /// uint32 vertex ids; `fields`: (name, "point" or "cell", float32 or float64 values). `source` names
-    /// the mesh in error messages.
+    /// float64 when the caller has them (kept where float32 rounds them); `connectivity`: the
+    /// cells' vertex ids, flat: linear tets, 4 per cell, when `celltypes` is `None`, else a VTK
+    /// cell list (`celltypes` (M,) VTK codes, `offsets` (M + 1,): cell `i` has the ids
+    /// `connectivity[offsets[i]..offsets[i + 1]]`), of any volume cells tetloc reads; `fields`:
+    /// (name, "point" or "cell", float32 or float64 values). `source` names the mesh in error
+    /// messages.
     #[new]
-    #[pyo3(signature = (points, cells, fields, source, points64=None))]
+    #[pyo3(signature = (points, connectivity, fields, source, points64=None, celltypes=None, offsets=None))]
+    #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         points: PyReadonlyArray2<'_, f32>,
-        cells: PyReadonlyArray2<'_, u32>,
+        connectivity: PyReadonlyArray1<'_, u32>,
         fields: Vec<(String, String, Bound<'_, PyAny>)>,
         source: String,
         points64: Option<PyReadonlyArray2<'_, f64>>,
+        celltypes: Option<PyReadonlyArray1<'_, u8>>,
+        offsets: Option<PyReadonlyArray1<'_, i64>>,
     ) -> PyResult<PyMesh> {
-        if points.shape()[1] != 3 || cells.shape()[1] != 4 {
-            return Err(PyValueError::new_err("points must be (N, 3) and cells (M, 4)"));
+        if points.shape()[1] != 3 {
+            return Err(PyValueError::new_err(format!("points: shape {:?}; expected (N, 3)", points.shape())));
         }
         let points: Vec<Vec3> = bytemuck::cast_slice(contiguous(&points, "points")?).to_vec();
-        let tets: Vec<[u32; 4]> = bytemuck::cast_slice(contiguous(&cells, "cells")?).to_vec();
+        let conn = contiguous(&connectivity, "cells")?;
+        let volume = match (&celltypes, &offsets) {
+            (None, None) if conn.len() % 4 == 0 => {
+                cells::Volume { tets: bytemuck::cast_slice(conn).to_vec(), higher_order: None, cells: None }
+            }
+            (None, None) => {
+                return Err(PyValueError::new_err(format!("cells: {} ids are not 4 per tet", conn.len())));
+            }
+            (Some(types), Some(offsets)) => {
+                let (types, offsets) = (contiguous(types, "celltypes")?, contiguous(offsets, "offsets")?);
+                py.detach(|| cells::from_vtk(types, offsets, conn))
+                    .map_err(|e| PyValueError::new_err(format!("cells: {e}")))?
+            }
+            _ => return Err(PyValueError::new_err("cells: celltypes and offsets go together")),
+        };
         let fields = fields
             .iter()
             .map(|(name, location, values)| {
@@ -80,7 +105,9 @@ impl PyMesh {
             Some(p) => return Err(PyValueError::new_err(format!("points64: shape {:?}; expected (N, 3)", p.shape()))),
             None => None,
         };
-        let raw = RawMesh { points, points64, tets, fields, higher_order: None, cells: None };
+        let cells::Volume { tets, higher_order, cells } = volume;
+        // The readers' path: `Mesh::new` decomposes mixed cells and keeps higher-order nodes.
+        let raw = RawMesh { points, points64, tets, fields, higher_order, cells };
         let mesh = py.detach(|| Mesh::new(raw, source)).map_err(to_py)?;
         Ok(PyMesh { mesh: Arc::new(mesh) })
     }
@@ -96,7 +123,13 @@ impl PyMesh {
         self.mesh.n_cells()
     }
 
-    /// (min, max) corners of the box around the vertices that tets use.
+    /// The tets located in: the cells, or a mixed mesh's decomposition.
+    #[getter]
+    fn n_tets(&self) -> usize {
+        self.mesh.n_tets()
+    }
+
+    /// (min, max) corners of the box around the vertices that cells use.
     #[getter]
     fn bounds(&self) -> (Vec3, Vec3) {
         let (lo, hi) = self.mesh.file_bounds();
@@ -143,10 +176,29 @@ impl PyMesh {
         PyArray1::from_vec(py, flat).reshape([m.points.len(), 3])
     }
 
-    /// A copy of the tets, (M, 4) int64, in file order with canonical vertex order.
-    fn cells<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
+    /// The cells as the input had them, as a VTK cell list: (types (M,) uint8 VTK codes,
+    /// offsets (M + 1,) int64, connectivity int64) (`cells::to_vtk`).
+    fn cell_list<'py>(&self, py: Python<'py>) -> CellArrays<'py> {
+        let list = py.detach(|| cells::to_vtk(&self.mesh));
+        (PyArray1::from_vec(py, list.types), PyArray1::from_vec(py, list.offsets), PyArray1::from_vec(py, list.conn))
+    }
+
+    /// Cell counts by VTK type name ("tetra", "hexahedron", "quadratic tetra", ...).
+    fn cell_type_counts(&self) -> BTreeMap<String, usize> {
+        self.mesh.info.cell_types.clone()
+    }
+
+    /// A copy of the tets located in, (T, 4) int64, canonical vertex order: the mesh's tets
+    /// (their corners for higher-order ones), or a mixed mesh's conforming decomposition.
+    fn tets<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyArray2<i64>>> {
         let flat: Vec<i64> = self.mesh.tets.iter().flatten().map(|&i| i64::from(i)).collect();
         PyArray1::from_vec(py, flat).reshape([self.mesh.n_tets(), 4])
+    }
+
+    /// The cell each tet of `tets()` is or belongs to, (T,) int64.
+    fn tet_cells<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<i64>> {
+        let m = &self.mesh;
+        PyArray1::from_vec(py, (0..m.n_tets()).map(|t| m.cell_of_tet(t) as i64).collect())
     }
 
     /// The JSON of `tetloc info --json`: the mesh facts, face counts and fields with their

@@ -166,7 +166,7 @@ def exact_values(
     out = np.full(len(ids), np.nan)
     inside = ids >= 0
     corners = mesh.points.astype(np.float64) if working else mesh.points64
-    v = corners[mesh.cells[ids[inside]]]  # (K, 4, 3)
+    v = corners[mesh.tets[ids[inside]]]  # (K, 4, 3)
     p = points[inside].astype(np.float64)
 
     def vol6(a, b, c, d):
@@ -174,7 +174,7 @@ def exact_values(
 
     corners = [v[:, 0], v[:, 1], v[:, 2], v[:, 3]]
     total = vol6(*corners)
-    vals = values[mesh.cells[ids[inside]]].astype(np.float64)
+    vals = values[mesh.tets[ids[inside]]].astype(np.float64)
     acc = np.zeros(len(p))
     for c in range(4):
         w = list(corners)

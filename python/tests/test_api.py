@@ -19,9 +19,16 @@ def test_mesh_properties(grid_mesh):
     assert grid_mesh.point_data == {"f": (343,), "v": (343, 3)}
     assert grid_mesh.cell_data == {"c": (1296,), "w": (1296, 2)}
     assert grid_mesh.points.dtype == np.float32 and grid_mesh.points.shape == (343, 3)
-    assert grid_mesh.cells.dtype == np.int64 and grid_mesh.cells.shape == (1296, 4)
+    # Cells as pyvista has them; for a mesh of tets, `tets` are the cells.
+    assert grid_mesh.n_tets == 1296 and grid_mesh.tets.dtype == np.int64 and grid_mesh.tets.shape == (1296, 4)
+    assert (grid_mesh.celltypes == 10).all() and grid_mesh.celltypes.shape == (1296,)
+    np.testing.assert_array_equal(grid_mesh.offsets, 4 * np.arange(1297))
+    np.testing.assert_array_equal(grid_mesh.cell_connectivity, grid_mesh.tets.ravel())
+    np.testing.assert_array_equal(grid_mesh.cells.reshape(-1, 5), np.insert(grid_mesh.tets, 0, 4, axis=1))
+    np.testing.assert_array_equal(grid_mesh.cells_dict[10], grid_mesh.tets)
+    np.testing.assert_array_equal(grid_mesh.tet_cells, np.arange(1296))
     np.testing.assert_array_equal(grid_mesh.field("v"), grid_mesh.points)
-    assert "1296 tets" in repr(grid_mesh) and "v[3]" in repr(grid_mesh)
+    assert "1296 cells (1296 tetra), 343 points" in repr(grid_mesh) and "v[3]" in repr(grid_mesh)
 
 
 def test_info_reports_the_mesh(grid_mesh):
@@ -98,3 +105,15 @@ def test_every_public_name_has_a_docstring():
             if not attr.startswith("_"):
                 assert (getattr(member, "__doc__", None) or getattr(member, "fget", None).__doc__), f"{cls}.{attr}"
     assert set(tetloc.BACKENDS) == {"cpu", "soft-bvh", "rt-bvh", "rt-rep-faces", "rt-shared-faces"}
+
+
+def test_docstrings_describe_every_cell_type_and_format():
+    """Issue 30 item 6: no stale "tetrahedral only" text; the formats read are listed."""
+    doc = tetloc.read.__doc__
+    assert "non-tet" not in doc and "not tetrahedra" not in doc
+    for fmt in (".vtu", ".pvtu", ".vtm", ".vtk", ".msh", ".node"):
+        assert fmt in doc, fmt
+    for doc in (tetloc.Mesh.__doc__, tetloc.read.__doc__, tetloc.Mesh.from_pyvista.__doc__, tetloc.Mesh.from_meshio.__doc__):
+        assert "hexahedra" in doc or "hexahedron" in doc
+    assert "tetrahedral mesh" not in tetloc.Mesh.__doc__
+    assert "cells" in tetloc.Locator.locate.__doc__ and "tets containing" not in tetloc.Locator.locate.__doc__

@@ -59,3 +59,23 @@ def test_the_same_options_build_the_same_stack(cli, data_dir, tmp_path, backend,
     assert said[0] == "locator: " + " > ".join(loc.stack)
     want = ["FiniteOnly", "CellLocator"] + ["F64Values"] * ("precision" in options) + ["WithTolerance"] * bool(options)
     assert loc.stack[1:] == want
+
+
+def test_the_readmes_trace_example_runs_on_a_generated_mesh(cli, tmp_path):
+    """python/README.md says how to make a mesh with a vector field (`gen ... --vector`) for
+    its `trace` example; that mesh traces."""
+    readme = (tetloc_root() / "python" / "README.md").read_text()
+    assert "--vector" in readme and "tetloc.trace(" in readme
+    path = tmp_path / "fusion.vtu"
+    run(cli, "gen", "fusion", "--tets", "20k", "--vector", "-o", path)
+    mesh = tetloc.read(path)
+    assert mesh.point_data["v"] == (mesh.n_points, 3)
+    seeds = mesh.points[mesh.tets[::2000]].mean(axis=1)
+    lines = tetloc.trace(mesh, "v", seeds, max_steps=20, backend="cpu")
+    assert len(lines["offsets"]) - 1 == len(seeds) and len(lines["points"]) > len(seeds)
+
+
+def tetloc_root():
+    import pathlib
+
+    return pathlib.Path(__file__).resolve().parents[2]

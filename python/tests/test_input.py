@@ -112,7 +112,6 @@ def test_empty_points(loc):
         (np.zeros((5, 2)), r"points: shape \(5, 2\); expected \(K, 3\)"),
         (np.zeros((3, 5)), r"points: shape \(3, 5\)"),
         (np.zeros(()), r"points: shape \(\)"),
-        (np.zeros((5, 3), np.int32), "points: dtype int32; expected float32 or float64"),
         (np.zeros((5, 3), np.float16), "points: dtype float16"),
         (np.zeros((5, 3), np.complex64), "points: dtype complex64"),
         (np.array([["a", "b", "c"]]), "points: dtype <U1"),
@@ -124,6 +123,36 @@ def test_bad_points_raise_value_error(loc, bad, match):
         loc.locate(bad)
     with pytest.raises(ValueError, match=match):
         loc.sample(bad, "f")
+
+
+def test_integer_points_are_numbers(loc, pts):
+    """As numpy takes them: integer arrays answer as the same float64 points (lists of ints too)."""
+    ints = np.round(pts).astype(np.int64)
+    want_ids, want_f = loc.locate(ints.astype(np.float64)), loc.sample(ints.astype(np.float64), "f")
+    for dt in (np.int8, np.int32, np.int64, np.uint16, np.uint64, bool):
+        p = np.clip(ints, 0, None).astype(dt) if dt in (np.uint16, np.uint64, bool) else ints.astype(dt)
+        np.testing.assert_array_equal(loc.locate(p), loc.locate(p.astype(np.float64)), err_msg=str(dt))
+    np.testing.assert_array_equal(loc.locate(ints.astype(np.int32)), want_ids)
+    np.testing.assert_array_equal(loc.sample(ints.astype(np.int32), "f"), want_f)
+    np.testing.assert_array_equal(loc.locate(ints.tolist()), want_ids)
+
+
+@pytest.mark.parametrize("bad", [None, 3, 2.5, "points", {"x": 1}])
+def test_points_of_the_wrong_kind_raise_type_error(loc, bad):
+    match = rf"points: expected an array-like of points of shape \(K, 3\) .*, got {type(bad).__name__}"
+    with pytest.raises(TypeError, match=match):
+        loc.locate(bad)
+    with pytest.raises(TypeError, match=match):
+        loc.sample(bad, "f")
+
+
+@pytest.mark.parametrize("bad", [None, 0, 1.5, b"f", ["f"]])
+def test_field_names_of_the_wrong_kind_raise_type_error(loc, pts, bad):
+    match = rf"field name: expected a str, got {type(bad).__name__}"
+    with pytest.raises(TypeError, match=match):
+        loc.sample(pts, bad)
+    with pytest.raises(TypeError, match=match):
+        loc.locate_and_sample(pts, bad)
 
 
 @pytest.mark.parametrize(
@@ -152,15 +181,19 @@ def test_unknown_field(loc, pts):
 def test_unknown_backend_device_and_options(grid_mesh):
     with pytest.raises(ValueError, match=r"unknown backend 'gpu' \(known: cpu, soft-bvh"):
         tetloc.Locator(grid_mesh, backend="gpu")
-    with pytest.raises(TypeError, match="unexpected option 'leaf'"):
+    # Every keyword is listed, the named ones too.
+    every = "backend, device, progress, tolerance, split, compact, precision, deferred"
+    with pytest.raises(TypeError, match=rf"Locator\(\) got an unexpected option 'leaf' \(known: {every}\)"):
         tetloc.Locator(grid_mesh, backend="cpu", leaf=4)
+    with pytest.raises(TypeError, match=rf"unexpected option 'devise' \(known: {every}\)"):
+        tetloc.Locator(grid_mesh, devise=0)
     with pytest.raises(ValueError, match="precision 'bogus'"):
         tetloc.Locator(grid_mesh, precision="bogus")
     with pytest.raises(ValueError, match="split: expected a positive number"):
         tetloc.Locator(grid_mesh, split=0)
     with pytest.raises(TypeError, match="deferred: expected True or False"):
         tetloc.Locator(grid_mesh, backend="cpu", deferred="later")
-    with pytest.raises(TypeError, match="expected a tetloc.Mesh"):
+    with pytest.raises(TypeError, match="mesh: expected a tetloc.Mesh or a pyvista dataset, got str"):
         tetloc.Locator("mesh.vtu")
 
 
@@ -199,9 +232,11 @@ def test_bad_meshes(data_dir, tmp_path):
     truncated.write_bytes((data_dir / "torus_s.vtu").read_bytes()[:50_000])
     with pytest.raises(ValueError, match="truncated.vtu"):
         tetloc.read(truncated)
-    (tmp_path / "dir.vtu").mkdir()
-    with pytest.raises(IsADirectoryError):
-        tetloc.read(tmp_path / "dir.vtu")
+    for name in ("dir.vtu", "dir"):  # a directory is named as one, whatever its name
+        (tmp_path / name).mkdir()
+        with pytest.raises(IsADirectoryError, match=r"is a directory; tetloc.read takes a mesh file") as e:
+            tetloc.read(tmp_path / name)
+        assert e.value.filename == str(tmp_path / name)
 
 
 def test_bad_mesh_arrays():
@@ -209,7 +244,7 @@ def test_bad_mesh_arrays():
     cells = np.array([[0, 1, 2, 3]])
     with pytest.raises(ValueError, match=r"points: shape \(4, 2\)"):
         tetloc.Mesh(points[:, :2], cells)
-    with pytest.raises(ValueError, match=r"cells: shape \(1, 3\)"):
+    with pytest.raises(ValueError, match=r"cells: shape \(1, 3\), dtype int64; expected \(M, 4\) integer vertex ids of tets"):
         tetloc.Mesh(points, cells[:, :3])
     with pytest.raises(ValueError, match="cells: .* dtype float64"):
         tetloc.Mesh(points, cells.astype(float))
@@ -221,6 +256,8 @@ def test_bad_mesh_arrays():
         tetloc.Mesh(np.array([[0, 0, 0], [np.nan, 0, 0], [0, 1, 0], [0, 0, 1]]), cells)
     with pytest.raises(ValueError, match="the mesh has no tetrahedra"):
         tetloc.Mesh(points, np.empty((0, 4), int))
+    with pytest.raises(ValueError, match=r"the mesh has no tetrahedra"):
+        tetloc.Mesh(points, {10: np.empty((0, 4), int)})
     with pytest.raises(ValueError, match=r"point_data\['f'\]: shape \(3,\); expected \(4,\) or \(4, k\)"):
         tetloc.Mesh(points, cells, point_data={"f": [1, 2, 3]})
     with pytest.raises(ValueError, match=r"cell_data\['c'\]: dtype <U1"):
@@ -249,3 +286,28 @@ def test_tolerance_answers_points_just_outside(grid_mesh):
     for bad, err in [(-1.0, ValueError), ("x%", ValueError), ([1], TypeError)]:
         with pytest.raises(err, match="tolerance"):
             tetloc.Locator(grid_mesh, backend="cpu", tolerance=bad)
+
+
+def test_locator_takes_a_pyvista_dataset(grid_mesh, pts):
+    pv = pytest.importorskip("pyvista")
+    grid = grid_mesh.to_pyvista()
+    loc = tetloc.Locator(grid, backend="cpu")
+    assert isinstance(loc.mesh, tetloc.Mesh) and loc.mesh.n_cells == grid.n_cells
+    np.testing.assert_array_equal(loc.locate(pts), tetloc.Locator(grid_mesh, backend="cpu").locate(pts))
+    # VTK's answers too, but for a point on a face shared by two cells (either is right).
+    assert (loc.locate(pts) != np.asarray(grid.find_containing_cell(pts))).sum() <= 2
+    assert isinstance(grid, pv.DataSet)
+
+
+def test_trace_warns_about_seeds_outside(grid_mesh):
+    seeds = np.array([[1.0, 1.2, 1.3], [9.0, 9.0, 9.0], [2.0, 2.5, 3.1], [-1.0, 0.5, 0.5], [20.0, 0.0, 0.0]])
+    with pytest.warns(RuntimeWarning, match=r"trace: 3 of 5 lines have no step inside the mesh"):
+        out = tetloc.trace(grid_mesh, "v", seeds, max_steps=5, backend="cpu")
+    assert len(out["offsets"]) - 1 == 2 and out["SeedIds"].tolist() == [0, 2]
+    with pytest.warns(RuntimeWarning, match=r"trace: 6 of 10 lines"):
+        tetloc.trace(grid_mesh, "v", seeds, max_steps=5, direction="both", backend="cpu")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # seeds all inside: no warning
+        tetloc.trace(grid_mesh, "v", seeds[[0, 2]], max_steps=5, backend="cpu")

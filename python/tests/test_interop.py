@@ -17,6 +17,8 @@ def same_mesh(a: tetloc.Mesh, b: tetloc.Mesh) -> None:
     assert (a.n_points, a.n_cells) == (b.n_points, b.n_cells)
     np.testing.assert_array_equal(a.points, b.points)
     np.testing.assert_array_equal(a.cells, b.cells)
+    np.testing.assert_array_equal(a.celltypes, b.celltypes)
+    np.testing.assert_array_equal(a.tets, b.tets)
     assert a.point_data == b.point_data and a.cell_data == b.cell_data
     for name in list(a.point_data) + list(a.cell_data):
         np.testing.assert_array_equal(a.field(name), b.field(name))
@@ -48,7 +50,7 @@ def test_from_pyvista_answers_like_vtk(data_dir):
     np.testing.assert_array_equal(ids, vtk_ids)
 
 
-def test_from_pyvista_keeps_tets_ignores_surfaces_refuses_other_volumes():
+def test_from_pyvista_keeps_volumes_ignores_surfaces_refuses_other_cells():
     points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], float)
     grid = pv.UnstructuredGrid(
         {pv.CellType.TRIANGLE: np.array([[0, 1, 2]]), pv.CellType.TETRA: np.array([[0, 1, 2, 3], [1, 2, 3, 4]])}, points
@@ -59,26 +61,30 @@ def test_from_pyvista_keeps_tets_ignores_surfaces_refuses_other_volumes():
     # VTK orders cells by the dict's type order; the triangle's row is dropped from the data.
     kept = np.asarray(grid.celltypes) == pv.CellType.TETRA
     np.testing.assert_array_equal(mesh.field("id"), np.arange(3)[kept])
-    hexes = pv.ImageData(dimensions=(3, 3, 3))
-    with pytest.raises(ValueError, match=r"not tetrahedra \(8 voxel\)"):
-        tetloc.Mesh.from_pyvista(hexes)
-    with pytest.raises(ValueError, match="expected a pyvista dataset"):
+    prisms = pv.UnstructuredGrid({pv.CellType.PENTAGONAL_PRISM: np.arange(10)[None]}, np.random.rand(10, 3))
+    with pytest.raises(ValueError, match=r"pyvista grid: the mesh has cells that tetloc does not read \(1 pentagonal_prism\)"):
+        tetloc.Mesh.from_pyvista(prisms)
+    with pytest.raises(ValueError, match="pyvista grid: the mesh has no volume cells"):
+        tetloc.Mesh.from_pyvista(pv.Sphere())
+    with pytest.raises(TypeError, match="grid: expected a pyvista dataset, got ndarray"):
         tetloc.Mesh.from_pyvista(np.zeros(3))
 
 
-def test_from_pyvista_higher_order_tets_keep_their_corners():
+def test_from_pyvista_higher_order_tets_keep_their_nodes():
     corners = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
     mids = [(corners[a] + corners[b]) / 2 for a, b in ((0, 1), (1, 2), (2, 0), (0, 3), (1, 3), (2, 3))]
     grid = pv.UnstructuredGrid({pv.CellType.QUADRATIC_TETRA: np.arange(10)[None]}, np.vstack([corners, mids]))
     mesh = tetloc.Mesh.from_pyvista(grid)
-    assert mesh.n_cells == 1 and sorted(mesh.cells[0]) == [0, 1, 2, 3]
+    assert mesh.n_cells == 1 and mesh.n_tets == 1 and sorted(mesh.tets[0]) == [0, 1, 2, 3]
+    assert mesh.celltypes.tolist() == [pv.CellType.QUADRATIC_TETRA] and mesh.cells[0] == 10
+    assert sorted(mesh.cell_connectivity) == list(range(10))
     assert tetloc.Locator(mesh, backend="cpu").locate([[0.1, 0.1, 0.1]])[0] == 0
 
 
 def test_meshio_round_trip(grid_mesh, tmp_path, data_dir):
     m = meshio.Mesh(
         grid_mesh.points,
-        [("tetra", grid_mesh.cells)],
+        [("tetra", grid_mesh.tets)],
         point_data={"f": grid_mesh.field("f"), "v": grid_mesh.field("v")},
         cell_data={"c": [grid_mesh.field("c")], "w": [grid_mesh.field("w")]},
     )
@@ -92,14 +98,16 @@ def test_meshio_round_trip(grid_mesh, tmp_path, data_dir):
     mesh = tetloc.Mesh.from_meshio(gm)
     ref = tetloc.read(data_dir / "part_s.meshio.msh")
     assert mesh.n_cells == ref.n_cells
-    np.testing.assert_array_equal(np.sort(mesh.cells, axis=1), np.sort(ref.cells, axis=1))
+    np.testing.assert_array_equal(np.sort(mesh.tets, axis=1), np.sort(ref.tets, axis=1))
+    same_mesh(tetloc.Mesh.from_meshio(grid_mesh.to_meshio()), grid_mesh)
 
 
-def test_from_meshio_refuses_other_volume_cells():
-    m = meshio.Mesh(np.eye(8, 3), [("hexahedron", [list(range(8))]), ("tetra", [[0, 1, 2, 3]])])
-    with pytest.raises(ValueError, match=r"not tetrahedra \(1 hexahedron\)"):
+def test_from_meshio_refuses_cells_tetloc_does_not_read():
+    # VTK has no Lagrange pyramid node order, so tetloc reads none (nor the files' readers).
+    m = meshio.Mesh(np.eye(14, 3), [("VTK_LAGRANGE_PYRAMID", [list(range(14))]), ("tetra", [[0, 1, 2, 3]])])
+    with pytest.raises(ValueError, match=r"meshio mesh: the mesh has cells that tetloc does not read \(1 VTK_LAGRANGE_PYRAMID\)"):
         tetloc.Mesh.from_meshio(m)
-    with pytest.raises(ValueError, match="no tetrahedra"):
+    with pytest.raises(ValueError, match="meshio mesh: the mesh has no volume cells"):
         tetloc.Mesh.from_meshio(meshio.Mesh(np.eye(3, 3), [("triangle", [[0, 1, 2]])]))
 
 

@@ -190,8 +190,9 @@ def lines_of(t):
 
 
 def test_trace_lines(swirl_mesh):
-    t = tetloc.trace(swirl_mesh, "v", seeds(), step=0.01, max_steps=500, direction="both", backend="cpu")
-    # The seed outside gives no line; the others one each way.
+    with pytest.warns(RuntimeWarning, match=r"trace: 2 of 8 lines have no step inside the mesh"):
+        t = tetloc.trace(swirl_mesh, "v", seeds(), step=0.01, max_steps=500, direction="both", backend="cpu")
+    # The seed outside gives no line (counted in the warning); the others one each way.
     assert len(t["offsets"]) == 7 and list(t["SeedIds"]) == [0, 1, 2, 0, 1, 2]
     assert t["points"].dtype == np.float32 and t["IntegrationTime"].dtype == np.float64
     assert set(t) >= {"points", "offsets", "IntegrationTime", "ReasonForTermination", "SeedIds", "f", "v"}
@@ -260,7 +261,8 @@ def test_trace_matches_vtk(swirl_mesh):
     t.SetComputeVorticity(False)
     t.Update()
     theirs = t.GetOutput()
-    ours = tetloc.trace(grid, "v", seeds(), step=0.01, max_steps=500, backend="cpu")
+    with pytest.warns(RuntimeWarning, match=r"trace: 1 of 4 lines"):
+        ours = tetloc.trace(grid, "v", seeds(), step=0.01, max_steps=500, backend="cpu")
     assert ours.n_lines == theirs.GetNumberOfLines() == 3
     np.testing.assert_array_equal(np.asarray(ours.cell_data["ReasonForTermination"]),
                                   vtk_to_numpy(theirs.GetCellData().GetArray("ReasonForTermination")))
@@ -295,8 +297,9 @@ def test_trace_bad_arguments(swirl_mesh):
         tetloc.trace(swirl_mesh, "v", seeds(), integrator="rk45", min_step=0.1, max_step=0.01, backend="cpu")
     with pytest.raises(ValueError, match=r"\(K, 3\)"):
         tetloc.trace(swirl_mesh, "v", np.zeros((3, 2)), backend="cpu")
-    # Seeds all outside: no lines, no error.
-    t = tetloc.trace(swirl_mesh, "v", [[5.0, 5.0, 5.0]], backend="cpu")
+    # Seeds all outside: no lines, no error, a warning.
+    with pytest.warns(RuntimeWarning, match=r"trace: 1 of 1 lines have no step inside the mesh"):
+        t = tetloc.trace(swirl_mesh, "v", [[5.0, 5.0, 5.0]], backend="cpu")
     assert len(t["points"]) == 0 and list(t["offsets"]) == [0]
 
 
@@ -327,8 +330,10 @@ def test_every_backend_agrees_with_cpu(vulkan, swirl_mesh, backend):
         both = (ours["vtkValidPointMask"] == 1) & ~differ
         for name in names:
             np.testing.assert_allclose(ours[name][both], theirs[name][both], rtol=1e-5, atol=1e-6, err_msg=name)
-    t_gpu = tetloc.trace(loc, "v", seeds(), step=0.01, max_steps=300, direction="both")
-    t_cpu = tetloc.trace(swirl_mesh, "v", seeds(), step=0.01, max_steps=300, direction="both", backend="cpu")
+    with pytest.warns(RuntimeWarning, match=r"trace: 2 of 8 lines"):  # the seed outside, both ways
+        t_gpu = tetloc.trace(loc, "v", seeds(), step=0.01, max_steps=300, direction="both")
+    with pytest.warns(RuntimeWarning, match=r"trace: 2 of 8 lines"):
+        t_cpu = tetloc.trace(swirl_mesh, "v", seeds(), step=0.01, max_steps=300, direction="both", backend="cpu")
     np.testing.assert_array_equal(t_gpu["offsets"], t_cpu["offsets"])
     np.testing.assert_array_equal(t_gpu["ReasonForTermination"], t_cpu["ReasonForTermination"])
     np.testing.assert_array_equal(t_gpu["SeedIds"], t_cpu["SeedIds"])

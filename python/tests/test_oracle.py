@@ -71,6 +71,7 @@ def test_every_encoding_reads_the_same_mesh(data_dir, name):
     ref = tetloc.read(data_dir / (name.split(".")[0] + ".vtu"))
     assert (mesh.n_points, mesh.n_cells) == (ref.n_points, ref.n_cells)
     np.testing.assert_array_equal(mesh.cells, ref.cells)
+    np.testing.assert_array_equal(mesh.tets, ref.tets)
     np.testing.assert_allclose(mesh.points, ref.points)
     assert mesh.point_data == ref.point_data
     np.testing.assert_allclose(mesh.field("f"), ref.field("f"), rtol=1e-6)

@@ -1,17 +1,21 @@
-"""tetloc: which tetrahedron of this mesh contains this point, and what is the field value
-there? On GPUs (Vulkan) and CPUs.
+"""tetloc: which cell of this unstructured mesh (tets, hexahedra, wedges, pyramids, their
+higher-order kinds, mixed) contains this point, and what is the field value there? On GPUs
+(Vulkan) and CPUs.
 
 >>> import tetloc
->>> mesh = tetloc.read("mesh.vtu")                    # .vtu, .vtk, .msh, .node/.ele
+>>> mesh = tetloc.read("mesh.vtu")                    # .vtu, .pvtu, .vtm, .vtk, .msh, .node/.ele
 >>> loc = tetloc.Locator(mesh)                         # backend="auto": the fastest here, as the CLI
 >>> ids = loc.locate(points)                           # (K, 3) -> (K,) int32, -1 outside
 >>> f = loc.sample(points, "f")                        # float32, NaN outside
 
 ``resample_to_image``, ``probe`` and ``trace`` are ParaView's Resample To Image, Resample With
 Dataset and Stream Tracer (numpy or pyvista out).
-``Mesh.from_pyvista``, ``Mesh.to_pyvista`` and ``Mesh.from_meshio`` convert meshes;
+``Mesh.from_pyvista``, ``Mesh.to_pyvista``, ``Mesh.from_meshio`` and ``Mesh.to_meshio``
+convert meshes (cells as pyvista has them: ``cells``, ``celltypes``, ``offsets``; the tets
+located in: ``tets``);
 ``devices()`` lists the Vulkan devices. Errors: ``FileNotFoundError`` (``OSError``),
-``ValueError`` naming the file or argument, ``DeviceError`` for the GPU.
+``ValueError`` naming the file or argument, ``TypeError`` for an argument of the wrong
+kind, ``DeviceError`` for the GPU.
 """
 
 from ._locator import Locator

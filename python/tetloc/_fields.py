@@ -60,6 +60,8 @@ class FieldIndex:
 
     def components(self, name: str) -> Tuple[List[str], Optional[int]]:
         """The core names of field `name` and its component count (None: scalar)."""
+        if not isinstance(name, str):
+            raise TypeError(f"field name: expected a str, got {type(name).__name__} ({name!r})")
         if name not in self.fields:
             have = ", ".join(
                 f"'{n}' ({loc}{'' if k is None else f', {k} components'})"

@@ -1,36 +1,24 @@
 """pyvista and meshio in and out. Each is imported only when its conversion is used.
 
-Cells follow the readers' rules: linear tets are kept, higher-order tets keep their 4
-corner vertices, 0-2-D cells (vertices, lines, surfaces) are ignored, and any other volume
-cell refuses the mesh with a count by type.
+Cells follow the readers' rules: every volume cell tetloc reads is kept with all its nodes
+(tets, hexahedra, wedges, pyramids, their higher-order kinds, mixed), 0-2-D cells (vertices,
+lines, surfaces) are ignored with their cell data, and any other volume cell refuses the mesh
+with a count by type. Both ways go through VTK cell lists (``_cells``), the form the core
+takes and gives.
 """
 
 from __future__ import annotations
 
-from collections import Counter
 from typing import TYPE_CHECKING, Any, Dict, Tuple
 
 import numpy as np
 
+from . import _cells
+
 if TYPE_CHECKING:
     from ._mesh import Mesh
 
-Arrays = Tuple[np.ndarray, np.ndarray, Dict[str, np.ndarray], Dict[str, np.ndarray]]
-
-# VTK cell type codes (vtkCellType.h): tets, higher-order tets with their corners first
-# (quadratic, Lagrange, Bezier), and the cells of dimension 0-2.
-_VTK_TET = 10
-_VTK_HIGHER_TETS = (24, 71, 78)
-_VTK_LOWER = (0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 21, 22, 23, 28, 30, 34, 35, 36, 51, 52, 53, 54, 60, 61, 62, 63,
-              68, 69, 70, 75, 76, 77)
-
-
-def _refuse(source: str, counts: Counter) -> None:
-    listed = ", ".join(f"{n} {name}" for name, n in sorted(counts.items()))
-    raise ValueError(
-        f"{source}: the mesh has volume cells that are not tetrahedra ({listed}); "
-        "tetloc locates points in tetrahedral meshes only"
-    )
+Arrays = Tuple[np.ndarray, _cells.CellList, Dict[str, np.ndarray], Dict[str, np.ndarray]]
 
 
 def _numeric(data: Any, keep: Any = None) -> Dict[str, np.ndarray]:
@@ -44,33 +32,44 @@ def _numeric(data: Any, keep: Any = None) -> Dict[str, np.ndarray]:
     return out
 
 
+def _volume(cells: _cells.CellList, source: str, names: Any) -> Tuple[_cells.CellList, Any]:
+    """The volume cells of a cell list (0-2-D cells dropped; voxels as hexahedra), and which
+    cells they were (None: all)."""
+    types = cells[0]
+    lower = np.isin(types, _cells.LOWER)
+    keep = None
+    if lower.any():
+        keep = ~lower
+        cells = _cells.select(cells, keep)
+    cells = _cells.voxels_as_hexahedra(cells)
+    _cells.check_types(cells[0], cells[1], source, names)
+    if len(cells[0]) == 0:
+        raise ValueError(f"{source}: the mesh has no volume cells")
+    return cells, keep
+
+
 def from_pyvista(grid: Any) -> Arrays:
     import pyvista as pv
 
     if not isinstance(grid, pv.DataSet):
-        raise ValueError(f"grid: expected a pyvista dataset, got {type(grid).__name__}")
+        raise TypeError(f"grid: expected a pyvista dataset, got {type(grid).__name__}")
     if not isinstance(grid, pv.UnstructuredGrid):
         grid = grid.cast_to_unstructured_grid()
-    source = "pyvista grid"
-    types = np.asarray(grid.celltypes)
     from vtkmodules.util.numpy_support import vtk_to_numpy
 
     vtk_cells = grid.GetCells()  # VTK 9's offsets + connectivity (pyvista's names for them vary)
     offsets = vtk_to_numpy(vtk_cells.GetOffsetsArray()).astype(np.int64)
     conn = vtk_to_numpy(vtk_cells.GetConnectivityArray()).astype(np.int64)
-    is_tet = (types == _VTK_TET) | np.isin(types, _VTK_HIGHER_TETS)
-    other = ~is_tet & ~np.isin(types, _VTK_LOWER)
-    if other.any():
-        _refuse(source, Counter(pv.CellType(t).name.lower() for t in types[other]))
-    sizes = np.diff(offsets)[is_tet]
-    if (sizes < 4).any():
-        raise ValueError(f"{source}: a tetrahedron with {int(sizes.min())} points")
-    starts = offsets[:-1][is_tet]
-    cells = conn[starts[:, None] + np.arange(4)]
-    keep = None if is_tet.all() else is_tet
-    point_data = _numeric(grid.point_data)
-    cell_data = _numeric(grid.cell_data, keep)
-    return np.asarray(grid.points), cells, point_data, cell_data
+    types = np.asarray(grid.celltypes).astype(np.uint8)
+
+    def name(code: int) -> str:
+        try:
+            return pv.CellType(code).name.lower()
+        except ValueError:
+            return f"VTK type {code}"
+
+    cells, keep = _volume((types, offsets, conn), "pyvista grid", name)
+    return np.asarray(grid.points), cells, _numeric(grid.point_data), _numeric(grid.cell_data, keep)
 
 
 def to_pyvista(mesh: "Mesh") -> Any:
@@ -79,7 +78,7 @@ def to_pyvista(mesh: "Mesh") -> Any:
     # The file's coordinates: float64 where float32 would round them (a mesh far from the origin).
     points, points64 = mesh.points, mesh.points64
     exact32 = np.array_equal(points.astype(np.float64), points64)
-    grid = pv.UnstructuredGrid({pv.CellType.TETRA: mesh.cells}, points if exact32 else points64)
+    grid = pv.UnstructuredGrid(mesh.cells, mesh.celltypes, points if exact32 else points64)
     for name in mesh.point_data:
         grid.point_data[name] = mesh.field(name)
     for name in mesh.cell_data:
@@ -88,25 +87,88 @@ def to_pyvista(mesh: "Mesh") -> Any:
 
 
 def from_meshio(m: Any) -> Arrays:
+    from meshio._vtk_common import meshio_to_vtk_order, meshio_to_vtk_type
+    from meshio.gmsh.common import _meshio_to_gmsh_type
+
+    from ._tetloc import gmsh_cell_type
+
     source = "meshio mesh"
     points = np.asarray(m.points)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{source}: points of shape {points.shape}; expected (N, 3)")
-    lower = ("vertex", "line", "triangle", "quad", "polygon")
-    blocks, others = [], Counter()
+    types, sizes, conn, unknown, skipped = [], [], [], {}, set()
     for i, block in enumerate(m.cells):
-        if block.type.startswith("tetra"):
-            blocks.append(i)
-        elif not block.type.startswith(lower):
-            others[block.type] += len(block.data)
-    if others:
-        _refuse(source, others)
-    if not blocks:
-        raise ValueError(f"{source}: the mesh has no tetrahedra")
-    cells = np.concatenate([np.asarray(m.cells[i].data)[:, :4] for i in blocks])
+        data = np.asarray(block.data)
+        code = meshio_to_vtk_type.get(block.type)
+        order = meshio_to_vtk_order(block.type)  # meshio's linear wedge is Gmsh's, not VTK's
+        if code is None:
+            # Gmsh's higher orders (tetra20, hexahedron64, ...) keep Gmsh's node order in meshio.
+            gmsh = gmsh_cell_type(_meshio_to_gmsh_type.get(block.type, 0))
+            if gmsh is None or data.ndim != 2 or data.shape[1] != gmsh[1]:
+                if block.type.startswith(("vertex", "line", "triangle", "quad", "polygon")):
+                    skipped.add(i)  # a 0-2-D block of an order VTK does not name: ignored too
+                else:
+                    unknown[block.type] = unknown.get(block.type, 0) + len(data)
+                continue
+            code, _, order = gmsh
+        if order is not None:
+            data = data[:, order]
+        types.append(np.full(len(data), code, np.uint8))
+        sizes.append(np.full(len(data), data.shape[1] if data.ndim == 2 else 0, np.int64))
+        conn.append(data.reshape(-1).astype(np.int64))
+    if unknown:
+        listed = ", ".join(f"{n} {t}" for t, n in sorted(unknown.items()))
+        raise ValueError(f"{source}: the mesh has cells that tetloc does not read ({listed})")
+    if not types:
+        raise ValueError(f"{source}: the mesh has no volume cells")
+    offsets = np.concatenate([[0], np.cumsum(np.concatenate(sizes))]).astype(np.int64)
+    all_types = np.concatenate(types)
+    vtk_names = {code: name for name, code in meshio_to_vtk_type.items()}
+    cells, keep = _volume(
+        (all_types, offsets, np.concatenate(conn)), source, lambda c: vtk_names.get(c, f"VTK type {c}")
+    )
     cell_data = {}
     for name, per_block in m.cell_data.items():
-        parts = [np.asarray(per_block[i]) for i in blocks]
+        parts = [np.asarray(p) for i, p in enumerate(per_block) if i not in skipped]
         if all(p.dtype.kind in "biuf" for p in parts):
-            cell_data[name] = np.concatenate(parts)
+            values = np.concatenate(parts)
+            cell_data[name] = values if keep is None else values[keep]
     return points, cells, _numeric(m.point_data), cell_data
+
+
+def to_meshio(mesh: "Mesh") -> Any:
+    import meshio
+    from meshio._vtk_common import vtk_to_meshio_order, vtk_to_meshio_type
+
+    types, offsets, conn = mesh._cell_list()
+    blocks, spans = [], _cells.runs(types, offsets)
+    for start, end in spans:
+        code, k = int(types[start]), int(offsets[start + 1] - offsets[start])
+        rows = conn[offsets[start]:offsets[end]].reshape(-1, k)
+        order = vtk_to_meshio_order(code)
+        blocks.append((vtk_to_meshio_type[code], rows if order is None else rows[:, order]))
+    points, points64 = mesh.points, mesh.points64
+    exact32 = np.array_equal(points.astype(np.float64), points64)
+    point_data = {name: mesh.field(name) for name in mesh.point_data}
+    cell_data = {}
+    for name in mesh.cell_data:
+        values = mesh.field(name)
+        cell_data[name] = [values[a:b] for a, b in spans]
+    return meshio.Mesh(
+        points if exact32 else points64,
+        [_meshio_block(meshio, t, rows) for t, rows in blocks],
+        point_data=point_data,
+        cell_data=cell_data,
+    )
+
+
+def _meshio_block(meshio: Any, cell_type: str, rows: np.ndarray) -> Any:
+    """A meshio cell block. meshio names some VTK volume types (wedge15, pyramid13, Bezier
+    tets) without listing their dimension, and then cannot make a block of them: one is
+    made with the dimension given (its writers need no more)."""
+    try:
+        return meshio.CellBlock(cell_type, rows)
+    except KeyError:
+        block = meshio.CellBlock.__new__(meshio.CellBlock)
+        block.type, block.data, block.dim, block.tags = cell_type, rows, 3, []
+        return block

@@ -1,7 +1,8 @@
-"""``tetloc.Locator``: which tet holds each point, and the field values there."""
+"""``tetloc.Locator``: which cell holds each point, and the field values there."""
 
 from __future__ import annotations
 
+import sys
 import warnings
 from typing import Any, Dict, List, Optional, Tuple
 
@@ -17,11 +18,14 @@ ArrayLike = Any
 
 
 class Locator:
-    """A search structure over a mesh on one backend, answering batches of points.
+    """A search structure over a mesh on one backend, answering batches of points. Answers
+    are the mesh's cells (of any type: a point in a hexahedron gets the hexahedron's id and
+    its values), located through the cells' tets (``Mesh.tets``).
 
     Parameters
     ----------
-    mesh : Mesh
+    mesh : Mesh or pyvista dataset
+        A ``tetloc.Mesh``, or a pyvista dataset (converted with ``Mesh.from_pyvista``).
     backend : str
         ``"auto"`` (as the CLI's: ``cpu`` when there is no Vulkan device or only a CPU Vulkan
         driver such as lavapipe; else the fastest backend in a measurement of at most 2 s the
@@ -35,7 +39,7 @@ class Locator:
         ``progress=True``: show a progress bar on stderr during long builds and batches (or a
         callable, called as ``progress(stage, fraction or None, seconds)``).
         ``tolerance``: points outside the mesh but within this distance of its boundary get
-        the nearest boundary tet and the value at the closest boundary point, as VTK's probe
+        the nearest boundary cell and the value at the closest boundary point, as VTK's probe
         filter does with its tolerance: a distance in mesh units, or a string such as
         ``"1%"`` (of the mean edge length); default 0, exact.
         ``split`` (rt kernels: primitives per bottom-level acceleration structure, or None
@@ -60,14 +64,17 @@ class Locator:
     kernels' float32 values unless ``precision="f64"``) or with ``precision="f64"``; else
     float32, as for float32 points. Results have the points'
     leading shape. A point with a NaN or infinite coordinate (or beyond float32 range) is
-    answered -1 and NaN, as pyvista does, with a ``RuntimeWarning`` counting them. A point on a face shared by two tets gets one of them, always the same
+    answered -1 and NaN, as pyvista does, with a ``RuntimeWarning`` counting them. A point on a face shared by two cells gets one of them, always the same
     for a backend. Calls release the GIL (a Locator may be used from several threads; calls
     on one Locator run one at a time) and can be interrupted with Ctrl-C.
     """
 
     def __init__(self, mesh: Mesh, backend: str = "auto", device: Optional[int] = None, **options: Any) -> None:
         if not isinstance(mesh, Mesh):
-            raise TypeError(f"mesh: expected a tetloc.Mesh, got {type(mesh).__name__}")
+            pv = sys.modules.get("pyvista")
+            if pv is None or not isinstance(mesh, pv.DataSet):
+                raise TypeError(f"mesh: expected a tetloc.Mesh or a pyvista dataset, got {type(mesh).__name__}")
+            mesh = Mesh.from_pyvista(mesh)
         progress = options.pop("progress", False)
         if progress is True:
             progress = ProgressBar(f"tetloc {backend}")
@@ -134,8 +141,8 @@ class Locator:
         return ids, values, lead
 
     def locate(self, points: ArrayLike) -> np.ndarray:
-        """Ids of the tets containing `points` (0-based, the mesh's order), -1 outside: an
-        int32 array of the points' leading shape."""
+        """Ids of the cells containing `points` (0-based, the mesh's cell order, not its
+        ``tets``), -1 outside: an int32 array of the points' leading shape."""
         got = self._sample64(points, [])
         if got is not None:
             return got[0].reshape(got[2])
@@ -145,9 +152,9 @@ class Locator:
     def sample(self, points: ArrayLike, name: str) -> np.ndarray:
         """Values of field `name` at `points`, NaN outside: float32 (float64 for float64 points
         on a float64 field or with ``precision="f64"``), shape (K,) for a scalar
-        field, (K, k) for a k-component field. Point fields are interpolated barycentrically,
-        cell fields are constant in each tet. (A k-component field is sampled one
-        component at a time for now.)"""
+        field, (K, k) for a k-component field. Point fields are interpolated with the cell's
+        shape functions (barycentric in linear tets), cell fields are constant in each cell.
+        (A k-component field is sampled one component at a time for now.)"""
         comps, k = self._mesh._index.components(name)
         got = self._sample64(points, comps)
         if got is not None:

@@ -2,34 +2,50 @@
 
 from __future__ import annotations
 
+import errno
 import json
 import os
 from typing import Any, Dict, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
-from . import _fields, _interop
+from . import _cells, _fields, _interop
 from ._tetloc import _Mesh, read_mesh
 
 ArrayLike = Any
 
 
 class Mesh:
-    """A tetrahedral mesh with named fields, ready for point location.
+    """An unstructured volume mesh with named fields, ready for point location: tetrahedra,
+    hexahedra, wedges and pyramids, their higher-order kinds (quadratic, Lagrange, Bezier
+    tets), or any mix of them. Points are located in tets: a mesh of tets as it is, other
+    cells through their conforming tet decomposition (``tets``), answered as the cells.
 
     Parameters
     ----------
     points : array-like, shape (N, 3)
         Vertex coordinates, float32 or float64 (float64 ones are kept where float32 would round
         them, as for meshes read from files).
-    cells : array-like, shape (M, 4)
-        Vertex ids of each tetrahedron, any integer dtype. Inverted tets are reoriented
-        and kept; cell ids are the rows' order.
+    cells : array-like
+        The cells, in one of pyvista's forms:
+
+        - an (M, 4) integer array: linear tetrahedra, one row each;
+        - a dict ``{VTK cell type: (n, k) ids}`` (``pyvista.CellType`` keys, as
+          ``pyvista.UnstructuredGrid({CellType.HEXAHEDRON: ...}, points)`` takes), cells in
+          the dict's order;
+        - with `celltypes`, pyvista's flat array ``[n0, ids..., n1, ids...]`` (as
+          ``pyvista.UnstructuredGrid(cells, celltypes, points)`` takes).
+
+        Ids are 0-based vertex ids in VTK's node order for each type. Inverted tets are
+        reoriented and kept; cell ids are the cells' order.
     point_data, cell_data : dict of name -> array, optional
-        Fields: (N,) or (N, k) per point, (M,) or (M, k) per cell. Stored as float32.
+        Fields: (N,) or (N, k) per point, (M,) or (M, k) per cell (one row per cell, not per
+        tet). Stored as float32 (float64 data keeps its values).
+    celltypes : array-like, shape (M,), optional
+        VTK cell type codes of the cells of a flat `cells` array.
 
     Raises ``ValueError`` naming the argument and the problem (shapes, dtypes, ids out of
-    range, non-finite coordinates).
+    range, non-finite coordinates, cell types tetloc does not read).
     """
 
     _raw: _Mesh
@@ -40,34 +56,88 @@ class Mesh:
         cells: ArrayLike,
         point_data: Optional[Mapping[str, ArrayLike]] = None,
         cell_data: Optional[Mapping[str, ArrayLike]] = None,
+        celltypes: Optional[ArrayLike] = None,
     ) -> None:
+        source = "tetloc.Mesh(points, cells)"
+        if isinstance(cells, Mapping):
+            self._build(points, None, _cells.from_blocks(cells), point_data, cell_data, source)
+        elif celltypes is not None:
+            self._build(points, None, _cells.from_padded(cells, celltypes), point_data, cell_data, source)
+        else:
+            self._build(points, cells, None, point_data, cell_data, source)
+
+    @classmethod
+    def _from_cell_list(
+        cls,
+        points: ArrayLike,
+        cell_list: _cells.CellList,
+        point_data: Optional[Mapping[str, ArrayLike]],
+        cell_data: Optional[Mapping[str, ArrayLike]],
+        source: str,
+    ) -> "Mesh":
+        mesh = cls.__new__(cls)
+        mesh._build(points, None, cell_list, point_data, cell_data, source)
+        return mesh
+
+    def _build(
+        self,
+        points: ArrayLike,
+        tets: Optional[ArrayLike],
+        cell_list: Optional[_cells.CellList],
+        point_data: Optional[Mapping[str, ArrayLike]],
+        cell_data: Optional[Mapping[str, ArrayLike]],
+        source: str,
+    ) -> None:
+        """Checks the arrays and builds the core mesh: (M, 4) `tets`, or a VTK `cell_list`."""
         pts = np.asarray(points)
         if pts.dtype.kind not in "iuf" or pts.ndim != 2 or pts.shape[1] != 3:
             raise ValueError(f"points: shape {pts.shape}, dtype {pts.dtype}; expected (N, 3) float32 or float64")
-        cells_ = np.asarray(cells)
-        if cells_.dtype.kind not in "iu" or cells_.ndim != 2 or cells_.shape[1] != 4:
-            raise ValueError(f"cells: shape {cells_.shape}, dtype {cells_.dtype}; expected (M, 4) integer vertex ids")
-        if cells_.size and (cells_.min() < 0 or cells_.max() >= len(pts)):
-            bad = int(np.argmax(((cells_ < 0) | (cells_ >= len(pts))).any(axis=1)))
-            raise ValueError(
-                f"cells: row {bad} {cells_[bad].tolist()} names a vertex outside 0..{len(pts) - 1}"
-            )
+        if cell_list is None:
+            tets = np.asarray(tets)
+            if tets.dtype.kind not in "iu" or tets.ndim != 2 or tets.shape[1] != 4:
+                raise ValueError(
+                    f"cells: shape {tets.shape}, dtype {tets.dtype}; expected (M, 4) integer vertex ids of tets "
+                    "(other cells: a dict {celltype: ids}, or pyvista's flat cells with celltypes)"
+                )
+            if tets.size and (tets.min() < 0 or tets.max() >= len(pts)):
+                bad = int(np.argmax(((tets < 0) | (tets >= len(pts))).any(axis=1)))
+                raise ValueError(f"cells: row {bad} {tets[bad].tolist()} names a vertex outside 0..{len(pts) - 1}")
+            n_cells = len(tets)
+        else:
+            types, offsets, conn = cell_list
+            _cells.check_types(types, offsets, source)
+            if conn.size and (conn.min() < 0 or conn.max() >= len(pts)):
+                k = int(np.argmax((conn < 0) | (conn >= len(pts))))
+                bad = int(np.searchsorted(offsets, k, side="right")) - 1
+                raise ValueError(
+                    f"cells: cell {bad} {conn[offsets[bad]:offsets[bad + 1]].tolist()} names a vertex outside "
+                    f"0..{len(pts) - 1}"
+                )
+            n_cells = len(types)
         fields = _fields.split(point_data, "point", len(pts), "point_data") + _fields.split(
-            cell_data, "cell", len(cells_), "cell_data"
+            cell_data, "cell", n_cells, "cell_data"
         )
         names = [name for name, _, _ in fields]
         dup = sorted({n for n in names if names.count(n) > 1})
         if dup:
             raise ValueError(f"point_data/cell_data: field names given twice: {dup} (vector NAME gives NAME[i])")
-        self._raw = _Mesh(
-            np.ascontiguousarray(pts, dtype=np.float32),
-            np.ascontiguousarray(cells_, dtype=np.uint32),
-            fields,
-            "tetloc.Mesh(points, cells)",
-            # float64 coordinates are kept where float32 would round them: answers are then
-            # exact on them (and a mesh far from the origin keeps its precision).
-            np.ascontiguousarray(pts, dtype=np.float64) if pts.dtype == np.float64 else None,
-        )
+        # float64 coordinates are kept where float32 would round them: answers are then
+        # exact on them (and a mesh far from the origin keeps its precision).
+        points64 = np.ascontiguousarray(pts, dtype=np.float64) if pts.dtype == np.float64 else None
+        points32 = np.ascontiguousarray(pts, dtype=np.float32)
+        if cell_list is None:
+            conn32 = np.ascontiguousarray(tets, dtype=np.uint32).ravel()
+            self._raw = _Mesh(points32, conn32, fields, source, points64)
+        else:
+            self._raw = _Mesh(
+                points32,
+                np.ascontiguousarray(conn, dtype=np.uint32),
+                fields,
+                source,
+                points64,
+                np.ascontiguousarray(types, dtype=np.uint8),
+                np.ascontiguousarray(offsets, dtype=np.int64),
+            )
         self._index = _fields.FieldIndex(self._raw.fields())
 
     @classmethod
@@ -81,22 +151,32 @@ class Mesh:
 
     @classmethod
     def from_pyvista(cls, grid: Any) -> "Mesh":
-        """The tetrahedra of a ``pyvista.UnstructuredGrid`` (or any pyvista dataset), with its
-        point and cell data. Higher-order tets keep their corners; 0-2-D cells are ignored;
-        other volume cells are refused (``ValueError`` with a count by type)."""
-        points, cells, point_data, cell_data = _interop.from_pyvista(grid)
-        return cls(points, cells, point_data, cell_data)
+        """The volume cells of a ``pyvista.UnstructuredGrid`` (or any pyvista dataset: images
+        and structured grids as hexahedra), with its point and cell data. Every cell type
+        tetloc reads is taken (tets, hexahedra, wedges, pyramids, their higher-order kinds,
+        mixed); 0-2-D cells (vertices, lines, surfaces) are ignored with their cell data; other
+        volume cells (polyhedra, prisms, ...) raise ``ValueError`` with a count by type."""
+        points, cell_list, point_data, cell_data = _interop.from_pyvista(grid)
+        return cls._from_cell_list(points, cell_list, point_data, cell_data, "pyvista grid")
 
     def to_pyvista(self) -> Any:
-        """A ``pyvista.UnstructuredGrid`` of the tets with every field as point or cell data."""
+        """A ``pyvista.UnstructuredGrid`` of the cells (``cells``, ``celltypes``) with every
+        field as point or cell data."""
         return _interop.to_pyvista(self)
 
     @classmethod
     def from_meshio(cls, mesh: Any) -> "Mesh":
-        """The tetrahedra of a ``meshio.Mesh`` (``tetra``, and the corners of ``tetra10`` etc.)
-        with its point data and the cell data of those blocks."""
-        points, cells, point_data, cell_data = _interop.from_meshio(mesh)
-        return cls(points, cells, point_data, cell_data)
+        """The volume cells of a ``meshio.Mesh`` (every type tetloc reads: ``tetra``,
+        ``tetra10``, ``hexahedron``, ``hexahedron27``, ``wedge``, ``pyramid13``, Lagrange
+        blocks, ...), in block order, with its point data and the cell data of those blocks;
+        0-2-D blocks are ignored."""
+        points, cell_list, point_data, cell_data = _interop.from_meshio(mesh)
+        return cls._from_cell_list(points, cell_list, point_data, cell_data, "meshio mesh")
+
+    def to_meshio(self) -> Any:
+        """A ``meshio.Mesh``: one cell block per run of cells of one type, with every field as
+        point data or as cell data (split by block)."""
+        return _interop.to_meshio(self)
 
     # Properties.
 
@@ -107,12 +187,18 @@ class Mesh:
 
     @property
     def n_cells(self) -> int:
-        """Number of tetrahedra."""
+        """Number of cells (of every type; not their tet decomposition: ``n_tets``)."""
         return self._raw.n_cells
 
     @property
+    def n_tets(self) -> int:
+        """Number of tets located in: ``n_cells`` for a mesh of tets, the decomposition's
+        count for other cells (1 a tet, 2 or 3 a pyramid, 3 a wedge, 5 or 6 a hexahedron)."""
+        return self._raw.n_tets
+
+    @property
     def bounds(self) -> Tuple[float, float, float, float, float, float]:
-        """(xmin, xmax, ymin, ymax, zmin, zmax) of the vertices that tets use (pyvista's order)."""
+        """(xmin, xmax, ymin, ymax, zmin, zmax) of the vertices that cells use (pyvista's order)."""
         lo, hi = self._raw.bounds
         return (lo[0], hi[0], lo[1], hi[1], lo[2], hi[2])
 
@@ -123,7 +209,7 @@ class Mesh:
 
     @property
     def cell_data(self) -> Dict[str, Tuple[int, ...]]:
-        """Per-cell fields: name -> shape, (M,) or (M, k)."""
+        """Per-cell fields: name -> shape, (M,) or (M, k), one row per cell."""
         return self._index.shapes("cell", self.n_cells)
 
     @property
@@ -137,11 +223,55 @@ class Mesh:
         (N, 3) float64: what exact answers are decided on."""
         return self._raw.points64()
 
+    # The cells, as pyvista's UnstructuredGrid names them.
+
+    def _cell_list(self) -> _cells.CellList:
+        return self._raw.cell_list()
+
+    @property
+    def celltypes(self) -> np.ndarray:
+        """VTK cell type code of each cell, (M,) uint8 (``pyvista.CellType``: 10 a tet, 12 a
+        hexahedron, 13 a wedge, 14 a pyramid, 24 a quadratic tet, ...)."""
+        return self._cell_list()[0]
+
+    @property
+    def offsets(self) -> np.ndarray:
+        """(M + 1,) int64: cell ``i``'s vertex ids are ``cell_connectivity[offsets[i]:offsets[i + 1]]``."""
+        return self._cell_list()[1]
+
+    @property
+    def cell_connectivity(self) -> np.ndarray:
+        """Every cell's vertex ids, one cell after the other, int64, VTK's node order."""
+        return self._cell_list()[2]
+
     @property
     def cells(self) -> np.ndarray:
-        """A copy of the tets, (M, 4) int64, in the input's order; each tet's vertices in
-        tetloc's canonical (right-handed, VTK) order."""
-        return self._raw.cells()
+        """The cells as pyvista's ``UnstructuredGrid.cells`` has them: a flat int64 array
+        ``[n0, ids..., n1, ids...]`` (with ``celltypes``, what
+        ``pyvista.UnstructuredGrid(cells, celltypes, points)`` takes). The cells are the
+        input's, in its order, with all their nodes; tets (and higher-order tets' corners,
+        their other nodes following them) in tetloc's canonical right-handed order. For
+        (M, k) blocks per type: ``cells_dict``; for the tets located in: ``tets``."""
+        return _cells.to_padded(self._cell_list())
+
+    @property
+    def cells_dict(self) -> Dict[int, np.ndarray]:
+        """``{VTK cell type: (n, k) int64 ids}``, as pyvista's ``cells_dict``
+        (``mesh.cells_dict[10]``: the (M, 4) tets of a mesh of linear tets)."""
+        return _cells.to_blocks(self._cell_list())
+
+    @property
+    def tets(self) -> np.ndarray:
+        """The tets located in, (T, 4) int64, each in tetloc's canonical right-handed (VTK)
+        order: a mesh of tets's own (the corners of higher-order ones), in cell order; for
+        other cells their conforming decomposition, each cell's tets together
+        (``tet_cells`` maps them to their cells)."""
+        return self._raw.tets()
+
+    @property
+    def tet_cells(self) -> np.ndarray:
+        """The cell each of ``tets`` is or belongs to, (T,) int64."""
+        return self._raw.tet_cells()
 
     def field(self, name: str) -> np.ndarray:
         """A copy of field `name`'s values, (N,) or (N, k): float64 where the file stored
@@ -150,27 +280,36 @@ class Mesh:
         return _fields.join([self._raw.field(c) for c in comps], k)
 
     def info(self) -> Dict[str, Any]:
-        """What ``tetloc info --json`` prints: counts, bounds, edge lengths, volume,
-        reoriented/degenerate tets, shared faces, fields."""
+        """What ``tetloc info --json`` prints: counts (cells by type, tets), bounds, edge
+        lengths, volume, reoriented/degenerate cells, shared faces, fields."""
         return json.loads(self._raw.info_json())
 
     def __repr__(self) -> str:
         def names(d: Dict[str, Tuple[int, ...]]) -> str:
             return ", ".join(n if len(s) == 1 else f"{n}{list(s[1:])}" for n, s in d.items()) or "none"
 
+        cells = _cells.counts_text(self._raw.cell_type_counts(), self.n_cells, self.n_tets)
         return (
-            f"tetloc.Mesh({self.n_cells} tets, {self.n_points} points; point data: {names(self.point_data)}; "
+            f"tetloc.Mesh({cells}, {self.n_points} points; point data: {names(self.point_data)}; "
             f"cell data: {names(self.cell_data)}; from {self._raw.source})"
         )
 
 
 def read(path: Union[str, "os.PathLike[str]"], format: Optional[str] = None) -> Mesh:
-    """Reads a mesh in any format the ``tetloc`` CLI reads: VTK XML ``.vtu``, legacy
-    ``.vtk``, Gmsh ``.msh`` (2.2, 4.1), TetGen ``.node``/``.ele``; by extension, or
-    `format` ("vtu", "vtk", "msh", "node").
+    """Reads a mesh in any format the ``tetloc`` CLI reads, by extension or `format`: VTK XML
+    ``.vtu``, its parallel pieces ``.pvtu`` and multiblock ``.vtm`` ("vtu", "pvtu", "vtm"),
+    legacy ``.vtk`` ("vtk"), Gmsh ``.msh`` 2.2 and 4.1 ("msh"), TetGen ``.node``/``.ele``
+    ("node"). Every volume cell tetloc reads is taken: tets, hexahedra, wedges, pyramids,
+    their higher-order kinds, and mixes of them; 0-2-D cells are ignored.
 
-    Raises ``FileNotFoundError`` (and other ``OSError``) when the file cannot be opened,
-    ``ValueError`` naming the file and the problem when it cannot be used (malformed,
-    cells that are not tetrahedra, ...). Interruptible with Ctrl-C.
+    Raises ``FileNotFoundError``, ``IsADirectoryError`` (and other ``OSError``) when the file
+    cannot be opened, ``ValueError`` naming the file and the problem when it cannot be used
+    (malformed, cells of a type tetloc does not read such as polyhedra, ...). Interruptible
+    with Ctrl-C.
     """
-    return Mesh._wrap(read_mesh(os.fspath(path), format))
+    path = os.fspath(path)
+    if os.path.isdir(path):
+        raise IsADirectoryError(
+            errno.EISDIR, "is a directory; tetloc.read takes a mesh file (.vtu, .pvtu, .vtm, .vtk, .msh, .node)", path
+        )
+    return Mesh._wrap(read_mesh(path, format))

@@ -6,6 +6,7 @@ Image, Resample With Dataset and Stream Tracer, on the core's operations (the CL
 
 from __future__ import annotations
 
+import warnings
 from typing import Any, Dict, Optional, Sequence, Tuple, Union
 
 import numpy as np
@@ -212,9 +213,12 @@ def trace(
     `terminal_speed`), after `max_steps` + 1 steps, or when its length or integration time
     reaches `max_length` / `max_time` (the last step shortened to land on it). `direction`:
     ``"forward"``, ``"backward"`` or ``"both"`` (all forward lines, then all backward ones).
-    Seeds outside the mesh give no line (as VTK).
+    Seeds outside the mesh give no line (as VTK), with a ``RuntimeWarning`` counting them.
+    `vector` is a point field of 3 components (``tetloc gen SHAPE --vector`` makes meshes with
+    one, ``v``; ``Mesh(points, cells, point_data={"v": (N, 3) array})`` adds one).
 
-    `seeds` is a (K, 3) array of points or a pyvista dataset (its points). On ``cpu`` each
+    `mesh` is a tetloc.Mesh, a tetloc.Locator or a pyvista dataset; `seeds` is a (K, 3) array
+    of points or a pyvista dataset (its points). On ``cpu`` each
     particle walks from its last tet; on a GPU backend all particles advance together, one
     batched lookup per Runge-Kutta stage (the same lines up to float32 rounding).
 
@@ -241,6 +245,16 @@ def trace(
         float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
     )
     fields = out.pop("fields")
+    # As the CLI: seeds that give no line are counted (VTK makes none for them either).
+    n_lines = len(pts) * (2 if direction == "both" else 1)
+    without = n_lines - (len(out["offsets"]) - 1)
+    if without > 0:
+        warnings.warn(
+            f"trace: {without} of {n_lines} lines have no step inside the mesh (their seed is outside it, "
+            "or on its boundary going out); VTK makes no line for them either",
+            RuntimeWarning,
+            stacklevel=2,
+        )
     n = len(out["points"])
     for name, k, values in fields:
         out[name] = _shaped(values, k, (n,))

@@ -1,5 +1,5 @@
-"""Query points in: any array-like of shape (..., 3), float32 or float64, C or Fortran
-order, numpy arrays, lists, and CPU tensors (DLPack or ``__array__``, e.g. torch).
+"""Query points in: any array-like of shape (..., 3), float32 or float64 (integers are taken
+as float64), C or Fortran order, numpy arrays, lists, and CPU tensors (DLPack or ``__array__``, e.g. torch).
 
 float32 points are located as they are (a C-contiguous float32 array is handed over without
 a copy); float64 points keep their precision (exact decisions on the CPU; the GPU kernels
@@ -8,6 +8,8 @@ search them in the mesh's working frame, centred on meshes far from the origin).
 
 from __future__ import annotations
 
+import numbers
+from collections.abc import Mapping
 from typing import Any, Tuple
 
 import numpy as np
@@ -16,6 +18,11 @@ import numpy as np
 def _to_numpy(points: Any, arg: str) -> np.ndarray:
     if isinstance(points, np.ndarray):
         return points
+    if points is None or isinstance(points, (str, bytes, numbers.Number, Mapping)):
+        raise TypeError(
+            f"{arg}: expected an array-like of points of shape (K, 3) or (3,) (numpy array, list, tensor), "
+            f"got {type(points).__name__}"
+        )
     if hasattr(points, "__dlpack__"):
         try:
             return np.from_dlpack(points)  # zero-copy for CPU tensors
@@ -40,6 +47,8 @@ def as_points(points: Any, arg: str = "points") -> Tuple[np.ndarray, Tuple[int, 
     Results take the leading shape: (K,) for (K, 3) points, () for one point (3,).
     """
     a = _to_numpy(points, arg)
+    if a.dtype.kind in "biu":
+        a = a.astype(np.float64)  # integers are numbers, as numpy takes them (exact up to 2^53)
     if a.dtype.kind != "f" or a.dtype.itemsize not in (4, 8):
         raise ValueError(
             f"{arg}: dtype {a.dtype}; expected float32 or float64 (convert with .astype(np.float32))"
@@ -56,6 +65,8 @@ def as_points64(points: Any, arg: str = "points") -> Tuple[np.ndarray, Tuple[int
     """(a (K, 3) float64 C-contiguous array, the leading shape) when `points` is float64
     (located exactly at that precision), else None (use :func:`as_points`)."""
     a = _to_numpy(points, arg)
+    if a.dtype.kind in "biu":
+        a = a.astype(np.float64)
     if a.dtype != np.float64 or a.ndim == 0 or a.shape[-1] != 3:
         return None
     lead = a.shape[:-1]
