@@ -6,11 +6,11 @@ use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use tetloc_core::locate::{count_non_finite, is_finite, Precision, Tolerance};
+use tetloc_core::BatchLocator;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points::{self, Results, Values};
 use tetloc_io::vtk::write::{self as vtk_write, Coords};
-use tetloc_core::locate::{count_non_finite, is_finite, Precision, Tolerance};
-use tetloc_core::BatchLocator;
 
 #[derive(clap::Args)]
 pub struct LocateArgs {

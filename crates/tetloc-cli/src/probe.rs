@@ -7,13 +7,13 @@ use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use tetloc_core::locate::Tolerance;
+use tetloc_core::ops::{fields, probe};
+use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
 use tetloc_io::vtk::write::Coords;
-use tetloc_core::locate::Tolerance;
-use tetloc_core::ops::{fields, probe};
-use tetloc_core::{BatchLocator, Mesh};
 
 #[derive(clap::Args)]
 pub struct ProbeArgs {

@@ -12,11 +12,11 @@ use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
 use tetloc_io::vtk::write::PolylineWriter;
-use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
 use tetloc_locator::{Backend, BareLocator};
 
 #[derive(clap::Args)]
