@@ -308,10 +308,7 @@ impl<'a> LocatorBuilder<'a> {
         if kernel.needs_ray_tracing() && !ctx.info().ray_tracing {
             return Err(Error::NoRayTracing { backend, device: ctx.info().name.clone() });
         }
-        if kernel == Kernel::SoftBvh && self.vulkan.walk_start {
-            self.stage("face neighbours");
-            self.mesh.neighbors();
-        }
+        // No face neighbours on the host here: soft-bvh's default build makes them on the GPU.
         self.stage("search structure on the GPU");
         VulkanLocator::new(ctx, self.mesh.clone(), kernel, self.vulkan.clone())
             .map_err(|source| Error::Vulkan { backend, source })
