@@ -113,7 +113,14 @@ def from_padded(cells: Any, celltypes: Any, arg: str = "cells") -> CellList:
 def to_padded(cells: CellList) -> np.ndarray:
     """pyvista's legacy padded array ``[n0, ids..., n1, ids...]``."""
     _, offsets, conn = cells
-    return np.insert(conn, offsets[:-1], sizes(offsets))
+    m = len(offsets) - 1
+    out = np.empty(len(conn) + m, np.int64)
+    heads = offsets[:-1] + np.arange(m)  # where each cell's count goes
+    out[heads] = sizes(offsets)
+    ids = np.ones(len(out), bool)
+    ids[heads] = False
+    out[ids] = conn
+    return out
 
 
 def from_blocks(blocks: Mapping[Any, Any], arg: str = "cells") -> CellList:

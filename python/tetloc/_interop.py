@@ -78,7 +78,8 @@ def to_pyvista(mesh: "Mesh") -> Any:
     # The file's coordinates: float64 where float32 would round them (a mesh far from the origin).
     points, points64 = mesh.points, mesh.points64
     exact32 = np.array_equal(points.astype(np.float64), points64)
-    grid = pv.UnstructuredGrid(mesh.cells, mesh.celltypes, points if exact32 else points64)
+    cells = mesh._cell_list()
+    grid = pv.UnstructuredGrid(_cells.to_padded(cells), cells[0], points if exact32 else points64)
     for name in mesh.point_data:
         grid.point_data[name] = mesh.field(name)
     for name in mesh.cell_data:

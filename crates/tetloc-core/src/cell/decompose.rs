@@ -16,6 +16,8 @@
 //! cell's own parametric coordinates.
 
 use super::{Point, Shape};
+use crate::geom::predicates::expansion::{two_sum, Expansion};
+use crate::geom::predicates::orient::{orient3d_exact, orient3d_stage_a};
 
 /// A cell's tets as local corner indices, right-handed (positive volume) for a valid cell.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -83,81 +85,43 @@ pub enum FaceKind {
     Warped,
 }
 
-/// Shewchuk's orient3d error bound (7 + 56ε)ε for f64, ε = 2⁻⁵³.
-const ORIENT_BOUND_F64: f64 = (7.0 + 56.0 * f64::EPSILON / 2.0) * f64::EPSILON / 2.0;
-
-/// Whether the quad `q` (in face order) is planar, exactly in f64: first with Shewchuk's
-/// stage-A filter (a determinant above its error bound is certainly non-zero), and where that
-/// cannot tell, exactly with expansion arithmetic.
+/// Whether the quad `q` (in face order) is planar, exactly in f64: orient3d of its corners is
+/// exactly zero. The f64 filter proves most warped quads warped; every planar quad needs an
+/// exact answer, so the cheap exact ones go first (planar faces are most faces of most meshes;
+/// reading a 200k-cell hybrid spent most of its time here, issue 30):
+/// 1. the four corners share a coordinate (an axis-aligned face: structured grids, layers);
+/// 2. their differences from `q[3]` are exact in f64 (coordinates of like magnitude, as in most
+///    generated meshes): the 3×3 determinant of those, summed exactly from 24 terms;
+/// 3. else [`orient3d_exact`], the full exact sum (96 terms).
 pub fn classify_quad(q: [Point; 4]) -> FaceKind {
-    let d = |u: Point| [u[0] - q[3][0], u[1] - q[3][1], u[2] - q[3][2]];
-    let (a, b, c) = (d(q[0]), d(q[1]), d(q[2]));
-    let (bc, cb) = (b[1] * c[2], c[1] * b[2]);
-    let (ca, ac) = (c[1] * a[2], a[1] * c[2]);
-    let (ab, ba) = (a[1] * b[2], b[1] * a[2]);
-    let det = a[0] * (bc - cb) + b[0] * (ca - ac) + c[0] * (ab - ba);
-    let permanent =
-        (bc.abs() + cb.abs()) * a[0].abs() + (ca.abs() + ac.abs()) * b[0].abs() + (ab.abs() + ba.abs()) * c[0].abs();
-    if det.abs() > ORIENT_BOUND_F64 * permanent || !exact::orient_is_zero(q) {
-        FaceKind::Warped
-    } else {
-        FaceKind::Planar
+    /// The six permutations of three axes with their signs: a 3×3 determinant's terms.
+    const PERMUTATIONS_3: [(f64, [usize; 3]); 6] =
+        [(1.0, [0, 1, 2]), (-1.0, [0, 2, 1]), (-1.0, [1, 0, 2]), (1.0, [1, 2, 0]), (1.0, [2, 0, 1]), (-1.0, [2, 1, 0])];
+    let planar = |zero: bool| if zero { FaceKind::Planar } else { FaceKind::Warped };
+    let (det, bound) = orient3d_stage_a(q[0], q[1], q[2], q[3]);
+    if det.abs() > bound {
+        return FaceKind::Warped;
     }
-}
-
-/// Exact arithmetic for the rare quads the filter cannot decide: every rounding error is kept
-/// as a term (Knuth's two-sum, and the product's error by a fused multiply-add), then the terms
-/// are summed exactly into a non-overlapping expansion (Shewchuk's Grow-Expansion), whose
-/// largest term has the sign of the sum. Slow, and needed only within rounding of planar.
-mod exact {
-    use super::Point;
-
-    fn two_sum(a: f64, b: f64) -> (f64, f64) {
-        let s = a + b;
-        let bb = s - a;
-        (s, (a - (s - bb)) + (b - bb))
+    if (0..3).any(|k| q[0][k] == q[3][k] && q[1][k] == q[3][k] && q[2][k] == q[3][k]) {
+        return FaceKind::Planar;
     }
-
-    /// `a · b` as the sum of all the exact products of their terms.
-    fn product(a: &[f64], b: &[f64]) -> Vec<f64> {
-        let mut out = Vec::with_capacity(2 * a.len() * b.len());
-        for &x in a {
-            for &y in b {
-                let p = x * y;
-                out.extend([p, x.mul_add(y, -p)]);
-            }
+    let mut d = [[0.0; 3]; 3];
+    let mut exact = true;
+    for (row, p) in d.iter_mut().zip(&q[..3]) {
+        for k in 0..3 {
+            let (diff, round_off) = two_sum(p[k], -q[3][k]);
+            row[k] = diff;
+            exact &= round_off == 0.0;
         }
-        out
     }
-
-    /// Whether orient3d(q0, q1, q2, q3) is exactly zero.
-    pub(super) fn orient_is_zero(q: [Point; 4]) -> bool {
-        // Each difference exactly, as two terms.
-        let d = |u: Point, k: usize| {
-            let (s, e) = two_sum(u[k], -q[3][k]);
-            [s, e]
-        };
-        let (a, b, c) = ([0, 1, 2].map(|k| d(q[0], k)), [0, 1, 2].map(|k| d(q[1], k)), [0, 1, 2].map(|k| d(q[2], k)));
-        let mut terms = Vec::new();
-        // det = Σ over the permutations (i, j, k) of sign · a_i · b_j · c_k.
-        for (i, j, k, sign) in
-            [(0, 1, 2, 1.0), (0, 2, 1, -1.0), (1, 0, 2, -1.0), (1, 2, 0, 1.0), (2, 0, 1, 1.0), (2, 1, 0, -1.0)]
-        {
-            terms.extend(product(&product(&a[i], &b[j]), &c[k]).into_iter().map(|t| sign * t));
+    if exact {
+        let mut sum = Expansion::<24>::new();
+        for (sign, [i, j, k]) in PERMUTATIONS_3 {
+            sum.add_triple_product(sign, d[0][i], d[1][j], d[2][k]);
         }
-        // Grow-Expansion: add each term into a non-overlapping expansion, exactly.
-        let mut expansion: Vec<f64> = Vec::new();
-        for t in terms {
-            let mut q = t;
-            for e in expansion.iter_mut() {
-                let (s, err) = two_sum(q, *e);
-                *e = err;
-                q = s;
-            }
-            expansion.push(q);
-        }
-        expansion.iter().all(|&e| e == 0.0)
+        return planar(sum.sign() == 0.0);
     }
+    planar(orient3d_exact(q[0], q[1], q[2], q[3]).sign() == 0.0)
 }
 
 /// The kind of face `f` of a cell with corner points `corners`.
@@ -211,6 +175,18 @@ mod tests {
         assert_eq!(classify_quad(exact_zero), FaceKind::Planar);
         assert_eq!(classify_quad(rounded), FaceKind::Warped, "0.1 + 0.2 != 0.3 in f64");
         assert_eq!(classify_face(&hex::SHAPE, 4, hex::SHAPE.corners), FaceKind::Planar);
+        // Each exact path: a shared coordinate; exact differences (a vertical, not axis-aligned
+        // face); differences that round (coordinates of very different magnitudes).
+        let vertical = [[0.0, 0.0, 0.0], [3.0, 1.0, 0.0], [3.0, 1.0, 2.0], [0.0, 0.0, 2.0]];
+        assert_eq!(classify_quad(vertical), FaceKind::Planar);
+        let mut leaning = vertical;
+        leaning[2][0] = 3.0 + 2.0f64.powi(-40);
+        assert_eq!(classify_quad(leaning), FaceKind::Warped);
+        let mixed_scales = [[1e-20, 0.0, 1e-20], [1.0, 0.0, 1.0], [1.0, 1.0, 1.0], [1e-20, 1.0, 1e-20]]; // z = x
+        assert_eq!(classify_quad(mixed_scales), FaceKind::Planar);
+        let mut off = mixed_scales;
+        off[3][2] = 2e-20;
+        assert_eq!(classify_quad(off), FaceKind::Warped);
         assert_eq!(classify_face(&pyramid::SHAPE, 1, pyramid::SHAPE.corners), FaceKind::Triangle);
     }
 }
