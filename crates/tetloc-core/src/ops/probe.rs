@@ -174,7 +174,7 @@ mod tests {
     /// the mesh's own vertices it comes back exactly; with a backend that takes f32 points only
     /// it is f32 as before.
     #[test]
-    fn f64_fields_are_probed_and_written_as_f64() {
+    fn f64_fields_are_probed_in_f64() {
         use crate::locate::{Tolerance, WithTolerance};
         use crate::mesh::{Field, FieldLocation};
         let mut m = KuhnGrid::new(3).mesh("cube");
