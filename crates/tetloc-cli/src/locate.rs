@@ -10,6 +10,7 @@ use tetloc_core::io::output::{self, FileArg};
 use tetloc_core::io::points::{self, Results, Values};
 use tetloc_core::io::vtk::write::{self as vtk_write, Coords};
 use tetloc_core::locate::{count_non_finite, is_finite, with_precision, Precision, Tolerance, WithTolerance};
+use tetloc_core::ops::fields;
 use tetloc_core::BatchLocator;
 
 #[derive(clap::Args)]
@@ -95,6 +96,9 @@ pub(crate) fn check_args(a: &LocateArgs) -> Result<()> {
         }
         _ => {}
     }
+    if let Some(f) = &a.field {
+        points::check_value_name(f).context("--field")?;
+    }
     if a.backend == "all" || a.backend.contains(',') {
         bail!(
             "locate runs one backend, not '{}' (known: {}, auto); `tetloc bench` compares several",
@@ -137,7 +141,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
 
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
     if let Some(f) = &a.field {
-        m.field(f)?;
+        fields::resolve_scalar(&m.fields, f).context("--field")?;
     }
     let pts64 = points::read_points64(&a.points)?;
     let pts: Vec<[f32; 3]> = pts64.iter().map(|p| p.map(|c| c as f32)).collect();

@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 use tetloc_core::io::image::IMAGE_EXTENSIONS;
 use tetloc_core::io::output::{self, FileArg};
+use tetloc_core::io::points;
 use tetloc_core::ops::{fields, resample, ImageGrid};
 use tetloc_core::{BatchLocator, Mesh};
 
@@ -89,11 +90,7 @@ pub(crate) fn execute(
 ) -> Result<()> {
     let m = fields_of;
     let [nx, ny, nz] = plan.dims;
-    let groups = if a.field.is_empty() {
-        fields::groups(m)
-    } else {
-        a.field.iter().map(|f| fields::resolve(m, f)).collect::<Result<Vec<_>, _>>()?
-    };
+    let groups = fields::resolve_outputs(&m.fields, &a.field, &[points::VALID_MASK])?;
     let grid = match plan.bounds {
         Some((lo, hi)) => ImageGrid::spanning(lo, hi, plan.dims)?,
         None => ImageGrid::over_bounds(mesh_bounds.0, mesh_bounds.1, plan.dims)?,
