@@ -17,8 +17,13 @@ pub fn gmsh(data: &[u8]) {
     validate(gmsh::parse(data, Path::new("fuzz.msh")));
 }
 
+/// A `.vtu` read as a mesh, and as a probe target of any cells (`parse_any`).
 pub fn vtu(data: &[u8]) {
     validate(vtu::parse(data, Path::new("fuzz.vtu")));
+    if let Ok(grid) = vtu::parse_any(data, Path::new("fuzz.vtu")) {
+        assert_eq!(grid.types.len(), grid.ends.len());
+        assert!(grid.conn.iter().all(|&i| (i as usize) < grid.points.len()));
+    }
 }
 
 pub fn vtk_legacy(data: &[u8]) {
@@ -112,6 +117,29 @@ mod tests {
         run(tetgen, &[write_temp("seed.tetgen", &seed)]);
         // Every target also takes any of the other formats' files without panicking.
         run(tetgen, &msh[..1]);
+    }
+
+    /// The seeds kept in `fuzz/seeds/<target>/` (byte-order marks, binary FIELD blocks,
+    /// surfaces and vertices, empty pieces, pieces outside their listing's folder): each target
+    /// reads its own, and they join the corpus of a `cargo fuzz run` (see the README).
+    #[test]
+    fn targets_survive_the_kept_seeds() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("seeds");
+        let targets: [(&str, fn(&[u8])); 5] =
+            [("gmsh", gmsh), ("vtu", vtu), ("vtk_legacy", vtk_legacy), ("tetgen", tetgen), ("pieces", pieces)];
+        for (name, target) in targets {
+            let files = seeds(&dir.join(name), &["msh", "vtu", "vtk", "tetgen", "pvtu", "vtm"]);
+            assert!(!files.is_empty(), "no seeds in {}", dir.join(name).display());
+            run(target, &files);
+        }
+        // The readers accept what the seeds are there for.
+        let read = |p: &str| std::fs::read(dir.join(p)).unwrap();
+        assert!(vtk_legacy::parse(&read("vtk_legacy/field_binary.vtk"), Path::new("f.vtk")).is_ok());
+        assert!(vtk_legacy::parse(&read("vtk_legacy/bom_ascii.vtk"), Path::new("b.vtk")).is_ok());
+        assert!(gmsh::parse(&read("gmsh/bom_elementdata.msh"), Path::new("b.msh")).is_ok());
+        assert!(vtu::parse(&read("vtu/bom_empty_piece.vtu"), Path::new("b.vtu")).is_ok());
+        assert!(vtu::parse_any(&read("vtu/surface_and_vertices.vtu"), Path::new("s.vtu")).is_ok());
+        assert_eq!(pvtu::parse(&read("pieces/outside.pvtu"), Path::new("o.pvtu")).unwrap().len(), 3);
     }
 
     fn write_temp(name: &str, bytes: &[u8]) -> PathBuf {

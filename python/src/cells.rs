@@ -18,7 +18,7 @@ pub struct CellList {
     pub conn: Vec<i64>,
 }
 
-/// What a cell list gives a `RawMesh`: as `tetloc_core::io`'s VTK readers fill it.
+/// What a cell list gives a `RawMesh`: as `tetloc_io`'s VTK readers fill it.
 pub struct Volume {
     /// The corners of the cells that are tets (of any order).
     pub tets: Vec<[u32; 4]>,

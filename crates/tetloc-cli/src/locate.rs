@@ -7,6 +7,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_core::locate::{count_non_finite, is_finite, Precision, Tolerance};
+use tetloc_core::ops::fields;
 use tetloc_core::BatchLocator;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points::{self, Results, Values};
@@ -95,6 +96,9 @@ pub(crate) fn check_args(a: &LocateArgs) -> Result<()> {
         }
         _ => {}
     }
+    if let Some(f) = &a.field {
+        points::check_value_name(f).context("--field")?;
+    }
     if a.backend == "all" || a.backend.contains(',') {
         bail!(
             "locate runs one backend, not '{}' (known: {}, auto); `tetloc bench` compares several",
@@ -137,7 +141,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
 
     let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
     if let Some(f) = &a.field {
-        m.field(f)?;
+        fields::resolve_scalar(&m.fields, f).context("--field")?;
     }
     let pts64 = points::read_points64(&a.points)?;
     let pts: Vec<[f32; 3]> = pts64.iter().map(|p| p.map(|c| c as f32)).collect();

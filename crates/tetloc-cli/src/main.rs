@@ -28,6 +28,10 @@ use tetloc_io::vtk::write as vtu_write;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// .pvtu/.vtm inputs: also read pieces that lie outside the listing's folder (`../`,
+    /// absolute paths, symbolic links that lead out), which are refused by default.
+    #[arg(long, global = true)]
+    allow_outside_pieces: bool,
 }
 
 #[derive(Subcommand)]
@@ -205,6 +209,7 @@ impl Common {
 
 fn main() {
     let cli = Cli::parse();
+    tetloc_io::vtk::pieces::set_allow_outside_by_default(cli.allow_outside_pieces);
     // Started by mpirun (or srun): one rank of a distributed run.
     if let Some(size) = tetloc_mpi::launch::world_size() {
         std::process::exit(distributed(cli, size));
@@ -449,12 +454,8 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
     if m.fields.is_empty() {
         println!("  fields      none");
     }
-    for f in &m.fields {
-        let range = match f.finite_range() {
-            Some((lo, hi)) => format!("range {lo} .. {hi}"),
-            None => "no finite values".to_string(),
-        };
-        println!("  field       '{}' per {:?}, {range}", f.name, f.location);
+    for f in &summary.fields {
+        println!("  field       '{}' per {:?}, {}", f.name, f.location, f.describe_values());
     }
     Ok(())
 }

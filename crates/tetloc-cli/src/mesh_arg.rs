@@ -25,7 +25,12 @@ pub fn parse_count(s: &str) -> Result<usize> {
     if v.is_nan() || v <= 0.0 {
         bail!("'{s}': the count must be positive");
     }
-    Ok((v * mult).round() as usize)
+    let n = (v * mult).round();
+    // Said as written: an f64 would print 2^64 as 18446744073709552000.
+    if n >= usize::MAX as f64 {
+        bail!("'{s}': the count is more than {}", usize::MAX);
+    }
+    Ok(n as usize)
 }
 
 /// `SHAPE:N` when `arg` is not an existing file and parses that way.

@@ -13,6 +13,7 @@ use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
+use tetloc_io::vtk::vtu;
 use tetloc_io::vtk::write::Coords;
 
 #[derive(clap::Args)]
@@ -51,6 +52,12 @@ fn is_point_set(target: &Path) -> bool {
     points::POINT_EXTENSIONS.contains(&output::extension(target).as_str())
 }
 
+/// Whether TARGET is a `.vtu` file (by its extension or `--target-format vtu`).
+fn is_vtu_file(a: &ProbeArgs) -> bool {
+    let format = a.target_format.clone().unwrap_or_else(|| output::extension(Path::new(&a.target)));
+    format.eq_ignore_ascii_case("vtu") && mesh_arg::parse_generated(&a.target).is_none()
+}
+
 /// Checks the arguments and the output; whether TARGET is a point set (every rank of a
 /// distributed run does the same).
 pub(crate) fn check(a: &ProbeArgs) -> Result<bool> {
@@ -60,13 +67,14 @@ pub(crate) fn check(a: &ProbeArgs) -> Result<bool> {
     output::check_output(&a.out, out_exts).with_context(|| {
         format!("--out: {} is written as {}", if point_set { "a point set" } else { "a mesh" }, out_exts.join(" or "))
     })?;
-    let mut inputs = mesh_arg::input_files(&a.source, a.common.format.as_deref());
-    if point_set {
-        inputs.push(target.to_path_buf());
+    let sources = mesh_arg::input_files(&a.source, a.common.format.as_deref());
+    let targets = if point_set {
+        vec![target.to_path_buf()]
     } else {
-        inputs.extend(mesh_arg::input_files(&a.target, a.target_format.as_deref()));
-    }
-    let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("input", p)).collect();
+        mesh_arg::input_files(&a.target, a.target_format.as_deref())
+    };
+    let mut inputs: Vec<FileArg> = sources.iter().map(|p| FileArg::new("SOURCE", p)).collect();
+    inputs.extend(targets.iter().map(|p| FileArg::new("TARGET", p)));
     output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     Ok(point_set)
 }
@@ -86,23 +94,28 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
 /// TARGET is read here.
 pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mut dyn BatchLocator) -> Result<()> {
     let source = fields_of;
-    let groups = if a.field.is_empty() {
-        fields::groups(source)
-    } else {
-        a.field.iter().map(|f| fields::resolve(source, f)).collect::<Result<Vec<_>, _>>()?
-    };
+    let groups = fields::resolve_outputs(&source.fields, &a.field, &[points::VALID_MASK])?;
     if groups.is_empty() {
         bail!("{}: the source mesh has no fields to probe", source.info.source);
     }
     let target = Path::new(&a.target);
     // The target's points as its file has them (f64 where it stores them so), so that a
     // target far from the origin keeps its precision; a far mesh's working copy is centred.
-    let (target_mesh, pts) = if point_set {
-        (None, points::read_points64(target)?)
+    // A .vtu target is any point set (a surface, vertices, volumes): read as it is, its cells
+    // kept as they are; other mesh formats are read as meshes.
+    let (mut target_mesh, mut target_grid) = (None, None);
+    let pts: Vec<[f64; 3]> = if point_set {
+        points::read_points64(target)?
+    } else if is_vtu_file(a) {
+        let g = progress::with_spinner(format!("reading {}", target.display()), || vtu::read_any(target))?;
+        let pts = (0..g.points.len()).map(|i| g.point64(i)).collect();
+        target_grid = Some(g);
+        pts
     } else {
         let m = mesh_arg::load(&a.target, a.target_format.as_deref(), a.common.seed)?;
         let pts = (0..m.points.len() as u32).map(|i| m.vertex64(i)).collect();
-        (Some(m), pts)
+        target_mesh = Some(m);
+        pts
     };
     let pb = progress::bar(pts.len() as u64, format!("probing on {}", loc.name()));
     let t0 = Instant::now();
@@ -114,9 +127,10 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
     let secs = t0.elapsed().as_secs_f64();
     progress::with_spinner(format!("writing {}", a.out.display()), || {
         let pts32: Vec<[f32; 3]>;
-        let target = match target_mesh.as_deref() {
-            Some(m) => ops_output::Target::Mesh(m), // the mesh writes its own coordinates
-            None => {
+        let target = match (target_mesh.as_deref(), &target_grid) {
+            (Some(m), _) => ops_output::Target::Mesh(m), // the mesh writes its own coordinates
+            (None, Some(g)) => ops_output::Target::Grid(g),
+            (None, None) => {
                 pts32 = pts.iter().map(|p| p.map(|c| c as f32)).collect();
                 ops_output::Target::Points(Coords::of(&pts, &pts32))
             }

@@ -2,7 +2,7 @@
 
 use crate::backend::BackendOptions;
 use crate::mesh_arg;
-use anyhow::Result;
+use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::PathBuf;
 use tetloc_io::output::{self, FileArg};
@@ -138,6 +138,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
     }
     output::check_distinct(&inputs, &outputs)?;
     let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
+    tetloc_core::ops::fields::resolve_scalar(&mesh.fields, &a.field).context("--field")?;
     let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
     let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
     for (i, name) in a.backend.split(',').enumerate() {

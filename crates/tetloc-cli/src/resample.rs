@@ -11,6 +11,7 @@ use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::image::IMAGE_EXTENSIONS;
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
+use tetloc_io::points;
 
 #[derive(clap::Args)]
 pub struct ResampleArgs {
@@ -93,11 +94,7 @@ pub(crate) fn execute(
 ) -> Result<()> {
     let m = fields_of;
     let [nx, ny, nz] = plan.dims;
-    let groups = if a.field.is_empty() {
-        fields::groups(m)
-    } else {
-        a.field.iter().map(|f| fields::resolve(m, f)).collect::<Result<Vec<_>, _>>()?
-    };
+    let groups = fields::resolve_outputs(&m.fields, &a.field, &[points::VALID_MASK])?;
     let grid = match plan.bounds {
         Some((lo, hi)) => ImageGrid::spanning(lo, hi, plan.dims)?,
         None => ImageGrid::over_bounds(mesh_bounds.0, mesh_bounds.1, plan.dims)?,

@@ -85,11 +85,12 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let direction: Direction = a.direction.parse()?;
     output::check_output(&a.out, &["vtp"]).context("--out: streamlines are written as VTK polydata")?;
     let spec = trace::seeds_from_spec(&a.seeds);
-    let mut inputs = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
+    let meshes = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
+    let seeds_file = PathBuf::from(&a.seeds);
+    let mut inputs: Vec<FileArg> = meshes.iter().map(|p| FileArg::new("MESH", p)).collect();
     if spec.is_none() {
-        inputs.push(PathBuf::from(&a.seeds));
+        inputs.push(FileArg::new("--seeds", &seeds_file));
     }
-    let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("input", p)).collect();
     output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     let seeds = match spec {
         Some(s) => s.context("--seeds")?,
@@ -116,6 +117,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         o.step = 0.1 * m.info.mean_edge_length as f64;
         o.check()?;
     }
+    let (lo, hi) = m.file_bounds();
+    o.check_scale(lo.iter().chain(&hi).fold(0.0, |s, c| s.max(c.abs()))).context("--step")?;
     let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
     let c = vector.component_refs();
     let [x, y, z] = [c[0], c[1], c[2]];

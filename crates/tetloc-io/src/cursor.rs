@@ -34,9 +34,10 @@ fn error_at(buf: &[u8], path: &Path, binary: bool, pos: usize, msg: impl Display
 }
 
 impl<'a> Cursor<'a> {
-    /// A cursor at the start of `buf`, in text mode.
+    /// A cursor at the start of `buf` (past a UTF-8 byte-order mark), in text mode.
     pub fn new(buf: &'a [u8], path: &'a Path) -> Self {
-        Cursor { buf, pos: 0, path, binary: false, big_endian: false }
+        let pos = buf.len() - super::strip_bom(buf).len();
+        Cursor { buf, pos, path, binary: false, big_endian: false }
     }
 
     /// An error at the cursor.
@@ -57,6 +58,20 @@ impl<'a> Cursor<'a> {
         while self.pos < self.buf.len() && self.buf[self.pos].is_ascii_whitespace() {
             self.pos += 1;
         }
+    }
+
+    /// Skips spaces and tabs, not line ends.
+    pub fn skip_ws_on_line(&mut self) {
+        while self.pos < self.buf.len() && matches!(self.buf[self.pos], b' ' | b'\t' | b'\r') {
+            self.pos += 1;
+        }
+    }
+
+    /// How many words are left on the current line (up to its newline).
+    pub fn words_on_line(&self) -> usize {
+        let rest = &self.buf[self.pos..];
+        let line = &rest[..rest.iter().position(|&b| b == b'\n').unwrap_or(rest.len())];
+        line.split(|b| b.is_ascii_whitespace()).filter(|w| !w.is_empty()).count()
     }
 
     /// The position of the next word, for error messages about it.
@@ -141,6 +156,10 @@ impl<'a> Cursor<'a> {
             while p < self.buf.len() && self.buf[p].is_ascii_whitespace() {
                 p += 1;
             }
+        } else {
+            // Binary data ends with a newline before the next keyword (VTK writes one after
+            // each array, then e.g. `METADATA`).
+            p += [&b"\r\n"[..], b"\n"].iter().find(|nl| self.buf[p..].starts_with(nl)).map_or(0, |nl| nl.len());
         }
         self.buf[p..].get(..word.len()).is_some_and(|w| w.eq_ignore_ascii_case(word.as_bytes()))
     }
@@ -205,14 +224,9 @@ fn expected(what: &str, kind: &str, tok: &[u8]) -> String {
     format!("expected {what} ({kind}), found '{}'", show(tok))
 }
 
-/// A word for an error message: lossy, and cut short.
+/// A word for an error message: cut short, raw bytes escaped.
 pub(crate) fn show(tok: &[u8]) -> String {
-    let s = String::from_utf8_lossy(&tok[..tok.len().min(40)]).into_owned();
-    if tok.len() > 40 {
-        s + "..."
-    } else {
-        s
-    }
+    tetloc_core::error::excerpt(tok, 40)
 }
 
 /// Decimal digits with an optional `+`; `None` on anything else or on overflow.

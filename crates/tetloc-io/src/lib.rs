@@ -59,6 +59,15 @@ impl MeshFormat {
     }
 }
 
+/// The UTF-8 byte-order mark that some editors (Excel, Notepad) put before a text file's first
+/// byte. Every text reader skips it.
+pub(crate) const UTF8_BOM: &[u8] = b"\xEF\xBB\xBF";
+
+/// `bytes` without a leading UTF-8 byte-order mark.
+pub(crate) fn strip_bom(bytes: &[u8]) -> &[u8] {
+    bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes)
+}
+
 /// Memory the system can still hand out (Linux `MemAvailable`), if known.
 pub fn available_memory_bytes() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
@@ -147,8 +156,30 @@ pub fn read_file(path: &Path) -> Result<Vec<u8>> {
     Ok(buf)
 }
 
+/// Choices of how a mesh file is read.
+#[derive(Clone, Copy, Debug)]
+pub struct ReadOptions {
+    /// `.pvtu`/`.vtm`: read pieces (and nested listings) that lie outside the listing's folder
+    /// tree (`../`, absolute paths, symbolic links out). Refused by default: a listing from an
+    /// untrusted source should not make tetloc read arbitrary files.
+    pub allow_outside_pieces: bool,
+}
+
+impl Default for ReadOptions {
+    /// Pieces outside the listing's folder refused, unless this process allows them
+    /// ([`vtk::pieces::set_allow_outside_by_default`], the CLI's `--allow-outside-pieces`).
+    fn default() -> Self {
+        ReadOptions { allow_outside_pieces: vtk::pieces::allows_outside_by_default() }
+    }
+}
+
 /// Reads a mesh file into a raw mesh (tets in file order, not yet validated).
 pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
+    read_raw_with(path, format, ReadOptions::default())
+}
+
+/// [`read_raw`] with explicit [`ReadOptions`].
+pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptions) -> Result<RawMesh> {
     let format = match format {
         Some(f) => f,
         None => MeshFormat::from_path(path)?,
@@ -164,7 +195,7 @@ pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
     }
     match format {
         MeshFormat::Vtu => vtk::vtu::read(path),
-        MeshFormat::Pieces => vtk::pieces::read(path),
+        MeshFormat::Pieces => vtk::pieces::read_with(path, options.allow_outside_pieces),
         MeshFormat::VtkLegacy => vtk::legacy::read(path),
         MeshFormat::Gmsh => gmsh::read(path),
         MeshFormat::TetGen => tetgen::read(path),
@@ -173,7 +204,12 @@ pub fn read_raw(path: &Path, format: Option<MeshFormat>) -> Result<RawMesh> {
 
 /// Reads and validates a mesh file.
 pub fn read_mesh(path: &Path, format: Option<MeshFormat>) -> Result<Mesh> {
-    let raw = read_raw(path, format)?;
+    read_mesh_with(path, format, ReadOptions::default())
+}
+
+/// [`read_mesh`] with explicit [`ReadOptions`].
+pub fn read_mesh_with(path: &Path, format: Option<MeshFormat>, options: ReadOptions) -> Result<Mesh> {
+    let raw = read_raw_with(path, format, options)?;
     Mesh::new(raw, path.display().to_string())
 }
 

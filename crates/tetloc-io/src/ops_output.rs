@@ -40,21 +40,25 @@ pub fn probed_field_arrays(probed: &Probed) -> Vec<NamedArray<'_>> {
         .collect()
 }
 
-/// What the probed values were sampled at: a mesh's vertices, or a set of points.
+/// What the probed values were sampled at: a mesh's vertices, a grid's points (a `.vtu` of
+/// any cells: surfaces, vertices, volumes), or a set of points.
 #[derive(Clone, Copy, Debug)]
 pub enum Target<'a> {
     Mesh(&'a Mesh),
+    Grid(&'a crate::vtk::vtu::AnyGrid),
     Points(Coords<'a>),
 }
 
-/// Writes the probe's result: a target mesh with its cells and data plus the probed arrays (a
-/// `.vtu`; probed arrays replace target arrays of the same name), or a target point set with
+/// Writes the probe's result: a target mesh or grid with its cells and data plus the probed
+/// arrays (a `.vtu`; probed arrays replace target point arrays of the same name, and cell
+/// arrays stay, as in vtkResampleWithDataSet), or a target point set with
 /// the probed arrays (`.vtu` or `.vtp`; Float64 coordinates where f32 cannot hold them).
 pub fn write_probed(path: &Path, probed: &Probed, target: Target, zlib: bool) -> Result<()> {
     let mask = probed.mask();
     let arrays = probed_arrays(probed, &mask);
     match target {
         Target::Mesh(mesh) => write::write_mesh_with(path, mesh, &arrays, zlib),
+        Target::Grid(grid) => write::write_any_grid(path, grid, &arrays, zlib),
         Target::Points(points) => write::write_point_set(path, points, &arrays, zlib),
     }
 }
@@ -132,8 +136,14 @@ mod tests {
         write_probed(&tmp, &onto, Target::Mesh(&m), false).unwrap();
         let back = crate::vtk::vtu::read(&tmp).unwrap();
         let names: Vec<&str> = back.fields.iter().map(|f| f.name.as_str()).collect();
-        let mut want: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
-        want.retain(|n| !renamed.iter().skip(1).any(|g| g.name == *n));
+        // Probed (point) arrays replace the target's point arrays of their names; its cell
+        // arrays stay.
+        let mut want: Vec<&str> = m
+            .fields
+            .iter()
+            .filter(|f| f.location == FieldLocation::Cell || !renamed.iter().skip(1).any(|g| g.name == f.name))
+            .map(|f| f.name.as_str())
+            .collect();
         want.extend(renamed.iter().map(|g| g.name.as_str()));
         want.push(VALID_MASK);
         let (mut names, mut want) = (names, want);
@@ -142,6 +152,27 @@ mod tests {
         assert_eq!(names, want);
         assert_eq!(back.tets.len(), m.tets.len());
         std::fs::remove_file(&tmp).unwrap();
+    }
+
+    /// Issue 29 item 14: probing a mesh onto itself (`probe s.vtu s.vtu`) keeps the target's
+    /// cell array `c` beside the probed point array `c`, as vtkResampleWithDataSet does (point
+    /// data and cell data are two sets of names); a probed point array replaces the target's
+    /// point array of its name.
+    #[test]
+    fn probed_arrays_keep_the_targets_cell_arrays() {
+        let m = Arc::new(KuhnGrid::new(2).cell_field("c", |i, _| i as f32).mesh("cube"));
+        let groups = fields::groups(&m);
+        let p = probe::probe(&mut CpuLocator::new(m.clone()), &m.points, &groups, |_| Ok(())).unwrap();
+        let tmp = std::env::temp_dir().join(format!("tetloc-probe-names-{}.vtu", std::process::id()));
+        write_probed(&tmp, &p, Target::Mesh(&m), false).unwrap();
+        let back = crate::vtk::vtu::read(&tmp).unwrap();
+        std::fs::remove_file(&tmp).unwrap();
+        let mut names: Vec<(&str, FieldLocation)> = back.fields.iter().map(|f| (f.name.as_str(), f.location)).collect();
+        names.sort_by_key(|(n, l)| (n.to_string(), *l == FieldLocation::Cell));
+        use FieldLocation::{Cell, Vertex};
+        assert_eq!(names, [("c", Vertex), ("c", Cell), ("f", Vertex), (VALID_MASK, Vertex)]);
+        let cell = back.fields.iter().find(|f| f.name == "c" && f.location == Cell).unwrap();
+        assert_eq!(cell.values, m.field("c").unwrap().values, "the target's own cell values");
     }
 
     /// Fields probed in f64 are written as Float64 (as VTK's probe keeps the source array's

@@ -113,6 +113,7 @@ fn read_points_csv(path: &Path, bytes: &[u8]) -> Result<Vec<[f64; 3]>> {
         let line = 1 + bytes[..e.valid_up_to()].iter().filter(|&&b| b == b'\n').count();
         Error::format(path, format!("line {line}: not UTF-8 text"))
     })?;
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text); // a byte-order mark (Excel's "CSV UTF-8")
     let mut out = Vec::new();
     let mut first = true;
     for (n, line) in text.lines().enumerate() {
@@ -129,7 +130,11 @@ fn read_points_csv(path: &Path, bytes: &[u8]) -> Result<Vec<[f64; 3]>> {
             _ => {
                 return Err(Error::format(
                     path,
-                    format!("line {}: expected three numbers x,y,z, found '{line}'", n + 1),
+                    format!(
+                        "line {}: expected three numbers x,y,z, found '{}'",
+                        n + 1,
+                        tetloc_core::error::excerpt(line.as_bytes(), 80)
+                    ),
                 ))
             }
         }
@@ -202,9 +207,25 @@ impl Results<'_> {
             Some((name, v)) if v.len() != self.ids.len() => {
                 Err(Error::Invalid(format!("{} tet ids but {} values of '{name}'", self.ids.len(), v.len())))
             }
-            _ => Ok(()),
+            Some((name, _)) => check_value_name(name),
+            None => Ok(()),
         }
     }
+}
+
+/// The columns and arrays that every table and point set of results has besides the values.
+pub const RESULT_NAMES: [&str; 2] = ["tet_id", VALID_MASK];
+
+/// An error when a sampled field's name is one of [`RESULT_NAMES`]: its column or array
+/// would collide with theirs (in `.csv` as in `.vtu` and `.vtp`).
+pub fn check_value_name(name: &str) -> Result<()> {
+    if RESULT_NAMES.contains(&name) {
+        return Err(Error::Invalid(format!(
+            "the field '{name}' has the name of a column tetloc writes next to it ({}); rename the field",
+            RESULT_NAMES.join(", ")
+        )));
+    }
+    Ok(())
 }
 
 /// Writes the tet ids: `.npy` (int32) or `.bin` (raw little-endian i32), or `.csv`, the whole

@@ -126,3 +126,50 @@ fn differences_are_found() {
     b.fields[0].name = "g".into();
     assert_eq!(differences(&a, &b, 0).len(), 1);
 }
+
+/// Small files of the text formats, one tet each (TetGen's as .node and .ele).
+pub(crate) const LEGACY_ASCII: &str = "# vtk DataFile Version 4.2\ntitle\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+    POINTS 4 float\n0 0 0 1 0 0 0 1 0 0 0 1\nCELLS 1 5\n4 0 1 2 3\nCELL_TYPES 1\n10\n\
+    POINT_DATA 4\nSCALARS f float 1\nLOOKUP_TABLE default\n0 1 2 3\n";
+pub(crate) const MSH_ASCII: &str = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n4\n1 0 0 0\n2 1 0 0\n3 0 1 0\n\
+    4 0 0 1\n$EndNodes\n$Elements\n1\n1 4 2 0 1 1 2 3 4\n$EndElements\n";
+pub(crate) const TETGEN_NODE: &str = "4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n";
+pub(crate) const TETGEN_ELE: &str = "1 4 0\n1 1 2 3 4\n";
+
+/// Issue 29 item 17: a UTF-8 byte-order mark before a text file (Excel's "CSV UTF-8",
+/// Notepad) is skipped by every text reader: CSV points, .vtu, legacy .vtk, .msh, TetGen.
+#[test]
+fn a_byte_order_mark_is_skipped() {
+    use crate::{gmsh, points, tetgen, vtk};
+    use std::path::Path;
+    let bom = |text: &[u8]| [super::UTF8_BOM, text].concat();
+    let same = |a: &RawMesh, b: &RawMesh, what: &str| {
+        let d = differences(a, b, 0);
+        assert!(d.is_empty() && !a.tets.is_empty(), "{what}: {d:?}");
+    };
+    let p = |name: &str| Path::new(name).to_path_buf();
+    let plain = vtk::legacy::parse(LEGACY_ASCII.as_bytes(), &p("a.vtk")).unwrap();
+    same(&plain, &vtk::legacy::parse(&bom(LEGACY_ASCII.as_bytes()), &p("a.vtk")).unwrap(), "vtk");
+    let plain = gmsh::parse(MSH_ASCII.as_bytes(), &p("a.msh")).unwrap();
+    same(&plain, &gmsh::parse(&bom(MSH_ASCII.as_bytes()), &p("a.msh")).unwrap(), "msh");
+    let (node, ele) = (TETGEN_NODE.as_bytes(), TETGEN_ELE.as_bytes());
+    let plain = tetgen::parse(node, ele, &p("a.node")).unwrap();
+    same(&plain, &tetgen::parse(&bom(node), &bom(ele), &p("a.node")).unwrap(), "tetgen");
+    // A .vtu with appended raw data: offsets count from the `_` marker, not the file's start.
+    let dir = std::env::temp_dir().join(format!("tetloc-bom-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let vtu = dir.join("m.vtu");
+    let mesh = crate::test_support::KuhnGrid::new(2).mesh("cube");
+    vtk::write::write_mesh_vtu(&vtu, &mesh, false).unwrap();
+    let bytes = std::fs::read(&vtu).unwrap();
+    let plain = vtk::vtu::parse(&bytes, &vtu).unwrap();
+    same(&plain, &vtk::vtu::parse(&bom(&bytes), &vtu).unwrap(), "vtu");
+    assert_eq!(vtk::vtu::parse_any(&bom(&bytes), &vtu).unwrap().points.len(), mesh.points.len());
+    // CSV points, with and without a header.
+    for text in ["x,y,z\n1,2,3\n4,5,6\n", "1,2,3\n4,5,6\n"] {
+        let csv = dir.join("p.csv");
+        std::fs::write(&csv, bom(text.as_bytes())).unwrap();
+        assert_eq!(points::read_points64(&csv).unwrap(), [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]], "{text:?}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

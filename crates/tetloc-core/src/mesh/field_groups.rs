@@ -2,6 +2,11 @@
 //! as the k fields `NAME[0]` … `NAME[k-1]` (in this order, next to each other), and the
 //! writers turn such runs back into one k-component array. A [`FieldGroup`] is one such
 //! array: a scalar field, or the components of a vector.
+//!
+//! **Naming, in every command:** `v` is the whole array (all its components), `v[1]` one
+//! component of it (a scalar). Commands that sample whole arrays (resample, probe) take both;
+//! commands that need one scalar (locate, render) take a scalar field or a component and say
+//! which components a vector has; trace's `--vector` takes a whole 3-component vector.
 
 use crate::error::{Error, Result};
 use crate::mesh::{Field, FieldLocation, Mesh};
@@ -29,17 +34,66 @@ impl FieldGroup {
     }
 }
 
-/// The field named `name` in `fields`: a scalar field of that name, or the run `NAME[0]` …
-/// `NAME[k-1]` (k ≥ 2) of a vector. Errors list the arrays there are.
+/// The field named `name` in `fields`: a scalar field of that name, the run `NAME[0]` …
+/// `NAME[k-1]` (k ≥ 2) of a vector, or one component `NAME[i]` of a vector (a one-component
+/// group). Errors list the arrays there are.
 pub fn resolve_in(fields: &[Field], name: &str) -> Result<FieldGroup> {
-    groups_of(fields).into_iter().find(|g| g.name == name).ok_or_else(|| Error::NoSuchField {
+    let groups = groups_of(fields);
+    if let Some(g) = groups.iter().find(|g| g.name == name) {
+        return Ok(g.clone());
+    }
+    if let Some(f) = fields.iter().find(|f| f.name == name) {
+        let components = vec![f.name.clone()];
+        return Ok(FieldGroup { name: f.name.clone(), location: f.location, components, f64: f.values64.is_some() });
+    }
+    Err(Error::NoSuchField {
         name: name.to_string(),
         available: if fields.is_empty() {
             "none".to_string()
         } else {
-            groups_of(fields).iter().map(describe).collect::<Vec<_>>().join(", ")
+            groups.iter().map(describe).collect::<Vec<_>>().join(", ")
+                + if groups.iter().any(|g| g.n_components() > 1) { "; a component as NAME[i]" } else { "" }
         },
     })
+}
+
+/// The scalar field to sample for `name` (commands that sample one value a point: locate,
+/// render): a scalar field, or one component `NAME[i]` of a vector; a whole vector is an
+/// error that names its components.
+pub fn resolve_scalar(fields: &[Field], name: &str) -> Result<String> {
+    let g = resolve_in(fields, name)?;
+    match g.components.as_slice() {
+        [one] => Ok(one.clone()),
+        all => Err(Error::Invalid(format!(
+            "'{name}' is a vector of {} components, and this samples one value a point: name a component, {}",
+            all.len(),
+            all.iter().map(|c| format!("'{c}'")).collect::<Vec<_>>().join(", ")
+        ))),
+    }
+}
+
+/// The arrays named by `names` (each as in [`resolve_in`]), for commands that write one array
+/// each (resample, probe): a name given twice, or one that `reserved` output arrays take
+/// (`vtkValidPointMask`), is an error. With no names, every array of the mesh except those
+/// named as reserved ones (a probe's `vtkValidPointMask`: the output gets a new one).
+pub fn resolve_outputs(fields: &[Field], names: &[String], reserved: &[&str]) -> Result<Vec<FieldGroup>> {
+    if names.is_empty() {
+        return Ok(groups_of(fields).into_iter().filter(|g| !reserved.contains(&g.name.as_str())).collect());
+    }
+    let mut out: Vec<FieldGroup> = Vec::with_capacity(names.len());
+    for name in names {
+        if reserved.contains(&name.as_str()) {
+            return Err(Error::Invalid(format!(
+                "the field '{name}': the output has an array of that name of its own; rename the field"
+            )));
+        }
+        let g = resolve_in(fields, name)?;
+        if out.iter().any(|o| o.name == g.name) {
+            return Err(Error::Invalid(format!("the field '{name}' is named twice")));
+        }
+        out.push(g);
+    }
+    Ok(out)
 }
 
 /// [`resolve_in`] over a mesh's fields.
@@ -136,5 +190,32 @@ mod tests {
         assert_eq!(resolve_in(&fields, "c[0]").unwrap().components, ["c[0]"]);
         let e = resolve_in(&fields, "nope").unwrap_err().to_string();
         assert!(e.contains("'nope'") && e.contains("'v' (point, 3 components)") && e.contains("'f' (point)"), "{e}");
+    }
+
+    /// Issue 29 item 18: `v` is the whole vector and `v[1]` one component, wherever a command
+    /// can use them; names given twice and reserved output names are refused.
+    #[test]
+    fn one_naming_rule() {
+        use FieldLocation::Vertex;
+        let fields = [field("v[0]", Vertex), field("v[1]", Vertex), field("v[2]", Vertex), field("f", Vertex)];
+        assert_eq!(resolve_in(&fields, "v[1]").unwrap().components, ["v[1]"]);
+        assert_eq!(resolve_in(&fields, "v[1]").unwrap().name, "v[1]");
+        assert_eq!(resolve_scalar(&fields, "v[2]").unwrap(), "v[2]");
+        assert_eq!(resolve_scalar(&fields, "f").unwrap(), "f");
+        let e = resolve_scalar(&fields, "v").unwrap_err().to_string();
+        assert!(e.contains("'v' is a vector of 3 components") && e.contains("'v[0]', 'v[1]', 'v[2]'"), "{e}");
+        let e = resolve_in(&fields, "w").unwrap_err().to_string();
+        assert!(e.contains("a component as NAME[i]"), "{e}");
+        let names = |n: &[&str]| n.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let got = resolve_outputs(&fields, &names(&["v", "v[1]", "f"]), &["vtkValidPointMask"]).unwrap();
+        assert_eq!(got.iter().map(|g| g.n_components()).collect::<Vec<_>>(), [3, 1, 1]);
+        let e = resolve_outputs(&fields, &names(&["f", "f"]), &[]).unwrap_err().to_string();
+        assert!(e.contains("the field 'f' is named twice"), "{e}");
+        let mut with_mask = fields.to_vec();
+        with_mask.push(field("vtkValidPointMask", Vertex));
+        let e = resolve_outputs(&with_mask, &names(&["vtkValidPointMask"]), &["vtkValidPointMask"]).unwrap_err();
+        assert!(e.to_string().contains("rename the field"), "{e}");
+        let all = resolve_outputs(&with_mask, &[], &["vtkValidPointMask"]).unwrap();
+        assert_eq!(all.iter().map(|g| g.name.as_str()).collect::<Vec<_>>(), ["v", "f"]);
     }
 }

@@ -17,6 +17,7 @@ use tetloc_core::error::Result;
 pub(super) struct Chunk {
     tets: Vec<[u32; 4]>,
     tags: Vec<u64>,
+    other_tags: Vec<u64>,
     extra: Vec<u32>,
     runs: Vec<Run>,
     order: u8,
@@ -48,6 +49,7 @@ impl Chunk {
             },
             Kind::Lower => {}
         }
+        self.other_tags.push(tag);
         for _ in 0..nn {
             t.u64()?;
         }
@@ -72,6 +74,8 @@ pub(super) struct ElementSink<'n> {
     /// Each cell's first four nodes: a tet's corners.
     pub tets: Vec<[u32; 4]>,
     pub tags: Vec<u64>,
+    /// The tags of the other elements (lower-dimensional ones, volumes not read).
+    pub other_tags: Vec<u64>,
     /// The cells' nodes after their first four, in Gmsh's order (none for linear tets).
     pub extra: Vec<u32>,
     /// The cells' Gmsh types, run-length encoded.
@@ -139,6 +143,7 @@ impl ElementSink<'_> {
         for c in chunks {
             self.tets.extend_from_slice(&c.tets);
             self.tags.extend_from_slice(&c.tags);
+            self.other_tags.extend_from_slice(&c.other_tags);
             self.extra.extend_from_slice(&c.extra);
             c.runs.iter().for_each(|&(code, nn, k)| add_run(&mut self.runs, code, nn, k));
             self.order = self.order.max(c.order);

@@ -143,9 +143,17 @@ impl Parser<'_> {
                     Some(i) => Ok(Some(i as usize)),
                     None => Err(format!("{what} '{name}' gives a value for node {t}, which is not in $Nodes")),
                 },
-                // Values on surface or line elements are dropped.
+                // Values on surface or line elements are dropped; a tag of no element in
+                // $Elements is an error, as a node tag is.
                 FieldLocation::Cell => {
-                    Ok(cells.as_ref().and_then(|c| c.map.as_ref()).and_then(|m| m.get(t)).map(|i| i as usize))
+                    let cells = cells.as_ref().expect("checked above");
+                    match cells.map.as_ref().and_then(|m| m.get(t)) {
+                        Some(i) => Ok(Some(i as usize)),
+                        None if cells.other_tags.binary_search(&t).is_ok() => Ok(None),
+                        None => {
+                            Err(format!("{what} '{name}' gives a value for element {t}, which is not in $Elements"))
+                        }
+                    }
                 }
             }
         };

@@ -117,6 +117,30 @@ pub(super) fn element_type(t: i64) -> Option<(usize, Kind)> {
     })
 }
 
+/// An error unless the ASCII element line at the cursor holds `words` more words: a type
+/// that is not the element's (`99`, a 32-node hexahedron, written over a tet) would
+/// otherwise read the next lines' numbers as its nodes. `tag` and `ty` name the element.
+pub(super) fn check_line(c: &mut Cursor, pos: usize, tag: u64, ty: i64, words: usize) -> Result<(), Error> {
+    c.skip_ws_on_line();
+    let found = c.words_on_line();
+    if found == words {
+        return Ok(());
+    }
+    let what = match element_type(ty) {
+        Some((nn, Kind::Lower)) => format!("a point, line or surface element of {nn} nodes"),
+        Some((nn, Kind::Cell { .. })) => format!("a volume cell of {nn} nodes"),
+        Some((nn, Kind::Volume(name))) => format!("a {name} of {nn} nodes"),
+        None => return Err(unknown_type(c, pos, ty)),
+    };
+    Err(c.fail_at(
+        pos,
+        format!(
+            "element {tag}: element type {ty} is {what}, but its line holds {found} more numbers where {words} \
+             were expected (is the element type right?)"
+        ),
+    ))
+}
+
 /// The error for a type that [`element_type`] does not know, at byte `pos`.
 pub(super) fn unknown_type(c: &Cursor, pos: usize, ty: i64) -> Error {
     c.fail_at(

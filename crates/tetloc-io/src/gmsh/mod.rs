@@ -98,6 +98,9 @@ struct Cells {
     /// The nodes after the first four, Gmsh's order; the cells' Gmsh types, run-length encoded.
     extra: Vec<u32>,
     runs: Vec<cells::Run>,
+    /// The tags of the other elements (surfaces, lines, points, volumes not read), sorted:
+    /// `$ElementData` values on them are dropped; a tag in neither list is an error.
+    other_tags: Vec<u64>,
 }
 
 struct Parser<'a> {
@@ -227,6 +230,7 @@ impl Parser<'_> {
             nodes,
             tets: Vec::new(),
             tags: Vec::new(),
+            other_tags: Vec::new(),
             extra: Vec::new(),
             runs: Vec::new(),
             order: 1,
@@ -239,8 +243,9 @@ impl Parser<'_> {
         if !acc.others.is_empty() {
             return Err(Error::NonTetCells { path: self.c.path.to_path_buf(), counts: acc.others });
         }
-        let ElementSink { tets, tags, order, extra, runs, .. } = acc;
-        self.cells = Some(Cells { tets, tags, map: None, order, extra, runs });
+        let ElementSink { tets, tags, order, extra, runs, mut other_tags, .. } = acc;
+        rayon::slice::ParallelSliceMut::par_sort_unstable(&mut other_tags[..]);
+        self.cells = Some(Cells { tets, tags, map: None, order, extra, runs, other_tags });
         Ok(())
     }
 

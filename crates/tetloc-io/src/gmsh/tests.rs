@@ -419,6 +419,32 @@ fn bad_files_give_clear_errors() {
     assert!(err_of(&bin).contains("endianness marker"));
 }
 
+/// Issue 29 item 19: a type that is not the element's (99, a 32-node hexahedron, over a tet)
+/// is named as such, not called a truncated file; and `$ElementData` for an element tag that
+/// `$Elements` does not have is refused as `$NodeData` for a missing node is.
+#[test]
+fn wrong_element_types_and_unknown_element_tags() {
+    for e in ENCODINGS.into_iter().filter(|e| !e.binary) {
+        let mut s = spec();
+        s.elems[1].1 = 99;
+        s.elem_data.clear();
+        let msg = err_of(&write(&s, e));
+        assert!(msg.contains("element type 99 is a hexahedron of 32 nodes"), "{e:?}: {msg}");
+        assert!(!msg.contains("truncated"), "{e:?}: {msg}");
+    }
+    for e in ENCODINGS {
+        let mut s = spec();
+        s.elem_data[0].3.push((77, vec![1.0]));
+        let msg = err_of(&write(&s, e));
+        assert!(
+            msg.contains("$ElementData 'mat' gives a value for element 77, which is not in $Elements"),
+            "{e:?}: {msg}"
+        );
+        // The triangle's value (element 1) is still dropped without complaint.
+        assert!(parse(&write(&spec(), e), &p()).is_ok(), "{e:?}");
+    }
+}
+
 /// Ok only where the cut falls right after a section's `$End...` line (a shorter but whole
 /// file); everything else is an error, never a panic.
 fn check_truncations(bytes: &[u8], lengths: impl Iterator<Item = usize>, what: &str) {

@@ -4,7 +4,7 @@
 //! and 8-byte doubles.
 
 use super::cells::{read_ascii_nodes, Chunk, ElementSink};
-use super::elements::{element_type, unknown_type, Kind};
+use super::elements::{check_line, element_type, unknown_type, Kind};
 use crate::cursor::{get_f64, get_i32, Cursor};
 use tetloc_core::error::Result;
 
@@ -64,6 +64,9 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
             let data = c.take_records(count as u64, record, "elements")?;
             seen += count as u64;
             acc.reserve(kind, count as usize);
+            if !matches!(kind, Kind::Cell { .. }) {
+                acc.other_tags.extend(data.chunks_exact(record).map(|r| get_i32(r, big) as i64 as u64));
+            }
             match kind {
                 Kind::Lower => {}
                 Kind::Volume(name) => acc.other(name, nn, count as usize),
@@ -100,11 +103,15 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
             for _ in 0..ntags {
                 c.token("an element tag")?;
             }
+            check_line(c, pos, tag, ty, nn)?;
             acc.reserve(kind, 1);
             let t = read_ascii_nodes(c, acc, kind, nn, tag, pos, &mut extra)?;
             match kind {
-                Kind::Lower => {}
-                Kind::Volume(name) => acc.other(name, nn, 1),
+                Kind::Lower => acc.other_tags.push(tag),
+                Kind::Volume(name) => {
+                    acc.other(name, nn, 1);
+                    acc.other_tags.push(tag);
+                }
                 Kind::Cell { code, .. } => acc.push_cell(code, t, &extra, tag),
             }
         }

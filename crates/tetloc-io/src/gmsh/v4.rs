@@ -4,7 +4,7 @@
 //! bytes and `size_t`s of 8, as are the tags.
 
 use super::cells::{read_ascii_nodes, Chunk, ElementSink};
-use super::elements::{element_type, unknown_type, Kind};
+use super::elements::{check_line, element_type, unknown_type, Kind};
 use crate::cursor::{get_f64, get_i32, get_u64, Cursor};
 use tetloc_core::error::Result;
 
@@ -120,8 +120,17 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
             if let Kind::Cell { code, .. } = kind {
                 let (tag, node) = (|r: &[u8]| get_u64(r, big), |r: &[u8], k: usize| get_u64(&r[8 + 8 * k..], big));
                 acc.add_binary_cells(data, record, code, nn, tag, node).map_err(|m| c.fail_at(pos, m))?;
+            } else {
+                acc.other_tags.extend(data.chunks_exact(record).map(|r| get_u64(r, big)));
             }
         } else {
+            if count > 0 {
+                // The first element line says whether the type is right before its size counts.
+                let (p, buf) = (c.here(), c.buf);
+                let first_word = buf[p..].split(|b| b.is_ascii_whitespace()).next().unwrap_or(&[]);
+                let tag = crate::cursor::parse_u64(first_word).unwrap_or(0);
+                check_line(c, p, tag, ty, 1 + nn)?;
+            }
             let count = c.check_room(count, 2 * (1 + nn), "elements")?;
             let map = &acc.nodes.map;
             if let Some(chunks) = c.par_lines(count, min_parallel, |t, s: &mut Chunk| {
@@ -137,8 +146,9 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
                 let epos = c.here();
                 let tag = c.ascii_u64("an element tag")?;
                 let t = read_ascii_nodes(c, acc, kind, nn, tag, epos, &mut extra)?;
-                if let Kind::Cell { code, .. } = kind {
-                    acc.push_cell(code, t, &extra, tag);
+                match kind {
+                    Kind::Cell { code, .. } => acc.push_cell(code, t, &extra, tag),
+                    _ => acc.other_tags.push(tag),
                 }
             }
         }

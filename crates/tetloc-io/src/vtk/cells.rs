@@ -93,6 +93,8 @@ fn lookup(code: u8) -> Option<(&'static str, Kind)> {
 
 pub(crate) const TETRA: u8 = 10;
 pub(crate) const VERTEX: u8 = 1;
+/// VTK_POLYHEDRON: its faces come in arrays of their own.
+pub(crate) const POLYHEDRON: u8 = 42;
 
 /// The volume cells picked out of a cell list.
 #[derive(Debug)]

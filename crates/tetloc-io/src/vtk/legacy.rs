@@ -543,6 +543,54 @@ w 2 5 int
         }
     }
 
+    /// A VTK 9 BINARY file laid out as vtkUnstructuredGridWriter writes it: dataset field
+    /// data, then FIELD blocks of two arrays each in CELL_DATA and POINT_DATA.
+    pub(crate) fn binary_fields_file() -> Vec<u8> {
+        let mut f: Vec<u8> = Vec::new();
+        f.extend(b"# vtk DataFile Version 5.1\nvtk output\nBINARY\nDATASET UNSTRUCTURED_GRID\n");
+        f.extend(b"FIELD FieldData 1\nTIME 1 1 double\n");
+        f.extend(0.5f64.to_be_bytes());
+        f.extend(b"\nPOINTS 4 float\n");
+        for c in [0f32, 0., 0., 1., 0., 0., 0., 1., 0., 0., 0., 1.] {
+            f.extend(c.to_be_bytes());
+        }
+        f.extend(b"\nCELLS 2 4\nOFFSETS vtktypeint64\n");
+        [0i64, 4].iter().for_each(|v| f.extend(v.to_be_bytes()));
+        f.extend(b"\nCONNECTIVITY vtktypeint64\n");
+        [0i64, 1, 2, 3].iter().for_each(|v| f.extend(v.to_be_bytes()));
+        f.extend(b"\nCELL_TYPES 1\n");
+        f.extend(10i32.to_be_bytes());
+        f.extend(b"\n\nCELL_DATA 1\nFIELD FieldData 2\nc 1 1 double\n");
+        f.extend(5f64.to_be_bytes());
+        // Component names (or information keys) make VTK write a METADATA block after an array.
+        f.extend(b"\nMETADATA\nCOMPONENT_NAMES\ncx\n\nd 1 1 double\n");
+        f.extend(7f64.to_be_bytes());
+        f.extend(b"\nPOINT_DATA 4\nFIELD FieldData 2\na 1 4 double\n");
+        [1f64, 2., 3., 4.].iter().for_each(|v| f.extend(v.to_be_bytes()));
+        f.extend(b"\nb 2 4 int\n");
+        (1i32..=8).for_each(|v| f.extend(v.to_be_bytes()));
+        f.extend(b"\n");
+        f
+    }
+
+    /// Issue 29 item 15: a BINARY file whose FIELD blocks hold two arrays reads as its ASCII
+    /// twin does.
+    #[test]
+    fn binary_field_blocks() {
+        let ascii = "# vtk DataFile Version 5.1\nvtk output\nASCII\nDATASET UNSTRUCTURED_GRID\n\
+                     FIELD FieldData 1\nTIME 1 1 double\n0.5 \nPOINTS 4 float\n0 0 0 1 0 0 0 1 0 \n0 0 1 \n\
+                     CELLS 2 4\nOFFSETS vtktypeint64\n0 4 \nCONNECTIVITY vtktypeint64\n0 1 2 3 \n\
+                     CELL_TYPES 1\n10\n\nCELL_DATA 1\nFIELD FieldData 2\nc 1 1 double\n5 \nMETADATA\nCOMPONENT_NAMES\ncx\n\n\
+                     d 1 1 double\n7 \n\
+                     POINT_DATA 4\nFIELD FieldData 2\na 1 4 double\n1 2 3 4 \nb 2 4 int\n1 2 3 4 5 6 7 8 \n";
+        let want = parse_str(ascii).unwrap();
+        let got = parse(&binary_fields_file(), Path::new("test.vtk")).unwrap_or_else(|e| panic!("{e}"));
+        let show = |m: &RawMesh| m.fields.iter().map(|f| (f.name.clone(), f.values.clone())).collect::<Vec<_>>();
+        assert_eq!(show(&got), show(&want));
+        assert_eq!(show(&got).len(), 5, "c, d, a, b[0], b[1]");
+        assert_eq!(got.tets, want.tets);
+    }
+
     #[test]
     fn names() {
         assert_eq!(decode_name("a%20b%2"), "a b%2");

@@ -23,6 +23,7 @@
 
 use super::vtu;
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use tetloc_core::cell::CellBlock;
 use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{FieldLocation, RawMesh};
@@ -44,14 +45,93 @@ pub fn is_listing(path: &Path) -> bool {
     matches!(crate::output::extension(path).as_str(), "pvtu" | "vtm")
 }
 
+/// Whether listings may name pieces outside their folder tree when the caller does not say
+/// ([`list`], [`read`]); the CLI's `--allow-outside-pieces` sets it for the whole run.
+static ALLOW_OUTSIDE_BY_DEFAULT: AtomicBool = AtomicBool::new(false);
+
+/// Lets listings read in this process without an explicit choice ([`list`], [`read`]) name
+/// pieces outside their folder tree (`false`, the default, refuses them).
+pub fn set_allow_outside_by_default(allow: bool) {
+    ALLOW_OUTSIDE_BY_DEFAULT.store(allow, Ordering::Relaxed);
+}
+
+/// Whether [`set_allow_outside_by_default`] allowed pieces outside their listing's folder.
+pub fn allows_outside_by_default() -> bool {
+    ALLOW_OUTSIDE_BY_DEFAULT.load(Ordering::Relaxed)
+}
+
 /// The VTU pieces of a `.pvtu` or `.vtm`, in order (listings inside a `.vtm` expanded).
+/// Pieces outside the listing's folder tree are refused unless allowed (see [`list_with`]).
 pub fn list(path: &Path) -> Result<Vec<PathBuf>> {
+    list_with(path, allows_outside_by_default())
+}
+
+/// [`list`]; `allow_outside`: whether pieces (and nested listings) may lie outside the folder
+/// of the listing `path` (`../`, absolute paths, symbolic links that lead out). A listing
+/// from an untrusted source should not make tetloc read arbitrary files, so by default they
+/// are refused.
+pub fn list_with(path: &Path, allow_outside: bool) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
-    list_into(path, 0, &mut out)?;
+    let root = if allow_outside { None } else { Some(listing_folder(path)?) };
+    list_into(path, 0, root.as_deref(), &mut out)?;
     Ok(out)
 }
 
-fn list_into(path: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<()> {
+/// The folder a listing's pieces must lie in: the listing's own, symbolic links resolved.
+fn listing_folder(listing: &Path) -> Result<PathBuf> {
+    let dir = match listing.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    std::fs::canonicalize(dir).map_err(|e| Error::io(dir, e))
+}
+
+/// An error unless `piece` (as listed in `listing`) lies inside `root` once `..` and symbolic
+/// links are resolved. A piece that does not exist is judged by its path as written.
+fn check_inside(root: &Path, listing: &Path, piece: &Path) -> Result<()> {
+    let resolved = match std::fs::canonicalize(piece) {
+        Ok(p) => p,
+        Err(_) => {
+            // Missing: judged by the name as listed (reading it then says that it is missing).
+            let named = listing.parent().and_then(|d| piece.strip_prefix(d).ok()).unwrap_or(piece);
+            if !climbs_out(named) {
+                return Ok(());
+            }
+            // Outside by its name alone (`starts_with` would take `root/../x` for inside).
+            PathBuf::new()
+        }
+    };
+    if resolved.starts_with(root) {
+        return Ok(());
+    }
+    Err(Error::format(
+        listing,
+        format!(
+            "lists {}, which lies outside the listing's folder {}; pieces outside it are refused \
+             (a listing should not make tetloc read other files): pass --allow-outside-pieces to read it",
+            piece.display(),
+            root.display()
+        ),
+    ))
+}
+
+/// Whether a relative path leaves its folder (`../`, or more `..` than folders before them),
+/// or is absolute.
+fn climbs_out(path: &Path) -> bool {
+    use std::path::Component;
+    let mut depth = 0usize;
+    for c in path.components() {
+        match c {
+            Component::Normal(_) => depth += 1,
+            Component::CurDir => {}
+            Component::ParentDir if depth > 0 => depth -= 1,
+            _ => return true,
+        }
+    }
+    false
+}
+
+fn list_into(path: &Path, depth: usize, root: Option<&Path>, out: &mut Vec<PathBuf>) -> Result<()> {
     if depth > MAX_NESTING {
         return Err(Error::format(path, format!("listings nest more than {MAX_NESTING} deep (does one list itself?)")));
     }
@@ -62,9 +142,12 @@ fn list_into(path: &Path, depth: usize, out: &mut Vec<PathBuf>) -> Result<()> {
         other => return Err(Error::format(path, format!("'.{other}' is not a listing of pieces (.pvtu, .vtm)"))),
     };
     for f in files {
+        if let Some(root) = root {
+            check_inside(root, path, &f)?;
+        }
         match crate::output::extension(&f).as_str() {
             "vtu" => out.push(f),
-            "pvtu" | "vtm" => list_into(&f, depth + 1, out)?,
+            "pvtu" | "vtm" => list_into(&f, depth + 1, root, out)?,
             _ => {
                 return Err(Error::format(
                     path,
@@ -230,8 +313,14 @@ fn weld(mut raw: RawMesh, ids: &[u64], listing: &Path) -> Result<RawMesh> {
 }
 
 /// Reads a whole partitioned mesh (`.pvtu`, `.vtm`), cells numbered by their global ids.
+/// Pieces outside the listing's folder tree are refused unless allowed (see [`list_with`]).
 pub fn read(path: &Path) -> Result<RawMesh> {
-    let files = list(path)?;
+    read_with(path, allows_outside_by_default())
+}
+
+/// [`read`]; `allow_outside` as in [`list_with`].
+pub fn read_with(path: &Path, allow_outside: bool) -> Result<RawMesh> {
+    let files = list_with(path, allow_outside)?;
     let pieces = files.iter().enumerate().map(|(k, f)| Ok((k, read_piece(path, k, f)?))).collect::<Result<Vec<_>>>()?;
     let mut first_ids = Vec::with_capacity(pieces.len());
     let mut n = 0u64;
@@ -504,5 +593,65 @@ mod tests {
         std::fs::write(dir.0.join("e/notes.txt"), "mine").unwrap();
         let e = crate::partition::write_pvtu(&m, 2, &out, false, |_| {}).unwrap_err().to_string();
         assert!(e.contains("notes.txt") && e.contains("refusing"), "{e}");
+    }
+
+    /// Issue 29 item 20: pieces outside the listing's folder tree (`../`, absolute paths,
+    /// symbolic links that lead out, nested listings outside) are refused by default with an
+    /// error naming the listing and the piece, and read when allowed.
+    #[test]
+    fn pieces_outside_the_listing_folder_are_refused() {
+        let dir = TempDir::new("outside");
+        let m = cube();
+        crate::partition::write_pvtu(&m, 2, &dir.0.join("cube.pvtu"), false, |_| {}).unwrap();
+        let sub = dir.0.join("sub");
+        std::fs::create_dir_all(&sub).unwrap();
+        let pvtu = |sources: &[String]| {
+            let pieces: String = sources.iter().map(|s| format!("<Piece Source=\"{s}\"/>")).collect();
+            format!(
+                "<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\"><PUnstructuredGrid GhostLevel=\"0\">{pieces}\
+                 </PUnstructuredGrid></VTKFile>"
+            )
+        };
+        let absolute = dir.0.join("cube/cube_1.vtu").display().to_string();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink(dir.0.join("cube/cube_1.vtu"), sub.join("link.vtu")).unwrap();
+        let vtm = "<VTKFile type=\"vtkMultiBlockDataSet\"><vtkMultiBlockDataSet>\
+                   <DataSet index=\"0\" file=\"../cube.pvtu\"/></vtkMultiBlockDataSet></VTKFile>";
+        std::fs::write(sub.join("nested.vtm"), vtm).unwrap();
+        let mut cases = vec![
+            ("up.pvtu", pvtu(&["../cube/cube_0.vtu".into(), "../cube/cube_1.vtu".into()])),
+            ("abs.pvtu", pvtu(&["../cube/cube_0.vtu".into(), absolute])),
+            ("missing.pvtu", pvtu(&["../../elsewhere/x.vtu".into()])),
+        ];
+        if cfg!(unix) {
+            cases.push(("link.pvtu", pvtu(&["link.vtu".into()])));
+        }
+        for (name, text) in &cases {
+            std::fs::write(sub.join(name), text).unwrap();
+        }
+        cases.push(("nested.vtm", String::new()));
+        for (name, _) in &cases {
+            let listing = sub.join(name);
+            let e = crate::read_mesh(&listing, None).unwrap_err().to_string();
+            assert!(
+                e.starts_with(&listing.display().to_string()) && e.contains("outside the listing's folder"),
+                "{name}: {e}"
+            );
+            assert!(e.contains("--allow-outside-pieces"), "{e}");
+            let allowed = list_with(&listing, true);
+            if *name != "missing.pvtu" {
+                assert!(!allowed.unwrap().is_empty(), "{name}");
+            }
+            // The listings of the whole cube read whole when allowed.
+            if matches!(*name, "up.pvtu" | "abs.pvtu" | "nested.vtm") {
+                let opts = crate::ReadOptions { allow_outside_pieces: true };
+                let back = crate::read_mesh_with(&listing, None, opts).unwrap();
+                assert!(back.n_cells() > 0, "{name}");
+            }
+        }
+        // Inside the folder tree (a subfolder, `./`, `a/../`) is read as before.
+        std::fs::write(dir.0.join("inside.pvtu"), pvtu(&["./cube/cube_0.vtu".into(), "sub/../cube/cube_1.vtu".into()]))
+            .unwrap();
+        assert_eq!(crate::read_mesh(&dir.0.join("inside.pvtu"), None).unwrap().n_cells(), m.n_cells());
     }
 }

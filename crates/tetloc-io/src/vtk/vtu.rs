@@ -49,6 +49,14 @@ pub(crate) struct GlobalIds {
 /// [`parse`]). Partitioned meshes (`io::vtk::pieces`) number their cells by them and merge
 /// the copies of a vertex that several pieces hold.
 pub(crate) fn parse_with_ids(bytes: &[u8], path: &Path) -> Result<(RawMesh, GlobalIds)> {
+    let parts = each_piece(bytes, path, |ctx, piece, k| ctx.piece(piece, k))?;
+    let cells = parts.iter().map(|p| p.ids.cells.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
+    let points = parts.iter().map(|p| p.ids.points.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
+    Ok((merge(parts, path)?, GlobalIds { cells, points }))
+}
+
+/// `read` of each `<Piece>` of the file, in order.
+fn each_piece<T>(bytes: &[u8], path: &Path, read: impl Fn(&Ctx, &Node, usize) -> Result<T>) -> Result<Vec<T>> {
     let fail = |msg: String| Error::format(path, msg);
     let doc = xml::parse(bytes, "AppendedData").map_err(fail)?;
     let root = &doc.root;
@@ -93,10 +101,68 @@ pub(crate) fn parse_with_ids(bytes: &[u8], path: &Path) -> Result<(RawMesh, Glob
     if pieces.is_empty() {
         return Err(fail("<UnstructuredGrid> has no <Piece>".into()));
     }
-    let parts = pieces.iter().enumerate().map(|(k, p)| ctx.piece(p, k)).collect::<Result<Vec<_>>>()?;
-    let cells = parts.iter().map(|p| p.ids.cells.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
-    let points = parts.iter().map(|p| p.ids.points.as_deref()).collect::<Option<Vec<_>>>().map(|a| a.concat());
-    Ok((merge(parts, path)?, GlobalIds { cells, points }))
+    pieces.iter().enumerate().map(|(k, p)| read(&ctx, p, k)).collect()
+}
+
+/// A `.vtu` as the file has it, whatever its cells (volumes, surfaces, lines, vertices):
+/// what `probe` keeps of a target, which may be any point set.
+#[derive(Clone, Debug, Default)]
+pub struct AnyGrid {
+    pub points: Vec<[f32; 3]>,
+    /// The file's coordinates, when some do not round to f32 exactly.
+    pub points64: Option<Vec<[f64; 3]>>,
+    /// Each cell's VTK type.
+    pub types: Vec<u8>,
+    /// Where each cell's point ids end in `conn`.
+    pub ends: Vec<u64>,
+    pub conn: Vec<u32>,
+    /// Point and cell data (a k-component array as the fields `NAME[0]` … `NAME[k-1]`).
+    pub fields: Vec<Field>,
+}
+
+impl AnyGrid {
+    /// Point `i` at the file's precision.
+    pub fn point64(&self, i: usize) -> [f64; 3] {
+        match &self.points64 {
+            Some(p) => p[i],
+            None => self.points[i].map(f64::from),
+        }
+    }
+}
+
+/// Reads a `.vtu` of any cells as an [`AnyGrid`].
+pub fn read_any(path: &Path) -> Result<AnyGrid> {
+    let bytes = super::read_file(path)?;
+    parse_any(&bytes, path)
+}
+
+/// [`read_any`] of a file held in memory. Pieces are joined; they must carry the same arrays.
+pub fn parse_any(bytes: &[u8], path: &Path) -> Result<AnyGrid> {
+    let mut out = AnyGrid::default();
+    for (k, g) in each_piece(bytes, path, |ctx, piece, k| ctx.any_piece(piece, k))?.into_iter().enumerate() {
+        let names = |g: &AnyGrid| g.fields.iter().map(|f| (f.name.clone(), f.location)).collect::<Vec<_>>();
+        if k == 0 {
+            out.fields = g.fields.iter().map(|f| Field::new(f.name.clone(), f.location, Vec::new())).collect();
+        } else if names(&g) != names(&out) {
+            return Err(Error::format(path, format!("<Piece> {k} does not carry the same arrays as <Piece> 0")));
+        }
+        let (base, conn_base) = (out.points.len() as u64, out.conn.len() as u64);
+        if base + g.points.len() as u64 > u32::MAX as u64 {
+            return Err(Error::format(path, "the pieces hold more points than u32 ids can address"));
+        }
+        if g.points64.is_some() || out.points64.is_some() {
+            let wide = out.points64.get_or_insert_with(|| out.points.iter().map(|q| q.map(f64::from)).collect());
+            wide.extend((0..g.points.len()).map(|i| g.point64(i)));
+        }
+        out.points.extend_from_slice(&g.points);
+        out.types.extend_from_slice(&g.types);
+        out.ends.extend(g.ends.iter().map(|e| e + conn_base));
+        out.conn.extend(g.conn.iter().map(|&i| i + base as u32));
+        for (f, gf) in out.fields.iter_mut().zip(&g.fields) {
+            f.extend_from(gf);
+        }
+    }
+    Ok(out)
 }
 
 /// Where the appended data lies.
@@ -225,21 +291,65 @@ impl<'a> Ctx<'a, '_> {
         v.trim().parse().map_err(|_| self.fail(format!("piece {k}: {key}='{v}' is not a count")))
     }
 
-    fn piece(&self, piece: &Node, k: usize) -> Result<Part> {
-        let n_points = self.count(piece, "NumberOfPoints", k)?;
-        let n_cells = self.count(piece, "NumberOfCells", k)?;
-
-        let (points, points64) = match piece.child("Points").and_then(|p| p.child("DataArray")) {
+    /// The piece's points, in f32 and (when f32 cannot hold them) f64.
+    #[allow(clippy::type_complexity)]
+    fn points(&self, piece: &Node, k: usize, n_points: usize) -> Result<(Vec<[f32; 3]>, Option<Vec<[f64; 3]>>)> {
+        match piece.child("Points").and_then(|p| p.child("DataArray")) {
             Some(da) => {
                 if ncomp(da) != Some(3) {
                     return Err(self.fail(format!("piece {k}: the points do not have 3 components")));
                 }
                 let a = self.array(da, n_points.saturating_mul(3))?;
-                (num::to_points(&a), num::to_points64(&a))
+                Ok((num::to_points(&a), num::to_points64(&a)))
             }
-            None if n_points == 0 => (Vec::new(), None),
-            None => return Err(self.fail(format!("piece {k}: no <Points> array"))),
-        };
+            None if n_points == 0 => Ok((Vec::new(), None)),
+            None => Err(self.fail(format!("piece {k}: no <Points> array"))),
+        }
+    }
+
+    /// One piece as an [`AnyGrid`]: its cells of any type as they are, and all its data.
+    fn any_piece(&self, piece: &Node, k: usize) -> Result<AnyGrid> {
+        let n_points = self.count(piece, "NumberOfPoints", k)?;
+        let n_cells = self.count(piece, "NumberOfCells", k)?;
+        let (points, points64) = self.points(piece, k, n_points)?;
+        let cells_node = piece.child("Cells");
+        let mut grid = AnyGrid { points, points64, ..AnyGrid::default() };
+        if n_cells > 0 || cells_node.is_some() {
+            let cell_array = |name: &str| {
+                cells_node
+                    .and_then(|c| c.children_named("DataArray").find(|d| d.attr("Name") == Some(name)))
+                    .ok_or_else(|| self.fail(format!("piece {k}: no <Cells> array named '{name}'")))
+            };
+            let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
+                self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
+            };
+            let types = self.array(cell_array("types")?, n_cells)?;
+            grid.types = num::map_ints(&types, |v| u8::try_from(v).ok())
+                .map_err(|i| bad_value("types", &types, i, "is not a VTK cell type"))?;
+            if grid.types.contains(&cells::POLYHEDRON) {
+                return Err(self.fail(format!("piece {k}: polyhedron cells (type 42) are not supported")));
+            }
+            let ends = self.array(cell_array("offsets")?, n_cells)?;
+            grid.ends = num::map_ints(&ends, |v| u64::try_from(v).ok())
+                .map_err(|i| bad_value("offsets", &ends, i, "is not an offset"))?;
+            if let Some(i) = grid.ends.windows(2).position(|w| w[1] < w[0]) {
+                return Err(bad_value("offsets", &ends, i + 1, "is less than the one before it"));
+            }
+            let n_conn = usize::try_from(grid.ends.last().copied().unwrap_or(0)).unwrap_or(usize::MAX);
+            let conn = self.array(cell_array("connectivity")?, n_conn)?;
+            grid.conn = num::to_ids(&conn, n_points).map_err(|i| {
+                bad_value("connectivity", &conn, i, &format!("is not a point id (the piece has {n_points} points)"))
+            })?;
+        }
+        let part = self.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), Vec::new(), None)?;
+        grid.fields = part.raw.fields;
+        Ok(grid)
+    }
+
+    fn piece(&self, piece: &Node, k: usize) -> Result<Part> {
+        let n_points = self.count(piece, "NumberOfPoints", k)?;
+        let n_cells = self.count(piece, "NumberOfCells", k)?;
+        let (points, points64) = self.points(piece, k, n_points)?;
 
         let cells_node = piece.child("Cells");
         let cell_array = |name: &str| {
@@ -250,6 +360,11 @@ impl<'a> Ctx<'a, '_> {
         let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
             self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
         };
+        if n_cells == 0 && cells_node.is_none() {
+            // An empty piece (`<Piece NumberOfCells="0">` without <Cells>): no cells, and its
+            // point data, if any, is still read below.
+            return self.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), points, points64);
+        }
         let types_arr = self.array(cell_array("types")?, n_cells)?;
         let ends_arr = self.array(cell_array("offsets")?, n_cells)?;
         let conn_ids = |n_conn: usize| {
@@ -272,7 +387,22 @@ impl<'a> Ctx<'a, '_> {
             // The mesh is unusable: skip reading its fields.
             return Ok(Part { raw: RawMesh::default(), refused: ex.other, ids: GlobalIds::default() });
         }
+        self.data(piece, n_points, n_cells, ex, points, points64)
+    }
 
+    /// The piece's point and cell data, and the piece made of them, its points and its cells.
+    fn data(
+        &self,
+        piece: &Node,
+        n_points: usize,
+        n_cells: usize,
+        ex: cells::Extracted,
+        points: Vec<[f32; 3]>,
+        points64: Option<Vec<[f64; 3]>>,
+    ) -> Result<Part> {
+        let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
+            self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
+        };
         let mut fields = Vec::new();
         let mut ids = GlobalIds::default();
         for (section, location, n) in
@@ -332,7 +462,7 @@ fn ncomp(da: &Node) -> Option<usize> {
     }
 }
 
-/// Joins the pieces into one mesh. Fields that some piece lacks are dropped.
+/// Joins the pieces into one mesh (their fields must agree: see [`join`]).
 fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
     let mut refused = BTreeMap::new();
     for p in &parts {
@@ -349,20 +479,60 @@ fn merge(mut parts: Vec<Part>, path: &Path) -> Result<RawMesh> {
     join(parts.into_iter().map(|p| p.raw).collect(), path)
 }
 
+/// How many values a field at `location` has in `raw`: one per point or per volume cell.
+fn n_at(raw: &RawMesh, location: FieldLocation) -> usize {
+    match location {
+        FieldLocation::Vertex => raw.points.len(),
+        FieldLocation::Cell => raw.cells.as_ref().map_or(raw.tets.len(), CellBlock::len),
+    }
+}
+
+/// The fields of `raw` at `location`, (name, location) in order.
+fn names_at(raw: &RawMesh, location: FieldLocation) -> Vec<&str> {
+    raw.fields.iter().filter(|f| f.location == location).map(|f| f.name.as_str()).collect()
+}
+
+/// The fields the pieces share: every piece with points must carry the same point arrays, and
+/// every piece with cells the same cell arrays (a field missing in one would have no values
+/// there: an error, never a field silently dropped). A piece with no points (or no cells)
+/// carries no values there, so it may lack those arrays (an empty `<Piece/>`).
+fn shared_fields(parts: &[RawMesh], path: &Path) -> Result<Vec<Field>> {
+    let mut out = Vec::new();
+    for location in [FieldLocation::Vertex, FieldLocation::Cell] {
+        let mut with = parts.iter().enumerate().filter(|(_, p)| n_at(p, location) > 0);
+        let Some((k0, first)) = with.next() else {
+            // No piece has values here: keep the names the pieces declare (all empty).
+            let names = parts.iter().map(|p| names_at(p, location)).max_by_key(Vec::len).unwrap_or_default();
+            out.extend(names.into_iter().map(|n| Field::new(n.to_string(), location, Vec::new())));
+            continue;
+        };
+        let names0 = names_at(first, location);
+        for (k, p) in with {
+            let names = names_at(p, location);
+            if names != names0 {
+                let what = if location == FieldLocation::Vertex { "point" } else { "cell" };
+                return Err(Error::format(
+                    path,
+                    format!(
+                        "<Piece> {k} has the {what} arrays [{}] but <Piece> {k0} has [{}]: every piece must carry the same arrays",
+                        names.join(", "),
+                        names0.join(", ")
+                    ),
+                ));
+            }
+        }
+        out.extend(names0.into_iter().map(|n| Field::new(n.to_string(), location, Vec::new())));
+    }
+    Ok(out)
+}
+
 /// Joins meshes into one, point ids shifted, cells in order (the pieces of one file, or the
-/// files of a partitioned mesh). Fields that some mesh lacks are dropped.
+/// files of a partitioned mesh). Their fields must agree (see [`shared_fields`]).
 pub(crate) fn join(mut parts: Vec<RawMesh>, path: &Path) -> Result<RawMesh> {
     if parts.len() == 1 {
         return Ok(parts.pop().unwrap());
     }
-    let mut out = RawMesh::default();
-    let Some(first) = parts.first() else { return Ok(out) };
-    for f in &first.fields {
-        let in_all = parts.iter().all(|p| p.fields.iter().any(|g| g.name == f.name && g.location == f.location));
-        if in_all {
-            out.fields.push(Field::new(f.name.clone(), f.location, Vec::new()));
-        }
-    }
+    let mut out = RawMesh { fields: shared_fields(&parts, path)?, ..RawMesh::default() };
     // When some piece has a cell block, every piece goes into one (linear tets as tet cells).
     let mut block = parts.iter().any(|p| p.cells.is_some()).then(CellBlock::default);
     for p in parts {
@@ -389,8 +559,10 @@ pub(crate) fn join(mut parts: Vec<RawMesh>, path: &Path) -> Result<RawMesh> {
         out.points.extend(p.points);
         out.higher_order = out.higher_order.max(p.higher_order);
         for f in &mut out.fields {
-            let g = p.fields.iter().find(|g| g.name == f.name && g.location == f.location).unwrap();
-            f.extend_from(g);
+            // Absent only where the piece has no values at the field's location.
+            if let Some(g) = p.fields.iter().find(|g| g.name == f.name && g.location == f.location) {
+                f.extend_from(g);
+            }
         }
     }
     if block.as_ref().is_some_and(|b| b.non_tet_counts().is_some()) {
@@ -437,16 +609,23 @@ mod tests {
 
     #[test]
     fn ascii_pieces_and_components() {
-        let m = parse_str(ASCII_TWO_PIECES).unwrap();
+        // "v" is only in the first piece: an error naming the file, not a field dropped.
+        let e = parse_str(ASCII_TWO_PIECES).unwrap_err().to_string();
+        assert!(e.starts_with("test.vtu") && e.contains("<Piece> 1 has the point arrays [f]"), "{e}");
+        let src = ASCII_TWO_PIECES.replace(
+            "<PointData><DataArray type=\"Float64\" Name=\"f\" format=\"ascii\">4 5 6 7</DataArray></PointData>",
+            "<PointData><DataArray type=\"Float64\" Name=\"f\" format=\"ascii\">4 5 6 7</DataArray>\
+             <DataArray type=\"Int32\" Name=\"v\" NumberOfComponents=\"2\" format=\"ascii\">0 0 0 0 0 0 0 0</DataArray></PointData>",
+        );
+        let m = parse_str(&src).unwrap();
         assert_eq!(m.points.len(), 8);
         assert_eq!(m.points[5], [2.0, 0.0, 0.0]);
         assert_eq!(m.tets, vec![[0, 1, 2, 3], [4, 5, 6, 7]]);
         let names: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
-        // "v" is only in the first piece: dropped.
-        assert_eq!(names, ["f", "c"]);
+        assert_eq!(names, ["f", "v[0]", "v[1]", "c"]);
         assert_eq!(m.fields[0].values, vec![0., 1., 2., 3., 4., 5., 6., 7.]);
         // The vertex cell's value is dropped with the vertex.
-        assert_eq!(m.fields[1].values, vec![7., 11.]);
+        assert_eq!(m.fields[3].values, vec![7., 11.]);
 
         let one = ASCII_TWO_PIECES.replacen("<Piece NumberOfPoints=\"4\" NumberOfCells=\"1\">", "<Skipped>", 1);
         let one = one.replacen("</Piece>\n </UnstructuredGrid>", "</Skipped>\n </UnstructuredGrid>", 1);
@@ -454,6 +633,32 @@ mod tests {
         let names: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
         assert_eq!(names, ["f", "v[0]", "v[1]", "c"]);
         assert_eq!(m.fields[2].values, vec![2., 4., 6., 8.]);
+    }
+
+    /// Issue 29 item 14: an empty second `<Piece>` (with or without its arrays) keeps the
+    /// first piece's fields.
+    #[test]
+    fn empty_pieces_keep_the_fields() {
+        let first_piece_end = ASCII_TWO_PIECES.find("</Piece>").unwrap() + "</Piece>".len();
+        let first = &ASCII_TWO_PIECES[..first_piece_end];
+        let end = "\n </UnstructuredGrid>\n</VTKFile>";
+        let empties = [
+            "<Piece NumberOfPoints=\"0\" NumberOfCells=\"0\"/>".to_string(),
+            "<Piece NumberOfPoints=\"0\" NumberOfCells=\"0\"><PointData/><CellData/><Points/><Cells>\
+             <DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\"></DataArray>\
+             <DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\"></DataArray>\
+             <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\"></DataArray></Cells></Piece>"
+                .to_string(),
+        ];
+        for empty in empties {
+            let (head, piece) = first.split_at(first.find("<Piece").unwrap());
+            for src in [format!("{first}{empty}{end}"), format!("{head}{empty}{piece}{end}")] {
+                let m = parse_str(&src).unwrap_or_else(|e| panic!("{e}\n{src}"));
+                let names: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
+                assert!(names.starts_with(&["f"]) && names.contains(&"c"), "{names:?}");
+                assert_eq!(m.fields[0].values.len(), m.points.len());
+            }
+        }
     }
 
     #[test]

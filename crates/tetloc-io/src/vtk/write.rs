@@ -126,15 +126,25 @@ impl<'a> NamedArray<'a> {
 }
 
 /// The mesh's fields as arrays: each run `NAME[0]` … `NAME[k-1]` interleaved into one;
-/// Float64 when some component has f64 data (the file's values, kept), else Float32.
-fn field_arrays<'a>(mesh: &'a Mesh, skip: &[&str]) -> (Vec<OutArray<'a>>, Vec<OutArray<'a>>) {
+/// Float64 when some component has f64 data (the file's values, kept), else Float32. Point
+/// fields named in `skip_points` and cell fields named in `skip_cells` are left out (point
+/// data and cell data are two sets of names, as in VTK).
+fn field_arrays<'a>(
+    all: &'a [tetloc_core::mesh::Field],
+    skip_points: &[&str],
+    skip_cells: &[&str],
+) -> (Vec<OutArray<'a>>, Vec<OutArray<'a>>) {
     let (mut point_data, mut cell_data) = (Vec::new(), Vec::new());
-    for g in tetloc_core::mesh::field_groups::groups_of(&mesh.fields) {
+    for g in tetloc_core::mesh::field_groups::groups_of(all) {
+        let skip = match g.location {
+            FieldLocation::Vertex => skip_points,
+            FieldLocation::Cell => skip_cells,
+        };
         if skip.contains(&g.name.as_str()) {
             continue;
         }
         let fields: Vec<&'a tetloc_core::mesh::Field> =
-            g.components.iter().filter_map(|c| mesh.field(c).ok()).collect();
+            g.components.iter().filter_map(|c| all.iter().find(|f| &f.name == c && f.location == g.location)).collect();
         let k = fields.len();
         let n = fields.first().map_or(0, |f| f.values.len());
         let arr = if fields.iter().any(|f| f.values64.is_some()) {
@@ -268,8 +278,10 @@ fn data_arrays<'a>(
     for a in cell_extra {
         a.check(mesh.n_cells(), "cells")?;
     }
-    let replaced: Vec<&str> = extra.iter().chain(cell_extra).map(|a| a.name.as_str()).collect();
-    let (mut point_data, mut cell_data) = field_arrays(mesh, &replaced);
+    // An extra point array replaces a point field of its name; a cell field of that name stays
+    // (vtkResampleWithDataSet keeps the target's cell array beside the probed point array).
+    let names = |arrays: &'a [NamedArray]| arrays.iter().map(|a| a.name.as_str()).collect::<Vec<_>>();
+    let (mut point_data, mut cell_data) = field_arrays(&mesh.fields, &names(extra), &names(cell_extra));
     point_data.extend(extra.iter().map(NamedArray::out));
     cell_data.extend(cell_extra.iter().map(NamedArray::out));
     Ok((point_data, cell_data))
@@ -310,6 +322,40 @@ fn write_cells(
     grid.write(path, zlib)
 }
 
+/// Writes a grid read by [`super::vtu::read_any`]: its points, cells and data as they were,
+/// and the `extra` point arrays (replacing point data of their names; cell data stays).
+pub fn write_any_grid(path: &Path, grid: &super::vtu::AnyGrid, extra: &[NamedArray], zlib: bool) -> Result<()> {
+    let n_points = grid.points.len();
+    for a in extra {
+        a.check(n_points, "points")?;
+    }
+    let names: Vec<&str> = extra.iter().map(|a| a.name.as_str()).collect();
+    let (mut point_data, cell_data) = field_arrays(&grid.fields, &names, &[]);
+    point_data.extend(extra.iter().map(NamedArray::out));
+    let wide = grid.conn.len().max(n_points) as u64 > i32::MAX as u64;
+    let id_type = if wide { NumType::I64 } else { NumType::I32 };
+    let points = match &grid.points64 {
+        Some(p) => Coords::F64(p),
+        None => Coords::F32(&grid.points),
+    };
+    let out = Grid {
+        kind: Kind::Unstructured,
+        n_points,
+        n_cells: grid.types.len(),
+        point_data,
+        cell_data,
+        points: points.array(),
+        connectivity: OutArray::new("connectivity", id_type, 1, grid.conn.len(), move |r, out| {
+            grid.conn[r].iter().for_each(|&id| push_id(out, u64::from(id), wide))
+        }),
+        offsets: OutArray::new("offsets", id_type, 1, grid.ends.len(), move |r, out| {
+            grid.ends[r].iter().for_each(|&e| push_id(out, e, wide))
+        }),
+        types: Some(OutArray::slice("types", NumType::U8, 1, &grid.types)),
+    };
+    out.write(path, zlib)
+}
+
 /// Writes a point set as an unstructured grid: one VTK_VERTEX cell per point, point data
 /// `tet_id` (Int32, -1 for points without an answer), the named values (Float32) if given,
 /// and `vtkValidPointMask` (UInt8, 1 where a point got an answer).
@@ -339,9 +385,7 @@ fn point_set<'a>(
         if v.len() != n {
             return Err(Error::Invalid(format!("{} points but {} values of '{name}'", n, v.len())));
         }
-        if name == "tet_id" || name == VALID_MASK {
-            return Err(Error::Invalid(format!("the value array cannot be named '{name}'")));
-        }
+        crate::points::check_value_name(name)?;
         point_data.push(NamedArray { name: name.into(), n_components: 1, data: v.array() }.out());
     }
     point_data.push(OutArray::new(VALID_MASK, NumType::U8, 1, n, |r, out| {

@@ -61,8 +61,11 @@ pub(crate) struct Document<'a> {
     pub stopped_at: Option<(Node<'a>, usize)>,
 }
 
+/// Parses `bytes` (a leading UTF-8 byte-order mark is skipped; positions count it).
 pub(crate) fn parse<'a>(bytes: &'a [u8], stop_at: &str) -> Result<Document<'a>, String> {
-    let mut reader = Reader::from_reader(bytes);
+    let text = crate::strip_bom(bytes);
+    let bom = bytes.len() - text.len();
+    let mut reader = Reader::from_reader(text);
     reader.config_mut().check_end_names = true;
     // The bottom of the stack holds the document's top-level elements.
     let mut stack: Vec<Node<'a>> = vec![Node { name: String::new(), attrs: vec![], text: vec![], children: vec![] }];
@@ -72,7 +75,7 @@ pub(crate) fn parse<'a>(bytes: &'a [u8], stop_at: &str) -> Result<Document<'a>, 
             reader.read_event().map_err(|e| format!("malformed XML near byte {}: {e}", reader.error_position()))?;
         match ev {
             Event::Start(e) if e.name().as_ref() == stop_at.as_bytes() => {
-                stopped_at = Some((Node::new(&e)?, reader.buffer_position() as usize));
+                stopped_at = Some((Node::new(&e)?, bom + reader.buffer_position() as usize));
                 break;
             }
             Event::Start(e) => stack.push(Node::new(&e)?),

@@ -170,6 +170,21 @@ impl TraceOptions {
         Ok(())
     }
 
+    /// An error when the step (or, adaptive, the smallest step) is too short to move a
+    /// particle at coordinates up to `largest_coordinate` in magnitude: f64 cannot tell such
+    /// a step from none, and every line would stop where it starts.
+    pub fn check_scale(&self, largest_coordinate: f64) -> Result<()> {
+        let resolution = 4.0 * f64::EPSILON * largest_coordinate.abs();
+        let smallest = if self.integrator.is_adaptive() { self.min_step().min(self.step) } else { self.step };
+        if smallest < resolution {
+            return Err(Error::Invalid(format!(
+                "the step {smallest:e} is too small: at coordinates up to {largest_coordinate:e}, f64 cannot \
+                 move a point by less than about {resolution:.1e}; use a larger step"
+            )));
+        }
+        Ok(())
+    }
+
     /// The lines to trace, in VTK's order: (seed, backward) — with `Both`, every forward line
     /// and then every backward one.
     pub fn jobs(&self, n_seeds: usize) -> Vec<(u32, bool)> {
@@ -490,6 +505,14 @@ impl LineArrays {
 /// The vector field `name` of `mesh`, which must have 3 components.
 pub fn vector_field(mesh: &crate::Mesh, name: &str) -> Result<super::FieldGroup> {
     let g = super::fields::resolve(mesh, name)?;
+    let whole =
+        super::fields::groups(mesh).into_iter().find(|w| w.components.len() > 1 && w.components.contains(&g.name));
+    if let (1, Some(whole)) = (g.n_components(), whole) {
+        return Err(Error::Invalid(format!(
+            "'{name}' is one component of the vector '{}': name the whole vector, '{}'",
+            whole.name, whole.name
+        )));
+    }
     if g.n_components() != 3 {
         return Err(Error::Invalid(format!(
             "'{name}' is not a vector field: a vector field has 3 components, '{}' has {}",
@@ -521,11 +544,13 @@ pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
             .map(|s| s.trim().parse::<f64>().map_err(|_| Error::Invalid(format!("{spec}: '{s}' is not a number"))))
             .collect()
     };
+    // A count is said back as it was written: an f64 prints 2^64 as 18446744073709552000.
     let count = |x: f64| -> Result<usize> {
         if x >= 1.0 && x.fract() == 0.0 && x < 1e12 {
             Ok(x as usize)
         } else {
-            Err(Error::Invalid(format!("{spec}: '{x}' is not a count of at least 1")))
+            let written = args.split(',').map(str::trim).find(|s| s.parse::<f64>().ok() == Some(x));
+            Err(Error::Invalid(format!("{spec}: '{}' is not a count of at least 1", written.unwrap_or("?"))))
         }
     };
     match kind {
@@ -825,5 +850,13 @@ mod tests {
         assert!(seeds_from_spec("line:0,0,0,1,1,1").unwrap().is_err());
         assert!(seeds_from_spec("grid:0,1,0,1,0,1,0,2,2").unwrap().is_err());
         assert!(seeds_from_spec("line:0,0,0,1,1,x,2").unwrap().is_err());
+        // Issue 29 item 19: a step too small to move a point is said to be so.
+        let o = TraceOptions { step: 1e-30, ..Default::default() };
+        let e = o.check_scale(1.0).unwrap_err().to_string();
+        assert!(e.contains("step 1e-30 is too small"), "{e}");
+        assert!(TraceOptions { step: 1e-3, ..Default::default() }.check_scale(1.0).is_ok());
+        // Issue 29 item 19: a count beyond u64 is said back exactly as written.
+        let e = seeds_from_spec("grid:0,1,0,1,0,1,18446744073709551617,2,2").unwrap().unwrap_err().to_string();
+        assert!(e.contains("'18446744073709551617' is not a count") && !e.contains("552000"), "{e}");
     }
 }

@@ -1,0 +1,278 @@
+//! Issue 29 items 13-20 end to end: what `info` says about fields, probe targets of any
+//! cells, byte-order marks, one rule for naming fields and components, messages, and pieces
+//! outside a listing's folder.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use tetloc_core::FieldLocation;
+use tetloc_io::vtk::vtu;
+
+fn tetloc(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+/// A fresh, empty directory for one test.
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("tetloc-readers-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// An ASCII `.vtu` piece: `points` (x y z ...), cells of `types` with `conn` and `offsets`,
+/// and `data` (the `<PointData>`/`<CellData>` elements).
+fn piece(n_points: usize, points: &str, types: &[u8], conn: &str, offsets: &str, data: &str) -> String {
+    let types: Vec<String> = types.iter().map(|t| t.to_string()).collect();
+    format!(
+        "<Piece NumberOfPoints=\"{n_points}\" NumberOfCells=\"{}\">{data}\
+         <Points><DataArray type=\"Float64\" NumberOfComponents=\"3\" format=\"ascii\">{points}</DataArray></Points>\
+         <Cells><DataArray type=\"Int32\" Name=\"connectivity\" format=\"ascii\">{conn}</DataArray>\
+         <DataArray type=\"Int32\" Name=\"offsets\" format=\"ascii\">{offsets}</DataArray>\
+         <DataArray type=\"UInt8\" Name=\"types\" format=\"ascii\">{}</DataArray></Cells></Piece>",
+        types.len(),
+        types.join(" ")
+    )
+}
+
+fn vtu_file(pieces: &[String]) -> String {
+    format!(
+        "<?xml version=\"1.0\"?>\n<VTKFile type=\"UnstructuredGrid\" version=\"1.0\"><UnstructuredGrid>{}\
+         </UnstructuredGrid></VTKFile>\n",
+        pieces.concat()
+    )
+}
+
+const TET: &str = "0 0 0 1 0 0 0 1 0 0 0 1";
+
+/// A generated mesh (point field `f`, cell field `cellval`, vector `v` with --vector).
+fn jets(dir: &Path) -> PathBuf {
+    let mesh = dir.join("m.vtu");
+    let (ok, _, err) = tetloc(&["gen", "jets", "--tets", "2000", "--vector", "-o", s(&mesh)]);
+    assert!(ok, "{err}");
+    mesh
+}
+
+/// Item 13: a field of [0, NaN, inf, -inf] is not "range 0 .. 0" alone: the non-finite values
+/// are counted, in the text and in --json.
+#[test]
+fn info_counts_non_finite_values() {
+    let dir = tmp_dir("nonfinite");
+    let data =
+        "<PointData><DataArray type=\"Float64\" Name=\"g\" format=\"ascii\">0 NaN inf -inf</DataArray></PointData>";
+    let path = dir.join("nan.vtu");
+    std::fs::write(&path, vtu_file(&[piece(4, TET, &[10], "0 1 2 3", "4", data)])).unwrap();
+    let (ok, out, err) = tetloc(&["info", s(&path)]);
+    assert!(ok, "{err}");
+    assert!(out.contains("'g' per Vertex, range 0 .. 0; 3 non-finite values (1 NaN, 1 +inf, 1 -inf)"), "{out}");
+    let (ok, out, err) = tetloc(&["info", "--json", s(&path)]);
+    assert!(ok, "{err}");
+    let v: serde_json::Value = serde_json::from_str(&out).unwrap();
+    let g = &v["fields"][0];
+    assert_eq!((g["n_nan"].as_u64(), g["n_inf"].as_u64(), g["n_neg_inf"].as_u64()), (Some(1), Some(1), Some(1)));
+}
+
+/// Item 14: an empty second `<Piece>` keeps the fields; pieces whose arrays differ are an
+/// error naming the file; `probe s.vtu s.vtu` keeps the target's cell array beside the probed
+/// point array of the same name (as vtkResampleWithDataSet does).
+#[test]
+fn fields_never_vanish() {
+    let dir = tmp_dir("vanish");
+    let data = "<PointData><DataArray type=\"Float64\" Name=\"g\" format=\"ascii\">0 1 2 3</DataArray></PointData>";
+    let first = piece(4, TET, &[10], "0 1 2 3", "4", data);
+    let path = dir.join("two.vtu");
+    std::fs::write(&path, vtu_file(&[first.clone(), "<Piece NumberOfPoints=\"0\" NumberOfCells=\"0\"/>".into()]))
+        .unwrap();
+    let (ok, out, err) = tetloc(&["info", s(&path)]);
+    assert!(ok && out.contains("field       'g'") && !out.contains("fields      none"), "{out}{err}");
+    let other = piece(4, TET, &[10], "0 1 2 3", "4", "");
+    std::fs::write(&path, vtu_file(&[first, other])).unwrap();
+    let (ok, _, err) = tetloc(&["info", s(&path)]);
+    assert!(!ok && err.contains(s(&path)) && err.contains("<Piece> 1 has the point arrays []"), "{err}");
+
+    let mesh = jets(&dir);
+    let out = dir.join("probed.vtu");
+    let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&mesh), "-o", s(&out), "--backend", "cpu"]);
+    assert!(ok, "{err}");
+    let grid = vtu::read_any(&out).unwrap();
+    let has = |name: &str, at: FieldLocation| grid.fields.iter().any(|f| f.name == name && f.location == at);
+    assert!(has("cellval", FieldLocation::Cell), "the target's own cell array is kept");
+    assert!(has("cellval", FieldLocation::Vertex), "the probed one is point data");
+}
+
+/// Item 16: a probe target is any point set: a plane of triangles and a cloud of VTK_VERTEX
+/// cells get values, their cells written back as they were.
+#[test]
+fn probe_targets_of_any_cells() {
+    let dir = tmp_dir("targets");
+    let mesh = jets(&dir);
+    let plane = piece(4, "0.2 0.2 0.5 0.8 0.2 0.5 0.8 0.8 0.5 0.2 0.8 0.5", &[5, 5], "0 1 2 0 2 3", "3 6", "");
+    let cloud = piece(3, "0.5 0.5 0.5 0.4 0.5 0.5 0.6 0.5 0.5", &[1, 1, 1], "0 1 2", "1 2 3", "");
+    for (name, text) in [("plane", plane), ("cloud", cloud)] {
+        let target = dir.join(format!("{name}.vtu"));
+        std::fs::write(&target, vtu_file(&[text])).unwrap();
+        let out = dir.join(format!("{name}.out.vtu"));
+        let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&target), "-o", s(&out), "--backend", "cpu"]);
+        assert!(ok, "{name}: {err}");
+        let (before, after) = (vu_read(&target), vu_read(&out));
+        assert_eq!((after.types, after.ends, after.conn), (before.types, before.ends, before.conn), "{name}");
+        let mask = after.fields.iter().find(|f| f.name == "vtkValidPointMask").unwrap();
+        assert!(mask.values.iter().all(|&m| m == 1.0), "{name}: every point is inside the mesh");
+    }
+}
+
+fn vu_read(path: &Path) -> vtu::AnyGrid {
+    vtu::read_any(path).unwrap_or_else(|e| panic!("{e}"))
+}
+
+/// Item 17: a UTF-8 byte-order mark before a CSV of points is skipped.
+#[test]
+fn csv_points_with_a_byte_order_mark() {
+    let dir = tmp_dir("bom");
+    let mesh = jets(&dir);
+    let csv = dir.join("p.csv");
+    std::fs::write(&csv, "\u{feff}x,y,z\n0.5,0.5,0.5\n0.4,0.5,0.5\n").unwrap();
+    let out = dir.join("ids.csv");
+    let (ok, _, err) = tetloc(&["locate", s(&mesh), "--points", s(&csv), "--out", s(&out), "--backend", "cpu"]);
+    assert!(ok, "{err}");
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 3);
+}
+
+/// Item 18: `v` is the whole vector and `v[1]` a component, in every command that can use
+/// them; duplicate and reserved names are refused the same way for every output.
+#[test]
+fn one_rule_for_vector_names() {
+    let dir = tmp_dir("names");
+    let mesh = jets(&dir);
+    let pts = dir.join("p.csv");
+    std::fs::write(&pts, "0.5,0.5,0.5\n0.4,0.5,0.5\n").unwrap();
+    let locate = |field: &str, out: &str| {
+        tetloc(&[
+            "locate",
+            s(&mesh),
+            "--points",
+            s(&pts),
+            "--field",
+            field,
+            "--out",
+            s(&dir.join(out)),
+            "--backend",
+            "cpu",
+        ])
+    };
+    let (ok, _, err) = locate("v[1]", "a.csv");
+    assert!(ok, "{err}");
+    let (ok, _, err) = locate("v", "a.csv");
+    assert!(!ok && err.contains("'v' is a vector of 3 components") && err.contains("'v[1]'"), "{err}");
+    for out in ["m.csv", "m.vtp", "m.vtu"] {
+        let (ok, _, err) = locate("vtkValidPointMask", out);
+        assert!(!ok && err.contains("'vtkValidPointMask' has the name of a column"), "{out}: {err}");
+    }
+    let resample = |fields: &str, out: &str| {
+        tetloc(&[
+            "resample",
+            s(&mesh),
+            "--dims",
+            "4,4,4",
+            "--field",
+            fields,
+            "-o",
+            s(&dir.join(out)),
+            "--backend",
+            "cpu",
+        ])
+    };
+    let (ok, _, err) = resample("f,f", "r.vti");
+    assert!(!ok && err.contains("the field 'f' is named twice"), "{err}");
+    for fields in ["v", "v[1]", "v,v[1],f"] {
+        let (ok, _, err) = resample(fields, "r.vti");
+        assert!(ok, "{fields}: {err}");
+    }
+    let (ok, _, err) = resample("v[2]", "r.npy");
+    assert!(ok, "a component is one array: {err}");
+    let (ok, _, err) =
+        tetloc(&["probe", s(&mesh), s(&pts), "--field", "v[0],v", "-o", s(&dir.join("p.vtp")), "--backend", "cpu"]);
+    assert!(ok, "{err}");
+    let trace = |vector: &str| {
+        tetloc(&[
+            "trace",
+            s(&mesh),
+            "--seeds",
+            "line:0.4,0.5,0.5,0.6,0.5,0.5,2",
+            "--vector",
+            vector,
+            "--max-steps",
+            "5",
+            "-o",
+            s(&dir.join("t.vtp")),
+            "--backend",
+            "cpu",
+        ])
+    };
+    let (ok, _, err) = trace("v");
+    assert!(ok, "{err}");
+    let (ok, _, err) = trace("v[1]");
+    assert!(!ok && err.contains("'v[1]' is one component of the vector 'v'"), "{err}");
+}
+
+/// Item 19: a bad CSV line is quoted short, raw bytes escaped; a step too small to move is
+/// said to be so; probe's same-file error names SOURCE or TARGET.
+#[test]
+fn messages_are_short_and_say_what_is_wrong() {
+    let dir = tmp_dir("messages");
+    let mesh = jets(&dir);
+    let csv = dir.join("bad.csv");
+    let long = format!("1,2,\x1b[31m{}\n", "9".repeat(4 << 20));
+    std::fs::write(&csv, long).unwrap();
+    let out = dir.join("ids.npy");
+    let (ok, _, err) = tetloc(&["locate", s(&mesh), "--points", s(&csv), "--out", s(&out), "--backend", "cpu"]);
+    assert!(
+        !ok && err.contains("line 1") && err.len() < 400 && !err.contains('\x1b'),
+        "{}",
+        &err[..err.len().min(600)]
+    );
+    let (ok, _, err) = tetloc(&[
+        "trace",
+        s(&mesh),
+        "--seeds",
+        "line:0.4,0.5,0.5,0.6,0.5,0.5,2",
+        "--step",
+        "1e-30",
+        "-o",
+        s(&dir.join("t.vtp")),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!ok && err.contains("too small") && !err.contains("outside"), "{err}");
+    let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&mesh), "-o", s(&mesh), "--backend", "cpu"]);
+    assert!(!ok && err.contains("same file") && err.contains("SOURCE") && !err.contains("input input"), "{err}");
+    let (ok, _, err) = tetloc(&["gen", "jets", "--tets", "18446744073709551616", "-o", s(&dir.join("g.vtu"))]);
+    assert!(!ok && err.contains("'18446744073709551616'") && !err.contains("552000"), "{err}");
+}
+
+/// Item 20: a .pvtu naming pieces outside its folder is refused, naming the listing and the
+/// way to allow it; `--allow-outside-pieces` reads it.
+#[test]
+fn pieces_outside_the_listing_need_a_flag() {
+    let dir = tmp_dir("outside");
+    let mesh = jets(&dir);
+    let pvtu = dir.join("m.pvtu");
+    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "2", "-o", s(&pvtu)]);
+    assert!(ok, "{err}");
+    let sub = dir.join("sub");
+    std::fs::create_dir_all(&sub).unwrap();
+    let listing = sub.join("up.pvtu");
+    let text = std::fs::read_to_string(&pvtu).unwrap().replace("Source=\"m/", "Source=\"../m/");
+    std::fs::write(&listing, text).unwrap();
+    let (ok, _, err) = tetloc(&["info", s(&listing)]);
+    assert!(
+        !ok && err.contains(s(&listing)) && err.contains("outside") && err.contains("--allow-outside-pieces"),
+        "{err}"
+    );
+    let (ok, out, err) = tetloc(&["info", s(&listing), "--allow-outside-pieces"]);
+    assert!(ok && out.contains("tets"), "{err}");
+}
