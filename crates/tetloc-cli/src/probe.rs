@@ -38,7 +38,7 @@ pub struct ProbeArgs {
     /// The backend: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, or auto.
     #[arg(long, default_value = "auto")]
     pub(crate) backend: String,
-    /// TARGET's mesh format, overriding its extension (vtu, vtk, msh, node).
+    /// TARGET's mesh format, overriding its extension (vtu, pvtu, vtm, vtk, msh, node).
     #[arg(long)]
     target_format: Option<String>,
     #[command(flatten)]
@@ -66,7 +66,7 @@ pub(crate) fn check(a: &ProbeArgs) -> Result<bool> {
         inputs.extend(mesh_arg::input_files(&a.target, a.target_format.as_deref()));
     }
     let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("input", p)).collect();
-    output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     Ok(point_set)
 }
 

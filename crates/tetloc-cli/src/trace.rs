@@ -20,7 +20,7 @@ use tetloc_core::CpuLocator;
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
-    /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M)
+    /// A mesh file (.vtu, .vtk, .msh, .node/.ele, .pvtu/.vtm), or SHAPE:N to generate one (e.g. fusion:1M)
     /// with its closed-form flow `v` (as `tetloc gen --vector`).
     mesh: OsString,
     /// The vector field to follow: a 3-component array of the mesh (point or cell data).
@@ -79,6 +79,10 @@ pub struct TraceArgs {
     common: Common,
 }
 
+/// Bytes a line point takes while its batch is traced and written (the point in f64, its
+/// time, tet and sampled values, the spilled copy; measured at about 106).
+const LINE_POINT_BYTES: u128 = 128;
+
 pub fn run(a: &TraceArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     let direction: Direction = a.direction.parse()?;
@@ -89,7 +93,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         inputs.push(PathBuf::from(&a.seeds));
     }
     let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("input", p)).collect();
-    output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     let seeds = match spec {
         Some(s) => s.context("--seeds")?,
         None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
@@ -115,6 +119,18 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         o.step = 0.1 * m.info.mean_edge_length as f64;
         o.check()?;
     }
+    // Lines are traced in batches of about BATCH_POINTS points, at least one line a batch:
+    // one line of the most steps it can take (--max-steps, or fewer by --max-length) must fit
+    // in half the memory (the mesh and the locator need the rest), refused before tracing.
+    crate::limits::check_memory(
+        &format!(
+            "--max-steps {}: a line of {} steps (held whole until it ends), with room for the mesh,",
+            a.max_steps,
+            o.steps_bound()
+        ),
+        o.steps_bound() as u128 + 2,
+        2 * LINE_POINT_BYTES,
+    )?;
     let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
     let c = vector.component_refs();
     let [x, y, z] = [c[0], c[1], c[2]];

@@ -14,7 +14,7 @@ pub mod vtk;
 
 use crate::error::{Error, Result};
 use crate::mesh::{Mesh, RawMesh};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// The mesh formats tetloc reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -51,6 +51,18 @@ impl MeshFormat {
             .and_then(|e| e.to_str())
             .and_then(MeshFormat::from_name)
             .ok_or_else(|| Error::UnknownFormat { path: path.to_path_buf(), known: KNOWN_MESH_FORMATS })
+    }
+}
+
+/// Every file that reading the mesh `path` reads, for refusing an output that is one of them:
+/// the file; a TetGen mesh's `.node` and `.ele`; a listing (`.pvtu`, `.vtm`), the listings
+/// it nests and all their pieces. A listing that cannot be read counts as itself alone
+/// (reading the mesh then fails before anything is written).
+pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
+    match format.or_else(|| MeshFormat::from_path(path).ok()) {
+        Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
+        Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
+        _ => vec![path.to_path_buf()],
     }
 }
 
