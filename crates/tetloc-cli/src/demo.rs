@@ -9,6 +9,9 @@ use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{geom, BatchLocator};
 use tetloc_locator::{Backend, Kernel};
 
+/// Host bytes a query point takes: its coordinates, its ids (and the reference's) and value.
+pub const BYTES_PER_POINT: u128 = 12 + 4 + 4 + 4;
+
 pub fn run(n_tets: usize, n_points: usize, seed: u64, all_backends: bool, opts: &BackendOptions) -> Result<()> {
     let mesh = std::sync::Arc::new(mesh_arg::generate(Shape::Fusion, n_tets, seed)?);
     println!("mesh: fusion-like torus, {} tets, {} vertices, field 'f' per vertex", mesh.n_tets(), mesh.points.len());

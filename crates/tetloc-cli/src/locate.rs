@@ -15,7 +15,8 @@ use tetloc_io::vtk::write::{self as vtk_write, Coords};
 
 #[derive(clap::Args)]
 pub struct LocateArgs {
-    /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M).
+    /// A mesh file (.vtu, .vtk, .msh, .node/.ele, or a partitioned .pvtu/.vtm, which runs
+    /// distributed under mpirun), or SHAPE:N to generate one (e.g. fusion:1M).
     pub(crate) mesh: OsString,
     /// Query points: .npy (f32/f64, (N,3)), .csv (x,y,z per line, an optional `x,y,z` header) or
     /// .bin/.f32 (raw little-endian f32 triplets). Points with a NaN coordinate get no answer.
@@ -116,7 +117,7 @@ pub(crate) fn check_args(a: &LocateArgs) -> Result<()> {
     let mesh_files = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
     let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
     inputs.push(FileArg::new("--points", &a.points));
-    output::check_distinct(&inputs, &outputs)?;
+    crate::outputs::check_distinct(&inputs, &outputs)?;
     Ok(())
 }
 

@@ -3,15 +3,18 @@
 mod backend;
 mod bench;
 mod demo;
+mod limits;
 mod locate;
 mod mesh_arg;
 #[cfg(feature = "mpi")]
 mod mpi;
+mod outputs;
 mod partition;
 mod probe;
 mod progress;
 mod render;
 mod resample;
+mod signals;
 mod trace;
 
 use anyhow::{Context, Result};
@@ -38,12 +41,13 @@ struct Cli {
 enum Command {
     /// Print what a mesh holds: counts, bounds, fields, reoriented and degenerate tets, faces.
     Info {
-        /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M).
+        /// A mesh file (.vtu, .vtk, .msh, .node/.ele, or a partitioned .pvtu/.vtm), or SHAPE:N to
+        /// generate one (e.g. fusion:1M).
         mesh: OsString,
         /// Print one JSON object (counts, bounds, faces, fields with their value ranges) instead of text.
         #[arg(long)]
         json: bool,
-        /// File format, overriding the extension (vtu, vtk, msh, node).
+        /// File format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
         #[arg(long)]
         format: Option<String>,
     },
@@ -52,8 +56,9 @@ enum Command {
         /// jets, fusion, agulhas or japan; SHAPE-hex, SHAPE-wedge or SHAPE-hybrid for a mesh
         /// of hexahedra, of wedges, or of hexes, pyramids, tets and wedges in layers.
         shape: String,
-        /// Approximate number of tets, or of cells for SHAPE-KIND (e.g. 1M, 12M).
-        #[arg(long, alias = "cells")]
+        /// Approximate number of cells (tets; hexes, wedges or mixed cells for SHAPE-KIND),
+        /// e.g. 1M, 12M. --tets is another name for it.
+        #[arg(long = "cells", visible_alias = "tets", value_name = "N", default_value = "1M")]
         tets: String,
         /// The mesh file to write: .vtu.
         #[arg(short, long)]
@@ -72,6 +77,9 @@ enum Command {
         /// poloidal flow around the centre line; other shapes: a rotation about the vertical axis).
         #[arg(long)]
         vector: bool,
+        /// Print only errors and warnings on stderr (no progress, no summary).
+        #[arg(short, long)]
+        quiet: bool,
     },
     /// Locate points (and sample a field) and write the tet ids (and values).
     Locate(locate::LocateArgs),
@@ -181,7 +189,7 @@ struct Common {
     /// Vulkan device index (see `tetloc devices`).
     #[arg(long)]
     device: Option<usize>,
-    /// Mesh file format, overriding the extension (vtu, vtk, msh, node).
+    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
     #[arg(long)]
     format: Option<String>,
     /// Seed of a generated mesh (SHAPE:N) and of generated query points.
@@ -208,6 +216,7 @@ impl Common {
 }
 
 fn main() {
+    signals::install();
     let cli = Cli::parse();
     tetloc_io::vtk::pieces::set_allow_outside_by_default(cli.allow_outside_pieces);
     // Started by mpirun (or srun): one rank of a distributed run.
@@ -277,7 +286,8 @@ fn error_text(e: &anyhow::Error) -> String {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { mesh, json, format } => info(&mesh, json, format.as_deref()),
-        Command::Gen { shape, tets, out, seed, zlib, terrain, vector } => {
+        Command::Gen { shape, tets, out, seed, zlib, terrain, vector, quiet } => {
+            progress::set_quiet(quiet);
             gen(&shape, &tets, &out, seed, zlib, terrain.as_deref(), vector)
         }
         Command::Locate(args) => locate::run(&args),
@@ -302,6 +312,11 @@ fn run(cli: Cli) -> Result<()> {
             common,
         } => {
             let opts = common.opts()?;
+            // The query arrays are checked before the mesh is read.
+            let n = n.map(|s| mesh_arg::parse_count(&s)).transpose()?;
+            if let Some(n) = n {
+                limits::check_memory(&format!("--n {n}: the queries"), n as u128, bench::BYTES_PER_QUERY)?;
+            }
             let read_start = std::time::Instant::now();
             let m = match trace {
                 Some(_) => mesh_arg::load_with_flow(&mesh, common.format.as_deref(), common.seed)?,
@@ -324,7 +339,7 @@ fn run(cli: Cli) -> Result<()> {
             let args = bench::BenchArgs {
                 backends,
                 queries,
-                n: n.map(|s| mesh_arg::parse_count(&s)).transpose()?,
+                n,
                 repeats: repeats as usize,
                 field,
                 seed: common.seed,
@@ -342,13 +357,22 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Render(args) => render::run(args),
-        Command::Demo { tets, points, seed, device, all_backends } => demo::run(
-            mesh_arg::parse_count(&tets)?,
-            mesh_arg::parse_count(&points)?,
-            seed,
-            all_backends,
-            &BackendOptions { device, ..Default::default() },
-        ),
+        Command::Demo { tets, points, seed, device, all_backends } => {
+            let n_points = mesh_arg::parse_count(&points)?;
+            // Checked before the mesh is generated.
+            limits::check_memory(
+                &format!("--points {n_points}: the query points"),
+                n_points as u128,
+                demo::BYTES_PER_POINT,
+            )?;
+            demo::run(
+                mesh_arg::parse_count(&tets)?,
+                n_points,
+                seed,
+                all_backends,
+                &BackendOptions { device, ..Default::default() },
+            )
+        }
     }
 }
 
@@ -364,11 +388,13 @@ fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Opti
         mesh_arg::terrain_shape_check(shape)?;
         outputs.push(FileArg::new("--terrain", t));
     }
-    output::check_distinct(&[], &outputs)?;
+    crate::outputs::check_distinct(&[], &outputs)?;
     if let Some(path) = terrain {
         let ground = mesh_arg::terrain(shape, n, seed)?;
         output::write_atomically(path, |f| ground.write_obj(f).map_err(|e| tetloc_core::Error::io(path, e)))?;
-        eprintln!("{}: terrain with {} triangles", path.display(), ground.triangles.len());
+        if !progress::quiet() {
+            eprintln!("{}: terrain with {} triangles", path.display(), ground.triangles.len());
+        }
     }
     let t0 = Instant::now();
     let mut mesh = mesh_arg::generate(spec, n, seed)?;
@@ -379,6 +405,9 @@ fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Opti
     let gen_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     progress::with_spinner(format!("writing {}", out.display()), || vtu_write::write_mesh_vtu(out, &mesh, zlib))?;
+    if progress::quiet() {
+        return Ok(());
+    }
     eprintln!(
         "{}: {spec} with {} cells, {} vertices (generated in {gen_s:.2} s, written in {:.2} s)",
         out.display(),
@@ -489,6 +518,27 @@ mod tests {
         let help = locate.render_long_help().to_string();
         let backend = help.split("--backend").nth(1).unwrap().split("\n      --").next().unwrap();
         assert!(backend.contains("auto") && !backend.contains("all"), "{backend}");
+    }
+
+    /// Issue 30, item 9: `gen`'s count is optional and named `--cells` (`--tets` another name
+    /// for it); `info` and `locate` name the partitioned formats; every command that writes
+    /// takes `-q`.
+    #[test]
+    fn help_names_cells_formats_and_quiet() {
+        let mut cli = Cli::command();
+        let gen = cli.find_subcommand_mut("gen").unwrap();
+        let usage = gen.render_usage().to_string();
+        assert!(!usage.contains("--tets") && !usage.contains("--cells"), "required in: {usage}");
+        let help = gen.render_long_help().to_string();
+        assert!(help.contains("--cells <N>") && help.contains("--tets"), "{help}");
+        for name in ["info", "locate"] {
+            let help = cli.find_subcommand_mut(name).unwrap().render_long_help().to_string();
+            assert!(help.contains(".pvtu") && help.contains(".vtm"), "{name}: {help}");
+        }
+        for name in ["gen", "partition", "locate", "resample", "probe", "trace", "render", "bench"] {
+            let cmd = cli.find_subcommand(name).unwrap();
+            assert!(cmd.get_arguments().any(|a| a.get_short() == Some('q')), "{name} has no -q");
+        }
     }
 
     #[test]

@@ -1,7 +1,7 @@
 //! A mesh argument: a file, or a generated shape written `SHAPE:N` (e.g. `fusion:1.4M`), or
 //! `SHAPE-KIND:N` for N cells of another kind (`jets-hex:12M`, `jets-hybrid:12M`).
 
-use crate::progress;
+use crate::{limits, progress};
 use anyhow::{bail, Context, Result};
 use std::ffi::OsStr;
 use std::path::{Path, PathBuf};
@@ -42,21 +42,14 @@ pub fn parse_generated(arg: &OsStr) -> Option<(Spec, usize)> {
     Some((shape.parse().ok()?, parse_count(n).ok()?))
 }
 
-/// The files a mesh argument reads: none for `SHAPE:N`, both `.node` and `.ele` for TetGen,
+/// The files a mesh argument reads (an output must be none of them): none for `SHAPE:N`;
+/// both `.node` and `.ele` for TetGen; a partitioned mesh's listings and all its pieces;
 /// else the file itself.
 pub fn input_files(arg: &OsStr, format: Option<&str>) -> Vec<PathBuf> {
     if parse_generated(arg).is_some() {
         return Vec::new();
     }
-    let path = Path::new(arg);
-    let format = match format {
-        Some(f) => MeshFormat::from_name(f),
-        None => MeshFormat::from_path(path).ok(),
-    };
-    match format {
-        Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
-        _ => vec![path.to_path_buf()],
-    }
+    io::input_files(Path::new(arg), format.and_then(MeshFormat::from_name))
 }
 
 /// [`load`], with the closed-form vector field `v` of `gen --vector` added to a generated mesh
@@ -75,23 +68,18 @@ const GEN_BYTES_PER_TET: u64 = 40;
 
 pub fn generate(spec: impl Into<Spec>, n: usize, seed: u64) -> Result<Mesh> {
     let spec = spec.into();
-    if let Some(avail) = tetloc_io::available_memory_bytes() {
-        // Mixed cells: their decomposition tets (6 per hex, 3 per wedge) and the cells.
-        let tets_per_cell = match spec.cells {
-            CellKind::Tets => 1,
-            CellKind::Hexes => 7,
-            CellKind::Wedges => 4,
-            CellKind::Hybrid => 5,
-        };
-        let need = n as u64 * tets_per_cell * GEN_BYTES_PER_TET;
-        if need > avail {
-            bail!(
-                "{spec}:{n}: generating {n} cells needs about {:.1} GB of memory, {:.1} GB are available",
-                need as f64 / 1e9,
-                avail as f64 / 1e9
-            );
-        }
-    }
+    // Mixed cells: their decomposition tets (6 per hex, 3 per wedge) and the cells.
+    let tets_per_cell = match spec.cells {
+        CellKind::Tets => 1,
+        CellKind::Hexes => 7,
+        CellKind::Wedges => 4,
+        CellKind::Hybrid => 5,
+    };
+    limits::check_memory(
+        &format!("{spec}:{n}: {n} generated cells"),
+        n as u128,
+        (tets_per_cell * GEN_BYTES_PER_TET).into(),
+    )?;
     let what = if spec.cells == CellKind::Tets { "tets" } else { "cells" };
     let pb = progress::bar(1000, format!("generating {spec} with ~{n} {what}"));
     let raw = gen::generate_spec(spec, n, seed, &|f| pb.set_position((f * 1000.0) as u64));
@@ -133,7 +121,7 @@ pub fn load(arg: &OsStr, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
         bail!(
             "{}: no such file (and not a generated mesh like fusion:1M; shapes: {})",
             path.display(),
-            Shape::ALL.map(|s| s.to_string()).join(", ")
+            Spec::all_names().join(", ")
         );
     }
     let mesh = progress::with_spinner(format!("reading {}", path.display()), || io::read_mesh(path, format))?;

@@ -18,26 +18,44 @@ pub struct PartitionArgs {
     #[arg(long)]
     parts: usize,
     /// The listing to write, OUT.pvtu; the pieces go into the folder OUT beside it
-    /// (OUT/OUT_0.vtu, ...), which is replaced if it holds only such pieces.
+    /// (OUT/OUT_0.vtu, ...), or OUT.1 when an older OUT.pvtu uses OUT: the old listing and
+    /// its pieces stay whole until the new ones are complete, then are replaced (a pieces
+    /// folder holding other files is refused).
     #[arg(short, long)]
     out: PathBuf,
     /// zlib-compress the pieces' appended data.
     #[arg(long)]
     zlib: bool,
-    /// Mesh file format, overriding the extension (vtu, pvtu, vtk, msh, node).
+    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
     #[arg(long)]
     format: Option<String>,
     /// Seed of a generated mesh (SHAPE:N).
     #[arg(long, default_value_t = 1)]
     seed: u64,
+    /// Print only errors and warnings on stderr (no progress bar, no summary).
+    #[arg(short, long)]
+    quiet: bool,
 }
 
 pub fn run(a: &PartitionArgs) -> Result<()> {
     output::check_output(&a.out, &["pvtu"]).context("-o/--out: partition writes a .pvtu and its pieces")?;
     write_pieces::check_pvtu_output(&a.out)?;
+    progress::set_quiet(a.quiet);
     let mesh_files = mesh_arg::input_files(&a.mesh, a.format.as_deref());
     let inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
-    output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    // The pieces folders are replaced: an input inside one would be lost.
+    for dir in write_pieces::replaced_folders(&a.out)? {
+        let Ok(dir_c) = dir.canonicalize() else { continue };
+        if let Some(f) = mesh_files.iter().find(|f| f.canonicalize().is_ok_and(|f| f.starts_with(&dir_c))) {
+            anyhow::bail!(
+                "MESH {} lies in {}, the pieces folder that writing --out {} replaces; tetloc never writes over an input (write another OUT.pvtu)",
+                f.display(),
+                dir.display(),
+                a.out.display()
+            );
+        }
+    }
     if a.parts == 0 {
         anyhow::bail!("--parts must be at least 1");
     }
@@ -46,6 +64,9 @@ pub fn run(a: &PartitionArgs) -> Result<()> {
     let pb = progress::bar(a.parts as u64, format!("writing {} pieces", a.parts));
     tetloc_io::partition::write_pvtu(&mesh, a.parts, &a.out, a.zlib, |_| pb.inc(1))?;
     pb.finish_and_clear();
+    if a.quiet {
+        return Ok(());
+    }
     eprintln!(
         "{}: {} cells in {} pieces (recursive coordinate bisection), written in {:.2} s",
         a.out.display(),

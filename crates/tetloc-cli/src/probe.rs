@@ -40,7 +40,7 @@ pub struct ProbeArgs {
     /// The backend: cpu, soft-bvh, rt-bvh, rt-rep-faces, rt-shared-faces, or auto.
     #[arg(long, default_value = "auto")]
     pub(crate) backend: String,
-    /// TARGET's mesh format, overriding its extension (vtu, vtk, msh, node).
+    /// TARGET's mesh format, overriding its extension (vtu, pvtu, vtm, vtk, msh, node).
     #[arg(long)]
     target_format: Option<String>,
     #[command(flatten)]
@@ -75,7 +75,7 @@ pub(crate) fn check(a: &ProbeArgs) -> Result<bool> {
     };
     let mut inputs: Vec<FileArg> = sources.iter().map(|p| FileArg::new("SOURCE", p)).collect();
     inputs.extend(targets.iter().map(|p| FileArg::new("TARGET", p)));
-    output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     Ok(point_set)
 }
 

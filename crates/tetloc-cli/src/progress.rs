@@ -12,7 +12,8 @@ pub fn set_quiet(quiet: bool) {
     QUIET.store(quiet, Ordering::Relaxed);
 }
 
-fn quiet() -> bool {
+/// Whether `--quiet` was given (summaries are left out too).
+pub fn quiet() -> bool {
     QUIET.load(Ordering::Relaxed)
 }
 

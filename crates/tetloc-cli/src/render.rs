@@ -5,7 +5,7 @@ use crate::mesh_arg;
 use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::PathBuf;
-use tetloc_io::output::{self, FileArg};
+use tetloc_io::output::FileArg;
 use tetloc_locator::{Backend, BareLocator};
 use tetloc_render as tr;
 
@@ -73,7 +73,7 @@ pub struct RenderArgs {
     /// Seed of a generated mesh (SHAPE:N).
     #[arg(long, default_value_t = 1)]
     seed: u64,
-    /// Mesh file format, overriding the extension (vtu, vtk, msh, node).
+    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
     #[arg(long)]
     format: Option<String>,
     /// Print only errors and warnings on stderr (not the backend `auto` chose, nor the files written).
@@ -117,6 +117,13 @@ pub fn run(a: RenderArgs) -> Result<()> {
         s => s.map(tr::SurfaceSpec::parse),
     };
     o.frames = tr::parse_frames(&a.frames)?;
+    for (option, frames) in [("--frames", Some(o.frames)), ("--fps", a.fps)] {
+        if let Some(n) = frames.filter(|&n| n > MAX_FRAMES) {
+            anyhow::bail!(
+                "{option} {n}: at most {MAX_FRAMES} frames (an orbit of {MAX_FRAMES} is 5.5 minutes at 30 fps)"
+            );
+        }
+    }
     o.skip = !a.no_skip;
     if let Some(b) = &a.background {
         o.background = tr::parse_color("--background", b)?;
@@ -136,10 +143,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(tr::SurfaceSpec::File(path)) = &o.surface {
         inputs.push(FileArg::new("--surface", path));
     }
-    output::check_distinct(&inputs, &outputs)?;
+    crate::outputs::check_distinct(&inputs, &outputs)?;
     let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
     tetloc_core::ops::fields::resolve_scalar(&mesh.fields, &a.field).context("--field")?;
     let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
+    check_samples_per_ray(&mesh, renderer.step())?;
     let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
     for (i, name) in a.backend.split(',').enumerate() {
         let first = i == 0;
@@ -188,6 +196,28 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 }
             }
         }
+    }
+    Ok(())
+}
+
+/// Most frames of an orbit (GIF frames, numbered PNGs, or frames measured by `--fps`).
+const MAX_FRAMES: u32 = 10_000;
+
+/// Most samples a ray takes across the mesh's bounds: a 1024² image then takes at most
+/// 7e10 samples a frame (about a minute on a large GPU).
+const MAX_SAMPLES_PER_RAY: f64 = 65_536.0;
+
+/// Refuses a step so small that a ray across the mesh takes more than
+/// [`MAX_SAMPLES_PER_RAY`] samples, naming the smallest step allowed.
+fn check_samples_per_ray(mesh: &tetloc_core::Mesh, step: f32) -> Result<()> {
+    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+    let diagonal = (0..3).map(|k| (hi[k] as f64 - lo[k] as f64).powi(2)).sum::<f64>().sqrt();
+    let samples = diagonal / step as f64;
+    if samples > MAX_SAMPLES_PER_RAY {
+        anyhow::bail!(
+            "--step {step}: a ray across the mesh (diagonal {diagonal:.4e}) would take {samples:.2e} samples, more than {MAX_SAMPLES_PER_RAY}; use --step {:.3e} or more",
+            diagonal / MAX_SAMPLES_PER_RAY
+        );
     }
     Ok(())
 }

@@ -61,13 +61,44 @@ pub(crate) fn check(a: &ResampleArgs) -> Result<Plan> {
         Some(b) => bail!("--bounds takes six numbers X0,X1,Y0,Y1,Z0,Z1, got {}", b.len()),
     };
     output::check_output(&a.out, IMAGE_EXTENSIONS).context("--out")?;
+    // The image's size against the format and the disk, before any work (the fields are not
+    // known yet: one scalar at least).
+    check_image_size(&a.out, [nx, ny, nz], 1, a.zlib)?;
     let inputs: Vec<PathBuf> = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
     let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("MESH", p)).collect();
-    output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     if output::extension(&a.out) == "npy" && a.field.len() != 1 {
         bail!("--out {}: .npy holds one array; name one --field (or write .vti)", a.out.display());
     }
     Ok(Plan { dims: [nx, ny, nz], bounds })
+}
+
+/// The most points per axis of a `.vti`: VTK reads its extents as 32-bit integers.
+const VTI_MAX_DIM: usize = i32::MAX as usize;
+
+/// Refuses an image of `dims` points with `width` values a point that `out`'s format cannot
+/// hold or that the free disk cannot: a `.npy` takes 4 bytes a value; a `.vti` 4 bytes a
+/// value and 1 for the mask, twice over while it is written (each array is spilled beside
+/// the output, then copied into it; with zlib the size is not known in advance).
+fn check_image_size(out: &std::path::Path, dims: [usize; 3], width: usize, zlib: bool) -> Result<()> {
+    let [nx, ny, nz] = dims;
+    let Some(n) = dims.iter().try_fold(1u128, |n, &d| n.checked_mul(d as u128)).filter(|&n| n <= usize::MAX as u128)
+    else {
+        bail!("--dims {nx},{ny},{nz}: more points than this machine can count");
+    };
+    let bytes = match output::extension(out).as_str() {
+        "vti" => {
+            if let Some(d) = dims.iter().find(|&&d| d > VTI_MAX_DIM) {
+                bail!("--dims {nx},{ny},{nz}: a .vti holds at most {VTI_MAX_DIM} points per axis (VTK's extents are 32-bit), not {d}");
+            }
+            if zlib {
+                return Ok(());
+            }
+            2 * n * (4 * width as u128 + 1)
+        }
+        _ => n * 4 * width as u128,
+    };
+    crate::limits::check_disk(out, bytes).with_context(|| format!("--dims {nx},{ny},{nz}: {n} points"))
 }
 
 pub fn run(a: &ResampleArgs) -> Result<()> {
@@ -95,6 +126,8 @@ pub(crate) fn execute(
     let m = fields_of;
     let [nx, ny, nz] = plan.dims;
     let groups = fields::resolve_outputs(&m.fields, &a.field, &[points::VALID_MASK])?;
+    let width = groups.iter().map(|g| g.n_components()).sum();
+    check_image_size(&a.out, plan.dims, width, a.zlib)?;
     let grid = match plan.bounds {
         Some((lo, hi)) => ImageGrid::spanning(lo, hi, plan.dims)?,
         None => ImageGrid::over_bounds(mesh_bounds.0, mesh_bounds.1, plan.dims)?,

@@ -21,7 +21,7 @@ use tetloc_locator::{Backend, BareLocator};
 
 #[derive(clap::Args)]
 pub struct TraceArgs {
-    /// A mesh file (.vtu, .vtk, .msh, .node/.ele), or SHAPE:N to generate one (e.g. fusion:1M)
+    /// A mesh file (.vtu, .vtk, .msh, .node/.ele, .pvtu/.vtm), or SHAPE:N to generate one (e.g. fusion:1M)
     /// with its closed-form flow `v` (as `tetloc gen --vector`).
     mesh: OsString,
     /// The vector field to follow: a 3-component array of the mesh (point or cell data).
@@ -80,6 +80,10 @@ pub struct TraceArgs {
     common: Common,
 }
 
+/// Bytes a line point takes while its batch is traced and written (the point in f64, its
+/// time, tet and sampled values, the spilled copy; measured at about 106).
+const LINE_POINT_BYTES: u128 = 128;
+
 pub fn run(a: &TraceArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     let direction: Direction = a.direction.parse()?;
@@ -91,7 +95,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     if spec.is_none() {
         inputs.push(FileArg::new("--seeds", &seeds_file));
     }
-    output::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     let seeds = match spec {
         Some(s) => s.context("--seeds")?,
         None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
@@ -119,6 +123,18 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     }
     let (lo, hi) = m.file_bounds();
     o.check_scale(lo.iter().chain(&hi).fold(0.0, |s, c| s.max(c.abs()))).context("--step")?;
+    // Lines are traced in batches of about BATCH_POINTS points, at least one line a batch:
+    // one line of the most steps it can take (--max-steps, or fewer by --max-length) must fit
+    // in half the memory (the mesh and the locator need the rest), refused before tracing.
+    crate::limits::check_memory(
+        &format!(
+            "--max-steps {}: a line of {} steps (held whole until it ends), with room for the mesh,",
+            a.max_steps,
+            o.steps_bound()
+        ),
+        o.steps_bound() as u128 + 2,
+        2 * LINE_POINT_BYTES,
+    )?;
     let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
     let c = vector.component_refs();
     let [x, y, z] = [c[0], c[1], c[2]];

@@ -189,7 +189,7 @@ fn bad_inputs_are_refused() {
     assert!(!vtu.exists());
 }
 
-/// A trace written in batches (a huge --max-steps makes batches of 1024 lines) is the file
+/// A trace with a huge --max-steps (its lines bounded by --max-length, so one batch) is the file
 /// one batch makes, byte for byte, when the lines stop by length before either step limit.
 #[test]
 fn trace_in_batches_is_one_file() {

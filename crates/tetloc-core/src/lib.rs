@@ -8,6 +8,7 @@ pub mod error;
 pub mod gen;
 pub mod geom;
 pub mod locate;
+pub mod memory;
 pub mod mesh;
 pub mod ops;
 pub mod partition;

@@ -17,7 +17,7 @@ pub mod tetgen;
 /// The VTK family: XML (`.vtu`) and legacy (`.vtk`) readers, the VTU writers, and what they share.
 pub mod vtk;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{Mesh, RawMesh};
 
@@ -68,12 +68,21 @@ pub(crate) fn strip_bom(bytes: &[u8]) -> &[u8] {
     bytes.strip_prefix(UTF8_BOM).unwrap_or(bytes)
 }
 
+/// Every file that reading the mesh `path` reads, for refusing an output that is one of them:
+/// the file; a TetGen mesh's `.node` and `.ele`; a listing (`.pvtu`, `.vtm`), the listings
+/// it nests and all their pieces. A listing that cannot be read counts as itself alone
+/// (reading the mesh then fails before anything is written).
+pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
+    match format.or_else(|| MeshFormat::from_path(path).ok()) {
+        Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
+        Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
+        _ => vec![path.to_path_buf()],
+    }
+}
+
 /// Memory the system can still hand out (Linux `MemAvailable`), if known.
 pub fn available_memory_bytes() -> Option<u64> {
-    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kib * 1024)
+    tetloc_core::memory::available_bytes()
 }
 
 /// Refuses, with a clear error, to start reading a file that cannot fit in memory: readers

@@ -6,14 +6,72 @@
 //! Commands check their output paths with [`check_output`] and [`check_distinct`] before any
 //! work starts, so that a bad path or an output that is also an input costs nothing.
 //!
-//! A process killed outright (SIGKILL, power loss) can leave its temporary file behind, named
-//! `.NAME.XXXXXX.tmp` next to NAME; never a partial NAME.
+//! Temporaries are registered while they live, so that a program's signal handler can remove
+//! them ([`remove_temporaries`]). A process killed outright (SIGKILL, power loss) can leave
+//! its temporary file behind, named `.NAME.XXXXXX.tmp` next to NAME (never a partial NAME);
+//! [`stale_temporaries`] finds them.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::{Mutex, PoisonError};
 use tempfile::NamedTempFile;
 use tetloc_core::error::{Error, Result};
+
+/// The temporaries (files and folders) of outputs being written.
+static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// A temporary path listed for [`remove_temporaries`] while this lives.
+pub struct Registered(PathBuf);
+
+impl Registered {
+    pub fn new(path: &Path) -> Registered {
+        TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner).push(path.to_path_buf());
+        Registered(path.to_path_buf())
+    }
+}
+
+impl Drop for Registered {
+    fn drop(&mut self) {
+        let mut list = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(k) = list.iter().rposition(|p| *p == self.0) {
+            list.swap_remove(k);
+        }
+    }
+}
+
+/// Removes the temporaries of every output being written (for a handler of SIGINT or
+/// SIGTERM, or a panic, just before the process ends); returns how many there were.
+pub fn remove_temporaries() -> usize {
+    let mut list = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner);
+    for p in list.iter() {
+        let _ = if p.is_dir() { std::fs::remove_dir_all(p) } else { std::fs::remove_file(p) };
+    }
+    let n = list.len();
+    list.clear();
+    n
+}
+
+/// Temporaries that an earlier, interrupted write of `path` left beside it
+/// (`.NAME.*.tmp`, files or folders), excluding those this process is writing.
+pub fn stale_temporaries(path: &Path) -> Vec<PathBuf> {
+    let Some(name) = path.file_name().map(|n| n.to_string_lossy().into_owned()) else { return Vec::new() };
+    let prefix = format!(".{name}.");
+    let dir = parent_dir(path);
+    let Ok(entries) = std::fs::read_dir(dir) else { return Vec::new() };
+    let ours = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner).clone();
+    let mut found: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok())
+        .filter(|e| {
+            let n = e.file_name().to_string_lossy().into_owned();
+            n.starts_with(&prefix) && n.ends_with(".tmp") && n.len() > prefix.len() + 4
+        })
+        .map(|e| dir.join(e.file_name()))
+        .filter(|p| !ours.iter().any(|o| o.file_name() == p.file_name()))
+        .collect();
+    found.sort();
+    found
+}
 
 /// A file written to a temporary name next to its target and renamed over the target on
 /// [`commit`](AtomicFile::commit). Dropped without `commit`, the temporary file is removed
@@ -22,6 +80,7 @@ use tetloc_core::error::{Error, Result};
 pub struct AtomicFile {
     target: PathBuf,
     tmp: BufWriter<NamedTempFile>,
+    _registered: Registered,
 }
 
 impl AtomicFile {
@@ -42,7 +101,8 @@ impl AtomicFile {
             builder.permissions(std::fs::Permissions::from_mode(mode));
         }
         let tmp = builder.tempfile_in(dir).map_err(|e| Error::io(&target, e))?;
-        Ok(AtomicFile { target, tmp: BufWriter::with_capacity(1 << 20, tmp) })
+        let _registered = Registered::new(tmp.path());
+        Ok(AtomicFile { target, tmp: BufWriter::with_capacity(1 << 20, tmp), _registered })
     }
 
     /// The file this will become.
@@ -271,6 +331,24 @@ mod tests {
         write_atomically(&path, |f| put(f, b"new")).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
         assert_eq!(entries(&dir), ["out.csv"]);
+    }
+
+    /// Leftovers of an interrupted write (`.NAME.*.tmp`, file or folder) are found; this
+    /// process's own temporaries and other files are not.
+    #[test]
+    fn stale_temporaries_are_named() {
+        let dir = tmp_dir("stale");
+        let path = dir.join("r.npy");
+        std::fs::write(dir.join(".r.npy.a1B2c3.tmp"), "half").unwrap();
+        std::fs::create_dir(dir.join(".r.npy.x9.tmp")).unwrap();
+        for other in [".r.npy.tmp", ".r.npyx.1.tmp", "r.npy.1.tmp", ".s.npy.1.tmp"] {
+            std::fs::write(dir.join(other), "").unwrap();
+        }
+        let live = AtomicFile::create(&path).unwrap();
+        let names: Vec<String> =
+            stale_temporaries(&path).iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+        assert_eq!(names, [".r.npy.a1B2c3.tmp", ".r.npy.x9.tmp"]);
+        drop(live);
     }
 
     #[test]

@@ -64,6 +64,9 @@ pub(crate) fn median(mut v: Vec<f64>) -> f64 {
     v[v.len() / 2]
 }
 
+/// Host bytes a query takes (`--n`): its coordinates, id and value.
+pub const BYTES_PER_QUERY: u128 = 12 + 4 + 4;
+
 pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
     let mut rows = Vec::new();
     let n = args.n.unwrap_or(mesh.n_tets());

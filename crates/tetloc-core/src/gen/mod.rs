@@ -164,6 +164,14 @@ impl fmt::Display for Spec {
     }
 }
 
+impl Spec {
+    /// Every generated mesh by name: each shape, and each shape of each other kind of cell
+    /// (`jets, jets-hex, jets-wedge, jets-hybrid, fusion, ...`).
+    pub fn all_names() -> Vec<String> {
+        Shape::ALL.into_iter().flat_map(|shape| CellKind::ALL.map(|cells| Spec { shape, cells }.to_string())).collect()
+    }
+}
+
 impl FromStr for Spec {
     type Err = Error;
     fn from_str(s: &str) -> Result<Spec, Error> {
@@ -174,7 +182,10 @@ impl FromStr for Spec {
                 CellKind::ALL.map(|k| k.name()).join(", ")
             ))
         })?;
-        Ok(Spec { shape: shape.parse()?, cells })
+        let shape = shape.parse::<Shape>().map_err(|_| {
+            Error::Invalid(format!("unknown shape in '{}' (known: {})", s.trim(), Spec::all_names().join(", ")))
+        })?;
+        Ok(Spec { shape, cells })
     }
 }
 

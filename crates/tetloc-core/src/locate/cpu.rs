@@ -420,7 +420,12 @@ impl BatchLocator for CpuLocator {
         values: &mut [f32],
     ) -> Result<()> {
         check_sample_lengths(range.len(), fields.len(), ids.len(), values.len())?;
-        if self.mesh.n_tets() >= grid_raster::MAX_TETS {
+        // Rasterized a slab of z planes at a time: a grid whose one plane (or whose count of
+        // planes) exceeds a slab's points is searched point by point instead, in the
+        // caller's chunks, so memory stays bounded for any grid.
+        let huge = grid.dims[0].saturating_mul(grid.dims[1]) > grid_raster::SLAB_POINTS
+            || grid.dims[2] > grid_raster::SLAB_POINTS;
+        if self.mesh.n_tets() >= grid_raster::MAX_TETS || huge {
             return self.sample_many(&super::grid_points(grid, range), fields, ids, values);
         }
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
@@ -490,6 +495,34 @@ mod tests {
     use super::*;
     use crate::gen::{generate, Shape};
     use rand::{Rng, SeedableRng};
+
+    /// A grid one of whose z planes holds more points than a raster slab (issue 29, item 6:
+    /// `resample --dims 100000,100000,...` allocated the whole plane) is searched in the
+    /// caller's chunks instead, with the same answers; a grid of many planes likewise.
+    #[test]
+    fn grids_beyond_a_slab_are_searched_in_chunks() {
+        let m = Arc::new(crate::test_support::grid_mesh(4, 0.2, 3));
+        let wide = grid_raster::SLAB_POINTS + 1;
+        for (lo, hi, dims) in
+            [([-0.01, 0.5, 0.5], [1.2, 0.5, 0.5], [wide, 1, 1]), ([0.5, 0.5, -0.01], [0.5, 0.5, 1.2], [1, 1, wide])]
+        {
+            let grid = ImageGrid::spanning(lo, hi, dims).unwrap();
+            let mut loc = CpuLocator::new(m.clone());
+            let range = 0..100_000;
+            let (mut ids, mut values) = (vec![0; range.len()], vec![0f32; range.len()]);
+            loc.sample_grid(&grid, range.clone(), &["f"], &mut ids, &mut values).unwrap();
+            assert!(loc.raster.is_none(), "{dims:?}: a slab was rasterized");
+            let points = super::super::grid_points(&grid, range);
+            let (mut ids2, mut values2) = (vec![0; points.len()], vec![0f32; points.len()]);
+            loc.sample_many(&points, &["f"], &mut ids2, &mut values2).unwrap();
+            assert_eq!(ids, ids2);
+            assert!(ids.iter().any(|&i| i >= 0) && ids.iter().any(|&i| i < 0), "{dims:?}");
+            assert_eq!(
+                values.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                values2.iter().map(|v| v.to_bits()).collect::<Vec<_>>()
+            );
+        }
+    }
 
     /// Batches (walks from the previous answer, f32 steps, the exact test at the end) give
     /// the BVH's own answer for every point: a grid aligned with a KuhnGrid's vertices (points

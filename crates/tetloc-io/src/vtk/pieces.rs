@@ -73,8 +73,18 @@ pub fn list(path: &Path) -> Result<Vec<PathBuf>> {
 pub fn list_with(path: &Path, allow_outside: bool) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     let root = if allow_outside { None } else { Some(listing_folder(path)?) };
-    list_into(path, 0, root.as_deref(), &mut out)?;
+    list_into(path, 0, root.as_deref(), &mut out, &mut Vec::new())?;
     Ok(out)
+}
+
+/// Every file that reading the listing `path` reads: the listings (itself first, then those
+/// it nests) and the pieces.
+pub fn files_read(path: &Path) -> Result<Vec<PathBuf>> {
+    let (mut pieces, mut listings) = (Vec::new(), Vec::new());
+    let root = if allows_outside_by_default() { None } else { Some(listing_folder(path)?) };
+    list_into(path, 0, root.as_deref(), &mut pieces, &mut listings)?;
+    listings.extend(pieces);
+    Ok(listings)
 }
 
 /// The folder a listing's pieces must lie in: the listing's own, symbolic links resolved.
@@ -131,7 +141,14 @@ fn climbs_out(path: &Path) -> bool {
     false
 }
 
-fn list_into(path: &Path, depth: usize, root: Option<&Path>, out: &mut Vec<PathBuf>) -> Result<()> {
+fn list_into(
+    path: &Path,
+    depth: usize,
+    root: Option<&Path>,
+    out: &mut Vec<PathBuf>,
+    listings: &mut Vec<PathBuf>,
+) -> Result<()> {
+    listings.push(path.to_path_buf());
     if depth > MAX_NESTING {
         return Err(Error::format(path, format!("listings nest more than {MAX_NESTING} deep (does one list itself?)")));
     }
@@ -147,7 +164,7 @@ fn list_into(path: &Path, depth: usize, root: Option<&Path>, out: &mut Vec<PathB
         }
         match crate::output::extension(&f).as_str() {
             "vtu" => out.push(f),
-            "pvtu" | "vtm" => list_into(&f, depth + 1, root, out)?,
+            "pvtu" | "vtm" => list_into(&f, depth + 1, root, out, listings)?,
             _ => {
                 return Err(Error::format(
                     path,
@@ -469,10 +486,14 @@ mod tests {
                 assert_eq!(va[i].to_bits(), vb[i].to_bits(), "{:?}", pts[i]);
             }
         }
-        // Written again over itself: replaced, still complete.
+        // Written again over itself: replaced, still complete, the new pieces in the other
+        // folder and the old ones gone; a third write goes back to the first folder.
         crate::partition::write_pvtu(&back, 2, &out, false, |_| {}).unwrap();
-        assert_eq!(list(&out).unwrap().len(), 2);
-        assert_eq!(std::fs::read_dir(dir.0.join("cube")).unwrap().count(), 2, "the old pieces are gone");
+        assert_eq!(list(&out).unwrap(), [0, 1].map(|k| dir.0.join(format!("cube.1/cube_{k}.vtu"))));
+        assert!(!dir.0.join("cube").exists(), "the old pieces are gone");
+        crate::partition::write_pvtu(&back, 3, &out, false, |_| {}).unwrap();
+        assert_eq!(std::fs::read_dir(dir.0.join("cube")).unwrap().count(), 3);
+        assert!(!dir.0.join("cube.1").exists());
         assert_eq!(crate::read_mesh(&out, None).unwrap().field("c").unwrap().values, back.field("c").unwrap().values);
     }
 
@@ -553,6 +574,27 @@ mod tests {
             crate::read_mesh(&dir.0.join("c.vtm"), None).unwrap().field("c").unwrap().values,
             m.field("c").unwrap().values
         );
+    }
+
+    /// The files a partitioned mesh reads: its listings and every piece (item 1 of issue 29:
+    /// an output onto one of them is refused); an unreadable listing counts as itself.
+    #[test]
+    fn input_files_list_every_piece() {
+        use crate::{input_files, MeshFormat};
+        let dir = TempDir::new("inputs");
+        crate::partition::write_pvtu(&cube(), 2, &dir.0.join("a.pvtu"), false, |_| {}).unwrap();
+        let vtm = r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
+            <DataSet index="0" file="a.pvtu"/></vtkMultiBlockDataSet></VTKFile>"#;
+        std::fs::write(dir.0.join("b.vtm"), vtm).unwrap();
+        let pieces = ["a/a_0.vtu", "a/a_1.vtu"].map(|p| dir.0.join(p));
+        let pvtu = input_files(&dir.0.join("a.pvtu"), None);
+        assert_eq!(pvtu, [vec![dir.0.join("a.pvtu")], pieces.to_vec()].concat());
+        let vtm = input_files(&dir.0.join("b.vtm"), None);
+        assert_eq!(vtm, [vec![dir.0.join("b.vtm"), dir.0.join("a.pvtu")], pieces.to_vec()].concat());
+        let tetgen = input_files(Path::new("m.ele"), None);
+        assert_eq!(tetgen, [PathBuf::from("m.node"), PathBuf::from("m.ele")]);
+        let missing = dir.0.join("none.pvtu");
+        assert_eq!(input_files(&missing, Some(MeshFormat::Pieces)), std::slice::from_ref(&missing));
     }
 
     #[test]

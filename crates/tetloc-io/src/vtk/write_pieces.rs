@@ -1,47 +1,73 @@
-//! Writes a partitioned mesh: a `.pvtu` listing and, in the folder of the same name beside
-//! it, one VTU piece per part (ParaView's layout: `OUT.pvtu`, `OUT/OUT_0.vtu`, ...), each
-//! piece with its cells' and points' global ids in the integer arrays `GlobalCellIds` and
-//! `GlobalPointIds` (VTK's names).
+//! Writes a partitioned mesh: a `.pvtu` listing and, in a folder beside it, one VTU piece
+//! per part (ParaView's layout: `OUT.pvtu`, `OUT/OUT_0.vtu`, ...), each piece with its
+//! cells' and points' global ids in the integer arrays `GlobalCellIds` and `GlobalPointIds`
+//! (VTK's names).
 //!
-//! Complete or absent: the pieces are written into a temporary folder, which replaces the
-//! pieces folder only when all are written; the listing is written last (atomically), and an
-//! older listing of the same name is removed first, so no listing ever points at a mix of
-//! old and new pieces or at pieces still being written.
+//! Complete or absent, and the old output whole until the new one is: the pieces are written
+//! into a temporary folder, renamed to a pieces folder the old listing does not use (`OUT`,
+//! or `OUT.1` when the old pieces are in `OUT`), and the listing naming it replaces the old
+//! listing in one rename. Only then is the old pieces folder removed. A failure or a kill at
+//! any point leaves the old listing with all its pieces (and at most a leftover folder that
+//! no listing names, which the next write replaces).
 
 use super::write::{write_mesh_with_cell_data, ArrayData, NamedArray};
-use crate::output::write_atomically;
+use crate::output::{write_atomically, Registered};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{FieldLocation, Mesh};
 
-/// The pieces folder of a listing `OUT.pvtu` (`OUT`) and the name stem of its pieces.
-fn pieces_dir(path: &Path) -> Result<(PathBuf, String)> {
+/// The two pieces folders of a listing `OUT.pvtu` (`OUT` and `OUT.1`: a write uses the one
+/// the old listing does not) and the name stem of its pieces.
+fn pieces_dirs(path: &Path) -> Result<([PathBuf; 2], String)> {
     let stem = path.file_stem().and_then(|s| s.to_str()).filter(|s| !s.is_empty());
     let stem = stem.ok_or_else(|| Error::format(path, "the output needs a file name (OUT.pvtu)"))?;
-    Ok((path.with_extension(""), stem.to_string()))
+    let dir = path.with_extension("");
+    Ok(([dir.clone(), dir.with_file_name(format!("{stem}.1"))], stem.to_string()))
 }
 
-/// Checks before any work that the output can be written: the pieces folder is absent, or a
+/// The folders a write of `path` may remove or replace (those that exist): an input inside
+/// one would be lost.
+pub fn replaced_folders(path: &Path) -> Result<Vec<PathBuf>> {
+    Ok(pieces_dirs(path)?.0.into_iter().filter(|d| d.exists()).collect())
+}
+
+/// Checks before any work that the output can be written: each pieces folder is absent, or a
 /// folder of pieces (`STEM_*.vtu` only) that may be replaced.
 pub fn check_pvtu_output(path: &Path) -> Result<()> {
-    let (dir, stem) = pieces_dir(path)?;
-    if !dir.exists() {
-        return Ok(());
-    }
-    if !dir.is_dir() {
-        return Err(Error::format(&dir, "exists and is not a folder: it would hold the pieces"));
-    }
-    for e in std::fs::read_dir(&dir).map_err(|e| Error::io(&dir, e))? {
-        let name = e.map_err(|e| Error::io(&dir, e))?.file_name().to_string_lossy().into_owned();
-        if !(name.starts_with(&format!("{stem}_")) && name.ends_with(".vtu")) {
-            return Err(Error::format(
-                &dir,
-                format!("holds '{name}', which is not a piece: refusing to replace the folder (remove it or choose another output)"),
-            ));
+    let (dirs, stem) = pieces_dirs(path)?;
+    for dir in dirs.iter().filter(|d| d.exists()) {
+        if !dir.is_dir() {
+            return Err(Error::format(dir, "exists and is not a folder: it would hold the pieces"));
+        }
+        for e in std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+            let name = e.map_err(|e| Error::io(dir, e))?.file_name().to_string_lossy().into_owned();
+            if !(name.starts_with(&format!("{stem}_")) && name.ends_with(".vtu")) {
+                return Err(Error::format(
+                    dir,
+                    format!("holds '{name}', which is not a piece: refusing to replace the folder (remove it or choose another output)"),
+                ));
+            }
         }
     }
     Ok(())
+}
+
+/// The pieces folder the listing `path` uses now: the one of `dirs` holding its pieces.
+fn folder_in_use(path: &Path, dirs: &[PathBuf; 2]) -> Option<usize> {
+    let pieces = super::pieces::list(path).ok()?;
+    let first = pieces.first()?.parent()?.to_path_buf();
+    let k = dirs.iter().position(|d| crate::output::same_file(d, &first))?;
+    Some(k)
+}
+
+/// Removes a pieces folder (its pieces, then itself; nothing else is in it, see
+/// [`check_pvtu_output`]).
+fn remove_folder(dir: &Path) -> Result<()> {
+    match std::fs::remove_dir_all(dir) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(Error::io(dir, e)),
+        _ => Ok(()),
+    }
 }
 
 /// Writes `pieces` (meshes, the global id of each of their cells and of each of their points)
@@ -53,20 +79,20 @@ pub fn write_pvtu(
     done: impl Fn(usize),
 ) -> Result<()> {
     check_pvtu_output(path)?;
-    let (dir, stem) = pieces_dir(path)?;
-    let parent = match dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-        _ => PathBuf::from("."),
+    let (dirs, stem) = pieces_dirs(path)?;
+    // The new pieces go into the folder the old listing does not use.
+    let (new_dir, old_dir) = match folder_in_use(path, &dirs) {
+        Some(0) => (&dirs[1], &dirs[0]),
+        _ => (&dirs[0], &dirs[1]),
     };
-    // An older listing would point at the pieces being replaced.
-    if path.exists() {
-        std::fs::remove_file(path).map_err(|e| Error::io(path, e))?;
-    }
+    let parent = crate::output::parent_dir(path).to_path_buf();
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{stem}."))
+        .prefix(&format!(".{name}."))
         .suffix(".tmp")
         .tempdir_in(&parent)
-        .map_err(|e| Error::io(&dir, e))?;
+        .map_err(|e| Error::io(new_dir, e))?;
+    let registered = Registered::new(tmp.path());
     let n = pieces.len();
     let mut declared: Option<String> = None;
     for (k, piece) in pieces.enumerate() {
@@ -93,16 +119,16 @@ pub fn write_pvtu(
         }
         done(k);
     }
-    // Swap the folders: the old one aside, the new one in, the old one removed.
-    let old = parent.join(format!(".{stem}.{}.old", std::process::id()));
-    if dir.exists() {
-        std::fs::rename(&dir, &old).map_err(|e| Error::io(&dir, e))?;
-    }
+    // The complete pieces under a name no listing uses (a leftover of an interrupted write
+    // there is replaced).
+    remove_folder(new_dir)?;
     let tmp = tmp.keep();
-    std::fs::rename(&tmp, &dir).map_err(|e| Error::io(&dir, e))?;
-    if old.exists() {
-        std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
-    }
+    std::fs::rename(&tmp, new_dir).map_err(|e| {
+        let _ = std::fs::remove_dir_all(&tmp);
+        Error::io(new_dir, e)
+    })?;
+    drop(registered);
+    let folder = new_dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
     let declared = declared.unwrap_or_default();
     write_atomically(path, |f| -> Result<()> {
         let io = |e| Error::io(path, e);
@@ -115,12 +141,18 @@ pub fn write_pvtu(
         writeln!(f, "  <PUnstructuredGrid GhostLevel=\"0\">").map_err(io)?;
         f.write_all(declared.as_bytes()).map_err(io)?;
         for k in 0..n {
-            let src = format!("{stem}/{stem}_{k}.vtu");
+            let src = format!("{folder}/{stem}_{k}.vtu");
             writeln!(f, "    <Piece Source=\"{}\"/>", super::write::escape(&src)).map_err(io)?;
         }
         writeln!(f, "  </PUnstructuredGrid>\n</VTKFile>").map_err(io)?;
         Ok(())
     })
+    .inspect_err(|_| {
+        // Nothing names the new pieces: the old listing and its pieces stay as they were.
+        let _ = remove_folder(new_dir);
+    })?;
+    // The listing names the new pieces: the old ones go.
+    remove_folder(old_dir)
 }
 
 /// The listing's `<PPointData>`, `<PCellData>` and `<PPoints>`: what every piece carries.

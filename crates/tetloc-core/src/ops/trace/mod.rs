@@ -202,11 +202,24 @@ impl TraceOptions {
 pub const BATCH_POINTS: usize = 1 << 25;
 
 impl TraceOptions {
+    /// The most steps a line takes: `max_steps`, or fewer where `max_length` stops it first
+    /// (each step but the last is at least the step, or the smallest adaptive step, long).
+    pub fn steps_bound(&self) -> usize {
+        let shortest = if self.integrator.is_adaptive() { self.min_step() } else { self.step };
+        let by_length = (self.max_length / shortest).ceil() + 2.0;
+        if by_length.is_finite() && by_length < self.max_steps as f64 {
+            by_length as usize
+        } else {
+            self.max_steps
+        }
+    }
+
     /// The lines of [`Self::jobs`] in batches whose lines hold at most about `points` points
-    /// together (a line has at most `max_steps + 2`; a batch at least 1024 lines): each
-    /// batch is these options for one direction and a range of seeds, in VTK's line order.
+    /// together (a line has at most `max_steps + 2`; a batch at least one line, so a batch's
+    /// memory is bounded by `points` or by one line): each batch is these options for one
+    /// direction and a range of seeds, in VTK's line order.
     pub fn batches(&self, n_seeds: usize, points: usize) -> Vec<(TraceOptions, Range<usize>)> {
-        let per = (points / self.max_steps.saturating_add(2)).max(1024);
+        let per = (points / self.steps_bound().saturating_add(2)).max(1);
         let dirs = match self.direction {
             Direction::Both => vec![Direction::Forward, Direction::Backward],
             d => vec![d],
@@ -534,6 +547,9 @@ pub fn line_fields(mesh: &crate::Mesh, vector: &super::FieldGroup) -> Vec<super:
     out
 }
 
+/// Most seeds a trace takes: `SeedIds` are written as Int32.
+pub const MAX_SEEDS: usize = i32::MAX as usize;
+
 /// Seeds from a specification: `line:X0,Y0,Z0,X1,Y1,Z1,N` (N points from P0 to P1, both
 /// included) or `grid:X0,X1,Y0,Y1,Z0,Z1,NX,NY,NZ` (a regular grid as `resample` lays it
 /// out); `None` when `spec` is neither (a file of points, then).
@@ -543,6 +559,22 @@ pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
         args.split(',')
             .map(|s| s.trim().parse::<f64>().map_err(|_| Error::Invalid(format!("{spec}: '{s}' is not a number"))))
             .collect()
+    };
+    // The seeds are held at once (12 bytes each) and numbered by Int32 `SeedIds`.
+    let bounded = |n: usize| -> Result<usize> {
+        let need = n as u128 * std::mem::size_of::<Vec3>() as u128;
+        let avail = crate::memory::available_bytes();
+        if n > MAX_SEEDS {
+            return Err(Error::Invalid(format!("{spec}: {n} seeds; at most {MAX_SEEDS} (SeedIds are 32-bit)")));
+        }
+        if let Some(avail) = avail.filter(|&a| need > a as u128) {
+            return Err(Error::Invalid(format!(
+                "{spec}: {n} seeds need {:.1} GB of memory, {:.1} GB are available",
+                need as f64 / 1e9,
+                avail as f64 / 1e9
+            )));
+        }
+        Ok(n)
     };
     // A count is said back as it was written: an f64 prints 2^64 as 18446744073709552000.
     let count = |x: f64| -> Result<usize> {
@@ -558,7 +590,7 @@ pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
             let [x0, y0, z0, x1, y1, z1, n] = v[..] else {
                 return Err(Error::Invalid(format!("{spec}: line:X0,Y0,Z0,X1,Y1,Z1,N takes 7 numbers")));
             };
-            let n = count(n)?;
+            let n = bounded(count(n)?)?;
             let (a, b) = ([x0, y0, z0], [x1, y1, z1]);
             Ok((0..n)
                 .map(|i| {
@@ -572,6 +604,7 @@ pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
                 return Err(Error::Invalid(format!("{spec}: grid:X0,X1,Y0,Y1,Z0,Z1,NX,NY,NZ takes 9 numbers")));
             };
             let g = ImageGrid::spanning([x0, y0, z0], [x1, y1, z1], [count(nx)?, count(ny)?, count(nz)?])?;
+            bounded(g.n_points())?;
             Ok((0..g.n_points()).map(|i| g.point(i)).collect())
         })),
         _ => None,
@@ -598,14 +631,17 @@ mod tests {
                 .iter()
                 .flat_map(|(b, seeds)| {
                     assert_ne!(b.direction, Direction::Both);
-                    assert!(seeds.len() <= (points / (max_steps + 2)).max(1024));
+                    assert!(seeds.len() <= (points / (max_steps + 2)).max(1));
                     b.jobs(seeds.len()).into_iter().map(move |(s, back)| (s + seeds.start as u32, back))
                 })
                 .collect();
             assert_eq!(jobs, o.jobs(n), "{direction:?} {n}");
         }
         let o = TraceOptions { direction: Direction::Both, max_steps: 10, ..Default::default() };
-        assert_eq!(o.batches(2500, 12 * 100).len(), 6);
+        assert_eq!(o.batches(2500, 12 * 100).len(), 50);
+        // Lines longer than a batch's points: one a batch.
+        let long = TraceOptions { max_steps: 1 << 40, ..Default::default() };
+        assert!(long.batches(3, 1 << 25).iter().all(|(_, s)| s.len() == 1));
     }
 
     /// An analytic field over a box, for the closed-form tests.
@@ -858,5 +894,10 @@ mod tests {
         // Issue 29 item 19: a count beyond u64 is said back exactly as written.
         let e = seeds_from_spec("grid:0,1,0,1,0,1,18446744073709551617,2,2").unwrap().unwrap_err().to_string();
         assert!(e.contains("'18446744073709551617' is not a count") && !e.contains("552000"), "{e}");
+        // Counts beyond SeedIds or memory are refused before any seed is made (issue 29, item 7).
+        let e = seeds_from_spec("grid:0,1,0,1,0,2,100000,100000,100000").unwrap().unwrap_err().to_string();
+        assert!(e.contains("1000000000000000 seeds") && e.contains("at most 2147483647"), "{e}");
+        let e = seeds_from_spec("line:0,0,0,1,1,1,100000000000").unwrap().unwrap_err().to_string();
+        assert!(e.contains("100000000000 seeds"), "{e}");
     }
 }

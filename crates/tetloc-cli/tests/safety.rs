@@ -1,0 +1,353 @@
+//! Issue 29, items 1-10: nothing lost (outputs onto an input's pieces, `partition` over its
+//! own input or killed mid-way, temporaries after a signal) and nothing unbounded (counts,
+//! sizes and steps refused before any work, with a message naming the limit), and a closed
+//! stdout ending a command quietly. Each test is its reproduction scaled to CI: small files,
+//! limits checked before allocation, the signals sent by the test.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn tetloc(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+/// A fresh, empty directory for one test.
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("tetloc-safety-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn entries(dir: &Path) -> Vec<String> {
+    let mut v: Vec<String> =
+        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    v.sort();
+    v
+}
+
+/// Every file under `dir` (relative path, bytes), sorted: a snapshot to compare.
+fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    fn walk(root: &Path, dir: &Path, out: &mut Vec<(String, Vec<u8>)>) {
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                walk(root, &p, out);
+            } else {
+                out.push((p.strip_prefix(root).unwrap().display().to_string(), std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(dir, dir, &mut out);
+    out.sort();
+    out
+}
+
+/// A small mesh partitioned into `m2.pvtu` (pieces `m2/m2_0.vtu`, `m2/m2_1.vtu`), and a
+/// points file, in `dir`.
+fn partitioned(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
+    let mesh = dir.join("m.vtu");
+    let (ok, _, err) = tetloc(&["gen", "jets", "--cells", "2000", "-o", s(&mesh), "-q"]);
+    assert!(ok, "{err}");
+    let pvtu = dir.join("m2.pvtu");
+    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "2", "-o", s(&pvtu), "-q"]);
+    assert!(ok, "{err}");
+    assert!(err.is_empty(), "-q: {err}");
+    let points = dir.join("p.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n0.2,0.3,0.4\n").unwrap();
+    (mesh, pvtu, points)
+}
+
+/// Item 1: every file an input reads, its pieces included, counts as an input: `locate` and
+/// `probe` onto a piece of a .pvtu, or of a .pvtu inside a .vtm, are refused and the pieces
+/// stay as they were.
+#[test]
+fn an_output_onto_a_piece_of_an_input_is_refused() {
+    let dir = tmp_dir("piece");
+    let (_, pvtu, points) = partitioned(&dir);
+    let vtm = dir.join("m.vtm");
+    std::fs::write(
+        &vtm,
+        r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
+        <DataSet index="0" file="m2.pvtu"/></vtkMultiBlockDataSet></VTKFile>"#,
+    )
+    .unwrap();
+    let before = snapshot(&dir);
+    for (listing, piece) in [(&pvtu, "m2/m2_0.vtu"), (&vtm, "m2/m2_1.vtu")] {
+        let out = dir.join(piece);
+        let args = ["locate", s(listing), "--points", s(&points), "--field", "f", "--out", s(&out), "--backend", "cpu"];
+        let (ok, _, err) = tetloc(&args);
+        assert!(!ok && err.contains("same file") && err.contains(piece) && err.contains("MESH"), "{err}");
+        let (ok, _, err) = tetloc(&["probe", s(listing), s(&points), "-o", s(&out), "--backend", "cpu"]);
+        assert!(!ok && err.contains("same file") && err.contains(piece), "{err}");
+        // The listing itself (the .vtm's nested .pvtu too) as a point set output.
+    }
+    let (ok, _, err) = tetloc(&["probe", s(&vtm), s(&points), "-o", s(&dir.join("m2/m2_0.vtu")), "--backend", "cpu"]);
+    assert!(!ok && err.contains("same file"), "{err}");
+    assert!(before == snapshot(&dir), "an input changed");
+    // Another output is fine.
+    let (ok, _, err) = tetloc(&["probe", s(&pvtu), s(&points), "-o", s(&dir.join("probed.vtu")), "--backend", "cpu"]);
+    assert!(ok, "{err}");
+}
+
+/// Item 2: `partition` refuses an input inside the pieces folder its output replaces: a
+/// piece of the old output, or a listing whose pieces lie there.
+#[test]
+fn partition_never_writes_over_its_input() {
+    let dir = tmp_dir("own");
+    let (_, pvtu, _) = partitioned(&dir);
+    let other = dir.join("other.pvtu");
+    std::fs::copy(&pvtu, &other).unwrap(); // lists m2/m2_*.vtu
+    let before = snapshot(&dir);
+    for (input, parts) in [(dir.join("m2/m2_0.vtu"), "2"), (other.clone(), "3")] {
+        let (ok, _, err) = tetloc(&["partition", s(&input), "--parts", parts, "-o", s(&pvtu)]);
+        assert!(
+            !ok && err.contains("lies in") && err.contains("m2_0.vtu") && err.contains("never writes over"),
+            "{err}"
+        );
+    }
+    assert!(before == snapshot(&dir), "an input changed");
+}
+
+/// Item 3: a `partition` that fails (a file-size limit standing in for a full disk) keeps
+/// the old `OUT.pvtu` and its pieces byte for byte and leaves no temporary; one that
+/// succeeds replaces them (the new pieces in the other folder, the old folder removed).
+#[test]
+fn a_failed_partition_keeps_the_old_output() {
+    let dir = tmp_dir("failed");
+    let (mesh, _, _) = partitioned(&dir);
+    let before = snapshot(&dir);
+    let pvtu = dir.join("m2.pvtu");
+    // `ulimit -f 8`: writes past 4 KiB fail (EFBIG) once SIGXFSZ is ignored.
+    let run = Command::new("sh")
+        .args(["-c", "ulimit -f 8; trap '' XFSZ; exec \"$@\"", "sh", env!("CARGO_BIN_EXE_tetloc")])
+        .args(["partition", s(&mesh), "--parts", "3", "-o", s(&pvtu)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && err.contains("too large"), "{err}");
+    assert!(before == snapshot(&dir), "the old output changed or a temporary stayed: {:?}", entries(&dir));
+    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "3", "-o", s(&pvtu), "-q"]);
+    assert!(ok, "{err}");
+    assert_eq!(entries(&dir), ["m.vtu", "m2.1", "m2.pvtu", "p.csv"]);
+    assert_eq!(entries(&dir.join("m2.1")), ["m2_0.vtu", "m2_1.vtu", "m2_2.vtu"]);
+    assert_eq!(tets_of(&pvtu), tets_of(&mesh));
+}
+
+/// The number of tets `info` reports for `mesh`, or its error.
+fn tets_of(mesh: &Path) -> Result<String, String> {
+    let (ok, out, err) = tetloc(&["info", s(mesh)]);
+    match ok {
+        true => Ok(out.lines().find(|l| l.trim_start().starts_with("tets")).unwrap_or_default().to_string()),
+        false => Err(err),
+    }
+}
+
+/// Item 3 and the property test of issue 29: `partition` killed (SIGKILL) at any moment
+/// leaves an output that reads whole, the old one or the new one, never a mix or none;
+/// SIGTERM also removes its temporaries, and a later run names what SIGKILL left.
+#[test]
+fn a_killed_partition_keeps_a_whole_output() {
+    let dir = tmp_dir("killed");
+    let mesh = dir.join("big.vtu");
+    let (ok, _, err) = tetloc(&["gen", "jets", "--cells", "150k", "-o", s(&mesh), "-q"]);
+    assert!(ok, "{err}");
+    let pvtu = dir.join("out.pvtu");
+    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "4", "-o", s(&pvtu), "-q"]);
+    assert!(ok, "{err}");
+    let whole = tets_of(&pvtu).unwrap();
+    let t0 = Instant::now();
+    let (ok, _, _) = tetloc(&["partition", s(&mesh), "--parts", "6", "-o", s(&pvtu), "-q"]);
+    let full = t0.elapsed();
+    assert!(ok);
+    for k in 0..8 {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+            .args(["partition", s(&mesh), "--parts", &(3 + k % 4).to_string(), "-o", s(&pvtu), "-q"])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(full.mul_f64(k as f64 / 8.0));
+        let _ = child.kill();
+        let _ = child.wait();
+        assert_eq!(tets_of(&pvtu), Ok(whole.clone()), "killed after {k}/8 of a run");
+    }
+    // SIGTERM once the pieces are being written: no temporary stays.
+    for leftover in entries(&dir).iter().filter(|n| n.starts_with(".out.pvtu.")) {
+        let _ = std::fs::remove_dir_all(dir.join(leftover));
+        let _ = std::fs::remove_file(dir.join(leftover));
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+        .args(["partition", s(&mesh), "--parts", "5", "-o", s(&pvtu), "-q"])
+        .spawn()
+        .unwrap();
+    let seen = wait_for(&dir, ".out.pvtu.", Duration::from_secs(60));
+    signal(&child, "TERM");
+    let status = child.wait().unwrap();
+    assert!(seen, "no temporary appeared");
+    assert_eq!(status.code(), Some(143), "{status:?}");
+    assert!(!entries(&dir).iter().any(|n| n.ends_with(".tmp")), "{:?}", entries(&dir));
+    assert_eq!(tets_of(&pvtu), Ok(whole.clone()));
+    // Whatever SIGKILL left is named by the next run, which still succeeds.
+    std::fs::create_dir_all(dir.join(".out.pvtu.leftover.tmp")).unwrap();
+    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "2", "-o", s(&pvtu)]);
+    assert!(ok && err.contains(".out.pvtu.leftover.tmp") && err.contains("interrupted"), "{err}");
+    assert_eq!(tets_of(&pvtu), Ok(whole));
+}
+
+/// Waits until a file whose name starts with `prefix` appears in `dir`; false on timeout.
+fn wait_for(dir: &Path, prefix: &str, timeout: Duration) -> bool {
+    let t0 = Instant::now();
+    while t0.elapsed() < timeout {
+        if entries(dir).iter().any(|n| n.starts_with(prefix)) {
+            return true;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    false
+}
+
+fn signal(child: &std::process::Child, name: &str) {
+    let ok = Command::new("kill").args([&format!("-{name}"), &child.id().to_string()]).status().unwrap();
+    assert!(ok.success());
+}
+
+/// Item 4: SIGINT and SIGTERM remove the temporary of the output being written and end with
+/// 130 and 143; the old output stays. A leftover of an earlier run is named.
+#[test]
+fn signals_remove_temporaries() {
+    let dir = tmp_dir("signals");
+    let out = dir.join("r.npy");
+    for (sig, code) in [("INT", 130), ("TERM", 143)] {
+        std::fs::write(&out, "previous").unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+            .args(["resample", "jets:5000", "--field", "f", "--dims", "400,400,400", "-o", s(&out), "--backend", "cpu"])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        assert!(wait_for(&dir, ".r.npy.", Duration::from_secs(120)), "no temporary appeared: {:?}", entries(&dir));
+        signal(&child, sig);
+        let status = child.wait().unwrap();
+        assert_eq!(status.code(), Some(code), "SIG{sig}");
+        assert_eq!(entries(&dir), ["r.npy"], "SIG{sig}: a temporary stayed");
+        assert_eq!(std::fs::read_to_string(&out).unwrap(), "previous");
+    }
+    std::fs::write(dir.join(".r.npy.Ab12Cd.tmp"), "half an image").unwrap();
+    let (ok, _, err) = tetloc(&["resample", "jets:2000", "--field", "f", "--dims", "4,4,4", "-o", s(&out), "-q"]);
+    assert!(ok && err.contains(".r.npy.Ab12Cd.tmp") && err.contains("--out"), "{err}");
+}
+
+/// A run that fails fast: not ok, within `secs`, its stderr.
+fn refused(args: &[&str], secs: u64) -> String {
+    let t0 = Instant::now();
+    let (ok, out, err) = tetloc(args);
+    assert!(!ok, "{args:?} succeeded: {out}");
+    assert!(t0.elapsed() < Duration::from_secs(secs), "{args:?} took {:?}", t0.elapsed());
+    assert!(!err.contains("panicked") && !err.contains("memory allocation"), "{err}");
+    err
+}
+
+/// Item 5: `bench --n` and `demo --points` beyond memory are refused before the mesh is
+/// read or generated.
+#[test]
+fn query_counts_beyond_memory_are_refused() {
+    let e = refused(&["bench", "jets:2000", "--n", "100000000000000", "--backend", "cpu"], 20);
+    assert!(e.contains("--n 100000000000000") && e.contains("GB of memory"), "{e}");
+    let e = refused(&["demo", "--points", "100000000000000"], 20);
+    assert!(e.contains("--points") && e.contains("GB of memory"), "{e}");
+}
+
+/// Item 6: images larger than the disk, or than the format allows, are refused before any
+/// work (the mesh is not even generated); an image that fits is written.
+#[test]
+fn resample_sizes_are_checked_before_any_work() {
+    let dir = tmp_dir("resample");
+    let npy = dir.join("r.npy");
+    let args = ["resample", "jets:2000", "--field", "f", "-o"];
+    let e = refused(&[&args[..], &[s(&npy), "--dims", "100000,100000,100000"]].concat(), 20);
+    assert!(e.contains("1000000000000000 points") && e.contains("free"), "{e}");
+    let e = refused(&[&args[..], &[s(&dir.join("r.vti")), "--dims", "4294967296,1,1"]].concat(), 20);
+    assert!(e.contains(".vti holds at most 2147483647 points per axis"), "{e}");
+    let e = refused(&[&args[..], &[s(&npy), "--dims", "18446744073709551615,2,1"]].concat(), 20);
+    assert!(e.contains("more points than this machine can count"), "{e}");
+    assert!(entries(&dir).is_empty());
+    let (ok, _, err) = tetloc(&[&args[..], &[s(&npy), "--dims", "5,4,3", "--backend", "cpu"]].concat());
+    assert!(ok, "{err}");
+}
+
+/// Items 7 and 8: a seed grid beyond memory (or SeedIds) and a step count whose line cannot
+/// fit are refused before any line is traced.
+#[test]
+fn trace_seed_and_step_counts_are_bounded() {
+    let dir = tmp_dir("trace");
+    let out = dir.join("t.vtp");
+    let args = ["trace", "jets:2000", "--vector", "v", "-o", s(&out), "--backend", "cpu"];
+    let e = refused(&[&args[..], &["--seeds", "grid:0,1,0,1,0,2,100000,100000,100000"]].concat(), 20);
+    assert!(e.contains("1000000000000000 seeds") && e.contains("at most"), "{e}");
+    let steps = ["--seeds", "line:0.2,0.5,0.5,0.8,0.5,0.5,10", "--terminal-speed", "0", "--max-steps"];
+    let e = refused(&[&args[..], &steps[..], &["100000000000000"]].concat(), 20);
+    assert!(e.contains("--max-steps 100000000000000") && e.contains("GB of memory"), "{e}");
+    let (ok, _, err) = tetloc(&[&args[..], &steps[..], &["300"]].concat());
+    assert!(ok && out.exists(), "{err}");
+}
+
+/// Item 9: a step so small that a ray takes more samples than the cap, and an orbit of more
+/// frames than the cap, are refused with the limit named, at once.
+#[test]
+fn render_samples_and_frames_are_capped() {
+    let dir = tmp_dir("render");
+    let args = ["render", "jets:2000", "--field", "f", "--backend", "cpu", "--size", "64x64"];
+    let e = refused(&[&args[..], &["--step", "1e-9", "-o", s(&dir.join("r.png"))]].concat(), 20);
+    assert!(e.contains("--step") && e.contains("samples") && e.contains("or more"), "{e}");
+    let e = refused(&[&args[..], &["--frames", "1000000000", "-o", s(&dir.join("r.gif"))]].concat(), 5);
+    assert!(e.contains("--frames 1000000000") && e.contains("at most 10000 frames"), "{e}");
+    let e = refused(&[&args[..], &["--frames", "1000000000", "-o", s(&dir.join("r.png"))]].concat(), 5);
+    assert!(e.contains("at most 10000 frames"), "{e}");
+    assert!(entries(&dir).is_empty());
+}
+
+/// Runs tetloc with its stdout a pipe whose reading end is already closed.
+fn with_closed_stdout(args: &[&str]) -> Output {
+    use std::os::fd::FromRawFd;
+    let mut fds = [0; 2];
+    // SAFETY: `fds` has room for the two descriptors pipe() returns.
+    assert_eq!(unsafe { libc::pipe(fds.as_mut_ptr()) }, 0);
+    // SAFETY: fds[0] is the reading end pipe() just opened, closed once here.
+    unsafe { libc::close(fds[0]) };
+    // SAFETY: fds[1] is the writing end, owned from now on by this File alone.
+    let writer = unsafe { std::fs::File::from_raw_fd(fds[1]) };
+    Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).stdout(writer).output().unwrap()
+}
+
+/// Item 10: `tetloc info x.vtu | head -1` and other printing commands end quietly, exit 0,
+/// when stdout is closed: no panic message.
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    let bench = ["bench", "jets:2000", "--backend", "cpu", "--queries", "centers", "--repeats", "1", "--json", "-q"];
+    for args in [&["info", "jets:2000"][..], &["info", "jets:2000", "--json"], &bench] {
+        let o = with_closed_stdout(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!err.contains("panicked") && !err.contains("Broken pipe"), "{args:?}: {err}");
+        assert_eq!(o.status.code(), Some(0), "{args:?}: {err}");
+    }
+}
+
+/// Issue 30, item 9: `gen blob` names every mesh `gen` makes, the mixed ones too.
+#[test]
+fn gen_names_every_shape() {
+    let dir = tmp_dir("gen");
+    let (ok, _, err) = tetloc(&["gen", "blob", "-o", s(&dir.join("b.vtu"))]);
+    assert!(!ok, "{err}");
+    for name in ["jets", "fusion-hex", "agulhas-wedge", "japan-hybrid"] {
+        assert!(err.contains(name), "{name}: {err}");
+    }
+    // `--tets` is still taken, `--cells` is its name, and -q silences the summary.
+    let (ok, _, err) = tetloc(&["gen", "jets", "--tets", "500", "-o", s(&dir.join("a.vtu")), "-q"]);
+    assert!(ok && err.is_empty(), "{err}");
+}
