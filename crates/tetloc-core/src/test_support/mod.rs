@@ -11,8 +11,13 @@ mod query_sets;
 #[allow(dead_code)]
 mod kuhn;
 pub(crate) mod mixed;
+// Shared whole with tetloc-testdata.
+#[allow(dead_code)]
+pub(crate) mod generated;
 
 pub(crate) use data_dir::require_data;
+#[allow(unused_imports)]
+pub(crate) use generated::{generated_data, written_files};
 pub(crate) use kuhn::KuhnGrid;
 #[allow(unused_imports)]
 pub(crate) use query_sets::{query_sets, utm_sets, QuerySet};
@@ -21,6 +26,10 @@ pub(crate) use query_sets::{query_sets, utm_sets, QuerySet};
 use crate::cell::{barycentric_lattice, CellBlock, CellType};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
+// What generated.rs takes from its includer.
+use crate::gen::{generate, Shape};
+use crate::geom::predicates::orient3d;
+use crate::io::{read_mesh, vtk::write::write_mesh_vtu};
 // What mixed.rs takes from its includer.
 use crate::io::read_raw;
 use crate::locate::BatchLocator;
