@@ -1,34 +1,67 @@
 #!/usr/bin/env bash
-# Runs every check of the workspace. First the gates, which fail fast with the command that
-# fixes or shows the problem: formatting (`cargo fmt --check`) and lints (`cargo clippy
-# -D warnings`), each for the workspace and the fuzz crate. Then it installs what the tests
-# need (the Vulkan loader and lavapipe, Mesa's CPU Vulkan driver with ray-tracing pipelines,
-# from bookworm-backports, and the validation layers) and runs `cargo test`. The GPU tests
-# run on whatever Vulkan device there is; with CI set, a test that finds no device or no
-# oracle data fails instead of skipping. Arguments go to the workspace's `cargo test`. The MPI
-# tests (OpenMPI installed with the rest) run last, with the feature `mpi` on.
+# Runs every check of the workspace: the formatting gate (`cargo fmt --check`), then it
+# installs what the tests need (the Vulkan loader and lavapipe, Mesa's CPU Vulkan driver with
+# ray-tracing pipelines, from bookworm-backports, the validation layers, and OpenMPI), and
+# builds and runs the tests. The GPU tests run on whatever Vulkan device there is; with CI set,
+# a test that finds no device or no oracle data fails instead of skipping. Arguments go to the
+# workspace's `cargo test`.
+#
+# One build serves the lints and the tests: clippy runs as the compiler of the workspace's own
+# crates (RUSTC_WORKSPACE_WRAPPER, what `cargo clippy` does for `cargo check`) while
+# `cargo test` builds them, so nothing is compiled twice for `clippy -D warnings`. The fuzz
+# crate is a workspace member, and the feature `mpi` of tetloc-mpi is on in that build, so
+# the MPI step rebuilds only the CLI.
+#
+# The run ends with a table of the steps' times and one line that counts the checks that did
+# not run (each skip is listed in target/skipped.txt as `test<TAB>reason`).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 
-# gate NAME FIX COMMAND...: runs COMMAND; on failure says which gate failed and how to fix it.
+# The tests append every skip here (tetloc_testdata::skip, python/tests/conftest.py).
+mkdir -p target
+export TETLOC_SKIP_LOG="$PWD/target/skipped.txt"
+: >"$TETLOC_SKIP_LOG"
+
+# step NAME COMMAND...: runs COMMAND and records how long it took, for the table at the end;
+# returns COMMAND's status (set -e then ends the run, except in a gate, which says why).
+steps=()
+step() {
+  local name=$1 start=$SECONDS rc=0
+  shift
+  echo "test.sh: $name"
+  "$@" || rc=$?
+  local took=$((SECONDS - start))
+  steps+=("$(printf '%-34s %4dm%02ds%s' "$name" $((took / 60)) $((took % 60)) "$([ $rc = 0 ] || echo '  FAILED')")")
+  return $rc
+}
+# gate NAME FIX COMMAND...: a step that, on failure, says which gate failed and how to fix it.
 gate() {
   local name=$1 fix=$2
   shift 2
-  echo "test.sh: gate: $name"
-  if ! "$@"; then
+  if ! step "$name" "$@"; then
     echo "test.sh: FAILED gate '$name'; $fix" >&2
     exit 1
   fi
 }
-# The fuzz crate is its own workspace (cargo-fuzz builds it with nightly), so each gate runs twice.
-gate "format" "run 'cargo fmt --all' to fix it" cargo fmt --all --check
-gate "format (fuzz)" "run 'cargo fmt --all --manifest-path fuzz/Cargo.toml' to fix it" \
-  cargo fmt --all --check --manifest-path fuzz/Cargo.toml
-gate "clippy" "see the messages above" cargo clippy --workspace --all-targets --locked -- -D warnings
-gate "clippy (fuzz)" "see the messages above" \
-  cargo clippy --manifest-path fuzz/Cargo.toml --lib --tests --locked -- -D warnings
+# The summary: the steps' times, then how many checks did not run, by reason.
+summary() {
+  echo "test.sh: step times"
+  printf '  %s\n' "${steps[@]}"
+  printf '  %-34s %4dm%02ds\n' "total" $((SECONDS / 60)) $((SECONDS % 60))
+  awk -F'\t' '{ n[$2]++; total++ }
+    END {
+      if (!total) { print "not run: 0 checks"; exit }
+      line = sprintf("not run: %d check%s (", total, total == 1 ? "" : "s")
+      sep = ""
+      for (r in n) { line = line sep n[r] ": " r; sep = "; " }
+      print line "); see target/skipped.txt"
+    }' "$TETLOC_SKIP_LOG"
+}
+trap summary EXIT
 
-bash scripts/install-test-deps.sh
+gate "format" "run 'cargo fmt --all' to fix it" cargo fmt --all --check
+
+step "install test dependencies" bash scripts/install-test-deps.sh
 # Prefer lavapipe when no other driver is set, so results do not depend on a desktop GPU.
 if [ -z "${VK_DRIVER_FILES:-}${VK_ICD_FILENAMES:-}" ] && [ -n "${CI:-}" ]; then
   lvp=$(ls /usr/share/vulkan/icd.d/lvp_icd*.json 2>/dev/null | head -n1 || true)
@@ -40,28 +73,42 @@ export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
 # package index by name (kept between runs). TETLOC_PYTHON is that interpreter, for Rust tests
 # that call VTK through Python.
 venv=target/pyenv
-[ -x "$venv/bin/python" ] || python3 -m venv "$venv"
-"$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy
+python_env() {
+  { [ -x "$venv/bin/python" ] || python3 -m venv "$venv"; } &&
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy
+}
+step "python virtualenv" python_env
 export TETLOC_PYTHON="$PWD/$venv/bin/python"
 # --- end of the Python setup
-# The fuzz targets' bodies over the shared data, truncations and byte flips (stable toolchain;
-# the fuzz crate is its own workspace so that cargo-fuzz can build it with nightly).
-cargo test --locked --manifest-path fuzz/Cargo.toml --lib
-cargo test --workspace --locked "$@"
 
-# --- MPI (feature `mpi`, off by default): lints with the feature, then `mpirun -n 1, 2, 4` of
-# the binary built with it over partitioned oracle sets (crates/tetloc-cli/tests/mpi.rs).
-gate "clippy (mpi)" "see the messages above" \
-  cargo clippy -p tetloc-mpi -p tetloc-cli --features mpi --all-targets --locked -- -D warnings
-cargo test -p tetloc-mpi --features mpi --locked
-cargo test -p tetloc-cli --features mpi --locked --test mpi
+# Clippy, with warnings denied, compiles the workspace's crates in every cargo and maturin
+# build below (CLIPPY_ARGS is how `cargo clippy` passes `-D warnings` to clippy-driver).
+export RUSTC_WORKSPACE_WRAPPER="$(rustc --print sysroot)/bin/clippy-driver"
+export CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
+# tetloc-mpi's MPI code is built (and linted, and its unit tests run) with the workspace; the
+# CLI's feature `mpi` changes its binary, so it is built apart, for the MPI test only.
+features=(--features tetloc-mpi/mpi)
+gate "clippy + test build" "see the messages above" cargo test --workspace --locked "${features[@]}" --no-run "$@"
+step "cargo test" cargo test --workspace --locked "${features[@]}" "$@"
 
-# --- Python: build the release wheel once (what `pip install ./python` builds), install it
-# into the virtualenv, and run pytest; the CLI tests compare with the binary `cargo test` built.
-rm -f target/wheels/tetloc-*.whl
-"$venv/bin/maturin" build --quiet --release --manifest-path python/Cargo.toml --interpreter "$TETLOC_PYTHON" \
-  --out target/wheels
-"$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/tetloc-*.whl
+# --- MPI: `mpirun -n 1, 2, 4` of the binary built with the feature `mpi` over partitioned
+# oracle sets (crates/tetloc-cli/tests/mpi.rs); with the same features as above plus the CLI's,
+# so only the CLI is rebuilt (and its MPI code linted).
+gate "MPI: clippy + build" "see the messages above" \
+  cargo test --workspace --locked --features tetloc-mpi/mpi,tetloc-cli/mpi --test mpi --no-run
+step "MPI: test" cargo test --workspace --locked --features tetloc-mpi/mpi,tetloc-cli/mpi --test mpi
+
+# --- Python: build the release wheel once (what `pip install ./python` builds; clippy lints
+# the Python crate here), install it into the virtualenv, and run pytest; the CLI tests compare
+# with the binary `cargo test` built.
+wheel() {
+  # (`&&`: a gate's commands run without set -e.)
+  rm -f target/wheels/tetloc-*.whl &&
+    "$venv/bin/maturin" build --quiet --release --manifest-path python/Cargo.toml --interpreter "$TETLOC_PYTHON" \
+      --out target/wheels &&
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/tetloc-*.whl
+}
+gate "Python: clippy + release wheel" "see the messages above" wheel
 # The binary `cargo test` built, wherever cargo puts its builds (CARGO_TARGET_DIR).
 cargo_target=$(cargo metadata --format-version 1 --no-deps | "$venv/bin/python" -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
-TETLOC_CLI="$cargo_target/debug/tetloc" "$venv/bin/python" -m pytest -q python/tests
+step "Python: pytest" env TETLOC_CLI="$cargo_target/debug/tetloc" "$venv/bin/python" -m pytest -q python/tests

@@ -95,6 +95,23 @@ mod tests {
         }
     }
 
+    /// The fresh-clone counterpart of [`targets_survive_the_seed_corpus`]: the seeds are the
+    /// files the project's writers make (`tetloc_testdata::written_files`: VTU raw and zlib,
+    /// Gmsh 2.2 ASCII, legacy VTK binary), and the listings and TetGen seed made here.
+    #[test]
+    fn targets_survive_written_seeds() {
+        let files = tetloc_testdata::written_files();
+        let with = |ext: &str| -> Vec<PathBuf> {
+            files.iter().filter(|p| p.extension().is_some_and(|e| e == ext)).cloned().collect()
+        };
+        let (msh, vtus, vtks) = (with("msh"), with("vtu"), with("vtk"));
+        assert!(!msh.is_empty() && !vtus.is_empty() && !vtks.is_empty(), "no seeds in {files:?}");
+        run(gmsh, &msh);
+        run(vtu, &vtus);
+        run(vtk_legacy, &vtks);
+        run_made_here(&msh, &vtus);
+    }
+
     #[test]
     fn targets_survive_the_seed_corpus() {
         let Some(dir) = tetloc_testdata::require_data("targets_survive_the_seed_corpus") else { return };
@@ -105,6 +122,11 @@ mod tests {
         run(gmsh, &msh);
         run(vtu, &vtus);
         run(vtk_legacy, &vtks);
+        run_made_here(&msh, &vtus);
+    }
+
+    /// The inputs made here: listings, a TetGen seed, and other formats' files fed to them.
+    fn run_made_here(msh: &[PathBuf], vtus: &[PathBuf]) {
         // Listings are made here (the data holds none), and any VTK XML file is a fair input.
         let pvtu = b"<?xml version=\"1.0\"?>\n<VTKFile type=\"PUnstructuredGrid\" version=\"1.0\">\n<PUnstructuredGrid GhostLevel=\"0\">\n<PPointData><PDataArray type=\"Float32\" Name=\"f\"/></PPointData>\n<Piece Source=\"m/m_0.vtu\"/><Piece Source=\"m/m_1.vtu\"/>\n</PUnstructuredGrid>\n</VTKFile>\n";
         let vtm = b"<VTKFile type=\"vtkMultiBlockDataSet\" version=\"1.0\"><vtkMultiBlockDataSet><Block index=\"0\"><DataSet index=\"0\" file=\"a.vtu\"/></Block><DataSet index=\"1\" file=\"b.pvtu\"/></vtkMultiBlockDataSet></VTKFile>";
@@ -125,7 +147,8 @@ mod tests {
     #[test]
     fn targets_survive_the_kept_seeds() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("seeds");
-        let targets: [(&str, fn(&[u8])); 5] =
+        type Target = fn(&[u8]);
+        let targets: [(&str, Target); 5] =
             [("gmsh", gmsh), ("vtu", vtu), ("vtk_legacy", vtk_legacy), ("tetgen", tetgen), ("pieces", pieces)];
         for (name, target) in targets {
             let files = seeds(&dir.join(name), &["msh", "vtu", "vtk", "tetgen", "pvtu", "vtm"]);

@@ -2,7 +2,9 @@
 repository), the ``tetloc`` CLI binary, a Vulkan device, and small test meshes.
 
 As in the Rust tests, a missing oracle folder, CLI binary or Vulkan device skips the
-tests that need it, except with ``CI`` set, where it fails them.
+tests that need it, except with ``CI`` set, where it fails them. Every skipped test, for
+whatever reason, is also listed in the file ``TETLOC_SKIP_LOG`` names (``scripts/test.sh``
+ends its run with the count), as ``nodeid<TAB>reason``.
 """
 
 from __future__ import annotations
@@ -38,11 +40,27 @@ def missing(what: str) -> None:
     pytest.skip(what)
 
 
+def pytest_runtest_logreport(report: pytest.TestReport) -> None:
+    """Appends each skipped test to ``TETLOC_SKIP_LOG``: a skip must not pass for a pass."""
+    log = os.environ.get("TETLOC_SKIP_LOG")
+    if not (log and report.skipped):
+        return
+    # A skip's longrepr is (file, line, "Skipped: reason").
+    reason = report.longrepr[2] if isinstance(report.longrepr, tuple) else str(report.longrepr)
+    reason = reason.removeprefix("Skipped: ").replace("\t", " ").replace("\n", " ")
+    with open(log, "a", encoding="utf-8") as f:
+        f.write(f"{report.nodeid}\t{reason}\n")
+
+
+# The reason shared with the Rust tests' skips (tetloc_testdata::NO_DATA).
+NO_DATA = "no ../shared oracle data [TETLOC_DATA]"
+
+
 @pytest.fixture(scope="session")
 def data_dir() -> pathlib.Path:
     d = pathlib.Path(os.environ.get("TETLOC_DATA") or REPO.parent / "shared" / "data")
     if not d.is_dir():
-        missing(f"oracle data not found at {d} (set TETLOC_DATA)")
+        missing(NO_DATA)
     return d
 
 

@@ -1,7 +1,7 @@
 //! The `tetloc` binary end to end: exit codes, messages, files written (CPU backend, so
 //! these run anywhere; the GPU backends are tested in tetloc-vulkan).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use tetloc_testdata::{query_sets, read_f64s, require_data, run_vtk_script};
 
@@ -423,7 +423,7 @@ fn vulkan_devices(test: &str) -> Option<Vec<(String, bool)>> {
         return Some(list);
     }
     assert!(!tetloc_testdata::in_ci(), "{test}: no Vulkan device in CI: {out}{err}");
-    eprintln!("SKIPPED {test}: no Vulkan device");
+    tetloc_testdata::skip(test, "no Vulkan device");
     None
 }
 
@@ -575,12 +575,25 @@ fn small_defects() {
 /// face, and VTK is only reported.
 #[test]
 fn boundary_tolerance_matches_vtk_probe() {
-    use tetloc_core::locate::tolerance::build_boundary;
-    use tetloc_core::locate::Tolerance;
     const TEST: &str = "boundary_tolerance_matches_vtk_probe";
     let Some(data) = require_data(TEST) else { return };
+    boundary_tolerance_matches_vtk_probe_on(TEST, &data);
+}
+
+/// The fresh-clone counterpart: [`boundary_tolerance_matches_vtk_probe`] on meshes generated
+/// at test time (`tetloc_testdata::generated_data`; its `delaunay_s`, a jittered block, has
+/// no slivers, but is held to the exact values all the same).
+#[test]
+fn boundary_tolerance_matches_vtk_probe_on_generated_meshes() {
+    let test = "boundary_tolerance_matches_vtk_probe_on_generated_meshes";
+    boundary_tolerance_matches_vtk_probe_on(test, tetloc_testdata::generated_data());
+}
+
+fn boundary_tolerance_matches_vtk_probe_on(test: &str, data: &Path) {
+    use tetloc_core::locate::tolerance::build_boundary;
+    use tetloc_core::locate::Tolerance;
     for name in ["torus_s", "part_s", "delaunay_s"] {
-        let dir = tmp_dir(&format!("vtk-{name}"));
+        let dir = tmp_dir(&format!("{test}-{name}"));
         let mesh_path = data.join(format!("{name}.vtu"));
         let mesh = tetloc_io::read_mesh(&mesh_path, None).unwrap();
         let tol = Tolerance::PercentOfMeanEdge(1.0);
@@ -617,7 +630,7 @@ fn boundary_tolerance_matches_vtk_probe() {
         locate(&csv, "cellval", "1%");
         locate(&exact, "f", "0");
         let Some(()) = run_vtk_script(
-            TEST,
+            test,
             "vtk_probe.py",
             &[s(&mesh_path), s(&points), &format!("{d:e}"), s(&vtp), s(&dir), "f", "cellval"],
         ) else {

@@ -16,7 +16,7 @@ fn have_mpirun(test: &str) -> bool {
     let ok = Command::new("mpirun").arg("--version").output().is_ok_and(|o| o.status.success());
     if !ok {
         assert!(!in_ci(), "{test}: no mpirun; CI installs OpenMPI (scripts/install-test-deps.sh)");
-        eprintln!("SKIPPED {test}: no mpirun (install openmpi-bin)");
+        tetloc_testdata::skip(test, "no mpirun [openmpi-bin]");
     }
     ok
 }

@@ -31,8 +31,18 @@ fn close(a: f64, b: f64) -> bool {
 fn resample_matches_vtk() {
     const TEST: &str = "resample_matches_vtk";
     let Some(data) = require_data(TEST) else { return };
+    resample_matches_vtk_on(TEST, &data);
+}
+
+/// The fresh-clone counterpart: [`resample_matches_vtk`] on meshes generated at test time.
+#[test]
+fn resample_matches_vtk_on_generated_meshes() {
+    resample_matches_vtk_on("resample_matches_vtk_on_generated_meshes", tetloc_testdata::generated_data());
+}
+
+fn resample_matches_vtk_on(test: &str, data: &Path) {
     for name in ["torus_s", "part_s"] {
-        let dir = tmp_dir(&format!("resample-{name}"));
+        let dir = tmp_dir(&format!("{test}-{name}"));
         let mesh = data.join(format!("{name}.vtu"));
         let (vti, npy) = (dir.join("r.vti"), dir.join("f.npy"));
         let (ok, _, err) = tetloc(&["resample", s(&mesh), "--dims", "23,19,11", "-o", s(&vti), "--backend", "cpu"]);
@@ -40,7 +50,7 @@ fn resample_matches_vtk() {
         let (ok, _, err) =
             tetloc(&["resample", s(&mesh), "--dims", "23,19,11", "--field", "f", "-o", s(&npy), "--backend", "cpu"]);
         assert!(ok, "{err}");
-        let Some(()) = run_vtk_script(TEST, "vtk_ops.py", &["resample", s(&mesh), "23,19,11", s(&vti), s(&dir)]) else {
+        let Some(()) = run_vtk_script(test, "vtk_ops.py", &["resample", s(&mesh), "23,19,11", s(&vti), s(&dir)]) else {
             return;
         };
         let geometry = |who: &str| -> serde_json::Value {
@@ -261,8 +271,19 @@ fn dumped_lines(dir: &Path, who: &str) -> Lines {
 /// Traces the swirl case with `extra` options, and VTK with `vtk_extra`; both lines dumped.
 fn trace_both(test: &str, name: &str, extra: &[&str], vtk_extra: &[&str]) -> Option<(Lines, Lines, String)> {
     let data = require_data(test)?;
-    let dir = tmp_dir(name);
-    let (mesh, seeds) = swirl_case(&data, &dir);
+    trace_both_on(test, &data, name, extra, vtk_extra)
+}
+
+/// [`trace_both`] on the meshes of `data`.
+fn trace_both_on(
+    test: &str,
+    data: &Path,
+    name: &str,
+    extra: &[&str],
+    vtk_extra: &[&str],
+) -> Option<(Lines, Lines, String)> {
+    let dir = tmp_dir(&format!("{test}-{name}"));
+    let (mesh, seeds) = swirl_case(data, &dir);
     let out = dir.join("lines.vtp");
     let mut args = vec!["trace", s(&mesh), "--vector", "v", "--seeds", s(&seeds), "-o", s(&out), "--step", "0.01"];
     args.extend(["--max-steps", "400", "--direction", "both", "--backend", "cpu"]);
@@ -303,6 +324,16 @@ fn trace_matches_vtk() {
     same_lines(&vtk, &ours, 1e-4 * TORUS_SIZE);
 }
 
+/// The fresh-clone counterpart: [`trace_matches_vtk`] on a torus generated at test time.
+#[test]
+fn trace_matches_vtk_on_a_generated_torus() {
+    const TEST: &str = "trace_matches_vtk_on_a_generated_torus";
+    let data = tetloc_testdata::generated_data();
+    let Some((vtk, ours, err)) = trace_both_on(TEST, data, "trace", &[], &[]) else { return };
+    assert!(err.contains("2 of 10 lines"), "the seed at the origin is outside: {err}");
+    same_lines(&vtk, &ours, 1e-4 * TORUS_SIZE);
+}
+
 /// `tetloc trace --backend soft-bvh` (every particle advanced together, one batched lookup
 /// per stage on the GPU) gives the cpu backend's lines: the same lines, reasons and point
 /// counts, every point within 1e-5 of the domain (float32 sampling on the device against
@@ -312,14 +343,25 @@ fn trace_matches_vtk() {
 fn trace_on_the_gpu_matches_cpu() {
     const TEST: &str = "trace_on_the_gpu_matches_cpu";
     let Some(data) = require_data(TEST) else { return };
+    trace_on_the_gpu_matches_cpu_on(TEST, &data);
+}
+
+/// The fresh-clone counterpart: [`trace_on_the_gpu_matches_cpu`] on a torus generated at test time.
+#[test]
+fn trace_on_the_gpu_matches_cpu_on_a_generated_torus() {
+    let test = "trace_on_the_gpu_matches_cpu_on_a_generated_torus";
+    trace_on_the_gpu_matches_cpu_on(test, tetloc_testdata::generated_data());
+}
+
+fn trace_on_the_gpu_matches_cpu_on(test: &str, data: &Path) {
     let (ok, out, _) = tetloc(&["devices"]);
     if !ok || !out.contains("Vulkan") {
-        assert!(!tetloc_testdata::in_ci(), "{TEST}: no Vulkan device in CI");
-        eprintln!("SKIPPED {TEST}: no Vulkan device");
+        assert!(!tetloc_testdata::in_ci(), "{test}: no Vulkan device in CI");
+        tetloc_testdata::skip(test, "no Vulkan device");
         return;
     }
-    let dir = tmp_dir("trace-gpu");
-    let (mesh, seeds) = swirl_case(&data, &dir);
+    let dir = tmp_dir(test);
+    let (mesh, seeds) = swirl_case(data, &dir);
     let mut dumped = Vec::new();
     for (backend, integrator) in [("cpu", "rk4"), ("soft-bvh", "rk4"), ("cpu", "rk45"), ("soft-bvh", "rk45")] {
         let out = dir.join(format!("{backend}-{integrator}.vtp"));
@@ -331,7 +373,7 @@ fn trace_on_the_gpu_matches_cpu() {
         let sub = dir.join(format!("{backend}-{integrator}"));
         std::fs::create_dir_all(&sub).unwrap();
         let vtk_args = ["trace", s(&mesh), "v", s(&seeds), "0.01", "300", "both", s(&out), s(&sub)];
-        let Some(()) = run_vtk_script(TEST, "vtk_ops.py", &vtk_args) else { return };
+        let Some(()) = run_vtk_script(test, "vtk_ops.py", &vtk_args) else { return };
         dumped.push(dumped_lines(&sub, "tetloc"));
     }
     for pair in dumped.chunks(2) {
@@ -339,7 +381,7 @@ fn trace_on_the_gpu_matches_cpu() {
         assert_eq!((co, cs, cr), (go, gs, gr), "lines, seeds, reasons and point counts");
         let worst = cp.iter().zip(gp).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
         eprintln!(
-            "{TEST}: points within {worst:e}, times within {:e}",
+            "{test}: points within {worst:e}, times within {:e}",
             ct.iter().zip(gt).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max)
         );
         assert!(worst <= 1e-5 * TORUS_SIZE, "a point {worst:e} from the cpu's");
@@ -360,8 +402,14 @@ const TORUS_SIZE: f64 = 2.7;
 #[test]
 fn trace_rk45_matches_vtk() {
     const TEST: &str = "trace_rk45_matches_vtk";
+    let Some(data) = require_data(TEST) else { return };
+    trace_rk45_matches_vtk_on(TEST, &data);
+}
+
+fn trace_rk45_matches_vtk_on(test: &str, data: &Path) {
     let clamped = ["--integrator", "cash-karp", "--min-step", "0.001", "--max-step", "0.05", "--max-error", "1e-6"];
-    let Some((vtk, ours, _)) = trace_both(TEST, "trace-ck", &clamped, &["rk45", "0.001", "0.05", "1e-6"]) else {
+    let Some((vtk, ours, _)) = trace_both_on(test, data, "trace-ck", &clamped, &["rk45", "0.001", "0.05", "1e-6"])
+    else {
         return;
     };
     same_lines(&vtk, &ours, 1e-4 * TORUS_SIZE);
@@ -370,8 +418,8 @@ fn trace_rk45_matches_vtk() {
             ["--integrator", integrator, "--min-step", "0.001", "--max-step", "0.5", "--max-error", "1e-7"];
         let vtk_args = ["rk45", "0.001", "0.5", "1e-7"];
         let name = format!("trace-{integrator}");
-        let Some((vtk, ours, _)) = trace_both(TEST, &name, &controlled, &vtk_args) else { return };
-        let worst = on_the_same_paths(&tmp_dir(&name), &vtk, &ours);
+        let Some((vtk, ours, _)) = trace_both_on(test, data, &name, &controlled, &vtk_args) else { return };
+        let worst = on_the_same_paths(&tmp_dir(&format!("{test}-{name}")), &vtk, &ours);
         eprintln!("{integrator}: every point within {worst:e} of VTK's RK45 lines");
         assert!(worst <= 1e-4 * TORUS_SIZE, "{integrator}: a point {worst:e} from VTK's line");
     }
@@ -443,12 +491,23 @@ fn point_segment_distance(p: [f64; 3], (a, b): ([f64; 3], [f64; 3])) -> f64 {
 fn probe_matches_vtk() {
     const TEST: &str = "probe_matches_vtk";
     let Some(data) = require_data(TEST) else { return };
-    let dir = tmp_dir("probe");
+    probe_matches_vtk_on(TEST, &data);
+}
+
+/// The fresh-clone counterpart: [`probe_matches_vtk`] on a torus generated at test time, with
+/// exact answers.
+#[test]
+fn probe_matches_vtk_on_a_generated_torus() {
+    probe_matches_vtk_on("probe_matches_vtk_on_a_generated_torus", tetloc_testdata::generated_data());
+}
+
+fn probe_matches_vtk_on(test: &str, data: &Path) {
+    let dir = tmp_dir(test);
     let (mesh, pts) = (data.join("torus_s.vtu"), data.join("torus_s.bbox.points.bin"));
     let out = dir.join("p.vtp");
     let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&pts), "-o", s(&out), "--backend", "cpu"]);
     assert!(ok, "{err}");
-    let Some(()) = run_vtk_script(TEST, "vtk_ops.py", &["probe", s(&mesh), s(&pts), s(&out), s(&dir)]) else { return };
+    let Some(()) = run_vtk_script(test, "vtk_ops.py", &["probe", s(&mesh), s(&pts), s(&out), s(&dir)]) else { return };
     let (vm, tm) =
         (read_f64s(&dir.join("vtk.vtkValidPointMask.bin")), read_f64s(&dir.join("tetloc.vtkValidPointMask.bin")));
     let valid = tm.iter().filter(|&&m| m == 1.0).count();

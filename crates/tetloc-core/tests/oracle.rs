@@ -18,8 +18,20 @@ use tetloc_testdata::{exact_value, query_sets, require_data};
 #[test]
 fn cpu_locator_matches_the_oracle() {
     let Some(dir) = require_data("cpu_locator_matches_the_oracle") else { return };
-    let sets = query_sets(&dir);
-    assert!(sets.len() >= 18, "expected the oracle query sets, found {}", sets.len());
+    matches_the_oracle(&dir, 18);
+}
+
+/// The fresh-clone counterpart: the same checks on meshes generated at test time, with exact
+/// answers (`tetloc_testdata::generated_data`).
+#[test]
+fn cpu_locator_matches_the_generated_oracle() {
+    matches_the_oracle(tetloc_testdata::generated_data(), 9);
+}
+
+/// The checks over the query sets of `dir` (at least `min_sets` of them).
+fn matches_the_oracle(dir: &std::path::Path, min_sets: usize) {
+    let sets = query_sets(dir);
+    assert!(sets.len() >= min_sets, "expected the oracle query sets, found {}", sets.len());
     let mut meshes: HashMap<std::path::PathBuf, Arc<Mesh>> = HashMap::new();
     let mut report = Vec::new();
     let mut failures = Vec::new();

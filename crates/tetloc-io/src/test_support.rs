@@ -2,7 +2,7 @@
 //! meshes, and core's usual test grid.
 
 use tetloc_core::RawMesh;
-pub(crate) use tetloc_testdata::{require_data, KuhnGrid};
+pub(crate) use tetloc_testdata::{require_data, written_files, KuhnGrid};
 
 /// `n`³ cubes on [0,1]³, interior vertices jittered by up to `jitter` × spacing, with a
 /// smooth vertex field `f` and the tet ids as cell field `cellval` (as core's tests build it).

@@ -18,12 +18,16 @@ fn context(test: &str) -> Option<Arc<Context>> {
     let ctx = match Context::with_options(ContextOptions { device_index: None, validation: true }) {
         Ok(c) => c,
         Err(e) if !in_ci() => {
-            eprintln!("SKIPPED {test}: {e}");
+            eprintln!("{test}: {e}");
+            tetloc_testdata::skip(test, "no Vulkan device");
             return None;
         }
         Err(e) => panic!("no Vulkan device in CI: {e}"),
     };
     assert!(ctx.info().ray_tracing || !in_ci(), "CI must run every kernel, but {} has no ray tracing", ctx.info().name);
+    if !ctx.info().ray_tracing {
+        tetloc_testdata::skip(&format!("{test} (rt-* kernels)"), "no ray tracing on the Vulkan device");
+    }
     Some(ctx)
 }
 

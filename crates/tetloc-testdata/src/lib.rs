@@ -1,8 +1,9 @@
 //! Test support for every tetloc crate's tests (a dev-dependency only, never published):
 //! the oracle query sets of `../shared/data` (`TETLOC_DATA` overrides the folder; a missing
 //! folder skips a test, except in CI), the one test-mesh builder [`KuhnGrid`], the small
-//! meshes of the renderer's tests ([`testmesh`]) and the f64 reference interpolation
-//! [`exact_value`].
+//! meshes of the renderer's tests ([`testmesh`]), the f64 reference interpolation
+//! [`exact_value`], and [`generated_data`], a small oracle folder made at test time in the
+//! shared data's layout (with exact answers): what the oracle tests check on a fresh clone.
 //!
 //! Core's own unit tests cannot use this crate: through it they would see a second copy of
 //! core's types. So the parts they need, [`KuhnGrid`] and the data folder, are written once
@@ -12,9 +13,14 @@ use tetloc_core::cell::{barycentric_lattice, CellBlock, CellType};
 use tetloc_core::mesh::{Field, FieldLocation};
 use tetloc_core::{BatchLocator, Mesh, RawMesh, Vec3};
 use tetloc_io::read_raw;
+// What generated.rs takes from its includer.
+use tetloc_core::gen::{generate, Shape};
+use tetloc_core::geom::predicates::orient3d;
+use tetloc_io::{read_mesh, vtk::write::write_mesh_vtu};
 
 #[path = "../../tetloc-core/src/test_support/data_dir.rs"]
 mod data_dir;
+mod generated;
 #[path = "../../tetloc-core/src/test_support/kuhn.rs"]
 mod kuhn;
 #[path = "../../tetloc-core/src/test_support/mixed.rs"]
@@ -23,12 +29,16 @@ pub mod mixed;
 mod query_sets;
 pub mod testmesh;
 
-pub use data_dir::{data_dir, in_ci, require_data};
+pub use data_dir::{data_dir, in_ci, require_data, skip, NO_DATA};
+pub use generated::{generated_data, written_files};
 pub use kuhn::KuhnGrid;
 pub use query_sets::{query_sets, utm_sets, QuerySet};
 
+/// Why VTK comparisons skip: the reason [`run_vtk_script`] records.
+pub const NO_VTK: &str = "no Python with vtk and numpy [TETLOC_PYTHON]";
+
 /// Runs `scripts/SCRIPT` (a VTK reference: `vtk_probe.py`, `vtk_ops.py`) with `args` under
-/// `TETLOC_PYTHON` (default `python3`). `None` (after a SKIPPED line) when that Python or its
+/// `TETLOC_PYTHON` (default `python3`). `None` (after a [`skip`]) when that Python or its
 /// `vtk` module is missing (the scripts exit 3), outside CI; in CI that fails the test, as does
 /// any failure of the script.
 pub fn run_vtk_script(test: &str, script: &str, args: &[&str]) -> Option<()> {
@@ -36,7 +46,8 @@ pub fn run_vtk_script(test: &str, script: &str, args: &[&str]) -> Option<()> {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scripts").join(script);
     let missing = |why: String| {
         assert!(!in_ci(), "{test}: {why}; CI needs Python with vtk (set TETLOC_PYTHON)");
-        eprintln!("SKIPPED {test}: {why} (set TETLOC_PYTHON to a Python with vtk and numpy)");
+        eprintln!("{test}: {why}");
+        skip(test, NO_VTK);
         None
     };
     let out = match std::process::Command::new(&python).arg(&path).args(args).output() {

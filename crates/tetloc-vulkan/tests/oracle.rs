@@ -83,10 +83,22 @@ fn check_set(loc: &mut VulkanLocator, mesh: &Mesh, set: &QuerySet, cpu: &[i32]) 
 #[test]
 fn every_kernel_matches_the_oracle() {
     let Some(dir) = require_data("every_kernel_matches_the_oracle") else { return };
-    let Some(ctx) = common::context("every_kernel_matches_the_oracle") else { return };
-    let kernels = common::kernels(&ctx, "every_kernel_matches_the_oracle");
+    every_kernel_matches_the_oracle_of("every_kernel_matches_the_oracle", &dir);
+}
+
+/// The fresh-clone counterpart: the same checks on meshes generated at test time, with exact
+/// answers (`tetloc_testdata::generated_data`).
+#[test]
+fn every_kernel_matches_the_generated_oracle() {
+    every_kernel_matches_the_oracle_of("every_kernel_matches_the_generated_oracle", tetloc_testdata::generated_data());
+}
+
+/// The checks over the query sets of `dir`, on every kernel.
+fn every_kernel_matches_the_oracle_of(test: &str, dir: &std::path::Path) {
+    let Some(ctx) = common::context(test) else { return };
+    let kernels = common::kernels(&ctx, test);
     let mut by_mesh: BTreeMap<_, Vec<QuerySet>> = BTreeMap::new();
-    for s in query_sets(&dir) {
+    for s in query_sets(dir) {
         by_mesh.entry(s.mesh_path.clone()).or_default().push(s);
     }
     assert!(by_mesh.len() >= 3, "expected the oracle meshes in {}", dir.display());

@@ -1,11 +1,16 @@
 //! Where the oracle data is: `../shared/data` from the project root (made with VTK, scipy and
 //! gmsh), or the folder `TETLOC_DATA` names. When it is absent the tests say so and skip,
-//! except in CI (`CI` set), where that is a failure.
+//! except in CI (`CI` set), where that is a failure. Every skip of every test goes through
+//! [`skip`], which also lists it for the run's summary.
 //!
 //! One source for two crates: core's unit tests compile it into `test_support`, and
 //! `tetloc-testdata` includes this same file (`#[path]`) for every other crate's tests.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
+
+/// Why tests skip without `../shared`: the reason [`require_data`] records.
+pub const NO_DATA: &str = "no ../shared oracle data [TETLOC_DATA]";
 
 /// The data folder, if it exists.
 pub fn data_dir() -> Option<PathBuf> {
@@ -30,8 +35,26 @@ pub fn require_data(test: &str) -> Option<PathBuf> {
             panic!("{test}: oracle data not found (set TETLOC_DATA or lay out ../shared/data); CI must not skip")
         }
         None => {
-            eprintln!("SKIPPED {test}: oracle data not found (set TETLOC_DATA to ../shared/data)");
+            skip(test, NO_DATA);
             None
         }
+    }
+}
+
+/// Records that `test` (or a part of it) did not run, and why: prints a SKIPPED line and
+/// appends `test<TAB>reason` to the file `TETLOC_SKIP_LOG` names, if any (`scripts/test.sh`
+/// sets it and ends its run with the count by reason, so a skip never passes for a pass).
+/// `reason` is short and shared by every test skipped for the same cause.
+///
+/// # Panics
+/// When the log cannot be written: a skip nobody hears of would count as a pass.
+pub fn skip(test: &str, reason: &str) {
+    eprintln!("SKIPPED {test}: {reason}");
+    let Some(log) = std::env::var_os("TETLOC_SKIP_LOG") else { return };
+    // One short write in append mode: lines of tests running in parallel do not interleave.
+    let line = format!("{test}\t{reason}\n");
+    let appended = std::fs::OpenOptions::new().create(true).append(true).open(&log);
+    if let Err(e) = appended.and_then(|mut f| f.write_all(line.as_bytes())) {
+        panic!("{test}: cannot record its skip in {}: {e}", Path::new(&log).display());
     }
 }

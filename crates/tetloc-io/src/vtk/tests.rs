@@ -167,8 +167,24 @@ fn parse_no_panic(bytes: &[u8], path: &Path, what: &str) -> tetloc_core::Result<
 #[test]
 fn truncated_files_fail_cleanly() {
     let Some(dir) = require_data("truncated_files_fail_cleanly") else { return };
-    for p in vtk_files(&dir) {
-        let bytes = std::fs::read(&p).unwrap();
+    truncations_fail_cleanly(&vtk_files(&dir));
+}
+
+/// The fresh-clone counterpart: the files the project's writers make (`written_files`).
+#[test]
+fn truncated_written_files_fail_cleanly() {
+    truncations_fail_cleanly(&written_vtk_files());
+}
+
+/// The VTK files of `test_support::written_files`.
+fn written_vtk_files() -> Vec<PathBuf> {
+    let vtk = |p: &&PathBuf| p.extension().is_some_and(|e| e == "vtu" || e == "vtk");
+    crate::test_support::written_files().iter().filter(vtk).cloned().collect()
+}
+
+fn truncations_fail_cleanly(files: &[PathBuf]) {
+    for p in files {
+        let bytes = std::fs::read(p).unwrap();
         // Legacy files have no end marker: data after the last array (METADATA) may go.
         let end = if p.extension().unwrap() == "vtk" {
             bytes
@@ -188,7 +204,7 @@ fn truncated_files_fail_cleanly() {
             if ascii && cut + 20 > end {
                 continue;
             }
-            let r = parse_no_panic(&bytes[..cut], &p, &format!("a cut at {cut}"));
+            let r = parse_no_panic(&bytes[..cut], p, &format!("a cut at {cut}"));
             assert!(r.is_err(), "{} cut at {cut} of {} read without error", p.display(), bytes.len());
         }
     }
@@ -196,13 +212,23 @@ fn truncated_files_fail_cleanly() {
 
 #[test]
 fn corrupted_files_never_panic() {
-    use rand::{Rng, SeedableRng};
     let Some(dir) = require_data("corrupted_files_never_panic") else { return };
+    corruptions_never_panic(&vtk_files(&dir));
+}
+
+/// The fresh-clone counterpart: the files the project's writers make (`written_files`).
+#[test]
+fn corrupted_written_files_never_panic() {
+    corruptions_never_panic(&written_vtk_files());
+}
+
+fn corruptions_never_panic(files: &[PathBuf]) {
+    use rand::{Rng, SeedableRng};
     let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
     let mut errors = 0;
     let mut runs = 0;
-    for p in vtk_files(&dir) {
-        let bytes = std::fs::read(&p).unwrap();
+    for p in files {
+        let bytes = std::fs::read(p).unwrap();
         for trial in 0..30 {
             let mut b = bytes.clone();
             // Half the trials hit the first 4 KiB, where the structure is.
@@ -212,7 +238,7 @@ fn corrupted_files_never_panic() {
                 b[i] = rng.gen();
             }
             runs += 1;
-            if parse_no_panic(&b, &p, &format!("corruption trial {trial}")).is_err() {
+            if parse_no_panic(&b, p, &format!("corruption trial {trial}")).is_err() {
                 errors += 1;
             }
         }

@@ -17,7 +17,8 @@ pub fn context(test: &str) -> Option<Arc<Context>> {
             if in_ci() {
                 panic!("{test}: no Vulkan device in CI: {e}");
             }
-            eprintln!("SKIPPED {test}: {e}");
+            eprintln!("{test}: {e}");
+            tetloc_testdata::skip(test, "no Vulkan device");
             None
         }
         Err(e) => panic!("{test}: {e}"),
@@ -30,7 +31,8 @@ pub fn kernels(ctx: &Context, test: &str) -> Vec<Kernel> {
         if in_ci() {
             panic!("{test}: {} has no ray tracing; CI must run every kernel", ctx.info().name);
         }
-        eprintln!("SKIPPED {test} for rt-* kernels: {} has no ray-tracing pipelines", ctx.info().name);
+        eprintln!("{test}: {} has no ray-tracing pipelines", ctx.info().name);
+        tetloc_testdata::skip(&format!("{test} (rt-* kernels)"), "no ray tracing on the Vulkan device");
     }
     Kernel::ALL.into_iter().filter(|k| ctx.info().ray_tracing || !k.needs_ray_tracing()).collect()
 }
