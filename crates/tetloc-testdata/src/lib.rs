@@ -21,6 +21,8 @@ mod kuhn;
 pub mod mixed;
 #[path = "../../tetloc-core/src/test_support/query_sets.rs"]
 mod query_sets;
+#[path = "../../tetloc-core/src/test_support/slivers.rs"]
+pub mod slivers;
 pub mod testmesh;
 
 pub use data_dir::{data_dir, in_ci, require_data};
