@@ -27,6 +27,8 @@ mod kuhn;
 pub mod mixed;
 #[path = "../../tetloc-core/src/test_support/query_sets.rs"]
 mod query_sets;
+#[path = "../../tetloc-core/src/test_support/slivers.rs"]
+pub mod slivers;
 pub mod testmesh;
 
 pub use data_dir::{data_dir, in_ci, require_data, skip, NO_DATA};
@@ -150,20 +152,4 @@ pub fn compare_f64_set(loc: &mut dyn BatchLocator, set: &QuerySet, floor: f64) -
         }
     }
     (mismatches, bad_values, lost)
-}
-
-/// [`exact_value`] on the working f32 vertices (`Mesh::points`) instead of the file's: what
-/// the GPU kernels, which interpolate on that copy, are held to. In slivers the two differ by
-/// more than 1e-5 (the rounding of the vertices moves the barycentrics).
-pub fn working_value(mesh: &Mesh, t: usize, p: Vec3, values: &[f32]) -> f64 {
-    let ids = mesh.tets[t];
-    let v: [Vec3; 4] = ids.map(|i| mesh.points[i as usize]);
-    let vol = tetloc_core::geom::tet_volume6(v);
-    (0..4)
-        .map(|i| {
-            let mut w = v;
-            w[i] = mesh.info.frame.to_working_f32(p);
-            tetloc_core::geom::tet_volume6(w) / vol * values[ids[i] as usize] as f64
-        })
-        .sum()
 }

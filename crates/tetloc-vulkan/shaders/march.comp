@@ -26,7 +26,7 @@ float tl_march_sample(vec3 p) {
         tet = tl_locate(p, ids, bary);
     }
     tl_prev_tet = tet;
-    return tl_value(tet, ids, bary);
+    return tl_value(tet, ids, bary, p);
 }
 
 void main() {

@@ -44,5 +44,5 @@ void main() {
         }
         return;
     }
-    tl_store(i, tet, OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary));
+    tl_store(i, tet, OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary, p));
 }

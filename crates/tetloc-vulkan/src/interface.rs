@@ -245,6 +245,11 @@ gpu_interface! {
         /// A mixed mesh's cells: n_cells + 1 words, each cell's first decomposition tet, the
         /// last the number of tets (`Cells::first_tets`; mesh.glsl `tl_prim_tets`).
         B_CELL_TETS = 49;
+        /// A mesh stored in f64: each vertex's file coordinates minus its working copy (3
+        /// floats, `Mesh::working_residuals`), split like the vertices (POINTS_CHUNK), for the
+        /// barycentrics values are interpolated with (tet.glsl `tl_refined_bary`).
+        B_RESIDUALS = 50;
+        B_RESIDUALS_HI = 51;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, their binary nodes and levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
@@ -425,6 +430,9 @@ gpu_interface! {
         /// soft-bvh and rt-bvh on a mixed mesh: their prims are the cells (one box a cell),
         /// whose decomposition tets a leaf or hit tests in turn (mesh.glsl `tl_prim_tets`).
         CELL_BOXES = 33: bool = false;
+        /// The mesh is stored in f64 (B_RESIDUALS bound): values are interpolated with
+        /// barycentrics on the file's coordinates (tl_refined_bary), not the working copy's.
+        REFINE_BARY = 34: bool = false;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

@@ -8,6 +8,9 @@
 //! 10 km of mesh at 4000 km from the origin) gets its bounds' centre as origin, so that its
 //! f32 copy keeps f32's relative precision with respect to the mesh's size instead of its
 //! distance from the origin: a shift by 1e7 would otherwise collapse small tets to zero volume.
+//! A file stored in f32 gets the same frame when it is far from the origin: its coordinates
+//! widen to f64 exactly and are its f64 data (`Mesh::points64`), so that f64 query points are
+//! decided as given, not rounded to f32 steps of its distance from the origin.
 //! `scale` is not 1 only for meshes whose extent is outside [2⁻²⁰, 2⁴⁰] (f32 products of
 //! coordinate differences would underflow or overflow).
 //!

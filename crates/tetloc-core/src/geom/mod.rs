@@ -345,6 +345,33 @@ pub fn bary64(ids: [u32; 4], points: &[Vec3], exact: &Exact, p: [f64; 3]) -> Opt
     bary64_of(asc.map(|i| exact.vertex(points, i)), swapped, p)
 }
 
+/// The barycentrics with which the GPU kernels interpolate on a mesh stored in f64 (tet.glsl
+/// `tl_refined_bary` mirrors this line by line): those of `p` (working coordinates, taken as
+/// exact) in the tet whose vertices are the working copy `v` plus the residuals `r`
+/// ([`crate::mesh::Mesh::working_residuals`]: together the file's coordinates to about 2⁻⁴⁸
+/// of their size, where the f32 copy alone is off by 2⁻²⁵, a visible part of a sliver's
+/// height). In f64, from sub-volumes relative to vertex 0 (differences first, so a sliver
+/// far from the origin keeps its digits), clamped to 0 and normalised as in [`bary64`];
+/// `v`, `r` and the weights in stored (canonical) order. `None` for a tet of no volume.
+#[inline]
+pub fn refined_bary(v: [Vec3; 4], r: [Vec3; 4], p: Vec3) -> Option<Bary> {
+    let w: [[f64; 3]; 4] = std::array::from_fn(|i| std::array::from_fn(|k| f64::from(v[i][k]) + f64::from(r[i][k])));
+    let from0 = |x: [f64; 3]| -> [f64; 3] { std::array::from_fn(|k| x[k] - w[0][k]) };
+    let (e1, e2, e3, q) = (from0(w[1]), from0(w[2]), from0(w[3]), from0(p.map(f64::from)));
+    // det(a, b, c) = a · (b × c): the canonical order makes det(e1, e2, e3) positive.
+    let det = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
+        a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2]) + a[2] * (b[0] * c[1] - b[1] * c[0])
+    };
+    let total = det(e1, e2, e3);
+    let (d1, d2, d3) = (det(q, e2, e3), det(e1, q, e3), det(e1, e2, q));
+    let d = [total - d1 - d2 - d3, d1, d2, d3].map(|x| x.max(0.0));
+    let sum = d[0] + d[1] + d[2] + d[3];
+    if total <= 0.0 || sum <= 0.0 {
+        return None;
+    }
+    Some(d.map(|x| (x / sum) as f32))
+}
+
 /// Puts a tet into canonical order like [`canonical_tet`], with orientations decided exactly
 /// on the file's f64 coordinates.
 pub fn canonical_tet_exact(ids: [u32; 4], file: &[[f64; 3]]) -> ([u32; 4], f64) {

@@ -150,3 +150,41 @@ proptest! {
         prop_assert!(in1 || in2, "point {q:?} fell through the shared face");
     }
 }
+
+/// Issue 29.12 without a GPU: on flat tets stored in f64 (`test_support::slivers`, 1.25e-6
+/// high, 0.125 wide), values interpolated with [`refined_bary`] on the working copy and its
+/// residuals (what the GPU kernels compute) are within 1e-6 of the field's range of the f64
+/// values on the file's data (`Mesh::value_at64`, the CPU's), at points in random tets;
+/// the working copy's own barycentrics ([`test_point`] on the f32 vertices, what the kernels
+/// used before) are off by more than 1e-5 of it.
+#[test]
+fn refined_barycentrics_on_flat_tets_match_the_file_values() {
+    use rand::{Rng, SeedableRng};
+    let m = crate::Mesh::new(crate::test_support::slivers::flat_layers(8, 1e-5), "flat layers").unwrap();
+    assert!(m.info.frame.is_identity(), "near the origin: the points below are working points");
+    let residuals = m.working_residuals().expect("stored in f64");
+    let f = m.field("f").unwrap();
+    let file_values = f.values64.as_ref().expect("f64 values");
+    let range = file_values.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b))
+        - file_values.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(12);
+    let (mut worst_refined, mut worst_working, mut tested) = (0f64, 0f64, 0);
+    for _ in 0..20_000 {
+        let t = rng.gen_range(0..m.n_tets());
+        let ids = m.tets[t];
+        let w: [f64; 4] = std::array::from_fn(|_| rng.gen_range(0.05..1.0));
+        let s: f64 = w.iter().sum();
+        let p: Vec3 = std::array::from_fn(|k| (0..4).map(|i| w[i] / s * m.vertex64(ids[i])[k]).sum::<f64>() as f32);
+        let want = m.value_at64(f, m.bary64(t, p.map(f64::from)).map(|b| (t, b)));
+        let v = ids.map(|i| m.points[i as usize]);
+        let refined = refined_bary(v, ids.map(|i| residuals[i as usize]), p).expect("a tet with volume");
+        worst_refined = worst_refined.max((m.value_at(f, Some((t, refined))) as f64 - want).abs());
+        if let TetTest::Inside(b) = test_point(ids, &m.points, p) {
+            worst_working = worst_working.max((m.value_at(f, Some((t, b))) as f64 - want).abs());
+            tested += 1;
+        }
+    }
+    assert!(tested > 10_000, "most points are inside their tet on the working copy too: {tested}");
+    assert!(worst_refined <= 1e-6 * range, "refined: {:e} of the range", worst_refined / range);
+    assert!(worst_working > 1e-5 * range, "the working copy should be off here: {:e}", worst_working / range);
+}

@@ -42,8 +42,17 @@ pub struct Certifier {
 
 impl Certifier {
     /// Corrects `tets` (tet ids, -1 outside) for `points` in place; returns the indices
-    /// changed, each with the barycentrics of its point in its new tet (`None`: now outside).
-    pub fn certify(&self, mesh: &Mesh, points: &[[f64; 3]], tets: &mut [i32]) -> Vec<(usize, Option<Bary>)> {
+    /// changed, each with the barycentrics of its point in its new tet (`None`: now outside),
+    /// and with `every` also each point whose tet stands, with its barycentrics there: those
+    /// of the exact test, on the file's coordinates and the point as given (a backend's
+    /// values are of the point rounded to the working copy).
+    pub fn certify(
+        &self,
+        mesh: &Mesh,
+        points: &[[f64; 3]],
+        tets: &mut [i32],
+        every: bool,
+    ) -> Vec<(usize, Option<Bary>)> {
         let exact = mesh.exact();
         let neighbors = mesh.neighbors();
         let frame = &mesh.info.frame;
@@ -74,8 +83,8 @@ impl Certifier {
                         (i, Some(b))
                     });
                 }
-                if holds(*t).is_some() {
-                    return None;
+                if let Some(b) = holds(*t) {
+                    return every.then_some((i, Some(b)));
                 }
                 match search(*t, neighbors, &holds) {
                     (Some((n, b)), _) => {

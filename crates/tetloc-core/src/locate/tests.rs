@@ -341,3 +341,73 @@ fn f64_values_near_zero_match_exact_barycentrics() {
     assert_eq!(ids2, ids);
     assert!(values2.iter().zip(&values).all(|(a, b)| a.to_bits() == b.to_bits()));
 }
+
+/// Issue 29.11 at CI scale: jets (20k tets) ×1000, offset by (512345.25, 4012345.5, 100) and
+/// stored in f32, as a Float32 file far from the origin would be. Its f32 values are the
+/// file's coordinates exactly, so the mesh must answer f64 query points exactly on them:
+/// the mesh gets a centred working frame (its f32 copy would round a query by up to 0.25 m
+/// at y ≈ 4e6), and every answer of the f64 path is the exact rational reference's
+/// (`geom::predicates::reference`) on the stored coordinates, points as given.
+#[test]
+fn f32_mesh_far_from_the_origin_answers_f64_points_exactly() {
+    use crate::geom::predicates::reference;
+    let (n, offset) = (20_000, [512_345.25, 4_012_345.5, 100.0]);
+    let mut raw = crate::gen::generate(crate::gen::Shape::Jets, n, 3);
+    for p in &mut raw.points {
+        *p = std::array::from_fn(|k| (p[k] as f64 * 1000.0 + offset[k]) as f32);
+    }
+    assert!(raw.points64.is_none(), "stored in f32");
+    let stored: Vec<[f64; 3]> = raw.points.iter().map(|p| p.map(f64::from)).collect();
+    let m = Arc::new(crate::Mesh::new(raw, "far f32 jets").unwrap());
+    assert!(!m.info.frame.is_identity(), "a far f32 mesh gets a centred working frame");
+    assert!(m.wants_f64_points(), "f64 query points keep their precision");
+    assert!((0..stored.len()).all(|i| m.vertex64(i as u32) == stored[i]), "the stored f32 values, exactly");
+    let (lo, hi) = m.file_box();
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(29);
+    let queries: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            if i % 2 == 0 {
+                // Inside a random tet, at random f64 weights of its stored vertices.
+                let t = m.tets[rng.gen_range(0..m.n_tets())];
+                let w: [f64; 4] = std::array::from_fn(|_| rng.gen_range(0.0..1.0));
+                let s: f64 = w.iter().sum();
+                std::array::from_fn(|k| (0..4).map(|j| w[j] / s * stored[t[j] as usize][k]).sum())
+            } else {
+                std::array::from_fn(|k| rng.gen_range(lo[k]..hi[k]))
+            }
+        })
+        .collect();
+    assert!(queries.iter().filter(|q| q.map(|c| c as f32 as f64) != **q).count() > n / 2, "most need f64");
+    for name in ["cpu", "cpu --precision f64"] {
+        let mut loc: Box<dyn BatchLocator> = match name {
+            "cpu" => Box::new(CpuLocator::new(m.clone())),
+            _ => Box::new(F64Values::new(CpuLocator::new(m.clone()), m.clone())),
+        };
+        let (mut ids, mut values) = (vec![0i32; n], vec![0f64; n]);
+        loc.sample_many64(&queries, &["f"], &mut ids, &mut values).unwrap();
+        let wrong: Vec<usize> = (0..n)
+            .filter(|&i| match ids[i] {
+                t if t >= 0 => !reference::contains(m.tets[t as usize].map(|v| stored[v as usize]), queries[i]),
+                _ => !reference::locate_all(&m.tets, &stored, queries[i]).is_empty(),
+            })
+            .collect();
+        assert!(
+            wrong.is_empty(),
+            "{name}: {} of {n} answers wrong, e.g. {:?}",
+            wrong.len(),
+            wrong.first().map(|&i| (queries[i], ids[i]))
+        );
+        assert_eq!(ids.iter().filter(|&&t| t < 0).count(), 0, "{name}: jets fills its box");
+    }
+    // What the f32 copy answered before (the points rounded to f32 steps of 0.25 m at y ≈ 4e6):
+    // tets that do not hold the points as given.
+    let rounded: Vec<Vec3> = queries.iter().map(|q| q.map(|c| c as f32)).collect();
+    let mut ids32 = vec![0i32; n];
+    CpuLocator::new(m.clone()).locate(&rounded, &mut ids32).unwrap();
+    let wrong32 = (0..n)
+        .filter(|&i| {
+            ids32[i] >= 0 && !reference::contains(m.tets[ids32[i] as usize].map(|v| stored[v as usize]), queries[i])
+        })
+        .count();
+    assert!(wrong32 > 0, "rounded points should land in wrong tets");
+}

@@ -177,8 +177,9 @@ pub struct MeshInfo {
 pub struct Mesh {
     /// The vertices in the working frame (`info.frame`), f32: what every backend searches.
     pub points: Vec<Vec3>,
-    /// The file's f64 coordinates when the working copy is not exactly them: exact decisions
-    /// use them where the f32 filter cannot decide.
+    /// The file's f64 coordinates when the working copy is not exactly them (f64 data, or an
+    /// f32 file far from the origin, widened): exact decisions use them where the f32 filter
+    /// cannot decide.
     pub points64: Option<Vec<[f64; 3]>>,
     /// Tets in file order, each in canonical vertex order (see [`geom::canonical_tet`]).
     pub tets: Vec<[u32; 4]>,
@@ -481,10 +482,25 @@ impl Mesh {
     }
 
     /// Whether f64 query points should keep their precision: the file's coordinates are not
-    /// its f32 copy (f64 data, or a centred frame). On f32 data near the origin, rounding
+    /// its f32 copy (f64 data, or a centred frame: also f32 data far from the origin). On f32 data near the origin, rounding
     /// the points to f32 first keeps the f32 path (several times faster) and its answers.
     pub fn wants_f64_points(&self) -> bool {
         self.points64.is_some() || !self.info.frame.is_identity()
+    }
+
+    /// Each vertex's file coordinates minus its working copy, in the working frame, rounded
+    /// to f32; `None` when the working copy is the file's data. The two together give the
+    /// file's coordinates to about 2⁻⁴⁸ of their size: what the GPU kernels interpolate with
+    /// ([`geom::refined_bary`]), so that their values on slivers stored in f64 match the
+    /// CPU's. (The difference is exact in f64: the copy is its rounding.)
+    pub fn working_residuals(&self) -> Option<Vec<Vec3>> {
+        let file = self.points64.as_ref()?;
+        let frame = &self.info.frame;
+        let residual = |(&x, w): (&[f64; 3], &Vec3)| -> Vec3 {
+            let x = frame.to_working64(x);
+            std::array::from_fn(|k| (x[k] - f64::from(w[k])) as f32)
+        };
+        Some(file.par_iter().zip(&self.points).map(residual).collect())
     }
 
     /// Vertex `i` as the file has it (f64).
@@ -518,11 +534,23 @@ impl Mesh {
 /// The working f32 copy of the vertices and its frame, and the file's f64 coordinates when
 /// the copy is not exactly them (see [`Frame`]).
 fn working_copy(points: Vec<Vec3>, points64: Option<Vec<[f64; 3]>>) -> (Vec<Vec3>, Option<Vec<[f64; 3]>>, Frame) {
-    let Some(file) = points64 else {
-        // f32 data is its own working copy; the frame's delta bounds the rounding of f64 queries.
-        let (lo, hi) = bounds_of(&points, |p| p.map(f64::from));
-        let delta = if points.is_empty() { 0.0 } else { Frame::for_bounds(lo, hi).delta };
-        return (points, None, Frame { delta, ..Frame::IDENTITY });
+    let file = match points64 {
+        Some(file) => file,
+        None if points.is_empty() => return (points, None, Frame::IDENTITY),
+        None => {
+            let (lo, hi) = bounds_of(&points, |p| p.map(f64::from));
+            let frame = Frame::for_bounds(lo, hi);
+            if frame.is_identity() {
+                // f32 data near the origin is its own working copy; the frame's delta bounds
+                // the rounding of f64 queries to it.
+                return (points, None, frame);
+            }
+            // f32 data far from the origin (or tiny, or huge): its f32 copy would round f64
+            // queries by up to half an ulp of the distance from the origin, far more than
+            // the cells' size allows. Its coordinates widen to f64 exactly and take the f64
+            // data's path: a centred working copy, exact decisions on the file's values.
+            points.par_iter().map(|p| p.map(f64::from)).collect()
+        }
     };
     if file.is_empty() {
         return (points, None, Frame::IDENTITY);

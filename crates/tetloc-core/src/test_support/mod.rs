@@ -11,6 +11,9 @@ mod query_sets;
 #[allow(dead_code)]
 mod kuhn;
 pub(crate) mod mixed;
+// Shared whole with tetloc-testdata.
+#[allow(dead_code)]
+pub(crate) mod slivers;
 
 pub(crate) use data_dir::require_data;
 pub(crate) use kuhn::KuhnGrid;

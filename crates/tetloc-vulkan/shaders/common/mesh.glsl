@@ -21,6 +21,10 @@ layout(std430, binding = TL_B_CELL_TETS) readonly buffer TlCellTets { uint tl_ce
 // per buffer, TETS_CHUNK: tets per buffer.
 layout(std430, binding = TL_B_POINTS_HI) readonly buffer TlPointsHi { float v[]; } tl_points_hi[TL_MAX_CHUNKS - 1];
 layout(std430, binding = TL_B_TETS_HI) readonly buffer TlTetsHi { uvec4 v[]; } tl_tets_hi[TL_MAX_CHUNKS - 1];
+// With REFINE_BARY: each vertex's residual (its file coordinates minus tl_vertex, working
+// frame), split as the vertices are (POINTS_CHUNK).
+layout(std430, binding = TL_B_RESIDUALS) readonly buffer TlResiduals { float tl_residuals[]; };
+layout(std430, binding = TL_B_RESIDUALS_HI) readonly buffer TlResidualsHi { float v[]; } tl_residuals_hi[TL_MAX_CHUNKS - 1];
 
 // `return arr[c].v[o];` for a lane-varying c (needs shaderStorageBufferArrayNonUniformIndexing,
 // which the context enables; a switch over constant indices compiled for minutes on lavapipe).
@@ -32,6 +36,14 @@ vec3 tl_vertex(uint i) {
     }
     uint c = i / POINTS_CHUNK - 1u, o = 3u * (i % POINTS_CHUNK);
     return vec3(tl_points_hi[nonuniformEXT(c)].v[o], tl_points_hi[nonuniformEXT(c)].v[o + 1u], tl_points_hi[nonuniformEXT(c)].v[o + 2u]);
+}
+
+vec3 tl_residual(uint i) {
+    if (POINTS_CHUNK == 0u || i < POINTS_CHUNK) {
+        return vec3(tl_residuals[3 * i], tl_residuals[3 * i + 1], tl_residuals[3 * i + 2]);
+    }
+    uint c = i / POINTS_CHUNK - 1u, o = 3u * (i % POINTS_CHUNK);
+    return vec3(tl_residuals_hi[nonuniformEXT(c)].v[o], tl_residuals_hi[nonuniformEXT(c)].v[o + 1u], tl_residuals_hi[nonuniformEXT(c)].v[o + 2u]);
 }
 
 // TET_BITS != 0: the tets packed (packed.glsl) in one buffer, 4 fields a tet.

@@ -138,15 +138,45 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 
 #include "common/high_order.glsl"
 
+#ifdef TL_F64
+// geom::refined_bary: on a mesh stored in f64 (REFINE_BARY), the barycentrics of p (working
+// coordinates) in tet `ids` on the working copy plus each vertex's residual (the file's
+// coordinates to about 2^-48), in f64 from sub-volumes relative to vertex 0, clamped to 0 and
+// normalised; `bary` (the search's, on the f32 copy) for a tet of no volume there. Once per
+// point, on the tet found: the search keeps its f32 test.
+vec4 tl_refined_bary(uvec4 ids, vec3 p, vec4 bary) {
+    dvec3 w0 = dvec3(tl_vertex(ids.x)) + dvec3(tl_residual(ids.x));
+    precise dvec3 e1 = (dvec3(tl_vertex(ids.y)) + dvec3(tl_residual(ids.y))) - w0;
+    precise dvec3 e2 = (dvec3(tl_vertex(ids.z)) + dvec3(tl_residual(ids.z))) - w0;
+    precise dvec3 e3 = (dvec3(tl_vertex(ids.w)) + dvec3(tl_residual(ids.w))) - w0;
+    precise dvec3 q = dvec3(p) - w0;
+    // det(a, b, c) = a . (b x c): positive for canonical tets.
+    precise double total = dot(e1, cross(e2, e3));
+    precise double d1 = dot(q, cross(e2, e3)), d2 = dot(e1, cross(q, e3)), d3 = dot(e1, cross(e2, q));
+    precise dvec4 d = max(dvec4(total - d1 - d2 - d3, d1, d2, d3), dvec4(0.0));
+    precise double sum = d.x + d.y + d.z + d.w;
+    if (total <= 0.0 || sum <= 0.0) {
+        return bary;
+    }
+    return vec4(d / sum);
+}
+#endif
+
 // Mesh::interpolate for a per-vertex field (geom::interpolate for linear tets, the tet's own
-// shape functions for higher-order ones), or the per-cell value; NaN outside.
-float tl_value(int tet, uvec4 ids, vec4 bary) {
+// shape functions for higher-order ones), or the per-cell value; NaN outside. `p`: the point
+// (working frame), whose barycentrics are refined on a mesh stored in f64.
+float tl_value(int tet, uvec4 ids, vec4 bary, vec3 p) {
     if (tet < 0) {
         return uintBitsToFloat(0x7fc00000u);
     }
     if (OUTPUT_MODE == TL_OUT_CELL) {
         return tl_field[tet];
     }
+#ifdef TL_F64
+    if (REFINE_BARY) {
+        bary = tl_refined_bary(ids, p, bary);
+    }
+#endif
     if (HO_NODES > 0u) {
         return tl_ho_value(tet, ids, bary);
     }

@@ -201,6 +201,9 @@ pub struct VulkanLocator {
 /// for a kernel that takes one box a cell of a mixed mesh the cells' first tets.
 pub(crate) struct MeshOnDevice {
     points: Split,
+    /// A mesh stored in f64: each vertex's residual (`Mesh::working_residuals`), split like
+    /// the vertices; sets `REFINE_BARY`.
+    residuals: Option<Split>,
     tets: Split,
     /// Bits a field of the packed tets (`crate::packed`; 0: u32x4 tets).
     tet_bits: u32,
@@ -780,6 +783,13 @@ impl MeshOnDevice {
         }
         let points =
             dev.upload_split("mesh points", MemKind::Mesh, point_usage, bytemuck::cast_slice(&mesh.points), 12)?;
+        // Same element size and count as the vertices: the same split (POINTS_CHUNK).
+        let residuals = match mesh.working_residuals() {
+            Some(r) => {
+                Some(dev.upload_split("mesh residuals", MemKind::Mesh, storage, bytemuck::cast_slice(&r), 12)?)
+            }
+            None => None,
+        };
         let max_vertex = (mesh.points.len() as u64).saturating_sub(1);
         let fields = 4 * mesh.n_tets() as u64;
         let tet_bits = pack.map_or(0, |min| packed::width(max_vertex, fields, min, dev.device_max_buffer()));
@@ -814,7 +824,7 @@ impl MeshOnDevice {
             }
             _ => None,
         };
-        Ok(MeshOnDevice { points, tets, tet_bits, high_order, cell_tets })
+        Ok(MeshOnDevice { points, residuals, tets, tet_bits, high_order, cell_tets })
     }
 
     /// What a kernel's plan builds from.
@@ -839,6 +849,7 @@ impl MeshOnDevice {
 
     pub(crate) fn bindings(&self, unbound: &Buffer) -> Vec<Binding> {
         let mut b = Binding::split(B_POINTS, B_POINTS_HI, Some(&self.points), unbound).to_vec();
+        b.extend(Binding::split(B_RESIDUALS, B_RESIDUALS_HI, self.residuals.as_ref(), unbound));
         b.extend(Binding::split(B_TETS, B_TETS_HI, Some(&self.tets), unbound));
         let ho = self.high_order.as_ref();
         b.push(Binding::buffer(B_HO_NODES, ho.map_or(unbound, |h| &h.nodes)));
@@ -849,7 +860,9 @@ impl MeshOnDevice {
 
     /// The higher-order and cell-box specialization constants (linear tets: the defaults).
     fn spec(&self, spec: Spec) -> Spec {
-        let spec = spec.set(sc::CELL_BOXES, self.cell_tets.is_some() as u32);
+        let spec = spec
+            .set(sc::CELL_BOXES, self.cell_tets.is_some() as u32)
+            .set(sc::REFINE_BARY, self.residuals.is_some() as u32);
         match &self.high_order {
             None => spec,
             Some(h) => spec.set(sc::HO_NODES, h.spec.0).set(sc::HO_ORDER, h.spec.1).set(sc::HO_BEZIER, h.spec.2 as u32),
@@ -912,12 +925,18 @@ impl BatchLocator for VulkanLocator {
         }
         // The kernels decided on the working copy: where it or the points are not the file's
         // data exactly, each answer is checked (and the rare wrong one corrected) on the host.
+        // Where the working copy rounds some point, the kernels' values are of the rounded
+        // point: every value then comes from the check's barycentrics (one interpolation a
+        // point, after the exact test the check makes anyway).
         let mesh = self.mesh.clone();
         if certify::needs_certifying(&mesh, points) {
-            for (i, bary) in self.certifier.certify(&mesh, points, ids) {
+            let rounds = |p: &[f64; 3]| frame.to_working(*p).map(f64::from) != frame.to_working64(*p);
+            let every = !fields.is_empty() && points.par_iter().any(rounds);
+            let fields = fields.iter().map(|f| mesh.field(f)).collect::<tetloc_core::Result<Vec<_>>>()?;
+            for (i, bary) in self.certifier.certify(&mesh, points, ids, every) {
                 let found = bary.map(|b| (ids[i] as usize, b));
                 for (j, f) in fields.iter().enumerate() {
-                    values[i * fields.len() + j] = f64::from(mesh.value_at(mesh.field(f)?, found));
+                    values[i * fields.len() + j] = f64::from(mesh.value_at(f, found));
                 }
             }
         }

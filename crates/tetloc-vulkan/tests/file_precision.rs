@@ -1,0 +1,154 @@
+//! Answers and values on the file's data as stored (issue 29, items 11 and 12), on every
+//! kernel of the device: an f32 mesh far from the origin answers f64 points exactly, and
+//! the default (f32) values on meshes stored in f64 match the CPU's f64 values on slivers.
+
+mod common;
+
+use std::sync::Arc;
+use tetloc_core::geom::predicates::orient3d;
+use tetloc_core::geom::Vec3;
+use tetloc_core::{BatchLocator, CpuLocator, Mesh};
+use tetloc_vulkan::{LocatorOptions, VulkanLocator};
+
+/// Whether the closed tet `v` holds `p`, by exact orient3d signs on the f64 coordinates: on
+/// each face's side of the opposite vertex, or on the face.
+fn holds(v: [[f64; 3]; 4], p: [f64; 3]) -> bool {
+    const FACES: [[usize; 3]; 4] = [[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]];
+    FACES.iter().enumerate().all(|(i, f)| {
+        let inner = orient3d(v[f[0]], v[f[1]], v[f[2]], v[i]);
+        let side = orient3d(v[f[0]], v[f[1]], v[f[2]], p);
+        side == 0.0 || (side > 0.0) == (inner > 0.0)
+    })
+}
+
+/// Issue 29.11 at CI scale: jets (20k tets) ×1000, offset by (512345.25, 4012345.5, 100) and
+/// stored in f32, queried at 20,000 random f64 points (half in random tets, half in the
+/// box) through each kernel's f64 path: every answer holds its point under exact orient3d
+/// on the stored coordinates (the f32 values, widened), and -1 only where no tet does.
+#[test]
+fn f32_mesh_far_from_the_origin_answers_f64_points_exactly() {
+    let test = "f32_mesh_far_from_the_origin_answers_f64_points_exactly";
+    let Some(ctx) = common::context(test) else { return };
+    let (n, offset) = (20_000usize, [512_345.25, 4_012_345.5, 100.0]);
+    let mut raw = tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, n, 3);
+    for p in &mut raw.points {
+        *p = std::array::from_fn(|k| (p[k] as f64 * 1000.0 + offset[k]) as f32);
+    }
+    let stored: Vec<[f64; 3]> = raw.points.iter().map(|p| p.map(f64::from)).collect();
+    let mesh = Arc::new(Mesh::new(raw, "far f32 jets").unwrap());
+    assert!(!mesh.info.frame.is_identity() && mesh.wants_f64_points(), "a centred frame, f64 points");
+    let (lo, hi) = mesh.file_box();
+    let mut state = 29u64;
+    let mut unit = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let points: Vec<[f64; 3]> = (0..n)
+        .map(|i| {
+            if i % 2 == 0 {
+                let t = mesh.tets[(unit() * mesh.n_tets() as f64) as usize];
+                let w: [f64; 4] = std::array::from_fn(|_| unit());
+                let s: f64 = w.iter().sum();
+                std::array::from_fn(|k| (0..4).map(|j| w[j] / s * stored[t[j] as usize][k]).sum())
+            } else {
+                std::array::from_fn(|k| lo[k] + unit() * (hi[k] - lo[k]))
+            }
+        })
+        .collect();
+    let box_holds = |t: [u32; 4], p: [f64; 3]| {
+        let v = t.map(|i| stored[i as usize]);
+        (0..3).all(|k| v.iter().any(|q| q[k] <= p[k]) && v.iter().any(|q| q[k] >= p[k])) && holds(v, p)
+    };
+    let mut locators: Vec<Box<dyn BatchLocator>> = vec![Box::new(CpuLocator::new(mesh.clone()))];
+    for k in common::kernels(&ctx, test) {
+        locators.push(Box::new(VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap()));
+    }
+    for loc in &mut locators {
+        let mut ids = vec![0i32; n];
+        loc.sample_many64(&points, &[], &mut ids, &mut []).unwrap();
+        let wrong: Vec<usize> = (0..n)
+            .filter(|&i| match ids[i] {
+                t if t >= 0 => !box_holds(mesh.tets[t as usize], points[i]),
+                _ => mesh.tets.iter().any(|&t| box_holds(t, points[i])),
+            })
+            .collect();
+        let first = wrong.first().map(|&i| (points[i], ids[i]));
+        assert!(wrong.is_empty(), "{}: {} of {n} answers wrong, e.g. {first:?}", loc.name(), wrong.len());
+    }
+    common::assert_no_validation_errors(&ctx);
+}
+
+/// Largest minus smallest of the f64 values of field `f`.
+fn range_of(mesh: &Mesh) -> f64 {
+    let f = mesh.field("f").unwrap();
+    let v: Vec<f64> = (0..f.values.len()).map(|i| f.value64(i)).collect();
+    v.iter().fold(f64::NEG_INFINITY, |a, &b| a.max(b)) - v.iter().fold(f64::INFINITY, |a, &b| a.min(b))
+}
+
+/// Issue 29.12: on meshes stored in f64 with slivers (the Delaunay oracle mesh, and a
+/// generated one of flat tets for a fresh clone), every kernel's default values (f32, from
+/// f32 and from f64 points) are within 1e-5 of the field's range of the CPU's f64 values.
+#[test]
+fn default_values_on_slivers_stored_in_f64_match_the_cpu() {
+    let test = "default_values_on_slivers_stored_in_f64_match_the_cpu";
+    let Some(ctx) = common::context(test) else { return };
+    let flat = Arc::new(Mesh::new(tetloc_testdata::slivers::flat_layers(8, 1e-5), "flat layers").unwrap());
+    let mut state = 12u64;
+    let mut unit = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let in_tets = |m: &Mesh, n: usize, unit: &mut dyn FnMut() -> f64| -> Vec<Vec3> {
+        (0..n)
+            .map(|_| {
+                let t = m.tets[(unit() * m.n_tets() as f64) as usize];
+                let w: [f64; 4] = std::array::from_fn(|_| unit() + 0.01);
+                let s: f64 = w.iter().sum();
+                std::array::from_fn(|k| (0..4).map(|j| w[j] / s * m.vertex64(t[j])[k]).sum::<f64>() as f32)
+            })
+            .collect()
+    };
+    let mut cases = vec![(flat.clone(), in_tets(&flat, 20_000, &mut unit))];
+    if let Some(dir) = tetloc_testdata::require_data(test) {
+        let sets = tetloc_testdata::query_sets(&dir);
+        let delaunay: Vec<_> = sets.iter().filter(|s| s.label.starts_with("delaunay_s.")).collect();
+        assert!(delaunay.len() >= 3, "expected the delaunay_s sets in {}", dir.display());
+        let mesh = Arc::new(tetloc_core::io::read_mesh(&delaunay[0].mesh_path, None).unwrap());
+        cases.push((mesh, delaunay.iter().flat_map(|s| s.points.iter().copied()).collect()));
+    }
+    for (mesh, points) in cases {
+        assert!(mesh.points64.is_some(), "{}: stored in f64", mesh.info.source);
+        let (n, range) = (points.len(), range_of(&mesh));
+        let wide: Vec<[f64; 3]> = points.iter().map(|p| p.map(f64::from)).collect();
+        let (mut cpu_ids, mut cpu) = (vec![0i32; n], vec![0f64; n]);
+        CpuLocator::new(mesh.clone()).sample_many64(&wide, &["f"], &mut cpu_ids, &mut cpu).unwrap();
+        for k in common::kernels(&ctx, test) {
+            let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
+            assert!(loc.uses_float64(), "{k}: the device has shaderFloat64");
+            let (mut ids, mut v32, mut v64) = (vec![0i32; n], vec![0f32; n], vec![0f64; n]);
+            loc.sample_many(&points, &["f"], &mut ids, &mut v32).unwrap();
+            let mut ids64 = vec![0i32; n];
+            loc.sample_many64(&wide, &["f"], &mut ids64, &mut v64).unwrap();
+            // The f32 path's ids are the working copy's (not certified): within its rounding of
+            // a face they may name the neighbour, whose value differs by the slope across it.
+            assert_eq!(ids64, cpu_ids, "{k} {}: the f64 path's ids are exact", mesh.info.source);
+            let paths = [("f32 points", ids, v32.iter().map(|&v| f64::from(v)).collect()), ("f64 points", ids64, v64)];
+            for (path, ids, values) in paths {
+                let (mut worst, mut at, mut other_tet) = (0f64, 0, 0);
+                for i in 0..n {
+                    let (g, c) = (values[i], cpu[i]);
+                    if ids[i] != cpu_ids[i] {
+                        other_tet += 1;
+                    } else if !g.is_nan() && (g - c).abs() > worst {
+                        (worst, at) = ((g - c).abs(), i);
+                    }
+                }
+                let label = format!("{k} {} {path}", mesh.info.source);
+                println!("{label}: worst {:.2e} of the range (point {at}), {other_tet} in another tet", worst / range);
+                assert!(worst <= 1e-5 * range, "{label}: values off by {:e} of the range at point {at}", worst / range);
+                assert!(other_tet <= n / 50, "{label}: {other_tet} points in another tet than the CPU's");
+            }
+        }
+    }
+    common::assert_no_validation_errors(&ctx);
+}
