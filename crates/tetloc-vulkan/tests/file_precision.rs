@@ -113,7 +113,7 @@ fn default_values_on_slivers_stored_in_f64_match_the_cpu() {
         let sets = tetloc_testdata::query_sets(&dir);
         let delaunay: Vec<_> = sets.iter().filter(|s| s.label.starts_with("delaunay_s.")).collect();
         assert!(delaunay.len() >= 3, "expected the delaunay_s sets in {}", dir.display());
-        let mesh = Arc::new(tetloc_core::io::read_mesh(&delaunay[0].mesh_path, None).unwrap());
+        let mesh = Arc::new(tetloc_io::read_mesh(&delaunay[0].mesh_path, None).unwrap());
         cases.push((mesh, delaunay.iter().flat_map(|s| s.points.iter().copied()).collect()));
     }
     for (mesh, points) in cases {
