@@ -44,8 +44,17 @@ impl Drop for Registered {
 /// SIGTERM, or a panic, just before the process ends); returns how many there were.
 pub fn remove_temporaries() -> usize {
     let mut list = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner);
-    for p in list.iter() {
-        let _ = if p.is_dir() { std::fs::remove_dir_all(p) } else { std::fs::remove_file(p) };
+    // Newest first (a piece's file before its folder). Another thread may still be writing: it
+    // can add one more entry to a temporary folder before its next registration, which waits
+    // for this lock; so a folder that is not gone yet is tried again.
+    for p in list.iter().rev() {
+        for _ in 0..100 {
+            let removed = if p.is_dir() { std::fs::remove_dir_all(p) } else { std::fs::remove_file(p) };
+            if removed.is_ok() || std::fs::symlink_metadata(p).is_err() {
+                break;
+            }
+            std::thread::sleep(std::time::Duration::from_millis(2));
+        }
     }
     let n = list.len();
     list.clear();
