@@ -175,15 +175,12 @@ def grid_mesh() -> tetloc.Mesh:
     )
 
 
-def exact_values(
-    mesh: tetloc.Mesh, ids: np.ndarray, points: np.ndarray, values: np.ndarray, working: bool = False
-) -> np.ndarray:
+def exact_values(mesh: tetloc.Mesh, ids: np.ndarray, points: np.ndarray, values: np.ndarray) -> np.ndarray:
     """Barycentric interpolation in tet `ids[i]` with f64 barycentrics on the file's f64
-    vertices (tetloc_testdata::exact_value), or with `working` on the float32 copy the GPU
-    kernels interpolate on (tetloc_testdata::working_value); NaN where ids < 0."""
+    vertices (tetloc_testdata::exact_value); NaN where ids < 0."""
     out = np.full(len(ids), np.nan)
     inside = ids >= 0
-    corners = mesh.points.astype(np.float64) if working else mesh.points64
+    corners = mesh.points64
     v = corners[mesh.tets[ids[inside]]]  # (K, 4, 3)
     p = points[inside].astype(np.float64)
 
