@@ -77,6 +77,11 @@ enum Command {
         /// poloidal flow around the centre line; other shapes: a rotation about the vertical axis).
         #[arg(long)]
         vector: bool,
+        /// Write the coordinates as Float64 with detail below f32's resolution (each vertex
+        /// moved by a quarter of an f32 ulp, in a direction set by its index), as simulation
+        /// codes write theirs: a mesh whose values the GPU kernels refine in f64.
+        #[arg(long)]
+        f64: bool,
         /// Print only errors and warnings on stderr (no progress, no summary).
         #[arg(short, long)]
         quiet: bool,
@@ -120,6 +125,11 @@ enum Command {
         /// the Morton curve first (rows "KERNEL unordered").
         #[arg(long)]
         compare_order: bool,
+        /// GPU kernels on a mesh stored in f64 (`gen --f64`, or f64 files): time each query
+        /// set also on the mesh rounded to f32 (rows "KERNEL unrefined"), which skips the f64
+        /// refinement of values; with `--field`, this is the refinement's cost.
+        #[arg(long)]
+        compare_refine: bool,
         /// Also trace this many particles (RK4, random seeds inside the mesh, a tenth of the
         /// mean edge a step) through `--vector`: RK4 samples/s, and on soft-bvh how many
         /// lookups the hint's walk answers (rows with and without it).
@@ -286,9 +296,9 @@ fn error_text(e: &anyhow::Error) -> String {
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
         Command::Info { mesh, json, format } => info(&mesh, json, format.as_deref()),
-        Command::Gen { shape, tets, out, seed, zlib, terrain, vector, quiet } => {
+        Command::Gen { shape, tets, out, seed, zlib, terrain, vector, f64, quiet } => {
             progress::set_quiet(quiet);
-            gen(&shape, &tets, &out, seed, zlib, terrain.as_deref(), vector)
+            gen(&shape, &tets, &out, seed, zlib, terrain.as_deref(), vector, f64)
         }
         Command::Locate(args) => locate::run(&args),
         Command::Partition(args) => partition::run(&args),
@@ -305,6 +315,7 @@ fn run(cli: Cli) -> Result<()> {
             json,
             power,
             compare_order,
+            compare_refine,
             trace,
             steps,
             vector,
@@ -346,6 +357,21 @@ fn run(cli: Cli) -> Result<()> {
                 json,
                 power,
                 compare_order,
+                // The same file read again, its vertices rounded to f32 (no residuals to refine by).
+                rounded: match compare_refine {
+                    false => None,
+                    true => {
+                        let mut m = mesh_arg::load(&mesh, common.format.as_deref(), common.seed)?;
+                        let fresh = std::sync::Arc::get_mut(&mut m).expect("a mesh just read has one owner");
+                        let stored_f64 = fresh.points64.take().is_some();
+                        if !stored_f64 {
+                            eprintln!(
+                                "--compare-refine: the mesh is stored in f32 (nothing to refine): no unrefined rows"
+                            );
+                        }
+                        stored_f64.then_some(m)
+                    }
+                },
                 trace: trace.map(|t| mesh_arg::parse_count(&t)).transpose()?.map(|lines| bench::trace::TraceBench {
                     lines,
                     max_steps: steps,
@@ -376,7 +402,39 @@ fn run(cli: Cli) -> Result<()> {
     }
 }
 
-fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Option<&Path>, vector: bool) -> Result<()> {
+/// The mesh's vertices in f64, each non-zero coordinate moved by a quarter of an f32 ulp (the
+/// sign from the vertex index's bits), so that it does not round to f32 exactly and the moves
+/// are far below the cells' sizes.
+fn below_f32_resolution(mesh: &tetloc_core::Mesh) -> Vec<[f64; 3]> {
+    (0..mesh.points.len() as u32)
+        .map(|i| {
+            let p = mesh.vertex64(i);
+            std::array::from_fn(|k| {
+                // Zeros stay (a plane of the shape's box stays a plane).
+                let x = (p[k] as f32).abs();
+                let ulp = f64::from(f32::from_bits(x.to_bits() + 1) - x);
+                let sign = if (i >> k) & 1 == 0 { 0.25 } else { -0.25 };
+                if x == 0.0 {
+                    0.0
+                } else {
+                    p[k] + sign * ulp
+                }
+            })
+        })
+        .collect()
+}
+
+#[allow(clippy::too_many_arguments)]
+fn gen(
+    shape: &str,
+    tets: &str,
+    out: &Path,
+    seed: u64,
+    zlib: bool,
+    terrain: Option<&Path>,
+    vector: bool,
+    f64: bool,
+) -> Result<()> {
     let spec: tetloc_core::gen::Spec = shape.parse().map_err(|e| anyhow::anyhow!("{e}"))?;
     let shape = spec.shape;
     let n = mesh_arg::parse_count(tets)?;
@@ -401,6 +459,9 @@ fn gen(shape: &str, tets: &str, out: &Path, seed: u64, zlib: bool, terrain: Opti
     if vector {
         let v = tetloc_core::gen::flow::vector_fields(shape, &mesh.points);
         mesh.fields.extend(v);
+    }
+    if f64 {
+        mesh.points64 = Some(below_f32_resolution(&mesh));
     }
     let gen_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();

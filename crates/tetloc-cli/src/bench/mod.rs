@@ -54,6 +54,9 @@ pub struct BenchArgs {
     pub power: bool,
     /// GPU kernels: time every query set with and without query ordering.
     pub compare_order: bool,
+    /// `--compare-refine` on a mesh stored in f64: the mesh rounded to f32, whose GPU kernels
+    /// are timed too (rows "KERNEL unrefined").
+    pub rounded: Option<Arc<Mesh>>,
     /// Also time particle tracing.
     pub trace: Option<trace::TraceBench>,
     pub opts: BackendOptions,
@@ -80,12 +83,18 @@ pub fn run(mesh: &Arc<Mesh>, args: &BenchArgs) -> Result<Vec<BenchRow>> {
         rows.push(row);
         Ok(())
     };
-    for name in &args.backends {
+    let runs = args
+        .backends
+        .iter()
+        .map(|b| (b, mesh, ""))
+        .chain(args.rounded.iter().flat_map(|r| args.backends.iter().map(move |b| (b, r, " unrefined"))));
+    for (name, mesh, suffix) in runs {
         let (backend, builder) = args.opts.builder(mesh, name)?;
-        let name = backend.name().to_string();
+        let name = format!("{}{suffix}", backend.name());
         let bare = builder.build_bare()?;
         let mut loc = match bare.locator {
             BareLocator::Vulkan(loc) => *loc,
+            BareLocator::Cpu(_) if !suffix.is_empty() => continue,
             BareLocator::Cpu(mut loc) => {
                 let build_s = bare.build_seconds;
                 eprintln!("{}", loc.bvh().stats.report());
