@@ -49,8 +49,8 @@ const SHADERS: &[Shader] = &[
     shader("BUILD_NEIGHBORS", "build/neighbors.comp", ShaderStage::Compute, false),
     shader("BUILD_PACK", "build/pack.comp", ShaderStage::Compute, false),
     // The ray-tracing kernels: ray generation (locate, march) and miss shared, hit groups per kernel.
-    shader("RT_RGEN", "rt.rgen", ShaderStage::RayGeneration, false),
-    shader("MARCH_RGEN", "march.rgen", ShaderStage::RayGeneration, false),
+    shader("RT_RGEN", "rt.rgen", ShaderStage::RayGeneration, true),
+    shader("MARCH_RGEN", "march.rgen", ShaderStage::RayGeneration, true),
     shader("RT_RMISS", "rt.rmiss", ShaderStage::Miss, false),
     shader("RT_BVH_RINT", "rt_bvh.rint", ShaderStage::Intersect, true),
     shader("RT_BVH_RCHIT", "rt_bvh.rchit", ShaderStage::ClosestHit, false),

@@ -50,7 +50,6 @@ void main() {
     tet = tl_walk(tet, p, WALK_MAX, ids, bary);
     if (tet >= 0) {
         pl.tet = tet;
-        pl.value = OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary, p);
         return;
     }
     // Not found: the point is outside the mesh, or the hit was a face coincident with

@@ -3,9 +3,9 @@
 #ifndef TL_RT_GLSL
 #define TL_RT_GLSL
 
+// The value is interpolated by the ray generation shader (common/trace.glsl), not carried.
 struct TlPayload {
-    int tet;     // containing tet, TL_OUTSIDE outside, TL_MISS when the ray hit nothing
-    float value; // field value when OUTPUT_MODE != TL_OUT_IDS
+    int tet; // containing tet, TL_OUTSIDE outside, TL_MISS when the ray hit nothing
 };
 
 layout(std430, binding = TL_B_INSTANCES) readonly buffer TlInstances { uint tl_instance_base[]; };
