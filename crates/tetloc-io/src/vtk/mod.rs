@@ -16,6 +16,9 @@ pub mod vtu;
 pub mod write;
 pub mod write_pieces;
 
+/// Cell lists from arrays (Python's `Mesh`), checked and split as the readers' are.
+pub use cells::{from_cell_list, Extracted};
+
 #[cfg(test)]
 mod tests;
 
