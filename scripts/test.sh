@@ -75,7 +75,7 @@ export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
 venv=target/pyenv
 python_env() {
   { [ -x "$venv/bin/python" ] || python3 -m venv "$venv"; } &&
-    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy mypy
 }
 step "python virtualenv" python_env
 export TETLOC_PYTHON="$PWD/$venv/bin/python"
@@ -109,6 +109,16 @@ wheel() {
     "$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/tetloc-*.whl
 }
 gate "Python: clippy + release wheel" "see the messages above" wheel
+# The type gate: mypy over the package (strict) and the tests, examples and benchmarks that use
+# it (python/pyproject.toml), and stubtest, which holds the extension's stub
+# (tetloc/_tetloc.pyi) to the installed wheel's functions and classes; then the wheel's
+# `py.typed`. From the repository root, so that `tetloc` is the installed package.
+types() {
+  (cd python && "../$venv/bin/mypy") &&
+    "$venv/bin/python" -m mypy.stubtest --concise tetloc._tetloc &&
+    "$venv/bin/python" -c 'import pathlib, tetloc; assert (pathlib.Path(tetloc.__file__).parent / "py.typed").is_file(), "the wheel has no py.typed"'
+}
+gate "Python: types (mypy, stubtest)" "fix the annotations or tetloc/_tetloc.pyi named above" types
 # The binary `cargo test` built, wherever cargo puts its builds (CARGO_TARGET_DIR).
 cargo_target=$(cargo metadata --format-version 1 --no-deps | "$venv/bin/python" -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 step "Python: pytest" env TETLOC_CLI="$cargo_target/debug/tetloc" "$venv/bin/python" -m pytest -q python/tests
