@@ -90,6 +90,12 @@ export CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
 features=(--features tetloc-mpi/mpi)
 gate "clippy + test build" "see the messages above" cargo test --workspace --locked "${features[@]}" --no-run "$@"
 step "cargo test" cargo test --workspace --locked "${features[@]}" "$@"
+# The API docs build without a warning (broken or private intra-doc links, bad code blocks):
+# rustdoc over the workspace's crates, the dependencies only checked. Without clippy as the
+# compiler (the build above linted the crates) and without the feature `mpi` (its bindings
+# would be generated again for this build).
+gate "cargo doc" "fix the rustdoc warnings named above" \
+  env -u RUSTC_WORKSPACE_WRAPPER RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 
 # --- MPI: `mpirun -n 1, 2, 4` of the binary built with the feature `mpi` over partitioned
 # oracle sets (crates/tetloc-cli/tests/mpi.rs); with the same features as above plus the CLI's,

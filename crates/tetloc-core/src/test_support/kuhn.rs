@@ -199,7 +199,7 @@ fn elevate(points: &mut Vec<Vec3>, tets: &[[u32; 4]], p: u8) -> CellBlock {
     block
 }
 
-/// The usual jittered test grid: `n`³ cubes on [0,1]³, interior vertices jittered by up to
+/// The usual jittered test grid: `n`³ cubes on `[0, 1]³`, interior vertices jittered by up to
 /// `jitter` × spacing, with a smooth vertex field `f` and the tet ids as cell field `cellval`.
 pub fn jittered_grid(n: usize, jitter: f32, seed: u64) -> RawMesh {
     KuhnGrid::new(n)

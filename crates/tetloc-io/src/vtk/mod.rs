@@ -1,6 +1,6 @@
 //! The VTK family: the XML reader ([`vtu`]), partitioned meshes ([`pieces`], listed by [`pvtu`]
 //! and [`vtm`]), the legacy reader ([`legacy`]), the VTU writers
-//! ([`write`]), and what they share: element types, cell types, XML and binary blocks.
+//! ([`write`](mod@write)), and what they share: element types, cell types, XML and binary blocks.
 
 pub(crate) mod blocks;
 pub(crate) mod cells;
