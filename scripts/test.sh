@@ -75,7 +75,7 @@ export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
 venv=target/pyenv
 python_env() {
   { [ -x "$venv/bin/python" ] || python3 -m venv "$venv"; } &&
-    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy mypy
 }
 step "python virtualenv" python_env
 export TETLOC_PYTHON="$PWD/$venv/bin/python"
@@ -90,6 +90,12 @@ export CLIPPY_ARGS="-D__CLIPPY_HACKERY__warnings__CLIPPY_HACKERY__"
 features=(--features tetloc-mpi/mpi)
 gate "clippy + test build" "see the messages above" cargo test --workspace --locked "${features[@]}" --no-run "$@"
 step "cargo test" cargo test --workspace --locked "${features[@]}" "$@"
+# The API docs build without a warning (broken or private intra-doc links, bad code blocks):
+# rustdoc over the workspace's crates, the dependencies only checked. Without clippy as the
+# compiler (the build above linted the crates) and without the feature `mpi` (its bindings
+# would be generated again for this build).
+gate "cargo doc" "fix the rustdoc warnings named above" \
+  env -u RUSTC_WORKSPACE_WRAPPER RUSTDOCFLAGS="-D warnings" cargo doc --workspace --no-deps --locked
 
 # --- MPI: `mpirun -n 1, 2, 4` of the binary built with the feature `mpi` over partitioned
 # oracle sets (crates/tetloc-cli/tests/mpi.rs); with the same features as above plus the CLI's,
@@ -109,6 +115,16 @@ wheel() {
     "$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/tetloc-*.whl
 }
 gate "Python: clippy + release wheel" "see the messages above" wheel
+# The type gate: mypy over the package (strict) and the tests, examples and benchmarks that use
+# it (python/pyproject.toml), and stubtest, which holds the extension's stub
+# (tetloc/_tetloc.pyi) to the installed wheel's functions and classes; then the wheel's
+# `py.typed`. From the repository root, so that `tetloc` is the installed package.
+types() {
+  (cd python && "../$venv/bin/mypy") &&
+    "$venv/bin/python" -m mypy.stubtest --concise tetloc._tetloc &&
+    "$venv/bin/python" -c 'import pathlib, tetloc; assert (pathlib.Path(tetloc.__file__).parent / "py.typed").is_file(), "the wheel has no py.typed"'
+}
+gate "Python: types (mypy, stubtest)" "fix the annotations or tetloc/_tetloc.pyi named above" types
 # The binary `cargo test` built, wherever cargo puts its builds (CARGO_TARGET_DIR).
 cargo_target=$(cargo metadata --format-version 1 --no-deps | "$venv/bin/python" -c 'import json, sys; print(json.load(sys.stdin)["target_directory"])')
 step "Python: pytest" env TETLOC_CLI="$cargo_target/debug/tetloc" "$venv/bin/python" -m pytest -q python/tests

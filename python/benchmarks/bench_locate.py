@@ -149,10 +149,12 @@ def peers(mesh_path: pathlib.Path, mesh: tetloc.Mesh, points: np.ndarray, repeat
     try:
         import pyvista as pv
         import vtk
+
+        have_vtk = True
     except ImportError as e:
         print(f"skipping the VTK peers: {e}", file=sys.stderr)
-        pv = None
-    if pv is not None:
+        have_vtk = False
+    if have_vtk:
         grid = pv.read(mesh_path)
         print(f"VTK SMP backend {vtk.vtkSMPTools.GetBackend()}, "
               f"{vtk.vtkSMPTools.GetEstimatedNumberOfThreads()} threads", file=sys.stderr)

@@ -1,6 +1,6 @@
 //! `tetloc._tetloc`, the extension module under the `tetloc` Python package: meshes
-//! ([`mesh`], VTK cell lists in and out: [`cells`]), locators on every backend ([`locator`], [`backend`]), errors as Python
-//! exceptions ([`errors`]). The public API, vector fields and pyvista/meshio conversion are
+//! (`mesh`, VTK cell lists in and out: `cells`), locators on every backend (`locator`, `backend`), errors as Python
+//! exceptions (`errors`). The public API, vector fields and pyvista/meshio conversion are
 //! Python (`python/tetloc`).
 
 mod alloc;

@@ -12,7 +12,8 @@ use pyo3::prelude::*;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
-use tetloc_core::{Field, FieldLocation, Mesh, RawMesh, Vec3};
+use tetloc_core::{Field, FieldLocation, Mesh, Vec3};
+use tetloc_io::vtk::{from_cell_list, Extracted};
 use tetloc_io::{self as io, MeshFormat};
 
 /// A VTK cell list: types, offsets, connectivity.
@@ -66,15 +67,13 @@ impl PyMesh {
         let points: Vec<Vec3> = bytemuck::cast_slice(contiguous(&points, "points")?).to_vec();
         let conn = contiguous(&connectivity, "cells")?;
         let volume = match (&celltypes, &offsets) {
-            (None, None) if conn.len() % 4 == 0 => {
-                cells::Volume { tets: bytemuck::cast_slice(conn).to_vec(), higher_order: None, cells: None }
-            }
+            (None, None) if conn.len() % 4 == 0 => Extracted::all_tets(conn.to_vec()),
             (None, None) => {
                 return Err(PyValueError::new_err(format!("cells: {} ids are not 4 per tet", conn.len())));
             }
             (Some(types), Some(offsets)) => {
                 let (types, offsets) = (contiguous(types, "celltypes")?, contiguous(offsets, "offsets")?);
-                py.detach(|| cells::from_vtk(types, offsets, conn))
+                py.detach(|| from_cell_list(types, offsets, conn))
                     .map_err(|e| PyValueError::new_err(format!("cells: {e}")))?
             }
             _ => return Err(PyValueError::new_err("cells: celltypes and offsets go together")),
@@ -105,9 +104,8 @@ impl PyMesh {
             Some(p) => return Err(PyValueError::new_err(format!("points64: shape {:?}; expected (N, 3)", p.shape()))),
             None => None,
         };
-        let cells::Volume { tets, higher_order, cells } = volume;
         // The readers' path: `Mesh::new` decomposes mixed cells and keeps higher-order nodes.
-        let raw = RawMesh { points, points64, tets, fields, higher_order, cells };
+        let raw = volume.into_mesh(points, points64, fields);
         let mesh = py.detach(|| Mesh::new(raw, source)).map_err(to_py)?;
         Ok(PyMesh { mesh: Arc::new(mesh) })
     }
@@ -212,10 +210,11 @@ impl PyMesh {
 }
 
 /// Reads a mesh file in any format the CLI reads (by extension, or `format`: vtu, vtk, msh,
-/// node). Interruptible with Ctrl-C.
+/// node). `allow_outside_pieces`: a .pvtu/.vtm may name pieces outside its folder tree (the
+/// CLI's `--allow-outside-pieces`; refused by default). Interruptible with Ctrl-C.
 #[pyfunction]
-#[pyo3(signature = (path, format=None))]
-pub fn read_mesh(py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResult<PyMesh> {
+#[pyo3(signature = (path, format=None, allow_outside_pieces=false))]
+pub fn read_mesh(py: Python<'_>, path: PathBuf, format: Option<&str>, allow_outside_pieces: bool) -> PyResult<PyMesh> {
     let format = format
         .map(|f| {
             MeshFormat::from_name(f).ok_or_else(|| {
@@ -223,6 +222,9 @@ pub fn read_mesh(py: Python<'_>, path: PathBuf, format: Option<&str>) -> PyResul
             })
         })
         .transpose()?;
-    let mesh = background::run(py, "reading a mesh", None, move |_| io::read_mesh(&path, format).map_err(to_py))?;
+    let options = io::ReadOptions { allow_outside_pieces };
+    let mesh = background::run(py, "reading a mesh", None, move |_| {
+        io::read_mesh_with(&path, format, options).map_err(to_py)
+    })?;
     Ok(PyMesh { mesh: Arc::new(mesh) })
 }

@@ -13,6 +13,7 @@ import json
 import os
 import pathlib
 import shutil
+import subprocess
 from dataclasses import dataclass
 from typing import Dict, List, Optional
 
@@ -124,9 +125,9 @@ def query_sets(data: pathlib.Path) -> List[QuerySet]:
                 p = folder / a["file"] if a else None
                 return np.fromfile(p, dtype=np.dtype(a["dtype"])).reshape(a["shape"]) if p and p.exists() else None
 
-            out.append(
-                QuerySet(f"{meta['mesh']}.{meta['set']}", mesh, arr("points"), arr("cell"), arr("value"), arr("flags"))
-            )
+            points, cell, flags = arr("points"), arr("cell"), arr("flags")
+            assert points is not None and cell is not None and flags is not None, f"{meta_path}: arrays missing"
+            out.append(QuerySet(f"{meta['mesh']}.{meta['set']}", mesh, points, cell, arr("value"), flags))
     return out
 
 
@@ -144,8 +145,8 @@ def kuhn_grid(n: int, spacing: float = 1.0):
     z, y, x = np.meshgrid(ax, ax, ax, indexing="ij")
     points = np.stack([x.ravel(), y.ravel(), z.ravel()], axis=1)
     vid = lambda i, j, k: i + (n + 1) * (j + (n + 1) * k)  # noqa: E731
-    k, j, i = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
-    i, j, k = i.ravel(), j.ravel(), k.ravel()
+    kk, jj, ii = np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij")
+    i, j, k = ii.ravel(), jj.ravel(), kk.ravel()
     unit = np.eye(3, dtype=int)
     tets = []
     for a, b in ((0, 1), (0, 2), (1, 0), (1, 2), (2, 0), (2, 1)):
@@ -187,13 +188,87 @@ def exact_values(mesh: tetloc.Mesh, ids: np.ndarray, points: np.ndarray, values:
     def vol6(a, b, c, d):
         return np.einsum("ij,ij->i", np.cross(b - a, c - a), d - a)
 
-    corners = [v[:, 0], v[:, 1], v[:, 2], v[:, 3]]
-    total = vol6(*corners)
+    tet = [v[:, 0], v[:, 1], v[:, 2], v[:, 3]]
+    total = vol6(*tet)
     vals = values[mesh.tets[ids[inside]]].astype(np.float64)
     acc = np.zeros(len(p))
     for c in range(4):
-        w = list(corners)
+        w = list(tet)
         w[c] = p
         acc += vol6(*w) / total * vals[:, c]
     out[inside] = acc
     return out
+
+
+# --- The fresh-clone counterpart of ../shared/data (issue 30 item 1) ---------------------
+# Meshes from the project's own generators (`tetloc gen`, with its fields `f` and `cellval`)
+# under the shared meshes' names, and their query sets in the shared layout, so that
+# `query_sets(generated_data)` feeds the oracle tests unchanged. The answers are computed
+# here in float64 by brute force over every tet (as crates/tetloc-testdata's
+# `generated_data` does with exact signs): the lowest tet whose barycentrics are all >= 0,
+# flagged ambiguous (flags bit0) within 1e-6 of a face of any tet.
+
+GENERATED = [("torus_s", "fusion", 6000, []), ("part_s", "agulhas", 4000, []), ("delaunay_s", "jets", 3000, ["--f64"])]
+GENERATED_SET_SIZE = 1000
+AMBIGUOUS = 1e-6
+
+
+def oracle_answers(mesh: tetloc.Mesh, points: np.ndarray):
+    """(cell ids, -1 outside; values of `f`, NaN outside; flags) of float32 `points`."""
+    corners = mesh.points64[mesh.tets]  # (T, 4, 3) at the file's precision
+    v0 = corners[:, 0]
+    inverse = np.linalg.inv(np.stack([corners[:, k] - v0 for k in (1, 2, 3)], axis=2))
+    f = mesh.field("f").astype(np.float64)[mesh.tets]  # (T, 4)
+    p64 = points.astype(np.float64)
+    cell = np.full(len(p64), -1, np.int32)
+    value = np.full(len(p64), np.nan)
+    flags = np.zeros(len(p64), np.uint8)
+    for start in range(0, len(p64), 32):
+        p = p64[start : start + 32]
+        b123 = np.einsum("tij,ptj->pti", inverse, p[:, None, :] - v0[None])
+        bary = np.concatenate([1 - b123.sum(axis=2, keepdims=True), b123], axis=2)  # (P, T, 4)
+        low = bary.min(axis=2)
+        inside = low >= 0
+        found = inside.any(axis=1)
+        first = np.argmax(inside, axis=1)
+        rows = np.arange(len(p))
+        cell[start : start + len(p)] = np.where(found, first, -1)
+        value[start : start + len(p)] = np.where(found, (bary[rows, first] * f[first]).sum(axis=1), np.nan)
+        flags[start : start + len(p)] = (np.abs(low) < AMBIGUOUS).any(axis=1)
+    return cell, value, flags
+
+
+def write_set(folder: pathlib.Path, mesh_name: str, set_name: str, arrays: Dict[str, np.ndarray]) -> None:
+    meta: Dict = {"mesh": mesh_name, "set": set_name, "arrays": {}}
+    for key, a in arrays.items():
+        file = f"{mesh_name}.{set_name}.{key}.bin"
+        a.tofile(folder / file)
+        meta["arrays"][key] = {"file": file, "dtype": a.dtype.str, "shape": list(a.shape)}
+    (folder / f"{mesh_name}.{set_name}.json").write_text(json.dumps(meta))
+
+
+@pytest.fixture(scope="session")
+def generated_data(cli, tmp_path_factory) -> pathlib.Path:
+    """A small oracle folder in the layout of ../shared/data, made now (see above)."""
+    folder = tmp_path_factory.mktemp("generated-data")
+    rng = np.random.default_rng(30)
+    for name, shape, cells, extra in GENERATED:
+        path = folder / f"{name}.vtu"
+        subprocess.run([cli, "gen", shape, "--cells", str(cells), "-q", "-o", str(path), *extra], check=True)
+        mesh = tetloc.read(path)
+        lo, hi = np.array(mesh.bounds[0::2]), np.array(mesh.bounds[1::2])
+        pick = rng.choice(mesh.n_tets, size=min(GENERATED_SET_SIZE, mesh.n_tets), replace=False)
+        sets = {
+            "centers": mesh.points64[mesh.tets[pick]].mean(axis=1),
+            "random": rng.uniform(lo, hi, size=(GENERATED_SET_SIZE, 3)),
+            "bbox": rng.uniform(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), size=(GENERATED_SET_SIZE, 3)),
+        }
+        for set_name, pts in sets.items():
+            points = pts.astype(np.float32)
+            cell, value, flags = oracle_answers(mesh, points)
+            # A set that checks something: few points too close to call, some inside (and,
+            # around the box, some outside).
+            assert flags.mean() < 0.01 and (cell >= 0).mean() > 0.2, f"{name}.{set_name}"
+            assert set_name != "bbox" or (cell < 0).any(), f"{name}.{set_name}"
+            write_set(folder, name, set_name, {"points": points, "cell": cell, "value": value, "flags": flags})
+    return folder

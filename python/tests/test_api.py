@@ -110,11 +110,24 @@ def test_every_public_name_has_a_docstring():
 
 def test_docstrings_describe_every_cell_type_and_format():
     """Issue 30 item 6: no stale "tetrahedral only" text; the formats read are listed."""
-    doc = tetloc.read.__doc__
+    doc = tetloc.read.__doc__ or ""
     assert "non-tet" not in doc and "not tetrahedra" not in doc
     for fmt in (".vtu", ".pvtu", ".vtm", ".vtk", ".msh", ".node"):
         assert fmt in doc, fmt
-    for doc in (tetloc.Mesh.__doc__, tetloc.read.__doc__, tetloc.Mesh.from_pyvista.__doc__, tetloc.Mesh.from_meshio.__doc__):
-        assert "hexahedra" in doc or "hexahedron" in doc
-    assert "tetrahedral mesh" not in tetloc.Mesh.__doc__
-    assert "cells" in tetloc.Locator.locate.__doc__ and "tets containing" not in tetloc.Locator.locate.__doc__
+    for text in (tetloc.Mesh.__doc__, tetloc.read.__doc__, tetloc.Mesh.from_pyvista.__doc__, tetloc.Mesh.from_meshio.__doc__):
+        assert text is not None
+        assert "hexahedra" in text or "hexahedron" in text
+    assert "tetrahedral mesh" not in (tetloc.Mesh.__doc__ or "")
+    locate_doc = tetloc.Locator.locate.__doc__ or ""
+    assert "cells" in locate_doc and "tets containing" not in locate_doc
+
+
+def test_the_package_is_typed():
+    """Issue 28: type checkers see the package's types: ``py.typed`` and the extension's stub
+    ship with it, and the Locator's keyword options are a TypedDict."""
+    import pathlib
+
+    here = pathlib.Path(tetloc.__file__).parent
+    assert (here / "py.typed").is_file() and (here / "_tetloc.pyi").is_file()
+    opts: tetloc.LocatorOptions = {"tolerance": "1%", "precision": "f64", "deferred": True}
+    assert set(opts) <= set(tetloc.LocatorOptions.__annotations__)

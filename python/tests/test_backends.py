@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from conftest import query_sets
 from test_oracle import check_set
 
 import tetloc
@@ -20,7 +21,18 @@ def torus(data_dir):
 @pytest.mark.parametrize("backend", GPU_BACKENDS)
 def test_gpu_backend_matches_the_oracle(vulkan, oracle_sets, backend):
     """delaunay_s: slivers and inverted tets (the Rust tests run every set on every kernel)."""
-    sets = [s for s in oracle_sets if s.label.startswith("delaunay_s.")]
+    check_on_gpu(oracle_sets, backend)
+
+
+@pytest.mark.parametrize("backend", GPU_BACKENDS)
+def test_gpu_backend_matches_the_generated_oracle(vulkan, generated_data, backend):
+    """The fresh-clone counterpart: a generated block with float64 coordinates below f32's
+    resolution (the kernels' f64 refinement), answers computed at test time."""
+    check_on_gpu(query_sets(generated_data), backend)
+
+
+def check_on_gpu(all_sets, backend: str) -> None:
+    sets = [s for s in all_sets if s.label.startswith("delaunay_s.")]
     assert len(sets) == 3
     mesh = tetloc.read(sets[0].mesh_path)
     loc = tetloc.Locator(mesh, backend=backend)

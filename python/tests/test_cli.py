@@ -8,6 +8,8 @@ import subprocess
 import numpy as np
 import pytest
 
+from conftest import query_sets
+
 import tetloc
 
 
@@ -19,18 +21,32 @@ def run(cli: str, *args: str) -> str:
 
 @pytest.mark.parametrize("name", ["torus_s.vtu", "part_s.msh22.msh", "delaunay_s.vtk"])
 def test_locate_and_sample_match_the_cli(cli, data_dir, oracle_sets, tmp_path, name):
-    label = name.split(".")[0]
-    points = np.concatenate([s.points for s in oracle_sets if s.label.startswith(label + ".")])
+    # Both keep the f64 field's values as float64.
+    assert same_answers_as_the_cli(cli, data_dir / name, oracle_sets, tmp_path) == np.float64
+
+
+@pytest.mark.parametrize("name", ["torus_s.vtu", "part_s.vtu", "delaunay_s.vtu"])
+def test_locate_and_sample_match_the_cli_on_generated_meshes(cli, generated_data, tmp_path, name):
+    """The fresh-clone counterpart (float32 fields: float32 values from both)."""
+    sets = query_sets(generated_data)
+    assert same_answers_as_the_cli(cli, generated_data / name, sets, tmp_path) == np.float32
+
+
+def same_answers_as_the_cli(cli, path, sets, tmp_path) -> np.dtype:
+    """Checks the CLI's and Python's ids and values of `f` at the points of `path`'s sets;
+    returns the values' dtype."""
+    label = path.name.split(".")[0]
+    points = np.concatenate([s.points for s in sets if s.label.startswith(label + ".")])
     np.save(tmp_path / "p.npy", points.astype(np.float64))  # f64 in: both round to f32
-    run(cli, "locate", data_dir / name, "--points", tmp_path / "p.npy", "--out", tmp_path / "ids.npy",
+    run(cli, "locate", path, "--points", tmp_path / "p.npy", "--out", tmp_path / "ids.npy",
         "--field", "f", "--values", tmp_path / "v.npy", "--backend", "cpu")
-    mesh = tetloc.read(data_dir / name)
+    mesh = tetloc.read(path)
     ids, values = tetloc.Locator(mesh, backend="cpu").locate_and_sample(points.astype(np.float64), "f")
     np.testing.assert_array_equal(ids, np.load(tmp_path / "ids.npy"))
-    # Both keep the f64 field's values as float64.
     theirs = np.load(tmp_path / "v.npy")
-    assert values.dtype == theirs.dtype == np.float64
+    assert values.dtype == theirs.dtype
     np.testing.assert_array_equal(values, theirs)
+    return values.dtype
 
 
 @pytest.mark.parametrize("name", ["part_s.vtu", "real/post.vtk"])
@@ -39,15 +55,33 @@ def test_info_is_the_clis_info_json(cli, data_dir, name):
     assert tetloc.read(path).info() == json.loads(run(cli, "info", path, "--json"))
 
 
+@pytest.mark.parametrize("name", ["part_s.vtu", "delaunay_s.vtu"])
+def test_info_is_the_clis_info_json_on_generated_meshes(cli, generated_data, name):
+    """The fresh-clone counterpart (delaunay_s: float64 coordinates)."""
+    path = str(generated_data / name)
+    assert tetloc.read(path).info() == json.loads(run(cli, "info", path, "--json"))
+
+
 @pytest.mark.parametrize("backend", ["cpu", "auto"])
 @pytest.mark.parametrize("options", [{}, {"tolerance": "1%"}, {"precision": "f64", "tolerance": 0.01}])
 def test_the_same_options_build_the_same_stack(cli, data_dir, tmp_path, backend, options):
     """Python and the CLI build their locators through one front door: the same backend and
     options give the same layers (TETLOC_EXPLAIN=1 makes the CLI say its stack)."""
+    same_stack(cli, data_dir / "torus_s.vtu", tmp_path, backend, options)
+
+
+@pytest.mark.parametrize("backend", ["cpu", "auto"])
+@pytest.mark.parametrize("options", [{}, {"tolerance": "1%"}, {"precision": "f64", "tolerance": 0.01}])
+def test_the_same_options_build_the_same_stack_on_a_generated_mesh(cli, generated_data, tmp_path, backend, options):
+    """The fresh-clone counterpart."""
+    same_stack(cli, generated_data / "torus_s.vtu", tmp_path, backend, options)
+
+
+def same_stack(cli, mesh, tmp_path, backend, options) -> None:
     import os
 
     np.save(tmp_path / "p.npy", np.zeros((1, 3)))
-    args = [cli, "locate", str(data_dir / "torus_s.vtu"), "--points", str(tmp_path / "p.npy"), "--out",
+    args = [cli, "locate", str(mesh), "--points", str(tmp_path / "p.npy"), "--out",
             str(tmp_path / "ids.npy"), "--backend", backend, "--quiet"]
     for k, v in options.items():
         args += [f"--{k}", str(v)]
@@ -55,7 +89,7 @@ def test_the_same_options_build_the_same_stack(cli, data_dir, tmp_path, backend,
     assert out.returncode == 0, out.stderr
     said = [line for line in out.stderr.splitlines() if line.startswith("locator: ")]
     assert len(said) == 1, out.stderr
-    loc = tetloc.Locator(tetloc.read(data_dir / "torus_s.vtu"), backend=backend, **options)
+    loc = tetloc.Locator(tetloc.read(mesh), backend=backend, **options)
     assert said[0] == "locator: " + " > ".join(loc.stack)
     want = ["FiniteOnly", "CellLocator"] + ["F64Values"] * ("precision" in options) + ["WithTolerance"] * bool(options)
     assert loc.stack[1:] == want

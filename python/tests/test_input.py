@@ -8,6 +8,7 @@ from __future__ import annotations
 import os
 import subprocess
 import sys
+from typing import Any, List
 
 import numpy as np
 import pytest
@@ -94,7 +95,8 @@ def test_torch_cpu_tensors(loc, pts):
 
 
 def test_empty_points(loc):
-    for empty in (np.empty((0, 3), np.float32), np.empty((0, 3)), []):
+    empties: List[Any] = [np.empty((0, 3), np.float32), np.empty((0, 3)), []]
+    for empty in empties:
         if isinstance(empty, list):
             with pytest.raises(ValueError, match="shape"):
                 loc.locate(empty)
@@ -183,16 +185,18 @@ def test_unknown_backend_device_and_options(grid_mesh):
         tetloc.Locator(grid_mesh, backend="gpu")
     # Every keyword is listed, the named ones too.
     every = "backend, device, progress, tolerance, split, compact, precision, deferred"
+    # The typed options (tetloc.LocatorOptions) are the ones the extension knows.
+    assert every == ", ".join(["backend", "device", *tetloc.LocatorOptions.__annotations__])
     with pytest.raises(TypeError, match=rf"Locator\(\) got an unexpected option 'leaf' \(known: {every}\)"):
-        tetloc.Locator(grid_mesh, backend="cpu", leaf=4)
+        tetloc.Locator(grid_mesh, backend="cpu", leaf=4)  # type: ignore[call-arg]
     with pytest.raises(TypeError, match=rf"unexpected option 'devise' \(known: {every}\)"):
-        tetloc.Locator(grid_mesh, devise=0)
+        tetloc.Locator(grid_mesh, devise=0)  # type: ignore[call-arg]
     with pytest.raises(ValueError, match="precision 'bogus'"):
-        tetloc.Locator(grid_mesh, precision="bogus")
+        tetloc.Locator(grid_mesh, precision="bogus")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="split: expected a positive number"):
         tetloc.Locator(grid_mesh, split=0)
     with pytest.raises(TypeError, match="deferred: expected True or False"):
-        tetloc.Locator(grid_mesh, backend="cpu", deferred="later")
+        tetloc.Locator(grid_mesh, backend="cpu", deferred="later")  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="mesh: expected a tetloc.Mesh or a pyvista dataset, got str"):
         tetloc.Locator("mesh.vtu")
 
@@ -234,9 +238,9 @@ def test_bad_meshes(data_dir, tmp_path):
         tetloc.read(truncated)
     for name in ("dir.vtu", "dir"):  # a directory is named as one, whatever its name
         (tmp_path / name).mkdir()
-        with pytest.raises(IsADirectoryError, match=r"is a directory; tetloc.read takes a mesh file") as e:
+        with pytest.raises(IsADirectoryError, match=r"is a directory; tetloc.read takes a mesh file") as isdir:
             tetloc.read(tmp_path / name)
-        assert e.value.filename == str(tmp_path / name)
+        assert isdir.value.filename == str(tmp_path / name)
 
 
 def test_bad_mesh_arrays():
@@ -285,7 +289,7 @@ def test_tolerance_answers_points_just_outside(grid_mesh):
         assert ids[2] == -1  # farther than the tolerance
     for bad, err in [(-1.0, ValueError), ("x%", ValueError), ([1], TypeError)]:
         with pytest.raises(err, match="tolerance"):
-            tetloc.Locator(grid_mesh, backend="cpu", tolerance=bad)
+            tetloc.Locator(grid_mesh, backend="cpu", tolerance=bad)  # type: ignore[arg-type]
 
 
 def test_locator_takes_a_pyvista_dataset(grid_mesh, pts):
@@ -311,3 +315,22 @@ def test_trace_warns_about_seeds_outside(grid_mesh):
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # seeds all inside: no warning
         tetloc.trace(grid_mesh, "v", seeds[[0, 2]], max_steps=5, backend="cpu")
+
+
+def test_pieces_outside_the_listing_are_refused_unless_allowed(cli, tmp_path):
+    """Issue 29 item 20, as the CLI's `--allow-outside-pieces`: a .pvtu naming pieces outside
+    its folder tree (here `../m/...`) is refused by default, naming the listing and the keyword
+    that allows it; ``allow_outside_pieces=True`` reads it."""
+    mesh, pvtu = tmp_path / "m.vtu", tmp_path / "m.pvtu"
+    subprocess.run([cli, "gen", "jets", "--cells", "3000", "-q", "-o", str(mesh)], check=True)
+    subprocess.run([cli, "partition", str(mesh), "--parts", "2", "-q", "-o", str(pvtu)], check=True)
+    (tmp_path / "sub").mkdir()
+    listing = tmp_path / "sub" / "up.pvtu"
+    listing.write_text(pvtu.read_text().replace('Source="m/', 'Source="../m/'))
+    with pytest.raises(ValueError, match=r"up\.pvtu.*outside the listing's folder.*allow_outside_pieces=True"):
+        tetloc.read(listing)
+    whole = tetloc.read(mesh)
+    pieces = tetloc.read(listing, allow_outside_pieces=True)
+    assert pieces.n_cells == whole.n_cells
+    # The listing inside its folder reads without the keyword.
+    assert tetloc.read(pvtu).n_cells == whole.n_cells

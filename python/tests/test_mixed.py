@@ -118,9 +118,11 @@ def test_every_cell_type_from_pyvista_and_back(name):
     np.testing.assert_array_equal(back.cell_data["c"], grid.cell_data["c"])
     same_mesh(tetloc.Mesh.from_pyvista(back), mesh)
     # The constructor takes pyvista's forms too: flat cells with celltypes, and blocks per type.
-    fields = dict(point_data={"f": grid.point_data["f"], "v": grid.point_data["v"]}, cell_data={"c": grid.cell_data["c"]})
-    same_mesh(tetloc.Mesh(grid.points, mesh.cells, celltypes=mesh.celltypes, **fields), mesh)
-    same_mesh(tetloc.Mesh(grid.points, mesh.cells_dict, **fields), mesh)
+    point_data = {"f": grid.point_data["f"], "v": grid.point_data["v"]}
+    cell_data = {"c": grid.cell_data["c"]}
+    flat = tetloc.Mesh(grid.points, mesh.cells, point_data, cell_data, celltypes=mesh.celltypes)
+    same_mesh(flat, mesh)
+    same_mesh(tetloc.Mesh(grid.points, mesh.cells_dict, point_data, cell_data), mesh)
 
 
 @pytest.mark.parametrize("name", READ)

@@ -9,7 +9,7 @@ import pathlib
 
 import numpy as np
 import pytest
-from conftest import QuerySet, exact_values
+from conftest import QuerySet, exact_values, query_sets
 
 import tetloc
 
@@ -54,8 +54,19 @@ def check_set(loc: tetloc.Locator, mesh: tetloc.Mesh, s) -> np.ndarray:
 
 
 def test_cpu_matches_every_oracle_set(oracle_sets):
+    check_on_cpu(oracle_sets)
+
+
+def test_cpu_matches_the_generated_oracle_sets(generated_data):
+    """The fresh-clone counterpart: generated meshes, answers computed at test time."""
+    sets = query_sets(generated_data)
+    assert len(sets) == 9, [s.label for s in sets]
+    check_on_cpu(sets)
+
+
+def check_on_cpu(sets) -> None:
     meshes = {}
-    for s in oracle_sets:
+    for s in sets:
         if s.mesh_path not in meshes:
             mesh = tetloc.read(s.mesh_path)
             meshes[s.mesh_path] = (mesh, tetloc.Locator(mesh, backend="cpu"))

@@ -55,9 +55,9 @@ def test_float64_points_on_a_float64_field_get_the_cpus_float64_values(backend, 
 
 def test_a_bad_precision_is_a_value_error(grid_mesh):
     with pytest.raises(ValueError, match="precision 'bogus'"):
-        tetloc.Locator(grid_mesh, backend="cpu", precision="bogus")
+        tetloc.Locator(grid_mesh, backend="cpu", precision="bogus")  # type: ignore[arg-type]
     with pytest.raises(ValueError, match="precision"):
-        tetloc.Locator(grid_mesh, backend="cpu", precision=64)
+        tetloc.Locator(grid_mesh, backend="cpu", precision=64)  # type: ignore[arg-type]
 
 
 def test_fields_come_back_as_the_file_holds_them(tmp_path):

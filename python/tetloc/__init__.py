@@ -23,6 +23,7 @@ from ._mesh import Mesh, read
 from ._ops import REASONS, probe, resample_to_image, trace
 from ._tetloc import BACKENDS, DeviceError, __version__
 from ._tetloc import devices as _devices
+from ._typing import LocatorOptions
 
 from typing import Any, Dict, List
 
@@ -40,6 +41,7 @@ __all__ = [
     "BACKENDS",
     "DeviceError",
     "Locator",
+    "LocatorOptions",
     "Mesh",
     "REASONS",
     "__version__",

@@ -10,7 +10,7 @@ cell types against those tetloc reads.
 from __future__ import annotations
 
 from collections import Counter
-from typing import Any, Dict, Mapping, Optional, Tuple
+from typing import Any, Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
 
@@ -43,7 +43,7 @@ def check_types(types: np.ndarray, offsets: np.ndarray, source: str, names: Any 
     code; VTK's code otherwise)."""
     known = readable()
     keys, count_of = np.unique(types.astype(np.int64) << 32 | sizes(offsets), return_counts=True)
-    bad: Counter = Counter()
+    bad: Counter[str] = Counter()
     for key, count in zip(keys.tolist(), count_of.tolist()):
         code, n = key >> 32, key & 0xFFFFFFFF
         if (code, n) not in known:
@@ -153,7 +153,7 @@ def to_blocks(cells: CellList) -> Dict[int, np.ndarray]:
     return out
 
 
-def runs(types: np.ndarray, offsets: np.ndarray) -> list:
+def runs(types: np.ndarray, offsets: np.ndarray) -> List[Tuple[int, int]]:
     """(start, end) of each run of cells of one type and one point count (meshio's blocks)."""
     key = types.astype(np.int64) << 32 | sizes(offsets)
     breaks = np.flatnonzero(key[1:] != key[:-1]) + 1

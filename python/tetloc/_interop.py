@@ -97,7 +97,8 @@ def from_meshio(m: Any) -> Arrays:
     points = np.asarray(m.points)
     if points.ndim != 2 or points.shape[1] != 3:
         raise ValueError(f"{source}: points of shape {points.shape}; expected (N, 3)")
-    types, sizes, conn, unknown, skipped = [], [], [], {}, set()
+    types, sizes, conn, skipped = [], [], [], set()
+    unknown: Dict[str, int] = {}
     for i, block in enumerate(m.cells):
         data = np.asarray(block.data)
         code = meshio_to_vtk_type.get(block.type)

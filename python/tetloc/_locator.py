@@ -4,17 +4,23 @@ from __future__ import annotations
 
 import sys
 import warnings
-from typing import Any, Dict, List, Optional, Tuple
+from typing import TYPE_CHECKING, Any, Dict, List, Optional, Tuple
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _fields
 from ._mesh import Mesh
 from ._points import as_points, as_points64
 from ._progress import ProgressBar
 from ._tetloc import _Locator
+from ._typing import LocatorOptions, MeshLike, PointsLike, Progress
 
-ArrayLike = Any
+if TYPE_CHECKING:
+    from typing_extensions import Unpack  # typing.Unpack from Python 3.11
+
+#: Values: float32, or float64 for float64 points on float64 data or with precision="f64".
+Values = npt.NDArray[np.floating[Any]]
 
 
 class Locator:
@@ -35,7 +41,7 @@ class Locator:
         raises ``tetloc.DeviceError``.
     device : int, optional
         Vulkan device index (see ``tetloc.devices()``); the best device when omitted.
-    **options
+    **options : LocatorOptions
         ``progress=True``: show a progress bar on stderr during long builds and batches (or a
         callable, called as ``progress(stage, fraction or None, seconds)``).
         ``tolerance``: points outside the mesh but within this distance of its boundary get
@@ -69,21 +75,28 @@ class Locator:
     on one Locator run one at a time) and can be interrupted with Ctrl-C.
     """
 
-    def __init__(self, mesh: Mesh, backend: str = "auto", device: Optional[int] = None, **options: Any) -> None:
+    _mesh: Mesh
+
+    def __init__(
+        self, mesh: MeshLike, backend: str = "auto", device: Optional[int] = None, **options: Unpack[LocatorOptions]
+    ) -> None:
         if not isinstance(mesh, Mesh):
             pv = sys.modules.get("pyvista")
             if pv is None or not isinstance(mesh, pv.DataSet):
                 raise TypeError(f"mesh: expected a tetloc.Mesh or a pyvista dataset, got {type(mesh).__name__}")
             mesh = Mesh.from_pyvista(mesh)
-        progress = options.pop("progress", False)
-        if progress is True:
+        given = options.pop("progress", False)
+        progress: Optional[Progress]
+        if given is True:
             progress = ProgressBar(f"tetloc {backend}")
-        elif progress is False or progress is None:
+        elif given is False or given is None:
             progress = None
-        elif not callable(progress):
-            raise TypeError(f"progress: expected True, False or a callable, got {type(progress).__name__}")
+        elif callable(given):
+            progress = given
+        else:
+            raise TypeError(f"progress: expected True, False or a callable, got {type(given).__name__}")
         self._mesh = mesh
-        self._raw = _Locator(mesh._raw, backend, device, options, progress)
+        self._raw = _Locator(mesh._raw, backend, device, dict(options), progress)
         if self._raw.auto_note:
             warnings.warn(self._raw.auto_note, RuntimeWarning, stacklevel=2)
 
@@ -116,7 +129,9 @@ class Locator:
         memory tracked by the backend; cpu: the extension's heap, measured)."""
         return self._raw.memory()
 
-    def _sample64(self, points: ArrayLike, comps: list) -> Optional[Tuple[np.ndarray, np.ndarray, Tuple[int, ...]]]:
+    def _sample64(
+        self, points: PointsLike, comps: List[str]
+    ) -> Optional[Tuple[npt.NDArray[np.int32], Values, Tuple[int, ...]]]:
         """float64 points at their precision: (ids, values (K, len(comps)), leading shape),
         or None for other points."""
         if not self._raw.takes_f64:
@@ -134,13 +149,12 @@ class Locator:
                 RuntimeWarning,
                 stacklevel=3,
             )
-        ids, values = self._raw.sample_many64(flat, comps)
+        ids, values64 = self._raw.sample_many64(flat, comps)
         # float64 values where they carry more than float32 (precision="f64", or f64 data).
-        if not any(self._raw.values_f64(c) for c in comps):
-            values = values.astype(np.float32)
+        values: Values = values64 if any(self._raw.values_f64(c) for c in comps) else values64.astype(np.float32)
         return ids, values, lead
 
-    def locate(self, points: ArrayLike) -> np.ndarray:
+    def locate(self, points: PointsLike) -> npt.NDArray[np.int32]:
         """Ids of the cells containing `points` (0-based, the mesh's cell order, not its
         ``tets``), -1 outside: an int32 array of the points' leading shape."""
         got = self._sample64(points, [])
@@ -149,7 +163,7 @@ class Locator:
         flat, lead = as_points(points)
         return self._raw.locate(flat).reshape(lead)
 
-    def sample(self, points: ArrayLike, name: str) -> np.ndarray:
+    def sample(self, points: PointsLike, name: str) -> Values:
         """Values of field `name` at `points`, NaN outside: float32 (float64 for float64 points
         on a float64 field or with ``precision="f64"``), shape (K,) for a scalar
         field, (K, k) for a k-component field. Point fields are interpolated with the cell's
@@ -165,7 +179,7 @@ class Locator:
         values = _fields.join([self._raw.sample(flat, c) for c in comps], k)
         return values.reshape(lead + values.shape[1:])
 
-    def locate_and_sample(self, points: ArrayLike, name: str) -> Tuple[np.ndarray, np.ndarray]:
+    def locate_and_sample(self, points: PointsLike, name: str) -> Tuple[npt.NDArray[np.int32], Values]:
         """``(locate(points), sample(points, name))`` in one pass (per component)."""
         comps, k = self._mesh._index.components(name)
         got = self._sample64(points, comps)

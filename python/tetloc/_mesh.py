@@ -8,11 +8,13 @@ import os
 from typing import Any, Dict, Mapping, Optional, Tuple, Union
 
 import numpy as np
+import numpy.typing as npt
 
 from . import _cells, _fields, _interop
 from ._tetloc import _Mesh, read_mesh
 
-ArrayLike = Any
+ArrayLike = npt.ArrayLike
+Ids = npt.NDArray[np.int64]
 
 
 class Mesh:
@@ -53,7 +55,7 @@ class Mesh:
     def __init__(
         self,
         points: ArrayLike,
-        cells: ArrayLike,
+        cells: Union[ArrayLike, Mapping[Any, ArrayLike]],
         point_data: Optional[Mapping[str, ArrayLike]] = None,
         cell_data: Optional[Mapping[str, ArrayLike]] = None,
         celltypes: Optional[ArrayLike] = None,
@@ -213,12 +215,12 @@ class Mesh:
         return self._index.shapes("cell", self.n_cells)
 
     @property
-    def points(self) -> np.ndarray:
+    def points(self) -> npt.NDArray[np.float32]:
         """A copy of the vertices, (N, 3) float32."""
         return self._raw.points()
 
     @property
-    def points64(self) -> np.ndarray:
+    def points64(self) -> npt.NDArray[np.float64]:
         """A copy of the vertices at the precision the file (or the arrays given) has them,
         (N, 3) float64: what exact answers are decided on."""
         return self._raw.points64()
@@ -229,23 +231,23 @@ class Mesh:
         return self._raw.cell_list()
 
     @property
-    def celltypes(self) -> np.ndarray:
+    def celltypes(self) -> npt.NDArray[np.uint8]:
         """VTK cell type code of each cell, (M,) uint8 (``pyvista.CellType``: 10 a tet, 12 a
         hexahedron, 13 a wedge, 14 a pyramid, 24 a quadratic tet, ...)."""
         return self._cell_list()[0]
 
     @property
-    def offsets(self) -> np.ndarray:
+    def offsets(self) -> Ids:
         """(M + 1,) int64: cell ``i``'s vertex ids are ``cell_connectivity[offsets[i]:offsets[i + 1]]``."""
         return self._cell_list()[1]
 
     @property
-    def cell_connectivity(self) -> np.ndarray:
+    def cell_connectivity(self) -> Ids:
         """Every cell's vertex ids, one cell after the other, int64, VTK's node order."""
         return self._cell_list()[2]
 
     @property
-    def cells(self) -> np.ndarray:
+    def cells(self) -> Ids:
         """The cells as pyvista's ``UnstructuredGrid.cells`` has them: a flat int64 array
         ``[n0, ids..., n1, ids...]`` (with ``celltypes``, what
         ``pyvista.UnstructuredGrid(cells, celltypes, points)`` takes). The cells are the
@@ -255,13 +257,13 @@ class Mesh:
         return _cells.to_padded(self._cell_list())
 
     @property
-    def cells_dict(self) -> Dict[int, np.ndarray]:
+    def cells_dict(self) -> Dict[int, Ids]:
         """``{VTK cell type: (n, k) int64 ids}``, as pyvista's ``cells_dict``
         (``mesh.cells_dict[10]``: the (M, 4) tets of a mesh of linear tets)."""
         return _cells.to_blocks(self._cell_list())
 
     @property
-    def tets(self) -> np.ndarray:
+    def tets(self) -> Ids:
         """The tets located in, (T, 4) int64, each in tetloc's canonical right-handed (VTK)
         order: a mesh of tets's own (the corners of higher-order ones), in cell order; for
         other cells their conforming decomposition, each cell's tets together
@@ -269,11 +271,11 @@ class Mesh:
         return self._raw.tets()
 
     @property
-    def tet_cells(self) -> np.ndarray:
+    def tet_cells(self) -> Ids:
         """The cell each of ``tets`` is or belongs to, (T,) int64."""
         return self._raw.tet_cells()
 
-    def field(self, name: str) -> np.ndarray:
+    def field(self, name: str) -> npt.NDArray[np.floating[Any]]:
         """A copy of field `name`'s values, (N,) or (N, k): float64 where the file stored
         them in f64 (and they do not all round to f32 exactly), else float32."""
         comps, k = self._index.components(name)
@@ -282,7 +284,8 @@ class Mesh:
     def info(self) -> Dict[str, Any]:
         """What ``tetloc info --json`` prints: counts (cells by type, tets), bounds, edge
         lengths, volume, reoriented/degenerate cells, shared faces, fields."""
-        return json.loads(self._raw.info_json())
+        info: Dict[str, Any] = json.loads(self._raw.info_json())
+        return info
 
     def __repr__(self) -> str:
         def names(d: Dict[str, Tuple[int, ...]]) -> str:
@@ -295,12 +298,19 @@ class Mesh:
         )
 
 
-def read(path: Union[str, "os.PathLike[str]"], format: Optional[str] = None) -> Mesh:
+def read(
+    path: Union[str, "os.PathLike[str]"], format: Optional[str] = None, *, allow_outside_pieces: bool = False
+) -> Mesh:
     """Reads a mesh in any format the ``tetloc`` CLI reads, by extension or `format`: VTK XML
     ``.vtu``, its parallel pieces ``.pvtu`` and multiblock ``.vtm`` ("vtu", "pvtu", "vtm"),
     legacy ``.vtk`` ("vtk"), Gmsh ``.msh`` 2.2 and 4.1 ("msh"), TetGen ``.node``/``.ele``
     ("node"). Every volume cell tetloc reads is taken: tets, hexahedra, wedges, pyramids,
     their higher-order kinds, and mixes of them; 0-2-D cells are ignored.
+
+    A ``.pvtu``/``.vtm`` may list pieces only inside its own folder tree: pieces reached by
+    ``../``, an absolute path or a symbolic link out of it raise ``ValueError`` (a listing
+    from an untrusted source should not read arbitrary files), unless
+    ``allow_outside_pieces=True`` (the CLI's ``--allow-outside-pieces``).
 
     Raises ``FileNotFoundError``, ``IsADirectoryError`` (and other ``OSError``) when the file
     cannot be opened, ``ValueError`` naming the file and the problem when it cannot be used
@@ -312,4 +322,4 @@ def read(path: Union[str, "os.PathLike[str]"], format: Optional[str] = None) -> 
         raise IsADirectoryError(
             errno.EISDIR, "is a directory; tetloc.read takes a mesh file (.vtu, .pvtu, .vtm, .vtk, .msh, .node)", path
         )
-    return Mesh._wrap(read_mesh(path, format))
+    return Mesh._wrap(read_mesh(path, format, allow_outside_pieces))

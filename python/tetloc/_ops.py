@@ -7,7 +7,7 @@ Image, Resample With Dataset and Stream Tracer, on the core's operations (the CL
 from __future__ import annotations
 
 import warnings
-from typing import Any, Dict, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
@@ -58,7 +58,7 @@ def _progress(progress: Any, title: str) -> Any:
     return progress
 
 
-def _names(fields: Union[None, str, Sequence[str]]) -> Tuple[list, bool]:
+def _names(fields: Union[None, str, Sequence[str]]) -> Tuple[List[str], bool]:
     """(field names, whether one field was named as a string)."""
     if fields is None:
         return [], False
@@ -163,6 +163,7 @@ def probe(
     names, one = _names(fields)
     # The target's points at their precision: float64 ones (a mesh's file coordinates) keep
     # every digit, so targets far from the origin are probed where they are.
+    lead: Tuple[int, ...]
     if isinstance(target, Mesh):
         pts, lead = target.points64, (target.n_points,)
     else:

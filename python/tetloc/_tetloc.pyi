@@ -1,9 +1,28 @@
-"""Types of the extension module; the public API is in tetloc/__init__.py."""
+"""Types of the extension module; the public API is in tetloc/__init__.py. `stubtest`
+(scripts/test.sh) holds this file to the built extension: every name, parameter and default.
+Other modules (a time series' `Mesh.times`, `tetloc.torch`) add theirs here as they come."""
 
-from typing import Any, Callable, Dict, List, Optional, Tuple, Union
+from typing import Any, Callable, Dict, List, Optional, Tuple, Union, final
 
 import numpy as np
 import numpy.typing as npt
+
+__all__ = [
+    "_Mesh",
+    "_Locator",
+    "read_mesh",
+    "devices",
+    "validation_errors",
+    "vtk_cell_types",
+    "gmsh_cell_type",
+    "resample_to_image",
+    "probe",
+    "trace",
+    "resolve",
+    "DeviceError",
+    "BACKENDS",
+    "__version__",
+]
 
 __version__: str
 BACKENDS: List[str]
@@ -11,13 +30,14 @@ BACKENDS: List[str]
 class DeviceError(RuntimeError):
     """A GPU (Vulkan) backend cannot be used."""
 
-Progress = Callable[[str, Optional[float], float], None]
+_Progress = Callable[[str, Optional[float], float], None]
 
+@final
 class _Mesh:
     # `connectivity`: linear tets, 4 ids each, without `celltypes`; else a VTK cell list
     # (cell i: celltypes[i], ids connectivity[offsets[i]:offsets[i + 1]]).
-    def __init__(
-        self,
+    def __new__(
+        cls,
         points: npt.NDArray[np.float32],
         connectivity: npt.NDArray[np.uint32],
         fields: List[Tuple[str, str, Union[npt.NDArray[np.float32], npt.NDArray[np.float64]]]],
@@ -25,7 +45,7 @@ class _Mesh:
         points64: Optional[npt.NDArray[np.float64]] = None,
         celltypes: Optional[npt.NDArray[np.uint8]] = None,
         offsets: Optional[npt.NDArray[np.int64]] = None,
-    ) -> None: ...
+    ) -> _Mesh: ...
     @property
     def n_points(self) -> int: ...
     @property
@@ -47,15 +67,16 @@ class _Mesh:
     def tet_cells(self) -> npt.NDArray[np.int64]: ...  # (T,): each tet's cell
     def info_json(self) -> str: ...
 
+@final
 class _Locator:
-    def __init__(
-        self,
+    def __new__(
+        cls,
         mesh: _Mesh,
         backend: str = "auto",
         device: Optional[int] = None,
         options: Optional[Dict[str, Any]] = None,
-        progress: Optional[Progress] = None,
-    ) -> None: ...
+        progress: Optional[_Progress] = None,
+    ) -> _Locator: ...
     @property
     def backend(self) -> str: ...
     @property
@@ -79,25 +100,25 @@ class _Locator:
         self, points: npt.NDArray[np.float32], name: str
     ) -> Tuple[npt.NDArray[np.int32], npt.NDArray[np.float32]]: ...
 
-def read_mesh(path: str, format: Optional[str] = None) -> _Mesh: ...
+def read_mesh(path: str, format: Optional[str] = None, allow_outside_pieces: bool = False) -> _Mesh: ...
 
-FieldArrays = List[Tuple[str, int, npt.NDArray[np.float32]]]
+_FieldArrays = List[Tuple[str, int, npt.NDArray[np.float32]]]
 # float64 for fields of f64 data sampled on the f64 path.
-ProbedArrays = List[Tuple[str, int, Union[npt.NDArray[np.float32], npt.NDArray[np.float64]]]]
+_ProbedArrays = List[Tuple[str, int, Union[npt.NDArray[np.float32], npt.NDArray[np.float64]]]]
 
 def resample_to_image(
     locator: _Locator,
     names: List[str],
     dims: Tuple[int, int, int],
     bounds: Optional[List[float]] = None,
-    progress: Optional[Progress] = None,
-) -> Tuple[FieldArrays, npt.NDArray[np.uint8], List[float], List[float]]: ...
+    progress: Optional[_Progress] = None,
+) -> Tuple[_FieldArrays, npt.NDArray[np.uint8], List[float], List[float]]: ...
 def probe(
     locator: _Locator,
     points: Union[npt.NDArray[np.float32], npt.NDArray[np.float64]],
     names: List[str],
-    progress: Optional[Progress] = None,
-) -> Tuple[ProbedArrays, npt.NDArray[np.uint8]]: ...
+    progress: Optional[_Progress] = None,
+) -> Tuple[_ProbedArrays, npt.NDArray[np.uint8]]: ...
 def trace(
     mesh: _Mesh,
     locator: Optional[_Locator],
@@ -113,7 +134,7 @@ def trace(
     min_step: Optional[float],
     max_step: Optional[float],
     terminal_speed: float,
-    progress: Optional[Progress] = None,
+    progress: Optional[_Progress] = None,
 ) -> Dict[str, Any]: ...
 def resolve(name: str, device: Optional[int] = None) -> str: ...
 def devices() -> List[Dict[str, Any]]: ...

@@ -13,8 +13,8 @@ use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
-use tetloc_io::vtk::vtu;
 use tetloc_io::vtk::write::Coords;
+use tetloc_io::vtk::{legacy, vtu};
 
 #[derive(clap::Args)]
 pub struct ProbeArgs {
@@ -52,10 +52,18 @@ fn is_point_set(target: &Path) -> bool {
     points::POINT_EXTENSIONS.contains(&output::extension(target).as_str())
 }
 
-/// Whether TARGET is a `.vtu` file (by its extension or `--target-format vtu`).
-fn is_vtu_file(a: &ProbeArgs) -> bool {
+/// The reader of TARGET as any point set, its cells of any type kept as they are, when it is
+/// a `.vtu` or a legacy `.vtk` file (by its extension or `--target-format`).
+fn any_cells_reader(a: &ProbeArgs) -> Option<fn(&Path) -> tetloc_core::Result<vtu::AnyGrid>> {
+    if mesh_arg::parse_generated(&a.target).is_some() {
+        return None;
+    }
     let format = a.target_format.clone().unwrap_or_else(|| output::extension(Path::new(&a.target)));
-    format.eq_ignore_ascii_case("vtu") && mesh_arg::parse_generated(&a.target).is_none()
+    match format.to_ascii_lowercase().as_str() {
+        "vtu" => Some(vtu::read_any),
+        "vtk" => Some(legacy::read_any),
+        _ => None,
+    }
 }
 
 /// Checks the arguments and the output; whether TARGET is a point set (every rank of a
@@ -101,13 +109,13 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
     let target = Path::new(&a.target);
     // The target's points as its file has them (f64 where it stores them so), so that a
     // target far from the origin keeps its precision; a far mesh's working copy is centred.
-    // A .vtu target is any point set (a surface, vertices, volumes): read as it is, its cells
-    // kept as they are; other mesh formats are read as meshes.
+    // A .vtu or .vtk target is any point set (a surface, vertices, volumes): read as it is,
+    // its cells kept as they are; other mesh formats are read as meshes.
     let (mut target_mesh, mut target_grid) = (None, None);
     let pts: Vec<[f64; 3]> = if point_set {
         points::read_points64(target)?
-    } else if is_vtu_file(a) {
-        let g = progress::with_spinner(format!("reading {}", target.display()), || vtu::read_any(target))?;
+    } else if let Some(read_any) = any_cells_reader(a) {
+        let g = progress::with_spinner(format!("reading {}", target.display()), || read_any(target))?;
         let pts = (0..g.points.len()).map(|i| g.point64(i)).collect();
         target_grid = Some(g);
         pts

@@ -1,10 +1,12 @@
 //! Ending quietly and cleanly: SIGINT, SIGTERM and SIGHUP remove the temporaries of the
 //! outputs being written (`output::remove_temporaries`) and end the process with the shell's
-//! code for the signal (128 + N: 130 for SIGINT, 143 for SIGTERM); a panic removes them too.
+//! code for the signal (128 + N: 130 for SIGINT, 143 for SIGTERM); a panic removes them too,
+//! and so does SIGABRT (an abort, such as a failed allocation's, or `kill -ABRT`), which then
+//! ends the process as SIGABRT does.
 //! A closed stdout (`tetloc info m.vtu | head -1`) ends the command quietly with exit code 0,
 //! as ripgrep does, instead of a panic message.
 
-use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+use signal_hook::consts::{SIGABRT, SIGHUP, SIGINT, SIGTERM};
 use signal_hook::iterator::Signals;
 use tetloc_io::output;
 
@@ -22,6 +24,24 @@ pub fn install() {
             });
         }
         Err(e) => eprintln!("warning: no signal handler ({e}): an interrupted run may leave temporary files"),
+    }
+    // An abort runs nothing after its signal: the handler removes the temporaries in the
+    // signal's own thread, then ends the process as SIGABRT's default action does (a handler
+    // that returned would let a `kill -ABRT` go unheeded).
+    // SAFETY: `register` wants a handler that is safe inside a signal. Ours waits for no lock
+    // (`remove_temporaries_on_abort` only tries the list's), so it cannot deadlock on one the
+    // aborting thread holds; its file removals allocate small path buffers, which is sound
+    // here because an abort for a failed allocation is raised after the allocator returned
+    // (its lock free), and the process ends right after. `emulate_default_handler` restores
+    // SIG_DFL and raises the signal again.
+    let registered = unsafe {
+        signal_hook::low_level::register(SIGABRT, || {
+            output::remove_temporaries_on_abort();
+            let _ = signal_hook::low_level::emulate_default_handler(SIGABRT);
+        })
+    };
+    if let Err(e) = registered {
+        eprintln!("warning: no SIGABRT handler ({e}): an aborted run may leave temporary files");
     }
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {

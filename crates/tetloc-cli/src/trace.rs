@@ -76,6 +76,10 @@ pub struct TraceArgs {
     /// every particle advanced together, one batch per stage), or auto.
     #[arg(long, default_value = "auto")]
     backend: String,
+    /// Line points a batch holds (its memory; at least one line a batch). For tests that
+    /// need several batches of a small run; hidden from the help.
+    #[arg(long, default_value_t = trace::BATCH_POINTS, hide = true)]
+    batch_points: usize,
     #[command(flatten)]
     common: Common,
 }
@@ -145,7 +149,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     // Lines go to the file batch after batch (temporary files until it is complete), so an
     // output of any size needs the memory of one batch.
     let mut writer = PolylineWriter::new(&a.out)?;
-    let batches = o.batches(seeds.len(), trace::BATCH_POINTS);
+    let batches = o.batches(seeds.len(), a.batch_points);
     // Seconds tracing, sampling the line fields (GPU path) and spilling the batches.
     let (mut secs, mut sampling, mut spilling) = (0.0, 0.0, 0.0);
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator

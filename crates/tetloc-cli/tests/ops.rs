@@ -204,7 +204,7 @@ fn bad_inputs_are_refused() {
 #[test]
 fn trace_in_batches_is_one_file() {
     let dir = tmp_dir("trace-batches");
-    let run = |max_steps: &str, out: &Path| {
+    let run = |batch_points: &str, out: &Path| {
         let (ok, _, err) = tetloc(&[
             "trace",
             "jets:3000",
@@ -218,8 +218,8 @@ fn trace_in_batches_is_one_file() {
             "0.004",
             "--max-length",
             "0.02",
-            "--max-steps",
-            max_steps,
+            "--batch-points",
+            batch_points,
             "--backend",
             "cpu",
             "-o",
@@ -229,11 +229,13 @@ fn trace_in_batches_is_one_file() {
         std::fs::read(out).unwrap()
     };
     let (one, batched) = (dir.join("one.vtp"), dir.join("batched.vtp"));
-    let bytes = run("100", &one);
-    // Every seed is inside: 13³ lines each way, so the huge limit made 6 batches.
+    // Lines of at most 0.02 / 0.004 + 2 = 7 steps, 9 points: the default holds all 2 × 13³
+    // lines in one batch; 9,000 points a batch hold 1,000 lines, so each direction takes 3.
+    let bytes = run("33554432", &one);
+    // Every seed is inside: 13³ lines each way.
     let head = String::from_utf8_lossy(&bytes[..bytes.len().min(4096)]).into_owned();
     assert!(head.contains(&format!("NumberOfLines=\"{}\"", 2 * 13 * 13 * 13)), "{head}");
-    assert_eq!(bytes, run("100000000", &batched));
+    assert_eq!(bytes, run("9000", &batched));
 }
 
 /// The swirl on the torus (v = (-y + 0.2x, x + 0.2y, 0.3), so lines spiral outwards and

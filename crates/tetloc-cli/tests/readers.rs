@@ -124,6 +124,45 @@ fn probe_targets_of_any_cells() {
         assert_eq!(mask.values.len(), before.points.len(), "{name}");
         assert!(mask.values.contains(&1.0), "{name}: points inside the mesh get values");
     }
+    // The same as legacy .vtk targets, and one of every kind at once (a tet, a triangle, a
+    // line and a vertex), its cell data kept: the cells written back as the file has them.
+    let points = "0.2 0.2 0.5 0.8 0.2 0.5 0.8 0.8 0.5 0.2 0.8 0.5 0.5 0.5 0.7";
+    let cases = [
+        ("plane", 4, "3 0 1 2\n3 0 2 3", vec![5, 5]),
+        ("cloud", 3, "1 0\n1 1\n1 2", vec![1, 1, 1]),
+        ("mixed", 5, "4 0 1 2 4\n3 0 2 3\n2 1 3\n1 4", vec![10, 5, 3, 1]),
+    ];
+    for (name, n_points, cells, types) in cases {
+        let n_values = cells.split_whitespace().count();
+        let coords: Vec<&str> = points.split_whitespace().take(3 * n_points).collect();
+        let types_text: Vec<String> = types.iter().map(|t| t.to_string()).collect();
+        let ids: Vec<String> = (0..types.len()).map(|i| i.to_string()).collect();
+        let text = format!(
+            "# vtk DataFile Version 4.2\n{name}\nASCII\nDATASET UNSTRUCTURED_GRID\nPOINTS {n_points} float\n{}\n\
+             CELLS {} {n_values}\n{cells}\nCELL_TYPES {}\n{}\nCELL_DATA {}\nSCALARS id float 1\n\
+             LOOKUP_TABLE default\n{}\n",
+            coords.join(" "),
+            types.len(),
+            types.len(),
+            types_text.join("\n"),
+            types.len(),
+            ids.join(" ")
+        );
+        let target = dir.join(format!("{name}.vtk"));
+        std::fs::write(&target, text).unwrap();
+        let out = dir.join(format!("{name}.vtk.out.vtu"));
+        let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&target), "-o", s(&out), "--backend", "cpu"]);
+        assert!(ok, "{name}.vtk: {err}");
+        let before = tetloc_io::vtk::legacy::read_any(&target).unwrap();
+        let after = vu_read(&out);
+        assert_eq!(before.types, types, "{name}.vtk");
+        assert_eq!((after.types, after.ends, after.conn), (before.types, before.ends, before.conn), "{name}.vtk");
+        let id = after.fields.iter().find(|f| f.name == "id" && f.location == FieldLocation::Cell).unwrap();
+        assert_eq!(id.values, (0..types.len()).map(|i| i as f32).collect::<Vec<_>>(), "{name}.vtk: cell data kept");
+        let mask = after.fields.iter().find(|f| f.name == "vtkValidPointMask").unwrap();
+        assert_eq!(mask.values.len(), n_points, "{name}.vtk");
+        assert!(mask.values.contains(&1.0), "{name}.vtk: points inside the mesh get values");
+    }
 }
 
 fn vu_read(path: &Path) -> vtu::AnyGrid {

@@ -219,12 +219,14 @@ fn signal(child: &std::process::Child, name: &str) {
 }
 
 /// Item 4: SIGINT and SIGTERM remove the temporary of the output being written and end with
-/// 130 and 143; the old output stays. A leftover of an earlier run is named.
+/// 130 and 143, SIGABRT removes it and ends as an abort; the old output stays. A leftover of
+/// an earlier run is named.
 #[test]
 fn signals_remove_temporaries() {
+    use std::os::unix::process::ExitStatusExt;
     let dir = tmp_dir("signals");
     let out = dir.join("r.npy");
-    for (sig, code) in [("INT", 130), ("TERM", 143)] {
+    for (sig, code) in [("INT", Some(130)), ("TERM", Some(143)), ("ABRT", None)] {
         std::fs::write(&out, "previous").unwrap();
         let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
             .args(["resample", "jets:5000", "--field", "f", "--dims", "400,400,400", "-o", s(&out), "--backend", "cpu"])
@@ -234,7 +236,10 @@ fn signals_remove_temporaries() {
         assert!(wait_for(&dir, ".r.npy.", Duration::from_secs(120)), "no temporary appeared: {:?}", entries(&dir));
         signal(&child, sig);
         let status = child.wait().unwrap();
-        assert_eq!(status.code(), Some(code), "SIG{sig}");
+        assert_eq!(status.code(), code, "SIG{sig}");
+        if code.is_none() {
+            assert_eq!(status.signal(), Some(6), "SIG{sig}: not ended by the signal");
+        }
         assert_eq!(entries(&dir), ["r.npy"], "SIG{sig}: a temporary stayed");
         assert_eq!(std::fs::read_to_string(&out).unwrap(), "previous");
     }

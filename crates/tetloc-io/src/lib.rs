@@ -14,7 +14,6 @@ mod test_support;
 #[cfg(test)]
 mod tests;
 pub mod tetgen;
-/// The VTK family: XML (`.vtu`) and legacy (`.vtk`) readers, the VTU writers, and what they share.
 pub mod vtk;
 
 use std::path::{Path, PathBuf};

@@ -61,6 +61,18 @@ pub fn remove_temporaries() -> usize {
     n
 }
 
+/// [`remove_temporaries`] for a handler of SIGABRT, which runs inside the aborting thread
+/// (a failed allocation aborts): it never waits for the list (a thread that holds it, perhaps
+/// the aborting one, keeps it: nothing is removed) and tries each temporary once, without
+/// retries, since nothing of the process runs after it. Returns how many it tried.
+pub fn remove_temporaries_on_abort() -> usize {
+    let Ok(list) = TEMPORARIES.try_lock() else { return 0 };
+    for p in list.iter().rev() {
+        let _ = if p.is_dir() { std::fs::remove_dir_all(p) } else { std::fs::remove_file(p) };
+    }
+    list.len()
+}
+
 /// Temporaries that an earlier, interrupted write of `path` left beside it
 /// (`.NAME.*.tmp`, files or folders), excluding those this process is writing.
 pub fn stale_temporaries(path: &Path) -> Vec<PathBuf> {
@@ -468,5 +480,113 @@ mod tests {
             .to_string();
         assert!(e.contains("--values") && e.contains("output --out"), "{e}");
         assert_eq!(std::fs::read_to_string(&mesh).unwrap(), "mesh");
+    }
+}
+
+/// The property of issue 29: for any output path relative to the inputs (a partitioned
+/// mesh's listing and pieces; the same folder, the pieces' folder, through symbolic links to
+/// the folder or a piece, a hard link, `.` and `..`), an output that is an input is refused,
+/// and a write that fails or completes changes no input; a failed write also leaves the
+/// previous output whole and no temporary behind.
+#[cfg(all(test, unix))]
+mod path_props {
+    use super::*;
+    use proptest::prelude::*;
+    use std::os::unix::fs::MetadataExt;
+    use std::sync::OnceLock;
+
+    /// `root/m.pvtu` with its pieces `root/m/m_*.vtu`; `link_dir` → `m`, `link_piece.vtu` →
+    /// `m/m_0.vtu`, `hard.vtu` a hard link of `m/m_1.vtu`, and `other/old.vtu`, an earlier
+    /// output. Made once for every case.
+    fn fixture() -> &'static (PathBuf, Vec<PathBuf>) {
+        static FIXTURE: OnceLock<(PathBuf, Vec<PathBuf>)> = OnceLock::new();
+        FIXTURE.get_or_init(|| {
+            let root = std::env::temp_dir().join(format!("tetloc-output-props-{}", std::process::id()));
+            let _ = std::fs::remove_dir_all(&root);
+            std::fs::create_dir_all(root.join("other")).unwrap();
+            let mesh = crate::test_support::KuhnGrid::new(2).mesh("m");
+            let listing = root.join("m.pvtu");
+            crate::partition::write_pvtu(&mesh, 2, &listing, false, |_| {}).unwrap();
+            std::os::unix::fs::symlink(root.join("m"), root.join("link_dir")).unwrap();
+            std::os::unix::fs::symlink(root.join("m/m_0.vtu"), root.join("link_piece.vtu")).unwrap();
+            std::fs::hard_link(root.join("m/m_1.vtu"), root.join("hard.vtu")).unwrap();
+            std::fs::write(root.join("other/old.vtu"), "an earlier output").unwrap();
+            let inputs = crate::input_files(&listing, None);
+            assert!(inputs.len() >= 3, "the listing and its pieces: {inputs:?}");
+            (root, inputs)
+        })
+    }
+
+    fn bytes(paths: &[PathBuf]) -> Vec<Vec<u8>> {
+        paths.iter().map(|p| std::fs::read(p).unwrap()).collect()
+    }
+
+    /// Folders on the way to the output (all inside the fixture) and the output's name.
+    fn output_path() -> impl Strategy<Value = PathBuf> {
+        let step = prop_oneof![Just("m"), Just("link_dir"), Just("other"), Just("."), Just("m/.."), Just("other/../m")];
+        let name = prop_oneof![
+            Just("m_0.vtu"),
+            Just("m_1.vtu"),
+            Just("m.pvtu"),
+            Just("link_piece.vtu"),
+            Just("hard.vtu"),
+            Just("old.vtu"),
+            Just("new.vtu"),
+        ];
+        (prop::collection::vec(step, 0..4), name).prop_map(|(steps, name)| {
+            let mut p = fixture().0.clone();
+            steps.iter().for_each(|s| p.push(s));
+            p.join(name)
+        })
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(200))]
+        #[test]
+        fn no_output_path_overwrites_an_input(out in output_path(), fail_after in 0usize..64) {
+            let (root, inputs) = fixture();
+            let before = bytes(inputs);
+            let previous = std::fs::read(&out).ok();
+            // The truth, apart from the code under test: the file the path reaches (links
+            // followed) is an input's, by device and inode.
+            let inode = |p: &Path| std::fs::metadata(p).ok().map(|m| (m.dev(), m.ino()));
+            let is_input = inode(&out).is_some_and(|o| inputs.iter().any(|i| inode(i) == Some(o)));
+            let args: Vec<FileArg> = inputs.iter().map(|i| FileArg::new("MESH", i)).collect();
+            let refused = check_distinct(&args, &[FileArg::new("--out", &out)]).is_err();
+            prop_assert_eq!(refused, is_input, "{}", out.display());
+            if refused {
+                return Ok(());
+            }
+            // A path through a folder that is not there: the write cannot start.
+            let Ok(mut f) = AtomicFile::create(&out) else {
+                prop_assert!(!parent_dir(&out).is_dir(), "{}", out.display());
+                prop_assert_eq!(bytes(inputs), before);
+                return Ok(());
+            };
+            // A write that fails part way (dropped before its commit): nothing changed, no
+            // temporary left.
+            f.write_all(&vec![7u8; fail_after]).unwrap();
+            drop(f);
+            prop_assert_eq!(std::fs::read(&out).ok(), previous.clone());
+            let dir = parent_dir(&out);
+            let temporaries: Vec<_> = std::fs::read_dir(dir)
+                .unwrap()
+                .filter_map(|e| e.ok())
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".tmp"))
+                .collect();
+            prop_assert!(temporaries.is_empty(), "{:?}", temporaries);
+            // A write that completes: the output changes, no input does.
+            let mut f = AtomicFile::create(&out).unwrap();
+            f.write_all(b"a new output").unwrap();
+            f.commit().unwrap();
+            prop_assert_eq!(std::fs::read(&out).unwrap(), b"a new output".to_vec());
+            prop_assert_eq!(bytes(inputs), before);
+            // Back to the fixture for the next case.
+            match previous {
+                Some(p) => std::fs::write(&out, p).unwrap(),
+                None => std::fs::remove_file(&out).unwrap(),
+            }
+            prop_assert!(root.join("m.pvtu").is_file());
+        }
     }
 }

@@ -33,7 +33,7 @@ pub mod testmesh;
 
 pub use data_dir::{data_dir, in_ci, require_data, skip, NO_DATA};
 pub use generated::{generated_data, written_files};
-pub use kuhn::KuhnGrid;
+pub use kuhn::{jittered_grid, KuhnGrid};
 pub use query_sets::{query_sets, utm_sets, QuerySet};
 
 /// Why VTK comparisons skip: the reason [`run_vtk_script`] records.

@@ -61,7 +61,7 @@ pub fn orient_f32(a: Vec3, b: Vec3, c: Vec3, p: Vec3) -> (f32, f32) {
     (det, ORIENT_ERR_BOUND_F32 * permanent)
 }
 
-/// [`orient_f32`] of the four faces of [`SORTED_FACES`] at once, bit for bit the same
+/// [`orient_f32`] of the four faces of `SORTED_FACES` at once, bit for bit the same
 /// values: the faces share the differences `v_i - p` and the six 2×2 minors of their y and z
 /// components (a minor with its vertices swapped is its exact negation: rounding is
 /// symmetric), and each face's sums keep `orient_f32`'s order. About two thirds of four

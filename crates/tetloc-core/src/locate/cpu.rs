@@ -409,7 +409,7 @@ impl BatchLocator for CpuLocator {
         Ok(())
     }
 
-    /// The grid's points located by rasterizing the tets ([`GridRaster`]), the ties by the
+    /// The grid's points located by rasterizing the tets (`GridRaster`), the ties by the
     /// search: the same answers as [`Self::sample_many`] at the grid's points, bit for bit.
     fn sample_grid(
         &mut self,

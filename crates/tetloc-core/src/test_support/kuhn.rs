@@ -198,3 +198,13 @@ fn elevate(points: &mut Vec<Vec3>, tets: &[[u32; 4]], p: u8) -> CellBlock {
     }
     block
 }
+
+/// The usual jittered test grid: `n`³ cubes on `[0, 1]³`, interior vertices jittered by up to
+/// `jitter` × spacing, with a smooth vertex field `f` and the tet ids as cell field `cellval`.
+pub fn jittered_grid(n: usize, jitter: f32, seed: u64) -> RawMesh {
+    KuhnGrid::new(n)
+        .jitter(jitter, seed)
+        .vertex_field(|p| (3.0 * p[0]).sin() + p[1] * p[2])
+        .cell_field("cellval", |t, _| t as f32)
+        .raw()
+}

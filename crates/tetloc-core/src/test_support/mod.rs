@@ -16,7 +16,7 @@ pub(crate) mod mixed;
 pub(crate) mod slivers;
 
 pub(crate) use data_dir::require_data;
-pub(crate) use kuhn::KuhnGrid;
+pub(crate) use kuhn::{jittered_grid, KuhnGrid};
 #[allow(unused_imports)]
 pub(crate) use query_sets::{query_sets, utm_sets, QuerySet};
 
@@ -29,22 +29,32 @@ use crate::locate::BatchLocator;
 
 /// A mesh file read by tetloc-io, as this crate's own types. Core's unit tests see the core
 /// that tetloc-io links as another crate (tetloc-io depends on core), so its mesh is copied
-/// over; the enums by their `Debug` names, the only thing the two copies share.
+/// over through the encodings core publishes: a cell type by its VTK code and node count, a
+/// field's location by its serialized name (what `tetloc info --json` prints).
 pub(crate) fn read_raw(path: &std::path::Path, format: Option<tetloc_io::MeshFormat>) -> Result<RawMesh, String> {
     let raw = tetloc_io::read_raw(path, format).map_err(|e| e.to_string())?;
     let fields = raw
         .fields
         .into_iter()
         .map(|f| {
-            let location =
-                if format!("{:?}", f.location) == "Vertex" { FieldLocation::Vertex } else { FieldLocation::Cell };
-            Field { name: f.name, location, values: f.values, values64: f.values64 }
+            let location = match serde_json::to_value(f.location).map_err(|e| e.to_string())?.as_str() {
+                Some("vertex") => FieldLocation::Vertex,
+                Some("cell") => FieldLocation::Cell,
+                other => return Err(format!("field '{}': unknown location {other:?}", f.name)),
+            };
+            Ok(Field { name: f.name, location, values: f.values, values64: f.values64 })
         })
-        .collect();
-    let cells = raw.cells.map(|b| {
-        let type_of = |t: String| CellType::all().find(|c| format!("{c:?}") == t).expect("the same cell table");
-        CellBlock { types: b.types.iter().map(|t| type_of(format!("{t:?}"))).collect(), ends: b.ends, conn: b.conn }
-    });
+        .collect::<Result<_, String>>()?;
+    let cells = match raw.cells {
+        None => None,
+        Some(b) => {
+            let type_of = |code: u8, n: usize| {
+                CellType::from_vtk(code, n).ok_or_else(|| format!("VTK cell type {code} with {n} nodes"))
+            };
+            let types = b.types.iter().map(|t| type_of(t.def().vtk_type(), t.def().n_nodes()));
+            Some(CellBlock { types: types.collect::<Result<_, String>>()?, ends: b.ends, conn: b.conn })
+        }
+    };
     Ok(RawMesh {
         points: raw.points,
         points64: raw.points64,
@@ -58,16 +68,6 @@ pub(crate) fn read_raw(path: &std::path::Path, format: Option<tetloc_io::MeshFor
 /// [`read_raw`], validated.
 pub(crate) fn read_mesh(path: &std::path::Path) -> Result<Mesh, String> {
     Mesh::new(read_raw(path, None)?, path.display().to_string()).map_err(|e| e.to_string())
-}
-
-/// `n`³ cubes on [0,1]³, interior vertices jittered by up to `jitter` × spacing, with a
-/// smooth vertex field `f` and the tet ids as cell field `cellval`.
-pub fn jittered_grid(n: usize, jitter: f32, seed: u64) -> RawMesh {
-    KuhnGrid::new(n)
-        .jitter(jitter, seed)
-        .vertex_field(|p| (3.0 * p[0]).sin() + p[1] * p[2])
-        .cell_field("cellval", |t, _| t as f32)
-        .raw()
 }
 
 pub fn grid_mesh(n: usize, jitter: f32, seed: u64) -> Mesh {

@@ -5,6 +5,7 @@ use std::collections::BTreeMap;
 use std::path::Path;
 use tetloc_core::cell::{CellBlock, CellType};
 use tetloc_core::error::Error;
+use tetloc_core::mesh::{Field, RawMesh};
 
 /// What tetloc does with one VTK cell type.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -98,7 +99,7 @@ pub(crate) const POLYHEDRON: u8 = 42;
 
 /// The volume cells picked out of a cell list.
 #[derive(Debug)]
-pub(crate) struct Extracted {
+pub struct Extracted {
     /// Corner ids of the cells that are tets (of any order), in file order.
     pub tets: Vec<[u32; 4]>,
     /// Which cells are volume cells (`None`: all of them): cell fields keep those values only.
@@ -121,6 +122,14 @@ impl Extracted {
             .unwrap_or_else(|(_, v)| v.chunks_exact(4).map(|c| [c[0], c[1], c[2], c[3]]).collect());
         Extracted { tets, kept: None, higher_order: None, other: BTreeMap::new(), unsupported: false, cells: None }
     }
+
+    /// The mesh of these cells with `points` and `fields` (cell fields already filtered to the
+    /// volume cells): a mesh with cells other than tets is all in `cells`, `tets` is for tet
+    /// meshes.
+    pub fn into_mesh(self, points: Vec<[f32; 3]>, points64: Option<Vec<[f64; 3]>>, fields: Vec<Field>) -> RawMesh {
+        let tets = if self.other.is_empty() { self.tets } else { Vec::new() };
+        RawMesh { points, points64, tets, fields, higher_order: self.higher_order, cells: self.cells }
+    }
 }
 
 /// Whether every cell is a linear tet with its 4 ids in order (`ends` = 4, 8, 12, ...): the
@@ -134,7 +143,7 @@ pub(crate) fn all_linear_tets(types: &Array, ends: &Array) -> bool {
 /// Picks the volume cells out of `types.len()` cells; cell `i` has the point ids
 /// `conn[ends[i - 1]..ends[i]]` (from 0 for the first). `ends` is validated here. Errors
 /// are messages for [`Error::format`].
-pub(crate) fn extract(types: &[u8], ends: &[u64], conn: Vec<u32>) -> Result<Extracted, String> {
+pub(crate) fn extract(types: &[u8], ends: &[u64], conn: &[u32]) -> Result<Extracted, String> {
     let n = types.len();
     if ends.len() != n {
         return Err(format!("{} cell types but {} cell offsets", n, ends.len()));
@@ -198,6 +207,51 @@ pub(crate) fn extract(types: &[u8], ends: &[u64], conn: Vec<u32>) -> Result<Extr
     Ok(Extracted { tets, kept, higher_order, other, unsupported, cells })
 }
 
+/// The volume cells of a VTK cell list as pyvista holds it, for meshes made from arrays:
+/// cell `i` is of type `types[i]` with the points `conn[offsets[i]..offsets[i + 1]]`
+/// (`offsets` from 0 to the connectivity's length, one more than the types). Every cell must
+/// be a volume cell tetloc reads: arrays handed over are meant as the volume, so a 0-2-D cell
+/// is an error here, where a file's are dropped. Errors are messages; the caller names the
+/// argument.
+pub fn from_cell_list(types: &[u8], offsets: &[i64], conn: &[u32]) -> Result<Extracted, String> {
+    let n = types.len();
+    if offsets.len() != n + 1 {
+        return Err(format!("{n} cell types but {} offsets (expected one more)", offsets.len()));
+    }
+    if offsets[0] != 0 || offsets[n] != conn.len() as i64 {
+        return Err(format!(
+            "offsets run from {} to {}; expected 0 to the connectivity's length {}",
+            offsets[0],
+            offsets[n],
+            conn.len()
+        ));
+    }
+    if let Some(i) = offsets.windows(2).position(|w| w[1] < w[0]) {
+        return Err(format!("offsets decrease at cell {i} ({} then {})", offsets[i], offsets[i + 1]));
+    }
+    // The common case: linear tets only (a tet mesh pays nothing for other cells).
+    if types.iter().all(|&t| t == TETRA) && offsets.iter().enumerate().all(|(i, &o)| o == 4 * i as i64) {
+        return Ok(Extracted::all_tets(conn.to_vec()));
+    }
+    // From 0 and never decreasing: the offsets are counts.
+    let ends: Vec<u64> = offsets[1..].iter().map(|&o| o as u64).collect();
+    let ex = extract(types, &ends, conn)?;
+    if ex.unsupported || ex.kept.is_some() {
+        let not_read = (0..n).find(|&i| {
+            let len = (offsets[i + 1] - offsets[i]) as usize;
+            CellType::from_vtk(types[i], len).is_none()
+        });
+        if let Some(i) = not_read {
+            return Err(format!(
+                "cell {i} has VTK cell type {} with {} points, which is not a volume cell tetloc reads",
+                types[i],
+                offsets[i + 1] - offsets[i]
+            ));
+        }
+    }
+    Ok(ex)
+}
+
 /// The [`Error::NonTetCells`] for volume cells counted by type code.
 pub(crate) fn non_tet_error(path: &Path, other: &BTreeMap<u8, usize>) -> Error {
     let counts = other
@@ -219,12 +273,17 @@ pub(crate) fn filter_cells<T: Copy>(values: Vec<T>, kept: Option<&[bool]>) -> Ve
 mod tests {
     use super::*;
 
+    /// The point ids 0..n.
+    fn ids(n: u32) -> Vec<u32> {
+        (0..n).collect()
+    }
+
     #[test]
     fn mixed_cells() {
         // triangle, quadratic tet, tet, vertex
         let types = [5u8, 24, 10, 1];
         let ends = [3u64, 13, 17, 18];
-        let e = extract(&types, &ends, (0..18).collect()).unwrap();
+        let e = extract(&types, &ends, &ids(18)).unwrap();
         assert_eq!(e.tets, vec![[3, 4, 5, 6], [13, 14, 15, 16]]);
         assert_eq!(e.kept.as_deref(), Some(&[false, true, true, false][..]));
         assert_eq!(e.higher_order, Some(2));
@@ -237,7 +296,7 @@ mod tests {
         assert_eq!(cells.types[1], CellType::tet());
 
         // hex, tet, hex, wedge: every volume cell in the block, the tets among them in `tets`.
-        let e = extract(&[12, 10, 12, 13], &[8, 12, 20, 26], (0..26).collect()).unwrap();
+        let e = extract(&[12, 10, 12, 13], &[8, 12, 20, 26], &ids(26)).unwrap();
         assert_eq!(e.other.clone().into_iter().collect::<Vec<_>>(), vec![(12, 2), (13, 1)]);
         assert!(!e.unsupported && e.kept.is_none() && e.higher_order.is_none());
         assert_eq!(e.tets, vec![[8, 9, 10, 11]]);
@@ -246,25 +305,25 @@ mod tests {
         assert_eq!(cells.nodes(3), &[20, 21, 22, 23, 24, 25]);
 
         // A polyhedron (or any type tetloc does not read) leaves no block, only the counts.
-        let e = extract(&[12, 42], &[8, 12], (0..12).collect()).unwrap();
+        let e = extract(&[12, 42], &[8, 12], &ids(12)).unwrap();
         assert!(e.unsupported && e.cells.is_none());
         assert_eq!(e.other.into_iter().collect::<Vec<_>>(), vec![(12, 1), (42, 1)]);
 
         // Linear tets and lower cells only: no block.
-        assert!(extract(&[10, 5], &[4, 7], (0..7).collect()).unwrap().cells.is_none());
+        assert!(extract(&[10, 5], &[4, 7], &ids(7)).unwrap().cells.is_none());
     }
 
     #[test]
     fn bad_cells() {
-        assert!(extract(&[10], &[5], (0..5).collect()).unwrap_err().contains("5 points"));
-        assert!(extract(&[24], &[9], (0..9).collect()).is_err());
-        assert!(extract(&[71], &[11], (0..11).collect()).is_err());
-        assert!(extract(&[12], &[9], (0..9).collect()).unwrap_err().contains("9 points, which no hexahedron"));
-        assert!(extract(&[200], &[4], (0..4).collect()).unwrap_err().contains("200"));
-        assert!(extract(&[10, 10], &[4, 3], (0..4).collect()).unwrap_err().contains("decrease"));
-        assert!(extract(&[10], &[4], (0..8).collect()).unwrap_err().contains("end at 4"));
-        assert!(extract(&[10], &[], vec![]).is_err());
-        assert!(extract(&[], &[], vec![]).unwrap().tets.is_empty());
+        assert!(extract(&[10], &[5], &ids(5)).unwrap_err().contains("5 points"));
+        assert!(extract(&[24], &[9], &ids(9)).is_err());
+        assert!(extract(&[71], &[11], &ids(11)).is_err());
+        assert!(extract(&[12], &[9], &ids(9)).unwrap_err().contains("9 points, which no hexahedron"));
+        assert!(extract(&[200], &[4], &ids(4)).unwrap_err().contains("200"));
+        assert!(extract(&[10, 10], &[4, 3], &ids(4)).unwrap_err().contains("decrease"));
+        assert!(extract(&[10], &[4], &ids(8)).unwrap_err().contains("end at 4"));
+        assert!(extract(&[10], &[], &[]).is_err());
+        assert!(extract(&[], &[], &[]).unwrap().tets.is_empty());
     }
 
     #[test]
@@ -283,5 +342,26 @@ mod tests {
         let e = Extracted::all_tets((0..8).collect());
         assert_eq!(e.tets, vec![[0, 1, 2, 3], [4, 5, 6, 7]]);
         assert!(e.kept.is_none() && e.higher_order.is_none() && e.cells.is_none());
+    }
+
+    #[test]
+    fn cell_lists_from_arrays() {
+        // Linear tets: the fast path, no block.
+        let e = from_cell_list(&[10, 10], &[0, 4, 8], &ids(8)).unwrap();
+        assert_eq!(e.tets, vec![[0, 1, 2, 3], [4, 5, 6, 7]]);
+        assert!(e.cells.is_none() && e.other.is_empty());
+        // A hexahedron and a quadratic tet: every cell in the block, as a file's.
+        let e = from_cell_list(&[12, 24], &[0, 8, 18], &ids(18)).unwrap();
+        assert_eq!(e.cells.as_ref().map(CellBlock::len), Some(2));
+        assert_eq!((e.tets, e.higher_order), (vec![[8, 9, 10, 11]], Some(2)));
+        // Arrays are the volume: a triangle is refused where a file's is dropped.
+        let err = from_cell_list(&[10, 5], &[0, 4, 7], &ids(7)).unwrap_err();
+        assert!(err.contains("cell 1 has VTK cell type 5 with 3 points, which is not a volume cell"), "{err}");
+        let err = from_cell_list(&[12, 42], &[0, 8, 12], &ids(12)).unwrap_err();
+        assert!(err.contains("cell 1 has VTK cell type 42"), "{err}");
+        // Offsets: one more than the types, from 0 to the connectivity's end, never decreasing.
+        assert!(from_cell_list(&[10], &[0], &ids(4)).unwrap_err().contains("expected one more"));
+        assert!(from_cell_list(&[10], &[1, 4], &ids(4)).unwrap_err().contains("expected 0 to"));
+        assert!(from_cell_list(&[10, 10], &[0, 5, 4], &ids(4)).unwrap_err().contains("decrease at cell 1"));
     }
 }

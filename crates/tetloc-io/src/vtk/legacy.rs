@@ -9,6 +9,7 @@
 
 use super::cells;
 use super::num::{self, Array, NumType};
+use super::vtu::AnyGrid;
 use crate::cursor::Cursor;
 use std::borrow::Cow;
 use std::path::Path;
@@ -22,6 +23,28 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 
 /// Parses a whole file held in memory; `path` only names it in errors.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
+    parse_grid(bytes, path)?.finish(path)
+}
+
+/// Reads a `.vtk` of any cells (volumes, surfaces, lines, vertices) as the file has them:
+/// what `probe` keeps of a target, which may be any point set.
+pub fn read_any(path: &Path) -> Result<AnyGrid> {
+    let bytes = super::read_file(path)?;
+    parse_any(&bytes, path)
+}
+
+/// [`read_any`] of a file held in memory.
+pub fn parse_any(bytes: &[u8], path: &Path) -> Result<AnyGrid> {
+    let list = parse_grid(bytes, path)?.cell_list(path)?;
+    if list.types.contains(&cells::POLYHEDRON) {
+        return Err(Error::format(path, "polyhedron cells (type 42) are not supported"));
+    }
+    let CellList { points, points64, types, ends, conn, fields } = list;
+    Ok(AnyGrid { points, points64, types, ends, conn, fields })
+}
+
+/// The file's sections, read.
+fn parse_grid<'a>(bytes: &'a [u8], path: &'a Path) -> Result<Grid<'a>> {
     let mut r = Reader { c: Cursor::new(bytes, path), at: 0 };
     let magic = r.c.line().unwrap_or_default();
     if !String::from_utf8_lossy(magic).to_ascii_lowercase().starts_with("# vtk datafile version") {
@@ -142,7 +165,18 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
             }
         }
     }
-    g.finish(path)
+    Ok(g)
+}
+
+/// The file's cells as a VTK cell list, checked (point ids, offsets, the data's lengths).
+struct CellList {
+    points: Vec<[f32; 3]>,
+    points64: Option<Vec<[f64; 3]>>,
+    types: Vec<u8>,
+    /// Where each cell's point ids end in `conn`.
+    ends: Vec<u64>,
+    conn: Vec<u32>,
+    fields: Vec<Field>,
 }
 
 /// The cells as the file gives them.
@@ -163,7 +197,21 @@ struct Grid<'a> {
 }
 
 impl Grid<'_> {
+    /// The mesh of the file's volume cells (0-2-D cells dropped with their cell data).
     fn finish(self, path: &Path) -> Result<RawMesh> {
+        let CellList { points, points64, types, ends, conn, mut fields } = self.cell_list(path)?;
+        let ex = cells::extract(&types, &ends, &conn).map_err(|m| Error::format(path, m))?;
+        if ex.unsupported {
+            return Err(cells::non_tet_error(path, &ex.other));
+        }
+        for f in fields.iter_mut().filter(|f| f.location == FieldLocation::Cell) {
+            f.values = cells::filter_cells(std::mem::take(&mut f.values), ex.kept.as_deref());
+            f.values64 = f.values64.take().map(|v| cells::filter_cells(v, ex.kept.as_deref()));
+        }
+        Ok(ex.into_mesh(points, points64, fields))
+    }
+
+    fn cell_list(self, path: &Path) -> Result<CellList> {
         let fail = |msg: String| Error::format(path, msg);
         let points = self.points.ok_or_else(|| fail("no POINTS section".into()))?;
         let cells = self.cells.ok_or_else(|| fail("no CELLS section".into()))?;
@@ -211,12 +259,8 @@ impl Grid<'_> {
                 (ends, conn)
             }
         };
-        let ex = cells::extract(&types, &ends, conn).map_err(fail)?;
-        if ex.unsupported {
-            return Err(cells::non_tet_error(path, &ex.other));
-        }
-        let mut fields = self.fields;
-        for f in &mut fields {
+        let fields = self.fields;
+        for f in &fields {
             let (want, what) = match f.location {
                 FieldLocation::Vertex => (n_points, "POINT_DATA"),
                 FieldLocation::Cell => (types.len(), "CELL_DATA"),
@@ -229,14 +273,8 @@ impl Grid<'_> {
                     if what == "POINT_DATA" { "points" } else { "cells" }
                 )));
             }
-            if f.location == FieldLocation::Cell {
-                f.values = cells::filter_cells(std::mem::take(&mut f.values), ex.kept.as_deref());
-                f.values64 = f.values64.take().map(|v| cells::filter_cells(v, ex.kept.as_deref()));
-            }
         }
-        // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
-        let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
-        Ok(RawMesh { points, points64: self.points64, tets, fields, higher_order: ex.higher_order, cells: ex.cells })
+        Ok(CellList { points, points64: self.points64, types, ends, conn, fields })
     }
 }
 

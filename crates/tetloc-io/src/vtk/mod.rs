@@ -1,6 +1,6 @@
 //! The VTK family: the XML reader ([`vtu`]), partitioned meshes ([`pieces`], listed by [`pvtu`]
 //! and [`vtm`]), the legacy reader ([`legacy`]), the VTU writers
-//! ([`write`]), and what they share: element types, cell types, XML and binary blocks.
+//! ([`write`](mod@write)), and what they share: element types, cell types, XML and binary blocks.
 
 pub(crate) mod blocks;
 pub(crate) mod cells;
@@ -15,6 +15,9 @@ pub mod vtm;
 pub mod vtu;
 pub mod write;
 pub mod write_pieces;
+
+/// Cell lists from arrays (Python's `Mesh`), checked and split as the readers' are.
+pub use cells::{from_cell_list, Extracted};
 
 #[cfg(test)]
 mod tests;

@@ -118,7 +118,8 @@ fn check_inside(root: &Path, listing: &Path, piece: &Path) -> Result<()> {
         listing,
         format!(
             "lists {}, which lies outside the listing's folder {}; pieces outside it are refused \
-             (a listing should not make tetloc read other files): pass --allow-outside-pieces to read it",
+             (a listing should not make tetloc read other files): pass --allow-outside-pieces \
+             (Python: allow_outside_pieces=True) to read it",
             piece.display(),
             root.display()
         ),

@@ -221,6 +221,14 @@ struct Ctx<'a, 'p> {
     appended: Option<Appended<'a>>,
 }
 
+/// A piece's `<Cells>`, as [`Ctx::read_cells`] finds them.
+enum PieceCells {
+    /// Every cell a linear tet: the connectivity, 4 ids a tet.
+    LinearTets(Vec<u32>),
+    /// VTK's cell types, each cell's end in `conn`, and the cells' point ids.
+    Any { types: Vec<u8>, ends: Vec<u64>, conn: Vec<u32> },
+}
+
 /// One piece's mesh, or the counts of its volume cells by type when some of them are of a
 /// type tetloc does not read (the mesh is refused).
 struct Part {
@@ -307,39 +315,64 @@ impl<'a> Ctx<'a, '_> {
         }
     }
 
+    /// The piece's `<Cells>` arrays: `None` for an empty piece without them (its point data,
+    /// if any, is still read); the connectivity alone when every cell is a linear tet
+    /// (checked on the file's arrays without converting them); else all three, the offsets
+    /// never decreasing.
+    fn read_cells(&self, piece: &Node, k: usize, n_cells: usize, n_points: usize) -> Result<Option<PieceCells>> {
+        let cells_node = piece.child("Cells");
+        if n_cells == 0 && cells_node.is_none() {
+            return Ok(None);
+        }
+        let cell_array = |name: &str| {
+            cells_node
+                .and_then(|c| c.children_named("DataArray").find(|d| d.attr("Name") == Some(name)))
+                .ok_or_else(|| self.fail(format!("piece {k}: no <Cells> array named '{name}'")))
+        };
+        let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
+            self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
+        };
+        let conn_ids = |n_conn: usize| {
+            let arr = self.array(cell_array("connectivity")?, n_conn)?;
+            num::to_ids(&arr, n_points).map_err(|i| {
+                bad_value("connectivity", &arr, i, &format!("is not a point id (the piece has {n_points} points)"))
+            })
+        };
+        let types_arr = self.array(cell_array("types")?, n_cells)?;
+        let ends_arr = self.array(cell_array("offsets")?, n_cells)?;
+        if cells::all_linear_tets(&types_arr, &ends_arr) {
+            return Ok(Some(PieceCells::LinearTets(conn_ids(4 * n_cells)?)));
+        }
+        let types = num::map_ints(&types_arr, |v| u8::try_from(v).ok())
+            .map_err(|i| bad_value("types", &types_arr, i, "is not a VTK cell type"))?;
+        let ends = num::map_ints(&ends_arr, |v| u64::try_from(v).ok())
+            .map_err(|i| bad_value("offsets", &ends_arr, i, "is not an offset"))?;
+        if let Some(i) = ends.windows(2).position(|w| w[1] < w[0]) {
+            return Err(bad_value("offsets", &ends_arr, i + 1, "is less than the one before it"));
+        }
+        let n_conn = usize::try_from(ends.last().copied().unwrap_or(0)).unwrap_or(usize::MAX);
+        Ok(Some(PieceCells::Any { types, ends, conn: conn_ids(n_conn)? }))
+    }
+
     /// One piece as an [`AnyGrid`]: its cells of any type as they are, and all its data.
     fn any_piece(&self, piece: &Node, k: usize) -> Result<AnyGrid> {
         let n_points = self.count(piece, "NumberOfPoints", k)?;
         let n_cells = self.count(piece, "NumberOfCells", k)?;
         let (points, points64) = self.points(piece, k, n_points)?;
-        let cells_node = piece.child("Cells");
         let mut grid = AnyGrid { points, points64, ..AnyGrid::default() };
-        if n_cells > 0 || cells_node.is_some() {
-            let cell_array = |name: &str| {
-                cells_node
-                    .and_then(|c| c.children_named("DataArray").find(|d| d.attr("Name") == Some(name)))
-                    .ok_or_else(|| self.fail(format!("piece {k}: no <Cells> array named '{name}'")))
-            };
-            let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
-                self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
-            };
-            let types = self.array(cell_array("types")?, n_cells)?;
-            grid.types = num::map_ints(&types, |v| u8::try_from(v).ok())
-                .map_err(|i| bad_value("types", &types, i, "is not a VTK cell type"))?;
-            if grid.types.contains(&cells::POLYHEDRON) {
-                return Err(self.fail(format!("piece {k}: polyhedron cells (type 42) are not supported")));
+        match self.read_cells(piece, k, n_cells, n_points)? {
+            None => {}
+            Some(PieceCells::LinearTets(conn)) => {
+                grid.types = vec![cells::TETRA; n_cells];
+                grid.ends = (1..=n_cells as u64).map(|i| 4 * i).collect();
+                grid.conn = conn;
             }
-            let ends = self.array(cell_array("offsets")?, n_cells)?;
-            grid.ends = num::map_ints(&ends, |v| u64::try_from(v).ok())
-                .map_err(|i| bad_value("offsets", &ends, i, "is not an offset"))?;
-            if let Some(i) = grid.ends.windows(2).position(|w| w[1] < w[0]) {
-                return Err(bad_value("offsets", &ends, i + 1, "is less than the one before it"));
+            Some(PieceCells::Any { types, ends, conn }) => {
+                if types.contains(&cells::POLYHEDRON) {
+                    return Err(self.fail(format!("piece {k}: polyhedron cells (type 42) are not supported")));
+                }
+                (grid.types, grid.ends, grid.conn) = (types, ends, conn);
             }
-            let n_conn = usize::try_from(grid.ends.last().copied().unwrap_or(0)).unwrap_or(usize::MAX);
-            let conn = self.array(cell_array("connectivity")?, n_conn)?;
-            grid.conn = num::to_ids(&conn, n_points).map_err(|i| {
-                bad_value("connectivity", &conn, i, &format!("is not a point id (the piece has {n_points} points)"))
-            })?;
         }
         let part = self.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), Vec::new(), None)?;
         grid.fields = part.raw.fields;
@@ -350,38 +383,12 @@ impl<'a> Ctx<'a, '_> {
         let n_points = self.count(piece, "NumberOfPoints", k)?;
         let n_cells = self.count(piece, "NumberOfCells", k)?;
         let (points, points64) = self.points(piece, k, n_points)?;
-
-        let cells_node = piece.child("Cells");
-        let cell_array = |name: &str| {
-            cells_node
-                .and_then(|c| c.children_named("DataArray").find(|d| d.attr("Name") == Some(name)))
-                .ok_or_else(|| self.fail(format!("piece {k}: no <Cells> array named '{name}'")))
-        };
-        let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
-            self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
-        };
-        if n_cells == 0 && cells_node.is_none() {
-            // An empty piece (`<Piece NumberOfCells="0">` without <Cells>): no cells, and its
-            // point data, if any, is still read below.
-            return self.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), points, points64);
-        }
-        let types_arr = self.array(cell_array("types")?, n_cells)?;
-        let ends_arr = self.array(cell_array("offsets")?, n_cells)?;
-        let conn_ids = |n_conn: usize| {
-            let arr = self.array(cell_array("connectivity")?, n_conn)?;
-            num::to_ids(&arr, n_points).map_err(|i| {
-                bad_value("connectivity", &arr, i, &format!("is not a point id (the piece has {n_points} points)"))
-            })
-        };
-        let ex = if cells::all_linear_tets(&types_arr, &ends_arr) {
-            cells::Extracted::all_tets(conn_ids(4 * n_cells)?)
-        } else {
-            let types = num::map_ints(&types_arr, |v| u8::try_from(v).ok())
-                .map_err(|i| bad_value("types", &types_arr, i, "is not a VTK cell type"))?;
-            let ends = num::map_ints(&ends_arr, |v| u64::try_from(v).ok())
-                .map_err(|i| bad_value("offsets", &ends_arr, i, "is not an offset"))?;
-            let n_conn = usize::try_from(ends.last().copied().unwrap_or(0)).unwrap_or(usize::MAX);
-            cells::extract(&types, &ends, conn_ids(n_conn)?).map_err(|m| self.fail(format!("piece {k}: {m}")))?
+        let ex = match self.read_cells(piece, k, n_cells, n_points)? {
+            None => cells::Extracted::all_tets(Vec::new()),
+            Some(PieceCells::LinearTets(conn)) => cells::Extracted::all_tets(conn),
+            Some(PieceCells::Any { types, ends, conn }) => {
+                cells::extract(&types, &ends, &conn).map_err(|m| self.fail(format!("piece {k}: {m}")))?
+            }
         };
         if ex.unsupported {
             // The mesh is unusable: skip reading its fields.
@@ -447,10 +454,7 @@ impl<'a> Ctx<'a, '_> {
                 }
             }
         }
-        // A mesh with cells other than tets is all in `cells`; `tets` is for tet meshes.
-        let tets = if ex.other.is_empty() { ex.tets } else { Vec::new() };
-        let raw = RawMesh { points, points64, tets, fields, higher_order: ex.higher_order, cells: ex.cells };
-        Ok(Part { raw, refused: BTreeMap::new(), ids })
+        Ok(Part { raw: ex.into_mesh(points, points64, fields), refused: BTreeMap::new(), ids })
     }
 }
 

@@ -2,7 +2,7 @@
 //! Runge–Kutta steps in the normalized field, as VTK integrates them with
 //! `IntegrationStepUnit` = length: RK4 with a fixed step, or an adaptive step (Dormand–Prince
 //! 5(4), or Cash–Karp 5(4), the tableau of VTK's vtkRungeKutta45) with vtkRungeKutta45's step
-//! control. The step arithmetic is one state machine per particle ([`particle`]), driven two
+//! control. The step arithmetic is one state machine per particle (`particle`), driven two
 //! ways: [`trace`] answers each particle's lookups at once from the tet of its last lookup (a
 //! walk through face neighbours; the BVH when the walk fails), so a step costs a few
 //! point-in-tet tests instead of a traversal; [`trace_batch`] advances every live particle
