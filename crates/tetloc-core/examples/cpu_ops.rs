@@ -1,6 +1,7 @@
 //! The CPU paths of resample, probe and trace on one mesh, timed (wall and process CPU
 //! seconds), for profiling without Python: `cargo run --release -p tetloc-core --example
-//! cpu_ops -- MESH.vtu [PROBE_MESH.vtu] [DIMS] [SEEDS] [STEPS]`.
+//! cpu_ops -- MESH [PROBE_MESH] [DIMS] [SEEDS] [STEPS]`, each mesh a file or `fusion:TETS`
+//! (generated with its vector field `v`, as `tetloc gen fusion --vector`; TETS like 1.4M).
 
 use std::path::Path;
 use std::sync::Arc;
@@ -25,16 +26,31 @@ fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
     out
 }
 
+/// A mesh file, or `fusion:TETS` generated (seed 1 for the first mesh, 2 for the probe's).
+fn mesh_of(arg: &str, seed: u64) -> tetloc_core::Result<tetloc_core::Mesh> {
+    let Some(tets) = arg.strip_prefix("fusion:") else { return io::read_mesh(Path::new(arg), None) };
+    let (digits, scale) = match tets.strip_suffix(['M', 'k']) {
+        Some(d) if tets.ends_with('M') => (d, 1e6),
+        Some(d) => (d, 1e3),
+        None => (tets, 1.0),
+    };
+    let n = (digits.parse::<f64>().expect("a tet count") * scale) as usize;
+    let shape = tetloc_core::gen::Shape::Fusion;
+    let mut raw = tetloc_core::gen::generate(shape, n, seed);
+    raw.fields.extend(tetloc_core::gen::flow::vector_fields(shape, &raw.points));
+    tetloc_core::Mesh::new(raw, arg)
+}
+
 fn main() -> tetloc_core::Result<()> {
     let args: Vec<String> = std::env::args().collect();
-    let mesh = Arc::new(io::read_mesh(Path::new(&args[1]), None)?);
+    let mesh = Arc::new(mesh_of(&args[1], 1)?);
     let dims: usize = args.get(3).map_or(256, |s| s.parse().unwrap());
     let n_seeds: usize = args.get(4).map_or(10_000, |s| s.parse().unwrap());
     let steps: usize = args.get(5).map_or(1000, |s| s.parse().unwrap());
     let only = std::env::var("OPS").unwrap_or_else(|_| "rpt".into());
     eprintln!("{} tets; f64 points: {}", mesh.tets.len(), mesh.points64.is_some());
     if std::env::var("BUILD_PARTS").is_ok() {
-        let m = io::read_mesh(Path::new(&args[1]), None)?;
+        let m = mesh_of(&args[1], 1)?;
         timed("  face neighbours", || m.neighbors().len());
         timed("  BVH", || {
             tetloc_core::bvh::Bvh::build(&m.points, &m.tets, tetloc_core::bvh::BuildPreset::Fast).nodes.len()
@@ -58,7 +74,7 @@ fn main() -> tetloc_core::Result<()> {
     }
     let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
     if let (true, Some(p)) = (only.contains('p'), args.get(2)) {
-        let target = io::read_mesh(Path::new(p), None)?;
+        let target = mesh_of(p, 2)?;
         let probed = timed(&format!("probe {} points", target.points.len()), || {
             probe::probe(&mut loc, &target.points, &groups, |_| Ok(()))
         })?;

@@ -1,12 +1,16 @@
 //! The CPU locator, parallel over points with rayon.
 //!
 //! Each batch is visited in Morton order of its points, so consecutive queries are close in
-//! space; each query first *walks* from the previous answer through face neighbours (a few
-//! point-in-tet tests when the points are coherent), and falls back to BVH traversal when
-//! the walk leaves the mesh, runs long, or ends exactly on a face. Answers do not depend on
-//! the order: a point strictly inside a tet has exactly one containing tet, which the walk
-//! and the BVH agree on, and a point on a face always gets the BVH's answer.
+//! space; each query first *walks* through face neighbours, from the previous answer when
+//! the previous point was in the same bin ([`Bins`]: uniform bins over the tets' boxes),
+//! else from its bin's first tet, so that sparse batches walk a tet or two as dense ones
+//! do. Where the walk leaves the mesh, runs long, or ends exactly on a face, the bin's tets
+//! are tested: one holding the point strictly is the answer, none means outside, and the
+//! rest (ties) go to BVH traversal, built only then. Answers do not depend on the order: a
+//! point strictly inside a tet has exactly one containing tet, which the walk, the bin and
+//! the BVH agree on, and a point on a face always gets the BVH's answer.
 
+use super::bins::Bins;
 use super::grid_raster::{self, Cell, GridRaster};
 use super::{check_lengths, check_sample_lengths, BatchLocator, OUTSIDE};
 use crate::bvh::{morton, BuildPreset, Bvh};
@@ -23,6 +27,17 @@ use std::sync::{Arc, OnceLock};
 const CHUNK: usize = 4096;
 /// Walk steps before giving up and traversing the BVH.
 const MAX_WALK: usize = 24;
+/// The batches' bins, in mean edge lengths a side.
+const BIN_EDGES: f64 = 1.5;
+
+/// One batch point's answer before the ties are decided.
+#[derive(Clone, Copy)]
+enum Answer {
+    Found(u32, Bary),
+    Outside,
+    /// On a face, or held by two tets: the BVH's traversal order decides.
+    Tie,
+}
 
 pub struct CpuLocator {
     mesh: Arc<Mesh>,
@@ -30,6 +45,8 @@ pub struct CpuLocator {
     /// The BVH and the occupancy grid: built by [`Self::new`], or on first need by
     /// [`Self::deferred`] (a resample on the CPU needs neither: [`GridRaster`]).
     index: OnceLock<Index>,
+    /// The batches' index: built on the first batch (with the face neighbours).
+    bins: OnceLock<Bins>,
     /// The grid `sample_grid` rasterized last.
     raster: Option<GridRaster>,
 }
@@ -56,7 +73,7 @@ impl CpuLocator {
     /// [`Self::locate_point`] or [`Self::locate_from`] from parallel code builds first
     /// ([`Self::bvh`]), so that no rayon task waits on a build its own thread is running.
     pub fn deferred(mesh: Arc<Mesh>, preset: BuildPreset) -> CpuLocator {
-        CpuLocator { mesh, preset, index: OnceLock::new(), raster: None }
+        CpuLocator { mesh, preset, index: OnceLock::new(), bins: OnceLock::new(), raster: None }
     }
 
     fn index(&self) -> &Index {
@@ -70,6 +87,11 @@ impl CpuLocator {
             );
             Index { bvh, occupancy }
         })
+    }
+
+    /// The batches' bins and the face neighbours, built on first need.
+    fn bins(&self) -> &Bins {
+        self.bins.get_or_init(|| rayon::join(|| Bins::build(&self.mesh, BIN_EDGES), || self.mesh.neighbors().len()).0)
     }
 
     pub fn bvh(&self) -> &Bvh {
@@ -206,37 +228,76 @@ impl CpuLocator {
         out: &mut [T],
         f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
     ) {
-        self.index();
-        let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<T> {
-            let mut hint: Option<u32> = None;
-            idx.map(|i| {
-                let q = query(&points[i]);
-                // A NaN or infinite coordinate is in no tet (and would lead a walk astray).
-                if !q.file.iter().all(|c| c.is_finite()) || !super::is_finite(q.local) {
-                    return f(None);
-                }
-                let found = hint.and_then(|h| self.walk(h, &q)).or_else(|| self.find(&q));
-                // After a point outside the mesh the next one starts afresh: walking from the
-                // last tet inside towards points beyond the boundary (a grid's rows crossing
-                // the holes of a torus) fails only after a long walk, every time.
-                hint = found.map(|(t, _)| t);
-                f(found)
-            })
-            .collect()
+        let bins = self.bins();
+        let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<Answer> {
+            // The previous answer and its bin.
+            let mut hint: Option<(u32, usize)> = None;
+            idx.map(|i| self.search(bins, &query(&points[i]), &mut hint)).collect()
         };
         let working: Vec<Vec3> = points.par_iter().map(|p| query(p).local).collect();
+        let mut answers = vec![Answer::Outside; points.len()];
         if is_coherent(&working, self.mesh.info.mean_edge_length) {
-            out.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
+            answers.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
                 o.copy_from_slice(&walk_chunk(&mut (c * CHUNK..c * CHUNK + o.len())));
             });
-            return;
+        } else {
+            let order = morton::order(&working, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+            let sorted: Vec<Answer> = order
+                .par_chunks(CHUNK)
+                .flat_map_iter(|chunk| walk_chunk(&mut chunk.iter().map(|&i| i as usize)))
+                .collect();
+            for (k, &i) in order.iter().enumerate() {
+                answers[i as usize] = sorted[k];
+            }
         }
-        let order = morton::order(&working, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
-        let sorted: Vec<T> =
-            order.par_chunks(CHUNK).flat_map_iter(|chunk| walk_chunk(&mut chunk.iter().map(|&i| i as usize))).collect();
-        for (k, &i) in order.iter().enumerate() {
-            out[i as usize] = sorted[k];
+        if answers.par_iter().any(|a| matches!(a, Answer::Tie)) {
+            // Built here, not inside the parallel loop (where a rayon task could be run by
+            // the thread that is building it).
+            self.index();
         }
+        out.par_iter_mut().zip(&answers).zip(points).for_each(|((o, a), p)| {
+            *o = f(match *a {
+                Answer::Found(t, b) => Some((t, b)),
+                Answer::Outside => None,
+                Answer::Tie => self.find(&query(p)),
+            })
+        });
+    }
+
+    /// One batch point: a walk from the previous answer (`hint`, when it was in the same
+    /// bin) or from the bin's first tet, then the bin's tets (see the module documentation).
+    #[inline]
+    fn search(&self, bins: &Bins, q: &Query, hint: &mut Option<(u32, usize)>) -> Answer {
+        let (lo, hi) = (self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+        // A NaN or infinite coordinate is in no tet (and would lead a walk astray).
+        if !q.file.iter().all(|c| c.is_finite()) || !(0..3).all(|k| q.local[k] >= lo[k] && q.local[k] <= hi[k]) {
+            return Answer::Outside;
+        }
+        let b = bins.bin_of(q.local);
+        let tets = bins.tets(b);
+        let Some(&first) = tets.first() else { return Answer::Outside };
+        let start = match *hint {
+            Some((t, hb)) if hb == b => t,
+            _ => first,
+        };
+        let found = match self.walk(start, q) {
+            Some(found) => found,
+            None => {
+                let mut found = None;
+                for &t in tets {
+                    if let TetTest::Inside(w) = self.test(t, q) {
+                        if w.contains(&0.0) || found.is_some() {
+                            return Answer::Tie;
+                        }
+                        found = Some((t, w));
+                    }
+                }
+                let Some(found) = found else { return Answer::Outside };
+                found
+            }
+        };
+        *hint = Some((found.0, b));
+        Answer::Found(found.0, found.1)
     }
 }
 
@@ -410,7 +471,9 @@ impl BatchLocator for CpuLocator {
     }
 
     /// The grid's points located by rasterizing the tets (`GridRaster`), the ties by the
-    /// search: the same answers as [`Self::sample_many`] at the grid's points, bit for bit.
+    /// search: the same ids as [`Self::sample_many`] at the grid's points, bit for bit, and
+    /// values within rounding of its (the weights of an affine map, not of the exact test,
+    /// where a tet holds a point by more than the map's error bound).
     fn sample_grid(
         &mut self,
         grid: &ImageGrid,
@@ -428,21 +491,18 @@ impl BatchLocator for CpuLocator {
         if self.mesh.n_tets() >= grid_raster::MAX_TETS || huge {
             return self.sample_many(&super::grid_points(grid, range), fields, ids, values);
         }
+        let names = fields;
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
         let mut raster = match self.raster.take() {
-            Some(r) if r.grid() == grid => r,
-            _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS),
+            Some(r) if r.is_for(grid, names) => r,
+            _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS, names),
         };
-        let answer = |raster: &GridRaster, k: usize| match raster.cell(k) {
-            Cell::Outside => None,
-            Cell::Inside(t, b) => Some((t, b)),
-            // The search's order is the tie rule.
-            Cell::Tie => self.find(&self.query(grid.point(k))),
-        };
+        // The search's order is the tie rule.
+        let tie = |k: usize| self.find(&self.query(grid.point(k)));
         let nf = fields.len();
         let mut i = range.start;
         while i < range.end {
-            let end = raster.hold(&self.mesh, i).end.min(range.end);
+            let end = raster.hold(&self.mesh, &fields, i).end.min(range.end);
             if raster.tied() {
                 // Built here, not inside the parallel loop (where a rayon task could be run
                 // by the thread that is building it).
@@ -451,13 +511,29 @@ impl BatchLocator for CpuLocator {
             let (raster, part) = (&raster, i - range.start..end - range.start);
             let ids = ids[part.clone()].par_iter_mut().zip(i..end);
             if nf == 0 {
-                ids.for_each(|(id, k)| *id = answer(raster, k).map_or(OUTSIDE, |(t, _)| t as i32));
+                ids.for_each(|(id, k)| {
+                    *id = match raster.cell(k) {
+                        Cell::Outside => OUTSIDE,
+                        Cell::Inside(t) => t as i32,
+                        Cell::Tie => tie(k).map_or(OUTSIDE, |(t, _)| t as i32),
+                    }
+                });
             } else {
                 let values = values[part.start * nf..part.end * nf].par_chunks_mut(nf);
-                ids.zip(values).for_each(|((id, k), out)| {
-                    let found = answer(raster, k);
-                    *id = found.map_or(OUTSIDE, |(t, _)| t as i32);
-                    self.mesh.values_at(&fields, found.map(|(t, b)| (t as usize, b)), out);
+                ids.zip(values).for_each(|((id, k), out)| match raster.cell(k) {
+                    Cell::Outside => {
+                        *id = OUTSIDE;
+                        out.fill(f32::NAN);
+                    }
+                    Cell::Inside(t) => {
+                        *id = t as i32;
+                        raster.copy_values(k, out);
+                    }
+                    Cell::Tie => {
+                        let found = tie(k);
+                        *id = found.map_or(OUTSIDE, |(t, _)| t as i32);
+                        self.mesh.values_at(&fields, found.map(|(t, b)| (t as usize, b)), out);
+                    }
                 });
             }
             i = end;
@@ -557,6 +633,28 @@ mod tests {
             }
             assert!(inside > points.len() / 2, "{inside}");
         }
+    }
+
+    /// Sparse batches (a few random points of the torus' box, where each walk starts from
+    /// its bin's first tet and the bins decide where the walk fails) give the BVH's answers;
+    /// a batch with no point on a face builds no BVH.
+    #[test]
+    fn sparse_batches_give_the_bvh_answers() {
+        let m = Arc::new(Mesh::new(generate(Shape::Fusion, 20_000, 3), "fusion").unwrap());
+        let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
+        let reference = CpuLocator::new(m.clone());
+        let mut loc = CpuLocator::deferred(m.clone(), BuildPreset::Fast);
+        for n in [1, 10, 1000, 20_000] {
+            let points: Vec<Vec3> =
+                (0..n).map(|_| -> Vec3 { std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k])) }).collect();
+            let mut ids = vec![0i32; n];
+            loc.locate(&points, &mut ids).unwrap();
+            for (p, &id) in points.iter().zip(&ids) {
+                assert_eq!(id, reference.locate_point(*p).map_or(OUTSIDE, |(t, _)| t as i32), "{p:?}");
+            }
+        }
+        assert!(!loc.index_built(), "random points built a BVH");
     }
 
     /// The occupancy grid never refuses a point of a tet (vertices, centroids, points on

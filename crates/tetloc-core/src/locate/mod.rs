@@ -5,11 +5,13 @@
 //! answers in a mixed mesh's tet decomposition into answers on its cells, and
 //! [`WithTolerance`] assigns points just outside the boundary to the nearest boundary cell.
 
+mod bins;
 mod cells;
 pub mod certify;
 mod cpu;
 mod grid_raster;
 pub mod precision;
+mod tet_map;
 #[cfg(test)]
 use cpu::is_coherent;
 #[cfg(test)]

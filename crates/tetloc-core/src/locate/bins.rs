@@ -1,0 +1,99 @@
+//! Uniform bins over the tets' boxes: the CPU batches' cheap index (one pass to count, one
+//! to fill), in place of a BVH. A query starts its walk from its bin's first tet (a tet or
+//! two away), and where the walk cannot finish (it leaves the mesh, runs long, or ends on a
+//! face) it tests every tet of its bin: the bin lists every tet whose box meets it, so one
+//! tet holding the point strictly is the answer, none means outside, and anything else (a
+//! weight of zero, two tets) is a tie that the BVH's traversal order decides.
+//!
+//! Bin indices are monotone in the coordinate (a subtraction, a product and a floor, each
+//! rounding monotonically, as in the occupancy grid), so a point inside a tet's box (working
+//! coordinates) has its bin within the box's bins on each axis.
+
+use crate::geom::{self, Vec3};
+use crate::mesh::Mesh;
+use rayon::prelude::*;
+
+/// Bins at most (4 bytes each for the offsets).
+const MAX_BINS: usize = 1 << 24;
+
+pub(super) struct Bins {
+    lo: Vec3,
+    scale: Vec3,
+    n: [usize; 3],
+    /// The tets of bin `b` are `tets[offsets[b]..offsets[b + 1]]`, ascending.
+    offsets: Vec<u32>,
+    tets: Vec<u32>,
+}
+
+impl Bins {
+    /// Bins of about `edges` mean edge lengths a side.
+    pub(super) fn build(mesh: &Mesh, edges: f64) -> Bins {
+        let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+        let ext: [f64; 3] = std::array::from_fn(|k| (hi[k] - lo[k]) as f64);
+        let mut cell = (edges * mesh.info.mean_edge_length as f64).max(1e-30);
+        let count = |cell: f64| -> [usize; 3] { ext.map(|e| ((e / cell).ceil() as usize).clamp(1, 1 << 12)) };
+        while count(cell).iter().product::<usize>() > MAX_BINS {
+            cell *= 1.25;
+        }
+        let n = count(cell);
+        let scale = std::array::from_fn(|k| if ext[k] > 0.0 { (n[k] as f64 / ext[k]) as f32 } else { 0.0 });
+        let mut bins = Bins { lo, scale, n, offsets: Vec::new(), tets: Vec::new() };
+        // Each tet's bins (first and last on each axis), then a counting sort by bin.
+        let spans: Vec<([usize; 3], [usize; 3])> = mesh
+            .tets
+            .par_iter()
+            .map(|&t| {
+                let (a, b) = geom::tet_bounds(t, &mesh.points);
+                (bins.coords(a), bins.coords(b))
+            })
+            .collect();
+        let n_bins = n[0] * n[1] * n[2];
+        let mut offsets = vec![0u32; n_bins + 1];
+        let each = |(a, b): &([usize; 3], [usize; 3]), f: &mut dyn FnMut(usize)| {
+            for z in a[2]..=b[2] {
+                for y in a[1]..=b[1] {
+                    for x in a[0]..=b[0] {
+                        f((z * n[1] + y) * n[0] + x);
+                    }
+                }
+            }
+        };
+        for s in &spans {
+            each(s, &mut |i| offsets[i + 1] += 1);
+        }
+        for i in 0..n_bins {
+            offsets[i + 1] += offsets[i];
+        }
+        let mut next = offsets.clone();
+        let mut tets = vec![0u32; offsets[n_bins] as usize];
+        for (t, s) in spans.iter().enumerate() {
+            each(s, &mut |i| {
+                tets[next[i] as usize] = t as u32;
+                next[i] += 1;
+            });
+        }
+        bins.offsets = offsets;
+        bins.tets = tets;
+        bins
+    }
+
+    /// The bin coordinates of a point, clamped to the grid on each axis (monotone; on
+    /// values clamped at 0 the cast's truncation is the floor).
+    #[inline]
+    fn coords(&self, p: Vec3) -> [usize; 3] {
+        std::array::from_fn(|k| (((p[k] - self.lo[k]) * self.scale[k]).max(0.0) as usize).min(self.n[k] - 1))
+    }
+
+    /// The bin of a point (working coordinates) of the mesh's box.
+    #[inline]
+    pub(super) fn bin_of(&self, p: Vec3) -> usize {
+        let [x, y, z] = self.coords(p);
+        (z * self.n[1] + y) * self.n[0] + x
+    }
+
+    /// The tets whose boxes meet bin `b`, ascending.
+    #[inline]
+    pub(super) fn tets(&self, b: usize) -> &[u32] {
+        &self.tets[self.offsets[b] as usize..self.offsets[b + 1] as usize]
+    }
+}

@@ -1,0 +1,188 @@
+//! One tet's barycentric coordinates as an affine map of the point, in f64, with a static
+//! forward-error bound: a filter in front of the exact test (`geom::test_point_with`).
+//!
+//! λ_k(p) = ∇λ_k · (p − v₀) for the stored vertices 1..3 and λ₀ = 1 − λ₁ − λ₂ − λ₃, where
+//! ∇λ₁ = (e₂ × e₃)/det, ∇λ₂ = (e₃ × e₁)/det, ∇λ₃ = (e₁ × e₂)/det, eₖ = vₖ − v₀ and
+//! det = e₁ · (e₂ × e₃). Along a grid row (y, z fixed) each λ is affine in x: one multiply and
+//! one add a coordinate once the row's part is known ([`TetMap::row`]).
+//!
+//! **The bound.** With u = f64::EPSILON (twice the unit roundoff, for margin), every eₖ
+//! component carries a relative error u, each cross-product component c = ab − cd an
+//! absolute error ≤ 4u(|ab| + |cd|) =: 4u·P_c, det an error ≤ 8u·P_det with
+//! P_det = Σ|e₁ᵢ|·P_c₁ᵢ, so with ρ = P_det/det each gradient component g = c/det is off by
+//! ≤ (4 + 9ρ)u·M, M = P_c/det (≥ |g|). Evaluating Σⱼ gⱼ(pⱼ − v₀ⱼ) adds u|q| for the difference
+//! q and 5u for the products and sums (the row form's extra term g_x·(x − x₀) counts the x
+//! reach twice): |λ̂ₖ − λₖ| ≤ (10 + 9ρ)u·Sₖ, Sₖ = Mₖₓ·2reachₓ + Mₖ_y·reach_y + Mₖ_z·reach_z,
+//! for every point within `reach` of v₀ on each axis (ρ ≥ 1 absorbs the constants); λ₀ adds
+//! its three terms and 3u(1 + ΣSₖ).
+//! Twice that covers the second-order terms. One more term covers the exact test's own f32
+//! path (`geom::test_point`), whose last resort `orient_f64` is not exact: its sign is right
+//! whenever |det·λₖ| exceeds Shewchuk's (7 + 56u)u times a permanent of at most 6H³ (H the
+//! largest reach). A point whose every λ̂ exceeds the bound is strictly inside for the exact
+//! test too (every weight positive); one with a λ̂ below minus the bound is outside; the rest
+//! (within the bound of a face) take the exact test and the tie rule.
+
+/// f64's machine epsilon (2⁻⁵², twice the unit roundoff).
+const U: f64 = f64::EPSILON;
+/// A tet whose volume is this ill-conditioned (ρ·u above it) gets no map: its points all
+/// take the exact test.
+const MAX_RHO_U: f64 = 1e-6;
+/// The smallest bound: a weight above it stays nonzero in f32 (the exact test's weights are
+/// f32, where 1e-45 is the smallest).
+const MIN_BOUND: f64 = 1e-30;
+
+/// What the map says of a point.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) enum Side {
+    /// Strictly inside (every weight positive for the exact test), with these weights.
+    Inside([f64; 4]),
+    /// Outside (some weight negative for the exact test).
+    Outside,
+    /// Within the bound of a face: the exact test decides.
+    Near,
+}
+
+/// One tet's barycentric map (see the module documentation).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TetMap {
+    origin: [f64; 3],
+    /// ∇λ₁, ∇λ₂, ∇λ₃.
+    grad: [[f64; 3]; 3],
+    bound: f64,
+}
+
+/// A map restricted to one row (y, z fixed): λₖ = base[k] + slope[k]·(x − x₀).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct RowMap {
+    x0: f64,
+    base: [f64; 3],
+    slope: [f64; 3],
+    bound: f64,
+}
+
+impl TetMap {
+    /// The map of the tet with stored vertices `v` (file coordinates, canonical order),
+    /// valid for points within `reach` of `v[0]` on each axis (for the points of the tet's
+    /// box: the box's extent), its bound multiplied by `bound_scale` (1 but in tests).
+    /// `None` for a flat or badly conditioned tet.
+    pub(super) fn new(v: [[f64; 3]; 4], reach: [f64; 3], bound_scale: f64) -> Option<TetMap> {
+        let e: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|j| v[k + 1][j] - v[0][j]));
+        // Cross products with their permanents: (value, |ab| + |cd|) per component.
+        let cross = |a: [f64; 3], b: [f64; 3]| -> [(f64, f64); 3] {
+            std::array::from_fn(|i| {
+                let (j, k) = ((i + 1) % 3, (i + 2) % 3);
+                let (p, q) = (a[j] * b[k], a[k] * b[j]);
+                (p - q, p.abs() + q.abs())
+            })
+        };
+        let c = [cross(e[1], e[2]), cross(e[2], e[0]), cross(e[0], e[1])];
+        let det: f64 = (0..3).map(|i| e[0][i] * c[0][i].0).sum();
+        let p_det: f64 = (0..3).map(|i| e[0][i].abs() * c[0][i].1).sum();
+        let rho = p_det / det;
+        if !(det > 0.0 && det.is_finite() && rho * U <= MAX_RHO_U) {
+            return None;
+        }
+        let grad = c.map(|ck| ck.map(|(x, _)| x / det));
+        // The row form evaluates g_x twice: at the row's start and along it.
+        let reach2 = [2.0 * reach[0], reach[1], reach[2]];
+        let s = c.map(|ck| (0..3).map(|j| ck[j].1 / det * reach2[j]).sum::<f64>());
+        let e_k = s.map(|sk| (10.0 + 9.0 * rho) * U * sk);
+        let e_0 = e_k.iter().sum::<f64>() + 3.0 * U * (1.0 + s.iter().sum::<f64>());
+        let h = reach.iter().fold(0.0f64, |a, &b| a.max(b));
+        let f32_path = 8.0 * U * 6.0 * h * h * h / det;
+        let bound = 2.0 * e_k.iter().fold(e_0, |a, &b| a.max(b)) + f32_path;
+        Some(TetMap { origin: v[0], grad, bound: (bound * bound_scale).max(MIN_BOUND * bound_scale) })
+    }
+
+    /// The map along the row at (y, z), from `x0`.
+    #[inline]
+    pub(super) fn row(&self, x0: f64, y: f64, z: f64) -> RowMap {
+        let q = [x0 - self.origin[0], y - self.origin[1], z - self.origin[2]];
+        RowMap {
+            x0,
+            base: self.grad.map(|g| g[0] * q[0] + g[1] * q[1] + g[2] * q[2]),
+            slope: self.grad.map(|g| g[0]),
+            bound: self.bound,
+        }
+    }
+
+    /// The weights at `p`, classified (the row form from p itself).
+    #[cfg(test)]
+    pub(super) fn at(&self, p: [f64; 3]) -> Side {
+        self.row(p[0], p[1], p[2]).at(p[0])
+    }
+}
+
+impl RowMap {
+    /// The weights of the row's point at `x`, classified.
+    #[inline]
+    pub(super) fn at(&self, x: f64) -> Side {
+        let dx = x - self.x0;
+        let l: [f64; 3] = std::array::from_fn(|k| self.base[k] + self.slope[k] * dx);
+        let w = [1.0 - l[0] - l[1] - l[2], l[0], l[1], l[2]];
+        let b = self.bound;
+        if w.iter().all(|&x| x > b) {
+            Side::Inside(w)
+        } else if w.iter().any(|&x| x < -b) {
+            Side::Outside
+        } else {
+            Side::Near
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geom::{self, predicates::Query, TetTest};
+    use crate::mesh::Mesh;
+    use rand::{Rng, SeedableRng};
+
+    /// On every tet of a jittered grid (some folded into slivers) and points of its box,
+    /// points near its faces and its vertices: what the map decides, the exact test says
+    /// (inside with every weight positive, or outside), and the map's weights are the exact
+    /// test's to 1e-6.
+    #[test]
+    fn the_map_decides_as_the_exact_test() {
+        let mesh = Mesh::new(crate::test_support::jittered_grid(4, 0.35, 3), "jittered").unwrap();
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
+        let (mut decided, mut near) = (0, 0);
+        for (t, &tet) in mesh.tets.iter().enumerate() {
+            let v = tet.map(|i| mesh.vertex64(i));
+            let lo: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min));
+            let hi: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max));
+            let Some(map) = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), 1.0) else { continue };
+            let mut points: Vec<[f64; 3]> =
+                (0..200).map(|_| std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k]))).collect();
+            // Points on edges and faces (rounded to f32: a hair either side).
+            for _ in 0..50 {
+                let (a, b, c) = (rng.gen_range(0..4), rng.gen_range(0..4), rng.gen_range(0f64..1.0));
+                let s = rng.gen_range(0f64..1.0);
+                points.push(std::array::from_fn(|k| {
+                    let e = v[a][k] + c * (v[b][k] - v[a][k]);
+                    e + s * (v[(a + 1) % 4][k] - e)
+                }));
+            }
+            points.extend(v);
+            for p in points {
+                let p = p.map(|c| c as f32 as f64);
+                let q = Query { local: mesh.info.frame.to_working_f32(p.map(|c| c as f32)), file: p };
+                let test = geom::test_point_with(tet, &mesh.points, &mesh.exact(), &q);
+                match (map.at(p), test) {
+                    (Side::Inside(w), TetTest::Inside(b)) => {
+                        assert!(!b.contains(&0.0), "tet {t} {p:?}: {b:?}");
+                        for (x, y) in w.iter().zip(b) {
+                            assert!((*x as f32 - y).abs() <= 1e-6, "tet {t} {p:?}: {w:?} {b:?}");
+                        }
+                        decided += 1;
+                    }
+                    (Side::Outside, TetTest::Outside { .. }) => decided += 1,
+                    (Side::Near, _) => near += 1,
+                    (side, test) => panic!("tet {t} {p:?}: the map says {side:?}, the test {test:?}"),
+                }
+            }
+        }
+        // (A fifth of the points are built on edges and faces.)
+        assert!(decided > 10 * near, "{decided} decided, {near} near");
+    }
+}
