@@ -3,6 +3,7 @@
 //! sits above the mesh model (`tetloc-core`), which never reads or writes a file itself.
 
 pub(crate) mod cursor;
+pub mod exodus;
 pub mod gmsh;
 pub mod image;
 pub mod ops_output;
@@ -18,7 +19,7 @@ pub mod vtk;
 
 use std::path::{Path, PathBuf};
 use tetloc_core::error::{Error, Result};
-use tetloc_core::mesh::{Mesh, RawMesh};
+use tetloc_core::mesh::{Mesh, RawMesh, TimeSteps};
 
 /// The mesh formats tetloc reads.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -34,9 +35,13 @@ pub enum MeshFormat {
     Gmsh,
     /// TetGen `.node` + `.ele` (either file may be named).
     TetGen,
+    /// Exodus II (`.e`, `.exo`, `.ex2`), classic netCDF or netCDF-4; with time steps.
+    Exodus,
+    /// ParaView's collection of time steps (`.pvd`) of unstructured grids.
+    Pvd,
 }
 
-pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele";
+pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele, e/exo/ex2, pvd";
 
 impl MeshFormat {
     pub fn from_name(name: &str) -> Option<MeshFormat> {
@@ -46,6 +51,8 @@ impl MeshFormat {
             "vtk" => Some(MeshFormat::VtkLegacy),
             "msh" | "gmsh" => Some(MeshFormat::Gmsh),
             "node" | "ele" | "tetgen" => Some(MeshFormat::TetGen),
+            "e" | "exo" | "ex2" | "exodus" => Some(MeshFormat::Exodus),
+            "pvd" => Some(MeshFormat::Pvd),
             _ => None,
         }
     }
@@ -75,6 +82,7 @@ pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
     match format.or_else(|| MeshFormat::from_path(path).ok()) {
         Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
         Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
+        Some(MeshFormat::Pvd) => vtk::pvd::files_read(path),
         _ => vec![path.to_path_buf()],
     }
 }
@@ -86,7 +94,7 @@ pub fn available_memory_bytes() -> Option<u64> {
 
 /// Refuses, with a clear error, to start reading a file that cannot fit in memory: readers
 /// hold the file's bytes and the arrays decoded from them at once (about twice its size).
-fn check_fits_in_memory(path: &Path) -> Result<()> {
+pub(crate) fn check_fits_in_memory(path: &Path) -> Result<()> {
     let len = std::fs::metadata(path).map_err(|e| Error::io(path, e))?.len();
     if let Some(avail) = available_memory_bytes() {
         if len.saturating_mul(2) > avail {
@@ -192,7 +200,7 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         Some(f) => f,
         None => MeshFormat::from_path(path)?,
     };
-    if format != MeshFormat::TetGen {
+    if !matches!(format, MeshFormat::TetGen | MeshFormat::Pvd) {
         check_fits_in_memory(path)?;
     }
     let regular = std::fs::metadata(path).map_or(true, |m| m.is_file());
@@ -207,6 +215,23 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         MeshFormat::VtkLegacy => vtk::legacy::read(path),
         MeshFormat::Gmsh => gmsh::read(path),
         MeshFormat::TetGen => tetgen::read(path),
+        MeshFormat::Exodus => exodus::read(path),
+        MeshFormat::Pvd => vtk::pvd::read(path, options),
+    }
+}
+
+/// Reads a mesh file with its time steps: the mesh holds the first step's fields, and the
+/// steps (`None` for a file without time steps) read the others when asked. Exodus files with
+/// `time_whole` steps and `.pvd` collections have steps; every other format is one snapshot.
+pub fn read_series(path: &Path, format: Option<MeshFormat>) -> Result<(RawMesh, Option<TimeSteps>)> {
+    let format = match format {
+        Some(f) => f,
+        None => MeshFormat::from_path(path)?,
+    };
+    match format {
+        MeshFormat::Exodus => exodus::read_series(path),
+        MeshFormat::Pvd => vtk::pvd::read_series(path, ReadOptions::default()).map(|(raw, steps)| (raw, Some(steps))),
+        other => Ok((read_raw(path, Some(other))?, None)),
     }
 }
 

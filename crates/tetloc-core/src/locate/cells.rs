@@ -269,6 +269,30 @@ fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Point, found: &F
     }
 }
 
+/// The (vertex, weight) pairs whose Σ weight · value is [`value`] of a per-vertex field at `p`
+/// (file coordinates) in cell `c` of a mixed mesh: the cell's shape functions at its
+/// parametric coordinates, or the barycentrics of its decomposition tet that holds `p` where
+/// Newton fails (no pair when none holds it: [`value`] is NaN there too).
+pub(crate) fn cell_weights(mesh: &Mesh, cells: &Cells, c: usize, p: Point, mut push: impl FnMut(u32, f64)) {
+    match pcoords(mesh, cells, c, p) {
+        Some(pc) => {
+            let nodes = cells.block.nodes(c);
+            let def = cells.block.types[c].def();
+            let mut w = vec![0.0; def.n_nodes()];
+            def.shape_functions(pc, &mut w);
+            nodes.iter().zip(w).for_each(|(&id, w)| push(id, w));
+        }
+        None => {
+            let tets = &mesh.tets[cells.tets_of(c)];
+            let working = mesh.info.frame.to_working(p);
+            if let Some((t, bary)) = tets.iter().find_map(|&t| Some((t, geom::point_in_tet(t, &mesh.points, working)?)))
+            {
+                t.iter().zip(bary).for_each(|(&id, b)| push(id, f64::from(b)));
+            }
+        }
+    }
+}
+
 /// The value of `field` at the point `p` (working coordinates) of cell `c` (for the boundary
 /// tolerance: `p` is a point of `c`'s boundary). `None` when the mesh has no cells.
 pub(crate) fn value_in_cell(mesh: &Mesh, c: usize, p: Point, field: &Field) -> Option<f32> {

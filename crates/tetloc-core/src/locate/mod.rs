@@ -18,6 +18,7 @@ use cpu::is_coherent;
 mod tests;
 pub mod tolerance;
 
+pub(crate) use cells::cell_weights;
 pub use cells::CellLocator;
 pub use cpu::CpuLocator;
 pub use precision::{with_precision, F64Values, Precision};

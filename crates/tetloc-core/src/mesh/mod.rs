@@ -6,6 +6,7 @@ mod cells;
 mod faces;
 pub mod field_groups;
 mod neighbors;
+pub mod steps;
 mod summary;
 #[cfg(test)]
 mod tests;
@@ -15,6 +16,7 @@ pub use cells::{tets_per_cell, Cells};
 pub use faces::{Face, FaceSet};
 // The working frame is the geometry's (geom::Exact takes it); the mesh keeps one.
 pub use crate::geom::Frame;
+pub use steps::{StepFields, TimeSteps};
 pub use summary::{FieldSummary, MeshSummary};
 pub use tet_nodes::TetNodes;
 
@@ -390,6 +392,16 @@ impl Mesh {
             Some(nodes) => {
                 T::from_f64(nodes.interpolate_with(t, self.tets[t], bary.map(T::to_f64), |i| value(i).to_f64()))
             }
+        }
+    }
+
+    /// The (vertex, weight) pairs of [`Self::interpolate_with`] at f64 barycentrics `bary` of
+    /// tet `t` (it is Σ weight · value): the barycentrics on the corners for linear tets, the
+    /// tet's shape functions on all its nodes for higher-order ones.
+    pub fn tet_weights(&self, t: usize, bary: geom::Bary64, mut push: impl FnMut(u32, f64)) {
+        match &self.tet_nodes {
+            None => self.tets[t].iter().zip(bary).for_each(|(&id, w)| push(id, w)),
+            Some(nodes) => nodes.weights(t, self.tets[t], bary, push),
         }
     }
 

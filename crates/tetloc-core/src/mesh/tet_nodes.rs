@@ -108,6 +108,15 @@ impl TetNodes {
         cell::interpolate(self.ty.def(), pc, |i| value(node(i) as usize))
     }
 
+    /// The (vertex, weight) pairs of [`Self::interpolate_with`] (it is Σ weight · value): the
+    /// tet's shape functions at `bary`, over its nodes.
+    pub fn weights(&self, t: usize, corners: [u32; 4], bary: Bary64, mut push: impl FnMut(u32, f64)) {
+        let def = self.ty.def();
+        let mut w = vec![0.0; def.n_nodes()];
+        def.shape_functions([bary[1], bary[2], bary[3]], &mut w);
+        self.nodes(t, corners).zip(w).for_each(|(id, w)| push(id, w));
+    }
+
     pub fn memory_bytes(&self) -> usize {
         std::mem::size_of_val(self.extra.as_slice())
     }

@@ -9,6 +9,7 @@ pub(crate) mod xml;
 
 pub mod legacy;
 pub mod pieces;
+pub mod pvd;
 pub mod pvtu;
 pub mod vti;
 pub mod vtm;

@@ -88,7 +88,7 @@ pub fn files_read(path: &Path) -> Result<Vec<PathBuf>> {
 }
 
 /// The folder a listing's pieces must lie in: the listing's own, symbolic links resolved.
-fn listing_folder(listing: &Path) -> Result<PathBuf> {
+pub(crate) fn listing_folder(listing: &Path) -> Result<PathBuf> {
     let dir = match listing.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
@@ -98,7 +98,7 @@ fn listing_folder(listing: &Path) -> Result<PathBuf> {
 
 /// An error unless `piece` (as listed in `listing`) lies inside `root` once `..` and symbolic
 /// links are resolved. A piece that does not exist is judged by its path as written.
-fn check_inside(root: &Path, listing: &Path, piece: &Path) -> Result<()> {
+pub(crate) fn check_inside(root: &Path, listing: &Path, piece: &Path) -> Result<()> {
     let resolved = match std::fs::canonicalize(piece) {
         Ok(p) => p,
         Err(_) => {
