@@ -85,6 +85,8 @@ class Page:
 
     def drag(self, selector: str, fx: float, fy: float, dx: float, dy: float, steps: int = 8) -> None:
         """Presses at fraction (fx, fy) of the element's box and moves by (dx, dy) pixels."""
+        # Input goes to the tab in front (a hidden tab holds input events until it paints).
+        self.call("Page.bringToFront")
         r = self.eval(f"(() => {{ const b = document.querySelector('{selector}').getBoundingClientRect(); return [b.left, b.top, b.width, b.height]; }})()")
         x, y = r[0] + fx * r[2], r[1] + fy * r[3]
         mouse = lambda kind, x, y, **kw: self.call("Input.dispatchMouseEvent", type=kind, x=x, y=y, **kw)
@@ -114,6 +116,10 @@ class Page:
         }})()"""
         w, h, data = self.eval(js)
         return np.frombuffer(base64.b64decode(data), np.uint8).reshape(h, w, 4)[:, :, :3].astype(float)
+
+    def screenshot(self, path: str) -> None:
+        data = self.call("Page.captureScreenshot", format="png")["data"]
+        pathlib.Path(path).write_bytes(base64.b64decode(data))
 
     def close(self) -> None:
         self.ws.close()
@@ -223,6 +229,8 @@ def still_after(page: Page, frames: int) -> None:
 
 def test_page_shows_a_frame_and_follows_a_drag_and_a_tf_edit(browser: Browser, server: Server) -> None:
     page = open_page(browser, server)
+    if os.environ.get("TETLOC_VIEW_SCREENSHOT"):
+        page.screenshot(os.environ["TETLOC_VIEW_SCREENSHOT"])
     first = page.canvas()
     assert first.std() > 5, "the first frame is not blank"
     n = page.eval("tetloc.frames")
@@ -353,3 +361,22 @@ def test_sigint_ends_the_server_with_exit_0(cli: str) -> None:
     s = Server(cli, "fusion:2k", "--backend", "cpu", "--size", "32x32")
     assert s.get("/frame.png")[0] == 200
     assert s.stop() == 0
+
+
+def test_python_view_handle(cli: str) -> None:
+    import tetloc
+
+    with tetloc.view("fusion:2k", "f", backend="cpu", size=(48, 40), cli=cli) as v:
+        assert v._repr_html_().startswith("<iframe") and v.token in v._repr_html_()
+        first = v.frame()
+        assert first.shape == (40, 48, 3) and first.dtype == np.uint8 and first.std() > 1
+        s = v.state()
+        v.set_camera(np.array(s["camera"]["eye"]) * 1.5, s["camera"]["target"], s["camera"]["up"])
+        farther = v.frame()
+        assert np.abs(farther.astype(float) - first).mean() > 1
+        v.set_tf(colormap="plasma", opacity=[(0, 0), (1, 0.5)], range=(-1, 1))
+        assert v.state()["tf"]["colormap"] == "plasma"
+        assert np.abs(v.frame().astype(float) - farther).mean() > 1
+        with pytest.raises(urllib.error.HTTPError):
+            v.set_field("no-such-field")
+    assert v._proc.returncode == 0

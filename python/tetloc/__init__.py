@@ -23,6 +23,7 @@ from ._mesh import Mesh, read
 from ._ops import REASONS, probe, resample_to_image, trace
 from ._tetloc import BACKENDS, DeviceError, __version__
 from ._tetloc import devices as _devices
+from ._view import Viewer, view
 
 from typing import Any, Dict, List
 
@@ -48,4 +49,6 @@ __all__ = [
     "read",
     "resample_to_image",
     "trace",
+    "view",
+    "Viewer",
 ]
