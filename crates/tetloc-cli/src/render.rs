@@ -74,12 +74,8 @@ pub struct RenderArgs {
     /// Measure frames per second over an orbit of this many frames instead of writing images.
     #[arg(long, num_args = 0..=1, default_missing_value = "16")]
     fps: Option<u32>,
-    /// Seed of a generated mesh (SHAPE:N).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
-    #[arg(long)]
-    format: Option<String>,
+    #[command(flatten)]
+    source: mesh_arg::MeshOptions,
     /// Print only errors and warnings on stderr (not the backend `auto` chose, nor the files written).
     #[arg(short, long)]
     quiet: bool,
@@ -128,7 +124,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                     std::path::Path::new(&a.mesh).display()
                 );
             };
-            let ground = mesh_arg::terrain(spec.shape, n, a.seed)?;
+            let ground = mesh_arg::terrain(spec.shape, n, a.source.seed)?;
             Some(tr::SurfaceSpec::Mesh(std::sync::Arc::new(ground.into())))
         }
         s => s.map(tr::SurfaceSpec::parse),
@@ -152,7 +148,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         None => tr::check_outputs(&out, o.frames)?,
     };
     let outputs: Vec<FileArg> = files.iter().map(|f| FileArg::new("--out", f)).collect();
-    let mesh_files = mesh_arg::input_files(&a.mesh, a.format.as_deref());
+    let mesh_files = mesh_arg::input_files(&a.mesh, a.source.format.as_deref());
     let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
     if let Some(path) = &a.state {
         inputs.push(FileArg::new("--state", path));
@@ -164,7 +160,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         inputs.push(FileArg::new("--surface", path));
     }
     crate::outputs::check_distinct(&inputs, &outputs)?;
-    let mut mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
+    let mut mesh = mesh_arg::load(&a.mesh, a.source.format.as_deref(), a.source.seed)?;
     // `|NAME|`: a vector's magnitude, as the viewer colours it.
     if let (true, Some(m)) = (field.starts_with('|'), std::sync::Arc::get_mut(&mut mesh)) {
         tr::state::add_magnitudes(m);

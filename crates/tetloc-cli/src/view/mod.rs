@@ -62,12 +62,8 @@ pub struct ViewArgs {
     /// A view state (JSON) exported by the viewer, to start from.
     #[arg(long)]
     state: Option<PathBuf>,
-    /// Seed of a generated mesh (SHAPE:N).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
-    #[arg(long)]
-    format: Option<String>,
+    #[command(flatten)]
+    source: mesh_arg::MeshOptions,
     /// Print only the URL, errors and warnings.
     #[arg(short, long)]
     quiet: bool,
@@ -89,7 +85,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
             a.host
         );
     }
-    let mut mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
+    let mut mesh = mesh_arg::load(&a.mesh, a.source.format.as_deref(), a.source.seed)?;
     if let Some(m) = Arc::get_mut(&mut mesh) {
         tr::state::add_magnitudes(m);
     }
