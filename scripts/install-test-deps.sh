@@ -19,17 +19,23 @@ have_layers() {
 have_mpi() {
   command -v mpirun >/dev/null 2>&1 && command -v mpicc >/dev/null 2>&1 && ldconfig -p | grep -q 'libclang'
 }
+# The viewer's browser tests (python/tests/test_view.py) drive headless Chromium.
+have_chromium() {
+  command -v chromium >/dev/null 2>&1
+}
 
 need_driver=1
 need_layers=1
 need_mpi=1
+need_chromium=1
 if [ -z "${TETLOC_REINSTALL_DEPS:-}" ]; then
   have_driver && need_driver=
   have_layers && need_layers=
   have_mpi && need_mpi=
+  have_chromium && need_chromium=
 fi
-if [ -z "$need_driver$need_layers$need_mpi" ]; then
-  echo "install-test-deps: Vulkan loader, lavapipe, validation layers and OpenMPI already present"
+if [ -z "$need_driver$need_layers$need_mpi$need_chromium" ]; then
+  echo "install-test-deps: Vulkan loader, lavapipe, validation layers, OpenMPI and Chromium already present"
   exit 0
 fi
 
@@ -62,8 +68,12 @@ if [ -n "$need_mpi" ]; then
   echo "install-test-deps: installing OpenMPI and libclang"
   $SUDO apt-get install -y -qq openmpi-bin libopenmpi-dev libclang-dev >/dev/null
 fi
-if ! have_driver || ! have_layers || ! have_mpi; then
-  echo "install-test-deps: lavapipe, the validation layers or OpenMPI are still missing after the install" >&2
+if [ -n "$need_chromium" ]; then
+  echo "install-test-deps: installing Chromium"
+  $SUDO apt-get install -y -qq chromium >/dev/null
+fi
+if ! have_driver || ! have_layers || ! have_mpi || ! have_chromium; then
+  echo "install-test-deps: lavapipe, the validation layers, OpenMPI or Chromium are still missing after the install" >&2
   exit 1
 fi
 echo "install-test-deps: done"

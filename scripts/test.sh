@@ -75,7 +75,7 @@ export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
 venv=target/pyenv
 python_env() {
   { [ -x "$venv/bin/python" ] || python3 -m venv "$venv"; } &&
-    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy mypy
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy mypy websocket-client
 }
 step "python virtualenv" python_env
 export TETLOC_PYTHON="$PWD/$venv/bin/python"

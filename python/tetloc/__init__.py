@@ -24,6 +24,7 @@ from ._ops import REASONS, probe, resample_to_image, trace
 from ._tetloc import BACKENDS, DeviceError, __version__
 from ._tetloc import devices as _devices
 from ._typing import LocatorOptions
+from ._view import Viewer, view
 
 from typing import Any, Dict, List
 
@@ -50,4 +51,6 @@ __all__ = [
     "read",
     "resample_to_image",
     "trace",
+    "view",
+    "Viewer",
 ]

@@ -16,6 +16,7 @@ mod render;
 mod resample;
 mod signals;
 mod trace;
+mod view;
 
 use anyhow::{Context, Result};
 use backend::BackendOptions;
@@ -152,6 +153,11 @@ enum Command {
     Devices,
     /// Render a field with the sample-based volume ray marcher (PNG, PNG series or GIF).
     Render(render::RenderArgs),
+    /// Serve an interactive volume viewer to a browser (HTTP + WebSocket, with a token).
+    View(view::ViewArgs),
+    /// Benchmark a running `tetloc view`: orbit over a WebSocket, decode every frame.
+    #[command(hide = true)]
+    ViewBench(view::bench::BenchArgs),
     /// Generate a fusion-like mesh of about 1M tets, locate and sample a million points on
     /// every available backend, check that they agree and print samples/s.
     Demo {
@@ -383,6 +389,8 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Render(args) => render::run(args),
+        Command::View(args) => view::run(args),
+        Command::ViewBench(args) => view::bench::run(args),
         Command::Demo { tets, points, seed, device, all_backends } => {
             let n_points = mesh_arg::parse_count(&points)?;
             // Checked before the mesh is generated.

@@ -127,3 +127,14 @@ pub fn load(arg: &OsStr, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
     let mesh = progress::with_spinner(format!("reading {}", path.display()), || io::read_mesh(path, format))?;
     Ok(Arc::new(mesh))
 }
+
+/// The options of a mesh argument: the seed of a generated one, the format of a file.
+#[derive(clap::Args)]
+pub struct MeshOptions {
+    /// Seed of a generated mesh (SHAPE:N).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
+    #[arg(long)]
+    pub format: Option<String>,
+}

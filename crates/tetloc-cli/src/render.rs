@@ -13,9 +13,13 @@ use tetloc_render as tr;
 pub struct RenderArgs {
     /// A mesh file, or SHAPE:N to generate one.
     mesh: OsString,
-    /// The scalar field to render.
-    #[arg(long)]
-    field: String,
+    /// The scalar field to render (with --state: instead of the state's).
+    #[arg(long, required_unless_present = "state")]
+    field: Option<String>,
+    /// A view state (JSON) exported by `tetloc view`: camera, transfer function, step,
+    /// background and surface, rendered as the viewer showed them.
+    #[arg(long, conflicts_with_all = ["view", "zoom", "camera", "step", "tf", "range", "opacity", "surface", "no_skip", "background"])]
+    state: Option<PathBuf>,
     /// Output: .png (numbered PNGs with --frames), or .gif for an animated orbit. With --fps,
     /// frame 0 of the first backend is written here when given.
     #[arg(short, long)]
@@ -26,9 +30,9 @@ pub struct RenderArgs {
     /// Vulkan device index (see `tetloc devices`).
     #[arg(long)]
     device: Option<usize>,
-    /// Image size WIDTHxHEIGHT in pixels.
-    #[arg(long, default_value = "1024x1024")]
-    size: String,
+    /// Image size WIDTHxHEIGHT in pixels [default: 1024x1024, or the state's].
+    #[arg(long)]
+    size: Option<String>,
     /// Azimuth,elevation in degrees around the bounds centre.
     #[arg(long)]
     view: Option<String>,
@@ -42,8 +46,8 @@ pub struct RenderArgs {
     #[arg(long)]
     step: Option<String>,
     /// viridis, plasma, coolwarm, grayscale, or a ParaView preset FILE.json[#NAME].
-    #[arg(long, default_value = "viridis")]
-    tf: String,
+    #[arg(long)]
+    tf: Option<String>,
     /// Value range LO,HI of the transfer function (default: the field's range).
     #[arg(long)]
     range: Option<String>,
@@ -70,20 +74,27 @@ pub struct RenderArgs {
     /// Measure frames per second over an orbit of this many frames instead of writing images.
     #[arg(long, num_args = 0..=1, default_missing_value = "16")]
     fps: Option<u32>,
-    /// Seed of a generated mesh (SHAPE:N).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
-    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
-    #[arg(long)]
-    format: Option<String>,
+    #[command(flatten)]
+    source: mesh_arg::MeshOptions,
     /// Print only errors and warnings on stderr (not the backend `auto` chose, nor the files written).
     #[arg(short, long)]
     quiet: bool,
 }
 
 pub fn run(a: RenderArgs) -> Result<()> {
-    let mut o = tr::RenderOptions::default();
-    (o.width, o.height) = tr::parse_size(&a.size)?;
+    let state = a.state.as_deref().map(tr::ViewState::load).transpose()?;
+    let mut o = match &state {
+        Some(s) => s.render_options()?,
+        None => tr::RenderOptions::default(),
+    };
+    let field = match (&a.field, &state) {
+        (Some(f), _) => f.clone(),
+        (None, Some(s)) => s.field.clone(),
+        (None, None) => anyhow::bail!("--field is required"),
+    };
+    if let Some(size) = &a.size {
+        (o.width, o.height) = tr::parse_size(size)?;
+    }
     if let Some(v) = &a.view {
         (o.azimuth, o.elevation) = tr::parse_view(v)?;
     }
@@ -96,7 +107,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(s) = &a.step {
         o.step = Some(tr::parse_positive("--step", s)?);
     }
-    o.tf = tr::TfSpec::parse(&a.tf)?;
+    if let Some(tf) = &a.tf {
+        o.tf = tr::TfSpec::parse(tf)?;
+    }
     if let Some(r) = &a.range {
         o.range = Some(tr::parse_range(r)?);
     }
@@ -111,7 +124,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
                     std::path::Path::new(&a.mesh).display()
                 );
             };
-            let ground = mesh_arg::terrain(spec.shape, n, a.seed)?;
+            let ground = mesh_arg::terrain(spec.shape, n, a.source.seed)?;
             Some(tr::SurfaceSpec::Mesh(std::sync::Arc::new(ground.into())))
         }
         s => s.map(tr::SurfaceSpec::parse),
@@ -124,7 +137,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
             );
         }
     }
-    o.skip = !a.no_skip;
+    o.skip &= !a.no_skip;
     if let Some(b) = &a.background {
         o.background = tr::parse_color("--background", b)?;
     }
@@ -135,8 +148,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
         None => tr::check_outputs(&out, o.frames)?,
     };
     let outputs: Vec<FileArg> = files.iter().map(|f| FileArg::new("--out", f)).collect();
-    let mesh_files = mesh_arg::input_files(&a.mesh, a.format.as_deref());
+    let mesh_files = mesh_arg::input_files(&a.mesh, a.source.format.as_deref());
     let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
+    if let Some(path) = &a.state {
+        inputs.push(FileArg::new("--state", path));
+    }
     if let tr::TfSpec::File { path, .. } = &o.tf {
         inputs.push(FileArg::new("--tf", path));
     }
@@ -144,48 +160,36 @@ pub fn run(a: RenderArgs) -> Result<()> {
         inputs.push(FileArg::new("--surface", path));
     }
     crate::outputs::check_distinct(&inputs, &outputs)?;
-    let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
-    tetloc_core::ops::fields::resolve_scalar(&mesh.fields, &a.field).context("--field")?;
-    let renderer = tr::Renderer::new(mesh.clone(), &a.field, &o)?;
+    let mut mesh = mesh_arg::load(&a.mesh, a.source.format.as_deref(), a.source.seed)?;
+    // `|NAME|`: a vector's magnitude, as the viewer colours it.
+    if let (true, Some(m)) = (field.starts_with('|'), std::sync::Arc::get_mut(&mut mesh)) {
+        tr::state::add_magnitudes(m);
+    }
+    tetloc_core::ops::fields::resolve_scalar(&mesh.fields, &field).context("--field")?;
+    let renderer = tr::Renderer::new(mesh.clone(), &field, &o)?;
     check_samples_per_ray(&mesh, renderer.step())?;
     let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
     for (i, name) in a.backend.split(',').enumerate() {
         let first = i == 0;
-        let (backend, builder) = opts.builder(&mesh, name)?;
-        let gpu = matches!(backend, Backend::Kernel(_));
-        // GPU backends march whole frames on the GPU: for tet meshes only, since the GPU
-        // marcher samples tets, not the cells of a mixed mesh.
-        let mut marcher: Box<dyn tr::Marcher> = if gpu && !a.host_march && mesh.cells.is_none() {
-            let BareLocator::Vulkan(loc) = builder.build_bare()?.locator else {
-                anyhow::bail!("{backend}: not a Vulkan kernel")
-            };
-            let mut m = tr::GpuMarcher::new(*loc, &renderer)?;
-            if a.fps.is_some() {
-                // Keep the GPU busy between frames (image downloads), so its clocks stay up.
-                m.set_busy_dispatches(FPS_BUSY_DISPATCHES);
-            }
-            Box::new(m)
-        } else {
-            if gpu && mesh.cells.is_some() && !a.host_march && !a.quiet {
-                eprintln!(
-                    "note: a mixed mesh is marched on the host through {backend} (the GPU marcher samples tets only)"
-                );
-            }
-            Box::new(HostMarch(builder.build()?.locator))
-        };
+        let mut marcher = build_marcher(&opts, &mesh, name, &renderer, a.host_march)?;
+        if let (Some(_), AnyMarcher::Gpu(m)) = (a.fps, &mut marcher) {
+            // Keep the GPU busy between frames (image downloads), so its clocks stay up.
+            m.set_busy_dispatches(FPS_BUSY_DISPATCHES);
+        }
+        let marcher: &mut dyn tr::Marcher = &mut marcher;
         match a.fps {
             Some(frames) => {
-                println!("{}", tr::measure_fps(&renderer, marcher.as_mut(), frames.max(1))?);
+                println!("{}", tr::measure_fps(&renderer, marcher, frames.max(1))?);
                 // With an explicit --out, the first backend's frame 0 too: what was measured.
                 if let (Some(out), true) = (&a.out, first) {
-                    renderer.render(marcher.as_mut(), &renderer.camera(0))?.0.write_png(out)?;
+                    renderer.render(marcher, &renderer.camera(0))?.0.write_png(out)?;
                     if !a.quiet {
                         eprintln!("wrote {}", out.display());
                     }
                 }
             }
             None => {
-                let report = tr::render_to_file(&renderer, marcher.as_mut(), &out)?;
+                let report = tr::render_to_file(&renderer, marcher, &out)?;
                 if !a.quiet {
                     for f in &report.frames {
                         eprintln!("{f}");
@@ -209,7 +213,7 @@ const MAX_SAMPLES_PER_RAY: f64 = 65_536.0;
 
 /// Refuses a step so small that a ray across the mesh takes more than
 /// [`MAX_SAMPLES_PER_RAY`] samples, naming the smallest step allowed.
-fn check_samples_per_ray(mesh: &tetloc_core::Mesh, step: f32) -> Result<()> {
+pub fn check_samples_per_ray(mesh: &tetloc_core::Mesh, step: f32) -> Result<()> {
     let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
     let diagonal = (0..3).map(|k| (hi[k] as f64 - lo[k] as f64).powi(2)).sum::<f64>().sqrt();
     let samples = diagonal / step as f64;
@@ -225,14 +229,48 @@ fn check_samples_per_ray(mesh: &tetloc_core::Mesh, step: f32) -> Result<()> {
 /// `--fps` with the GPU marcher: untimed marches of each frame before the timed one.
 const FPS_BUSY_DISPATCHES: u32 = 3;
 
-/// The host marcher over a boxed locator.
-struct HostMarch(Box<dyn tetloc_core::BatchLocator>);
+/// The marcher of one backend: whole frames on the GPU, or the host marcher over a locator.
+pub enum AnyMarcher {
+    Gpu(Box<tr::GpuMarcher>),
+    Host(Box<dyn tetloc_core::BatchLocator>),
+}
 
-impl tr::Marcher for HostMarch {
+impl tr::Marcher for AnyMarcher {
     fn name(&self) -> &str {
-        self.0.name()
+        match self {
+            AnyMarcher::Gpu(m) => m.name(),
+            AnyMarcher::Host(l) => l.name(),
+        }
     }
     fn march_frame(&mut self, r: &tr::Renderer, cam: &tr::Camera) -> tr::Result<(Vec<[f32; 4]>, tr::FrameStats)> {
-        tr::HostMarcher(self.0.as_mut()).march_frame(r, cam)
+        match self {
+            AnyMarcher::Gpu(m) => m.march_frame(r, cam),
+            AnyMarcher::Host(l) => tr::HostMarcher(l.as_mut()).march_frame(r, cam),
+        }
     }
+}
+
+/// The marcher of backend `name` for `renderer`'s frames (`render` and `view`). GPU
+/// backends march whole frames on the GPU, for tet meshes only (the GPU marcher samples
+/// tets, not the cells of a mixed mesh); `host_march` hands each round's samples to the
+/// kernel instead.
+pub fn build_marcher(
+    opts: &BackendOptions,
+    mesh: &std::sync::Arc<tetloc_core::Mesh>,
+    name: &str,
+    renderer: &tr::Renderer,
+    host_march: bool,
+) -> Result<AnyMarcher> {
+    let (backend, builder) = opts.builder(mesh, name)?;
+    let gpu = matches!(backend, Backend::Kernel(_));
+    if gpu && !host_march && mesh.cells.is_none() {
+        let BareLocator::Vulkan(loc) = builder.build_bare()?.locator else {
+            anyhow::bail!("{backend}: not a Vulkan kernel")
+        };
+        return Ok(AnyMarcher::Gpu(Box::new(tr::GpuMarcher::new(*loc, renderer)?)));
+    }
+    if gpu && mesh.cells.is_some() && !host_march && !opts.quiet {
+        eprintln!("note: a mixed mesh is marched on the host through {backend} (the GPU marcher samples tets only)");
+    }
+    Ok(AnyMarcher::Host(builder.build()?.locator))
 }

@@ -8,7 +8,16 @@
 
 use signal_hook::consts::{SIGABRT, SIGHUP, SIGINT, SIGTERM};
 use signal_hook::iterator::Signals;
+use std::sync::atomic::{AtomicBool, Ordering};
 use tetloc_io::output;
+
+/// A server (`tetloc view`) is running: Ctrl-C and SIGTERM are how it stops, with exit code 0.
+static SERVING: AtomicBool = AtomicBool::new(false);
+
+/// From now on SIGINT and SIGTERM end the process with exit code 0 (a server's normal stop).
+pub fn exit_zero_on_interrupt() {
+    SERVING.store(true, Ordering::SeqCst);
+}
 
 /// Installs the signal thread and the panic hook; call first thing in `main`.
 pub fn install() {
@@ -19,7 +28,8 @@ pub fn install() {
             std::thread::spawn(move || {
                 if let Some(sig) = signals.forever().next() {
                     output::remove_temporaries();
-                    std::process::exit(128 + sig);
+                    let stop = sig == SIGINT || sig == SIGTERM;
+                    std::process::exit(if stop && SERVING.load(Ordering::SeqCst) { 0 } else { 128 + sig });
                 }
             });
         }

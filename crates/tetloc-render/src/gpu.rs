@@ -63,51 +63,98 @@ impl GpuMarcher {
     }
 }
 
-impl Marcher for GpuMarcher {
-    fn name(&self) -> &str {
-        self.march.kernel().name()
+impl GpuMarcher {
+    /// Makes this marcher march `renderer`'s frames: another transfer function, range,
+    /// opacity or step of the same field, with skipping as before (a viewer's edits). Any
+    /// other change needs a new marcher.
+    pub fn retarget(&mut self, renderer: &Renderer) -> Result<()> {
+        let k = key(renderer);
+        if (&k.0, k.2) != (&self.key.0, self.key.2) {
+            return Err(RenderError::Invalid(format!(
+                "this GPU marcher marches field '{}'; build one for '{}' (or for other skipping)",
+                self.key.0, k.0
+            )));
+        }
+        let t = &renderer.table;
+        self.march.set_tf(&t.entries, t.lo, t.inv_range, renderer.step())?;
+        self.key = k;
+        Ok(())
+    }
+}
+
+impl GpuMarcher {
+    /// Marches a frame into 8-bit sRGB over the renderer's background, composited and
+    /// encoded on the GPU, so that 4 bytes a pixel are downloaded instead of 32: one RGBA u32
+    /// a pixel (R in the low byte), as [`Renderer::render`] then `Image::to_srgb8` give it
+    /// (up to the rounding of the GPU's `pow`). The stats carry no sample counts.
+    pub fn march_srgb8(&mut self, renderer: &Renderer, camera: &Camera) -> Result<(Vec<u32>, FrameStats)> {
+        let start = Instant::now();
+        let surface = self.check_and_shade(renderer, camera)?;
+        let background = renderer.options().background.map(crate::colorspace::srgb_to_linear);
+        let mut rgba = vec![0u32; camera.width as usize * camera.height as usize];
+        let s = self.march.render_rgba8(&view(camera, surface.as_deref()), background, &mut rgba)?;
+        let stats = stats(rgba.len(), &s, start);
+        Ok((rgba, stats))
     }
 
-    fn march_frame(&mut self, renderer: &Renderer, camera: &Camera) -> Result<(Vec<[f32; 4]>, FrameStats)> {
+    /// Refuses another renderer's frames; the per-pixel surface hits when there is a surface.
+    fn check_and_shade(&self, renderer: &Renderer, camera: &Camera) -> Result<Option<Vec<[f32; 4]>>> {
         if key(renderer) != self.key {
             return Err(RenderError::Invalid(format!(
                 "this GPU marcher was built for field '{}' with another step or skipping; build one per renderer",
                 self.key.0
             )));
         }
-        let start = Instant::now();
-        let (w, h) = (camera.width, camera.height);
+        let w = camera.width;
         // Surfaces are static: hit and shade on the CPU, one entry per pixel.
-        let surface: Option<Vec<[f32; 4]>> = renderer.has_surface().then(|| {
-            (0..w * h)
+        Ok(renderer.has_surface().then(|| {
+            (0..w * camera.height)
                 .into_par_iter()
                 .map(|i| match renderer.surface_hit(&camera.ray(i % w, i / w)) {
                     Some((t, [r, g, b])) => [t, r, g, b],
                     None => [f32::INFINITY, 0.0, 0.0, 0.0],
                 })
                 .collect()
-        });
-        let view = MarchView {
-            eye: camera.eye,
-            forward: camera.forward(),
-            right: camera.right(),
-            up: camera.up(),
-            tan_half_y: camera.tan_half_y(),
-            width: w,
-            height: h,
-            surface: surface.as_deref(),
-        };
-        let mut rgba = vec![[0f32; 4]; w as usize * h as usize];
-        let s = self.march.render(&view, &mut rgba)?;
-        let stats = FrameStats {
-            rays: rgba.len(),
-            samples: s.samples,
-            in_mesh_samples: s.in_mesh_samples,
-            rounds: 1,
-            sample_seconds: s.gpu_seconds,
-            seconds: start.elapsed().as_secs_f64(),
-            gpu_seconds: s.gpu_seconds,
-        };
+        }))
+    }
+}
+
+fn view<'a>(camera: &Camera, surface: Option<&'a [[f32; 4]]>) -> MarchView<'a> {
+    MarchView {
+        eye: camera.eye,
+        forward: camera.forward(),
+        right: camera.right(),
+        up: camera.up(),
+        tan_half_y: camera.tan_half_y(),
+        width: camera.width,
+        height: camera.height,
+        surface,
+    }
+}
+
+fn stats(rays: usize, s: &tetloc_vulkan::MarchStats, start: Instant) -> FrameStats {
+    FrameStats {
+        rays,
+        samples: s.samples,
+        in_mesh_samples: s.in_mesh_samples,
+        rounds: 1,
+        sample_seconds: s.gpu_seconds,
+        seconds: start.elapsed().as_secs_f64(),
+        gpu_seconds: s.gpu_seconds,
+    }
+}
+
+impl Marcher for GpuMarcher {
+    fn name(&self) -> &str {
+        self.march.kernel().name()
+    }
+
+    fn march_frame(&mut self, renderer: &Renderer, camera: &Camera) -> Result<(Vec<[f32; 4]>, FrameStats)> {
+        let start = Instant::now();
+        let surface = self.check_and_shade(renderer, camera)?;
+        let mut rgba = vec![[0f32; 4]; camera.width as usize * camera.height as usize];
+        let s = self.march.render(&view(camera, surface.as_deref()), &mut rgba)?;
+        let stats = stats(rgba.len(), &s, start);
         Ok((rgba, stats))
     }
 }

@@ -54,6 +54,7 @@ mod options;
 mod output;
 mod render;
 pub mod skip;
+pub mod state;
 pub mod surface;
 pub mod tf;
 mod vec;
@@ -71,4 +72,5 @@ pub use output::{
     check_outputs, compare_locators, frame_path, measure_fps, render_to_file, Comparison, FpsReport, RenderReport,
 };
 pub use render::{FrameStats, HostMarcher, Marcher, Renderer, OPACITY_CUTOFF};
+pub use state::{CameraState, TfState, ViewState};
 pub use tf::{Colormap, TransferFunction};

@@ -108,8 +108,8 @@ pub struct Renderer {
     pub(crate) table: TfTable,
     range: (f32, f32),
     step: f32,
-    grid: Option<OccupancyGrid>,
-    surface: Option<SurfaceBvh>,
+    grid: Option<Arc<OccupancyGrid>>,
+    surface: Option<Arc<SurfaceBvh>>,
 }
 
 /// What renders a [`Renderer`]'s frames: the host marcher over any [`BatchLocator`] (every
@@ -160,11 +160,25 @@ struct RayState {
 
 impl Renderer {
     pub fn new(mesh: Arc<Mesh>, field: &str, opts: &RenderOptions) -> Result<Renderer> {
+        Self::build(mesh, field, opts, None)
+    }
+
+    /// A renderer of the same mesh with another field or other options. What depends on
+    /// neither is kept: the occupancy grid (the mesh's only), the surface when the surface
+    /// option is the same, the field's range when the field is; so that a viewer's
+    /// transfer-function edits rebuild nothing but the table.
+    pub fn with_options(&self, field: &str, opts: &RenderOptions) -> Result<Renderer> {
+        Self::build(self.mesh.clone(), field, opts, Some(self))
+    }
+
+    fn build(mesh: Arc<Mesh>, field: &str, opts: &RenderOptions, old: Option<&Renderer>) -> Result<Renderer> {
         opts.validate()?;
         let values = &mesh.field(field)?.values;
-        let range = match opts.range {
-            Some(r) => r,
-            None => {
+        let old_range = old.filter(|o| o.field == field && o.opts.range.is_none()).map(|o| o.range);
+        let range = match (opts.range, old_range) {
+            (Some(r), _) => r,
+            (None, Some(r)) => r,
+            (None, None) => {
                 let (lo, hi) = values
                     .par_iter()
                     .filter(|v| v.is_finite())
@@ -199,16 +213,38 @@ impl Renderer {
         // length Δ then has alpha 1 − exp(−σΔ), baked into the table once per renderer.
         let sigma_unit = opts.opacity / if diagonal > 0.0 { diagonal } else { 1.0 };
         let table = tf.bake(range.0, range.1).with_step_alpha(sigma_unit * step);
-        let grid = opts.skip.then(|| OccupancyGrid::build(&mesh, CELL_STEPS * default_step));
+        let old_grid = old.and_then(|o| o.grid.clone());
+        let grid = opts
+            .skip
+            .then(|| old_grid.unwrap_or_else(|| Arc::new(OccupancyGrid::build(&mesh, CELL_STEPS * default_step))));
+        let old_surface = old.filter(|o| o.opts.surface == opts.surface).map(|o| o.surface.clone());
         let surface = match &opts.surface {
+            _ if old_surface.is_some() => old_surface.flatten(),
             None => None,
-            Some(SurfaceSpec::Boundary) => Some(SurfaceBvh::build(&TriMesh::boundary(&mesh))),
+            Some(SurfaceSpec::Boundary) => Some(Arc::new(SurfaceBvh::build(&TriMesh::boundary(&mesh)))),
             // Surfaces given by the user are in the file's coordinates; rays run in the
             // working frame.
-            Some(SurfaceSpec::File(path)) => Some(SurfaceBvh::build(&TriMesh::load(path)?.in_frame(&mesh.info.frame))),
-            Some(SurfaceSpec::Mesh(tris)) => Some(SurfaceBvh::build(&tris.in_frame(&mesh.info.frame))),
+            Some(SurfaceSpec::File(path)) => {
+                Some(Arc::new(SurfaceBvh::build(&TriMesh::load(path)?.in_frame(&mesh.info.frame))))
+            }
+            Some(SurfaceSpec::Mesh(tris)) => Some(Arc::new(SurfaceBvh::build(&tris.in_frame(&mesh.info.frame)))),
         };
         Ok(Renderer { mesh, field: field.to_string(), opts: opts.clone(), table, range, step, grid, surface })
+    }
+
+    /// Places the camera and sets the image size, keeping everything else (a viewer's
+    /// camera moves): `camera` and `zoom` as in [`RenderOptions`].
+    pub fn set_view(
+        &mut self,
+        camera: Option<crate::camera::LookAt>,
+        zoom: f32,
+        width: u32,
+        height: u32,
+    ) -> Result<()> {
+        let opts = RenderOptions { camera, zoom, width, height, ..self.opts.clone() };
+        opts.validate()?;
+        self.opts = opts;
+        Ok(())
     }
 
     pub fn mesh(&self) -> &Arc<Mesh> {
@@ -226,7 +262,7 @@ impl Renderer {
         self.step
     }
     pub fn grid(&self) -> Option<&OccupancyGrid> {
-        self.grid.as_ref()
+        self.grid.as_deref()
     }
     pub fn field(&self) -> &str {
         &self.field
@@ -252,6 +288,16 @@ impl Renderer {
     /// Frame `i` of an orbit of `n`: the view's azimuth (or the explicit eye, about the
     /// target along the up axis) advanced by `i · 360 / n` degrees.
     pub fn orbit_camera(&self, i: u32, n: u32) -> Camera {
+        self.orbit_camera_sized(i, n, self.opts.width, self.opts.height)
+    }
+
+    /// [`Self::camera`]`(0)` for an image of another size (a viewer's frames while the
+    /// view moves).
+    pub fn camera_sized(&self, width: u32, height: u32) -> Camera {
+        self.orbit_camera_sized(0, 1, width.max(1), height.max(1))
+    }
+
+    fn orbit_camera_sized(&self, i: u32, n: u32, width: u32, height: u32) -> Camera {
         let o = &self.opts;
         let turn = i as f32 * 360.0 / n.max(1) as f32;
         match o.camera {
@@ -264,7 +310,7 @@ impl Renderer {
                 let look = crate::camera::LookAt { eye: to_working(look.eye), target: to_working(look.target), ..look };
                 let eye = rotate_about(sub(look.eye, look.target), look.up, turn.to_radians());
                 let eye = std::array::from_fn(|k| look.target[k] + eye[k]);
-                Camera::look_at(crate::camera::LookAt { eye, ..look }, o.zoom, o.width, o.height)
+                Camera::look_at(crate::camera::LookAt { eye, ..look }, o.zoom, width, height)
                     .expect("a valid camera stays valid when turned about its up axis")
             }
             None => Camera::fitted(
@@ -273,8 +319,8 @@ impl Renderer {
                 o.azimuth + turn,
                 o.elevation,
                 o.zoom,
-                o.width,
-                o.height,
+                width,
+                height,
             ),
         }
     }

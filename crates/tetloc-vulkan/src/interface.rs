@@ -304,6 +304,9 @@ gpu_interface! {
         /// Volume marcher flags (MarchParams::size.z).
         MARCH_SKIP: u32 = 1;
         MARCH_SURFACE: u32 = 2;
+        /// Write each pixel as 8-bit sRGB RGBA over the background (one u32), not as
+        /// `Pixel`: a viewer downloads 4 bytes a pixel instead of 32.
+        MARCH_RGBA8: u32 = 4;
         /// Query ordering passes (ORDER_PASS): bin each point and count the bins; scan each
         /// block of bins; scan the blocks; move each point to its slot.
         ORDER_KEYS: u32 = 0;
@@ -478,6 +481,8 @@ gpu_interface! {
             occ_dims: [u32; 4],
             /// Blocks per axis, cells per block edge.
             occ_blocks: [u32; 4],
+            /// MARCH_RGBA8: the background's linear RGB, 0.
+            background: [f32; 4],
         }
         /// Stream tracing's parameters (stream.comp; tetloc_core::ops::trace::TraceOptions),
         /// in file units: as f32, and as f64 bit pairs (low word first) for the shader's f64

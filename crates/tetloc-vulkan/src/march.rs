@@ -90,7 +90,7 @@ pub struct VolumeMarcher {
     /// The push constants (the locator's launch parameters: bounds, ray).
     push: Params,
     params_buf: Buffer,
-    _tf: Buffer,
+    tf: Buffer,
     _occupancy: Buffer,
     _neighbors: Option<Buffer>,
     surface: Option<(Buffer, usize)>,
@@ -182,7 +182,7 @@ impl VolumeMarcher {
             params: p,
             push: res.params,
             params_buf,
-            _tf: tf,
+            tf,
             _occupancy: occupancy,
             _neighbors: neighbors,
             surface: None,
@@ -199,6 +199,32 @@ impl VolumeMarcher {
 
     pub fn locator(&self) -> &VulkanLocator {
         &self.loc
+    }
+
+    /// Another transfer function and step for the same field and grid (a viewer's edits):
+    /// only the table is uploaded again.
+    pub fn set_tf(&mut self, tf: &[[f32; 4]], tf_lo: f32, tf_inv_range: f32, step: f32) -> tetloc_core::Result<()> {
+        if tf.len() < 2 || step.is_nan() || step <= 0.0 {
+            return Err(tetloc_core::Error::Invalid(format!(
+                "march: {} transfer-function entries (need 2) and step {step}",
+                tf.len()
+            )));
+        }
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let buf = self.loc.device().upload(
+            "march transfer function",
+            MemKind::Structure,
+            storage,
+            bytemuck::cast_slice(tf),
+        )?;
+        // No frame is in flight: `render` waits for its submission.
+        self.desc.write(&[Binding::buffer(B_TF, &buf)]);
+        self.tf = buf;
+        self.params.eye_step[3] = step;
+        self.params.size[3] = tf.len() as u32;
+        self.params.box_lo_tf_lo[3] = tf_lo;
+        self.params.box_hi_tf_inv[3] = tf_inv_range;
+        Ok(())
     }
 
     /// Benchmarks: march each frame `n` more times, untimed, before the timed march, so that
@@ -224,11 +250,32 @@ impl VolumeMarcher {
                 return Err(tetloc_core::Error::Invalid(format!("march: {} surface entries for {n} pixels", s.len())));
             }
         }
-        Ok(self.render_frame(view, out)?)
+        Ok(self.render_frame(view, Out::Linear(out))?)
     }
 
-    fn render_frame(&mut self, view: &MarchView, out: &mut [[f32; 4]]) -> VkResult<MarchStats> {
-        let n = out.len();
+    /// Marches one frame into 8-bit sRGB over `background` (linear RGB), composited and
+    /// encoded on the GPU: `out` receives one RGBA u32 a pixel (R in the low byte), and only
+    /// those 4 bytes a pixel are downloaded. The stats carry no sample counts.
+    pub fn render_rgba8(
+        &mut self,
+        view: &MarchView,
+        background: [f32; 3],
+        out: &mut [u32],
+    ) -> tetloc_core::Result<MarchStats> {
+        let n = view.width as usize * view.height as usize;
+        if n == 0 || out.len() != n || view.surface.is_some_and(|s| s.len() != n) {
+            return Err(tetloc_core::Error::Invalid(format!(
+                "march: a {}x{} frame into {} pixels",
+                view.width,
+                view.height,
+                out.len()
+            )));
+        }
+        Ok(self.render_frame(view, Out::Rgba8(out, background))?)
+    }
+
+    fn render_frame(&mut self, view: &MarchView, mut out: Out) -> VkResult<MarchStats> {
+        let n = view.width as usize * view.height as usize;
         let dev = self.loc.device();
         let ctx = dev.ctx().clone();
         if let (Some(rt), Some(_)) = (&ctx.rt, &self.pipeline.sbt) {
@@ -253,6 +300,10 @@ impl VolumeMarcher {
         p.up[..3].copy_from_slice(&view.up);
         p.size[0] = view.width;
         p.size[1] = view.height;
+        if let Out::Rgba8(_, bg) = &out {
+            p.size[2] |= MARCH_RGBA8;
+            p.background = [bg[0], bg[1], bg[2], 0.0];
+        }
         if let Some(s) = view.surface {
             p.size[2] |= MARCH_SURFACE;
             if self.surface.as_ref().is_none_or(|(_, cap)| *cap < n) {
@@ -313,17 +364,28 @@ impl VolumeMarcher {
             None => host_seconds,
         };
 
-        let mut pixels = vec![Pixel::default(); n];
         let buf = &self.pixels.as_ref().expect("made above").0;
-        dev.download(buf, 0, bytemuck::cast_slice_mut(&mut pixels))?;
         let mut stats = MarchStats { gpu_seconds, ..Default::default() };
-        for (o, px) in out.iter_mut().zip(&pixels) {
-            *o = px.rgba;
-            stats.samples += px.count[0] as u64;
-            stats.in_mesh_samples += px.count[1] as u64;
+        match &mut out {
+            Out::Rgba8(rgba, _) => dev.download(buf, 0, bytemuck::cast_slice_mut(rgba))?,
+            Out::Linear(out) => {
+                let mut pixels = vec![Pixel::default(); n];
+                dev.download(buf, 0, bytemuck::cast_slice_mut(&mut pixels))?;
+                for (o, px) in out.iter_mut().zip(&pixels) {
+                    *o = px.rgba;
+                    stats.samples += px.count[0] as u64;
+                    stats.in_mesh_samples += px.count[1] as u64;
+                }
+            }
         }
         Ok(stats)
     }
+}
+
+/// Where a frame goes: linear premultiplied RGBA with counts, or 8-bit sRGB over a background.
+enum Out<'a> {
+    Linear(&'a mut [[f32; 4]]),
+    Rgba8(&'a mut [u32], [f32; 3]),
 }
 
 impl Drop for VolumeMarcher {

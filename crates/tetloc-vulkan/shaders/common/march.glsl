@@ -17,6 +17,14 @@ layout(std430, binding = TL_B_OCCUPANCY) readonly buffer TlOcc { uint tl_occ[]; 
 // Per pixel: where the surface is hit (+inf: nowhere) and its shaded linear colour.
 layout(std430, binding = TL_B_SURFACE) readonly buffer TlSurface { vec4 tl_surface[]; };
 layout(std430, binding = TL_B_PIXELS) writeonly buffer TlPixels { TlPixel tl_pixels[]; };
+// The same buffer with TL_MARCH_RGBA8: one packed 8-bit sRGB RGBA per pixel.
+layout(std430, binding = TL_B_PIXELS) writeonly buffer TlPixels8 { uint tl_pixels8[]; };
+
+// tetloc-render's colorspace::linear_to_srgb.
+vec3 tl_linear_to_srgb(vec3 c) {
+    c = clamp(c, 0.0, 1.0);
+    return mix(1.055 * pow(c, vec3(1.0 / 2.4)) - 0.055, c * 12.92, lessThanEqual(c, vec3(0.0031308)));
+}
 
 float tl_march_sample(vec3 p);
 
@@ -155,6 +163,12 @@ void tl_march(uvec2 pixel) {
     }
     if (!isinf(shade.x)) {
         acc = vec4(acc.rgb + (1.0 - acc.a) * shade.yzw, 1.0);
+    }
+    if ((tl_m.size.z & TL_MARCH_RGBA8) != 0u) {
+        // Renderer::render's background, then Image::to_srgb8's encoding (round to nearest).
+        vec3 c = acc.rgb + (1.0 - acc.a) * tl_m.background.rgb;
+        tl_pixels8[index] = packUnorm4x8(vec4(tl_linear_to_srgb(c), 1.0));
+        return;
     }
     tl_pixels[index].rgba = acc;
     tl_pixels[index].count = uvec4(samples, in_mesh, 0u, 0u);

@@ -1,0 +1,254 @@
+//! The HTTP side: a request head read in bounded memory and time, the token checked before
+//! anything else (403 without it, for every path and for the WebSocket), then one of five
+//! answers: the page (embedded in the binary), `GET /frame.png` (the still frame of the
+//! current view), `GET /state.json`, `PUT /state.json` (a script sets the view), or the
+//! WebSocket upgrade. No path maps to a file.
+
+use super::frames::{lock, Hub};
+use std::io::{Read, Write};
+use std::net::{TcpListener, TcpStream};
+use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The page, with its script and style, served as it is.
+const PAGE: &str = include_str!("page.html");
+/// Largest request head read.
+const MAX_HEAD: usize = 8 * 1024;
+/// Most connections served at once (WebSocket clients included).
+const MAX_CONNECTIONS: usize = 64;
+/// How long a client may take to send its request head.
+const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long `/frame.png` waits for the still frame of the current view.
+const STILL_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Accepts connections until the process ends.
+pub fn serve(listener: TcpListener, hub: Arc<Hub>) {
+    let live = Arc::new(AtomicUsize::new(0));
+    for stream in listener.incoming() {
+        let Ok(stream) = stream else { continue };
+        if live.fetch_add(1, Ordering::SeqCst) >= MAX_CONNECTIONS {
+            live.fetch_sub(1, Ordering::SeqCst);
+            let _ = respond(&stream, 503, "text/plain", b"too many connections\n");
+            continue;
+        }
+        let (hub, done) = (hub.clone(), live.clone());
+        let spawned = std::thread::Builder::new().name("view-conn".into()).spawn(move || {
+            let _ = handle(stream, &hub);
+            done.fetch_sub(1, Ordering::SeqCst);
+        });
+        if spawned.is_err() {
+            live.fetch_sub(1, Ordering::SeqCst);
+        }
+    }
+}
+
+/// A parsed request head.
+#[derive(Debug, PartialEq)]
+pub struct Request {
+    pub method: String,
+    pub path: String,
+    pub token: Option<String>,
+    pub headers: Vec<(String, String)>,
+}
+
+impl Request {
+    pub fn header(&self, name: &str) -> Option<&str> {
+        self.headers.iter().find(|(n, _)| n.eq_ignore_ascii_case(name)).map(|(_, v)| v.as_str())
+    }
+}
+
+/// Parses a complete request head (up to and including the blank line).
+pub fn parse_head(head: &[u8]) -> Option<Request> {
+    let mut headers = [httparse::EMPTY_HEADER; 64];
+    let mut req = httparse::Request::new(&mut headers);
+    let httparse::Status::Complete(_) = req.parse(head).ok()? else { return None };
+    let target = req.path?;
+    let (path, query) = target.split_once('?').unwrap_or((target, ""));
+    let token = query.split('&').find_map(|kv| kv.strip_prefix("token=")).map(str::to_string);
+    let headers =
+        req.headers.iter().map(|h| (h.name.to_string(), String::from_utf8_lossy(h.value).into_owned())).collect();
+    Some(Request { method: req.method?.to_string(), path: path.to_string(), token, headers })
+}
+
+/// Whether `given` is `token`, in time that does not depend on where they differ.
+pub fn token_matches(given: Option<&str>, token: &str) -> bool {
+    let Some(given) = given else { return false };
+    let (a, b) = (given.as_bytes(), token.as_bytes());
+    a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
+}
+
+/// Reads up to the end of the head; returns the head and any bytes read past it.
+fn read_head(stream: &mut TcpStream) -> std::io::Result<Option<(Vec<u8>, Vec<u8>)>> {
+    let mut buf = Vec::with_capacity(1024);
+    let mut chunk = [0u8; 1024];
+    loop {
+        let n = stream.read(&mut chunk)?;
+        if n == 0 {
+            return Ok(None);
+        }
+        buf.extend_from_slice(&chunk[..n]);
+        if let Some(end) = buf.windows(4).position(|w| w == b"\r\n\r\n") {
+            let rest = buf.split_off(end + 4);
+            return Ok(Some((buf, rest)));
+        }
+        if buf.len() > MAX_HEAD {
+            return Ok(None);
+        }
+    }
+}
+
+fn handle(mut stream: TcpStream, hub: &Arc<Hub>) -> std::io::Result<()> {
+    stream.set_read_timeout(Some(HEAD_TIMEOUT))?;
+    stream.set_write_timeout(Some(Duration::from_secs(30)))?;
+    stream.set_nodelay(true)?;
+    let Some((head, rest)) = read_head(&mut stream)? else {
+        return respond(&stream, 400, "text/plain", b"bad request\n");
+    };
+    let Some(req) = parse_head(&head) else {
+        return respond(&stream, 400, "text/plain", b"bad request\n");
+    };
+    if !token_matches(req.token.as_deref(), &hub.token) {
+        return respond(
+            &stream,
+            403,
+            "text/plain",
+            b"403 forbidden: open the URL that tetloc view printed, with its token\n",
+        );
+    }
+    if (req.method.as_str(), req.path.as_str()) == ("PUT", "/state.json") {
+        return put_state(stream, &req, rest, hub);
+    }
+    if req.method != "GET" {
+        return respond(&stream, 405, "text/plain", b"only GET (and PUT /state.json)\n");
+    }
+    match req.path.as_str() {
+        "/" | "/index.html" => respond(&stream, 200, "text/html; charset=utf-8", PAGE.as_bytes()),
+        "/frame.png" => match hub.current_still(STILL_TIMEOUT) {
+            Some(f) => respond(&stream, 200, "image/png", f.image()),
+            None => respond(&stream, 503, "text/plain", b"no frame yet\n"),
+        },
+        "/state.json" => {
+            let state = lock(&hub.input).state.to_json();
+            respond(&stream, 200, "application/json", state.as_bytes())
+        }
+        "/ws" => match accept_websocket(&stream, &req) {
+            Ok(()) => super::client::run(stream, rest, hub.clone()),
+            Err(why) => respond(&stream, 400, "text/plain", format!("{why}\n").as_bytes()),
+        },
+        _ => respond(&stream, 404, "text/plain", b"not found\n"),
+    }
+}
+
+/// `PUT /state.json`: a script sets the view (as a page does when its view stops moving).
+fn put_state(mut stream: TcpStream, req: &Request, mut body: Vec<u8>, hub: &Hub) -> std::io::Result<()> {
+    let max = tetloc_render::state::MAX_STATE_BYTES;
+    let Some(len) = req.header("content-length").and_then(|l| l.trim().parse::<usize>().ok()).filter(|&l| l <= max)
+    else {
+        return respond(
+            &stream,
+            400,
+            "text/plain",
+            format!("need a Content-Length of at most {max} bytes\n").as_bytes(),
+        );
+    };
+    if body.len() < len {
+        let mut more = vec![0u8; len - body.len()];
+        stream.read_exact(&mut more)?;
+        body.extend_from_slice(&more);
+    }
+    body.truncate(len);
+    let text = String::from_utf8_lossy(&body);
+    let state = tetloc_render::ViewState::parse(&text, std::path::Path::new("PUT /state.json"))
+        .map_err(|e| e.to_string())
+        .and_then(|s| super::client::check(hub, &s).map(|()| s));
+    match state {
+        Ok(s) => {
+            let gen = hub.set_state(s, false, 0);
+            respond(&stream, 200, "application/json", format!("{{\"gen\":{gen}}}\n").as_bytes())
+        }
+        Err(why) => respond(&stream, 400, "text/plain", format!("{why}\n").as_bytes()),
+    }
+}
+
+/// Answers a WebSocket upgrade (RFC 6455) and checks that a browser's page is our own.
+fn accept_websocket(mut stream: &TcpStream, req: &Request) -> Result<(), &'static str> {
+    let upgrade = req.header("upgrade").is_some_and(|u| u.eq_ignore_ascii_case("websocket"));
+    let key = req.header("sec-websocket-key").ok_or("not a WebSocket upgrade")?;
+    if !upgrade || req.header("sec-websocket-version") != Some("13") {
+        return Err("not a WebSocket (version 13) upgrade");
+    }
+    // A browser says where the page came from: only our own (the token guards the rest).
+    if let (Some(origin), Some(host)) = (req.header("origin"), req.header("host")) {
+        let from = origin.split_once("://").map_or(origin, |(_, h)| h);
+        if from != host {
+            return Err("the page is not this server's");
+        }
+    }
+    let accept = tungstenite::handshake::derive_accept_key(key.trim().as_bytes());
+    let answer = format!(
+        "HTTP/1.1 101 Switching Protocols\r\nUpgrade: websocket\r\nConnection: Upgrade\r\nSec-WebSocket-Accept: {accept}\r\n\r\n"
+    );
+    stream.write_all(answer.as_bytes()).map_err(|_| "write failed")
+}
+
+fn respond(mut stream: &TcpStream, status: u16, content_type: &str, body: &[u8]) -> std::io::Result<()> {
+    let reason = match status {
+        200 => "OK",
+        400 => "Bad Request",
+        403 => "Forbidden",
+        404 => "Not Found",
+        405 => "Method Not Allowed",
+        _ => "Service Unavailable",
+    };
+    // The page allows nothing from elsewhere: its own script and style, frames as blobs.
+    let head = format!(
+        "HTTP/1.1 {status} {reason}\r\nContent-Type: {content_type}\r\nContent-Length: {}\r\nCache-Control: no-store\r\n\
+         Content-Security-Policy: default-src 'none'; script-src 'unsafe-inline'; style-src 'unsafe-inline'; img-src 'self' blob: data:; connect-src 'self'\r\n\
+         X-Content-Type-Options: nosniff\r\nReferrer-Policy: no-referrer\r\nConnection: close\r\n\r\n",
+        body.len()
+    );
+    stream.write_all(head.as_bytes())?;
+    stream.write_all(body)?;
+    stream.flush()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn heads_and_tokens() {
+        let r =
+            parse_head(b"GET /frame.png?x=1&token=abc HTTP/1.1\r\nHost: h:1\r\nUpgrade: WebSocket\r\n\r\n").unwrap();
+        assert_eq!((r.method.as_str(), r.path.as_str(), r.token.as_deref()), ("GET", "/frame.png", Some("abc")));
+        assert_eq!(r.header("upgrade"), Some("WebSocket"));
+        assert!(parse_head(b"GET / HTTP/1.1\r\n").is_none(), "incomplete");
+        assert!(parse_head(b"\x00\x01garbage\r\n\r\n").is_none());
+        assert!(token_matches(Some("abc"), "abc"));
+        assert!(!token_matches(Some("abd"), "abc"));
+        assert!(!token_matches(Some("ab"), "abc"));
+        assert!(!token_matches(None, "abc"));
+    }
+
+    #[test]
+    fn websocket_upgrades_are_checked() {
+        let head = |extra: &str| {
+            parse_head(
+                format!(
+                    "GET /ws?token=t HTTP/1.1\r\nHost: 127.0.0.1:5\r\nUpgrade: websocket\r\nSec-WebSocket-Version: 13\r\n{extra}\r\n"
+                )
+                .as_bytes(),
+            )
+            .unwrap()
+        };
+        let listener = TcpListener::bind("127.0.0.1:0").unwrap();
+        let _client = TcpStream::connect(listener.local_addr().unwrap()).unwrap();
+        let (server, _) = listener.accept().unwrap();
+        assert_eq!(accept_websocket(&server, &head("")), Err("not a WebSocket upgrade"));
+        let foreign = head("Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nOrigin: http://evil.example\r\n");
+        assert_eq!(accept_websocket(&server, &foreign), Err("the page is not this server's"));
+        let ours = head("Sec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\nOrigin: http://127.0.0.1:5\r\n");
+        assert_eq!(accept_websocket(&server, &ours), Ok(()));
+    }
+}

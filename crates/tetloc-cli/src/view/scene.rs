@@ -1,0 +1,238 @@
+//! The render thread: the locator, the marcher and the renderer of the view state current
+//! now. A camera move renders with what there is; a transfer-function or step edit rebuilds
+//! the renderer (the occupancy grid and the surface are kept) and re-uploads the table; a
+//! field change builds a new locator.
+
+use super::frames::{lock, Hub, RawFrame};
+use crate::backend::BackendOptions;
+use crate::render::{build_marcher, check_samples_per_ray, AnyMarcher};
+use anyhow::Result;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tetloc_core::Mesh;
+use tetloc_render as tr;
+
+/// With no event for this long, a moving view gets its full-size lossless frame.
+const QUIET: Duration = Duration::from_millis(80);
+/// Frame time the size of moving frames adapts to (60 frames/s, with room for encoding).
+const TARGET_MS: f64 = 14.0;
+/// Smallest fraction of the still size a moving frame is rendered at, per side.
+const MIN_SCALE: f64 = 0.25;
+
+pub struct Scene {
+    mesh: Arc<Mesh>,
+    backend: String,
+    opts: BackendOptions,
+    renderer: tr::Renderer,
+    /// `None` only while a new one is built (the old one is dropped first, to free its memory).
+    marcher: Option<AnyMarcher>,
+    /// The marcher's name (the backend `auto` chose).
+    marcher_name: String,
+}
+
+impl Scene {
+    pub fn new(mesh: Arc<Mesh>, backend: &str, opts: BackendOptions, state: &tr::ViewState) -> Result<Scene> {
+        let renderer = tr::Renderer::new(mesh.clone(), &state.field, &state.render_options()?)?;
+        check_samples_per_ray(&mesh, renderer.step())?;
+        let marcher = build_marcher(&opts, &mesh, backend, &renderer, false)?;
+        let marcher_name = tr::Marcher::name(&marcher).to_string();
+        Ok(Scene { mesh, backend: backend.to_string(), opts, renderer, marcher: Some(marcher), marcher_name })
+    }
+
+    pub fn marcher_name(&self) -> &str {
+        &self.marcher_name
+    }
+
+    /// Makes the renderer and marcher show `state`.
+    fn apply(&mut self, state: &tr::ViewState) -> Result<()> {
+        let want = state.render_options()?;
+        let have = self.renderer.options();
+        let same_look = tr::RenderOptions {
+            camera: have.camera,
+            zoom: have.zoom,
+            width: have.width,
+            height: have.height,
+            ..want.clone()
+        } == *have;
+        if state.field != self.renderer.field() || !same_look {
+            let renderer = self.renderer.with_options(&state.field, &want)?;
+            check_samples_per_ray(&self.mesh, renderer.step())?;
+            let retargeted = match self.marcher.as_mut() {
+                Some(AnyMarcher::Gpu(m)) => m.retarget(&renderer).is_ok(),
+                Some(AnyMarcher::Host(_)) => true,
+                None => false,
+            };
+            if !retargeted {
+                self.marcher = None;
+                self.marcher = Some(build_marcher(&self.opts, &self.mesh, &self.backend, &renderer, false)?);
+            }
+            self.renderer = renderer;
+        }
+        self.renderer.set_view(want.camera, want.zoom, want.width, want.height)?;
+        Ok(())
+    }
+
+    /// Renders the current view at `width`×`height` as 8-bit sRGB RGB. The GPU marcher
+    /// composites and encodes on the GPU and downloads 4 bytes a pixel; the host marcher's
+    /// linear image is encoded here.
+    fn render(&mut self, width: u32, height: u32) -> Result<(Vec<u8>, tr::FrameStats)> {
+        let cam = self.renderer.camera_sized(width, height);
+        match self.marcher.as_mut() {
+            Some(AnyMarcher::Gpu(m)) => {
+                let (rgba, stats) = m.march_srgb8(&self.renderer, &cam)?;
+                let rgb = rgba.iter().flat_map(|p| {
+                    let [r, g, b, _] = p.to_le_bytes();
+                    [r, g, b]
+                });
+                Ok((rgb.collect(), stats))
+            }
+            Some(m) => {
+                let (image, stats) = self.renderer.render(m, &cam)?;
+                Ok((super::frames::srgb8(&image), stats))
+            }
+            None => anyhow::bail!("no marcher (an earlier rebuild failed)"),
+        }
+    }
+}
+
+/// What the page needs to know of the mesh: bounds, fields with their ranges, the
+/// backend, the built-in colormaps (sampled, for the editor's colour bar) and the home camera.
+pub fn describe(mesh: &Mesh, state: &tr::ViewState, backend: &str) -> serde_json::Value {
+    use rayon::prelude::*;
+    let i = &mesh.info;
+    let fields: Vec<_> = mesh
+        .fields
+        .iter()
+        .map(|f| {
+            let (lo, hi) = f
+                .values
+                .par_iter()
+                .filter(|v| v.is_finite())
+                .fold(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), &v| (a.min(v), b.max(v)))
+                .reduce(|| (f32::INFINITY, f32::NEG_INFINITY), |(a, b), (c, d)| (a.min(c), b.max(d)));
+            let range = if lo <= hi { serde_json::json!([lo, hi]) } else { serde_json::Value::Null };
+            let location = match f.location {
+                tetloc_core::FieldLocation::Vertex => "point",
+                tetloc_core::FieldLocation::Cell => "cell",
+            };
+            serde_json::json!({ "name": f.name, "location": location, "range": range })
+        })
+        .collect();
+    let colormaps: serde_json::Map<String, serde_json::Value> = tr::Colormap::ALL
+        .iter()
+        .map(|m| {
+            let t = m.table();
+            let samples: Vec<[f32; 3]> = (0..32).map(|k| t[k * (t.len() - 1) / 31]).collect();
+            (m.name().to_string(), serde_json::json!(samples))
+        })
+        .collect();
+    let lo = i.frame.to_file(i.bounds_min);
+    let hi = i.frame.to_file(i.bounds_max);
+    let home = tr::CameraState::fitted(mesh, 30.0, 25.0, 1.0);
+    serde_json::json!({
+        "source": i.source,
+        "tets": i.n_tets,
+        "bounds": [lo, hi],
+        "fields": fields,
+        "backend": backend,
+        "colormaps": colormaps,
+        "home": home,
+        "size": state.size,
+    })
+}
+
+/// Starts the render thread, which builds the scene (locators need not move between
+/// threads) and then renders for good; returns the backend's name once the scene is built.
+pub fn spawn(
+    mesh: Arc<Mesh>,
+    backend: &str,
+    opts: BackendOptions,
+    state: tr::ViewState,
+    hub: Arc<Hub>,
+) -> Result<String> {
+    let (tx, rx) = std::sync::mpsc::channel();
+    let backend = backend.to_string();
+    std::thread::Builder::new().name("view-render".into()).spawn(move || {
+        match Scene::new(mesh, &backend, opts, &state) {
+            Ok(mut scene) => {
+                let _ = tx.send(Ok(scene.marcher_name().to_string()));
+                render_loop(&mut scene, &hub)
+            }
+            Err(e) => {
+                let _ = tx.send(Err(e));
+            }
+        }
+    })?;
+    rx.recv()?
+}
+
+fn render_loop(scene: &mut Scene, hub: &Hub) {
+    let mut applied = 0u64;
+    let mut rendered = 0u64;
+    let mut still_gen = 0u64;
+    let mut scale = 1.0f64;
+    loop {
+        // The next job: a new state (moving or still), or the still frame of a view that
+        // stopped moving.
+        let (gen, state, still, started) = {
+            let mut i = lock(&hub.input);
+            loop {
+                let quiet_for = i.last_event.elapsed();
+                if i.gen != rendered {
+                    break (i.gen, i.state.clone(), !i.moving, Instant::now());
+                }
+                if still_gen != i.gen && quiet_for >= QUIET {
+                    break (i.gen, i.state.clone(), true, Instant::now());
+                }
+                let wait = if still_gen != i.gen { QUIET - quiet_for } else { Duration::from_secs(3600) };
+                i = hub.input_changed.wait_timeout(i, wait).unwrap_or_else(|e| e.into_inner()).0;
+            }
+        };
+        if gen != applied {
+            if let Err(e) = scene.apply(&state) {
+                lock(&hub.input).error = Some((gen, format!("{e:#}")));
+                hub.out_ready.notify_all();
+                // Shown as an error; the last frame stays.
+                (rendered, still_gen, applied) = (gen, gen, gen);
+                continue;
+            }
+            applied = gen;
+        }
+        let [w, h] = state.size;
+        let s = if still { 1.0 } else { scale };
+        let (sw, sh) = (((w as f64 * s).round() as u32).max(1), ((h as f64 * s).round() as u32).max(1));
+        let t = Instant::now();
+        let (rgb, stats) = match scene.render(sw, sh) {
+            Ok(r) => r,
+            Err(e) => {
+                lock(&hub.input).error = Some((gen, format!("{e:#}")));
+                hub.out_ready.notify_all();
+                (rendered, still_gen) = (gen, gen);
+                continue;
+            }
+        };
+        let march_ms = t.elapsed().as_secs_f64() * 1e3;
+        if !still {
+            // Moving frames: smaller when slow, back up when fast (about √2 a side per frame).
+            if march_ms > 2.0 * TARGET_MS {
+                scale = (scale / 2f64.sqrt()).max(MIN_SCALE);
+            } else if march_ms < 0.5 * TARGET_MS {
+                scale = (scale * 2f64.sqrt()).min(1.0);
+            }
+        }
+        rendered = gen;
+        if still {
+            still_gen = gen;
+        }
+        hub.put_raw(RawFrame {
+            gen,
+            still,
+            width: sw,
+            height: sh,
+            rgb,
+            march_ms,
+            gpu_ms: stats.gpu_seconds * 1e3,
+            started,
+        });
+    }
+}

@@ -1,0 +1,244 @@
+//! `tetloc view` as a client sees it, without a browser: the token on every request and on
+//! the WebSocket, frames over HTTP and WebSocket, hostile clients closed alone, SIGINT ends
+//! it with exit code 0, and `render --state` renders the state it serves. (The page itself
+//! is tested in a browser: python/tests/test_view.py.)
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+use tungstenite::protocol::frame::coding::CloseCode;
+use tungstenite::{Message, WebSocket};
+
+const TOKEN: &str = "test-token-123";
+
+struct Server {
+    child: Child,
+    addr: String,
+}
+
+impl Server {
+    fn start(extra: &[&str]) -> Server {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+            .args([
+                "view",
+                "fusion:2k",
+                "--backend",
+                "cpu",
+                "--size",
+                "40x32",
+                "--port",
+                "0",
+                "--token",
+                TOKEN,
+                "--quiet",
+            ])
+            .args(extra)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .expect("run tetloc view");
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap()).read_line(&mut line).unwrap();
+        let url = line.trim();
+        let addr = url.strip_prefix("http://").and_then(|u| u.split_once('/')).map(|(a, _)| a.to_string());
+        let expected = format!("/?token={TOKEN}");
+        assert!(url.ends_with(&expected), "one URL line with the token: {url:?}");
+        Server { child, addr: addr.expect("an http:// URL") }
+    }
+
+    /// Status line and body of `GET path`.
+    fn get(&self, path: &str) -> (String, Vec<u8>) {
+        let mut s = TcpStream::connect(&self.addr).unwrap();
+        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        write!(s, "GET {path} HTTP/1.1\r\nHost: {}\r\n\r\n", self.addr).unwrap();
+        let mut all = Vec::new();
+        s.read_to_end(&mut all).unwrap();
+        let end = all.windows(4).position(|w| w == b"\r\n\r\n").expect("a response head");
+        let status = String::from_utf8_lossy(&all[..all.iter().position(|&b| b == b'\r').unwrap()]).into_owned();
+        (status, all[end + 4..].to_vec())
+    }
+
+    fn websocket(&self, token: &str) -> Result<WebSocket<TcpStream>, tungstenite::Error> {
+        let stream = TcpStream::connect(&self.addr).unwrap();
+        stream.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+        tungstenite::client::client(format!("ws://{}/ws?token={token}", self.addr), stream).map(|(ws, _)| ws).map_err(
+            |e| match e {
+                tungstenite::HandshakeError::Failure(e) => e,
+                tungstenite::HandshakeError::Interrupted(_) => panic!("blocking handshake interrupted"),
+            },
+        )
+    }
+
+    /// Sends SIGINT and returns the exit code.
+    fn interrupt(mut self) -> Option<i32> {
+        // SAFETY: kill(2) on our own child's pid.
+        unsafe { libc::kill(self.child.id() as i32, libc::SIGINT) };
+        self.child.wait().unwrap().code()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn hello(ws: &mut WebSocket<TcpStream>) -> serde_json::Value {
+    match ws.read().unwrap() {
+        Message::Text(t) => {
+            let v: serde_json::Value = serde_json::from_str(&t).unwrap();
+            assert_eq!(v["type"], "hello");
+            v
+        }
+        m => panic!("expected hello, got {m:?}"),
+    }
+}
+
+/// Reads until the server closes; returns its close code.
+fn close_code(ws: &mut WebSocket<TcpStream>) -> Option<CloseCode> {
+    let deadline = Instant::now() + Duration::from_secs(60);
+    while Instant::now() < deadline {
+        match ws.read() {
+            Ok(Message::Close(f)) => return f.map(|f| f.code),
+            Ok(_) => continue,
+            Err(_) => return None,
+        }
+    }
+    panic!("the server did not close the connection");
+}
+
+/// The next frame: its header and image.
+fn frame(ws: &mut WebSocket<TcpStream>) -> (serde_json::Value, Vec<u8>) {
+    loop {
+        if let Message::Binary(b) = ws.read().unwrap() {
+            let n = u32::from_le_bytes(b[..4].try_into().unwrap()) as usize;
+            let h: serde_json::Value = serde_json::from_slice(&b[4..4 + n]).unwrap();
+            ws.send(Message::text(serde_json::json!({"type": "ack", "seq": h["seq"]}).to_string())).unwrap();
+            return (h, b[4 + n..].to_vec());
+        }
+    }
+}
+
+fn png_size(png: &[u8]) -> (u32, u32) {
+    let r = png::Decoder::new(std::io::Cursor::new(png)).read_info().unwrap();
+    (r.info().width, r.info().height)
+}
+
+#[test]
+fn every_request_needs_the_token() {
+    let s = Server::start(&[]);
+    for path in ["/", "/frame.png", "/state.json", "/ws", "/etc/passwd", "/../Cargo.toml"] {
+        for token in ["", "?token=", "?token=wrong", "?token=test-token-12", "?token=test-token-1234"] {
+            let (status, body) = s.get(&format!("{path}{token}"));
+            assert!(status.contains(" 403 "), "{path}{token}: {status}");
+            assert!(!body.starts_with(b"\x89PNG") && !String::from_utf8_lossy(&body).contains("<canvas"));
+        }
+    }
+    assert!(matches!(s.websocket("wrong"), Err(tungstenite::Error::Http(r)) if r.status() == 403));
+    let (status, page) = s.get(&format!("/?token={TOKEN}"));
+    assert!(status.contains(" 200 ") && String::from_utf8_lossy(&page).contains("<canvas"), "{status}");
+    assert!(
+        !String::from_utf8_lossy(&page).contains("http://") && !String::from_utf8_lossy(&page).contains("https://"),
+        "nothing fetched from elsewhere"
+    );
+    assert!(s.get(&format!("/etc/passwd?token={TOKEN}")).0.contains(" 404 "), "no path maps to a file");
+    let (status, png) = s.get(&format!("/frame.png?token={TOKEN}"));
+    assert!(status.contains(" 200 "), "{status}");
+    assert_eq!(png_size(&png), (40, 32));
+    assert_eq!(s.interrupt(), Some(0), "SIGINT ends the server with exit code 0");
+}
+
+#[test]
+fn hostile_clients_are_closed_and_the_others_served() {
+    let s = Server::start(&[]);
+    let mut good = s.websocket(TOKEN).unwrap();
+    let state = hello(&mut good)["state"].clone();
+    let (h, _) = frame(&mut good);
+    assert_eq!(h["still"], true);
+    let bad: [(&str, String, CloseCode); 4] = [
+        ("not JSON", "{{{".into(), CloseCode::Policy),
+        ("an unknown message", r#"{"type":"open","path":"/etc/passwd"}"#.into(), CloseCode::Policy),
+        (
+            "a state that names a file",
+            serde_json::json!({"type": "state", "moving": false, "state": {"surface": "/etc/passwd"}}).to_string(),
+            CloseCode::Policy,
+        ),
+        ("too large", format!(r#"{{"type":"ack","seq":1,"pad":"{}"}}"#, "x".repeat(300 * 1024)), CloseCode::Size),
+    ];
+    for (what, text, code) in bad {
+        let mut ws = s.websocket(TOKEN).unwrap();
+        hello(&mut ws);
+        let _ = ws.send(Message::text(text));
+        assert_eq!(close_code(&mut ws), Some(code), "{what}");
+    }
+    // A flood.
+    let mut ws = s.websocket(TOKEN).unwrap();
+    hello(&mut ws);
+    for i in 0..2000 {
+        if ws.send(Message::text(format!(r#"{{"type":"ack","seq":{i}}}"#))).is_err() {
+            break;
+        }
+    }
+    assert_eq!(close_code(&mut ws), Some(CloseCode::Policy), "a flood");
+    // A state that parses but cannot be shown gets an error, and the connection stays.
+    let mut unknown = state.clone();
+    unknown["field"] = "no-such-field".into();
+    good.send(Message::text(serde_json::json!({"type": "state", "state": unknown, "moving": false}).to_string()))
+        .unwrap();
+    let error = loop {
+        if let Message::Text(t) = good.read().unwrap() {
+            break t;
+        }
+    };
+    assert!(error.contains("no field 'no-such-field'"), "{error}");
+    // A client that vanishes mid-frame.
+    let mut gone = s.websocket(TOKEN).unwrap();
+    hello(&mut gone);
+    gone.send(Message::text(serde_json::json!({"type": "state", "state": state, "moving": true}).to_string())).unwrap();
+    drop(gone);
+    // The good client is still served: a drag gives moving JPEG frames, then a still PNG.
+    let mut moved = state.clone();
+    moved["camera"]["eye"][0] = (moved["camera"]["eye"][0].as_f64().unwrap() + 1.0).into();
+    good.send(Message::text(serde_json::json!({"type": "state", "state": moved, "moving": true}).to_string())).unwrap();
+    let (h, jpeg) = loop {
+        let (h, img) = frame(&mut good);
+        if h["still"] == false {
+            break (h, img);
+        }
+    };
+    assert_eq!(h["format"], "jpeg");
+    assert_eq!(&jpeg[..2], b"\xff\xd8");
+    let (h, png) = loop {
+        let (h, img) = frame(&mut good);
+        if h["still"] == true {
+            break (h, img);
+        }
+    };
+    assert_eq!(png_size(&png), (40, 32), "{h}");
+    // The state served renders offline to the frame served.
+    let (_, state_json) = s.get(&format!("/state.json?token={TOKEN}"));
+    let dir = std::env::temp_dir().join(format!("tetloc-view-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(dir.join("view.json"), &state_json).unwrap();
+    let out = dir.join("offline.png");
+    let status = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+        .args(["render", "fusion:2k", "--backend", "cpu", "--quiet", "--state"])
+        .arg(dir.join("view.json"))
+        .arg("-o")
+        .arg(&out)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let decode = |png: &[u8]| {
+        let mut r = png::Decoder::new(std::io::Cursor::new(png.to_vec())).read_info().unwrap();
+        let mut buf = vec![0; r.output_buffer_size()];
+        r.next_frame(&mut buf).unwrap();
+        buf
+    };
+    let (_, served) = s.get(&format!("/frame.png?token={TOKEN}"));
+    assert_eq!(decode(&std::fs::read(&out).unwrap()), decode(&served), "render --state renders the served frame");
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(s.interrupt(), Some(0));
+}

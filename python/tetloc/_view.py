@@ -1,0 +1,180 @@
+"""``tetloc.view``: the browser volume viewer (``tetloc view``) started in the background.
+
+The server is the ``tetloc`` command's own (found as ``cli=``, ``$TETLOC_CLI`` or on the
+``PATH``), on 127.0.0.1 with a random token. In Jupyter the returned :class:`Viewer` shows
+the page inline (an IFrame); from code it sets the camera and transfer function, fetches
+the current frame as a numpy array, and stops the server::
+
+    v = tetloc.view("mesh.vtu", "temperature", size=(640, 480))
+    v.set_tf(colormap="plasma", range=(0.0, 300.0))
+    img = v.frame()          # (480, 640, 3) uint8, the lossless still frame
+    v.stop()
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import urllib.request
+import zlib
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def _cli(cli: Optional[str]) -> str:
+    for candidate in (cli, os.environ.get("TETLOC_CLI"), shutil.which("tetloc")):
+        if candidate and os.path.isfile(candidate):
+            return candidate
+    raise FileNotFoundError("no tetloc command: pass cli=, set TETLOC_CLI, or put tetloc on the PATH")
+
+
+class Viewer:
+    """A running ``tetloc view`` server; see :func:`view`."""
+
+    def __init__(self, proc: "subprocess.Popen[str]", url: str) -> None:
+        self._proc = proc
+        self.url = url
+        self.base, self.token = url.split("/?token=")
+
+    def _request(self, path: str, method: str = "GET", body: Optional[bytes] = None) -> bytes:
+        req = urllib.request.Request(f"{self.base}{path}?token={self.token}", data=body, method=method)
+        if body is not None:
+            req.add_header("Content-Type", "application/json")
+        with urllib.request.urlopen(req, timeout=600) as r:
+            return bytes(r.read())
+
+    def _repr_html_(self) -> str:
+        return f'<iframe src="{self.url}" width="100%" height="720" style="border:0"></iframe>'
+
+    def state(self) -> Dict[str, Any]:
+        """The view state (camera, transfer function, field, options), as ``render --state`` reads it."""
+        return dict(json.loads(self._request("/state.json")))
+
+    def set_state(self, state: Dict[str, Any]) -> None:
+        self._request("/state.json", "PUT", json.dumps(state).encode())
+
+    def set_camera(self, eye: Sequence[float], target: Sequence[float], up: Sequence[float], zoom: Optional[float] = None) -> None:
+        """Places the camera (the mesh file's coordinates)."""
+        s = self.state()
+        s["camera"].update(eye=list(map(float, eye)), target=list(map(float, target)), up=list(map(float, up)))
+        if zoom is not None:
+            s["camera"]["zoom"] = float(zoom)
+        self.set_state(s)
+
+    def set_tf(
+        self,
+        colormap: Optional[str] = None,
+        opacity: Optional[Sequence[Tuple[float, float]]] = None,
+        range: Optional[Tuple[float, float]] = None,
+        scale: Optional[float] = None,
+    ) -> None:
+        """A built-in colormap, opacity points ``(x, opacity)`` over [0, 1], the value range
+        (``None`` leaves it), and the opacity scale."""
+        s = self.state()
+        tf = s["tf"]
+        if colormap is not None:
+            tf.update(colormap=colormap, colors=[], space="RGB")
+        if opacity is not None:
+            tf["opacity"] = [[float(x), float(o), 0.5, 0.0] for x, o in opacity]
+        if range is not None:
+            tf["range"] = [float(range[0]), float(range[1])]
+        if scale is not None:
+            tf["scale"] = float(scale)
+        self.set_state(s)
+
+    def set_field(self, field: str) -> None:
+        s = self.state()
+        s["field"], s["tf"]["range"] = field, None
+        self.set_state(s)
+
+    def frame(self) -> np.ndarray:
+        """The current view's lossless still frame, (height, width, 3) uint8 sRGB."""
+        return _decode_png(self._request("/frame.png"))
+
+    def stop(self) -> int:
+        """Stops the server (as Ctrl-C does) and returns its exit code."""
+        if self._proc.poll() is None:
+            self._proc.send_signal(signal.SIGINT)
+        return self._proc.wait(timeout=60)
+
+    def __enter__(self) -> "Viewer":
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self.stop()
+
+
+def view(
+    mesh: PathLike,
+    field: Optional[str] = None,
+    *,
+    backend: str = "auto",
+    size: Tuple[int, int] = (768, 768),
+    port: int = 0,
+    state: Optional[PathLike] = None,
+    cli: Optional[str] = None,
+) -> Viewer:
+    """Starts ``tetloc view`` on ``mesh`` (a file, or ``SHAPE:N``) in the background and
+    returns once it serves; ``port=0`` picks a free port."""
+    args: List[str] = [_cli(cli), "view", os.fspath(mesh), "--backend", backend, "--size", f"{size[0]}x{size[1]}", "--port", str(port), "--quiet"]
+    if field is not None:
+        args += ["--field", field]
+    if state is not None:
+        args += ["--state", os.fspath(state)]
+    proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    assert proc.stdout is not None and proc.stderr is not None
+    url = proc.stdout.readline().strip()
+    if not url.startswith("http://"):
+        proc.wait()
+        raise RuntimeError(f"tetloc view did not start: {proc.stderr.read().strip()}")
+    return Viewer(proc, url)
+
+
+def _decode_png(data: bytes) -> np.ndarray:
+    """An 8-bit RGB or RGBA, non-interlaced PNG (what the viewer serves) as an array."""
+    if data[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError("not a PNG")
+    pos, idat, width = 8, b"", 0
+    height = depth = color = 0
+    while pos < len(data):
+        n = int.from_bytes(data[pos : pos + 4], "big")
+        kind, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + n]
+        if kind == b"IHDR":
+            width, height = int.from_bytes(body[:4], "big"), int.from_bytes(body[4:8], "big")
+            depth, color = body[8], body[9]
+        elif kind == b"IDAT":
+            idat += body
+        pos += 12 + n
+    if depth != 8 or color not in (2, 6):
+        raise ValueError(f"unsupported PNG (bit depth {depth}, colour type {color})")
+    bpp = 3 if color == 2 else 4
+    raw = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(height, 1 + width * bpp)
+    out = np.zeros((height, width * bpp), np.int32)
+    for y in range(height):
+        f, line = raw[y, 0], raw[y, 1:].astype(np.int32)
+        up = out[y - 1] if y else np.zeros_like(line)
+        if f == 0:
+            out[y] = line
+        elif f == 1:  # Sub: a running sum along the row, per channel
+            out[y] = (np.cumsum(line.reshape(width, bpp), axis=0) & 255).reshape(-1)
+        elif f == 2:
+            out[y] = (line + up) & 255
+        else:  # Average, Paeth depend on the pixel to the left: byte by byte
+            row = out[y]
+            for i in range(line.size):
+                left = row[i - bpp] if i >= bpp else 0
+                ul = up[i - bpp] if i >= bpp else 0
+                if f == 3:
+                    pred = (left + up[i]) >> 1
+                else:
+                    p = left + up[i] - ul
+                    pa, pb, pc = abs(p - left), abs(p - up[i]), abs(p - ul)
+                    pred = left if pa <= pb and pa <= pc else (up[i] if pb <= pc else ul)
+                row[i] = (line[i] + pred) & 255
+    return out.astype(np.uint8).reshape(height, width, bpp)[:, :, :3]

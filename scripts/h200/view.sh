@@ -1,0 +1,69 @@
+#!/usr/bin/env bash
+# The browser viewer's speed (issue 31) on the H200: `tetloc view` serves over loopback and
+# the hidden `tetloc view-bench` client orbits the camera continuously (120 input events a
+# second), receives and decodes every frame, acknowledges each as the page does, and after
+# each orbit stops and waits for the lossless still frame. Reported per case (JSON under
+# $OUT): delivered frames/s while moving, input-to-frame latency, still-frame latency, and
+# the split of a frame's time: march, encode, send, decode (+ every frame in a CSV).
+# Targets at agulhas 36M, 1024²: ≥ 60 frames/s, ≤ 50 ms input to frame, still ≤ 150 ms.
+#
+# Usage, from the repository root on the device machine:
+#   OUT=... bash scripts/h200/view.sh path/to/release/tetloc [BUDGET_S]
+# agulhas 36M is written by `tetloc gen` and read back as a file; japan 62M and jets 250M
+# (compact preset) are generated in memory (SHAPE:N) to stay within the time budget.
+set -u
+BIN=$1
+BUDGET=${2:-540}
+OUT=${OUT:?set OUT to the folder for the logs}
+mkdir -p "$OUT"
+START=$SECONDS
+# The device machine's Vulkan loader, as scripts/gpu-march.sh sets it up.
+if ls .gl/*.deb >/dev/null 2>&1; then
+  for f in .gl/*.deb; do dpkg -x "$f" /; done
+  ldconfig
+fi
+{ date -u; nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv; } > "$OUT/gpu.txt" 2>&1
+if ! timeout 30 "$BIN" devices >> "$OUT/gpu.txt" 2>&1; then
+  export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
+  echo "retrying with VK_DRIVER_FILES=$VK_DRIVER_FILES" >> "$OUT/gpu.txt"
+  timeout 30 "$BIN" devices >> "$OUT/gpu.txt" 2>&1
+fi
+
+# case NAME MESH SIZE SECONDS_PER_ORBIT [view options...]
+case_() {
+  local name=$1 mesh=$2 size=$3 orbit=$4
+  shift 4
+  local left=$((BUDGET - (SECONDS - START)))
+  if [ "$left" -lt 60 ]; then echo "== $name: skipped (budget)" | tee -a "$OUT/summary.txt"; return; fi
+  echo "== $name: view $mesh --size $size $*" | tee -a "$OUT/summary.txt"
+  local s0=$SECONDS
+  "$BIN" view "$mesh" --field f --size "$size" --port 0 --backend soft-bvh "$@" > "$OUT/$name.url" 2> "$OUT/$name.server.log" &
+  local pid=$!
+  # The URL line comes once the mesh is loaded and the locator built.
+  while [ ! -s "$OUT/$name.url" ] && kill -0 "$pid" 2>/dev/null && [ $((SECONDS - START)) -lt "$BUDGET" ]; do sleep 1; done
+  if [ ! -s "$OUT/$name.url" ]; then
+    echo "   no URL (see $name.server.log)" | tee -a "$OUT/summary.txt"
+    kill -INT "$pid" 2>/dev/null; wait "$pid"
+    return
+  fi
+  echo "   ready after $((SECONDS - s0)) s" | tee -a "$OUT/summary.txt"
+  timeout $((BUDGET - (SECONDS - START))) "$BIN" view-bench "$(head -1 "$OUT/$name.url")" --seconds "$orbit" --orbits 3 \
+    --frames-csv "$OUT/$name.frames.csv" > "$OUT/$name.json" 2> "$OUT/$name.bench.log"
+  echo "   bench exit $?" | tee -a "$OUT/summary.txt"
+  kill -INT "$pid"
+  wait "$pid"
+  echo "   server exit $? (0: Ctrl-C ends it cleanly)" | tee -a "$OUT/summary.txt"
+  cat "$OUT/$name.json" >> "$OUT/summary.txt"
+}
+
+mesh=/tmp/tetloc-view-agulhas-36M.vtu
+if [ ! -s "$mesh" ]; then
+  s0=$SECONDS
+  "$BIN" gen agulhas --cells 36M -o "$mesh" > "$OUT/gen.log" 2>&1
+  echo "== gen agulhas 36M: exit $? after $((SECONDS - s0)) s" | tee -a "$OUT/summary.txt"
+fi
+case_ agulhas-36M-1024 "$mesh" 1024x1024 6
+case_ agulhas-36M-512 "$mesh" 512x512 4
+case_ japan-62M-1024 japan:62M 1024x1024 4
+case_ jets-250M-compact-1024 jets:250M 1024x1024 4 --preset compact
+cat "$OUT/gpu.txt"
