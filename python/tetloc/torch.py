@@ -175,12 +175,16 @@ class Locator:
         inside = ids >= 0
         nodes = self._tets[ids.clamp(min=0).long()]  # (K, 4)
         x = self._vertices[nodes]  # (K, 4, 3)
-        edges = (x[:, 1:, :] - x[:, :1, :]).transpose(1, 2)  # columns x_j - x_0
-        inverse, _ = torch.linalg.inv_ex(edges)  # zero-volume tets hold no point
-        b = (inverse @ (points.detach().to(torch.float64) - x[:, 0, :]).unsqueeze(-1)).squeeze(-1)
+        e1, e2, e3 = (x[:, j] - x[:, 0] for j in (1, 2, 3))
+        # The rows of the inverse of the edge matrix [e1 e2 e3]: r_i · e_j = δ_ij.
+        n1, n2, n3 = torch.linalg.cross(e2, e3), torch.linalg.cross(e3, e1), torch.linalg.cross(e1, e2)
+        det = (e1 * n1).sum(1, keepdim=True)
+        det = torch.where(det == 0, torch.ones_like(det), det)  # zero-volume tets hold no point
+        rows = torch.stack([n1, n2, n3], dim=1) / det.unsqueeze(-1)  # (K, 3, 3)
+        b = (rows * (points.detach().to(torch.float64) - x[:, 0]).unsqueeze(1)).sum(-1)
         weights = torch.cat([1 - b.sum(1, keepdim=True), b], dim=1).clamp(min=0)
         weights = weights / weights.sum(1, keepdim=True)
-        gradients = torch.cat([-inverse.sum(1, keepdim=True), inverse], dim=1)  # ∇b_j: row j
+        gradients = torch.cat([-rows.sum(1, keepdim=True), rows], dim=1)  # ∇b_j: row j
         zero = torch.zeros((), dtype=torch.float64, device=points.device)
         weights = torch.where(inside.unsqueeze(-1), weights, zero)
         gradients = torch.where(inside.view(-1, 1, 1), gradients, zero)
