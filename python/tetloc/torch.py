@@ -236,12 +236,11 @@ class Locator:
         values = values.reshape(values.shape[0], -1).to(dtype)
         if per_point:
             w = self._weights(points, dtype)
-            out = _Sample.apply(points, values, w.nodes, w.weights, w.gradients, w.inside, float(fill))
+            out: torch.Tensor = _Sample.apply(points, values, w.nodes, w.weights, w.gradients, w.inside, float(fill))
         else:
             ids = _to_device(self._locate(_to_host(points.detach())).to(torch.int64), self.device)
-            inside = ids >= 0
-            out = torch.where(inside.unsqueeze(-1), values[ids.clamp(min=0)], torch.full((1,), fill, dtype=dtype,
-                                                                                          device=self.device))
+            outside = torch.full((1,), fill, dtype=dtype, device=self.device)
+            out = torch.where((ids >= 0).unsqueeze(-1), values[ids.clamp(min=0)], outside)
         return out[:, 0] if scalar else out
 
     def __repr__(self) -> str:
