@@ -38,10 +38,17 @@ if [ -n "${TETLOC_PY:-}" ]; then
   py=$TETLOC_PY
 else
   venv=$work/venv
-  python3 -m venv --system-site-packages "$venv" &&
-    "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-index --force-reinstall "$wheel" ||
-    { echo "cannot install $wheel"; exit 1; }
-  py=$venv/bin/python
+  if python3 -m venv --system-site-packages "$venv" &&
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-index --force-reinstall "$wheel"; then
+    py=$venv/bin/python
+  else
+    # No venv module (or no pip in it): a wheel is a zip; its files on PYTHONPATH are the package.
+    echo "no virtualenv: unpacking $wheel onto PYTHONPATH"
+    python3 -c 'import sys, zipfile; zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])' "$wheel" "$work/site" ||
+      { echo "cannot unpack $wheel"; exit 1; }
+    export PYTHONPATH=$work/site${PYTHONPATH:+:$PYTHONPATH}
+    py=python3
+  fi
 fi
 device=${TORCH_DEVICE:-cuda}
 "$py" - <<'PY' 2>&1 | tee "$out/versions.txt"
