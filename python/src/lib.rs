@@ -11,6 +11,7 @@ mod errors;
 mod locator;
 mod mesh;
 mod ops;
+mod weights;
 
 use pyo3::prelude::*;
 
@@ -49,6 +50,7 @@ fn _tetloc(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(ops::probe_fields, m)?)?;
     m.add_function(wrap_pyfunction!(ops::trace_lines, m)?)?;
     m.add_function(wrap_pyfunction!(backend::resolve, m)?)?;
+    m.add_function(wrap_pyfunction!(weights::interpolation_weights, m)?)?;
     m.add("DeviceError", m.py().get_type::<errors::DeviceError>())?;
     m.add("BACKENDS", backend::names())?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

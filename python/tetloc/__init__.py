@@ -16,6 +16,8 @@ located in: ``tets``);
 ``devices()`` lists the Vulkan devices. Errors: ``FileNotFoundError`` (``OSError``),
 ``ValueError`` naming the file or argument, ``TypeError`` for an argument of the wrong
 kind, ``DeviceError`` for the GPU.
+``tetloc.torch`` (imported on its own: ``import tetloc`` does not import torch) locates and
+samples PyTorch tensors, differentiably.
 """
 
 from ._locator import Locator

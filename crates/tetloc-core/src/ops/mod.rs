@@ -6,6 +6,7 @@
 pub mod probe;
 pub mod resample;
 pub mod trace;
+pub mod gradients;
 pub mod weights;
 
 // The field groups and the image grid live below the locators (the locators take them);

@@ -1,0 +1,250 @@
+"""``tetloc.torch``: point location and differentiable sampling on PyTorch tensors.
+
+>>> import tetloc, tetloc.torch
+>>> loc = tetloc.torch.Locator(tetloc.read("mesh.vtu"), device="cpu")
+>>> ids = loc.locate(points)                  # (K, 3) tensor -> (K,) int32, -1 outside
+>>> v = loc.sample(points, "f")               # a field of the mesh, NaN outside
+>>> v = loc.sample(points, values)            # vertex values (n_points,) or (n_points, k)
+>>> v.sum().backward()                        # gradients for `values` and `points`
+
+``sample`` is a ``torch.autograd.Function``: the gradient with respect to the vertex values is
+the transposed interpolation (the weights scattered into the cell's nodes), the gradient with
+respect to the points is the interpolant's gradient in the cell (constant in a linear tet; the
+cell's shape functions' gradients for other cells). Points outside get ``fill`` (NaN unless
+given) and zero gradients.
+
+The locator answers on the host (any backend, as ``tetloc.Locator``); the interpolation and
+both gradients run on the tensors' device. For CUDA tensors the points go to the host and the
+ids and weights come back: ``host_copies()`` counts these transfers (tests hold it to what
+they expect). Importing ``tetloc`` does not import torch; importing ``tetloc.torch`` does.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Dict, Optional, Tuple, Union
+
+import numpy as np
+import torch
+
+from ._locator import Locator as _HostLocator
+from ._mesh import Mesh
+from ._tetloc import interpolation_weights
+
+_host_copies = 0
+
+
+def host_copies() -> int:
+    """Transfers between a CUDA device and the host made by this module so far (points down,
+    ids and weights up): 0 while only CPU tensors are used."""
+    return _host_copies
+
+
+def _to_host(t: torch.Tensor) -> torch.Tensor:
+    global _host_copies
+    if t.device.type != "cpu":
+        _host_copies += 1
+        return t.cpu()
+    return t
+
+
+def _to_device(t: torch.Tensor, device: torch.device) -> torch.Tensor:
+    global _host_copies
+    if device.type != "cpu":
+        _host_copies += 1
+        return t.to(device, non_blocking=False)
+    return t
+
+
+class _Weights:
+    """Where the points are: ids, and the interpolation weights and their gradients per node."""
+
+    def __init__(self, ids: torch.Tensor, nodes: torch.Tensor, weights: torch.Tensor, gradients: torch.Tensor,
+                 inside: torch.Tensor) -> None:
+        self.ids, self.nodes, self.weights, self.gradients, self.inside = ids, nodes, weights, gradients, inside
+
+
+class _Sample(torch.autograd.Function):
+    """values = Σ_j w_j · field[node_j]; d/dfield: scatter-add of the weights; d/dpoints:
+    Σ_j ∇w_j · field[node_j]."""
+
+    @staticmethod
+    def forward(ctx: Any, points: torch.Tensor, field: torch.Tensor, nodes: torch.Tensor, weights: torch.Tensor,
+                gradients: torch.Tensor, inside: torch.Tensor, fill: float) -> torch.Tensor:
+        # field: (n_points, k); out: (K, k)
+        out = (weights.unsqueeze(-1) * field[nodes]).sum(1)
+        out = torch.where(inside.unsqueeze(-1), out, torch.full_like(out, fill))
+        ctx.save_for_backward(field, nodes, weights, gradients, inside)
+        return out
+
+    @staticmethod
+    @torch.autograd.function.once_differentiable
+    def backward(ctx: Any, grad: torch.Tensor) -> Tuple[Optional[torch.Tensor], ...]:
+        field, nodes, weights, gradients, inside = ctx.saved_tensors
+        grad = torch.where(inside.unsqueeze(-1), grad, torch.zeros_like(grad))  # outside: no gradient
+        grad_points = grad_field = None
+        if ctx.needs_input_grad[0]:
+            # ∂out_k/∂x_c = Σ_j ∇w_j[c] · field[node_j, k], contracted with grad over k.
+            along = (field[nodes] * grad.unsqueeze(1)).sum(-1)  # (K, W)
+            grad_points = (gradients * along.unsqueeze(-1)).sum(1)
+        if ctx.needs_input_grad[1]:
+            spread = weights.unsqueeze(-1) * grad.unsqueeze(1)  # (K, W, k)
+            grad_field = torch.zeros_like(field).index_add_(0, nodes.reshape(-1), spread.reshape(-1, field.shape[1]))
+        return grad_points, grad_field, None, None, None, None, None
+
+
+class Locator:
+    """A ``tetloc.Locator`` for tensors on one torch device.
+
+    Parameters
+    ----------
+    mesh : tetloc.Mesh or pyvista dataset
+    device : str or torch.device
+        Where the tensors live (``"cpu"``, ``"cuda:0"``): points must be there, and answers
+        come back there.
+    backend, vulkan_device, **options
+        What ``tetloc.Locator`` takes (``backend="auto"``; ``vulkan_device`` is its ``device``,
+        the Vulkan device index).
+    """
+
+    def __init__(self, mesh: Mesh, device: Union[str, torch.device] = "cpu", backend: str = "auto",
+                 vulkan_device: Optional[int] = None, **options: Any) -> None:
+        self.device = torch.device(device)
+        if self.device.type == "cuda" and self.device.index is None:
+            self.device = torch.device("cuda", torch.cuda.current_device())
+        self._host = _HostLocator(mesh, backend=backend, device=vulkan_device, **options)
+        self._fields: Dict[Tuple[str, torch.dtype], Tuple[torch.Tensor, bool, bool]] = {}
+        # On a GPU, a mesh of linear tets keeps its tets and vertices there: the weights are
+        # computed beside the points, and only the ids cross from the host.
+        self._tets: Optional[torch.Tensor] = None
+        self._vertices: Optional[torch.Tensor] = None
+        linear_tets = self.mesh.n_cells == self.mesh.n_tets and bool((self.mesh.celltypes == 10).all())
+        if self.device.type != "cpu" and linear_tets:
+            self._tets = _to_device(torch.from_numpy(self.mesh.tets), self.device)
+            self._vertices = _to_device(torch.from_numpy(self.mesh.points64), self.device)
+
+    @property
+    def mesh(self) -> Mesh:
+        return self._host.mesh
+
+    @property
+    def backend(self) -> str:
+        """The backend that locates (``tetloc.Locator.backend``)."""
+        return self._host.backend
+
+    def _check_points(self, points: Any) -> torch.Tensor:
+        if not isinstance(points, torch.Tensor):
+            raise TypeError(f"points: expected a torch.Tensor of shape (K, 3), got {type(points).__name__}")
+        if points.device != self.device:
+            raise ValueError(f"points: on {points.device}, but this Locator is on {self.device} (move them with .to())")
+        if points.dtype not in (torch.float32, torch.float64):
+            raise TypeError(f"points: dtype {points.dtype}; expected torch.float32 or torch.float64")
+        if points.ndim != 2 or points.shape[1] != 3:
+            raise ValueError(f"points: shape {tuple(points.shape)}; expected (K, 3)")
+        if not points.is_contiguous():
+            raise ValueError("points: not contiguous; pass points.contiguous()")
+        return points
+
+    def _locate(self, host: torch.Tensor) -> torch.Tensor:
+        """int32 ids on the host of points on the host."""
+        return torch.from_numpy(self._host.locate(host.numpy()))
+
+    def locate(self, points: torch.Tensor) -> torch.Tensor:
+        """Ids of the cells containing `points` ((K, 3) float32 or float64 on this device), -1
+        outside: (K,) int32 on this device."""
+        points = self._check_points(points)
+        return _to_device(self._locate(_to_host(points.detach())), self.device)
+
+    def _weights(self, points: torch.Tensor, dtype: torch.dtype) -> _Weights:
+        host = _to_host(points.detach())
+        ids = self._locate(host)
+        if self._tets is not None:
+            return self._tet_weights(points, _to_device(ids, self.device), dtype)
+        host64 = host.to(torch.float64).numpy()
+        nodes, weights, gradients, found = interpolation_weights(self.mesh._raw, host64, ids.numpy())
+        arrays = [torch.from_numpy(a) for a in (nodes, weights, gradients, found)]
+        arrays[1], arrays[2] = arrays[1].to(dtype), arrays[2].to(dtype)
+        nodes_t, weights_t, gradients_t, found_t = (_to_device(a, self.device) for a in arrays)
+        return _Weights(ids, nodes_t, weights_t, gradients_t, found_t)
+
+    def _tet_weights(self, points: torch.Tensor, ids: torch.Tensor, dtype: torch.dtype) -> _Weights:
+        """Barycentric weights in linear tets, on the points' device: those of
+        ``tetloc_core::geom::bary64`` (f64, on the file's vertices, clamped to 0 and
+        normalised), and their gradients, the rows of the inverse edge matrix."""
+        assert self._tets is not None and self._vertices is not None
+        inside = ids >= 0
+        nodes = self._tets[ids.clamp(min=0).long()]  # (K, 4)
+        x = self._vertices[nodes]  # (K, 4, 3)
+        e1, e2, e3 = (x[:, j] - x[:, 0] for j in (1, 2, 3))
+        # The rows of the inverse of the edge matrix [e1 e2 e3]: r_i · e_j = δ_ij.
+        n1, n2, n3 = torch.linalg.cross(e2, e3), torch.linalg.cross(e3, e1), torch.linalg.cross(e1, e2)
+        det = (e1 * n1).sum(1, keepdim=True)
+        det = torch.where(det == 0, torch.ones_like(det), det)  # zero-volume tets hold no point
+        rows = torch.stack([n1, n2, n3], dim=1) / det.unsqueeze(-1)  # (K, 3, 3)
+        b = (rows * (points.detach().to(torch.float64) - x[:, 0]).unsqueeze(1)).sum(-1)
+        weights = torch.cat([1 - b.sum(1, keepdim=True), b], dim=1).clamp(min=0)
+        weights = weights / weights.sum(1, keepdim=True)
+        gradients = torch.cat([-rows.sum(1, keepdim=True), rows], dim=1)  # ∇b_j: row j
+        zero = torch.zeros((), dtype=torch.float64, device=points.device)
+        weights = torch.where(inside.unsqueeze(-1), weights, zero)
+        gradients = torch.where(inside.view(-1, 1, 1), gradients, zero)
+        return _Weights(ids, nodes, weights.to(dtype), gradients.to(dtype), inside)
+
+    def _mesh_field(self, name: str, dtype: torch.dtype) -> Tuple[torch.Tensor, bool, bool]:
+        """Field `name` on this device as (values (n, k), per point?, scalar?), kept between
+        calls."""
+        key = (name, dtype)
+        if key not in self._fields:
+            _, k = self.mesh._index.components(name)
+            values = torch.from_numpy(np.ascontiguousarray(self.mesh.field(name))).to(dtype)
+            values = _to_device(values.reshape(values.shape[0], -1), self.device)
+            self._fields[key] = (values, name in self.mesh.point_data, k is None)
+        return self._fields[key]
+
+    def _check_field(self, field: torch.Tensor) -> torch.Tensor:
+        n = self.mesh.n_points
+        if field.device != self.device:
+            raise ValueError(f"field: on {field.device}, but this Locator is on {self.device} (move it with .to())")
+        if field.dtype not in (torch.float32, torch.float64):
+            raise TypeError(f"field: dtype {field.dtype}; expected torch.float32 or torch.float64")
+        if field.ndim not in (1, 2) or field.shape[0] != n:
+            raise ValueError(
+                f"field: shape {tuple(field.shape)}; expected vertex values ({n},) or ({n}, k) "
+                f"for this mesh's {n} points"
+            )
+        if not field.is_contiguous():
+            raise ValueError("field: not contiguous; pass field.contiguous()")
+        return field
+
+    def sample(self, points: torch.Tensor, field: Union[str, torch.Tensor], fill: float = math.nan) -> torch.Tensor:
+        """Values of `field` at `points` ((K, 3) float32 or float64 on this device): (K,) for a
+        scalar field, (K, k) for a k-component one; `fill` (NaN) outside.
+
+        `field` is the name of a field of the mesh (point fields are interpolated, cell fields
+        are constant in each cell) or a tensor of vertex values on this device, (n_points,) or
+        (n_points, k), float32 or float64. Values are in the wider dtype of the points and the
+        field. Differentiable with respect to the points and a field tensor."""
+        points = self._check_points(points)
+        if isinstance(field, str):
+            values, per_point, scalar = self._mesh_field(field, points.dtype)
+        elif isinstance(field, torch.Tensor):
+            values, per_point = self._check_field(field), True
+            scalar = field.ndim == 1
+        else:
+            raise TypeError(f"field: expected a field name or a torch.Tensor, got {type(field).__name__}")
+        dtype = torch.promote_types(points.dtype, values.dtype)
+        values = values.reshape(values.shape[0], -1).to(dtype)
+        if per_point:
+            w = self._weights(points, dtype)
+            out: torch.Tensor = _Sample.apply(points, values, w.nodes, w.weights, w.gradients, w.inside, float(fill))
+        else:
+            ids = _to_device(self._locate(_to_host(points.detach())).to(torch.int64), self.device)
+            outside = torch.full((1,), fill, dtype=dtype, device=self.device)
+            out = torch.where((ids >= 0).unsqueeze(-1), values[ids.clamp(min=0)], outside)
+        return out[:, 0] if scalar else out
+
+    def __repr__(self) -> str:
+        return f"tetloc.torch.Locator(device={str(self.device)!r}, backend={self.backend!r}, {self.mesh!r})"
+
+
+__all__ = ["Locator", "host_copies"]

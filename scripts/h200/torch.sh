@@ -1,0 +1,76 @@
+#!/usr/bin/env bash
+# tetloc.torch on a CUDA GPU (issue 33): the CUDA checks (python/tests/cuda_torch.py: ids and
+# values as on the CPU, gradcheck on CUDA, bad input, host copies per call, 10,000 sample calls
+# with flat device memory) and the benchmark (python/benchmarks/bench_torch.py: jets 12M from
+# `tetloc gen`, 16M random CUDA points, sample forward and backward, against torch.cdist nearest
+# vertex and grid_sample on a grid of the mesh's memory). Logs and JSON under $OUT.
+#
+#   OUT=/some/dir scripts/h200/torch.sh WHEEL TETLOC_BIN
+#
+# WHEEL: a tetloc wheel (maturin, abi3, x86-64); TETLOC_BIN: a release `tetloc` binary (for
+# `tetloc gen`). Uses the machine's Python with its PyTorch (no network): the wheel goes into a
+# virtualenv that sees the system's packages. Every step has its own time limit and the steps
+# go on after a failure; the whole run stays under 9 minutes. Exit status: failed steps.
+# For a dry run elsewhere: TETLOC_PY (a Python with tetloc and torch: no virtualenv),
+# TORCH_DEVICE=cpu, POINTS (16M), MESH (a mesh file instead of `tetloc gen`).
+set -uo pipefail
+wheel=${1:?usage: OUT=DIR scripts/h200/torch.sh WHEEL TETLOC_BIN}
+bin=${2:?usage: OUT=DIR scripts/h200/torch.sh WHEEL TETLOC_BIN}
+out=${OUT:?set OUT to the folder for the logs}
+mkdir -p "$out"
+repo=$(cd "$(dirname "$0")/../.." && pwd)
+exec > >(tee "$out/torch.log") 2>&1
+failed=0
+step() { # step NAME LIMIT_S COMMAND...: runs, logs to $out/NAME.log, counts failures
+  local name=$1 limit=$2; shift 2
+  echo "== $name (limit ${limit}s) $(date -u +%H:%M:%S)"
+  timeout "$limit" "$@" > "$out/$name.log" 2>&1
+  local rc=$?
+  tail -n 25 "$out/$name.log"
+  echo "== $name: exit $rc"
+  [ "$rc" -eq 0 ] || failed=$((failed + 1))
+}
+
+nvidia-smi --query-gpu=name,driver_version,memory.total,uuid --format=csv,noheader > "$out/gpu.txt" 2>&1
+cat "$out/gpu.txt"
+work=$(mktemp -d)
+if [ -n "${TETLOC_PY:-}" ]; then
+  py=$TETLOC_PY
+else
+  venv=$work/venv
+  if python3 -m venv --system-site-packages "$venv" &&
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-index --force-reinstall "$wheel"; then
+    py=$venv/bin/python
+  else
+    # No venv module (or no pip in it): a wheel is a zip; its files on PYTHONPATH are the package.
+    echo "no virtualenv: unpacking $wheel onto PYTHONPATH"
+    python3 -c 'import sys, zipfile; zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])' "$wheel" "$work/site" ||
+      { echo "cannot unpack $wheel"; exit 1; }
+    export PYTHONPATH=$work/site${PYTHONPATH:+:$PYTHONPATH}
+    py=python3
+  fi
+fi
+device=${TORCH_DEVICE:-cuda}
+"$py" - <<'PY' 2>&1 | tee "$out/versions.txt"
+import sys, numpy, torch, tetloc
+print("python", sys.version.split()[0], "numpy", numpy.__version__, "torch", torch.__version__,
+      "cuda", torch.version.cuda, "available", torch.cuda.is_available())
+print("tetloc", tetloc.__version__, "Vulkan devices", [(d["name"], d["driver"]) for d in tetloc.devices()])
+PY
+
+data=()
+[ -d "$repo/shared/data" ] && data=(--data "$repo/shared/data")
+[ -z "${data[*]}" ] && [ -d "$repo/../shared/data" ] && data=(--data "$repo/../shared/data")
+step cuda_checks 200 "$py" "$repo/python/tests/cuda_torch.py" "${data[@]}" --device "$device" \
+  --json "$out/cuda_checks.json"
+
+mesh=${MESH:-$work/jets12M.vtu}
+[ -f "$mesh" ] || step gen_jets12M 120 "$bin" gen jets --cells 12M -o "$mesh"
+if [ -f "$mesh" ]; then
+  bench=("$py" "$repo/python/benchmarks/bench_torch.py" "$mesh" --device "$device" --repeats 3)
+  step bench_torch 300 "${bench[@]}" --points "${POINTS:-16M}" --json "$out/bench_torch.json"
+  # Too little memory or time for 16M points: the same at 4M, so that some figure comes back.
+  [ -f "$out/bench_torch.json" ] || step bench_torch_4M 150 "${bench[@]}" --points 4M --json "$out/bench_torch_4M.json"
+fi
+echo "== done $(date -u +%H:%M:%S): $failed failed step(s)"
+exit "$failed"
