@@ -12,6 +12,9 @@ random points inside it, located by
 printing build and locate times, points/s and tetloc's ratio to each, with the machine and
 versions. ``--gpu`` measures the numpy-array path on a GPU instead: points/s of
 ``Locator.locate`` / ``sample`` from float32 and float64 arrays, every transfer included.
+``--sweep`` measures small batches instead: microseconds a point of a warm ``Locator.locate``
+(cpu) for batches of 1 to 1M random points (each call a fresh batch), against pyvista's
+``find_containing_cell`` and a prebuilt ``vtkCellTreeLocator`` (``FindCell`` per point).
 
 Run it from the repository root:  python python/benchmarks/bench_locate.py [--json FILE]
 """
@@ -268,6 +271,55 @@ def gpu(args) -> Dict[str, object]:
     return {"mesh": str(path), "tets": mesh.n_cells, "rows": rows}
 
 
+def sweep(args) -> Dict[str, object]:
+    """Microseconds a point by batch size (see the module's documentation)."""
+    path = pathlib.Path(args.mesh) if args.mesh else fusion_mesh(args.tets, args.cli, REPO / "target/bench")
+    mesh = tetloc.read(str(path))
+    sizes = [count(s) for s in args.batches.split(",")]
+    pool = random_points_inside(mesh, max(sizes) * 4, args.seed)
+    loc = tetloc.Locator(mesh, backend="cpu")
+    loc.locate(pool[:1000])  # warm: the search is built
+
+    def per_point(call: Callable[[np.ndarray], object], n: int, budget: float) -> float:
+        """Median over calls on fresh batches of n points (as many calls as fit in about
+        `budget` seconds, at least 3), in microseconds a point."""
+        times = []
+        start, k = time.perf_counter(), 0
+        while k < 3 or (time.perf_counter() - start < budget and k < 2000):
+            batch = pool[(k * n) % (len(pool) - n):][:n]
+            t = time.perf_counter()
+            call(batch)
+            times.append(time.perf_counter() - t)
+            k += 1
+        return float(np.median(times)) / n * 1e6
+
+    peers: Dict[str, Callable[[np.ndarray], object]] = {"tetloc cpu": loc.locate}
+    try:
+        import pyvista as pv
+        import vtk
+
+        grid = pv.read(path)
+        grid.find_containing_cell(pool[:1])  # pyvista caches its locator: built here
+        peers["pyvista find_containing_cell"] = grid.find_containing_cell
+        tree = vtk.vtkCellTreeLocator()
+        tree.SetDataSet(grid)
+        tree.BuildLocator()
+        peers["vtkCellTreeLocator.FindCell"] = lambda b: [tree.FindCell(p) for p in b.astype(np.float64).tolist()]
+    except ImportError as e:
+        print(f"skipping the VTK peers: {e}", file=sys.stderr)
+    rows = []
+    print(f"{path.name}: {mesh.n_cells} tets; load {os.getloadavg()[0]:.1f}", file=sys.stderr)
+    print("| batch | " + " | ".join(f"{name} (µs a point)" for name in peers) + " |")
+    print("|---|" + "---|" * len(peers))
+    for n in sizes:
+        # VTK's per-point loops take seconds a call beyond 100k points: left out there.
+        us = {name: per_point(call, n, args.budget) if name == "tetloc cpu" or n <= 100_000 else float("nan")
+              for name, call in peers.items()}
+        rows.append({"batch": n, **us})
+        print(f"| {n:,} | " + " | ".join(f"{us[name]:.3f}" for name in peers) + " |", flush=True)
+    return {"mesh": str(path), "tets": mesh.n_cells, "load_average": os.getloadavg(), "sweep": rows}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mesh", help="a mesh file instead of the generated fusion shape")
@@ -279,11 +331,14 @@ def main() -> None:
     ap.add_argument("--gpu", action="store_true", help="measure the numpy-array path on a GPU instead")
     ap.add_argument("--backends", default="soft-bvh,cpu", help="--gpu: backends (default soft-bvh,cpu)")
     ap.add_argument("--sizes", default="1M,10M,50M", help="--gpu: batch sizes (default 1M,10M,50M)")
+    ap.add_argument("--sweep", action="store_true", help="small batches: µs a point by batch size (cpu, VTK)")
+    ap.add_argument("--batches", default="1,10,100,1000,10k,100k,1M", help="--sweep: batch sizes")
+    ap.add_argument("--budget", type=float, default=1.0, help="--sweep: seconds of calls per size and method")
     ap.add_argument("--json", help="also write the results as JSON to this file")
     args = ap.parse_args()
     info = machine()
     print(" ".join(f"{k}={v}" for k, v in info.items()))
-    result = gpu(args) if args.gpu else compare(args)
+    result = gpu(args) if args.gpu else sweep(args) if args.sweep else compare(args)
     if args.json:
         pathlib.Path(args.json).write_text(json.dumps({"machine": info, **result}, indent=1))
 

@@ -44,6 +44,10 @@ fn mesh_of(arg: &str, seed: u64) -> tetloc_core::Result<tetloc_core::Mesh> {
 fn main() -> tetloc_core::Result<()> {
     let args: Vec<String> = std::env::args().collect();
     let mesh = Arc::new(mesh_of(&args[1], 1)?);
+    // WRITE_VTU=PATH: write the mesh (for the Python benchmarks, without the CLI) and stop.
+    if let Ok(path) = std::env::var("WRITE_VTU") {
+        return io::vtk::write::write_mesh_vtu(Path::new(&path), &mesh, false);
+    }
     let dims: usize = args.get(3).map_or(256, |s| s.parse().unwrap());
     let n_seeds: usize = args.get(4).map_or(10_000, |s| s.parse().unwrap());
     let steps: usize = args.get(5).map_or(1000, |s| s.parse().unwrap());
@@ -71,6 +75,15 @@ fn main() -> tetloc_core::Result<()> {
             })
         })?;
         eprintln!("  {valid} inside; the search was built: {}", loc.index_built());
+    }
+    if let (true, Some(p)) = (only.contains('p'), args.get(2)) {
+        let target = mesh_of(p, 2)?;
+        // As Python's probe: a deferred locator, its batch index built by the probe.
+        let mut fresh = CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast);
+        let probed = timed(&format!("probe {} points, build included", target.points.len()), || {
+            probe::probe(&mut fresh, &target.points, &groups, |_| Ok(()))
+        })?;
+        eprintln!("  {} inside; the BVH was built: {}", probed.n_valid(), fresh.index_built());
     }
     let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
     if let (true, Some(p)) = (only.contains('p'), args.get(2)) {

@@ -84,11 +84,11 @@ impl Bins {
         std::array::from_fn(|k| (((p[k] - self.lo[k]) * self.scale[k]).max(0.0) as usize).min(self.n[k] - 1))
     }
 
-    /// The bin of a point (working coordinates) of the mesh's box.
+    /// The bin of a point (working coordinates) of the mesh's box, and its coordinates.
     #[inline]
-    pub(super) fn bin_of(&self, p: Vec3) -> usize {
-        let [x, y, z] = self.coords(p);
-        (z * self.n[1] + y) * self.n[0] + x
+    pub(super) fn bin_of(&self, p: Vec3) -> (usize, [usize; 3]) {
+        let c @ [x, y, z] = self.coords(p);
+        ((z * self.n[1] + y) * self.n[0] + x, c)
     }
 
     /// The tets whose boxes meet bin `b`, ascending.

@@ -2,7 +2,8 @@
 //!
 //! Each batch is visited in Morton order of its points, so consecutive queries are close in
 //! space; each query first *walks* through face neighbours, from the previous answer when
-//! the previous point was in the same bin ([`Bins`]: uniform bins over the tets' boxes),
+//! the previous point was in the same or a touching bin ([`Bins`]: uniform bins over the
+//! tets' boxes),
 //! else from its bin's first tet, so that sparse batches walk a tet or two as dense ones
 //! do. Where the walk leaves the mesh, runs long, or ends exactly on a face, the bin's tets
 //! are tested: one holding the point strictly is the answer, none means outside, and the
@@ -230,8 +231,8 @@ impl CpuLocator {
     ) {
         let bins = self.bins();
         let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<Answer> {
-            // The previous answer and its bin.
-            let mut hint: Option<(u32, usize)> = None;
+            // The previous answer and its bin's coordinates.
+            let mut hint: Option<(u32, [usize; 3])> = None;
             idx.map(|i| self.search(bins, &query(&points[i]), &mut hint)).collect()
         };
         let working: Vec<Vec3> = points.par_iter().map(|p| query(p).local).collect();
@@ -264,20 +265,21 @@ impl CpuLocator {
         });
     }
 
-    /// One batch point: a walk from the previous answer (`hint`, when it was in the same
-    /// bin) or from the bin's first tet, then the bin's tets (see the module documentation).
+    /// One batch point: a walk from the previous answer (`hint`, when it was in the same or
+    /// a touching bin) or from the bin's first tet, then the bin's tets (see the module
+    /// documentation).
     #[inline]
-    fn search(&self, bins: &Bins, q: &Query, hint: &mut Option<(u32, usize)>) -> Answer {
+    fn search(&self, bins: &Bins, q: &Query, hint: &mut Option<(u32, [usize; 3])>) -> Answer {
         let (lo, hi) = (self.mesh.info.bounds_min, self.mesh.info.bounds_max);
         // A NaN or infinite coordinate is in no tet (and would lead a walk astray).
         if !q.file.iter().all(|c| c.is_finite()) || !(0..3).all(|k| q.local[k] >= lo[k] && q.local[k] <= hi[k]) {
             return Answer::Outside;
         }
-        let b = bins.bin_of(q.local);
+        let (b, at) = bins.bin_of(q.local);
         let tets = bins.tets(b);
         let Some(&first) = tets.first() else { return Answer::Outside };
         let start = match *hint {
-            Some((t, hb)) if hb == b => t,
+            Some((t, near)) if (0..3).all(|k| near[k].abs_diff(at[k]) <= 1) => t,
             _ => first,
         };
         let found = match self.walk(start, q) {
@@ -296,7 +298,7 @@ impl CpuLocator {
                 found
             }
         };
-        *hint = Some((found.0, b));
+        *hint = Some((found.0, at));
         Answer::Found(found.0, found.1)
     }
 }

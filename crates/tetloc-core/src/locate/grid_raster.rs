@@ -28,6 +28,8 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 const EMPTY: u32 = u32::MAX;
 /// More than one tet claims the point, or one claims it with a zero weight: the search decides.
 const TIE: u32 = u32::MAX - 1;
+/// Planes a rasterizing task owns.
+const PLANES_A_TASK: usize = 4;
 /// Meshes with more tets than this are not rasterized (ids meet the markers above).
 pub(super) const MAX_TETS: usize = TIE as usize;
 /// Grid points a slab holds at most (an id and each field's value: 4 bytes each), unless one
@@ -192,26 +194,33 @@ impl GridRaster {
         }
         self.planes = planes.clone();
         self.tied.store(false, Relaxed);
+        // Each task owns a few planes and claims their points alone (a tet that spans two
+        // tasks' planes is visited by both, each for its own planes), so a claim is a plain
+        // load and store, not a locked read-modify-write.
         let ny = self.rows;
-        let from = self.first_at[planes.start.saturating_sub(self.max_extent) * ny];
-        let to = self.first_at[planes.end * ny];
-        let first = planes.start as u32;
-        self.by_plane[from..to].par_iter().with_min_len(256).for_each(|&(t, end)| {
-            if end > first {
-                self.claim(mesh, fields, t)
+        let tasks: Vec<Range<usize>> =
+            planes.clone().step_by(PLANES_A_TASK).map(|k| k..(k + PLANES_A_TASK).min(planes.end)).collect();
+        tasks.into_par_iter().for_each(|own| {
+            let from = self.first_at[own.start.saturating_sub(self.max_extent) * ny];
+            let to = self.first_at[own.end * ny];
+            for &(t, end) in &self.by_plane[from..to] {
+                if end as usize > own.start {
+                    self.claim(mesh, fields, t, own.clone());
+                }
             }
         });
     }
 
-    /// Tests the points of tet `t`'s box in the current slab and claims those it holds.
-    fn claim(&self, mesh: &Mesh, fields: &[&Field], t: u32) {
+    /// Tests the points of tet `t`'s box in planes `own` of the current slab and claims those
+    /// it holds. The caller owns those planes' points.
+    fn claim(&self, mesh: &Mesh, fields: &[&Field], t: u32, own: Range<usize>) {
         let tet = mesh.tets[t as usize];
         let v = tet.map(|v| mesh.vertex64(v));
         let (lo, hi) = bounds_of(&v);
         let [ax, ay, az] = &self.axes;
         let (xs, ys) = (ax.span(lo[0], hi[0]), ay.span(lo[1], hi[1]));
         let zs = az.span(lo[2], hi[2]);
-        let zs = zs.start.max(self.planes.start)..zs.end.min(self.planes.end);
+        let zs = zs.start.max(own.start)..zs.end.min(own.end);
         if xs.is_empty() || ys.is_empty() || zs.is_empty() {
             return;
         }
@@ -256,10 +265,12 @@ impl GridRaster {
     }
 
     /// Slab point `at` for tet `t`, strictly inside it at weights `w`: its values, or a tie
-    /// if another tet holds it too.
+    /// if another tet holds it too. The caller owns the point's plane (no other thread
+    /// writes it meanwhile).
     #[inline]
     fn claim_point(&self, mesh: &Mesh, fields: &[&Field], t: u32, at: usize, w: Bary) {
-        if self.ids[at].compare_exchange(EMPTY, t, Relaxed, Relaxed).is_ok() {
+        if self.ids[at].load(Relaxed) == EMPTY {
+            self.ids[at].store(t, Relaxed);
             let nf = fields.len();
             for (slot, f) in self.values[at * nf..(at + 1) * nf].iter().zip(fields) {
                 slot.store(mesh.value_at(f, Some((t as usize, w))).to_bits(), Relaxed);
