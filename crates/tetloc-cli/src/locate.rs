@@ -13,7 +13,7 @@ use tetloc_io::output::{self, FileArg};
 use tetloc_io::points::{self, Results, Values};
 use tetloc_io::vtk::write::{self as vtk_write, Coords};
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct LocateArgs {
     /// A mesh file (.vtu, .vtk, .msh, .node/.ele, or a partitioned .pvtu/.vtm, which runs
     /// distributed under mpirun), or SHAPE:N to generate one (e.g. fusion:1M).
@@ -140,7 +140,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     check_args(a)?;
     let opts = a.common.opts()?;
 
-    let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
+    let m = crate::time_steps::load(&a.mesh, a.common.format.as_deref(), a.common.seed, a.common.step())?;
     if let Some(f) = &a.field {
         fields::resolve_scalar(&m.fields, f).context("--field")?;
     }

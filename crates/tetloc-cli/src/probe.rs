@@ -16,7 +16,7 @@ use tetloc_io::points;
 use tetloc_io::vtk::vtu;
 use tetloc_io::vtk::write::Coords;
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct ProbeArgs {
     /// The mesh whose fields are sampled (.vtu, .vtk, .msh, .node/.ele, SHAPE:N, or a
     /// partitioned .pvtu/.vtm, which runs distributed under mpirun).
@@ -26,7 +26,7 @@ pub struct ProbeArgs {
     target: OsString,
     /// The result: .vtu (a mesh TARGET, or a point set), or .vtp (a point set only).
     #[arg(short, long)]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// Fields of SOURCE to sample, comma-separated (a vector by its name); all by default.
     #[arg(long, value_delimiter = ',')]
     field: Vec<String>,
@@ -83,7 +83,7 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     let point_set = check(a)?;
     let opts = a.common.opts()?;
-    let source = mesh_arg::load(&a.source, a.common.format.as_deref(), a.common.seed)?;
+    let source = crate::time_steps::load(&a.source, a.common.format.as_deref(), a.common.seed, a.common.step())?;
     let (_, builder) = opts.builder(&source, &a.backend)?;
     let builder = builder.tolerance(a.tolerance);
     let mut loc: Box<dyn BatchLocator> = progress::with_spinner("building the locator", || builder.build())?.locator;
