@@ -26,7 +26,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::vtk::write as vtu_write;
-use time_steps::TimeStep;
 
 #[derive(Parser)]
 #[command(name = "tetloc", version, about = "Locate points in tetrahedral meshes and sample fields, on GPUs and CPUs")]
@@ -305,35 +304,10 @@ fn run(cli: Cli) -> Result<()> {
             progress::set_quiet(quiet);
             gen(&shape, &tets, &out, seed, zlib, terrain.as_deref(), vector)
         }
-        Command::Locate(args) if args.common.time_step == Some(TimeStep::All) => {
-            time_steps::each_step(&args.mesh, args.common.format.as_deref(), &args.out, |k, n| {
-                let mut a = args.clone();
-                a.common.time_step = Some(TimeStep::One(k));
-                a.out = time_steps::step_path(&args.out, k, n);
-                a.values = args.values.as_ref().map(|v| time_steps::step_path(v, k, n));
-                locate::run(&a)
-            })
-        }
-        Command::Locate(args) => locate::run(&args),
+        Command::Locate(args) => time_steps::run(&args, locate::run),
         Command::Partition(args) => partition::run(&args),
-        Command::Resample(args) if args.common.time_step == Some(TimeStep::All) => {
-            time_steps::each_step(&args.mesh, args.common.format.as_deref(), &args.out, |k, n| {
-                let mut a = args.clone();
-                a.common.time_step = Some(TimeStep::One(k));
-                a.out = time_steps::step_path(&args.out, k, n);
-                resample::run(&a)
-            })
-        }
-        Command::Resample(args) => resample::run(&args),
-        Command::Probe(args) if args.common.time_step == Some(TimeStep::All) => {
-            time_steps::each_step(&args.source, args.common.format.as_deref(), &args.out, |k, n| {
-                let mut a = args.clone();
-                a.common.time_step = Some(TimeStep::One(k));
-                a.out = time_steps::step_path(&args.out, k, n);
-                probe::run(&a)
-            })
-        }
-        Command::Probe(args) => probe::run(&args),
+        Command::Resample(args) => time_steps::run(&args, resample::run),
+        Command::Probe(args) => time_steps::run(&args, probe::run),
         Command::Trace(args) => trace::run(&args),
         Command::Devices => devices(),
         Command::Bench {

@@ -3,7 +3,7 @@
 //! named `STEM_K.EXT` (each written atomically, as every output), and then writes a `.pvd`
 //! beside `--out` that indexes them by time for ParaView.
 
-use crate::{mesh_arg, progress};
+use crate::{mesh_arg, progress, Common};
 use anyhow::{Context, Result};
 use std::ffi::OsStr;
 use std::io::Write;
@@ -79,9 +79,33 @@ pub fn step_path(path: &Path, k: usize, n: usize) -> PathBuf {
     path.with_file_name(name)
 }
 
+/// A command that takes `--time-step`: its series, `--out`, and its outputs renamed for a step.
+pub(crate) trait OnSteps: Clone {
+    /// The mesh argument (the series) and `--out`.
+    fn series(&self) -> (&OsStr, &Path);
+    fn common(&self) -> &Common;
+    fn common_mut(&mut self) -> &mut Common;
+    /// Names its outputs for step `k` of `n` ([`step_path`]).
+    fn rename_outputs(&mut self, k: usize, n: usize);
+}
+
+/// Runs the command: as it is, or once per step for `--time-step all` (see the module).
+pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result<()> {
+    if args.common().time_step != Some(TimeStep::All) {
+        return command(args);
+    }
+    let (mesh, out) = args.series();
+    each_step(mesh, args.common().format.as_deref(), out, |k, n| {
+        let mut a = args.clone();
+        a.common_mut().time_step = Some(TimeStep::One(k));
+        a.rename_outputs(k, n);
+        command(&a)
+    })
+}
+
 /// Runs `run(k)` for every step of `arg`, then writes `out`'s `.pvd` index of the steps'
 /// `--out` files when they are VTK files ParaView opens.
-pub fn each_step(
+fn each_step(
     arg: &OsStr,
     format: Option<&str>,
     out: &Path,
