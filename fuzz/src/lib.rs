@@ -5,7 +5,7 @@
 use std::path::Path;
 use tetloc_core::{Mesh, RawMesh, Result};
 use tetloc_io::vtk::{legacy as vtk_legacy, pvtu, vtm, vtu};
-use tetloc_io::{gmsh, tetgen};
+use tetloc_io::{exodus, gmsh, tetgen};
 
 fn validate(parsed: Result<RawMesh>) {
     if let Ok(raw) = parsed {
@@ -42,6 +42,11 @@ pub fn pieces(data: &[u8]) {
 }
 
 /// The input is the .node file, a NUL byte, then the .ele file (no NUL: an empty .ele).
+/// Exodus II: netCDF classic and netCDF-4 (HDF5) bytes.
+pub fn exodus(data: &[u8]) {
+    validate(exodus::parse(data, Path::new("fuzz.e")));
+}
+
 pub fn tetgen(data: &[u8]) {
     let (node, ele) = match data.iter().position(|&b| b == 0) {
         Some(i) => (&data[..i], &data[i + 1..]),
@@ -118,6 +123,7 @@ mod tests {
         let msh = seeds(&dir, &["msh"]);
         let vtus = seeds(&dir, &["vtu"]);
         let vtks = seeds(&dir, &["vtk"]);
+        run(exodus, &seeds(&dir.join("time"), &["e", "exo"]));
         assert!(!msh.is_empty() && !vtus.is_empty() && !vtks.is_empty(), "no seeds in {}", dir.display());
         run(gmsh, &msh);
         run(vtu, &vtus);

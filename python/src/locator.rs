@@ -18,6 +18,7 @@ use std::panic::{catch_unwind, AssertUnwindSafe};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 use tetloc_core::locate::{count_non_finite, Precision, Tolerance};
+use tetloc_core::ops::weights::Weights;
 use tetloc_core::{BatchLocator, Mesh, Vec3};
 use tetloc_locator::{AutoReason, Layer, Locator, LocatorOptions, Memory};
 
@@ -33,6 +34,9 @@ pub(crate) type Backend = Box<dyn BatchLocator + Send>;
 type IdsAndValues<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f32>>);
 /// Ids, and one row of field values per point.
 type IdsAndRows<'py> = (Bound<'py, PyArray1<i32>>, Bound<'py, PyArray2<f64>>);
+/// A CSR matrix's indptr, indices and data, and each row's cell.
+type CsrRows<'py> =
+    (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray1<i32>>, Bound<'py, PyArray1<f64>>, Bound<'py, PyArray1<i32>>);
 
 #[pyclass(name = "_Locator", module = "tetloc._tetloc", frozen)]
 pub struct PyLocator {
@@ -368,6 +372,37 @@ impl PyLocator {
         let values = numpy::ndarray::Array2::from_shape_vec((pts.len(), k), values)
             .map_err(|e| PyValueError::new_err(e.to_string()))?;
         Ok((PyArray1::from_vec(py, ids), PyArray2::from_owned_array(py, values)))
+    }
+
+    /// The interpolation weights of (K, 3) float64 C-contiguous points, located as `locate`
+    /// locates them (at float64 precision when `takes_f64`, else rounded to float32): CSR
+    /// arrays over the mesh's vertices (indptr (K + 1,) int64, indices int32, data float64)
+    /// and each point's cell (K,) int32 (-1 outside: an empty row). `Weights` in the core.
+    fn weights<'py>(&self, py: Python<'py>, points: PyReadonlyArray2<'_, f64>) -> PyResult<CsrRows<'py>> {
+        if points.shape()[1] != 3 {
+            return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
+        }
+        let pts: &[[f64; 3]] = bytemuck::cast_slice(contiguous(&points, "points")?);
+        let mut cells = vec![tetloc_core::OUTSIDE; pts.len()];
+        let out = &mut cells;
+        let located: Vec<[f64; 3]> = if self.takes_f64 {
+            self.chunked(py, pts.len(), |loc, r| loc.sample_many64(&pts[r.clone()], &[], &mut out[r], &mut []))?;
+            pts.to_vec()
+        } else {
+            let narrow: Vec<Vec3> = pts.iter().map(|p| p.map(|c| c as f32)).collect();
+            self.chunked(py, pts.len(), |loc, r| loc.locate(&narrow[r.clone()], &mut out[r]))?;
+            narrow.iter().map(|p| p.map(f64::from)).collect()
+        };
+        let mesh = &self.mesh;
+        let w = py.detach(|| Weights::from_cells(mesh, &located, cells)).map_err(to_py)?;
+        let indptr: Vec<i64> = w.offsets.iter().map(|&o| o as i64).collect();
+        let indices: Vec<i32> = w.vertices.iter().map(|&v| v as i32).collect();
+        Ok((
+            PyArray1::from_vec(py, indptr),
+            PyArray1::from_vec(py, indices),
+            PyArray1::from_vec(py, w.weights),
+            PyArray1::from_vec(py, w.cells),
+        ))
     }
 
     /// Ids and values of the scalar field `name` in one pass.

@@ -12,6 +12,7 @@ use pyo3::prelude::*;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 use std::sync::Arc;
+use tetloc_core::mesh::TimeSteps;
 use tetloc_core::{Field, FieldLocation, Mesh, Vec3};
 use tetloc_io::vtk::{from_cell_list, Extracted};
 use tetloc_io::{self as io, MeshFormat};
@@ -22,6 +23,8 @@ type CellArrays<'py> = (Bound<'py, PyArray1<u8>>, Bound<'py, PyArray1<i64>>, Bou
 #[pyclass(name = "_Mesh", module = "tetloc._tetloc", frozen)]
 pub struct PyMesh {
     pub mesh: Arc<Mesh>,
+    /// The file's time steps (`None`: one snapshot); the mesh holds the first step's fields.
+    pub steps: Option<Arc<TimeSteps>>,
 }
 
 fn location_name(l: FieldLocation) -> &'static str {
@@ -107,7 +110,7 @@ impl PyMesh {
         // The readers' path: `Mesh::new` decomposes mixed cells and keeps higher-order nodes.
         let raw = volume.into_mesh(points, points64, fields);
         let mesh = py.detach(|| Mesh::new(raw, source)).map_err(to_py)?;
-        Ok(PyMesh { mesh: Arc::new(mesh) })
+        Ok(PyMesh { mesh: Arc::new(mesh), steps: None })
     }
 
     #[getter]
@@ -152,6 +155,22 @@ impl PyMesh {
         Ok(match &f.values64 {
             Some(v) => PyArray1::from_slice(py, v).into_any(),
             None => PyArray1::from_slice(py, &f.values).into_any(),
+        })
+    }
+
+    /// The time of each step (empty for a single snapshot).
+    #[getter]
+    fn times(&self) -> Vec<f64> {
+        self.steps.as_ref().map_or_else(Vec::new, |s| s.times.clone())
+    }
+
+    /// Scalar field `name` at time step `step`, read from the file now: float64 where the
+    /// file stored it so (and it does not all round to f32 exactly), else float32.
+    fn step_field<'py>(&self, py: Python<'py>, name: &str, step: usize) -> PyResult<Bound<'py, PyAny>> {
+        let f = self.read_step_field(py, name, step)?;
+        Ok(match f.values64 {
+            Some(v) => PyArray1::from_vec(py, v).into_any(),
+            None => PyArray1::from_vec(py, f.values).into_any(),
         })
     }
 
@@ -209,6 +228,16 @@ impl PyMesh {
     }
 }
 
+impl PyMesh {
+    /// Field `name` of step `step` (an error for a step out of range, or a mesh without steps).
+    pub fn read_step_field(&self, py: Python<'_>, name: &str, step: usize) -> PyResult<Field> {
+        match &self.steps {
+            None => Err(to_py(tetloc_core::mesh::steps::check_step(&self.mesh.info.source, 0, step).unwrap_err())),
+            Some(s) => py.detach(|| s.field(name, step)).map_err(to_py),
+        }
+    }
+}
+
 /// Reads a mesh file in any format the CLI reads (by extension, or `format`: vtu, vtk, msh,
 /// node). `allow_outside_pieces`: a .pvtu/.vtm may name pieces outside its folder tree (the
 /// CLI's `--allow-outside-pieces`; refused by default). Interruptible with Ctrl-C.
@@ -223,8 +252,9 @@ pub fn read_mesh(py: Python<'_>, path: PathBuf, format: Option<&str>, allow_outs
         })
         .transpose()?;
     let options = io::ReadOptions { allow_outside_pieces };
-    let mesh = background::run(py, "reading a mesh", None, move |_| {
-        io::read_mesh_with(&path, format, options).map_err(to_py)
+    let (mesh, steps) = background::run(py, "reading a mesh", None, move |_| {
+        let (raw, steps) = io::read_series_with(&path, format, options).map_err(to_py)?;
+        Ok((Mesh::new(raw, path.display().to_string()).map_err(to_py)?, steps))
     })?;
-    Ok(PyMesh { mesh: Arc::new(mesh) })
+    Ok(PyMesh { mesh: Arc::new(mesh), steps: steps.map(Arc::new) })
 }

@@ -163,12 +163,20 @@ class Locator:
         flat, lead = as_points(points)
         return self._raw.locate(flat).reshape(lead)
 
-    def sample(self, points: PointsLike, name: str) -> Values:
+    def sample(self, points: PointsLike, name: str, step: Optional[int] = None) -> Values:
         """Values of field `name` at `points`, NaN outside: float32 (float64 for float64 points
         on a float64 field or with ``precision="f64"``), shape (K,) for a scalar
         field, (K, k) for a k-component field. Point fields are interpolated with the cell's
         shape functions (barycentric in linear tets), cell fields are constant in each cell.
-        (A k-component field is sampled one component at a time for now.)"""
+        (A k-component field is sampled one component at a time for now.)
+
+        With `step` (an index into ``mesh.times``), the values of that time step, read from
+        the file now: the points are located and their weights applied to the step's values
+        (``weights``), in float64, returned as float64 for float64 data, else float32. To
+        sample many steps at the same points, build ``W = weights(points)`` once and apply it
+        to each ``mesh.field(name, step=k)``."""
+        if step is not None:
+            return self._sample_step(points, name, step)
         comps, k = self._mesh._index.components(name)
         got = self._sample64(points, comps)
         if got is not None:
@@ -178,6 +186,51 @@ class Locator:
         flat, lead = as_points(points)
         values = _fields.join([self._raw.sample(flat, c) for c in comps], k)
         return values.reshape(lead + values.shape[1:])
+
+    def weights(self, points: PointsLike) -> Any:
+        """The interpolation weights of `points`: a ``scipy.sparse.csr_matrix`` of shape
+        (K, mesh.n_points), row i holding the weights of point i's cell (barycentrics in a
+        linear tet, the cell's own shape functions on all its nodes for other cells and higher
+        orders), so that ``W @ mesh.field(name)`` equals ``sample(points, name)`` for a point
+        field, to rounding, at any time step: locate once, interpolate many. A point outside
+        the mesh has an empty row (``W @ f`` gives 0 there, where ``sample`` gives NaN; the
+        row's emptiness, ``W.getnnz(axis=1) == 0``, or ``locate``'s -1 tells them apart).
+        Cell fields need no weights: index them with ``locate(points)``'s cell ids. Points
+        are located as ``locate`` locates them (float64 points at their precision where
+        ``locate`` keeps it). (K, 3) only; needs scipy."""
+        import scipy.sparse
+
+        indptr, indices, data, _ = self._weights(points)
+        return scipy.sparse.csr_matrix((data, indices, indptr), shape=(len(indptr) - 1, self._mesh.n_points))
+
+    def _weights(
+        self, points: PointsLike
+    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+        flat, lead = as_points(points)
+        if len(lead) != 1:
+            raise ValueError(f"points: shape {lead + (3,)}; weights take (K, 3) points")
+        p64 = as_points64(points)
+        p = p64[0] if p64 is not None else np.asarray(flat, dtype=np.float64)
+        return self._raw.weights(np.ascontiguousarray(p, dtype=np.float64))
+
+    def _sample_step(self, points: PointsLike, name: str, step: int) -> Values:
+        values = self._mesh.field(name, step=step)
+        flat, lead = as_points(points)
+        p64 = as_points64(points)
+        p = np.ascontiguousarray(p64[0] if p64 is not None else flat, dtype=np.float64)
+        indptr, indices, data, cells = self._raw.weights(p)
+        v = values.reshape(values.shape[0], -1).astype(np.float64)
+        if self._mesh.field_location(name) == "point":
+            import scipy.sparse
+
+            W = scipy.sparse.csr_matrix((data, indices, indptr), shape=(len(cells), self._mesh.n_points))
+            out = np.asarray(W @ v)
+        else:
+            out = v[np.maximum(cells, 0)]
+        out[cells < 0] = np.nan
+        out = out.astype(values.dtype if values.dtype == np.float64 else np.float32)
+        out = out[:, 0] if values.ndim == 1 else out
+        return out.reshape(lead + out.shape[1:])
 
     def locate_and_sample(self, points: PointsLike, name: str) -> Tuple[npt.NDArray[np.int32], Values]:
         """``(locate(points), sample(points, name))`` in one pass (per component)."""

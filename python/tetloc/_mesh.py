@@ -5,7 +5,7 @@ from __future__ import annotations
 import errno
 import json
 import os
-from typing import Any, Dict, Mapping, Optional, Tuple, Union
+from typing import Any, Dict, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 import numpy.typing as npt
@@ -275,11 +275,29 @@ class Mesh:
         """The cell each of ``tets`` is or belongs to, (T,) int64."""
         return self._raw.tet_cells()
 
-    def field(self, name: str) -> npt.NDArray[np.floating[Any]]:
+    @property
+    def times(self) -> List[float]:
+        """The time of each step of a time series (an Exodus file with steps, a ``.pvd``
+        collection), ascending; empty for a single snapshot. The mesh's fields are the first
+        step's; ``field(name, step=k)`` reads step k's."""
+        return list(self._raw.times)
+
+    def field(self, name: str, step: Optional[int] = None) -> npt.NDArray[np.floating[Any]]:
         """A copy of field `name`'s values, (N,) or (N, k): float64 where the file stored
-        them in f64 (and they do not all round to f32 exactly), else float32."""
+        them in f64 (and they do not all round to f32 exactly), else float32. With `step`
+        (0-based, an index into ``times``), that time step's values, read from the file now
+        (one step at a time: memory holds no other step); ``ValueError`` for a step out of
+        range or a mesh without steps."""
         comps, k = self._index.components(name)
-        return _fields.join([self._raw.field(c) for c in comps], k)
+        if step is None:
+            return _fields.join([self._raw.field(c) for c in comps], k)
+        step = _step_index(step)
+        return _fields.join([self._raw.step_field(c, step) for c in comps], k)
+
+    def field_location(self, name: str) -> str:
+        """Where field `name` lives: "point" or "cell"."""
+        self._index.components(name)
+        return self._index.fields[name][0]
 
     def info(self) -> Dict[str, Any]:
         """What ``tetloc info --json`` prints: counts (cells by type, tets), bounds, edge
@@ -298,13 +316,23 @@ class Mesh:
         )
 
 
+def _step_index(step: Any) -> int:
+    """A time step argument as an index (a bool or a float is a ``TypeError``)."""
+    if isinstance(step, bool) or not isinstance(step, (int, np.integer)):
+        raise TypeError(f"step: expected an int (an index into Mesh.times), got {type(step).__name__}")
+    if step < 0:
+        raise ValueError(f"step: {step} is negative; steps are 0-based indices into Mesh.times")
+    return int(step)
+
+
 def read(
     path: Union[str, "os.PathLike[str]"], format: Optional[str] = None, *, allow_outside_pieces: bool = False
 ) -> Mesh:
     """Reads a mesh in any format the ``tetloc`` CLI reads, by extension or `format`: VTK XML
     ``.vtu``, its parallel pieces ``.pvtu`` and multiblock ``.vtm`` ("vtu", "pvtu", "vtm"),
     legacy ``.vtk`` ("vtk"), Gmsh ``.msh`` 2.2 and 4.1 ("msh"), TetGen ``.node``/``.ele``
-    ("node"). Every volume cell tetloc reads is taken: tets, hexahedra, wedges, pyramids,
+    ("node"), and time series: Exodus II ``.e``/``.exo``/``.ex2`` ("exo") and ParaView's
+    ``.pvd`` collections ("pvd"), whose steps ``Mesh.times`` lists. Every volume cell tetloc reads is taken: tets, hexahedra, wedges, pyramids,
     their higher-order kinds, and mixes of them; 0-2-D cells are ignored.
 
     A ``.pvtu``/``.vtm`` may list pieces only inside its own folder tree: pieces reached by

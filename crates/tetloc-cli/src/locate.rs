@@ -13,7 +13,7 @@ use tetloc_io::output::{self, FileArg};
 use tetloc_io::points::{self, Results, Values};
 use tetloc_io::vtk::write::{self as vtk_write, Coords};
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct LocateArgs {
     /// A mesh file (.vtu, .vtk, .msh, .node/.ele, or a partitioned .pvtu/.vtm, which runs
     /// distributed under mpirun), or SHAPE:N to generate one (e.g. fusion:1M).
@@ -57,6 +57,22 @@ pub struct LocateArgs {
     pub(crate) precision: Precision,
     #[command(flatten)]
     pub(crate) common: Common,
+}
+
+impl crate::time_steps::OnSteps for LocateArgs {
+    fn series(&self) -> (&std::ffi::OsStr, &Path) {
+        (&self.mesh, &self.out)
+    }
+    fn common(&self) -> &Common {
+        &self.common
+    }
+    fn common_mut(&mut self) -> &mut Common {
+        &mut self.common
+    }
+    fn rename_outputs(&mut self, k: usize, n: usize) {
+        self.out = crate::time_steps::step_path(&self.out, k, n);
+        self.values = self.values.as_ref().map(|v| crate::time_steps::step_path(v, k, n));
+    }
 }
 
 /// What `--out` is, by its extension.
@@ -140,7 +156,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     check_args(a)?;
     let opts = a.common.opts()?;
 
-    let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
+    let m = crate::time_steps::load(&a.mesh, a.common.format.as_deref(), a.common.seed, a.common.step())?;
     if let Some(f) = &a.field {
         fields::resolve_scalar(&m.fields, f).context("--field")?;
     }

@@ -15,6 +15,7 @@ mod progress;
 mod render;
 mod resample;
 mod signals;
+mod time_steps;
 mod trace;
 mod view;
 
@@ -48,7 +49,7 @@ enum Command {
         /// Print one JSON object (counts, bounds, faces, fields with their value ranges) instead of text.
         #[arg(long)]
         json: bool,
-        /// File format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
+        /// File format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node, exo, pvd).
         #[arg(long)]
         format: Option<String>,
     },
@@ -181,7 +182,7 @@ enum Command {
 }
 
 /// Options of the commands that build locators.
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 struct Common {
     /// rt kernels: primitives per bottom-level acceleration structure (e.g. 1M), or `off` for one structure.
     #[arg(long, default_value = "1M")]
@@ -205,7 +206,7 @@ struct Common {
     /// Vulkan device index (see `tetloc devices`).
     #[arg(long)]
     device: Option<usize>,
-    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
+    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node, exo, pvd).
     #[arg(long)]
     format: Option<String>,
     /// Seed of a generated mesh (SHAPE:N) and of generated query points.
@@ -214,9 +215,22 @@ struct Common {
     /// Print only errors and warnings on stderr (not the backend `auto` chose, nor timings).
     #[arg(short, long)]
     quiet: bool,
+    /// A time series (an Exodus file with steps, a .pvd): use the fields of time step K
+    /// (0-based; the first step's by default), or run on `all` of them: one output per step,
+    /// named STEM_K.EXT, and a .pvd beside --out that indexes them by time.
+    #[arg(long, value_name = "K|all")]
+    time_step: Option<time_steps::TimeStep>,
 }
 
 impl Common {
+    /// The one time step to run on (`all` is run step by step by [`run`]).
+    fn step(&self) -> Option<usize> {
+        match self.time_step {
+            Some(time_steps::TimeStep::One(k)) => Some(k),
+            _ => None,
+        }
+    }
+
     fn opts(&self) -> Result<BackendOptions> {
         let split = if self.split == "off" { None } else { Some(mesh_arg::parse_count(&self.split)?) };
         Ok(BackendOptions {
@@ -306,10 +320,10 @@ fn run(cli: Cli) -> Result<()> {
             progress::set_quiet(quiet);
             gen(&shape, &tets, &out, seed, zlib, terrain.as_deref(), vector, f64)
         }
-        Command::Locate(args) => locate::run(&args),
+        Command::Locate(args) => time_steps::run(&args, locate::run),
         Command::Partition(args) => partition::run(&args),
-        Command::Resample(args) => resample::run(&args),
-        Command::Probe(args) => probe::run(&args),
+        Command::Resample(args) => time_steps::run(&args, resample::run),
+        Command::Probe(args) => time_steps::run(&args, probe::run),
         Command::Trace(args) => trace::run(&args),
         Command::Devices => devices(),
         Command::Bench {
@@ -510,9 +524,14 @@ fn devices() -> Result<()> {
 
 fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> {
     let m = mesh_arg::load(mesh, format, 1)?;
+    let times = time_steps::times(mesh, format)?;
     let summary = progress::with_spinner("computing shared faces", || m.summary());
     if json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+        let mut value = serde_json::to_value(&summary)?;
+        if let Some(o) = value.as_object_mut().filter(|_| !times.is_empty()) {
+            o.insert("times".into(), times.into());
+        }
+        println!("{}", serde_json::to_string_pretty(&value)?);
         return Ok(());
     }
     let faces = summary.faces;
@@ -527,6 +546,10 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
         println!("  tets        {}", i.n_tets);
     }
     println!("  vertices    {}", i.n_points);
+    if !times.is_empty() {
+        let list: Vec<String> = times.iter().enumerate().map(|(k, t)| format!("{k}: {t}")).collect();
+        println!("  steps       {} ({}); the fields below are step 0's", times.len(), list.join(", "));
+    }
     if i.frame.is_identity() {
         println!("  bounds      {:?} .. {:?}", i.bounds_min, i.bounds_max);
     } else {

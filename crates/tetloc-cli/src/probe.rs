@@ -16,7 +16,7 @@ use tetloc_io::points;
 use tetloc_io::vtk::write::Coords;
 use tetloc_io::vtk::{legacy, vtu};
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct ProbeArgs {
     /// The mesh whose fields are sampled (.vtu, .vtk, .msh, .node/.ele, SHAPE:N, or a
     /// partitioned .pvtu/.vtm, which runs distributed under mpirun).
@@ -26,7 +26,7 @@ pub struct ProbeArgs {
     target: OsString,
     /// The result: .vtu (a mesh TARGET, or a point set), or .vtp (a point set only).
     #[arg(short, long)]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// Fields of SOURCE to sample, comma-separated (a vector by its name); all by default.
     #[arg(long, value_delimiter = ',')]
     field: Vec<String>,
@@ -45,6 +45,21 @@ pub struct ProbeArgs {
     target_format: Option<String>,
     #[command(flatten)]
     pub(crate) common: Common,
+}
+
+impl crate::time_steps::OnSteps for ProbeArgs {
+    fn series(&self) -> (&std::ffi::OsStr, &Path) {
+        (&self.source, &self.out)
+    }
+    fn common(&self) -> &Common {
+        &self.common
+    }
+    fn common_mut(&mut self) -> &mut Common {
+        &mut self.common
+    }
+    fn rename_outputs(&mut self, k: usize, n: usize) {
+        self.out = crate::time_steps::step_path(&self.out, k, n);
+    }
 }
 
 /// Whether TARGET names a point set (by its extension) rather than a mesh.
@@ -91,7 +106,7 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     let point_set = check(a)?;
     let opts = a.common.opts()?;
-    let source = mesh_arg::load(&a.source, a.common.format.as_deref(), a.common.seed)?;
+    let source = crate::time_steps::load(&a.source, a.common.format.as_deref(), a.common.seed, a.common.step())?;
     let (_, builder) = opts.builder(&source, &a.backend)?;
     let builder = builder.tolerance(a.tolerance);
     let mut loc: Box<dyn BatchLocator> = progress::with_spinner("building the locator", || builder.build())?.locator;

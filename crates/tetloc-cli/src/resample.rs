@@ -13,7 +13,7 @@ use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct ResampleArgs {
     /// A mesh file (.vtu, .vtk, .msh, .node/.ele, or a partitioned .pvtu/.vtm, which runs
     /// distributed under mpirun), or SHAPE:N to generate one (e.g. fusion:1M).
@@ -32,7 +32,7 @@ pub struct ResampleArgs {
     /// The image: .vti (every field and vtkValidPointMask, for ParaView) or .npy (one float32
     /// array (NZ,NY,NX) or (NZ,NY,NX,k), x fastest, NaN where a point is outside the mesh).
     #[arg(short, long)]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// zlib-compress the .vti's arrays.
     #[arg(long)]
     zlib: bool,
@@ -41,6 +41,21 @@ pub struct ResampleArgs {
     pub(crate) backend: String,
     #[command(flatten)]
     pub(crate) common: Common,
+}
+
+impl crate::time_steps::OnSteps for ResampleArgs {
+    fn series(&self) -> (&std::ffi::OsStr, &std::path::Path) {
+        (&self.mesh, &self.out)
+    }
+    fn common(&self) -> &Common {
+        &self.common
+    }
+    fn common_mut(&mut self) -> &mut Common {
+        &mut self.common
+    }
+    fn rename_outputs(&mut self, k: usize, n: usize) {
+        self.out = crate::time_steps::step_path(&self.out, k, n);
+    }
 }
 
 /// What the arguments ask for, checked before any mesh is read.
@@ -105,7 +120,7 @@ pub fn run(a: &ResampleArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     let plan = check(a)?;
     let opts = a.common.opts()?;
-    let m = mesh_arg::load(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
+    let m = crate::time_steps::load(&a.mesh, a.common.format.as_deref(), a.common.seed, a.common.step())?;
     // On the CPU the search is built only if the grid needs it (its grid path rasterizes the
     // tets; only grid points on faces need the search's tie rule).
     let (_, builder) = opts.builder(&m, &a.backend)?;

@@ -34,10 +34,36 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 /// Reads the mesh with the first step's fields, and the steps (`None` without `time_whole`
 /// steps).
 pub fn read_series(path: &Path) -> Result<(RawMesh, Option<TimeSteps>)> {
-    let file = open(path)?;
-    let layout = Layout::of(&file, path)?;
-    let points = layout.read_points(&file, path)?;
-    let cells = layout.read_cells(&file, path)?;
+    guarded(path, || {
+        let file = open(path)?;
+        let (raw, layout) = read_from(&file, path)?;
+        let times = layout.times.clone();
+        let steps = Steps { path: path.to_path_buf(), layout };
+        let series = (!times.is_empty()).then(|| TimeSteps::new(path.display().to_string(), times, Box::new(steps)));
+        Ok((raw, series))
+    })
+}
+
+/// Parses a whole file held in memory (the first step's fields); `path` only names it in errors.
+pub fn parse(bytes: &[u8], path: &Path) -> Result<RawMesh> {
+    guarded(path, || {
+        let file = NcFile::from_bytes(bytes).map_err(|e| Error::format(path, format!("not a netCDF file: {e}")))?;
+        Ok(read_from(&file, path)?.0)
+    })
+}
+
+/// `read`, with a panic of the netCDF/HDF5 decoder on a corrupt file turned into an error
+/// naming the file (never an abort).
+fn guarded<T>(path: &Path, read: impl FnOnce() -> Result<T>) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(read))
+        .unwrap_or_else(|_| Err(Error::format(path, "the netCDF decoder failed on this file (corrupt?)")))
+}
+
+/// The mesh with the first step's fields, and the file's layout.
+fn read_from(file: &NcFile, path: &Path) -> Result<(RawMesh, Layout)> {
+    let layout = Layout::of(file, path)?;
+    let points = layout.read_points(file, path)?;
+    let cells = layout.read_cells(file, path)?;
     let ex = crate::vtk::cells::extract(&cells.types, &cells.ends, &cells.conn).map_err(|m| Error::format(path, m))?;
     let mut raw = RawMesh {
         points: points.iter().map(|p| p.map(|c| c as f32)).collect(),
@@ -47,14 +73,11 @@ pub fn read_series(path: &Path) -> Result<(RawMesh, Option<TimeSteps>)> {
         higher_order: ex.higher_order,
         cells: ex.cells,
     };
-    let steps = Steps { path: path.to_path_buf(), layout };
-    raw.fields = match steps.layout.times.len() {
-        0 => steps.layout.id_maps.clone(),
-        _ => steps.read_with(&file, 0)?,
+    raw.fields = match layout.times.len() {
+        0 => layout.id_maps.clone(),
+        _ => read_step(file, path, &layout, 0)?,
     };
-    let times = steps.layout.times.clone();
-    let series = (!times.is_empty()).then(|| TimeSteps::new(path.display().to_string(), times, Box::new(steps)));
-    Ok((raw, series))
+    Ok((raw, layout))
 }
 
 fn open(path: &Path) -> Result<NcFile> {
@@ -369,76 +392,72 @@ struct Steps {
 
 impl StepFields for Steps {
     fn read(&self, k: usize) -> Result<Vec<Field>> {
-        let file = open(&self.path)?;
-        self.read_with(&file, k)
+        guarded(&self.path, || read_step(&open(&self.path)?, &self.path, &self.layout, k))
     }
 }
 
-impl Steps {
-    fn read_with(&self, file: &NcFile, k: usize) -> Result<Vec<Field>> {
-        let (path, layout) = (self.path.as_path(), &self.layout);
-        let slice = |name: &str, index: Option<usize>| -> Result<Vec<f64>> {
-            let v = file.variable(name).map_err(nc_err(path, name))?;
-            let mut sel = vec![NcSliceInfoElem::Index(k as u64)];
-            if let Some(i) = index {
-                sel.push(NcSliceInfoElem::Index(i as u64));
-            }
-            sel.resize(v.shape().len(), NcSliceInfoElem::Slice { start: 0, end: u64::MAX, step: 1 });
-            let a =
-                file.read_variable_slice_as_f64(name, &NcSliceInfo { selections: sel }).map_err(nc_err(path, name))?;
-            Ok(a.iter().copied().collect())
-        };
-        let mut node = Vec::with_capacity(layout.node_vars.len());
-        for v in &layout.node_vars {
-            let stored = v.storage[0].as_deref().expect("nodal variables have one storage");
-            let values = slice(stored, v.combined)?;
-            if values.len() != layout.n_nodes {
-                return Err(Error::format(
-                    path,
-                    format!(
-                        "nodal variable '{}' ({stored}) has {} values at step {k} but the mesh has {} nodes",
-                        v.name,
-                        values.len(),
-                        layout.n_nodes
-                    ),
-                ));
-            }
-            node.push((v.name.clone(), values));
+/// The fields of step `k`: the nodal and element variables, and the id maps.
+fn read_step(file: &NcFile, path: &Path, layout: &Layout, k: usize) -> Result<Vec<Field>> {
+    let slice = |name: &str, index: Option<usize>| -> Result<Vec<f64>> {
+        let v = file.variable(name).map_err(nc_err(path, name))?;
+        let mut sel = vec![NcSliceInfoElem::Index(k as u64)];
+        if let Some(i) = index {
+            sel.push(NcSliceInfoElem::Index(i as u64));
         }
-        let mut elem = Vec::with_capacity(layout.elem_vars.len());
-        for v in &layout.elem_vars {
-            let mut values = Vec::new();
-            for (b, stored) in layout.blocks.iter().zip(&v.storage) {
-                if b.vtk.is_none() {
-                    continue;
-                }
-                match stored {
-                    None => values.extend(std::iter::repeat_n(f64::NAN, b.n_elems)),
-                    Some(s) => {
-                        let got = slice(s, None)?;
-                        if got.len() != b.n_elems {
-                            return Err(Error::format(
-                                path,
-                                format!(
-                                    "element variable '{}' ({s}) has {} values at step {k} but block {} has {} elements",
-                                    v.name,
-                                    got.len(),
-                                    b.index,
-                                    b.n_elems
-                                ),
-                            ));
-                        }
-                        values.extend(got);
-                    }
-                }
-            }
-            elem.push((v.name.clone(), values));
+        sel.resize(v.shape().len(), NcSliceInfoElem::Slice { start: 0, end: u64::MAX, step: 1 });
+        let a = file.read_variable_slice_as_f64(name, &NcSliceInfo { selections: sel }).map_err(nc_err(path, name))?;
+        Ok(a.iter().copied().collect())
+    };
+    let mut node = Vec::with_capacity(layout.node_vars.len());
+    for v in &layout.node_vars {
+        let stored = v.storage[0].as_deref().expect("nodal variables have one storage");
+        let values = slice(stored, v.combined)?;
+        if values.len() != layout.n_nodes {
+            return Err(Error::format(
+                path,
+                format!(
+                    "nodal variable '{}' ({stored}) has {} values at step {k} but the mesh has {} nodes",
+                    v.name,
+                    values.len(),
+                    layout.n_nodes
+                ),
+            ));
         }
-        let mut fields = grouped(node, FieldLocation::Vertex);
-        fields.extend(grouped(elem, FieldLocation::Cell));
-        fields.extend(layout.id_maps.iter().cloned());
-        Ok(fields)
+        node.push((v.name.clone(), values));
     }
+    let mut elem = Vec::with_capacity(layout.elem_vars.len());
+    for v in &layout.elem_vars {
+        let mut values = Vec::new();
+        for (b, stored) in layout.blocks.iter().zip(&v.storage) {
+            if b.vtk.is_none() {
+                continue;
+            }
+            match stored {
+                None => values.extend(std::iter::repeat_n(f64::NAN, b.n_elems)),
+                Some(s) => {
+                    let got = slice(s, None)?;
+                    if got.len() != b.n_elems {
+                        return Err(Error::format(
+                            path,
+                            format!(
+                                "element variable '{}' ({s}) has {} values at step {k} but block {} has {} elements",
+                                v.name,
+                                got.len(),
+                                b.index,
+                                b.n_elems
+                            ),
+                        ));
+                    }
+                    values.extend(got);
+                }
+            }
+        }
+        elem.push((v.name.clone(), values));
+    }
+    let mut fields = grouped(node, FieldLocation::Vertex);
+    fields.extend(grouped(elem, FieldLocation::Cell));
+    fields.extend(layout.id_maps.iter().cloned());
+    Ok(fields)
 }
 
 /// Fields from named arrays, `NAME_x`, `NAME_y`, `NAME_z` (any case) as the vector `NAME`

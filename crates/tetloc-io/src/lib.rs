@@ -224,14 +224,23 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
 /// steps (`None` for a file without time steps) read the others when asked. Exodus files with
 /// `time_whole` steps and `.pvd` collections have steps; every other format is one snapshot.
 pub fn read_series(path: &Path, format: Option<MeshFormat>) -> Result<(RawMesh, Option<TimeSteps>)> {
+    read_series_with(path, format, ReadOptions::default())
+}
+
+/// [`read_series`] with explicit [`ReadOptions`].
+pub fn read_series_with(
+    path: &Path,
+    format: Option<MeshFormat>,
+    options: ReadOptions,
+) -> Result<(RawMesh, Option<TimeSteps>)> {
     let format = match format {
         Some(f) => f,
         None => MeshFormat::from_path(path)?,
     };
     match format {
         MeshFormat::Exodus => exodus::read_series(path),
-        MeshFormat::Pvd => vtk::pvd::read_series(path, ReadOptions::default()).map(|(raw, steps)| (raw, Some(steps))),
-        other => Ok((read_raw(path, Some(other))?, None)),
+        MeshFormat::Pvd => vtk::pvd::read_series(path, options).map(|(raw, steps)| (raw, Some(steps))),
+        other => Ok((read_raw_with(path, Some(other), options)?, None)),
     }
 }
 

@@ -1,0 +1,157 @@
+//! `--time-step K|all`: commands over a time series (an Exodus file with steps, a `.pvd`).
+//! `K` runs the command on step K's fields; `all` runs it once per step, each step's outputs
+//! named `STEM_K.EXT` (each written atomically, as every output), and then writes a `.pvd`
+//! beside `--out` that indexes them by time for ParaView.
+
+use crate::{mesh_arg, progress, Common};
+use anyhow::{Context, Result};
+use std::ffi::OsStr;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+use tetloc_core::mesh::steps::check_step;
+use tetloc_core::Mesh;
+use tetloc_io::{self as io, MeshFormat};
+
+/// Which step(s) a command runs on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimeStep {
+    One(usize),
+    All,
+}
+
+impl std::str::FromStr for TimeStep {
+    type Err = String;
+    fn from_str(s: &str) -> Result<TimeStep, String> {
+        match s {
+            "all" => Ok(TimeStep::All),
+            k => k.parse().map(TimeStep::One).map_err(|_| format!("'{k}': expected a step index (0, 1, ...) or `all`")),
+        }
+    }
+}
+
+fn format_of(format: Option<&str>) -> Result<Option<MeshFormat>> {
+    format
+        .map(|f| {
+            MeshFormat::from_name(f)
+                .with_context(|| format!("unknown --format '{f}' (known: {})", io::KNOWN_MESH_FORMATS))
+        })
+        .transpose()
+}
+
+/// The mesh `arg` with the fields of `step` (`None`: as `mesh_arg::load` reads it, the first
+/// step's fields for a series).
+pub fn load(arg: &OsStr, format: Option<&str>, seed: u64, step: Option<usize>) -> Result<Arc<Mesh>> {
+    let Some(k) = step else { return mesh_arg::load(arg, format, seed) };
+    let path = Path::new(arg);
+    if mesh_arg::parse_generated(arg).is_some() {
+        check_step(&path.display().to_string(), 0, k)?;
+    }
+    let format = format_of(format)?;
+    let mesh = progress::with_spinner(format!("reading {} step {k}", path.display()), || -> Result<Mesh> {
+        let (mut raw, steps) = io::read_series(path, format)?;
+        match steps {
+            None => check_step(&path.display().to_string(), 0, k)?,
+            Some(s) => raw.fields = s.fields(k)?,
+        }
+        Ok(Mesh::new(raw, path.display().to_string())?)
+    })?;
+    Ok(Arc::new(mesh))
+}
+
+/// The times of the steps of `arg` (empty for a single snapshot or a generated mesh).
+pub fn times(arg: &OsStr, format: Option<&str>) -> Result<Vec<f64>> {
+    if mesh_arg::parse_generated(arg).is_some() {
+        return Ok(Vec::new());
+    }
+    let (_, steps) = io::read_series(Path::new(arg), format_of(format)?)?;
+    Ok(steps.map_or_else(Vec::new, |s| s.times))
+}
+
+/// `STEM_K.EXT` for step `k` of `n` (K padded to the digits of the last step).
+pub fn step_path(path: &Path, k: usize, n: usize) -> PathBuf {
+    let width = (n.max(1) - 1).to_string().len();
+    let stem = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = match path.extension() {
+        Some(e) => format!("{stem}_{k:0width$}.{}", e.to_string_lossy()),
+        None => format!("{stem}_{k:0width$}"),
+    };
+    path.with_file_name(name)
+}
+
+/// A command that takes `--time-step`: its series, `--out`, and its outputs renamed for a step.
+pub(crate) trait OnSteps: Clone {
+    /// The mesh argument (the series) and `--out`.
+    fn series(&self) -> (&OsStr, &Path);
+    fn common(&self) -> &Common;
+    fn common_mut(&mut self) -> &mut Common;
+    /// Names its outputs for step `k` of `n` ([`step_path`]).
+    fn rename_outputs(&mut self, k: usize, n: usize);
+}
+
+/// Runs the command: as it is, or once per step for `--time-step all` (see the module).
+pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result<()> {
+    if args.common().time_step != Some(TimeStep::All) {
+        return command(args);
+    }
+    let (mesh, out) = args.series();
+    each_step(mesh, args.common().format.as_deref(), out, |k, n| {
+        let mut a = args.clone();
+        a.common_mut().time_step = Some(TimeStep::One(k));
+        a.rename_outputs(k, n);
+        command(&a)
+    })
+}
+
+/// Runs `run(k)` for every step of `arg`, then writes `out`'s `.pvd` index of the steps'
+/// `--out` files when they are VTK files ParaView opens.
+fn each_step(
+    arg: &OsStr,
+    format: Option<&str>,
+    out: &Path,
+    mut run: impl FnMut(usize, usize) -> Result<()>,
+) -> Result<()> {
+    let times = times(arg, format)?;
+    if times.is_empty() {
+        check_step(&Path::new(arg).display().to_string(), 0, 0).context("--time-step all")?;
+    }
+    for k in 0..times.len() {
+        run(k, times.len()).with_context(|| format!("time step {k} (time {})", times[k]))?;
+    }
+    let ext = tetloc_io::output::extension(out);
+    if !matches!(ext.as_str(), "vtu" | "vtp" | "vti") {
+        eprintln!(
+            "wrote {} steps as {}; no .pvd index (it lists VTK files: .vtu, .vtp, .vti)",
+            times.len(),
+            step_path(out, 0, times.len()).display()
+        );
+        return Ok(());
+    }
+    let index = out.with_extension("pvd");
+    let mut f = io::output::AtomicFile::create(&index)?;
+    let mut text = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n<Collection>\n");
+    for (k, t) in times.iter().enumerate() {
+        let file = step_path(out, k, times.len());
+        let name = file.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let name = name.replace('&', "&amp;").replace('"', "&quot;").replace('<', "&lt;");
+        text.push_str(&format!("<DataSet timestep=\"{t:?}\" group=\"\" part=\"0\" file=\"{name}\"/>\n"));
+    }
+    text.push_str("</Collection>\n</VTKFile>\n");
+    f.write_all(text.as_bytes()).map_err(|e| tetloc_core::Error::io(&index, e))?;
+    f.commit()?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn step_paths_and_arguments() {
+        assert_eq!(step_path(Path::new("out/probe.vtu"), 3, 12), Path::new("out/probe_03.vtu"));
+        assert_eq!(step_path(Path::new("ids.npy"), 0, 6), Path::new("ids_0.npy"));
+        assert_eq!("all".parse::<TimeStep>().unwrap(), TimeStep::All);
+        assert_eq!("4".parse::<TimeStep>().unwrap(), TimeStep::One(4));
+        assert!("-1".parse::<TimeStep>().is_err());
+    }
+}

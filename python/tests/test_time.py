@@ -1,0 +1,140 @@
+"""Time series (Exodus II, .pvd), steps through Mesh.field/Locator.sample, and the weights
+of "locate once, interpolate many" (Locator.weights)."""
+
+from __future__ import annotations
+
+import json
+import pathlib
+
+import numpy as np
+import pytest
+
+import tetloc
+from conftest import kuhn_grid
+
+SERIES = ["part_s.e", "part_s.classic.exo", "part_s.pvd"]
+
+
+@pytest.fixture(scope="module")
+def time_dir(data_dir) -> pathlib.Path:
+    return data_dir / "time"
+
+
+@pytest.fixture(scope="module")
+def oracle(data_dir, time_dir):
+    points = np.fromfile(data_dir / "part_s.random.points.bin", dtype=np.float32).reshape(-1, 3)
+    readme = json.loads((time_dir / "README.json").read_text())
+    return points, np.load(time_dir / "part_s.random.values_by_step.npy"), readme["times"]
+
+
+@pytest.mark.parametrize("name", SERIES)
+def test_every_step_matches_the_oracle(time_dir, oracle, name):
+    points, want, times = oracle
+    mesh = tetloc.read(time_dir / name)
+    assert mesh.times == times
+    loc = tetloc.Locator(mesh, backend="cpu")
+    W = loc.weights(points)
+    assert W.shape == (len(points), mesh.n_points)
+    for k in range(len(times)):
+        got = loc.sample(points, "f", step=k)
+        np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-12)
+        np.testing.assert_allclose(W @ mesh.field("f", step=k), want[k], rtol=1e-12, atol=1e-12)
+    # Step 0 is what the mesh holds.
+    np.testing.assert_array_equal(mesh.field("f", step=0), mesh.field("f"))
+    with pytest.raises(ValueError, match="out of range"):
+        mesh.field("f", step=len(times))
+    with pytest.raises(ValueError, match="out of range"):
+        loc.sample(points, "f", step=99)
+    with pytest.raises(TypeError):
+        mesh.field("f", step=1.0)
+
+
+def test_the_three_encodings_hold_the_same_steps(time_dir):
+    meshes = [tetloc.read(time_dir / n) for n in SERIES]
+    for m in meshes[1:]:
+        np.testing.assert_array_equal(m.points64, meshes[0].points64)
+        for k in range(len(m.times)):
+            np.testing.assert_array_equal(m.field("f", step=k), meshes[0].field("f", step=k))
+
+
+def test_a_snapshot_has_no_steps(grid_mesh, data_dir):
+    mesh = tetloc.read(data_dir / "part_s.vtu")
+    assert mesh.times == []
+    with pytest.raises(ValueError, match="no time steps"):
+        mesh.field("f", step=0)
+
+
+def test_weights_equal_sample_on_every_mixed_cell_type(data_dir):
+    for name in ["hexwarp", "hybrid", "prisms"]:
+        mesh = tetloc.read(data_dir / "mixed" / f"{name}.zlib.vtu")
+        points = np.fromfile(data_dir / "mixed" / f"{name}.random.points.bin", dtype=np.float32).reshape(-1, 3)
+        loc = tetloc.Locator(mesh, backend="cpu")
+        W = loc.weights(points)
+        ids, f = loc.locate_and_sample(points, "f")
+        inside = ids >= 0
+        assert inside.sum() > len(points) // 2
+        np.testing.assert_array_equal(W.getnnz(axis=1) > 0, inside)
+        np.testing.assert_allclose((W @ mesh.field("f"))[inside], f[inside], rtol=1e-6, atol=1e-6)
+        # Cell fields need only the ids.
+        np.testing.assert_array_equal(mesh.field("g")[ids[inside]].astype(np.float32), loc.sample(points, "g")[inside])
+
+
+def quadratic_tets(n: int = 3):
+    """Kuhn tets with their 6 edge nodes (VTK's order), moved off the edges (curved), and a
+    field that is not linear."""
+    points, tets = kuhn_grid(n, spacing=1.0 / n)
+    edges = [(0, 1), (1, 2), (0, 2), (0, 3), (1, 3), (2, 3)]
+    mids = {}
+    conn = []
+    pts = [tuple(p) for p in points]
+    for t in tets:
+        row = list(t)
+        for a, b in edges:
+            key = (min(t[a], t[b]), max(t[a], t[b]))
+            if key not in mids:
+                m = (points[t[a]] + points[t[b]]) / 2
+                mids[key] = len(pts)
+                pts.append(tuple(m + 0.02 * np.sin(7 * m)))
+            row.append(mids[key])
+        conn.append(row)
+    pts = np.array(pts)
+    f = np.sin(3 * pts[:, 0]) + pts[:, 1] * pts[:, 2]
+    padded = np.hstack([np.full((len(conn), 1), 10), np.array(conn)]).ravel()  # pyvista's [n, ids...]
+    return tetloc.Mesh(pts, padded, celltypes=np.full(len(conn), 24), point_data={"f": f})
+
+
+def test_weights_equal_sample_on_quadratic_tets():
+    mesh = quadratic_tets()
+    pts = np.random.default_rng(3).uniform(-0.1, 1.1, size=(3000, 3))
+    loc = tetloc.Locator(mesh, backend="cpu")
+    W = loc.weights(pts)
+    ids, f = loc.locate_and_sample(pts, "f")
+    inside = ids >= 0
+    assert W.getnnz(axis=1)[inside].tolist() == [10] * inside.sum()
+    np.testing.assert_allclose((W @ mesh.field("f"))[inside], f[inside], rtol=1e-6, atol=1e-6)
+    assert (W.getnnz(axis=1)[~inside] == 0).all()
+
+
+def test_cli_time_steps(cli, time_dir, oracle, tmp_path):
+    import subprocess
+
+    points, want, times = oracle
+    pts = tmp_path / "p.npy"
+    np.save(pts, points.astype(np.float64))
+    run = lambda *a: subprocess.run([cli, *map(str, a)], capture_output=True, text=True)  # noqa: E731
+    info = run("info", time_dir / "part_s.e", "--json")
+    assert info.returncode == 0, info.stderr
+    assert json.loads(info.stdout)["times"] == times
+    r = run("locate", time_dir / "part_s.e", "--points", pts, "--field", "f", "--out", tmp_path / "o.csv",
+            "--backend", "cpu", "--time-step", "3")
+    assert r.returncode == 0, r.stderr
+    got = np.genfromtxt(tmp_path / "o.csv", delimiter=",", names=True)["f"]
+    np.testing.assert_allclose(got, want[3], rtol=1e-12, atol=1e-12)
+    r = run("probe", time_dir / "part_s.pvd", pts, "-o", tmp_path / "probe.vtp", "--backend", "cpu", "--time-step", "all")
+    assert r.returncode == 0, r.stderr
+    index = (tmp_path / "probe.pvd").read_text()
+    assert all((tmp_path / f"probe_{k}.vtp").exists() and f"probe_{k}.vtp" in index for k in range(len(times)))
+    r = run("locate", time_dir / "part_s.e", "--points", pts, "--out", tmp_path / "x.npy", "--time-step", "6")
+    assert r.returncode != 0 and "out of range" in r.stderr, r.stderr
+    r = run("locate", time_dir.parent / "part_s.vtu", "--points", pts, "--out", tmp_path / "x.npy", "--time-step", "0")
+    assert r.returncode != 0 and "no time steps" in r.stderr, r.stderr
