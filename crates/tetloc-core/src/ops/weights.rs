@@ -15,8 +15,9 @@ use crate::mesh::Mesh;
 use rayon::prelude::*;
 
 /// The weights of a batch of points: `width` entries a point (the most nodes a cell of the
-/// mesh has), padded with node 0 and weight 0; a point outside (or whose cell could not be
-/// inverted) has only zeros and `found == false`.
+/// mesh has), padded with the cell's first node and weight 0 (so a NaN value reaches only the
+/// points whose cells hold it); a point outside (or whose cell could not be inverted) has
+/// only zeros and `found == false`.
 #[derive(Debug, Default)]
 pub struct Weights {
     pub width: usize,
@@ -127,6 +128,7 @@ fn point_weights(mesh: &Mesh, id: usize, p: Point, scratch: &mut Scratch, row: R
     };
     let n = def.n_nodes();
     row.nodes[..n].copy_from_slice(&scratch.nodes);
+    row.nodes[n..].fill(scratch.nodes[0]);
     def.shape_functions(pc, &mut row.w[..n]);
     // dpc/dx: the inverse Jacobian of the corners' linear map (the map the point was located by).
     let linear = def.shape().linear;
