@@ -162,6 +162,11 @@ def test_a_nan_vertex_value_reaches_only_its_cells(data_dir):
     holds_0 = np.array([0 in conn[offsets[c]:offsets[c + 1]] for c in cells])
     assert (~holds_0).sum() > 1000
     np.testing.assert_allclose(values[~holds_0], 1.0)
+    # Outside points have zero gradients whatever the field holds.
+    outside = torch.tensor([[1e3, 1e3, 1e3]], dtype=torch.float64, requires_grad=True)
+    field.requires_grad_(True)
+    loc.sample(outside, field, fill=0.0).sum().backward()
+    assert outside.grad.eq(0).all() and field.grad.eq(0).all()
 
 
 def test_field_gradient_is_the_transposed_interpolation(grid_mesh):
