@@ -15,7 +15,7 @@ type WeightArrays<'py> =
 
 /// The interpolation weights of (K, 3) float64 points (the file's coordinates) in the cells
 /// `ids` (what `locate` answered, -1 outside): W = the most nodes a cell of the mesh has,
-/// padded with node 0 and weight 0; points outside (or in a cell that could not be inverted)
+/// padded with the cell's first node and weight 0; points outside (or in a cell that could not be inverted)
 /// have `found` False and zero weights.
 #[pyfunction]
 pub fn interpolation_weights<'py>(

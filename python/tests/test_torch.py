@@ -4,6 +4,7 @@ for bad tensors. The CUDA counterparts are scripts/h200/torch.sh (python/tests/c
 
 from __future__ import annotations
 
+import math
 import subprocess
 import sys
 from typing import Optional
@@ -145,6 +146,27 @@ def test_the_gpu_tet_weights_are_the_cores(grid_mesh):
     assert torch.autograd.gradcheck(lambda f: loc.sample(p, f, fill=0.0), (field,), fast_mode=True)
     loc.sample(p, field).sum().backward()
     assert torch.isfinite(p.grad).all()
+
+
+def test_a_nan_vertex_value_reaches_only_its_cells(data_dir):
+    """Rows are padded to the widest cell (8 nodes of a hex) with weight 0: a NaN elsewhere
+    must not leak into the padding of smaller cells."""
+    mesh = tetloc.read(data_dir / "mixed" / "hybrid.zlib.vtu")
+    loc = tt.Locator(mesh, backend="cpu")
+    points = torch.from_numpy(cell_points(mesh, 2000, seed=2))
+    cells = loc.locate(points).numpy()
+    field = torch.ones(mesh.n_points, dtype=torch.float64)
+    field[0] = math.nan
+    values = loc.sample(points, field).numpy()
+    conn, offsets = mesh.cell_connectivity, mesh.offsets
+    holds_0 = np.array([0 in conn[offsets[c]:offsets[c + 1]] for c in cells])
+    assert (~holds_0).sum() > 1000
+    np.testing.assert_allclose(values[~holds_0], 1.0)
+    # Outside points have zero gradients whatever the field holds.
+    outside = torch.tensor([[1e3, 1e3, 1e3]], dtype=torch.float64, requires_grad=True)
+    field.requires_grad_(True)
+    loc.sample(outside, field, fill=0.0).sum().backward()
+    assert outside.grad.eq(0).all() and field.grad.eq(0).all()
 
 
 def test_field_gradient_is_the_transposed_interpolation(grid_mesh):

@@ -87,6 +87,8 @@ class _Sample(torch.autograd.Function):
             # ∂out_k/∂x_c = Σ_j ∇w_j[c] · field[node_j, k], contracted with grad over k.
             along = (field[nodes] * grad.unsqueeze(1)).sum(-1)  # (K, W)
             grad_points = (gradients * along.unsqueeze(-1)).sum(1)
+            # Outside, a NaN field value at a padding node must not make 0 · NaN.
+            grad_points = torch.where(inside.unsqueeze(-1), grad_points, torch.zeros_like(grad_points))
         if ctx.needs_input_grad[1]:
             spread = weights.unsqueeze(-1) * grad.unsqueeze(1)  # (K, W, k)
             grad_field = torch.zeros_like(field).index_add_(0, nodes.reshape(-1), spread.reshape(-1, field.shape[1]))

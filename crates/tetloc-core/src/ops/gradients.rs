@@ -15,8 +15,9 @@ use crate::mesh::Mesh;
 use rayon::prelude::*;
 
 /// The weights of a batch of points: `width` entries a point (the most nodes a cell of the
-/// mesh has), padded with node 0 and weight 0; a point outside (or whose cell could not be
-/// inverted) has only zeros and `found == false`.
+/// mesh has), padded with the cell's first node and weight 0 (so a NaN value reaches only the
+/// points whose cells hold it); a point outside (or whose cell could not be inverted) has
+/// only zeros and `found == false`.
 #[derive(Debug, Default)]
 pub struct Weights {
     pub width: usize,
@@ -127,6 +128,7 @@ fn point_weights(mesh: &Mesh, id: usize, p: Point, scratch: &mut Scratch, row: R
     };
     let n = def.n_nodes();
     row.nodes[..n].copy_from_slice(&scratch.nodes);
+    row.nodes[n..].fill(scratch.nodes[0]);
     def.shape_functions(pc, &mut row.w[..n]);
     // dpc/dx: the inverse Jacobian of the corners' linear map (the map the point was located by).
     let linear = def.shape().linear;
@@ -250,6 +252,39 @@ mod tests {
         let hybrid = Mesh::new(generate_spec(spec, 3000, 1, &|_| {}), "jets-hybrid").expect("mesh");
         assert!(width(&hybrid) >= 8);
         check_gradients(&hybrid, |v| (v as f64 * 0.37).sin(), 7);
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(16))]
+        /// The maps are isoparametric: interpolating the vertices' own coordinates gives the
+        /// point back, and its gradient is the identity, in jittered tets and trilinear hexes.
+        #[test]
+        fn coordinates_interpolate_to_the_point_with_the_identity_gradient(
+            seed in 0u64..1000, jitter in 0.0f32..0.3, hexes in proptest::bool::ANY,
+        ) {
+            let mesh = if hexes {
+                let spec = Spec { shape: Shape::Jets, cells: CellKind::Hexes };
+                Mesh::new(generate_spec(spec, 300, seed, &|_| {}), "jets-hex").expect("mesh")
+            } else {
+                grid_mesh(3, jitter, seed)
+            };
+            let (points, ids) = centres(&mesh, 5);
+            let w = weights(&mesh, &points, &ids);
+            for (i, p) in points.iter().enumerate() {
+                proptest::prop_assert!(w.found[i]);
+                for (c, &pc) in p.iter().enumerate() {
+                    let coordinate = |v: usize| mesh.vertex64(v as u32)[c];
+                    proptest::prop_assert!((value(&w, i, &coordinate) - pc).abs() < 1e-9 * (1.0 + pc.abs()));
+                    for k in 0..3 {
+                        let d: f64 = (0..w.width)
+                            .map(|j| w.gradients[i * w.width + j][k] * coordinate(w.nodes[i * w.width + j] as usize))
+                            .sum();
+                        let identity = if c == k { 1.0 } else { 0.0 };
+                        proptest::prop_assert!((d - identity).abs() < 1e-7, "∂x{c}/∂x{k} = {d}");
+                    }
+                }
+            }
+        }
     }
 
     #[test]
