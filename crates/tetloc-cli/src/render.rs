@@ -45,7 +45,7 @@ pub struct RenderArgs {
     /// Sampling step in mesh units (default: the mean tet size).
     #[arg(long)]
     step: Option<String>,
-    /// viridis, plasma, coolwarm, grayscale, or a ParaView preset FILE.json[#NAME].
+    /// viridis (the default), plasma, coolwarm, grayscale, or a ParaView preset FILE.json[#NAME].
     #[arg(long)]
     tf: Option<String>,
     /// Value range LO,HI of the transfer function (default: the field's range).

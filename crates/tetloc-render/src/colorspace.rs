@@ -30,17 +30,6 @@ impl ColorSpace {
             _ => None,
         }
     }
-
-    /// The ParaView name, which [`Self::from_paraview`] reads back.
-    pub fn name(self) -> &'static str {
-        match self {
-            ColorSpace::Rgb => "RGB",
-            ColorSpace::Hsv => "HSV",
-            ColorSpace::Lab => "Lab",
-            ColorSpace::Diverging => "Diverging",
-            ColorSpace::Step => "Step",
-        }
-    }
 }
 
 /// sRGB colour between `a` (f = 0) and `b` (f = 1).

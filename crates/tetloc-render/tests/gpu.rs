@@ -207,16 +207,16 @@ fn gpu_srgb8_frames_and_retargeting() {
     let mesh = Arc::new(testmesh::torus(10, 3));
     let opts = RenderOptions { width: 64, height: 48, background: [0.2, 0.4, 0.1], ..Default::default() };
     let with_surface = RenderOptions { surface: Some(SurfaceSpec::Boundary), opacity: 20.0, ..opts.clone() };
-    for opts in [&opts, &with_surface] {
+    for (kernel, opts) in kernels(&ctx).into_iter().flat_map(|k| [(k, &opts), (k, &with_surface)]) {
         let r = Renderer::new(mesh.clone(), "f", opts).unwrap();
-        let mut m = gpu_marcher(&ctx, &mesh, Kernel::SoftBvh, &r);
+        let mut m = gpu_marcher(&ctx, &mesh, kernel, &r);
         let cam = r.camera(0);
         let host = r.render(&mut m, &cam).unwrap().0.to_srgb8();
         let (rgba, stats) = m.march_srgb8(&r, &cam).unwrap();
         assert!(stats.gpu_seconds > 0.0);
         let device: Vec<u8> = rgba.iter().flat_map(|p| p.to_le_bytes()[..3].to_vec()).collect();
         let worst = host.iter().zip(&device).map(|(a, b)| a.abs_diff(*b)).max().unwrap();
-        assert!(worst <= 1, "8-bit frames on the GPU differ from the host's encoding by {worst} levels");
+        assert!(worst <= 1, "{kernel}: 8-bit frames on the GPU differ from the host's encoding by {worst} levels");
         assert!(rgba.iter().all(|p| p >> 24 == 255), "opaque");
     }
     // Retargeting: another colormap, range and step, same field.

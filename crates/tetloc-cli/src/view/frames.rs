@@ -7,8 +7,35 @@ use std::sync::{Arc, Condvar, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 use tetloc_render as tr;
 
-/// JPEG quality of frames while the view moves.
+/// JPEG quality of frames while the view moves: it starts here and follows the bytes a
+/// frame takes ([`JpegQuality`]).
 const JPEG_QUALITY: u8 = 80;
+const JPEG_QUALITY_RANGE: (u8, u8) = (40, 90);
+/// Bytes a moving frame may take per megapixel (about 60 MB/s at 60 frames/s of 1024²:
+/// loopback, an SSH tunnel or a LAN carries it; a slower link still gets the newest frame).
+const JPEG_BYTES_PER_MEGAPIXEL: f64 = 1.0e6;
+
+/// The quality of moving frames: lower when frames take more than their byte budget, higher
+/// when they take less than half of it, 5 steps at a time.
+pub struct JpegQuality(u8);
+
+impl JpegQuality {
+    pub fn new() -> JpegQuality {
+        JpegQuality(JPEG_QUALITY)
+    }
+    pub fn get(&self) -> u8 {
+        self.0
+    }
+    pub fn update(&mut self, bytes: usize, pixels: usize) {
+        let budget = JPEG_BYTES_PER_MEGAPIXEL * pixels as f64 / 1e6;
+        let (lo, hi) = JPEG_QUALITY_RANGE;
+        if bytes as f64 > budget {
+            self.0 = self.0.saturating_sub(5).max(lo);
+        } else if (bytes as f64) < 0.5 * budget {
+            self.0 = (self.0 + 5).min(hi);
+        }
+    }
+}
 
 /// What clients asked for.
 pub struct Input {
@@ -159,46 +186,55 @@ impl Hub {
 pub fn spawn_encoder(hub: Arc<Hub>) {
     std::thread::Builder::new()
         .name("view-encode".into())
-        .spawn(move || loop {
-            let raw = {
-                let mut slot = lock(&hub.raw);
-                loop {
-                    if let Some(f) = slot.take() {
-                        break f;
+        .spawn(move || {
+            let mut quality = JpegQuality::new();
+            loop {
+                let raw = {
+                    let mut slot = lock(&hub.raw);
+                    loop {
+                        if let Some(f) = slot.take() {
+                            break f;
+                        }
+                        slot = hub.raw_ready.wait(slot).unwrap_or_else(|e| e.into_inner());
                     }
-                    slot = hub.raw_ready.wait(slot).unwrap_or_else(|e| e.into_inner());
+                };
+                let seq = lock(&hub.out).seq + 1;
+                let enc = match encode(&raw, seq, quality.get()) {
+                    Ok(e) => {
+                        if !e.still {
+                            quality.update(e.image().len(), raw.width as usize * raw.height as usize);
+                        }
+                        Arc::new(e)
+                    }
+                    Err(e) => {
+                        eprintln!("warning: view: cannot encode a frame: {e}");
+                        continue;
+                    }
+                };
+                let mut out = lock(&hub.out);
+                out.seq = seq;
+                if enc.still {
+                    out.still = Some(enc.clone());
                 }
-            };
-            let seq = lock(&hub.out).seq + 1;
-            let enc = match encode(&raw, seq) {
-                Ok(e) => Arc::new(e),
-                Err(e) => {
-                    eprintln!("warning: view: cannot encode a frame: {e}");
-                    continue;
-                }
-            };
-            let mut out = lock(&hub.out);
-            out.seq = seq;
-            if enc.still {
-                out.still = Some(enc.clone());
+                out.latest = Some(enc);
+                drop(out);
+                hub.out_ready.notify_all();
             }
-            out.latest = Some(enc);
-            drop(out);
-            hub.out_ready.notify_all();
         })
         .expect("spawning the encode thread");
 }
 
-/// Encodes a frame: PNG when still (lossless), JPEG while moving.
-pub fn encode(raw: &RawFrame, seq: u64) -> anyhow::Result<Encoded> {
+/// Encodes a frame: PNG when still (lossless), JPEG of `quality` while moving.
+pub fn encode(raw: &RawFrame, seq: u64, quality: u8) -> anyhow::Result<Encoded> {
     let t = Instant::now();
-    let image = if raw.still { png(raw)? } else { jpeg(raw)? };
+    let image = if raw.still { png(raw)? } else { jpeg(raw, quality)? };
     let encode_ms = t.elapsed().as_secs_f64() * 1e3;
     let header = serde_json::json!({
         "seq": seq,
         "gen": raw.gen,
         "still": raw.still,
         "format": if raw.still { "png" } else { "jpeg" },
+        "quality": if raw.still { 100 } else { quality },
         "width": raw.width,
         "height": raw.height,
         "march_ms": raw.march_ms,
@@ -232,12 +268,12 @@ fn png(raw: &RawFrame) -> anyhow::Result<Vec<u8>> {
     Ok(out)
 }
 
-fn jpeg(raw: &RawFrame) -> anyhow::Result<Vec<u8>> {
+fn jpeg(raw: &RawFrame, quality: u8) -> anyhow::Result<Vec<u8>> {
     let (Ok(w), Ok(h)) = (u16::try_from(raw.width), u16::try_from(raw.height)) else {
         anyhow::bail!("a {}x{} frame is too large for JPEG", raw.width, raw.height);
     };
     let mut out = Vec::new();
-    jpeg_encoder::Encoder::new(&mut out, JPEG_QUALITY).encode(&raw.rgb, w, h, jpeg_encoder::ColorType::Rgb)?;
+    jpeg_encoder::Encoder::new(&mut out, quality).encode(&raw.rgb, w, h, jpeg_encoder::ColorType::Rgb)?;
     Ok(out)
 }
 
@@ -267,7 +303,7 @@ mod tests {
     #[test]
     fn stills_are_lossless_png_and_moving_frames_jpeg() {
         let f = raw(true);
-        let e = encode(&f, 7).unwrap();
+        let e = encode(&f, 7, 80).unwrap();
         let n = u32::from_le_bytes(e.message[..4].try_into().unwrap()) as usize;
         let header: serde_json::Value = serde_json::from_slice(&e.message[4..4 + n]).unwrap();
         assert_eq!((header["seq"].as_u64(), header["format"].as_str()), (Some(7), Some("png")));
@@ -276,10 +312,28 @@ mod tests {
         let mut buf = vec![0; r.output_buffer_size()];
         r.next_frame(&mut buf).unwrap();
         assert_eq!(buf, f.rgb, "a still frame is lossless");
-        let m = encode(&raw(false), 8).unwrap();
+        let m = encode(&raw(false), 8, 80).unwrap();
         let mut d = jpeg_decoder::Decoder::new(std::io::Cursor::new(m.image()));
         let px = d.decode().unwrap();
         assert_eq!(px.len(), f.rgb.len());
+    }
+
+    #[test]
+    fn jpeg_quality_follows_the_byte_budget() {
+        let mut q = JpegQuality::new();
+        let mp = 1_000_000;
+        q.update(3 * JPEG_BYTES_PER_MEGAPIXEL as usize, mp);
+        assert_eq!(q.get(), JPEG_QUALITY - 5, "over budget: lower");
+        for _ in 0..100 {
+            q.update(3 * JPEG_BYTES_PER_MEGAPIXEL as usize, mp);
+        }
+        assert_eq!(q.get(), JPEG_QUALITY_RANGE.0);
+        q.update((0.7 * JPEG_BYTES_PER_MEGAPIXEL) as usize, mp);
+        assert_eq!(q.get(), JPEG_QUALITY_RANGE.0, "within budget: kept");
+        for _ in 0..100 {
+            q.update(1000, mp);
+        }
+        assert_eq!(q.get(), JPEG_QUALITY_RANGE.1);
     }
 
     #[test]

@@ -17,7 +17,7 @@ const QUIET: Duration = Duration::from_millis(80);
 /// Frame time the size of moving frames adapts to (60 frames/s, with room for encoding).
 const TARGET_MS: f64 = 14.0;
 /// Smallest fraction of the still size a moving frame is rendered at, per side.
-const MIN_SCALE: f64 = 0.25;
+const MIN_SCALE: f64 = 0.125;
 
 pub struct Scene {
     mesh: Arc<Mesh>,
@@ -213,12 +213,13 @@ fn render_loop(scene: &mut Scene, hub: &Hub) {
         };
         let march_ms = t.elapsed().as_secs_f64() * 1e3;
         if !still {
-            // Moving frames: smaller when slow, back up when fast (about √2 a side per frame).
-            if march_ms > 2.0 * TARGET_MS {
-                scale = (scale / 2f64.sqrt()).max(MIN_SCALE);
-            } else if march_ms < 0.5 * TARGET_MS {
-                scale = (scale * 2f64.sqrt()).min(1.0);
-            }
+            // Moving frames: the size whose march would take the target time (a frame's time
+            // goes with its pixels, the square of the scale), within a factor 2 a frame.
+            let want = scale * (TARGET_MS / march_ms.max(1e-3)).sqrt();
+            scale = want.clamp(scale / 2.0, scale * 2.0).clamp(MIN_SCALE, 1.0);
+        } else {
+            // The next drag starts at the size a still frame's time suggests.
+            scale = (TARGET_MS / march_ms.max(1e-3)).sqrt().clamp(MIN_SCALE, 1.0);
         }
         rendered = gen;
         if still {
