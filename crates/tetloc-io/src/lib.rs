@@ -5,6 +5,8 @@
 pub(crate) mod cursor;
 pub mod gmsh;
 pub mod image;
+/// OpenFOAM cases (`constant/polyMesh` and a time's cell fields).
+pub mod openfoam;
 pub mod ops_output;
 pub mod output;
 pub mod partition;
@@ -35,9 +37,11 @@ pub enum MeshFormat {
     Gmsh,
     /// TetGen `.node` + `.ele` (either file may be named).
     TetGen,
+    /// An OpenFOAM case: its `NAME.foam` file or its folder.
+    OpenFoam,
 }
 
-pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele";
+pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele, foam (or an OpenFOAM case folder)";
 
 impl MeshFormat {
     pub fn from_name(name: &str) -> Option<MeshFormat> {
@@ -47,11 +51,15 @@ impl MeshFormat {
             "vtk" => Some(MeshFormat::VtkLegacy),
             "msh" | "gmsh" => Some(MeshFormat::Gmsh),
             "node" | "ele" | "tetgen" => Some(MeshFormat::TetGen),
+            "foam" | "openfoam" => Some(MeshFormat::OpenFoam),
             _ => None,
         }
     }
 
     pub fn from_path(path: &Path) -> Result<MeshFormat> {
+        if path.is_dir() && openfoam::is_case(path) {
+            return Ok(MeshFormat::OpenFoam);
+        }
         path.extension()
             .and_then(|e| e.to_str())
             .and_then(MeshFormat::from_name)
@@ -76,6 +84,7 @@ pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
     match format.or_else(|| MeshFormat::from_path(path).ok()) {
         Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
         Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
+        Some(MeshFormat::OpenFoam) => openfoam::files_read(path),
         _ => vec![path.to_path_buf()],
     }
 }
@@ -193,7 +202,7 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         Some(f) => f,
         None => MeshFormat::from_path(path)?,
     };
-    if format != MeshFormat::TetGen {
+    if !matches!(format, MeshFormat::TetGen | MeshFormat::OpenFoam) {
         check_fits_in_memory(path)?;
     }
     let regular = std::fs::metadata(path).map_or(true, |m| m.is_file());
@@ -208,6 +217,7 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         MeshFormat::VtkLegacy => vtk::legacy::read(path),
         MeshFormat::Gmsh => gmsh::read(path),
         MeshFormat::TetGen => tetgen::read(path),
+        MeshFormat::OpenFoam => openfoam::read(path),
     }
 }
 

@@ -13,6 +13,9 @@ mod kuhn;
 pub(crate) mod mixed;
 // Shared whole with tetloc-testdata.
 #[allow(dead_code)]
+pub(crate) mod poly;
+// Shared whole with tetloc-testdata.
+#[allow(dead_code)]
 pub(crate) mod slivers;
 
 pub(crate) use data_dir::require_data;
@@ -21,7 +24,7 @@ pub(crate) use kuhn::KuhnGrid;
 pub(crate) use query_sets::{query_sets, utm_sets, QuerySet};
 
 // What kuhn.rs takes from its includer.
-use crate::cell::{barycentric_lattice, CellBlock, CellType};
+use crate::cell::{barycentric_lattice, CellBlock, CellType, PolyFaces};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
 // What mixed.rs takes from its includer.
@@ -43,7 +46,14 @@ pub(crate) fn read_raw(path: &std::path::Path, format: Option<tetloc_io::MeshFor
         .collect();
     let cells = raw.cells.map(|b| {
         let type_of = |t: String| CellType::all().find(|c| format!("{c:?}") == t).expect("the same cell table");
-        CellBlock { types: b.types.iter().map(|t| type_of(format!("{t:?}"))).collect(), ends: b.ends, conn: b.conn }
+        let p = b.polyhedra;
+        let polyhedra = PolyFaces { cells: p.cells, cell_ends: p.cell_ends, face_ends: p.face_ends, points: p.points };
+        CellBlock {
+            types: b.types.iter().map(|t| type_of(format!("{t:?}"))).collect(),
+            ends: b.ends,
+            conn: b.conn,
+            polyhedra,
+        }
     });
     Ok(RawMesh {
         points: raw.points,

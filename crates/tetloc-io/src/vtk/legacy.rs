@@ -12,6 +12,7 @@ use super::num::{self, Array, NumType};
 use crate::cursor::Cursor;
 use std::borrow::Cow;
 use std::path::Path;
+use tetloc_core::cell::PolyFaces;
 use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{Field, FieldLocation, RawMesh};
 
@@ -172,6 +173,8 @@ impl Grid<'_> {
         let bad_id = |arr: &Array, i: usize, what: &str| {
             fail(format!("{what}: value {i} ({}) is not a point id (the file has {n_points} points)", arr.show(i)))
         };
+        // Legacy files (≤ 4.2) give a polyhedron's face stream in place of its points.
+        let mut polyhedra = PolyFaces::default();
         let (ends, conn) = match cells {
             Cells::List(list) => {
                 let v = num::map_ints(&list, |v| u32::try_from(v).ok())
@@ -184,6 +187,16 @@ impl Grid<'_> {
                     let ids = v.get(pos + 1..pos + 1 + k).ok_or_else(|| {
                         fail(format!("CELLS: cell {} claims {k} points, past the end of the list", ends.len()))
                     })?;
+                    if types.get(ends.len()) == Some(&cells::POLYHEDRON) {
+                        let stream: Vec<i64> = ids.iter().map(|&v| i64::from(v)).collect();
+                        let one = cells::faces_from_stream(&[cells::POLYHEDRON], &stream, n_points)
+                            .map_err(|m| fail(format!("CELLS: cell {}: {m}", ends.len())))?;
+                        polyhedra.append(&one, ends.len() as u32, 0);
+                        conn.extend(tetloc_core::cell::polyhedron::distinct_points(one.faces(0)));
+                        ends.push(conn.len() as u64);
+                        pos += 1 + k;
+                        continue;
+                    }
                     if let Some(&id) = ids.iter().find(|&&id| id as usize >= n_points) {
                         return Err(fail(format!(
                             "CELLS: cell {} uses point {id}, but the file has {n_points} points",
@@ -211,7 +224,7 @@ impl Grid<'_> {
                 (ends, conn)
             }
         };
-        let ex = cells::extract(&types, &ends, conn).map_err(fail)?;
+        let ex = cells::extract(&types, &ends, conn, Some(&polyhedra)).map_err(fail)?;
         if ex.unsupported {
             return Err(cells::non_tet_error(path, &ex.other));
         }
