@@ -336,18 +336,8 @@ mod tests {
     /// A unit cube as a polyhedron (points 0..8 as the hex's corners), its top face split in
     /// two by an extra edge midpoint pair (points 8, 9) to give 5-point faces.
     fn cube() -> (Vec<[f64; 3]>, Vec<Vec<u32>>) {
-        let pts = vec![
-            [0.0, 0.0, 0.0],
-            [1.0, 0.0, 0.0],
-            [1.0, 1.0, 0.0],
-            [0.0, 1.0, 0.0],
-            [0.0, 0.0, 1.0],
-            [1.0, 0.0, 1.0],
-            [1.0, 1.0, 1.0],
-            [0.0, 1.0, 1.0],
-            [0.5, 0.0, 1.0],
-            [0.5, 1.0, 1.0],
-        ];
+        let mut pts = super::super::hex::SHAPE.corners.to_vec();
+        pts.extend([[0.5, 0.0, 1.0], [0.5, 1.0, 1.0]]);
         let faces = vec![
             vec![0, 3, 2, 1],
             vec![4, 8, 9, 7],

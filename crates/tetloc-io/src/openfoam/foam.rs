@@ -31,17 +31,7 @@ impl Foam {
         if f.word()? != "FoamFile" {
             return Err("no FoamFile header: not an OpenFOAM file".into());
         }
-        f.expect(b'{')?;
-        loop {
-            f.skip_space();
-            if f.peek() == Some(b'}') {
-                f.pos += 1;
-                break;
-            }
-            let key = f.word()?;
-            let value = f.until_semicolon()?;
-            f.header.insert(key, value.trim().trim_matches('"').to_string());
-        }
+        f.header = f.dictionary()?.into_iter().map(|(k, v)| (k, v.trim_matches('"').to_string())).collect();
         f.binary = f.header.get("format").is_some_and(|v| v == "binary");
         if let Some(arch) = f.header.get("arch") {
             for part in arch.split(';') {
@@ -169,6 +159,21 @@ impl Foam {
             }
         }
         Ok(false)
+    }
+
+    /// A flat dictionary `{ key value; ... }`: its entries, values trimmed.
+    fn dictionary(&mut self) -> R<BTreeMap<String, String>> {
+        self.expect(b'{')?;
+        let mut entries = BTreeMap::new();
+        loop {
+            self.skip_space();
+            if self.peek() == Some(b'}') {
+                self.pos += 1;
+                return Ok(entries);
+            }
+            let key = self.word()?;
+            entries.insert(key, self.until_semicolon()?.trim().to_string());
+        }
     }
 
     /// A list's length, and whether it is given as `N{value}` (every entry the same).
@@ -315,17 +320,7 @@ impl Foam {
         let mut out = Vec::with_capacity(n);
         for _ in 0..n {
             let name = self.word()?;
-            self.expect(b'{')?;
-            let mut entries = BTreeMap::new();
-            loop {
-                self.skip_space();
-                if self.peek() == Some(b'}') {
-                    self.pos += 1;
-                    break;
-                }
-                let key = self.word()?;
-                entries.insert(key, self.until_semicolon()?.trim().to_string());
-            }
+            let entries = self.dictionary()?;
             let int = |k: &str| -> R<usize> {
                 entries
                     .get(k)

@@ -354,28 +354,7 @@ fn read_field(path: &Path, n_cells: usize) -> Result<Vec<Field>> {
             ),
         ));
     };
-    let fail = |m: String| Error::format(path, m);
-    if !f.seek_entry("internalField").map_err(fail)? {
-        return Err(fail("no internalField".into()));
-    }
-    let values = match f.word().map_err(fail)?.as_str() {
-        "uniform" => {
-            let v = f.value(k, "internalField").map_err(fail)?;
-            (0..n_cells).flat_map(|_| v.iter().copied()).collect()
-        }
-        "nonuniform" => {
-            f.word().map_err(fail)?; // List<scalar>, List<vector>, ...
-            let v = f.values(k, "internalField").map_err(fail)?;
-            if v.len() != n_cells * k {
-                return Err(fail(format!(
-                    "internalField has {} values, expected {n_cells} (one per cell)",
-                    v.len() / k
-                )));
-            }
-            v
-        }
-        other => return Err(fail(format!("internalField is '{other}', not uniform or nonuniform"))),
-    };
+    let values = internal_field(&mut f, k, Some(n_cells)).map_err(|m| Error::format(path, m))?;
     Ok((0..k)
         .map(|c| {
             let v: Vec<f64> = values.iter().skip(c).step_by(k).copied().collect();
@@ -383,6 +362,47 @@ fn read_field(path: &Path, n_cells: usize) -> Result<Vec<Field>> {
             Field::from_f64(name, FieldLocation::Cell, v)
         })
         .collect())
+}
+
+/// A field file's `internalField`: `k` components a cell, `n_cells` of them (`None`: as many
+/// as a nonuniform list holds, one for a uniform value).
+fn internal_field(f: &mut Foam, k: usize, n_cells: Option<usize>) -> std::result::Result<Vec<f64>, String> {
+    if !f.seek_entry("internalField")? {
+        return Err("no internalField".into());
+    }
+    match f.word()?.as_str() {
+        "uniform" => {
+            let v = f.value(k, "internalField")?;
+            Ok((0..n_cells.unwrap_or(1)).flat_map(|_| v.iter().copied()).collect())
+        }
+        "nonuniform" => {
+            f.word()?; // List<scalar>, List<vector>, ...
+            let v = f.values(k, "internalField")?;
+            match n_cells {
+                Some(n) if v.len() != n * k => {
+                    Err(format!("internalField has {} values, expected {n} (one per cell)", v.len() / k))
+                }
+                _ => Ok(v),
+            }
+        }
+        other => Err(format!("internalField is '{other}', not uniform or nonuniform")),
+    }
+}
+
+/// Parses one OpenFOAM file as the case reader would, by its class (points, faces, owner or
+/// neighbour, boundary, a cell field): how many entries it holds. The fuzz target's entry.
+pub fn parse_file(bytes: &[u8]) -> std::result::Result<usize, String> {
+    let mut f = Foam::new(bytes.to_vec())?;
+    match f.class() {
+        "faceList" | "faceCompactList" => Ok(f.faces()?.0.len()),
+        "labelList" => Ok(f.labels("labels")?.len()),
+        "vectorField" => Ok(f.values(3, "points")?.len() / 3),
+        "polyBoundaryMesh" => Ok(f.patches()?.len()),
+        class => match VOL_FIELDS.iter().find(|c| c.0 == class) {
+            Some(&(_, k)) => Ok(internal_field(&mut f, k, None)?.len() / k),
+            None => Err(format!("class '{class}'")),
+        },
+    }
 }
 
 #[cfg(test)]
