@@ -41,6 +41,11 @@ pub fn pieces(data: &[u8]) {
     }
 }
 
+/// One file of an OpenFOAM case (points, faces, owner, neighbour, boundary, a field).
+pub fn openfoam(data: &[u8]) {
+    let _ = tetloc_io::openfoam::parse_file(data);
+}
+
 /// The input is the .node file, a NUL byte, then the .ele file (no NUL: an empty .ele).
 /// Exodus II: netCDF classic and netCDF-4 (HDF5) bytes.
 pub fn exodus(data: &[u8]) {
@@ -115,6 +120,21 @@ mod tests {
         run(vtu, &vtus);
         run(vtk_legacy, &vtks);
         run_made_here(&msh, &vtus);
+    }
+
+    /// The OpenFOAM case of `poly/`: each of its files.
+    #[test]
+    fn openfoam_target_survives_the_case_files() {
+        let Some(dir) = tetloc_testdata::require_data("openfoam_target_survives_the_case_files") else { return };
+        let case = dir.join("poly/octpoly_s_case");
+        let files: Vec<PathBuf> = ["constant/polyMesh/points", "constant/polyMesh/faces", "constant/polyMesh/owner", "constant/polyMesh/boundary", "1/lin"]
+            .iter()
+            .map(|f| case.join(f))
+            .collect();
+        for f in &files {
+            assert!(tetloc_io::openfoam::parse_file(&std::fs::read(f).unwrap()).unwrap() > 0, "{}", f.display());
+        }
+        run(openfoam, &files);
     }
 
     #[test]

@@ -542,6 +542,9 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
         println!("  cells       {}: {}", i.n_cells, types.join(", "));
         println!("  tets        {} (the cells' conforming decomposition, located in)", i.n_tets);
         println!("  warped      {} cells with a non-planar quad face", i.n_warped_cells);
+        if let Some(n) = i.cell_types.get("polyhedron") {
+            println!("  polyhedra   {n} cells with {} faces; {} centroids added", i.n_polyhedron_faces, i.n_centroids);
+        }
     } else {
         println!("  tets        {}", i.n_tets);
     }

@@ -74,6 +74,8 @@ pub fn generate(spec: impl Into<Spec>, n: usize, seed: u64) -> Result<Mesh> {
         CellKind::Hexes => 7,
         CellKind::Wedges => 4,
         CellKind::Hybrid => 5,
+        // Hexes (7) and polyhedra (about 30 tets each, and their centroids).
+        CellKind::Octree => 10,
     };
     limits::check_memory(
         &format!("{spec}:{n}: {n} generated cells"),

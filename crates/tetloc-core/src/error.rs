@@ -17,7 +17,7 @@ pub enum Error {
     UnknownFormat { path: PathBuf, known: &'static str },
 
     /// Volume cells tetloc does not read: we count them by type instead of dropping them.
-    #[error("{path}: the mesh has volume cells that tetloc does not read ({}); tetloc reads tetrahedra, pyramids, wedges and hexahedra (linear, quadratic and Lagrange)", fmt_counts(.counts))]
+    #[error("{path}: the mesh has volume cells that tetloc does not read ({}); tetloc reads tetrahedra, pyramids, wedges and hexahedra (linear, quadratic and Lagrange) and polyhedra", fmt_counts(.counts))]
     NonTetCells { path: PathBuf, counts: Vec<(String, usize)> },
 
     /// The mesh itself is unusable (empty, indices out of range, NaN coordinates, ...).

@@ -132,7 +132,15 @@ pub fn piece_with_points(mesh: &Mesh, cells: &[u32], name: &str) -> Result<(Mesh
     let remap = |ids: &[u32]| ids.iter().map(|&i| local[i as usize]).collect::<Vec<u32>>();
     let cell_block = block.as_ref().map(|b| {
         let mut out = CellBlock::default();
-        cells.iter().for_each(|&c| out.push(b.types[c as usize], &remap(b.nodes(c as usize))));
+        for &c in cells {
+            match b.faces_of(c as usize) {
+                Some(faces) => {
+                    let faces: Vec<Vec<u32>> = faces.map(remap).collect();
+                    out.push_polyhedron(faces.iter().map(Vec::as_slice));
+                }
+                None => out.push(b.types[c as usize], &remap(b.nodes(c as usize))),
+            }
+        }
         out
     });
     // The piece's own order: a piece of a mixed mesh may hold only its linear cells.

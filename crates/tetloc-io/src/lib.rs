@@ -6,6 +6,8 @@ pub(crate) mod cursor;
 pub mod exodus;
 pub mod gmsh;
 pub mod image;
+/// OpenFOAM cases (`constant/polyMesh` and a time's cell fields).
+pub mod openfoam;
 pub mod ops_output;
 pub mod output;
 pub mod partition;
@@ -39,9 +41,11 @@ pub enum MeshFormat {
     Exodus,
     /// ParaView's collection of time steps (`.pvd`) of unstructured grids.
     Pvd,
+    /// An OpenFOAM case: its `NAME.foam` file or its folder.
+    OpenFoam,
 }
 
-pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele, e/exo/ex2, pvd";
+pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele, e/exo/ex2, pvd, foam (or an OpenFOAM case folder)";
 
 impl MeshFormat {
     pub fn from_name(name: &str) -> Option<MeshFormat> {
@@ -53,11 +57,15 @@ impl MeshFormat {
             "node" | "ele" | "tetgen" => Some(MeshFormat::TetGen),
             "e" | "exo" | "ex2" | "exodus" => Some(MeshFormat::Exodus),
             "pvd" => Some(MeshFormat::Pvd),
+            "foam" | "openfoam" => Some(MeshFormat::OpenFoam),
             _ => None,
         }
     }
 
     pub fn from_path(path: &Path) -> Result<MeshFormat> {
+        if path.is_dir() && openfoam::is_case(path) {
+            return Ok(MeshFormat::OpenFoam);
+        }
         path.extension()
             .and_then(|e| e.to_str())
             .and_then(MeshFormat::from_name)
@@ -83,6 +91,7 @@ pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
         Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
         Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
         Some(MeshFormat::Pvd) => vtk::pvd::files_read(path),
+        Some(MeshFormat::OpenFoam) => openfoam::files_read(path),
         _ => vec![path.to_path_buf()],
     }
 }
@@ -200,7 +209,7 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         Some(f) => f,
         None => MeshFormat::from_path(path)?,
     };
-    if !matches!(format, MeshFormat::TetGen | MeshFormat::Pvd) {
+    if !matches!(format, MeshFormat::TetGen | MeshFormat::Pvd | MeshFormat::OpenFoam) {
         check_fits_in_memory(path)?;
     }
     let regular = std::fs::metadata(path).map_or(true, |m| m.is_file());
@@ -217,6 +226,7 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         MeshFormat::TetGen => tetgen::read(path),
         MeshFormat::Exodus => exodus::read(path),
         MeshFormat::Pvd => vtk::pvd::read(path, options),
+        MeshFormat::OpenFoam => openfoam::read(path),
     }
 }
 

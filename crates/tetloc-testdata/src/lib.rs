@@ -25,6 +25,8 @@ mod generated;
 mod kuhn;
 #[path = "../../tetloc-core/src/test_support/mixed.rs"]
 pub mod mixed;
+#[path = "../../tetloc-core/src/test_support/poly.rs"]
+pub mod poly;
 #[path = "../../tetloc-core/src/test_support/query_sets.rs"]
 mod query_sets;
 #[path = "../../tetloc-core/src/test_support/slivers.rs"]

@@ -60,6 +60,7 @@ mod hex;
 mod lagrange_hex;
 mod lagrange_tet;
 mod lagrange_wedge;
+pub mod polyhedron;
 mod pyramid;
 mod quadratic_hex;
 mod quadratic_pyramid;
@@ -80,6 +81,7 @@ pub use decompose::{
     classify_face, classify_quad, decompose, face_split, tet_faces, warped_faces, Decomposition, FaceKind,
 };
 pub use newton::{forward, interpolate, invert, InverseError};
+pub use polyhedron::PolyFaces;
 pub use tet_nodes::{barycentric_lattice, corner_permutation, TetPermutations};
 
 use std::borrow::Cow;
@@ -214,6 +216,7 @@ fn registry() -> &'static [&'static dyn CellDef] {
         r.extend(lagrange_wedge::defs().into_iter().map(leak));
         r.extend(lagrange_hex::defs().into_iter().map(leak));
         r.extend(bezier_tet::defs().into_iter().map(leak));
+        r.push(&polyhedron::Polyhedron);
         assert!(r.len() <= usize::from(u8::MAX), "cell types are indexed by u8");
         r
     })
@@ -256,6 +259,17 @@ impl CellType {
     pub fn tet() -> CellType {
         CellType(0)
     }
+
+    /// VTK_POLYHEDRON: a cell of any faces ([`polyhedron`]).
+    pub fn polyhedron() -> CellType {
+        CellType::all().find(|t| t.is_polyhedron()).expect("the registry has polyhedra")
+    }
+
+    /// Whether this is VTK_POLYHEDRON (no reference shape: its faces are in
+    /// [`CellBlock::polyhedra`], its decomposition is the cell).
+    pub fn is_polyhedron(self) -> bool {
+        std::ptr::eq(self.shape(), &polyhedron::SHAPE)
+    }
 }
 
 impl std::fmt::Debug for CellType {
@@ -266,12 +280,15 @@ impl std::fmt::Debug for CellType {
 
 /// Volume cells of any types, in file order: what a reader hands over for a mesh that is not
 /// made of linear tets only. Cell `i` has the nodes `conn[ends[i − 1]..ends[i]]` (from 0 for
-/// the first), in VTK's node order for its type.
+/// the first), in VTK's node order for its type; a polyhedron's nodes are its distinct points,
+/// and its faces are in `polyhedra`.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct CellBlock {
     pub types: Vec<CellType>,
     pub ends: Vec<u64>,
     pub conn: Vec<u32>,
+    /// The faces of the cells that are polyhedra.
+    pub polyhedra: PolyFaces,
 }
 
 impl CellBlock {
@@ -289,9 +306,26 @@ impl CellBlock {
         &self.conn[start..self.ends[i] as usize]
     }
 
-    /// The corner nodes of cell `i`: what it is located by.
+    /// The corner nodes of cell `i`: what it is located by (all of a polyhedron's points).
     pub fn corners(&self, i: usize) -> &[u32] {
-        &self.nodes(i)[..self.types[i].shape().n_corners()]
+        let nodes = self.nodes(i);
+        match self.types[i] {
+            t if t.is_polyhedron() => nodes,
+            t => &nodes[..t.shape().n_corners()],
+        }
+    }
+
+    /// Appends a polyhedron of these faces (point ids); its nodes are their distinct points.
+    pub fn push_polyhedron<'a>(&mut self, faces: impl IntoIterator<Item = &'a [u32]> + Clone) {
+        self.polyhedra.push(self.types.len() as u32, faces.clone());
+        self.types.push(CellType::polyhedron());
+        self.conn.extend(polyhedron::distinct_points(faces));
+        self.ends.push(self.conn.len() as u64);
+    }
+
+    /// The faces of cell `i` when it is a polyhedron.
+    pub fn faces_of(&self, i: usize) -> Option<impl Iterator<Item = &[u32]> + Clone + '_> {
+        self.polyhedra.index_of(i).map(|k| self.polyhedra.faces(k))
     }
 
     /// Appends a cell; `nodes.len()` must be its type's node count.
@@ -305,6 +339,7 @@ impl CellBlock {
     /// Appends the cells of `other`, its node ids shifted by `id_offset`.
     pub fn append(&mut self, other: &CellBlock, id_offset: u32) {
         let base = self.conn.len() as u64;
+        self.polyhedra.append(&other.polyhedra, self.types.len() as u32, id_offset);
         self.types.extend_from_slice(&other.types);
         self.ends.extend(other.ends.iter().map(|e| e + base));
         self.conn.extend(other.conn.iter().map(|&i| i + id_offset));

@@ -85,7 +85,8 @@ const KUHN_CELLS: &[CubeCell] =
 pub(super) fn cube_cells(kind: CellKind, k: usize, nk: usize, periodic: bool) -> &'static [CubeCell] {
     match kind {
         CellKind::Tets => KUHN_CELLS,
-        CellKind::Hexes => HEX,
+        // The octree's coarse grid (gen::octree builds those meshes itself).
+        CellKind::Hexes | CellKind::Octree => HEX,
         CellKind::Wedges => WEDGES,
         CellKind::Hybrid => {
             let hexes = (nk / 4).max(1);
@@ -360,7 +361,7 @@ fn cell_block(
         }
         phase.advance(out.len() / nodes_per_col);
     });
-    CellBlock { types, ends, conn }
+    CellBlock { types, ends, conn, ..CellBlock::default() }
 }
 
 #[cfg(test)]

@@ -30,6 +30,7 @@ mod grid;
 mod japan;
 mod jets;
 mod noise;
+pub mod octree;
 mod terrain;
 #[cfg(test)]
 mod tests;
@@ -115,10 +116,14 @@ pub enum CellKind {
     Wedges,
     /// Layers of hexes, a pyramid transition, tets and wedges (`grid::cube_cells`).
     Hybrid,
+    /// A box of hexahedra refined once inside a ball, its coarse cells beside refined ones
+    /// polyhedra ([`octree`]: the shape picks only the map).
+    Octree,
 }
 
 impl CellKind {
-    pub const ALL: [CellKind; 4] = [CellKind::Tets, CellKind::Hexes, CellKind::Wedges, CellKind::Hybrid];
+    pub const ALL: [CellKind; 5] =
+        [CellKind::Tets, CellKind::Hexes, CellKind::Wedges, CellKind::Hybrid, CellKind::Octree];
 
     /// The suffix that names it (`jets-hex`); tets have none.
     pub fn name(self) -> &'static str {
@@ -127,6 +132,7 @@ impl CellKind {
             CellKind::Hexes => "hex",
             CellKind::Wedges => "wedge",
             CellKind::Hybrid => "hybrid",
+            CellKind::Octree => "octree",
         }
     }
 
@@ -138,6 +144,7 @@ impl CellKind {
             CellKind::Wedges => 2.0,
             // A quarter hexes (1), a half Kuhn tets (6), a quarter wedges (2).
             CellKind::Hybrid => 0.25 + 3.0 + 0.5,
+            CellKind::Octree => octree::CELLS_PER_CUBE,
         }
     }
 }
@@ -199,6 +206,11 @@ pub fn generate_spec(spec: Spec, target_cells: usize, seed: u64, progress: &(dyn
     // The decomposition of a cube's cells is at most 6 tets: ids stay within i32.
     let cubes = cubes.min(MAX_TETS / 6);
     let kind = spec.cells;
+    if kind == CellKind::Octree {
+        let mesh = octree::build(spec.shape, target_cells.min(MAX_TETS / 24), seed);
+        progress.report(1.0);
+        return mesh;
+    }
     let mesh = match spec.shape {
         Shape::Jets => grid::build(&jets::Jets::new(cubes, seed), kind, &progress),
         Shape::Fusion => grid::build(&fusion::Fusion::new(cubes, seed), kind, &progress),

@@ -31,11 +31,13 @@ use crate::mesh::{Cells, Field, FieldLocation, Mesh};
 use rayon::prelude::*;
 use std::sync::{Arc, OnceLock};
 
-/// Where a point is: its cell, and its parametric coordinates there when they were computed.
+/// Where a point is: its cell, and its parametric coordinates there when they were computed
+/// (or, in a polyhedron, the decomposition tet that holds it).
 #[derive(Clone, Copy, Debug)]
 struct Found {
     cell: usize,
     pc: Option<PCoords>,
+    tet: Option<usize>,
 }
 
 /// Any backend on a mixed mesh: ids are cell ids, values come from the cells' shape functions
@@ -103,13 +105,15 @@ fn refine(mesh: &Mesh, cells: &Cells, bulges: Option<&Bulges>, p: Point, t: i32)
     let c = cells.cell_of(t as usize);
     let warped = cells.warped[c];
     if warped == 0 || !near_warped_face(mesh, cells, c, warped, p) {
-        return Some(Found { cell: c, pc: None });
+        return Some(Found { cell: c, pc: None, tet: Some(t as usize) });
     }
     let p64 = p;
-    let Some(pc) = pcoords(mesh, cells, c, p64) else { return Some(Found { cell: c, pc: None }) };
+    let Some(pc) = pcoords(mesh, cells, c, p64) else {
+        return Some(Found { cell: c, pc: None, tet: Some(t as usize) });
+    };
     let shape = cells.block.types[c].shape();
     if shape.contains(pc) {
-        return Some(Found { cell: c, pc: Some(pc) });
+        return Some(Found { cell: c, pc: Some(pc), tet: None });
     }
     let neighbors = &cells.warped_neighbors()[c];
     let mut through_boundary = false;
@@ -125,17 +129,20 @@ fn refine(mesh: &Mesh, cells: &Cells, bulges: Option<&Bulges>, p: Point, t: i32)
         }
         let n = n as usize;
         if let Some(pn) = pcoords(mesh, cells, n, p64).filter(|&pn| cells.block.types[n].shape().contains(pn)) {
-            return Some(Found { cell: n, pc: Some(pn) });
+            return Some(Found { cell: n, pc: Some(pn), tet: None });
         }
     }
     // Out through a warped boundary face: outside, as VTK says. Otherwise the decomposition's
     // cell keeps the point (a point inside the mesh is never "outside").
-    (!through_boundary).then_some(Found { cell: c, pc: Some(pc) })
+    (!through_boundary).then_some(Found { cell: c, pc: Some(pc), tet: None })
 }
 
-/// `p`'s parametric coordinates in cell `c`, located by its corners (`None`: Newton failed);
-/// `p` and the corners in the file's coordinates.
+/// `p`'s parametric coordinates in cell `c`, located by its corners (`None`: Newton failed,
+/// or a polyhedron, which has none); `p` and the corners in the file's coordinates.
 fn pcoords(mesh: &Mesh, cells: &Cells, c: usize, p: Point) -> Option<PCoords> {
+    if cells.block.types[c].is_polyhedron() {
+        return None;
+    }
     let corners: Vec<Point> = cells.block.corners(c).iter().map(|&i| mesh.vertex64(i)).collect();
     invert(cells.block.types[c].shape().linear, &corners, p).ok()
 }
@@ -232,7 +239,7 @@ impl Bulges {
                 }
                 let pc = pcoords(mesh, cells, c, self.p);
                 if let Some(pc) = pc.filter(|&pc| cells.block.types[c].shape().contains(pc)) {
-                    self.best = Some(Found { cell: c, pc: Some(pc) });
+                    self.best = Some(Found { cell: c, pc: Some(pc), tet: None });
                 }
                 false
             }
@@ -255,8 +262,14 @@ fn value<T: Real>(mesh: &Mesh, cells: &Cells, field: &Field, p: Point, found: &F
                 let def = cells.block.types[c].def();
                 T::from_f64(interpolate(def, pc, |i| field.value_in::<T>(nodes[i] as usize).to_f64()))
             }
-            // Newton failed: linearly in the cell's decomposition tet that holds the point (the
-            // corners' values).
+            // A polyhedron (its decomposition is the cell, with values at its centroids), or
+            // Newton failed: linearly in the decomposition tet that holds the point.
+            None if found.tet.is_some() || cells.block.types[c].is_polyhedron() => {
+                let t = found.tet.filter(|&t| cells.cell_of(t) == c).unwrap_or_else(|| nearest_tet(mesh, cells, c, p));
+                mesh.bary64(t, p).map_or(T::NAN, |b| {
+                    T::from_f64(geom::interpolate_with(mesh.tets[t], b, |i| field.value_in::<T>(i).to_f64()))
+                })
+            }
             None => {
                 let tets = &mesh.tets[cells.tets_of(c)];
                 let w = mesh.info.frame.to_working(p);
@@ -291,6 +304,24 @@ pub(crate) fn cell_weights(mesh: &Mesh, cells: &Cells, c: usize, p: Point, mut p
             }
         }
     }
+
+/// The tet of cell `c`'s decomposition that holds `p` (file coordinates), or the one it is
+/// least outside of (a point on the cell's boundary, by rounding just off it).
+fn nearest_tet(mesh: &Mesh, cells: &Cells, c: usize, p: Point) -> usize {
+    let depth = |t: usize| -> f64 {
+        let ids = mesh.tets[t];
+        let x = ids.map(|i| mesh.vertex64(i));
+        // The smallest signed barycentric, unclamped: orient3d ratios.
+        let vol = geom::predicates::orient3d(x[0], x[1], x[2], x[3]);
+        (0..4)
+            .map(|k| {
+                let mut y = x;
+                y[k] = p;
+                geom::predicates::orient3d(y[0], y[1], y[2], y[3]) / vol
+            })
+            .fold(f64::INFINITY, f64::min)
+    };
+    cells.tets_of(c).max_by(|&a, &b| depth(a).total_cmp(&depth(b))).expect("a cell has tets")
 }
 
 /// The value of `field` at the point `p` (working coordinates) of cell `c` (for the boundary
@@ -298,7 +329,7 @@ pub(crate) fn cell_weights(mesh: &Mesh, cells: &Cells, c: usize, p: Point, mut p
 pub(crate) fn value_in_cell(mesh: &Mesh, c: usize, p: Point, field: &Field) -> Option<f32> {
     let cells = mesh.cells.as_ref()?;
     let p = mesh.info.frame.to_file64(p);
-    let found = Found { cell: c, pc: pcoords(mesh, cells, c, p) };
+    let found = Found { cell: c, pc: pcoords(mesh, cells, c, p), tet: None };
     Some(value(mesh, cells, field, p, &found))
 }
 

@@ -6,6 +6,7 @@
 //!
 //! Meshes of tets only (of any order) have no `Cells` and pay nothing for it.
 
+use crate::cell::polyhedron::Decomposed;
 use crate::cell::{decompose, warped_faces, CellBlock, Point, Shape};
 use crate::geom::{self, Vec3};
 use rayon::prelude::*;
@@ -20,8 +21,12 @@ pub struct Cells {
     /// For each tet of [`super::Mesh::tets`], the cell it belongs to (ascending: a cell's tets
     /// are consecutive).
     pub tet_parent: Vec<u32>,
-    /// Per cell, bit `f` set when face `f` is a warped (non-planar, bilinear) quad.
+    /// Per cell, bit `f` set when face `f` is a warped (non-planar, bilinear) quad (never for
+    /// polyhedra: their decomposition is the cell).
     pub warped: Vec<u8>,
+    /// The file's points are the mesh's first `n_file_points`; the rest are the polyhedra's
+    /// centroids ([`crate::cell::polyhedron`]).
+    pub n_file_points: usize,
     neighbors: OnceLock<Vec<[i32; 6]>>,
 }
 
@@ -45,10 +50,13 @@ pub fn tets_per_cell(shape: &Shape) -> usize {
 }
 
 impl Cells {
-    /// Decomposes `block` over `points` and validates it. Errors are messages for
+    /// Decomposes `block` over `points` and validates it; its polyhedra are already
+    /// decomposed (`poly`, whose new points `points` ends with). Errors are messages for
     /// `Error::Mesh` (the caller names the file).
-    pub(super) fn build(block: CellBlock, points: &[Vec3]) -> Result<Built, String> {
+    pub(super) fn build(block: CellBlock, points: &[Vec3], poly: Option<&Decomposed>) -> Result<Built, String> {
         let n = points.len() as u32;
+        let n_file_points = poly.map_or(points.len(), |d| d.n_file_points);
+        let poly_tets = |c: usize| -> Option<&[[u32; 4]]> { Some(poly?.tets_of(block.polyhedra.index_of(c)?)) };
         if let Some(k) = block.conn.par_iter().position_first(|&id| id >= n) {
             let c = block.ends.partition_point(|&e| e <= k as u64);
             return Err(format!("cell {c} references vertex {} but the mesh has only {n} vertices", block.conn[k]));
@@ -56,7 +64,13 @@ impl Cells {
         if block.len() >= u32::MAX as usize {
             return Err(format!("{} cells: more than 32-bit ids can name", block.len()));
         }
-        let counts: Vec<usize> = block.types.par_iter().map(|t| tets_per_cell(t.shape())).collect();
+        let counts: Vec<usize> = (0..block.len())
+            .into_par_iter()
+            .map(|c| match poly_tets(c) {
+                Some(t) => t.len(),
+                None => tets_per_cell(block.types[c].shape()),
+            })
+            .collect();
         let total: usize = counts.iter().sum();
         if total >= i32::MAX as usize {
             return Err(format!(
@@ -66,6 +80,10 @@ impl Cells {
         }
         // Each cell's tets, canonical, with the signs of their volumes as the cell lists them.
         let per_cell = |c: usize| {
+            if let Some(tets) = poly_tets(c) {
+                // A polyhedron's faces may face either way: its tets' signs say nothing.
+                return tets.iter().map(|&t| geom::canonical_tet(t, points)).map(|(t, v)| (t, v.abs())).collect();
+            }
             let ids = block.corners(c);
             decompose(block.types[c].shape(), ids)
                 .tets()
@@ -94,11 +112,14 @@ impl Cells {
         let warped = (0..block.len())
             .into_par_iter()
             .map(|c| {
+                if block.types[c].is_polyhedron() {
+                    return 0;
+                }
                 let corners: Vec<Point> = block.corners(c).iter().map(|&i| points[i as usize].map(f64::from)).collect();
                 warped_faces(block.types[c].shape(), &corners)
             })
             .collect();
-        let cells = Cells { block, tet_parent, warped, neighbors: OnceLock::new() };
+        let cells = Cells { block, tet_parent, warped, n_file_points, neighbors: OnceLock::new() };
         Ok(Built { cells, tets, reoriented, degenerate, tangled })
     }
 
@@ -144,6 +165,11 @@ impl Cells {
             *by_type.entry(*t).or_insert(0usize) += 1;
         }
         by_type.into_iter().map(|(t, n)| (t.def().name().to_string(), n)).collect()
+    }
+
+    /// How many cells are polyhedra, and their faces (a shared face counted once per cell).
+    pub fn polyhedra(&self) -> (usize, usize) {
+        (self.block.polyhedra.len(), self.block.polyhedra.n_faces())
     }
 
     /// Cells with at least one warped face.
@@ -197,6 +223,8 @@ impl Cells {
         self.block.types.len()
             + std::mem::size_of_val(self.block.ends.as_slice())
             + std::mem::size_of_val(self.block.conn.as_slice())
+            + std::mem::size_of_val(self.block.polyhedra.face_ends.as_slice())
+            + std::mem::size_of_val(self.block.polyhedra.points.as_slice())
             + std::mem::size_of_val(self.tet_parent.as_slice())
             + self.warped.len()
             + self.neighbors.get().map_or(0, |n| std::mem::size_of_val(n.as_slice()))

@@ -155,6 +155,12 @@ pub struct MeshInfo {
     /// Cells with a warped (non-planar) quad face: located with their own parametric
     /// coordinates near those faces.
     pub n_warped_cells: usize,
+    /// The faces of the polyhedra (a face shared by two counted twice); polyhedra are counted
+    /// in `cell_types` ("polyhedron").
+    pub n_polyhedron_faces: usize,
+    /// Points the mesh added after the file's (`n_points` of them): the polyhedra's face and
+    /// cell centroids, corners of their decomposition.
+    pub n_centroids: usize,
     /// Bounds of the vertices in the working frame (`frame`): the file's coordinates when
     /// the frame is the identity, which it is unless the mesh is far from the origin.
     pub bounds_min: Vec3,
@@ -202,7 +208,7 @@ impl Mesh {
     pub fn new(raw: RawMesh, source: impl Into<String>) -> Result<Mesh> {
         let source = source.into();
         let err = |msg: String| Error::Mesh { source_name: source.clone(), msg };
-        let RawMesh { points, points64, mut tets, fields, higher_order, cells } = raw;
+        let RawMesh { mut points, mut points64, mut tets, mut fields, higher_order, cells } = raw;
         let is_mixed = cells.as_ref().is_some_and(|c| c.non_tet_counts().is_some());
         if tets.is_empty() && !is_mixed {
             return Err(err("the mesh has no tetrahedra".into()));
@@ -227,13 +233,32 @@ impl Mesh {
                 )));
             }
         }
+        // Polyhedra: their decomposition adds centroids after the file's points.
+        let n_file_points = points.len();
+        let poly = match cells.as_ref().filter(|c| !c.polyhedra.is_empty()) {
+            Some(block) => {
+                let file = |i: u32| match &points64 {
+                    Some(p) => p[i as usize],
+                    None => points[i as usize].map(f64::from),
+                };
+                Some(crate::cell::polyhedron::decompose_all(&block.polyhedra, n_file_points, &file).map_err(err)?)
+            }
+            None => None,
+        };
+        if let Some(d) = &poly {
+            let mut file = points64.take().unwrap_or_else(|| points.par_iter().map(|p| p.map(f64::from)).collect());
+            file.extend_from_slice(&d.points);
+            points = file.par_iter().map(|p| p.map(|x| x as f32)).collect();
+            points64 = points64_if_needed(file);
+        }
         // Mixed meshes too: backends search the working copy, and the cells' parametric
         // coordinates are solved on the file's f64 coordinates (locate::CellLocator).
         let (points, points64, frame) = working_copy(points, points64);
         // A mixed mesh: its tets are its cells' conforming decomposition, mapped back to them.
         let (mut mixed, mut cells, mut cell_repairs) = (None, cells, None);
         if is_mixed {
-            let built = Cells::build(cells.take().expect("a mixed mesh has cells"), &points).map_err(err)?;
+            let block = cells.take().expect("a mixed mesh has cells");
+            let built = Cells::build(block, &points, poly.as_ref()).map_err(err)?;
             tets = built.tets;
             cell_repairs = Some((built.reoriented, built.degenerate, built.tangled));
             mixed = Some(built.cells);
@@ -248,7 +273,7 @@ impl Mesh {
         let n_cells = mixed.as_ref().map_or(tets.len(), Cells::len);
         for f in &fields {
             let want = match f.location {
-                FieldLocation::Vertex => points.len(),
+                FieldLocation::Vertex => n_file_points,
                 FieldLocation::Cell => n_cells,
             };
             if f.values.len() != want {
@@ -261,6 +286,13 @@ impl Mesh {
             }
             if let Some(v) = f.values64.as_ref().filter(|v| v.len() != want) {
                 return Err(err(format!("field '{}' has {} f64 values, expected {want}", f.name, v.len())));
+            }
+        }
+        // Point data at the centroids: the means of the values they are the means of.
+        if let Some(d) = &poly {
+            for f in fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
+                let file: Vec<f64> = (0..n_file_points).map(|i| f.value64(i)).collect();
+                f.extend_from(&Field::from_f64(f.name.clone(), f.location, d.extend_values(&file)));
             }
         }
 
@@ -322,7 +354,7 @@ impl Mesh {
         );
         let info = MeshInfo {
             source,
-            n_points: points.len(),
+            n_points: n_file_points,
             n_tets: tets.len(),
             n_cells,
             cell_types: match (&mixed, &tet_nodes) {
@@ -331,6 +363,8 @@ impl Mesh {
                 (None, None) => [("tetra".to_string(), tets.len())].into(),
             },
             n_warped_cells: mixed.as_ref().map_or(0, Cells::n_warped),
+            n_polyhedron_faces: mixed.as_ref().map_or(0, |c| c.polyhedra().1),
+            n_centroids: points.len() - n_file_points,
             bounds_min,
             bounds_max,
             frame,

@@ -13,6 +13,9 @@ mod kuhn;
 pub(crate) mod mixed;
 // Shared whole with tetloc-testdata.
 #[allow(dead_code)]
+pub(crate) mod poly;
+// Shared whole with tetloc-testdata.
+#[allow(dead_code)]
 pub(crate) mod slivers;
 
 pub(crate) use data_dir::require_data;
@@ -21,7 +24,7 @@ pub(crate) use kuhn::{jittered_grid, KuhnGrid};
 pub(crate) use query_sets::{query_sets, utm_sets, QuerySet};
 
 // What kuhn.rs takes from its includer.
-use crate::cell::{barycentric_lattice, CellBlock, CellType};
+use crate::cell::{barycentric_lattice, CellBlock, CellType, PolyFaces};
 use crate::geom::Vec3;
 use crate::mesh::{Field, FieldLocation, Mesh, RawMesh};
 // What mixed.rs takes from its includer.
@@ -51,8 +54,14 @@ pub(crate) fn read_raw(path: &std::path::Path, format: Option<tetloc_io::MeshFor
             let type_of = |code: u8, n: usize| {
                 CellType::from_vtk(code, n).ok_or_else(|| format!("VTK cell type {code} with {n} nodes"))
             };
-            let types = b.types.iter().map(|t| type_of(t.def().vtk_type(), t.def().n_nodes()));
-            Some(CellBlock { types: types.collect::<Result<_, String>>()?, ends: b.ends, conn: b.conn })
+            let types = b.types.iter().map(|t| match t.is_polyhedron() {
+                true => Ok(CellType::polyhedron()),
+                false => type_of(t.def().vtk_type(), t.def().n_nodes()),
+            });
+            let p = b.polyhedra;
+            let polyhedra =
+                PolyFaces { cells: p.cells, cell_ends: p.cell_ends, face_ends: p.face_ends, points: p.points };
+            Some(CellBlock { types: types.collect::<Result<_, String>>()?, ends: b.ends, conn: b.conn, polyhedra })
         }
     };
     Ok(RawMesh {

@@ -57,6 +57,30 @@ pub(crate) fn base64_decode(text: &[u8]) -> Result<Vec<u8>, String> {
     Ok(out)
 }
 
+/// The byte count the block at `buf[at..]` declares (inflated, when compressed): for arrays
+/// whose length only their block gives (the polyhedra's faces).
+pub(crate) fn declared_bytes(buf: &[u8], at: usize, layout: Layout) -> Result<usize, String> {
+    let hs = layout.header_size();
+    let int = |i: usize| {
+        layout.header_int(buf, at + i * hs).ok_or_else(|| format!("block at offset {at} runs past the end of the data"))
+    };
+    let bytes = if !layout.zlib {
+        int(0)?
+    } else {
+        let (n_blocks, block_size, last_size) = (int(0)?, int(1)?, int(2)?);
+        match n_blocks {
+            0 => 0,
+            n => (n - 1).saturating_mul(block_size).saturating_add(if last_size == 0 { block_size } else { last_size }),
+        }
+    };
+    // Never more than the data could inflate to (read_block checks the rest).
+    let limit = (buf.len() as u64).saturating_mul(1100).saturating_add(1024);
+    usize::try_from(bytes)
+        .ok()
+        .filter(|&b| b as u64 <= limit)
+        .ok_or_else(|| format!("block at offset {at} declares {bytes} bytes: more than the file can hold"))
+}
+
 /// A block's data: borrowed from `buf` when uncompressed. `at` is where its header starts;
 /// `expected` is the byte count that the array must have. Errors are messages to be
 /// prefixed with the array's name.

@@ -3,7 +3,7 @@
 use super::num::{self, Array};
 use std::collections::BTreeMap;
 use std::path::Path;
-use tetloc_core::cell::{CellBlock, CellType};
+use tetloc_core::cell::{CellBlock, CellType, PolyFaces};
 use tetloc_core::error::Error;
 use tetloc_core::mesh::{Field, RawMesh};
 
@@ -55,7 +55,7 @@ const CELL_TYPES: &[(u8, &str, Kind)] = &[
     (36, "quadratic polygon", Kind::Lower),
     (37, "triquadratic pyramid", Kind::Unsupported),
     (41, "convex point set", Kind::Unsupported),
-    (42, "polyhedron", Kind::Unsupported),
+    (42, "polyhedron", Kind::Volume),
     (51, "parametric curve", Kind::Lower),
     (52, "parametric surface", Kind::Lower),
     (53, "parametric tri surface", Kind::Lower),
@@ -141,9 +141,15 @@ pub(crate) fn all_linear_tets(types: &Array, ends: &Array) -> bool {
 }
 
 /// Picks the volume cells out of `types.len()` cells; cell `i` has the point ids
-/// `conn[ends[i - 1]..ends[i]]` (from 0 for the first). `ends` is validated here. Errors
+/// `conn[ends[i - 1]..ends[i]]` (from 0 for the first). `ends` is validated here. The faces
+/// of the polyhedra (type 42) are in `polyhedra`, by their cell index in this list. Errors
 /// are messages for [`Error::format`].
-pub(crate) fn extract(types: &[u8], ends: &[u64], conn: &[u32]) -> Result<Extracted, String> {
+pub(crate) fn extract(
+    types: &[u8],
+    ends: &[u64],
+    conn: &[u32],
+    polyhedra: Option<&PolyFaces>,
+) -> Result<Extracted, String> {
     let n = types.len();
     if ends.len() != n {
         return Err(format!("{} cell types but {} cell offsets", n, ends.len()));
@@ -173,6 +179,14 @@ pub(crate) fn extract(types: &[u8], ends: &[u64], conn: &[u32]) -> Result<Extrac
             return Err(format!("cell {i} has cell type {code}, which VTK does not define"));
         };
         match kind {
+            Kind::Volume if code == POLYHEDRON => {
+                let faces = polyhedra
+                    .and_then(|p| p.index_of(i).map(|k| p.faces(k)))
+                    .ok_or_else(|| format!("cell {i} is a polyhedron, but the file gives no faces for it"))?;
+                cells.push_polyhedron(faces);
+                *other.entry(code).or_insert(0) += 1;
+                kept[i] = true;
+            }
             Kind::Volume => {
                 // Files repeat one type for long runs: look it up once per run.
                 let ty = match last {
@@ -235,7 +249,7 @@ pub fn from_cell_list(types: &[u8], offsets: &[i64], conn: &[u32]) -> Result<Ext
     }
     // From 0 and never decreasing: the offsets are counts.
     let ends: Vec<u64> = offsets[1..].iter().map(|&o| o as u64).collect();
-    let ex = extract(types, &ends, conn)?;
+    let ex = extract(types, &ends, conn, None)?;
     if ex.unsupported || ex.kept.is_some() {
         let not_read = (0..n).find(|&i| {
             let len = (offsets[i + 1] - offsets[i]) as usize;
@@ -252,10 +266,104 @@ pub fn from_cell_list(types: &[u8], offsets: &[i64], conn: &[u32]) -> Result<Ext
     Ok(ex)
 }
 
-/// The [`Error::NonTetCells`] for volume cells counted by type code.
+/// A point id of a polyhedron face, checked.
+fn face_point(v: i64, n_points: usize, cell: usize) -> Result<u32, String> {
+    u32::try_from(v).ok().filter(|&p| (p as usize) < n_points).ok_or_else(|| {
+        format!("polyhedron (cell {cell}): face point {v} is not a point id (the mesh has {n_points} points)")
+    })
+}
+
+/// The polyhedra's faces in VTK's first layout (before 9.4; also legacy `.vtk`): one stream
+/// `faces` holding, per polyhedron in cell order, its face count and then each face's point
+/// count and point ids; `faceoffsets` has one entry per cell, negative for the cells that are
+/// not polyhedra. The streams are read in order (they follow one another).
+pub(crate) fn faces_from_stream(types: &[u8], stream: &[i64], n_points: usize) -> Result<PolyFaces, String> {
+    let mut out = PolyFaces::default();
+    let mut at = 0usize;
+    let mut next = |what: &str, cell: usize| -> Result<i64, String> {
+        let v = stream.get(at).copied().ok_or_else(|| {
+            format!("polyhedron (cell {cell}): the faces array ends ({} values) before its {what}", stream.len())
+        })?;
+        at += 1;
+        Ok(v)
+    };
+    for (i, _) in types.iter().enumerate().filter(|(_, &t)| t == POLYHEDRON) {
+        let n_faces = next("face count", i)?;
+        let n_faces = usize::try_from(n_faces)
+            .ok()
+            .filter(|&n| n <= stream.len())
+            .ok_or_else(|| format!("polyhedron (cell {i}): face count {n_faces}"))?;
+        let mut faces: Vec<Vec<u32>> = Vec::with_capacity(n_faces);
+        for _ in 0..n_faces {
+            let n = next("point count", i)?;
+            let n = usize::try_from(n)
+                .ok()
+                .filter(|&n| n <= stream.len())
+                .ok_or_else(|| format!("polyhedron (cell {i}): face point count {n}"))?;
+            faces.push(
+                (0..n)
+                    .map(|_| next("face points", i).and_then(|v| face_point(v, n_points, i)))
+                    .collect::<Result<_, _>>()?,
+            );
+        }
+        out.push(i as u32, faces.iter().map(Vec::as_slice));
+    }
+    if at != stream.len() {
+        return Err(format!("the faces array has {} values, but its polyhedra use {at}", stream.len()));
+    }
+    Ok(out)
+}
+
+/// The polyhedra's faces in VTK 9.4's layout: faces as a cell array (`face_conn`, with the
+/// end of each face's points in `face_ends`), and each cell's faces as a list of face ids
+/// (`cell_faces`, with the end of each cell's ids in `cell_ends`, one per cell; cells that
+/// are not polyhedra have none).
+pub(crate) fn faces_from_arrays(
+    types: &[u8],
+    face_conn: &[i64],
+    face_ends: &[i64],
+    cell_faces: &[i64],
+    cell_ends: &[i64],
+    n_points: usize,
+) -> Result<PolyFaces, String> {
+    let range = |ends: &[i64], i: usize, len: usize, what: &str| -> Result<std::ops::Range<usize>, String> {
+        let start = if i == 0 { 0 } else { ends[i - 1] };
+        let end = ends[i];
+        let ok = |v: i64| usize::try_from(v).ok().filter(|&v| v <= len);
+        match (ok(start), ok(end)) {
+            (Some(s), Some(e)) if s <= e => Ok(s..e),
+            _ => Err(format!("{what} {i}: offsets {start}..{end} do not fit the {len} values")),
+        }
+    };
+    if cell_ends.len() != types.len() {
+        return Err(format!("{} polyhedron offsets for {} cells", cell_ends.len(), types.len()));
+    }
+    let mut out = PolyFaces::default();
+    for (i, _) in types.iter().enumerate().filter(|(_, &t)| t == POLYHEDRON) {
+        let ids = &cell_faces[range(cell_ends, i, cell_faces.len(), "polyhedron offsets of cell")?];
+        let faces: Vec<Vec<u32>> = ids
+            .iter()
+            .map(|&f| {
+                let f = usize::try_from(f).ok().filter(|&f| f < face_ends.len()).ok_or_else(|| {
+                    format!("polyhedron (cell {i}): face {f} is not a face id ({} faces)", face_ends.len())
+                })?;
+                face_conn[range(face_ends, f, face_conn.len(), "face")?]
+                    .iter()
+                    .map(|&v| face_point(v, n_points, i))
+                    .collect()
+            })
+            .collect::<Result<_, String>>()?;
+        out.push(i as u32, faces.iter().map(Vec::as_slice));
+    }
+    Ok(out)
+}
+
+/// The [`Error::NonTetCells`] for the volume cells tetloc does not read, counted by type code
+/// (those it reads among `other` are left out).
 pub(crate) fn non_tet_error(path: &Path, other: &BTreeMap<u8, usize>) -> Error {
     let counts = other
         .iter()
+        .filter(|(&code, _)| lookup(code).is_none_or(|c| c.1 == Kind::Unsupported))
         .map(|(&code, &k)| (lookup(code).map_or_else(|| format!("type {code}"), |c| c.0.to_string()), k))
         .collect();
     Error::NonTetCells { path: path.to_path_buf(), counts }
@@ -283,7 +391,7 @@ mod tests {
         // triangle, quadratic tet, tet, vertex
         let types = [5u8, 24, 10, 1];
         let ends = [3u64, 13, 17, 18];
-        let e = extract(&types, &ends, &ids(18)).unwrap();
+        let e = extract(&types, &ends, &ids(18), None).unwrap();
         assert_eq!(e.tets, vec![[3, 4, 5, 6], [13, 14, 15, 16]]);
         assert_eq!(e.kept.as_deref(), Some(&[false, true, true, false][..]));
         assert_eq!(e.higher_order, Some(2));
@@ -296,7 +404,7 @@ mod tests {
         assert_eq!(cells.types[1], CellType::tet());
 
         // hex, tet, hex, wedge: every volume cell in the block, the tets among them in `tets`.
-        let e = extract(&[12, 10, 12, 13], &[8, 12, 20, 26], &ids(26)).unwrap();
+        let e = extract(&[12, 10, 12, 13], &[8, 12, 20, 26], &ids(26), None).unwrap();
         assert_eq!(e.other.clone().into_iter().collect::<Vec<_>>(), vec![(12, 2), (13, 1)]);
         assert!(!e.unsupported && e.kept.is_none() && e.higher_order.is_none());
         assert_eq!(e.tets, vec![[8, 9, 10, 11]]);
@@ -304,26 +412,36 @@ mod tests {
         assert_eq!(cells.non_tet_counts().unwrap(), vec![("hexahedron".to_string(), 2), ("wedge".to_string(), 1)]);
         assert_eq!(cells.nodes(3), &[20, 21, 22, 23, 24, 25]);
 
-        // A polyhedron (or any type tetloc does not read) leaves no block, only the counts.
-        let e = extract(&[12, 42], &[8, 12], &ids(12)).unwrap();
+        // A type tetloc does not read leaves no block, only the counts.
+        let e = extract(&[12, 16], &[8, 20], &ids(20), None).unwrap();
         assert!(e.unsupported && e.cells.is_none());
-        assert_eq!(e.other.into_iter().collect::<Vec<_>>(), vec![(12, 1), (42, 1)]);
+        assert_eq!(e.other.into_iter().collect::<Vec<_>>(), vec![(12, 1), (16, 1)]);
+        // A polyhedron takes its faces; without them it is an error.
+        let mut faces = PolyFaces::default();
+        let tet: [&[u32]; 4] = [&[8, 9, 10], &[8, 11, 9], &[9, 11, 10], &[8, 10, 11]];
+        faces.push(1, tet);
+        let e = extract(&[12, 42], &[8, 12], &ids(12), Some(&faces)).unwrap();
+        let cells = e.cells.unwrap();
+        assert!(cells.types[1].is_polyhedron() && !e.unsupported);
+        assert_eq!(cells.faces_of(1).unwrap().collect::<Vec<_>>(), tet.to_vec());
+        assert_eq!(cells.nodes(1), &[8, 9, 10, 11]);
+        assert!(extract(&[12, 42], &[8, 12], &ids(12), None).unwrap_err().contains("no faces"));
 
         // Linear tets and lower cells only: no block.
-        assert!(extract(&[10, 5], &[4, 7], &ids(7)).unwrap().cells.is_none());
+        assert!(extract(&[10, 5], &[4, 7], &ids(7), None).unwrap().cells.is_none());
     }
 
     #[test]
     fn bad_cells() {
-        assert!(extract(&[10], &[5], &ids(5)).unwrap_err().contains("5 points"));
-        assert!(extract(&[24], &[9], &ids(9)).is_err());
-        assert!(extract(&[71], &[11], &ids(11)).is_err());
-        assert!(extract(&[12], &[9], &ids(9)).unwrap_err().contains("9 points, which no hexahedron"));
-        assert!(extract(&[200], &[4], &ids(4)).unwrap_err().contains("200"));
-        assert!(extract(&[10, 10], &[4, 3], &ids(4)).unwrap_err().contains("decrease"));
-        assert!(extract(&[10], &[4], &ids(8)).unwrap_err().contains("end at 4"));
-        assert!(extract(&[10], &[], &[]).is_err());
-        assert!(extract(&[], &[], &[]).unwrap().tets.is_empty());
+        assert!(extract(&[10], &[5], &ids(5), None).unwrap_err().contains("5 points"));
+        assert!(extract(&[24], &[9], &ids(9), None).is_err());
+        assert!(extract(&[71], &[11], &ids(11), None).is_err());
+        assert!(extract(&[12], &[9], &ids(9), None).unwrap_err().contains("9 points, which no hexahedron"));
+        assert!(extract(&[200], &[4], &ids(4), None).unwrap_err().contains("200"));
+        assert!(extract(&[10, 10], &[4, 3], &ids(4), None).unwrap_err().contains("decrease"));
+        assert!(extract(&[10], &[4], &ids(8), None).unwrap_err().contains("end at 4"));
+        assert!(extract(&[10], &[], &[], None).is_err());
+        assert!(extract(&[], &[], &[], None).unwrap().tets.is_empty());
     }
 
     #[test]

@@ -13,6 +13,7 @@ use super::vtu::AnyGrid;
 use crate::cursor::Cursor;
 use std::borrow::Cow;
 use std::path::Path;
+use tetloc_core::cell::PolyFaces;
 use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{Field, FieldLocation, RawMesh};
 
@@ -39,7 +40,7 @@ pub fn parse_any(bytes: &[u8], path: &Path) -> Result<AnyGrid> {
     if list.types.contains(&cells::POLYHEDRON) {
         return Err(Error::format(path, "polyhedron cells (type 42) are not supported"));
     }
-    let CellList { points, points64, types, ends, conn, fields } = list;
+    let CellList { points, points64, types, ends, conn, fields, .. } = list;
     Ok(AnyGrid { points, points64, types, ends, conn, fields })
 }
 
@@ -176,6 +177,8 @@ struct CellList {
     /// Where each cell's point ids end in `conn`.
     ends: Vec<u64>,
     conn: Vec<u32>,
+    /// The faces of the polyhedra among the cells.
+    polyhedra: PolyFaces,
     fields: Vec<Field>,
 }
 
@@ -199,8 +202,8 @@ struct Grid<'a> {
 impl Grid<'_> {
     /// The mesh of the file's volume cells (0-2-D cells dropped with their cell data).
     fn finish(self, path: &Path) -> Result<RawMesh> {
-        let CellList { points, points64, types, ends, conn, mut fields } = self.cell_list(path)?;
-        let ex = cells::extract(&types, &ends, &conn).map_err(|m| Error::format(path, m))?;
+        let CellList { points, points64, types, ends, conn, polyhedra, mut fields } = self.cell_list(path)?;
+        let ex = cells::extract(&types, &ends, &conn, Some(&polyhedra)).map_err(|m| Error::format(path, m))?;
         if ex.unsupported {
             return Err(cells::non_tet_error(path, &ex.other));
         }
@@ -220,6 +223,8 @@ impl Grid<'_> {
         let bad_id = |arr: &Array, i: usize, what: &str| {
             fail(format!("{what}: value {i} ({}) is not a point id (the file has {n_points} points)", arr.show(i)))
         };
+        // Legacy files (≤ 4.2) give a polyhedron's face stream in place of its points.
+        let mut polyhedra = PolyFaces::default();
         let (ends, conn) = match cells {
             Cells::List(list) => {
                 let v = num::map_ints(&list, |v| u32::try_from(v).ok())
@@ -232,6 +237,16 @@ impl Grid<'_> {
                     let ids = v.get(pos + 1..pos + 1 + k).ok_or_else(|| {
                         fail(format!("CELLS: cell {} claims {k} points, past the end of the list", ends.len()))
                     })?;
+                    if types.get(ends.len()) == Some(&cells::POLYHEDRON) {
+                        let stream: Vec<i64> = ids.iter().map(|&v| i64::from(v)).collect();
+                        let one = cells::faces_from_stream(&[cells::POLYHEDRON], &stream, n_points)
+                            .map_err(|m| fail(format!("CELLS: cell {}: {m}", ends.len())))?;
+                        polyhedra.append(&one, ends.len() as u32, 0);
+                        conn.extend(tetloc_core::cell::polyhedron::distinct_points(one.faces(0)));
+                        ends.push(conn.len() as u64);
+                        pos += 1 + k;
+                        continue;
+                    }
                     if let Some(&id) = ids.iter().find(|&&id| id as usize >= n_points) {
                         return Err(fail(format!(
                             "CELLS: cell {} uses point {id}, but the file has {n_points} points",
@@ -274,7 +289,7 @@ impl Grid<'_> {
                 )));
             }
         }
-        Ok(CellList { points, points64: self.points64, types, ends, conn, fields })
+        Ok(CellList { points, points64: self.points64, types, ends, conn, polyhedra, fields })
     }
 }
 

@@ -16,7 +16,7 @@ use super::xml::{self, Node};
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
-use tetloc_core::cell::{CellBlock, CellType};
+use tetloc_core::cell::{CellBlock, CellType, PolyFaces};
 use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{Field, FieldLocation, RawMesh};
 
@@ -226,7 +226,8 @@ enum PieceCells {
     /// Every cell a linear tet: the connectivity, 4 ids a tet.
     LinearTets(Vec<u32>),
     /// VTK's cell types, each cell's end in `conn`, and the cells' point ids.
-    Any { types: Vec<u8>, ends: Vec<u64>, conn: Vec<u32> },
+    /// The faces of the polyhedra among them, when there are any.
+    Any { types: Vec<u8>, ends: Vec<u64>, conn: Vec<u32>, polyhedra: Option<PolyFaces> },
 }
 
 /// One piece's mesh, or the counts of its volume cells by type when some of them are of a
@@ -245,24 +246,36 @@ impl<'a> Ctx<'a, '_> {
 
     /// The values of a `<DataArray>`, which must hold exactly `n_values` of them.
     fn array(&self, da: &Node, n_values: usize) -> Result<Array<'a>> {
+        self.array_of(da, Some(n_values))
+    }
+
+    /// The values of a `<DataArray>`, as many as it holds.
+    fn array_any(&self, da: &Node) -> Result<Array<'a>> {
+        self.array_of(da, None)
+    }
+
+    fn array_of(&self, da: &Node, n_values: Option<usize>) -> Result<Array<'a>> {
         let name = da.attr("Name").unwrap_or("(unnamed)");
         let e = |msg: String| self.fail(format!("DataArray '{name}': {msg}"));
         let ty = da.attr("type").unwrap_or("(none)");
         let ty = NumType::from_xml(ty).ok_or_else(|| e(format!("type '{ty}' is not a numeric type")))?;
-        let n_bytes = n_values
-            .checked_mul(ty.size())
-            .ok_or_else(|| e(format!("{n_values} values: more than memory can hold")))?;
+        // The bytes the block at `buf[at..]` must hold: `n_values`', or what it declares.
+        let bytes_at = |buf: &[u8], at: usize| match n_values {
+            Some(n) => n.checked_mul(ty.size()).ok_or_else(|| e(format!("{n} values: more than memory can hold"))),
+            None => blocks::declared_bytes(buf, at, self.layout).map_err(e),
+        };
         let big = self.layout.big_endian;
         match da.attr("format") {
             Some("ascii") => {
                 let (arr, _) = num::parse_ascii(&da.text(), ty, None).map_err(e)?;
-                if arr.len() != n_values {
-                    return Err(e(format!("has {} values, expected {n_values}", arr.len())));
+                if let Some(n) = n_values.filter(|&n| arr.len() != n) {
+                    return Err(e(format!("has {} values, expected {n}", arr.len())));
                 }
                 Ok(arr)
             }
             Some("binary") => {
                 let decoded = blocks::base64_decode(&da.text()).map_err(e)?;
+                let n_bytes = bytes_at(&decoded, 0)?;
                 let block = blocks::read_block(&decoded, 0, self.layout, n_bytes).map_err(e)?;
                 Ok(Array::from_bytes(ty, Cow::Owned(block.into_owned()), big))
             }
@@ -276,6 +289,7 @@ impl<'a> Ctx<'a, '_> {
                         if offset > data.len() {
                             return Err(e(format!("appended block at offset {offset} is past the end of the file")));
                         }
+                        let n_bytes = bytes_at(data, offset)?;
                         let block = blocks::read_block(data, offset, self.layout, n_bytes).map_err(e)?;
                         Ok(Array::from_bytes(ty, block, big))
                     }
@@ -285,6 +299,7 @@ impl<'a> Ctx<'a, '_> {
                             return Err(e(format!("appended block at offset {offset} is past the end of the data")));
                         }
                         let decoded = blocks::base64_decode(&text[offset..end]).map_err(e)?;
+                        let n_bytes = bytes_at(&decoded, 0)?;
                         let block = blocks::read_block(&decoded, 0, self.layout, n_bytes).map_err(e)?;
                         Ok(Array::from_bytes(ty, Cow::Owned(block.into_owned()), big))
                     }
@@ -351,7 +366,11 @@ impl<'a> Ctx<'a, '_> {
             return Err(bad_value("offsets", &ends_arr, i + 1, "is less than the one before it"));
         }
         let n_conn = usize::try_from(ends.last().copied().unwrap_or(0)).unwrap_or(usize::MAX);
-        Ok(Some(PieceCells::Any { types, ends, conn: conn_ids(n_conn)? }))
+        let polyhedra = match types.contains(&cells::POLYHEDRON) {
+            true => Some(self.polyhedra(cells_node, &types, n_points, k)?),
+            false => None,
+        };
+        Ok(Some(PieceCells::Any { types, ends, conn: conn_ids(n_conn)?, polyhedra }))
     }
 
     /// One piece as an [`AnyGrid`]: its cells of any type as they are, and all its data.
@@ -367,7 +386,7 @@ impl<'a> Ctx<'a, '_> {
                 grid.ends = (1..=n_cells as u64).map(|i| 4 * i).collect();
                 grid.conn = conn;
             }
-            Some(PieceCells::Any { types, ends, conn }) => {
+            Some(PieceCells::Any { types, ends, conn, .. }) => {
                 if types.contains(&cells::POLYHEDRON) {
                     return Err(self.fail(format!("piece {k}: polyhedron cells (type 42) are not supported")));
                 }
@@ -386,8 +405,8 @@ impl<'a> Ctx<'a, '_> {
         let ex = match self.read_cells(piece, k, n_cells, n_points)? {
             None => cells::Extracted::all_tets(Vec::new()),
             Some(PieceCells::LinearTets(conn)) => cells::Extracted::all_tets(conn),
-            Some(PieceCells::Any { types, ends, conn }) => {
-                cells::extract(&types, &ends, &conn).map_err(|m| self.fail(format!("piece {k}: {m}")))?
+            Some(PieceCells::Any { types, ends, conn, polyhedra }) => {
+                cells::extract(&types, &ends, &conn, polyhedra.as_ref()).map_err(|m| self.fail(format!("piece {k}: {m}")))?
             }
         };
         if ex.unsupported {
@@ -395,6 +414,46 @@ impl<'a> Ctx<'a, '_> {
             return Ok(Part { raw: RawMesh::default(), refused: ex.other, ids: GlobalIds::default() });
         }
         self.data(piece, n_points, n_cells, ex, points, points64)
+    }
+
+    /// The faces of the piece's polyhedra, in either of VTK's layouts (see
+    /// [`cells::faces_from_stream`] and [`cells::faces_from_arrays`]; VTK 9.4 writes the
+    /// second with snake-case names, and CamelCase ones are accepted too).
+    fn polyhedra(&self, cells_node: Option<&Node>, types: &[u8], n_points: usize, k: usize) -> Result<PolyFaces> {
+        let find = |names: &[&str]| {
+            cells_node.and_then(|c| {
+                c.children_named("DataArray").find(|d| d.attr("Name").is_some_and(|n| names.contains(&n)))
+            })
+        };
+        let ints = |da: &Node, n: Option<usize>| -> Result<Vec<i64>> {
+            let arr = match n {
+                Some(n) => self.array(da, n)?,
+                None => self.array_any(da)?,
+            };
+            let name = da.attr("Name").unwrap_or("(unnamed)").to_string();
+            num::map_ints(&arr, Some)
+                .map_err(|i| self.fail(format!("DataArray '{name}': value {i} ({}) is not an integer", arr.show(i))))
+        };
+        let fail = |m: String| self.fail(format!("piece {k}: {m}"));
+        let new_layout = (
+            find(&["face_connectivity", "FaceConnectivity"]),
+            find(&["face_offsets", "FaceOffsets"]),
+            find(&["polyhedron_to_faces", "PolyhedronToFaces"]),
+            find(&["polyhedron_offsets", "PolyhedronOffsets"]),
+        );
+        if let (Some(conn), Some(face_ends), Some(cell_faces), Some(cell_ends)) = new_layout {
+            let cell_ends = ints(cell_ends, Some(types.len()))?;
+            let cell_faces = ints(cell_faces, None)?;
+            let face_ends = ints(face_ends, None)?;
+            let conn = ints(conn, None)?;
+            return cells::faces_from_arrays(types, &conn, &face_ends, &cell_faces, &cell_ends, n_points).map_err(fail);
+        }
+        match find(&["faces"]) {
+            Some(stream) => cells::faces_from_stream(types, &ints(stream, None)?, n_points).map_err(fail),
+            None => Err(fail(
+                "polyhedron cells (type 42) but no face arrays ('faces' and 'faceoffsets', or VTK 9.4's 'face_connectivity', 'face_offsets', 'polyhedron_to_faces' and 'polyhedron_offsets')".into(),
+            )),
+        }
     }
 
     /// The piece's point and cell data, and the piece made of them, its points and its cells.

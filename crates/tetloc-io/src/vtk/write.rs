@@ -240,6 +240,7 @@ fn write_mesh_full(
         types: Some(OutArray::new("types", NumType::U8, 1, n_tets, move |r, out| {
             out.resize(out.len() + r.len(), vtk_type)
         })),
+        faces: Vec::new(),
     };
     grid.write(path, zlib)
 }
@@ -318,8 +319,40 @@ fn write_cells(
         types: Some(OutArray::new("types", NumType::U8, 1, block.len(), move |r, out| {
             out.extend(block.types[r].iter().map(|t| t.def().vtk_type()))
         })),
+        faces: polyhedron_arrays(block),
     };
     grid.write(path, zlib)
+}
+
+/// A block's polyhedra as VTK 9.4 writes them: every face's points (`face_connectivity`, ends
+/// in `face_offsets`), each cell's faces (`polyhedron_to_faces`, ends per cell in
+/// `polyhedron_offsets`, none for the other cells). Empty without polyhedra. (The centroids
+/// tetloc added are written as points too, unused by any cell.)
+fn polyhedron_arrays(block: &tetloc_core::cell::CellBlock) -> Vec<OutArray<'_>> {
+    let p = &block.polyhedra;
+    if p.is_empty() {
+        return Vec::new();
+    }
+    let mut cell_ends = Vec::with_capacity(block.len());
+    let (mut k, mut end) = (0, 0u64);
+    for c in 0..block.len() {
+        if p.cells.get(k) == Some(&(c as u32)) {
+            end = p.cell_ends[k];
+            k += 1;
+        }
+        cell_ends.push(end);
+    }
+    let ids = |name: &str, v: &[u64]| -> OutArray<'static> {
+        let v: Vec<i64> = v.iter().map(|&x| x as i64).collect();
+        OutArray::new(name, NumType::I64, 1, v.len(), move |r, out| out.extend_from_slice(bytemuck::cast_slice(&v[r])))
+    };
+    let n_faces = p.face_ends.len() as u64;
+    vec![
+        ids("face_connectivity", &p.points.iter().map(|&x| u64::from(x)).collect::<Vec<_>>()),
+        ids("face_offsets", &p.face_ends),
+        ids("polyhedron_to_faces", &(0..n_faces).collect::<Vec<_>>()),
+        ids("polyhedron_offsets", &cell_ends),
+    ]
 }
 
 /// Writes a grid read by [`super::vtu::read_any`]: its points, cells and data as they were,
@@ -352,6 +385,7 @@ pub fn write_any_grid(path: &Path, grid: &super::vtu::AnyGrid, extra: &[NamedArr
             grid.ends[r].iter().for_each(|&e| push_id(out, e, wide))
         }),
         types: Some(OutArray::slice("types", NumType::U8, 1, &grid.types)),
+        faces: Vec::new(),
     };
     out.write(path, zlib)
 }
@@ -455,6 +489,7 @@ fn point_cloud(kind: Kind, points: Coords<'_>) -> Grid<'_> {
         types: (kind == Kind::Unstructured).then(|| {
             OutArray::new("types", NumType::U8, 1, n, |r, out| out.resize(out.len() + r.len(), cells::VERTEX))
         }),
+        faces: Vec::new(),
     }
 }
 
@@ -588,6 +623,7 @@ impl PolylineWriter {
                 r.for_each(|i| push_id(out, ends[i] as u64, wide))
             }),
             types: None,
+            faces: Vec::new(),
         };
         grid.write(&self.path, zlib)
     }
@@ -774,6 +810,8 @@ struct Grid<'a> {
     offsets: OutArray<'a>,
     /// Unstructured grids only.
     types: Option<OutArray<'a>>,
+    /// The polyhedra's faces, in VTK 9.4's four arrays (unstructured grids with polyhedra).
+    faces: Vec<OutArray<'a>>,
 }
 
 impl Grid<'_> {
@@ -782,6 +820,7 @@ impl Grid<'_> {
         let mut v: Vec<&OutArray> = self.point_data.iter().chain(&self.cell_data).collect();
         v.extend([&self.points, &self.connectivity, &self.offsets]);
         v.extend(&self.types);
+        v.extend(&self.faces);
         v
     }
 
@@ -875,7 +914,7 @@ impl Grid<'_> {
         section(&mut s, "PointData", self.point_data.len());
         section(&mut s, "CellData", self.cell_data.len());
         section(&mut s, "Points", 1);
-        section(&mut s, cells, 2 + self.types.is_some() as usize);
+        section(&mut s, cells, 2 + self.types.is_some() as usize + self.faces.len());
         let _ = writeln!(s, "    </Piece>");
         let _ = writeln!(s, "  </{dataset}>");
         let _ = write!(s, "  <AppendedData encoding=\"raw\">\n   _");
