@@ -26,8 +26,7 @@ def test_gpu_backend_matches_the_oracle(vulkan, oracle_sets, backend):
 
 @pytest.mark.parametrize("backend", GPU_BACKENDS)
 def test_gpu_backend_matches_the_generated_oracle(vulkan, generated_data, backend):
-    """The fresh-clone counterpart: a generated block with float64 coordinates below f32's
-    resolution (the kernels' f64 refinement), answers computed at test time."""
+    """The fresh-clone counterpart: a generated block, answers computed at test time."""
     check_on_gpu(query_sets(generated_data), backend)
 
 

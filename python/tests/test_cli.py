@@ -57,7 +57,7 @@ def test_info_is_the_clis_info_json(cli, data_dir, name):
 
 @pytest.mark.parametrize("name", ["part_s.vtu", "delaunay_s.vtu"])
 def test_info_is_the_clis_info_json_on_generated_meshes(cli, generated_data, name):
-    """The fresh-clone counterpart (delaunay_s: float64 coordinates)."""
+    """The fresh-clone counterpart."""
     path = str(generated_data / name)
     assert tetloc.read(path).info() == json.loads(run(cli, "info", path, "--json"))
 
