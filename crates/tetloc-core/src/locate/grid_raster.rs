@@ -342,6 +342,7 @@ impl RowClip {
 mod tests {
     use super::*;
     use crate::bvh::BuildPreset;
+    use crate::locate::GridSampler;
     use crate::test_support::{self, KuhnGrid};
     use crate::{BatchLocator, CpuLocator};
     use std::sync::Arc;
