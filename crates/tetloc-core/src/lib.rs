@@ -13,6 +13,7 @@ pub mod mesh;
 pub mod ops;
 pub mod partition;
 pub mod queries;
+pub mod streamline;
 #[cfg(test)]
 mod test_support;
 

@@ -5,7 +5,8 @@
 
 use std::sync::Arc;
 use tetloc_core::gen::{generate, Shape};
-use tetloc_core::{BatchLocator, Mesh, Vec3};
+use tetloc_core::locate::{Points, Values};
+use tetloc_core::{BatchLocator, Mesh};
 use tetloc_render::{RenderOptions, Renderer};
 
 /// Every point gets the value 0.3, as fast as memory allows.
@@ -15,13 +16,12 @@ impl BatchLocator for Instant03 {
     fn name(&self) -> &str {
         "constant"
     }
-    fn locate(&mut self, _: &[Vec3], ids: &mut [i32]) -> tetloc_core::Result<()> {
+    fn query(&mut self, _: Points<'_>, _: &[&str], ids: &mut [i32], values: Values<'_>) -> tetloc_core::Result<()> {
         ids.fill(0);
-        Ok(())
-    }
-    fn sample(&mut self, _: &[Vec3], _: &str, values: &mut [f32]) -> tetloc_core::Result<()> {
-        values.fill(0.3);
-        Ok(())
+        values.via_f32(|v| {
+            v.fill(0.3);
+            Ok(())
+        })
     }
 }
 

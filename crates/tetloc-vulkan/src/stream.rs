@@ -388,9 +388,10 @@ mod tests {
     use crate::{Kernel, LocatorOptions};
     use std::sync::Arc;
     use tetloc_core::gen::{self, Shape};
+    use tetloc_core::locate::LineTracer;
     use tetloc_core::mesh::{Mesh, RawMesh};
     use tetloc_core::ops::trace::{self, Direction};
-    use tetloc_core::{BatchLocator, CpuLocator};
+    use tetloc_core::CpuLocator;
 
     /// A torus with the tokamak flow of `gen --vector`, and seeds: tet centres, one outside,
     /// one NaN.

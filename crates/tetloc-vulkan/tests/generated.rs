@@ -3,6 +3,7 @@
 
 mod common;
 
+use tetloc_core::locate::GridSampler;
 use tetloc_core::{BatchLocator, CpuLocator};
 use tetloc_vulkan::{LocatorOptions, QueryKind, VulkanLocator};
 

@@ -4,8 +4,8 @@
 //! and the answers gathered back on rank 0, which alone writes the output.
 
 use super::{gather, scatter};
-use tetloc_core::locate::check_sample_lengths;
-use tetloc_core::{BatchLocator, Vec3};
+use tetloc_core::locate::{check_sample_lengths, Points, Values};
+use tetloc_core::BatchLocator;
 use tetloc_mpi::dist::{Cluster, DistLocator};
 use tetloc_mpi::mpi::traits::*;
 
@@ -37,22 +37,17 @@ impl BatchLocator for Driven<'_> {
         &self.name
     }
 
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<(), tetloc_core::Error> {
-        self.sample_many(points, &[], ids, &mut [])
-    }
-
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<(), tetloc_core::Error> {
-        let mut ids = vec![0; points.len()];
-        self.sample_many(points, &[field], &mut ids, values)
-    }
-
-    fn sample_many(
+    /// f32 points only (the ranks exchange f32 points).
+    fn query(
         &mut self,
-        points: &[Vec3],
+        points: Points<'_>,
         fields: &[&str],
         ids: &mut [i32],
-        values: &mut [f32],
+        values: Values<'_>,
     ) -> Result<(), tetloc_core::Error> {
+        let Points::F32(points) = points else {
+            return Err(tetloc_core::Error::Invalid(format!("the {} backend takes f32 points only", self.name)));
+        };
         // Checked before the collective call: every rank must take part in it or none.
         check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         announce(self.cluster, Some(fields));
@@ -65,8 +60,10 @@ impl BatchLocator for Driven<'_> {
                 tetloc_core::Error::Invalid(format!("global cell id {g} does not fit the int32 outputs"))
             })?;
         }
-        values.copy_from_slice(&all_values);
-        Ok(())
+        values.via_f32(|v| {
+            v.copy_from_slice(&all_values);
+            Ok(())
+        })
     }
 }
 

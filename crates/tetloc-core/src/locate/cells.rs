@@ -22,7 +22,7 @@
 //! Meshes of tets only pass through untouched. GPU kernels answer decomposition tet ids
 //! only: values on mixed meshes are always computed here, on the CPU.
 
-use super::{check_lengths, check_sample_lengths, BatchLocator, Points, OUTSIDE};
+use super::{check_sample_lengths, BatchLocator, GridSampler, LineTracer, Points, Values, OUTSIDE};
 use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 use crate::cell::{face_split, interpolate, invert, PCoords, Point};
 use crate::error::Result;
@@ -60,20 +60,6 @@ impl<L: BatchLocator> CellLocator<L> {
 
     pub fn into_inner(self) -> L {
         self.inner
-    }
-
-    /// The backend's tets for points given in f32, refined to cells.
-    fn find(&mut self, points: &[Vec3], tets: &mut [i32]) -> Result<Vec<Option<Found>>> {
-        self.inner.locate(points, tets)?;
-        let points: Vec<Point> = points.par_iter().map(|p| p.map(f64::from)).collect();
-        Ok(self.refine_all(&points, tets))
-    }
-
-    /// The backend's tets for points given in f64 (exact on the file's data: the backend's
-    /// f64 path), refined to cells.
-    fn find64(&mut self, points: &[Point], tets: &mut [i32]) -> Result<Vec<Option<Found>>> {
-        self.inner.sample_many64(points, &[], tets, &mut [])?;
-        Ok(self.refine_all(points, tets))
     }
 
     fn refine_all(&self, points: &[Point], tets: &[i32]) -> Vec<Option<Found>> {
@@ -338,79 +324,33 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         self.inner.name()
     }
 
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
+    /// Mixed meshes: the inner backend's tets (on f64 points its exact f64 path), refined to
+    /// cells on the file's coordinates, and values from the cells' shape functions (in f64 on
+    /// the file's values for f64 values).
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
         if self.mesh.cells.is_none() {
-            return self.inner.locate(points, ids);
+            return self.inner.query(points, fields, ids, values);
         }
-        check_lengths(points.len(), ids.len())?;
-        let found = self.find(points, ids)?;
-        ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |f| f.cell as i32));
-        Ok(())
+        match values {
+            Values::F32(v) => self.sample_cells(points, fields, ids, v),
+            Values::F64(v) => self.sample_cells(points, fields, ids, v),
+        }
     }
 
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-        if self.mesh.cells.is_none() {
-            return self.inner.sample(points, field, values);
+    /// Only on pure tet meshes: a backend's own sampler answers in tets.
+    fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
+        match self.mesh.cells {
+            Some(_) => None,
+            None => self.inner.grid_sampler(),
         }
-        let mut ids = vec![OUTSIDE; points.len()];
-        self.locate_and_sample(points, field, &mut ids, values)
-    }
-
-    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        if self.mesh.cells.is_none() {
-            return self.inner.locate_and_sample(points, field, ids, values);
-        }
-        self.sample_many(points, &[field], ids, values)
-    }
-
-    fn sample_grid(
-        &mut self,
-        grid: &crate::geom::ImageGrid,
-        range: std::ops::Range<usize>,
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f32],
-    ) -> Result<()> {
-        if self.mesh.cells.is_none() {
-            return self.inner.sample_grid(grid, range, fields, ids, values);
-        }
-        self.sample_many(&super::grid_points(grid, range), fields, ids, values)
     }
 
     /// Only on pure tet meshes: a backend's own tracer interpolates in tets.
-    fn trace_lines(
-        &mut self,
-        seeds: &[Vec3],
-        o: &crate::ops::trace::TraceOptions,
-        vector: [&str; 3],
-        progress: &mut dyn FnMut(usize) -> Result<()>,
-    ) -> Result<Option<Vec<crate::ops::trace::Line>>> {
-        if self.mesh.cells.is_some() {
-            return Ok(None);
+    fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
+        match self.mesh.cells {
+            Some(_) => None,
+            None => self.inner.line_tracer(),
         }
-        self.inner.trace_lines(seeds, o, vector, progress)
-    }
-
-    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        if self.mesh.cells.is_none() {
-            return self.inner.sample_many(points, fields, ids, values);
-        }
-        self.sample_cells(Points::F32(points), fields, ids, values)
-    }
-
-    /// The inner backend's f64 path (exact on the file's data), then the cells' parametric
-    /// coordinates on the file's f64 coordinates, and values in f64 on the file's values.
-    fn sample_many64(
-        &mut self,
-        points: &[[f64; 3]],
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f64],
-    ) -> Result<()> {
-        if self.mesh.cells.is_none() {
-            return self.inner.sample_many64(points, fields, ids, values);
-        }
-        self.sample_cells(Points::F64(points), fields, ids, values)
     }
 }
 
@@ -427,11 +367,9 @@ impl<L: BatchLocator> CellLocator<L> {
         check_sample_lengths(n, fields.len(), ids.len(), values.len())?;
         let mesh = self.mesh.clone();
         let fields: Vec<&Field> = fields.iter().map(|f| mesh.field(f)).collect::<Result<_>>()?;
-        let found = match points {
-            Points::F32(p) => self.find(p, ids)?,
-            Points::F64(p) => self.find64(p, ids)?,
-        };
+        self.inner.query(points, &[], ids, Values::none())?;
         let points = points.wide(0..n);
+        let found = self.refine_all(&points, ids);
         let cells = mesh.cells.as_ref().expect("checked above");
         let k = fields.len();
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |f| f.cell as i32));

@@ -13,7 +13,7 @@
 
 use super::bins::Bins;
 use super::grid_raster::{self, Cell, GridRaster};
-use super::{check_lengths, check_sample_lengths, BatchLocator, OUTSIDE};
+use super::{check_sample_lengths, BatchLocator, GridSampler, Points, Values, OUTSIDE};
 use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
 use crate::geom::predicates::Query;
@@ -112,7 +112,7 @@ impl CpuLocator {
     /// (the canonical answer: the first containing tet in traversal order).
     #[inline]
     pub fn locate_point(&self, p: Vec3) -> Option<(u32, Bary)> {
-        self.find(&self.query(p))
+        self.find(&self.query_at(p))
     }
 
     /// [`Self::locate_point`] of a point given in f64.
@@ -122,7 +122,7 @@ impl CpuLocator {
 
     /// A point given in f32 file coordinates, with its working coordinates.
     #[inline]
-    fn query(&self, p: Vec3) -> Query {
+    fn query_at(&self, p: Vec3) -> Query {
         Query { local: self.mesh.info.frame.to_working_f32(p), file: p.map(f64::from) }
     }
 
@@ -211,17 +211,8 @@ impl CpuLocator {
     /// Locates every point, walking from the previous answer, and writes `f(answer)` to
     /// `out`. Incoherent batches are visited in Morton order so that consecutive points are
     /// close; batches that already are (tet centres in mesh order, points along rays or
-    /// particle paths) keep their order and skip the sort.
-    fn locate_batch<T: Send + Copy>(
-        &self,
-        points: &[Vec3],
-        out: &mut [T],
-        f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
-    ) {
-        self.locate_batch_of(points, |p| self.query(*p), out, f)
-    }
-
-    /// [`Self::locate_batch`] over points of any precision, `query` giving their two forms.
+    /// particle paths) keep their order and skip the sort. Points of any precision, `query`
+    /// giving their two forms.
     fn locate_batch_of<P: Sync, T: Send + Copy>(
         &self,
         points: &[P],
@@ -377,15 +368,6 @@ pub(super) fn is_coherent(points: &[Vec3], mean_edge: f32) -> bool {
 }
 
 impl CpuLocator {
-    /// The value of `field` for a locate answer: interpolated (per vertex, with all the nodes
-    /// of higher-order tets) or looked up (per cell); NaN outside.
-    fn value_fn(&self, field: &str) -> Result<impl Fn(Option<(u32, Bary)>) -> f32 + Sync + '_> {
-        let (mesh, f) = (&self.mesh, self.mesh.field(field)?);
-        Ok(move |found: Option<(u32, Bary)>| mesh.value_at(f, found.map(|(t, b)| (t as usize, b))))
-    }
-}
-
-impl CpuLocator {
     /// The tet containing `p`, searched from `hint` (a walk through neighbours, the BVH when
     /// the walk fails), which becomes the answer: one particle's lookups, each near the last.
     #[inline]
@@ -393,7 +375,7 @@ impl CpuLocator {
         if !super::is_finite(p) {
             return None;
         }
-        let q = self.query(p);
+        let q = self.query_at(p);
         let found = hint.and_then(|h| self.walk(h, &q)).or_else(|| self.find(&q));
         if let Some((t, _)) = found {
             *hint = Some(t);
@@ -424,58 +406,37 @@ impl BatchLocator for CpuLocator {
         "cpu"
     }
 
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        self.locate_batch(points, ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
-        Ok(())
-    }
-
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-        check_lengths(points.len(), values.len())?;
-        let value = self.value_fn(field)?;
-        self.locate_batch(points, values, value);
-        Ok(())
-    }
-
-    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len(), values.len())?;
-        let value = self.value_fn(field)?;
-        let mut both = vec![(OUTSIDE, 0f32); points.len()];
-        self.locate_batch(points, &mut both, |found| (found.map_or(OUTSIDE, |(t, _)| t as i32), value(found)));
-        for ((id, v), (i, x)) in ids.iter_mut().zip(values.iter_mut()).zip(both) {
-            (*id, *v) = (i, x);
-        }
-        Ok(())
-    }
-
-    /// One lookup per point for every field.
-    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        self.sample_many_of(points, |p| self.query(*p), fields, ids, values)
-    }
-
-    /// Exact on the file's data: every face sign that the f32 filter cannot decide is
-    /// decided on the f64 coordinates of the mesh and the point; values in f64 on the file's
-    /// values, at f64 barycentrics ([`Mesh::values_at_ids64`]).
-    fn sample_many64(
-        &mut self,
-        points: &[[f64; 3]],
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f64],
-    ) -> Result<()> {
+    /// f32 points: one lookup per point for every field. f64 points: exact on the file's
+    /// data (every face sign that the f32 filter cannot decide is decided on the f64
+    /// coordinates of the mesh and the point), values in f64 on the file's values, at f64
+    /// barycentrics ([`Mesh::values_at_ids64`]).
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
         check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
-        let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
-        let exact = self.mesh.exact();
-        self.locate_batch_of(points, |p| exact.query(*p), ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
-        self.mesh.values_at_ids64(points, ids, &fields, values);
-        Ok(())
+        match points {
+            Points::F32(p) => values.via_f32(|v| self.sample_many_of(p, |p| self.query_at(*p), fields, ids, v)),
+            Points::F64(p) => {
+                let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
+                let exact = self.mesh.exact();
+                self.locate_batch_of(p, |p| exact.query(*p), ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
+                match values {
+                    Values::F32(v) => self.mesh.values_at_ids64(p, ids, &fields, v),
+                    Values::F64(v) => self.mesh.values_at_ids64(p, ids, &fields, v),
+                }
+                Ok(())
+            }
+        }
     }
 
+    fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
+        Some(self)
+    }
+}
+
+impl GridSampler for CpuLocator {
     /// The grid's points located by rasterizing the tets (`GridRaster`), the ties by the
-    /// search: the same ids as [`Self::sample_many`] at the grid's points, bit for bit, and
-    /// values within rounding of its (the weights of an affine map, not of the exact test,
-    /// where a tet holds a point by more than the map's error bound).
+    /// search: the same ids as [`BatchLocator::sample_many`] at the grid's points, bit for
+    /// bit, and values within rounding of its (the weights of an affine map, not of the exact
+    /// test, where a tet holds a point by more than the map's error bound).
     fn sample_grid(
         &mut self,
         grid: &ImageGrid,
@@ -500,7 +461,7 @@ impl BatchLocator for CpuLocator {
             _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS, names),
         };
         // The search's order is the tie rule.
-        let tie = |k: usize| self.find(&self.query(grid.point(k)));
+        let tie = |k: usize| self.find(&self.query_at(grid.point(k)));
         let nf = fields.len();
         let mut i = range.start;
         while i < range.end {
@@ -556,14 +517,17 @@ impl CpuLocator {
     ) -> Result<()> {
         check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
+        if fields.is_empty() {
+            // Ids only: no answers kept beside them.
+            self.locate_batch_of(points, query, ids, |f| f.map_or(OUTSIDE, |(t, _)| t as i32));
+            return Ok(());
+        }
         let mut found = vec![None; points.len()];
         self.locate_batch_of(points, query, &mut found, |f| f);
         ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
-        if !fields.is_empty() {
-            values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
-                self.mesh.values_at(&fields, f.map(|(t, b)| (t as usize, b)), out);
-            });
-        }
+        values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
+            self.mesh.values_at(&fields, f.map(|(t, b)| (t as usize, b)), out);
+        });
         Ok(())
     }
 }
@@ -682,7 +646,7 @@ mod tests {
         for _ in 0..4000 {
             let p: Vec3 = std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k]));
             refused += usize::from(!occ.may_hold(p));
-            let brute = (0..m.tets.len() as u32).find(|&t| matches!(loc.test(t, &loc.query(p)), TetTest::Inside(_)));
+            let brute = (0..m.tets.len() as u32).find(|&t| matches!(loc.test(t, &loc.query_at(p)), TetTest::Inside(_)));
             assert_eq!(loc.locate_point(p).map(|(t, _)| t), brute, "{p:?}");
             n += 1;
         }

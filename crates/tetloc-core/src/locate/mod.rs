@@ -1,11 +1,16 @@
-//! The seam every backend plugs into: a batch locator takes points and returns tet ids, or
-//! values of a field. The CPU implementation lives here; the Vulkan backend implements the
-//! same trait in `tetloc-vulkan`. Three wrappers add what is the same for every backend:
-//! [`FiniteOnly`] answers points with NaN or infinite coordinates, [`CellLocator`] turns
-//! answers in a mixed mesh's tet decomposition into answers on its cells, and
-//! [`WithTolerance`] assigns points just outside the boundary to the nearest boundary cell.
+//! The seam every backend plugs into: one query ([`BatchLocator::query`]) takes points in
+//! f32 or f64 and writes, for each, its tet id and the values of any number of fields. The
+//! CPU implementation lives here; the Vulkan backend implements the same trait in
+//! `tetloc-vulkan`. Two capabilities go beyond the query ([`GridSampler`], [`LineTracer`]):
+//! a backend that has one says so through a hook, and the operations fall back to queries
+//! where it has none. Wrappers add what is the same for every backend: [`FiniteOnly`]
+//! answers points with NaN or infinite coordinates, [`CellLocator`] turns answers in a mixed
+//! mesh's tet decomposition into answers on its cells, [`F64Values`] gives the f64 path the
+//! CPU's values, and [`WithTolerance`] assigns points just outside the boundary to the
+//! nearest boundary cell. Each implements the query and the two hooks, nothing else.
 
 mod bins;
+mod capability;
 mod cells;
 pub mod certify;
 mod cpu;
@@ -19,15 +24,14 @@ mod tests;
 pub mod tolerance;
 
 pub(crate) use cells::cell_weights;
+pub use capability::{sample_grid, trace_lines, GridSampler, LineTracer};
 pub use cells::CellLocator;
 pub use cpu::CpuLocator;
 pub use precision::{with_precision, F64Values, Precision};
 pub use tolerance::{Tolerance, WithTolerance};
 
-use crate::error::{Error, Result};
-use crate::geom::ImageGrid;
-use crate::geom::Vec3;
-use crate::ops::trace::{Line, TraceOptions};
+use crate::error::Result;
+use crate::geom::{ImageGrid, Real, Vec3};
 use rayon::prelude::*;
 use std::ops::Range;
 
@@ -36,40 +40,61 @@ pub const OUTSIDE: i32 = -1;
 
 /// A backend that locates batches of points in one mesh.
 ///
-/// `locate` writes the containing tet id (0-based, file order) or [`OUTSIDE`] for each
-/// point; `sample` writes the field's value there: per-vertex fields are interpolated
-/// barycentrically, per-cell fields looked up, NaN outside. A point on a face shared by two
-/// tets may go to either, but always to the same one for the same backend.
+/// [`Self::query`] is all a backend must answer; the other methods are conveniences over it.
+/// A point on a face shared by two tets may go to either, but always to the same one for the
+/// same backend.
 pub trait BatchLocator {
     /// The backend's name as used on the command line (`cpu`, `soft-bvh`, ...).
     fn name(&self) -> &str;
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()>;
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()>;
-    /// Ids and values together; backends that can do both in one pass override this.
+
+    /// For each point, the containing tet's id (0-based, file order) or [`OUTSIDE`] into
+    /// `ids`, and the values of `fields` there into `values`: `fields.len()` a point, point
+    /// after point (VTK's tuple order; a vector is its `NAME[i]` fields), NaN outside.
+    /// Per-vertex fields are interpolated, per-cell fields looked up.
+    ///
+    /// f64 points are the file's coordinates at full precision (points far from the origin
+    /// keep it): the CPU decides exactly on them and the mesh's f64 coordinates; the GPU
+    /// kernels search the mesh's working frame (`mesh::Frame`) and their answers are certified
+    /// on the host. Values come in the precision `values` asks for: f64 ones are the file's
+    /// values interpolated in f64 ([`crate::mesh::Mesh::values_at_ids64`]) where the backend
+    /// computes them so, else its f32 values widened ([`Precision`]).
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()>;
+
+    /// The backend's own way to sample a grid's points (a GPU kernel makes them itself, the
+    /// CPU rasterizes its tets), or `None`: then [`sample_grid`] queries the grid's points.
+    fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
+        None
+    }
+
+    /// The backend's own streamline tracer (a GPU kernel that runs every particle to its
+    /// end), or `None`: then `ops::trace::trace_with` drives the queries one Runge–Kutta stage
+    /// at a time.
+    fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
+        None
+    }
+
+    /// Ids only.
+    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
+        self.query(Points::F32(points), &[], ids, Values::none())
+    }
+
+    /// One field's values only.
+    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
+        let mut ids = vec![OUTSIDE; points.len()];
+        self.query(Points::F32(points), &[field], &mut ids, Values::F32(values))
+    }
+
+    /// Ids and one field's values.
     fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        self.locate(points, ids)?;
-        self.sample(points, field, values)
+        self.query(Points::F32(points), &[field], ids, Values::F32(values))
     }
-    /// Ids and several fields at once (each field one component: a vector is its `NAME[i]`
-    /// fields): `values` holds `fields.len()` values per point, point after point (VTK's tuple
-    /// order), NaN outside. The default locates, then samples each field; backends that
-    /// interpolate every field from one lookup override it.
+
+    /// Ids and several fields' values of f32 points.
     fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
-        self.locate(points, ids)?;
-        let mut one = vec![0f32; points.len()];
-        for (j, f) in fields.iter().enumerate() {
-            self.sample(points, f, &mut one)?;
-            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
-        }
-        Ok(())
+        self.query(Points::F32(points), fields, ids, Values::F32(values))
     }
-    /// [`Self::sample_many`] of points given in the file's coordinates at f64 precision
-    /// (points far from the origin keep their precision), with f64 values. The CPU backend
-    /// decides exactly on them and on the mesh's f64 coordinates, and interpolates the file's
-    /// values in f64 ([`crate::mesh::Mesh::values_at_ids64`]); the GPU backends search them
-    /// in the mesh's working frame (`mesh::Frame`) and give their f32 values widened, or the
-    /// CPU's f64 values with their f64 precision option. Backends without f64 input say so.
+
+    /// Ids and several fields' f64 values of f64 points (the file's coordinates).
     fn sample_many64(
         &mut self,
         points: &[[f64; 3]],
@@ -77,37 +102,7 @@ pub trait BatchLocator {
         ids: &mut [i32],
         values: &mut [f64],
     ) -> Result<()> {
-        let _ = (points, fields, ids, values);
-        Err(Error::Invalid(format!("the {} backend takes f32 points only", self.name())))
-    }
-
-    /// [`Self::sample_many`] at points `range` of `grid` (x fastest, [`ImageGrid::point`]):
-    /// `resample`'s chunks. Backends that make the points themselves (the GPU kernels' grid
-    /// set) override it.
-    fn sample_grid(
-        &mut self,
-        grid: &ImageGrid,
-        range: Range<usize>,
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f32],
-    ) -> Result<()> {
-        self.sample_many(&grid_points(grid, range), fields, ids, values)
-    }
-
-    /// Whole streamlines traced by the backend itself (a GPU kernel that runs every particle
-    /// to its end), or `None` where it has no tracer of its own for these options: then
-    /// [`crate::ops::trace::trace_with`] drives it one Runge–Kutta stage at a time.
-    /// `progress` gets the number of lines done so far.
-    fn trace_lines(
-        &mut self,
-        seeds: &[Vec3],
-        o: &TraceOptions,
-        vector: [&str; 3],
-        progress: &mut dyn FnMut(usize) -> Result<()>,
-    ) -> Result<Option<Vec<Line>>> {
-        let _ = (seeds, o, vector, progress);
-        Ok(None)
+        self.query(Points::F64(points), fields, ids, Values::F64(values))
     }
 }
 
@@ -115,49 +110,18 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     fn name(&self) -> &str {
         (**self).name()
     }
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
-        (**self).locate(points, ids)
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
+        (**self).query(points, fields, ids, values)
     }
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-        (**self).sample(points, field, values)
+    fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
+        (**self).grid_sampler()
     }
-    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        (**self).locate_and_sample(points, field, ids, values)
-    }
-    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        (**self).sample_many(points, fields, ids, values)
-    }
-    fn sample_many64(
-        &mut self,
-        points: &[[f64; 3]],
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f64],
-    ) -> Result<()> {
-        (**self).sample_many64(points, fields, ids, values)
-    }
-    fn sample_grid(
-        &mut self,
-        grid: &ImageGrid,
-        range: Range<usize>,
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f32],
-    ) -> Result<()> {
-        (**self).sample_grid(grid, range, fields, ids, values)
-    }
-    fn trace_lines(
-        &mut self,
-        seeds: &[Vec3],
-        o: &TraceOptions,
-        vector: [&str; 3],
-        progress: &mut dyn FnMut(usize) -> Result<()>,
-    ) -> Result<Option<Vec<Line>>> {
-        (**self).trace_lines(seeds, o, vector, progress)
+    fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
+        (**self).line_tracer()
     }
 }
 
-/// Points `range` of `grid`, as [`BatchLocator::sample_grid`] samples them.
+/// Points `range` of `grid`, as [`sample_grid`] samples them.
 pub fn grid_points(grid: &ImageGrid, range: Range<usize>) -> Vec<Vec3> {
     range.into_par_iter().map(|i| grid.point(i)).collect()
 }
@@ -190,6 +154,68 @@ impl<L: BatchLocator> FiniteOnly<L> {
     pub fn into_inner(self) -> L {
         self.inner
     }
+
+    /// The query of the points that `keep` keeps, when it drops some; the others get
+    /// [`OUTSIDE`] and NaN.
+    fn query_kept<P: Point>(
+        &mut self,
+        points: &[P],
+        keep: impl Fn(&P) -> bool + Sync,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: Values<'_>,
+    ) -> Result<()> {
+        let Some(c) = Compacted::of(points, keep) else {
+            return self.inner.query(P::batch(points), fields, ids, values);
+        };
+        let (k, n) = (fields.len(), c.points.len());
+        let mut sub_ids = vec![OUTSIDE; n];
+        match values {
+            Values::F32(v) => {
+                self.query_sub(&c, P::batch(&c.points), fields, &mut sub_ids, vec![f32::NAN; n * k], v)?
+            }
+            Values::F64(v) => {
+                self.query_sub(&c, P::batch(&c.points), fields, &mut sub_ids, vec![f64::NAN; n * k], v)?
+            }
+        }
+        c.scatter_k(1, &sub_ids, ids, OUTSIDE);
+        Ok(())
+    }
+
+    /// The inner query of the compacted points, its values spread back into `out`.
+    fn query_sub<P, T: Real>(
+        &mut self,
+        c: &Compacted<P>,
+        points: Points<'_>,
+        fields: &[&str],
+        ids: &mut [i32],
+        mut sub: Vec<T>,
+        out: &mut [T],
+    ) -> Result<()>
+    where
+        for<'v> Values<'v>: From<&'v mut [T]>,
+    {
+        self.inner.query(points, fields, ids, Values::from(&mut sub[..]))?;
+        c.scatter_k(fields.len(), &sub, out, T::NAN);
+        Ok(())
+    }
+}
+
+/// A query point in either precision.
+trait Point: Copy + Send + Sync {
+    fn batch(points: &[Self]) -> Points<'_>;
+}
+
+impl Point for Vec3 {
+    fn batch(points: &[Self]) -> Points<'_> {
+        Points::F32(points)
+    }
+}
+
+impl Point for [f64; 3] {
+    fn batch(points: &[Self]) -> Points<'_> {
+        Points::F64(points)
+    }
 }
 
 /// The points of a batch to hand to the backend (finite ones) when it has others, and the
@@ -209,17 +235,17 @@ impl<P: Copy + Send + Sync> Compacted<P> {
         let points = index.par_iter().map(|&i| points[i]).collect();
         Some(Compacted { index, points })
     }
+}
 
-    /// Spreads the answers for the compacted points back; the others get `none`.
-    fn scatter<T: Copy>(&self, answers: &[T], out: &mut [T], none: T) {
-        self.scatter_k(1, answers, out, none);
-    }
-
-    /// [`Self::scatter`] for `k` answers per point.
+impl<P> Compacted<P> {
+    /// Spreads the answers for the compacted points back, `k` a point; the others get `none`.
     fn scatter_k<T: Copy>(&self, k: usize, answers: &[T], out: &mut [T], none: T) {
         out.fill(none);
-        for (&i, a) in self.index.iter().zip(answers.chunks_exact(k.max(1))) {
-            out[i * k..(i + 1) * k].copy_from_slice(&a[..k]);
+        if k == 0 {
+            return;
+        }
+        for (&i, a) in self.index.iter().zip(answers.chunks_exact(k)) {
+            out[i * k..(i + 1) * k].copy_from_slice(a);
         }
     }
 }
@@ -229,96 +255,45 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
         self.inner.name()
     }
 
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else { return self.inner.locate(points, ids) };
-        let mut sub = vec![OUTSIDE; c.points.len()];
-        self.inner.locate(&c.points, &mut sub)?;
-        c.scatter(&sub, ids, OUTSIDE);
-        Ok(())
-    }
-
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-        check_lengths(points.len(), values.len())?;
-        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else { return self.inner.sample(points, field, values) };
-        let mut sub = vec![f32::NAN; c.points.len()];
-        self.inner.sample(&c.points, field, &mut sub)?;
-        c.scatter(&sub, values, f32::NAN);
-        Ok(())
-    }
-
-    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        check_lengths(points.len(), values.len())?;
-        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else {
-            return self.inner.locate_and_sample(points, field, ids, values);
-        };
-        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len()]);
-        self.inner.locate_and_sample(&c.points, field, &mut sub_ids, &mut sub_values)?;
-        c.scatter(&sub_ids, ids, OUTSIDE);
-        c.scatter(&sub_values, values, f32::NAN);
-        Ok(())
-    }
-
-    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
         check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
-        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else {
-            return self.inner.sample_many(points, fields, ids, values);
-        };
-        let k = fields.len();
-        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f32::NAN; c.points.len() * k]);
-        self.inner.sample_many(&c.points, fields, &mut sub_ids, &mut sub_values)?;
-        c.scatter(&sub_ids, ids, OUTSIDE);
-        c.scatter_k(k, &sub_values, values, f32::NAN);
-        Ok(())
-    }
-
-    fn sample_many64(
-        &mut self,
-        points: &[[f64; 3]],
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f64],
-    ) -> Result<()> {
-        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
-        // Beyond f32's range is beyond every mesh (whose f32 copy is finite), like NaN.
-        let in_range = |p: &[f64; 3]| p.iter().all(|c| c.abs() <= f32::MAX as f64);
-        let Some(c) = Compacted::of(points, in_range) else {
-            return self.inner.sample_many64(points, fields, ids, values);
-        };
-        let k = fields.len();
-        let (mut sub_ids, mut sub_values) = (vec![OUTSIDE; c.points.len()], vec![f64::NAN; c.points.len() * k]);
-        self.inner.sample_many64(&c.points, fields, &mut sub_ids, &mut sub_values)?;
-        c.scatter(&sub_ids, ids, OUTSIDE);
-        c.scatter_k(k, &sub_values, values, f64::NAN);
-        Ok(())
+        match points {
+            Points::F32(p) => self.query_kept(p, |p| is_finite(*p), fields, ids, values),
+            // Beyond f32's range is beyond every mesh (whose f32 copy is finite), like NaN.
+            Points::F64(p) => {
+                let in_range = |p: &[f64; 3]| p.iter().all(|c| c.abs() <= f32::MAX as f64);
+                self.query_kept(p, in_range, fields, ids, values)
+            }
+        }
     }
 
     /// A grid's points are finite (its bounds are).
-    fn sample_grid(
-        &mut self,
-        grid: &ImageGrid,
-        range: Range<usize>,
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f32],
-    ) -> Result<()> {
-        self.inner.sample_grid(grid, range, fields, ids, values)
+    fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
+        self.inner.grid_sampler()
     }
 
-    /// The backend's own tracer gets only the finite seeds (the others give no line, as a
-    /// seed outside the mesh), with the lines' seed indices mapped back.
+    /// The backend's own tracer gets only the finite seeds ([`LineTracer`] below).
+    fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
+        self.inner.line_tracer()?;
+        Some(self)
+    }
+}
+
+impl<L: BatchLocator> LineTracer for FiniteOnly<L> {
+    /// Only the finite seeds (the others give no line, as a seed outside the mesh), with the
+    /// lines' seed indices mapped back.
     fn trace_lines(
         &mut self,
         seeds: &[Vec3],
-        o: &TraceOptions,
+        o: &crate::streamline::TraceOptions,
         vector: [&str; 3],
         progress: &mut dyn FnMut(usize) -> Result<()>,
-    ) -> Result<Option<Vec<Line>>> {
+    ) -> Result<Option<Vec<crate::streamline::Line>>> {
+        let Some(tracer) = self.inner.line_tracer() else { return Ok(None) };
         let Some(c) = Compacted::of(seeds, |p| is_finite(*p)) else {
-            return self.inner.trace_lines(seeds, o, vector, progress);
+            return tracer.trace_lines(seeds, o, vector, progress);
         };
-        let Some(mut lines) = self.inner.trace_lines(&c.points, o, vector, progress)? else { return Ok(None) };
+        let Some(mut lines) = tracer.trace_lines(&c.points, o, vector, progress)? else { return Ok(None) };
         for l in &mut lines {
             l.seed = c.index[l.seed as usize] as u32;
         }
@@ -328,8 +303,86 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     }
 }
 
-/// A batch's query points in the precision the caller has them: f32 (the `BatchLocator`
-/// methods' own) or the file's f64 (`sample_many64`).
+/// The values a query writes, in f32 or f64 (see [`BatchLocator::query`]).
+pub enum Values<'a> {
+    F32(&'a mut [f32]),
+    F64(&'a mut [f64]),
+}
+
+impl<'a> From<&'a mut [f32]> for Values<'a> {
+    fn from(v: &'a mut [f32]) -> Self {
+        Values::F32(v)
+    }
+}
+
+impl<'a> From<&'a mut [f64]> for Values<'a> {
+    fn from(v: &'a mut [f64]) -> Self {
+        Values::F64(v)
+    }
+}
+
+impl Values<'_> {
+    /// No values: a query of ids only.
+    pub fn none() -> Values<'static> {
+        Values::F32(&mut [])
+    }
+
+    pub fn len(&self) -> usize {
+        match self {
+            Values::F32(v) => v.len(),
+            Values::F64(v) => v.len(),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// The same values, borrowed again (to pass on and write into afterwards).
+    pub fn reborrow(&mut self) -> Values<'_> {
+        match self {
+            Values::F32(v) => Values::F32(v),
+            Values::F64(v) => Values::F64(v),
+        }
+    }
+
+    /// Value `i` set from an f64 one (rounded for f32 values).
+    pub fn set(&mut self, i: usize, v: f64) {
+        match self {
+            Values::F32(out) => out[i] = v as f32,
+            Values::F64(out) => out[i] = v,
+        }
+    }
+
+    /// Runs `f` on f32 values: these, or a temporary widened into these afterwards (a
+    /// backend whose values are f32).
+    pub fn via_f32(self, f: impl FnOnce(&mut [f32]) -> Result<()>) -> Result<()> {
+        match self {
+            Values::F32(v) => f(v),
+            Values::F64(v) => {
+                let mut tmp = vec![0f32; v.len()];
+                f(&mut tmp)?;
+                v.par_iter_mut().zip(&tmp).for_each(|(o, &x)| *o = f64::from(x));
+                Ok(())
+            }
+        }
+    }
+
+    /// Runs `f` on f64 values: these, or a temporary rounded into these afterwards.
+    pub fn via_f64(self, f: impl FnOnce(&mut [f64]) -> Result<()>) -> Result<()> {
+        match self {
+            Values::F64(v) => f(v),
+            Values::F32(v) => {
+                let mut tmp = vec![0f64; v.len()];
+                f(&mut tmp)?;
+                v.par_iter_mut().zip(&tmp).for_each(|(o, &x)| *o = x as f32);
+                Ok(())
+            }
+        }
+    }
+}
+
+/// A batch's query points in the precision the caller has them: f32, or the file's f64.
 #[derive(Clone, Copy)]
 pub enum Points<'a> {
     F32(&'a [Vec3]),
@@ -399,13 +452,10 @@ mod nan_tests {
         fn name(&self) -> &str {
             "no-nan"
         }
-        fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
-            assert_eq!(count_non_finite(points), 0, "the backend saw a non-finite point");
-            self.0.locate(points, ids)
-        }
-        fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-            assert_eq!(count_non_finite(points), 0, "the backend saw a non-finite point");
-            self.0.sample(points, field, values)
+        fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
+            let Points::F32(p) = points else { panic!("f32 points only") };
+            assert_eq!(count_non_finite(p), 0, "the backend saw a non-finite point");
+            self.0.query(points, fields, ids, values)
         }
     }
 

@@ -1,17 +1,13 @@
-//! The precision of the values of the f64 path ([`BatchLocator::sample_many64`]): every
+//! The precision of the values of the f64 path ([`BatchLocator::query`] of f64 points): every
 //! backend's own (`F32`: the GPU kernels' f32 values, widened; the CPU's are f64 anyway), or
 //! the CPU's f64 values at the backend's ids (`F64`): [`F64Values`] asks the backend for ids
 //! only (exact: the CPU's, or the GPU's certified ones) and computes the values on the host
 //! with [`Mesh::values_at_ids64`], the one f64 definition, so that they equal the CPU's bit
 //! for bit.
 
-use super::{check_sample_lengths, BatchLocator};
+use super::{check_sample_lengths, BatchLocator, GridSampler, LineTracer, Points, Values};
 use crate::error::{Error, Result};
-use crate::geom::ImageGrid;
-use crate::geom::Vec3;
 use crate::mesh::Mesh;
-use crate::ops::trace::{Line, TraceOptions};
-use std::ops::Range;
 use std::sync::Arc;
 
 /// The values' precision on the f64 path.
@@ -84,52 +80,29 @@ impl<L: BatchLocator> BatchLocator for F64Values<L> {
     fn name(&self) -> &str {
         self.inner.name()
     }
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
-        self.inner.locate(points, ids)
-    }
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-        self.inner.sample(points, field, values)
-    }
-    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        self.inner.locate_and_sample(points, field, ids, values)
-    }
-    fn sample_many(&mut self, points: &[Vec3], fields: &[&str], ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        self.inner.sample_many(points, fields, ids, values)
-    }
-    fn sample_many64(
-        &mut self,
-        points: &[[f64; 3]],
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f64],
-    ) -> Result<()> {
+
+    /// f64 points on a mesh of tets: the backend's ids, then the host's f64 values there.
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
+        let Points::F64(p) = points else { return self.inner.query(points, fields, ids, values) };
         if self.mesh.cells.is_some() {
-            return self.inner.sample_many64(points, fields, ids, values);
+            return self.inner.query(points, fields, ids, values);
         }
-        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
+        check_sample_lengths(p.len(), fields.len(), ids.len(), values.len())?;
         let mesh = self.mesh.clone();
         let fields = fields.iter().map(|f| mesh.field(f)).collect::<Result<Vec<_>>>()?;
-        self.inner.sample_many64(points, &[], ids, &mut [])?;
-        mesh.values_at_ids64(points, ids, &fields, values);
+        self.inner.query(points, &[], ids, Values::none())?;
+        match values {
+            Values::F32(v) => mesh.values_at_ids64(p, ids, &fields, v),
+            Values::F64(v) => mesh.values_at_ids64(p, ids, &fields, v),
+        }
         Ok(())
     }
-    fn sample_grid(
-        &mut self,
-        grid: &ImageGrid,
-        range: Range<usize>,
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f32],
-    ) -> Result<()> {
-        self.inner.sample_grid(grid, range, fields, ids, values)
+
+    fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
+        self.inner.grid_sampler()
     }
-    fn trace_lines(
-        &mut self,
-        seeds: &[Vec3],
-        o: &TraceOptions,
-        vector: [&str; 3],
-        progress: &mut dyn FnMut(usize) -> Result<()>,
-    ) -> Result<Option<Vec<Line>>> {
-        self.inner.trace_lines(seeds, o, vector, progress)
+
+    fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
+        self.inner.line_tracer()
     }
 }

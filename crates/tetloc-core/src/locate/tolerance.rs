@@ -10,9 +10,9 @@
 //!
 //! The search runs in the mesh's working frame (`mesh::Frame`: centred and scaled for a mesh
 //! far from the origin), on query points taken there in f64; values are the file's, in f64
-//! for the f64 path (`sample_many64`) and rounded to f32 for the f32 one.
+//! for f64 values and rounded to f32 for f32 ones.
 
-use super::{check_lengths, BatchLocator, OUTSIDE};
+use super::{check_sample_lengths, BatchLocator, Points, Values, OUTSIDE};
 use crate::bvh::{Aabb, BuildPreset, Bvh, Visitor};
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
@@ -277,43 +277,21 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
         self.inner.name()
     }
 
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> Result<()> {
-        self.inner.locate(points, ids)?;
-        for (i, n) in self.rescue(ids, |i| points[i].map(f64::from)) {
-            ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
-        }
-        Ok(())
-    }
-
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-        check_lengths(points.len(), values.len())?;
-        let mut ids = vec![OUTSIDE; points.len()];
-        self.locate_and_sample(points, field, &mut ids, values)
-    }
-
-    fn locate_and_sample(&mut self, points: &[Vec3], field: &str, ids: &mut [i32], values: &mut [f32]) -> Result<()> {
-        self.inner.locate_and_sample(points, field, ids, values)?;
-        let f = self.mesh.field(field)?;
-        for (i, n) in self.rescue(ids, |i| points[i].map(f64::from)) {
-            ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
-            values[i] = self.value_at(f, &n) as f32;
-        }
-        Ok(())
-    }
-
-    fn sample_many64(
-        &mut self,
-        points: &[[f64; 3]],
-        fields: &[&str],
-        ids: &mut [i32],
-        values: &mut [f64],
-    ) -> Result<()> {
-        self.inner.sample_many64(points, fields, ids, values)?;
+    /// The backend's answers, then the rescue of its outside points (values from the file's
+    /// values in f64, rounded for f32 values). No grid sampler or tracer of the backend's
+    /// own: they would skip the rescue.
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], mut values: Values<'_>) -> Result<()> {
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
+        self.inner.query(points, fields, ids, values.reborrow())?;
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
-        for (i, n) in self.rescue(ids, |i| points[i]) {
+        let point = |i: usize| match points {
+            Points::F32(p) => p[i].map(f64::from),
+            Points::F64(p) => p[i],
+        };
+        for (i, n) in self.rescue(ids, point) {
             ids[i] = self.mesh.cell_of_tet(n.tet as usize) as i32;
             for (j, f) in fields.iter().enumerate() {
-                values[i * fields.len() + j] = self.value_at(f, &n);
+                values.set(i * fields.len() + j, self.value_at(f, &n));
             }
         }
         Ok(())

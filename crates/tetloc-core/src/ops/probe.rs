@@ -198,11 +198,17 @@ mod tests {
             fn name(&self) -> &str {
                 "narrow"
             }
-            fn locate(&mut self, p: &[Vec3], ids: &mut [i32]) -> Result<()> {
-                self.0.locate(p, ids)
-            }
-            fn sample(&mut self, p: &[Vec3], field: &str, v: &mut [f32]) -> Result<()> {
-                self.0.sample(p, field, v)
+            fn query(
+                &mut self,
+                points: Points<'_>,
+                fields: &[&str],
+                ids: &mut [i32],
+                values: crate::locate::Values<'_>,
+            ) -> Result<()> {
+                match points {
+                    Points::F32(_) => self.0.query(points, fields, ids, values),
+                    Points::F64(_) => Err(crate::Error::Invalid("f32 points only".into())),
+                }
             }
         }
         let p = probe(&mut Narrow(CpuLocator::new(m.clone())), &m.points, &groups, |_| Ok(())).unwrap();

@@ -25,7 +25,7 @@ pub fn resample(
         let len = chunk.min(n - start);
         ids.resize(len, 0);
         values.resize(len * names.len(), 0.0);
-        loc.sample_grid(grid, start..start + len, &names, &mut ids, &mut values)?;
+        crate::locate::sample_grid(loc, grid, start..start + len, &names, &mut ids, &mut values)?;
         sink(&ids, &values)?;
     }
     Ok(())
@@ -88,17 +88,20 @@ mod tests {
         let (ids1, vals1) = collect(&mut loc, 1 << 20);
         assert_eq!((ids1, bits(&vals1)), (ids.clone(), bits(&vals)));
 
-        /// The trait's default `sample_many`.
+        /// A backend without a grid sampler of its own: resample queries the grid's points.
         struct Plain(CpuLocator);
         impl BatchLocator for Plain {
             fn name(&self) -> &str {
                 "plain"
             }
-            fn locate(&mut self, points: &[crate::Vec3], ids: &mut [i32]) -> Result<()> {
-                self.0.locate(points, ids)
-            }
-            fn sample(&mut self, points: &[crate::Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-                self.0.sample(points, field, values)
+            fn query(
+                &mut self,
+                points: crate::locate::Points<'_>,
+                fields: &[&str],
+                ids: &mut [i32],
+                values: crate::locate::Values<'_>,
+            ) -> Result<()> {
+                self.0.query(points, fields, ids, values)
             }
         }
         let (ids2, vals2) = collect(&mut Plain(CpuLocator::new(m.clone())), 11);

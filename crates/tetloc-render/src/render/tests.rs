@@ -7,6 +7,7 @@ use crate::image::psnr;
 use crate::options::TfSpec;
 use crate::tf::{Colormap, TransferFunction};
 use crate::{compare_locators, measure_fps, render_to_file};
+use tetloc_core::locate::{Points, Values};
 use tetloc_core::{geom, CpuLocator, FieldLocation, Result as CoreResult, OUTSIDE};
 use tetloc_testdata::testmesh;
 
@@ -30,24 +31,25 @@ impl BatchLocator for BruteForce {
     fn name(&self) -> &str {
         "brute-force"
     }
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> CoreResult<()> {
-        for (p, id) in points.iter().zip(ids) {
-            *id = self.find(*p).map_or(OUTSIDE, |(t, _)| t as i32);
-        }
-        Ok(())
-    }
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> CoreResult<()> {
-        let f = self.mesh.field(field)?;
-        values.par_iter_mut().zip(points).for_each(|(v, &p)| {
-            *v = match self.find(p) {
-                None => f32::NAN,
-                Some((t, b)) => match f.location {
-                    FieldLocation::Vertex => geom::interpolate(self.mesh.tets[t], b, &f.values),
-                    FieldLocation::Cell => f.values[t],
-                },
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> CoreResult<()> {
+        let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<CoreResult<Vec<_>>>()?;
+        let points = points.narrow(0..points.len());
+        let found: Vec<_> = points.par_iter().map(|&p| self.find(p)).collect();
+        ids.iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
+        values.via_f32(|values| {
+            for (out, found) in values.chunks_mut(fields.len().max(1)).zip(&found) {
+                for (v, f) in out.iter_mut().zip(&fields) {
+                    *v = match *found {
+                        None => f32::NAN,
+                        Some((t, b)) => match f.location {
+                            FieldLocation::Vertex => geom::interpolate(self.mesh.tets[t], b, &f.values),
+                            FieldLocation::Cell => f.values[t],
+                        },
+                    };
+                }
             }
-        });
-        Ok(())
+            Ok(())
+        })
     }
 }
 
@@ -198,13 +200,12 @@ fn two_locators_computing_the_same_thing_agree() {
         fn name(&self) -> &str {
             "shifted"
         }
-        fn locate(&mut self, p: &[Vec3], ids: &mut [i32]) -> CoreResult<()> {
-            self.0.locate(p, ids)
-        }
-        fn sample(&mut self, p: &[Vec3], field: &str, v: &mut [f32]) -> CoreResult<()> {
-            self.0.sample(p, field, v)?;
-            v.iter_mut().for_each(|x| *x += 0.5);
-            Ok(())
+        fn query(&mut self, p: Points<'_>, fields: &[&str], ids: &mut [i32], v: Values<'_>) -> CoreResult<()> {
+            v.via_f32(|v| {
+                self.0.query(p, fields, ids, Values::F32(v))?;
+                v.iter_mut().for_each(|x| *x += 0.5);
+                Ok(())
+            })
         }
     }
     let bad = compare_locators(&r, &mut CpuLocator::new(mesh.clone()), &mut Shifted(CpuLocator::new(mesh))).unwrap();

@@ -25,10 +25,10 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Instant;
+use tetloc_core::geom::ImageGrid;
 use tetloc_core::geom::Vec3;
-use tetloc_core::locate::{certify, check_lengths, check_sample_lengths};
+use tetloc_core::locate::{certify, check_sample_lengths, grid_points, GridSampler, LineTracer, Points, Values};
 use tetloc_core::mesh::{FieldLocation, Mesh};
-use tetloc_core::ops::ImageGrid;
 use tetloc_core::queries::QueryKind;
 use tetloc_core::BatchLocator;
 
@@ -880,71 +880,61 @@ impl BatchLocator for VulkanLocator {
         self.kernel.name()
     }
 
-    fn locate(&mut self, points: &[Vec3], ids: &mut [i32]) -> tetloc_core::Result<()> {
-        check_lengths(points.len(), ids.len())?;
-        if points.is_empty() {
-            return Ok(());
-        }
-        self.run_host(points, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
-        Ok(())
-    }
-
-    fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> tetloc_core::Result<()> {
-        check_lengths(points.len(), values.len())?;
-        let mode = self.ensure_field(field)?;
-        if points.is_empty() {
-            return Ok(());
-        }
-        self.run_host(points, mode, bytemuck::cast_slice_mut(values))?;
-        Ok(())
-    }
-
-    /// f64 points go to the working frame in f64, then to f32: a mesh far from the origin is
-    /// searched as precisely as one at it. (The kernels decide on the working f32 copy.)
-    /// Values are the kernels' f32 ones, widened; `tetloc_core::locate::F64Values` around
-    /// this backend gives the CPU's f64 values at these (certified) ids instead.
-    fn sample_many64(
+    /// One upload and one launch a chunk for the ids, whatever the number of fields: the
+    /// kernels write tet ids only, and the values are computed on the host at those tets
+    /// ([`Mesh::values_at_ids64`]: the file's values at f64 barycentrics, the CPU's values
+    /// bit for bit, rounded for f32 values). f64 points go to the working frame in f64,
+    /// then to f32: a mesh far from the origin is searched as precisely as one at it (the
+    /// kernels decide on the working f32 copy); where the working copy or the points are not
+    /// the file's data exactly, each answer is checked (and the rare wrong one corrected) on
+    /// the host.
+    fn query(
         &mut self,
-        points: &[[f64; 3]],
+        points: Points<'_>,
         fields: &[&str],
         ids: &mut [i32],
-        values: &mut [f64],
+        values: Values<'_>,
     ) -> tetloc_core::Result<()> {
         check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
+        let mesh = self.mesh.clone();
+        let fields = fields.iter().map(|f| mesh.field(f)).collect::<tetloc_core::Result<Vec<_>>>()?;
         if points.is_empty() {
             return Ok(());
         }
-        let frame = self.mesh.info.frame;
-        let working: Vec<Vec3> = points.par_iter().map(|&p| frame.to_working(p)).collect();
-        self.run_working(&working, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
-        let mut one = vec![0f32; points.len()];
-        for (j, f) in fields.iter().enumerate() {
-            let mode = self.ensure_field(f)?;
-            self.run_working(&working, mode, bytemuck::cast_slice_mut(&mut one))?;
-            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = f64::from(x));
-        }
-        // The kernels decided on the working copy: where it or the points are not the file's
-        // data exactly, each answer is checked (and the rare wrong one corrected) on the host.
-        // Where the working copy rounds some point, the kernels' values are of the rounded
-        // point: every value then comes from the check's barycentrics (one interpolation a
-        // point, after the exact test the check makes anyway).
-        let mesh = self.mesh.clone();
-        if certify::needs_certifying(&mesh, points) {
-            let rounds = |p: &[f64; 3]| frame.to_working(*p).map(f64::from) != frame.to_working64(*p);
-            let every = !fields.is_empty() && points.par_iter().any(rounds);
-            let fields = fields.iter().map(|f| mesh.field(f)).collect::<tetloc_core::Result<Vec<_>>>()?;
-            for (i, bary) in self.certifier.certify(&mesh, points, ids, every) {
-                let found = bary.map(|b| (ids[i] as usize, b));
-                for (j, f) in fields.iter().enumerate() {
-                    values[i * fields.len() + j] = f64::from(mesh.value_at(f, found));
+        match points {
+            Points::F32(p) => self.run_host(p, OUT_IDS, bytemuck::cast_slice_mut(ids))?,
+            Points::F64(p) => {
+                let frame = mesh.info.frame;
+                let working: Vec<Vec3> = p.par_iter().map(|&q| frame.to_working(q)).collect();
+                self.run_working(&working, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
+                if certify::needs_certifying(&mesh, p) {
+                    self.certifier.certify(&mesh, p, ids, false);
                 }
+            }
+        }
+        if !fields.is_empty() {
+            let wide = points.wide(0..points.len());
+            match values {
+                Values::F32(v) => mesh.values_at_ids64(&wide, ids, &fields, v),
+                Values::F64(v) => mesh.values_at_ids64(&wide, ids, &fields, v),
             }
         }
         Ok(())
     }
 
+    fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
+        Some(self)
+    }
+
+    fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
+        Some(self)
+    }
+}
+
+impl GridSampler for VulkanLocator {
     /// The kernel makes the grid's points itself (the `grid` sample set over the grid's axes):
-    /// nothing to upload but the axes, the same points as the host's.
+    /// nothing to upload but the axes, the same points as the host's, and their values as
+    /// [`BatchLocator::query`] computes them.
     fn sample_grid(
         &mut self,
         grid: &ImageGrid,
@@ -957,30 +947,32 @@ impl BatchLocator for VulkanLocator {
         let slab = grid.dims[0] * grid.dims[1];
         if slab >= 1 << 31 {
             // Beyond the kernel's u32 index within a slab: host points.
-            return self.sample_many(&tetloc_core::locate::grid_points(grid, range), fields, ids, values);
+            return self.sample_many(&grid_points(grid, range), fields, ids, values);
         }
+        let mesh = self.mesh.clone();
+        let fields = fields.iter().map(|f| mesh.field(f)).collect::<tetloc_core::Result<Vec<_>>>()?;
         if range.is_empty() {
             return Ok(());
         }
         self.ensure_grid_axes(grid, true)?;
         self.run_grid(grid, range.start, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
-        let mut one = vec![0f32; range.len()];
-        for (j, f) in fields.iter().enumerate() {
-            let mode = self.ensure_field(f)?;
-            self.run_grid(grid, range.start, mode, bytemuck::cast_slice_mut(&mut one))?;
-            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
+        if !fields.is_empty() {
+            let wide: Vec<[f64; 3]> = range.into_par_iter().map(|i| grid.point(i).map(f64::from)).collect();
+            mesh.values_at_ids64(&wide, ids, &fields, values);
         }
         Ok(())
     }
+}
 
+impl LineTracer for VulkanLocator {
     /// RK4 lines on the kernel's stream shader (soft-bvh), `None` elsewhere.
     fn trace_lines(
         &mut self,
         seeds: &[Vec3],
-        o: &tetloc_core::ops::trace::TraceOptions,
+        o: &tetloc_core::streamline::TraceOptions,
         vector: [&str; 3],
         progress: &mut dyn FnMut(usize) -> tetloc_core::Result<()>,
-    ) -> tetloc_core::Result<Option<Vec<tetloc_core::ops::trace::Line>>> {
+    ) -> tetloc_core::Result<Option<Vec<tetloc_core::streamline::Line>>> {
         Ok(self.trace_rk4(seeds, o, vector, progress)?.map(|(lines, _)| lines))
     }
 }

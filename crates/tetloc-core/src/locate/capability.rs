@@ -1,0 +1,67 @@
+//! What a backend may do beyond the query, each a small trait that the backend hands out
+//! through a hook of [`BatchLocator`] (`grid_sampler`, `line_tracer`): `ops` asks for it and
+//! falls back to plain queries where the backend has none. Their words (grids, streamlines)
+//! live below the locators, in `geom` and `streamline`.
+
+use super::{grid_points, BatchLocator};
+use crate::error::Result;
+use crate::geom::{ImageGrid, Vec3};
+use crate::streamline::{Line, TraceOptions};
+use std::ops::Range;
+
+/// A backend that samples a grid's points its own way, with the answers of
+/// [`BatchLocator::sample_many`] at [`grid_points`].
+pub trait GridSampler {
+    /// Ids and values (`fields.len()` a point) at points `range` of `grid` (x fastest,
+    /// [`ImageGrid::point`]): `resample`'s chunks.
+    fn sample_grid(
+        &mut self,
+        grid: &ImageGrid,
+        range: Range<usize>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> Result<()>;
+}
+
+/// A backend that traces whole streamlines itself.
+pub trait LineTracer {
+    /// The lines from `seeds` (in VTK's order), or `None` where it has no tracer for these
+    /// options. `progress` gets the number of lines done so far.
+    fn trace_lines(
+        &mut self,
+        seeds: &[Vec3],
+        o: &TraceOptions,
+        vector: [&str; 3],
+        progress: &mut dyn FnMut(usize) -> Result<()>,
+    ) -> Result<Option<Vec<Line>>>;
+}
+
+/// [`GridSampler::sample_grid`] through `loc`'s own sampler, or a query of the grid's points.
+pub fn sample_grid(
+    loc: &mut (impl BatchLocator + ?Sized),
+    grid: &ImageGrid,
+    range: Range<usize>,
+    fields: &[&str],
+    ids: &mut [i32],
+    values: &mut [f32],
+) -> Result<()> {
+    if let Some(g) = loc.grid_sampler() {
+        return g.sample_grid(grid, range, fields, ids, values);
+    }
+    loc.sample_many(&grid_points(grid, range), fields, ids, values)
+}
+
+/// [`LineTracer::trace_lines`] through `loc`'s own tracer, `None` where it has none.
+pub fn trace_lines(
+    loc: &mut (impl BatchLocator + ?Sized),
+    seeds: &[Vec3],
+    o: &TraceOptions,
+    vector: [&str; 3],
+    progress: &mut dyn FnMut(usize) -> Result<()>,
+) -> Result<Option<Vec<Line>>> {
+    match loc.line_tracer() {
+        Some(t) => t.trace_lines(seeds, o, vector, progress),
+        None => Ok(None),
+    }
+}
