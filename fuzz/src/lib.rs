@@ -127,10 +127,16 @@ mod tests {
     fn openfoam_target_survives_the_case_files() {
         let Some(dir) = tetloc_testdata::require_data("openfoam_target_survives_the_case_files") else { return };
         let case = dir.join("poly/octpoly_s_case");
-        let files: Vec<PathBuf> = ["constant/polyMesh/points", "constant/polyMesh/faces", "constant/polyMesh/owner", "constant/polyMesh/boundary", "1/lin"]
-            .iter()
-            .map(|f| case.join(f))
-            .collect();
+        let files: Vec<PathBuf> = [
+            "constant/polyMesh/points",
+            "constant/polyMesh/faces",
+            "constant/polyMesh/owner",
+            "constant/polyMesh/boundary",
+            "1/lin",
+        ]
+        .iter()
+        .map(|f| case.join(f))
+        .collect();
         for f in &files {
             assert!(tetloc_io::openfoam::parse_file(&std::fs::read(f).unwrap()).unwrap() > 0, "{}", f.display());
         }

@@ -82,7 +82,7 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
         let key: String = key.extract()?;
         match key.as_str() {
             "split" => {
-                o.vulkan.split = if value.is_none() {
+                o.vulkan.rt.split = if value.is_none() {
                     None
                 } else {
                     match value.extract::<usize>() {
@@ -113,7 +113,7 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
                 o.precision = text.parse().map_err(|e: tetloc_core::Error| PyValueError::new_err(e.to_string()))?;
             }
             "deferred" => o.deferred = flag("deferred", &value)?,
-            "compact" => o.vulkan.compact = flag("compact", &value)?,
+            "compact" => o.vulkan.rt.compact = flag("compact", &value)?,
             k if PLANNED_OPTIONS.contains(&k) => {
                 return Err(PyTypeError::new_err(format!(
                     "Locator(): option '{k}' is planned but not supported by this version (known: {KNOWN_OPTIONS})"

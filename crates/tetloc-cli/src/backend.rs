@@ -5,7 +5,7 @@ use anyhow::Result;
 use std::sync::Arc;
 use tetloc_core::Mesh;
 use tetloc_locator::{Backend, Locator, LocatorBuilder};
-use tetloc_vulkan::{BuildOn, LocatorOptions};
+use tetloc_vulkan::{BuildOn, LocatorOptions, RtOptions};
 
 /// Every backend name the CLI accepts (besides `auto`, and `all` for bench).
 pub fn names() -> Vec<&'static str> {
@@ -34,11 +34,11 @@ impl Default for BackendOptions {
         let d = LocatorOptions::default();
         BackendOptions {
             device: None,
-            split: d.split,
-            compact: d.compact,
+            split: d.rt.split,
+            compact: d.rt.compact,
             order_queries: d.order_queries,
             preset: "fast".into(),
-            build: d.build,
+            build: d.soft_bvh.build,
             quiet: false,
         }
     }
@@ -47,14 +47,11 @@ impl Default for BackendOptions {
 impl BackendOptions {
     fn locator_options(&self) -> LocatorOptions {
         // The CLI offers only the known names (clap checks them).
-        let base = LocatorOptions::preset(&self.preset).unwrap_or_default();
-        LocatorOptions {
-            split: self.split,
-            compact: self.compact,
-            order_queries: self.order_queries,
-            build: self.build,
-            ..base
-        }
+        let mut o = LocatorOptions::preset(&self.preset).unwrap_or_default();
+        o.rt = RtOptions { split: self.split, compact: self.compact };
+        o.soft_bvh.build = self.build;
+        o.order_queries = self.order_queries;
+        o
     }
 
     /// The builder of backend `name` over `mesh` with these options, and the backend it

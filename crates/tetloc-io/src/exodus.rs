@@ -64,7 +64,8 @@ fn read_from(file: &NcFile, path: &Path) -> Result<(RawMesh, Layout)> {
     let layout = Layout::of(file, path)?;
     let points = layout.read_points(file, path)?;
     let cells = layout.read_cells(file, path)?;
-    let ex = crate::vtk::cells::extract(&cells.types, &cells.ends, &cells.conn, None).map_err(|m| Error::format(path, m))?;
+    let ex =
+        crate::vtk::cells::extract(&cells.types, &cells.ends, &cells.conn, None).map_err(|m| Error::format(path, m))?;
     let mut raw = RawMesh {
         points: points.iter().map(|p| p.map(|c| c as f32)).collect(),
         points64: crate::points64_if_needed(points),

@@ -45,7 +45,8 @@ pub enum MeshFormat {
     OpenFoam,
 }
 
-pub const KNOWN_MESH_FORMATS: &str = "vtu, pvtu, vtm, vtk, msh, node/ele, e/exo/ex2, pvd, foam (or an OpenFOAM case folder)";
+pub const KNOWN_MESH_FORMATS: &str =
+    "vtu, pvtu, vtm, vtk, msh, node/ele, e/exo/ex2, pvd, foam (or an OpenFOAM case folder)";
 
 impl MeshFormat {
     pub fn from_name(name: &str) -> Option<MeshFormat> {

@@ -191,8 +191,12 @@ fn gpu_marcher_follows_the_locators_buffer_layout() {
     let one = render(LocatorOptions::default());
     // Buffers of a quarter of the tets: tets, nodes and neighbours each split over several.
     let quarter = (mesh.n_tets() as u64 * 16 / 4).next_multiple_of(256);
-    let split = render(LocatorOptions { max_buffer_bytes: Some(quarter), ..Default::default() });
-    let no_walk = render(LocatorOptions { walk_start: false, ..Default::default() });
+    let mut split = LocatorOptions::default();
+    split.test_hooks.max_buffer_bytes = Some(quarter);
+    let split = render(split);
+    let mut no_walk = LocatorOptions::default();
+    no_walk.soft_bvh.walk_start = false;
+    let no_walk = render(no_walk);
     assert_eq!(psnr(&one, &split).unwrap(), f64::INFINITY, "split buffers");
     assert_eq!(psnr(&one, &no_walk).unwrap(), f64::INFINITY, "without the walk start");
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");

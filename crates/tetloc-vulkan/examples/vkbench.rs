@@ -21,7 +21,9 @@ use std::time::Instant;
 use tetloc_core::gen::{generate, Shape};
 use tetloc_core::geom;
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
-use tetloc_vulkan::{devices, BenchOptions, BenchResult, Context, Kernel, LocatorOptions, QueryKind, VulkanLocator};
+use tetloc_vulkan::{
+    devices, BenchOptions, BenchResult, Context, Kernel, LocatorOptions, QueryKind, SoftBvhOptions, VulkanLocator,
+};
 
 struct Args {
     tets: usize,
@@ -72,13 +74,13 @@ fn parse() -> Result<Args, String> {
             "--field" => a.field = Some(val()?),
             "--check" => a.check = num(val()?)?,
             "--split" => {
-                a.opts.split = match val()?.as_str() {
+                a.opts.rt.split = match val()?.as_str() {
                     "none" => None,
                     s => Some(num(s.into())?),
                 }
             }
-            "--no-compact" => a.opts.compact = false,
-            "--leaf" => a.opts.leaf_size = num(val()?)?,
+            "--no-compact" => a.opts.rt.compact = false,
+            "--leaf" => a.opts.soft_bvh.leaf_size = num(val()?)?,
             "--pack" => a.opts.pack_ids = true,
             "--tet-order" => {
                 a.opts.random_in_tet_order = match val()?.as_str() {
@@ -88,15 +90,15 @@ fn parse() -> Result<Args, String> {
                 }
             }
             "--chunk" => a.opts.chunk_points = num(val()?)?,
-            "--workgroup" => a.opts.workgroup_size = num(val()?)? as u32,
-            "--grid" => a.opts.grid_start = true,
-            "--walk" => a.opts.walk_start = true,
-            "--no-walk" => a.opts.walk_start = false,
-            "--cell-tets" => a.opts.grid_tets_per_cell = num(val()?)?,
-            "--f32-first" => a.opts.f32_first = true,
-            "--defer" => a.opts.defer_exact = true,
+            "--workgroup" => a.opts.soft_bvh.workgroup_size = num(val()?)? as u32,
+            "--grid" => a.opts.soft_bvh.grid_start = true,
+            "--walk" => a.opts.soft_bvh.walk_start = true,
+            "--no-walk" => a.opts.soft_bvh.walk_start = false,
+            "--cell-tets" => a.opts.soft_bvh.grid_tets_per_cell = num(val()?)?,
+            "--f32-first" => a.opts.soft_bvh.f32_first = true,
+            "--defer" => a.opts.soft_bvh.defer_exact = true,
             "--f32" => a.opts.float64 = false,
-            "--max-buffer" => a.opts.max_buffer_bytes = Some(num(val()?)? as u64),
+            "--max-buffer" => a.opts.test_hooks.max_buffer_bytes = Some(num(val()?)? as u64),
             "--repeats" => a.repeats = num(val()?)?,
             "--power" => a.power = true,
             "--variants" => a.variants = true,
@@ -197,12 +199,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             (false, true, 1, false, true, true),
         ] {
             let o = LocatorOptions {
-                grid_start: grid,
-                walk_start: walk,
-                grid_tets_per_cell: cell,
-                f32_first: first,
                 float64: f64,
-                defer_exact: defer,
+                soft_bvh: SoftBvhOptions {
+                    grid_start: grid,
+                    walk_start: walk,
+                    grid_tets_per_cell: cell,
+                    f32_first: first,
+                    defer_exact: defer,
+                    ..args.opts.clone().soft_bvh
+                },
                 ..args.opts.clone()
             };
             let label = format!(

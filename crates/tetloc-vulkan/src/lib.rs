@@ -42,10 +42,10 @@ pub use build::BuildOn;
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
 pub use kernels::rt::AsReport;
-pub use kernels::Kernel;
-pub use locator::{
-    si, BenchOptions, BenchResult, LocatorOptions, MemoryReport, VulkanLocator, GRID_TETS_PER_CELL, PRESETS,
-};
+pub use kernels::{Kernel, RtOptions, SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
+#[cfg(any(test, feature = "test-hooks"))]
+pub use locator::TestHooks;
+pub use locator::{si, BenchOptions, BenchResult, LocatorOptions, MemoryReport, VulkanLocator};
 pub use march::{MarchGrid, MarchScene, MarchStats, MarchView, VolumeMarcher};
 pub use memory::{MemItem, MemKind, STAGING_BYTES};
 pub use stream::StreamStats;

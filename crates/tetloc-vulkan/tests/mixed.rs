@@ -7,7 +7,7 @@ mod common;
 use std::sync::Arc;
 use tetloc_core::locate::{CellLocator, FiniteOnly};
 use tetloc_testdata::mixed::{compare, compare_far, far_mesh, mixed_sets, Mismatch};
-use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
+use tetloc_vulkan::{Kernel, LocatorOptions, SoftBvhOptions, VulkanLocator};
 
 #[test]
 fn every_kernel_matches_vtk_on_mixed_meshes() {
@@ -18,7 +18,10 @@ fn every_kernel_matches_vtk_on_mixed_meshes() {
     }
     let Some(ctx) = common::context(test) else { return };
     let mut configs: Vec<_> = common::kernels(&ctx, test).into_iter().map(|k| (k, LocatorOptions::default())).collect();
-    configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: false, ..Default::default() }));
+    configs.push((
+        Kernel::SoftBvh,
+        LocatorOptions { soft_bvh: SoftBvhOptions { walk_start: false, ..Default::default() }, ..Default::default() },
+    ));
     for (name, (files, sets)) in sets {
         let mesh = Arc::new(tetloc_io::read_mesh(&files[0], None).unwrap());
         assert!(mesh.cells.is_some(), "{name}: a mixed mesh");
@@ -27,7 +30,7 @@ fn every_kernel_matches_vtk_on_mixed_meshes() {
             let mut loc = CellLocator::new(FiniteOnly::new(gpu), mesh.clone());
             for set in &sets {
                 let m = compare(&mut loc, &mesh, set);
-                println!("{k} (walk {}) {}: {m:?}", opts.walk_start, set.label);
+                println!("{k} (walk {}) {}: {m:?}", opts.soft_bvh.walk_start, set.label);
                 assert_eq!(m, Mismatch::default(), "{k} {}", set.label);
             }
         }

@@ -7,7 +7,9 @@ use std::sync::Arc;
 use tetloc_core::geom::Vec3;
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
 use tetloc_testdata::{query_sets, require_data};
-use tetloc_vulkan::{BuildOn, Kernel, LocatorOptions, MemKind, QueryKind, VulkanLocator};
+use tetloc_vulkan::{
+    BuildOn, Kernel, LocatorOptions, MemKind, QueryKind, RtOptions, SoftBvhOptions, TestHooks, VulkanLocator,
+};
 
 fn answers(loc: &mut VulkanLocator, points: &[Vec3]) -> (Vec<i32>, Vec<u32>) {
     let mut ids = vec![0; points.len()];
@@ -55,12 +57,34 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             ("chunks of 997 points", LocatorOptions { chunk_points: 997, ..base.clone() }),
         ];
         if k == Kernel::SoftBvh {
-            variants.push(("up to four tets per leaf", LocatorOptions { leaf_size: 4, ..base.clone() }));
-            variants.push(("traversal from the root", LocatorOptions { walk_start: false, ..base.clone() }));
-            variants.push(("entry grid", LocatorOptions { grid_start: true, walk_start: false, ..base.clone() }));
-            let grid4 = LocatorOptions { grid_start: true, walk_start: false, leaf_size: 4, ..base.clone() };
+            variants.push((
+                "up to four tets per leaf",
+                LocatorOptions { soft_bvh: SoftBvhOptions { leaf_size: 4, ..base.clone().soft_bvh }, ..base.clone() },
+            ));
+            variants.push((
+                "traversal from the root",
+                LocatorOptions {
+                    soft_bvh: SoftBvhOptions { walk_start: false, ..base.clone().soft_bvh },
+                    ..base.clone()
+                },
+            ));
+            variants.push((
+                "entry grid",
+                LocatorOptions {
+                    soft_bvh: SoftBvhOptions { grid_start: true, walk_start: false, ..base.clone().soft_bvh },
+                    ..base.clone()
+                },
+            ));
+            let grid4 = LocatorOptions {
+                soft_bvh: SoftBvhOptions { grid_start: true, walk_start: false, leaf_size: 4, ..base.clone().soft_bvh },
+                ..base.clone()
+            };
             variants.push(("entry grid, four per leaf", grid4));
-            let coarse = LocatorOptions { walk_start: true, grid_tets_per_cell: 3, chunk_points: 997, ..base.clone() };
+            let coarse = LocatorOptions {
+                chunk_points: 997,
+                soft_bvh: SoftBvhOptions { walk_start: true, grid_tets_per_cell: 3, ..base.clone().soft_bvh },
+                ..base.clone()
+            };
             variants.push(("walk start, 3 tets a cell, chunks of 997", coarse));
             // The named layouts (compact: walk start, four per leaf, 4 tets a cell; both pack
             // their ids), packed ids on their own (direct leaves: no prims) and built on the CPU.
@@ -69,26 +93,66 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             }
             variants.push(("packed ids", LocatorOptions { pack_ids: true, ..base.clone() }));
             // 27 bits a field: tets and neighbours read as five-word records.
-            let wide =
-                LocatorOptions { pack_ids: true, pack_min_bits: 27, ..LocatorOptions::preset("compact").unwrap() };
+            let wide = LocatorOptions {
+                pack_ids: true,
+                test_hooks: TestHooks { pack_min_bits: 27, ..LocatorOptions::preset("compact").unwrap().test_hooks },
+                ..LocatorOptions::preset("compact").unwrap()
+            };
             variants.push(("compact, 27-bit ids", wide));
-            let compact_cpu = LocatorOptions { build: BuildOn::Cpu, ..LocatorOptions::preset("compact").unwrap() };
+            let compact_cpu = LocatorOptions {
+                soft_bvh: SoftBvhOptions { build: BuildOn::Cpu, ..LocatorOptions::preset("compact").unwrap().soft_bvh },
+                ..LocatorOptions::preset("compact").unwrap()
+            };
             variants.push(("compact, built on the CPU", compact_cpu));
-            variants
-                .push(("walk start, f32 first", LocatorOptions { walk_start: true, f32_first: true, ..base.clone() }));
-            variants.push(("root, f32 first", LocatorOptions { walk_start: false, f32_first: true, ..base.clone() }));
-            variants.push(("deferred exact tests", LocatorOptions { defer_exact: true, ..base.clone() }));
-            let defer_root = LocatorOptions { defer_exact: true, walk_start: false, chunk_points: 997, ..base.clone() };
+            variants.push((
+                "walk start, f32 first",
+                LocatorOptions {
+                    soft_bvh: SoftBvhOptions { walk_start: true, f32_first: true, ..base.clone().soft_bvh },
+                    ..base.clone()
+                },
+            ));
+            variants.push((
+                "root, f32 first",
+                LocatorOptions {
+                    soft_bvh: SoftBvhOptions { walk_start: false, f32_first: true, ..base.clone().soft_bvh },
+                    ..base.clone()
+                },
+            ));
+            variants.push((
+                "deferred exact tests",
+                LocatorOptions {
+                    soft_bvh: SoftBvhOptions { defer_exact: true, ..base.clone().soft_bvh },
+                    ..base.clone()
+                },
+            ));
+            let defer_root = LocatorOptions {
+                chunk_points: 997,
+                soft_bvh: SoftBvhOptions { defer_exact: true, walk_start: false, ..base.clone().soft_bvh },
+                ..base.clone()
+            };
             variants.push(("deferred exact tests, root, chunks of 997", defer_root));
         } else {
-            variants.push(("split 5000, compacted", LocatorOptions { split: Some(5000), ..base.clone() }));
+            variants.push((
+                "split 5000, compacted",
+                LocatorOptions { rt: RtOptions { split: Some(5000), ..base.clone().rt }, ..base.clone() },
+            ));
             variants.push((
                 "split 5000, not compacted",
-                LocatorOptions { split: Some(5000), compact: false, ..base.clone() },
+                LocatorOptions { rt: RtOptions { split: Some(5000), compact: false }, ..base.clone() },
             ));
-            variants.push(("one BLAS, not compacted", LocatorOptions { split: None, compact: false, ..base.clone() }));
+            variants.push((
+                "one BLAS, not compacted",
+                LocatorOptions { rt: RtOptions { split: None, compact: false }, ..base.clone() },
+            ));
             variants.push(("packed ids", LocatorOptions { pack_ids: true, ..base.clone() }));
-            variants.push(("31-bit ids", LocatorOptions { pack_ids: true, pack_min_bits: 31, ..base.clone() }));
+            variants.push((
+                "31-bit ids",
+                LocatorOptions {
+                    pack_ids: true,
+                    test_hooks: TestHooks { pack_min_bits: 31, ..base.clone().test_hooks },
+                    ..base.clone()
+                },
+            ));
         }
         let mut first: Option<(Vec<i32>, Vec<u32>)> = None;
         for (label, opts) in variants {
@@ -104,16 +168,16 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             );
             let tets = if opts.pack_ids { "mesh tets (packed)" } else { "mesh tets" };
             assert!(m.items.iter().any(|i| i.name == tets && i.kind == MemKind::Mesh), "{k} {label}: no {tets}");
-            if opts.pack_ids && k == Kernel::SoftBvh && opts.walk_start {
+            if opts.pack_ids && k == Kernel::SoftBvh && opts.soft_bvh.walk_start {
                 assert!(m.items.iter().any(|i| i.name == "tet neighbours (packed)"), "{k} {label}");
             }
             if let Some(a) = m.accel {
                 // rep-faces keeps a tet's four triangles together: groups hold split / 4 tets.
                 let per_item = if k == Kernel::RtRepFaces { 4 } else { 1 };
-                let want_blas = opts.split.map_or(1, |s| (a.primitives / per_item).div_ceil(s / per_item));
+                let want_blas = opts.rt.split.map_or(1, |s| (a.primitives / per_item).div_ceil(s / per_item));
                 assert_eq!(a.blas_count, want_blas, "{k} {label}");
                 assert!(a.blas_bytes <= a.blas_bytes_built && a.tlas_bytes > 0, "{k} {label}: {a:?}");
-                if !opts.compact {
+                if !opts.rt.compact {
                     assert_eq!(a.blas_bytes, a.blas_bytes_built);
                 }
                 // The uncompacted structures and the build scratch were alive at the peak.
@@ -195,12 +259,27 @@ fn arrays_split_over_buffers_give_the_same_answers() {
         let max = if k == Kernel::SoftBvh { point_bytes * 9 / 10 } else { point_bytes + 64 };
         let mut variants = vec![("default", LocatorOptions::default())];
         if k == Kernel::SoftBvh {
-            variants.push(("root traversal", LocatorOptions { walk_start: false, ..Default::default() }));
-            variants.push(("four per leaf", LocatorOptions { leaf_size: 4, ..Default::default() }));
+            variants.push((
+                "root traversal",
+                LocatorOptions {
+                    soft_bvh: SoftBvhOptions { walk_start: false, ..Default::default() },
+                    ..Default::default()
+                },
+            ));
+            variants.push((
+                "four per leaf",
+                LocatorOptions {
+                    soft_bvh: SoftBvhOptions { leaf_size: 4, ..Default::default() },
+                    ..Default::default()
+                },
+            ));
         }
         for (label, opts) in variants {
             let mut whole = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts.clone()).unwrap();
-            let split_opts = LocatorOptions { max_buffer_bytes: Some(max), ..opts };
+            let split_opts = LocatorOptions {
+                test_hooks: TestHooks { max_buffer_bytes: Some(max), ..opts.test_hooks.clone() },
+                ..opts
+            };
             let mut split = VulkanLocator::new(ctx.clone(), mesh.clone(), k, split_opts).unwrap();
             let names: Vec<String> = split.memory_report().items.iter().map(|i| i.name.clone()).collect();
             let parts = |array: &str| names.iter().filter(|n| n.starts_with(array)).count();
@@ -221,7 +300,10 @@ fn arrays_split_over_buffers_give_the_same_answers() {
             }
         }
         // Too large even for 16 buffers: a clear error, not a crash.
-        let tiny = LocatorOptions { max_buffer_bytes: Some(1024), ..Default::default() };
+        let tiny = LocatorOptions {
+            test_hooks: TestHooks { max_buffer_bytes: Some(1024), ..Default::default() },
+            ..Default::default()
+        };
         let e =
             VulkanLocator::new(ctx.clone(), mesh.clone(), k, tiny).err().expect("1 KiB buffers cannot hold the mesh");
         assert!(e.to_string().contains("16 buffers"), "{k}: {e}");

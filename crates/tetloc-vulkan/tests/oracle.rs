@@ -7,7 +7,7 @@ use std::sync::Arc;
 use tetloc_core::locate::F64Values;
 use tetloc_core::{BatchLocator, CpuLocator, Mesh};
 use tetloc_testdata::{query_sets, require_data, QuerySet, F32_VALUES, F64_VALUES};
-use tetloc_vulkan::{Kernel, LocatorOptions, VulkanLocator};
+use tetloc_vulkan::{Kernel, LocatorOptions, SoftBvhOptions, VulkanLocator};
 
 /// Relative tolerance of interpolated values (relative to max(|expected|, 1)).
 const VALUE_TOL: f64 = 1e-5;
@@ -116,15 +116,45 @@ fn every_kernel_matches_the_oracle_of(test: &str, dir: &std::path::Path) {
             .collect();
         let mut configs: Vec<_> = kernels.iter().map(|&k| (k, LocatorOptions::default())).collect();
         // soft-bvh's entry grid: cells no tet overlaps (holes, sparse meshes) answer -1 at once.
-        configs.push((Kernel::SoftBvh, LocatorOptions { grid_start: true, walk_start: false, ..Default::default() }));
+        configs.push((
+            Kernel::SoftBvh,
+            LocatorOptions {
+                soft_bvh: SoftBvhOptions { grid_start: true, walk_start: false, ..Default::default() },
+                ..Default::default()
+            },
+        ));
         // The default walks from the grid; walks leave non-convex meshes and end on faces, where
         // traversal takes over. Traversal from the root:
-        configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: false, ..Default::default() }));
+        configs.push((
+            Kernel::SoftBvh,
+            LocatorOptions {
+                soft_bvh: SoftBvhOptions { walk_start: false, ..Default::default() },
+                ..Default::default()
+            },
+        ));
         // f32 first: the f64 fallback must still decide the points near faces here.
-        configs.push((Kernel::SoftBvh, LocatorOptions { walk_start: true, f32_first: true, ..Default::default() }));
+        configs.push((
+            Kernel::SoftBvh,
+            LocatorOptions {
+                soft_bvh: SoftBvhOptions { walk_start: true, f32_first: true, ..Default::default() },
+                ..Default::default()
+            },
+        ));
         // Deferred exact tests: the points near faces go through the second, exact pass.
-        configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, ..Default::default() }));
-        configs.push((Kernel::SoftBvh, LocatorOptions { defer_exact: true, walk_start: false, ..Default::default() }));
+        configs.push((
+            Kernel::SoftBvh,
+            LocatorOptions {
+                soft_bvh: SoftBvhOptions { defer_exact: true, ..Default::default() },
+                ..Default::default()
+            },
+        ));
+        configs.push((
+            Kernel::SoftBvh,
+            LocatorOptions {
+                soft_bvh: SoftBvhOptions { defer_exact: true, walk_start: false, ..Default::default() },
+                ..Default::default()
+            },
+        ));
         let n_kernels = kernels.len();
         for (c, (k, opts)) in configs.into_iter().enumerate() {
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();

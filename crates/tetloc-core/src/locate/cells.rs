@@ -290,6 +290,7 @@ pub(crate) fn cell_weights(mesh: &Mesh, cells: &Cells, c: usize, p: Point, mut p
             }
         }
     }
+}
 
 /// The tet of cell `c`'s decomposition that holds `p` (file coordinates), or the one it is
 /// least outside of (a point on the cell's boundary, by rounding just off it).

@@ -417,8 +417,8 @@ impl RowClip {
 mod tests {
     use super::*;
     use crate::bvh::BuildPreset;
-    use crate::mesh::{FieldLocation, RawMesh};
     use crate::locate::GridSampler;
+    use crate::mesh::{FieldLocation, RawMesh};
     use crate::test_support::{self, KuhnGrid};
     use crate::{BatchLocator, CpuLocator};
     use std::sync::Arc;

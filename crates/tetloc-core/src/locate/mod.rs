@@ -23,8 +23,8 @@ use cpu::is_coherent;
 mod tests;
 pub mod tolerance;
 
-pub(crate) use cells::cell_weights;
 pub use capability::{sample_grid, trace_lines, GridSampler, LineTracer};
+pub(crate) use cells::cell_weights;
 pub use cells::CellLocator;
 pub use cpu::CpuLocator;
 pub use precision::{with_precision, F64Values, Precision};

@@ -3,10 +3,10 @@
 //! points (vtkResampleWithDataSet), and trace particles through a vector field
 //! (vtkStreamTracer). Each works over any [`crate::BatchLocator`], so on every backend.
 
+pub mod gradients;
 pub mod probe;
 pub mod resample;
 pub mod trace;
-pub mod gradients;
 pub mod weights;
 
 // The field groups and the image grid live below the locators (the locators take them);

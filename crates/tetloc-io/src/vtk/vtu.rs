@@ -406,7 +406,8 @@ impl<'a> Ctx<'a, '_> {
             None => cells::Extracted::all_tets(Vec::new()),
             Some(PieceCells::LinearTets(conn)) => cells::Extracted::all_tets(conn),
             Some(PieceCells::Any { types, ends, conn, polyhedra }) => {
-                cells::extract(&types, &ends, &conn, polyhedra.as_ref()).map_err(|m| self.fail(format!("piece {k}: {m}")))?
+                cells::extract(&types, &ends, &conn, polyhedra.as_ref())
+                    .map_err(|m| self.fail(format!("piece {k}: {m}")))?
             }
         };
         if ex.unsupported {

@@ -6,7 +6,8 @@
 
 use super::*;
 use crate::context::{test_context, Context};
-use crate::locator::{LocatorOptions, MeshOnDevice};
+use crate::kernels::SoftBvhOptions;
+use crate::locator::{LocatorOptions, MeshOnDevice, TestHooks};
 use crate::packed;
 use crate::Kernel;
 use crate::VulkanLocator;
@@ -187,18 +188,24 @@ fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
         (0..12_000).map(|_| std::array::from_fn(|a| lo[a] + unit() * (hi[a] - lo[a]))).collect();
     points.extend(mesh.points.iter().copied());
     let split = LocatorOptions {
-        max_buffer_bytes: Some((6 * mesh.n_tets() as u64).next_multiple_of(192)),
         chunk_points: 1000,
+        test_hooks: TestHooks {
+            max_buffer_bytes: Some((6 * mesh.n_tets() as u64).next_multiple_of(192)),
+            ..LocatorOptions::default().test_hooks
+        },
         ..LocatorOptions::default()
     };
-    let whole = LocatorOptions { build: BuildOn::Cpu, ..LocatorOptions::default() };
+    let whole = LocatorOptions {
+        soft_bvh: SoftBvhOptions { build: BuildOn::Cpu, ..LocatorOptions::default().soft_bvh },
+        ..LocatorOptions::default()
+    };
     let mut answers = vec![];
     for opts in [split, whole] {
         let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), Kernel::SoftBvh, opts.clone()).unwrap();
         let on_gpu = loc.build_stages().iter().all(|(s, _)| !s.starts_with("gpu build:") && !s.starts_with("cpu:"));
-        assert_eq!(on_gpu, opts.build == BuildOn::Gpu, "{:?}", loc.build_stages());
+        assert_eq!(on_gpu, opts.soft_bvh.build == BuildOn::Gpu, "{:?}", loc.build_stages());
         let split_parts = |name: &str| loc.memory_report().items.iter().filter(|m| m.name.starts_with(name)).count();
-        if opts.build == BuildOn::Gpu {
+        if opts.soft_bvh.build == BuildOn::Gpu {
             assert!(split_parts("bvh nodes") > 1 && split_parts("tet neighbours") > 1, "the structure is not split");
         }
         let mut ids = vec![0; points.len()];
@@ -229,7 +236,8 @@ fn gpu_built_locator_answers_like_cpu_built() {
     let field = mesh.fields.first().map(|f| f.name.clone());
     let mut answers = vec![];
     for build in [BuildOn::Gpu, BuildOn::Cpu] {
-        let opts = LocatorOptions { build, ..LocatorOptions::default() };
+        let mut opts = LocatorOptions::default();
+        opts.soft_bvh.build = build;
         let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), Kernel::SoftBvh, opts).unwrap();
         let built_on = |on: BuildOn| loc.build_stages().iter().any(|(s, _)| s.starts_with(&format!("{on}:")));
         assert!(built_on(build) && !built_on(if build == BuildOn::Gpu { BuildOn::Cpu } else { BuildOn::Gpu }));

@@ -7,9 +7,11 @@
 pub(crate) mod rt;
 pub(crate) mod soft_bvh;
 
+pub use rt::RtOptions;
+pub use soft_bvh::{SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
+
 use crate::device::{Device, Split};
 use crate::error::VkResult;
-use crate::locator::LocatorOptions;
 use crate::pipeline::{Binding, Program, Spec};
 use rt::AsReport;
 use std::fmt;
@@ -42,7 +44,11 @@ pub(crate) struct Inputs<'a> {
     pub tet_bits: u32,
     /// The mesh's descriptor bindings (vertices, tets, higher-order nodes).
     pub mesh_bindings: &'a [Binding],
-    pub opts: &'a LocatorOptions,
+    /// The options of each kernel family (a kernel reads its own).
+    pub soft_bvh: &'a SoftBvhOptions,
+    pub rt: &'a RtOptions,
+    /// Ids packed (`LocatorOptions::pack_ids`): in at least this many bits a field.
+    pub pack: Option<u32>,
     /// The point-in-tet test runs with its exact f64 fallback.
     pub f64: bool,
     /// The kernel takes one box a cell of this (mixed) mesh: `CELL_BOXES`.

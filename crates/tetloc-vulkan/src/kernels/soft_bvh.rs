@@ -36,8 +36,108 @@ const _: () = assert!(
         && interface::OUTSIDE == tetloc_core::OUTSIDE
 );
 
+/// soft-bvh's options: the structure's layout, how a search starts, where the structure is
+/// built. Named layouts (structure size against speed), measured on the H200 at jets 62M
+/// (BENCHMARKS.md): [`Self::fast`], the default; [`Self::compact`]; [`Self::small`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct SoftBvhOptions {
+    /// Prims (tets, or a mixed mesh's cells) per BVH leaf: 1 (the paper's layout; the
+    /// reference holds the prim id) or 4 (up to four, fewer nodes, an index list). 1 measured
+    /// faster on the H100 (NOTES.md).
+    pub leaf_size: usize,
+    /// Invocations per workgroup.
+    pub workgroup_size: u32,
+    /// Start each traversal below the root, at the node an entry grid names for the point's
+    /// cell (about `grid_tets_per_cell` tets per cell, 4 B per cell). Unmeasured on GPUs so
+    /// far: off by default (NOTES.md).
+    pub grid_start: bool,
+    /// Walk through face neighbours from a start tet the entry grid names for the point's cell
+    /// (the tet holding the cell's centre), traversal from the cell's node as the exact
+    /// fallback; +4 B per cell and the neighbours (16 B per tet). Implies the grid. The
+    /// default: on the H100 5.1x (uniform) and 2.0x (random) faster than traversal (NOTES.md).
+    pub walk_start: bool,
+    /// Entry grid resolution: about this many tets per cell (on a mixed mesh, as many prims as
+    /// that many tets are, at least one: a grid cell per hex at 1).
+    pub grid_tets_per_cell: usize,
+    /// Decide the point-in-tet test in f32 first and enter the full test (with its f64
+    /// fallback) only when f32 cannot; same answers, no f64 state on the hot path.
+    pub f32_first: bool,
+    /// Decide every test in f32 and defer the samples f32 cannot decide to a second, exact
+    /// dispatch (indirect, over a list the first pass appends to); same answers, and the first
+    /// pass holds no f64 code. Not yet measured on a GPU: off by default (NOTES.md).
+    pub defer_exact: bool,
+    /// Where the structure (BVH, entry grid, neighbours) is built: on the GPU (the default;
+    /// meshes whose build arrays exceed one buffer fall back to the CPU) or with tetloc_core's
+    /// CPU builder, the reference. Both give the same structure, bit for bit.
+    pub build: BuildOn,
+}
+
+/// The names of [`SoftBvhOptions::preset`].
+pub const PRESETS: [&str; 3] = ["fast", "compact", "small"];
+
+impl SoftBvhOptions {
+    /// Leaf 1, walk start, 1 tet a grid cell: 4.12 GiB at jets 62M, random 2.48 G/s, centres
+    /// 25.9 G/s.
+    pub fn fast() -> Self {
+        SoftBvhOptions {
+            leaf_size: 1,
+            workgroup_size: 128,
+            grid_start: false,
+            walk_start: true,
+            grid_tets_per_cell: GRID_TETS_PER_CELL,
+            f32_first: false,
+            defer_exact: false,
+            build: BuildOn::Gpu,
+        }
+    }
+
+    /// Leaf 4, walk start, 4 tets a cell (with packed ids: 2.48 GiB, random 2.38 G/s,
+    /// centres 16.4 G/s).
+    pub fn compact() -> Self {
+        SoftBvhOptions { leaf_size: 4, grid_tets_per_cell: 4, ..Self::fast() }
+    }
+
+    /// Leaf 4, traversal from the entry grid's node, no neighbour table (with packed ids:
+    /// 1.67 GiB, random 1.28 G/s, centres 3.5 G/s).
+    pub fn small() -> Self {
+        SoftBvhOptions { walk_start: false, grid_start: true, ..Self::compact() }
+    }
+
+    /// The layout named `name` ([`PRESETS`]), or `None` for an unknown name.
+    pub fn preset(name: &str) -> Option<Self> {
+        match name {
+            "fast" => Some(Self::fast()),
+            "compact" => Some(Self::compact()),
+            "small" => Some(Self::small()),
+            _ => None,
+        }
+    }
+
+    /// What is wrong with these options, if anything.
+    pub fn validate(&self) -> Result<(), String> {
+        if ![1, 4].contains(&self.leaf_size) || self.workgroup_size == 0 || self.grid_tets_per_cell == 0 {
+            return Err(format!(
+                "soft-bvh: leaf_size {} (1 or 4), workgroup_size {} (> 0), grid_tets_per_cell {} (> 0)",
+                self.leaf_size, self.workgroup_size, self.grid_tets_per_cell
+            ));
+        }
+        Ok(())
+    }
+}
+
+impl Default for SoftBvhOptions {
+    fn default() -> Self {
+        Self::fast()
+    }
+}
+
+/// Entry grid resolution by default: about this many tets per cell (a 1M-tet jets mesh then
+/// starts traversal at level 6-7 of 13 on median; walks from a cell's start take 1.7 tests
+/// a sample on jets 12M, 2.1 at 2 tets a cell).
+pub const GRID_TETS_PER_CELL: usize = 1;
+
 fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
-    let opts = input.opts;
+    let opts = input.soft_bvh;
     let want = build::Wanted {
         max_leaf: opts.leaf_size as u32,
         grid: opts.grid_start || opts.walk_start,
@@ -49,8 +149,8 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
             grid_prims_per_cell(input.mesh, opts.grid_tets_per_cell),
             dev.device_max_buffer(),
         ),
-        pack: opts.pack_ids,
-        pack_min_bits: opts.pack_min_bits,
+        pack: input.pack.is_some(),
+        pack_min_bits: input.pack.unwrap_or(0),
     };
     let built = match opts.build {
         BuildOn::Gpu => build::build(dev, input, want)?,

@@ -10,12 +10,11 @@ pub use bench::{si, BenchOptions, BenchResult};
 use launch::{Launcher, Variant};
 use order::{Ordering, ORDER_MIN_POINTS};
 
-use crate::build::BuildOn;
 use crate::context::Context;
 use crate::device::{Device, Split};
 use crate::error::{VkError, VkResult};
 use crate::interface::*;
-use crate::kernels::{Inputs, Kernel, Plan};
+use crate::kernels::{Inputs, Kernel, Plan, RtOptions, SoftBvhOptions};
 use crate::memory::{Buffer, BufferDesc, MemItem, MemKind, STAGING_BYTES};
 use crate::packed;
 use crate::pipeline::{Binding, Descriptors, Pipeline, Spec};
@@ -32,129 +31,106 @@ use tetloc_core::mesh::{FieldLocation, Mesh};
 use tetloc_core::queries::QueryKind;
 use tetloc_core::BatchLocator;
 
-/// soft-bvh entry grid resolution: about this many tets per cell (a 1M-tet jets mesh then
-/// starts traversal at level 6-7 of 13 on median; walks from a cell's start take 1.7 tests
-/// a sample on jets 12M, 2.1 at 2 tets a cell).
-pub const GRID_TETS_PER_CELL: usize = 1;
-
-/// Options of a [`VulkanLocator`].
+/// Options of a [`VulkanLocator`]: what every kernel shares, and each kernel family's own
+/// ([`SoftBvhOptions`], [`RtOptions`]; a kernel reads only its family's).
 #[derive(Clone, Debug)]
 pub struct LocatorOptions {
-    /// rt kernels: at most this many primitives (boxes or triangles) per bottom-level
-    /// acceleration structure, all under one top-level one; `None`: one structure.
-    pub split: Option<usize>,
-    /// rt kernels: compact each bottom-level structure after its build.
-    pub compact: bool,
     /// Points per kernel launch; larger batches run in chunks (bounds the query buffers). On
     /// meshes of 32M tets or more, ordered launches of generated points take at least a point
     /// per 8 tets (up to 128M points and 1/32 of the device's memory; see `launch_points`).
     pub chunk_points: usize,
-    /// soft-bvh: prims (tets, or a mixed mesh's cells) per BVH leaf: 1 (the paper's layout; the
-    /// reference holds the prim id) or 4 (up to four, fewer nodes, an index list). 1 measured
-    /// faster on the H100 (NOTES.md).
-    pub leaf_size: usize,
     /// Use the exact f64 fallback of the point-in-tet test when the device has shaderFloat64;
     /// `false` forces the pure-f32 test.
     pub float64: bool,
-    /// soft-bvh: invocations per workgroup.
-    pub workgroup_size: u32,
-    /// soft-bvh: start each traversal below the root, at the node an entry grid names for the
-    /// point's cell (about `GRID_TETS_PER_CELL` tets per cell, 4 B per cell). Unmeasured on
-    /// GPUs so far: off by default (NOTES.md).
-    pub grid_start: bool,
-    /// soft-bvh: walk through face neighbours from a start tet the entry grid names for the
-    /// point's cell (the tet holding the cell's centre), traversal from the cell's node as the
-    /// exact fallback; +4 B per cell and the neighbours (16 B per tet). Implies the grid. The
-    /// default: on the H100 5.1x (uniform) and 2.0x (random) faster than traversal (NOTES.md).
-    pub walk_start: bool,
-    /// soft-bvh entry grid resolution: about this many tets per cell (on a mixed mesh, as many
-    /// prims as that many tets are, at least one: a grid cell per hex at 1).
-    pub grid_tets_per_cell: usize,
-    /// soft-bvh: decide the point-in-tet test in f32 first and enter the full test (with its
-    /// f64 fallback) only when f32 cannot; same answers, no f64 state on the hot path.
-    pub f32_first: bool,
-    /// soft-bvh: decide every test in f32 and defer the samples f32 cannot decide to a second,
-    /// exact dispatch (indirect, over a list the first pass appends to); same answers, and the
-    /// first pass holds no f64 code. Not yet measured on a GPU: off by default (NOTES.md).
-    pub defer_exact: bool,
     /// Sort each launch's points along the Morton curve on the GPU before locating them
     /// (batches of random or host points of at least `ORDER_MIN_POINTS`; answers keep the
     /// given order): keeps random queries on few pages of a large mesh (NOTES.md).
     pub order_queries: bool,
-    /// soft-bvh: where its structure (BVH, entry grid, neighbours) is built: on the GPU (the
-    /// default; meshes whose build arrays exceed one buffer fall back to the CPU) or with
-    /// tetloc_core's CPU builder, the reference. Both give the same structure, bit for bit.
-    pub build: BuildOn,
-    /// Size of the staging buffer that all uploads and downloads go through.
-    pub staging_bytes: u64,
-    /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
-    /// device's limits, 4 GiB on the H100). Tests set it tiny to exercise the splitting.
-    pub max_buffer_bytes: Option<u64>,
-    /// Store the tets' vertex ids, soft-bvh's neighbours and leaf prims in as many bits as
-    /// the mesh needs (`crate::packed`: 24 and 26 bits at jets 62M, 7.75 B a tet less), each
-    /// array where it fits one buffer; the same answers. On in `compact` and `small`.
-    pub pack_ids: bool,
-    /// With `pack_ids`: at least this many bits a field (a test hook: 25 to 31 bits take the
-    /// readers' five-word path; wider fields hold the same values). 0: as few as the mesh needs.
-    pub pack_min_bits: u32,
     /// With query ordering: make the paper's random points in the order of their tets (a
     /// counting sort of the sample indices by tet first), so that making them reads the mesh
     /// nearly in order. `None`: on meshes whose tets and vertices pass 8 GiB (~450M tets),
     /// where random reads of them approach the address-translation knee; the same points and
     /// answers either way.
     pub random_in_tet_order: Option<bool>,
+    /// Size of the staging buffer that all uploads and downloads go through.
+    pub staging_bytes: u64,
+    /// Store the tets' vertex ids (every kernel), soft-bvh's neighbours and leaf prims in as
+    /// many bits as the mesh needs (`crate::packed`: 24 and 26 bits at jets 62M, 7.75 B a tet
+    /// less), each array where it fits one buffer; the same answers. On in `compact` and
+    /// `small`.
+    pub pack_ids: bool,
+    pub soft_bvh: SoftBvhOptions,
+    pub rt: RtOptions,
+    /// Hooks that force rare paths in tests (feature `test-hooks`).
+    #[cfg(any(test, feature = "test-hooks"))]
+    pub test_hooks: TestHooks,
+}
+
+/// What tests set to reach paths that real meshes reach only at sizes a test cannot afford.
+#[cfg(any(test, feature = "test-hooks"))]
+#[derive(Clone, Debug, Default)]
+pub struct TestHooks {
+    /// Split mesh and soft-bvh arrays into several buffers above this size (default: the
+    /// device's limits, 4 GiB on the H100).
+    pub max_buffer_bytes: Option<u64>,
+    /// With `pack_ids`: at least this many bits a field (25 to 31 bits take the readers'
+    /// five-word path; wider fields hold the same values). 0: as few as the mesh needs.
+    pub pack_min_bits: u32,
 }
 
 impl Default for LocatorOptions {
     fn default() -> Self {
         LocatorOptions {
-            split: Some(1 << 20),
-            compact: true,
             chunk_points: 1 << 22,
-            leaf_size: 1,
             float64: true,
-            workgroup_size: 128,
-            grid_start: false,
-            walk_start: true,
-            grid_tets_per_cell: GRID_TETS_PER_CELL,
-            f32_first: false,
-            defer_exact: false,
             order_queries: true,
-            build: BuildOn::Gpu,
-            staging_bytes: STAGING_BYTES,
-            max_buffer_bytes: None,
-            pack_ids: false,
-            pack_min_bits: 0,
             random_in_tet_order: None,
+            staging_bytes: STAGING_BYTES,
+            pack_ids: false,
+            soft_bvh: SoftBvhOptions::fast(),
+            rt: RtOptions::default(),
+            #[cfg(any(test, feature = "test-hooks"))]
+            test_hooks: TestHooks::default(),
         }
     }
 }
 
-/// Named soft-bvh layouts (structure size against speed), measured on the H200 at jets 62M
-/// (BENCHMARKS.md): `fast`, the default (leaf 1, walk start, 1 tet a grid cell: 4.12 GiB,
-/// random 2.48 G/s, centres 25.9 G/s); `compact` (leaf 4, walk start, 4 tets a cell, packed
-/// ids: 2.48 GiB, random 2.38 G/s, centres 16.4 G/s); `small` (leaf 4, traversal from the
-/// entry grid's node, no neighbour table, packed ids: 1.67 GiB, random 1.28 G/s, centres
-/// 3.5 G/s). The rt kernels take only their packed tets.
-pub const PRESETS: [&str; 3] = ["fast", "compact", "small"];
-
 impl LocatorOptions {
-    /// The options of preset `name` (see [`PRESETS`]), or `None` for an unknown name.
+    /// The options of preset `name` ([`PRESETS`]): soft-bvh's layout of that name
+    /// ([`SoftBvhOptions::preset`]), with packed ids in `compact` and `small` (the rt kernels
+    /// take only their packed tets); `None` for an unknown name.
     pub fn preset(name: &str) -> Option<LocatorOptions> {
-        let d = LocatorOptions::default();
-        match name {
-            "fast" => Some(d),
-            "compact" => Some(LocatorOptions { leaf_size: 4, grid_tets_per_cell: 4, pack_ids: true, ..d }),
-            "small" => Some(LocatorOptions {
-                leaf_size: 4,
-                walk_start: false,
-                grid_start: true,
-                grid_tets_per_cell: 4,
-                pack_ids: true,
-                ..d
-            }),
-            _ => None,
+        let soft_bvh = SoftBvhOptions::preset(name)?;
+        Some(LocatorOptions { soft_bvh, pack_ids: name != "fast", ..Default::default() })
+    }
+
+    /// What is wrong with these options, if anything.
+    pub fn validate(&self) -> Result<(), String> {
+        if self.chunk_points == 0 || self.staging_bytes < 1 << 10 {
+            return Err(format!(
+                "chunk_points {} (> 0), staging_bytes {} (>= 1 KiB)",
+                self.chunk_points, self.staging_bytes
+            ));
         }
+        self.soft_bvh.validate()?;
+        self.rt.validate()
+    }
+
+    /// The largest buffer to allocate, when a test says.
+    fn max_buffer_bytes(&self) -> Option<u64> {
+        #[cfg(any(test, feature = "test-hooks"))]
+        return self.test_hooks.max_buffer_bytes;
+        #[cfg(not(any(test, feature = "test-hooks")))]
+        None
+    }
+
+    /// With `pack_ids`: the fewest bits a packed field takes.
+    fn pack(&self) -> Option<u32> {
+        #[cfg(any(test, feature = "test-hooks"))]
+        let min_bits = self.test_hooks.pack_min_bits;
+        #[cfg(not(any(test, feature = "test-hooks")))]
+        let min_bits = 0;
+        self.pack_ids.then_some(min_bits)
     }
 }
 
@@ -272,9 +248,9 @@ impl VulkanLocator {
         // Small meshes get a smaller staging buffer, but one that still moves large batches
         // of points in few round trips.
         let staging = opts.staging_bytes.min(mesh_bytes.max(16 << 20));
-        let mut dev = Device::new(&ctx, staging, opts.max_buffer_bytes)?;
+        let mut dev = Device::new(&ctx, staging, opts.max_buffer_bytes())?;
         let t_upload = Instant::now();
-        let pack = opts.pack_ids.then_some(opts.pack_min_bits);
+        let pack = opts.pack();
         let def = kernel.def();
         let mesh_on_device = MeshOnDevice::upload(&mut dev, &mesh, def.ray_tracing, pack, def.cell_boxes)?;
         let mut stages = vec![("mesh upload".to_string(), t_upload.elapsed().as_secs_f64())];
@@ -292,7 +268,7 @@ impl VulkanLocator {
             pipelines: HashMap::new(),
             exact_pipelines: HashMap::new(),
             desc,
-            workgroup: opts.workgroup_size,
+            workgroup: opts.soft_bvh.workgroup_size,
         };
         let mut loc = VulkanLocator {
             launcher,
@@ -497,7 +473,7 @@ impl VulkanLocator {
             lim = lim.min(rt.max_dispatch as usize);
         }
         let groups = l.max_workgroup_count[0] as usize * l.max_workgroup_count[1] as usize;
-        lim.min(groups.saturating_mul(self.opts.workgroup_size as usize))
+        lim.min(groups.saturating_mul(self.opts.soft_bvh.workgroup_size as usize))
     }
 
     /// Makes sure the query and result buffers hold `n` points and are bound.
@@ -740,17 +716,7 @@ fn check(ctx: &Context, mesh: &Mesh, kernel: Kernel, opts: &LocatorOptions) -> V
     if kernel.needs_ray_tracing() && ctx.rt.is_none() {
         return Err(VkError::NoRayTracing { device: ctx.device_name(), kernel: kernel.name().into() });
     }
-    if opts.chunk_points == 0
-        || ![1, 4].contains(&opts.leaf_size)
-        || opts.workgroup_size == 0
-        || opts.grid_tets_per_cell == 0
-        || opts.staging_bytes < 1 << 10
-    {
-        return Err(VkError::Mesh(format!(
-            "invalid options: chunk_points {} (> 0), leaf_size {} (1 or 4), workgroup_size {} (> 0), grid_tets_per_cell {} (> 0), staging_bytes {} (>= 1 KiB)",
-            opts.chunk_points, opts.leaf_size, opts.workgroup_size, opts.grid_tets_per_cell, opts.staging_bytes
-        )));
-    }
+    opts.validate().map_err(|e| VkError::Mesh(format!("invalid options: {e}")))?;
     if !ctx.info().nonuniform_buffers {
         return Err(VkError::Mesh(format!(
             "{} lacks shaderStorageBufferArrayNonUniformIndexing, which the kernels use to read arrays split over buffers",
@@ -835,13 +801,16 @@ impl MeshOnDevice {
         opts: &'a LocatorOptions,
         f64: bool,
     ) -> Inputs<'a> {
+        let (soft_bvh, rt, pack) = (&opts.soft_bvh, &opts.rt, opts.pack());
         Inputs {
             mesh,
             points: &self.points,
             tets: &self.tets,
             tet_bits: self.tet_bits,
             mesh_bindings,
-            opts,
+            soft_bvh,
+            rt,
+            pack,
             f64,
             cell_boxes: self.cell_tets.is_some(),
         }

@@ -82,9 +82,35 @@ pub(crate) fn tet_centres(mesh: &Mesh) -> Vec<Vec3> {
     (0..mesh.n_tets()).into_par_iter().map(|t| mesh.tet_center(t)).collect()
 }
 
+/// The ray-tracing kernels' options: how their acceleration structures are cut and kept.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RtOptions {
+    /// At most this many primitives (boxes or triangles) per bottom-level acceleration
+    /// structure, all under one top-level one; `None`: one structure.
+    pub split: Option<usize>,
+    /// Compact each bottom-level structure after its build.
+    pub compact: bool,
+}
+
+impl Default for RtOptions {
+    fn default() -> Self {
+        RtOptions { split: Some(1 << 20), compact: true }
+    }
+}
+
+impl RtOptions {
+    /// What is wrong with these options, if anything.
+    pub fn validate(&self) -> Result<(), String> {
+        match self.split {
+            Some(0) => Err("rt: split 0 (at least one primitive a structure, or none for one structure)".into()),
+            _ => Ok(()),
+        }
+    }
+}
+
 /// Builds kernel `k`'s structures for the mesh and plans its pipelines.
 pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
-    let (mesh, opts) = (input.mesh, input.opts);
+    let (mesh, opts) = (input.mesh, input.rt);
     if input.points.parts.len() > 1 {
         return Err(VkError::TooLarge {
             name: "mesh points".into(),
