@@ -88,16 +88,27 @@ fn decide(device: Option<usize>, options: &LocatorOptions) -> Result<AutoChoice>
     let avail = crate::available(device);
     let path = cache_path(&key);
     let (ranking, source) = ranking(path.as_deref(), &key, &mut || measure(&avail, device, options, AUTO_BUDGET_S))?;
-    let best = ranking
-        .iter()
-        .filter_map(|(n, _)| n.parse::<Backend>().ok())
-        .find(|b| avail.contains(b))
-        .unwrap_or(Backend::Cpu);
+    let best = pick(&ranking, &avail);
     Ok(AutoChoice { backend: best, reason: AutoReason::Measured { source, device: key, ranking } })
 }
 
 /// A ranking of backends by samples/s on one device, fastest first.
 pub type Ranking = Vec<(String, f64)>;
+
+/// Backends within this fraction of the fastest measured rate count as tied.
+const TIE: f64 = 0.8;
+
+/// The backend `auto` takes from a ranking: among those within [`TIE`] of the fastest, the first
+/// in `avail`'s order (soft-bvh, then the rt kernels, then cpu). The measurement locates host
+/// points end to end, so on a GPU it times mostly the transfers, which are the same for every
+/// kernel: its small differences are noise (the H200, 2026-12-05: rt-shared-faces came first,
+/// then ran a 12M-tet mesh at 0.07 G/s where soft-bvh's kernel runs 3 G/s). Ties go to the
+/// order, whose first kernel is the fastest in every kernel-time measurement (BENCHMARKS.md).
+fn pick(ranking: &Ranking, avail: &[Backend]) -> Backend {
+    let rate = |b: &Backend| ranking.iter().find(|(n, _)| n.parse::<Backend>().ok() == Some(*b)).map(|r| r.1);
+    let top = avail.iter().filter_map(rate).fold(0.0, f64::max);
+    avail.iter().copied().find(|b| rate(b).is_some_and(|r| r >= TIE * top)).unwrap_or(Backend::Cpu)
+}
 
 /// The cached ranking of backends on one device and driver.
 #[derive(Serialize, Deserialize)]
@@ -217,6 +228,20 @@ fn measure(avail: &[Backend], device: Option<usize>, options: &LocatorOptions, b
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rates within 20 % of the fastest are a tie, which goes to the first available backend;
+    /// a backend that is not available (or not measured) is never taken.
+    #[test]
+    fn ties_go_to_the_first_available_backend() {
+        let soft = Backend::Kernel(tetloc_vulkan::Kernel::SoftBvh);
+        let shared = Backend::Kernel(tetloc_vulkan::Kernel::RtSharedFaces);
+        let avail = [soft, shared, Backend::Cpu];
+        let ranking = |r: &[(&str, f64)]| -> Ranking { r.iter().map(|(n, x)| (n.to_string(), *x)).collect() };
+        assert_eq!(pick(&ranking(&[("rt-shared-faces", 1.1e9), ("soft-bvh", 1.0e9), ("cpu", 1e7)]), &avail), soft);
+        assert_eq!(pick(&ranking(&[("rt-shared-faces", 2.0e9), ("soft-bvh", 1.0e9)]), &avail), shared);
+        assert_eq!(pick(&ranking(&[("rt-shared-faces", 2.0e9), ("cpu", 1e7)]), &[Backend::Cpu]), Backend::Cpu);
+        assert_eq!(pick(&ranking(&[]), &avail), Backend::Cpu);
+    }
 
     fn fail(msg: &str) -> crate::Error {
         tetloc_core::Error::Invalid(msg.into()).into()

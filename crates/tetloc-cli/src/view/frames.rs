@@ -102,6 +102,10 @@ pub struct Hub {
     pub out_ready: Condvar,
     /// Open WebSocket clients, and the next client id.
     pub clients: Mutex<(usize, u64)>,
+    /// What encoding a moving frame costs, in ns a pixel (the f64's bits; 0 until measured):
+    /// the render thread sizes moving frames by the slower of its march and the encode, since
+    /// the two run side by side and the slower sets the frame rate.
+    jpeg_ns_per_pixel: std::sync::atomic::AtomicU64,
 }
 
 /// Locks a mutex whose holder may have panicked: the data (the newest frame or state) is
@@ -129,7 +133,23 @@ impl Hub {
             out: Mutex::new(Published::default()),
             out_ready: Condvar::new(),
             clients: Mutex::new((0, 1)),
+            jpeg_ns_per_pixel: std::sync::atomic::AtomicU64::new(0),
         }
+    }
+
+    /// The time encoding a moving frame of `pixels` would take, in ms (0 until one was encoded).
+    pub fn jpeg_ms(&self, pixels: u64) -> f64 {
+        let ns = f64::from_bits(self.jpeg_ns_per_pixel.load(std::sync::atomic::Ordering::Relaxed));
+        ns * pixels as f64 / 1e6
+    }
+
+    /// Records a moving frame's encode (a running mean that follows the last few frames).
+    fn record_jpeg(&self, pixels: u64, ms: f64) {
+        use std::sync::atomic::Ordering::Relaxed;
+        let now = ms * 1e6 / pixels.max(1) as f64;
+        let old = f64::from_bits(self.jpeg_ns_per_pixel.load(Relaxed));
+        let mean = if old == 0.0 { now } else { 0.7 * old + 0.3 * now };
+        self.jpeg_ns_per_pixel.store(mean.to_bits(), Relaxed);
     }
 
     pub fn set_describe(&self, d: serde_json::Value) {
@@ -199,10 +219,13 @@ pub fn spawn_encoder(hub: Arc<Hub>) {
                     }
                 };
                 let seq = lock(&hub.out).seq + 1;
+                let t = Instant::now();
                 let enc = match encode(&raw, seq, quality.get()) {
                     Ok(e) => {
                         if !e.still {
-                            quality.update(e.image().len(), raw.width as usize * raw.height as usize);
+                            let pixels = raw.width as usize * raw.height as usize;
+                            hub.record_jpeg(pixels as u64, t.elapsed().as_secs_f64() * 1e3);
+                            quality.update(e.image().len(), pixels);
                         }
                         Arc::new(e)
                     }

@@ -247,6 +247,11 @@ pub fn from_cell_list(types: &[u8], offsets: &[i64], conn: &[u32]) -> Result<Ext
     if types.iter().all(|&t| t == TETRA) && offsets.iter().enumerate().all(|(i, &o)| o == 4 * i as i64) {
         return Ok(Extracted::all_tets(conn.to_vec()));
     }
+    if let Some(i) = types.iter().position(|&t| t == POLYHEDRON) {
+        return Err(format!(
+            "cell {i} is a polyhedron (VTK cell type 42): a cell list does not carry its faces; read polyhedra from a file (.vtu, .vtk, an OpenFOAM case)"
+        ));
+    }
     // From 0 and never decreasing: the offsets are counts.
     let ends: Vec<u64> = offsets[1..].iter().map(|&o| o as u64).collect();
     let ex = extract(types, &ends, conn, None)?;
@@ -476,7 +481,7 @@ mod tests {
         let err = from_cell_list(&[10, 5], &[0, 4, 7], &ids(7)).unwrap_err();
         assert!(err.contains("cell 1 has VTK cell type 5 with 3 points, which is not a volume cell"), "{err}");
         let err = from_cell_list(&[12, 42], &[0, 8, 12], &ids(12)).unwrap_err();
-        assert!(err.contains("cell 1 has VTK cell type 42"), "{err}");
+        assert!(err.contains("cell 1 is a polyhedron (VTK cell type 42)"), "{err}");
         // Offsets: one more than the types, from 0 to the connectivity's end, never decreasing.
         assert!(from_cell_list(&[10], &[0], &ids(4)).unwrap_err().contains("expected one more"));
         assert!(from_cell_list(&[10], &[1, 4], &ids(4)).unwrap_err().contains("expected 0 to"));

@@ -88,11 +88,25 @@ fn one_cell(ty: CellType) -> Mesh {
 /// Every cell type tetloc knows, with all its nodes: the weights are its shape functions.
 #[test]
 fn weights_equal_sample_on_every_cell_type() {
-    for ty in CellType::all() {
+    // Polyhedra are refused (next test).
+    for ty in CellType::all().filter(|t| !t.is_polyhedron()) {
         let mesh = Arc::new(one_cell(ty));
         let inside = check_against_sample(&mesh, &box_points(&mesh, 400, 7), ty.def().name());
         assert!(inside > 20, "{}: only {inside} points inside", ty.def().name());
     }
+}
+
+/// A mesh with polyhedra gets a clear error, not weights in columns (the decomposition's
+/// centroids) that no file has.
+#[test]
+fn polyhedral_meshes_are_refused() {
+    use crate::gen::{generate_spec, CellKind, Shape, Spec};
+    let raw = generate_spec(Spec { shape: Shape::Jets, cells: CellKind::Octree }, 2000, 1, &|_| {});
+    let mesh = Arc::new(Mesh::new(raw, "jets-octree").unwrap());
+    assert!(mesh.info.n_centroids > 0);
+    let pts = box_points(&mesh, 50, 3);
+    let err = Weights::locate(&mut stack(&mesh), &mesh, &pts).unwrap_err().to_string();
+    assert!(err.contains("polyhedral") && err.contains("jets-octree"), "{err}");
 }
 
 /// Meshes of quadratic (and cubic) tets, with a field that is not linear: their rows hold all
