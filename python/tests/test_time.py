@@ -46,7 +46,7 @@ def test_every_step_matches_the_oracle(time_dir, oracle, name):
     with pytest.raises(ValueError, match="out of range"):
         loc.sample(points, "f", step=99)
     with pytest.raises(TypeError):
-        mesh.field("f", step=1.0)
+        mesh.field("f", step=1.0)  # type: ignore[arg-type]
 
 
 def test_the_three_encodings_hold_the_same_steps(time_dir):
@@ -97,10 +97,10 @@ def quadratic_tets(n: int = 3):
                 pts.append(tuple(m + 0.02 * np.sin(7 * m)))
             row.append(mids[key])
         conn.append(row)
-    pts = np.array(pts)
-    f = np.sin(3 * pts[:, 0]) + pts[:, 1] * pts[:, 2]
+    xyz = np.array(pts)
+    f = np.sin(3 * xyz[:, 0]) + xyz[:, 1] * xyz[:, 2]
     padded = np.hstack([np.full((len(conn), 1), 10), np.array(conn)]).ravel()  # pyvista's [n, ids...]
-    return tetloc.Mesh(pts, padded, celltypes=np.full(len(conn), 24), point_data={"f": f})
+    return tetloc.Mesh(xyz, padded, celltypes=np.full(len(conn), 24), point_data={"f": f})
 
 
 def test_weights_equal_sample_on_quadratic_tets():

@@ -124,6 +124,7 @@ def test_gradcheck_float64(kind, grid_mesh, request):
     if kind == "tets":
         p = points.detach().clone().requires_grad_(True)
         loc.sample(p, "f").sum().backward()
+        assert p.grad is not None
         np.testing.assert_allclose(p.grad.numpy(), np.tile([1.0, 2.0, 3.0], (len(p), 1)), atol=1e-9)
 
 
@@ -145,6 +146,7 @@ def test_the_gpu_tet_weights_are_the_cores(grid_mesh):
     field = field.clone().requires_grad_(True)
     assert torch.autograd.gradcheck(lambda f: loc.sample(p, f, fill=0.0), (field,), fast_mode=True)
     loc.sample(p, field).sum().backward()
+    assert p.grad is not None
     assert torch.isfinite(p.grad).all()
 
 
@@ -166,6 +168,7 @@ def test_a_nan_vertex_value_reaches_only_its_cells(data_dir):
     outside = torch.tensor([[1e3, 1e3, 1e3]], dtype=torch.float64, requires_grad=True)
     field.requires_grad_(True)
     loc.sample(outside, field, fill=0.0).sum().backward()
+    assert outside.grad is not None and field.grad is not None
     assert outside.grad.eq(0).all() and field.grad.eq(0).all()
 
 
@@ -175,6 +178,7 @@ def test_field_gradient_is_the_transposed_interpolation(grid_mesh):
     field = torch.zeros(grid_mesh.n_points, dtype=torch.float64, requires_grad=True)
     loc.sample(points, field).sum().backward()
     # Each point spreads weights summing to 1 over its cell's vertices.
+    assert field.grad is not None
     assert abs(field.grad.sum().item() - 200) < 1e-9
     assert (field.grad >= 0).all()
 
@@ -188,6 +192,7 @@ def test_outside_points_get_the_fill_and_no_gradient(grid_mesh):
     v = loc.sample(points, field, fill=-2.0)
     assert v[1].item() == -2.0
     (v * torch.tensor([1.0, 5.0], dtype=torch.float64)).sum().backward()
+    assert points.grad is not None and field.grad is not None
     assert points.grad[1].abs().sum() == 0
     assert field.grad.sum().item() == pytest.approx(1.0)
     ids = loc.locate(points.detach())
@@ -198,7 +203,7 @@ def test_bad_tensors_get_clear_errors(grid_mesh):
     loc = tt.Locator(grid_mesh, backend="cpu")
     good = torch.rand(10, 3) * 6
     with pytest.raises(TypeError, match="points: expected a torch.Tensor"):
-        loc.locate(good.numpy())
+        loc.locate(good.numpy())  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="dtype torch.int64"):
         loc.locate(torch.ones(10, 3, dtype=torch.int64))
     with pytest.raises(ValueError, match=r"shape \(10, 4\)"):

@@ -19,6 +19,7 @@ import subprocess
 import tempfile
 import time
 import urllib.error
+import urllib.parse
 import urllib.request
 from typing import Any, Iterator, List, Optional
 
@@ -153,7 +154,7 @@ class Browser:
             return body
 
     def open(self, url: str) -> Page:
-        page = Page(self, self.http("/json/new?" + urllib.request.quote(url, safe=":/?=&"), method="PUT"))
+        page = Page(self, self.http("/json/new?" + urllib.parse.quote(url, safe=":/?=&"), method="PUT"))
         page.call("Runtime.enable")
         return page
 
@@ -176,7 +177,7 @@ class Server:
         self.base, self.token = self.url.split("/?token=")
 
     def arg(self, name: str) -> str:
-        args = list(self.proc.args)
+        args = [str(a) for a in self.proc.args]  # type: ignore[union-attr]
         return str(args[args.index(name) + 1])
 
     def get(self, path: str, token: Optional[str] = None) -> tuple[int, bytes]:
@@ -371,7 +372,7 @@ def test_python_view_handle(cli: str) -> None:
         first = v.frame()
         assert first.shape == (40, 48, 3) and first.dtype == np.uint8 and first.std() > 1
         s = v.state()
-        v.set_camera(np.array(s["camera"]["eye"]) * 1.5, s["camera"]["target"], s["camera"]["up"])
+        v.set_camera((np.array(s["camera"]["eye"]) * 1.5).tolist(), s["camera"]["target"], s["camera"]["up"])
         farther = v.frame()
         assert np.abs(farther.astype(float) - first).mean() > 1
         v.set_tf(colormap="plasma", opacity=[(0, 0), (1, 0.5)], range=(-1, 1))

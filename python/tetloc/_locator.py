@@ -205,7 +205,7 @@ class Locator:
 
     def _weights(
         self, points: PointsLike
-    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64], npt.NDArray[np.float64], npt.NDArray[np.int64]]:
+    ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int32], npt.NDArray[np.float64], npt.NDArray[np.int32]]:
         flat, lead = as_points(points)
         if len(lead) != 1:
             raise ValueError(f"points: shape {lead + (3,)}; weights take (K, 3) points")

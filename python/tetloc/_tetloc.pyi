@@ -19,6 +19,7 @@ __all__ = [
     "probe",
     "trace",
     "resolve",
+    "interpolation_weights",
     "DeviceError",
     "BACKENDS",
     "__version__",

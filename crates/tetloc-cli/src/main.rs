@@ -527,11 +527,17 @@ fn info(mesh: &std::ffi::OsStr, json: bool, format: Option<&str>) -> Result<()> 
     let times = time_steps::times(mesh, format)?;
     let summary = progress::with_spinner("computing shared faces", || m.summary());
     if json {
-        let mut value = serde_json::to_value(&summary)?;
-        if let Some(o) = value.as_object_mut().filter(|_| !times.is_empty()) {
-            o.insert("times".into(), times.into());
+        // The summary's own fields as they serialize (f32 figures in their shortest f32 form, as
+        // Python's `info()` gives them; a `serde_json::Value` would widen them to f64 digits),
+        // and the steps' times of a series.
+        #[derive(serde::Serialize)]
+        struct WithTimes<'a, T: serde::Serialize> {
+            #[serde(flatten)]
+            summary: &'a T,
+            #[serde(skip_serializing_if = "<[f64]>::is_empty")]
+            times: &'a [f64],
         }
-        println!("{}", serde_json::to_string_pretty(&value)?);
+        println!("{}", serde_json::to_string_pretty(&WithTimes { summary: &summary, times: &times })?);
         return Ok(());
     }
     let faces = summary.faces;

@@ -6,7 +6,7 @@
 //! OpenFOAM's order: cell id = `celli`. Each cell is the polyhedron of its faces (owner faces
 //! as they are, neighbour faces reversed, so that all face out), or a hexahedron when it has
 //! the shape of one (6 quads on 8 points), as ParaView's reader makes it. Fields come from the
-//! latest time directory ([`read_case`] takes another); a time series is for later (the
+//! latest time directory ([`read_case`](crate::openfoam::read_case) takes another); a time series is for later (the
 //! steps axis of the time-series work). Vector fields become `NAME[0]`, `NAME[1]`, `NAME[2]`.
 
 mod foam;

@@ -96,7 +96,7 @@ impl Default for LocatorOptions {
 }
 
 impl LocatorOptions {
-    /// The options of preset `name` ([`PRESETS`]): soft-bvh's layout of that name
+    /// The options of preset `name` ([`PRESETS`](crate::PRESETS)): soft-bvh's layout of that name
     /// ([`SoftBvhOptions::preset`]), with packed ids in `compact` and `small` (the rt kernels
     /// take only their packed tets); `None` for an unknown name.
     pub fn preset(name: &str) -> Option<LocatorOptions> {
