@@ -183,17 +183,30 @@ fn a_killed_partition_keeps_a_whole_output() {
         let _ = std::fs::remove_dir_all(dir.join(leftover));
         let _ = std::fs::remove_file(dir.join(leftover));
     }
-    let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
-        .args(["partition", s(&mesh), "--parts", "5", "-o", s(&pvtu), "-q"])
-        .spawn()
-        .unwrap();
-    let seen = wait_for(&dir, ".out.pvtu.", Duration::from_secs(60));
-    signal(&child, "TERM");
-    let status = child.wait().unwrap();
-    assert!(seen, "no temporary appeared");
-    assert_eq!(status.code(), Some(143), "{status:?}");
-    assert!(!entries(&dir).iter().any(|n| n.ends_with(".tmp")), "{:?}", entries(&dir));
-    assert_eq!(tets_of(&pvtu), Ok(whole.clone()));
+    // A run can end between the temporary's appearance and the signal (a fast machine): then
+    // it exits 0, and the signal is sent again to a new run. Every run, signalled in time or not,
+    // leaves no temporary and a whole output.
+    let mut terminated = false;
+    for _ in 0..5 {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+            .args(["partition", s(&mesh), "--parts", "5", "-o", s(&pvtu), "-q"])
+            .spawn()
+            .unwrap();
+        let seen = wait_for(&dir, ".out.pvtu.", Duration::from_secs(60));
+        signal(&child, "TERM");
+        let status = child.wait().unwrap();
+        assert!(!entries(&dir).iter().any(|n| n.ends_with(".tmp")), "{:?}", entries(&dir));
+        assert_eq!(tets_of(&pvtu), Ok(whole.clone()));
+        match status.code() {
+            Some(143) if seen => {
+                terminated = true;
+                break;
+            }
+            Some(0) => continue,
+            _ => panic!("partition under SIGTERM: {status:?} (a temporary seen: {seen})"),
+        }
+    }
+    assert!(terminated, "SIGTERM never reached a run while it wrote its pieces");
     // Whatever SIGKILL left is named by the next run, which still succeeds.
     std::fs::create_dir_all(dir.join(".out.pvtu.leftover.tmp")).unwrap();
     let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "2", "-o", s(&pvtu)]);
