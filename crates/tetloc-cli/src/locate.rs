@@ -59,21 +59,7 @@ pub struct LocateArgs {
     pub(crate) common: Common,
 }
 
-impl crate::time_steps::OnSteps for LocateArgs {
-    fn series(&self) -> (&std::ffi::OsStr, &Path) {
-        (&self.mesh, &self.out)
-    }
-    fn common(&self) -> &Common {
-        &self.common
-    }
-    fn common_mut(&mut self) -> &mut Common {
-        &mut self.common
-    }
-    fn rename_outputs(&mut self, k: usize, n: usize) {
-        self.out = crate::time_steps::step_path(&self.out, k, n);
-        self.values = self.values.as_ref().map(|v| crate::time_steps::step_path(v, k, n));
-    }
-}
+crate::time_steps::on_steps!(LocateArgs, mesh, values);
 
 /// What `--out` is, by its extension.
 #[derive(Clone, Copy, PartialEq, Eq)]

@@ -47,20 +47,7 @@ pub struct ProbeArgs {
     pub(crate) common: Common,
 }
 
-impl crate::time_steps::OnSteps for ProbeArgs {
-    fn series(&self) -> (&std::ffi::OsStr, &Path) {
-        (&self.source, &self.out)
-    }
-    fn common(&self) -> &Common {
-        &self.common
-    }
-    fn common_mut(&mut self) -> &mut Common {
-        &mut self.common
-    }
-    fn rename_outputs(&mut self, k: usize, n: usize) {
-        self.out = crate::time_steps::step_path(&self.out, k, n);
-    }
-}
+crate::time_steps::on_steps!(ProbeArgs, source);
 
 /// Whether TARGET names a point set (by its extension) rather than a mesh.
 fn is_point_set(target: &Path) -> bool {

@@ -43,20 +43,7 @@ pub struct ResampleArgs {
     pub(crate) common: Common,
 }
 
-impl crate::time_steps::OnSteps for ResampleArgs {
-    fn series(&self) -> (&std::ffi::OsStr, &std::path::Path) {
-        (&self.mesh, &self.out)
-    }
-    fn common(&self) -> &Common {
-        &self.common
-    }
-    fn common_mut(&mut self) -> &mut Common {
-        &mut self.common
-    }
-    fn rename_outputs(&mut self, k: usize, n: usize) {
-        self.out = crate::time_steps::step_path(&self.out, k, n);
-    }
-}
+crate::time_steps::on_steps!(ResampleArgs, mesh);
 
 /// What the arguments ask for, checked before any mesh is read.
 pub(crate) struct Plan {

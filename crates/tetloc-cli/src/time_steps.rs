@@ -89,6 +89,30 @@ pub(crate) trait OnSteps: Clone {
     fn rename_outputs(&mut self, k: usize, n: usize);
 }
 
+/// Implements [`OnSteps`] for a command's arguments that hold `common: Common` and `out`:
+/// `on_steps!(Args, mesh_field, optional_output...)`, each optional output (an
+/// `Option<PathBuf>`) renamed for a step as `--out` is.
+macro_rules! on_steps {
+    ($args:ty, $series:ident $(, $extra:ident)*) => {
+        impl crate::time_steps::OnSteps for $args {
+            fn series(&self) -> (&std::ffi::OsStr, &std::path::Path) {
+                (&self.$series, &self.out)
+            }
+            fn common(&self) -> &crate::Common {
+                &self.common
+            }
+            fn common_mut(&mut self) -> &mut crate::Common {
+                &mut self.common
+            }
+            fn rename_outputs(&mut self, k: usize, n: usize) {
+                self.out = crate::time_steps::step_path(&self.out, k, n);
+                $(self.$extra = self.$extra.as_ref().map(|v| crate::time_steps::step_path(v, k, n));)*
+            }
+        }
+    };
+}
+pub(crate) use on_steps;
+
 /// Runs the command: as it is, or once per step for `--time-step all` (see the module).
 pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result<()> {
     if args.common().time_step != Some(TimeStep::All) {
