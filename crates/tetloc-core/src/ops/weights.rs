@@ -32,6 +32,8 @@ impl Weights {
     /// Locates `points` (the file's coordinates, f64) with `locator` (built on `mesh`) in
     /// batches of [`super::CHUNK`], then computes their weights.
     pub fn locate(locator: &mut dyn BatchLocator, mesh: &Mesh, points: &[[f64; 3]]) -> Result<Weights> {
+        // Refused before the points are located, not after.
+        refuse_polyhedra(mesh)?;
         let mut cells = vec![OUTSIDE; points.len()];
         for (p, ids) in points.chunks(super::CHUNK).zip(cells.chunks_mut(super::CHUNK)) {
             locator.sample_many64(p, &[], ids, &mut [])?;
@@ -49,15 +51,7 @@ impl Weights {
         if let Some(c) = cells.par_iter().find_any(|&&c| c < OUTSIDE || c >= 0 && c as usize >= n_cells) {
             return Err(Error::Invalid(format!("cell id {c} is not a cell of a mesh of {n_cells}")));
         }
-        // A polyhedron's values come through the centroids of its decomposition, which are
-        // not the file's points: their weights would need folding onto the centroids' sources,
-        // which the mesh does not keep. Refused rather than given in columns no file has.
-        if mesh.info.n_centroids > 0 {
-            return Err(Error::Invalid(format!(
-                "{}: interpolation weights of meshes with polyhedral cells are not supported yet (sample and locate are)",
-                mesh.info.source
-            )));
-        }
+        refuse_polyhedra(mesh)?;
         let rows: Vec<Vec<(u32, f64)>> = points
             .par_iter()
             .zip(&cells)
@@ -151,6 +145,19 @@ impl Weights {
             FieldLocation::Cell => self.apply_cells(&values, 1, out),
         }
     }
+}
+
+/// A polyhedron's values come through the centroids of its decomposition, which are not the
+/// file's points: their weights would need folding onto the centroids' sources, which the mesh
+/// does not keep. Refused rather than given in columns no file has.
+fn refuse_polyhedra(mesh: &Mesh) -> Result<()> {
+    if mesh.info.n_centroids == 0 {
+        return Ok(());
+    }
+    Err(Error::Invalid(format!(
+        "{}: interpolation weights of meshes with polyhedral cells are not supported yet (sample and locate are)",
+        mesh.info.source
+    )))
 }
 
 /// The (vertex, weight) pairs of point `p` (file coordinates) in cell `c`: the same
