@@ -9,7 +9,7 @@
 #
 # WHEEL: a tetloc wheel (maturin, abi3, x86-64); TETLOC_BIN: a release `tetloc` binary (for
 # `tetloc gen`). Uses the machine's Python with its PyTorch (no network): the wheel goes into a
-# virtualenv that sees the system's packages. Every step has its own time limit and the steps
+# folder on PYTHONPATH beside python3's own packages. Every step has its own time limit and the steps
 # go on after a failure; the whole run stays under 9 minutes. Exit status: failed steps.
 # For a dry run elsewhere: TETLOC_PY (a Python with tetloc and torch: no virtualenv),
 # TORCH_DEVICE=cpu, POINTS (16M), MESH (a mesh file instead of `tetloc gen`).
@@ -37,18 +37,16 @@ work=$(mktemp -d)
 if [ -n "${TETLOC_PY:-}" ]; then
   py=$TETLOC_PY
 else
-  venv=$work/venv
-  if python3 -m venv --system-site-packages "$venv" &&
-    "$venv/bin/python" -m pip install -q --disable-pip-version-check --no-deps --no-index --force-reinstall "$wheel"; then
-    py=$venv/bin/python
-  else
-    # No venv module (or no pip in it): a wheel is a zip; its files on PYTHONPATH are the package.
-    echo "no virtualenv: unpacking $wheel onto PYTHONPATH"
+  # The machine's python3 holds PyTorch and numpy (on the H200 image it is itself a virtualenv,
+  # so a `--system-site-packages` venv made from it would not see them): the wheel's files go
+  # into a folder of their own on PYTHONPATH.
+  py=python3
+  if ! python3 -m pip install -q --no-index --no-deps --no-compile --target "$work/site" "$wheel"; then
+    echo "no pip: unpacking $wheel onto PYTHONPATH"
     python3 -c 'import sys, zipfile; zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])' "$wheel" "$work/site" ||
       { echo "cannot unpack $wheel"; exit 1; }
-    export PYTHONPATH=$work/site${PYTHONPATH:+:$PYTHONPATH}
-    py=python3
   fi
+  export PYTHONPATH=$work/site${PYTHONPATH:+:$PYTHONPATH}
 fi
 device=${TORCH_DEVICE:-cuda}
 "$py" - <<'PY' 2>&1 | tee "$out/versions.txt"
