@@ -9,15 +9,17 @@
 set -euo pipefail
 [ "$(id -u)" = 0 ] && SUDO= || SUDO=sudo
 
+# grep reads the whole list (no -q): with pipefail, an early exit would kill ldconfig with
+# SIGPIPE and fail the check when the library is there (seen on a fresh machine, 2026-12-05).
 have_driver() {
-  ldconfig -p | grep -q libvulkan.so.1 && ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1
+  ldconfig -p | grep libvulkan.so.1 >/dev/null && ls /usr/share/vulkan/icd.d/lvp_icd*.json >/dev/null 2>&1
 }
 have_layers() {
   ls /usr/share/vulkan/explicit_layer.d/VkLayer_khronos_validation.json >/dev/null 2>&1
 }
 
 have_mpi() {
-  command -v mpirun >/dev/null 2>&1 && command -v mpicc >/dev/null 2>&1 && ldconfig -p | grep -q 'libclang'
+  command -v mpirun >/dev/null 2>&1 && command -v mpicc >/dev/null 2>&1 && ldconfig -p | grep libclang >/dev/null
 }
 # The viewer's browser tests (python/tests/test_view.py) drive headless Chromium.
 have_chromium() {
