@@ -13,8 +13,13 @@ fn validate(parsed: Result<RawMesh>) {
     }
 }
 
+/// A `.msh` read as a mesh, and as a probe target of any elements (`parse_any`).
 pub fn gmsh(data: &[u8]) {
     validate(gmsh::parse(data, Path::new("fuzz.msh")));
+    if let Ok(grid) = gmsh::parse_any(data, Path::new("fuzz.msh")) {
+        assert_eq!(grid.types.len(), grid.ends.len());
+        assert!(grid.conn.iter().all(|&i| (i as usize) < grid.points.len()));
+    }
 }
 
 /// A `.vtu` read as a mesh, and as a probe target of any cells (`parse_any`).

@@ -215,8 +215,9 @@ struct Common {
     /// Print only errors and warnings on stderr (not the backend `auto` chose, nor timings).
     #[arg(short, long)]
     quiet: bool,
-    /// A time series (an Exodus file with steps, a .pvd): use the fields of time step K
-    /// (0-based; the first step's by default), or run on `all` of them: one output per step,
+    /// A time series (an Exodus file with steps, a .pvd, a Gmsh file of several steps): use
+    /// the fields of time step K (0-based; the first step's by default), or run on `all` of
+    /// them: one output per step,
     /// named STEM_K.EXT, and a .pvd beside --out that indexes them by time.
     #[arg(long, value_name = "K|all")]
     time_step: Option<time_steps::TimeStep>,

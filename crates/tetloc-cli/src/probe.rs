@@ -55,7 +55,7 @@ fn is_point_set(target: &Path) -> bool {
 }
 
 /// The reader of TARGET as any point set, its cells of any type kept as they are, when it is
-/// a `.vtu` or a legacy `.vtk` file (by its extension or `--target-format`).
+/// a `.vtu`, a legacy `.vtk` or a Gmsh `.msh` file (by its extension or `--target-format`).
 fn any_cells_reader(a: &ProbeArgs) -> Option<fn(&Path) -> tetloc_core::Result<vtu::AnyGrid>> {
     if mesh_arg::parse_generated(&a.target).is_some() {
         return None;
@@ -64,6 +64,7 @@ fn any_cells_reader(a: &ProbeArgs) -> Option<fn(&Path) -> tetloc_core::Result<vt
     match format.to_ascii_lowercase().as_str() {
         "vtu" => Some(vtu::read_any),
         "vtk" => Some(legacy::read_any),
+        "msh" => Some(tetloc_io::gmsh::read_any),
         _ => None,
     }
 }
@@ -111,7 +112,7 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
     let target = Path::new(&a.target);
     // The target's points as its file has them (f64 where it stores them so), so that a
     // target far from the origin keeps its precision; a far mesh's working copy is centred.
-    // A .vtu or .vtk target is any point set (a surface, vertices, volumes): read as it is,
+    // A .vtu, .vtk or .msh target is any point set (a surface, vertices, volumes): read as it is,
     // its cells kept as they are; other mesh formats are read as meshes.
     let (mut target_mesh, mut target_grid) = (None, None);
     let pts: Vec<[f64; 3]> = if point_set {

@@ -163,6 +163,36 @@ fn probe_targets_of_any_cells() {
         assert_eq!(mask.values.len(), n_points, "{name}.vtk");
         assert!(mask.values.contains(&1.0), "{name}.vtk: points inside the mesh get values");
     }
+    // A Gmsh .msh target of a triangle, a line and a point, with no volume cell: its elements
+    // written back as VTK cells with their element data; its points get the same values as
+    // the same points of the .vtk above.
+    let msh = "$MeshFormat\n2.2 0 8\n$EndMeshFormat\n$Nodes\n5\n1 0.2 0.2 0.5\n2 0.8 0.2 0.5\n\
+               3 0.8 0.8 0.5\n4 0.2 0.8 0.5\n5 0.5 0.5 0.7\n$EndNodes\n$Elements\n3\n1 2 2 0 1 1 2 3\n\
+               2 1 2 0 1 2 4\n3 15 2 0 1 5\n$EndElements\n$ElementData\n1\n\"id\"\n1\n0.0\n3\n0\n1\n3\n\
+               1 10\n2 20\n3 30\n$EndElementData\n";
+    let target = dir.join("surface.msh");
+    std::fs::write(&target, msh).unwrap();
+    let out = dir.join("surface.msh.out.vtu");
+    let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&target), "-o", s(&out), "--backend", "cpu"]);
+    assert!(ok, "surface.msh: {err}");
+    let after = vu_read(&out);
+    assert_eq!(
+        (after.types.clone(), after.ends.clone(), after.conn.clone()),
+        (vec![5, 3, 1], vec![3, 5, 6], vec![0, 1, 2, 1, 3, 4])
+    );
+    let id = after.fields.iter().find(|f| f.name == "id" && f.location == FieldLocation::Cell).unwrap();
+    assert_eq!(id.values, [10.0, 20.0, 30.0], "surface.msh: element data kept");
+    // (The .vtk's points are f32 and the .msh's f64: the values agree to f32 rounding.)
+    let same = vu_read(&dir.join("mixed.vtk.out.vtu"));
+    let values = |g: &vtu::AnyGrid, name: &str| {
+        g.fields.iter().find(|f| f.name == name && f.location == FieldLocation::Vertex).unwrap().values.clone()
+    };
+    for f in same.fields.iter().filter(|f| f.location == FieldLocation::Vertex) {
+        let (got, want) = (values(&after, &f.name), values(&same, &f.name));
+        let close =
+            got.iter().zip(&want).all(|(a, b)| (a.is_nan() && b.is_nan()) || (a - b).abs() <= 1e-6 * b.abs().max(1.0));
+        assert!(close && got.len() == want.len(), "surface.msh: probed '{}': {got:?} against {want:?}", f.name);
+    }
 }
 
 fn vu_read(path: &Path) -> vtu::AnyGrid {
@@ -317,4 +347,59 @@ fn pieces_outside_the_listing_need_a_flag() {
     );
     let (ok, out, err) = tetloc(&["info", s(&listing), "--allow-outside-pieces"]);
     assert!(ok && out.contains("tets"), "{err}");
+}
+
+/// A Gmsh file whose `$NodeData` views hold several steps is a time series: `info` lists the
+/// steps, `--time-step K` samples step K, a step out of range is a clear error.
+#[test]
+fn gmsh_views_of_several_steps_are_time_steps() {
+    let dir = tmp_dir("gmsh-steps");
+    // One tet; the field is 1 + x at t = 0.5 and 10 + x at t = 2 (linear: sampled exactly).
+    let view = |step: u32, time: f64, base: f64| {
+        format!(
+            "$NodeData\n1\n\"f\"\n1\n{time:?}\n3\n{step}\n1\n4\n1 {}\n2 {}\n3 {}\n4 {}\n$EndNodeData\n",
+            base,
+            base + 1.0,
+            base,
+            base
+        )
+    };
+    let msh = format!(
+        "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 4 1 4\n3 1 0 4\n1\n2\n3\n4\n0 0 0\n1 0 0\n0 1 0\n\
+         0 0 1\n$EndNodes\n$Elements\n1 1 1 1\n3 1 4 1\n1 1 2 3 4\n$EndElements\n{}{}",
+        view(0, 0.5, 1.0),
+        view(1, 2.0, 10.0)
+    );
+    let mesh = dir.join("steps.msh");
+    std::fs::write(&mesh, msh).unwrap();
+    let (ok, out, err) = tetloc(&["info", s(&mesh)]);
+    assert!(ok && out.contains("steps       2 (0: 0.5, 1: 2)"), "{out}{err}");
+    let pts = dir.join("p.csv");
+    std::fs::write(&pts, "0.25,0.25,0.25\n").unwrap();
+    for (step, want) in [("0", 1.25), ("1", 10.25)] {
+        let out = dir.join(format!("v{step}.csv"));
+        let args = ["locate", s(&mesh), "--points", s(&pts), "--field", "f", "--time-step", step, "--out", s(&out)];
+        let (ok, _, err) = tetloc(&[&args[..], &["--backend", "cpu"]].concat());
+        assert!(ok, "step {step}: {err}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let column = text.lines().next().unwrap().split(',').position(|c| c == "f").unwrap();
+        let value: f64 = text.lines().nth(1).and_then(|l| l.split(',').nth(column)).unwrap().trim().parse().unwrap();
+        assert_eq!(value, want, "step {step}: {text}");
+    }
+    let out = dir.join("v2.csv");
+    let (ok, _, err) = tetloc(&[
+        "locate",
+        s(&mesh),
+        "--points",
+        s(&pts),
+        "--field",
+        "f",
+        "--time-step",
+        "2",
+        "--out",
+        s(&out),
+        "--backend",
+        "cpu",
+    ]);
+    assert!(!ok && err.contains("time step 2 is out of range") && err.contains("steps.msh has 2 steps"), "{err}");
 }

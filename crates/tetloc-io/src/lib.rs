@@ -233,7 +233,8 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
 
 /// Reads a mesh file with its time steps: the mesh holds the first step's fields, and the
 /// steps (`None` for a file without time steps) read the others when asked. Exodus files with
-/// `time_whole` steps and `.pvd` collections have steps; every other format is one snapshot.
+/// `time_whole` steps, `.pvd` collections and Gmsh files whose views hold several steps have
+/// steps; every other format is one snapshot.
 pub fn read_series(path: &Path, format: Option<MeshFormat>) -> Result<(RawMesh, Option<TimeSteps>)> {
     read_series_with(path, format, ReadOptions::default())
 }
@@ -250,6 +251,7 @@ pub fn read_series_with(
     };
     match format {
         MeshFormat::Exodus => exodus::read_series(path),
+        MeshFormat::Gmsh => gmsh::read_series(path),
         MeshFormat::Pvd => vtk::pvd::read_series(path, options).map(|(raw, steps)| (raw, Some(steps))),
         other => Ok((read_raw_with(path, Some(other), options)?, None)),
     }

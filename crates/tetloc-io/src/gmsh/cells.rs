@@ -68,6 +68,16 @@ fn add_run(runs: &mut Vec<Run>, code: u8, nn: usize, count: usize) {
     }
 }
 
+/// Points, lines and surface elements, kept when a file is read as a point set with its
+/// cells as they are (`probe`'s targets): their Gmsh types (run-length encoded), all their
+/// nodes in Gmsh's order, and their tags (after the volume cells' in `$ElementData` rows).
+#[derive(Default)]
+pub(super) struct LowerElements {
+    pub runs: Vec<Run>,
+    pub nodes: Vec<u32>,
+    pub tags: Vec<u64>,
+}
+
 /// Collects the volume cells of `$Elements` and counts the volume elements tetloc does not read.
 pub(super) struct ElementSink<'n> {
     pub nodes: &'n Nodes,
@@ -83,6 +93,8 @@ pub(super) struct ElementSink<'n> {
     pub order: u8,
     /// Volume elements that are not tetrahedra, by type name.
     pub others: Vec<(String, usize)>,
+    /// Lower-dimensional elements, when kept (else their tags go to `other_tags`).
+    pub lower: Option<LowerElements>,
 }
 
 impl ElementSink<'_> {
@@ -153,6 +165,44 @@ impl ElementSink<'_> {
         }
     }
 
+    /// A point, line or surface element of Gmsh type `code` read from an ASCII line: kept with
+    /// its `nodes` when lower elements are kept, else its tag is noted.
+    pub fn push_lower(&mut self, code: i64, nodes: &[u32], tag: u64) {
+        match &mut self.lower {
+            Some(l) => {
+                l.nodes.extend_from_slice(nodes);
+                l.tags.push(tag);
+                add_run(&mut l.runs, code as u8, nodes.len(), 1); // lower types are below 256
+            }
+            None => self.other_tags.push(tag),
+        }
+    }
+
+    /// Adds a block of binary records of point, line or surface elements of Gmsh type `code`
+    /// with `nn` nodes, when lower elements are kept (else only their tags); see
+    /// [`Self::add_binary_cells`]. Sequential: a target's surface is small beside a volume.
+    pub fn add_binary_lower(
+        &mut self,
+        data: &[u8],
+        record: usize,
+        code: i64,
+        nn: usize,
+        tag: impl Fn(&[u8]) -> u64,
+        node: impl Fn(&[u8], usize) -> u64,
+    ) -> Result<(), String> {
+        let mut nodes = Vec::with_capacity(nn);
+        for r in data.chunks_exact(record) {
+            if self.lower.is_some() {
+                nodes.clear();
+                for k in 0..nn {
+                    nodes.push(self.node(tag(r), node(r, k))?);
+                }
+            }
+            self.push_lower(code, &nodes, tag(r));
+        }
+        Ok(())
+    }
+
     pub fn other(&mut self, name: &str, nodes: usize, count: usize) {
         let key = format!("{name} ({nodes} nodes)");
         match self.others.iter_mut().find(|(k, _)| *k == key) {
@@ -171,7 +221,8 @@ impl ElementSink<'_> {
 }
 
 /// Reads the `nn` node tags of an ASCII element; if it is a volume cell tetloc reads, its first
-/// four nodes, and its other nodes into `extra` (cleared first).
+/// four nodes, and its other nodes into `extra` (cleared first); if it is a lower element that
+/// `acc` keeps, all its nodes into `extra`.
 pub(super) fn read_ascii_nodes(
     c: &mut Cursor,
     acc: &ElementSink,
@@ -190,6 +241,12 @@ pub(super) fn read_ascii_nodes(
                 Some(corner) => *corner = v,
                 None => extra.push(v),
             }
+        }
+        return Ok(t);
+    }
+    if kind == Kind::Lower && acc.lower.is_some() {
+        for _ in 0..nn {
+            extra.push(acc.node(tag, c.ascii_u64("a node tag")?).map_err(|m| c.fail_at(pos, m))?);
         }
         return Ok(t);
     }

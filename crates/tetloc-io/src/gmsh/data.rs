@@ -1,8 +1,9 @@
 //! `$NodeData` and `$ElementData`: one view (a named field at one time step) per section,
 //! read into vertex or cell fields. Values are matched to vertices by node tag and to
 //! tetrahedra by element tag; values on other elements are dropped, and what a view gives no
-//! value stays NaN. Of one view name, the highest time step wins; sections of the same step
-//! (partitions) are merged.
+//! value stays NaN. Of one view name, the lowest time step is read (the highest up to the
+//! step asked for, when the file is read as a time series); sections of the same step
+//! (partitions) are merged. Every section's step and time (its first real tag) are noted.
 
 use super::tags::TagMap;
 use super::Parser;
@@ -50,7 +51,7 @@ impl Parser<'_> {
         };
         let n_items = match location {
             FieldLocation::Vertex => self.nodes.as_ref().map(|n| n.points.len()),
-            FieldLocation::Cell => self.cells.as_ref().map(|c| c.tags.len()),
+            FieldLocation::Cell => self.cells.as_ref().map(|c| c.data_tags().len()),
         };
         let Some(n_items) = n_items else {
             return Err(self.c.fail_at(start, format!("{what} comes before the mesh it refers to")));
@@ -69,8 +70,10 @@ impl Parser<'_> {
         }
         let name = name.unwrap_or_else(|| "unnamed".to_string());
         let n_real = c.ascii_u64("the number of real tags")?;
+        let mut time = None;
         for _ in 0..n_real {
-            c.ascii_f64("a real tag")?;
+            let t = c.ascii_f64("a real tag")?;
+            time.get_or_insert(t); // the first real tag is the step's time
         }
         let n_int = c.ascii_u64("the number of integer tags")?;
         if n_int < 3 {
@@ -92,11 +95,18 @@ impl Parser<'_> {
         let record = if c.binary { 4 + 8 * ncomp } else { 2 + 2 * ncomp };
         let count = c.check_room(count, record, &format!("values of {what} '{name}'"))?;
 
-        // Where this section's values go: a fresh view, merged into the same step, or nowhere
-        // (an older step than one already read).
+        self.step_times.push((step, time));
+        // Where this section's values go: a fresh view, merged into the same step, or nowhere.
+        // A snapshot keeps each view's first step (as Exodus and .pvd series do); step k of a
+        // series, each view's last step up to k.
         let existing = self.fields.iter().position(|f| f.location == location && f.name == name);
+        let keep_old = |old: i64| match self.step_limit {
+            None => old < step,
+            Some(_) => old > step,
+        };
         let slot = match existing {
-            Some(i) if self.fields[i].step > step => None,
+            _ if self.step_limit.is_some_and(|last| step > last) => None,
+            Some(i) if keep_old(self.fields[i].step) => None,
             Some(i) if self.fields[i].step == step => {
                 if self.fields[i].ncomp != ncomp {
                     return Err(c.fail(format!("{what} '{name}' step {step} changes its number of components")));
@@ -130,7 +140,7 @@ impl Parser<'_> {
         if location == FieldLocation::Cell {
             let cells = cells.as_mut().expect("checked above");
             if cells.map.is_none() {
-                let map = TagMap::new(&cells.tags)
+                let map = TagMap::new(&cells.data_tags())
                     .map_err(|t| c.fail(format!("element tag {t} appears twice in $Elements")))?;
                 cells.map = Some(map);
             }

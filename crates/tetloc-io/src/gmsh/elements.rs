@@ -117,6 +117,22 @@ pub(super) fn element_type(t: i64) -> Option<(usize, Kind)> {
     })
 }
 
+/// The VTK cell type of a point, line or surface element of Gmsh type `code` whose nodes VTK
+/// orders as Gmsh does (corners, then edge midpoints, then the face centre), if there is one.
+pub(super) fn vtk_lower(code: u8) -> Option<u8> {
+    Some(match code {
+        15 => 1,  // point: VTK_VERTEX
+        1 => 3,   // 2-node line: VTK_LINE
+        8 => 21,  // 3-node line: VTK_QUADRATIC_EDGE
+        2 => 5,   // triangle: VTK_TRIANGLE
+        9 => 22,  // 6-node triangle: VTK_QUADRATIC_TRIANGLE
+        3 => 9,   // quadrangle: VTK_QUAD
+        16 => 23, // 8-node quadrangle: VTK_QUADRATIC_QUAD
+        10 => 28, // 9-node quadrangle: VTK_BIQUADRATIC_QUAD
+        _ => return None,
+    })
+}
+
 /// An error unless the ASCII element line at the cursor holds `words` more words: a type
 /// that is not the element's (`99`, a 32-node hexahedron, written over a tet) would
 /// otherwise read the next lines' numbers as its nodes. `tag` and `ty` name the element.

@@ -35,7 +35,8 @@ fn spec() -> Spec {
         vec![(5, 15, vec![10]), (9, 4, vec![10, 3, 7, 100]), (1, 2, vec![3, 7, 100]), (2, 4, vec![3, 7, 100, 5000])];
     let node_data = vec![
         ("temp", 0, 1, nodes.iter().map(|&(t, p)| (t, vec![p[0] + 2.0 * p[1]])).collect()),
-        // A later step that covers only two nodes: the others become NaN.
+        // A later step that covers only two nodes: the mesh holds step 0; in the series' step
+        // 1 the others are NaN.
         ("temp", 1, 1, vec![(7, vec![-1.5]), (3, vec![2.5])]),
         ("vel", 0, 3, nodes.iter().map(|&(t, p)| (t, vec![p[0], p[1], t as f64])).collect()),
     ];
@@ -45,14 +46,13 @@ fn spec() -> Spec {
 }
 
 fn expected() -> RawMesh {
-    let nan = f32::NAN;
     let field = |name: &str, location, values: Vec<f32>| Field::new(name, location, values);
     RawMesh {
         points64: None,
         points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
         tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
         fields: vec![
-            field("temp", FieldLocation::Vertex, vec![nan, 2.5, -1.5, nan, nan]),
+            field("temp", FieldLocation::Vertex, vec![0.0, 1.0, 2.0, 0.0, 3.0]),
             field("vel[0]", FieldLocation::Vertex, vec![0.0, 1.0, 0.0, 0.0, 1.0]),
             field("vel[1]", FieldLocation::Vertex, vec![0.0, 0.0, 1.0, 0.0, 1.0]),
             field("vel[2]", FieldLocation::Vertex, vec![10.0, 3.0, 7.0, 100.0, 5000.0]),
@@ -237,7 +237,11 @@ fn write(spec: &Spec, e: Enc) -> Vec<u8> {
     w.s("\n$EndElements\n");
     for (section, data) in [("NodeData", &spec.node_data), ("ElementData", &spec.elem_data)] {
         for (name, step, ncomp, rows) in data {
-            w.s(&format!("${section}\n2\n\"{name}\"\n\"scheme\"\n1\n0.5\n4\n{step}\n{ncomp}\n{}\n0\n", rows.len()));
+            let time = 0.5 + 0.25 * *step as f64;
+            w.s(&format!(
+                "${section}\n2\n\"{name}\"\n\"scheme\"\n1\n{time:?}\n4\n{step}\n{ncomp}\n{}\n0\n",
+                rows.len()
+            ));
             for (t, vals) in rows {
                 w.int(*t as i64);
                 vals.iter().for_each(|&v| w.f(v));
@@ -631,4 +635,85 @@ fn tets_are_in_oracle_order() {
             assert!(d <= tol, "{file}: tet {t} centroid {got:?}, oracle {want:?}");
         }
     }
+}
+
+/// `read_any` (a probe target): every node, the volume cells, then the points, lines and
+/// surface elements that VTK has, in file order, with element data on all of them; in every
+/// encoding, with or without volume cells. Element types VTK lacks are an error naming them.
+#[test]
+fn point_sets_keep_every_element() {
+    let nan = f32::NAN.to_bits();
+    for e in ENCODINGS {
+        let g = parse_any(&write(&spec(), e), &p()).unwrap_or_else(|err| panic!("{e:?}: {err}"));
+        assert_eq!(g.points.len(), 5, "{e:?}");
+        // tet 9, tet 2, then the point 5 and the triangle 1.
+        assert_eq!(g.types, [10, 10, 1, 5], "{e:?}");
+        assert_eq!(g.ends, [4, 8, 9, 12], "{e:?}");
+        assert_eq!(g.conn, [0, 1, 2, 3, 1, 2, 3, 4, 0, 1, 2, 3], "{e:?}");
+        let mat = g.fields.iter().find(|f| f.name == "mat").unwrap();
+        let bits: Vec<u32> = mat.values.iter().map(|v| v.to_bits()).collect();
+        assert_eq!(bits, [90f32.to_bits(), 20f32.to_bits(), nan, 7f32.to_bits()], "{e:?}: the triangle's value kept");
+        assert!(g.fields.iter().any(|f| f.name == "vel[2]" && f.values.len() == 5), "{e:?}");
+
+        // A surface: no volume cells, and no error.
+        let mut s = spec();
+        s.elems.retain(|x| x.1 != 4);
+        s.elem_data[0].3.retain(|(t, _)| *t == 1);
+        let g = parse_any(&write(&s, e), &p()).unwrap_or_else(|err| panic!("{e:?}: {err}"));
+        assert_eq!((g.types, g.conn), (vec![1, 5], vec![0, 1, 2, 3]), "{e:?}");
+
+        // A 10-node triangle has no VTK cell type that tetloc writes.
+        let mut s = spec();
+        s.elems.push((20, 21, vec![10, 3, 7, 100, 5000, 10, 3, 7, 100, 5000]));
+        let msg = parse_any(&write(&s, e), &p()).err().map(|x| x.to_string()).unwrap_or_default();
+        assert!(msg.starts_with("test.msh: ") && msg.contains("element type 21 (10 nodes)"), "{e:?}: {msg}");
+        // Read as a mesh, the same file ignores it.
+        assert!(parse(&write(&s, e), &p()).is_ok(), "{e:?}");
+    }
+}
+
+/// A file whose views hold several steps is a time series: the steps in the order of their
+/// numbers, at their times (the sections' first real tag); a view written at fewer steps keeps
+/// its last values; the mesh itself holds each view's first step.
+#[test]
+fn views_of_several_steps_are_a_time_series() {
+    let dir = std::env::temp_dir().join(format!("tetloc-gmsh-steps-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("steps.msh");
+    let values = |f: &[Field], name: &str| -> Vec<u32> {
+        let f = f.iter().find(|f| f.name == name).unwrap_or_else(|| panic!("no field {name}"));
+        f.values.iter().map(|v| v.to_bits()).collect()
+    };
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let nan = f32::NAN;
+    for e in ENCODINGS {
+        std::fs::write(&path, write(&spec(), e)).unwrap();
+        let (raw, steps) = read_series(&path).unwrap_or_else(|err| panic!("{e:?}: {err}"));
+        let steps = steps.unwrap_or_else(|| panic!("{e:?}: no steps"));
+        assert_eq!(steps.times, [0.5, 0.75], "{e:?}");
+        assert_eq!(values(&raw.fields, "temp"), bits(&[0.0, 1.0, 2.0, 0.0, 3.0]), "{e:?}: the first step");
+        let first = steps.fields(0).unwrap();
+        assert_eq!(values(&first, "temp"), bits(&[0.0, 1.0, 2.0, 0.0, 3.0]), "{e:?}: step 0");
+        let second = steps.fields(1).unwrap();
+        assert_eq!(values(&second, "temp"), bits(&[nan, 2.5, -1.5, nan, nan]), "{e:?}: step 1");
+        assert_eq!(values(&second, "vel[2]"), values(&first, "vel[2]"), "{e:?}: kept from step 0");
+        assert_eq!(values(&second, "mat"), bits(&[90.0, 20.0]), "{e:?}");
+        assert!(steps.fields(2).is_err(), "{e:?}");
+    }
+    // One step: a snapshot.
+    let mut one = spec();
+    one.node_data.retain(|v| v.1 == 0);
+    std::fs::write(&path, write(&one, ENCODINGS[0])).unwrap();
+    assert!(read_series(&path).unwrap().1.is_none());
+    // Times that fall as the step numbers rise are refused, naming the file.
+    let mut back = spec();
+    back.node_data.push(("temp", -4, 1, vec![(7, vec![0.0])]));
+    back.node_data.push(("temp", 5, 1, vec![(7, vec![0.0])]));
+    let bytes = write(&back, ENCODINGS[0]);
+    // -4 is at time -0.5, 5 at 1.75: they rise; make step 5's time fall below step 1's.
+    let text = String::from_utf8(bytes).unwrap().replacen("1.75", "0.6", 1);
+    std::fs::write(&path, text).unwrap();
+    let msg = read_series(&path).err().map(|x| x.to_string()).unwrap_or_default();
+    assert!(msg.contains("steps.msh") && msg.contains("steps 1 and 5 (0.75 and 0.6) do not increase"), "{msg}");
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -64,24 +64,26 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
             let data = c.take_records(count as u64, record, "elements")?;
             seen += count as u64;
             acc.reserve(kind, count as usize);
-            if !matches!(kind, Kind::Cell { .. }) {
-                acc.other_tags.extend(data.chunks_exact(record).map(|r| get_i32(r, big) as i64 as u64));
-            }
+            // A negative tag becomes a huge one, which no node or data section matches.
+            let first = 4 * (1 + ntags as usize);
+            let int = move |b: &[u8]| get_i32(b, big) as i64 as u64;
+            let node = |r: &[u8], k: usize| int(&r[first + 4 * k..]);
             match kind {
-                Kind::Lower => {}
-                Kind::Volume(name) => acc.other(name, nn, count as usize),
+                Kind::Lower => acc.add_binary_lower(data, record, ty, nn, int, node).map_err(|m| c.fail_at(pos, m))?,
+                Kind::Volume(name) => {
+                    acc.other(name, nn, count as usize);
+                    acc.other_tags.extend(data.chunks_exact(record).map(int));
+                }
                 Kind::Cell { code, .. } => {
-                    // A negative tag becomes a huge one, which no node or data section matches.
-                    let first = 4 * (1 + ntags as usize);
-                    let int = move |b: &[u8]| get_i32(b, big) as i64 as u64;
-                    acc.add_binary_cells(data, record, code, nn, int, |r, k| int(&r[first + 4 * k..]))
-                        .map_err(|m| c.fail_at(pos, m))?;
+                    acc.add_binary_cells(data, record, code, nn, int, node).map_err(|m| c.fail_at(pos, m))?;
                 }
             }
         }
     } else {
         let n = c.check_room(declared, 8, "elements")?;
         let map = &acc.nodes.map;
+        // Kept lower elements are read in the sequential loop below.
+        let min_parallel = if acc.lower.is_some() { usize::MAX } else { min_parallel };
         if let Some(chunks) = c.par_lines(n, min_parallel, |t, s: &mut Chunk| {
             let tag = t.u64()?;
             let (nn, kind) = element_type(t.i64()?)?;
@@ -107,7 +109,7 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, min_parallel:
             acc.reserve(kind, 1);
             let t = read_ascii_nodes(c, acc, kind, nn, tag, pos, &mut extra)?;
             match kind {
-                Kind::Lower => acc.other_tags.push(tag),
+                Kind::Lower => acc.push_lower(ty, &extra, tag),
                 Kind::Volume(name) => {
                     acc.other(name, nn, 1);
                     acc.other_tags.push(tag);

@@ -117,11 +117,13 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
             let record = 8 * (1 + nn);
             let data = c.take_records(count, record, "elements")?;
             acc.reserve(kind, count as usize);
-            if let Kind::Cell { code, .. } = kind {
-                let (tag, node) = (|r: &[u8]| get_u64(r, big), |r: &[u8], k: usize| get_u64(&r[8 + 8 * k..], big));
-                acc.add_binary_cells(data, record, code, nn, tag, node).map_err(|m| c.fail_at(pos, m))?;
-            } else {
-                acc.other_tags.extend(data.chunks_exact(record).map(|r| get_u64(r, big)));
+            let (tag, node) = (|r: &[u8]| get_u64(r, big), |r: &[u8], k: usize| get_u64(&r[8 + 8 * k..], big));
+            match kind {
+                Kind::Cell { code, .. } => {
+                    acc.add_binary_cells(data, record, code, nn, tag, node).map_err(|m| c.fail_at(pos, m))?
+                }
+                Kind::Lower => acc.add_binary_lower(data, record, ty, nn, tag, node).map_err(|m| c.fail_at(pos, m))?,
+                Kind::Volume(_) => acc.other_tags.extend(data.chunks_exact(record).map(tag)),
             }
         } else {
             if count > 0 {
@@ -133,6 +135,8 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
             }
             let count = c.check_room(count, 2 * (1 + nn), "elements")?;
             let map = &acc.nodes.map;
+            // Kept lower elements are read in the sequential loop below.
+            let min_parallel = if acc.lower.is_some() && kind == Kind::Lower { usize::MAX } else { min_parallel };
             if let Some(chunks) = c.par_lines(count, min_parallel, |t, s: &mut Chunk| {
                 let tag = t.u64()?;
                 s.element(t, map, tag, kind, nn)
@@ -148,7 +152,8 @@ pub(super) fn read_elements(c: &mut Cursor, acc: &mut ElementSink, start: usize,
                 let t = read_ascii_nodes(c, acc, kind, nn, tag, epos, &mut extra)?;
                 match kind {
                     Kind::Cell { code, .. } => acc.push_cell(code, t, &extra, tag),
-                    _ => acc.other_tags.push(tag),
+                    Kind::Lower => acc.push_lower(ty, &extra, tag),
+                    Kind::Volume(_) => acc.other_tags.push(tag),
                 }
             }
         }
