@@ -15,6 +15,10 @@
 //!   before + the processor's `celli`).
 //! - **Times and fields** come from each processor's time folders (`processorN/TIME/NAME`),
 //!   which must agree: the same times, the same fields.
+//!
+//! Not read: the collated format (`processorsN/`, one folder for all), and processors as the
+//! MPI path's partitions (`tetloc-mpi` reads `.pvtu`/`.vtm` pieces; `tetloc partition CASE.foam`
+//! writes them, or each processor's mesh is `processorK/` read as a case of its own).
 
 use super::poly::PolyMesh;
 use super::{find, open};
