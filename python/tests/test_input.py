@@ -238,7 +238,7 @@ def test_bad_meshes(data_dir, tmp_path):
         tetloc.read(truncated)
     for name in ("dir.vtu", "dir"):  # a directory is named as one, whatever its name
         (tmp_path / name).mkdir()
-        with pytest.raises(IsADirectoryError, match=r"is a directory; tetloc.read takes a mesh file") as isdir:
+        with pytest.raises(IsADirectoryError, match=r"is a directory and not an OpenFOAM case; tetloc.read takes a mesh file") as isdir:
             tetloc.read(tmp_path / name)
         assert isdir.value.filename == str(tmp_path / name)
 

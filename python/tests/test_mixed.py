@@ -213,7 +213,9 @@ def test_images_are_hexahedra():
 
 def test_constructor_refusals():
     points = np.eye(8, 3)
-    with pytest.raises(ValueError, match=r"tetloc.Mesh\(points, cells\): the mesh has cells that tetloc does not read \(1 VTK type 42 with 4 points\)"):
+    with pytest.raises(ValueError, match=r"tetloc.Mesh\(points, cells\): the mesh has cells that tetloc does not read \(1 VTK type 42 "
+                       r"with 4 points\); polyhedra \(VTK type 42\) handed over as cell arrays carry no faces: tetloc reads "
+                       r"them from .vtu and .vtk files and OpenFOAM cases"):
         tetloc.Mesh(points, {42: [[0, 1, 2, 3]]})
     with pytest.raises(ValueError, match=r"\(1 VTK type 12 with 7 points\)"):
         tetloc.Mesh(points, {pv.CellType.HEXAHEDRON: [list(range(7))]})

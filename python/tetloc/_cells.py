@@ -21,6 +21,7 @@ CellList = Tuple[np.ndarray, np.ndarray, np.ndarray]  # types uint8, offsets int
 TETRA = 10
 VOXEL = 11
 HEXAHEDRON = 12
+POLYHEDRON = 42
 # A voxel is a hexahedron with its points in x-fastest order: VTK's hex order is this.
 VOXEL_TO_HEX = np.array([0, 1, 3, 2, 4, 5, 7, 6])
 
@@ -41,20 +42,29 @@ def sizes(offsets: np.ndarray) -> np.ndarray:
 def check_types(types: np.ndarray, offsets: np.ndarray, source: str, names: Any = None) -> None:
     """Refuses cells of types tetloc does not read, counted by type (`names(code)` names a
     code; VTK's code otherwise)."""
-    known = readable()
+    # Polyhedra are read from files (their faces are there), never from cell arrays.
+    known = {k: name for k, name in readable().items() if k[0] != POLYHEDRON}
     keys, count_of = np.unique(types.astype(np.int64) << 32 | sizes(offsets), return_counts=True)
     bad: Counter[str] = Counter()
+    polyhedra = False
     for key, count in zip(keys.tolist(), count_of.tolist()):
         code, n = key >> 32, key & 0xFFFFFFFF
         if (code, n) not in known:
             name = names(code) if names else f"VTK type {code}"
-            bad[f"{name} with {n} points" if any(c == code for c, _ in known) else name] += count
+            polyhedra |= code == POLYHEDRON
+            bad[f"{name} with {n} points" if code == POLYHEDRON or any(c == code for c, _ in known) else name] += count
     if bad:
         listed = ", ".join(f"{n} {name}" for name, n in sorted(bad.items()))
         kinds = sorted({name for name in known.values()})
+        why = (
+            "; polyhedra (VTK type 42) handed over as cell arrays carry no faces: tetloc reads them from "
+            ".vtu and .vtk files and OpenFOAM cases (tetloc.read)"
+            if polyhedra
+            else ""
+        )
         raise ValueError(
-            f"{source}: the mesh has cells that tetloc does not read ({listed}); it reads volume cells: "
-            + ", ".join(kinds)
+            f"{source}: the mesh has cells that tetloc does not read ({listed}){why}; "
+            "it reads volume cells: " + ", ".join(kinds)
         )
 
 

@@ -325,15 +325,23 @@ def _step_index(step: Any) -> int:
     return int(step)
 
 
+def _is_openfoam_case(folder: str) -> bool:
+    """Whether `folder` is an OpenFOAM case: a reconstructed or a decomposed mesh."""
+    return any(os.path.isdir(os.path.join(folder, *p, "constant", "polyMesh")) for p in [(), ("processor0",)])
+
+
 def read(
     path: Union[str, "os.PathLike[str]"], format: Optional[str] = None, *, allow_outside_pieces: bool = False
 ) -> Mesh:
     """Reads a mesh in any format the ``tetloc`` CLI reads, by extension or `format`: VTK XML
     ``.vtu``, its parallel pieces ``.pvtu`` and multiblock ``.vtm`` ("vtu", "pvtu", "vtm"),
     legacy ``.vtk`` ("vtk"), Gmsh ``.msh`` 2.2 and 4.1 ("msh"), TetGen ``.node``/``.ele``
-    ("node"), and time series: Exodus II ``.e``/``.exo``/``.ex2`` ("exo") and ParaView's
-    ``.pvd`` collections ("pvd"), whose steps ``Mesh.times`` lists. Every volume cell tetloc reads is taken: tets, hexahedra, wedges, pyramids,
-    their higher-order kinds, and mixes of them; 0-2-D cells are ignored.
+    ("node"), and time series: Exodus II ``.e``/``.exo``/``.ex2`` ("exo"), ParaView's
+    ``.pvd`` collections ("pvd") and OpenFOAM cases (their ``NAME.foam`` file or folder,
+    "foam"; "foam-decomposed" reads the ``processor*/`` folders of a case that also has a
+    reconstructed mesh), whose steps ``Mesh.times`` lists. Every volume cell tetloc reads is
+    taken: tets, hexahedra, wedges, pyramids, their higher-order kinds, polyhedra, and mixes of
+    them; 0-2-D cells are ignored.
 
     A ``.pvtu``/``.vtm`` may list pieces only inside its own folder tree: pieces reached by
     ``../``, an absolute path or a symbolic link out of it raise ``ValueError`` (a listing
@@ -342,12 +350,15 @@ def read(
 
     Raises ``FileNotFoundError``, ``IsADirectoryError`` (and other ``OSError``) when the file
     cannot be opened, ``ValueError`` naming the file and the problem when it cannot be used
-    (malformed, cells of a type tetloc does not read such as polyhedra, ...). Interruptible
+    (malformed, cells of a type tetloc does not read such as pentagonal prisms, ...). Interruptible
     with Ctrl-C.
     """
     path = os.fspath(path)
-    if os.path.isdir(path):
+    if os.path.isdir(path) and not _is_openfoam_case(path):
         raise IsADirectoryError(
-            errno.EISDIR, "is a directory; tetloc.read takes a mesh file (.vtu, .pvtu, .vtm, .vtk, .msh, .node)", path
+            errno.EISDIR,
+            "is a directory and not an OpenFOAM case; tetloc.read takes a mesh file (.vtu, .pvtu, .vtm, .vtk, .msh, "
+            ".node, .foam) or an OpenFOAM case folder",
+            path,
         )
     return Mesh._wrap(read_mesh(path, format, allow_outside_pieces))

@@ -41,12 +41,16 @@ pub enum MeshFormat {
     Exodus,
     /// ParaView's collection of time steps (`.pvd`) of unstructured grids.
     Pvd,
-    /// An OpenFOAM case: its `NAME.foam` file or its folder.
+    /// An OpenFOAM case: its `NAME.foam` file or its folder (decomposed when it has no
+    /// `constant/polyMesh` but `processor*/`); with time steps.
     OpenFoam,
+    /// An OpenFOAM case read from its `processor*/` folders even when it has a reconstructed
+    /// mesh too (ParaView's "Case Type: Decomposed Case").
+    OpenFoamDecomposed,
 }
 
 pub const KNOWN_MESH_FORMATS: &str =
-    "vtu, pvtu, vtm, vtk, msh, node/ele, e/exo/ex2, pvd, foam (or an OpenFOAM case folder)";
+    "vtu, pvtu, vtm, vtk, msh, node/ele, e/exo/ex2, pvd, foam (or an OpenFOAM case folder), foam-decomposed";
 
 impl MeshFormat {
     pub fn from_name(name: &str) -> Option<MeshFormat> {
@@ -59,6 +63,7 @@ impl MeshFormat {
             "e" | "exo" | "ex2" | "exodus" => Some(MeshFormat::Exodus),
             "pvd" => Some(MeshFormat::Pvd),
             "foam" | "openfoam" => Some(MeshFormat::OpenFoam),
+            "foam-decomposed" | "openfoam-decomposed" => Some(MeshFormat::OpenFoamDecomposed),
             _ => None,
         }
     }
@@ -92,7 +97,8 @@ pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
         Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
         Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
         Some(MeshFormat::Pvd) => vtk::pvd::files_read(path),
-        Some(MeshFormat::OpenFoam) => openfoam::files_read(path),
+        Some(MeshFormat::OpenFoam) => openfoam::files_read(path, false),
+        Some(MeshFormat::OpenFoamDecomposed) => openfoam::files_read(path, true),
         _ => vec![path.to_path_buf()],
     }
 }
@@ -210,7 +216,7 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         Some(f) => f,
         None => MeshFormat::from_path(path)?,
     };
-    if !matches!(format, MeshFormat::TetGen | MeshFormat::Pvd | MeshFormat::OpenFoam) {
+    if !matches!(format, MeshFormat::TetGen | MeshFormat::Pvd | MeshFormat::OpenFoam | MeshFormat::OpenFoamDecomposed) {
         check_fits_in_memory(path)?;
     }
     let regular = std::fs::metadata(path).map_or(true, |m| m.is_file());
@@ -228,13 +234,14 @@ pub fn read_raw_with(path: &Path, format: Option<MeshFormat>, options: ReadOptio
         MeshFormat::Exodus => exodus::read(path),
         MeshFormat::Pvd => vtk::pvd::read(path, options),
         MeshFormat::OpenFoam => openfoam::read(path),
+        MeshFormat::OpenFoamDecomposed => openfoam::read_case(path, &openfoam::Time::First, true),
     }
 }
 
 /// Reads a mesh file with its time steps: the mesh holds the first step's fields, and the
 /// steps (`None` for a file without time steps) read the others when asked. Exodus files with
-/// `time_whole` steps, `.pvd` collections and Gmsh files whose views hold several steps have
-/// steps; every other format is one snapshot.
+/// `time_whole` steps, `.pvd` collections, OpenFOAM cases' time directories and Gmsh files
+/// whose views hold several steps have steps; every other format is one snapshot.
 pub fn read_series(path: &Path, format: Option<MeshFormat>) -> Result<(RawMesh, Option<TimeSteps>)> {
     read_series_with(path, format, ReadOptions::default())
 }
@@ -253,6 +260,8 @@ pub fn read_series_with(
         MeshFormat::Exodus => exodus::read_series(path),
         MeshFormat::Gmsh => gmsh::read_series(path),
         MeshFormat::Pvd => vtk::pvd::read_series(path, options).map(|(raw, steps)| (raw, Some(steps))),
+        MeshFormat::OpenFoam => openfoam::read_series(path, false),
+        MeshFormat::OpenFoamDecomposed => openfoam::read_series(path, true),
         other => Ok((read_raw_with(path, Some(other), options)?, None)),
     }
 }

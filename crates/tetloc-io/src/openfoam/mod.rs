@@ -1,21 +1,28 @@
 //! OpenFOAM cases: `constant/polyMesh` (points, faces, owner, neighbour, boundary), ascii or
 //! binary, each file possibly gzip-compressed (`NAME.gz`), and the `volScalarField` /
-//! `volVectorField` internal fields of one time directory as cell data.
+//! `volVectorField` (and tensor) internal fields of the time directories as cell data.
 //!
 //! A case opens through its `NAME.foam` file (as in ParaView) or its folder. Cells keep
-//! OpenFOAM's order: cell id = `celli`. Each cell is the polyhedron of its faces (owner faces
-//! as they are, neighbour faces reversed, so that all face out), or a hexahedron when it has
-//! the shape of one (6 quads on 8 points), as ParaView's reader makes it. Fields come from the
-//! latest time directory ([`read_case`](crate::openfoam::read_case) takes another); a time series is for later (the
-//! steps axis of the time-series work). Vector fields become `NAME[0]`, `NAME[1]`, `NAME[2]`.
+//! OpenFOAM's order: cell id = `celli` ([`poly`] builds them). A decomposed case
+//! (`processor*/`, [`decomposed`]) is read as one mesh: when the case folder has no
+//! `constant/polyMesh`, or when asked (the format `foam-decomposed`, ParaView's "Case Type").
+//!
+//! **Time steps.** The case's time directories are its steps, ascending, as ParaView lists
+//! them with "Skip Zero Time" (its default, and OpenFOAM's own tools' without `-withZero`):
+//! the `0` directory (initial conditions, often written with macros) is a step only when it is
+//! the only time. The mesh holds the first step's fields; [`read_series`] reads the others
+//! when asked. Every step must hold the first step's fields. Vector fields become `NAME[0]`,
+//! `NAME[1]`, `NAME[2]`.
 
+mod decomposed;
 mod foam;
+mod poly;
 
 use foam::Foam;
+use poly::PolyMesh;
 use std::path::{Path, PathBuf};
-use tetloc_core::cell::{CellBlock, CellType};
 use tetloc_core::error::{Error, Result};
-use tetloc_core::mesh::{Field, FieldLocation, RawMesh};
+use tetloc_core::mesh::{Field, FieldLocation, RawMesh, StepFields, TimeSteps};
 
 /// The case folder of `path`: the folder a `.foam` file is in, or `path` itself.
 pub fn case_dir(path: &Path) -> PathBuf {
@@ -27,28 +34,31 @@ pub fn case_dir(path: &Path) -> PathBuf {
     }
 }
 
-/// Whether `dir` looks like an OpenFOAM case (it has `constant/polyMesh`).
+/// Whether `dir` looks like an OpenFOAM case (it has `constant/polyMesh`, or a decomposed
+/// one in `processor0/`).
 pub fn is_case(dir: &Path) -> bool {
-    dir.join("constant/polyMesh").is_dir()
+    dir.join("constant/polyMesh").is_dir() || decomposed::mesh_dir(&dir.join("processor0")).is_dir()
 }
 
 /// Which time directory's fields to read.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Time {
+    /// The first time step (see the module: `0` only when it is the only time).
+    First,
     /// The largest time (none when the case has no time directory).
     Latest,
     /// The time directory with this name (`"0"`, `"0.5"`).
     Named(String),
 }
 
-/// Reads the case `path` (a `.foam` file or the case folder) with the latest time's fields.
+/// Reads the case `path` (a `.foam` file or the case folder) with the first step's fields.
 pub fn read(path: &Path) -> Result<RawMesh> {
-    read_case(path, &Time::Latest)
+    read_case(path, &Time::First, false)
 }
 
-/// The case's time directories (names that parse as numbers), ascending.
-pub fn times(case: &Path) -> Result<Vec<String>> {
-    let rd = std::fs::read_dir(case).map_err(|e| Error::io(case, e))?;
+/// The time directories of `dir` (names that parse as numbers), ascending.
+pub fn times(dir: &Path) -> Result<Vec<String>> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut out: Vec<(f64, String)> = rd
         .filter_map(|e| e.ok())
         .filter(|e| e.path().is_dir())
@@ -61,6 +71,14 @@ pub fn times(case: &Path) -> Result<Vec<String>> {
     Ok(out.into_iter().map(|t| t.1).collect())
 }
 
+/// The steps among `times` (ascending): all but the zero time, unless it is the only one.
+fn step_times(mut times: Vec<String>) -> Vec<String> {
+    if times.len() > 1 {
+        times.retain(|t| t.parse::<f64>() != Ok(0.0));
+    }
+    times
+}
+
 /// The file `dir/name`, or `dir/name.gz`.
 fn find(dir: &Path, name: &str) -> Option<PathBuf> {
     [dir.join(name), dir.join(format!("{name}.gz"))].into_iter().find(|p| p.is_file())
@@ -71,15 +89,40 @@ fn open(path: &Path) -> Result<Foam> {
     Foam::new(crate::read_file(path)?).map_err(|m| Error::format(path, m))
 }
 
-/// Every file reading the case reads (for refusing an output that is one of them).
-pub fn files_read(path: &Path) -> Vec<PathBuf> {
+/// Where a case's mesh and time directories are: the case folder, or its processor folders.
+fn parts(path: &Path, decomposed: bool) -> Result<(Vec<PathBuf>, bool)> {
     let case = case_dir(path);
-    let mesh = case.join("constant/polyMesh");
-    let mut out: Vec<PathBuf> =
-        ["points", "faces", "owner", "neighbour", "boundary"].iter().filter_map(|n| find(&mesh, n)).collect();
-    if let Some(t) = times(&case).ok().and_then(|t| t.last().cloned()) {
-        if let Ok(rd) = std::fs::read_dir(case.join(t)) {
-            out.extend(rd.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.is_file()));
+    if !decomposed && case.join("constant/polyMesh").is_dir() {
+        return Ok((vec![case], false));
+    }
+    match decomposed::processors(&case) {
+        Ok(p) => Ok((p, true)),
+        Err(_) if !case.is_dir() => Err(Error::format(
+            path,
+            format!(
+                "not an OpenFOAM case: no {} (nor processor*/constant/polyMesh)",
+                case.join("constant/polyMesh").display()
+            ),
+        )),
+        Err(e) => Err(e),
+    }
+}
+
+/// Every file reading the case reads (for refusing an output that is one of them): the
+/// mesh's (each processor's, addressing included, when decomposed), every file of every time
+/// directory, and the `.foam` file.
+pub fn files_read(path: &Path, decomposed: bool) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    if let Ok((parts, is_decomposed)) = parts(path, decomposed) {
+        for part in &parts {
+            let mesh = if is_decomposed { decomposed::mesh_dir(part) } else { part.join("constant/polyMesh") };
+            let names = poly::MESH_FILES.iter().chain(if is_decomposed { &decomposed::ADDRESSING[..] } else { &[] });
+            out.extend(names.filter_map(|n| find(&mesh, n)));
+            for t in times(part).unwrap_or_default() {
+                if let Ok(rd) = std::fs::read_dir(part.join(t)) {
+                    out.extend(rd.filter_map(|e| e.ok()).map(|e| e.path()).filter(|p| p.is_file()));
+                }
+            }
         }
     }
     if path.is_file() {
@@ -88,219 +131,185 @@ pub fn files_read(path: &Path) -> Vec<PathBuf> {
     out
 }
 
-/// Reads the case `path` (a `.foam` file or the case folder) with the fields of `time`.
-pub fn read_case(path: &Path, time: &Time) -> Result<RawMesh> {
-    let case = case_dir(path);
-    let dir = case.join("constant/polyMesh");
-    if !dir.is_dir() {
-        return Err(Error::format(path, format!("not an OpenFOAM case: no {}", dir.display())));
-    }
-    let file = |name: &str| {
-        find(&dir, name).ok_or_else(|| Error::format(&dir, format!("the mesh has no '{name}' file (nor '{name}.gz')")))
+/// A case opened: where its fields are, and how its cells are ordered.
+struct Case {
+    /// The case as named (a `.foam` file or the folder).
+    path: PathBuf,
+    /// The folders holding time directories: the case, or each processor.
+    parts: Vec<PathBuf>,
+    /// Each part's cells.
+    n_cells: Vec<usize>,
+    /// For each mesh cell, its position in part order (`None`: the same).
+    order: Option<Vec<u32>>,
+    /// The steps' time directory names.
+    steps: Vec<String>,
+}
+
+/// Reads the mesh of the case `path` (no fields yet) and where its fields are.
+fn open_case(path: &Path, decomposed: bool) -> Result<(RawMesh, Case)> {
+    let (parts, is_decomposed) = parts(path, decomposed)?;
+    let (points64, cells, n_cells, order) = if is_decomposed {
+        let j = decomposed::read(&parts)?;
+        (j.points64, j.cells, j.n_cells, j.order)
+    } else {
+        let mesh = PolyMesh::read(&parts[0].join("constant/polyMesh"))?;
+        let mut cells = tetloc_core::cell::CellBlock::default();
+        (0..mesh.n_cells).for_each(|c| mesh.push_cell(c, &|p| p, &mut cells));
+        let n = mesh.n_cells;
+        (mesh.points64, cells, vec![n], None)
     };
-    let (points_path, faces_path, owner_path, neighbour_path, boundary_path) =
-        (file("points")?, file("faces")?, file("owner")?, file("neighbour")?, file("boundary")?);
-
-    let xyz = open(&points_path)?.values(3, "points").map_err(|m| Error::format(&points_path, m))?;
-    let points64: Vec<[f64; 3]> = xyz.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-    let n_points = points64.len();
-    let (face_ends, face_labels) = open(&faces_path)?.faces().map_err(|m| Error::format(&faces_path, m))?;
-    let n_faces = face_ends.len();
-    let labels = |path: &Path| -> Result<Vec<i64>> { open(path)?.labels("labels").map_err(|m| Error::format(path, m)) };
-    let owner = labels(&owner_path)?;
-    let mut neighbour = labels(&neighbour_path)?;
-    // Some writers pad the neighbours of boundary faces with -1.
-    while neighbour.last() == Some(&-1) {
-        neighbour.pop();
-    }
-    let patches = open(&boundary_path)?.patches().map_err(|m| Error::format(&boundary_path, m))?;
-
-    if owner.len() != n_faces {
-        return Err(Error::format(
-            &owner_path,
-            format!("{} owners for {n_faces} faces: one owner per face", owner.len()),
-        ));
-    }
-    let n_internal = neighbour.len();
-    if n_internal > n_faces {
-        return Err(Error::format(
-            &neighbour_path,
-            format!("{n_internal} neighbours for {n_faces} faces: more internal faces than faces"),
-        ));
-    }
-    // The faces past the internal ones are boundary faces: every one in exactly one patch.
-    let mut covered = vec![0u8; n_faces - n_internal];
-    for p in &patches {
-        if p.start < n_internal || p.start + p.n_faces > n_faces {
+    // Every processor must have the same times.
+    let mut steps = Vec::new();
+    for (k, part) in parts.iter().enumerate() {
+        let t = step_times(times(part)?);
+        if k == 0 {
+            steps = t;
+        } else if t != steps {
             return Err(Error::format(
-                &boundary_path,
+                part,
                 format!(
-                    "patch '{}' ({}) lists faces {}..{}, outside the boundary faces {n_internal}..{n_faces}",
-                    p.name,
-                    p.ty,
-                    p.start,
-                    p.start + p.n_faces
+                    "has the times [{}] but {} has [{}]: the processors disagree",
+                    t.join(", "),
+                    parts[0].display(),
+                    steps.join(", ")
                 ),
             ));
         }
-        covered[p.start - n_internal..p.start - n_internal + p.n_faces].iter_mut().for_each(|c| *c += 1);
     }
-    if let Some(i) = covered.iter().position(|&c| c != 1) {
-        let f = n_internal + i;
-        let why = if covered[i] == 0 { "no boundary patch lists it" } else { "more than one patch lists it" };
-        return Err(Error::format(
-            &boundary_path,
-            format!(
-                "face {f} is owned by cell {} and has no neighbour, but {why} ({} such faces)",
-                owner[f],
-                covered.iter().filter(|&&c| c != 1).count()
-            ),
-        ));
-    }
-
-    let check_cell = |v: i64, path: &Path, i: usize| -> Result<u32> {
-        u32::try_from(v).map_err(|_| Error::format(path, format!("entry {i} ({v}) is not a cell id")))
-    };
-    let owner: Vec<u32> =
-        owner.iter().enumerate().map(|(i, &v)| check_cell(v, &owner_path, i)).collect::<Result<_>>()?;
-    let neighbour: Vec<u32> =
-        neighbour.iter().enumerate().map(|(i, &v)| check_cell(v, &neighbour_path, i)).collect::<Result<_>>()?;
-    let face_points: Vec<u32> = face_labels
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| {
-            u32::try_from(v).ok().filter(|&p| (p as usize) < n_points).ok_or_else(|| {
-                Error::format(&faces_path, format!("face label {i} ({v}) is not a point id ({n_points} points)"))
-            })
-        })
-        .collect::<Result<_>>()?;
-    let n_cells = owner.iter().chain(&neighbour).map(|&c| c as usize + 1).max().unwrap_or(0);
-    if n_cells == 0 {
-        return Err(Error::format(&owner_path, "the mesh has no cells"));
-    }
-
-    // Each cell's faces, outward: (face, reversed).
-    let mut counts = vec![0u32; n_cells + 1];
-    owner.iter().chain(&neighbour).for_each(|&c| counts[c as usize + 1] += 1);
-    for i in 0..n_cells {
-        counts[i + 1] += counts[i];
-    }
-    let mut cell_faces = vec![(0u32, false); counts[n_cells] as usize];
-    let mut fill = counts.clone();
-    for (f, &c) in owner.iter().enumerate() {
-        cell_faces[fill[c as usize] as usize] = (f as u32, false);
-        fill[c as usize] += 1;
-    }
-    for (f, &c) in neighbour.iter().enumerate() {
-        cell_faces[fill[c as usize] as usize] = (f as u32, true);
-        fill[c as usize] += 1;
-    }
-    let face = |f: u32| {
-        let f = f as usize;
-        let start = if f == 0 { 0 } else { face_ends[f - 1] as usize };
-        &face_points[start..face_ends[f] as usize]
-    };
-    let mut block = CellBlock::default();
-    for c in 0..n_cells {
-        let faces: Vec<Vec<u32>> = cell_faces[counts[c] as usize..counts[c + 1] as usize]
-            .iter()
-            .map(|&(f, reversed)| {
-                let mut v = face(f).to_vec();
-                if reversed {
-                    v.reverse();
-                }
-                v
-            })
-            .collect();
-        match hex_nodes(&faces) {
-            Some(nodes) => block.push(CellType::from_vtk(12, 8).expect("hexahedra are read"), &nodes),
-            None => block.push_polyhedron(faces.iter().map(Vec::as_slice)),
-        }
-    }
-
-    let fields = read_fields(&case, time, n_cells)?;
     let points: Vec<[f32; 3]> = points64.iter().map(|p| p.map(|x| x as f32)).collect();
-    Ok(RawMesh {
+    let raw = RawMesh {
         points,
         points64: crate::points64_if_needed(points64),
         tets: Vec::new(),
-        fields,
+        fields: Vec::new(),
         higher_order: None,
-        cells: Some(block),
-    })
+        cells: Some(cells),
+    };
+    Ok((raw, Case { path: path.to_path_buf(), parts, n_cells, order, steps }))
 }
 
-/// A cell's nodes in VTK's hexahedron order, when its faces (outward) are 6 quads on 8 points
-/// with the hexahedron's connectivity; `None` otherwise (it stays a polyhedron).
-fn hex_nodes(faces: &[Vec<u32>]) -> Option<[u32; 8]> {
-    if faces.len() != 6 || faces.iter().any(|f| f.len() != 4) {
-        return None;
-    }
-    // The bottom: the first face, reversed so that it faces in (VTK's 0-1-2-3 turn towards 4-7).
-    let bottom = [faces[0][0], faces[0][3], faces[0][2], faces[0][1]];
-    // Each bottom corner's edge off the bottom face: in the side face through it and the next
-    // corner, the point after... found as the one neighbour (by a face edge) not in the bottom.
-    let mut top = [u32::MAX; 4];
-    for (k, &b) in bottom.iter().enumerate() {
-        let mut up = None;
-        for f in faces {
-            for i in 0..4 {
-                let (a, c) = (f[i], f[(i + 1) % 4]);
-                let other = if a == b {
-                    c
-                } else if c == b {
-                    a
-                } else {
-                    continue;
-                };
-                if !bottom.contains(&other) {
-                    match up {
-                        None => up = Some(other),
-                        Some(u) if u == other => {}
-                        Some(_) => return None,
-                    }
-                }
+impl Case {
+    /// The cell fields of the time directory `time` of every part, joined in mesh cell order.
+    fn fields(&self, time: &str) -> Result<Vec<Field>> {
+        let mut names: Vec<String> = Vec::new();
+        let mut values: Vec<Vec<f64>> = Vec::new();
+        for (k, (part, &n)) in self.parts.iter().zip(&self.n_cells).enumerate() {
+            let dir = part.join(time);
+            let read = read_fields(&dir, n)?;
+            if k == 0 {
+                names = read.iter().map(|f| f.0.clone()).collect();
+                values = read.into_iter().map(|f| f.1).collect();
+                continue;
+            }
+            let got: Vec<&String> = read.iter().map(|f| &f.0).collect();
+            let file = |n: &str| n.split('[').next().unwrap_or(n).to_string();
+            if let Some(missing) = names.iter().find(|n| !got.contains(n)).map(|n| file(n)) {
+                return Err(Error::format(
+                    &dir,
+                    format!(
+                        "has no field '{missing}' ({} has it): the processors disagree",
+                        self.parts[0].join(time).display()
+                    ),
+                ));
+            }
+            if let Some(extra) = got.iter().find(|n| !names.contains(n)).map(|n| file(n)) {
+                return Err(Error::format(
+                    &dir,
+                    format!(
+                        "has the field '{extra}' and {} has not: the processors disagree",
+                        self.parts[0].join(time).display()
+                    ),
+                ));
+            }
+            for (name, v) in read {
+                let i = names.iter().position(|n| *n == name).expect("checked above");
+                values[i].extend(v);
             }
         }
-        top[k] = up?;
+        Ok(names
+            .into_iter()
+            .zip(values)
+            .map(|(name, v)| {
+                let v = match &self.order {
+                    Some(order) => order.iter().map(|&j| v[j as usize]).collect(),
+                    None => v,
+                };
+                Field::from_f64(name, FieldLocation::Cell, v)
+            })
+            .collect())
     }
-    let nodes = [bottom[0], bottom[1], bottom[2], bottom[3], top[0], top[1], top[2], top[3]];
-    let mut sorted = nodes;
-    sorted.sort_unstable();
-    if sorted.windows(2).any(|w| w[0] == w[1]) {
-        return None;
-    }
-    // The top face must be one of the faces (else it is not a hexahedron's connectivity).
-    let mut want = top;
-    want.sort_unstable();
-    faces
-        .iter()
-        .any(|f| {
-            let mut s = [f[0], f[1], f[2], f[3]];
-            s.sort_unstable();
-            s == want
-        })
-        .then_some(nodes)
 }
 
-/// The `vol*Field`s of the chosen time directory, as cell fields.
-fn read_fields(case: &Path, time: &Time, n_cells: usize) -> Result<Vec<Field>> {
-    let all = times(case)?;
+/// Reads the case `path` (a `.foam` file or the case folder; `decomposed`: its processor
+/// folders even when it has a reconstructed mesh) with the fields of `time`.
+pub fn read_case(path: &Path, time: &Time, decomposed: bool) -> Result<RawMesh> {
+    let (mut raw, case) = open_case(path, decomposed)?;
+    let all = times(&case.parts[0])?;
     let name = match time {
-        Time::Latest => match all.last() {
-            Some(t) => t.clone(),
-            None => return Ok(Vec::new()),
-        },
+        Time::First => case.steps.first().cloned(),
+        Time::Latest => all.last().cloned(),
         Time::Named(t) => {
             if !all.contains(t) {
-                return Err(Error::format(case, format!("no time directory '{t}' (the case has: {})", all.join(", "))));
+                return Err(Error::format(
+                    &case.parts[0],
+                    format!("no time directory '{t}' (the case has: {})", all.join(", ")),
+                ));
             }
-            t.clone()
+            Some(t.clone())
         }
     };
-    let dir = case.join(&name);
-    let mut paths: Vec<PathBuf> = std::fs::read_dir(&dir)
-        .map_err(|e| Error::io(&dir, e))?
+    if let Some(t) = name {
+        raw.fields = case.fields(&t)?;
+    }
+    Ok(raw)
+}
+
+/// Reads the case `path` with the first step's fields, and its steps (`None` without time
+/// directories); `decomposed` as in [`read_case`].
+pub fn read_series(path: &Path, decomposed: bool) -> Result<(RawMesh, Option<TimeSteps>)> {
+    let (mut raw, case) = open_case(path, decomposed)?;
+    let Some(first) = case.steps.first() else { return Ok((raw, None)) };
+    raw.fields = case.fields(first)?;
+    let names = raw.fields.iter().map(|f| f.name.clone()).collect();
+    let times = case.steps.iter().map(|t| t.parse::<f64>().unwrap_or(f64::NAN)).collect();
+    let steps = Steps { case, names };
+    Ok((raw, Some(TimeSteps::new(path.display().to_string(), times, Box::new(steps)))))
+}
+
+/// The steps' fields, read when asked.
+struct Steps {
+    case: Case,
+    /// The first step's fields: every step must have them.
+    names: Vec<String>,
+}
+
+impl StepFields for Steps {
+    fn read(&self, k: usize) -> Result<Vec<Field>> {
+        let time = &self.case.steps[k];
+        let mut fields = self.case.fields(time)?;
+        let mut out = Vec::with_capacity(self.names.len());
+        for name in &self.names {
+            let Some(i) = fields.iter().position(|f| f.name == *name) else {
+                let file = name.split('[').next().unwrap_or(name);
+                return Err(Error::format(
+                    self.case.parts[0].join(time),
+                    format!(
+                        "has no field '{file}' (time {} has it; {}): every time directory must hold the first's fields",
+                        self.case.steps[0],
+                        self.case.path.display()
+                    ),
+                ));
+            };
+            out.push(fields.swap_remove(i));
+        }
+        Ok(out)
+    }
+}
+
+/// The `vol*Field`s of the time directory `dir`, as (name, values) per component, by file name.
+fn read_fields(dir: &Path, n_cells: usize) -> Result<Vec<(String, Vec<f64>)>> {
+    let mut paths: Vec<PathBuf> = std::fs::read_dir(dir)
+        .map_err(|e| Error::io(dir, e))?
         .filter_map(|e| e.ok())
         .map(|e| e.path())
         .filter(|p| p.is_file())
@@ -328,7 +337,7 @@ const OTHER_CLASSES: &[&str] = &["surface", "point", "uniformDimensioned", "dict
 
 /// One field file: cell fields named as the file (components `NAME[i]`), or none for a class
 /// that is not cell data.
-fn read_field(path: &Path, n_cells: usize) -> Result<Vec<Field>> {
+fn read_field(path: &Path, n_cells: usize) -> Result<Vec<(String, Vec<f64>)>> {
     let name = path.file_name().unwrap_or_default().to_string_lossy().trim_end_matches(".gz").to_string();
     if name.starts_with('.') || name.ends_with('~') || name.ends_with(".orig") {
         return Ok(Vec::new());
@@ -358,8 +367,7 @@ fn read_field(path: &Path, n_cells: usize) -> Result<Vec<Field>> {
     Ok((0..k)
         .map(|c| {
             let v: Vec<f64> = values.iter().skip(c).step_by(k).copied().collect();
-            let name = if k == 1 { name.clone() } else { format!("{name}[{c}]") };
-            Field::from_f64(name, FieldLocation::Cell, v)
+            (if k == 1 { name.clone() } else { format!("{name}[{c}]") }, v)
         })
         .collect())
 }
@@ -405,5 +413,7 @@ pub fn parse_file(bytes: &[u8]) -> std::result::Result<usize, String> {
     }
 }
 
+#[cfg(test)]
+mod case_tests;
 #[cfg(test)]
 mod tests;

@@ -163,11 +163,14 @@ fn cases_in_every_encoding_read_alike() {
 fn a_chosen_time_and_the_latest() {
     let case = write_case("times", false, false, WALLS, 0, &fields());
     std::fs::write(case.dir.join("0/p"), field("volScalarField", "uniform 7")).unwrap();
-    let at0 = read_case(&case.dir, &Time::Named("0".into())).unwrap();
+    let at0 = read_case(&case.dir, &Time::Named("0".into()), false).unwrap();
     assert_eq!(at0.fields.len(), 1);
     assert_eq!(at0.fields[0].values, vec![7.0, 7.0]);
     assert_eq!(times(&case.dir).unwrap(), ["0", "1"]);
-    assert!(read_case(&case.dir, &Time::Named("3".into())).unwrap_err().to_string().contains("no time directory '3'"));
+    assert!(read_case(&case.dir, &Time::Named("3".into()), false)
+        .unwrap_err()
+        .to_string()
+        .contains("no time directory '3'"));
 }
 
 #[test]
