@@ -38,6 +38,8 @@ const SHADERS: &[Shader] = &[
     shader("MARCH", "march.comp", ShaderStage::Compute, true),
     shader("STREAM", "stream.comp", ShaderStage::Compute, true),
     shader("MEMPROBE", "memprobe.comp", ShaderStage::Compute, false),
+    // Weights applied to many steps' fields (locate once, interpolate many: src/weights.rs).
+    shader("WEIGHTS", "weights.comp", ShaderStage::Compute, true),
     // Query ordering (a counting sort along the Morton curve) before a locate launch.
     shader("ORDER", "order.comp", ShaderStage::Compute, false),
     // The GPU build of soft-bvh's structure (src/build).

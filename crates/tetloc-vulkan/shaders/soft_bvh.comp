@@ -8,6 +8,7 @@
 #include "common/tet.glsl"
 #include "common/samples.glsl"
 #include "common/soft_bvh.glsl"
+#include "common/answer.glsl"
 
 layout(local_size_x_id = TL_SC_WORKGROUP) in;
 
@@ -44,5 +45,5 @@ void main() {
         }
         return;
     }
-    tl_store(i, tet, OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary, p));
+    tl_answer(i, tet, ids, bary, p);
 }

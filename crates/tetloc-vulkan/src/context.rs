@@ -30,8 +30,9 @@ pub struct DeviceInfo {
     pub float64: bool,
     /// The compute queue has timestamps (needed by benchmarks).
     pub timestamps: bool,
-    /// shaderStorageBufferArrayNonUniformIndexing: the shaders read arrays split over several
-    /// buffers (larger than one buffer may be) through it.
+    /// shaderStorageBufferArrayNonUniformIndexing (and ...DynamicIndexing): the shaders read
+    /// arrays split over several buffers (larger than one buffer may be) and a launch's
+    /// fields (an array of buffers) through it.
     pub nonuniform_buffers: bool,
 }
 
@@ -168,6 +169,7 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
         }
         instance.get_physical_device_features2(pd, &mut f2);
         let float64 = f2.features.shader_float64 == vk::TRUE;
+        let dynamic_buffers = f2.features.shader_storage_buffer_array_dynamic_indexing == vk::TRUE;
         let ray_tracing = rt_exts
             && f_as.acceleration_structure == vk::TRUE
             && f_rt.ray_tracing_pipeline == vk::TRUE
@@ -210,7 +212,9 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
                 memory_bytes,
                 float64,
                 timestamps: timestamp_valid_bits > 0,
-                nonuniform_buffers: f12.shader_storage_buffer_array_non_uniform_indexing == vk::TRUE,
+                // Arrays of buffers indexed by a lane's value (split arrays) or by a loop's
+                // (the fields of one launch: dynamically uniform).
+                nonuniform_buffers: f12.shader_storage_buffer_array_non_uniform_indexing == vk::TRUE && dynamic_buffers,
             },
             uuid: id.device_uuid,
             api: props.api_version,
@@ -408,7 +412,9 @@ impl Context {
                 ash::khr::deferred_host_operations::NAME.as_ptr(),
             ]);
         }
-        let features = vk::PhysicalDeviceFeatures::default().shader_float64(info.float64);
+        let features = vk::PhysicalDeviceFeatures::default()
+            .shader_float64(info.float64)
+            .shader_storage_buffer_array_dynamic_indexing(info.nonuniform_buffers);
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
             .buffer_device_address(info.ray_tracing)
             .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers);

@@ -145,12 +145,12 @@ impl Device {
     }
 
     /// A launch's round trip in one submission: `input` into `dst`, the commands `record`
-    /// records, `out.len()` bytes of `src` back into `out` (together at most
-    /// [`Device::round_trip_bytes`]).
+    /// records, the first bytes of `src` back into the outputs, one after the other (together
+    /// at most [`Device::round_trip_bytes`]).
     pub fn round_trip(
         &mut self,
         input: (&[u8], &Buffer),
-        output: (&Buffer, &mut [u8]),
+        output: (&Buffer, &mut [&mut [u8]]),
         record: impl FnOnce(&Recording),
     ) -> VkResult<()> {
         self.staging.round_trip(&mut self.cmds, input, output, record)

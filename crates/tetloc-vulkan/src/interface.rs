@@ -157,7 +157,8 @@ impl GlslLiteral for bool {
 gpu_interface! {
     layout {
         /// Descriptor bindings (set 0). The mesh: vertices (3 floats each, tightly packed),
-        /// canonical u32x4 tets, and the field being sampled.
+        /// canonical u32x4 tets, and the fields being sampled (an array of MAX_FIELDS
+        /// buffers, one scalar field each: OUT_VERTEX, OUT_CELL and the marcher read element 0).
         B_POINTS = 0;
         B_TETS = 1;
         B_FIELD = 2;
@@ -250,6 +251,14 @@ gpu_interface! {
         /// barycentrics values are interpolated with (tet.glsl `tl_refined_bary`).
         B_RESIDUALS = 50;
         B_RESIDUALS_HI = 51;
+        /// Weights on the GPU (weights.comp): the CSR map's row starts (u32), columns (vertex
+        /// ids) and weights (f64, or f32 without shaderFloat64); a batch of steps' values
+        /// and their products.
+        B_WEIGHTS_ROWS = 52;
+        B_WEIGHTS_COLS = 53;
+        B_WEIGHTS_VALUES = 54;
+        B_STEP_VALUES = 55;
+        B_STEP_OUT = 56;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, their binary nodes and levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).
@@ -262,6 +271,8 @@ gpu_interface! {
         BUILD_LEVELS_AT = 16;
         /// Most buffers one array is split over.
         MAX_CHUNKS = 16;
+        /// Most fields one launch samples (OUT_FIELDS; B_FIELD's buffers).
+        MAX_FIELDS = 16;
         /// The volume marcher's compute shader runs in tiles of MARCH_TILE x MARCH_TILE pixels.
         MARCH_TILE = 8;
     }
@@ -280,6 +291,10 @@ gpu_interface! {
         OUT_IDS: i32 = 0;
         OUT_VERTEX: i32 = 1;
         OUT_CELL: i32 = 2;
+        /// The tet id and the values of FIELD_COUNT fields (B_FIELD's first buffers) in one
+        /// launch: a launch of n points writes the ids to words 0..n of B_OUT, then
+        /// FIELD_COUNT values a point, point after point (NaN outside).
+        OUT_FIELDS: i32 = 3;
         /// Sentinel tet ids. No tet holds the point (tetloc_core::OUTSIDE).
         OUTSIDE: i32 = -1;
         /// The ray hit nothing (an rt payload; distinct from OUTSIDE: hit, but outside).
@@ -436,6 +451,10 @@ gpu_interface! {
         /// The mesh is stored in f64 (B_RESIDUALS bound): values are interpolated with
         /// barycentrics on the file's coordinates (tl_refined_bary), not the working copy's.
         REFINE_BARY = 34: bool = false;
+        /// OUT_FIELDS: how many fields a point gets (at most MAX_FIELDS), and which of them
+        /// are per cell (bit j: field j).
+        FIELD_COUNT = 35: uint = 0;
+        FIELD_CELLS = 36: uint = 0;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

@@ -37,10 +37,13 @@ mod packed;
 mod pipeline;
 mod shaders;
 mod stream;
+mod weights;
 
 pub use build::BuildOn;
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
+/// Most fields one launch samples; a query of more takes a pass each this many.
+pub use interface::MAX_FIELDS;
 pub use kernels::rt::AsReport;
 pub use kernels::{Kernel, RtOptions, SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
 #[cfg(any(test, feature = "test-hooks"))]
@@ -51,6 +54,7 @@ pub use memory::{MemItem, MemKind, STAGING_BYTES};
 pub use stream::StreamStats;
 /// The query sets (`centers`, `random`, `bbox` generated in the kernels; `host` uploaded).
 pub use tetloc_core::queries::QueryKind;
+pub use weights::GpuWeights;
 
 #[cfg(test)]
 mod tests {

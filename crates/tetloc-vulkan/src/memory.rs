@@ -357,17 +357,19 @@ impl Staging {
     }
 
     /// One launch's round trip in one submission: `input` into `dst` from byte 0, the
-    /// commands `record` records, then the first `out.len()` bytes of `src` into `out`. The
-    /// host copies use every core (the staging buffer is host memory the device copies from
-    /// and to directly); both must fit in the staging buffer together.
+    /// commands `record` records, then the first bytes of `src` into `outs`, one after the
+    /// other (ids, then values). The host copies use every core (the staging buffer is host
+    /// memory the device copies from and to directly); all must fit in the staging buffer
+    /// together.
     pub fn round_trip(
         &mut self,
         cmds: &mut Commands,
         (input, dst): (&[u8], &Buffer),
-        (src, out): (&Buffer, &mut [u8]),
+        (src, outs): (&Buffer, &mut [&mut [u8]]),
         record: impl FnOnce(&Recording),
     ) -> VkResult<()> {
-        let (n_in, n_out) = (input.len(), out.len());
+        let n_in = input.len();
+        let n_out: usize = outs.iter().map(|o| o.len()).sum();
         assert!(n_in + n_out <= self.buf.size as usize, "a round trip larger than the staging buffer");
         par_copy(&mut self.buf.mapped()[..n_in], input);
         let stage = self.buf.buffer;
@@ -382,7 +384,11 @@ impl Staging {
             // SAFETY: as above.
             unsafe { r.dev.cmd_copy_buffer(r.cmd, src.buffer, stage, &[down]) };
         })?;
-        par_copy(out, &self.buf.mapped()[n_in..n_in + n_out]);
+        let mut at = n_in;
+        for out in outs.iter_mut() {
+            par_copy(out, &self.buf.mapped()[at..at + out.len()]);
+            at += out.len();
+        }
         Ok(())
     }
 

@@ -45,6 +45,12 @@ impl Binding {
         ]
     }
 
+    /// The array binding `slot` of `len` buffers: `buffers`, then `unbound`.
+    pub fn array(slot: u32, buffers: &[&Buffer], len: u32, unbound: &Buffer) -> Binding {
+        let infos = (0..len as usize).map(|k| buffers.get(k).copied().unwrap_or(unbound).info()).collect();
+        Binding { slot, bound: Bound::Buffers(infos) }
+    }
+
     /// A split array bound whole at the array binding `slot` (MAX_CHUNKS buffers, `unbound`
     /// past its last; `None`: all `unbound`), as the GPU build declares its arrays.
     pub fn parts(slot: u32, array: Option<&Split>, unbound: &Buffer) -> Binding {

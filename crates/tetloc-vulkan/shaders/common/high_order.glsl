@@ -36,12 +36,12 @@ float tl_ho_shape(uint alpha, vec4 bary) {
     return w;
 }
 
-// The field at barycentrics `bary` of higher-order tet `tet` with canonical corners `ids`.
-float tl_ho_value(int tet, uvec4 ids, vec4 bary) {
+// Field `f` at barycentrics `bary` of higher-order tet `tet` with canonical corners `ids`.
+float tl_ho_value(uint f, int tet, uvec4 ids, vec4 bary) {
     precise float v = 0.0;
     for (uint m = 0u; m < 4u + HO_NODES; m++) {
         uint node = m < 4u ? ids[m] : tl_ho_nodes[uint(tet) * HO_NODES + (m - 4u)];
-        v += tl_ho_shape(tl_ho_lattice[m], bary) * tl_field[node];
+        v += tl_ho_shape(tl_ho_lattice[m], bary) * tl_fields[f].v[node];
     }
     return v;
 }

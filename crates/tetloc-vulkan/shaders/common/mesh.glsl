@@ -1,5 +1,6 @@
 // The mesh as the GPU sees it: f32 vertices (3 floats each, tightly packed), canonical
-// u32x4 tets (or packed, TET_BITS), and the scalar field being sampled (per vertex or per cell).
+// u32x4 tets (or packed, TET_BITS), and the scalar fields being sampled (per vertex or per
+// cell, one buffer each).
 #ifndef TL_MESH_GLSL
 #define TL_MESH_GLSL
 #extension GL_EXT_nonuniform_qualifier : require
@@ -7,7 +8,9 @@
 
 layout(std430, binding = TL_B_POINTS) readonly buffer TlPoints { float tl_points[]; };
 layout(std430, binding = TL_B_TETS) readonly buffer TlTets { uvec4 tl_tets[]; };
-layout(std430, binding = TL_B_FIELD) readonly buffer TlField { float tl_field[]; };
+// Field f's values: tl_fields[f].v (a launch reads its fields with a loop index, the same in
+// every invocation: no nonuniformEXT).
+layout(std430, binding = TL_B_FIELD) readonly buffer TlField { float v[]; } tl_fields[TL_MAX_FIELDS];
 // A mixed mesh's cells (CELL_BOXES): n_cells + 1 words, each cell's first decomposition tet,
 // the last the number of tets.
 layout(std430, binding = TL_B_CELL_TETS) readonly buffer TlCellTets { uint tl_cell_tets[]; };

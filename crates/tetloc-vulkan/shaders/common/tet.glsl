@@ -162,27 +162,41 @@ vec4 tl_refined_bary(uvec4 ids, vec3 p, vec4 bary) {
 }
 #endif
 
-// Mesh::interpolate for a per-vertex field (geom::interpolate for linear tets, the tet's own
-// shape functions for higher-order ones), or the per-cell value; NaN outside. `p`: the point
-// (working frame), whose barycentrics are refined on a mesh stored in f64.
+// The barycentrics a point's values are interpolated with: on a mesh stored in f64, refined
+// on the file's coordinates (once a point, whatever its number of fields).
+vec4 tl_value_bary(uvec4 ids, vec3 p, vec4 bary) {
+#ifdef TL_F64
+    if (REFINE_BARY) {
+        return tl_refined_bary(ids, p, bary);
+    }
+#endif
+    return bary;
+}
+
+// Mesh::interpolate of field `f` (tl_fields[f]) in tet `tet` >= 0: per vertex
+// (geom::interpolate for linear tets, the tet's own shape functions for higher-order ones) at
+// `bary` (tl_value_bary's), or the per-cell value (`cell`). The one definition of a value on
+// the GPU: every output mode and the marcher interpolate here.
+float tl_field_value(uint f, bool cell, int tet, uvec4 ids, vec4 bary) {
+    if (cell) {
+        return tl_fields[f].v[tet];
+    }
+    if (HO_NODES > 0u) {
+        return tl_ho_value(f, tet, ids, bary);
+    }
+    precise float v = bary.x * tl_fields[f].v[ids.x] + bary.y * tl_fields[f].v[ids.y]
+        + bary.z * tl_fields[f].v[ids.z] + bary.w * tl_fields[f].v[ids.w];
+    return v;
+}
+
+// The bound field's value (tl_fields[0], per vertex or per cell as OUTPUT_MODE says); NaN
+// outside. `p`: the point (working frame), whose barycentrics are refined on a mesh stored in f64.
 float tl_value(int tet, uvec4 ids, vec4 bary, vec3 p) {
     if (tet < 0) {
         return uintBitsToFloat(0x7fc00000u);
     }
-    if (OUTPUT_MODE == TL_OUT_CELL) {
-        return tl_field[tet];
-    }
-#ifdef TL_F64
-    if (REFINE_BARY) {
-        bary = tl_refined_bary(ids, p, bary);
-    }
-#endif
-    if (HO_NODES > 0u) {
-        return tl_ho_value(tet, ids, bary);
-    }
-    precise float v = bary.x * tl_field[ids.x] + bary.y * tl_field[ids.y]
-        + bary.z * tl_field[ids.z] + bary.w * tl_field[ids.w];
-    return v;
+    bool cell = OUTPUT_MODE == TL_OUT_CELL;
+    return tl_field_value(0u, cell, tet, ids, cell ? bary : tl_value_bary(ids, p, bary));
 }
 
 #endif

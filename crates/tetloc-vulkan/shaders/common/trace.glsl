@@ -10,9 +10,9 @@
 layout(binding = TL_B_ACCEL) uniform accelerationStructureEXT tl_tlas;
 layout(location = 0) rayPayloadEXT TlPayload pl;
 
-// The tet containing p (TL_OUTSIDE outside) and, unless OUTPUT_MODE is ids, the field value there
-// (NaN outside).
-int tl_trace(vec3 p, out float value) {
+// The tet containing p (TL_OUTSIDE outside) and, unless OUTPUT_MODE is ids, its vertices and
+// p's barycentrics there (for the values).
+int tl_trace(vec3 p, out uvec4 ids, out vec4 bary) {
     pl.tet = TL_MISS;
     traceRayEXT(tl_tlas, RAY_FLAGS, 0xff, 0, 0, 0, p, params.lo_tmin.w, params.dir.xyz, params.hi_tmax.w, 0);
     // No tet found: outside the mesh, or a ray that leaked through an edge (a hardware
@@ -22,17 +22,16 @@ int tl_trace(vec3 p, out float value) {
         traceRayEXT(tl_tlas, RAY_FLAGS, 0xff, 0, 0, 0, p, params.lo_tmin.w, -params.dir.xyz, params.hi_tmax.w, 0);
     }
     int tet = max(pl.tet, TL_OUTSIDE);
-    value = uintBitsToFloat(0x7fc00000u);
-    // The value is interpolated here, after the traversal, and not in the hit shaders: there
-    // its f64 refinement (REFINE_BARY) raised the registers of the whole traversal (rt-bvh,
-    // random points, f64 jets 12M, H200 2026-12-05: 18 % slower than unrefined). The
-    // barycentrics are the hit shader's, computed again by the same test.
+    ids = uvec4(0u);
+    bary = vec4(0.0);
+    // The values are interpolated by the caller, after the traversal, and not in the hit
+    // shaders: there the f64 refinement (REFINE_BARY) raised the registers of the whole
+    // traversal (rt-bvh, random points, f64 jets 12M, H200 2026-12-05: 18 % slower than
+    // unrefined). The barycentrics are the hit shader's, computed again by the same test.
     if (OUTPUT_MODE != TL_OUT_IDS && tet >= 0) {
-        uvec4 ids = tl_tet(uint(tet));
-        vec4 bary;
+        ids = tl_tet(uint(tet));
         int exit_face;
         tl_point_in_tet(ids, p, bary, exit_face);
-        value = tl_value(tet, ids, bary, p);
     }
     return tet;
 }

@@ -234,7 +234,6 @@ impl Builder {
         let mut bindings = input.mesh_bindings.to_vec();
         bindings.extend(
             [
-                B_FIELD,
                 B_QUERIES,
                 B_OUT,
                 B_DEFER,
@@ -250,6 +249,7 @@ impl Builder {
             ]
             .map(|slot| Binding::buffer(slot, unbound)),
         );
+        bindings.push(Binding::array(B_FIELD, &[], MAX_FIELDS, unbound));
         bindings.extend(SPLIT_SLOTS.map(|slot| Binding::parts(slot, None, unbound)));
         bindings.extend(Binding::split(B_ACCEL, B_ACCEL_HI, None, unbound));
         bindings.extend(Binding::split(B_NEIGHBORS, B_NEIGHBORS_HI, None, unbound));

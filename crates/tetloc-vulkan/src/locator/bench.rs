@@ -2,9 +2,9 @@
 //! `random`, `bbox`) timed with GPU timestamps, or host points (`host`) timed on the host
 //! clock with their transfers; warm-up runs, repeats, medians; optionally board power.
 
-use super::{sample_mode, Variant, VulkanLocator};
+use super::{sample_mode, Output, Variant, VulkanLocator};
 use crate::error::VkResult;
-use crate::interface::{Params, OUT_CELL, OUT_IDS, OUT_VERTEX};
+use crate::interface::{Params, OUT_CELL, OUT_VERTEX};
 use crate::nvml::{Nvml, PowerSampler};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -17,8 +17,15 @@ use tetloc_core::BatchLocator;
 #[derive(Clone, Debug)]
 pub struct BenchOptions {
     pub mode: QueryKind,
-    /// `None`: the id variant; `Some(name)`: the scalar variant sampling that field.
+    /// `None`: the id variant; `Some(name)`: the scalar variant sampling that field (its
+    /// values only).
     pub field: Option<String>,
+    /// Not empty: the ids and these fields' values, all in one launch (what
+    /// `BatchLocator::query` runs), instead of `field`.
+    pub fields: Vec<String>,
+    /// With `fields` and host points: the k + 1 launches that one launch replaced
+    /// ([`VulkanLocator::sample_per_field`]), to compare.
+    pub per_field: bool,
     /// Samples per run for `random` and `bbox` (default: one per tet). `centers` always
     /// takes one sample per tet; `host` takes the given points.
     pub samples: Option<usize>,
@@ -39,6 +46,8 @@ impl Default for BenchOptions {
         BenchOptions {
             mode: QueryKind::Centers,
             field: None,
+            fields: vec![],
+            per_field: false,
             samples: None,
             seed: 1,
             warmup: 2,
@@ -90,12 +99,20 @@ impl VulkanLocator {
         if opts.repeats == 0 {
             return Err(tetloc_core::Error::Invalid("0 repeats: a benchmark takes at least one timed run".into()));
         }
+        if opts.per_field && (opts.mode != QueryKind::Host || opts.fields.is_empty()) {
+            return Err(tetloc_core::Error::Invalid("per_field compares host points with fields".into()));
+        }
         let output = match &opts.field {
-            None => OUT_IDS,
-            Some(name) => match self.mesh.field(name)?.location {
-                FieldLocation::Vertex => OUT_VERTEX,
-                FieldLocation::Cell => OUT_CELL,
-            },
+            _ if !opts.fields.is_empty() => {
+                let mut cells = 0u32;
+                // (More than MAX_FIELDS fields run only as host points, a pass each MAX_FIELDS.)
+                for (j, f) in opts.fields.iter().enumerate().take(crate::interface::MAX_FIELDS as usize) {
+                    cells |= u32::from(self.mesh.field(f)?.location == FieldLocation::Cell) << j;
+                }
+                Output::fields(opts.fields.len() as u32, cells)
+            }
+            None => Output::IDS,
+            Some(name) => Output::single(self.mesh.field(name)?.location == FieldLocation::Cell),
         };
         let nvml = if opts.power { Nvml::open(&self.dev.ctx().uuid).map(Arc::new) } else { None };
         let (times, samples, outside, timing, power) = match opts.mode {
@@ -106,7 +123,18 @@ impl VulkanLocator {
                 (times, pts.len(), outside, "host clock (transfers included)", power)
             }
             mode => {
-                if let Some(f) = &opts.field {
+                if opts.fields.len() > crate::interface::MAX_FIELDS as usize {
+                    let e = format!(
+                        "{} fields: one launch samples at most {}",
+                        opts.fields.len(),
+                        crate::interface::MAX_FIELDS
+                    );
+                    return Err(tetloc_core::Error::Invalid(e));
+                }
+                if !opts.fields.is_empty() {
+                    let names: Vec<&str> = opts.fields.iter().map(String::as_str).collect();
+                    self.ensure_fields(&names)?;
+                } else if let Some(f) = &opts.field {
                     self.ensure_field(f)?;
                 }
                 let n = match mode {
@@ -123,7 +151,7 @@ impl VulkanLocator {
         Ok(BenchResult {
             kernel: self.kernel.name().into(),
             mode: opts.mode,
-            variant: opts.field.clone().unwrap_or_else(|| "ids".into()),
+            variant: opts.variant(),
             samples,
             seconds,
             seconds_min,
@@ -148,9 +176,12 @@ impl VulkanLocator {
         nvml: Option<Arc<Nvml>>,
     ) -> tetloc_core::Result<(Vec<f64>, usize, Option<f64>)> {
         let mut ids = vec![0i32; pts.len()];
-        let mut vals = vec![0f32; pts.len()];
+        let mut vals = vec![0f32; pts.len() * opts.fields.len().max(1)];
+        let names: Vec<&str> = opts.fields.iter().map(String::as_str).collect();
         let mut run = |loc: &mut VulkanLocator| -> tetloc_core::Result<()> {
             match &opts.field {
+                _ if opts.per_field => loc.sample_per_field(pts, &names, &mut ids, &mut vals),
+                _ if !names.is_empty() => loc.sample_many(pts, &names, &mut ids, &mut vals),
                 None => loc.locate(pts, &mut ids),
                 Some(f) => loc.sample(pts, f, &mut vals),
             }
@@ -180,8 +211,8 @@ impl VulkanLocator {
             None => None,
         };
         let outside = match &opts.field {
-            None => ids.iter().filter(|&&t| t < 0).count(),
-            Some(_) => vals.iter().filter(|v| v.is_nan()).count(),
+            Some(_) if names.is_empty() => vals.iter().filter(|v| v.is_nan()).count(),
+            _ => ids.iter().filter(|&&t| t < 0).count(),
         };
         Ok((times, outside, power))
     }
@@ -190,7 +221,7 @@ impl VulkanLocator {
         &mut self,
         opts: &BenchOptions,
         mode: QueryKind,
-        output: i32,
+        output: Output,
         n: usize,
         nvml: Option<Arc<Nvml>>,
     ) -> VkResult<(Vec<f64>, usize, Option<f64>)> {
@@ -200,7 +231,7 @@ impl VulkanLocator {
             self.ensure_grid_axes(&tetloc_core::queries::grid(&self.mesh, n), false)?;
         }
         let chunk = self.launch_limit(v.ordered).min(n.max(1));
-        self.ensure_io(chunk)?;
+        self.ensure_io(chunk, output.words())?;
         self.pipeline(v)?;
         let launches: Vec<Params> = (0..n)
             .step_by(chunk)
@@ -251,9 +282,10 @@ impl VulkanLocator {
             None => None,
         };
 
-        let count_outside = |out: &[u32]| match output {
-            OUT_IDS => out.iter().filter(|&&t| t as i32 == -1).count(),
-            _ => out.iter().filter(|&&b| f32::from_bits(b).is_nan()).count(),
+        // The first words of the results: ids, or single values.
+        let count_outside = |out: &[u32]| match output.mode {
+            OUT_VERTEX | OUT_CELL => out.iter().filter(|&&b| f32::from_bits(b).is_nan()).count(),
+            _ => out.iter().filter(|&&t| t as i32 == -1).count(),
         };
         let outside = if mode == QueryKind::Grid {
             // A grid's slabs are not alike (the last one may lie above the mesh): every
@@ -276,6 +308,20 @@ impl VulkanLocator {
             (count_outside(&out) as f64 * n as f64 / last.max(1) as f64).round() as usize
         };
         Ok((times, outside, power))
+    }
+}
+
+impl BenchOptions {
+    /// The variant's name: `ids`, the field's, or `ids+F+G` (one launch; `per-field:F+G`:
+    /// the k + 1 launches).
+    pub fn variant(&self) -> String {
+        match &self.field {
+            _ if !self.fields.is_empty() => {
+                format!("{}{}", if self.per_field { "per-field:" } else { "ids+" }, self.fields.join("+"))
+            }
+            None => "ids".into(),
+            Some(f) => f.clone(),
+        }
     }
 }
 

@@ -2,17 +2,49 @@
 //! enough) or a ray-tracing launch, and for deferred exact tests the indirect second pass.
 
 use crate::device::Recording;
-use crate::interface::Params;
+use crate::interface::{Params, OUT_CELL, OUT_FIELDS, OUT_IDS, OUT_VERTEX};
 use crate::pipeline::{Descriptors, Pipeline};
 use ash::vk;
 use std::collections::HashMap;
 
+/// What a launch writes a point: OUTPUT_MODE, and with OUT_FIELDS how many fields (the
+/// first of B_FIELD's buffers) and which of them are per cell (FIELD_COUNT, FIELD_CELLS).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub(crate) struct Output {
+    pub mode: i32,
+    pub fields: u32,
+    pub cells: u32,
+}
+
+impl Output {
+    pub const IDS: Output = Output { mode: OUT_IDS, fields: 0, cells: 0 };
+
+    /// The value of the field bound first, per vertex or per cell (OUT_VERTEX, OUT_CELL).
+    pub fn single(cell: bool) -> Output {
+        Output { mode: if cell { OUT_CELL } else { OUT_VERTEX }, fields: 0, cells: 0 }
+    }
+
+    /// The ids and the values of the first `fields` bound fields, bit j of `cells` set for a
+    /// per-cell field j (OUT_FIELDS); the ids alone without fields.
+    pub fn fields(fields: u32, cells: u32) -> Output {
+        match fields {
+            0 => Output::IDS,
+            _ => Output { mode: OUT_FIELDS, fields, cells },
+        }
+    }
+
+    /// 4-byte words a point: its id (or value), then its fields' values.
+    pub fn words(&self) -> usize {
+        1 + self.fields as usize
+    }
+}
+
 /// One compiled variant of a kernel's locate pipeline.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub(crate) struct Variant {
-    /// SAMPLE_* and OUT_* of the interface.
+    /// SAMPLE_* of the interface, and what the launch writes.
     pub sample: i32,
-    pub output: i32,
+    pub output: Output,
     /// Write generated points back (tests).
     pub record: bool,
     /// Locate the points query ordering sorted (order.rs), answers to their original indices.

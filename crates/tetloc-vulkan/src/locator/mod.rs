@@ -7,7 +7,7 @@ mod launch;
 mod order;
 
 pub use bench::{si, BenchOptions, BenchResult};
-use launch::{Launcher, Variant};
+use launch::{Launcher, Output, Variant};
 use order::{Ordering, ORDER_MIN_POINTS};
 
 use crate::context::Context;
@@ -152,7 +152,9 @@ pub struct VulkanLocator {
     // Field order is drop order: pipelines and buffers before the device object.
     launcher: Launcher,
     io: Option<Io>,
-    field: Option<(String, Buffer)>,
+    /// The fields on the GPU, in the order B_FIELD binds them: those of the last launch
+    /// that sampled fields (only they are resident).
+    fields: Vec<(String, Buffer)>,
     /// The `grid` sample set's axes on the GPU, for this grid (in the file's coordinates or
     /// the working frame).
     grid_axes: Option<(ImageGrid, bool, Buffer)>,
@@ -273,7 +275,7 @@ impl VulkanLocator {
         let mut loc = VulkanLocator {
             launcher,
             io: None,
-            field: None,
+            fields: vec![],
             grid_axes: None,
             plan,
             mesh_on_device,
@@ -289,7 +291,7 @@ impl VulkanLocator {
         };
         // Compile the id variant now, so that building includes pipeline creation.
         let t_pipeline = Instant::now();
-        loc.pipeline(Variant { sample: SAMPLE_HOST, output: OUT_IDS, record: false, ordered: false })?;
+        loc.pipeline(Variant { sample: SAMPLE_HOST, output: Output::IDS, record: false, ordered: false })?;
         stages.push(("locate pipeline".to_string(), t_pipeline.elapsed().as_secs_f64()));
         loc.build_stages = stages;
         loc.build_seconds = t0.elapsed().as_secs_f64();
@@ -302,9 +304,10 @@ impl VulkanLocator {
         let unbound = dev.unbound();
         let mut b = mesh.bindings(unbound);
         b.extend(
-            [B_FIELD, B_QUERIES, B_OUT, B_DEFER, B_ORDER_POINTS, B_ORDER_PERM, B_GRID_AXES]
+            [B_QUERIES, B_OUT, B_DEFER, B_ORDER_POINTS, B_ORDER_PERM, B_GRID_AXES]
                 .map(|slot| Binding::buffer(slot, unbound)),
         );
+        b.push(Binding::array(B_FIELD, &[], MAX_FIELDS, unbound));
         b.extend(plan.bindings.iter().cloned());
         b
     }
@@ -358,11 +361,8 @@ impl VulkanLocator {
     /// (`with_field`) or brings its own data (the field binding then names no field).
     pub(crate) fn resources_for(&mut self, output: i32, with_field: bool) -> Resources<'_> {
         let mut bindings = self.mesh_on_device.bindings(self.dev.unbound());
-        let field = match (&self.field, with_field) {
-            (Some((_, buf)), true) => buf,
-            _ => self.dev.unbound(),
-        };
-        bindings.push(Binding::buffer(B_FIELD, field));
+        let fields: Vec<&Buffer> = self.fields.iter().filter(|_| with_field).map(|(_, b)| b).collect();
+        bindings.push(Binding::array(B_FIELD, &fields, MAX_FIELDS, self.dev.unbound()));
         bindings.extend(self.plan.bindings.iter().cloned());
         Resources {
             spec: self.spec(output),
@@ -378,7 +378,9 @@ impl VulkanLocator {
     /// The pipeline for `v`, created on first use (with its exact second pass when deferring).
     fn pipeline(&mut self, v: Variant) -> VkResult<&Pipeline> {
         let spec = self
-            .spec(v.output)
+            .spec(v.output.mode)
+            .set(sc::FIELD_COUNT, v.output.fields)
+            .set(sc::FIELD_CELLS, v.output.cells)
             .set(sc::SAMPLE_MODE, v.sample as u32)
             .set(sc::RECORD_POINTS, v.record as u32)
             .set(sc::ORDERED, v.ordered as u32);
@@ -476,14 +478,22 @@ impl VulkanLocator {
         lim.min(groups.saturating_mul(self.opts.soft_bvh.workgroup_size as usize))
     }
 
-    /// Makes sure the query and result buffers hold `n` points and are bound.
-    fn ensure_io(&mut self, n: usize) -> VkResult<()> {
+    /// Makes sure the query and result buffers hold `n` points, with `words` 4-byte answers
+    /// each ([`Output::words`]), and are bound.
+    fn ensure_io(&mut self, n: usize, words: usize) -> VkResult<()> {
+        let result_bytes = (n * words * 4) as u64;
+        if let Some(io) = self.io.as_mut().filter(|io| io.capacity >= n && io.results.size < result_bytes) {
+            // More fields than before: larger results only (the ordering's buffers stay).
+            self.launcher.desc.write(&[Binding::buffer(B_OUT, self.dev.unbound())]);
+            io.results = self.dev.create_buffer(BufferDesc::io(MemKind::Query, result_bytes), "query results", None)?;
+            self.launcher.desc.write(&[Binding::buffer(B_OUT, &io.results)]);
+        }
         if self.io.as_ref().is_none_or(|io| io.capacity < n || io.order.is_some() != self.opts.order_queries) {
             self.io = None;
             let queries =
                 self.dev.create_buffer(BufferDesc::io(MemKind::Query, (n * 12) as u64), "query points", None)?;
             let results =
-                self.dev.create_buffer(BufferDesc::io(MemKind::Query, (n * 4) as u64), "query results", None)?;
+                self.dev.create_buffer(BufferDesc::io(MemKind::Query, result_bytes), "query results", None)?;
             self.launcher.desc.write(&[Binding::buffer(B_QUERIES, &queries), Binding::buffer(B_OUT, &results)]);
             let deferred = match self.plan.exact_pass {
                 Some(_) => {
@@ -518,54 +528,150 @@ impl VulkanLocator {
         Ok(())
     }
 
-    /// Uploads `name` (if not already on the GPU) and returns its output mode.
+    /// Uploads `name` (if not already on the GPU) alone and returns its output mode.
     fn ensure_field(&mut self, name: &str) -> tetloc_core::Result<i32> {
-        let mesh = self.mesh.clone();
-        let f = mesh.field(name)?;
-        let mode = match f.location {
-            FieldLocation::Vertex => OUT_VERTEX,
-            FieldLocation::Cell => OUT_CELL,
-        };
-        if self.field.as_ref().map(|(n, _)| n.as_str()) != Some(name) {
-            // Free the old field first so that only one is resident.
-            self.field = None;
-            self.launcher.desc.write(&[Binding::buffer(B_FIELD, self.dev.unbound())]);
-            let data = bytemuck::cast_slice(&f.values);
-            let buf =
-                self.dev.upload(&format!("field {name}"), MemKind::Mesh, vk::BufferUsageFlags::STORAGE_BUFFER, data)?;
-            self.launcher.desc.write(&[Binding::buffer(B_FIELD, &buf)]);
-            self.field = Some((name.to_string(), buf));
-        }
-        Ok(mode)
+        let out = self.ensure_fields(&[name])?;
+        Ok(Output::single(out.cells != 0).mode)
     }
 
-    /// Runs host points (the file's coordinates) through variant `output`, writing 4 bytes per
-    /// point into `out`. The kernels search the mesh's working frame: points go there first
-    /// (nothing to do for the identity frame, almost every mesh).
-    fn run_host(&mut self, points: &[Vec3], output: i32, out: &mut [u8]) -> VkResult<()> {
+    /// Makes `names` (at most MAX_FIELDS) the bound fields, in that order (uploading those not
+    /// on the GPU, freeing the others first, so that one launch's fields are resident), and
+    /// returns the output that samples them all.
+    fn ensure_fields(&mut self, names: &[&str]) -> tetloc_core::Result<Output> {
+        assert!(names.len() <= MAX_FIELDS as usize, "at most MAX_FIELDS fields a launch");
+        let mesh = self.mesh.clone();
+        let fields = names.iter().map(|n| mesh.field(n)).collect::<tetloc_core::Result<Vec<_>>>()?;
+        let cells = (fields.iter().enumerate())
+            .filter(|(_, f)| f.location == FieldLocation::Cell)
+            .fold(0u32, |m, (j, _)| m | 1 << j);
+        let out = Output::fields(names.len() as u32, cells);
+        if self.fields.iter().map(|(n, _)| n.as_str()).eq(names.iter().copied()) {
+            return Ok(out);
+        }
+        self.launcher.desc.write(&[Binding::array(B_FIELD, &[], MAX_FIELDS, self.dev.unbound())]);
+        let mut old = std::mem::take(&mut self.fields);
+        old.retain(|(n, _)| names.contains(&n.as_str()));
+        for f in fields {
+            let buf = match old.iter().position(|(n, _)| *n == f.name) {
+                Some(k) => old.swap_remove(k).1,
+                None => {
+                    let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+                    let data = bytemuck::cast_slice(&f.values);
+                    match self.dev.upload(&format!("field {}", f.name), MemKind::Mesh, usage, data) {
+                        Ok(b) => b,
+                        Err(e) => {
+                            self.fields.clear(); // nothing half-bound stays
+                            return Err(e.into());
+                        }
+                    }
+                }
+            };
+            self.fields.push((f.name.clone(), buf));
+        }
+        let bufs: Vec<&Buffer> = self.fields.iter().map(|(_, b)| b).collect();
+        self.launcher.desc.write(&[Binding::array(B_FIELD, &bufs, MAX_FIELDS, self.dev.unbound())]);
+        Ok(out)
+    }
+
+    /// Ids and the values of `fields` (`fields.len()` a point) at host points (the file's
+    /// coordinates) or at `grid`'s points from index `start` (its axes uploaded): one launch a
+    /// batch locates each point once and writes its id and every value (up to MAX_FIELDS
+    /// fields; more take a pass each MAX_FIELDS).
+    fn sample_fields(
+        &mut self,
+        at: At<'_>,
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> tetloc_core::Result<()> {
+        let frame = self.mesh.info.frame;
+        let working: Vec<Vec3>;
+        let at = match at {
+            At::Host(p) if !frame.is_identity() => {
+                working = p.par_iter().map(|&p| frame.to_working_f32(p)).collect();
+                At::Host(&working)
+            }
+            at => at,
+        };
+        let run = |loc: &mut Self, out: Output, ids: &mut [i32], values: &mut [f32]| match at {
+            At::Host(p) => loc.run_working(p, out, bytemuck::cast_slice_mut(ids), values),
+            At::Grid(grid, start) => loc.run_grid(grid, start, out, bytemuck::cast_slice_mut(ids), values),
+        };
+        let k = fields.len();
+        if k <= MAX_FIELDS as usize {
+            let out = if k == 0 { Output::IDS } else { self.ensure_fields(fields)? };
+            return Ok(run(self, out, ids, values)?);
+        }
+        let mut part = vec![];
+        for (g, group) in fields.chunks(MAX_FIELDS as usize).enumerate() {
+            let out = self.ensure_fields(group)?;
+            let m = group.len();
+            part.resize(ids.len() * m, 0f32);
+            run(self, out, ids, &mut part)?;
+            let first = g * MAX_FIELDS as usize;
+            values.par_chunks_mut(k).zip(part.par_chunks(m)).for_each(|(v, p)| v[first..first + m].copy_from_slice(p));
+        }
+        Ok(())
+    }
+
+    /// The k + 1 launches that one launch of [`BatchLocator::query`] replaced for f32 points
+    /// and values: the ids, then a launch a field (its value only), each locating the points
+    /// again. The same ids and values, bit for bit: kept to compare against (benchmarks, tests).
+    pub fn sample_per_field(
+        &mut self,
+        points: &[Vec3],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f32],
+    ) -> tetloc_core::Result<()> {
+        check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
+        if points.is_empty() {
+            return Ok(());
+        }
+        self.run_host(points, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?;
+        let mut one = vec![0f32; if fields.is_empty() { 0 } else { points.len() }];
+        for (j, f) in fields.iter().enumerate() {
+            let cell = self.ensure_field(f)? == OUT_CELL;
+            self.run_host(points, Output::single(cell), bytemuck::cast_slice_mut(&mut one), &mut [])?;
+            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
+        }
+        Ok(())
+    }
+
+    /// Runs host points (the file's coordinates) through `output`: each point's id (or
+    /// single value) into `ids` (4 bytes a point) and its fields' values into `values`
+    /// (`output.fields` a point). The kernels search the mesh's working frame: points go there
+    /// first (nothing to do for the identity frame, almost every mesh).
+    fn run_host(&mut self, points: &[Vec3], output: Output, ids: &mut [u8], values: &mut [f32]) -> VkResult<()> {
         let frame = self.mesh.info.frame;
         if frame.is_identity() {
-            return self.run_working(points, output, out);
+            return self.run_working(points, output, ids, values);
         }
         let working: Vec<Vec3> = points.par_iter().map(|&p| frame.to_working_f32(p)).collect();
-        self.run_working(&working, output, out)
+        self.run_working(&working, output, ids, values)
     }
 
     /// [`Self::run_host`] of points already in the working frame.
-    fn run_working(&mut self, points: &[Vec3], output: i32, out: &mut [u8]) -> VkResult<()> {
-        let v = Variant { sample: SAMPLE_HOST, output, record: false, ordered: self.orders(SAMPLE_HOST, points.len()) };
-        // Each launch is one submission: points in, (ordering,) kernel, answers out, 16 bytes
-        // a point through the staging buffer.
-        // (Host launches stay within one staging round trip: 4M points with the default buffer.)
-        let chunk = self.launch_limit(v.ordered).min(self.dev.round_trip_bytes() / 16).min(points.len()).max(1);
-        self.ensure_io(chunk)?;
+    fn run_working(&mut self, points: &[Vec3], output: Output, ids: &mut [u8], values: &mut [f32]) -> VkResult<()> {
+        let ordered = self.orders(SAMPLE_HOST, points.len());
+        let v = Variant { sample: SAMPLE_HOST, output, record: false, ordered };
+        // Each launch is one submission: points in, (ordering,) kernel, answers out, 12 bytes a
+        // point in and 4 a word out through the staging buffer: 4M points with the default
+        // buffer for ids alone, fewer the more fields (the results buffer never outgrows it).
+        let per_point = 12 + 4 * output.words();
+        let chunk = self.launch_limit(v.ordered).min(self.dev.round_trip_bytes() / per_point).min(points.len()).max(1);
+        self.ensure_io(chunk, output.words())?;
         self.pipeline(v)?;
-        for (pts, res) in points.chunks(chunk).zip(out.chunks_mut(chunk * 4)) {
+        let m = output.fields as usize;
+        let mut value_chunks = values.chunks_mut(chunk * m.max(1));
+        for (pts, res) in points.chunks(chunk).zip(ids.chunks_mut(chunk * 4)) {
+            let vals: &mut [f32] = if m == 0 { &mut [] } else { value_chunks.next().expect("m values a point") };
             let params = self.params(pts.len(), 0, 0);
             let io = self.io.as_ref().expect("ensure_io made it");
             let launch = self.launcher.launch(v, io.deferred.as_ref().map(|d| d.buffer));
             let order = io.order.as_ref().filter(|_| v.ordered);
-            self.dev.round_trip((bytemuck::cast_slice(pts), &io.queries), (&io.results, res), |r| {
+            let outs: &mut [&mut [u8]] = &mut [res, bytemuck::cast_slice_mut(vals)];
+            self.dev.round_trip((bytemuck::cast_slice(pts), &io.queries), (&io.results, outs), |r| {
                 if let Some(o) = order {
                     o.record(r, &params, v.sample);
                 }
@@ -575,24 +681,36 @@ impl VulkanLocator {
         Ok(())
     }
 
-    /// Locates the points of `grid` (its axes uploaded) from index `start`, one answer per
-    /// 4 bytes of `out` (variant `output`), in launches that each begin at a slab and an index
-    /// within it (the kernel's index is u32; a slab has fewer than 2^31 points).
-    fn run_grid(&mut self, grid: &ImageGrid, start: usize, output: i32, out: &mut [u8]) -> VkResult<()> {
+    /// Locates the points of `grid` (its axes uploaded) from index `start` through `output`
+    /// (ids, or single values, 4 bytes a point into `ids`; the fields' values into `values`),
+    /// in launches that each begin at a slab and an index within it (the kernel's index is
+    /// u32; a slab has fewer than 2^31 points), of a results buffer no larger than ids alone take.
+    fn run_grid(
+        &mut self,
+        grid: &ImageGrid,
+        start: usize,
+        output: Output,
+        ids: &mut [u8],
+        values: &mut [f32],
+    ) -> VkResult<()> {
         let v = Variant { sample: SAMPLE_GRID, output, record: false, ordered: false };
-        let chunk = self.launch_limit(false).min(1 << 30).min(out.len() / 4).max(1);
-        self.ensure_io(chunk)?;
+        let chunk = (self.launch_limit(false) / output.words()).min(1 << 30).min(ids.len() / 4).max(1);
+        self.ensure_io(chunk, output.words())?;
         self.pipeline(v)?;
         let [nx, ny, _] = grid.dims;
+        let m = output.fields as usize;
+        let mut value_chunks = values.chunks_mut(chunk * m.max(1));
         let mut first = start;
-        for res in out.chunks_mut(chunk * 4) {
+        for res in ids.chunks_mut(chunk * 4) {
             let len = res.len() / 4;
+            let vals: &mut [f32] = if m == 0 { &mut [] } else { value_chunks.next().expect("m values a point") };
             let mut params = self.params(len, first % (nx * ny), 0);
             params.grid = [nx as u32, ny as u32, (first / (nx * ny)) as u32, 0];
             let io = self.io.as_ref().expect("ensure_io made it");
             let launch = self.launcher.launch(v, io.deferred.as_ref().map(|d| d.buffer));
             self.dev.run(|r| launch.record(r, &params))?;
             self.dev.download(&io.results, 0, res)?;
+            self.dev.download(&io.results, res.len() as u64, bytemuck::cast_slice_mut(vals))?;
             first += len;
         }
         Ok(())
@@ -612,9 +730,9 @@ impl VulkanLocator {
         }
         // Ordered: the ordering's keys pass records the points, the kernel does not.
         let ordered = self.orders(sample, n);
-        let v = Variant { sample, output: OUT_IDS, record: !ordered, ordered };
+        let v = Variant { sample, output: Output::IDS, record: !ordered, ordered };
         let chunk = self.launch_limit(ordered).min(n.max(1));
-        self.ensure_io(chunk)?;
+        self.ensure_io(chunk, 1)?;
         self.pipeline(v)?;
         let mut points = vec![[0f32; 3]; n];
         let mut ids = vec![0i32; n];
@@ -658,6 +776,14 @@ impl VulkanLocator {
     fn orders(&self, sample: i32, n: usize) -> bool {
         self.opts.order_queries && sample != SAMPLE_CENTERS && sample != SAMPLE_GRID && n >= ORDER_MIN_POINTS
     }
+}
+
+/// Where a launch's points come from: host points (working frame), or a grid's points from
+/// an index (its axes uploaded).
+#[derive(Clone, Copy)]
+enum At<'a> {
+    Host(&'a [Vec3]),
+    Grid(&'a ImageGrid, usize),
 }
 
 /// Meshes from this many tets get larger ordered launches ([`launch_points`]).
@@ -849,10 +975,10 @@ impl BatchLocator for VulkanLocator {
         self.kernel.name()
     }
 
-    /// f32 points with f32 values: the kernels write the ids, then each field's values (one
-    /// launch each, the points uploaded for each: k + 1 uploads, as before the narrow trait,
-    /// still cheaper than values on the host for random points). Otherwise the kernels write
-    /// the ids and the values are computed on the host at those tets
+    /// f32 points with f32 values: one launch a batch locates each point once and writes its
+    /// id and every field's value, interpolated on the device where the tet's nodes were just
+    /// read (values on the host read the mesh at random from host memory). Otherwise the
+    /// kernels write the ids and the values are computed on the host at those tets
     /// ([`Mesh::values_at_ids64`]: the file's values at f64 barycentrics, the CPU's values
     /// bit for bit, rounded for f32 values). f64 points go to the working frame in f64,
     /// then to f32: a mesh far from the origin is searched as precisely as one at it (the
@@ -872,25 +998,19 @@ impl BatchLocator for VulkanLocator {
         if points.is_empty() {
             return Ok(());
         }
-        // f32 points, f32 values: the kernel interpolates on the device, one launch a field
-        // after the ids' (values on the host read the mesh at random from host memory: 36 M/s
-        // end to end at jets 12M on the H200, 2026-12-05, against 1 G/s for the ids alone).
+        // f32 points, f32 values: the kernel interpolates on the device, in the launch that
+        // locates (values on the host: 36 M/s end to end at jets 12M on the H200, 2026-12-05;
+        // a launch a field after the ids': 140 M/s; the ids alone: 0.91 G/s).
         if let (Points::F32(p), Values::F32(v)) = (points, &mut values) {
-            self.run_host(p, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
-            let mut one = vec![0f32; if fields.is_empty() { 0 } else { p.len() }];
-            for (j, f) in fields.iter().enumerate() {
-                let mode = self.ensure_field(&f.name)?;
-                self.run_host(p, mode, bytemuck::cast_slice_mut(&mut one))?;
-                v.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
-            }
-            return Ok(());
+            let names: Vec<&str> = fields.iter().map(|f| f.name.as_str()).collect();
+            return self.sample_fields(At::Host(p), &names, ids, v);
         }
         match points {
-            Points::F32(p) => self.run_host(p, OUT_IDS, bytemuck::cast_slice_mut(ids))?,
+            Points::F32(p) => self.run_host(p, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?,
             Points::F64(p) => {
                 let frame = mesh.info.frame;
                 let working: Vec<Vec3> = p.par_iter().map(|&q| frame.to_working(q)).collect();
-                self.run_working(&working, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
+                self.run_working(&working, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?;
                 if certify::needs_certifying(&mesh, p) {
                     self.certifier.certify(&mesh, p, ids, false);
                 }
@@ -933,21 +1053,15 @@ impl GridSampler for VulkanLocator {
             // Beyond the kernel's u32 index within a slab: host points.
             return self.sample_many(&grid_points(grid, range), fields, ids, values);
         }
-        let mesh = self.mesh.clone();
-        let fields = fields.iter().map(|f| mesh.field(f)).collect::<tetloc_core::Result<Vec<_>>>()?;
+        for f in fields {
+            self.mesh.field(f)?;
+        }
         if range.is_empty() {
             return Ok(());
         }
         self.ensure_grid_axes(grid, true)?;
-        self.run_grid(grid, range.start, OUT_IDS, bytemuck::cast_slice_mut(ids))?;
-        // The kernel interpolates on the device, one launch a field (see `query`).
-        let mut one = vec![0f32; if fields.is_empty() { 0 } else { range.len() }];
-        for (j, f) in fields.iter().enumerate() {
-            let mode = self.ensure_field(&f.name)?;
-            self.run_grid(grid, range.start, mode, bytemuck::cast_slice_mut(&mut one))?;
-            values.iter_mut().skip(j).step_by(fields.len()).zip(&one).for_each(|(v, &x)| *v = x);
-        }
-        Ok(())
+        // The ids and every value in one launch a batch, as `query` does.
+        self.sample_fields(At::Grid(grid, range.start), fields, ids, values)
     }
 }
 

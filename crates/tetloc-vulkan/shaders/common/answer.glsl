@@ -1,0 +1,36 @@
+// A located point's answer as OUTPUT_MODE asks: its tet id (OUT_IDS), the bound field's value
+// (OUT_VERTEX, OUT_CELL), or its tet id and FIELD_COUNT fields' values in one launch
+// (OUT_FIELDS: the cell's nodes are read once for all of them). Every locate kernel ends here.
+#ifndef TL_ANSWER_GLSL
+#define TL_ANSWER_GLSL
+
+#include "common/mesh.glsl"
+#include "common/tet.glsl"
+#include "common/samples.glsl"
+
+// Point i of this launch is in `tet` (TL_OUTSIDE: none) with vertices `ids` and barycentrics
+// `bary` (read only for values inside).
+void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
+    if (OUTPUT_MODE != TL_OUT_FIELDS) {
+        tl_store(i, tet, OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary, p));
+        return;
+    }
+    if (ORDERED) {
+        i = tl_order_perm[i];
+    }
+    tl_out[i] = uint(tet);
+    uint at = params.counts.x + i * FIELD_COUNT;
+    if (tet < 0) {
+        for (uint f = 0u; f < FIELD_COUNT; f++) {
+            tl_out[at + f] = 0x7fc00000u;
+        }
+        return;
+    }
+    vec4 b = tl_value_bary(ids, p, bary);
+    for (uint f = 0u; f < FIELD_COUNT; f++) {
+        bool cell = ((FIELD_CELLS >> f) & 1u) != 0u;
+        tl_out[at + f] = floatBitsToUint(tl_field_value(f, cell, tet, ids, cell ? bary : b));
+    }
+}
+
+#endif
