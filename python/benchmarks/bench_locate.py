@@ -14,7 +14,8 @@ versions. ``--gpu`` measures the numpy-array path on a GPU instead: points/s of
 ``Locator.locate`` / ``sample`` from float32 and float64 arrays, every transfer included.
 ``--sweep`` measures small batches instead: microseconds a point of a warm ``Locator.locate``
 (cpu) for batches of 1 to 1M random points (each call a fresh batch), against pyvista's
-``find_containing_cell`` and a prebuilt ``vtkCellTreeLocator`` (``FindCell`` per point).
+``find_containing_cell`` and a prebuilt ``vtkCellTreeLocator`` (``FindCell`` per point); the
+whole sweep ``--runs`` times, each cell the median of the runs.
 
 Run it from the repository root:  python python/benchmarks/bench_locate.py [--json FILE]
 """
@@ -307,17 +308,30 @@ def sweep(args) -> Dict[str, object]:
         peers["vtkCellTreeLocator.FindCell"] = lambda b: [tree.FindCell(p) for p in b.astype(np.float64).tolist()]
     except ImportError as e:
         print(f"skipping the VTK peers: {e}", file=sys.stderr)
-    rows = []
-    print(f"{path.name}: {mesh.n_cells} tets; load {os.getloadavg()[0]:.1f}", file=sys.stderr)
-    print("| batch | " + " | ".join(f"{name} (µs a point)" for name in peers) + " |")
-    print("|---|" + "---|" * len(peers))
-    for n in sizes:
-        # VTK's per-point loops take seconds a call beyond 100k points: left out there.
-        us = {name: per_point(call, n, args.budget) if name == "tetloc cpu" or n <= 100_000 else float("nan")
-              for name, call in peers.items()}
-        rows.append({"batch": n, **us})
-        print(f"| {n:,} | " + " | ".join(f"{us[name]:.3f}" for name in peers) + " |", flush=True)
-    return {"mesh": str(path), "tets": mesh.n_cells, "load_average": os.getloadavg(), "sweep": rows}
+    print(f"{path.name}: {mesh.n_cells} tets", file=sys.stderr)
+    # The whole sweep `runs` times (the machine may be shared), then each cell's median.
+    runs: List[Dict[int, Dict[str, float]]] = []
+    loads = []
+    for run in range(args.runs):
+        loads.append(os.getloadavg()[0])
+        print(f"run {run + 1} of {args.runs}, load {loads[-1]:.1f}", file=sys.stderr)
+        runs.append({})
+        for n in sizes:
+            # VTK's per-point loops take seconds a call beyond 100k points: left out there.
+            runs[-1][n] = {name: per_point(call, n, args.budget) if name == "tetloc cpu" or n <= 100_000
+                           else float("nan") for name, call in peers.items()}
+            print(f"  {n:>9,}: " + ", ".join(f"{name} {us:.3f}" for name, us in runs[-1][n].items()),
+                  file=sys.stderr, flush=True)
+    rows = [{"batch": n, **{name: float(np.median([r[n][name] for r in runs])) for name in peers}} for n in sizes]
+    vtk = "vtkCellTreeLocator.FindCell"
+    print(f"median of {args.runs} runs, µs a point (load {', '.join(f'{x:.1f}' for x in loads)})")
+    print("| batch | " + " | ".join(peers) + (" | VTK cell tree / tetloc |" if vtk in peers else " |"))
+    print("|---|" + "---|" * (len(peers) + (vtk in peers)))
+    for r in rows:
+        ratio = f" {r[vtk] / r['tetloc cpu']:.1f}× |" if vtk in peers and r[vtk] == r[vtk] else (" - |" if vtk in peers else "")
+        print(f"| {r['batch']:,} | " + " | ".join(f"{r[name]:.3f}" for name in peers) + " |" + ratio)
+    return {"mesh": str(path), "tets": mesh.n_cells, "load_average": loads, "sweep": rows,
+            "runs": [[{"batch": n, **r[n]} for n in sizes] for r in runs]}
 
 
 def main() -> None:
@@ -334,6 +348,7 @@ def main() -> None:
     ap.add_argument("--sweep", action="store_true", help="small batches: µs a point by batch size (cpu, VTK)")
     ap.add_argument("--batches", default="1,10,100,1000,10k,100k,1M", help="--sweep: batch sizes")
     ap.add_argument("--budget", type=float, default=1.0, help="--sweep: seconds of calls per size and method")
+    ap.add_argument("--runs", type=int, default=3, help="--sweep: whole sweeps; the table gives medians (default 3)")
     ap.add_argument("--json", help="also write the results as JSON to this file")
     args = ap.parse_args()
     info = machine()

@@ -1,6 +1,6 @@
 //! Uniform bins over the tets' boxes: the CPU batches' cheap index (one pass to count, one
-//! to fill), in place of a BVH. A query starts its walk from its bin's first tet (a tet or
-//! two away), and where the walk cannot finish (it leaves the mesh, runs long, or ends on a
+//! to fill), in place of a BVH. A query starts its walk from its bin's start tet (the tet
+//! whose centroid is nearest the bin's centre: a step or two away), and where the walk cannot finish (it leaves the mesh, runs long, or ends on a
 //! face) it tests every tet of its bin: the bin lists every tet whose box meets it, so one
 //! tet holding the point strictly is the answer, none means outside, and anything else (a
 //! weight of zero, two tets) is a tie that the BVH's traversal order decides.
@@ -23,7 +23,13 @@ pub(super) struct Bins {
     /// The tets of bin `b` are `tets[offsets[b]..offsets[b + 1]]`, ascending.
     offsets: Vec<u32>,
     tets: Vec<u32>,
+    /// Each bin's walks start here: the tet whose centroid is nearest the bin's centre among
+    /// those whose centroid is in the bin (else the bin's first tet; [`NONE`] for an empty bin).
+    start: Vec<u32>,
 }
+
+/// No tet.
+const NONE: u32 = u32::MAX;
 
 impl Bins {
     /// Bins of about `edges` mean edge lengths a side.
@@ -37,8 +43,9 @@ impl Bins {
         }
         let n = count(cell);
         let scale = std::array::from_fn(|k| if ext[k] > 0.0 { (n[k] as f64 / ext[k]) as f32 } else { 0.0 });
-        let mut bins = Bins { lo, scale, n, offsets: Vec::new(), tets: Vec::new() };
-        // Each tet's bins (first and last on each axis), then a counting sort by bin.
+        let mut bins = Bins { lo, scale, n, offsets: Vec::new(), tets: Vec::new(), start: Vec::new() };
+        // Each tet's bins (first and last on each axis), its centroid's bin and the centroid's
+        // squared distance to that bin's centre, then a counting sort by bin.
         let spans: Vec<([usize; 3], [usize; 3])> = mesh
             .tets
             .par_iter()
@@ -48,6 +55,29 @@ impl Bins {
             })
             .collect();
         let n_bins = n[0] * n[1] * n[2];
+        let centred: Vec<(u32, f32)> = (0..mesh.tets.len())
+            .into_par_iter()
+            .map(|t| {
+                let c = mesh.tet_center(t);
+                let (b, at) = bins.bin_of(c);
+                let d2 = (0..3)
+                    .map(|k| {
+                        let centre = if scale[k] > 0.0 { lo[k] + (at[k] as f32 + 0.5) / scale[k] } else { lo[k] };
+                        (c[k] - centre) * (c[k] - centre)
+                    })
+                    .sum::<f32>();
+                (b as u32, d2)
+            })
+            .collect();
+        let mut start = vec![NONE; n_bins];
+        let mut nearest = vec![f32::INFINITY; n_bins];
+        for (t, &(b, d2)) in centred.iter().enumerate() {
+            // Strictly nearer: among equals the lowest id, so the choice is deterministic.
+            if d2 < nearest[b as usize] {
+                (nearest[b as usize], start[b as usize]) = (d2, t as u32);
+            }
+        }
+        drop((centred, nearest));
         let mut offsets = vec![0u32; n_bins + 1];
         let each = |(a, b): &([usize; 3], [usize; 3]), f: &mut dyn FnMut(usize)| {
             for z in a[2]..=b[2] {
@@ -72,8 +102,14 @@ impl Bins {
                 next[i] += 1;
             });
         }
+        for (b, s) in start.iter_mut().enumerate() {
+            if *s == NONE && offsets[b] < offsets[b + 1] {
+                *s = tets[offsets[b] as usize];
+            }
+        }
         bins.offsets = offsets;
         bins.tets = tets;
+        bins.start = start;
         bins
     }
 
@@ -89,6 +125,13 @@ impl Bins {
     pub(super) fn bin_of(&self, p: Vec3) -> (usize, [usize; 3]) {
         let c @ [x, y, z] = self.coords(p);
         ((z * self.n[1] + y) * self.n[0] + x, c)
+    }
+
+    /// Where bin `b`'s walks start; `None` when no tet's box meets the bin.
+    #[inline]
+    pub(super) fn start(&self, b: usize) -> Option<u32> {
+        let s = self.start[b];
+        (s != NONE).then_some(s)
     }
 
     /// The tets whose boxes meet bin `b`, ascending.

@@ -1,15 +1,17 @@
 //! The CPU locator, parallel over points with rayon.
 //!
-//! Each batch is visited in Morton order of its points, so consecutive queries are close in
-//! space; each query first *walks* through face neighbours, from the previous answer when
-//! the previous point was in the same or a touching bin ([`Bins`]: uniform bins over the
-//! tets' boxes),
-//! else from its bin's first tet, so that sparse batches walk a tet or two as dense ones
-//! do. Where the walk leaves the mesh, runs long, or ends exactly on a face, the bin's tets
-//! are tested: one holding the point strictly is the answer, none means outside, and the
-//! rest (ties) go to BVH traversal, built only then. Answers do not depend on the order: a
-//! point strictly inside a tet has exactly one containing tet, which the walk, the bin and
-//! the BVH agree on, and a point on a face always gets the BVH's answer.
+//! Large batches are visited in Morton order of their points, so consecutive queries are
+//! close in space; small ones (where no two points are close) in their own order, in a task
+//! or two a thread, or on the calling thread, with no per-batch buffer. Each query first
+//! *walks* through face neighbours, from the previous answer when the previous point was in
+//! the same or a touching bin ([`Bins`]: uniform bins over the tets' boxes), else from its
+//! bin's start tet (the one whose centroid is nearest the bin's centre), so that sparse
+//! batches walk a tet or two as dense ones do. Where the walk leaves the mesh, runs long, or
+//! ends exactly on a face, the bin's tets are tested: one holding the point strictly is the
+//! answer, none means outside, and the rest (ties) go to BVH traversal, built only then.
+//! Answers do not depend on the order: a point strictly inside a tet has exactly one
+//! containing tet, which the walk, the bin and the BVH agree on, and a point on a face
+//! always gets the BVH's answer.
 
 use super::bins::Bins;
 use super::grid_raster::{self, Cell, GridRaster};
@@ -26,6 +28,11 @@ use std::sync::{Arc, OnceLock};
 
 /// Points handed to one rayon task: large enough to amortise scheduling, small enough to balance.
 const CHUNK: usize = 4096;
+/// Batches from this size on are visited in Morton order (smaller ones in their own).
+const SORTED: usize = 8192;
+/// The fewest points a task of a small batch gets (fewer stay on the calling thread): rayon's
+/// hand-over costs about as much as walking them.
+const MIN_TASK: usize = 128;
 /// Walk steps before giving up and traversing the BVH.
 const MAX_WALK: usize = 24;
 /// The batches' bins, in mean edge lengths a side.
@@ -209,10 +216,11 @@ impl CpuLocator {
     }
 
     /// Locates every point, walking from the previous answer, and writes `f(answer)` to
-    /// `out`. Incoherent batches are visited in Morton order so that consecutive points are
-    /// close; batches that already are (tet centres in mesh order, points along rays or
-    /// particle paths) keep their order and skip the sort. Points of any precision, `query`
-    /// giving their two forms.
+    /// `out`. Incoherent batches of [`SORTED`] points or more are visited in Morton order so
+    /// that consecutive points are close; batches that already are (tet centres in mesh
+    /// order, points along rays or particle paths) keep their order and skip the sort, and so
+    /// do smaller ones, whose points are too far apart for the order to pay. Points of any
+    /// precision, `query` giving their two forms.
     fn locate_batch_of<P: Sync, T: Send + Copy>(
         &self,
         points: &[P],
@@ -221,6 +229,65 @@ impl CpuLocator {
         f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
     ) {
         let bins = self.bins();
+        let ties = if points.len() < SORTED {
+            self.locate_in_order(bins, points, &query, out, &f)
+        } else {
+            self.locate_sorted(bins, points, &query, out, &f)
+        };
+        if !ties.is_empty() {
+            // Built here, not inside the parallel loop (where a rayon task could be run by
+            // the thread that is building it).
+            self.index();
+            let found: Vec<T> = ties.par_iter().map(|&i| f(self.find(&query(&points[i])))).collect();
+            for (&i, v) in ties.iter().zip(found) {
+                out[i] = v;
+            }
+        }
+    }
+
+    /// Small batches, in their order: chunks of at least [`MIN_TASK`] points, one a thread
+    /// or two (a batch of fewer stays on the calling thread), each written straight to
+    /// `out`, with no sort and no buffer. The ties' indices are returned.
+    fn locate_in_order<P: Sync, T: Send + Copy>(
+        &self,
+        bins: &Bins,
+        points: &[P],
+        query: &(impl Fn(&P) -> Query + Sync),
+        out: &mut [T],
+        f: &(impl Fn(Option<(u32, Bary)>) -> T + Sync),
+    ) -> Vec<usize> {
+        let chunk = points.len().div_ceil(2 * rayon::current_num_threads()).max(MIN_TASK);
+        let each = |c: usize, (o, p): (&mut [T], &[P])| {
+            let mut hint = None;
+            let mut ties = Vec::new();
+            for (k, (o, p)) in o.iter_mut().zip(p).enumerate() {
+                *o = match self.search(bins, &query(p), &mut hint) {
+                    Answer::Found(t, b) => f(Some((t, b))),
+                    Answer::Outside => f(None),
+                    Answer::Tie => {
+                        ties.push(c * chunk + k);
+                        f(None)
+                    }
+                };
+            }
+            ties
+        };
+        if points.len() <= chunk {
+            return each(0, (out, points));
+        }
+        out.par_chunks_mut(chunk).zip(points.par_chunks(chunk)).enumerate().flat_map_iter(|(c, o)| each(c, o)).collect()
+    }
+
+    /// Large batches: in Morton order unless they are coherent already, [`CHUNK`] points a
+    /// task. The ties' indices are returned.
+    fn locate_sorted<P: Sync, T: Send + Copy>(
+        &self,
+        bins: &Bins,
+        points: &[P],
+        query: &(impl Fn(&P) -> Query + Sync),
+        out: &mut [T],
+        f: &(impl Fn(Option<(u32, Bary)>) -> T + Sync),
+    ) -> Vec<usize> {
         let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<Answer> {
             // The previous answer and its bin's coordinates.
             let mut hint: Option<(u32, [usize; 3])> = None;
@@ -242,22 +309,18 @@ impl CpuLocator {
                 answers[i as usize] = sorted[k];
             }
         }
-        if answers.par_iter().any(|a| matches!(a, Answer::Tie)) {
-            // Built here, not inside the parallel loop (where a rayon task could be run by
-            // the thread that is building it).
-            self.index();
-        }
-        out.par_iter_mut().zip(&answers).zip(points).for_each(|((o, a), p)| {
-            *o = f(match *a {
-                Answer::Found(t, b) => Some((t, b)),
-                Answer::Outside => None,
-                Answer::Tie => self.find(&query(p)),
-            })
+        out.par_iter_mut().zip(&answers).for_each(|(o, a)| {
+            if let Answer::Found(t, b) = *a {
+                *o = f(Some((t, b)));
+            } else {
+                *o = f(None);
+            }
         });
+        answers.par_iter().enumerate().filter(|(_, a)| matches!(a, Answer::Tie)).map(|(i, _)| i).collect()
     }
 
     /// One batch point: a walk from the previous answer (`hint`, when it was in the same or
-    /// a touching bin) or from the bin's first tet, then the bin's tets (see the module
+    /// a touching bin) or from the bin's start tet, then the bin's tets (see the module
     /// documentation).
     #[inline]
     fn search(&self, bins: &Bins, q: &Query, hint: &mut Option<(u32, [usize; 3])>) -> Answer {
@@ -267,8 +330,7 @@ impl CpuLocator {
             return Answer::Outside;
         }
         let (b, at) = bins.bin_of(q.local);
-        let tets = bins.tets(b);
-        let Some(&first) = tets.first() else { return Answer::Outside };
+        let Some(first) = bins.start(b) else { return Answer::Outside };
         let start = match *hint {
             Some((t, near)) if (0..3).all(|k| near[k].abs_diff(at[k]) <= 1) => t,
             _ => first,
@@ -277,7 +339,7 @@ impl CpuLocator {
             Some(found) => found,
             None => {
                 let mut found = None;
-                for &t in tets {
+                for &t in bins.tets(b) {
                     if let TetTest::Inside(w) = self.test(t, q) {
                         if w.contains(&0.0) || found.is_some() {
                             return Answer::Tie;
@@ -621,6 +683,68 @@ mod tests {
             }
         }
         assert!(!loc.index_built(), "random points built a BVH");
+    }
+
+    /// Small batches (in their own order, on the calling thread or in a few tasks) give the
+    /// same ids as one large batch (Morton order, [`CHUNK`] a task) and as the BVH: points on
+    /// the vertices, edges and faces of a Kuhn-aligned grid (ties), outside points, points
+    /// with NaN, random points of a jittered mesh and of the fusion torus (sparse: each walk
+    /// from its bin's start tet).
+    #[test]
+    fn small_batches_give_the_large_batch_ids() {
+        let kuhn = Arc::new(crate::test_support::KuhnGrid::new(4).mesh("cube"));
+        let jittered = Arc::new(crate::test_support::grid_mesh(5, 0.25, 7));
+        let fusion = Arc::new(Mesh::new(generate(Shape::Fusion, 20_000, 3), "fusion").unwrap());
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(17);
+        for m in [kuhn, jittered, fusion] {
+            let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
+            let at = |f: Vec3| -> Vec3 { std::array::from_fn(|k| lo[k] + f[k] * (hi[k] - lo[k])) };
+            // 1/8 steps from -1/8 to 9/8 of the box: on the Kuhn grid, every vertex, edge
+            // midpoint and face centre, and points outside.
+            let mut points: Vec<Vec3> = Vec::new();
+            for z in -1..=9 {
+                for y in -1..=9 {
+                    points.extend((-1..=9).map(|x| at([x as f32 / 8.0, y as f32 / 8.0, z as f32 / 8.0])));
+                }
+            }
+            points.extend((0..8000).map(|_| -> Vec3 { std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k])) }));
+            points.push([f32::NAN, 0.0, 0.0]);
+            // Shuffled: no order for the large batch's sort or the small ones' hints to lean on.
+            for i in (1..points.len()).rev() {
+                points.swap(i, rng.gen_range(0..=i));
+            }
+            assert!(points.len() >= SORTED, "the whole batch takes the Morton path");
+            let large = {
+                let mut loc = CpuLocator::deferred(m.clone(), BuildPreset::Fast);
+                let mut ids = vec![0i32; points.len()];
+                loc.locate(&points, &mut ids).unwrap();
+                ids
+            };
+            let reference = CpuLocator::new(m.clone());
+            let want: Vec<i32> =
+                points.iter().map(|&p| reference.locate_point(p).map_or(OUTSIDE, |(t, _)| t as i32)).collect();
+            assert_eq!(large, want);
+            let ties = points
+                .iter()
+                .filter(|&&p| {
+                    let q = reference.query_at(p);
+                    let (b, _) = reference.bins().bin_of(q.local);
+                    let inside = |&t: &u32| matches!(reference.test(t, &q), TetTest::Inside(_));
+                    p[0].is_finite() && reference.bins().tets(b).iter().filter(|t| inside(t)).count() > 1
+                })
+                .count();
+            assert!(ties > 0 || m.info.source != "cube", "no point on a shared face");
+            assert!(want.iter().any(|&i| i < 0) && want.iter().filter(|&&i| i >= 0).count() > points.len() / 4);
+            // One point a call, a few, one task, a task or more a thread.
+            for size in [1, 7, MIN_TASK, 3 * MIN_TASK + 5, SORTED - 1] {
+                let mut loc = CpuLocator::deferred(m.clone(), BuildPreset::Fast);
+                let mut ids = vec![0i32; points.len()];
+                for (p, o) in points.chunks(size).zip(ids.chunks_mut(size)) {
+                    loc.locate(p, o).unwrap();
+                }
+                assert_eq!(ids, large, "batches of {size}");
+            }
+        }
     }
 
     /// The occupancy grid never refuses a point of a tet (vertices, centroids, points on
