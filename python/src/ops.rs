@@ -254,7 +254,6 @@ pub fn trace_lines<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = mesh.mesh.clone();
     let seeds = points_of(&seeds)?;
-    let vector = trace::vector_field(&m, vector).map_err(to_py)?;
     if unsteady {
         let o = trace::PathOptions {
             integrator: integrator.parse::<Integrator>().map_err(to_py)?,
@@ -274,6 +273,7 @@ pub fn trace_lines<'py>(
             )));
         };
         let legs = o.legs(&steps.source, &steps.times).map_err(to_py)?.len();
+        let vector = trace::vector_field(&m, vector).map_err(to_py)?;
         if m.cells.is_some() {
             return Err(PyValueError::new_err(format!(
                 "{}: unsteady=True traces through tetrahedral meshes; this one has other cell types",
@@ -301,6 +301,7 @@ pub fn trace_lines<'py>(
         };
         return line_dict(py, arrays);
     }
+    let vector = trace::vector_field(&m, vector).map_err(to_py)?;
     let o = TraceOptions {
         step: step.unwrap_or(0.1 * m.info.mean_edge_length as f64),
         max_steps,
