@@ -315,7 +315,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     let (backend, builder) = opts.builder(&m, &a.backend)?;
     let name = backend.name();
     let pb = progress::bar(legs.len() as u64, format!("pathlines on {name}"));
-    let tick = |n: usize| {
+    let tick = |n: usize| -> tetloc_core::Result<()> {
         pb.set_position(n as u64);
         Ok(())
     };
