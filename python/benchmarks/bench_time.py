@@ -12,6 +12,15 @@ for the whole job and the ratios.
   python python/benchmarks/bench_time.py --fusion 1.4M --points 1M --steps 1000 [--json FILE]
   python python/benchmarks/bench_time.py --mesh FILE.vtu ...
 
+``--pathlines``: pathlines instead (``tetloc.trace(..., unsteady=True)``, RK4, half an
+interval a step) of ``--particles`` particles over ``--path-steps`` steps of the generated
+fusion mesh's flow ``v`` scaled in time by 1 + 0.5 sin(2 pi t / T), written once as a ``.pvd``
+of ``.vtu`` files (tetloc reads each step from its file, inside the timing), against
+vtkParticlePathFilter on the same steps held in memory (static mesh), run on
+``--vtk-particles`` of the particles and scaled to all of them (the work is per particle).
+
+  python python/benchmarks/bench_time.py --pathlines --fusion 200k --particles 100k --path-steps 100
+
 ``--fusion`` needs the ``tetloc`` CLI (``TETLOC_CLI`` or target/release/tetloc) to generate
 the mesh; measure with a release wheel.
 """
@@ -43,6 +52,122 @@ def mesh_file(args) -> pathlib.Path:
     return path
 
 
+def count(s: str) -> int:
+    s = s.lower()
+    mult = {"k": 1_000, "m": 1_000_000}.get(s[-1:], 1)
+    return int(float(s.rstrip("km")) * mult)
+
+
+def pathlines(args) -> None:
+    cli = os.environ.get("TETLOC_CLI") or str(REPO / "target/release/tetloc")
+    tmp = pathlib.Path(tempfile.gettempdir()) / f"bench_paths_{args.fusion}_{args.path_steps}"
+    tmp.mkdir(exist_ok=True)
+    vtu = tmp / "fusion.vtu"
+    if not vtu.exists():
+        subprocess.run([cli, "gen", "fusion", "--tets", args.fusion, "--vector", "-o", str(vtu)], check=True)
+    mesh = tetloc.read(vtu)
+    v = np.asarray(mesh.point_data["v"], dtype=np.float64)
+    lo, hi = np.reshape(mesh.bounds, (3, 2)).T
+    speed = float(np.median(np.linalg.norm(v, axis=1)))
+    # A tenth of the mesh's extent at the median speed: most particles stay inside.
+    total = 0.1 * float(np.linalg.norm(hi - lo)) / speed
+    times = np.linspace(0.0, total, args.path_steps + 1)
+    scale = 1 + 0.5 * np.sin(2 * np.pi * times / total)
+    pvd = tmp / "series.pvd"
+    grid = mesh.to_pyvista()
+    if not pvd.exists():
+        entries = []
+        for k, t in enumerate(times):
+            grid.point_data["v"] = (v * scale[k]).astype(np.float32)
+            grid.save(tmp / f"step_{k}.vtu")
+            entries.append(f'<DataSet timestep="{t!r}" part="0" file="step_{k}.vtu"/>')
+        pvd.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n<Collection>\n'
+                       + "\n".join(entries) + "\n</Collection>\n</VTKFile>\n")
+    n = count(args.particles)
+    rng = np.random.default_rng(2)
+    loc = tetloc.Locator(mesh, backend="cpu")
+    seeds = np.zeros((0, 3), np.float32)
+    while len(seeds) < n:
+        pts = rng.uniform(lo, hi, size=(4 * n, 3)).astype(np.float32)
+        seeds = np.concatenate([seeds, pts[loc.locate(pts) >= 0]])
+    seeds = seeds[:n]
+
+    series = tetloc.read(pvd)
+    t0 = time.perf_counter()
+    ours = tetloc.trace(series, "v", seeds, unsteady=True, backend=args.backend)
+    t_ours = time.perf_counter() - t0
+    n_points = len(ours["points"])
+    print(f"tetloc: {n} particles, {len(ours['offsets']) - 1} lines, {n_points} points in {t_ours:.2f} s "
+          f"(reading {len(times)} step files included)")
+
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+    from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
+
+    sddp = vtk.vtkStreamingDemandDrivenPipeline
+    base = grid.copy()
+    grids = []
+    for k in range(len(times)):
+        g = vtk.vtkUnstructuredGrid()
+        g.ShallowCopy(base)
+        a = numpy_to_vtk((v * scale[k]).astype(np.float32), deep=True)
+        a.SetName("v")
+        g.GetPointData().AddArray(a)
+        g.GetPointData().SetActiveVectors("v")
+        grids.append(g)
+
+    class Steps(VTKPythonAlgorithmBase):
+        def __init__(self) -> None:
+            VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1, outputType="vtkUnstructuredGrid")
+
+        def RequestInformation(self, request, in_info, out_info):  # type: ignore[no-untyped-def]
+            info = out_info.GetInformationObject(0)
+            info.Set(sddp.TIME_STEPS(), list(times), len(times))
+            info.Set(sddp.TIME_RANGE(), [times[0], times[-1]], 2)
+            return 1
+
+        def RequestData(self, request, in_info, out_info):  # type: ignore[no-untyped-def]
+            info = out_info.GetInformationObject(0)
+            t = info.Get(sddp.UPDATE_TIME_STEP()) if info.Has(sddp.UPDATE_TIME_STEP()) else times[0]
+            k = int(np.argmin(np.abs(times - t)))
+            out = vtk.vtkUnstructuredGrid.GetData(out_info)
+            out.ShallowCopy(grids[k])
+            out.GetInformation().Set(vtk.vtkDataObject.DATA_TIME_STEP(), times[k])
+            return 1
+
+    m = min(count(args.vtk_particles), n)
+    poly = vtk.vtkPolyData()
+    pts = vtk.vtkPoints()
+    pts.SetData(numpy_to_vtk(seeds[:m].astype(np.float64), deep=True))
+    poly.SetPoints(pts)
+    src = Steps()
+    f = vtk.vtkParticlePathFilter()
+    f.SetInputConnection(0, src.GetOutputPort())
+    f.SetInputData(1, poly)
+    f.SetIntegratorType(1)
+    f.SetMeshOverTimeToStatic()
+    f.SetForceReinjectionEveryNSteps(0)
+    f.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")
+    t0 = time.perf_counter()
+    f.UpdateTimeStep(float(times[-1]))
+    t_vtk = (time.perf_counter() - t0) * n / m
+    out = f.GetOutput()
+    # The last points of the particles both keep to the end: the same positions.
+    pd = out.GetPointData()
+    ids = vtk_to_numpy(pd.GetArray("InjectedPointId"))
+    age = vtk_to_numpy(pd.GetArray("ParticleAge"))
+    vp = vtk_to_numpy(out.GetPoints().GetData())
+    end_vtk = {int(i): p for i, a, p in zip(ids, age, vp) if abs(a - times[-1]) < 1e-3 * times[-1]}
+    offs, seed_ids = ours["offsets"], ours["SeedIds"]
+    diffs = [np.abs(ours["points"][offs[j + 1] - 1] - end_vtk[int(s)]).max()
+             for j, s in enumerate(seed_ids) if int(s) in end_vtk and ours["ReasonForTermination"][j] == 7]
+    print(f"VTK vtkParticlePathFilter: {m} particles in {t_vtk * m / n:.2f} s, scaled to {n}: {t_vtk:.1f} s")
+    if diffs:
+        print(f"  end points of {len(diffs)} particles both carried to the end: max |diff| {max(diffs):.2e}")
+    print(f"{vtu.name}: {mesh.n_cells} cells, {len(times) - 1} steps, {n} particles: "
+          f"tetloc {t_ours:.2f} s, VTK {t_vtk:.1f} s (scaled from {m}), tetloc is {t_vtk / t_ours:.1f}x faster")
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--mesh")
@@ -52,7 +177,13 @@ def main() -> None:
     ap.add_argument("--sample-steps", type=int, default=3, help="steps the slow peers run (scaled up)")
     ap.add_argument("--backend", default="auto")
     ap.add_argument("--json")
+    ap.add_argument("--pathlines", action="store_true", help="the pathline benchmark instead")
+    ap.add_argument("--particles", default="100k")
+    ap.add_argument("--path-steps", type=int, default=100)
+    ap.add_argument("--vtk-particles", default="5k", help="particles VTK runs (scaled up)")
     args = ap.parse_args()
+    if args.pathlines:
+        return pathlines(args)
 
     path = mesh_file(args)
     mesh = tetloc.read(path)

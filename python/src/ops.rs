@@ -224,10 +224,12 @@ fn points_of<'a, T: numpy::Element + bytemuck::Pod>(points: &'a PyReadonlyArray2
 /// each particle walking from its last tet when `locator` is `None`, else step-synchronous
 /// through the locator's backend. Returns a dict: `points` (P, 3) float32, `offsets` (L + 1)
 /// int64, `IntegrationTime` (P) float64, `ReasonForTermination` and `SeedIds` (L) int32,
-/// and `fields`: (name, k, values) of the fields sampled at the points.
+/// and `fields`: (name, k, values) of the fields sampled at the points. With `unsteady`,
+/// pathlines through the mesh's time steps from `start_time` to `end_time` (`step` a time;
+/// `IntegrationTime` the simulation time, `SeedIds` the particle ids).
 #[pyfunction(name = "trace")]
 #[pyo3(signature = (mesh, locator, vector, seeds, step, max_steps, max_length, max_time, direction, integrator,
-    max_error, min_step, max_step, terminal_speed, progress=None))]
+    max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None))]
 #[allow(clippy::too_many_arguments)]
 pub fn trace_lines<'py>(
     py: Python<'py>,
@@ -246,9 +248,59 @@ pub fn trace_lines<'py>(
     max_step: Option<f64>,
     terminal_speed: f64,
     progress: Option<Bound<'py, PyAny>>,
+    unsteady: bool,
+    start_time: Option<f64>,
+    end_time: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = mesh.mesh.clone();
     let seeds = points_of(&seeds)?;
+    if unsteady {
+        let o = trace::PathOptions {
+            integrator: integrator.parse::<Integrator>().map_err(to_py)?,
+            step,
+            max_error,
+            min_step,
+            max_step,
+            terminal_speed,
+            start_time,
+            end_time,
+        };
+        o.check().map_err(to_py)?;
+        let Some(steps) = mesh.steps.clone() else {
+            return Err(PyValueError::new_err(format!(
+                "{}: unsteady=True needs a time series (an Exodus file with time steps, or a .pvd); this mesh is a single snapshot",
+                m.info.source
+            )));
+        };
+        let legs = o.legs(&steps.source, &steps.times).map_err(to_py)?.len();
+        let vector = trace::vector_field(&m, vector).map_err(to_py)?;
+        if m.cells.is_some() {
+            return Err(PyValueError::new_err(format!(
+                "{}: unsteady=True traces through tetrahedral meshes; this one has other cell types",
+                m.info.source
+            )));
+        }
+        let c = vector.component_refs();
+        let xyz = [c[0], c[1], c[2]];
+        let out_fields = trace::line_fields(&m, &vector);
+        let arrays = match locator {
+            None => {
+                let bare = py.detach(|| Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build_bare());
+                let BareLocator::Cpu(cpu) = bare.map_err(crate::backend::py_error)?.locator else {
+                    return Err(PyRuntimeError::new_err("cpu: not the CPU's locator"));
+                };
+                run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
+                    trace::pathlines(seeds, &o, &cpu, &steps, xyz, &out_fields, |d| ticker.tick(d))
+                })?
+            }
+            Some(locator) => with_backend(py, locator, |loc| {
+                run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
+                    trace::pathlines_batch(seeds, &o, &mut *loc, &m, &steps, xyz, &out_fields, |d| ticker.tick(d))
+                })
+            })?,
+        };
+        return line_dict(py, arrays);
+    }
     let vector = trace::vector_field(&m, vector).map_err(to_py)?;
     let o = TraceOptions {
         step: step.unwrap_or(0.1 * m.info.mean_edge_length as f64),
@@ -286,9 +338,14 @@ pub fn trace_lines<'py>(
             py.detach(|| LineArrays::sample(&lines, &m, &mut *loc, &out_fields)).map_err(to_py)
         })?,
     };
+    line_dict(py, arrays)
+}
+
+/// The dict `trace` returns for `arrays`.
+fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> {
     let out = PyDict::new(py);
     let flat = PyArray1::from_slice(py, bytemuck::cast_slice::<Vec3, f32>(&arrays.points));
-    let points: Bound<'py, PyArray2<f32>> = flat.reshape([arrays.points.len(), 3])?;
+    let points: Bound<'_, PyArray2<f32>> = flat.reshape([arrays.points.len(), 3])?;
     out.set_item("points", points)?;
     let offsets: Vec<i64> = std::iter::once(0).chain(arrays.ends.iter().map(|&e| e as i64)).collect();
     out.set_item("offsets", PyArray1::from_vec(py, offsets))?;

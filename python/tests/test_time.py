@@ -138,3 +138,61 @@ def test_cli_time_steps(cli, time_dir, oracle, tmp_path):
     assert r.returncode != 0 and "out of range" in r.stderr, r.stderr
     r = run("locate", time_dir.parent / "part_s.vtu", "--points", pts, "--out", tmp_path / "x.npy", "--time-step", "0")
     assert r.returncode != 0 and "no time steps" in r.stderr, r.stderr
+
+
+def spin_series(tmp_path: pathlib.Path, times) -> pathlib.Path:
+    """A .pvd over a unit cube of tets whose `v` rotates about x = y = 0.5 at the angular
+    speed w(t) = 1 + t: linear in space and time, so interpolation is exact and a particle
+    turns by (t - t0) + (t^2 - t0^2) / 2."""
+    import pyvista as pv
+
+    points, cells = kuhn_grid(6, 1.0 / 6)
+    grid = pv.UnstructuredGrid({pv.CellType.TETRA: cells}, points)
+    entries = []
+    for k, t in enumerate(times):
+        w = 1.0 + t
+        grid.point_data["v"] = np.stack([-w * (points[:, 1] - 0.5), w * (points[:, 0] - 0.5), 0 * points[:, 0]], 1)
+        grid.save(tmp_path / f"s_{k}.vtu")
+        entries.append(f'<DataSet timestep="{t!r}" part="0" file="s_{k}.vtu"/>')
+    pvd = tmp_path / "spin.pvd"
+    pvd.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n<Collection>\n'
+                   + "\n".join(entries) + "\n</Collection>\n</VTKFile>\n")
+    return pvd
+
+
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
+def test_pathlines_follow_the_closed_form(tmp_path, backend):
+    """RK4 in time with step h: one step's phase error is r (w h)^5 / 120 for a rotation; 20
+    steps of h = 0.1 with w <= 3 and r <= 0.3 stay below 20 * 0.3 * 0.3^5 / 120 = 1.2e-4, and
+    a factor 10 covers the terms from w' (and float32 lookups)."""
+    pvd = spin_series(tmp_path, [0.0, 0.5, 1.0, 1.5, 2.0])
+    mesh = tetloc.read(pvd)
+    assert mesh.times == [0.0, 0.5, 1.0, 1.5, 2.0]
+    seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7]], np.float32)
+    out = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, backend=backend)
+    assert list(out["offsets"]) == [0, 5, 10]
+    assert list(out["ReasonForTermination"]) == [7, 7]
+    assert list(out["SeedIds"]) == [0, 1]
+    t = out["IntegrationTime"]
+    np.testing.assert_allclose(t[:5], [0.0, 0.5, 1.0, 1.5, 2.0])
+    theta = t + 0.5 * t * t
+    s = np.repeat(seeds.astype(np.float64), 5, axis=0) - [0.5, 0.5, 0.0]
+    want = np.stack([0.5 + np.cos(theta) * s[:, 0] - np.sin(theta) * s[:, 1],
+                     0.5 + np.sin(theta) * s[:, 0] + np.cos(theta) * s[:, 1], s[:, 2]], 1)
+    assert np.abs(out["points"] - want).max() < 1.2e-3
+    # The vector is recorded at the points, interpolated in time: w(t) r at radius r.
+    speed = np.linalg.norm(out["v"], axis=1)
+    np.testing.assert_allclose(speed, (1 + t) * np.linalg.norm(s[:, :2], axis=1), rtol=1e-3)
+    # Between steps: injected at 0.25, stopped at 1.75.
+    part = tetloc.trace(mesh, "v", seeds, unsteady=True, start_time=0.25, end_time=1.75, backend=backend)
+    np.testing.assert_allclose(part["IntegrationTime"][:5], [0.25, 0.5, 1.0, 1.5, 1.75])
+
+
+def test_pathline_bad_inputs(tmp_path, data_dir):
+    with pytest.raises(ValueError, match=r"delaunay_s.vtu.*single snapshot"):
+        tetloc.trace(tetloc.read(data_dir / "delaunay_s.vtu"), "v", np.zeros((1, 3), np.float32), unsteady=True)
+    mesh = tetloc.read(spin_series(tmp_path, [0.0, 1.0]))
+    with pytest.raises(ValueError, match=r"the start time -1.0? is outside the time steps of .*spin.pvd \(0 to 1\)"):
+        tetloc.trace(mesh, "v", np.full((1, 3), 0.5, np.float32), unsteady=True, start_time=-1.0)
+    with pytest.raises(ValueError, match=r"end time 2.0? is outside"):
+        tetloc.trace(mesh, "v", np.full((1, 3), 0.5, np.float32), unsteady=True, end_time=2.0)

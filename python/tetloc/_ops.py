@@ -204,6 +204,9 @@ def trace(
     device: Optional[int] = None,
     as_pyvista: Optional[bool] = None,
     progress: Any = False,
+    unsteady: bool = False,
+    start_time: Optional[float] = None,
+    end_time: Optional[float] = None,
 ) -> Any:
     """Streamlines of the 3-component field `vector` from `seeds` (vtkStreamTracer with steps
     in length units): `integrator` ``"rk4"`` (fixed `step`), ``"rk45"`` (adaptive,
@@ -229,6 +232,19 @@ def trace(
     ``tetloc.REASONS``), and the mesh's point fields at the points under their names. With
     ``as_pyvista=True`` (the default for a pyvista mesh) a ``pyvista.PolyData`` of lines with
     those point and cell arrays, as ParaView's Stream Tracer outputs.
+
+    ``unsteady=True``: pathlines, as ParaView's Particle Path filter (vtkParticlePathFilter),
+    through the time steps of `mesh` (read from an Exodus file with steps or a ``.pvd``):
+    particles injected at `seeds` at `start_time` (the first step's by default) move through
+    the velocity interpolated linearly in time between the two steps around each moment, time
+    being the integration variable, until `end_time` (the last step's by default) or until they
+    leave the mesh. `step` is then a time (by default half of each interval between output
+    times, as VTK), as are `min_step` and `max_step`; `direction`, `max_steps`, `max_length`
+    and `max_time` do not apply. Each line has one point per output time (the start time, each
+    step's time between, the end time); ``IntegrationTime`` is the simulation time there,
+    ``SeedIds`` the particle's index in `seeds`, ``ReasonForTermination`` 1 (left the mesh),
+    6 (stagnated) or 7 (reached `end_time`), and the point fields are interpolated in time too.
+    Only two steps' fields are held in memory at a time.
     """
     if not isinstance(vector, str):
         raise TypeError(f"vector: expected a field name, got {type(vector).__name__}")
@@ -244,10 +260,11 @@ def trace(
     out = _tetloc.trace(
         m._raw, raw_loc, vector, pts, step, int(max_steps), max_length, max_time, direction, integrator,
         float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
+        bool(unsteady), start_time, end_time,
     )
     fields = out.pop("fields")
     # As the CLI: seeds that give no line are counted (VTK makes none for them either).
-    n_lines = len(pts) * (2 if direction == "both" else 1)
+    n_lines = len(pts) * (2 if direction == "both" and not unsteady else 1)
     without = n_lines - (len(out["offsets"]) - 1)
     if without > 0:
         warnings.warn(

@@ -143,6 +143,9 @@ def trace(
     max_step: Optional[float],
     terminal_speed: float,
     progress: Optional[_Progress] = None,
+    unsteady: bool = False,
+    start_time: Optional[float] = None,
+    end_time: Optional[float] = None,
 ) -> Dict[str, Any]: ...
 def resolve(name: str, device: Optional[int] = None) -> str: ...
 def devices() -> List[Dict[str, Any]]: ...

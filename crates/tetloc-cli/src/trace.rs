@@ -6,13 +6,16 @@
 //! advance together, one batched lookup per Runge–Kutta stage. The fields at the line points
 //! are sampled on the same backend. Lines are traced and written in batches of seeds, so
 //! memory stays bounded whatever the number of seeds.
+//!
+//! `--unsteady`: pathlines (ParaView's Particle Path filter) through a time series, one point
+//! per particle at the start time, each step time and the end time ([`run_unsteady`]).
 
 use crate::{mesh_arg, progress, Common};
 use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::ops::trace::{self, Direction, Integrator, TraceOptions};
+use tetloc_core::ops::trace::{self, Direction, Integrator, PathOptions, TraceOptions};
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
 use tetloc_io::points;
@@ -32,10 +35,13 @@ pub struct TraceArgs {
     #[arg(long)]
     seeds: String,
     /// The streamlines: VTK polydata (.vtp) with the point fields, IntegrationTime,
-    /// ReasonForTermination and SeedIds, as vtkStreamTracer writes them.
+    /// ReasonForTermination and SeedIds, as vtkStreamTracer writes them. With --unsteady,
+    /// IntegrationTime is the simulation time at each point and SeedIds the particle ids.
     #[arg(short, long)]
     out: PathBuf,
     /// Step length (mesh units; by default a tenth of the mean edge); with rk45 the first step.
+    /// With --unsteady a time (by default half of each interval between output times, as
+    /// vtkParticlePathFilter); the step bounds are times too.
     #[arg(long)]
     step: Option<f64>,
     /// rk4 (fixed step, vtkRungeKutta4), rk45 (adaptive, Dormand-Prince 5(4)) or cash-karp
@@ -76,6 +82,18 @@ pub struct TraceArgs {
     /// every particle advanced together, one batch per stage), or auto.
     #[arg(long, default_value = "auto")]
     backend: String,
+    /// Pathlines (vtkParticlePathFilter): MESH is a time series (an Exodus file with steps, a
+    /// .pvd); the particles, injected at the seeds at --start-time, move through the vector
+    /// interpolated linearly in time between the steps, time being the integration variable,
+    /// until --end-time or until they leave the mesh. Two steps are held in memory at a time.
+    #[arg(long)]
+    unsteady: bool,
+    /// --unsteady: the time the particles are injected at (by default the first step's).
+    #[arg(long, requires = "unsteady")]
+    start_time: Option<f64>,
+    /// --unsteady: the time the particles stop at (by default the last step's).
+    #[arg(long, requires = "unsteady")]
+    end_time: Option<f64>,
     /// Line points a batch holds (its memory; at least one line a batch). For tests that
     /// need several batches of a small run; hidden from the help.
     #[arg(long, default_value_t = trace::BATCH_POINTS, hide = true)]
@@ -90,6 +108,9 @@ const LINE_POINT_BYTES: u128 = 128;
 
 pub fn run(a: &TraceArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
+    if a.unsteady {
+        return run_unsteady(a);
+    }
     let direction: Direction = a.direction.parse()?;
     output::check_output(&a.out, &["vtp"]).context("--out: streamlines are written as VTK polydata")?;
     let spec = trace::seeds_from_spec(&a.seeds);
@@ -212,6 +233,121 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         );
         eprintln!(
             "  then: line fields sampled {sampling:.3} s, batches spilled {spilling:.3} s, file written {writing:.3} s"
+        );
+    }
+    Ok(())
+}
+
+/// `--unsteady`: pathlines through the series MESH, on cpu (each particle walking from its
+/// last tet) or through the backend's batched lookups, written as one batch.
+fn run_unsteady(a: &TraceArgs) -> Result<()> {
+    output::check_output(&a.out, &["vtp"]).context("--out: pathlines are written as VTK polydata")?;
+    let path = Path::new(&a.mesh);
+    if a.direction.parse::<Direction>()? != Direction::Forward {
+        anyhow::bail!(
+            "--unsteady: pathlines go forward in time from --start-time; --direction {} is for streamlines",
+            a.direction
+        );
+    }
+    if a.common.time_step.is_some() {
+        anyhow::bail!("--unsteady runs through the steps from --start-time to --end-time; --time-step picks one step");
+    }
+    if mesh_arg::parse_generated(&a.mesh).is_some() {
+        anyhow::bail!(
+            "{}: --unsteady needs a time series (an Exodus file with time steps, or a .pvd); a generated mesh is a single snapshot",
+            path.display()
+        );
+    }
+    let spec = trace::seeds_from_spec(&a.seeds);
+    let mut inputs = vec![FileArg::new("MESH", path)];
+    if spec.is_none() {
+        inputs.push(FileArg::new("--seeds", Path::new(&a.seeds)));
+    }
+    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    let seeds = match spec {
+        Some(s) => s.context("--seeds")?,
+        None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
+    };
+    if seeds.len() > trace::MAX_SEEDS {
+        anyhow::bail!("--seeds: {} particles; at most {} (their ids are 32-bit)", seeds.len(), trace::MAX_SEEDS);
+    }
+    let o = PathOptions {
+        integrator: a.integrator.parse::<Integrator>().context("--integrator")?,
+        step: a.step,
+        max_error: a.max_error,
+        min_step: a.min_step,
+        max_step: a.max_step,
+        terminal_speed: a.terminal_speed,
+        start_time: a.start_time,
+        end_time: a.end_time,
+    };
+    o.check()?;
+    let format = a
+        .common
+        .format
+        .as_deref()
+        .map(|f| {
+            tetloc_io::MeshFormat::from_name(f)
+                .with_context(|| format!("unknown --format '{f}' (known: {})", tetloc_io::KNOWN_MESH_FORMATS))
+        })
+        .transpose()?;
+    let (raw, steps) =
+        progress::with_spinner(format!("reading {}", path.display()), || tetloc_io::read_series(path, format))?;
+    let Some(steps) = steps else {
+        anyhow::bail!(
+            "{}: --unsteady needs a time series (an Exodus file with time steps, or a .pvd); this file is a single snapshot",
+            path.display()
+        );
+    };
+    let legs = o.legs(&steps.source, &steps.times)?;
+    let m = std::sync::Arc::new(tetloc_core::Mesh::new(raw, path.display().to_string())?);
+    if m.cells.is_some() {
+        anyhow::bail!(
+            "{}: --unsteady traces through tetrahedral meshes; this one has other cell types",
+            path.display()
+        );
+    }
+    let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
+    let c = vector.component_refs();
+    let xyz = [c[0], c[1], c[2]];
+    let out_fields = trace::line_fields(&m, &vector);
+    let opts = a.common.opts()?;
+    let (backend, builder) = opts.builder(&m, &a.backend)?;
+    let name = backend.name();
+    let pb = progress::bar(legs.len() as u64, format!("pathlines on {name}"));
+    let tick = |n: usize| -> tetloc_core::Result<()> {
+        pb.set_position(n as u64);
+        Ok(())
+    };
+    let t0 = Instant::now();
+    let arrays = if backend == Backend::Cpu {
+        let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
+        let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
+        trace::pathlines(&seeds, &o, &cpu, &steps, xyz, &out_fields, tick)?
+    } else {
+        let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
+        trace::pathlines_batch(&seeds, &o, loc.as_mut(), &m, &steps, xyz, &out_fields, tick)?
+    };
+    pb.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+    let mut writer = PolylineWriter::new(&a.out)?;
+    ops_output::push_lines(&mut writer, &arrays, 0)?;
+    let (n_points, n_made) = (writer.n_points(), writer.n_lines());
+    progress::with_spinner(format!("writing {}", a.out.display()), || writer.finish(a.zlib))?;
+    if n_made < seeds.len() {
+        eprintln!(
+            "warning: {} of {} particles make no line (injected outside the mesh, or gone before the first output time)",
+            seeds.len() - n_made,
+            seeds.len()
+        );
+    }
+    if !a.common.quiet {
+        eprintln!(
+            "{}: {n_made} pathlines, {n_points} points over {} legs ({} to {}) on {name} in {secs:.3} s",
+            a.out.display(),
+            legs.len(),
+            legs[0].from,
+            legs[legs.len() - 1].to
         );
     }
     Ok(())

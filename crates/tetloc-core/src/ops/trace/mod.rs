@@ -27,7 +27,9 @@ use crate::ops::ImageGrid;
 use rayon::prelude::*;
 
 mod particle;
+mod pathline;
 pub use particle::Particle;
+pub use pathline::{pathlines, pathlines_batch, Leg, PathOptions, PathParticle};
 
 pub use crate::streamline::{Direction, Integrator, Line, Reason, TraceOptions, BATCH_POINTS};
 
@@ -273,7 +275,7 @@ impl LineArrays {
     }
 
     /// The arrays of `lines` (points as float32, line after line) with `fields`.
-    fn of(lines: &[Line], fields: super::probe::Probed) -> LineArrays {
+    pub(super) fn of(lines: &[Line], fields: super::probe::Probed) -> LineArrays {
         let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
         let ends = lens
             .iter()

@@ -18,11 +18,11 @@ use crate::geom::Vec3;
 /// the step ends at `x + h Σ_j b_j k_j`, and `h Σ_j e_j k_j` estimates its error (no `e`:
 /// a fixed step). `fsal`: the last stage samples at the step's end (Dormand–Prince), whose
 /// velocity then needs no lookup of its own.
-struct Tableau {
-    a: &'static [&'static [f64]],
-    b: &'static [f64],
-    e: &'static [f64],
-    fsal: bool,
+pub(super) struct Tableau {
+    pub(super) a: &'static [&'static [f64]],
+    pub(super) b: &'static [f64],
+    pub(super) e: &'static [f64],
+    pub(super) fsal: bool,
 }
 
 /// vtkRungeKutta4.
@@ -70,7 +70,7 @@ const CASH_KARP: Tableau = Tableau {
 };
 
 impl Integrator {
-    fn tableau(self) -> &'static Tableau {
+    pub(super) fn tableau(self) -> &'static Tableau {
         match self {
             Integrator::Rk4 => &RK4,
             Integrator::Rk45 => &DORMAND_PRINCE,
@@ -79,9 +79,9 @@ impl Integrator {
     }
 }
 
-const MAX_STAGES: usize = 7;
+pub(super) const MAX_STAGES: usize = 7;
 
-fn norm(v: [f64; 3]) -> f64 {
+pub(super) fn norm(v: [f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
@@ -96,7 +96,7 @@ fn normalized(v: [f64; 3]) -> [f64; 3] {
 }
 
 /// `x + h Σ_j w_j k_j`.
-fn combine(x: [f64; 3], h: f64, w: &[f64], k: &[[f64; 3]]) -> [f64; 3] {
+pub(super) fn combine(x: [f64; 3], h: f64, w: &[f64], k: &[[f64; 3]]) -> [f64; 3] {
     std::array::from_fn(|i| x[i] + h * w.iter().zip(k).map(|(w, k)| w * k[i]).sum::<f64>())
 }
 

@@ -1,0 +1,131 @@
+//! `trace --unsteady` end to end: pathlines through a `.pvd` series against VTK's
+//! vtkParticlePathFilter (through `scripts/vtk_pathlines.py`), on cpu and soft-bvh; and the
+//! bad inputs (a single snapshot, times outside the series).
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use tetloc_testdata::{read_f64s, require_data, run_vtk_script};
+
+fn tetloc(args: &[&str]) -> (bool, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
+    (out.status.success(), String::from_utf8_lossy(&out.stderr).into())
+}
+
+fn tmp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("tetloc-path-{}-{name}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// Each pathline point, by (particle, time in 1e-4 units): its position.
+fn points_by_time(dir: &Path, who: &str) -> HashMap<(i64, i64), [f64; 3]> {
+    let pts = read_f64s(&dir.join(format!("{who}.points.bin")));
+    let ids = read_f64s(&dir.join(format!("{who}.ids.bin")));
+    let times = read_f64s(&dir.join(format!("{who}.times.bin")));
+    assert_eq!((pts.len(), times.len()), (3 * ids.len(), ids.len()), "{who}");
+    ids.iter()
+        .zip(&times)
+        .enumerate()
+        .map(|(i, (&id, &t))| ((id as i64, (t * 1e4).round() as i64), [pts[3 * i], pts[3 * i + 1], pts[3 * i + 2]]))
+        .collect()
+}
+
+/// The same particles at the same times as vtkParticlePathFilter (RK4, half an interval a
+/// step, velocity interpolated linearly in time), within float32 rounding: on cpu (each
+/// particle walking from its last tet) and on soft-bvh (one batched lookup per stage).
+#[test]
+fn pathlines_match_vtk_particle_paths() {
+    const TEST: &str = "pathlines_match_vtk_particle_paths";
+    let dir = tmp_dir(TEST);
+    let Some(()) = run_vtk_script(TEST, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
+    for backend in ["cpu", "soft-bvh"] {
+        let out = dir.join(format!("paths-{backend}.vtp"));
+        let (ok, err) = tetloc(&[
+            "trace",
+            s(&pvd),
+            "--vector",
+            "v",
+            "--seeds",
+            s(&seeds),
+            "--unsteady",
+            "--start-time",
+            "0.4",
+            "--end-time",
+            "1.6",
+            "-o",
+            s(&out),
+            "--backend",
+            backend,
+        ]);
+        assert!(ok, "{backend}: {err}");
+        run_vtk_script(TEST, "vtk_pathlines.py", &["compare", s(&dir), "0.4", "1.6", s(&out)]).unwrap();
+        let (vtk, ours) = (points_by_time(&dir, "vtk"), points_by_time(&dir, "tetloc"));
+        // 40 particles at 0.4, 0.8, 1.2, 1.6: all stay inside.
+        assert_eq!(vtk.len(), 160, "VTK's points");
+        assert_eq!(ours.len(), vtk.len(), "{backend}: our points");
+        let mut worst: f64 = 0.0;
+        for (key, v) in &vtk {
+            let o = ours.get(key).unwrap_or_else(|| panic!("{backend}: no point for particle {} at {}", key.0, key.1));
+            worst = worst.max((0..3).map(|k| (o[k] - v[k]).abs()).fold(0.0, f64::max));
+        }
+        // Both in f64 on float32 data: the positions agree to float32 rounding.
+        assert!(worst < 1e-5, "{backend}: {worst:e} from VTK's particle paths");
+        // The particles moved (a rotation of about 2 radians): not a comparison of seeds.
+        let moved = vtk.iter().filter(|(k, _)| k.1 == 16000).count();
+        assert_eq!(moved, 40);
+    }
+}
+
+/// `--unsteady` on one snapshot, and start or end times outside the series, are refused
+/// with a message naming the file.
+#[test]
+fn unsteady_bad_inputs_are_refused() {
+    const TEST: &str = "unsteady_bad_inputs_are_refused";
+    let Some(data) = require_data(TEST) else { return };
+    let dir = tmp_dir(TEST);
+    let out = dir.join("p.vtp");
+    let one = data.join("delaunay_s.vtu");
+    let (ok, err) =
+        tetloc(&["trace", s(&one), "--vector", "v", "--seeds", "line:0,0,0,1,1,1,3", "--unsteady", "-o", s(&out)]);
+    assert!(!ok && err.contains("delaunay_s.vtu") && err.contains("single snapshot"), "{err}");
+    let series = data.join("time/part_s.pvd");
+    for (flag, value, want) in [
+        ("--start-time", "-1", "the start time -1 is outside the time steps of"),
+        ("--end-time", "3", "the end time 3 is outside the time steps of"),
+    ] {
+        let (ok, err) = tetloc(&[
+            "trace",
+            s(&series),
+            "--vector",
+            "v",
+            "--seeds",
+            "line:0,0,0,1,1,1,3",
+            "--unsteady",
+            flag,
+            value,
+            "-o",
+            s(&out),
+        ]);
+        assert!(!ok && err.contains(want) && err.contains("part_s.pvd") && err.contains("(0 to 2.5)"), "{err}");
+    }
+    let (ok, err) = tetloc(&[
+        "trace",
+        s(&one),
+        "--vector",
+        "v",
+        "--seeds",
+        "line:0,0,0,1,1,1,3",
+        "--start-time",
+        "1",
+        "-o",
+        s(&out),
+    ]);
+    assert!(!ok && err.contains("--unsteady"), "--start-time without --unsteady: {err}");
+    assert!(!out.exists());
+}

@@ -1,0 +1,777 @@
+//! Pathlines (vtkParticlePathFilter): particles injected at a start time and carried through
+//! an unsteady field, time being the integration variable: dx/dt = v(x, t), where v(x, t) is
+//! the linear interpolation in time of the two bracketing steps' velocities, each
+//! interpolated in space in the cell holding x. As VTK, the run goes leg by leg between the
+//! output times (the start time, every step time between, the end time): each leg is
+//! integrated with steps of half the leg (VTK's IntegrationStep 0.5) or `step` time units,
+//! the last one shortened to land on the leg's end, where the particle's point is recorded.
+//! Only the two steps bracketing the leg are held in memory. A particle whose lookup leaves
+//! the mesh stops there (reason 1); one at or below the terminal speed at a leg's end stops
+//! (6); the others reach the end time (7, the code `trace --max-time` uses).
+//!
+//! Two drivers share one state machine per particle ([`PathParticle`]): [`pathlines`]
+//! answers each particle's lookups at once on the CPU, walking from its last tet;
+//! [`pathlines_batch`] advances every live particle together, one batched `locate` per
+//! Runge–Kutta stage on any backend, and interpolates on the host.
+
+use super::particle::{combine, norm, MAX_STAGES};
+use super::{Integrator, Line, LineArrays, Reason};
+use crate::error::{Error, Result};
+use crate::geom::{Bary64, Vec3};
+use crate::locate::BatchLocator;
+use crate::mesh::{Field, TimeSteps};
+use crate::ops::FieldGroup;
+use crate::Mesh;
+use rayon::prelude::*;
+
+#[derive(Clone, Debug)]
+pub struct PathOptions {
+    pub integrator: Integrator,
+    /// The integration step (time units); `None`: half of each leg (VTK's IntegrationStep
+    /// 0.5). With an adaptive integrator, the first step.
+    pub step: Option<f64>,
+    /// Adaptive integrators: the largest error estimate of a step (mesh units), and the step
+    /// bounds (time units; by default step / 50 and 2 step).
+    pub max_error: f64,
+    pub min_step: Option<f64>,
+    pub max_step: Option<f64>,
+    /// A particle at or below this speed at a leg's end stops (STAGNATION).
+    pub terminal_speed: f64,
+    /// Injection time (by default the first step's) and end time (by default the last's).
+    pub start_time: Option<f64>,
+    pub end_time: Option<f64>,
+}
+
+impl Default for PathOptions {
+    fn default() -> Self {
+        PathOptions {
+            integrator: Integrator::Rk4,
+            step: None,
+            max_error: 1e-6,
+            min_step: None,
+            max_step: None,
+            terminal_speed: 1e-12,
+            start_time: None,
+            end_time: None,
+        }
+    }
+}
+
+/// One leg of the run: from time `from` to `to`, inside the steps `bracket` and `bracket + 1`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Leg {
+    pub from: f64,
+    pub to: f64,
+    pub bracket: usize,
+}
+
+impl PathOptions {
+    pub fn check(&self) -> Result<()> {
+        let positive = |x: f64| x.is_finite() && x > 0.0;
+        for (name, v) in [("step", self.step), ("minimum step", self.min_step), ("maximum step", self.max_step)] {
+            if let Some(v) = v.filter(|&v| !positive(v)) {
+                return Err(Error::Invalid(format!("the {name} must be a positive time, got {v}")));
+            }
+        }
+        if let (Some(min), Some(max)) = (self.min_step, self.max_step) {
+            if min > max {
+                return Err(Error::Invalid(format!("the step bounds need min <= max, got min {min}, max {max}")));
+            }
+        }
+        if self.integrator.is_adaptive() && !positive(self.max_error) {
+            return Err(Error::Invalid(format!("the maximum error must be positive, got {}", self.max_error)));
+        }
+        if self.terminal_speed.is_nan() || self.terminal_speed < 0.0 {
+            return Err(Error::Invalid(format!("the terminal speed must be 0 or more, got {}", self.terminal_speed)));
+        }
+        Ok(())
+    }
+
+    /// The legs through `steps` (named `source` in errors): from the start time to the end
+    /// time, cut at every step time between.
+    pub fn legs(&self, source: &str, times: &[f64]) -> Result<Vec<Leg>> {
+        let n = times.len();
+        if n < 2 {
+            return Err(Error::Invalid(format!(
+                "{source} has {n} time step{}: pathlines (--unsteady) need a series of at least two steps",
+                if n == 1 { "" } else { "s" }
+            )));
+        }
+        let (first, last) = (times[0], times[n - 1]);
+        let t0 = self.start_time.unwrap_or(first);
+        let t1 = self.end_time.unwrap_or(last);
+        for (name, t) in [("start", t0), ("end", t1)] {
+            if !(t >= first && t <= last) {
+                return Err(Error::Invalid(format!(
+                    "the {name} time {t} is outside the time steps of {source} ({first} to {last})"
+                )));
+            }
+        }
+        if t0 >= t1 {
+            return Err(Error::Invalid(format!("the end time {t1} must come after the start time {t0} ({source})")));
+        }
+        let mut stops = vec![t0];
+        stops.extend(times.iter().copied().filter(|&t| t > t0 && t < t1));
+        stops.push(t1);
+        Ok(stops
+            .windows(2)
+            .map(|w| Leg {
+                from: w[0],
+                to: w[1],
+                bracket: times.partition_point(|&t| t <= w[0]).saturating_sub(1).min(n - 2),
+            })
+            .collect())
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum State {
+    /// The velocity at the injection point.
+    Start,
+    /// The velocity at stage `i` (from 1) of the step being tried.
+    Stage(usize),
+    /// The velocity at the end of the accepted step.
+    End,
+    /// At the leg's end, waiting for the next leg.
+    Idle,
+    Done(Reason),
+}
+
+/// One particle: asks for the velocity at a point and time ([`Self::query`]), is told it
+/// ([`Self::answer`]).
+#[derive(Clone, Debug)]
+pub struct PathParticle {
+    pub id: u32,
+    x: [f64; 3],
+    t: f64,
+    /// The leg's end, and the leg's step and step bounds.
+    target: f64,
+    h0: f64,
+    min: f64,
+    max: f64,
+    /// The step the next step starts from, the step being tried, and whether it lands on
+    /// the leg's end.
+    h: f64,
+    trial: f64,
+    landing: bool,
+    /// Stage velocities (k[0] at `x`, `t`).
+    k: [[f64; 3]; MAX_STAGES],
+    at: [f64; 3],
+    at_t: f64,
+    last: [f64; 3],
+    state: State,
+}
+
+impl PathParticle {
+    pub fn new(id: u32, point: Vec3, time: f64) -> PathParticle {
+        let x = point.map(f64::from);
+        PathParticle {
+            id,
+            x,
+            t: time,
+            target: time,
+            h0: 0.0,
+            min: 0.0,
+            max: 0.0,
+            h: 0.0,
+            trial: 0.0,
+            landing: false,
+            k: [[0.0; 3]; MAX_STAGES],
+            at: x,
+            at_t: time,
+            last: [0.0; 3],
+            state: State::Start,
+        }
+    }
+
+    /// The point (file coordinates) and time whose velocity the particle needs next; `None`
+    /// at a leg's end or when it has stopped.
+    #[inline]
+    pub fn query(&self) -> Option<([f64; 3], f64)> {
+        match self.state {
+            State::Idle | State::Done(_) => None,
+            _ => Some((self.at, self.at_t)),
+        }
+    }
+
+    pub fn is_done(&self) -> bool {
+        matches!(self.state, State::Done(_))
+    }
+
+    /// Why it stopped (`None` while it runs).
+    pub fn reason(&self) -> Option<Reason> {
+        match self.state {
+            State::Done(r) => Some(r),
+            _ => None,
+        }
+    }
+
+    /// Sets out on the leg ending at `to` (the injection query first, if not yet answered).
+    pub fn start_leg(&mut self, leg: &Leg, o: &PathOptions) {
+        if self.is_done() {
+            return;
+        }
+        self.target = leg.to;
+        self.h0 = o.step.unwrap_or(0.5 * (leg.to - leg.from));
+        self.min = o.min_step.unwrap_or(self.h0 / 50.0);
+        self.max = o.max_step.unwrap_or(2.0 * self.h0).max(self.min);
+        // A fixed step restarts each leg (as VTK's); an adaptive one keeps its proposal.
+        self.h = if o.integrator.is_adaptive() && self.h > 0.0 { self.h.clamp(self.min, self.max) } else { self.h0 };
+        if self.state == State::Idle {
+            self.begin_step(o);
+        }
+    }
+
+    /// The velocity at [`Self::query`]'s point and time (`None`: outside the mesh). True when
+    /// that point is one to record: the injection point, or a leg's end.
+    pub fn answer(&mut self, v: Option<[f64; 3]>, o: &PathOptions) -> bool {
+        let Some(v) = v else {
+            if !self.is_done() {
+                self.state = State::Done(Reason::OutOfDomain);
+            }
+            return false;
+        };
+        match self.state {
+            State::Start => {
+                self.k[0] = v;
+                self.begin_step(o);
+                true
+            }
+            State::Stage(i) => {
+                self.k[i] = v;
+                self.last = v;
+                self.stage(i + 1, o)
+            }
+            State::End => {
+                self.k[0] = v;
+                self.arrived(o)
+            }
+            State::Idle | State::Done(_) => false,
+        }
+    }
+
+    /// The first stage of the next step, or idle at the leg's end.
+    fn begin_step(&mut self, o: &PathOptions) {
+        if self.t >= self.target {
+            self.state = State::Idle;
+            return;
+        }
+        self.trial = self.h;
+        self.landing = false;
+        // A step that would pass the leg's end (or stop a hair short of it) lands on it.
+        if self.t + self.trial * (1.0 + 1e-9) >= self.target {
+            self.trial = self.target - self.t;
+            self.landing = true;
+        }
+        self.stage(1, o);
+    }
+
+    /// Asks for stage `i` of the step being tried, or ends the trial after the last stage.
+    fn stage(&mut self, i: usize, o: &PathOptions) -> bool {
+        let tab = o.integrator.tableau();
+        if i <= tab.a.len() {
+            let c: f64 = tab.a[i - 1].iter().sum();
+            self.at = combine(self.x, self.trial, tab.a[i - 1], &self.k[..i]);
+            self.at_t = self.t + c * self.trial;
+            self.state = State::Stage(i);
+            return false;
+        }
+        let stages = tab.b.len();
+        let next = if tab.fsal { self.at } else { combine(self.x, self.trial, tab.b, &self.k[..stages]) };
+        let mut h = self.h;
+        if o.integrator.is_adaptive() && self.trial > self.min {
+            // vtkRungeKutta45's control, in time: retry a step whose error estimate is too
+            // large, propose the next one from the accepted one's.
+            let ratio = norm(combine([0.0; 3], self.trial, tab.e, &self.k[..stages])) / o.max_error;
+            if ratio > 1.0 {
+                self.trial = (0.9 * self.trial * ratio.powf(-0.25)).max(self.min);
+                self.landing = false;
+                return self.stage(1, o);
+            }
+            h = if ratio == 0.0 { self.max } else { (0.9 * self.trial * ratio.powf(-0.2)).clamp(self.min, self.max) };
+            // A landing step was shortened by the leg, not by the error: keep the longer.
+            if self.landing {
+                h = h.max(self.h);
+            }
+        }
+        self.x = next;
+        self.t = if self.landing { self.target } else { self.t + self.trial };
+        self.h = h;
+        if tab.fsal {
+            // The last stage sampled here: its velocity is the end point's.
+            self.k[0] = self.last;
+            self.arrived(o)
+        } else {
+            (self.at, self.at_t) = (self.x, self.t);
+            self.state = State::End;
+            false
+        }
+    }
+
+    /// At the end of an accepted step with its velocity in k[0]: the leg's end (recorded;
+    /// the speed checked there, as VTK does), or the next step.
+    fn arrived(&mut self, o: &PathOptions) -> bool {
+        if self.t >= self.target {
+            let speed = norm(self.k[0]);
+            self.state =
+                if speed == 0.0 || speed <= o.terminal_speed { State::Done(Reason::Stagnation) } else { State::Idle };
+            return true;
+        }
+        self.begin_step(o);
+        false
+    }
+}
+
+/// The two steps bracketing a leg: the fields the run needs (`names`, in order) at each.
+struct Bracket {
+    times: [f64; 2],
+    steps: [usize; 2],
+    fields: [Vec<Field>; 2],
+}
+
+impl Bracket {
+    /// The weight of the later step at time `t`.
+    fn weight(&self, t: f64) -> f64 {
+        let [t0, t1] = self.times;
+        if t1 > t0 {
+            ((t - t0) / (t1 - t0)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    }
+
+    /// Field `k` at barycentrics `b` of tet `tet`, at time `t`.
+    #[inline]
+    fn value(&self, mesh: &Mesh, k: usize, found: (usize, Bary64), w: f64) -> f64 {
+        let a = mesh.value_of::<f64>(&self.fields[0][k], Some(found));
+        if w == 0.0 {
+            return a;
+        }
+        let b = mesh.value_of::<f64>(&self.fields[1][k], Some(found));
+        if w == 1.0 {
+            b
+        } else {
+            a + w * (b - a)
+        }
+    }
+
+    fn velocity(&self, mesh: &Mesh, found: (usize, Bary64), t: f64) -> [f64; 3] {
+        let w = self.weight(t);
+        std::array::from_fn(|k| self.value(mesh, k, found, w))
+    }
+}
+
+/// Reads the steps a leg needs, holding two at a time.
+struct StepReader<'a> {
+    steps: &'a TimeSteps,
+    names: Vec<String>,
+    held: Option<Bracket>,
+}
+
+impl StepReader<'_> {
+    fn read(&self, k: usize) -> Result<Vec<Field>> {
+        // A name may come twice (the vector is also a line field): copied, not moved out.
+        let all = self.steps.fields(k)?;
+        self.names
+            .iter()
+            .map(|n| {
+                all.iter()
+                    .find(|f| &f.name == n)
+                    .cloned()
+                    .ok_or_else(|| Error::Invalid(format!("{}: step {k} has no field '{n}'", self.steps.source)))
+            })
+            .collect()
+    }
+
+    /// The bracket of steps `j`, `j + 1` (the later step of the previous bracket kept).
+    fn bracket(&mut self, j: usize) -> Result<&Bracket> {
+        let held = self.held.take();
+        let b = match held {
+            Some(b) if b.steps[0] == j => b,
+            Some(b) if b.steps[1] == j => {
+                let [_, keep] = b.fields;
+                Bracket {
+                    times: [b.times[1], self.steps.times[j + 1]],
+                    steps: [j, j + 1],
+                    fields: [keep, self.read(j + 1)?],
+                }
+            }
+            _ => Bracket {
+                times: [self.steps.times[j], self.steps.times[j + 1]],
+                steps: [j, j + 1],
+                fields: [self.read(j)?, self.read(j + 1)?],
+            },
+        };
+        Ok(self.held.insert(b))
+    }
+}
+
+/// One particle with what it has recorded, and the tet of its last lookup.
+struct Track {
+    p: PathParticle,
+    hint: Option<u32>,
+    points: Vec<[f64; 3]>,
+    time: Vec<f64>,
+    tets: Vec<i32>,
+    values: Vec<f32>,
+}
+
+impl Track {
+    /// Records the particle's point at `found`, with the line fields (indices 3.. of the
+    /// bracket, after the vector) there at its time.
+    fn record(&mut self, mesh: &Mesh, br: &Bracket, found: (usize, Bary64), width: usize) {
+        let (x, t) = (self.p.x, self.p.t);
+        let w = br.weight(t);
+        self.points.push(x);
+        self.time.push(t);
+        self.tets.push(found.0 as i32);
+        self.values.extend((0..width).map(|k| br.value(mesh, 3 + k, found, w) as f32));
+    }
+}
+
+/// What both drivers set up: the legs, the step reader of the vector and line fields.
+struct Run<'a> {
+    legs: Vec<Leg>,
+    reader: StepReader<'a>,
+    width: usize,
+    tracks: Vec<Track>,
+}
+
+fn setup<'a>(
+    seeds: &[Vec3],
+    o: &PathOptions,
+    steps: &'a TimeSteps,
+    vector: [&str; 3],
+    fields: &[FieldGroup],
+) -> Result<Run<'a>> {
+    o.check()?;
+    let legs = o.legs(&steps.source, &steps.times)?;
+    let line: Vec<String> = fields.iter().flat_map(|g| g.components.iter().cloned()).collect();
+    let names: Vec<String> = vector.iter().map(|s| s.to_string()).chain(line.iter().cloned()).collect();
+    let t0 = legs[0].from;
+    let tracks = seeds
+        .iter()
+        .enumerate()
+        .map(|(i, &s)| Track {
+            p: PathParticle::new(i as u32, s, t0),
+            hint: None,
+            points: Vec::new(),
+            time: Vec::new(),
+            tets: Vec::new(),
+            values: Vec::new(),
+        })
+        .collect();
+    Ok(Run { legs, reader: StepReader { steps, names, held: None }, width: line.len(), tracks })
+}
+
+/// The line arrays of the tracks with two points or more (a particle injected outside the
+/// mesh, or gone before the first leg's end, makes none), in particle order.
+fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
+    let kept: Vec<Track> = tracks.into_iter().filter(|t| t.points.len() > 1).collect();
+    let ids: Vec<i32> = kept.iter().flat_map(|t| t.tets.iter().copied()).collect();
+    let values: Vec<f32> = kept.iter().flat_map(|t| t.values.iter().copied()).collect();
+    let lines: Vec<Line> = kept
+        .into_iter()
+        .map(|t| Line {
+            seed: t.p.id,
+            backward: false,
+            reason: t.p.reason().unwrap_or(Reason::OutOfTime),
+            points: t.points,
+            time: t.time,
+            tets: Vec::new(),
+        })
+        .collect();
+    LineArrays::of(&lines, super::super::probe::Probed::from_values(ids, fields, &values))
+}
+
+/// Pathlines from `seeds` through the vector (`vector`: its three component fields) of the
+/// steps `steps` of `loc`'s mesh, on the CPU: each particle walks from its last tet. `fields`
+/// (of the mesh) are recorded at the points, interpolated in time as the vector is.
+/// `progress` gets the number of legs done.
+pub fn pathlines(
+    seeds: &[Vec3],
+    o: &PathOptions,
+    loc: &crate::CpuLocator,
+    steps: &TimeSteps,
+    vector: [&str; 3],
+    fields: &[FieldGroup],
+    mut progress: impl FnMut(usize) -> Result<()>,
+) -> Result<LineArrays> {
+    let mut run = setup(seeds, o, steps, vector, fields)?;
+    let mesh = loc.mesh().clone();
+    let width = run.width;
+    for (n, leg) in run.legs.iter().enumerate() {
+        let br = run.reader.bracket(leg.bracket)?;
+        run.tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
+            tr.p.start_leg(leg, o);
+            while let Some((q, t)) = tr.p.query() {
+                let found = loc.locate_from(q.map(|c| c as f32), &mut tr.hint);
+                let found = found.map(|(tet, b)| (tet as usize, b.map(f64::from)));
+                if tr.p.answer(found.map(|f| br.velocity(&mesh, f, t)), o) {
+                    if let Some(f) = found {
+                        tr.record(&mesh, br, f, width);
+                    }
+                }
+            }
+        });
+        progress(n + 1)?;
+    }
+    Ok(finish(run.tracks, fields))
+}
+
+/// [`pathlines`] step-synchronous: every live particle's lookup answered by one `locate`
+/// through `loc` (any backend) per Runge–Kutta stage, the values interpolated on the host in
+/// f64 at the tets found.
+#[allow(clippy::too_many_arguments)]
+pub fn pathlines_batch(
+    seeds: &[Vec3],
+    o: &PathOptions,
+    loc: &mut dyn BatchLocator,
+    mesh: &Mesh,
+    steps: &TimeSteps,
+    vector: [&str; 3],
+    fields: &[FieldGroup],
+    mut progress: impl FnMut(usize) -> Result<()>,
+) -> Result<LineArrays> {
+    let mut run = setup(seeds, o, steps, vector, fields)?;
+    let width = run.width;
+    let (mut points, mut ids): (Vec<Vec3>, Vec<i32>) = (Vec::new(), Vec::new());
+    let mut live: Vec<usize> = Vec::new();
+    for (n, leg) in run.legs.iter().enumerate() {
+        let br = run.reader.bracket(leg.bracket)?;
+        run.tracks.par_iter_mut().for_each(|tr| tr.p.start_leg(leg, o));
+        loop {
+            live.clear();
+            live.extend(run.tracks.iter().enumerate().filter(|(_, t)| t.p.query().is_some()).map(|(i, _)| i));
+            if live.is_empty() {
+                break;
+            }
+            for part in live.chunks(super::super::CHUNK) {
+                points.clear();
+                points.extend(
+                    part.iter().map(|&i| run.tracks[i].p.query().map_or([f32::NAN; 3], |(q, _)| q.map(|c| c as f32))),
+                );
+                ids.resize(points.len(), -1);
+                loc.locate(&points, &mut ids)?;
+                // The answers, on every core: each track of `part` once.
+                let mut chosen: Vec<&mut Track> = Vec::with_capacity(part.len());
+                let mut rest = run.tracks.iter_mut().enumerate();
+                for &i in part {
+                    let (_, t) = rest.by_ref().find(|(j, _)| *j == i).expect("live indices ascend");
+                    chosen.push(t);
+                }
+                chosen.into_par_iter().zip(ids.par_iter()).for_each(|(tr, &id)| {
+                    let Some((q, t)) = tr.p.query() else { return };
+                    let found = (id >= 0).then(|| mesh.bary64(id as usize, q).map(|b| (id as usize, b))).flatten();
+                    if tr.p.answer(found.map(|f| br.velocity(mesh, f, t)), o) {
+                        if let Some(f) = found {
+                            tr.record(mesh, br, f, width);
+                        }
+                    }
+                });
+            }
+        }
+        progress(n + 1)?;
+    }
+    Ok(finish(run.tracks, fields))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::{FieldLocation, StepFields};
+    use crate::CpuLocator;
+    use std::sync::Arc;
+
+    /// Rotation about the axis x = y = 0.5 at the angular speed ω(t) = 1 + t: the field is
+    /// linear in space and in time, so the mesh and the time interpolation reproduce it
+    /// exactly, and a particle at radius r turns by θ(t) = (t - t0) + (t² - t0²)/2.
+    struct Spin {
+        points: Vec<[f64; 3]>,
+        times: Vec<f64>,
+    }
+    fn omega(t: f64) -> f64 {
+        1.0 + t
+    }
+    impl StepFields for Spin {
+        fn read(&self, k: usize) -> Result<Vec<Field>> {
+            let w = omega(self.times[k]);
+            let comps: [fn(&[f64; 3], f64) -> f64; 3] = [|p, w| -w * (p[1] - 0.5), |p, w| w * (p[0] - 0.5), |_, _| 0.0];
+            let mut out: Vec<Field> = comps
+                .iter()
+                .enumerate()
+                .map(|(c, f)| {
+                    let v64: Vec<f64> = self.points.iter().map(|p| f(p, w)).collect();
+                    Field {
+                        name: format!("v[{c}]"),
+                        location: FieldLocation::Vertex,
+                        values: v64.iter().map(|&v| v as f32).collect(),
+                        values64: Some(v64),
+                    }
+                })
+                .collect();
+            // A scalar that is the time itself, to check the recorded fields' interpolation.
+            out.push(Field::new("clock", FieldLocation::Vertex, vec![self.times[k] as f32; self.points.len()]));
+            Ok(out)
+        }
+    }
+
+    fn spin_series(n: usize, times: Vec<f64>) -> (Arc<Mesh>, TimeSteps) {
+        let m = crate::test_support::KuhnGrid::new(n).mesh("cube");
+        let points: Vec<[f64; 3]> = m.points.iter().map(|p| p.map(f64::from)).collect();
+        let spin = Spin { points, times: times.clone() };
+        let raw = crate::RawMesh {
+            points: m.points.clone(),
+            tets: m.tets.clone(),
+            fields: spin.read(0).unwrap(),
+            ..Default::default()
+        };
+        let mesh = Arc::new(Mesh::new(raw, "spin").unwrap());
+        (mesh, TimeSteps::new("spin.pvd", times, Box::new(spin)))
+    }
+
+    fn groups(m: &Mesh) -> Vec<FieldGroup> {
+        crate::ops::fields::groups(m)
+    }
+
+    const XYZ: [&str; 3] = ["v[0]", "v[1]", "v[2]"];
+
+    /// The largest distance of a line's points from the closed-form path, and its last time.
+    fn miss(arrays: &LineArrays, line: usize, seed: [f64; 3], t0: f64) -> f64 {
+        let start = if line == 0 { 0 } else { arrays.ends[line - 1] };
+        (start..arrays.ends[line])
+            .map(|i| {
+                let t = arrays.time[i];
+                let theta = (t - t0) + 0.5 * (t * t - t0 * t0);
+                let (dx, dy) = (seed[0] - 0.5, seed[1] - 0.5);
+                let (c, s) = (theta.cos(), theta.sin());
+                let want = [0.5 + c * dx - s * dy, 0.5 + s * dx + c * dy, seed[2]];
+                let p = arrays.points[i].map(f64::from);
+                (0..3).map(|k| (p[k] - want[k]).powi(2)).sum::<f64>().sqrt()
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// RK4 in time on the closed-form path, within the bound its order gives. For this
+    /// rotation RK4's step multiplies the phase by 1 + z + z²/2 + z³/6 + z⁴/24 (z = iωh)
+    /// instead of e^z: an error of r|ωh|⁵/120 per step; the time dependence of ω adds terms
+    /// of the same order (ω' = 1 ≤ ω²), hence a factor 10 over the sum of the steps' errors.
+    /// The f32 lookups (positions rounded to f32, barycentrics in f32) add ~1e-7 · ωt.
+    #[test]
+    fn rotation_with_growing_speed_follows_the_closed_form_path() {
+        let (m, steps) = spin_series(8, vec![0.0, 0.5, 1.0, 1.5, 2.0]);
+        let cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        let seeds: Vec<Vec3> = vec![[0.8, 0.5, 0.3], [0.5, 0.2, 0.7], [0.65, 0.6, 0.5]];
+        let mut gaps = Vec::new();
+        for h in [0.1, 0.05] {
+            let o = PathOptions { step: Some(h), ..Default::default() };
+            let a = pathlines(&seeds, &o, &cpu, &steps, XYZ, &fields, |_| Ok(())).unwrap();
+            assert_eq!(a.ends.len(), 3);
+            assert_eq!(a.reasons, [Reason::OutOfTime as i32; 3]);
+            // One point per output time: the start, each step, the end.
+            assert_eq!(a.ends[0], 5);
+            assert_eq!(a.time[..5], [0.0, 0.5, 1.0, 1.5, 2.0]);
+            let clock = &a.fields.arrays.iter().find(|(g, _)| g.name == "clock").unwrap().1;
+            assert_eq!(clock[..5], [0.0, 0.5, 1.0, 1.5, 2.0]);
+            let mut worst: f64 = 0.0;
+            for (i, s) in seeds.iter().enumerate() {
+                let r = ((s[0] as f64 - 0.5).powi(2) + (s[1] as f64 - 0.5).powi(2)).sqrt();
+                // Sum over the steps of r |ω h|⁵ / 120, ω at the step's end.
+                let n = (2.0 / h).round() as usize;
+                let bound: f64 =
+                    (1..=n).map(|j| r * (omega(j as f64 * h) * h).powi(5) / 120.0).sum::<f64>() * 10.0 + 1e-7 * 4.0;
+                let gap = miss(&a, i, s.map(f64::from), 0.0);
+                assert!(gap < bound, "h = {h}, seed {i}: {gap:e} off the closed form (bound {bound:e})");
+                worst = worst.max(gap);
+            }
+            gaps.push(worst);
+        }
+        // Fourth order: halving the step divides the error by about 16.
+        assert!(gaps[0] / gaps[1] > 8.0, "{gaps:?}");
+        // The default step (half of each leg) and the adaptive integrators, with a start and
+        // end between steps: within their error budgets.
+        for integrator in [Integrator::Rk4, Integrator::Rk45, Integrator::CashKarp] {
+            let o = PathOptions {
+                integrator,
+                max_error: 1e-9,
+                start_time: Some(0.25),
+                end_time: Some(1.75),
+                ..Default::default()
+            };
+            let a = pathlines(&seeds, &o, &cpu, &steps, XYZ, &fields, |_| Ok(())).unwrap();
+            assert_eq!(a.time[..a.ends[0]], [0.25, 0.5, 1.0, 1.5, 1.75], "{integrator:?}");
+            let clock = &a.fields.arrays.iter().find(|(g, _)| g.name == "clock").unwrap().1;
+            assert!((clock[0] - 0.25).abs() < 1e-6 && (clock[4] - 1.75).abs() < 1e-6, "{:?}", &clock[..5]);
+            let gap = (0..3).map(|i| miss(&a, i, seeds[i].map(f64::from), 0.25)).fold(0.0, f64::max);
+            let bound = if integrator.is_adaptive() {
+                1000.0 * 1e-9 + 1e-6 // at most ~1000 steps of error 1e-9 each, and the f32 floor
+            } else {
+                // Legs of 0.25 and 0.5, steps of half a leg (h ≤ 0.25, ω ≤ 2.75): ≤ 10 steps.
+                10.0 * 10.0 * 0.3 * (2.75f64 * 0.25).powi(5) / 120.0
+            };
+            assert!(gap < bound, "{integrator:?}: {gap:e} off the closed form (bound {bound:e})");
+        }
+    }
+
+    /// The batch driver (one `locate` per stage) gives the per-particle driver's lines, up to
+    /// the f32 barycentrics of the walk; particles leaving the mesh stop.
+    #[test]
+    fn batch_pathlines_match_particle_pathlines() {
+        let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]);
+        let mut cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        let mut seeds = crate::ops::trace::seeds_from_spec("grid:0.05,0.95,0.05,0.95,0.3,0.7,7,7,2").unwrap().unwrap();
+        seeds.push([3.0, 0.5, 0.5]);
+        for integrator in [Integrator::Rk4, Integrator::Rk45] {
+            let o = PathOptions { integrator, step: Some(0.05), max_error: 1e-7, ..Default::default() };
+            let one = pathlines(&seeds, &o, &cpu, &steps, XYZ, &fields, |_| Ok(())).unwrap();
+            let mut legs = 0;
+            let all = pathlines_batch(&seeds, &o, &mut cpu, &m, &steps, XYZ, &fields, |n| {
+                legs = n;
+                Ok(())
+            })
+            .unwrap();
+            assert_eq!(legs, 5);
+            assert_eq!((&one.ends, &one.seeds, &one.reasons), (&all.ends, &all.seeds, &all.reasons), "{integrator:?}");
+            // The corner seeds' circles leave the cube: those particles are gone (no line, or
+            // a line ending with reason 1); the others reach the end time (7).
+            assert!(one.reasons.contains(&7) && one.ends.len() < seeds.len() - 1, "{:?}", one.reasons);
+            // Seeds on the axis do not move: stagnation (6), as VTK's terminal speed.
+            assert!(
+                one.reasons.iter().all(|&r| r == 7 || r == 6 || r == Reason::OutOfDomain as i32),
+                "{:?}",
+                one.reasons
+            );
+            assert!(one.reasons.contains(&6), "{:?}", one.reasons);
+            assert!(!one.seeds.contains(&(seeds.len() as i32 - 1)), "the seed outside makes no line");
+            for (a, b) in one.points.iter().zip(&all.points) {
+                assert!((0..3).all(|k| (a[k] - b[k]).abs() < 1e-5), "{integrator:?}: {a:?} {b:?}");
+            }
+            assert_eq!(one.time, all.time);
+        }
+    }
+
+    /// A single snapshot, and times outside the series, are refused naming the file.
+    #[test]
+    fn bad_times_are_refused_naming_the_file() {
+        let o = PathOptions::default();
+        let e = o.legs("one.vtu", &[0.0]).unwrap_err().to_string();
+        assert!(e.contains("one.vtu has 1 time step") && e.contains("at least two"), "{e}");
+        let times = [0.0, 1.0, 2.0];
+        for (start, end, want) in [
+            (Some(-1.0), None, "the start time -1 is outside the time steps of s.pvd (0 to 2)"),
+            (None, Some(2.5), "the end time 2.5 is outside"),
+            (Some(1.5), Some(0.5), "must come after the start time"),
+            (Some(f64::NAN), None, "outside"),
+        ] {
+            let o = PathOptions { start_time: start, end_time: end, ..Default::default() };
+            let e = o.legs("s.pvd", &times).unwrap_err().to_string();
+            assert!(e.contains(want) && e.contains("s.pvd"), "{e}");
+        }
+        let o = PathOptions { start_time: Some(0.5), ..Default::default() };
+        let legs = o.legs("s.pvd", &times).unwrap();
+        assert_eq!(legs, [Leg { from: 0.5, to: 1.0, bracket: 0 }, Leg { from: 1.0, to: 2.0, bracket: 1 }]);
+        assert!(PathOptions { step: Some(0.0), ..Default::default() }.check().is_err());
+    }
+}

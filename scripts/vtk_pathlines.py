@@ -1,0 +1,158 @@
+#!/usr/bin/env python3
+"""VTK's pathlines for tetloc's `trace --unsteady` test (crates/tetloc-cli/tests/pathlines.rs).
+
+    vtk_pathlines.py series OUT_DIR
+    vtk_pathlines.py compare OUT_DIR START END OURS.vtp
+
+series: writes OUT_DIR/series.pvd over OUT_DIR/step_K.vtu (a unit cube of tets with a velocity
+`v` that rotates about x = y = 0.5 at a speed growing in time, plus a vertical swirl) and the
+seeds as OUT_DIR/seeds.bin (raw float32 x,y,z). compare: runs vtkParticlePathFilter (RK4, its
+default step of half an interval) on the same steps, held in memory, from START to END (step
+times: VTK 9.7 injects at its input's first time and stops at the time asked for), and
+writes its points and tetloc's (read by VTK's XML reader) as X.points.bin (float64 N x 3),
+X.ids.bin (the particle's seed index) and X.times.bin (the simulation time), float64, X = vtk
+or tetloc.
+
+Exits with status 3 when the `vtk` module is missing, so the test can tell that apart.
+"""
+
+import os
+import sys
+
+try:
+    import numpy as np
+    import vtk
+    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
+    from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
+except ImportError as e:
+    print(f"no vtk: {e}", file=sys.stderr)
+    sys.exit(3)
+
+TIMES = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0]
+SDDP = vtk.vtkStreamingDemandDrivenPipeline
+
+
+def cube(n=10):
+    img = vtk.vtkImageData()
+    img.SetDimensions(n + 1, n + 1, n + 1)
+    img.SetSpacing(1.0 / n, 1.0 / n, 1.0 / n)
+    tets = vtk.vtkDataSetTriangleFilter()
+    tets.SetInputData(img)
+    tets.Update()
+    grid = vtk.vtkUnstructuredGrid()
+    grid.DeepCopy(tets.GetOutput())
+    return grid
+
+
+def velocity(p, t):
+    x, y, z = p[:, 0] - 0.5, p[:, 1] - 0.5, p[:, 2]
+    w = 1.0 + t
+    return np.stack([-w * y, w * x, 0.15 * np.sin(2 * np.pi * p[:, 0]) * np.cos(2 * t) * (z * (1 - z)) * 4], 1)
+
+
+def steps():
+    grids = []
+    for t in TIMES:
+        g = cube()
+        p = vtk_to_numpy(g.GetPoints().GetData()).astype(np.float64)
+        v = numpy_to_vtk(velocity(p, t).astype(np.float32), deep=True)
+        v.SetName("v")
+        g.GetPointData().AddArray(v)
+        g.GetPointData().SetActiveVectors("v")
+        grids.append(g)
+    return grids
+
+
+def seeds():
+    rng = np.random.default_rng(3)
+    r = rng.uniform(0.05, 0.35, 40)
+    a = rng.uniform(0, 2 * np.pi, 40)
+    z = rng.uniform(0.3, 0.7, 40)
+    return np.stack([0.5 + r * np.cos(a), 0.5 + r * np.sin(a), z], 1).astype(np.float32)
+
+
+def series(out_dir):
+    os.makedirs(out_dir, exist_ok=True)
+    lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1">', "<Collection>"]
+    for k, (t, g) in enumerate(zip(TIMES, steps())):
+        w = vtk.vtkXMLUnstructuredGridWriter()
+        w.SetFileName(os.path.join(out_dir, f"step_{k}.vtu"))
+        w.SetInputData(g)
+        w.Write()
+        lines.append(f'<DataSet timestep="{t!r}" part="0" file="step_{k}.vtu"/>')
+    lines += ["</Collection>", "</VTKFile>"]
+    with open(os.path.join(out_dir, "series.pvd"), "w") as f:
+        f.write("\n".join(lines) + "\n")
+    seeds().tofile(os.path.join(out_dir, "seeds.bin"))
+
+
+class Series(VTKPythonAlgorithmBase):
+    """The steps in memory, as a temporal source."""
+
+    def __init__(self, start):
+        VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1, outputType="vtkUnstructuredGrid")
+        self.grids = steps()
+        # vtkParticlePathFilter injects at the first time its input has: the steps from START.
+        self.times = [t for t in TIMES if t >= start]
+
+    def RequestInformation(self, request, in_info, out_info):
+        info = out_info.GetInformationObject(0)
+        info.Set(SDDP.TIME_STEPS(), self.times, len(self.times))
+        info.Set(SDDP.TIME_RANGE(), [self.times[0], self.times[-1]], 2)
+        return 1
+
+    def RequestData(self, request, in_info, out_info):
+        info = out_info.GetInformationObject(0)
+        t = info.Get(SDDP.UPDATE_TIME_STEP()) if info.Has(SDDP.UPDATE_TIME_STEP()) else TIMES[0]
+        k = int(np.argmin([abs(t - s) for s in TIMES]))
+        out = vtk.vtkUnstructuredGrid.GetData(out_info)
+        out.ShallowCopy(self.grids[k])
+        out.GetInformation().Set(vtk.vtkDataObject.DATA_TIME_STEP(), TIMES[k])
+        return 1
+
+
+def write_lines(poly, prefix, out_dir, ids, times):
+    pts = vtk_to_numpy(poly.GetPoints().GetData()).astype(np.float64)
+    pts.tofile(os.path.join(out_dir, f"{prefix}.points.bin"))
+    ids.astype(np.float64).tofile(os.path.join(out_dir, f"{prefix}.ids.bin"))
+    times.astype(np.float64).tofile(os.path.join(out_dir, f"{prefix}.times.bin"))
+
+
+def compare(out_dir, start, end, ours):
+    poly = vtk.vtkPolyData()
+    pts = vtk.vtkPoints()
+    pts.SetData(numpy_to_vtk(seeds().astype(np.float64), deep=True))
+    poly.SetPoints(pts)
+    src = Series(float(start))  # held: the pipeline keeps no Python reference to it
+    f = vtk.vtkParticlePathFilter()
+    f.SetInputConnection(0, src.GetOutputPort())
+    f.SetInputData(1, poly)
+    f.SetIntegratorType(1)  # RUNGE_KUTTA4
+    f.SetForceReinjectionEveryNSteps(0)
+    f.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")
+    f.UpdateTimeStep(float(end))  # VTK 9.7: integrates from the first input time to this one
+    out = f.GetOutput()
+    pd = out.GetPointData()
+    ids = vtk_to_numpy(pd.GetArray("InjectedPointId"))
+    # ParticleAge is float32: the time since injection.
+    t = vtk_to_numpy(pd.GetArray("ParticleAge")).astype(np.float64) + float(start)
+    write_lines(out, "vtk", out_dir, ids, t)
+    r = vtk.vtkXMLPolyDataReader()
+    r.SetFileName(ours)
+    r.Update()
+    mine = r.GetOutput()
+    cells = mine.GetLines()
+    conn = vtk_to_numpy(cells.GetConnectivityArray())
+    offs = vtk_to_numpy(cells.GetOffsetsArray())
+    seed = vtk_to_numpy(mine.GetCellData().GetArray("SeedIds"))
+    point_ids = np.empty(mine.GetNumberOfPoints())
+    for i in range(len(offs) - 1):
+        point_ids[conn[offs[i]:offs[i + 1]]] = seed[i]
+    write_lines(mine, "tetloc", out_dir, point_ids, vtk_to_numpy(mine.GetPointData().GetArray("IntegrationTime")))
+
+
+if __name__ == "__main__":
+    ops = {"series": (series, 1), "compare": (compare, 4)}
+    if len(sys.argv) < 2 or sys.argv[1] not in ops or len(sys.argv) - 2 != ops[sys.argv[1]][1]:
+        sys.exit(__doc__)
+    ops[sys.argv[1]][0](*sys.argv[2:])
