@@ -33,6 +33,8 @@ pub struct DeviceInfo {
     /// shaderStorageBufferArrayNonUniformIndexing: the shaders read arrays split over several
     /// buffers (larger than one buffer may be) through it.
     pub nonuniform_buffers: bool,
+    /// `VkPhysicalDeviceIDProperties::deviceUUID`: CUDA and NVML name the same GPU by it.
+    pub uuid: [u8; 16],
 }
 
 /// How to create a [`Context`].
@@ -74,6 +76,16 @@ pub(crate) struct Limits {
     pub max_allocation: u64,
 }
 
+/// The function tables of `VK_KHR_external_memory_fd` and `VK_KHR_external_semaphore_fd`
+/// (both enabled only together), and whether timeline semaphores are on.
+pub(crate) struct ExternalFd {
+    pub memory: ash::khr::external_memory_fd::Device,
+    pub semaphore: ash::khr::external_semaphore_fd::Device,
+    pub timeline: bool,
+    /// For the external-memory and -semaphore capability queries.
+    pub physical: vk::PhysicalDevice,
+}
+
 /// Counts validation errors reported through the debug messenger.
 struct Messenger {
     errors: AtomicUsize,
@@ -92,6 +104,9 @@ pub struct Context {
     pub(crate) limits: Limits,
     /// The device UUID (NVML names the same GPU by it).
     pub(crate) uuid: [u8; 16],
+    /// Memory and semaphores shared with other APIs (CUDA) through opaque fds, when the device
+    /// has the extensions (`external.rs`).
+    pub(crate) external: Option<ExternalFd>,
     info: DeviceInfo,
     validation: bool,
     // Last: the loader library must outlive every Vulkan object above.
@@ -142,6 +157,10 @@ struct Probe {
     api: u32,
     queue_family: Option<u32>,
     timestamp_valid_bits: u32,
+    /// `VK_KHR_external_memory_fd` and `VK_KHR_external_semaphore_fd` are both present.
+    external_fd: bool,
+    /// The `timelineSemaphore` feature (Vulkan 1.2).
+    timeline: bool,
 }
 
 fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Probe {
@@ -158,6 +177,7 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
         let rt_exts = has(ash::khr::acceleration_structure::NAME)
             && has(ash::khr::ray_tracing_pipeline::NAME)
             && has(ash::khr::deferred_host_operations::NAME);
+        let external_fd = has(ash::khr::external_memory_fd::NAME) && has(ash::khr::external_semaphore_fd::NAME);
 
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
@@ -211,11 +231,14 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
                 float64,
                 timestamps: timestamp_valid_bits > 0,
                 nonuniform_buffers: f12.shader_storage_buffer_array_non_uniform_indexing == vk::TRUE,
+                uuid: id.device_uuid,
             },
             uuid: id.device_uuid,
             api: props.api_version,
             queue_family,
             timestamp_valid_bits,
+            external_fd,
+            timeline: f12.timeline_semaphore == vk::TRUE,
         }
     }
 }
@@ -353,7 +376,7 @@ impl Context {
             let (pd, probe) = &list[i];
             Self::open_device(instance, *pd, probe)
         });
-        let (device, queue_family, rt, limits, info) = match result {
+        let (device, queue_family, rt, limits, info, external) = match result {
             Ok(r) => r,
             Err(e) => {
                 destroy_debug(&debug);
@@ -376,6 +399,7 @@ impl Context {
             rt,
             limits,
             uuid,
+            external,
             info,
             validation,
             _entry: entry,
@@ -386,7 +410,7 @@ impl Context {
         instance: &ash::Instance,
         pd: vk::PhysicalDevice,
         probe: &Probe,
-    ) -> VkResult<(ash::Device, u32, Option<RayTracing>, Limits, DeviceInfo)> {
+    ) -> VkResult<(ash::Device, u32, Option<RayTracing>, Limits, DeviceInfo, Option<ExternalFd>)> {
         let info = probe.info.clone();
         if probe.api < vk::API_VERSION_1_2 {
             return Err(VkError::Unsupported {
@@ -408,10 +432,14 @@ impl Context {
                 ash::khr::deferred_host_operations::NAME.as_ptr(),
             ]);
         }
+        if probe.external_fd {
+            exts.extend([ash::khr::external_memory_fd::NAME.as_ptr(), ash::khr::external_semaphore_fd::NAME.as_ptr()]);
+        }
         let features = vk::PhysicalDeviceFeatures::default().shader_float64(info.float64);
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
             .buffer_device_address(info.ray_tracing)
-            .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers);
+            .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers)
+            .timeline_semaphore(probe.external_fd && probe.timeline);
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut f_rt = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default().ray_tracing_pipeline(true);
         let mut create = vk::DeviceCreateInfo::default()
@@ -452,7 +480,13 @@ impl Context {
                 max_dispatch: p_rt.max_ray_dispatch_invocation_count,
                 scratch_alignment: p_as.min_acceleration_structure_scratch_offset_alignment,
             });
-            Ok((device, queue_family, rt, limits, info))
+            let external = probe.external_fd.then(|| ExternalFd {
+                memory: ash::khr::external_memory_fd::Device::new(instance, &device),
+                semaphore: ash::khr::external_semaphore_fd::Device::new(instance, &device),
+                timeline: probe.timeline,
+                physical: pd,
+            });
+            Ok((device, queue_family, rt, limits, info, external))
         }
     }
 

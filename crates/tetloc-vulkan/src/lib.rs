@@ -24,8 +24,11 @@
 
 mod build;
 mod context;
+#[cfg(feature = "cuda")]
+pub mod cuda_interop;
 mod device;
 mod error;
+mod external;
 mod interface;
 mod kernels;
 mod locator;
@@ -41,6 +44,7 @@ mod stream;
 pub use build::BuildOn;
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
+pub use external::{semaphore_kind, SemaphoreKind};
 pub use kernels::rt::AsReport;
 pub use kernels::{Kernel, RtOptions, SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
 #[cfg(any(test, feature = "test-hooks"))]
