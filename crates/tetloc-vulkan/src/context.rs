@@ -77,14 +77,18 @@ pub(crate) struct Limits {
 }
 
 /// The function tables of `VK_KHR_external_memory_fd` and `VK_KHR_external_semaphore_fd`
-/// (both enabled only together), and whether timeline semaphores are on.
+/// (each enabled where present), and whether timeline semaphores are on.
 pub(crate) struct ExternalFd {
-    pub memory: ash::khr::external_memory_fd::Device,
-    pub semaphore: ash::khr::external_semaphore_fd::Device,
+    pub memory: Option<ash::khr::external_memory_fd::Device>,
+    pub semaphore: Option<ash::khr::external_semaphore_fd::Device>,
     pub timeline: bool,
     /// For the external-memory and -semaphore capability queries.
     pub physical: vk::PhysicalDevice,
 }
+
+/// What `open_device` makes: the device, its queue family, ray tracing, limits, the probe's
+/// information and the fd-sharing tables.
+type Opened = (ash::Device, u32, Option<RayTracing>, Limits, DeviceInfo, Option<ExternalFd>);
 
 /// Counts validation errors reported through the debug messenger.
 struct Messenger {
@@ -157,8 +161,9 @@ struct Probe {
     api: u32,
     queue_family: Option<u32>,
     timestamp_valid_bits: u32,
-    /// `VK_KHR_external_memory_fd` and `VK_KHR_external_semaphore_fd` are both present.
-    external_fd: bool,
+    /// `VK_KHR_external_memory_fd` and `VK_KHR_external_semaphore_fd` are present.
+    memory_fd: bool,
+    semaphore_fd: bool,
     /// The `timelineSemaphore` feature (Vulkan 1.2).
     timeline: bool,
 }
@@ -177,7 +182,8 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
         let rt_exts = has(ash::khr::acceleration_structure::NAME)
             && has(ash::khr::ray_tracing_pipeline::NAME)
             && has(ash::khr::deferred_host_operations::NAME);
-        let external_fd = has(ash::khr::external_memory_fd::NAME) && has(ash::khr::external_semaphore_fd::NAME);
+        let (memory_fd, semaphore_fd) =
+            (has(ash::khr::external_memory_fd::NAME), has(ash::khr::external_semaphore_fd::NAME));
 
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
@@ -237,7 +243,8 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
             api: props.api_version,
             queue_family,
             timestamp_valid_bits,
-            external_fd,
+            memory_fd,
+            semaphore_fd,
             timeline: f12.timeline_semaphore == vk::TRUE,
         }
     }
@@ -406,11 +413,7 @@ impl Context {
         }))
     }
 
-    fn open_device(
-        instance: &ash::Instance,
-        pd: vk::PhysicalDevice,
-        probe: &Probe,
-    ) -> VkResult<(ash::Device, u32, Option<RayTracing>, Limits, DeviceInfo, Option<ExternalFd>)> {
+    fn open_device(instance: &ash::Instance, pd: vk::PhysicalDevice, probe: &Probe) -> VkResult<Opened> {
         let info = probe.info.clone();
         if probe.api < vk::API_VERSION_1_2 {
             return Err(VkError::Unsupported {
@@ -432,14 +435,17 @@ impl Context {
                 ash::khr::deferred_host_operations::NAME.as_ptr(),
             ]);
         }
-        if probe.external_fd {
-            exts.extend([ash::khr::external_memory_fd::NAME.as_ptr(), ash::khr::external_semaphore_fd::NAME.as_ptr()]);
+        if probe.memory_fd {
+            exts.push(ash::khr::external_memory_fd::NAME.as_ptr());
+        }
+        if probe.semaphore_fd {
+            exts.push(ash::khr::external_semaphore_fd::NAME.as_ptr());
         }
         let features = vk::PhysicalDeviceFeatures::default().shader_float64(info.float64);
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
             .buffer_device_address(info.ray_tracing)
             .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers)
-            .timeline_semaphore(probe.external_fd && probe.timeline);
+            .timeline_semaphore(probe.semaphore_fd && probe.timeline);
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut f_rt = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default().ray_tracing_pipeline(true);
         let mut create = vk::DeviceCreateInfo::default()
@@ -480,10 +486,10 @@ impl Context {
                 max_dispatch: p_rt.max_ray_dispatch_invocation_count,
                 scratch_alignment: p_as.min_acceleration_structure_scratch_offset_alignment,
             });
-            let external = probe.external_fd.then(|| ExternalFd {
-                memory: ash::khr::external_memory_fd::Device::new(instance, &device),
-                semaphore: ash::khr::external_semaphore_fd::Device::new(instance, &device),
-                timeline: probe.timeline,
+            let external = (probe.memory_fd || probe.semaphore_fd).then(|| ExternalFd {
+                memory: probe.memory_fd.then(|| ash::khr::external_memory_fd::Device::new(instance, &device)),
+                semaphore: probe.semaphore_fd.then(|| ash::khr::external_semaphore_fd::Device::new(instance, &device)),
+                timeline: probe.semaphore_fd && probe.timeline,
                 physical: pd,
             });
             Ok((device, queue_family, rt, limits, info, external))

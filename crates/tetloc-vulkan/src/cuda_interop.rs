@@ -603,7 +603,7 @@ mod tests {
     fn in_place_launch_matches_the_locator() {
         let test = "in_place_launch_matches_the_locator";
         let Some(ctx) = crate::context::test_context(test) else { return };
-        let sharing = ctx.external.is_some();
+        let sharing = crate::external::memory_fd(&ctx).is_ok();
         eprintln!("{test}: exportable buffers: {sharing}");
         let raw = tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, 5000, 2);
         let mesh = Arc::new(Mesh::new(raw, "jets").unwrap());
@@ -613,7 +613,10 @@ mod tests {
         let n = 3000;
         let pts: Vec<[f32; 3]> = (0..n)
             .map(|i| {
-                let t = |k: usize, a: f32, b: f32| a + (b - a) * (((i * (7 + 6 * k) + 3 * k) % 101) as f32 / 100.0);
+                // 10% beyond the box on each side: points inside and outside.
+                let t = |k: usize, a: f32, b: f32| {
+                    a + (b - a) * (1.2 * ((i * (7 + 6 * k) + 3 * k) % 101) as f32 / 100.0 - 0.1)
+                };
                 [t(0, lo[0], hi[0]), t(1, lo[1], hi[1]), t(2, lo[2], hi[2])]
             })
             .collect();

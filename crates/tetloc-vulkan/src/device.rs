@@ -97,6 +97,7 @@ impl Device {
         Ok(buf)
     }
 
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
     /// A buffer named `name` whose memory is shared with another API (CUDA) as `sharing` says
     /// (`external.rs`); an error on a device without the fd extensions.
     pub fn create_shared_buffer(
@@ -108,6 +109,7 @@ impl Device {
         Buffer::shared(&self.ctx, &self.tracker, desc, name, sharing)
     }
 
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
     /// [`Device::run`] that first waits for `wait` and then signals `signal` (a semaphore and
     /// a timeline value) on the device.
     pub fn run_synced<R>(

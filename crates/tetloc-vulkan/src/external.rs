@@ -18,15 +18,26 @@ fn unsupported(ctx: &Context, what: &str) -> VkError {
     }
 }
 
-/// The fd extensions' function tables, or the error of a device without them.
-pub(crate) fn fd_tables(ctx: &Context) -> VkResult<&ExternalFd> {
+/// The fd extensions' tables, or the error of a device with neither.
+fn fd_tables(ctx: &Context) -> VkResult<&ExternalFd> {
     ctx.external
         .as_ref()
-        .ok_or_else(|| unsupported(ctx, "it lacks VK_KHR_external_memory_fd or VK_KHR_external_semaphore_fd"))
+        .ok_or_else(|| unsupported(ctx, "it lacks VK_KHR_external_memory_fd and VK_KHR_external_semaphore_fd"))
+}
+
+/// `VK_KHR_external_memory_fd`'s functions, or the error of a device without it.
+pub(crate) fn memory_fd(ctx: &Context) -> VkResult<&ash::khr::external_memory_fd::Device> {
+    fd_tables(ctx)?.memory.as_ref().ok_or_else(|| unsupported(ctx, "it lacks VK_KHR_external_memory_fd"))
+}
+
+/// `VK_KHR_external_semaphore_fd`'s functions, or the error of a device without it.
+fn semaphore_fd(ctx: &Context) -> VkResult<&ash::khr::external_semaphore_fd::Device> {
+    fd_tables(ctx)?.semaphore.as_ref().ok_or_else(|| unsupported(ctx, "it lacks VK_KHR_external_semaphore_fd"))
 }
 
 /// Checks that buffers of `usage` can be exported and imported as opaque fds.
 pub(crate) fn check_memory(ctx: &Context, usage: vk::BufferUsageFlags) -> VkResult<()> {
+    memory_fd(ctx)?;
     let ext = fd_tables(ctx)?;
     let info = vk::PhysicalDeviceExternalBufferInfo::default()
         .usage(usage)
@@ -76,6 +87,7 @@ fn semaphore_shareable(ctx: &Context, ext: &ExternalFd, kind: SemaphoreKind) -> 
 
 /// The semaphores this device shares: timeline where it can, else binary, else the error.
 pub fn semaphore_kind(ctx: &Context) -> VkResult<SemaphoreKind> {
+    semaphore_fd(ctx)?;
     let ext = fd_tables(ctx)?;
     [SemaphoreKind::Timeline, SemaphoreKind::Binary]
         .into_iter()
@@ -92,6 +104,7 @@ pub(crate) struct SharedSemaphore {
 
 impl SharedSemaphore {
     fn create(ctx: &Arc<Context>, kind: SemaphoreKind, import: Option<OwnedFd>) -> VkResult<SharedSemaphore> {
+        let fns = semaphore_fd(ctx)?;
         let ext = fd_tables(ctx)?;
         if !semaphore_shareable(ctx, ext, kind) {
             return Err(unsupported(ctx, &format!("{kind:?} semaphores cannot be exported as opaque fds")));
@@ -113,7 +126,7 @@ impl SharedSemaphore {
             let info = vk::ImportSemaphoreFdInfoKHR::default().semaphore(sem).handle_type(handle).fd(fd.as_raw_fd());
             // SAFETY: a live semaphore of the same type as the exported one; on success the
             // fd belongs to Vulkan, so we let go of it.
-            unsafe { ext.semaphore.import_semaphore_fd(&info) }.map_err(VkError::vk("vkImportSemaphoreFdKHR"))?;
+            unsafe { fns.import_semaphore_fd(&info) }.map_err(VkError::vk("vkImportSemaphoreFdKHR"))?;
             let _ = fd.into_raw_fd();
         }
         Ok(s)
@@ -132,12 +145,12 @@ impl SharedSemaphore {
 
     /// A new opaque fd of this semaphore; the caller owns it.
     pub fn export_fd(&self) -> VkResult<OwnedFd> {
-        let ext = fd_tables(&self.ctx)?;
+        let fns = semaphore_fd(&self.ctx)?;
         let info = vk::SemaphoreGetFdInfoKHR::default()
             .semaphore(self.sem)
             .handle_type(vk::ExternalSemaphoreHandleTypeFlags::OPAQUE_FD);
         // SAFETY: a live semaphore created exportable as an opaque fd.
-        let fd = unsafe { ext.semaphore.get_semaphore_fd(&info) }.map_err(VkError::vk("vkGetSemaphoreFdKHR"))?;
+        let fd = unsafe { fns.get_semaphore_fd(&info) }.map_err(VkError::vk("vkGetSemaphoreFdKHR"))?;
         // SAFETY: vkGetSemaphoreFdKHR returns a new fd that the caller owns.
         Ok(unsafe { OwnedFd::from_raw_fd(fd) })
     }
@@ -172,16 +185,13 @@ mod tests {
     use crate::device::Device;
     use crate::memory::{BufferDesc, MemKind, Sharing};
 
-    /// Whether this device shares memory; prints which way the test goes (lavapipe's answer
-    /// depends on the Mesa version), so that a refusal is never a silent skip.
-    fn shares(ctx: &Context, test: &str) -> bool {
-        let ok = ctx.external.is_some();
-        eprintln!(
-            "{test}: {}: VK_KHR_external_memory_fd + VK_KHR_external_semaphore_fd {}",
-            ctx.info().name,
-            if ok { "present: checking the round trip" } else { "absent: checking the refusal" }
-        );
-        ok
+    /// Whether this device has the extension `name` (`present`); prints which way the test
+    /// goes (lavapipe's answer depends on the Mesa version), so that a refusal is never a
+    /// silent skip.
+    fn shares(ctx: &Context, test: &str, name: &str, present: bool) -> bool {
+        let how = if present { "present: checking the round trip" } else { "absent: checking the refusal" };
+        eprintln!("{test}: {}: {name} {how}", ctx.info().name);
+        present
     }
 
     #[test]
@@ -189,7 +199,8 @@ mod tests {
         let Some(ctx) = crate::context::test_context("exported_buffer_imports_with_same_bytes") else { return };
         let mut dev = Device::new(&ctx, 1 << 20, None).unwrap();
         let desc = BufferDesc::io(MemKind::Query, 4096);
-        if !shares(&ctx, "exported_buffer_imports_with_same_bytes") {
+        let present = memory_fd(&ctx).is_ok();
+        if !shares(&ctx, "exported_buffer_imports_with_same_bytes", "VK_KHR_external_memory_fd", present) {
             let err = dev.create_shared_buffer(desc, "exported", Sharing::Export).err().expect("refused");
             assert!(err.to_string().contains("not supported on this device"), "{err}");
             return;
@@ -214,8 +225,9 @@ mod tests {
     #[test]
     fn exported_semaphore_shares_its_payload() {
         let Some(ctx) = crate::context::test_context("exported_semaphore_shares_its_payload") else { return };
-        if !shares(&ctx, "exported_semaphore_shares_its_payload") {
-            let err = semaphore_kind(&ctx).err().expect("refused");
+        let present = semaphore_fd(&ctx).is_ok();
+        if !shares(&ctx, "exported_semaphore_shares_its_payload", "VK_KHR_external_semaphore_fd", present) {
+            let err = semaphore_kind(&ctx).expect_err("refused");
             assert!(err.to_string().contains("not supported on this device"), "{err}");
             return;
         }

@@ -28,6 +28,7 @@ mod context;
 pub mod cuda_interop;
 mod device;
 mod error;
+#[cfg_attr(not(feature = "cuda"), allow(dead_code))] // used by cuda_interop.rs and tests
 mod external;
 mod interface;
 mod kernels;

@@ -102,12 +102,15 @@ impl BufferDesc {
     }
 }
 
+#[cfg_attr(not(feature = "cuda"), allow(dead_code))] // shared by cuda_interop.rs
 /// Whether a buffer's memory is shared with another API (CUDA) through an opaque fd; shared
 /// memory is a dedicated allocation, as CUDA's import of it asks.
 pub(crate) enum Sharing {
     None,
     /// Exportable: [`Buffer::export_fd`] gives fds of it.
     Export,
+    /// (Made by the tests: CUDA imports Vulkan's memory, never the reverse.)
+    #[cfg_attr(not(test), allow(dead_code))]
     /// The memory behind an exported fd, for a buffer of the same description (same size and
     /// usage): Vulkan owns the fd once the import succeeds.
     Import(OwnedFd),
@@ -122,6 +125,7 @@ pub(crate) struct Buffer {
     memory: vk::DeviceMemory,
     pub size: u64,
     /// Bytes of the allocation (at least `size`): what an importer of its fd must name.
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
     pub alloc_size: u64,
     /// Device address when created with SHADER_DEVICE_ADDRESS usage, else 0.
     pub address: u64,
@@ -264,14 +268,15 @@ impl Buffer {
         unsafe { std::slice::from_raw_parts_mut(self.mapped, self.size as usize) }
     }
 
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
     /// A new opaque fd of this buffer's memory (made with [`Sharing::Export`]); the caller owns it.
     pub fn export_fd(&self) -> VkResult<OwnedFd> {
-        let ext = crate::external::fd_tables(&self.ctx)?;
+        let fns = crate::external::memory_fd(&self.ctx)?;
         let info = vk::MemoryGetFdInfoKHR::default()
             .memory(self.memory)
             .handle_type(vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD);
         // SAFETY: live memory allocated exportable as an opaque fd (else the call fails).
-        let fd = unsafe { ext.memory.get_memory_fd(&info) }.map_err(VkError::vk("vkGetMemoryFdKHR"))?;
+        let fd = unsafe { fns.get_memory_fd(&info) }.map_err(VkError::vk("vkGetMemoryFdKHR"))?;
         // SAFETY: vkGetMemoryFdKHR returns a new fd that the caller owns.
         Ok(unsafe { <OwnedFd as std::os::fd::FromRawFd>::from_raw_fd(fd) })
     }
