@@ -133,7 +133,14 @@ class Locator:
         #: Why a CUDA locator runs on the host path (``None`` on the zero-copy path or the CPU).
         self.zero_copy_error: Optional[str] = None
         self._cuda: Optional[_tetloc.CudaLocator] = None
-        if self.device.type == "cuda" and zero_copy is not False:
+        plain = not options and backend in ("auto", "soft-bvh")
+        if self.device.type == "cuda" and zero_copy is not False and not plain:
+            # The zero-copy path is the soft-bvh kernel as is: options (a tolerance, ...) and
+            # other backends answer through the host path.
+            self.zero_copy_error = f"backend {backend!r} with options {sorted(options)}: the host path answers"
+            if zero_copy:
+                raise ValueError(f"zero_copy=True: {self.zero_copy_error}; pass backend='auto' and no options")
+        elif self.device.type == "cuda" and zero_copy is not False:
             try:
                 assert self.device.index is not None
                 self._cuda = _tetloc.CudaLocator(self.mesh._raw, self.device.index, vulkan_device)

@@ -445,7 +445,7 @@ impl Context {
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
             .buffer_device_address(info.ray_tracing)
             .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers)
-            .timeline_semaphore(probe.semaphore_fd && probe.timeline);
+            .timeline_semaphore(probe.timeline);
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut f_rt = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default().ray_tracing_pipeline(true);
         let mut create = vk::DeviceCreateInfo::default()

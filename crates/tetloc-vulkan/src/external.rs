@@ -143,6 +143,17 @@ impl SharedSemaphore {
         Self::create(ctx, kind, Some(fd))
     }
 
+    /// A timeline semaphore that is not exported (for tests of the submissions on devices
+    /// without `VK_KHR_external_semaphore_fd`).
+    #[cfg(test)]
+    pub fn local_timeline(ctx: &Arc<Context>) -> VkResult<SharedSemaphore> {
+        let mut ty = vk::SemaphoreTypeCreateInfo::default().semaphore_type(vk::SemaphoreType::TIMELINE);
+        let info = vk::SemaphoreCreateInfo::default().push_next(&mut ty);
+        // SAFETY: a valid create info (timeline semaphores are enabled where supported).
+        let sem = unsafe { ctx.device.create_semaphore(&info, None) }.map_err(VkError::vk("vkCreateSemaphore"))?;
+        Ok(SharedSemaphore { ctx: ctx.clone(), sem, kind: SemaphoreKind::Timeline })
+    }
+
     /// A new opaque fd of this semaphore; the caller owns it.
     pub fn export_fd(&self) -> VkResult<OwnedFd> {
         let fns = semaphore_fd(&self.ctx)?;
@@ -219,6 +230,27 @@ mod tests {
         dev.download(&a, 100, &mut back[..3]).unwrap();
         assert_eq!(&back[..3], &[9, 8, 7]);
         drop((a, b));
+        assert_eq!(ctx.validation_errors(), 0);
+    }
+
+    /// The submission a CUDA handover makes: wait for a timeline value, run, signal the next
+    /// (on a semaphore that is not exported, so that every device runs it; validated).
+    #[test]
+    fn submission_waits_for_and_signals_a_timeline() {
+        let Some(ctx) = crate::context::test_context("submission_waits_for_and_signals_a_timeline") else { return };
+        let sem = SharedSemaphore::local_timeline(&ctx).unwrap();
+        let mut dev = Device::new(&ctx, 1 << 20, None).unwrap();
+        let buf = dev.create_buffer(BufferDesc::io(MemKind::Query, 64), "b", None).unwrap();
+        sem.signal(1).unwrap();
+        dev.run_synced(Some((&sem, 1)), Some((&sem, 2)), |r| {
+            // SAFETY: a live buffer, filled within its 64 bytes.
+            unsafe { r.dev.cmd_fill_buffer(r.cmd, buf.buffer, 0, 64, 7) }
+        })
+        .unwrap();
+        assert_eq!(sem.value().unwrap(), 2, "the submission signalled the next value");
+        let mut back = [0u8; 4];
+        dev.download(&buf, 0, &mut back).unwrap();
+        assert_eq!(u32::from_ne_bytes(back), 7);
         assert_eq!(ctx.validation_errors(), 0);
     }
 
