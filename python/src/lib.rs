@@ -7,6 +7,7 @@ mod alloc;
 mod backend;
 mod background;
 mod cells;
+mod cuda;
 mod errors;
 mod locator;
 mod mesh;
@@ -41,6 +42,8 @@ fn gmsh_cell_type(code: u8) -> Option<(u8, usize, Vec<u16>)> {
 fn _tetloc(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mesh::PyMesh>()?;
     m.add_class::<locator::PyLocator>()?;
+    m.add_class::<cuda::PyCudaLocator>()?;
+    m.add_function(wrap_pyfunction!(cuda::cuda_driver_available, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(backend::devices, m)?)?;
     m.add_function(wrap_pyfunction!(validation_errors, m)?)?;

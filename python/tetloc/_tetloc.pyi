@@ -20,6 +20,8 @@ __all__ = [
     "trace",
     "resolve",
     "interpolation_weights",
+    "CudaLocator",
+    "cuda_driver_available",
     "DeviceError",
     "BACKENDS",
     "__version__",
@@ -157,3 +159,23 @@ def gmsh_cell_type(code: int) -> Optional[Tuple[int, int, List[int]]]: ...
 def interpolation_weights(
     mesh: _Mesh, points: np.ndarray, ids: np.ndarray
 ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+
+class CudaLocator:
+    """A soft-bvh locator on the Vulkan device of one CUDA device: the zero-copy path of
+    ``tetloc.torch`` (raises DeviceError without a CUDA driver, on another GPU, without the
+    Vulkan extensions for sharing memory, or for a mesh other than linear tets)."""
+
+    def __init__(
+        self, mesh: _Mesh, cuda_device: int, vulkan_device: Optional[int] = None, validation: Optional[bool] = None
+    ) -> None: ...
+    # n float32 points at CUDA address `points` -> n int32 ids at `ids`, on CUDA stream `stream`
+    def locate(self, points: int, n: int, ids: int, stream: int) -> None: ...
+    @property
+    def cuda_device(self) -> int: ...
+    @property
+    def semaphores(self) -> str: ...
+    @property
+    def capacity(self) -> int: ...
+    def validation_errors(self) -> int: ...
+
+def cuda_driver_available() -> bool: ...

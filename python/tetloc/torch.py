@@ -13,10 +13,20 @@ respect to the points is the interpolant's gradient in the cell (constant in a l
 cell's shape functions' gradients for other cells). Points outside get ``fill`` (NaN unless
 given) and zero gradients.
 
-The locator answers on the host (any backend, as ``tetloc.Locator``); the interpolation and
-both gradients run on the tensors' device. For CUDA tensors the points go to the host and the
-ids and weights come back: ``host_copies()`` counts these transfers (tests hold it to what
-they expect). Importing ``tetloc`` does not import torch; importing ``tetloc.torch`` does.
+The interpolation and both gradients run on the tensors' device. Ids come from one of two
+paths (``Locator.path``):
+
+- ``"zero-copy"``: CUDA tensors of float32 points on a mesh of linear tets, where the CUDA
+  driver and the Vulkan extensions for sharing memory are there (``tetloc._tetloc.CudaLocator``):
+  the points go from the tensor into Vulkan memory that CUDA imported, the soft-bvh kernel
+  locates them there, and the ids come back into a tensor, all on the GPU, ordered on the
+  current CUDA stream.
+- ``"host"``: everything else (CPU tensors, float64 points, other meshes, no driver): the
+  locator answers on the host (any backend, as ``tetloc.Locator``); for CUDA tensors the
+  points go to the host and the ids (and weights) come back.
+
+``host_copies()`` counts the host path's transfers (0 on the zero-copy path; tests hold it to
+what they expect). Importing ``tetloc`` does not import torch; importing ``tetloc.torch`` does.
 """
 
 from __future__ import annotations
@@ -29,6 +39,7 @@ import torch
 
 from ._locator import Locator as _HostLocator
 from ._mesh import Mesh
+from . import _tetloc
 from ._tetloc import interpolation_weights
 
 _host_copies = 0
@@ -107,14 +118,36 @@ class Locator:
     backend, vulkan_device, **options
         What ``tetloc.Locator`` takes (``backend="auto"``; ``vulkan_device`` is its ``device``,
         the Vulkan device index).
+    zero_copy : bool, optional
+        For a CUDA device: ``None`` (default) uses the zero-copy path where it is available
+        (else the host path; ``zero_copy_error`` says why not), ``True`` requires it (raises
+        ``tetloc.DeviceError`` when unavailable), ``False`` always uses the host path.
     """
 
     def __init__(self, mesh: Mesh, device: Union[str, torch.device] = "cpu", backend: str = "auto",
-                 vulkan_device: Optional[int] = None, **options: Any) -> None:
+                 vulkan_device: Optional[int] = None, zero_copy: Optional[bool] = None, **options: Any) -> None:
         self.device = torch.device(device)
         if self.device.type == "cuda" and self.device.index is None:
             self.device = torch.device("cuda", torch.cuda.current_device())
         self._host = _HostLocator(mesh, backend=backend, device=vulkan_device, **options)
+        #: Why a CUDA locator runs on the host path (``None`` on the zero-copy path or the CPU).
+        self.zero_copy_error: Optional[str] = None
+        self._cuda: Optional[_tetloc.CudaLocator] = None
+        plain = not options and backend in ("auto", "soft-bvh")
+        if self.device.type == "cuda" and zero_copy is not False and not plain:
+            # The zero-copy path is the soft-bvh kernel as is: options (a tolerance, ...) and
+            # other backends answer through the host path.
+            self.zero_copy_error = f"backend {backend!r} with options {sorted(options)}: the host path answers"
+            if zero_copy:
+                raise ValueError(f"zero_copy=True: {self.zero_copy_error}; pass backend='auto' and no options")
+        elif self.device.type == "cuda" and zero_copy is not False:
+            try:
+                assert self.device.index is not None
+                self._cuda = _tetloc.CudaLocator(self.mesh._raw, self.device.index, vulkan_device)
+            except _tetloc.DeviceError as e:
+                if zero_copy:
+                    raise
+                self.zero_copy_error = str(e)
         self._fields: Dict[Tuple[str, torch.dtype], Tuple[torch.Tensor, bool, bool]] = {}
         # On a GPU, a mesh of linear tets keeps its tets and vertices there: the weights are
         # computed beside the points, and only the ids cross from the host.
@@ -128,6 +161,12 @@ class Locator:
     @property
     def mesh(self) -> Mesh:
         return self._host.mesh
+
+    @property
+    def path(self) -> str:
+        """``"zero-copy"`` when float32 points of this CUDA device are located on the GPU
+        without host copies, else ``"host"`` (see the module's documentation)."""
+        return "zero-copy" if self._cuda is not None else "host"
 
     @property
     def backend(self) -> str:
@@ -151,17 +190,33 @@ class Locator:
         """int32 ids on the host of points on the host."""
         return torch.from_numpy(self._host.locate(host.numpy()))
 
+    def _locate_cuda(self, points: torch.Tensor) -> torch.Tensor:
+        """int32 ids on this CUDA device of float32 points there: the zero-copy path."""
+        assert self._cuda is not None
+        # Non-finite points are answered -1 here; the kernel gets a point far outside instead.
+        finite = torch.isfinite(points).all(1)
+        safe = torch.where(finite.unsqueeze(1), points, torch.full_like(points, 3.0e38)).contiguous()
+        ids = torch.empty(points.shape[0], dtype=torch.int32, device=self.device)
+        stream = torch.cuda.current_stream(self.device).cuda_stream
+        self._cuda.locate(safe.data_ptr(), points.shape[0], ids.data_ptr(), stream)
+        return ids.masked_fill_(~finite, -1)
+
+    def _ids(self, points: torch.Tensor) -> torch.Tensor:
+        """int32 ids on this device of points checked by `_check_points`."""
+        if self._cuda is not None and points.dtype == torch.float32:
+            return self._locate_cuda(points.detach())
+        return _to_device(self._locate(_to_host(points.detach())), self.device)
+
     def locate(self, points: torch.Tensor) -> torch.Tensor:
         """Ids of the cells containing `points` ((K, 3) float32 or float64 on this device), -1
         outside: (K,) int32 on this device."""
-        points = self._check_points(points)
-        return _to_device(self._locate(_to_host(points.detach())), self.device)
+        return self._ids(self._check_points(points))
 
     def _weights(self, points: torch.Tensor, dtype: torch.dtype) -> _Weights:
+        if self._tets is not None:
+            return self._tet_weights(points, self._ids(points), dtype)
         host = _to_host(points.detach())
         ids = self._locate(host)
-        if self._tets is not None:
-            return self._tet_weights(points, _to_device(ids, self.device), dtype)
         host64 = host.to(torch.float64).numpy()
         nodes, weights, gradients, found = interpolation_weights(self.mesh._raw, host64, ids.numpy())
         arrays = [torch.from_numpy(a) for a in (nodes, weights, gradients, found)]
@@ -240,13 +295,14 @@ class Locator:
             w = self._weights(points, dtype)
             out: torch.Tensor = _Sample.apply(points, values, w.nodes, w.weights, w.gradients, w.inside, float(fill))
         else:
-            ids = _to_device(self._locate(_to_host(points.detach())).to(torch.int64), self.device)
+            ids = self._ids(points).to(torch.int64)
             outside = torch.full((1,), fill, dtype=dtype, device=self.device)
             out = torch.where((ids >= 0).unsqueeze(-1), values[ids.clamp(min=0)], outside)
         return out[:, 0] if scalar else out
 
     def __repr__(self) -> str:
-        return f"tetloc.torch.Locator(device={str(self.device)!r}, backend={self.backend!r}, {self.mesh!r})"
+        return (f"tetloc.torch.Locator(device={str(self.device)!r}, backend={self.backend!r}, "
+                f"path={self.path!r}, {self.mesh!r})")
 
 
 __all__ = ["Locator", "host_copies"]

@@ -34,6 +34,8 @@ pub struct DeviceInfo {
     /// arrays split over several buffers (larger than one buffer may be) and a launch's
     /// fields (an array of buffers) through it.
     pub nonuniform_buffers: bool,
+    /// `VkPhysicalDeviceIDProperties::deviceUUID`: CUDA and NVML name the same GPU by it.
+    pub uuid: [u8; 16],
 }
 
 /// How to create a [`Context`].
@@ -75,6 +77,20 @@ pub(crate) struct Limits {
     pub max_allocation: u64,
 }
 
+/// The function tables of `VK_KHR_external_memory_fd` and `VK_KHR_external_semaphore_fd`
+/// (each enabled where present), and whether timeline semaphores are on.
+pub(crate) struct ExternalFd {
+    pub memory: Option<ash::khr::external_memory_fd::Device>,
+    pub semaphore: Option<ash::khr::external_semaphore_fd::Device>,
+    pub timeline: bool,
+    /// For the external-memory and -semaphore capability queries.
+    pub physical: vk::PhysicalDevice,
+}
+
+/// What `open_device` makes: the device, its queue family, ray tracing, limits, the probe's
+/// information and the fd-sharing tables.
+type Opened = (ash::Device, u32, Option<RayTracing>, Limits, DeviceInfo, Option<ExternalFd>);
+
 /// Counts validation errors reported through the debug messenger.
 struct Messenger {
     errors: AtomicUsize,
@@ -93,6 +109,9 @@ pub struct Context {
     pub(crate) limits: Limits,
     /// The device UUID (NVML names the same GPU by it).
     pub(crate) uuid: [u8; 16],
+    /// Memory and semaphores shared with other APIs (CUDA) through opaque fds, when the device
+    /// has the extensions (`external.rs`).
+    pub(crate) external: Option<ExternalFd>,
     info: DeviceInfo,
     validation: bool,
     // Last: the loader library must outlive every Vulkan object above.
@@ -143,6 +162,11 @@ struct Probe {
     api: u32,
     queue_family: Option<u32>,
     timestamp_valid_bits: u32,
+    /// `VK_KHR_external_memory_fd` and `VK_KHR_external_semaphore_fd` are present.
+    memory_fd: bool,
+    semaphore_fd: bool,
+    /// The `timelineSemaphore` feature (Vulkan 1.2).
+    timeline: bool,
 }
 
 fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Probe {
@@ -159,6 +183,8 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
         let rt_exts = has(ash::khr::acceleration_structure::NAME)
             && has(ash::khr::ray_tracing_pipeline::NAME)
             && has(ash::khr::deferred_host_operations::NAME);
+        let (memory_fd, semaphore_fd) =
+            (has(ash::khr::external_memory_fd::NAME), has(ash::khr::external_semaphore_fd::NAME));
 
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default();
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default();
@@ -215,11 +241,15 @@ fn probe(instance: &ash::Instance, index: usize, pd: vk::PhysicalDevice) -> Prob
                 // Arrays of buffers indexed by a lane's value (split arrays) or by a loop's
                 // (the fields of one launch: dynamically uniform).
                 nonuniform_buffers: f12.shader_storage_buffer_array_non_uniform_indexing == vk::TRUE && dynamic_buffers,
+                uuid: id.device_uuid,
             },
             uuid: id.device_uuid,
             api: props.api_version,
             queue_family,
             timestamp_valid_bits,
+            memory_fd,
+            semaphore_fd,
+            timeline: f12.timeline_semaphore == vk::TRUE,
         }
     }
 }
@@ -357,7 +387,7 @@ impl Context {
             let (pd, probe) = &list[i];
             Self::open_device(instance, *pd, probe)
         });
-        let (device, queue_family, rt, limits, info) = match result {
+        let (device, queue_family, rt, limits, info, external) = match result {
             Ok(r) => r,
             Err(e) => {
                 destroy_debug(&debug);
@@ -380,17 +410,14 @@ impl Context {
             rt,
             limits,
             uuid,
+            external,
             info,
             validation,
             _entry: entry,
         }))
     }
 
-    fn open_device(
-        instance: &ash::Instance,
-        pd: vk::PhysicalDevice,
-        probe: &Probe,
-    ) -> VkResult<(ash::Device, u32, Option<RayTracing>, Limits, DeviceInfo)> {
+    fn open_device(instance: &ash::Instance, pd: vk::PhysicalDevice, probe: &Probe) -> VkResult<Opened> {
         let info = probe.info.clone();
         if probe.api < vk::API_VERSION_1_2 {
             return Err(VkError::Unsupported {
@@ -412,12 +439,19 @@ impl Context {
                 ash::khr::deferred_host_operations::NAME.as_ptr(),
             ]);
         }
+        if probe.memory_fd {
+            exts.push(ash::khr::external_memory_fd::NAME.as_ptr());
+        }
+        if probe.semaphore_fd {
+            exts.push(ash::khr::external_semaphore_fd::NAME.as_ptr());
+        }
         let features = vk::PhysicalDeviceFeatures::default()
             .shader_float64(info.float64)
             .shader_storage_buffer_array_dynamic_indexing(info.nonuniform_buffers);
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default()
             .buffer_device_address(info.ray_tracing)
-            .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers);
+            .shader_storage_buffer_array_non_uniform_indexing(info.nonuniform_buffers)
+            .timeline_semaphore(probe.timeline);
         let mut f_as = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut f_rt = vk::PhysicalDeviceRayTracingPipelineFeaturesKHR::default().ray_tracing_pipeline(true);
         let mut create = vk::DeviceCreateInfo::default()
@@ -458,7 +492,13 @@ impl Context {
                 max_dispatch: p_rt.max_ray_dispatch_invocation_count,
                 scratch_alignment: p_as.min_acceleration_structure_scratch_offset_alignment,
             });
-            Ok((device, queue_family, rt, limits, info))
+            let external = (probe.memory_fd || probe.semaphore_fd).then(|| ExternalFd {
+                memory: probe.memory_fd.then(|| ash::khr::external_memory_fd::Device::new(instance, &device)),
+                semaphore: probe.semaphore_fd.then(|| ash::khr::external_semaphore_fd::Device::new(instance, &device)),
+                timeline: probe.semaphore_fd && probe.timeline,
+                physical: pd,
+            });
+            Ok((device, queue_family, rt, limits, info, external))
         }
     }
 

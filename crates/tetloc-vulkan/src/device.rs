@@ -6,8 +6,9 @@
 
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
+use crate::external::SharedSemaphore;
 use crate::interface::MAX_CHUNKS;
-use crate::memory::{Buffer, BufferDesc, Commands, MemItem, MemKind, SharedTracker, Staging, Tracker};
+use crate::memory::{Buffer, BufferDesc, Commands, MemItem, MemKind, SharedTracker, Sharing, Staging, Tracker};
 use ash::vk;
 use std::sync::{Arc, Mutex};
 
@@ -94,6 +95,30 @@ impl Device {
             self.staging.upload(&mut self.cmds, &buf, 0, data)?;
         }
         Ok(buf)
+    }
+
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+    /// A buffer named `name` whose memory is shared with another API (CUDA) as `sharing` says
+    /// (`external.rs`); an error on a device without the fd extensions.
+    pub fn create_shared_buffer(
+        &mut self,
+        desc: BufferDesc,
+        name: impl Into<String>,
+        sharing: Sharing,
+    ) -> VkResult<Buffer> {
+        Buffer::shared(&self.ctx, &self.tracker, desc, name, sharing)
+    }
+
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+    /// [`Device::run`] that first waits for `wait` and then signals `signal` (a semaphore and
+    /// a timeline value) on the device.
+    pub fn run_synced<R>(
+        &mut self,
+        wait: Option<(&SharedSemaphore, u64)>,
+        signal: Option<(&SharedSemaphore, u64)>,
+        record: impl FnOnce(&Recording) -> R,
+    ) -> VkResult<R> {
+        self.cmds.run_synced(wait, signal, record)
     }
 
     /// A device-local buffer holding `data`. Storage buffers are checked against the range a

@@ -24,8 +24,12 @@
 
 mod build;
 mod context;
+#[cfg(feature = "cuda")]
+pub mod cuda_interop;
 mod device;
 mod error;
+#[cfg_attr(not(feature = "cuda"), allow(dead_code))] // used by cuda_interop.rs and tests
+mod external;
 mod interface;
 mod kernels;
 mod locator;
@@ -44,6 +48,7 @@ pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
 /// Most fields one launch samples; a query of more takes a pass each this many.
 pub use interface::MAX_FIELDS;
+pub use external::{semaphore_kind, SemaphoreKind};
 pub use kernels::rt::AsReport;
 pub use kernels::{Kernel, RtOptions, SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
 #[cfg(any(test, feature = "test-hooks"))]

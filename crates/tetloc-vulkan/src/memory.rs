@@ -4,7 +4,9 @@
 
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
+use crate::external::{SemaphoreKind, SharedSemaphore};
 use ash::vk;
+use std::os::fd::{IntoRawFd, OwnedFd};
 use std::sync::{Arc, Mutex};
 
 /// What an allocation is for; decides which report total it counts in.
@@ -100,6 +102,20 @@ impl BufferDesc {
     }
 }
 
+#[cfg_attr(not(feature = "cuda"), allow(dead_code))] // shared by cuda_interop.rs
+/// Whether a buffer's memory is shared with another API (CUDA) through an opaque fd; shared
+/// memory is a dedicated allocation, as CUDA's import of it asks.
+pub(crate) enum Sharing {
+    None,
+    /// Exportable: [`Buffer::export_fd`] gives fds of it.
+    Export,
+    /// (Made by the tests: CUDA imports Vulkan's memory, never the reverse.)
+    #[cfg_attr(not(test), allow(dead_code))]
+    /// The memory behind an exported fd, for a buffer of the same description (same size and
+    /// usage): Vulkan owns the fd once the import succeeds.
+    Import(OwnedFd),
+}
+
 /// A buffer with its own memory allocation. Dropping it frees both and updates the tracker.
 pub(crate) struct Buffer {
     ctx: Arc<Context>,
@@ -108,6 +124,9 @@ pub(crate) struct Buffer {
     pub buffer: vk::Buffer,
     memory: vk::DeviceMemory,
     pub size: u64,
+    /// Bytes of the allocation (at least `size`): what an importer of its fd must name.
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+    pub alloc_size: u64,
     /// Device address when created with SHADER_DEVICE_ADDRESS usage, else 0.
     pub address: u64,
     mapped: *mut u8,
@@ -123,6 +142,18 @@ impl Buffer {
         desc: BufferDesc,
         name: impl Into<String>,
     ) -> VkResult<Buffer> {
+        Self::shared(ctx, tracker, desc, name, Sharing::None)
+    }
+
+    /// [`Buffer::new`] whose memory is exported or imported as `sharing` says. Sharing needs
+    /// the device's fd extensions (`Context::external`): without them, a clear error.
+    pub fn shared(
+        ctx: &Arc<Context>,
+        tracker: &SharedTracker,
+        desc: BufferDesc,
+        name: impl Into<String>,
+        sharing: Sharing,
+    ) -> VkResult<Buffer> {
         let BufferDesc { size, usage, kind, location } = desc;
         let name = name.into();
         let size = size.max(16);
@@ -136,11 +167,19 @@ impl Buffer {
         }
         let dev = &ctx.device;
         let with_address = usage.contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS);
+        let shared = !matches!(sharing, Sharing::None);
+        if shared {
+            crate::external::check_memory(ctx, usage)?;
+        }
+        let handle = vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD;
         // SAFETY: valid create infos; every handle is destroyed on the error paths and in Drop.
         unsafe {
-            let buffer = dev
-                .create_buffer(&vk::BufferCreateInfo::default().size(size).usage(usage), None)
-                .map_err(VkError::vk("vkCreateBuffer"))?;
+            let mut external = vk::ExternalMemoryBufferCreateInfo::default().handle_types(handle);
+            let mut info = vk::BufferCreateInfo::default().size(size).usage(usage);
+            if shared {
+                info = info.push_next(&mut external);
+            }
+            let buffer = dev.create_buffer(&info, None).map_err(VkError::vk("vkCreateBuffer"))?;
             let req = dev.get_buffer_memory_requirements(buffer);
             let (want, prefer) = match location {
                 Location::Device => (vk::MemoryPropertyFlags::DEVICE_LOCAL, vk::MemoryPropertyFlags::empty()),
@@ -161,6 +200,18 @@ impl Buffer {
             if with_address {
                 alloc = alloc.push_next(&mut flags);
             }
+            let mut dedicated = vk::MemoryDedicatedAllocateInfo::default().buffer(buffer);
+            let mut export = vk::ExportMemoryAllocateInfo::default().handle_types(handle);
+            let fd = match &sharing {
+                Sharing::Import(fd) => std::os::fd::AsRawFd::as_raw_fd(fd),
+                _ => -1,
+            };
+            let mut import = vk::ImportMemoryFdInfoKHR::default().handle_type(handle).fd(fd);
+            match sharing {
+                Sharing::None => {}
+                Sharing::Export => alloc = alloc.push_next(&mut dedicated).push_next(&mut export),
+                Sharing::Import(_) => alloc = alloc.push_next(&mut dedicated).push_next(&mut import),
+            }
             let memory = match dev.allocate_memory(&alloc, None) {
                 Ok(m) => m,
                 Err(result) => {
@@ -168,6 +219,10 @@ impl Buffer {
                     return Err(VkError::Vk { what: "vkAllocateMemory", result });
                 }
             };
+            if let Sharing::Import(fd) = sharing {
+                // The import succeeded: the fd is Vulkan's now (closed with the memory).
+                let _ = fd.into_raw_fd();
+            }
             let bound = dev.bind_buffer_memory(buffer, memory, 0).map_err(VkError::vk("vkBindBufferMemory"));
             let mapped = match (bound, location) {
                 (Err(e), _) => Err(e),
@@ -191,7 +246,18 @@ impl Buffer {
                 0
             };
             let id = tracker.lock().unwrap().add(MemItem { name, kind, bytes: req.size });
-            Ok(Buffer { ctx: ctx.clone(), tracker: tracker.clone(), id, buffer, memory, size, address, mapped })
+            let alloc_size = req.size;
+            Ok(Buffer {
+                ctx: ctx.clone(),
+                tracker: tracker.clone(),
+                id,
+                buffer,
+                memory,
+                size,
+                alloc_size,
+                address,
+                mapped,
+            })
         }
     }
 
@@ -200,6 +266,19 @@ impl Buffer {
         assert!(!self.mapped.is_null(), "not a host-visible buffer");
         // SAFETY: the whole allocation (>= size) is mapped for the buffer's lifetime.
         unsafe { std::slice::from_raw_parts_mut(self.mapped, self.size as usize) }
+    }
+
+    #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
+    /// A new opaque fd of this buffer's memory (made with [`Sharing::Export`]); the caller owns it.
+    pub fn export_fd(&self) -> VkResult<OwnedFd> {
+        let fns = crate::external::memory_fd(&self.ctx)?;
+        let info = vk::MemoryGetFdInfoKHR::default()
+            .memory(self.memory)
+            .handle_type(vk::ExternalMemoryHandleTypeFlags::OPAQUE_FD);
+        // SAFETY: live memory allocated exportable as an opaque fd (else the call fails).
+        let fd = unsafe { fns.get_memory_fd(&info) }.map_err(VkError::vk("vkGetMemoryFdKHR"))?;
+        // SAFETY: vkGetMemoryFdKHR returns a new fd that the caller owns.
+        Ok(unsafe { <OwnedFd as std::os::fd::FromRawFd>::from_raw_fd(fd) })
     }
 
     pub fn info(&self) -> vk::DescriptorBufferInfo {
@@ -259,6 +338,18 @@ impl Commands {
     /// Records commands with `record`, submits them and waits for completion. Every
     /// submission starts with a full memory barrier, so it sees all earlier submissions' writes.
     pub fn run<R>(&mut self, record: impl FnOnce(&Recording) -> R) -> VkResult<R> {
+        self.run_synced(None, None, record)
+    }
+
+    /// [`Commands::run`] that first waits for `wait` and then signals `signal` (semaphore and
+    /// timeline value; the value is ignored for binary semaphores): how work is ordered with
+    /// another API's (`cuda_interop.rs`).
+    pub fn run_synced<R>(
+        &mut self,
+        wait: Option<(&SharedSemaphore, u64)>,
+        signal: Option<(&SharedSemaphore, u64)>,
+        record: impl FnOnce(&Recording) -> R,
+    ) -> VkResult<R> {
         let dev = &self.ctx.device;
         let rec = Recording { ctx: &self.ctx, dev, cmd: self.cmd };
         // SAFETY: the previous submission has completed (we always wait), so the pool can be
@@ -275,7 +366,21 @@ impl Commands {
             let r = record(&rec);
             dev.end_command_buffer(self.cmd).map_err(VkError::vk("vkEndCommandBuffer"))?;
             let cmds = [self.cmd];
-            let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+            let (wait_sems, wait_values): (Vec<_>, Vec<_>) = wait.iter().map(|(s, v)| (s.sem, *v)).unzip();
+            let (signal_sems, signal_values): (Vec<_>, Vec<_>) = signal.iter().map(|(s, v)| (s.sem, *v)).unzip();
+            let stages = vec![vk::PipelineStageFlags::ALL_COMMANDS; wait_sems.len()];
+            let timeline = wait.iter().chain(&signal).any(|(s, _)| s.kind == SemaphoreKind::Timeline);
+            let mut values = vk::TimelineSemaphoreSubmitInfo::default()
+                .wait_semaphore_values(&wait_values)
+                .signal_semaphore_values(&signal_values);
+            let mut submit = vk::SubmitInfo::default()
+                .command_buffers(&cmds)
+                .wait_semaphores(&wait_sems)
+                .wait_dst_stage_mask(&stages)
+                .signal_semaphores(&signal_sems);
+            if timeline {
+                submit = submit.push_next(&mut values);
+            }
             {
                 let queue = self.ctx.queue.lock().unwrap();
                 dev.queue_submit(*queue, &[submit], self.fence).map_err(VkError::vk("vkQueueSubmit"))?;

@@ -1,0 +1,646 @@
+//! The zero-copy path between CUDA and Vulkan (issue 33; feature `cuda`): a soft-bvh locator
+//! whose query points and answers live in Vulkan memory that CUDA imports, so that CUDA
+//! tensors are located with no host copy.
+//!
+//! - Memory: two exportable Vulkan buffers (points, ids; `external.rs`), each a dedicated
+//!   allocation exported as an opaque fd and imported by `cuImportExternalMemory` +
+//!   `cuExternalMemoryGetMappedBuffer`. The kernel reads the points and writes the ids in
+//!   place: its own pipeline binds the shared buffers (as `stream.rs` binds its own).
+//! - Order: one shared timeline semaphore (binary ones where timelines cannot be shared).
+//!   On the caller's stream: copy the points in (`cuMemcpyDtoDAsync`), signal; the Vulkan
+//!   submission waits for that and signals the next value; the stream waits for it and copies
+//!   the ids out. No device-wide synchronize: the host waits only for its own submission.
+//! - Reuse: buffers, imports and pipelines are kept between calls and grown when a batch is
+//!   larger; an event recorded after each call's last copy makes the next call (on any
+//!   stream) wait before it overwrites what the last one still reads.
+//! - The CUDA driver is loaded at run time (cudarc's dynamic loading): without it every entry
+//!   point answers [`CudaError::NoDriver`]. CUDA and Vulkan must be the same GPU (device
+//!   UUIDs), else [`CudaError::DifferentGpu`].
+//!
+//! Meshes of linear tets in the identity working frame, f32 points: others are refused with
+//! [`CudaError::Unsupported`] (the host path serves them).
+
+use crate::context::{Context, ContextOptions};
+use crate::error::VkError;
+use crate::external::{semaphore_kind, SemaphoreKind, SharedSemaphore};
+use crate::interface::*;
+use crate::locator::{LocatorOptions, VulkanLocator};
+use crate::memory::{Buffer, BufferDesc, MemKind, Sharing};
+use crate::pipeline::{Binding, Descriptors, Pipeline};
+use crate::Kernel;
+use ash::vk;
+use cudarc::driver::sys as cu;
+use std::os::fd::{AsRawFd, IntoRawFd, OwnedFd};
+use std::sync::{Arc, OnceLock};
+use tetloc_core::Mesh;
+
+/// Everything that can go wrong on the zero-copy path.
+#[derive(Debug, thiserror::Error)]
+pub enum CudaError {
+    #[error("CUDA driver not found (libcuda.so.1 could not be loaded): the zero-copy path needs the NVIDIA driver; CPU tensors and the host path work without it")]
+    NoDriver,
+    #[error("{what} failed: CUDA error {code} ({name})")]
+    Call { what: &'static str, code: u32, name: String },
+    #[error("CUDA device {cuda} (UUID {cuda_uuid}) is not the Vulkan device {vulkan}: memory is shared only within one GPU; pick the Vulkan device of that GPU, or use the host path")]
+    DifferentGpu { cuda: i32, cuda_uuid: String, vulkan: String },
+    #[error("{0}")]
+    Unsupported(String),
+    #[error(transparent)]
+    Vulkan(#[from] VkError),
+}
+
+impl From<CudaError> for tetloc_core::Error {
+    fn from(e: CudaError) -> Self {
+        tetloc_core::Error::Backend { backend: "cuda-vulkan".into(), source: Box::new(e) }
+    }
+}
+
+pub type CudaResult<T> = Result<T, CudaError>;
+
+/// The error of a failed call.
+fn check(what: &'static str, r: cu::CUresult) -> CudaResult<()> {
+    if r == cu::CUresult::CUDA_SUCCESS {
+        return Ok(());
+    }
+    let mut text: *const std::ffi::c_char = std::ptr::null();
+    // SAFETY: the driver is loaded (we only call after `load`); it writes a static string.
+    let name = unsafe {
+        match cu::cuGetErrorName(r, &mut text) {
+            cu::CUresult::CUDA_SUCCESS if !text.is_null() => {
+                std::ffi::CStr::from_ptr(text).to_string_lossy().into_owned()
+            }
+            _ => format!("{r:?}"),
+        }
+    };
+    Err(CudaError::Call { what, code: r as u32, name })
+}
+
+/// Loads the driver and initialises it, once a process.
+fn load() -> CudaResult<()> {
+    static LOADED: OnceLock<Result<(), String>> = OnceLock::new();
+    let r = LOADED.get_or_init(|| {
+        // SAFETY: only tries to dlopen libcuda (cudarc would panic on a missing library later;
+        // this check comes first).
+        if !unsafe { cu::is_culib_present() } {
+            return Err(String::new());
+        }
+        // SAFETY: cuInit has no preconditions.
+        check("cuInit", unsafe { cu::cuInit(0) }).map_err(|e| e.to_string())
+    });
+    match r {
+        Ok(()) => Ok(()),
+        Err(e) if e.is_empty() => Err(CudaError::NoDriver),
+        Err(e) => Err(CudaError::Unsupported(e.clone())),
+    }
+}
+
+/// Whether the CUDA driver can be loaded here.
+pub fn driver_available() -> bool {
+    load().is_ok()
+}
+
+fn uuid_text(u: &[u8; 16]) -> String {
+    u.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The UUID of CUDA device `ordinal` (what Vulkan's deviceUUID is on the same GPU).
+pub fn cuda_uuid(ordinal: i32) -> CudaResult<[u8; 16]> {
+    load()?;
+    let mut dev: cu::CUdevice = 0;
+    // SAFETY: the driver is initialised; out-pointers are live locals.
+    unsafe { check("cuDeviceGet", cu::cuDeviceGet(&mut dev, ordinal))? };
+    // SAFETY: as above; a CUuuid is 16 plain bytes.
+    let mut uuid: cu::CUuuid = unsafe { std::mem::zeroed() };
+    // SAFETY: as above.
+    unsafe { check("cuDeviceGetUuid", cu::cuDeviceGetUuid_v2(&mut uuid, dev))? };
+    Ok(uuid.bytes.map(|b| b as u8))
+}
+
+/// The primary context of a CUDA device (the one PyTorch uses), retained while alive.
+struct Primary {
+    dev: cu::CUdevice,
+    ctx: cu::CUcontext,
+}
+
+impl Primary {
+    fn retain(ordinal: i32) -> CudaResult<Primary> {
+        let mut dev: cu::CUdevice = 0;
+        let mut ctx: cu::CUcontext = std::ptr::null_mut();
+        // SAFETY: the driver is initialised; out-pointers are live locals.
+        unsafe {
+            check("cuDeviceGet", cu::cuDeviceGet(&mut dev, ordinal))?;
+            check("cuDevicePrimaryCtxRetain", cu::cuDevicePrimaryCtxRetain(&mut ctx, dev))?;
+        }
+        Ok(Primary { dev, ctx })
+    }
+
+    /// Makes the context current on this thread until the guard drops.
+    fn bind(&self) -> CudaResult<Bound> {
+        // SAFETY: a retained, live context.
+        unsafe { check("cuCtxPushCurrent", cu::cuCtxPushCurrent_v2(self.ctx))? };
+        Ok(Bound)
+    }
+}
+
+impl Drop for Primary {
+    fn drop(&mut self) {
+        // SAFETY: retained in `retain`; released once.
+        unsafe { cu::cuDevicePrimaryCtxRelease_v2(self.dev) };
+    }
+}
+
+/// A context pushed by [`Primary::bind`], popped on drop.
+struct Bound;
+
+impl Drop for Bound {
+    fn drop(&mut self) {
+        let mut old: cu::CUcontext = std::ptr::null_mut();
+        // SAFETY: pops the context this guard pushed.
+        unsafe { cu::cuCtxPopCurrent_v2(&mut old) };
+    }
+}
+
+/// A Vulkan buffer's memory imported into CUDA: `ptr` is its CUDA device address. Dropped
+/// only with the context bound and after CUDA's last use of it (`CudaLocator::ensure_io`),
+/// before the Vulkan buffer.
+struct Import {
+    ptr: cu::CUdeviceptr,
+    ext: cu::CUexternalMemory,
+}
+
+impl Import {
+    fn new(vk: &Buffer) -> CudaResult<Import> {
+        let fd: OwnedFd = vk.export_fd()?;
+        // SAFETY: a plain C struct for which all zeros is a valid (empty) value.
+        let mut desc: cu::CUDA_EXTERNAL_MEMORY_HANDLE_DESC = unsafe { std::mem::zeroed() };
+        desc.type_ = cu::CUexternalMemoryHandleType::CU_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD;
+        desc.handle.fd = fd.as_raw_fd();
+        desc.size = vk.alloc_size;
+        desc.flags = cu::CUDA_EXTERNAL_MEMORY_DEDICATED; // Vulkan allocated it dedicated
+        let mut ext: cu::CUexternalMemory = std::ptr::null_mut();
+        // SAFETY: a valid descriptor of a live exported allocation; the caller bound the context.
+        unsafe { check("cuImportExternalMemory", cu::cuImportExternalMemory(&mut ext, &desc))? };
+        let _ = fd.into_raw_fd(); // imported: the fd is CUDA's now
+                                  // SAFETY: as above: all zeros is valid.
+        let mut buf: cu::CUDA_EXTERNAL_MEMORY_BUFFER_DESC = unsafe { std::mem::zeroed() };
+        buf.size = vk.size;
+        let mut ptr: cu::CUdeviceptr = 0;
+        // SAFETY: the range lies within the imported allocation.
+        let mapped = unsafe {
+            check("cuExternalMemoryGetMappedBuffer", cu::cuExternalMemoryGetMappedBuffer(&mut ptr, ext, &buf))
+        };
+        if let Err(e) = mapped {
+            // SAFETY: imported above, not mapped.
+            unsafe { cu::cuDestroyExternalMemory(ext) };
+            return Err(e);
+        }
+        Ok(Import { ptr, ext })
+    }
+}
+
+impl Drop for Import {
+    fn drop(&mut self) {
+        // SAFETY: the mapping and import made in `new`, no longer used (see the type's doc).
+        unsafe {
+            cu::cuMemFree_v2(self.ptr);
+            cu::cuDestroyExternalMemory(self.ext);
+        }
+    }
+}
+
+/// A Vulkan semaphore that CUDA imported.
+struct SharedSem {
+    cu: cu::CUexternalSemaphore,
+    vk: SharedSemaphore,
+}
+
+impl SharedSem {
+    fn new(ctx: &Arc<Context>, kind: SemaphoreKind) -> CudaResult<SharedSem> {
+        let vk = SharedSemaphore::new(ctx, kind)?;
+        let fd = vk.export_fd()?;
+        // SAFETY: a plain C struct for which all zeros is valid.
+        let mut desc: cu::CUDA_EXTERNAL_SEMAPHORE_HANDLE_DESC = unsafe { std::mem::zeroed() };
+        desc.type_ = match kind {
+            SemaphoreKind::Timeline => {
+                cu::CUexternalSemaphoreHandleType::CU_EXTERNAL_SEMAPHORE_HANDLE_TYPE_TIMELINE_SEMAPHORE_FD
+            }
+            SemaphoreKind::Binary => cu::CUexternalSemaphoreHandleType::CU_EXTERNAL_SEMAPHORE_HANDLE_TYPE_OPAQUE_FD,
+        };
+        desc.handle.fd = fd.as_raw_fd();
+        let mut sem: cu::CUexternalSemaphore = std::ptr::null_mut();
+        // SAFETY: a valid descriptor of a live exported semaphore; the caller bound the context.
+        unsafe { check("cuImportExternalSemaphore", cu::cuImportExternalSemaphore(&mut sem, &desc))? };
+        let _ = fd.into_raw_fd(); // imported: the fd is CUDA's now
+        Ok(SharedSem { cu: sem, vk })
+    }
+
+    /// Signals `value` (timeline) on `stream`.
+    fn signal(&self, value: u64, stream: cu::CUstream) -> CudaResult<()> {
+        // SAFETY: all zeros is valid; the value is the timeline's (ignored for binary).
+        let mut p: cu::CUDA_EXTERNAL_SEMAPHORE_SIGNAL_PARAMS = unsafe { std::mem::zeroed() };
+        p.params.fence.value = value;
+        // SAFETY: a live imported semaphore, the caller's stream, the context bound.
+        unsafe {
+            check("cuSignalExternalSemaphoresAsync", cu::cuSignalExternalSemaphoresAsync(&self.cu, &p, 1, stream))
+        }
+    }
+
+    /// Makes `stream` wait for `value` (timeline).
+    fn wait(&self, value: u64, stream: cu::CUstream) -> CudaResult<()> {
+        // SAFETY: as in `signal`.
+        let mut p: cu::CUDA_EXTERNAL_SEMAPHORE_WAIT_PARAMS = unsafe { std::mem::zeroed() };
+        p.params.fence.value = value;
+        // SAFETY: as in `signal`.
+        unsafe { check("cuWaitExternalSemaphoresAsync", cu::cuWaitExternalSemaphoresAsync(&self.cu, &p, 1, stream)) }
+    }
+}
+
+impl Drop for SharedSem {
+    fn drop(&mut self) {
+        // SAFETY: imported in `new`; no pending stream work uses it (`CudaLocator::drop`).
+        unsafe { cu::cuDestroyExternalSemaphore(self.cu) };
+    }
+}
+
+/// How the two APIs hand over: a timeline (values counting up), or a binary pair.
+enum Handover {
+    Timeline { sem: SharedSem, value: u64 },
+    Binary { to_vulkan: SharedSem, to_cuda: SharedSem },
+}
+
+/// CUDA's imports of an [`Io`]'s buffers.
+struct Imports {
+    points: Import,
+    ids: Import,
+}
+
+/// The shared buffers of batches of up to `capacity` points and the pipeline that reads and
+/// writes them in place.
+struct Io {
+    // Field order is drop order: the pipelines and descriptors before the buffers.
+    pipeline: Pipeline,
+    exact: Option<Pipeline>,
+    desc: Descriptors,
+    deferred: Option<Buffer>,
+    points: Buffer,
+    ids: Buffer,
+    capacity: usize,
+}
+
+impl Io {
+    /// Buffers for `capacity` points (exportable when `sharing`) and the locate pipeline of
+    /// `loc`'s kernel bound to them.
+    fn new(loc: &mut VulkanLocator, capacity: usize, sharing: bool) -> CudaResult<Io> {
+        let dev = loc.device();
+        let mut shared = |bytes: u64, name: &str| {
+            let desc = BufferDesc::io(MemKind::Query, bytes);
+            match sharing {
+                true => dev.create_shared_buffer(desc, name, Sharing::Export),
+                false => dev.create_buffer(desc, name, None),
+            }
+        };
+        let points = shared(12 * capacity as u64, "cuda points")?;
+        let ids = shared(4 * capacity as u64, "cuda ids")?;
+        let res = loc.resources_for(OUT_IDS, false);
+        let (dev, plan) = (res.dev, res.plan);
+        if plan.locate.ray_tracing() {
+            return Err(CudaError::Unsupported("the zero-copy path runs the soft-bvh compute kernel".into()));
+        }
+        let deferred = match plan.exact_pass {
+            Some(_) => {
+                let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+                    | vk::BufferUsageFlags::INDIRECT_BUFFER
+                    | vk::BufferUsageFlags::TRANSFER_DST;
+                let desc = BufferDesc::device(MemKind::Query, 16 + 4 * capacity as u64, usage);
+                Some(dev.create_buffer(desc, "cuda deferred samples", None)?)
+            }
+            None => None,
+        };
+        let unbound = dev.unbound();
+        let mut bindings = res.bindings;
+        bindings.extend([
+            Binding::buffer(B_QUERIES, &points),
+            Binding::buffer(B_OUT, &ids),
+            Binding::buffer(B_DEFER, deferred.as_ref().unwrap_or(unbound)),
+            Binding::buffer(B_ORDER_POINTS, unbound),
+            Binding::buffer(B_ORDER_PERM, unbound),
+            Binding::buffer(B_GRID_AXES, unbound),
+        ]);
+        let ctx = dev.ctx().clone();
+        let desc = Descriptors::new(&ctx, &bindings, plan.locate.stages())?;
+        let spec = res.spec.set(sc::SAMPLE_MODE, SAMPLE_HOST as u32).set(sc::RECORD_POINTS, 0).set(sc::ORDERED, 0);
+        let pipeline = plan.locate.pipeline(dev, desc.layout, res.f64, &spec.clone().concat(&plan.locate_spec))?;
+        let exact = match &plan.exact_pass {
+            Some(e) => Some(plan.locate.pipeline(dev, desc.layout, res.f64, &spec.concat(e))?),
+            None => None,
+        };
+        Ok(Io { pipeline, exact, desc, deferred, points, ids, capacity })
+    }
+
+    /// Runs the kernel over the first `n` points of the buffer into the ids buffer, in one
+    /// submission that waits for `wait` and signals `signal`.
+    fn run(
+        &self,
+        loc: &mut VulkanLocator,
+        n: usize,
+        wait: Option<(&SharedSemaphore, u64)>,
+        signal: Option<(&SharedSemaphore, u64)>,
+    ) -> CudaResult<()> {
+        let mut params = loc.resources_for(OUT_IDS, false).params;
+        params.counts[0] = n as u32;
+        let workgroup = LocatorOptions::default().soft_bvh.workgroup_size;
+        let exact = self.exact.as_ref().zip(self.deferred.as_ref());
+        loc.device()
+            .run_synced(wait, signal, |r| record_launch(r, &self.desc, &self.pipeline, exact, &params, workgroup))?;
+        Ok(())
+    }
+}
+
+/// See the module's documentation.
+pub struct CudaLocator {
+    // Field order is drop order: CUDA's imports before the Vulkan objects, the context last.
+    imports: Option<Imports>,
+    io: Option<Io>,
+    /// Always `Some` but in `drop`, which destroys it with the context bound.
+    handover: Option<Handover>,
+    /// Recorded on the last call's stream after its last copy (null before the first call).
+    last: cu::CUevent,
+    loc: VulkanLocator,
+    cuda_device: i32,
+    primary: Primary,
+}
+
+// SAFETY: the CUDA handles are plain ids used with the context pushed on the calling thread;
+// the locator is used through &mut self only.
+unsafe impl Send for CudaLocator {}
+
+impl CudaLocator {
+    /// A soft-bvh locator of `mesh` on the Vulkan device of CUDA device `cuda_device` (found
+    /// by UUID, or `vulkan_device` when given, which must be that GPU).
+    pub fn new(mesh: Arc<Mesh>, cuda_device: i32, vulkan_device: Option<usize>, validation: bool) -> CudaResult<Self> {
+        load()?;
+        let uuid = cuda_uuid(cuda_device)?;
+        if mesh.cells.is_some() || mesh.tet_nodes.is_some() || !mesh.info.frame.is_identity() {
+            return Err(CudaError::Unsupported(
+                "the zero-copy path takes meshes of linear tets in their own frame; this mesh goes through the host"
+                    .into(),
+            ));
+        }
+        let devices = crate::context::devices()?;
+        let index = match vulkan_device {
+            Some(i) => i,
+            None => {
+                devices.iter().find(|d| d.uuid == uuid).map(|d| d.index).ok_or_else(|| CudaError::DifferentGpu {
+                    cuda: cuda_device,
+                    cuda_uuid: uuid_text(&uuid),
+                    vulkan: "(none of this machine's Vulkan devices has that UUID)".into(),
+                })?
+            }
+        };
+        let ctx = Context::with_options(ContextOptions { device_index: Some(index), validation })?;
+        check_same_gpu(cuda_device, &uuid, &ctx)?;
+        let primary = Primary::retain(cuda_device)?;
+        let _bound = primary.bind()?;
+        let kind = semaphore_kind(&ctx)?;
+        let handover = match kind {
+            SemaphoreKind::Timeline => Handover::Timeline { sem: SharedSem::new(&ctx, kind)?, value: 0 },
+            SemaphoreKind::Binary => {
+                Handover::Binary { to_vulkan: SharedSem::new(&ctx, kind)?, to_cuda: SharedSem::new(&ctx, kind)? }
+            }
+        };
+        let mut last: cu::CUevent = std::ptr::null_mut();
+        // SAFETY: the context is bound; the flag makes an event without timing.
+        unsafe {
+            let flags = cu::CUevent_flags::CU_EVENT_DISABLE_TIMING as u32;
+            check("cuEventCreate", cu::cuEventCreate(&mut last, flags))?;
+        }
+        let loc = VulkanLocator::new(ctx, mesh, Kernel::SoftBvh, LocatorOptions::default())?;
+        Ok(CudaLocator { imports: None, io: None, handover: Some(handover), last, loc, cuda_device, primary })
+    }
+
+    /// The Vulkan locator (its context, memory report).
+    pub fn vulkan(&self) -> &VulkanLocator {
+        &self.loc
+    }
+
+    /// The CUDA device this locator serves.
+    pub fn cuda_device(&self) -> i32 {
+        self.cuda_device
+    }
+
+    /// How the two APIs hand over work ("timeline" or "binary").
+    pub fn semaphores(&self) -> &'static str {
+        match self.handover {
+            Some(Handover::Binary { .. }) => "binary",
+            _ => "timeline",
+        }
+    }
+
+    /// Points a batch may hold before the shared buffers grow.
+    pub fn capacity(&self) -> usize {
+        self.io.as_ref().map_or(0, |io| io.capacity)
+    }
+
+    /// Locates `n` f32 points (x, y, z interleaved) at CUDA address `points` into `n` i32 ids
+    /// (-1 outside) at CUDA address `ids`, in order on CUDA stream `stream` (0: the legacy
+    /// default stream). Returns once the kernel has run; the ids' copy is queued on `stream`.
+    ///
+    /// # Safety
+    /// `points` and `ids` must be device memory of the CUDA device this locator serves, of
+    /// `12 n` and `4 n` bytes, alive until the stream has passed this call's work; `stream` a
+    /// live stream of that device (or 0).
+    pub unsafe fn locate(&mut self, points: u64, n: usize, ids: u64, stream: u64) -> CudaResult<()> {
+        if n == 0 {
+            return Ok(());
+        }
+        let _bound = self.primary.bind()?;
+        let stream = stream as cu::CUstream;
+        self.ensure_io(n)?;
+        let (Some(io), Some(imports)) = (self.io.as_ref(), self.imports.as_ref()) else {
+            unreachable!("ensure_io made them")
+        };
+        // SAFETY: the context is bound; the caller vouches for the pointers and the stream; the
+        // shared buffers hold `capacity >= n` points. The previous call's copy out (maybe on
+        // another stream) finishes before this call's work on `stream` begins.
+        unsafe {
+            if !self.last.is_null() {
+                check("cuStreamWaitEvent", cu::cuStreamWaitEvent(stream, self.last, 0))?;
+            }
+            check("cuMemcpyDtoDAsync", cu::cuMemcpyDtoDAsync_v2(imports.points.ptr, points, 12 * n, stream))?;
+        }
+        let (go, done) = match self.handover.as_mut().expect("alive until drop") {
+            Handover::Timeline { sem, value } => {
+                *value += 2;
+                sem.signal(*value - 1, stream)?;
+                ((&sem.vk, *value - 1), (&*sem, *value))
+            }
+            Handover::Binary { to_vulkan, to_cuda } => {
+                to_vulkan.signal(0, stream)?;
+                ((&to_vulkan.vk, 0), (&*to_cuda, 0))
+            }
+        };
+        io.run(&mut self.loc, n, Some(go), Some((&done.0.vk, done.1)))?;
+        done.0.wait(done.1, stream)?;
+        // SAFETY: as above: the ids buffer holds n answers once the stream has waited.
+        unsafe {
+            check("cuMemcpyDtoDAsync", cu::cuMemcpyDtoDAsync_v2(ids, imports.ids.ptr, 4 * n, stream))?;
+            check("cuEventRecord", cu::cuEventRecord(self.last, stream))?;
+        }
+        Ok(())
+    }
+
+    /// Makes the shared buffers hold `n` points (growing them, after the last call's stream
+    /// work is done with the old ones) and the pipelines that read them.
+    fn ensure_io(&mut self, n: usize) -> CudaResult<()> {
+        if self.io.as_ref().is_some_and(|io| io.capacity >= n) {
+            return Ok(());
+        }
+        // SAFETY: the context is bound (by the caller); waits for the last call's copies only.
+        unsafe { check("cuEventSynchronize", cu::cuEventSynchronize(self.last))? };
+        self.imports = None;
+        self.io = None;
+        let io = Io::new(&mut self.loc, n.max(1 << 16), true)?;
+        self.imports = Some(Imports { points: Import::new(&io.points)?, ids: Import::new(&io.ids)? });
+        self.io = Some(io);
+        Ok(())
+    }
+}
+
+/// Records one launch over the shared points: the kernel, and with deferred exact tests the
+/// exact second pass over the samples the first deferred (as `locator/launch.rs` does).
+fn record_launch(
+    r: &crate::device::Recording,
+    desc: &Descriptors,
+    pipeline: &Pipeline,
+    exact: Option<(&Pipeline, &Buffer)>,
+    params: &Params,
+    workgroup: u32,
+) {
+    let bind = |p: &Pipeline| {
+        // SAFETY: recording into a command buffer in the recording state, with live objects;
+        // the push constants are the layout's range.
+        unsafe {
+            r.dev.cmd_bind_pipeline(r.cmd, p.bind_point, p.pipeline);
+            r.dev.cmd_bind_descriptor_sets(r.cmd, p.bind_point, desc.layout, 0, &[desc.set], &[]);
+            r.dev.cmd_push_constants(r.cmd, desc.layout, desc.stages, 0, bytemuck::bytes_of(params));
+        }
+    };
+    if let Some((_, list)) = exact {
+        // Empty the deferred-sample list: dispatch size (0, 1, 1), count 0.
+        // SAFETY: as above; 16 bytes, far below vkCmdUpdateBuffer's limit.
+        unsafe { r.dev.cmd_update_buffer(r.cmd, list.buffer, 0, bytemuck::cast_slice(&[0u32, 1, 1, 0])) };
+        r.barrier();
+    }
+    bind(pipeline);
+    let groups = (params.counts[0] as u64).div_ceil(workgroup as u64);
+    let x = groups.min(r.ctx.limits.max_workgroup_count[0] as u64).max(1);
+    // SAFETY: a compute pipeline is bound; the shader linearises the 2D grid of workgroups.
+    unsafe { r.dev.cmd_dispatch(r.cmd, x as u32, groups.div_ceil(x) as u32, 1) };
+    if let Some((p, list)) = exact {
+        r.barrier();
+        bind(p);
+        // SAFETY: as above; the list starts with the dispatch size the first pass counted.
+        unsafe { r.dev.cmd_dispatch_indirect(r.cmd, list.buffer, 0) };
+    }
+    r.barrier();
+}
+
+/// Checks that CUDA device `cuda` (UUID `uuid`) is the GPU of the Vulkan context.
+fn check_same_gpu(cuda: i32, uuid: &[u8; 16], ctx: &Context) -> CudaResult<()> {
+    if &ctx.uuid == uuid {
+        return Ok(());
+    }
+    Err(CudaError::DifferentGpu {
+        cuda,
+        cuda_uuid: uuid_text(uuid),
+        vulkan: format!("{} '{}' (UUID {})", ctx.info().index, ctx.info().name, uuid_text(&ctx.uuid)),
+    })
+}
+
+impl Drop for CudaLocator {
+    fn drop(&mut self) {
+        if let Ok(_bound) = self.primary.bind() {
+            // SAFETY: waits for the last call's stream work (not the device), then frees the
+            // imports (context bound) before the Vulkan objects go.
+            unsafe {
+                if !self.last.is_null() {
+                    cu::cuEventSynchronize(self.last);
+                    cu::cuEventDestroy_v2(self.last);
+                }
+            }
+            self.imports = None;
+            self.io = None;
+            self.handover = None;
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// This machine has no NVIDIA driver in CI: the path says so clearly, never panics.
+    #[test]
+    fn without_the_driver_the_error_is_clear() {
+        // SAFETY: only tries to dlopen libcuda.
+        if unsafe { cu::is_culib_present() } {
+            tetloc_testdata::skip("without_the_driver_the_error_is_clear", "a CUDA driver is installed here");
+            return;
+        }
+        assert!(!driver_available());
+        let e = cuda_uuid(0).unwrap_err();
+        assert!(matches!(e, CudaError::NoDriver));
+        assert!(e.to_string().starts_with("CUDA driver not found"), "{e}");
+        let mesh =
+            Arc::new(Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, 1000, 1), "jets").unwrap());
+        let e = CudaLocator::new(mesh, 0, None, true).err().expect("refused");
+        assert!(e.to_string().starts_with("CUDA driver not found"), "{e}");
+    }
+
+    /// The kernel reading and writing the shared buffers in place answers what the locator's
+    /// own path answers (exportable buffers where lavapipe has them, plain ones otherwise).
+    #[test]
+    fn in_place_launch_matches_the_locator() {
+        let test = "in_place_launch_matches_the_locator";
+        let Some(ctx) = crate::context::test_context(test) else { return };
+        let sharing = crate::external::memory_fd(&ctx).is_ok();
+        eprintln!("{test}: exportable buffers: {sharing}");
+        let raw = tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, 5000, 2);
+        let mesh = Arc::new(Mesh::new(raw, "jets").unwrap());
+        let mut loc =
+            VulkanLocator::new(ctx.clone(), mesh.clone(), Kernel::SoftBvh, LocatorOptions::default()).unwrap();
+        let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
+        let n = 3000;
+        let pts: Vec<[f32; 3]> = (0..n)
+            .map(|i| {
+                // 10% beyond the box on each side: points inside and outside.
+                let t = |k: usize, a: f32, b: f32| {
+                    a + (b - a) * (1.2 * ((i * (7 + 6 * k) + 3 * k) % 101) as f32 / 100.0 - 0.1)
+                };
+                [t(0, lo[0], hi[0]), t(1, lo[1], hi[1]), t(2, lo[2], hi[2])]
+            })
+            .collect();
+        let mut want = vec![0; n];
+        tetloc_core::BatchLocator::locate(&mut loc, &pts, &mut want).unwrap();
+        let io = Io::new(&mut loc, 4096, sharing).unwrap();
+        loc.device().write(&io.points, 0, bytemuck::cast_slice(&pts)).unwrap();
+        io.run(&mut loc, n, None, None).unwrap();
+        let mut got = vec![0i32; n];
+        loc.device().download(&io.ids, 0, bytemuck::cast_slice_mut(&mut got)).unwrap();
+        assert_eq!(got, want);
+        assert!(want.iter().any(|&i| i >= 0) && want.iter().any(|&i| i < 0), "inside and outside both tested");
+        drop(io);
+        assert_eq!(ctx.validation_errors(), 0);
+    }
+
+    #[test]
+    fn a_different_gpu_is_refused_by_uuid() {
+        let Some(ctx) = crate::context::test_context("a_different_gpu_is_refused_by_uuid") else { return };
+        let mut other = ctx.uuid;
+        other[0] ^= 0xff;
+        let e = check_same_gpu(1, &other, &ctx).unwrap_err();
+        let text = e.to_string();
+        assert!(text.contains("is not the Vulkan device") && text.contains(&uuid_text(&ctx.uuid)), "{text}");
+        check_same_gpu(0, &ctx.uuid.clone(), &ctx).unwrap();
+    }
+}

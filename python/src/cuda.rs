@@ -1,0 +1,99 @@
+//! `CudaLocator`: the zero-copy path of `tetloc.torch` for CUDA tensors
+//! (`tetloc_vulkan::cuda_interop`): points and ids stay on the GPU, handed between CUDA and
+//! Vulkan through shared memory and semaphores on the caller's stream. `tetloc.torch` passes
+//! the tensors' device addresses (`data_ptr()`) and the stream (`cuda_stream`); it checks
+//! their device, dtype, shape and contiguity first, so addresses here are trusted.
+
+use crate::errors::{guarded, DeviceError};
+use crate::mesh::PyMesh;
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use std::sync::Mutex;
+use tetloc_vulkan::cuda_interop::{self, CudaError, CudaLocator};
+
+fn to_py(e: CudaError) -> PyErr {
+    DeviceError::new_err(e.to_string())
+}
+
+/// A soft-bvh locator on the Vulkan device of one CUDA device, for CUDA tensors.
+#[pyclass(name = "CudaLocator", module = "tetloc._tetloc")]
+pub struct PyCudaLocator {
+    inner: Mutex<CudaLocator>,
+}
+
+#[pymethods]
+impl PyCudaLocator {
+    /// Builds the locator of `mesh` on CUDA device `cuda_device` (the Vulkan device of the same
+    /// GPU, found by UUID, or `vulkan_device`, which must be it). Raises `tetloc.DeviceError`
+    /// without a CUDA driver, on another GPU, or without the Vulkan extensions the sharing
+    /// needs, and for meshes the path does not take (then the host path serves them).
+    /// `validation`: the Vulkan validation layer (default: `TETLOC_VK_VALIDATION`).
+    #[new]
+    #[pyo3(signature = (mesh, cuda_device, vulkan_device=None, validation=None))]
+    fn new(
+        py: Python<'_>,
+        mesh: &PyMesh,
+        cuda_device: i32,
+        vulkan_device: Option<usize>,
+        validation: Option<bool>,
+    ) -> PyResult<Self> {
+        let mesh = mesh.mesh.clone();
+        let validation = validation.unwrap_or_else(|| tetloc_vulkan::ContextOptions::default().validation);
+        let loc = py.detach(|| {
+            guarded("building the CUDA locator", || {
+                CudaLocator::new(mesh, cuda_device, vulkan_device, validation).map_err(to_py)
+            })
+        })?;
+        Ok(PyCudaLocator { inner: Mutex::new(loc) })
+    }
+
+    /// Locates `n` float32 points (x, y, z interleaved) at CUDA address `points` into `n`
+    /// int32 ids at CUDA address `ids`, ordered on CUDA stream `stream` (its handle; 0: the
+    /// default stream). The caller guarantees both addresses are contiguous memory of this
+    /// CUDA device of 12 n and 4 n bytes.
+    fn locate(&self, py: Python<'_>, points: u64, n: usize, ids: u64, stream: u64) -> PyResult<()> {
+        if n > 0 && (points == 0 || ids == 0) {
+            return Err(PyValueError::new_err("points, ids: null device addresses"));
+        }
+        if n > i32::MAX as usize {
+            return Err(PyValueError::new_err(format!("{n} points: at most 2^31 - 1 a call")));
+        }
+        py.detach(|| {
+            guarded("locating CUDA points", || {
+                let mut loc = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                // SAFETY: `tetloc.torch` passes the addresses of live, contiguous CUDA tensors
+                // of the right sizes on this device, and the stream of that device.
+                unsafe { loc.locate(points, n, ids, stream) }.map_err(to_py)
+            })
+        })
+    }
+
+    /// The CUDA device this locator serves.
+    #[getter]
+    fn cuda_device(&self) -> i32 {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).cuda_device()
+    }
+
+    /// How CUDA and Vulkan hand over work: "timeline" or "binary" semaphores.
+    #[getter]
+    fn semaphores(&self) -> &'static str {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).semaphores()
+    }
+
+    /// Points a call may take before the shared buffers grow (0 before the first call).
+    #[getter]
+    fn capacity(&self) -> usize {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).capacity()
+    }
+
+    /// Validation-layer errors of this locator's Vulkan context so far.
+    fn validation_errors(&self) -> usize {
+        self.inner.lock().unwrap_or_else(|e| e.into_inner()).vulkan().context().validation_errors()
+    }
+}
+
+/// Whether the CUDA driver can be loaded in this process (the zero-copy path needs it).
+#[pyfunction]
+pub fn cuda_driver_available() -> bool {
+    cuda_interop::driver_available()
+}
