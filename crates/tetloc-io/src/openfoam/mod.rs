@@ -3,8 +3,8 @@
 //! `volVectorField` (and tensor) internal fields of the time directories as cell data.
 //!
 //! A case opens through its `NAME.foam` file (as in ParaView) or its folder. Cells keep
-//! OpenFOAM's order: cell id = `celli` ([`poly`] builds them). A decomposed case
-//! (`processor*/`, [`decomposed`]) is read as one mesh: when the case folder has no
+//! OpenFOAM's order: cell id = `celli` (`poly.rs` builds them). A decomposed case
+//! (`processor*/`, `decomposed.rs`) is read as one mesh: when the case folder has no
 //! `constant/polyMesh`, or when asked (the format `foam-decomposed`, ParaView's "Case Type").
 //!
 //! **Time steps.** The case's time directories are its steps, ascending, as ParaView lists
