@@ -120,13 +120,13 @@ def pathlines(args) -> None:
         def __init__(self) -> None:
             VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1, outputType="vtkUnstructuredGrid")
 
-        def RequestInformation(self, request, in_info, out_info):  # type: ignore[no-untyped-def]
+        def RequestInformation(self, request, in_info, out_info):
             info = out_info.GetInformationObject(0)
             info.Set(sddp.TIME_STEPS(), list(times), len(times))
             info.Set(sddp.TIME_RANGE(), [times[0], times[-1]], 2)
             return 1
 
-        def RequestData(self, request, in_info, out_info):  # type: ignore[no-untyped-def]
+        def RequestData(self, request, in_info, out_info):
             info = out_info.GetInformationObject(0)
             t = info.Get(sddp.UPDATE_TIME_STEP()) if info.Has(sddp.UPDATE_TIME_STEP()) else times[0]
             k = int(np.argmin(np.abs(times - t)))

@@ -160,14 +160,15 @@ def interpolation_weights(
     mesh: _Mesh, points: np.ndarray, ids: np.ndarray
 ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
 
+@final
 class CudaLocator:
     """A soft-bvh locator on the Vulkan device of one CUDA device: the zero-copy path of
     ``tetloc.torch`` (raises DeviceError without a CUDA driver, on another GPU, without the
     Vulkan extensions for sharing memory, or for a mesh other than linear tets)."""
 
-    def __init__(
-        self, mesh: _Mesh, cuda_device: int, vulkan_device: Optional[int] = None, validation: Optional[bool] = None
-    ) -> None: ...
+    def __new__(
+        cls, mesh: _Mesh, cuda_device: int, vulkan_device: Optional[int] = None, validation: Optional[bool] = None
+    ) -> CudaLocator: ...
     # n float32 points at CUDA address `points` -> n int32 ids at `ids`, on CUDA stream `stream`
     def locate(self, points: int, n: int, ids: int, stream: int) -> None: ...
     @property
