@@ -192,7 +192,7 @@ def test_pathline_bad_inputs(tmp_path, data_dir):
     with pytest.raises(ValueError, match=r"delaunay_s.vtu.*single snapshot"):
         tetloc.trace(tetloc.read(data_dir / "delaunay_s.vtu"), "v", np.zeros((1, 3), np.float32), unsteady=True)
     mesh = tetloc.read(spin_series(tmp_path, [0.0, 1.0]))
-    with pytest.raises(ValueError, match=r"the start time -1.0? is outside the time steps of .*spin.pvd \(0 to 1\)"):
+    with pytest.raises(ValueError, match=r"the start time -1(\.0)? is outside the time steps of .*spin.pvd \(0 to 1\)"):
         tetloc.trace(mesh, "v", np.full((1, 3), 0.5, np.float32), unsteady=True, start_time=-1.0)
-    with pytest.raises(ValueError, match=r"end time 2.0? is outside"):
+    with pytest.raises(ValueError, match=r"end time 2(\.0)? is outside"):
         tetloc.trace(mesh, "v", np.full((1, 3), 0.5, np.float32), unsteady=True, end_time=2.0)
