@@ -285,10 +285,7 @@ pub fn trace_lines<'py>(
         let out_fields = trace::line_fields(&m, &vector);
         let arrays = match locator {
             None => {
-                let bare = py.detach(|| Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build_bare());
-                let BareLocator::Cpu(cpu) = bare.map_err(crate::backend::py_error)?.locator else {
-                    return Err(PyRuntimeError::new_err("cpu: not the CPU's locator"));
-                };
+                let cpu = cpu_locator(py, &m)?;
                 run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
                     trace::pathlines(seeds, &o, &cpu, &steps, xyz, &out_fields, |d| ticker.tick(d))
                 })?
@@ -323,10 +320,7 @@ pub fn trace_lines<'py>(
         None => {
             // The line arrays come from the integrator's own lookups (no second pass), through
             // the CPU's locator itself (each particle walks from its last tet).
-            let bare = py.detach(|| Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build_bare());
-            let BareLocator::Cpu(cpu) = bare.map_err(crate::backend::py_error)?.locator else {
-                return Err(PyRuntimeError::new_err("cpu: not the CPU's locator"));
-            };
+            let cpu = cpu_locator(py, &m)?;
             run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
                 trace::trace_sampled(seeds, &o, &cpu, xyz, &out_fields, &|d| ticker.tick(d))
             })?
@@ -365,4 +359,17 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
         .collect();
     out.set_item("fields", fields)?;
     Ok(out)
+}
+
+/// The CPU's own locator (no wrappers) over `m`, built without the GIL: trace and pathlines
+/// walk each particle from its last tet through it.
+fn cpu_locator(
+    py: Python<'_>,
+    m: &std::sync::Arc<tetloc_core::Mesh>,
+) -> PyResult<Box<tetloc_core::locate::CpuLocator>> {
+    let bare = py.detach(|| Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build_bare());
+    match bare.map_err(crate::backend::py_error)?.locator {
+        BareLocator::Cpu(cpu) => Ok(cpu),
+        _ => Err(PyRuntimeError::new_err("cpu: not the CPU's locator")),
+    }
 }
