@@ -90,7 +90,10 @@ class Series(VTKPythonAlgorithmBase):
     """The steps in memory, as a temporal source."""
 
     def __init__(self, start):
-        VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1, outputType="vtkUnstructuredGrid")
+        # A composite output: vtkParticlePathFilter (VTK 9.7) keeps a plain dataset input by
+        # reference, so the step before would alias the source's reused output object and both
+        # ends of an interval would hold the newer step. A fresh block a step avoids that.
+        VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1, outputType="vtkMultiBlockDataSet")
         self.grids = steps()
         # vtkParticlePathFilter injects at the first time its input has: the steps from START.
         self.times = [t for t in TIMES if t >= start]
@@ -105,8 +108,11 @@ class Series(VTKPythonAlgorithmBase):
         info = out_info.GetInformationObject(0)
         t = info.Get(SDDP.UPDATE_TIME_STEP()) if info.Has(SDDP.UPDATE_TIME_STEP()) else TIMES[0]
         k = int(np.argmin([abs(t - s) for s in TIMES]))
-        out = vtk.vtkUnstructuredGrid.GetData(out_info)
-        out.ShallowCopy(self.grids[k])
+        grid = vtk.vtkUnstructuredGrid()
+        grid.ShallowCopy(self.grids[k])
+        out = vtk.vtkMultiBlockDataSet.GetData(out_info)
+        out.SetNumberOfBlocks(1)
+        out.SetBlock(0, grid)
         out.GetInformation().Set(vtk.vtkDataObject.DATA_TIME_STEP(), TIMES[k])
         return 1
 

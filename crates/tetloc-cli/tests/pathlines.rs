@@ -39,8 +39,6 @@ fn points_by_time(dir: &Path, who: &str) -> HashMap<(i64, i64), [f64; 3]> {
 /// step, velocity interpolated linearly in time), within float32 rounding: on cpu (each
 /// particle walking from its last tet) and on soft-bvh (one batched lookup per stage).
 #[test]
-#[ignore = "2026-12-05: the paths differ from vtkParticlePathFilter's by 7.3e-2 at t = 1.6 (the closed-form \
-            tests of ops::trace::pathline pass); the difference in method is not found yet (issue 32)"]
 fn pathlines_match_vtk_particle_paths() {
     const TEST: &str = "pathlines_match_vtk_particle_paths";
     let dir = tmp_dir(TEST);
