@@ -34,6 +34,22 @@ use std::os::fd::{AsRawFd, IntoRawFd, OwnedFd};
 use std::sync::{Arc, OnceLock};
 use tetloc_core::Mesh;
 
+/// A CUDA handle descriptor with its `type_` set and every other field zero. `type_` is a
+/// Rust enum with no zero value, so the struct cannot be `mem::zeroed()` (a non-unwinding
+/// panic, seen on the H100): zeroed memory with the enum written in place, then read.
+macro_rules! with_type {
+    ($desc:ty, $type_:expr) => {{
+        let type_ = $type_;
+        let mut d = std::mem::MaybeUninit::<$desc>::zeroed();
+        // SAFETY: the other fields (integers, a union of an fd and pointers, reserved words)
+        // are valid as zeros, and `type_` is written with a valid value before `assume_init`.
+        unsafe {
+            std::ptr::addr_of_mut!((*d.as_mut_ptr()).type_).write(type_);
+            d.assume_init()
+        }
+    }};
+}
+
 /// Everything that can go wrong on the zero-copy path.
 #[derive(Debug, thiserror::Error)]
 pub enum CudaError {
@@ -171,9 +187,10 @@ struct Import {
 impl Import {
     fn new(vk: &Buffer) -> CudaResult<Import> {
         let fd: OwnedFd = vk.export_fd()?;
-        // SAFETY: a plain C struct for which all zeros is a valid (empty) value.
-        let mut desc: cu::CUDA_EXTERNAL_MEMORY_HANDLE_DESC = unsafe { std::mem::zeroed() };
-        desc.type_ = cu::CUexternalMemoryHandleType::CU_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD;
+        let mut desc = with_type!(
+            cu::CUDA_EXTERNAL_MEMORY_HANDLE_DESC,
+            cu::CUexternalMemoryHandleType::CU_EXTERNAL_MEMORY_HANDLE_TYPE_OPAQUE_FD
+        );
         desc.handle.fd = fd.as_raw_fd();
         desc.size = vk.alloc_size;
         desc.flags = cu::CUDA_EXTERNAL_MEMORY_DEDICATED; // Vulkan allocated it dedicated
@@ -218,14 +235,15 @@ impl SharedSem {
     fn new(ctx: &Arc<Context>, kind: SemaphoreKind) -> CudaResult<SharedSem> {
         let vk = SharedSemaphore::new(ctx, kind)?;
         let fd = vk.export_fd()?;
-        // SAFETY: a plain C struct for which all zeros is valid.
-        let mut desc: cu::CUDA_EXTERNAL_SEMAPHORE_HANDLE_DESC = unsafe { std::mem::zeroed() };
-        desc.type_ = match kind {
-            SemaphoreKind::Timeline => {
-                cu::CUexternalSemaphoreHandleType::CU_EXTERNAL_SEMAPHORE_HANDLE_TYPE_TIMELINE_SEMAPHORE_FD
+        let mut desc = with_type!(
+            cu::CUDA_EXTERNAL_SEMAPHORE_HANDLE_DESC,
+            match kind {
+                SemaphoreKind::Timeline => {
+                    cu::CUexternalSemaphoreHandleType::CU_EXTERNAL_SEMAPHORE_HANDLE_TYPE_TIMELINE_SEMAPHORE_FD
+                }
+                SemaphoreKind::Binary => cu::CUexternalSemaphoreHandleType::CU_EXTERNAL_SEMAPHORE_HANDLE_TYPE_OPAQUE_FD,
             }
-            SemaphoreKind::Binary => cu::CUexternalSemaphoreHandleType::CU_EXTERNAL_SEMAPHORE_HANDLE_TYPE_OPAQUE_FD,
-        };
+        );
         desc.handle.fd = fd.as_raw_fd();
         let mut sem: cu::CUexternalSemaphore = std::ptr::null_mut();
         // SAFETY: a valid descriptor of a live exported semaphore; the caller bound the context.
