@@ -12,6 +12,7 @@ mod errors;
 mod locator;
 mod mesh;
 mod ops;
+mod steps;
 mod weights;
 
 use pyo3::prelude::*;
@@ -43,6 +44,7 @@ fn _tetloc(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<mesh::PyMesh>()?;
     m.add_class::<locator::PyLocator>()?;
     m.add_class::<cuda::PyCudaLocator>()?;
+    m.add_class::<steps::PyStepWeights>()?;
     m.add_function(wrap_pyfunction!(cuda::cuda_driver_available, m)?)?;
     m.add_function(wrap_pyfunction!(mesh::read_mesh, m)?)?;
     m.add_function(wrap_pyfunction!(backend::devices, m)?)?;

@@ -8,6 +8,7 @@ use crate::backend;
 use crate::background;
 use crate::errors::{internal_error, to_py};
 use crate::mesh::{contiguous, PyMesh};
+use crate::steps::PyStepWeights;
 use numpy::{PyArray1, PyArray2, PyReadonlyArray2, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -57,6 +58,8 @@ pub struct PyLocator {
     /// `precision="f64"`, for f64 values.
     takes_f64: bool,
     precision: Precision,
+    /// The Vulkan device asked for (`None`: the best one), for `step_weights` on a GPU backend.
+    device: Option<usize>,
 }
 
 /// What `**options` asks for, past the backend's name.
@@ -130,6 +133,27 @@ fn parse_options(options: Option<&Bound<'_, PyDict>>) -> PyResult<Options> {
 }
 
 impl PyLocator {
+    /// The weights of (K, 3) float64 points in the cells `locate` finds them in (at float64
+    /// precision when `takes_f64`, else rounded to float32 as `locate` rounds them).
+    fn located_weights(&self, py: Python<'_>, points: &PyReadonlyArray2<'_, f64>) -> PyResult<Weights> {
+        if points.shape()[1] != 3 {
+            return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
+        }
+        let pts: &[[f64; 3]] = bytemuck::cast_slice(contiguous(points, "points")?);
+        let mut cells = vec![tetloc_core::OUTSIDE; pts.len()];
+        let out = &mut cells;
+        let located: Vec<[f64; 3]> = if self.takes_f64 {
+            self.chunked(py, pts.len(), |loc, r| loc.sample_many64(&pts[r.clone()], &[], &mut out[r], &mut []))?;
+            pts.to_vec()
+        } else {
+            let narrow: Vec<Vec3> = pts.iter().map(|p| p.map(|c| c as f32)).collect();
+            self.chunked(py, pts.len(), |loc, r| loc.locate(&narrow[r.clone()], &mut out[r]))?;
+            narrow.iter().map(|p| p.map(f64::from)).collect()
+        };
+        let mesh = &self.mesh;
+        py.detach(|| Weights::from_cells(mesh, &located, cells)).map_err(to_py)
+    }
+
     /// Runs `f` over `n` points in chunks, with the GIL released during each chunk and a
     /// check for Ctrl-C (and a progress tick) between chunks.
     fn chunked(
@@ -261,6 +285,7 @@ impl PyLocator {
             mesh: mesh_arc,
             chunk,
             memory: built.memory,
+            device,
             build_seconds: built.build_seconds,
             note,
             stack,
@@ -379,30 +404,16 @@ impl PyLocator {
     /// arrays over the mesh's vertices (indptr (K + 1,) int64, indices int32, data float64)
     /// and each point's cell (K,) int32 (-1 outside: an empty row). `Weights` in the core.
     fn weights<'py>(&self, py: Python<'py>, points: PyReadonlyArray2<'_, f64>) -> PyResult<CsrRows<'py>> {
-        if points.shape()[1] != 3 {
-            return Err(PyValueError::new_err(format!("points: shape {:?}; expected (K, 3)", points.shape())));
-        }
-        let pts: &[[f64; 3]] = bytemuck::cast_slice(contiguous(&points, "points")?);
-        let mut cells = vec![tetloc_core::OUTSIDE; pts.len()];
-        let out = &mut cells;
-        let located: Vec<[f64; 3]> = if self.takes_f64 {
-            self.chunked(py, pts.len(), |loc, r| loc.sample_many64(&pts[r.clone()], &[], &mut out[r], &mut []))?;
-            pts.to_vec()
-        } else {
-            let narrow: Vec<Vec3> = pts.iter().map(|p| p.map(|c| c as f32)).collect();
-            self.chunked(py, pts.len(), |loc, r| loc.locate(&narrow[r.clone()], &mut out[r]))?;
-            narrow.iter().map(|p| p.map(f64::from)).collect()
-        };
-        let mesh = &self.mesh;
-        let w = py.detach(|| Weights::from_cells(mesh, &located, cells)).map_err(to_py)?;
-        let indptr: Vec<i64> = w.offsets.iter().map(|&o| o as i64).collect();
-        let indices: Vec<i32> = w.vertices.iter().map(|&v| v as i32).collect();
-        Ok((
-            PyArray1::from_vec(py, indptr),
-            PyArray1::from_vec(py, indices),
-            PyArray1::from_vec(py, w.weights),
-            PyArray1::from_vec(py, w.cells),
-        ))
+        let w = self.located_weights(py, &points)?;
+        let (indptr, indices, data) = crate::steps::csr(py, &w);
+        Ok((indptr, indices, data, PyArray1::from_vec(py, w.cells)))
+    }
+
+    /// `_StepWeights` of (K, 3) float64 points, located as `weights` locates them, applied on
+    /// this locator's device for a GPU backend, on the host for cpu.
+    fn step_weights(&self, py: Python<'_>, points: PyReadonlyArray2<'_, f64>) -> PyResult<PyStepWeights> {
+        let w = self.located_weights(py, &points)?;
+        PyStepWeights::new(py, w, (self.memory.on == "device").then_some(self.device))
     }
 
     /// Ids and values of the scalar field `name` in one pass.

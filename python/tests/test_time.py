@@ -79,6 +79,64 @@ def test_weights_equal_sample_on_every_mixed_cell_type(data_dir):
         np.testing.assert_array_equal(mesh.field("g")[ids[inside]].astype(np.float32), loc.sample(points, "g")[inside])
 
 
+def test_step_weights_sample_every_step_on_cpu_and_gpu(time_dir, oracle, vulkan, no_validation_errors):
+    """Locate once, interpolate many: every step of the series at once, on the host and on the
+    GPU (the weights on the device, a batch of steps a dispatch), as the oracle; the two agree
+    bit for bit on a device with float64 (both sum in float64, round to float32)."""
+    points, want, times = oracle
+    mesh = tetloc.read(time_dir / "part_s.e")
+    got = {}
+    for backend in ["cpu", "soft-bvh"]:
+        sw = tetloc.Locator(mesh, backend=backend).step_weights(points)
+        assert (sw.device == "cpu") == (backend == "cpu"), sw.device
+        assert sw.n_points == len(points) and "StepWeights" in repr(sw)
+        got[backend] = sw.sample("f")
+        assert got[backend].shape == (len(times), len(points)) and got[backend].dtype == np.float32
+        np.testing.assert_allclose(got[backend], want, rtol=1e-6, atol=1e-6)
+        # Some steps, in any order; and steps held in memory.
+        np.testing.assert_array_equal(sw.sample("f", steps=[4, 1]), got[backend][[4, 1]])
+        steps = np.stack([mesh.field("f", step=k) for k in range(len(times))])
+        np.testing.assert_array_equal(sw.apply(steps), got[backend])
+        with pytest.raises(ValueError, match="out of range"):
+            sw.sample("f", steps=[len(times)])
+        with pytest.raises(ValueError, match="expected \\(steps, "):
+            sw.apply(np.zeros((2, mesh.n_points + 1), np.float32))
+    if vulkan["float64"]:
+        np.testing.assert_array_equal(got["soft-bvh"], got["cpu"])
+    else:
+        np.testing.assert_allclose(got["soft-bvh"], got["cpu"], rtol=1e-5, atol=1e-6)
+
+
+def test_step_weights_apply_is_the_matrix(data_dir, vulkan, no_validation_errors):
+    """On mixed and quadratic cells: ``apply`` of steps of k components equals ``W @ values``,
+    points outside NaN; cell fields by each point's cell."""
+    meshes = [tetloc.read(data_dir / "mixed" / "hybrid.zlib.vtu"), quadratic_tets()]
+    rng = np.random.default_rng(5)
+    for mesh in meshes:
+        lo, hi = np.min(mesh.points64, 0), np.max(mesh.points64, 0)
+        pts = rng.uniform(lo - 0.1 * (hi - lo), hi + 0.1 * (hi - lo), size=(2000, 3))
+        for backend in ["cpu", "soft-bvh"]:
+            loc = tetloc.Locator(mesh, backend=backend)
+            sw = loc.step_weights(pts)
+            W = sw.matrix
+            assert (W != loc.weights(pts)).nnz == 0
+            inside = sw.cells >= 0
+            assert 0 < inside.sum() < len(pts)
+            values = rng.normal(size=(3, mesh.n_points, 2)).astype(np.float32)
+            got = sw.apply(values)
+            assert got.shape == (3, len(pts), 2)
+            for s in range(3):
+                np.testing.assert_allclose(got[s][inside], (W @ values[s].astype(np.float64))[inside], rtol=1e-5, atol=1e-6)
+            assert np.isnan(got[:, ~inside]).all()
+            # A scalar field: (S, K).
+            assert sw.apply(values[:, :, 0]).shape == (3, len(pts))
+            np.testing.assert_allclose(sw.sample("f")[0][inside], loc.sample(pts, "f")[inside], rtol=1e-5, atol=1e-6)
+            if "g" in mesh.cell_data:
+                g = sw.sample("g")[0]
+                np.testing.assert_array_equal(g[inside], mesh.field("g")[sw.cells[inside]].astype(np.float32))
+                assert np.isnan(g[~inside]).all()
+
+
 def quadratic_tets(n: int = 3):
     """Kuhn tets with their 6 edge nodes (VTK's order), moved off the edges (curved), and a
     field that is not linear."""
@@ -196,3 +254,21 @@ def test_pathline_bad_inputs(tmp_path, data_dir):
         tetloc.trace(mesh, "v", np.full((1, 3), 0.5, np.float32), unsteady=True, start_time=-1.0)
     with pytest.raises(ValueError, match=r"end time 2(\.0)? is outside"):
         tetloc.trace(mesh, "v", np.full((1, 3), 0.5, np.float32), unsteady=True, end_time=2.0)
+
+
+def test_time_steps_example(time_dir, tmp_path):
+    """python/examples/time_steps.py: every step of a series at probes, saved as .npy."""
+    import subprocess
+    import sys
+
+    example = pathlib.Path(__file__).resolve().parents[1] / "examples" / "time_steps.py"
+    out = tmp_path / "history.npy"
+    run = subprocess.run(
+        [sys.executable, str(example), str(time_dir / "part_s.e"), "f", "--points", "500", "--backend", "cpu",
+         "--out", str(out)],
+        capture_output=True, text=True, timeout=120,
+    )
+    assert run.returncode == 0, run.stderr
+    assert "6 steps" in run.stdout and "on cpu" in run.stdout, run.stdout
+    history = np.load(out)
+    assert history.shape == (6, 500) and np.isfinite(history).any(axis=1).all()

@@ -23,6 +23,7 @@ samples PyTorch tensors, differentiably.
 from ._locator import Locator
 from ._mesh import Mesh, read
 from ._ops import REASONS, probe, resample_to_image, trace
+from ._steps import StepWeights
 from ._tetloc import BACKENDS, DeviceError, __version__
 from ._tetloc import devices as _devices
 from ._typing import LocatorOptions
@@ -47,6 +48,7 @@ __all__ = [
     "LocatorOptions",
     "Mesh",
     "REASONS",
+    "StepWeights",
     "__version__",
     "devices",
     "probe",

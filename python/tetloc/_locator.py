@@ -13,6 +13,7 @@ from . import _fields
 from ._mesh import Mesh
 from ._points import as_points, as_points64
 from ._progress import ProgressBar
+from ._steps import StepWeights
 from ._tetloc import _Locator
 from ._typing import LocatorOptions, MeshLike, PointsLike, Progress
 
@@ -173,8 +174,9 @@ class Locator:
         With `step` (an index into ``mesh.times``), the values of that time step, read from
         the file now: the points are located and their weights applied to the step's values
         (``weights``), in float64, returned as float64 for float64 data, else float32. To
-        sample many steps at the same points, build ``W = weights(points)`` once and apply it
-        to each ``mesh.field(name, step=k)``."""
+        sample many steps at the same points, use ``step_weights(points)`` (on the GPU for a
+        GPU backend), or build ``W = weights(points)`` once and apply it to each
+        ``mesh.field(name, step=k)``."""
         if step is not None:
             return self._sample_step(points, name, step)
         comps, k = self._mesh._index.components(name)
@@ -202,6 +204,19 @@ class Locator:
 
         indptr, indices, data, _ = self._weights(points)
         return scipy.sparse.csr_matrix((data, indices, indptr), shape=(len(indptr) - 1, self._mesh.n_points))
+
+    def step_weights(self, points: PointsLike) -> StepWeights:
+        """The weights of `points` (located once, as ``weights`` locates them) as a
+        ``StepWeights``, ready to interpolate any number of time steps at those points:
+        ``step_weights(points).sample("f")`` gives every step of ``f``, ``apply(values)``
+        steps held in memory. On a GPU backend the weights stay on the device and each batch
+        of steps is interpolated there. (K, 3) only."""
+        flat, lead = as_points(points)
+        if len(lead) != 1:
+            raise ValueError(f"points: shape {lead + (3,)}; step_weights take (K, 3) points")
+        p64 = as_points64(points)
+        p = p64[0] if p64 is not None else np.asarray(flat, dtype=np.float64)
+        return StepWeights(self._raw.step_weights(np.ascontiguousarray(p, dtype=np.float64)), self._mesh)
 
     def _weights(
         self, points: PointsLike

@@ -20,6 +20,7 @@ __all__ = [
     "trace",
     "resolve",
     "interpolation_weights",
+    "_StepWeights",
     "CudaLocator",
     "cuda_driver_available",
     "DeviceError",
@@ -109,6 +110,8 @@ class _Locator:
     def weights(
         self, points: npt.NDArray[np.float64]
     ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int32], npt.NDArray[np.float64], npt.NDArray[np.int32]]: ...
+    # The weights of the points for many time steps, on the locator's device for a GPU backend.
+    def step_weights(self, points: npt.NDArray[np.float64]) -> _StepWeights: ...
 
 def read_mesh(path: str, format: Optional[str] = None, allow_outside_pieces: bool = False) -> _Mesh: ...
 
@@ -159,6 +162,19 @@ def gmsh_cell_type(code: int) -> Optional[Tuple[int, int, List[int]]]: ...
 def interpolation_weights(
     mesh: _Mesh, points: np.ndarray, ids: np.ndarray
 ) -> Tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]: ...
+
+@final
+class _StepWeights:
+    @property
+    def device(self) -> str: ...
+    @property
+    def n_points(self) -> int: ...
+    @property
+    def n_vertices(self) -> int: ...
+    def cells(self) -> npt.NDArray[np.int32]: ...
+    def csr(self) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int32], npt.NDArray[np.float64]]: ...
+    # (S, n_vertices, k) float32 -> (S, n_points, k) float32, NaN outside.
+    def apply(self, values: npt.NDArray[np.float32]) -> npt.NDArray[np.float32]: ...
 
 @final
 class CudaLocator:
