@@ -100,15 +100,19 @@ impl Weights {
                 out.len()
             )));
         }
-        out.par_chunks_mut(k).enumerate().for_each(|(i, o)| {
-            let (ids, ws) = self.row(i);
-            if ids.is_empty() {
-                o.fill(T::NAN);
-                return;
-            }
-            for (j, o) in o.iter_mut().enumerate() {
-                let sum: f64 = ids.iter().zip(ws).map(|(&v, &w)| w * values[v as usize * k + j].to_f64()).sum();
-                *o = T::from_f64(sum);
+        // Blocks of points a task: one task a point costs more than its few products.
+        const POINTS_A_TASK: usize = 4096;
+        out.par_chunks_mut(k * POINTS_A_TASK).enumerate().for_each(|(b, block)| {
+            for (i, o) in block.chunks_mut(k).enumerate() {
+                let (ids, ws) = self.row(b * POINTS_A_TASK + i);
+                if ids.is_empty() {
+                    o.fill(T::NAN);
+                    continue;
+                }
+                for (j, o) in o.iter_mut().enumerate() {
+                    let sum: f64 = ids.iter().zip(ws).map(|(&v, &w)| w * values[v as usize * k + j].to_f64()).sum();
+                    *o = T::from_f64(sum);
+                }
             }
         });
         Ok(())

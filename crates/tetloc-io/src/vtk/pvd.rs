@@ -92,8 +92,10 @@ pub fn read_series(path: &Path, options: ReadOptions) -> Result<(RawMesh, TimeSt
     let times = steps.iter().map(|s| s.0).collect();
     let fields = Steps {
         path: path.to_path_buf(),
+        all_tets: raw.cells.is_none(),
         files: steps.into_iter().map(|s| s.1).collect(),
         geometry: geometry(&raw),
+        stored: std::sync::OnceLock::new(),
         options,
     };
     Ok((raw, TimeSteps::new(path.display().to_string(), times, Box::new(fields))))
@@ -132,11 +134,44 @@ struct Steps {
     path: PathBuf,
     files: Vec<PathBuf>,
     geometry: Geometry,
+    /// Step 0's mesh is all linear tets (its cell data needs no filtering).
+    all_tets: bool,
+    /// Step 0's `vtu::stored_geometry` (`None`: not a one-piece `.vtu`), on first need.
+    stored: std::sync::OnceLock<Option<u64>>,
     options: ReadOptions,
+}
+
+impl Steps {
+    /// Step `k`'s fields without decoding its points and cells, when it is a one-piece `.vtu`
+    /// of linear tets storing step 0's points and cells byte for byte (what a series that
+    /// repeats its mesh writes): about half the work of a whole read on a tet mesh. `None`:
+    /// read it whole and compare the decoded geometry.
+    fn stored_fields(&self, k: usize) -> Result<Option<Vec<Field>>> {
+        let is_vtu = |f: &Path| crate::MeshFormat::from_path(f).is_ok_and(|m| m == crate::MeshFormat::Vtu);
+        if !self.all_tets || !is_vtu(&self.files[0]) || !is_vtu(&self.files[k]) {
+            return Ok(None);
+        }
+        let fail =
+            |k: usize, e: Error| Error::format(&self.path, format!("step {k} ({}): {e}", self.files[k].display()));
+        let first = self.stored.get_or_init(|| {
+            let bytes = crate::read_file(&self.files[0]).ok()?;
+            super::vtu::stored_geometry(&bytes, &self.files[0]).ok().flatten()
+        });
+        let bytes = crate::read_file(&self.files[k]).map_err(|e| fail(k, e))?;
+        match (first, super::vtu::stored_geometry(&bytes, &self.files[k])) {
+            (Some(a), Ok(Some(b))) if *a == b => {
+                super::vtu::tet_fields(&bytes, &self.files[k]).map(Some).map_err(|e| fail(k, e))
+            }
+            _ => Ok(None),
+        }
+    }
 }
 
 impl StepFields for Steps {
     fn read(&self, k: usize) -> Result<Vec<Field>> {
+        if let Some(fields) = self.stored_fields(k)? {
+            return Ok(fields);
+        }
         let file = &self.files[k];
         let raw = read_step(&self.path, k, file, self.options)?;
         let g = geometry(&raw);
@@ -217,5 +252,36 @@ mod tests {
         let e = list(&pvd, ALLOW).unwrap_err().to_string();
         assert!(e.contains("several parts"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A series that repeats its mesh byte for byte (VTK's writer) has each step's fields read
+    /// without decoding the mesh again: the fields a whole read of the step's file gives.
+    #[test]
+    fn repeated_meshes_read_only_their_fields() {
+        let Some(data) = tetloc_testdata::require_data("repeated_meshes_read_only_their_fields") else { return };
+        let pvd = data.join("time/part_s.pvd");
+        let (_, steps) = read_series(&pvd, ALLOW).unwrap();
+        let files = list(&pvd, ALLOW).unwrap();
+        let parsed = Steps {
+            path: pvd.clone(),
+            files: files.iter().map(|f| f.1.clone()).collect(),
+            geometry: geometry(&crate::read_raw_with(&files[0].1, None, ALLOW).unwrap()),
+            all_tets: true,
+            stored: std::sync::OnceLock::new(),
+            options: ALLOW,
+        };
+        assert!(steps.len() > 2);
+        type Key = (String, tetloc_core::mesh::FieldLocation, Vec<u32>, Option<Vec<u64>>);
+        let key = |fields: Vec<Field>| -> Vec<Key> {
+            let bits64 = |v: &Vec<f64>| v.iter().map(|x| x.to_bits()).collect();
+            let bits = |f: &Field| f.values.iter().map(|x| x.to_bits()).collect();
+            fields.iter().map(|f| (f.name.clone(), f.location, bits(f), f.values64.as_ref().map(bits64))).collect()
+        };
+        for (k, (_, file)) in files.iter().enumerate() {
+            let whole = key(crate::read_raw_with(file, None, ALLOW).unwrap().fields);
+            let fast = parsed.stored_fields(k).unwrap().unwrap_or_else(|| panic!("step {k}: read whole"));
+            assert!(key(fast) == whole, "step {k}");
+            assert!(key(steps.fields(k).unwrap()) == whole, "step {k}");
+        }
     }
 }

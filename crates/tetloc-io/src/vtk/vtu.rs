@@ -55,6 +55,50 @@ pub(crate) fn parse_with_ids(bytes: &[u8], path: &Path) -> Result<(RawMesh, Glob
     Ok((merge(parts, path)?, GlobalIds { cells, points }))
 }
 
+/// A one-piece `.vtu`'s points and cells as the file stores them (each `<Points>` and
+/// `<Cells>` array's attributes and bytes before decoding, and the piece's counts), digested:
+/// files of equal digests hold the same geometry. `None` for a file of several pieces. A time
+/// series whose steps repeat the mesh (`pvd`) checks each step with this instead of decoding it.
+pub(crate) fn stored_geometry(bytes: &[u8], path: &Path) -> Result<Option<u64>> {
+    use std::hash::{Hash, Hasher};
+    let digests = each_piece(bytes, path, |ctx, piece, _| {
+        let mut h = std::collections::hash_map::DefaultHasher::new();
+        let Layout { header64, zlib, big_endian } = ctx.layout;
+        (header64, zlib, big_endian, piece.attr("NumberOfPoints"), piece.attr("NumberOfCells")).hash(&mut h);
+        let mut offsets = Vec::new();
+        collect_offsets(piece, &mut offsets);
+        offsets.sort_unstable();
+        for section in ["Points", "Cells"] {
+            for da in piece.child(section).into_iter().flat_map(|s| s.children_named("DataArray")) {
+                for key in ["Name", "type", "NumberOfComponents", "format"] {
+                    da.attr(key).hash(&mut h);
+                }
+                ctx.stored(da, &offsets).hash(&mut h);
+            }
+        }
+        Ok(h.finish())
+    })?;
+    Ok(match digests[..] {
+        [d] => Some(d),
+        _ => None,
+    })
+}
+
+/// The point and cell data of a one-piece `.vtu` whose cells are all linear tets, read
+/// without decoding its points and cells (what [`parse`] gives as `fields`): for the steps of
+/// a series whose mesh [`stored_geometry`] found unchanged.
+pub(crate) fn tet_fields(bytes: &[u8], path: &Path) -> Result<Vec<Field>> {
+    let mut parts = each_piece(bytes, path, |ctx, piece, k| {
+        let n_points = ctx.count(piece, "NumberOfPoints", k)?;
+        let n_cells = ctx.count(piece, "NumberOfCells", k)?;
+        ctx.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), Vec::new(), None)
+    })?;
+    match parts.len() {
+        1 => Ok(parts.pop().expect("one part").raw.fields),
+        n => Err(Error::format(path, format!("{n} pieces where the series' first step has one"))),
+    }
+}
+
 /// `read` of each `<Piece>` of the file, in order.
 fn each_piece<T>(bytes: &[u8], path: &Path, read: impl Fn(&Ctx, &Node, usize) -> Result<T>) -> Result<Vec<T>> {
     let fail = |msg: String| Error::format(path, msg);
@@ -306,6 +350,19 @@ impl<'a> Ctx<'a, '_> {
                 }
             }
             other => Err(e(format!("format '{}' is not ascii, binary or appended", other.unwrap_or("(none)")))),
+        }
+    }
+
+    /// A `<DataArray>`'s bytes as stored: its text (ascii, binary), or its stretch of the
+    /// appended data up to the next of the piece's `offsets` (sorted).
+    fn stored(&self, da: &Node, offsets: &[usize]) -> Cow<'a, [u8]> {
+        let start = da.attr("offset").and_then(|o| o.trim().parse::<usize>().ok());
+        match (da.attr("format"), &self.appended, start) {
+            (Some("appended"), Some(Appended::Raw(data) | Appended::Base64(data, _)), Some(start)) => {
+                let end = offsets.iter().find(|&&o| o > start).map_or(data.len(), |&o| o.min(data.len()));
+                Cow::Borrowed(&data[start.min(end)..end])
+            }
+            _ => Cow::Owned(da.text().into_owned()),
         }
     }
 
