@@ -28,8 +28,12 @@ use std::sync::{Arc, OnceLock};
 
 /// Points handed to one rayon task: large enough to amortise scheduling, small enough to balance.
 const CHUNK: usize = 4096;
-/// Batches from this size on are visited in Morton order (smaller ones in their own).
+/// Batches from this size on are visited in Morton order (smaller ones in their own)...
 const SORTED: usize = 8192;
+/// ...and from one point per this many tets: sparser sorted points are still too far apart
+/// for a walk from the one before (fusion 1.4M, 2 cores: 10k random points took 1.04 µs a
+/// point sorted, against 0.80 µs for 1k in their order).
+const TETS_A_SORTED_POINT: usize = 32;
 /// The fewest points a task of a small batch gets (fewer stay on the calling thread): rayon's
 /// hand-over costs about as much as walking them.
 const MIN_TASK: usize = 128;
@@ -229,7 +233,7 @@ impl CpuLocator {
         f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
     ) {
         let bins = self.bins();
-        let ties = if points.len() < SORTED {
+        let ties = if points.len() < SORTED.max(self.mesh.n_tets() / TETS_A_SORTED_POINT) {
             self.locate_in_order(bins, points, &query, out, &f)
         } else {
             self.locate_sorted(bins, points, &query, out, &f)
