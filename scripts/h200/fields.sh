@@ -26,17 +26,8 @@ FIELDS=$3
 TETS=${4:-12M}
 OUT=${OUT:?set OUT to the folder for the logs}
 mkdir -p "$OUT"
-# The device machine's Vulkan loader, as scripts/gpu-march.sh sets it up.
-if ls .gl/*.deb >/dev/null 2>&1; then
-  for f in .gl/*.deb; do dpkg -x "$f" /; done
-  ldconfig
-fi
-{ date -u; nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv; } > "$OUT/gpu.txt" 2>&1
-if ! timeout 30 "$AFTER" devices >> "$OUT/gpu.txt" 2>&1; then
-  export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-  echo "retrying with VK_DRIVER_FILES=$VK_DRIVER_FILES" >> "$OUT/gpu.txt"
-  timeout 30 "$AFTER" devices >> "$OUT/gpu.txt" 2>&1
-fi
+. "$(dirname "$0")/common.sh"
+gpu_setup "$AFTER" "$OUT/gpu.txt"
 
 # 1. The CLI, before and after, interleaved.
 for round in $(seq "${ROUNDS:-1}"); do

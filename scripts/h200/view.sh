@@ -17,17 +17,8 @@ BUDGET=${2:-540}
 OUT=${OUT:?set OUT to the folder for the logs}
 mkdir -p "$OUT"
 START=$SECONDS
-# The device machine's Vulkan loader, as scripts/gpu-march.sh sets it up.
-if ls .gl/*.deb >/dev/null 2>&1; then
-  for f in .gl/*.deb; do dpkg -x "$f" /; done
-  ldconfig
-fi
-{ date -u; nvidia-smi --query-gpu=name,driver_version,clocks.sm,clocks.max.sm --format=csv; } > "$OUT/gpu.txt" 2>&1
-if ! timeout 30 "$BIN" devices >> "$OUT/gpu.txt" 2>&1; then
-  export VK_DRIVER_FILES=/usr/local/nvidia/share/vulkan/icd.d/nvidia_icd.json
-  echo "retrying with VK_DRIVER_FILES=$VK_DRIVER_FILES" >> "$OUT/gpu.txt"
-  timeout 30 "$BIN" devices >> "$OUT/gpu.txt" 2>&1
-fi
+. "$(dirname "$0")/common.sh"
+gpu_setup "$BIN" "$OUT/gpu.txt" name,driver_version,clocks.sm,clocks.max.sm
 
 # case NAME MESH SIZE SECONDS_PER_ORBIT [view options...]
 case_() {

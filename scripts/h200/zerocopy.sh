@@ -22,15 +22,7 @@ mkdir -p "$out"
 repo=$(cd "$(dirname "$0")/../.." && pwd)
 exec > >(tee "$out/zerocopy.log") 2>&1
 failed=0
-step() { # step NAME LIMIT_S COMMAND...: runs, logs to $out/NAME.log, counts failures
-  local name=$1 limit=$2; shift 2
-  echo "== $name (limit ${limit}s) $(date -u +%H:%M:%S)"
-  timeout "$limit" "$@" > "$out/$name.log" 2>&1
-  local rc=$?
-  tail -n 30 "$out/$name.log"
-  echo "== $name: exit $rc"
-  [ "$rc" -eq 0 ] || failed=$((failed + 1))
-}
+. "$(dirname "$0")/common.sh" # step
 
 nvidia-smi --query-gpu=name,driver_version,memory.total,uuid --format=csv,noheader > "$out/gpu.txt" 2>&1
 cat "$out/gpu.txt"
