@@ -146,7 +146,7 @@ impl Steps {
     /// of linear tets storing step 0's points and cells byte for byte (what a series that
     /// repeats its mesh writes): about half the work of a whole read on a tet mesh. `None`:
     /// read it whole and compare the decoded geometry.
-    fn stored_fields(&self, k: usize) -> Result<Option<Vec<Field>>> {
+    fn stored_fields(&self, k: usize, wanted: &dyn Fn(&str) -> bool) -> Result<Option<Vec<Field>>> {
         let is_vtu = |f: &Path| crate::MeshFormat::from_path(f).is_ok_and(|m| m == crate::MeshFormat::Vtu);
         if !self.all_tets || !is_vtu(&self.files[0]) || !is_vtu(&self.files[k]) {
             return Ok(None);
@@ -160,7 +160,7 @@ impl Steps {
         let bytes = crate::read_file(&self.files[k]).map_err(|e| fail(k, e))?;
         match (first, super::vtu::stored_geometry(&bytes, &self.files[k])) {
             (Some(a), Ok(Some(b))) if *a == b => {
-                super::vtu::tet_fields(&bytes, &self.files[k]).map(Some).map_err(|e| fail(k, e))
+                super::vtu::tet_fields(&bytes, &self.files[k], wanted).map(Some).map_err(|e| fail(k, e))
             }
             _ => Ok(None),
         }
@@ -169,9 +169,24 @@ impl Steps {
 
 impl StepFields for Steps {
     fn read(&self, k: usize) -> Result<Vec<Field>> {
-        if let Some(fields) = self.stored_fields(k)? {
+        if let Some(fields) = self.stored_fields(k, &|_| true)? {
             return Ok(fields);
         }
+        self.read_whole(k)
+    }
+
+    fn read_named(&self, k: usize, names: &[String]) -> Result<Vec<Field>> {
+        let wanted = |name: &str| names.iter().any(|n| n == name);
+        match self.stored_fields(k, &wanted)? {
+            Some(fields) => Ok(fields),
+            None => Ok(self.read_whole(k)?.into_iter().filter(|f| wanted(&f.name)).collect()),
+        }
+    }
+}
+
+impl Steps {
+    /// Step `k`'s file read whole, its mesh compared with step 0's.
+    fn read_whole(&self, k: usize) -> Result<Vec<Field>> {
         let file = &self.files[k];
         let raw = read_step(&self.path, k, file, self.options)?;
         let g = geometry(&raw);
@@ -279,9 +294,12 @@ mod tests {
         };
         for (k, (_, file)) in files.iter().enumerate() {
             let whole = key(crate::read_raw_with(file, None, ALLOW).unwrap().fields);
-            let fast = parsed.stored_fields(k).unwrap().unwrap_or_else(|| panic!("step {k}: read whole"));
+            let fast = parsed.stored_fields(k, &|_| true).unwrap().unwrap_or_else(|| panic!("step {k}: read whole"));
             assert!(key(fast) == whole, "step {k}");
             assert!(key(steps.fields(k).unwrap()) == whole, "step {k}");
+            // One field asked for: that field alone, as the whole read has it.
+            let one: Vec<Key> = whole.iter().filter(|f| f.0 == "f").cloned().collect();
+            assert!(one.len() == 1 && key(steps.fields_named(k, &["f".into()]).unwrap()) == one, "step {k}");
         }
     }
 }

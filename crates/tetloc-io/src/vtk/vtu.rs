@@ -85,13 +85,14 @@ pub(crate) fn stored_geometry(bytes: &[u8], path: &Path) -> Result<Option<u64>> 
 }
 
 /// The point and cell data of a one-piece `.vtu` whose cells are all linear tets, read
-/// without decoding its points and cells (what [`parse`] gives as `fields`): for the steps of
-/// a series whose mesh [`stored_geometry`] found unchanged.
-pub(crate) fn tet_fields(bytes: &[u8], path: &Path) -> Result<Vec<Field>> {
+/// without decoding its points and cells (what [`parse`] gives as `fields`), the fields that
+/// `wanted` refuses left undecoded: for the steps of a series whose mesh [`stored_geometry`]
+/// found unchanged.
+pub(crate) fn tet_fields(bytes: &[u8], path: &Path, wanted: &dyn Fn(&str) -> bool) -> Result<Vec<Field>> {
     let mut parts = each_piece(bytes, path, |ctx, piece, k| {
         let n_points = ctx.count(piece, "NumberOfPoints", k)?;
         let n_cells = ctx.count(piece, "NumberOfCells", k)?;
-        ctx.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), Vec::new(), None)
+        ctx.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), (Vec::new(), None), wanted)
     })?;
     match parts.len() {
         1 => Ok(parts.pop().expect("one part").raw.fields),
@@ -450,7 +451,8 @@ impl<'a> Ctx<'a, '_> {
                 (grid.types, grid.ends, grid.conn) = (types, ends, conn);
             }
         }
-        let part = self.data(piece, n_points, n_cells, cells::Extracted::all_tets(Vec::new()), Vec::new(), None)?;
+        let ex = cells::Extracted::all_tets(Vec::new());
+        let part = self.data(piece, n_points, n_cells, ex, (Vec::new(), None), &|_: &str| true)?;
         grid.fields = part.raw.fields;
         Ok(grid)
     }
@@ -471,7 +473,7 @@ impl<'a> Ctx<'a, '_> {
             // The mesh is unusable: skip reading its fields.
             return Ok(Part { raw: RawMesh::default(), refused: ex.other, ids: GlobalIds::default() });
         }
-        self.data(piece, n_points, n_cells, ex, points, points64)
+        self.data(piece, n_points, n_cells, ex, (points, points64), &|_: &str| true)
     }
 
     /// The faces of the piece's polyhedra, in either of VTK's layouts (see
@@ -521,8 +523,8 @@ impl<'a> Ctx<'a, '_> {
         n_points: usize,
         n_cells: usize,
         ex: cells::Extracted,
-        points: Vec<[f32; 3]>,
-        points64: Option<Vec<[f64; 3]>>,
+        (points, points64): (Vec<[f32; 3]>, Option<Vec<[f64; 3]>>),
+        wanted: &dyn Fn(&str) -> bool,
     ) -> Result<Part> {
         let bad_value = |name: &str, arr: &Array, i: usize, why: &str| {
             self.fail(format!("DataArray '{name}': value {i} ({}) {why}", arr.show(i)))
@@ -540,6 +542,10 @@ impl<'a> Ctx<'a, '_> {
                 let nc = ncomp(da).ok_or_else(|| {
                     self.fail(format!("DataArray '{name}': NumberOfComponents is not a positive count"))
                 })?;
+                let field_name = |c: usize| if nc == 1 { name.to_string() } else { format!("{name}[{c}]") };
+                if !(0..nc).any(|c| wanted(&field_name(c))) {
+                    continue; // not asked for: left undecoded
+                }
                 let arr = self.array(da, n.saturating_mul(nc))?;
                 let named = piece.child(section).and_then(|c| c.attr("GlobalIds")) == Some(name);
                 let is_ids = match location {
@@ -566,8 +572,7 @@ impl<'a> Ctx<'a, '_> {
                         values = cells::filter_cells(values, ex.kept.as_deref());
                         values64 = values64.map(|v| cells::filter_cells(v, ex.kept.as_deref()));
                     }
-                    let name = if nc == 1 { name.to_string() } else { format!("{name}[{c}]") };
-                    fields.push(Field { name, location, values, values64 });
+                    fields.push(Field { name: field_name(c), location, values, values64 });
                 }
             }
         }

@@ -371,7 +371,7 @@ struct StepReader<'a> {
 impl StepReader<'_> {
     fn read(&self, k: usize) -> Result<Vec<Field>> {
         // A name may come twice (the vector is also a line field): copied, not moved out.
-        let all = self.steps.fields(k)?;
+        let all = self.steps.fields_named(k, &self.names)?;
         self.names
             .iter()
             .map(|n| {
