@@ -51,17 +51,23 @@ def test_one_locator_shared_by_threads(grid_mesh):
 def interrupted(call, after: float = 0.2) -> bool:
     """Sends SIGINT (Ctrl-C) `after` seconds into `call`: True when `call` raised
     KeyboardInterrupt, False when it had returned first."""
-    timer = threading.Timer(after, os.kill, (os.getpid(), signal.SIGINT))
-    timer.start()
+    # A process that a shell started in the background inherits SIGINT ignored, and Python
+    # then installs no KeyboardInterrupt handler: install it here, as an interactive run has it.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     try:
-        call()
-    except KeyboardInterrupt:
-        return True
-    try:
-        time.sleep(10)  # the signal lands here when `call` was quicker
-    except KeyboardInterrupt:
-        return False
-    raise AssertionError("no SIGINT arrived")
+        timer = threading.Timer(after, os.kill, (os.getpid(), signal.SIGINT))
+        timer.start()
+        try:
+            call()
+        except KeyboardInterrupt:
+            return True
+        try:
+            time.sleep(10)  # the signal lands here when `call` was quicker
+        except KeyboardInterrupt:
+            return False
+        raise AssertionError("no SIGINT arrived")
+    finally:
+        signal.signal(signal.SIGINT, previous)
 
 
 @pytest.fixture(scope="module")
