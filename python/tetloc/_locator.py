@@ -211,22 +211,12 @@ class Locator:
         ``step_weights(points).sample("f")`` gives every step of ``f``, ``apply(values)``
         steps held in memory. On a GPU backend the weights stay on the device and each batch
         of steps is interpolated there. (K, 3) only."""
-        flat, lead = as_points(points)
-        if len(lead) != 1:
-            raise ValueError(f"points: shape {lead + (3,)}; step_weights take (K, 3) points")
-        p64 = as_points64(points)
-        p = p64[0] if p64 is not None else np.asarray(flat, dtype=np.float64)
-        return StepWeights(self._raw.step_weights(np.ascontiguousarray(p, dtype=np.float64)), self._mesh)
+        return StepWeights(self._raw.step_weights(_rows64(points, "step_weights")), self._mesh)
 
     def _weights(
         self, points: PointsLike
     ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int32], npt.NDArray[np.float64], npt.NDArray[np.int32]]:
-        flat, lead = as_points(points)
-        if len(lead) != 1:
-            raise ValueError(f"points: shape {lead + (3,)}; weights take (K, 3) points")
-        p64 = as_points64(points)
-        p = p64[0] if p64 is not None else np.asarray(flat, dtype=np.float64)
-        return self._raw.weights(np.ascontiguousarray(p, dtype=np.float64))
+        return self._raw.weights(_rows64(points, "weights"))
 
     def _sample_step(self, points: PointsLike, name: str, step: int) -> Values:
         values = self._mesh.field(name, step=step)
@@ -262,3 +252,14 @@ class Locator:
 
     def __repr__(self) -> str:
         return f"tetloc.Locator(backend={self.backend!r}, {self._mesh!r})"
+
+
+def _rows64(points: PointsLike, what: str) -> npt.NDArray[np.float64]:
+    """(K, 3) points as C-contiguous float64 at their own precision, for `what` (weights are
+    computed at the points as ``locate`` takes them); other shapes are a ValueError."""
+    flat, lead = as_points(points)
+    if len(lead) != 1:
+        raise ValueError(f"points: shape {lead + (3,)}; {what} take (K, 3) points")
+    p64 = as_points64(points)
+    p = p64[0] if p64 is not None else np.asarray(flat, dtype=np.float64)
+    return np.ascontiguousarray(p, dtype=np.float64)
