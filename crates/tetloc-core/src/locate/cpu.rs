@@ -15,6 +15,7 @@
 
 use super::bins::Bins;
 use super::grid_raster::{self, Cell, GridRaster};
+use super::hint::Hint;
 use super::{check_sample_lengths, BatchLocator, GridSampler, Points, Values, OUTSIDE};
 use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
@@ -449,17 +450,49 @@ impl CpuLocator {
         found
     }
 
+    /// [`Self::locate_from`] for a particle: a point that stays in the hint's tet is answered
+    /// by the tet's barycentric map, without the exact test or the walk
+    /// ([`super::hint`]); the same tet, with the map's weights.
+    #[inline]
+    pub fn locate_near(&self, p: Vec3, hint: &mut Hint) -> Option<(u32, Bary)> {
+        self.locate_near_with(p, hint, 1.0)
+    }
+
+    /// [`Self::locate_near`] with the maps' bounds times `bound_scale` (1 but in tests).
+    #[inline]
+    pub(crate) fn locate_near_with(&self, p: Vec3, hint: &mut Hint, bound_scale: f64) -> Option<(u32, Bary)> {
+        if let Some(found) = hint.inside(p) {
+            hint.look_around(&self.mesh);
+            return Some(found);
+        }
+        let found = self.locate_from(p, &mut hint.tet);
+        if let Some((t, _)) = found {
+            hint.found(&self.mesh, t, bound_scale);
+        }
+        found
+    }
+
     /// The three fields `components` as one vector at a point, looked up from a hint (see
-    /// [`Self::locate_from`]): the field a particle tracer follows.
+    /// [`Self::locate_near`]): the field a particle tracer follows.
     pub fn vector_field(
         &self,
         components: [&str; 3],
-    ) -> Result<impl Fn(Vec3, &mut Option<u32>) -> Option<[f32; 3]> + Sync + '_> {
+    ) -> Result<impl Fn(Vec3, &mut Hint) -> Option<[f32; 3]> + Sync + '_> {
+        self.vector_field_with(components, 1.0)
+    }
+
+    /// [`Self::vector_field`] with the maps' bounds times `bound_scale`: infinity gives every
+    /// lookup the exact test's weights, as the batch drivers get them (tests).
+    pub(crate) fn vector_field_with(
+        &self,
+        components: [&str; 3],
+        bound_scale: f64,
+    ) -> Result<impl Fn(Vec3, &mut Hint) -> Option<[f32; 3]> + Sync + '_> {
         let [x, y, z] = components.map(|c| self.mesh.field(c));
         let xyz = [x?, y?, z?];
         self.index();
-        Ok(move |p: Vec3, hint: &mut Option<u32>| {
-            let found = self.locate_from(p, hint)?;
+        Ok(move |p: Vec3, hint: &mut Hint| {
+            let found = self.locate_near_with(p, hint, bound_scale)?;
             let mut v = [0f32; 3];
             self.mesh.values_at(&xyz, Some((found.0 as usize, found.1)), &mut v);
             Some(v)

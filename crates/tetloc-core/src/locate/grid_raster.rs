@@ -414,7 +414,7 @@ impl RowClip {
 }
 
 #[cfg(test)]
-mod tests {
+pub(super) mod tests {
     use super::*;
     use crate::bvh::BuildPreset;
     use crate::locate::GridSampler;
@@ -527,7 +527,7 @@ mod tests {
     /// centres: all on faces) onto grid points, so about 9³ grid points lie exactly on
     /// faces; the maps' gradients are thirteenths, so their weights of 0 come out a few
     /// ulps either side.
-    fn kuhn_on_faces(unit: f64, corner: [f64; 3]) -> (Arc<Mesh>, ImageGrid) {
+    pub(in crate::locate) fn kuhn_on_faces(unit: f64, corner: [f64; 3]) -> (Arc<Mesh>, ImageGrid) {
         let mut raw = KuhnGrid::new(4).raw();
         let a = |p: [f64; 3]| [2.0 * p[0] + p[1], 3.0 * p[1] + p[2], p[0] + 2.0 * p[2]];
         let p64: Vec<[f64; 3]> = raw
@@ -548,6 +548,17 @@ mod tests {
         (mesh, grid.unwrap())
     }
 
+    /// The sheared Kuhn grids of [`kuhn_on_faces`] (unit, corner): scaled by ~1e-6 (2⁻²⁰)
+    /// and ~1e6 (2¹⁸, 2¹⁶), and moved 1e7 away.
+    pub(in crate::locate) const ON_FACES: [(f64, [f64; 3]); 6] = [
+        (1.0, [0.0; 3]),
+        (9.5367431640625e-7, [0.0; 3]),
+        (262144.0, [0.0; 3]),
+        (9.5367431640625e-7, [1.0, -2.0, 0.5]),
+        (1.0, [1e7, -1e7, 1e7]),
+        (65536.0, [1e7, 1e7, -1e7]),
+    ];
+
     /// The bound is tested adversarially: grids whose points lie exactly on the faces of
     /// sheared Kuhn grids scaled by ~1e-6 and ~1e6 and moved 1e7 away agree with the search,
     /// and the same grids with the bound taken away (a zero factor) do not: some point on a
@@ -555,14 +566,7 @@ mod tests {
     /// is lost.
     #[test]
     fn the_error_bound_holds_on_faces_and_a_tighter_one_fails() {
-        let cases = [
-            (1.0, [0.0; 3]),
-            (2f64.powi(-20), [0.0; 3]),
-            (2f64.powi(18), [0.0; 3]),
-            (2f64.powi(-20), [1.0, -2.0, 0.5]),
-            (1.0, [1e7, -1e7, 1e7]),
-            (2f64.powi(16), [1e7, 1e7, -1e7]),
-        ];
+        let cases = ON_FACES;
         let mut failures = Vec::new();
         for (unit, corner) in cases {
             let (mesh, grid) = kuhn_on_faces(unit, corner);

@@ -15,6 +15,7 @@ mod cells;
 pub mod certify;
 mod cpu;
 mod grid_raster;
+mod hint;
 pub mod precision;
 mod tet_map;
 #[cfg(test)]
@@ -27,6 +28,7 @@ pub use capability::{sample_grid, trace_lines, GridSampler, LineTracer};
 pub(crate) use cells::cell_weights;
 pub use cells::CellLocator;
 pub use cpu::CpuLocator;
+pub use hint::Hint;
 pub use precision::{with_precision, F64Values, Precision};
 pub use tolerance::{Tolerance, WithTolerance};
 

@@ -106,10 +106,25 @@ impl TetMap {
         }
     }
 
-    /// The weights at `p`, classified (the row form from p itself).
-    #[cfg(test)]
+    /// The weights at `p`, classified: the row form from `p` itself (`x − x₀` = 0), so the
+    /// same bound holds for a point within `reach` of `v[0]`.
+    #[inline]
     pub(super) fn at(&self, p: [f64; 3]) -> Side {
-        self.row(p[0], p[1], p[2]).at(p[0])
+        let q = [p[0] - self.origin[0], p[1] - self.origin[1], p[2] - self.origin[2]];
+        classify(self.grad.map(|g| g[0] * q[0] + g[1] * q[1] + g[2] * q[2]), self.bound)
+    }
+}
+
+/// λ₁..λ₃ (λ₀ from them) against the bound.
+#[inline]
+fn classify(l: [f64; 3], bound: f64) -> Side {
+    let w = [1.0 - l[0] - l[1] - l[2], l[0], l[1], l[2]];
+    if w.iter().all(|&x| x > bound) {
+        Side::Inside(w)
+    } else if w.iter().any(|&x| x < -bound) {
+        Side::Outside
+    } else {
+        Side::Near
     }
 }
 
@@ -118,16 +133,7 @@ impl RowMap {
     #[inline]
     pub(super) fn at(&self, x: f64) -> Side {
         let dx = x - self.x0;
-        let l: [f64; 3] = std::array::from_fn(|k| self.base[k] + self.slope[k] * dx);
-        let w = [1.0 - l[0] - l[1] - l[2], l[0], l[1], l[2]];
-        let b = self.bound;
-        if w.iter().all(|&x| x > b) {
-            Side::Inside(w)
-        } else if w.iter().any(|&x| x < -b) {
-            Side::Outside
-        } else {
-            Side::Near
-        }
+        classify(std::array::from_fn(|k| self.base[k] + self.slope[k] * dx), self.bound)
     }
 }
 

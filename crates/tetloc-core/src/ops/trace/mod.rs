@@ -22,7 +22,7 @@
 
 use crate::error::{Error, Result};
 use crate::geom::Vec3;
-use crate::locate::BatchLocator;
+use crate::locate::{BatchLocator, Hint};
 use crate::ops::ImageGrid;
 use rayon::prelude::*;
 
@@ -36,11 +36,11 @@ pub use crate::streamline::{Direction, Integrator, Line, Reason, TraceOptions, B
 /// The field being traced: the vector at a point, the search starting from `hint` (the tet
 /// of the previous lookup, updated to this one's); `None` outside the mesh.
 pub trait VectorField: Sync {
-    fn at(&self, p: Vec3, hint: &mut Option<u32>) -> Option<[f32; 3]>;
+    fn at(&self, p: Vec3, hint: &mut Hint) -> Option<[f32; 3]>;
 }
 
-impl<F: Fn(Vec3, &mut Option<u32>) -> Option<[f32; 3]> + Sync> VectorField for F {
-    fn at(&self, p: Vec3, hint: &mut Option<u32>) -> Option<[f32; 3]> {
+impl<F: Fn(Vec3, &mut Hint) -> Option<[f32; 3]> + Sync> VectorField for F {
+    fn at(&self, p: Vec3, hint: &mut Hint) -> Option<[f32; 3]> {
         self(p, hint)
     }
 }
@@ -53,7 +53,7 @@ fn to_f32(p: [f64; 3]) -> Vec3 {
 /// outside, or no step stays inside): each lookup answered at once, from the last one's tet.
 pub fn integrate(seed: u32, point: Vec3, backward: bool, o: &TraceOptions, field: &impl VectorField) -> Option<Line> {
     let mut p = Particle::new(seed, point, backward);
-    let mut hint = None;
+    let mut hint = Hint::default();
     while let Some(q) = p.query() {
         p.answer(field.at(q, &mut hint), o);
     }
@@ -126,11 +126,11 @@ pub fn trace_sampled(
         .with_min_len(16)
         .map(|&(seed, backward)| {
             let mut p = Particle::new(seed, seeds[seed as usize], backward);
-            let (mut hint, mut ids, mut values) = (None, Vec::new(), Vec::new());
+            let (mut hint, mut ids, mut values) = (Hint::default(), Vec::new(), Vec::new());
             // The other fields' values, then the vector's, at the last lookup.
             let mut here = vec![0f32; out.len() + 3];
             while let Some(q) = p.query() {
-                let found = loc.locate_from(q, &mut hint);
+                let found = loc.locate_near(q, &mut hint);
                 let at = found.map(|(t, b)| (t as usize, b));
                 let (rest, v) = here.split_at_mut(out.len());
                 mesh.values_at(&xyz, at, v);
@@ -435,7 +435,7 @@ mod tests {
         v: F,
     }
     impl<F: Fn([f64; 3]) -> [f64; 3] + Sync> VectorField for Analytic<F> {
-        fn at(&self, p: Vec3, _: &mut Option<u32>) -> Option<[f32; 3]> {
+        fn at(&self, p: Vec3, _: &mut Hint) -> Option<[f32; 3]> {
             (0..3)
                 .all(|k| p[k] >= self.lo[k] && p[k] <= self.hi[k])
                 .then(|| (self.v)(p.map(f64::from)).map(|x| x as f32))
@@ -580,7 +580,9 @@ mod tests {
     }
 
     /// The step-synchronous batch driver gives the per-particle driver's lines (both on the
-    /// CPU locator: the same tets, the same f64 arithmetic), for every integrator.
+    /// CPU locator: the same tets, the same f64 arithmetic), for every integrator. (The
+    /// particles here take the exact test's weights, as the batch's lookups do: the held
+    /// tets' maps, whose weights differ in the last f32 bits, are off.)
     #[test]
     fn batch_tracing_matches_particle_tracing() {
         use crate::CpuLocator;
@@ -597,7 +599,10 @@ mod tests {
                 integrator,
                 ..Default::default()
             };
-            let one = trace(&outside, &o, &cpu.vector_field(["v[0]", "v[1]", "v[2]"]).unwrap(), &|_| Ok(())).unwrap();
+            let one = {
+                let exact = cpu.vector_field_with(["v[0]", "v[1]", "v[2]"], f64::INFINITY).unwrap();
+                trace(&outside, &o, &exact, &|_| Ok(())).unwrap()
+            };
             let mut rounds = 0;
             let all = trace_batch(&outside, &o, &mut cpu, ["v[0]", "v[1]", "v[2]"], |_| {
                 rounds += 1;
@@ -620,8 +625,10 @@ mod tests {
     }
 
     /// The line arrays from the integrator's own lookups equal those of locating every line
-    /// point again: same points, tets and values (bit for bit), for every integrator, with
-    /// seeds on the mesh's vertices, edges and faces (a grid aligned with a KuhnGrid's).
+    /// point again: the same points and tets bit for bit, the values within 1e-6 of the
+    /// fields' largest (the held tets' map weights against the exact test's), for every
+    /// integrator, with seeds on the mesh's vertices, edges and faces (a grid aligned with a
+    /// KuhnGrid's).
     #[test]
     fn sampled_tracing_matches_probing_the_lines() {
         use crate::CpuLocator;
@@ -649,13 +656,13 @@ mod tests {
             assert_eq!((&got.points, &got.ends, &got.time), (&want.points, &want.ends, &want.time));
             assert_eq!((&got.reasons, &got.seeds), (&want.reasons, &want.seeds));
             assert_eq!(got.fields.ids, want.fields.ids, "{integrator:?}");
-            let bits = |p: &super::super::probe::Probed| {
-                p.arrays
-                    .iter()
-                    .map(|(g, v)| (g.name.clone(), v.iter().map(|x| x.to_bits()).collect::<Vec<_>>()))
-                    .collect::<Vec<_>>()
-            };
-            assert_eq!(bits(&got.fields), bits(&want.fields), "{integrator:?}");
+            assert_eq!(got.fields.arrays.len(), want.fields.arrays.len());
+            for ((g, a), (h, b)) in got.fields.arrays.iter().zip(&want.fields.arrays) {
+                assert_eq!((&g.name, a.len()), (&h.name, b.len()));
+                let largest = b.iter().fold(0f32, |m, x| m.max(x.abs()));
+                let worst = a.iter().zip(b).fold(0f32, |m, (x, y)| m.max((x - y).abs()));
+                assert!(worst <= 1e-6 * largest, "{integrator:?} {}: off by {worst} of {largest}", g.name);
+            }
         }
     }
 

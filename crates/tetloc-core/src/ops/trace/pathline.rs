@@ -409,7 +409,7 @@ impl StepReader<'_> {
 /// One particle with what it has recorded, and the tet of its last lookup.
 struct Track {
     p: PathParticle,
-    hint: Option<u32>,
+    hint: crate::locate::Hint,
     points: Vec<[f64; 3]>,
     time: Vec<f64>,
     tets: Vec<i32>,
@@ -454,7 +454,7 @@ fn setup<'a>(
         .enumerate()
         .map(|(i, &s)| Track {
             p: PathParticle::new(i as u32, s, t0),
-            hint: None,
+            hint: Default::default(),
             points: Vec::new(),
             time: Vec::new(),
             tets: Vec::new(),
@@ -505,7 +505,7 @@ pub fn pathlines(
         run.tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
             tr.p.start_leg(leg, o);
             while let Some((q, t)) = tr.p.query() {
-                let found = loc.locate_from(q.map(|c| c as f32), &mut tr.hint);
+                let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
                 let found = found.map(|(tet, b)| (tet as usize, b.map(f64::from)));
                 if tr.p.answer(found.map(|f| br.velocity(&mesh, f, t)), o) {
                     if let Some(f) = found {
