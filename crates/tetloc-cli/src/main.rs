@@ -261,7 +261,7 @@ fn main() {
 }
 
 /// A rank's run under an MPI launcher: `locate`, `bench`, `resample` and `probe` of a partitioned mesh (`.pvtu`,
-/// `.vtm`) run distributed; anything else runs as usual when it is the only rank. Returns the
+/// `.vtm`, a decomposed OpenFOAM case) run distributed; anything else runs as usual when it is the only rank. Returns the
 /// exit code.
 fn distributed(cli: Cli, size: usize) -> i32 {
     let listing = match &cli.command {
@@ -271,7 +271,7 @@ fn distributed(cli: Cli, size: usize) -> i32 {
         Command::Probe(a) => Some(a.source.clone()),
         _ => None,
     };
-    let is_listing = listing.as_ref().is_some_and(|m| tetloc_io::vtk::pieces::is_listing(Path::new(m)));
+    let is_listing = listing.as_ref().is_some_and(|m| tetloc_io::parts::is_partitioned(Path::new(m)));
     // One rank runs as one process, unless it is to load a partitioned mesh through MPI.
     if size == 1 && !(is_listing && cfg!(feature = "mpi")) {
         return main_exit(run(cli));
@@ -283,7 +283,7 @@ fn distributed(cli: Cli, size: usize) -> i32 {
     let why = if is_listing {
         "this tetloc was built without MPI (build it with `--features mpi`)".to_string()
     } else if listing.is_some() {
-        "under mpirun the mesh must be partitioned: a .pvtu or .vtm (see `tetloc partition`)".to_string()
+        "under mpirun the mesh must be partitioned: a .pvtu or .vtm (see `tetloc partition`), or a decomposed OpenFOAM case (processor*/)".to_string()
     } else {
         "this command does not run distributed; run it without mpirun".to_string()
     };

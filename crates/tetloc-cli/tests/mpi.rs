@@ -320,3 +320,56 @@ fn resample_and_probe_run_distributed() {
     assert!(!dir.join("t.vtu").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A decomposed OpenFOAM case is partitioned as it stands: `mpirun -n N tetloc locate
+/// CASE.foam` gives each rank some processor folders and answers as one process does on the
+/// reconstructed case (cell ids its `celli`, by `cellProcAddressing`; values its `lin`). Points
+/// off the hexes' faces: each has one answer. A reconstructed case is refused with a hint.
+#[test]
+fn decomposed_openfoam_cases_run_distributed() {
+    use tetloc_testdata::foam_case::{decompose, hex_grid, write_case};
+    let test = "decomposed_openfoam_cases_run_distributed";
+    if !have_mpirun(test) {
+        return;
+    }
+    let dir = tmp_dir("foam");
+    let poly = hex_grid(6);
+    write_case(&dir.join("whole"), &poly, None);
+    let whole = dir.join("whole/whole.foam");
+    std::fs::write(&whole, "").unwrap();
+    // Four processors, cells dealt out scattered: most faces lie between processors.
+    let proc_of: Vec<usize> = (0..poly.n_cells()).map(|c| c * 5 % 4).collect();
+    decompose(&dir.join("cut"), &poly, &proc_of, true);
+    let cut = dir.join("cut/cut.foam");
+    std::fs::write(&cut, "").unwrap();
+    // Points at odd multiples of 1/64 in [-0.5, 6.5)³: none on a face, some outside.
+    let pts: Vec<[f32; 3]> = (0..4000)
+        .map(|i: usize| std::array::from_fn(|k| ((i * 7919 + k * 104729) % 448) as f32 / 64.0 - 0.5 + 1.0 / 128.0))
+        .collect();
+    let points = dir.join("p.bin");
+    std::fs::write(&points, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
+    let locate = |mesh: &Path, tag: &str, n: Option<usize>| -> (Vec<i32>, Vec<f32>) {
+        let (ids, vals) = (dir.join(format!("{tag}.ids.bin")), dir.join(format!("{tag}.f.bin")));
+        let args = ["locate", s(mesh), "--points", s(&points), "--backend", "cpu", "--field", "lin", "--out", s(&ids)];
+        let args: Vec<&str> = args.into_iter().chain(["--values", s(&vals)]).collect();
+        let o = match n {
+            None => tetloc(&args),
+            Some(n) => mpirun(n, &[], &args).0,
+        };
+        assert!(o.status.success(), "{tag}: {}", text(&o));
+        (read(&ids), read(&vals))
+    };
+    let (want_ids, want_vals) = locate(&whole, "one", None);
+    let inside = want_ids.iter().filter(|&&i| i >= 0).count();
+    assert!(inside > 2000 && inside < want_ids.len(), "{inside} inside");
+    for n in [1, 2, 3] {
+        let (ids, vals) = locate(&cut, &format!("ranks{n}"), Some(n));
+        assert_eq!(ids, want_ids, "{n} ranks");
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&vals), bits(&want_vals), "{n} ranks");
+    }
+    let (o, _) = mpirun(2, &[], &["locate", s(&whole), "--points", s(&points), "--out", s(&dir.join("x.bin"))]);
+    let t = text(&o);
+    assert!(!o.status.success() && t.contains("decomposed OpenFOAM case"), "{t}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

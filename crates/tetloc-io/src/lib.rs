@@ -11,6 +11,7 @@ pub mod openfoam;
 pub mod ops_output;
 pub mod output;
 pub mod partition;
+pub mod parts;
 pub mod points;
 #[cfg(test)]
 mod test_support;
@@ -97,7 +98,14 @@ pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
         Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
         Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
         Some(MeshFormat::Pvd) => vtk::pvd::files_read(path),
-        Some(MeshFormat::OpenFoam) => openfoam::files_read(path, false),
+        // The MPI path reads a case's processors even beside a reconstructed mesh: both count.
+        Some(MeshFormat::OpenFoam) => {
+            let mut files = openfoam::files_read(path, false);
+            if openfoam::is_decomposed(path) {
+                files.extend(openfoam::files_read(path, true));
+            }
+            files
+        }
         Some(MeshFormat::OpenFoamDecomposed) => openfoam::files_read(path, true),
         _ => vec![path.to_path_buf()],
     }

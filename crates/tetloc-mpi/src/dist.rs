@@ -14,7 +14,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::{BatchLocator, Mesh, Vec3};
-use tetloc_io::vtk::pieces;
+use tetloc_io::{parts, vtk::pieces};
 
 /// This process's place in the job: the world communicator, its rank and its node's ranks.
 pub struct Cluster {
@@ -149,14 +149,15 @@ pub struct Part {
     pub pieces: std::ops::Range<usize>,
 }
 
-/// Loads this rank's pieces of `listing` (collective; `None` for a rank with no piece).
+/// Loads this rank's pieces of `listing` (collective; `None` for a rank with no piece): a
+/// `.pvtu`/`.vtm`'s `.vtu` files or a decomposed OpenFOAM case's processors (`tetloc_io::parts`).
 pub fn load_part(cluster: &Cluster, listing: &Path) -> Result<Option<Part>, Error> {
     let read = || -> Result<_, String> {
-        let files = pieces::list(listing).map_err(|e| e.to_string())?;
+        let files = parts::list(listing).map_err(|e| e.to_string())?;
         let range = launch::pieces_of(files.len(), cluster.size, cluster.rank);
         let read = range
             .clone()
-            .map(|k| pieces::read_piece(listing, k, &files[k]).map(|p| (k, p)))
+            .map(|k| parts::read_piece(listing, k, &files[k]).map(|p| (k, p)))
             .collect::<Result<Vec<_>, _>>()
             .map_err(|e| e.to_string())?;
         Ok((files.len(), range, read))

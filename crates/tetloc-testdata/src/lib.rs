@@ -20,6 +20,7 @@ use tetloc_io::{read_mesh, vtk::write::write_mesh_vtu};
 
 #[path = "../../tetloc-core/src/test_support/data_dir.rs"]
 mod data_dir;
+pub mod foam_case;
 mod generated;
 #[path = "../../tetloc-core/src/test_support/kuhn.rs"]
 mod kuhn;

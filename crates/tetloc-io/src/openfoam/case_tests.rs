@@ -4,28 +4,7 @@
 
 use super::foam::Foam;
 use super::*;
-use std::collections::BTreeMap;
-
-/// A field file: name, class, values (components interleaved).
-type FieldFile = (String, String, Vec<f64>);
-
-/// A polyMesh as its files hold it, and its fields by time.
-#[derive(Clone)]
-struct Poly {
-    points: Vec<[f64; 3]>,
-    faces: Vec<Vec<u32>>,
-    owner: Vec<u32>,
-    neighbour: Vec<u32>,
-    /// (name, type, first face, face count)
-    patches: Vec<(String, String, usize, usize)>,
-    times: Vec<(String, Vec<FieldFile>)>,
-}
-
-impl Poly {
-    fn n_cells(&self) -> usize {
-        self.owner.iter().map(|&c| c as usize + 1).max().unwrap()
-    }
-}
+use tetloc_testdata::foam_case::{decompose, hex_grid, write_case, Poly};
 
 /// A fresh folder, removed at the end.
 struct Dir(PathBuf);
@@ -40,137 +19,6 @@ impl Dir {
 impl Drop for Dir {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
-fn header(class: &str, object: &str) -> String {
-    format!("FoamFile\n{{\n    version 2.0;\n    format ascii;\n    class {class};\n    object {object};\n}}\n\n")
-}
-
-fn list<T: ToString>(v: &[T]) -> String {
-    format!("{}\n(\n{}\n)\n", v.len(), v.iter().map(T::to_string).collect::<Vec<_>>().join("\n"))
-}
-
-/// Writes `p`'s mesh into `dir/constant/polyMesh` (with the addressing files given) and its
-/// time directories into `dir`.
-fn write_poly(dir: &Path, p: &Poly, addressing: Option<(&[u32], &[u32])>) {
-    let mesh = dir.join("constant/polyMesh");
-    std::fs::create_dir_all(&mesh).unwrap();
-    let put = |name: &str, class: &str, body: String| {
-        std::fs::write(mesh.join(name), header(class, name) + &body).unwrap();
-    };
-    let pts: Vec<String> = p.points.iter().map(|q| format!("({:?} {:?} {:?})", q[0], q[1], q[2])).collect();
-    put("points", "vectorField", list(&pts));
-    let faces: Vec<String> = p
-        .faces
-        .iter()
-        .map(|f| format!("{}({})", f.len(), f.iter().map(u32::to_string).collect::<Vec<_>>().join(" ")))
-        .collect();
-    put("faces", "faceList", list(&faces));
-    put("owner", "labelList", list(&p.owner));
-    put("neighbour", "labelList", list(&p.neighbour));
-    let patches: Vec<String> = p
-        .patches
-        .iter()
-        .map(|(name, ty, start, n)| format!("{name}\n{{\n    type {ty};\n    nFaces {n};\n    startFace {start};\n}}"))
-        .collect();
-    put("boundary", "polyBoundaryMesh", list(&patches));
-    if let Some((points, cells)) = addressing {
-        put("pointProcAddressing", "labelList", list(points));
-        put("cellProcAddressing", "labelList", list(cells));
-    }
-    for (t, fields) in &p.times {
-        let d = dir.join(t);
-        std::fs::create_dir_all(&d).unwrap();
-        for (name, class, values) in fields {
-            let k = if class == "volVectorField" { 3 } else { 1 };
-            let rows: Vec<String> = values
-                .chunks(k)
-                .map(|c| if k == 1 { format!("{:?}", c[0]) } else { format!("({:?} {:?} {:?})", c[0], c[1], c[2]) })
-                .collect();
-            let ty = if k == 1 { "scalar" } else { "vector" };
-            let body = format!(
-                "dimensions [0 0 0 0 0 0 0];\ninternalField nonuniform List<{ty}> {}boundaryField\n{{\n    \".*\" {{ type zeroGradient; }}\n}}\n",
-                list(&rows).trim_end().to_string() + ";\n"
-            );
-            std::fs::write(d.join(name), header(class, name) + &body).unwrap();
-        }
-    }
-}
-
-/// Cuts `p` into processors by `proc_of` (a processor per cell), as decomposePar does: each
-/// processor's cells in ascending order, its points in ascending order, its internal faces,
-/// then its share of each patch, then one `processor` patch per neighbouring processor (faces
-/// in ascending order, turned so that the processor's cell owns them). Writes `processorK/`
-/// into `case`, with the addressing files when asked.
-fn decompose(case: &Path, p: &Poly, proc_of: &[usize], addressing: bool) {
-    let n_procs = proc_of.iter().max().unwrap() + 1;
-    for k in 0..n_procs {
-        let cells: Vec<u32> = (0..p.n_cells() as u32).filter(|&c| proc_of[c as usize] == k).collect();
-        let local_cell: BTreeMap<u32, u32> = cells.iter().enumerate().map(|(i, &c)| (c, i as u32)).collect();
-        let mut faces: Vec<(Vec<u32>, u32, Option<u32>)> = Vec::new();
-        let on = |c: u32| proc_of[c as usize] == k;
-        // Internal faces within the processor.
-        for (f, &nb) in p.neighbour.iter().enumerate() {
-            let o = p.owner[f];
-            if on(o) && on(nb) {
-                faces.push((p.faces[f].clone(), local_cell[&o], Some(local_cell[&nb])));
-            }
-        }
-        let n_internal = faces.len();
-        let mut patches = Vec::new();
-        for (name, ty, start, n) in &p.patches {
-            let first = faces.len();
-            for f in *start..start + n {
-                if on(p.owner[f]) {
-                    faces.push((p.faces[f].clone(), local_cell[&p.owner[f]], None));
-                }
-            }
-            patches.push((name.clone(), ty.clone(), first, faces.len() - first));
-        }
-        for q in (0..n_procs).filter(|&q| q != k) {
-            let first = faces.len();
-            for (f, &nb) in p.neighbour.iter().enumerate() {
-                let o = p.owner[f];
-                if on(o) && proc_of[nb as usize] == q {
-                    faces.push((p.faces[f].clone(), local_cell[&o], None));
-                } else if on(nb) && proc_of[o as usize] == q {
-                    faces.push((p.faces[f].iter().rev().copied().collect(), local_cell[&nb], None));
-                }
-            }
-            if faces.len() > first {
-                patches.push((format!("procBoundary{k}to{q}"), "processor".into(), first, faces.len() - first));
-            }
-        }
-        let mut points: Vec<u32> = faces.iter().flat_map(|f| f.0.iter().copied()).collect();
-        points.sort_unstable();
-        points.dedup();
-        let local_point: BTreeMap<u32, u32> = points.iter().enumerate().map(|(i, &g)| (g, i as u32)).collect();
-        let proc = Poly {
-            points: points.iter().map(|&g| p.points[g as usize]).collect(),
-            faces: faces.iter().map(|f| f.0.iter().map(|g| local_point[g]).collect()).collect(),
-            owner: faces.iter().map(|f| f.1).collect(),
-            neighbour: faces[..n_internal].iter().map(|f| f.2.unwrap()).collect(),
-            patches,
-            times: p
-                .times
-                .iter()
-                .map(|(t, fields)| {
-                    let split = fields
-                        .iter()
-                        .map(|(name, class, v)| {
-                            let k = v.len() / p.n_cells();
-                            let mine =
-                                cells.iter().flat_map(|&c| v[c as usize * k..(c as usize + 1) * k].to_vec()).collect();
-                            (name.clone(), class.clone(), mine)
-                        })
-                        .collect();
-                    (t.clone(), split)
-                })
-                .collect(),
-        };
-        let addr = addressing.then_some((&points[..], &cells[..]));
-        write_poly(&case.join(format!("processor{k}")), &proc, addr);
     }
 }
 
@@ -244,7 +92,7 @@ fn decomposed_cases_read_as_the_undecomposed_mesh() {
     let test = "decomposed_cases_read_as_the_undecomposed_mesh";
     let Some(poly) = octpoly(test) else { return };
     let dir = Dir::new("decomposed");
-    write_poly(&dir.0.join("whole"), &poly, None);
+    write_case(&dir.0.join("whole"), &poly, None);
     let whole = dir.0.join("whole/whole.foam");
     std::fs::write(&whole, "").unwrap();
     let proc_of = scattered(poly.n_cells());
@@ -307,7 +155,7 @@ fn the_layout_is_chosen_and_every_file_is_an_input() {
     let test = "the_layout_is_chosen_and_every_file_is_an_input";
     let Some(poly) = octpoly(test) else { return };
     let dir = Dir::new("layout");
-    write_poly(&dir.0, &poly, None);
+    write_case(&dir.0, &poly, None);
     decompose(&dir.0, &poly, &(0..poly.n_cells()).map(|c| usize::from(c >= 100)).collect::<Vec<_>>(), false);
     let foam = dir.0.join("c.foam");
     std::fs::write(&foam, "").unwrap();
@@ -371,7 +219,7 @@ fn time_steps_are_the_time_directories() {
     let test = "time_steps_are_the_time_directories";
     let Some(poly) = octpoly(test) else { return };
     let dir = Dir::new("steps");
-    write_poly(&dir.0, &poly, None);
+    write_case(&dir.0, &poly, None);
     let (raw, steps) = crate::read_series(&dir.0, None).unwrap();
     let steps = steps.unwrap();
     assert_eq!(steps.times, [0.5, 1.0]);
@@ -395,7 +243,7 @@ fn time_steps_are_the_time_directories() {
     );
     // A case with only the zero time: that is its one step.
     let only = Dir::new("only0");
-    write_poly(&only.0, &Poly { times: poly.times[..1].to_vec(), ..poly.clone() }, None);
+    write_case(&only.0, &Poly { times: poly.times[..1].to_vec(), ..poly.clone() }, None);
     assert_eq!(crate::read_series(&only.0, None).unwrap().1.unwrap().times, [0.0]);
 }
 
@@ -486,7 +334,7 @@ fn vtk_reads_a_generated_and_a_decomposed_case_alike() {
     let test = "vtk_reads_a_generated_and_a_decomposed_case_alike";
     let Some(poly) = octpoly(test) else { return };
     let dir = Dir::new("vtk-gen");
-    write_poly(&dir.0, &poly, None);
+    write_case(&dir.0, &poly, None);
     let n = poly.n_cells();
     agree_with_vtk(test, &dir.0, false, &(0..n).collect::<Vec<_>>(), poly.points.len());
     // Decomposed: VTK lists each processor's cells (and points) in turn, unmerged; tetloc's
@@ -499,4 +347,62 @@ fn vtk_reads_a_generated_and_a_decomposed_case_alike() {
         .map(|k| PolyMesh::read(&dir.0.join(format!("processor{k}/constant/polyMesh"))).unwrap().points64.len())
         .sum();
     agree_with_vtk(test, &dir.0, true, &order, vtk_points);
+}
+
+/// A decomposed case's processors, read as pieces (`crate::parts`) and joined as the MPI path
+/// joins a rank's pieces, give the mesh that reading the whole case gives: every cell's
+/// centroid is found in the cell of its global id, with that cell's value of `lin`; with
+/// `pointProcAddressing` the processors are welded (the boundary is the whole's).
+#[test]
+fn processors_are_the_pieces_of_a_partitioned_case() {
+    use crate::parts;
+    let poly = hex_grid(4);
+    let dir = Dir::new("parts");
+    let proc_of = scattered(poly.n_cells());
+    for addressing in [true, false] {
+        let case = dir.0.join(format!("cut-{addressing}"));
+        decompose(&case, &poly, &proc_of, addressing);
+        let foam = case.join("cut.foam");
+        std::fs::write(&foam, "").unwrap();
+        assert!(parts::is_partitioned(&foam) && parts::is_partitioned(&case));
+        let files = parts::list(&foam).unwrap();
+        assert_eq!(files.len(), 3);
+        let read: Vec<_> =
+            files.iter().enumerate().map(|(k, f)| (k, parts::read_piece(&foam, k, f).unwrap())).collect();
+        assert_eq!(read.iter().all(|(_, p)| p.global_ids.is_some()), addressing);
+        let counts: Vec<u64> = read.iter().map(|(_, p)| p.n_cells() as u64).collect();
+        let first: Vec<u64> = counts.iter().scan(0, |a, &c| Some(std::mem::replace(a, *a + c))).collect();
+        let (joined, ids) = crate::vtk::pieces::join(&foam, read, &first).unwrap();
+        // Each cell's centre: the mean of its distinct points.
+        let centres: Vec<[f32; 3]> = (0..ids.len())
+            .map(|c| {
+                let (_, pts) = cell_shape(&joined, c);
+                let s = pts.iter().fold([0.0; 3], |s, p| [0, 1, 2].map(|i| s[i] + f64::from_bits(p[i])));
+                s.map(|x| (x / pts.len() as f64) as f32)
+            })
+            .collect();
+        let whole = mesh_of(crate::read_raw(&foam, None).unwrap(), "whole");
+        let parts_mesh = mesh_of(joined, "parts");
+        assert_eq!(parts_mesh.n_cells(), whole.n_cells());
+        if addressing {
+            assert_eq!(parts_mesh.summary().faces.n_boundary, whole.summary().faces.n_boundary, "welded");
+        }
+        let whole = std::sync::Arc::new(whole);
+        let loc = tetloc_core::CpuLocator::new(whole.clone());
+        let (lin_parts, lin_whole) = (parts_mesh.field("lin").unwrap(), whole.field("lin").unwrap());
+        let mut seen = vec![false; ids.len()];
+        for (c, &g) in ids.iter().enumerate() {
+            let found = loc.locate_point(centres[c]).map(|(t, _)| whole.cell_of_tet(t as usize));
+            assert_eq!(found, Some(g as usize), "addressing {addressing}: cell {c}");
+            assert_eq!(lin_parts.values[c], lin_whole.values[g as usize], "addressing {addressing}: cell {c}");
+            seen[g as usize] = true;
+        }
+        assert!(seen.iter().all(|&s| s), "every cell once");
+    }
+    // A case without processors is not partitioned, and says so.
+    let plain = dir.0.join("plain");
+    write_case(&plain, &poly, None);
+    assert!(!parts::is_partitioned(&plain));
+    let e = parts::list(&plain).unwrap_err().to_string();
+    assert!(e.contains("not partitioned") && e.contains("processor"), "{e}");
 }

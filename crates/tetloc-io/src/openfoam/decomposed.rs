@@ -16,9 +16,14 @@
 //! - **Times and fields** come from each processor's time folders (`processorN/TIME/NAME`),
 //!   which must agree: the same times, the same fields.
 //!
-//! Not read: the collated format (`processorsN/`, one folder for all), and processors as the
-//! MPI path's partitions (`tetloc-mpi` reads `.pvtu`/`.vtm` pieces; `tetloc partition CASE.foam`
-//! writes them, or each processor's mesh is `processorK/` read as a case of its own).
+//! **As partitions** (the MPI path, `mpirun -n N tetloc locate CASE.foam`): each rank reads
+//! some processors, each as a case of its own ([`read_processor`]), with its addressing as the
+//! global cell and point ids of a `.pvtu` piece; `tetloc-mpi` joins a rank's processors as it
+//! joins pieces. Without `cellProcAddressing` the global cell ids are processor order, as
+//! above; without `pointProcAddressing` a rank's processors are not welded (a point on the
+//! faces between two of them is in both, and the tie rule picks one).
+//!
+//! Not read: the collated format (`processorsN/`, one folder for all).
 
 use super::poly::PolyMesh;
 use super::{find, open};
@@ -218,4 +223,16 @@ fn cell_order(addressing: &[Addressing], n: usize) -> Result<Vec<u32>> {
         }
     }
     Ok(order)
+}
+
+/// One processor read as a case of its own with the first step's fields, and its
+/// `cellProcAddressing` and `pointProcAddressing` (when it has them) as global cell and point
+/// ids: a piece of a partitioned mesh.
+pub(super) fn read_processor(processor: &Path) -> Result<super::ProcessorPiece> {
+    let raw = super::read_case(processor, &super::Time::First, false)?;
+    let n_cells = raw.cells.as_ref().map_or(raw.tets.len(), CellBlock::len);
+    let widen = |a: Option<Addressing>| a.map(|(_, ids)| ids.into_iter().map(u64::from).collect());
+    let cells = widen(addressing(processor, "cellProcAddressing", n_cells)?);
+    let points = widen(addressing(processor, "pointProcAddressing", raw.points.len())?);
+    Ok((raw, cells, points))
 }

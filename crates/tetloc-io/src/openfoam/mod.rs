@@ -40,6 +40,27 @@ pub fn is_case(dir: &Path) -> bool {
     dir.join("constant/polyMesh").is_dir() || decomposed::mesh_dir(&dir.join("processor0")).is_dir()
 }
 
+/// The processor folders of the decomposed case `path` (a `.foam` file or the case folder),
+/// in processor order: the pieces of a partitioned case.
+pub fn processors(path: &Path) -> Result<Vec<PathBuf>> {
+    decomposed::processors(&case_dir(path))
+}
+
+/// Whether `path` (a `.foam` file or a folder) is an OpenFOAM case with processor folders.
+pub fn is_decomposed(path: &Path) -> bool {
+    decomposed::mesh_dir(&case_dir(path).join("processor0")).is_dir()
+}
+
+/// A processor's mesh, and its global cell and point ids (when it has addressing files).
+pub type ProcessorPiece = (RawMesh, Option<Vec<u64>>, Option<Vec<u64>>);
+
+/// One processor folder of a decomposed case, read as a piece: its mesh with the first
+/// step's fields, and its global cell and point ids from `cellProcAddressing` and
+/// `pointProcAddressing` when it has them (see `decomposed`).
+pub fn read_processor(processor: &Path) -> Result<ProcessorPiece> {
+    decomposed::read_processor(processor)
+}
+
 /// Which time directory's fields to read.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Time {
