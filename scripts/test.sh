@@ -108,17 +108,18 @@ gate "MPI: clippy + build" "see the messages above" \
   cargo test --workspace --locked --features tetloc-mpi/mpi,tetloc-cli/mpi --test mpi --no-run
 step "MPI: test" cargo test --workspace --locked --features tetloc-mpi/mpi,tetloc-cli/mpi --test mpi
 
-# --- Python: build the release wheel once (what `pip install ./python` builds; clippy lints
-# the Python crate here), install it into the virtualenv, and run pytest; the CLI tests compare
-# with the binary `cargo test` built.
+# --- Python: build the wheel once (clippy lints the Python crate here), install it into the
+# virtualenv, and run pytest; the CLI tests compare with the binary `cargo test` built. A dev
+# build: the dev profile is the tests' (optimised, Cargo.toml), so it reuses their build where
+# the Python crate's features allow; `pip install ./python` builds the release wheel.
 wheel() {
   # (`&&`: a gate's commands run without set -e.)
   rm -f target/wheels/tetloc-*.whl &&
-    "$venv/bin/maturin" build --quiet --release --manifest-path python/Cargo.toml --interpreter "$TETLOC_PYTHON" \
+    "$venv/bin/maturin" build --quiet --manifest-path python/Cargo.toml --interpreter "$TETLOC_PYTHON" \
       --out target/wheels &&
     "$venv/bin/python" -m pip install -q --disable-pip-version-check --force-reinstall --no-deps target/wheels/tetloc-*.whl
 }
-gate "Python: clippy + release wheel" "see the messages above" wheel
+gate "Python: clippy + wheel" "see the messages above" wheel
 # The type gate: mypy over the package (strict) and the tests, examples and benchmarks that use
 # it (python/pyproject.toml), and stubtest, which holds the extension's stub
 # (tetloc/_tetloc.pyi) to the installed wheel's functions and classes; then the wheel's
