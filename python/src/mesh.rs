@@ -164,14 +164,18 @@ impl PyMesh {
         self.steps.as_ref().map_or_else(Vec::new, |s| s.times.clone())
     }
 
-    /// Scalar field `name` at time step `step`, read from the file now: float64 where the
-    /// file stored it so (and it does not all round to f32 exactly), else float32.
-    fn step_field<'py>(&self, py: Python<'py>, name: &str, step: usize) -> PyResult<Bound<'py, PyAny>> {
-        let f = self.read_step_field(py, name, step)?;
-        Ok(match f.values64 {
-            Some(v) => PyArray1::from_vec(py, v).into_any(),
-            None => PyArray1::from_vec(py, f.values).into_any(),
-        })
+    /// Scalar fields `names` at time step `step`, read from the file now in one pass (a
+    /// vector's components together): float64 where the file stored them so (and they do not
+    /// all round to f32 exactly), else float32.
+    fn step_fields<'py>(&self, py: Python<'py>, names: Vec<String>, step: usize) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        let fields = self.read_step_fields(py, &names, step)?;
+        Ok(fields
+            .into_iter()
+            .map(|f| match f.values64 {
+                Some(v) => PyArray1::from_vec(py, v).into_any(),
+                None => PyArray1::from_vec(py, f.values).into_any(),
+            })
+            .collect())
     }
 
     /// A copy of the vertices, (N, 3) float32.
@@ -229,12 +233,26 @@ impl PyMesh {
 }
 
 impl PyMesh {
-    /// Field `name` of step `step` (an error for a step out of range, or a mesh without steps).
-    pub fn read_step_field(&self, py: Python<'_>, name: &str, step: usize) -> PyResult<Field> {
-        match &self.steps {
-            None => Err(to_py(tetloc_core::mesh::steps::check_step(&self.mesh.info.source, 0, step).unwrap_err())),
-            Some(s) => py.detach(|| s.field(name, step)).map_err(to_py),
-        }
+    /// Fields `names` of step `step`, in that order, read in one pass (an error for a step out
+    /// of range, a mesh without steps, or a field the step lacks).
+    pub fn read_step_fields(&self, py: Python<'_>, names: &[String], step: usize) -> PyResult<Vec<Field>> {
+        let Some(s) = &self.steps else {
+            return Err(to_py(tetloc_core::mesh::steps::check_step(&self.mesh.info.source, 0, step).unwrap_err()));
+        };
+        py.detach(|| {
+            let mut read: Vec<Option<Field>> = s.fields_named(step, names)?.into_iter().map(Some).collect();
+            names
+                .iter()
+                .map(|n| {
+                    match read.iter_mut().find(|f| f.as_ref().is_some_and(|f| f.name == *n)).and_then(Option::take) {
+                        Some(f) => Ok(f),
+                        // Not among them: the one-field read says which fields the step has.
+                        None => s.field(n, step),
+                    }
+                })
+                .collect::<tetloc_core::Result<Vec<Field>>>()
+        })
+        .map_err(to_py)
     }
 }
 

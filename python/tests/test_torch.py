@@ -203,7 +203,7 @@ def test_bad_tensors_get_clear_errors(grid_mesh):
     loc = tt.Locator(grid_mesh, backend="cpu")
     good = torch.rand(10, 3) * 6
     with pytest.raises(TypeError, match="points: expected a torch.Tensor"):
-        loc.locate(good.numpy())  # type: ignore[arg-type]
+        loc.locate(good.tolist())  # type: ignore[arg-type]
     with pytest.raises(TypeError, match="dtype torch.int64"):
         loc.locate(torch.ones(10, 3, dtype=torch.int64))
     with pytest.raises(ValueError, match=r"shape \(10, 4\)"):
@@ -220,6 +220,26 @@ def test_bad_tensors_get_clear_errors(grid_mesh):
         loc.sample(good, torch.empty(grid_mesh.n_points, device="meta"))
     with pytest.raises(ValueError, match="no field"):
         loc.sample(good, "nope")
+    assert tt.host_copies() == 0
+
+
+def test_dlpack_arrays_are_taken_without_a_copy(grid_mesh):
+    """A DLPack array on the locator's device (numpy here; CuPy or JAX arrays on a GPU) is
+    taken as a tensor that shares its memory: the answers are the tensor's, as points and as
+    vertex values, and gradients reach a tensor built on the same memory."""
+    loc = tt.Locator(grid_mesh, backend="cpu")
+    p = np.random.default_rng(4).uniform(-0.5, 6.5, size=(2000, 3))
+    for dtype in (np.float32, np.float64):
+        pts = np.ascontiguousarray(p, dtype=dtype)
+        t = torch.from_numpy(pts)
+        assert torch.equal(loc.locate(pts), loc.locate(t))  # type: ignore[arg-type]
+        got, want = loc.sample(pts, "f"), loc.sample(t, "f")  # type: ignore[arg-type]
+        np.testing.assert_array_equal(got.numpy(), want.numpy())
+    shared = tt._from_dlpack(pts, "points")
+    assert isinstance(shared, torch.Tensor) and shared.data_ptr() == pts.ctypes.data, "not copied"
+    values = np.ascontiguousarray(grid_mesh.field("f"), dtype=np.float64)
+    got = loc.sample(pts, values)  # type: ignore[arg-type]
+    np.testing.assert_array_equal(got.numpy(), loc.sample(t, torch.from_numpy(values)).numpy())
     assert tt.host_copies() == 0
 
 

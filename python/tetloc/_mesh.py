@@ -292,7 +292,7 @@ class Mesh:
         if step is None:
             return _fields.join([self._raw.field(c) for c in comps], k)
         step = _step_index(step)
-        return _fields.join([self._raw.step_field(c, step) for c in comps], k)
+        return _fields.join(self._raw.step_fields(list(comps), step), k)
 
     def field_location(self, name: str) -> str:
         """Where field `name` lives: "point" or "cell"."""

@@ -25,6 +25,10 @@ paths (``Locator.path``):
   locator answers on the host (any backend, as ``tetloc.Locator``); for CUDA tensors the
   points go to the host and the ids (and weights) come back.
 
+Points and field values may be any DLPack array on the locator's device (CuPy, JAX, numpy
+on the CPU: anything with ``__dlpack__``), taken with ``torch.from_dlpack`` without a copy;
+the answers are torch tensors, which any DLPack consumer takes back the same way.
+
 ``host_copies()`` counts the host path's transfers (0 on the zero-copy path; tests hold it to
 what they expect). Importing ``tetloc`` does not import torch; importing ``tetloc.torch`` does.
 """
@@ -65,6 +69,17 @@ def _to_device(t: torch.Tensor, device: torch.device) -> torch.Tensor:
         _host_copies += 1
         return t.to(device, non_blocking=False)
     return t
+
+
+def _from_dlpack(x: Any, arg: str) -> Any:
+    """`x` as a torch tensor sharing its memory when it is a DLPack array that is not one
+    already (CuPy, JAX, numpy); anything else as it is (the caller's checks name it)."""
+    if isinstance(x, (torch.Tensor, str)) or not hasattr(x, "__dlpack__"):
+        return x
+    try:
+        return torch.from_dlpack(x)
+    except Exception as e:  # torch raises several types for arrays it cannot take
+        raise TypeError(f"{arg}: cannot take this {type(x).__name__} through DLPack ({e})") from e
 
 
 class _Weights:
@@ -174,8 +189,11 @@ class Locator:
         return self._host.backend
 
     def _check_points(self, points: Any) -> torch.Tensor:
+        points = _from_dlpack(points, "points")
         if not isinstance(points, torch.Tensor):
-            raise TypeError(f"points: expected a torch.Tensor of shape (K, 3), got {type(points).__name__}")
+            raise TypeError(
+                f"points: expected a torch.Tensor (or a DLPack array) of shape (K, 3), got {type(points).__name__}"
+            )
         if points.device != self.device:
             raise ValueError(f"points: on {points.device}, but this Locator is on {self.device} (move them with .to())")
         if points.dtype not in (torch.float32, torch.float64):
@@ -282,6 +300,7 @@ class Locator:
         (n_points, k), float32 or float64. Values are in the wider dtype of the points and the
         field. Differentiable with respect to the points and a field tensor."""
         points = self._check_points(points)
+        field = _from_dlpack(field, "field")
         if isinstance(field, str):
             values, per_point, scalar = self._mesh_field(field, points.dtype)
         elif isinstance(field, torch.Tensor):

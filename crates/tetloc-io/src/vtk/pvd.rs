@@ -141,15 +141,25 @@ struct Steps {
     options: ReadOptions,
 }
 
+/// What the fast read of a step found ([`Steps::stored_fields`]).
+enum Stored {
+    /// The step's fields.
+    Fields(Vec<Field>),
+    /// Another mesh is stored (or it could not tell): the step's `.vtu` bytes, for the whole read.
+    Bytes(Vec<u8>),
+    /// Not a one-piece `.vtu` of linear tets: nothing read.
+    NotRead,
+}
+
 impl Steps {
     /// Step `k`'s fields without decoding its points and cells, when it is a one-piece `.vtu`
     /// of linear tets storing step 0's points and cells byte for byte (what a series that
-    /// repeats its mesh writes): about half the work of a whole read on a tet mesh. `None`:
-    /// read it whole and compare the decoded geometry.
-    fn stored_fields(&self, k: usize, wanted: &dyn Fn(&str) -> bool) -> Result<Option<Vec<Field>>> {
+    /// repeats its mesh writes): about half the work of a whole read on a tet mesh. Otherwise
+    /// the whole read compares the decoded geometry, from the bytes read here if any.
+    fn stored_fields(&self, k: usize, wanted: &dyn Fn(&str) -> bool) -> Result<Stored> {
         let is_vtu = |f: &Path| crate::MeshFormat::from_path(f).is_ok_and(|m| m == crate::MeshFormat::Vtu);
         if !self.all_tets || !is_vtu(&self.files[0]) || !is_vtu(&self.files[k]) {
-            return Ok(None);
+            return Ok(Stored::NotRead);
         }
         let fail =
             |k: usize, e: Error| Error::format(&self.path, format!("step {k} ({}): {e}", self.files[k].display()));
@@ -160,35 +170,22 @@ impl Steps {
         let bytes = crate::read_file(&self.files[k]).map_err(|e| fail(k, e))?;
         match (first, super::vtu::stored_geometry(&bytes, &self.files[k])) {
             (Some(a), Ok(Some(b))) if *a == b => {
-                super::vtu::tet_fields(&bytes, &self.files[k], wanted).map(Some).map_err(|e| fail(k, e))
+                super::vtu::tet_fields(&bytes, &self.files[k], wanted).map(Stored::Fields).map_err(|e| fail(k, e))
             }
-            _ => Ok(None),
+            _ => Ok(Stored::Bytes(bytes)),
         }
     }
-}
 
-impl StepFields for Steps {
-    fn read(&self, k: usize) -> Result<Vec<Field>> {
-        if let Some(fields) = self.stored_fields(k, &|_| true)? {
-            return Ok(fields);
-        }
-        self.read_whole(k)
-    }
-
-    fn read_named(&self, k: usize, names: &[String]) -> Result<Vec<Field>> {
-        let wanted = |name: &str| names.iter().any(|n| n == name);
-        match self.stored_fields(k, &wanted)? {
-            Some(fields) => Ok(fields),
-            None => Ok(self.read_whole(k)?.into_iter().filter(|f| wanted(&f.name)).collect()),
-        }
-    }
-}
-
-impl Steps {
-    /// Step `k`'s file read whole, its mesh compared with step 0's.
-    fn read_whole(&self, k: usize) -> Result<Vec<Field>> {
+    /// Step `k`'s fields that `wanted` names: the fast read, else the whole file (parsed from
+    /// the bytes the fast read took, not read again) with its mesh compared with step 0's.
+    fn fields(&self, k: usize, wanted: &dyn Fn(&str) -> bool) -> Result<Vec<Field>> {
         let file = &self.files[k];
-        let raw = read_step(&self.path, k, file, self.options)?;
+        let raw = match self.stored_fields(k, wanted)? {
+            Stored::Fields(fields) => return Ok(fields),
+            Stored::Bytes(bytes) => super::vtu::parse(&bytes, file)
+                .map_err(|e| Error::format(&self.path, format!("step {k} ({}): {e}", file.display())))?,
+            Stored::NotRead => read_step(&self.path, k, file, self.options)?,
+        };
         let g = geometry(&raw);
         if g != self.geometry {
             return Err(Error::format(
@@ -210,7 +207,17 @@ impl Steps {
                 ),
             ));
         }
-        Ok(raw.fields)
+        Ok(raw.fields.into_iter().filter(|f| wanted(&f.name)).collect())
+    }
+}
+
+impl StepFields for Steps {
+    fn read(&self, k: usize) -> Result<Vec<Field>> {
+        self.fields(k, &|_| true)
+    }
+
+    fn read_named(&self, k: usize, names: &[String]) -> Result<Vec<Field>> {
+        self.fields(k, &|name| names.iter().any(|n| n == name))
     }
 }
 
