@@ -452,7 +452,7 @@ impl CpuLocator {
 
     /// [`Self::locate_from`] for a particle: a point that stays in the hint's tet is answered
     /// by the tet's barycentric map, without the exact test or the walk
-    /// ([`super::hint`]); the same tet, with the map's weights.
+    /// ([`Hint`]); the same tet, with the map's weights.
     #[inline]
     pub fn locate_near(&self, p: Vec3, hint: &mut Hint) -> Option<(u32, Bary)> {
         self.locate_near_with(p, hint, 1.0)

@@ -82,7 +82,9 @@ pub trait BatchLocator {
 
     /// One field's values only.
     fn sample(&mut self, points: &[Vec3], field: &str, values: &mut [f32]) -> Result<()> {
-        let mut ids = vec![OUTSIDE; points.len()];
+        // `query` writes every id. Zeroed memory comes from the allocator untouched (a fill
+        // with -1 wrote 48 MB on one core for 12M points: a third of a GPU call's time).
+        let mut ids = vec![0; points.len()];
         self.query(Points::F32(points), &[field], &mut ids, Values::F32(values))
     }
 
