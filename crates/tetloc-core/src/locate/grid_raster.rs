@@ -11,8 +11,8 @@
 //! other tet has one answer, which this finds. Every other point a tet claims (on a face, an
 //! edge or a vertex, or claimed twice on a mesh whose tets overlap) is marked a tie and left
 //! to the locator's search, whose traversal order is the tie rule. A point that no tet
-//! claims is in no tet: each tet tests every grid point of its box that its faces' planes do
-//! not exclude by a wide margin (below).
+//! claims is in no tet: each tet tests every grid point of its box that its map does not put
+//! beyond a face on a row ([`TetMap::row_part`]).
 //!
 //! The grid is done a slab of z planes at a time, so memory stays bounded for any grid.
 
@@ -28,8 +28,8 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering::Relaxed};
 const EMPTY: u32 = u32::MAX;
 /// More than one tet claims the point, or one claims it with a zero weight: the search decides.
 const TIE: u32 = u32::MAX - 1;
-/// Planes a rasterizing task owns.
-const PLANES_A_TASK: usize = 4;
+/// Tets a rasterizing task visits.
+const TETS_A_TASK: usize = 2048;
 /// Meshes with more tets than this are not rasterized (ids meet the markers above).
 pub(super) const MAX_TETS: usize = TIE as usize;
 /// Grid points a slab holds at most (an id and each field's value: 4 bytes each), unless one
@@ -194,25 +194,23 @@ impl GridRaster {
         }
         self.planes = planes.clone();
         self.tied.store(false, Relaxed);
-        // Each task owns a few planes and claims their points alone (a tet that spans two
-        // tasks' planes is visited by both, each for its own planes), so a claim is a plain
-        // load and store, not a locked read-modify-write.
+        // The slab's tets in runs (each a rayon task; consecutive tets write nearby points),
+        // each tet visited once a slab: a claim is a compare-and-swap, which only tets that
+        // overlap contend for.
         let ny = self.rows;
-        let tasks: Vec<Range<usize>> =
-            planes.clone().step_by(PLANES_A_TASK).map(|k| k..(k + PLANES_A_TASK).min(planes.end)).collect();
-        tasks.into_par_iter().for_each(|own| {
-            let from = self.first_at[own.start.saturating_sub(self.max_extent) * ny];
-            let to = self.first_at[own.end * ny];
-            for &(t, end) in &self.by_plane[from..to] {
-                if end as usize > own.start {
-                    self.claim(mesh, fields, t, own.clone());
+        let from = self.first_at[planes.start.saturating_sub(self.max_extent) * ny];
+        let to = self.first_at[planes.end * ny];
+        self.by_plane[from..to].par_chunks(TETS_A_TASK).for_each(|run| {
+            for &(t, end) in run {
+                if end as usize > planes.start {
+                    self.claim(mesh, fields, t, planes.clone());
                 }
             }
         });
     }
 
     /// Tests the points of tet `t`'s box in planes `own` of the current slab and claims those
-    /// it holds. The caller owns those planes' points.
+    /// it holds.
     fn claim(&self, mesh: &Mesh, fields: &[&Field], t: u32, own: Range<usize>) {
         let tet = mesh.tets[t as usize];
         let v = tet.map(|v| mesh.vertex64(v));
@@ -224,21 +222,26 @@ impl GridRaster {
         if xs.is_empty() || ys.is_empty() || zs.is_empty() {
             return;
         }
-        let rows = RowClip::new(v, lo, hi, self.grid.spacing[0]);
         // Points of the box are within its extent of any vertex on each axis.
         let map = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), self.bound_scale);
         for k in zs {
             let z = az.at[k];
             for j in ys.clone() {
+                let at = ((k - self.planes.start) * self.grid.dims[1] + j) * self.grid.dims[0];
+                let Some(map) = &map else {
+                    // A flat or ill-conditioned tet: the exact test at every point of its box.
+                    for i in xs.clone() {
+                        self.try_point(mesh, fields, t, tet, [i, j, k]);
+                    }
+                    continue;
+                };
                 // (Every row of the box: stopping at the first empty row after others would
                 // rest on the rows' convexity, which rounding does not promise.)
-                let Some((x0, x1)) = rows.x_range(ay.at[j], z) else { continue };
-                let xs = xs.start.max(ax.at_or_above(x0))..xs.end.min(ax.above(x1));
-                let Some(first) = ax.at.get(xs.start).filter(|_| !xs.is_empty()) else { continue };
-                let row = map.map(|m| m.row(*first, ay.at[j], z));
-                let at = ((k - self.planes.start) * self.grid.dims[1] + j) * self.grid.dims[0];
-                for i in xs {
-                    match row.map_or(Side::Near, |r| r.at(ax.at[i])) {
+                let row = map.row(ax.at[xs.start], ay.at[j], z);
+                let Some((x0, x1)) = map.row_part(&row) else { continue };
+                let part = ax.loose_span(x0, x1);
+                for i in xs.start.max(part.start)..xs.end.min(part.end) {
+                    match row.at(ax.at[i]) {
                         Side::Inside(w) => self.claim_point(mesh, fields, t, at + i, w.map(|x| x as f32)),
                         Side::Outside => {}
                         Side::Near => self.try_point(mesh, fields, t, tet, [i, j, k]),
@@ -265,12 +268,11 @@ impl GridRaster {
     }
 
     /// Slab point `at` for tet `t`, strictly inside it at weights `w`: its values, or a tie
-    /// if another tet holds it too. The caller owns the point's plane (no other thread
-    /// writes it meanwhile).
+    /// if another tet holds it too (whichever claims it first: the point is a tie either
+    /// way, and a tie's values are the search's).
     #[inline]
     fn claim_point(&self, mesh: &Mesh, fields: &[&Field], t: u32, at: usize, w: Bary) {
-        if self.ids[at].load(Relaxed) == EMPTY {
-            self.ids[at].store(t, Relaxed);
+        if self.ids[at].compare_exchange(EMPTY, t, Relaxed, Relaxed).is_ok() {
             let nf = fields.len();
             for (slot, f) in self.values[at * nf..(at + 1) * nf].iter().zip(fields) {
                 slot.store(mesh.value_at(f, Some((t as usize, w))).to_bits(), Relaxed);
@@ -302,13 +304,40 @@ struct Axis {
     origin: f64,
     /// 1 / spacing; 0 for an axis of one point.
     per_unit: f64,
+    /// The most that a point's index computed from its coordinate is off (the f32 rounding
+    /// of the coordinates and of the arithmetic), with a margin.
+    slack: f64,
 }
 
 impl Axis {
     fn new(grid: &ImageGrid, k: usize) -> Axis {
-        let at = (0..grid.dims[k]).map(|i| (grid.origin[k] + i as f64 * grid.spacing[k]) as f32 as f64).collect();
+        let at: Vec<f64> =
+            (0..grid.dims[k]).map(|i| (grid.origin[k] + i as f64 * grid.spacing[k]) as f32 as f64).collect();
         let per_unit = if grid.spacing[k] > 0.0 { 1.0 / grid.spacing[k] } else { 0.0 };
-        Axis { at, origin: grid.origin[k], per_unit }
+        let origin = grid.origin[k];
+        let off = at.iter().enumerate().map(|(i, &x)| ((x - origin) * per_unit - i as f64).abs()).fold(0.0, f64::max);
+        Axis { slack: off + 1e-6 + 1e-9 * at.len() as f64, at, origin, per_unit }
+    }
+
+    /// A range of indices that holds every point within [lo, hi], and at most a point or so
+    /// more at each end (more where the f32 coordinates are coarser than the spacing): no
+    /// search, for the rows' parts.
+    #[inline]
+    fn loose_span(&self, lo: f64, hi: f64) -> Range<usize> {
+        // Rounded up and down by truncating conversions (one instruction each, where `ceil`
+        // and `floor` are calls on the baseline x86-64: this runs twice a row).
+        let n = self.at.len();
+        let a = (lo - self.origin) * self.per_unit - self.slack;
+        let b = (hi - self.origin) * self.per_unit + self.slack;
+        // (NaN: no bound at that end.)
+        let start = if a > 0.0 {
+            let up = a as usize;
+            (up + usize::from((up as f64) < a)).min(n)
+        } else {
+            0
+        };
+        let end = if b < n as f64 { (b.max(-1.0) + 1.0) as usize } else { n };
+        start..end
     }
 
     /// The indices of the points within [lo, hi].
@@ -342,74 +371,6 @@ impl Axis {
             i += 1;
         }
         i
-    }
-}
-
-/// A tet's faces as planes, to narrow each grid row to the part that can be inside: a filter
-/// only (the exact test decides every point it lets through), so it errs wide. A face bounds
-/// the row only when its plane is well defined (its corner's sine above 1e-3) and crosses the
-/// row at an angle (the normal's x above 1e-3 of its length). Then f64 rounding tilts the
-/// plane by at most ~1e3 ε and moves the row's bound by ~1e3 × that over the tet's size, plus
-/// ~1e3 ε of the distance from the origin: about 1e-9 of both. The bound is widened by 1e-8
-/// of both and a hundredth of the grid's spacing.
-struct RowClip {
-    /// For the faces that bound rows (at most four): the inward normal n over n.x, and
-    /// n·a over n.x, and whether n.x > 0 (the face bounds the row from below).
-    planes: [([f64; 3], f64, bool); 4],
-    n: usize,
-    margin: f64,
-}
-
-impl RowClip {
-    fn new(v: [[f64; 3]; 4], lo: [f64; 3], hi: [f64; 3], spacing_x: f64) -> RowClip {
-        let sub = |a: [f64; 3], b: [f64; 3]| -> [f64; 3] { std::array::from_fn(|k| a[k] - b[k]) };
-        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
-        let cross = |a: [f64; 3], b: [f64; 3]| {
-            [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
-        };
-        let size = (0..3).map(|k| hi[k] - lo[k]).fold(0.0, f64::max);
-        let far = (0..3).map(|k| lo[k].abs().max(hi[k].abs())).fold(0.0, f64::max);
-        let mut clip =
-            RowClip { planes: [([0.0; 3], 0.0, false); 4], n: 0, margin: 0.01 * spacing_x + 1e-8 * (size + far) };
-        for f in [[1, 2, 3, 0], [0, 3, 2, 1], [0, 1, 3, 2], [0, 2, 1, 3]] {
-            let (a, b, c, d) = (v[f[0]], v[f[1]], v[f[2]], v[f[3]]);
-            let (e1, e2) = (sub(b, a), sub(c, a));
-            let mut n = cross(e1, e2);
-            let nn = dot(n, n);
-            // A sliver face, or a flat tet: no bound from this face.
-            if nn.is_nan()
-                || nn <= 1e-6 * dot(e1, e1) * dot(e2, e2)
-                || dot(sub(d, a), n).abs() < 1e-9 * nn.sqrt() * size
-            {
-                continue;
-            }
-            if dot(sub(d, a), n) < 0.0 {
-                n = n.map(|x| -x);
-            }
-            // Nearly parallel to the rows: no bound.
-            if n[0].abs() < 1e-3 * nn.sqrt() {
-                continue;
-            }
-            clip.planes[clip.n] = (n.map(|c| c / n[0]), dot(n, a) / n[0], n[0] > 0.0);
-            clip.n += 1;
-        }
-        clip
-    }
-
-    /// The x range of the row at (y, z) that the bounding faces leave, widened; `None` if empty.
-    fn x_range(&self, y: f64, z: f64) -> Option<(f64, f64)> {
-        let (mut x0, mut x1) = (f64::NEG_INFINITY, f64::INFINITY);
-        for &(n, d, below) in &self.planes[..self.n] {
-            // n·(x, y, z) >= d, divided by n.x
-            let x = d - n[1] * y - n[2] * z;
-            if below {
-                x0 = x0.max(x);
-            } else {
-                x1 = x1.min(x);
-            }
-        }
-        let (x0, x1) = (x0 - self.margin, x1 + self.margin);
-        (x0 <= x1).then_some((x0, x1))
     }
 }
 
