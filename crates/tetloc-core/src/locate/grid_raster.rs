@@ -12,7 +12,7 @@
 //! edge or a vertex, or claimed twice on a mesh whose tets overlap) is marked a tie and left
 //! to the locator's search, whose traversal order is the tie rule. A point that no tet
 //! claims is in no tet: each tet tests every grid point of its box that its map does not put
-//! beyond a face on a row ([`TetMap::row_part`]).
+//! beyond a face on a row ([`TetMap::plane`]).
 //!
 //! The grid is done a slab of z planes at a time, so memory stays bounded for any grid.
 
@@ -226,9 +226,10 @@ impl GridRaster {
         let map = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), self.bound_scale);
         for k in zs {
             let z = az.at[k];
+            let parts = map.as_ref().map(|m| m.plane(ax.at[xs.start], ay.at[ys.start], z));
             for j in ys.clone() {
                 let at = ((k - self.planes.start) * self.grid.dims[1] + j) * self.grid.dims[0];
-                let Some(map) = &map else {
+                let (Some(map), Some(parts)) = (&map, &parts) else {
                     // A flat or ill-conditioned tet: the exact test at every point of its box.
                     for i in xs.clone() {
                         self.try_point(mesh, fields, t, tet, [i, j, k]);
@@ -237,10 +238,14 @@ impl GridRaster {
                 };
                 // (Every row of the box: stopping at the first empty row after others would
                 // rest on the rows' convexity, which rounding does not promise.)
-                let row = map.row(ax.at[xs.start], ay.at[j], z);
-                let Some((x0, x1)) = map.row_part(&row) else { continue };
+                let Some((x0, x1)) = parts.row(ay.at[j]) else { continue };
                 let part = ax.loose_span(x0, x1);
-                for i in xs.start.max(part.start)..xs.end.min(part.end) {
+                let part = xs.start.max(part.start)..xs.end.min(part.end);
+                if part.is_empty() {
+                    continue;
+                }
+                let row = map.row(ax.at[xs.start], ay.at[j], z);
+                for i in part {
                     match row.at(ax.at[i]) {
                         Side::Inside(w) => self.claim_point(mesh, fields, t, at + i, w.map(|x| x as f32)),
                         Side::Outside => {}

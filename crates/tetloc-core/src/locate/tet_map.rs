@@ -23,11 +23,13 @@
 //! (within the bound of a face) take the exact test and the tie rule.
 //!
 //! **A row's part.** Along a row each λ̂ₖ is base + slope·(x − x₀), so the x where it falls
-//! below −bound is one multiply by the precomputed 1/slope ([`TetMap::row_part`]). Rounding
-//! moves that crossing, and the evaluation's λ̂, by at most 16u·S in λ (S = 1 + Σ|base| +
-//! Σ|slope|·2reachₓ bounds every term the row form adds) and 2u(|x₀| + |x|) in x; the part is
-//! widened by 1e-9·(S/|slope| + |x₀| + |x|), so every point left out of it has some λ̂ below
-//! −bound: the map would call it outside.
+//! below −bound is one multiply by the precomputed 1/slope, and across a plane's rows that x
+//! moves linearly with y ([`TetMap::plane`], [`PlaneParts::row`]: one multiply-add a weight
+//! a row). Rounding moves that crossing, and the evaluation's λ̂, by at most 16u·S in λ
+//! (S = 1 + Σ|base| + Σ|slope|·2reachₓ + Σ|y slope|·2reach_y bounds every term the forms
+//! add) and a few u of the x terms' sizes; the part is widened by 1e-9 of S/|slope| plus those
+//! sizes, so every point left out of it has some λ̂ below −bound: the map would call it
+//! outside.
 
 /// f64's machine epsilon (2⁻⁵², twice the unit roundoff).
 const U: f64 = f64::EPSILON;
@@ -61,6 +63,38 @@ pub(super) struct TetMap {
     inv_slope: [f64; 4],
     slope_sum: f64,
     row_reach: f64,
+    /// The box's reach across rows (y).
+    y_reach: f64,
+}
+
+/// The parts of one plane's rows: for each weight with a slope along rows, the x where it
+/// reaches −bound (widened) as an affine function of the row's y, and whether it bounds the
+/// part from below (1) or above (−1).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PlaneParts {
+    y: f64,
+    ends: [(f64, f64, i8); 4],
+}
+
+impl PlaneParts {
+    /// The part of the row at `y` where the map may call a point inside or near a face, as
+    /// (x₀, x₁); `None` if empty. Every point left out has some λ̂ below −bound (see the
+    /// module documentation): a filter that changes no answer.
+    #[inline]
+    pub(super) fn row(&self, y: f64) -> Option<(f64, f64)> {
+        let dy = y - self.y;
+        let (mut x0, mut x1) = (f64::NEG_INFINITY, f64::INFINITY);
+        for &(at, per_y, side) in &self.ends {
+            // (NaN from an overflow leaves the part as it is: max and min.)
+            let x = at + per_y * dy;
+            if side > 0 {
+                x0 = x0.max(x);
+            } else if side < 0 {
+                x1 = x1.min(x);
+            }
+        }
+        (x0 <= x1).then_some((x0, x1))
+    }
 }
 
 /// A map restricted to one row (y, z fixed): λₖ = base[k] + slope[k]·(x − x₀).
@@ -113,35 +147,43 @@ impl TetMap {
             inv_slope: slope.map(|x| if x != 0.0 { 1.0 / x } else { 0.0 }),
             slope_sum: slope.iter().map(|x| x.abs()).sum(),
             row_reach: reach2[0],
+            y_reach: reach[1],
         })
     }
 
-    /// The part of `row` (a row of this map within its reach) where the map may call a point
-    /// inside or near a face, as (x₀, x₁); `None` if empty. Every point left out has some λ̂
-    /// below −bound (see the module documentation): a filter that changes no answer.
+    /// The parts of the rows of plane z (rows of this map within its reach, from `x` on
+    /// each, `y` a row of the box), to be asked row by row ([`PlaneParts::row`]).
     #[inline]
-    pub(super) fn row_part(&self, row: &RowMap) -> Option<(f64, f64)> {
-        self.row_part_widened(row, 1e-9)
+    pub(super) fn plane(&self, x: f64, y: f64, z: f64) -> PlaneParts {
+        self.plane_widened(x, y, z, 1e-9)
     }
 
-    /// [`Self::row_part`] widened by `widen` (1e-9 but in the test that shows less fails).
-    #[inline]
-    fn row_part_widened(&self, row: &RowMap, widen: f64) -> Option<(f64, f64)> {
-        let b = &row.base;
+    /// [`Self::plane`] widened by `widen` (1e-9 but in the test that shows less fails).
+    fn plane_widened(&self, x: f64, y: f64, z: f64, widen: f64) -> PlaneParts {
+        let b = self.row(x, y, z).base;
         let base = [1.0 - b[0] - b[1] - b[2], b[0], b[1], b[2]];
-        let s = 1.0 + base.iter().map(|x| x.abs()).sum::<f64>() + self.slope_sum * self.row_reach;
-        let (mut x0, mut x1) = (f64::NEG_INFINITY, f64::INFINITY);
-        for (base, inv) in base.into_iter().zip(self.inv_slope) {
-            // Where λ̂ = −bound, widened; NaN (overflow) leaves the part as it is (max/min).
-            let cross = row.x0 + (-self.bound - base) * inv;
-            let widen = widen * (s * inv.abs() + row.x0.abs() + cross.abs());
-            if inv > 0.0 {
-                x0 = x0.max(cross - widen);
-            } else if inv < 0.0 {
-                x1 = x1.min(cross + widen);
-            }
+        let g = &self.grad;
+        let y_slope = [-(g[0][1] + g[1][1] + g[2][1]), g[0][1], g[1][1], g[2][1]];
+        // Twice the reach across rows: rows on either side of `y`.
+        let y_reach = 2.0 * self.y_reach;
+        let s = 1.0
+            + base.iter().map(|v| v.abs()).sum::<f64>()
+            + self.slope_sum * self.row_reach
+            + y_slope.iter().map(|v| v.abs()).sum::<f64>() * y_reach;
+        let mut parts = PlaneParts { y, ends: [(0.0, 0.0, 0); 4] };
+        for (k, end) in parts.ends.iter_mut().enumerate() {
+            let inv = self.inv_slope[k];
+            // Where λₖ = −bound on the row at y, and how that moves with the row.
+            let cross = x + (-self.bound - base[k]) * inv;
+            let per_y = -y_slope[k] * inv;
+            let w = widen * (s * inv.abs() + x.abs() + cross.abs() + per_y.abs() * y_reach + self.row_reach);
+            *end = match inv.partial_cmp(&0.0) {
+                Some(std::cmp::Ordering::Greater) => (cross - w, per_y, 1),
+                Some(std::cmp::Ordering::Less) => (cross + w, per_y, -1),
+                _ => (0.0, 0.0, 0),
+            };
         }
-        (x0 <= x1).then_some((x0, x1))
+        parts
     }
 
     /// The map along the row at (y, z), from `x0`.
@@ -242,10 +284,10 @@ mod tests {
         assert!(decided > 10 * near, "{decided} decided, {near} near");
     }
 
-    /// A row's part leaves out only points the map calls outside: on rows through jittered
-    /// tets (slivers among them) scaled by 1e-6 and 1e6 and moved 1e7 away, at the computed
-    /// ends of each weight's part and the few f64s either side. Without the widening some
-    /// point left out is one the map does not call outside.
+    /// A row's part leaves out only points the map calls outside: on the rows of planes
+    /// through jittered tets (slivers among them) scaled by 1e-6 and 1e6 and moved 1e7 away,
+    /// at the computed ends of each weight's part and the few f64s either side. Without the
+    /// widening some point left out is one the map does not call outside.
     #[test]
     fn a_rows_part_leaves_out_only_what_the_map_calls_outside() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(4);
@@ -260,8 +302,8 @@ mod tests {
                 for _ in 0..8 {
                     let (y, z) = (rng.gen_range(lo[1]..=hi[1]), rng.gen_range(lo[2]..=hi[2]));
                     let row = map.row(lo[0], y, z);
-                    let part = map.row_part(&row);
-                    let tight = map.row_part_widened(&row, 0.0);
+                    let part = map.plane(lo[0], lo[1], z).row(y);
+                    let tight = map.plane_widened(lo[0], lo[1], z, 0.0).row(y);
                     // The ends of the unwidened part and the f64s around them, inside the box.
                     let mut xs = Vec::new();
                     for end in tight.into_iter().flat_map(|(a, b)| [a, b]) {
