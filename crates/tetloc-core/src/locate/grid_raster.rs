@@ -12,7 +12,7 @@
 //! edge or a vertex, or claimed twice on a mesh whose tets overlap) is marked a tie and left
 //! to the locator's search, whose traversal order is the tie rule. A point that no tet
 //! claims is in no tet: each tet tests every grid point of its box that its map does not put
-//! beyond a face on a row ([`TetMap::plane`]).
+//! beyond a face on a row ([`TetMap::parts`]).
 //!
 //! The grid is done a slab of z planes at a time, so memory stays bounded for any grid.
 
@@ -217,16 +217,18 @@ impl GridRaster {
         let (lo, hi) = bounds_of(&v);
         let [ax, ay, az] = &self.axes;
         let (xs, ys) = (ax.span(lo[0], hi[0]), ay.span(lo[1], hi[1]));
-        let zs = az.span(lo[2], hi[2]);
-        let zs = zs.start.max(own.start)..zs.end.min(own.end);
+        let box_zs = az.span(lo[2], hi[2]);
+        let zs = box_zs.start.max(own.start)..box_zs.end.min(own.end);
         if xs.is_empty() || ys.is_empty() || zs.is_empty() {
             return;
         }
         // Points of the box are within its extent of any vertex on each axis.
         let map = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), self.bound_scale);
+        let corner = (ax.at[xs.start], ay.at[ys.start], az.at[box_zs.start]);
+        let box_parts = map.as_ref().map(|m| m.parts(corner.0, corner.1, corner.2));
         for k in zs {
             let z = az.at[k];
-            let parts = map.as_ref().map(|m| m.plane(ax.at[xs.start], ay.at[ys.start], z));
+            let parts = box_parts.map(|p| p.plane(z));
             for j in ys.clone() {
                 let at = ((k - self.planes.start) * self.grid.dims[1] + j) * self.grid.dims[0];
                 let (Some(map), Some(parts)) = (&map, &parts) else {

@@ -23,11 +23,10 @@
 //! (within the bound of a face) take the exact test and the tie rule.
 //!
 //! **A row's part.** Along a row each λ̂ₖ is base + slope·(x − x₀), so the x where it falls
-//! below −bound is one multiply by the precomputed 1/slope, and across a plane's rows that x
-//! moves linearly with y ([`TetMap::plane`], [`PlaneParts::row`]: one multiply-add a weight
-//! a row). Rounding moves that crossing, and the evaluation's λ̂, by at most 16u·S in λ
-//! (S = 1 + Σ|base| + Σ|slope|·2reachₓ + Σ|y slope|·2reach_y bounds every term the forms
-//! add) and a few u of the x terms' sizes; the part is widened by 1e-9 of S/|slope| plus those
+//! below −bound is one multiply by the precomputed 1/slope, and across rows and planes that x
+//! moves linearly with y and z ([`TetMap::parts`]: two multiply-adds a weight a row, one of
+//! them once a plane). Rounding moves that crossing, and the evaluation's λ̂, by at most 16u·S
+//! in λ (S = 1 + Σ|base| + Σ|slope|·2reach on each axis bounds every term the forms add) and a few u of the x terms' sizes; the part is widened by 1e-9 of S/|slope| plus those
 //! sizes, so every point left out of it has some λ̂ below −bound: the map would call it
 //! outside.
 
@@ -63,13 +62,30 @@ pub(super) struct TetMap {
     inv_slope: [f64; 4],
     slope_sum: f64,
     row_reach: f64,
-    /// The box's reach across rows (y).
-    y_reach: f64,
+    /// The box's reach on each axis.
+    reach: [f64; 3],
 }
 
-/// The parts of one plane's rows: for each weight with a slope along rows, the x where it
-/// reaches −bound (widened) as an affine function of the row's y, and whether it bounds the
-/// part from below (1) or above (−1).
+/// The parts of a box's rows: for each weight with a slope along rows, the x where it
+/// reaches −bound (widened) on the corner's row, how it moves with the row's y and the
+/// plane's z, and whether it bounds the part from below (1) or above (−1).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TetParts {
+    y: f64,
+    z: f64,
+    ends: [(f64, f64, f64, i8); 4],
+}
+
+impl TetParts {
+    /// The parts of plane z's rows.
+    #[inline]
+    pub(super) fn plane(&self, z: f64) -> PlaneParts {
+        let dz = z - self.z;
+        PlaneParts { y: self.y, ends: self.ends.map(|(at, per_y, per_z, side)| (at + per_z * dz, per_y, side)) }
+    }
+}
+
+/// The parts of one plane's rows: [`TetParts`] at the plane's z.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct PlaneParts {
     y: f64,
@@ -147,40 +163,41 @@ impl TetMap {
             inv_slope: slope.map(|x| if x != 0.0 { 1.0 / x } else { 0.0 }),
             slope_sum: slope.iter().map(|x| x.abs()).sum(),
             row_reach: reach2[0],
-            y_reach: reach[1],
+            reach,
         })
     }
 
-    /// The parts of the rows of plane z (rows of this map within its reach, from `x` on
-    /// each, `y` a row of the box), to be asked row by row ([`PlaneParts::row`]).
+    /// The parts of the rows of the box whose corner is (x, y, z) (its lowest grid point on
+    /// each axis, within this map's reach): asked plane by plane ([`TetParts::plane`]),
+    /// then row by row ([`PlaneParts::row`]).
     #[inline]
-    pub(super) fn plane(&self, x: f64, y: f64, z: f64) -> PlaneParts {
-        self.plane_widened(x, y, z, 1e-9)
+    pub(super) fn parts(&self, x: f64, y: f64, z: f64) -> TetParts {
+        self.parts_widened(x, y, z, 1e-9)
     }
 
-    /// [`Self::plane`] widened by `widen` (1e-9 but in the test that shows less fails).
-    fn plane_widened(&self, x: f64, y: f64, z: f64, widen: f64) -> PlaneParts {
+    /// [`Self::parts`] widened by `widen` (1e-9 but in the test that shows less fails).
+    fn parts_widened(&self, x: f64, y: f64, z: f64, widen: f64) -> TetParts {
         let b = self.row(x, y, z).base;
         let base = [1.0 - b[0] - b[1] - b[2], b[0], b[1], b[2]];
         let g = &self.grad;
-        let y_slope = [-(g[0][1] + g[1][1] + g[2][1]), g[0][1], g[1][1], g[2][1]];
-        // Twice the reach across rows: rows on either side of `y`.
-        let y_reach = 2.0 * self.y_reach;
-        let s = 1.0
-            + base.iter().map(|v| v.abs()).sum::<f64>()
-            + self.slope_sum * self.row_reach
-            + y_slope.iter().map(|v| v.abs()).sum::<f64>() * y_reach;
-        let mut parts = PlaneParts { y, ends: [(0.0, 0.0, 0); 4] };
+        let slope_along = |c: usize| [-(g[0][c] + g[1][c] + g[2][c]), g[0][c], g[1][c], g[2][c]];
+        let (y_slope, z_slope) = (slope_along(1), slope_along(2));
+        // Twice the reach across rows and planes: points on either side of the corner.
+        let (y_reach, z_reach) = (2.0 * self.reach[1], 2.0 * self.reach[2]);
+        let sum = |v: [f64; 4]| v.iter().map(|x| x.abs()).sum::<f64>();
+        let s = 1.0 + sum(base) + self.slope_sum * self.row_reach + sum(y_slope) * y_reach + sum(z_slope) * z_reach;
+        let mut parts = TetParts { y, z, ends: [(0.0, 0.0, 0.0, 0); 4] };
         for (k, end) in parts.ends.iter_mut().enumerate() {
             let inv = self.inv_slope[k];
-            // Where λₖ = −bound on the row at y, and how that moves with the row.
+            // Where λₖ = −bound on the corner's row, and how that moves across rows and planes.
             let cross = x + (-self.bound - base[k]) * inv;
-            let per_y = -y_slope[k] * inv;
-            let w = widen * (s * inv.abs() + x.abs() + cross.abs() + per_y.abs() * y_reach + self.row_reach);
+            let (per_y, per_z) = (-y_slope[k] * inv, -z_slope[k] * inv);
+            let size = s * inv.abs() + x.abs() + cross.abs() + per_y.abs() * y_reach + per_z.abs() * z_reach;
+            let w = widen * (size + self.row_reach);
             *end = match inv.partial_cmp(&0.0) {
-                Some(std::cmp::Ordering::Greater) => (cross - w, per_y, 1),
-                Some(std::cmp::Ordering::Less) => (cross + w, per_y, -1),
-                _ => (0.0, 0.0, 0),
+                Some(std::cmp::Ordering::Greater) => (cross - w, per_y, per_z, 1),
+                Some(std::cmp::Ordering::Less) => (cross + w, per_y, per_z, -1),
+                _ => (0.0, 0.0, 0.0, 0),
             };
         }
         parts
@@ -302,8 +319,8 @@ mod tests {
                 for _ in 0..8 {
                     let (y, z) = (rng.gen_range(lo[1]..=hi[1]), rng.gen_range(lo[2]..=hi[2]));
                     let row = map.row(lo[0], y, z);
-                    let part = map.plane(lo[0], lo[1], z).row(y);
-                    let tight = map.plane_widened(lo[0], lo[1], z, 0.0).row(y);
+                    let part = map.parts(lo[0], lo[1], lo[2]).plane(z).row(y);
+                    let tight = map.parts_widened(lo[0], lo[1], lo[2], 0.0).plane(z).row(y);
                     // The ends of the unwidened part and the f64s around them, inside the box.
                     let mut xs = Vec::new();
                     for end in tight.into_iter().flat_map(|(a, b)| [a, b]) {
