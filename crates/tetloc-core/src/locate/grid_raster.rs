@@ -187,8 +187,9 @@ impl GridRaster {
     fn rasterize(&mut self, mesh: &Mesh, fields: &[&Field], planes: Range<usize>) {
         let n = planes.len() * self.plane_points();
         if self.ids.len() < n {
-            self.ids = (0..n).map(|_| AtomicU32::new(EMPTY)).collect();
-            self.values = (0..n * fields.len()).map(|_| AtomicU32::new(0)).collect();
+            // (On every core: the first touch of each page is most of the cost.)
+            self.ids = (0..n).into_par_iter().map(|_| AtomicU32::new(EMPTY)).collect();
+            self.values = (0..n * fields.len()).into_par_iter().map(|_| AtomicU32::new(0)).collect();
         } else {
             self.ids[..n].par_iter().for_each(|a| a.store(EMPTY, Relaxed));
         }
