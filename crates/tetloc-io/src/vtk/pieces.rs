@@ -40,6 +40,27 @@ pub fn resolve(listing: &Path, file: &str) -> PathBuf {
     }
 }
 
+/// The `<KIND>` element of a listing whose root is `<VTKFile type="KIND">` (a `.pvtu`'s
+/// `PUnstructuredGrid`, a `.vtm`'s `vtkMultiBlockDataSet`); `what` names the listing in the
+/// errors, which name `path`.
+pub(super) fn listing_element<'d, 'a>(
+    doc: &'d super::xml::Document<'a>,
+    path: &Path,
+    kind: &str,
+    what: &str,
+) -> Result<&'d super::xml::Node<'a>> {
+    let fail = |msg: String| Error::format(path, msg);
+    let root = &doc.root;
+    if root.name != "VTKFile" {
+        return Err(fail(format!("not a VTK XML file: the root element is <{}>, not <VTKFile>", root.name)));
+    }
+    if root.attr("type") != Some(kind) {
+        let found = root.attr("type").unwrap_or("(none)");
+        return Err(fail(format!("a VTK XML file of type '{found}': {what} is a {kind}")));
+    }
+    root.child(kind).ok_or_else(|| fail(format!("no <{kind}> element")))
+}
+
 /// Whether `path` names a listing of pieces (`.pvtu`, `.vtm`).
 pub fn is_listing(path: &Path) -> bool {
     matches!(crate::output::extension(path).as_str(), "pvtu" | "vtm")

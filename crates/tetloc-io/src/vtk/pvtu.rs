@@ -11,17 +11,7 @@ use tetloc_core::error::{Error, Result};
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Vec<PathBuf>> {
     let fail = |msg: String| Error::format(path, msg);
     let doc = xml::parse(bytes, "AppendedData").map_err(fail)?;
-    let root = &doc.root;
-    if root.name != "VTKFile" {
-        return Err(fail(format!("not a VTK XML file: the root element is <{}>, not <VTKFile>", root.name)));
-    }
-    if root.attr("type") != Some("PUnstructuredGrid") {
-        return Err(fail(format!(
-            "a VTK XML file of type '{}': a .pvtu is a PUnstructuredGrid",
-            root.attr("type").unwrap_or("(none)")
-        )));
-    }
-    let grid = root.child("PUnstructuredGrid").ok_or_else(|| fail("no <PUnstructuredGrid> element".into()))?;
+    let grid = super::pieces::listing_element(&doc, path, "PUnstructuredGrid", "a .pvtu")?;
     let files = grid
         .children_named("Piece")
         .enumerate()

@@ -12,17 +12,7 @@ use tetloc_core::error::{Error, Result};
 pub fn parse(bytes: &[u8], path: &Path) -> Result<Vec<PathBuf>> {
     let fail = |msg: String| Error::format(path, msg);
     let doc = xml::parse(bytes, "AppendedData").map_err(fail)?;
-    let root = &doc.root;
-    if root.name != "VTKFile" {
-        return Err(fail(format!("not a VTK XML file: the root element is <{}>, not <VTKFile>", root.name)));
-    }
-    if root.attr("type") != Some("vtkMultiBlockDataSet") {
-        return Err(fail(format!(
-            "a VTK XML file of type '{}': a .vtm is a vtkMultiBlockDataSet",
-            root.attr("type").unwrap_or("(none)")
-        )));
-    }
-    let set = root.child("vtkMultiBlockDataSet").ok_or_else(|| fail("no <vtkMultiBlockDataSet> element".into()))?;
+    let set = super::pieces::listing_element(&doc, path, "vtkMultiBlockDataSet", "a .vtm")?;
     let mut files = Vec::new();
     collect(set, path, &mut files);
     if files.is_empty() {
