@@ -12,7 +12,8 @@
 //! P_det = Σ|e₁ᵢ|·P_c₁ᵢ, so with ρ = P_det/det each gradient component g = c/det is off by
 //! ≤ (5 + 9ρ)u·M, M = P_c/det (≥ |g|) (one u of it for multiplying by the rounded 1/det).
 //! Evaluating Σⱼ gⱼ(pⱼ − v₀ⱼ) adds u|q| for the difference q and 5u for the products and sums
-//! (the row form's extra term g_x·(x − x₀) counts the x reach twice): |λ̂ₖ − λₖ| ≤ (11 + 9ρ)u·Sₖ, Sₖ = Mₖₓ·2reachₓ + Mₖ_y·reach_y + Mₖ_z·reach_z,
+//! (the row form's extra term g_x·(x − x₀) counts the x reach twice):
+//! |λ̂ₖ − λₖ| ≤ (11 + 9ρ)u·Sₖ, Sₖ = Mₖₓ·2reachₓ + Mₖ_y·reach_y + Mₖ_z·reach_z,
 //! for every point within `reach` of v₀ on each axis (ρ ≥ 1 absorbs the constants); λ₀ adds
 //! its three terms and 3u(1 + ΣSₖ).
 //! Twice that covers the second-order terms. One more term covers the exact test's own f32
@@ -26,7 +27,8 @@
 //! below −bound is one multiply by the precomputed 1/slope, and across rows and planes that x
 //! moves linearly with y and z ([`TetMap::parts`]: two multiply-adds a weight a row, one of
 //! them once a plane). Rounding moves that crossing, and the evaluation's λ̂, by at most 16u·S
-//! in λ (S = 1 + Σ|base| + Σ|slope|·2reach on each axis bounds every term the forms add) and a few u of the x terms' sizes; the part is widened by 1e-9 of S/|slope| plus those
+//! in λ (S = 1 + Σ|base| + Σ|slope|·2reach on each axis bounds every term the forms add) and
+//! by a few u of the x terms' sizes; the part is widened by 1e-9 of S/|slope| plus those
 //! sizes, so every point left out of it has some λ̂ below −bound: the map would call it
 //! outside.
 
