@@ -548,6 +548,60 @@ pub(super) mod tests {
         assert_eq!(failures.len(), cases.len(), "a zero bound failed only {failures:#?}");
     }
 
+    /// An axis's loose span holds every point within [lo, hi], and at most 2·slack + 1 more at
+    /// each end (where rounded f32 coordinates skip past the bounds), on axes near and far from
+    /// the origin (1e7 away, with spacings down to where f32 coordinates repeat), for random
+    /// bounds and bounds exactly on the points and an ulp either side; with no slack some
+    /// point is left out.
+    #[test]
+    fn loose_spans_hold_every_point_in_their_bounds() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(6);
+        let mut lost_without_slack = 0;
+        for (origin, spacing, n) in
+            [(0.0, 0.1, 50), (-3.7, 1e-3, 300), (1e7, 1.0, 40), (1e7, 0.3, 60), (-2.5e6, 0.01, 90)]
+        {
+            let grid = ImageGrid::spanning([origin; 3], [origin + spacing * (n - 1) as f64; 3], [n; 3]).unwrap();
+            let mut axis = Axis::new(&grid, 0);
+            let (first, last) = (axis.at[0], axis.at[n - 1]);
+            let mut bounds: Vec<(f64, f64)> = (0..2000)
+                .map(|_| {
+                    let (a, b) = (rng.gen_range(first - spacing..=last + spacing), rng.gen_range(first..=last));
+                    (a.min(b), a.max(b))
+                })
+                .collect();
+            for i in 0..n {
+                let x = axis.at[i];
+                for (a, b) in [(x, x), (x.next_up(), x.next_up()), (x.next_down(), x), (x, x.next_up())] {
+                    bounds.push((a, b));
+                    bounds.push((a, last));
+                }
+            }
+            for scale in [1.0, 0.0] {
+                let slack = axis.slack;
+                axis.slack = slack * scale;
+                for &(lo, hi) in &bounds {
+                    let span = axis.loose_span(lo, hi);
+                    let exact = axis.span(lo, hi);
+                    if scale == 1.0 {
+                        assert!(
+                            exact.is_empty() || (span.start <= exact.start && exact.end <= span.end),
+                            "{lo} {hi}: {span:?} {exact:?}"
+                        );
+                        assert!(
+                            span.len() <= exact.len() + 2 * (2 * slack.ceil() as usize + 1),
+                            "{lo} {hi}: {span:?} {exact:?}"
+                        );
+                    } else if !exact.is_empty() && (span.start > exact.start || exact.end > span.end) {
+                        lost_without_slack += 1;
+                    }
+                }
+                axis.slack = slack;
+            }
+        }
+        assert!(lost_without_slack > 0, "no point was lost without the slack");
+    }
+
     /// Through the locator: `sample_grid` equals `sample_many` at the grid's points (ids bit
     /// for bit, values within rounding), in chunks that straddle slabs (a jittered grid whose jitter folds a few tets over
     /// their neighbours, and a generated torus); on the torus, whose tets do not overlap, it
