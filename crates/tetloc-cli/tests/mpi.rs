@@ -166,9 +166,15 @@ fn small_pvtu(dir: &Path) -> PathBuf {
     partition(dir, &mesh, "jets", 4)
 }
 
+/// 5000 scattered points in the unit cube, in `dir/p.bin`.
 fn points_file(dir: &Path) -> PathBuf {
-    let pts: Vec<[f32; 3]> =
-        (0..5000).map(|i| std::array::from_fn(|k| ((i * 7919 + k * 104729) % 1000) as f32 / 1000.0)).collect();
+    scattered_points(dir, 5000, |h| (h % 1000) as f32 / 1000.0)
+}
+
+/// `n` scattered points in `dir/p.bin`: coordinate k of point i is `coord` of the hash
+/// i·7919 + k·104729.
+fn scattered_points(dir: &Path, n: usize, coord: impl Fn(usize) -> f32) -> PathBuf {
+    let pts: Vec<[f32; 3]> = (0..n).map(|i| std::array::from_fn(|k| coord(i * 7919 + k * 104729))).collect();
     let path = dir.join("p.bin");
     std::fs::write(&path, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
     path
@@ -342,12 +348,8 @@ fn decomposed_openfoam_cases_run_distributed() {
     decompose(&dir.join("cut"), &poly, &proc_of, true);
     let cut = dir.join("cut/cut.foam");
     std::fs::write(&cut, "").unwrap();
-    // Points at odd multiples of 1/64 in [-0.5, 6.5)³: none on a face, some outside.
-    let pts: Vec<[f32; 3]> = (0..4000)
-        .map(|i: usize| std::array::from_fn(|k| ((i * 7919 + k * 104729) % 448) as f32 / 64.0 - 0.5 + 1.0 / 128.0))
-        .collect();
-    let points = dir.join("p.bin");
-    std::fs::write(&points, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
+    // Points at odd multiples of 1/128 in [-0.5, 6.5)³: none on a face, some outside.
+    let points = scattered_points(&dir, 4000, |h| (h % 448) as f32 / 64.0 - 0.5 + 1.0 / 128.0);
     let locate = |mesh: &Path, tag: &str, n: Option<usize>| -> (Vec<i32>, Vec<f32>) {
         let (ids, vals) = (dir.join(format!("{tag}.ids.bin")), dir.join(format!("{tag}.f.bin")));
         let args = ["locate", s(mesh), "--points", s(&points), "--backend", "cpu", "--field", "lin", "--out", s(&ids)];

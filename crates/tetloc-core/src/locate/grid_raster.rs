@@ -16,7 +16,7 @@
 //!
 //! The grid is done a slab of z planes at a time, so memory stays bounded for any grid.
 
-use super::tet_map::{Side, TetMap};
+use super::tet_map::{bounds_of, Side, TetMap};
 use crate::geom::ImageGrid;
 use crate::geom::{self, predicates::Query, Bary, TetTest};
 use crate::mesh::{Field, Mesh};
@@ -223,8 +223,7 @@ impl GridRaster {
         if xs.is_empty() || ys.is_empty() || zs.is_empty() {
             return;
         }
-        // Points of the box are within its extent of any vertex on each axis.
-        let map = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), self.bound_scale);
+        let map = TetMap::over_box(v, (lo, hi), self.bound_scale);
         let corner = (ax.at[xs.start], ay.at[ys.start], az.at[box_zs.start]);
         let box_parts = map.as_ref().map(|m| m.parts(corner.0, corner.1, corner.2));
         for k in zs {
@@ -291,13 +290,6 @@ impl GridRaster {
             self.tied.store(true, Relaxed);
         }
     }
-}
-
-/// The box of a tet's vertices.
-fn bounds_of(v: &[[f64; 3]; 4]) -> ([f64; 3], [f64; 3]) {
-    let lo = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min));
-    let hi = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max));
-    (lo, hi)
 }
 
 /// Tet `t`'s box in the file's coordinates.

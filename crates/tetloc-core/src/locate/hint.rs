@@ -16,7 +16,7 @@
 //! products and a division, about the cost of one exact test). It pays from the second
 //! lookup in a tet; an RK4 tracer at a tenth of an edge a step makes about forty.
 
-use super::tet_map::{Side, TetMap};
+use super::tet_map::{bounds_of, Side, TetMap};
 use crate::geom::{Bary, Vec3};
 use crate::mesh::Mesh;
 
@@ -89,10 +89,8 @@ impl Hint {
         }
         prefetch(&mesh.neighbors()[tet as usize]);
         let v = mesh.tets[tet as usize].map(|i| mesh.vertex64(i));
-        let lo: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min));
-        let hi: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max));
-        // Points of the box are within its extent of any vertex on each axis.
-        let map = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), bound_scale);
+        let (lo, hi) = bounds_of(&v);
+        let map = TetMap::over_box(v, (lo, hi), bound_scale);
         self.held = Some(Held { tet, lo, hi, map, looked_around: false });
     }
 }

@@ -129,7 +129,7 @@ impl TetMap {
     /// valid for points within `reach` of `v[0]` on each axis (for the points of the tet's
     /// box: the box's extent), its bound multiplied by `bound_scale` (1 but in tests).
     /// `None` for a flat or badly conditioned tet.
-    pub(super) fn new(v: [[f64; 3]; 4], reach: [f64; 3], bound_scale: f64) -> Option<TetMap> {
+    fn new(v: [[f64; 3]; 4], reach: [f64; 3], bound_scale: f64) -> Option<TetMap> {
         let e: [[f64; 3]; 3] = std::array::from_fn(|k| std::array::from_fn(|j| v[k + 1][j] - v[0][j]));
         // Cross products with their permanents: (value, |ab| + |cd|) per component.
         let cross = |a: [f64; 3], b: [f64; 3]| -> [(f64, f64); 3] {
@@ -167,6 +167,13 @@ impl TetMap {
             row_reach: reach2[0],
             reach,
         })
+    }
+
+    /// The map of the tet with vertices `v` over its own box `(lo, hi)` ([`bounds_of`]): its
+    /// points are within the box's extent of any vertex on each axis.
+    #[inline]
+    pub(super) fn over_box(v: [[f64; 3]; 4], (lo, hi): ([f64; 3], [f64; 3]), bound_scale: f64) -> Option<TetMap> {
+        TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), bound_scale)
     }
 
     /// The parts of the rows of the box whose corner is (x, y, z) (its lowest grid point on
@@ -226,6 +233,13 @@ impl TetMap {
     }
 }
 
+/// The box of a tet's vertices.
+pub(super) fn bounds_of(v: &[[f64; 3]; 4]) -> ([f64; 3], [f64; 3]) {
+    let lo = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min));
+    let hi = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max));
+    (lo, hi)
+}
+
 /// λ₁..λ₃ (λ₀ from them) against the bound.
 #[inline]
 fn classify(l: [f64; 3], bound: f64) -> Side {
@@ -266,9 +280,8 @@ mod tests {
         let (mut decided, mut near) = (0, 0);
         for (t, &tet) in mesh.tets.iter().enumerate() {
             let v = tet.map(|i| mesh.vertex64(i));
-            let lo: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min));
-            let hi: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max));
-            let Some(map) = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), 1.0) else { continue };
+            let (lo, hi) = bounds_of(&v);
+            let Some(map) = TetMap::over_box(v, (lo, hi), 1.0) else { continue };
             let mut points: Vec<[f64; 3]> =
                 (0..200).map(|_| std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k]))).collect();
             // Points on edges and faces (rounded to f32: a hair either side).
@@ -315,9 +328,8 @@ mod tests {
         for (scale, shift) in [(1.0, 0.0), (1e-6, 0.0), (1e6, 0.0), (1.0, 1e7), (1e-3, -1e7)] {
             for &tet in &base.tets {
                 let v = tet.map(|i| base.vertex64(i).map(|c| c * scale + shift));
-                let lo: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::INFINITY, f64::min));
-                let hi: [f64; 3] = std::array::from_fn(|k| v.iter().map(|p| p[k]).fold(f64::NEG_INFINITY, f64::max));
-                let Some(map) = TetMap::new(v, std::array::from_fn(|k| hi[k] - lo[k]), 1.0) else { continue };
+                let (lo, hi) = bounds_of(&v);
+                let Some(map) = TetMap::over_box(v, (lo, hi), 1.0) else { continue };
                 for _ in 0..8 {
                     let (y, z) = (rng.gen_range(lo[1]..=hi[1]), rng.gen_range(lo[2]..=hi[2]));
                     let row = map.row(lo[0], y, z);
