@@ -242,3 +242,34 @@ fn hostile_clients_are_closed_and_the_others_served() {
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(s.interrupt(), Some(0));
 }
+
+#[test]
+fn the_benchmark_client_orbits_and_gets_every_still_frame() {
+    let s = Server::start(&[]);
+    let dir = std::env::temp_dir().join(format!("tetloc-view-bench-test-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("frames.csv");
+    let (seconds, orbits, rate) = (0.5f64, 2u64, 120.0f64);
+    let out = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+        .args(["view-bench", &format!("http://{}/?token={TOKEN}", s.addr)])
+        .args(["--seconds", &seconds.to_string(), "--orbits", &orbits.to_string(), "--rate", &rate.to_string()])
+        .arg("--frames-csv")
+        .arg(&csv)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let inputs = r["inputs"].as_u64().unwrap();
+    // An input a step at most (late ones are coalesced), plus the stop of each orbit.
+    let most = (seconds * rate).ceil() as u64 * orbits + orbits;
+    assert!((orbits + 1..=most).contains(&inputs), "{inputs} inputs, at most {most}: {r}");
+    assert!(r["moving_frames"].as_u64().unwrap() >= 1, "{r}");
+    assert_eq!(r["still_ms"]["n"], orbits, "one still frame an orbit: {r}");
+    // Frames arrive in the order of their states: the newest wins, none comes back late.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let gens: Vec<u64> = text.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
+    assert_eq!(gens.len() as u64, r["frames"].as_u64().unwrap());
+    assert!(gens.windows(2).all(|w| w[0] <= w[1]), "{gens:?}");
+    std::fs::remove_dir_all(&dir).ok();
+    assert_eq!(s.interrupt(), Some(0));
+}

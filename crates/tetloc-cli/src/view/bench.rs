@@ -1,6 +1,6 @@
 //! `tetloc view-bench URL` (hidden): a viewer's client without a browser, for machines that
 //! have none. It orbits the camera continuously (an input event every 1/`rate` s, as a
-//! dragging mouse sends them), receives and decodes every frame, acknowledges it as the page
+//! dragging mouse sends them; those due while a frame was decoded go as one), receives and decodes every frame, acknowledges it as the page
 //! does, and after each orbit stops and waits for the lossless still frame. It reports
 //! delivered frames/s, input-to-frame latency (from an input to the first frame that shows
 //! it or a later input), still-frame latency (from the last input to the still frame), and
@@ -14,6 +14,9 @@ use std::net::TcpStream;
 use std::time::{Duration, Instant};
 use tetloc_render as tr;
 use tungstenite::{Message, WebSocket};
+
+/// Longest nap while nothing arrives (`thread::sleep` keeps to tens of microseconds).
+const IDLE: Duration = Duration::from_micros(250);
 
 #[derive(clap::Args)]
 pub struct BenchArgs {
@@ -67,6 +70,10 @@ pub fn run(a: BenchArgs) -> Result<()> {
     };
     let mut state: tr::ViewState = serde_json::from_value(hello["state"].clone())?;
     let mut gen = hello["gen"].as_u64().context("no gen in hello")?;
+    // From here the socket never blocks: inputs go out on their schedule, whatever arrives (a
+    // socket's read timeout is counted in kernel ticks, several milliseconds, and held the
+    // inputs back to about the frame rate).
+    ws.get_mut().set_nonblocking(true)?;
     let start = Instant::now();
     let mut sent: BTreeMap<u64, Instant> = BTreeMap::new();
     let mut frames: Vec<Frame> = Vec::new();
@@ -77,14 +84,20 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let orbit_start = Instant::now();
         let mut next_input = Instant::now();
         while orbit_start.elapsed().as_secs_f64() < a.seconds {
-            if Instant::now() >= next_input {
-                turn(&mut state.camera, a.degrees.to_radians());
+            let now = Instant::now();
+            if now >= next_input {
+                // Events due while a frame was decoded go out as one, as a browser coalesces
+                // mouse moves: the camera keeps its speed, inputs stay at `rate` or fewer.
+                let due = 1 + ((now - next_input).as_secs_f64() / step.as_secs_f64()) as u32;
+                turn(&mut state.camera, f64::from(due) * a.degrees.to_radians());
                 send_state(&mut ws, &state, true)?;
                 gen += 1;
                 sent.insert(gen, Instant::now());
-                next_input += step;
+                next_input += step * due;
             }
-            receive(&mut ws, &mut frames)?;
+            if !receive(&mut ws, &mut frames)? {
+                std::thread::sleep(next_input.saturating_duration_since(Instant::now()).min(IDLE));
+            }
         }
         // Stop: the page sends the last state as not moving (mouse up).
         send_state(&mut ws, &state, false)?;
@@ -92,7 +105,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
         let stopped = Instant::now();
         sent.insert(gen, stopped);
         loop {
-            receive(&mut ws, &mut frames)?;
+            if !receive(&mut ws, &mut frames)? {
+                std::thread::sleep(IDLE);
+            }
             if frames.last().is_some_and(|f| f.still && f.gen >= gen) {
                 still_latency.push((frames.last().unwrap().at - stopped).as_secs_f64() * 1e3);
                 break;
@@ -186,21 +201,29 @@ fn turn(c: &mut tr::CameraState, angle: f64) {
 
 fn send_state(ws: &mut WebSocket<TcpStream>, state: &tr::ViewState, moving: bool) -> Result<()> {
     let m = serde_json::json!({ "type": "state", "state": state, "moving": moving });
-    ws.send(Message::text(m.to_string()))?;
-    Ok(())
+    send(ws, Message::text(m.to_string()))
 }
 
-/// Reads what has arrived (waiting at most about a millisecond), decodes frames and
-/// acknowledges them.
-fn receive(ws: &mut WebSocket<TcpStream>, frames: &mut Vec<Frame>) -> Result<()> {
+/// Sends on the non-blocking socket: what does not fit now stays queued in `ws` and goes
+/// with a later send or read.
+fn send(ws: &mut WebSocket<TcpStream>, m: Message) -> Result<()> {
+    match ws.send(m) {
+        Err(tungstenite::Error::Io(e)) if e.kind() == ErrorKind::WouldBlock => Ok(()),
+        r => Ok(r?),
+    }
+}
+
+/// Reads what has arrived without waiting, decodes frames and acknowledges them; says
+/// whether anything came.
+fn receive(ws: &mut WebSocket<TcpStream>, frames: &mut Vec<Frame>) -> Result<bool> {
+    let mut any = false;
     loop {
         let m = match ws.read() {
             Ok(m) => m,
-            Err(tungstenite::Error::Io(e)) if matches!(e.kind(), ErrorKind::WouldBlock | ErrorKind::TimedOut) => {
-                return Ok(())
-            }
+            Err(tungstenite::Error::Io(e)) if e.kind() == ErrorKind::WouldBlock => return Ok(any),
             Err(e) => return Err(e.into()),
         };
+        any = true;
         let at = Instant::now();
         let data = match m {
             Message::Binary(b) => b,
@@ -235,7 +258,7 @@ fn receive(ws: &mut WebSocket<TcpStream>, frames: &mut Vec<Frame>) -> Result<()>
             decode_ms,
             at,
         });
-        ws.send(Message::text(serde_json::json!({ "type": "ack", "seq": h["seq"] }).to_string()))?;
+        send(ws, Message::text(serde_json::json!({ "type": "ack", "seq": h["seq"] }).to_string()))?;
     }
 }
 
