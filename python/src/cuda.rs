@@ -52,18 +52,40 @@ impl PyCudaLocator {
     /// default stream). The caller guarantees both addresses are contiguous memory of this
     /// CUDA device of 12 n and 4 n bytes.
     fn locate(&self, py: Python<'_>, points: u64, n: usize, ids: u64, stream: u64) -> PyResult<()> {
-        if n > 0 && (points == 0 || ids == 0) {
-            return Err(PyValueError::new_err("points, ids: null device addresses"));
-        }
-        if n > i32::MAX as usize {
-            return Err(PyValueError::new_err(format!("{n} points: at most 2^31 - 1 a call")));
-        }
+        check_call(points, n, &[ids])?;
         py.detach(|| {
             guarded("locating CUDA points", || {
                 let mut loc = self.inner.lock().unwrap_or_else(|e| e.into_inner());
                 // SAFETY: `tetloc.torch` passes the addresses of live, contiguous CUDA tensors
                 // of the right sizes on this device, and the stream of that device.
                 unsafe { loc.locate(points, n, ids, stream) }.map_err(to_py)
+            })
+        })
+    }
+
+    /// Locates as `locate` and writes how each point's values are interpolated in its tet:
+    /// its four vertex ids at `nodes` (int32, 0 outside) and their weights at `weights`
+    /// (float32 barycentrics, 0 outside), four a point. The caller guarantees `nodes` and
+    /// `weights` are contiguous memory of this CUDA device of 16 n bytes each, besides what
+    /// `locate` asks.
+    #[allow(clippy::too_many_arguments)] // the addresses of four tensors, their length and the stream
+    fn weights(
+        &self,
+        py: Python<'_>,
+        points: u64,
+        n: usize,
+        ids: u64,
+        nodes: u64,
+        weights: u64,
+        stream: u64,
+    ) -> PyResult<()> {
+        check_call(points, n, &[ids, nodes, weights])?;
+        py.detach(|| {
+            guarded("locating CUDA points", || {
+                let mut loc = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                // SAFETY: `tetloc.torch` passes the addresses of live, contiguous CUDA tensors
+                // of the right sizes on this device, and the stream of that device.
+                unsafe { loc.weights(points, n, ids, nodes, weights, stream) }.map_err(to_py)
             })
         })
     }
@@ -90,6 +112,17 @@ impl PyCudaLocator {
     fn validation_errors(&self) -> usize {
         self.inner.lock().unwrap_or_else(|e| e.into_inner()).vulkan().context().validation_errors()
     }
+}
+
+/// Refuses null addresses for a call of `n > 0` points, and more than `i32::MAX` points.
+fn check_call(points: u64, n: usize, outputs: &[u64]) -> PyResult<()> {
+    if n > 0 && (points == 0 || outputs.contains(&0)) {
+        return Err(PyValueError::new_err("null device addresses"));
+    }
+    if n > i32::MAX as usize {
+        return Err(PyValueError::new_err(format!("{n} points: at most 2^31 - 1 a call")));
+    }
+    Ok(())
 }
 
 /// Whether the CUDA driver can be loaded in this process (the zero-copy path needs it).

@@ -4,7 +4,8 @@ run by scripts/h200/zerocopy.sh (not collected by pytest: CI has no CUDA device)
     python python/tests/cuda_zerocopy.py [--mesh MESH] [--leak-calls 10000] [--json out.json]
 
 Checks: the path is the zero-copy one; ids equal the CPU backend's and the host path's for the
-same float32 points; no host copy (``tetloc.torch.host_copies()`` stays 0) through locate,
+same float32 points; ``sample``'s values and both gradients equal the host path's (the kernel
+writes the weights on this path); no host copy (``tetloc.torch.host_copies()`` stays 0) through locate,
 sample and backward; non-finite points answer -1; a side stream gives the same ids; 10,000
 ``sample`` calls leave device memory flat (torch's allocator and the device's free memory,
 which counts Vulkan's allocations too); meshes the path does not take are refused clearly with
@@ -92,6 +93,26 @@ def main() -> int:
         torch.cuda.synchronize(dev)  # the check's own wait, outside the path
         assert values.grad is not None and p.grad is not None
         assert tt.host_copies() == before, f"{tt.host_copies() - before} host copies"
+
+    @check("sample's values and gradients equal the host path's (the kernel's weights)")
+    def _() -> None:
+        host = tt.Locator(mesh, device=dev, zero_copy=False)
+        values = torch.rand(mesh.n_points, 2, device=dev, dtype=torch.float32)
+        outs = []
+        for which in (loc, host):
+            v = values.clone().requires_grad_(True)
+            p = pts[:200_000].clone().requires_grad_(True)
+            out = which.sample(p, v, fill=0.0)
+            (out * torch.tensor([1.0, -2.0], device=dev)).sum().backward()
+            assert v.grad is not None and p.grad is not None
+            outs.append((out.detach(), v.grad, p.grad))
+        (a, ga, pa), (b, gb, pb) = outs
+        scale = max(1.0, float(b.abs().max()))
+        print(f"  values differ by {float((a - b).abs().max()):.2e}, field gradients by "
+              f"{float((ga - gb).abs().max()):.2e}, point gradients by {float((pa - pb).abs().max()):.2e}")
+        assert float((a - b).abs().max()) <= 1e-5 * scale
+        assert float((ga - gb).abs().max()) <= 1e-4 * max(1.0, float(gb.abs().max()))
+        assert float((pa - pb).abs().max()) <= 1e-4 * max(1.0, float(pb.abs().max()))
 
     @check("non-finite points answer -1")
     def _() -> None:

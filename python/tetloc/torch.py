@@ -20,7 +20,9 @@ paths (``Locator.path``):
   driver and the Vulkan extensions for sharing memory are there (``tetloc._tetloc.CudaLocator``):
   the points go from the tensor into Vulkan memory that CUDA imported, the soft-bvh kernel
   locates them there, and the ids come back into a tensor, all on the GPU, ordered on the
-  current CUDA stream.
+  current CUDA stream. For ``sample`` the kernel also writes each point's nodes and weights
+  (its f32 barycentrics); the weights' gradients, for the points' gradient, are computed in
+  torch only when the points require it.
 - ``"host"``: everything else (CPU tensors, float64 points, other meshes, no driver): the
   locator answers on the host (any backend, as ``tetloc.Locator``); for CUDA tensors the
   points go to the host and the ids (and weights) come back.
@@ -90,6 +92,11 @@ class _Weights:
         self.ids, self.nodes, self.weights, self.gradients, self.inside = ids, nodes, weights, gradients, inside
 
 
+def _gather(field: torch.Tensor, nodes: torch.Tensor) -> torch.Tensor:
+    """field[nodes]: (K, W, k) of field (n, k) at nodes (K, W), int32 or int64."""
+    return field.index_select(0, nodes.reshape(-1)).view(*nodes.shape, field.shape[1])
+
+
 class _Sample(torch.autograd.Function):
     """values = Σ_j w_j · field[node_j]; d/dfield: scatter-add of the weights; d/dpoints:
     Σ_j ∇w_j · field[node_j]."""
@@ -97,8 +104,8 @@ class _Sample(torch.autograd.Function):
     @staticmethod
     def forward(ctx: Any, points: torch.Tensor, field: torch.Tensor, nodes: torch.Tensor, weights: torch.Tensor,
                 gradients: torch.Tensor, inside: torch.Tensor, fill: float) -> torch.Tensor:
-        # field: (n_points, k); out: (K, k)
-        out = (weights.unsqueeze(-1) * field[nodes]).sum(1)
+        # field: (n_points, k); out: (K, k). index_select takes int32 nodes as they come.
+        out = (weights.unsqueeze(-1) * _gather(field, nodes)).sum(1)
         out = torch.where(inside.unsqueeze(-1), out, torch.full_like(out, fill))
         ctx.save_for_backward(field, nodes, weights, gradients, inside)
         return out
@@ -111,7 +118,7 @@ class _Sample(torch.autograd.Function):
         grad_points = grad_field = None
         if ctx.needs_input_grad[0]:
             # ∂out_k/∂x_c = Σ_j ∇w_j[c] · field[node_j, k], contracted with grad over k.
-            along = (field[nodes] * grad.unsqueeze(1)).sum(-1)  # (K, W)
+            along = (_gather(field, nodes) * grad.unsqueeze(1)).sum(-1)  # (K, W)
             grad_points = (gradients * along.unsqueeze(-1)).sum(1)
             # Outside, a NaN field value at a padding node must not make 0 · NaN.
             grad_points = torch.where(inside.unsqueeze(-1), grad_points, torch.zeros_like(grad_points))
@@ -230,40 +237,81 @@ class Locator:
         outside: (K,) int32 on this device."""
         return self._ids(self._check_points(points))
 
-    def _weights(self, points: torch.Tensor, dtype: torch.dtype) -> _Weights:
+    def _weights(self, points: torch.Tensor, dtype: torch.dtype, gradients: bool) -> _Weights:
+        """Where `points` are and how values are interpolated there; the weights' gradients
+        (for the points' gradient) only when `gradients` (else an empty tensor)."""
+        if self._cuda is not None and points.dtype == torch.float32:
+            return self._cuda_weights(points.detach(), dtype, gradients)
         if self._tets is not None:
-            return self._tet_weights(points, self._ids(points), dtype)
+            return self._tet_weights(points, self._ids(points), dtype, gradients)
         host = _to_host(points.detach())
         ids = self._locate(host)
         host64 = host.to(torch.float64).numpy()
-        nodes, weights, gradients, found = interpolation_weights(self.mesh._raw, host64, ids.numpy())
-        arrays = [torch.from_numpy(a) for a in (nodes, weights, gradients, found)]
+        nodes, weights, grads, found = interpolation_weights(self.mesh._raw, host64, ids.numpy())
+        arrays = [torch.from_numpy(a) for a in (nodes, weights, grads, found)]
         arrays[1], arrays[2] = arrays[1].to(dtype), arrays[2].to(dtype)
         nodes_t, weights_t, gradients_t, found_t = (_to_device(a, self.device) for a in arrays)
         return _Weights(ids, nodes_t, weights_t, gradients_t, found_t)
 
-    def _tet_weights(self, points: torch.Tensor, ids: torch.Tensor, dtype: torch.dtype) -> _Weights:
-        """Barycentric weights in linear tets, on the points' device: those of
-        ``tetloc_core::geom::bary64`` (f64, on the file's vertices, clamped to 0 and
-        normalised), and their gradients, the rows of the inverse edge matrix."""
-        assert self._tets is not None and self._vertices is not None
+    def _cuda_weights(self, points: torch.Tensor, dtype: torch.dtype, gradients: bool) -> _Weights:
+        """The zero-copy path's weights: the kernel writes each point's id, its tet's nodes and
+        their weights (its f32 barycentrics, those its own values use) beside the points."""
+        assert self._cuda is not None
+        n = points.shape[0]
+        # Non-finite points are answered -1 here; the kernel gets a point far outside instead.
+        finite = torch.isfinite(points).all(1)
+        safe = torch.where(finite.unsqueeze(1), points, torch.full_like(points, 3.0e38)).contiguous()
+        ids = torch.empty(n, dtype=torch.int32, device=self.device)
+        nodes = torch.empty((n, 4), dtype=torch.int32, device=self.device)
+        weights = torch.empty((n, 4), dtype=torch.float32, device=self.device)
+        stream = torch.cuda.current_stream(self.device).cuda_stream
+        self._cuda.weights(safe.data_ptr(), n, ids.data_ptr(), nodes.data_ptr(), weights.data_ptr(), stream)
+        ids.masked_fill_(~finite, -1)
         inside = ids >= 0
-        nodes = self._tets[ids.clamp(min=0).long()]  # (K, 4)
-        x = self._vertices[nodes]  # (K, 4, 3)
+        weights = weights.to(dtype)
+        if gradients:
+            grads = self._tet_gradients(nodes, inside, dtype)
+        else:
+            grads = torch.empty(0, dtype=dtype, device=self.device)
+        return _Weights(ids, nodes, weights, grads, inside)
+
+    def _edge_rows(self, nodes: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
+        """The corners x (K, 4, 3) of linear tets `nodes` (f64, the file's vertices) and the
+        rows of the inverse of their edge matrices [e1 e2 e3] (K, 3, 3): r_i · e_j = δ_ij."""
+        assert self._vertices is not None
+        x = self._vertices[nodes.long()]  # (K, 4, 3)
         e1, e2, e3 = (x[:, j] - x[:, 0] for j in (1, 2, 3))
-        # The rows of the inverse of the edge matrix [e1 e2 e3]: r_i · e_j = δ_ij.
         n1, n2, n3 = torch.linalg.cross(e2, e3), torch.linalg.cross(e3, e1), torch.linalg.cross(e1, e2)
         det = (e1 * n1).sum(1, keepdim=True)
         det = torch.where(det == 0, torch.ones_like(det), det)  # zero-volume tets hold no point
-        rows = torch.stack([n1, n2, n3], dim=1) / det.unsqueeze(-1)  # (K, 3, 3)
+        return x, torch.stack([n1, n2, n3], dim=1) / det.unsqueeze(-1)
+
+    def _tet_gradients(self, nodes: torch.Tensor, inside: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+        """The weights' gradients in linear tets (K, 4, 3): ∇b_j, the rows of the inverse
+        edge matrix (row 0: minus their sum); 0 outside."""
+        _, rows = self._edge_rows(nodes)
+        gradients = torch.cat([-rows.sum(1, keepdim=True), rows], dim=1)
+        zero = torch.zeros((), dtype=torch.float64, device=nodes.device)
+        return torch.where(inside.view(-1, 1, 1), gradients, zero).to(dtype)
+
+    def _tet_weights(self, points: torch.Tensor, ids: torch.Tensor, dtype: torch.dtype, gradients: bool) -> _Weights:
+        """Barycentric weights in linear tets, on the points' device: those of
+        ``tetloc_core::geom::bary64`` (f64, on the file's vertices, clamped to 0 and
+        normalised), and (when `gradients`) their gradients."""
+        assert self._tets is not None
+        inside = ids >= 0
+        nodes = self._tets[ids.clamp(min=0).long()]  # (K, 4)
+        x, rows = self._edge_rows(nodes)
         b = (rows * (points.detach().to(torch.float64) - x[:, 0]).unsqueeze(1)).sum(-1)
         weights = torch.cat([1 - b.sum(1, keepdim=True), b], dim=1).clamp(min=0)
         weights = weights / weights.sum(1, keepdim=True)
-        gradients = torch.cat([-rows.sum(1, keepdim=True), rows], dim=1)  # ∇b_j: row j
         zero = torch.zeros((), dtype=torch.float64, device=points.device)
         weights = torch.where(inside.unsqueeze(-1), weights, zero)
-        gradients = torch.where(inside.view(-1, 1, 1), gradients, zero)
-        return _Weights(ids, nodes, weights.to(dtype), gradients.to(dtype), inside)
+        if gradients:
+            grads = self._tet_gradients(nodes, inside, dtype)
+        else:
+            grads = torch.empty(0, dtype=dtype, device=points.device)
+        return _Weights(ids, nodes, weights.to(dtype), grads, inside)
 
     def _mesh_field(self, name: str, dtype: torch.dtype) -> Tuple[torch.Tensor, bool, bool]:
         """Field `name` on this device as (values (n, k), per point?, scalar?), kept between
@@ -311,7 +359,9 @@ class Locator:
         dtype = torch.promote_types(points.dtype, values.dtype)
         values = values.reshape(values.shape[0], -1).to(dtype)
         if per_point:
-            w = self._weights(points, dtype)
+            # The points' gradient needs the weights' gradients; most callers (fitting values)
+            # do not ask for it.
+            w = self._weights(points, dtype, gradients=points.requires_grad and torch.is_grad_enabled())
             out: torch.Tensor = _Sample.apply(points, values, w.nodes, w.weights, w.gradients, w.inside, float(fill))
         else:
             ids = self._ids(points).to(torch.int64)

@@ -2,10 +2,11 @@
 //! whose query points and answers live in Vulkan memory that CUDA imports, so that CUDA
 //! tensors are located with no host copy.
 //!
-//! - Memory: two exportable Vulkan buffers (points, ids; `external.rs`), each a dedicated
+//! - Memory: two exportable Vulkan buffers (points, answers; `external.rs`), each a dedicated
 //!   allocation exported as an opaque fd and imported by `cuImportExternalMemory` +
-//!   `cuExternalMemoryGetMappedBuffer`. The kernel reads the points and writes the ids in
-//!   place: its own pipeline binds the shared buffers (as `stream.rs` binds its own).
+//!   `cuExternalMemoryGetMappedBuffer`. The kernel reads the points and writes the answers
+//!   in place (ids, or ids with the nodes and weights of OUT_WEIGHTS that `tetloc.torch`
+//!   interpolates with): its own pipelines bind the shared buffers (as `stream.rs` does).
 //! - Order: one shared timeline semaphore (binary ones where timelines cannot be shared).
 //!   On the caller's stream: copy the points in (`cuMemcpyDtoDAsync`), signal; the Vulkan
 //!   submission waits for that and signals the next value; the stream waits for it and copies
@@ -26,7 +27,7 @@ use crate::external::{semaphore_kind, SemaphoreKind, SharedSemaphore};
 use crate::interface::*;
 use crate::locator::{LocatorOptions, VulkanLocator};
 use crate::memory::{Buffer, BufferDesc, MemKind, Sharing};
-use crate::pipeline::{Binding, Descriptors, Pipeline};
+use crate::pipeline::{Binding, Descriptors, Pipeline, Spec};
 use crate::Kernel;
 use ash::vk;
 use cudarc::driver::sys as cu;
@@ -289,26 +290,52 @@ enum Handover {
 /// CUDA's imports of an [`Io`]'s buffers.
 struct Imports {
     points: Import,
-    ids: Import,
+    out: Import,
 }
 
-/// The shared buffers of batches of up to `capacity` points and the pipeline that reads and
-/// writes them in place.
-struct Io {
-    // Field order is drop order: the pipelines and descriptors before the buffers.
+/// What a call writes a point: its id, or its id with its nodes and weights (OUT_WEIGHTS).
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum Answer {
+    Ids,
+    Weights,
+}
+
+impl Answer {
+    /// 32-bit words a point takes in the output buffer.
+    fn words(self) -> usize {
+        match self {
+            Answer::Ids => 1,
+            Answer::Weights => 9,
+        }
+    }
+}
+
+/// A kernel's pipeline over the shared buffers, with its exact second pass when deferring.
+struct Launch {
     pipeline: Pipeline,
     exact: Option<Pipeline>,
+}
+
+/// The shared buffers of batches of up to `capacity` points and the pipelines that read and
+/// write them in place.
+struct Io {
+    // Field order is drop order: the pipelines and descriptors before the buffers.
+    ids: Launch,
+    /// With `answer` Weights only (its buffer holds the nodes and weights).
+    weights: Option<Launch>,
     desc: Descriptors,
     deferred: Option<Buffer>,
     points: Buffer,
-    ids: Buffer,
+    /// The ids, then (Weights) the nodes and the weights: `answer.words()` words a point.
+    out: Buffer,
+    answer: Answer,
     capacity: usize,
 }
 
 impl Io {
-    /// Buffers for `capacity` points (exportable when `sharing`) and the locate pipeline of
-    /// `loc`'s kernel bound to them.
-    fn new(loc: &mut VulkanLocator, capacity: usize, sharing: bool) -> CudaResult<Io> {
+    /// Buffers for `capacity` points and `answer`s (exportable when `sharing`) and the
+    /// pipelines of `loc`'s kernel bound to them.
+    fn new(loc: &mut VulkanLocator, capacity: usize, answer: Answer, sharing: bool) -> CudaResult<Io> {
         let dev = loc.device();
         let mut shared = |bytes: u64, name: &str| {
             let desc = BufferDesc::io(MemKind::Query, bytes);
@@ -318,7 +345,8 @@ impl Io {
             }
         };
         let points = shared(12 * capacity as u64, "cuda points")?;
-        let ids = shared(4 * capacity as u64, "cuda ids")?;
+        let out = shared(4 * (answer.words() * capacity) as u64, "cuda answers")?;
+        let weights_spec = (answer == Answer::Weights).then(|| loc.resources_for(OUT_WEIGHTS, false).spec);
         let res = loc.resources_for(OUT_IDS, false);
         let (dev, plan) = (res.dev, res.plan);
         if plan.locate.ray_tracing() {
@@ -338,7 +366,7 @@ impl Io {
         let mut bindings = res.bindings;
         bindings.extend([
             Binding::buffer(B_QUERIES, &points),
-            Binding::buffer(B_OUT, &ids),
+            Binding::buffer(B_OUT, &out),
             Binding::buffer(B_DEFER, deferred.as_ref().unwrap_or(unbound)),
             Binding::buffer(B_ORDER_POINTS, unbound),
             Binding::buffer(B_ORDER_PERM, unbound),
@@ -346,30 +374,41 @@ impl Io {
         ]);
         let ctx = dev.ctx().clone();
         let desc = Descriptors::new(&ctx, &bindings, plan.locate.stages())?;
-        let spec = res.spec.set(sc::SAMPLE_MODE, SAMPLE_HOST as u32).set(sc::RECORD_POINTS, 0).set(sc::ORDERED, 0);
-        let pipeline = plan.locate.pipeline(dev, desc.layout, res.f64, &spec.clone().concat(&plan.locate_spec))?;
-        let exact = match &plan.exact_pass {
-            Some(e) => Some(plan.locate.pipeline(dev, desc.layout, res.f64, &spec.concat(e))?),
-            None => None,
+        let mut launch = |spec: Spec| -> CudaResult<Launch> {
+            let spec = spec.set(sc::SAMPLE_MODE, SAMPLE_HOST as u32).set(sc::RECORD_POINTS, 0).set(sc::ORDERED, 0);
+            let pipeline = plan.locate.pipeline(dev, desc.layout, res.f64, &spec.clone().concat(&plan.locate_spec))?;
+            let exact = match &plan.exact_pass {
+                Some(e) => Some(plan.locate.pipeline(dev, desc.layout, res.f64, &spec.concat(e))?),
+                None => None,
+            };
+            Ok(Launch { pipeline, exact })
         };
-        Ok(Io { pipeline, exact, desc, deferred, points, ids, capacity })
+        let ids = launch(res.spec)?;
+        let weights = weights_spec.map(&mut launch).transpose()?;
+        Ok(Io { ids, weights, desc, deferred, points, out, answer, capacity })
     }
 
-    /// Runs the kernel over the first `n` points of the buffer into the ids buffer, in one
-    /// submission that waits for `wait` and signals `signal`.
+    /// Runs the kernel over the first `n` points of the buffer into the output buffer (as
+    /// `answer` asks; this Io must hold it), in one submission that waits for `wait` and
+    /// signals `signal`.
     fn run(
         &self,
         loc: &mut VulkanLocator,
         n: usize,
+        answer: Answer,
         wait: Option<(&SharedSemaphore, u64)>,
         signal: Option<(&SharedSemaphore, u64)>,
     ) -> CudaResult<()> {
+        let launch = match answer {
+            Answer::Ids => &self.ids,
+            Answer::Weights => self.weights.as_ref().expect("an Io made for weights"),
+        };
         let mut params = loc.resources_for(OUT_IDS, false).params;
         params.counts[0] = n as u32;
         let workgroup = LocatorOptions::default().soft_bvh.workgroup_size;
-        let exact = self.exact.as_ref().zip(self.deferred.as_ref());
+        let exact = launch.exact.as_ref().zip(self.deferred.as_ref());
         loc.device()
-            .run_synced(wait, signal, |r| record_launch(r, &self.desc, &self.pipeline, exact, &params, workgroup))?;
+            .run_synced(wait, signal, |r| record_launch(r, &self.desc, &launch.pipeline, exact, &params, workgroup))?;
         Ok(())
     }
 }
@@ -468,12 +507,51 @@ impl CudaLocator {
     /// `12 n` and `4 n` bytes, alive until the stream has passed this call's work; `stream` a
     /// live stream of that device (or 0).
     pub unsafe fn locate(&mut self, points: u64, n: usize, ids: u64, stream: u64) -> CudaResult<()> {
+        // SAFETY: the caller's promises, as this function's.
+        unsafe { self.run(points, n, Answer::Ids, &[(ids, 0, 4)], stream) }
+    }
+
+    /// Locates as [`locate`](Self::locate) and also writes how each point's values are
+    /// interpolated in its tet: the tet's four vertex ids (`nodes`, i32, 0 outside) and their
+    /// weights (`weights`, f32 barycentrics, the kernel's value path's; 0 outside), four a
+    /// point. A value is Σ weights[4i + j] · field[nodes[4i + j]].
+    ///
+    /// # Safety
+    /// As [`locate`](Self::locate), and `nodes` and `weights` device memory of `16 n` bytes
+    /// each.
+    pub unsafe fn weights(
+        &mut self,
+        points: u64,
+        n: usize,
+        ids: u64,
+        nodes: u64,
+        weights: u64,
+        stream: u64,
+    ) -> CudaResult<()> {
+        let copies = [(ids, 0, 4), (nodes, 4 * n, 16), (weights, 20 * n, 16)];
+        // SAFETY: the caller's promises, as this function's.
+        unsafe { self.run(points, n, Answer::Weights, &copies, stream) }
+    }
+
+    /// One call: the points in, the kernel writing `answer`, and each `(to, at, bytes)` of
+    /// `copies` out: `bytes · n` bytes from byte `at` of the output buffer to CUDA address `to`.
+    ///
+    /// # Safety
+    /// As [`locate`](Self::locate), for every address of `copies`.
+    unsafe fn run(
+        &mut self,
+        points: u64,
+        n: usize,
+        answer: Answer,
+        copies: &[(u64, usize, usize)],
+        stream: u64,
+    ) -> CudaResult<()> {
         if n == 0 {
             return Ok(());
         }
         let _bound = self.primary.bind()?;
         let stream = stream as cu::CUstream;
-        self.ensure_io(n)?;
+        self.ensure_io(n, answer)?;
         let (Some(io), Some(imports)) = (self.io.as_ref(), self.imports.as_ref()) else {
             unreachable!("ensure_io made them")
         };
@@ -497,28 +575,39 @@ impl CudaLocator {
                 ((&to_vulkan.vk, 0), (&*to_cuda, 0))
             }
         };
-        io.run(&mut self.loc, n, Some(go), Some((&done.0.vk, done.1)))?;
+        io.run(&mut self.loc, n, answer, Some(go), Some((&done.0.vk, done.1)))?;
         done.0.wait(done.1, stream)?;
-        // SAFETY: as above: the ids buffer holds n answers once the stream has waited.
+        // SAFETY: as above: the output buffer holds n answers once the stream has waited, in
+        // the layout of OUT_IDS / OUT_WEIGHTS that `copies` follows.
         unsafe {
-            check("cuMemcpyDtoDAsync", cu::cuMemcpyDtoDAsync_v2(ids, imports.ids.ptr, 4 * n, stream))?;
+            for &(to, at, bytes) in copies {
+                let from = imports.out.ptr + at as u64;
+                check("cuMemcpyDtoDAsync", cu::cuMemcpyDtoDAsync_v2(to, from, bytes * n, stream))?;
+            }
             check("cuEventRecord", cu::cuEventRecord(self.last, stream))?;
         }
         Ok(())
     }
 
-    /// Makes the shared buffers hold `n` points (growing them, after the last call's stream
-    /// work is done with the old ones) and the pipelines that read them.
-    fn ensure_io(&mut self, n: usize) -> CudaResult<()> {
-        if self.io.as_ref().is_some_and(|io| io.capacity >= n) {
+    /// Makes the shared buffers hold `n` points and `answer`s (growing them, after the last
+    /// call's stream work is done with the old ones) and the pipelines that read them. Once a
+    /// call asks for weights, the buffers keep room for them.
+    fn ensure_io(&mut self, n: usize, answer: Answer) -> CudaResult<()> {
+        let have = self.io.as_ref().map(|io| (io.capacity, io.answer));
+        if have.is_some_and(|(c, a)| c >= n && a.words() >= answer.words()) {
             return Ok(());
         }
+        let answer = match have {
+            Some((_, Answer::Weights)) => Answer::Weights,
+            _ => answer,
+        };
+        let n = n.max(have.map_or(0, |h| h.0));
         // SAFETY: the context is bound (by the caller); waits for the last call's copies only.
         unsafe { check("cuEventSynchronize", cu::cuEventSynchronize(self.last))? };
         self.imports = None;
         self.io = None;
-        let io = Io::new(&mut self.loc, n.max(1 << 16), true)?;
-        self.imports = Some(Imports { points: Import::new(&io.points)?, ids: Import::new(&io.ids)? });
+        let io = Io::new(&mut self.loc, n.max(1 << 16), answer, true)?;
+        self.imports = Some(Imports { points: Import::new(&io.points)?, out: Import::new(&io.out)? });
         self.io = Some(io);
         Ok(())
     }
@@ -639,14 +728,39 @@ mod tests {
             })
             .collect();
         let mut want = vec![0; n];
-        tetloc_core::BatchLocator::locate(&mut loc, &pts, &mut want).unwrap();
-        let io = Io::new(&mut loc, 4096, sharing).unwrap();
+        let mut values = vec![0f32; n];
+        tetloc_core::BatchLocator::locate_and_sample(&mut loc, &pts, "f", &mut want, &mut values).unwrap();
+        let io = Io::new(&mut loc, 4096, Answer::Weights, sharing).unwrap();
         loc.device().write(&io.points, 0, bytemuck::cast_slice(&pts)).unwrap();
-        io.run(&mut loc, n, None, None).unwrap();
-        let mut got = vec![0i32; n];
-        loc.device().download(&io.ids, 0, bytemuck::cast_slice_mut(&mut got)).unwrap();
-        assert_eq!(got, want);
+        io.run(&mut loc, n, Answer::Ids, None, None).unwrap();
+        let mut got = vec![0u32; 9 * n];
+        loc.device().download(&io.out, 0, bytemuck::cast_slice_mut(&mut got[..n])).unwrap();
+        assert_eq!(bytemuck::cast_slice::<u32, i32>(&got[..n]), want);
         assert!(want.iter().any(|&i| i >= 0) && want.iter().any(|&i| i < 0), "inside and outside both tested");
+
+        // Weights: the same ids; a point's nodes are its tet's vertices, its weights the
+        // barycentrics that give back the point and the locator's own value.
+        got.fill(u32::MAX);
+        io.run(&mut loc, n, Answer::Weights, None, None).unwrap();
+        loc.device().download(&io.out, 0, bytemuck::cast_slice_mut(&mut got)).unwrap();
+        assert_eq!(bytemuck::cast_slice::<u32, i32>(&got[..n]), want);
+        let f = &mesh.field("f").unwrap().values;
+        for (i, p) in pts.iter().enumerate() {
+            let nodes = &got[n + 4 * i..n + 4 * i + 4];
+            let w: Vec<f32> = got[5 * n + 4 * i..5 * n + 4 * i + 4].iter().map(|&b| f32::from_bits(b)).collect();
+            if want[i] < 0 {
+                assert!(nodes.iter().all(|&v| v == 0) && w.iter().all(|&v| v == 0.0), "outside: zeros");
+                continue;
+            }
+            assert_eq!(nodes, mesh.tets[want[i] as usize], "point {i}: the nodes are its tet's vertices");
+            assert!(w.iter().all(|&v| v >= -1e-6) && (w.iter().sum::<f32>() - 1.0).abs() < 1e-5, "{w:?}");
+            let x: Vec<f64> =
+                (0..3).map(|k| (0..4).map(|j| w[j] as f64 * mesh.points[nodes[j] as usize][k] as f64).sum()).collect();
+            let size = (0..3).map(|k| hi[k] - lo[k]).fold(0f32, f32::max) as f64;
+            assert!((0..3).all(|k| (x[k] - p[k] as f64).abs() < 1e-5 * size), "point {i}: {x:?} vs {p:?}");
+            let v: f32 = (0..4).map(|j| w[j] * f[nodes[j] as usize]).sum();
+            assert!((v - values[i]).abs() <= 1e-5 * values[i].abs().max(1.0), "point {i}: {v} vs {}", values[i]);
+        }
         drop(io);
         assert_eq!(ctx.validation_errors(), 0);
     }

@@ -295,6 +295,11 @@ gpu_interface! {
         /// launch: a launch of n points writes the ids to words 0..n of B_OUT, then
         /// FIELD_COUNT values a point, point after point (NaN outside).
         OUT_FIELDS: i32 = 3;
+        /// The tet id and how a point's values are interpolated in it: a launch of n points
+        /// writes the ids to words 0..n of B_OUT, the tet's four vertex ids (the nodes) to
+        /// words n + 4i.., and their four weights (f32 bits, the values' barycentrics) to
+        /// words 5n + 4i..; nodes and weights 0 outside. Linear tets only (the zero-copy path).
+        OUT_WEIGHTS: i32 = 4;
         /// Sentinel tet ids. No tet holds the point (tetloc_core::OUTSIDE).
         OUTSIDE: i32 = -1;
         /// The ray hit nothing (an rt payload; distinct from OUTSIDE: hit, but outside).

@@ -1,6 +1,7 @@
 // A located point's answer as OUTPUT_MODE asks: its tet id (OUT_IDS), the bound field's value
-// (OUT_VERTEX, OUT_CELL), or its tet id and FIELD_COUNT fields' values in one launch
-// (OUT_FIELDS: the cell's nodes are read once for all of them). Every locate kernel ends here.
+// (OUT_VERTEX, OUT_CELL), its tet id and FIELD_COUNT fields' values in one launch
+// (OUT_FIELDS: the cell's nodes are read once for all of them), or its tet id with the nodes
+// and weights its values are interpolated with (OUT_WEIGHTS). Every locate kernel ends here.
 #ifndef TL_ANSWER_GLSL
 #define TL_ANSWER_GLSL
 
@@ -11,6 +12,18 @@
 // Point i of this launch is in `tet` (TL_OUTSIDE: none) with vertices `ids` and barycentrics
 // `bary` (read only for values inside).
 void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
+    if (OUTPUT_MODE == TL_OUT_WEIGHTS) {
+        // Unordered launches only (the zero-copy path).
+        uint n = params.counts.x;
+        bool inside = tet >= 0;
+        vec4 b = inside ? tl_value_bary(ids, p, bary) : vec4(0.0);
+        tl_out[i] = uint(tet);
+        for (uint j = 0u; j < 4u; j++) {
+            tl_out[n + 4u * i + j] = inside ? ids[j] : 0u;
+            tl_out[5u * n + 4u * i + j] = floatBitsToUint(b[j]);
+        }
+        return;
+    }
     if (OUTPUT_MODE != TL_OUT_FIELDS) {
         tl_store(i, tet, OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary, p));
         return;
