@@ -9,7 +9,7 @@ use crate::mesh::PyMesh;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use std::sync::Mutex;
-use tetloc_vulkan::cuda_interop::{self, CudaError, CudaLocator};
+use tetloc_vulkan::cuda_interop::{self, CudaError, CudaLocator, WeightsOut};
 
 fn to_py(e: CudaError) -> PyErr {
     DeviceError::new_err(e.to_string())
@@ -85,7 +85,7 @@ impl PyCudaLocator {
                 let mut loc = self.inner.lock().unwrap_or_else(|e| e.into_inner());
                 // SAFETY: `tetloc.torch` passes the addresses of live, contiguous CUDA tensors
                 // of the right sizes on this device, and the stream of that device.
-                unsafe { loc.weights(points, n, ids, nodes, weights, stream) }.map_err(to_py)
+                unsafe { loc.weights(points, n, WeightsOut { ids, nodes, weights }, stream) }.map_err(to_py)
             })
         })
     }

@@ -413,6 +413,15 @@ impl Io {
     }
 }
 
+/// Where [`CudaLocator::weights`] writes: CUDA addresses of n ids (i32), and of 4 n nodes
+/// (i32) and 4 n weights (f32).
+#[derive(Clone, Copy, Debug)]
+pub struct WeightsOut {
+    pub ids: u64,
+    pub nodes: u64,
+    pub weights: u64,
+}
+
 /// See the module's documentation.
 pub struct CudaLocator {
     // Field order is drop order: CUDA's imports before the Vulkan objects, the context last.
@@ -511,24 +520,16 @@ impl CudaLocator {
         unsafe { self.run(points, n, Answer::Ids, &[(ids, 0, 4)], stream) }
     }
 
-    /// Locates as [`locate`](Self::locate) and also writes how each point's values are
-    /// interpolated in its tet: the tet's four vertex ids (`nodes`, i32, 0 outside) and their
-    /// weights (`weights`, f32 barycentrics, the kernel's value path's; 0 outside), four a
-    /// point. A value is Σ weights[4i + j] · field[nodes[4i + j]].
+    /// Locates as [`locate`](Self::locate) into `out.ids` and also writes how each point's
+    /// values are interpolated in its tet: the tet's four vertex ids (`out.nodes`, 0 outside)
+    /// and their weights (`out.weights`, f32 barycentrics, the kernel's value path's; 0
+    /// outside), four a point. A value is Σ weights[4i + j] · field[nodes[4i + j]].
     ///
     /// # Safety
-    /// As [`locate`](Self::locate), and `nodes` and `weights` device memory of `16 n` bytes
-    /// each.
-    pub unsafe fn weights(
-        &mut self,
-        points: u64,
-        n: usize,
-        ids: u64,
-        nodes: u64,
-        weights: u64,
-        stream: u64,
-    ) -> CudaResult<()> {
-        let copies = [(ids, 0, 4), (nodes, 4 * n, 16), (weights, 20 * n, 16)];
+    /// As [`locate`](Self::locate), and `out.nodes` and `out.weights` device memory of `16 n`
+    /// bytes each.
+    pub unsafe fn weights(&mut self, points: u64, n: usize, out: WeightsOut, stream: u64) -> CudaResult<()> {
+        let copies = [(out.ids, 0, 4), (out.nodes, 4 * n, 16), (out.weights, 20 * n, 16)];
         // SAFETY: the caller's promises, as this function's.
         unsafe { self.run(points, n, Answer::Weights, &copies, stream) }
     }
