@@ -327,6 +327,24 @@ struct Bracket {
     times: [f64; 2],
     steps: [usize; 2],
     fields: [Vec<Field>; 2],
+    /// The vector (the first three fields) at each step a vertex at a time, as
+    /// [`Field::value64`] gives it, where they are per-vertex fields: a lookup reads one
+    /// vertex's three components together.
+    vectors: [Option<Vec<[f64; 3]>>; 2],
+}
+
+/// The first three of `fields` (a vector's components) a vertex at a time, where all three
+/// are per-vertex fields.
+fn vertex_vectors(fields: &[Field]) -> Option<Vec<[f64; 3]>> {
+    let [x, y, z] = fields.get(..3)? else { return None };
+    let by_vertex = |f: &Field| f.location == crate::mesh::FieldLocation::Vertex;
+    if !(by_vertex(x) && by_vertex(y) && by_vertex(z))
+        || x.values.len() != y.values.len()
+        || y.values.len() != z.values.len()
+    {
+        return None;
+    }
+    Some((0..x.values.len()).into_par_iter().map(|i| [x.value64(i), y.value64(i), z.value64(i)]).collect())
 }
 
 impl Bracket {
@@ -357,7 +375,27 @@ impl Bracket {
 
     fn velocity(&self, mesh: &Mesh, found: (usize, Bary64), t: f64) -> [f64; 3] {
         let w = self.weight(t);
-        std::array::from_fn(|k| self.value(mesh, k, found, w))
+        let (Some(a), Some(b), None) = (&self.vectors[0], &self.vectors[1], &mesh.tet_nodes) else {
+            return std::array::from_fn(|k| self.value(mesh, k, found, w));
+        };
+        // Linear tets: what `value` computes (Mesh::value_of's interpolation, then the blend in
+        // time), from one read of each corner's three components.
+        let (tet, bary) = found;
+        let ids = mesh.tets[tet];
+        let at = |v: &[[f64; 3]]| -> [f64; 3] {
+            let c = ids.map(|i| v[i as usize]);
+            std::array::from_fn(|k| crate::geom::interpolate_with([0, 1, 2, 3], bary, |j| c[j][k]))
+        };
+        let a = at(a);
+        if w == 0.0 {
+            return a;
+        }
+        let b = at(b);
+        if w == 1.0 {
+            b
+        } else {
+            std::array::from_fn(|k| a[k] + w * (b[k] - a[k]))
+        }
     }
 }
 
@@ -389,18 +427,21 @@ impl StepReader<'_> {
         let b = match held {
             Some(b) if b.steps[0] == j => b,
             Some(b) if b.steps[1] == j => {
-                let [_, keep] = b.fields;
+                let ([_, keep], [_, keep_vectors]) = (b.fields, b.vectors);
+                let next = self.read(j + 1)?;
+                let next_vectors = vertex_vectors(&next);
                 Bracket {
                     times: [b.times[1], self.steps.times[j + 1]],
                     steps: [j, j + 1],
-                    fields: [keep, self.read(j + 1)?],
+                    fields: [keep, next],
+                    vectors: [keep_vectors, next_vectors],
                 }
             }
-            _ => Bracket {
-                times: [self.steps.times[j], self.steps.times[j + 1]],
-                steps: [j, j + 1],
-                fields: [self.read(j)?, self.read(j + 1)?],
-            },
+            _ => {
+                let fields = [self.read(j)?, self.read(j + 1)?];
+                let vectors = [vertex_vectors(&fields[0]), vertex_vectors(&fields[1])];
+                Bracket { times: [self.steps.times[j], self.steps.times[j + 1]], steps: [j, j + 1], fields, vectors }
+            }
         };
         Ok(self.held.insert(b))
     }
@@ -418,14 +459,26 @@ struct Track {
 
 impl Track {
     /// Records the particle's point at `found`, with the line fields (indices 3.. of the
-    /// bracket, after the vector) there at its time.
-    fn record(&mut self, mesh: &Mesh, br: &Bracket, found: (usize, Bary64), width: usize) {
+    /// bracket, after the vector) there at its time. `velocity`: the vector there at time
+    /// `.1` (the lookup's), which a line field that is one of its components (`alias`) takes.
+    fn record(
+        &mut self,
+        mesh: &Mesh,
+        br: &Bracket,
+        found: (usize, Bary64),
+        alias: &[Option<usize>],
+        velocity: ([f64; 3], f64),
+    ) {
         let (x, t) = (self.p.x, self.p.t);
         let w = br.weight(t);
         self.points.push(x);
         self.time.push(t);
         self.tets.push(found.0 as i32);
-        self.values.extend((0..width).map(|k| br.value(mesh, 3 + k, found, w) as f32));
+        self.values.extend(alias.iter().enumerate().map(|(k, a)| match a {
+            // The same field at the same point and time: the value `value` would compute.
+            Some(c) if velocity.1 == t => velocity.0[*c] as f32,
+            _ => br.value(mesh, 3 + k, found, w) as f32,
+        }));
     }
 }
 
@@ -433,7 +486,8 @@ impl Track {
 struct Run<'a> {
     legs: Vec<Leg>,
     reader: StepReader<'a>,
-    width: usize,
+    /// A line field a component of the vector: that component's index, else None.
+    alias: Vec<Option<usize>>,
     tracks: Vec<Track>,
 }
 
@@ -461,7 +515,8 @@ fn setup<'a>(
             values: Vec::new(),
         })
         .collect();
-    Ok(Run { legs, reader: StepReader { steps, names, held: None }, width: line.len(), tracks })
+    let alias = line.iter().map(|n| vector.iter().position(|v| v == n)).collect();
+    Ok(Run { legs, reader: StepReader { steps, names, held: None }, alias, tracks })
 }
 
 /// The line arrays of the tracks with two points or more (a particle injected outside the
@@ -499,7 +554,7 @@ pub fn pathlines(
 ) -> Result<LineArrays> {
     let mut run = setup(seeds, o, steps, vector, fields)?;
     let mesh = loc.mesh().clone();
-    let width = run.width;
+    let alias = &run.alias;
     for (n, leg) in run.legs.iter().enumerate() {
         let br = run.reader.bracket(leg.bracket)?;
         run.tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
@@ -507,9 +562,10 @@ pub fn pathlines(
             while let Some((q, t)) = tr.p.query() {
                 let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
                 let found = found.map(|(tet, b)| (tet as usize, b.map(f64::from)));
-                if tr.p.answer(found.map(|f| br.velocity(&mesh, f, t)), o) {
-                    if let Some(f) = found {
-                        tr.record(&mesh, br, f, width);
+                let v = found.map(|f| br.velocity(&mesh, f, t));
+                if tr.p.answer(v, o) {
+                    if let (Some(f), Some(v)) = (found, v) {
+                        tr.record(&mesh, br, f, alias, (v, t));
                     }
                 }
             }
@@ -534,7 +590,7 @@ pub fn pathlines_batch(
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<LineArrays> {
     let mut run = setup(seeds, o, steps, vector, fields)?;
-    let width = run.width;
+    let alias = &run.alias;
     let (mut points, mut ids): (Vec<Vec3>, Vec<i32>) = (Vec::new(), Vec::new());
     let mut live: Vec<usize> = Vec::new();
     for (n, leg) in run.legs.iter().enumerate() {
@@ -563,9 +619,10 @@ pub fn pathlines_batch(
                 chosen.into_par_iter().zip(ids.par_iter()).for_each(|(tr, &id)| {
                     let Some((q, t)) = tr.p.query() else { return };
                     let found = (id >= 0).then(|| mesh.bary64(id as usize, q).map(|b| (id as usize, b))).flatten();
-                    if tr.p.answer(found.map(|f| br.velocity(mesh, f, t)), o) {
-                        if let Some(f) = found {
-                            tr.record(mesh, br, f, width);
+                    let v = found.map(|f| br.velocity(mesh, f, t));
+                    if tr.p.answer(v, o) {
+                        if let (Some(f), Some(v)) = (found, v) {
+                            tr.record(mesh, br, f, alias, (v, t));
                         }
                     }
                 });
@@ -750,6 +807,35 @@ mod tests {
             }
             assert_eq!(one.time, all.time);
         }
+    }
+
+    /// The velocity from the vector a vertex at a time is the per-field path's, bit for bit,
+    /// at the steps, between them and at the bracket's ends.
+    #[test]
+    fn vertex_vectors_give_the_fields_velocity_bit_for_bit() {
+        let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0]);
+        let names = XYZ.iter().map(|s| s.to_string()).collect();
+        let mut reader = StepReader { steps: &steps, names, held: None };
+        let fast = reader.bracket(0).unwrap();
+        assert!(fast.vectors.iter().all(Option::is_some), "per-vertex components are interleaved");
+        let slow = Bracket { times: fast.times, steps: fast.steps, fields: fast.fields.clone(), vectors: [None, None] };
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut moving = 0;
+        for tet in (0..m.n_tets()).step_by(7) {
+            let raw: [f64; 4] = std::array::from_fn(|_| next());
+            let sum: f64 = raw.iter().sum();
+            let bary = raw.map(|r| r / sum);
+            for t in [0.0, 0.5 * next(), 0.25, 0.5] {
+                let (a, b) = (fast.velocity(&m, (tet, bary), t), slow.velocity(&m, (tet, bary), t));
+                assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "tet {tet}, t {t}");
+                moving += (a != [0.0; 3]) as usize;
+            }
+        }
+        assert!(moving > 0, "some velocity is not zero");
     }
 
     /// A single snapshot, and times outside the series, are refused naming the file.
