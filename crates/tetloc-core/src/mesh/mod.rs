@@ -11,6 +11,7 @@ mod summary;
 #[cfg(test)]
 mod tests;
 mod tet_nodes;
+mod vectors;
 
 pub use cells::{tets_per_cell, Cells};
 pub use faces::{Face, FaceSet};
@@ -19,6 +20,7 @@ pub use crate::geom::Frame;
 pub use steps::{StepFields, TimeSteps};
 pub use summary::{FieldSummary, MeshSummary};
 pub use tet_nodes::TetNodes;
+pub use vectors::VertexVectors;
 
 use crate::error::{Error, Result};
 use crate::geom::{self, Vec3};

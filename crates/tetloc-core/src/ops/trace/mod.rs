@@ -101,6 +101,8 @@ pub fn trace_sampled(
     let mesh = loc.mesh();
     let [vx, vy, vz] = vector.map(|c| mesh.field(c));
     let xyz = [vx?, vy?, vz?];
+    // The vector a vertex at a time (one read a corner), where it is a per-vertex field.
+    let vectors = crate::mesh::VertexVectors::<f32>::new(mesh, xyz);
     let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
     // The line fields other than the vector's components, which the step has at hand.
     let out: Vec<&crate::Field> =
@@ -133,7 +135,10 @@ pub fn trace_sampled(
                 let found = loc.locate_near(q, &mut hint);
                 let at = found.map(|(t, b)| (t as usize, b));
                 let (rest, v) = here.split_at_mut(out.len());
-                mesh.values_at(&xyz, at, v);
+                match (&vectors, at) {
+                    (Some(vectors), Some((t, b))) => v.copy_from_slice(&vectors.at(mesh, t, b)),
+                    _ => mesh.values_at(&xyz, at, v),
+                }
                 let before = p.n_points();
                 p.answer(found.map(|_| [v[0], v[1], v[2]]), o);
                 // A point recorded by this answer is the point just looked up.

@@ -19,7 +19,7 @@ use super::{Integrator, Line, LineArrays, Reason};
 use crate::error::{Error, Result};
 use crate::geom::{Bary64, Vec3};
 use crate::locate::BatchLocator;
-use crate::mesh::{Field, TimeSteps};
+use crate::mesh::{Field, TimeSteps, VertexVectors};
 use crate::ops::FieldGroup;
 use crate::Mesh;
 use rayon::prelude::*;
@@ -327,24 +327,15 @@ struct Bracket {
     times: [f64; 2],
     steps: [usize; 2],
     fields: [Vec<Field>; 2],
-    /// The vector (the first three fields) at each step a vertex at a time, as
-    /// [`Field::value64`] gives it, where they are per-vertex fields: a lookup reads one
-    /// vertex's three components together.
-    vectors: [Option<Vec<[f64; 3]>>; 2],
+    /// The vector (the first three fields) at each step a vertex at a time, where
+    /// [`VertexVectors`] takes it.
+    vectors: [Option<VertexVectors<f64>>; 2],
 }
 
-/// The first three of `fields` (a vector's components) a vertex at a time, where all three
-/// are per-vertex fields.
-fn vertex_vectors(fields: &[Field]) -> Option<Vec<[f64; 3]>> {
+/// The vector of a step's fields (its first three) a vertex at a time.
+fn vertex_vectors(mesh: &Mesh, fields: &[Field]) -> Option<VertexVectors<f64>> {
     let [x, y, z] = fields.get(..3)? else { return None };
-    let by_vertex = |f: &Field| f.location == crate::mesh::FieldLocation::Vertex;
-    if !(by_vertex(x) && by_vertex(y) && by_vertex(z))
-        || x.values.len() != y.values.len()
-        || y.values.len() != z.values.len()
-    {
-        return None;
-    }
-    Some((0..x.values.len()).into_par_iter().map(|i| [x.value64(i), y.value64(i), z.value64(i)]).collect())
+    VertexVectors::new(mesh, [x, y, z])
 }
 
 impl Bracket {
@@ -375,22 +366,17 @@ impl Bracket {
 
     fn velocity(&self, mesh: &Mesh, found: (usize, Bary64), t: f64) -> [f64; 3] {
         let w = self.weight(t);
-        let (Some(a), Some(b), None) = (&self.vectors[0], &self.vectors[1], &mesh.tet_nodes) else {
+        let [Some(a), Some(b)] = &self.vectors else {
             return std::array::from_fn(|k| self.value(mesh, k, found, w));
         };
-        // Linear tets: what `value` computes (Mesh::value_of's interpolation, then the blend in
-        // time), from one read of each corner's three components.
+        // What `value` computes (Mesh::value_of's interpolation, then the blend in time),
+        // from one read of each corner's three components.
         let (tet, bary) = found;
-        let ids = mesh.tets[tet];
-        let at = |v: &[[f64; 3]]| -> [f64; 3] {
-            let c = ids.map(|i| v[i as usize]);
-            std::array::from_fn(|k| crate::geom::interpolate_with([0, 1, 2, 3], bary, |j| c[j][k]))
-        };
-        let a = at(a);
+        let a = a.at(mesh, tet, bary);
         if w == 0.0 {
             return a;
         }
-        let b = at(b);
+        let b = b.at(mesh, tet, bary);
         if w == 1.0 {
             b
         } else {
@@ -422,14 +408,14 @@ impl StepReader<'_> {
     }
 
     /// The bracket of steps `j`, `j + 1` (the later step of the previous bracket kept).
-    fn bracket(&mut self, j: usize) -> Result<&Bracket> {
+    fn bracket(&mut self, mesh: &Mesh, j: usize) -> Result<&Bracket> {
         let held = self.held.take();
         let b = match held {
             Some(b) if b.steps[0] == j => b,
             Some(b) if b.steps[1] == j => {
                 let ([_, keep], [_, keep_vectors]) = (b.fields, b.vectors);
                 let next = self.read(j + 1)?;
-                let next_vectors = vertex_vectors(&next);
+                let next_vectors = vertex_vectors(mesh, &next);
                 Bracket {
                     times: [b.times[1], self.steps.times[j + 1]],
                     steps: [j, j + 1],
@@ -439,7 +425,7 @@ impl StepReader<'_> {
             }
             _ => {
                 let fields = [self.read(j)?, self.read(j + 1)?];
-                let vectors = [vertex_vectors(&fields[0]), vertex_vectors(&fields[1])];
+                let vectors = [vertex_vectors(mesh, &fields[0]), vertex_vectors(mesh, &fields[1])];
                 Bracket { times: [self.steps.times[j], self.steps.times[j + 1]], steps: [j, j + 1], fields, vectors }
             }
         };
@@ -556,7 +542,7 @@ pub fn pathlines(
     let mesh = loc.mesh().clone();
     let alias = &run.alias;
     for (n, leg) in run.legs.iter().enumerate() {
-        let br = run.reader.bracket(leg.bracket)?;
+        let br = run.reader.bracket(&mesh, leg.bracket)?;
         run.tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
             tr.p.start_leg(leg, o);
             while let Some((q, t)) = tr.p.query() {
@@ -594,7 +580,7 @@ pub fn pathlines_batch(
     let (mut points, mut ids): (Vec<Vec3>, Vec<i32>) = (Vec::new(), Vec::new());
     let mut live: Vec<usize> = Vec::new();
     for (n, leg) in run.legs.iter().enumerate() {
-        let br = run.reader.bracket(leg.bracket)?;
+        let br = run.reader.bracket(mesh, leg.bracket)?;
         run.tracks.par_iter_mut().for_each(|tr| tr.p.start_leg(leg, o));
         loop {
             live.clear();
@@ -816,7 +802,7 @@ mod tests {
         let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0]);
         let names = XYZ.iter().map(|s| s.to_string()).collect();
         let mut reader = StepReader { steps: &steps, names, held: None };
-        let fast = reader.bracket(0).unwrap();
+        let fast = reader.bracket(&m, 0).unwrap();
         assert!(fast.vectors.iter().all(Option::is_some), "per-vertex components are interleaved");
         let slow = Bracket { times: fast.times, steps: fast.steps, fields: fast.fields.clone(), vectors: [None, None] };
         let mut state = 12345u64;
