@@ -2,11 +2,14 @@
 (issue 33's targets: sample forward >= 10 G/s, backward >= 5 G/s at jets 12M, 16M points).
 Run by scripts/h200/zerocopy.sh.
 
-    python bench_zerocopy.py MESH.vtu [--points 16M] [--repeats 5] [--json out.json]
+    python bench_zerocopy.py MESH.vtu [--points 16M] [--repeats 5] [--order random|morton]
+                             [--no-host] [--json out.json]
 
 Times are wall times between two CUDA events on the caller's current stream around each call,
 everything included (for the host path: its transfers). The field is a CUDA tensor of vertex
-values (requires_grad for the backward pass); points are float32, uniform in the mesh's box.
+values (requires_grad for the backward pass); points are float32, uniform in the mesh's box,
+in random order or (``--order morton``, sorted before timing) along a Morton curve, as
+coherent queries come (a grid, a mesh's own points, particles that moved a little).
 """
 
 from __future__ import annotations
@@ -29,6 +32,16 @@ def count(text: str) -> int:
     return int(float(text.rstrip("KMG")) * scale)
 
 
+def morton(points: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor) -> torch.Tensor:
+    """30-bit Morton codes of `points` in the box [lo, hi] (10 bits an axis)."""
+    cells = ((points - lo) / (hi - lo) * 1023.0).clamp(0, 1023).to(torch.int64)
+    code = torch.zeros(len(points), dtype=torch.int64, device=points.device)
+    for bit in range(10):
+        for axis in range(3):
+            code |= ((cells[:, axis] >> bit) & 1) << (3 * bit + axis)
+    return code
+
+
 def timed(dev: torch.device, f: Callable[[], Any], repeats: int) -> Dict[str, float]:
     """Seconds of `f` between two events on the current stream: best and median of `repeats`."""
     f()  # warm-up: buffers grow, pipelines compile
@@ -48,6 +61,8 @@ def main() -> None:
     parser.add_argument("mesh", type=pathlib.Path)
     parser.add_argument("--points", default="16M")
     parser.add_argument("--repeats", type=int, default=5)
+    parser.add_argument("--order", choices=("random", "morton"), default="random")
+    parser.add_argument("--no-host", action="store_true", help="the zero-copy path only")
     parser.add_argument("--json", type=pathlib.Path)
     args = parser.parse_args()
     dev = torch.device("cuda", torch.cuda.current_device())
@@ -56,10 +71,12 @@ def main() -> None:
     lo = torch.tensor(mesh.bounds[0::2], dtype=torch.float32, device=dev)
     hi = torch.tensor(mesh.bounds[1::2], dtype=torch.float32, device=dev)
     points = lo + (hi - lo) * torch.rand(n, 3, device=dev)
+    if args.order == "morton":
+        points = points[torch.argsort(morton(points, lo, hi))].contiguous()
     values = torch.rand(mesh.n_points, device=dev, requires_grad=True)
     out: Dict[str, Any] = {"mesh": str(args.mesh), "tets": mesh.n_cells, "points": n,
-                           "gpu": torch.cuda.get_device_name(dev), "torch": torch.__version__}
-    for zero_copy in (True, False):
+                           "order": args.order, "gpu": torch.cuda.get_device_name(dev), "torch": torch.__version__}
+    for zero_copy in (True,) if args.no_host else (True, False):
         loc = tt.Locator(mesh, device=dev, zero_copy=zero_copy)
         key = loc.path
         copies = tt.host_copies()
