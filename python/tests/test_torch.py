@@ -251,3 +251,15 @@ def test_the_example_fits_a_field():
     first, last = (float(line.split()[-1]) for line in out.splitlines() if line.startswith("rms"))
     assert last < first / 10, out
 
+
+
+def test_non_finite_points_go_far_outside_for_the_kernel():
+    """The zero-copy path's guard: which points are finite, and the others moved far outside
+    (the kernel gets those; their ids become -1 after it)."""
+    from tetloc.torch import _finite_or_far
+
+    p = torch.tensor([[0.5, 0.5, 0.5], [float("nan"), 0.0, 0.0], [0.0, float("inf"), 1.0], [1.0, 2.0, 3.0]])
+    finite, safe = _finite_or_far(p)
+    assert finite.tolist() == [True, False, False, True]
+    assert torch.equal(safe[finite], p[finite]) and safe.is_contiguous()
+    assert bool((safe[~finite] == 3.0e38).all())

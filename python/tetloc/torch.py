@@ -97,6 +97,21 @@ def _gather(field: torch.Tensor, nodes: torch.Tensor) -> torch.Tensor:
     return field.index_select(0, nodes.reshape(-1)).view(*nodes.shape, field.shape[1])
 
 
+def _finite_or_far(points: torch.Tensor) -> Tuple[torch.Tensor, torch.Tensor]:
+    """Which points are finite, and the points with the others moved far outside: the kernel
+    gets those, and their ids are set to -1 afterwards."""
+    finite = torch.isfinite(points).all(1)
+    return finite, torch.where(finite.unsqueeze(1), points, torch.full_like(points, 3.0e38)).contiguous()
+
+
+def _gradients_of_rows(rows: torch.Tensor, inside: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
+    """The barycentrics' gradients (K, 4, 3) from the rows of the inverse edge matrices
+    (K, 3, 3): ∇b_j is row j, ∇b_0 minus their sum; 0 outside."""
+    gradients = torch.cat([-rows.sum(1, keepdim=True), rows], dim=1)
+    zero = torch.zeros((), dtype=rows.dtype, device=rows.device)
+    return torch.where(inside.view(-1, 1, 1), gradients, zero).to(dtype)
+
+
 class _Sample(torch.autograd.Function):
     """values = Σ_j w_j · field[node_j]; d/dfield: scatter-add of the weights; d/dpoints:
     Σ_j ∇w_j · field[node_j]."""
@@ -218,9 +233,7 @@ class Locator:
     def _locate_cuda(self, points: torch.Tensor) -> torch.Tensor:
         """int32 ids on this CUDA device of float32 points there: the zero-copy path."""
         assert self._cuda is not None
-        # Non-finite points are answered -1 here; the kernel gets a point far outside instead.
-        finite = torch.isfinite(points).all(1)
-        safe = torch.where(finite.unsqueeze(1), points, torch.full_like(points, 3.0e38)).contiguous()
+        finite, safe = _finite_or_far(points)
         ids = torch.empty(points.shape[0], dtype=torch.int32, device=self.device)
         stream = torch.cuda.current_stream(self.device).cuda_stream
         self._cuda.locate(safe.data_ptr(), points.shape[0], ids.data_ptr(), stream)
@@ -258,9 +271,7 @@ class Locator:
         their weights (its f32 barycentrics, those its own values use) beside the points."""
         assert self._cuda is not None
         n = points.shape[0]
-        # Non-finite points are answered -1 here; the kernel gets a point far outside instead.
-        finite = torch.isfinite(points).all(1)
-        safe = torch.where(finite.unsqueeze(1), points, torch.full_like(points, 3.0e38)).contiguous()
+        finite, safe = _finite_or_far(points)
         ids = torch.empty(n, dtype=torch.int32, device=self.device)
         nodes = torch.empty((n, 4), dtype=torch.int32, device=self.device)
         weights = torch.empty((n, 4), dtype=torch.float32, device=self.device)
@@ -287,12 +298,8 @@ class Locator:
         return x, torch.stack([n1, n2, n3], dim=1) / det.unsqueeze(-1)
 
     def _tet_gradients(self, nodes: torch.Tensor, inside: torch.Tensor, dtype: torch.dtype) -> torch.Tensor:
-        """The weights' gradients in linear tets (K, 4, 3): ∇b_j, the rows of the inverse
-        edge matrix (row 0: minus their sum); 0 outside."""
-        _, rows = self._edge_rows(nodes)
-        gradients = torch.cat([-rows.sum(1, keepdim=True), rows], dim=1)
-        zero = torch.zeros((), dtype=torch.float64, device=nodes.device)
-        return torch.where(inside.view(-1, 1, 1), gradients, zero).to(dtype)
+        """The weights' gradients in linear tets `nodes` (K, 4, 3); 0 outside."""
+        return _gradients_of_rows(self._edge_rows(nodes)[1], inside, dtype)
 
     def _tet_weights(self, points: torch.Tensor, ids: torch.Tensor, dtype: torch.dtype, gradients: bool) -> _Weights:
         """Barycentric weights in linear tets, on the points' device: those of
@@ -308,7 +315,7 @@ class Locator:
         zero = torch.zeros((), dtype=torch.float64, device=points.device)
         weights = torch.where(inside.unsqueeze(-1), weights, zero)
         if gradients:
-            grads = self._tet_gradients(nodes, inside, dtype)
+            grads = _gradients_of_rows(rows, inside, dtype)
         else:
             grads = torch.empty(0, dtype=dtype, device=points.device)
         return _Weights(ids, nodes, weights.to(dtype), grads, inside)
