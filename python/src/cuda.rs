@@ -53,14 +53,9 @@ impl PyCudaLocator {
     /// CUDA device of 12 n and 4 n bytes.
     fn locate(&self, py: Python<'_>, points: u64, n: usize, ids: u64, stream: u64) -> PyResult<()> {
         check_call(points, n, &[ids])?;
-        py.detach(|| {
-            guarded("locating CUDA points", || {
-                let mut loc = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-                // SAFETY: `tetloc.torch` passes the addresses of live, contiguous CUDA tensors
-                // of the right sizes on this device, and the stream of that device.
-                unsafe { loc.locate(points, n, ids, stream) }.map_err(to_py)
-            })
-        })
+        // SAFETY: `tetloc.torch` passes the addresses of live, contiguous CUDA tensors of the
+        // right sizes on this device, and the stream of that device.
+        self.call(py, |loc| unsafe { loc.locate(points, n, ids, stream) })
     }
 
     /// Locates as `locate` and writes how each point's values are interpolated in its tet:
@@ -80,14 +75,8 @@ impl PyCudaLocator {
         stream: u64,
     ) -> PyResult<()> {
         check_call(points, n, &[ids, nodes, weights])?;
-        py.detach(|| {
-            guarded("locating CUDA points", || {
-                let mut loc = self.inner.lock().unwrap_or_else(|e| e.into_inner());
-                // SAFETY: `tetloc.torch` passes the addresses of live, contiguous CUDA tensors
-                // of the right sizes on this device, and the stream of that device.
-                unsafe { loc.weights(points, n, WeightsOut { ids, nodes, weights }, stream) }.map_err(to_py)
-            })
-        })
+        // SAFETY: as in `locate`.
+        self.call(py, |loc| unsafe { loc.weights(points, n, WeightsOut { ids, nodes, weights }, stream) })
     }
 
     /// The CUDA device this locator serves.
@@ -111,6 +100,18 @@ impl PyCudaLocator {
     /// Validation-layer errors of this locator's Vulkan context so far.
     fn validation_errors(&self) -> usize {
         self.inner.lock().unwrap_or_else(|e| e.into_inner()).vulkan().context().validation_errors()
+    }
+}
+
+impl PyCudaLocator {
+    /// Runs `f` on the locator without the GIL, its errors as `DeviceError`.
+    fn call(&self, py: Python<'_>, f: impl FnOnce(&mut CudaLocator) -> Result<(), CudaError> + Send) -> PyResult<()> {
+        py.detach(|| {
+            guarded("locating CUDA points", || {
+                let mut loc = self.inner.lock().unwrap_or_else(|e| e.into_inner());
+                f(&mut loc).map_err(to_py)
+            })
+        })
     }
 }
 

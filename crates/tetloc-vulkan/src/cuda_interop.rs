@@ -294,7 +294,8 @@ struct Imports {
 }
 
 /// What a call writes a point: its id, or its id with its nodes and weights (OUT_WEIGHTS).
-#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+/// Ordered by what the output buffer must hold.
+#[derive(Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Debug)]
 enum Answer {
     Ids,
     Weights,
@@ -305,7 +306,7 @@ impl Answer {
     fn words(self) -> usize {
         match self {
             Answer::Ids => 1,
-            Answer::Weights => 9,
+            Answer::Weights => WEIGHTS_WORDS as usize,
         }
     }
 }
@@ -529,7 +530,8 @@ impl CudaLocator {
     /// As [`locate`](Self::locate), and `out.nodes` and `out.weights` device memory of `16 n`
     /// bytes each.
     pub unsafe fn weights(&mut self, points: u64, n: usize, out: WeightsOut, stream: u64) -> CudaResult<()> {
-        let copies = [(out.ids, 0, 4), (out.nodes, 4 * n, 16), (out.weights, 20 * n, 16)];
+        let word = |at: u32| 4 * at as usize * n;
+        let copies = [(out.ids, 0, 4), (out.nodes, word(WEIGHTS_NODES_AT), 16), (out.weights, word(WEIGHTS_AT), 16)];
         // SAFETY: the caller's promises, as this function's.
         unsafe { self.run(points, n, Answer::Weights, &copies, stream) }
     }
@@ -595,14 +597,10 @@ impl CudaLocator {
     /// call asks for weights, the buffers keep room for them.
     fn ensure_io(&mut self, n: usize, answer: Answer) -> CudaResult<()> {
         let have = self.io.as_ref().map(|io| (io.capacity, io.answer));
-        if have.is_some_and(|(c, a)| c >= n && a.words() >= answer.words()) {
+        if have.is_some_and(|(c, a)| c >= n && a >= answer) {
             return Ok(());
         }
-        let answer = match have {
-            Some((_, Answer::Weights)) => Answer::Weights,
-            _ => answer,
-        };
-        let n = n.max(have.map_or(0, |h| h.0));
+        let (n, answer) = have.map_or((n, answer), |(c, a)| (n.max(c), answer.max(a)));
         // SAFETY: the context is bound (by the caller); waits for the last call's copies only.
         unsafe { check("cuEventSynchronize", cu::cuEventSynchronize(self.last))? };
         self.imports = None;
@@ -734,7 +732,7 @@ mod tests {
         let io = Io::new(&mut loc, 4096, Answer::Weights, sharing).unwrap();
         loc.device().write(&io.points, 0, bytemuck::cast_slice(&pts)).unwrap();
         io.run(&mut loc, n, Answer::Ids, None, None).unwrap();
-        let mut got = vec![0u32; 9 * n];
+        let mut got = vec![0u32; WEIGHTS_WORDS as usize * n];
         loc.device().download(&io.out, 0, bytemuck::cast_slice_mut(&mut got[..n])).unwrap();
         assert_eq!(bytemuck::cast_slice::<u32, i32>(&got[..n]), want);
         assert!(want.iter().any(|&i| i >= 0) && want.iter().any(|&i| i < 0), "inside and outside both tested");
@@ -747,8 +745,9 @@ mod tests {
         assert_eq!(bytemuck::cast_slice::<u32, i32>(&got[..n]), want);
         let f = &mesh.field("f").unwrap().values;
         for (i, p) in pts.iter().enumerate() {
-            let nodes = &got[n + 4 * i..n + 4 * i + 4];
-            let w: Vec<f32> = got[5 * n + 4 * i..5 * n + 4 * i + 4].iter().map(|&b| f32::from_bits(b)).collect();
+            let (nodes_at, weights_at) = (WEIGHTS_NODES_AT as usize * n + 4 * i, WEIGHTS_AT as usize * n + 4 * i);
+            let nodes = &got[nodes_at..nodes_at + 4];
+            let w: Vec<f32> = got[weights_at..weights_at + 4].iter().map(|&b| f32::from_bits(b)).collect();
             if want[i] < 0 {
                 assert!(nodes.iter().all(|&v| v == 0) && w.iter().all(|&v| v == 0.0), "outside: zeros");
                 continue;

@@ -273,6 +273,12 @@ gpu_interface! {
         MAX_CHUNKS = 16;
         /// Most fields one launch samples (OUT_FIELDS; B_FIELD's buffers).
         MAX_FIELDS = 16;
+        /// OUT_WEIGHTS's layout in B_OUT, for a launch of n points: the ids at words 0..n,
+        /// point i's four nodes from word WEIGHTS_NODES_AT·n + 4i, its four weights from word
+        /// WEIGHTS_AT·n + 4i; WEIGHTS_WORDS words a point in all.
+        WEIGHTS_NODES_AT = 1;
+        WEIGHTS_AT = 5;
+        WEIGHTS_WORDS = 9;
         /// The volume marcher's compute shader runs in tiles of MARCH_TILE x MARCH_TILE pixels.
         MARCH_TILE = 8;
     }
@@ -295,10 +301,10 @@ gpu_interface! {
         /// launch: a launch of n points writes the ids to words 0..n of B_OUT, then
         /// FIELD_COUNT values a point, point after point (NaN outside).
         OUT_FIELDS: i32 = 3;
-        /// The tet id and how a point's values are interpolated in it: a launch of n points
-        /// writes the ids to words 0..n of B_OUT, the tet's four vertex ids (the nodes) to
-        /// words n + 4i.., and their four weights (f32 bits, the values' barycentrics) to
-        /// words 5n + 4i..; nodes and weights 0 outside. Linear tets only (the zero-copy path).
+        /// The tet id and how a point's values are interpolated in it: the tet's four vertex
+        /// ids (the nodes) and their four weights (f32 bits, the values' barycentrics), laid
+        /// out as WEIGHTS_NODES_AT, WEIGHTS_AT and WEIGHTS_WORDS say; nodes and weights 0
+        /// outside. Linear tets only (the zero-copy path).
         OUT_WEIGHTS: i32 = 4;
         /// Sentinel tet ids. No tet holds the point (tetloc_core::OUTSIDE).
         OUTSIDE: i32 = -1;

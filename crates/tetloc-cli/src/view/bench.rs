@@ -1,7 +1,8 @@
 //! `tetloc view-bench URL` (hidden): a viewer's client without a browser, for machines that
 //! have none. It orbits the camera continuously (an input event every 1/`rate` s, as a
-//! dragging mouse sends them; those due while a frame was decoded go as one), receives and decodes every frame, acknowledges it as the page
-//! does, and after each orbit stops and waits for the lossless still frame. It reports
+//! dragging mouse sends them; those due while a frame was decoded go as one), receives and
+//! decodes every frame, acknowledges it as the page does, and after each orbit stops and
+//! waits for the lossless still frame. It reports
 //! delivered frames/s, input-to-frame latency (from an input to the first frame that shows
 //! it or a later input), still-frame latency (from the last input to the still frame), and
 //! where a frame's time goes: march, encode, send (from the end of encoding to the arrival
@@ -15,7 +16,8 @@ use std::time::{Duration, Instant};
 use tetloc_render as tr;
 use tungstenite::{Message, WebSocket};
 
-/// Longest nap while nothing arrives (`thread::sleep` keeps to tens of microseconds).
+/// Longest nap while nothing arrives (a sleep, unlike a socket's timeout, is not rounded up to
+/// a kernel tick).
 const IDLE: Duration = Duration::from_micros(250);
 
 #[derive(clap::Args)]

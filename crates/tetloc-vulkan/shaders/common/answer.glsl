@@ -19,8 +19,8 @@ void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
         vec4 b = inside ? tl_value_bary(ids, p, bary) : vec4(0.0);
         tl_out[i] = uint(tet);
         for (uint j = 0u; j < 4u; j++) {
-            tl_out[n + 4u * i + j] = inside ? ids[j] : 0u;
-            tl_out[5u * n + 4u * i + j] = floatBitsToUint(b[j]);
+            tl_out[TL_WEIGHTS_NODES_AT * n + 4u * i + j] = inside ? ids[j] : 0u;
+            tl_out[TL_WEIGHTS_AT * n + 4u * i + j] = floatBitsToUint(b[j]);
         }
         return;
     }

@@ -332,6 +332,21 @@ struct Bracket {
     vectors: [Option<VertexVectors<f64>>; 2],
 }
 
+/// Values `a` of the earlier step and `b` of the later one blended at the later one's weight
+/// `w`: `a` at 0 and `b` at 1 exactly (`b` read only when needed), `a + w (b − a)` between.
+#[inline]
+fn blend<const N: usize>(w: f64, a: [f64; N], b: impl FnOnce() -> [f64; N]) -> [f64; N] {
+    if w == 0.0 {
+        return a;
+    }
+    let b = b();
+    if w == 1.0 {
+        b
+    } else {
+        std::array::from_fn(|k| a[k] + w * (b[k] - a[k]))
+    }
+}
+
 /// The vector of a step's fields (its first three) a vertex at a time.
 fn vertex_vectors(mesh: &Mesh, fields: &[Field]) -> Option<VertexVectors<f64>> {
     let [x, y, z] = fields.get(..3)? else { return None };
@@ -349,19 +364,11 @@ impl Bracket {
         }
     }
 
-    /// Field `k` at barycentrics `b` of tet `tet`, at time `t`.
+    /// Field `k` at barycentrics `b` of tet `tet`, at the later step's weight `w`.
     #[inline]
     fn value(&self, mesh: &Mesh, k: usize, found: (usize, Bary64), w: f64) -> f64 {
-        let a = mesh.value_of::<f64>(&self.fields[0][k], Some(found));
-        if w == 0.0 {
-            return a;
-        }
-        let b = mesh.value_of::<f64>(&self.fields[1][k], Some(found));
-        if w == 1.0 {
-            b
-        } else {
-            a + w * (b - a)
-        }
+        let at = |step: usize| [mesh.value_of::<f64>(&self.fields[step][k], Some(found))];
+        blend(w, at(0), || at(1))[0]
     }
 
     fn velocity(&self, mesh: &Mesh, found: (usize, Bary64), t: f64) -> [f64; 3] {
@@ -372,16 +379,7 @@ impl Bracket {
         // What `value` computes (Mesh::value_of's interpolation, then the blend in time),
         // from one read of each corner's three components.
         let (tet, bary) = found;
-        let a = a.at(mesh, tet, bary);
-        if w == 0.0 {
-            return a;
-        }
-        let b = b.at(mesh, tet, bary);
-        if w == 1.0 {
-            b
-        } else {
-            std::array::from_fn(|k| a[k] + w * (b[k] - a[k]))
-        }
+        blend(w, a.at(mesh, tet, bary), || b.at(mesh, tet, bary))
     }
 }
 
@@ -624,6 +622,7 @@ mod tests {
     use super::*;
     use crate::mesh::{FieldLocation, StepFields};
     use crate::CpuLocator;
+    use rand::{Rng, SeedableRng};
     use std::sync::Arc;
 
     /// Rotation about the axis x = y = 0.5 at the angular speed ω(t) = 1 + t: the field is
@@ -805,17 +804,13 @@ mod tests {
         let fast = reader.bracket(&m, 0).unwrap();
         assert!(fast.vectors.iter().all(Option::is_some), "per-vertex components are interleaved");
         let slow = Bracket { times: fast.times, steps: fast.steps, fields: fast.fields.clone(), vectors: [None, None] };
-        let mut state = 12345u64;
-        let mut next = || {
-            state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
         let mut moving = 0;
         for tet in (0..m.n_tets()).step_by(7) {
-            let raw: [f64; 4] = std::array::from_fn(|_| next());
+            let raw: [f64; 4] = std::array::from_fn(|_| rng.gen_range(0.0..1.0));
             let sum: f64 = raw.iter().sum();
             let bary = raw.map(|r| r / sum);
-            for t in [0.0, 0.5 * next(), 0.25, 0.5] {
+            for t in [0.0, rng.gen_range(0.0..0.5), 0.25, 0.5] {
                 let (a, b) = (fast.velocity(&m, (tet, bary), t), slow.velocity(&m, (tet, bary), t));
                 assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "tet {tet}, t {t}");
                 moving += (a != [0.0; 3]) as usize;
