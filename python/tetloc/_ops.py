@@ -170,7 +170,8 @@ def probe(
         given = np.asarray(target.points) if _is_pyvista(target) else target
         pts, lead = as_points64(given, "target") or as_points(given, "target")
     pyvista_out = _is_pyvista(target) if as_pyvista is None else as_pyvista
-    loc = _locator(source, backend, device, "source")
+    # cpu: the probe's batches search bins; the BVH is built only if a point lands on a face.
+    loc = _locator(source, backend, device, "source", deferred=True)
     arrays, mask = _tetloc.probe(loc._raw, pts, names, _progress(progress, "tetloc probe"))
     if pyvista_out:
         import pyvista as pv

@@ -96,7 +96,8 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     let opts = a.common.opts()?;
     let source = crate::time_steps::load(&a.source, a.common.format.as_deref(), a.common.seed, a.common.step())?;
     let (_, builder) = opts.builder(&source, &a.backend)?;
-    let builder = builder.tolerance(a.tolerance);
+    // cpu: the probe's batches search bins; the BVH is built only if a point lands on a face.
+    let builder = builder.tolerance(a.tolerance).defer_cpu_build(true);
     let mut loc: Box<dyn BatchLocator> = progress::with_spinner("building the locator", || builder.build())?.locator;
     execute(a, point_set, &source, loc.as_mut())
 }

@@ -92,6 +92,12 @@ fn main() -> tetloc_core::Result<()> {
             probe::probe(&mut loc, &target.points, &groups, |_| Ok(()))
         })?;
         eprintln!("  {} inside", probed.n_valid());
+        if std::env::var("PROBE_PARTS").is_ok() {
+            timed("  probe again (bins built)", || probe::probe(&mut loc, &target.points, &groups, |_| Ok(())))?;
+            for _ in 0..std::env::var("PROBE_PARTS").unwrap().parse().unwrap_or(1) {
+                timed("  ids only", || probe::probe(&mut loc, &target.points, &[], |_| Ok(())))?;
+            }
+        }
     }
     if only.contains('t') {
         // Seeds at the centres of pseudo-random tets (a fixed LCG, as reproducible as the bench's).

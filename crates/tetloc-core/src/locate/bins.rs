@@ -9,6 +9,7 @@
 //! rounding monotonically, as in the occupancy grid), so a point inside a tet's box (working
 //! coordinates) has its bin within the box's bins on each axis.
 
+use crate::buckets::Buckets;
 use crate::geom::{self, Vec3};
 use crate::mesh::Mesh;
 use rayon::prelude::*;
@@ -28,6 +29,40 @@ pub(super) struct Bins {
     start: Vec<u32>,
 }
 
+/// The bins of a box of bins (first and last on each axis), x fastest, each with a tet.
+struct BoxBins {
+    span: [u16; 6],
+    n: [usize; 3],
+    at: [u16; 3],
+    tet: u32,
+}
+
+impl BoxBins {
+    fn new(span: [u16; 6], n: [usize; 3], tet: u32) -> BoxBins {
+        BoxBins { span, n, at: [span[0], span[1], span[2]], tet }
+    }
+}
+
+impl Iterator for BoxBins {
+    type Item = (usize, u32);
+
+    #[inline]
+    fn next(&mut self) -> Option<(usize, u32)> {
+        let [x, y, z] = self.at;
+        if z > self.span[5] {
+            return None;
+        }
+        if x < self.span[3] {
+            self.at[0] += 1;
+        } else if y < self.span[4] {
+            self.at = [self.span[0], y + 1, z];
+        } else {
+            self.at = [self.span[0], self.span[1], z + 1];
+        }
+        Some(((z as usize * self.n[1] + y as usize) * self.n[0] + x as usize, self.tet))
+    }
+}
+
 /// No tet.
 const NONE: u32 = u32::MAX;
 
@@ -44,64 +79,39 @@ impl Bins {
         let n = count(cell);
         let scale = std::array::from_fn(|k| if ext[k] > 0.0 { (n[k] as f64 / ext[k]) as f32 } else { 0.0 });
         let mut bins = Bins { lo, scale, n, offsets: Vec::new(), tets: Vec::new(), start: Vec::new() };
-        // Each tet's bins (first and last on each axis), its centroid's bin and the centroid's
-        // squared distance to that bin's centre, then a counting sort by bin.
-        let spans: Vec<([usize; 3], [usize; 3])> = mesh
+        // In one pass over the tets: each one's first and last bin on each axis (at most
+        // 2^12 a side), its centroid's bin and the centroid's squared distance to that bin's
+        // centre (for the start tets). Then the tets grouped by the bins their boxes meet.
+        let n_bins = n[0] * n[1] * n[2];
+        let per_tet: Vec<([u16; 6], u32, f32)> = mesh
             .tets
             .par_iter()
             .map(|&t| {
+                let v = t.map(|i| mesh.points[i as usize]);
                 let (a, b) = geom::tet_bounds(t, &mesh.points);
-                (bins.coords(a), bins.coords(b))
-            })
-            .collect();
-        let n_bins = n[0] * n[1] * n[2];
-        let centred: Vec<(u32, f32)> = (0..mesh.tets.len())
-            .into_par_iter()
-            .map(|t| {
-                let c = mesh.tet_center(t);
-                let (b, at) = bins.bin_of(c);
+                let (a, b) = (bins.coords(a), bins.coords(b));
+                let c: Vec3 = std::array::from_fn(|k| (v[0][k] + v[1][k] + v[2][k] + v[3][k]) * 0.25);
+                let (bin, at) = bins.bin_of(c);
                 let d2 = (0..3)
                     .map(|k| {
                         let centre = if scale[k] > 0.0 { lo[k] + (at[k] as f32 + 0.5) / scale[k] } else { lo[k] };
                         (c[k] - centre) * (c[k] - centre)
                     })
                     .sum::<f32>();
-                (b as u32, d2)
+                ([a[0], a[1], a[2], b[0], b[1], b[2]].map(|c| c as u16), bin as u32, d2)
             })
             .collect();
         let mut start = vec![NONE; n_bins];
         let mut nearest = vec![f32::INFINITY; n_bins];
-        for (t, &(b, d2)) in centred.iter().enumerate() {
+        for (t, &(_, b, d2)) in per_tet.iter().enumerate() {
             // Strictly nearer: among equals the lowest id, so the choice is deterministic.
             if d2 < nearest[b as usize] {
                 (nearest[b as usize], start[b as usize]) = (d2, t as u32);
             }
         }
-        drop((centred, nearest));
-        let mut offsets = vec![0u32; n_bins + 1];
-        let each = |(a, b): &([usize; 3], [usize; 3]), f: &mut dyn FnMut(usize)| {
-            for z in a[2]..=b[2] {
-                for y in a[1]..=b[1] {
-                    for x in a[0]..=b[0] {
-                        f((z * n[1] + y) * n[0] + x);
-                    }
-                }
-            }
-        };
-        for s in &spans {
-            each(s, &mut |i| offsets[i + 1] += 1);
-        }
-        for i in 0..n_bins {
-            offsets[i + 1] += offsets[i];
-        }
-        let mut next = offsets.clone();
-        let mut tets = vec![0u32; offsets[n_bins] as usize];
-        for (t, s) in spans.iter().enumerate() {
-            each(s, &mut |i| {
-                tets[next[i] as usize] = t as u32;
-                next[i] += 1;
-            });
-        }
+        drop(nearest);
+        let grouped = Buckets::build(n_bins, mesh.tets.len(), |t| BoxBins::new(per_tet[t].0, n, t as u32));
+        let (offsets, tets) = (grouped.offsets, grouped.entries);
         for (b, s) in start.iter_mut().enumerate() {
             if *s == NONE && offsets[b] < offsets[b + 1] {
                 *s = tets[offsets[b] as usize];

@@ -7,8 +7,9 @@
 //! the same or a touching bin ([`Bins`]: uniform bins over the tets' boxes), else from its
 //! bin's start tet (the one whose centroid is nearest the bin's centre), so that sparse
 //! batches walk a tet or two as dense ones do. Where the walk leaves the mesh, runs long, or
-//! ends exactly on a face, the bin's tets are tested: one holding the point strictly is the
-//! answer, none means outside, and the rest (ties) go to BVH traversal, built only then.
+//! ends exactly on a face, the bin's tets whose boxes hold the point are tested: one holding
+//! it strictly is the answer, none means outside, and the rest (ties) go to BVH traversal,
+//! built only then.
 //! Answers do not depend on the order: a point strictly inside a tet has exactly one
 //! containing tet, which the walk, the bin and the BVH agree on, and a point on a face
 //! always gets the BVH's answer.
@@ -17,6 +18,7 @@ use super::bins::Bins;
 use super::grid_raster::{self, Cell, GridRaster};
 use super::hint::Hint;
 use super::{check_sample_lengths, BatchLocator, GridSampler, Points, Values, OUTSIDE};
+use crate::buckets::SharedSlice;
 use crate::bvh::{morton, BuildPreset, Bvh};
 use crate::error::Result;
 use crate::geom::predicates::Query;
@@ -188,15 +190,16 @@ impl CpuLocator {
     }
 
     /// Walks from tet `start` towards `p`. Returns the tet only when `p` is strictly inside
-    /// it (no zero weight), so that the answer is the unique one.
+    /// it (no zero weight), so that the answer is the unique one. `first_exact`: the exact
+    /// test at the start tet (usually the answer for a particle); else every step, the first
+    /// included, goes by plain f32 (`geom::walk_face`) until no face points onwards, and only
+    /// there the exact test (a batch's next point is usually in another tet).
     #[inline]
-    fn walk(&self, start: u32, q: &Query) -> Option<(u32, Bary)> {
+    fn walk(&self, start: u32, q: &Query, first_exact: bool) -> Option<(u32, Bary)> {
         let neighbors = self.mesh.neighbors();
         let mut t = start;
         for step in 0..MAX_WALK {
-            // After the first tet (usually the answer for a particle), steps in plain f32:
-            // the exact test only where no face points onwards.
-            if step > 0 {
+            if step > 0 || !first_exact {
                 if let Some(face) = geom::walk_face(self.mesh.tets[t as usize], &self.mesh.points, q.local) {
                     let next = neighbors[t as usize][face];
                     if next < 0 {
@@ -284,7 +287,8 @@ impl CpuLocator {
     }
 
     /// Large batches: in Morton order unless they are coherent already, [`CHUNK`] points a
-    /// task. The ties' indices are returned.
+    /// task, each answer written straight to its place in `out`. The ties' indices are
+    /// returned.
     fn locate_sorted<P: Sync, T: Send + Copy>(
         &self,
         bins: &Bins,
@@ -293,35 +297,49 @@ impl CpuLocator {
         out: &mut [T],
         f: &(impl Fn(Option<(u32, Bary)>) -> T + Sync),
     ) -> Vec<usize> {
-        let walk_chunk = |idx: &mut dyn Iterator<Item = usize>| -> Vec<Answer> {
-            // The previous answer and its bin's coordinates.
-            let mut hint: Option<(u32, [usize; 3])> = None;
-            idx.map(|i| self.search(bins, &query(&points[i]), &mut hint)).collect()
+        // Point i's value for `out`, its index kept in `ties` where the BVH decides.
+        let value = |i: usize, hint: &mut Option<(u32, [usize; 3])>, ties: &mut Vec<usize>| -> T {
+            match self.search(bins, &query(&points[i]), hint) {
+                Answer::Found(t, b) => f(Some((t, b))),
+                Answer::Outside => f(None),
+                Answer::Tie => {
+                    ties.push(i);
+                    f(None)
+                }
+            }
         };
         let working: Vec<Vec3> = points.par_iter().map(|p| query(p).local).collect();
-        let mut answers = vec![Answer::Outside; points.len()];
         if is_coherent(&working, self.mesh.info.mean_edge_length) {
-            answers.par_chunks_mut(CHUNK).enumerate().for_each(|(c, o)| {
-                o.copy_from_slice(&walk_chunk(&mut (c * CHUNK..c * CHUNK + o.len())));
-            });
-        } else {
-            let order = morton::order(&working, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
-            let sorted: Vec<Answer> = order
-                .par_chunks(CHUNK)
-                .flat_map_iter(|chunk| walk_chunk(&mut chunk.iter().map(|&i| i as usize)))
+            return out
+                .par_chunks_mut(CHUNK)
+                .enumerate()
+                .flat_map_iter(|(c, o)| {
+                    // The previous answer and its bin's coordinates.
+                    let (mut hint, mut ties) = (None, Vec::new());
+                    for (k, o) in o.iter_mut().enumerate() {
+                        *o = value(c * CHUNK + k, &mut hint, &mut ties);
+                    }
+                    ties
+                })
                 .collect();
-            for (k, &i) in order.iter().enumerate() {
-                answers[i as usize] = sorted[k];
-            }
         }
-        out.par_iter_mut().zip(&answers).for_each(|(o, a)| {
-            if let Answer::Found(t, b) = *a {
-                *o = f(Some((t, b)));
-            } else {
-                *o = f(None);
-            }
-        });
-        answers.par_iter().enumerate().filter(|(_, a)| matches!(a, Answer::Tie)).map(|(i, _)| i).collect()
+        let order = morton::order(&working, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
+        drop(working);
+        let places = SharedSlice::new(out);
+        order
+            .par_chunks(CHUNK)
+            .flat_map_iter(|chunk| {
+                let (mut hint, mut ties) = (None, Vec::new());
+                for &i in chunk {
+                    let v = value(i as usize, &mut hint, &mut ties);
+                    // SAFETY: `order` is a permutation of 0..out.len() (morton::order gives
+                    // each index once), so each place is written by one task, once, while
+                    // `out` is borrowed here and read by no one.
+                    unsafe { places.at(i as usize).write(v) };
+                }
+                ties
+            })
+            .collect()
     }
 
     /// One batch point: a walk from the previous answer (`hint`, when it was in the same or
@@ -340,11 +358,18 @@ impl CpuLocator {
             Some((t, near)) if (0..3).all(|k| near[k].abs_diff(at[k]) <= 1) => t,
             _ => first,
         };
-        let found = match self.walk(start, q) {
+        let found = match self.walk(start, q, false) {
             Some(found) => found,
             None => {
                 let mut found = None;
                 for &t in bins.tets(b) {
+                    // Most of a bin's tets are culled by their boxes (working coordinates: a
+                    // box of rounded vertices holds the rounded point whenever the file's
+                    // box holds the file's point, as in the BVH).
+                    let (lo, hi) = geom::tet_bounds(self.mesh.tets[t as usize], &self.mesh.points);
+                    if !(0..3).all(|k| lo[k] <= q.local[k] && q.local[k] <= hi[k]) {
+                        continue;
+                    }
                     if let TetTest::Inside(w) = self.test(t, q) {
                         if w.contains(&0.0) || found.is_some() {
                             return Answer::Tie;
@@ -443,7 +468,7 @@ impl CpuLocator {
             return None;
         }
         let q = self.query_at(p);
-        let found = hint.and_then(|h| self.walk(h, &q)).or_else(|| self.find(&q));
+        let found = hint.and_then(|h| self.walk(h, &q, true)).or_else(|| self.find(&q));
         if let Some((t, _)) = found {
             *hint = Some(t);
         }

@@ -17,6 +17,7 @@
 //! The grid is done a slab of z planes at a time, so memory stays bounded for any grid.
 
 use super::tet_map::{bounds_of, Side, TetMap};
+use crate::buckets::Buckets;
 use crate::geom::ImageGrid;
 use crate::geom::{self, predicates::Query, Bary, TetTest};
 use crate::mesh::{Field, Mesh};
@@ -57,7 +58,7 @@ pub(super) struct GridRaster {
     /// after its box's last: consecutive tets write to nearby grid points (so the slab's
     /// lines stay in cache). `first_at[k·rows + j]` is the first with (plane, row) >= (k, j).
     by_plane: Vec<(u32, u32)>,
-    first_at: Vec<usize>,
+    first_at: Vec<u32>,
     /// Rows in the sort's key: the grid's, or 1 (planes only) for grids of very many rows.
     rows: usize,
     /// The most z planes a tet's box covers, minus one.
@@ -95,27 +96,15 @@ impl GridRaster {
                 (r.start as u32, r.end as u32, y.start as u32)
             })
             .collect();
-        // A counting sort by (first plane, first row); tets with no grid point are left out.
+        // Grouped by (first plane, first row); tets with no grid point are left out.
         let key = |a: u32, y: u32| a as usize * ny + (y as usize).min(ny - 1);
-        let mut first_at = vec![0usize; nz * ny + 1];
-        let mut max_extent = 0;
-        for &(a, b, y) in &z_ranges {
-            if a < b {
-                first_at[key(a, y) + 1] += 1;
-                max_extent = max_extent.max((b - a - 1) as usize);
-            }
-        }
-        for k in 0..nz * ny {
-            first_at[k + 1] += first_at[k];
-        }
-        let mut next = first_at.clone();
-        let mut by_plane = vec![(0, 0); first_at[nz * ny]];
-        for (t, &(a, b, y)) in z_ranges.iter().enumerate() {
-            if a < b {
-                by_plane[next[key(a, y)]] = (t as u32, b);
-                next[key(a, y)] += 1;
-            }
-        }
+        let max_extent = z_ranges.par_iter().map(|&(a, b, _)| if a < b { (b - a - 1) as usize } else { 0 }).max();
+        let max_extent = max_extent.unwrap_or(0);
+        let grouped = Buckets::build(nz * ny, z_ranges.len(), |t| {
+            let (a, b, y) = z_ranges[t];
+            (a < b).then(|| (key(a, y), (t as u32, b)))
+        });
+        let (first_at, by_plane) = (grouped.offsets, grouped.entries);
         GridRaster {
             grid: grid.clone(),
             field_names: field_names.iter().map(|f| f.to_string()).collect(),
@@ -199,8 +188,8 @@ impl GridRaster {
         // each tet visited once a slab: a claim is a compare-and-swap, which only tets that
         // overlap contend for.
         let ny = self.rows;
-        let from = self.first_at[planes.start.saturating_sub(self.max_extent) * ny];
-        let to = self.first_at[planes.end * ny];
+        let from = self.first_at[planes.start.saturating_sub(self.max_extent) * ny] as usize;
+        let to = self.first_at[planes.end * ny] as usize;
         self.by_plane[from..to].par_chunks(TETS_A_TASK).for_each(|run| {
             for &(t, end) in run {
                 if end as usize > planes.start {

@@ -1,8 +1,9 @@
 //! Face adjacency: for each tet and each of its stored vertices, the tet across the face
 //! opposite that vertex (-1 on the boundary). Each face is owned by its smallest vertex:
-//! the tets around each vertex (a counting sort, linear) give that vertex's faces, a few
-//! dozen, matched among themselves in parallel. No sort of every face of the mesh.
+//! the tets listed at each vertex (a counting sort, linear, on every core) give that vertex's
+//! faces, a few dozen, matched among themselves in parallel. No sort of every face of the mesh.
 
+use crate::buckets::Buckets;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicI32, Ordering::Relaxed};
 
@@ -10,18 +11,16 @@ use std::sync::atomic::{AtomicI32, Ordering::Relaxed};
 pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
     assert!(tets.len() < 1 << 30, "face adjacency supports up to 2^30 tets");
     let around = VertexTets::build(tets);
-    let out: Vec<[AtomicI32; 4]> =
-        (0..tets.len()).into_par_iter().map(|_| [(); 4].map(|_| AtomicI32::new(-1))).collect();
+    let mut result = vec![[-1i32; 4]; tets.len()];
+    // SAFETY: AtomicI32 has the same size, alignment and bit validity as i32 (std's
+    // documentation), and `result` is borrowed only through `out` until the loop below ends:
+    // the rows are written in place, with no second array to copy back.
+    let out: &[[AtomicI32; 4]] = unsafe { &*(result.as_mut_slice() as *mut [[i32; 4]] as *const [[AtomicI32; 4]]) };
     // Each vertex's faces (those it is the smallest vertex of): the other two vertices, then
     // the tet and local face. Every (tet, face) slot is written by one vertex only.
     (0..around.n_vertices()).into_par_iter().with_min_len(1024).for_each_init(Vec::new, |faces, v| {
         faces.clear();
-        let mut last = u32::MAX;
         for &t in around.of(v) {
-            // A tet listed twice here has this vertex twice (degenerate): its faces once.
-            if std::mem::replace(&mut last, t) == t {
-                continue;
-            }
             let tet = tets[t as usize];
             for i in 0..4 {
                 let mut f = [0u32; 3];
@@ -49,44 +48,32 @@ pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
             }
         }
     });
-    out.into_par_iter().map(|row| row.map(AtomicI32::into_inner)).collect()
+    result
 }
 
-/// The tets around each vertex, in ascending tet order (compressed rows).
-struct VertexTets {
-    start: Vec<u32>,
-    tets: Vec<u32>,
-}
+/// The tets that own a face at each vertex, in ascending tet order (compressed rows). A
+/// face's owner is its smallest vertex, which is its tet's smallest (the three faces through
+/// it) or, for the face opposite that one, the tet's second smallest: a tet is listed at
+/// those two vertices only (once where they are equal, in a degenerate tet).
+struct VertexTets(Buckets<u32>);
 
 impl VertexTets {
     fn build(tets: &[[u32; 4]]) -> VertexTets {
         let n = tets.par_iter().map(|t| t.iter().max().map_or(0, |&m| m as usize + 1)).max().unwrap_or(0);
-        let mut start = vec![0u32; n + 1];
-        for t in tets {
-            for &v in t {
-                start[v as usize + 1] += 1;
-            }
-        }
-        for v in 1..=n {
-            start[v] += start[v - 1];
-        }
-        let mut next = start.clone();
-        let mut around = vec![0u32; 4 * tets.len()];
-        for (t, tet) in tets.iter().enumerate() {
-            for &v in tet {
-                around[next[v as usize] as usize] = t as u32;
-                next[v as usize] += 1;
-            }
-        }
-        VertexTets { start, tets: around }
+        VertexTets(Buckets::build(n, tets.len(), |t| {
+            let mut v = tets[t];
+            v.sort_unstable();
+            let second = (v[1] != v[0]).then_some((v[1] as usize, t as u32));
+            std::iter::once((v[0] as usize, t as u32)).chain(second)
+        }))
     }
 
     fn n_vertices(&self) -> usize {
-        self.start.len().saturating_sub(1)
+        self.0.n_keys()
     }
 
     fn of(&self, v: usize) -> &[u32] {
-        &self.tets[self.start[v] as usize..self.start[v + 1] as usize]
+        self.0.of(v)
     }
 }
 
