@@ -56,7 +56,9 @@ class Locator:
         (the CPU's values, bit for bit, on every backend); a bad value raises ``ValueError``.
         ``deferred=True`` (cpu): build the search (BVH, face neighbours) when a call first
         needs it, not now: ``resample_to_image`` on the CPU rasterizes the tets and needs it
-        only for grid points on faces (the tie rule); other backends ignore it.
+        only for grid points on faces (the tie rule), and ``probe``'s batches build their
+        bins and the face neighbours, the BVH only for points on faces; other backends
+        ignore it.
         Unknown options raise ``TypeError``.
 
     Points are any array-like of shape (K, 3) (or (..., 3)), float32 or float64, C or

@@ -8,23 +8,30 @@
 use rayon::prelude::*;
 
 /// Entries grouped by key: key `k`'s are `entries[offsets[k]..offsets[k + 1]]`.
-pub struct Buckets<T> {
-    pub offsets: Vec<u32>,
-    pub entries: Vec<T>,
+pub(crate) struct Buckets<T> {
+    pub(crate) offsets: Vec<u32>,
+    pub(crate) entries: Vec<T>,
 }
 
 /// Items a chunk counts, at the least (fewer chunks than threads below it).
 const MIN_CHUNK: usize = 1 << 14;
-/// Counters of all chunks together, at the most (4 bytes each): many keys get fewer chunks.
+/// Counters of all chunks together (4 bytes each) past which fewer chunks count (one, at
+/// the least, whatever the number of keys).
 const MAX_COUNTERS: usize = 1 << 25;
 /// Keys a task of the scan takes.
 const KEY_BLOCK: usize = 1 << 14;
 
 impl<T: Copy + Send + Sync> Buckets<T> {
     /// Groups the entries that `entries_of(i)` gives for each item `i` in `0..n_items`, as
-    /// (key, value) with keys below `n_keys`. `entries_of` is called twice an item (to count,
-    /// then to place) and must give the same entries both times. Panics past 2³² entries.
-    pub fn build<I: IntoIterator<Item = (usize, T)>>(
+    /// (key, value). `entries_of` is called twice an item (to count, then to place). Panics
+    /// on a key not below `n_keys` and past 2³² entries.
+    ///
+    /// # Safety
+    /// `entries_of` gives the same keys, in the same order, both times it is called for an
+    /// item (a function of the item over data nobody changes meanwhile): the places of the
+    /// scatter are counted by the first call, and two tasks would write one place if the
+    /// second gave more of a key than the first.
+    pub(crate) unsafe fn build<I: IntoIterator<Item = (usize, T)>>(
         n_keys: usize,
         n_items: usize,
         entries_of: impl Fn(usize) -> I + Sync,
@@ -37,7 +44,7 @@ impl<T: Copy + Send + Sync> Buckets<T> {
         counts.par_chunks_mut(n_keys.max(1)).enumerate().for_each(|(c, row)| {
             for i in items(c) {
                 for (k, _) in entries_of(i) {
-                    row[k] += 1;
+                    row[k] = row[k].checked_add(1).expect("more than 2^32 grouped entries");
                 }
             }
         });
@@ -84,10 +91,13 @@ impl<T: Copy + Send + Sync> Buckets<T> {
         counts.par_chunks_mut(n_keys.max(1)).enumerate().for_each(|(c, next)| {
             for i in items(c) {
                 for (k, v) in entries_of(i) {
+                    let at = next[k] as usize;
+                    assert!(at < total as usize, "grouped entries changed between the two passes");
                     // SAFETY: chunk c's entries of key k go to next[k].. (its own range of
-                    // `count` places, disjoint from every other (chunk, key)'s by the scan),
-                    // all below `total`, the capacity; each place is written once.
-                    unsafe { out.at(next[k] as usize).write(v) };
+                    // `count` places, disjoint from every other (chunk, key)'s by the scan,
+                    // as the caller promises the same entries as counted), below `total`,
+                    // the capacity (checked); each place is written once.
+                    unsafe { out.at(at).write(v) };
                     next[k] += 1;
                 }
             }
@@ -150,7 +160,8 @@ mod tests {
                     (0..m).map(|_| (rng.gen_range(0..n_keys), i as u32)).collect()
                 })
                 .collect();
-            let got = Buckets::build(n_keys, n_items, |i| items[i].iter().copied());
+            // SAFETY: the items are fixed: the same entries on both calls.
+            let got = unsafe { Buckets::build(n_keys, n_items, |i| items[i].iter().copied()) };
             let mut rows = vec![Vec::new(); n_keys];
             for item in &items {
                 for &(k, v) in item {

@@ -2,7 +2,7 @@
 //! value there? The GPU-free core: mesh model, generators, BVH and the CPU locator. Files are
 //! read and written by `tetloc-io`, which sits above it.
 
-pub mod buckets;
+mod buckets;
 pub mod bvh;
 pub mod cell;
 pub mod error;

@@ -167,7 +167,9 @@ impl<'a> LocatorBuilder<'a> {
         self
     }
 
-    /// cpu: build the search on first need (a resample's grid may need none).
+    /// cpu: build the search on first need (a resample's grid may need none; a probe's
+    /// batches need the BVH only for points on faces). The build's time and memory then
+    /// fall in the first call, not in the build's report.
     pub fn defer_cpu_build(mut self, defer: bool) -> Self {
         self.defer_cpu_build = defer;
         self

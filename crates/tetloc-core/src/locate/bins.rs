@@ -110,7 +110,8 @@ impl Bins {
             }
         }
         drop(nearest);
-        let grouped = Buckets::build(n_bins, mesh.tets.len(), |t| BoxBins::new(per_tet[t].0, n, t as u32));
+        // SAFETY: a tet's bins are a function of `per_tet`, which nothing changes meanwhile.
+        let grouped = unsafe { Buckets::build(n_bins, mesh.tets.len(), |t| BoxBins::new(per_tet[t].0, n, t as u32)) };
         let (offsets, tets) = (grouped.offsets, grouped.entries);
         for (b, s) in start.iter_mut().enumerate() {
             if *s == NONE && offsets[b] < offsets[b + 1] {

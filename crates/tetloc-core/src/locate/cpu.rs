@@ -58,7 +58,8 @@ pub struct CpuLocator {
     mesh: Arc<Mesh>,
     preset: BuildPreset,
     /// The BVH and the occupancy grid: built by [`Self::new`], or on first need by
-    /// [`Self::deferred`] (a resample on the CPU needs neither: [`GridRaster`]).
+    /// [`Self::deferred`] (a resample on the CPU needs neither: [`GridRaster`]; a batch only
+    /// for its points on faces).
     index: OnceLock<Index>,
     /// The batches' index: built on the first batch (with the face neighbours).
     bins: OnceLock<Bins>,
@@ -84,7 +85,8 @@ impl CpuLocator {
 
     /// A locator that builds its BVH, occupancy grid and face neighbours when a query first
     /// needs them: nothing is built for a resample whose grid points all fall strictly
-    /// inside one tet or outside. The batch calls build before they go parallel; a caller of
+    /// inside one tet or outside, and a batch (a probe) builds the bins and neighbours, the
+    /// BVH only for points on faces. The batch calls build before they go parallel; a caller of
     /// [`Self::locate_point`] or [`Self::locate_from`] from parallel code builds first
     /// ([`Self::bvh`]), so that no rayon task waits on a build its own thread is running.
     pub fn deferred(mesh: Arc<Mesh>, preset: BuildPreset) -> CpuLocator {
@@ -237,7 +239,10 @@ impl CpuLocator {
         f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
     ) {
         let bins = self.bins();
-        let ties = if points.len() < SORTED.max(self.mesh.n_tets() / TETS_A_SORTED_POINT) {
+        // Morton orders hold 32-bit indices: a larger batch keeps its order.
+        let sortable =
+            points.len() >= SORTED.max(self.mesh.n_tets() / TETS_A_SORTED_POINT) && points.len() as u64 <= 1 << 32;
+        let ties = if !sortable {
             self.locate_in_order(bins, points, &query, out, &f)
         } else {
             self.locate_sorted(bins, points, &query, out, &f)
@@ -325,6 +330,8 @@ impl CpuLocator {
         }
         let order = morton::order(&working, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
         drop(working);
+        // What the writes below stand on: one place for each point, each index once.
+        assert!(out.len() == points.len() && order.len() == points.len());
         let places = SharedSlice::new(out);
         order
             .par_chunks(CHUNK)

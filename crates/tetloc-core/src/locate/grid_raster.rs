@@ -100,10 +100,13 @@ impl GridRaster {
         let key = |a: u32, y: u32| a as usize * ny + (y as usize).min(ny - 1);
         let max_extent = z_ranges.par_iter().map(|&(a, b, _)| if a < b { (b - a - 1) as usize } else { 0 }).max();
         let max_extent = max_extent.unwrap_or(0);
-        let grouped = Buckets::build(nz * ny, z_ranges.len(), |t| {
-            let (a, b, y) = z_ranges[t];
-            (a < b).then(|| (key(a, y), (t as u32, b)))
-        });
+        // SAFETY: a tet's key is a function of `z_ranges`, which nothing changes meanwhile.
+        let grouped = unsafe {
+            Buckets::build(nz * ny, z_ranges.len(), |t| {
+                let (a, b, y) = z_ranges[t];
+                (a < b).then(|| (key(a, y), (t as u32, b)))
+            })
+        };
         let (first_at, by_plane) = (grouped.offsets, grouped.entries);
         GridRaster {
             grid: grid.clone(),

@@ -12,9 +12,10 @@ pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
     assert!(tets.len() < 1 << 30, "face adjacency supports up to 2^30 tets");
     let around = VertexTets::build(tets);
     let mut result = vec![[-1i32; 4]; tets.len()];
-    // SAFETY: AtomicI32 has the same size, alignment and bit validity as i32 (std's
-    // documentation), and `result` is borrowed only through `out` until the loop below ends:
-    // the rows are written in place, with no second array to copy back.
+    const _: () = assert!(std::mem::align_of::<AtomicI32>() == std::mem::align_of::<i32>());
+    // SAFETY: AtomicI32 has the same size and bit validity as i32 (std's documentation) and,
+    // checked above, its alignment; `result` is borrowed only through `out` until the loop
+    // below ends: the rows are written in place, with no second array to copy back.
     let out: &[[AtomicI32; 4]] = unsafe { &*(result.as_mut_slice() as *mut [[i32; 4]] as *const [[AtomicI32; 4]]) };
     // Each vertex's faces (those it is the smallest vertex of): the other two vertices, then
     // the tet and local face. Every (tet, face) slot is written by one vertex only.
@@ -60,12 +61,16 @@ struct VertexTets(Buckets<u32>);
 impl VertexTets {
     fn build(tets: &[[u32; 4]]) -> VertexTets {
         let n = tets.par_iter().map(|t| t.iter().max().map_or(0, |&m| m as usize + 1)).max().unwrap_or(0);
-        VertexTets(Buckets::build(n, tets.len(), |t| {
-            let mut v = tets[t];
-            v.sort_unstable();
-            let second = (v[1] != v[0]).then_some((v[1] as usize, t as u32));
-            std::iter::once((v[0] as usize, t as u32)).chain(second)
-        }))
+        // SAFETY: a tet's vertices are a function of `tets`, borrowed unchanged.
+        let lists = unsafe {
+            Buckets::build(n, tets.len(), |t| {
+                let mut v = tets[t];
+                v.sort_unstable();
+                let second = (v[1] != v[0]).then_some((v[1] as usize, t as u32));
+                std::iter::once((v[0] as usize, t as u32)).chain(second)
+            })
+        };
+        VertexTets(lists)
     }
 
     fn n_vertices(&self) -> usize {
