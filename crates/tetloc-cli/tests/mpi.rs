@@ -98,45 +98,9 @@ fn ranks_answer_as_one_process() {
         let field = if mesh == "hybrid" { "g" } else { "cellval" };
         let (points, oracle, flags) = join_sets(&dir, &sets);
         let pvtu = partition(&dir, &sets[0].mesh_path, mesh, 4);
-        let (ref_ids, ref_vals) = (dir.join(format!("{mesh}.ref.ids.bin")), dir.join(format!("{mesh}.ref.f.bin")));
-        let o = tetloc(&[
-            "locate",
-            s(&sets[0].mesh_path),
-            "--points",
-            s(&points),
-            "--backend",
-            "cpu",
-            "--field",
-            field,
-            "--out",
-            s(&ref_ids),
-            "--values",
-            s(&ref_vals),
-        ]);
-        assert!(o.status.success(), "{}", text(&o));
-        let (want_ids, want_vals): (Vec<i32>, Vec<f32>) = (read(&ref_ids), read(&ref_vals));
+        let (want_ids, want_vals) = locate_cpu(&dir, &sets[0].mesh_path, &points, field, &format!("{mesh}.ref"), None);
         for n in [1, 2, 4] {
-            let (ids, vals) = (dir.join(format!("{mesh}.{n}.ids.bin")), dir.join(format!("{mesh}.{n}.f.bin")));
-            let (o, _) = mpirun(
-                n,
-                &[],
-                &[
-                    "locate",
-                    s(&pvtu),
-                    "--points",
-                    s(&points),
-                    "--backend",
-                    "cpu",
-                    "--field",
-                    field,
-                    "--out",
-                    s(&ids),
-                    "--values",
-                    s(&vals),
-                ],
-            );
-            assert!(o.status.success(), "{mesh}, {n} ranks: {}", text(&o));
-            let (ids, vals): (Vec<i32>, Vec<f32>) = (read(&ids), read(&vals));
+            let (ids, vals) = locate_cpu(&dir, &pvtu, &points, field, &format!("{mesh}.{n}-ranks"), Some(n));
             assert_eq!(ids.len(), want_ids.len());
             let (mut ties, mut oracle_mismatch) = (0, 0);
             for i in 0..ids.len() {
@@ -156,6 +120,27 @@ fn ranks_answer_as_one_process() {
         }
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `tetloc locate MESH --points POINTS --backend cpu --field FIELD`, ids and values written to
+/// `dir` under `tag`, by one process (`ranks`: `None`) or `mpirun -n N`: the ids and values.
+fn locate_cpu(
+    dir: &Path,
+    mesh: &Path,
+    points: &Path,
+    field: &str,
+    tag: &str,
+    ranks: Option<usize>,
+) -> (Vec<i32>, Vec<f32>) {
+    let (ids, vals) = (dir.join(format!("{tag}.ids.bin")), dir.join(format!("{tag}.f.bin")));
+    let args = ["locate", s(mesh), "--points", s(points), "--backend", "cpu", "--field", field, "--out", s(&ids)];
+    let args: Vec<&str> = args.into_iter().chain(["--values", s(&vals)]).collect();
+    let o = match ranks {
+        None => tetloc(&args),
+        Some(n) => mpirun(n, &[], &args).0,
+    };
+    assert!(o.status.success(), "{tag}: {}", text(&o));
+    (read(&ids), read(&vals))
 }
 
 /// A small generated mesh in 4 pieces.
@@ -350,17 +335,7 @@ fn decomposed_openfoam_cases_run_distributed() {
     std::fs::write(&cut, "").unwrap();
     // Points at odd multiples of 1/128 in [-0.5, 6.5)³: none on a face, some outside.
     let points = scattered_points(&dir, 4000, |h| (h % 448) as f32 / 64.0 - 0.5 + 1.0 / 128.0);
-    let locate = |mesh: &Path, tag: &str, n: Option<usize>| -> (Vec<i32>, Vec<f32>) {
-        let (ids, vals) = (dir.join(format!("{tag}.ids.bin")), dir.join(format!("{tag}.f.bin")));
-        let args = ["locate", s(mesh), "--points", s(&points), "--backend", "cpu", "--field", "lin", "--out", s(&ids)];
-        let args: Vec<&str> = args.into_iter().chain(["--values", s(&vals)]).collect();
-        let o = match n {
-            None => tetloc(&args),
-            Some(n) => mpirun(n, &[], &args).0,
-        };
-        assert!(o.status.success(), "{tag}: {}", text(&o));
-        (read(&ids), read(&vals))
-    };
+    let locate = |mesh: &Path, tag: &str, n: Option<usize>| locate_cpu(&dir, mesh, &points, "lin", tag, n);
     let (want_ids, want_vals) = locate(&whole, "one", None);
     let inside = want_ids.iter().filter(|&&i| i >= 0).count();
     assert!(inside > 2000 && inside < want_ids.len(), "{inside} inside");
