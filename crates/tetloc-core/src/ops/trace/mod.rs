@@ -120,13 +120,16 @@ pub fn trace_sampled(
         })
         .collect();
     let done = std::sync::atomic::AtomicUsize::new(0);
-    // Each line with the tets of its points and the fields' values there.
+    // Each line with the tets of its points and the fields' values there, the lines run in
+    // the Morton order of their seeds and put back in the jobs' order.
     type Sampled = (Line, Vec<i32>, Vec<f32>);
-    let lines: Vec<Option<Sampled>> = o
-        .jobs(seeds.len())
+    let jobs = o.jobs(seeds.len());
+    let order = spatial_order(&jobs.iter().map(|&(s, _)| seeds[s as usize]).collect::<Vec<_>>());
+    let mut lines: Vec<(u32, Option<Sampled>)> = order
         .par_iter()
         .with_min_len(16)
-        .map(|&(seed, backward)| {
+        .map(|&j| {
+            let (seed, backward) = jobs[j as usize];
             let mut p = Particle::new(seed, seeds[seed as usize], backward);
             let (mut hint, mut ids, mut values) = (Hint::default(), Vec::new(), Vec::new());
             // The other fields' values, then the vector's, at the last lookup.
@@ -149,10 +152,11 @@ pub fn trace_sampled(
                 }
             }
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1)?;
-            Ok(p.finish().map(|l| (l, ids, values)))
+            Ok((j, p.finish().map(|l| (l, ids, values))))
         })
         .collect::<Result<_>>()?;
-    let sampled: Vec<Sampled> = lines.into_iter().flatten().collect();
+    lines.sort_unstable_by_key(|&(j, _)| j);
+    let sampled: Vec<Sampled> = lines.into_iter().filter_map(|(_, l)| l).collect();
     let (lines, (ids, values)): (Vec<Line>, (Vec<_>, Vec<_>)) =
         sampled.into_iter().map(|(l, i, v)| (l, (i, v))).unzip();
     let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
@@ -160,6 +164,19 @@ pub fn trace_sampled(
     let widths: Vec<usize> = values.iter().map(Vec::len).collect();
     let values = super::concat(&widths, |i, out| out.copy_from_slice(&values[i]));
     Ok(LineArrays::of(&lines, super::probe::Probed::from_values(ids, fields, &values)))
+}
+
+/// The order in which a CPU tracer visits particles: the Morton order of their points (over
+/// the points' own box). Particles close in the order are close in space, so one finds the
+/// tets, corners and maps of the one before it in cache: streamlines from nearby seeds run
+/// alongside, and a pathline leg revisits every particle. Lines are independent: the order
+/// changes no answer, and the lines are put back in the seeds' order.
+pub(super) fn spatial_order(points: &[Vec3]) -> Vec<u32> {
+    let finite = points.iter().filter(|p| p.iter().all(|c| c.is_finite()));
+    let (lo, hi) = finite.fold(([f32::MAX; 3], [f32::MIN; 3]), |(lo, hi), p| {
+        (std::array::from_fn(|k| lo[k].min(p[k])), std::array::from_fn(|k| hi[k].max(p[k])))
+    });
+    crate::bvh::morton::order(points, lo, hi)
 }
 
 /// The lines of [`trace`] through `loc`: by the backend's own tracer where it has one for

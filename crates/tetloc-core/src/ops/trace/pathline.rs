@@ -537,6 +537,11 @@ pub fn pathlines(
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<LineArrays> {
     let mut run = setup(seeds, o, steps, vector, fields)?;
+    // Each leg visits the particles in the Morton order of their seeds (they move little in
+    // a leg): see `spatial_order`. Back in the seeds' order at the end.
+    let order = super::spatial_order(seeds);
+    let mut by_seed: Vec<Option<Track>> = run.tracks.drain(..).map(Some).collect();
+    run.tracks = order.iter().map(|&i| by_seed[i as usize].take().expect("a permutation")).collect();
     let mesh = loc.mesh().clone();
     let alias = &run.alias;
     for (n, leg) in run.legs.iter().enumerate() {
@@ -556,6 +561,7 @@ pub fn pathlines(
         });
         progress(n + 1)?;
     }
+    run.tracks.sort_unstable_by_key(|t| t.p.id);
     Ok(finish(run.tracks, fields))
 }
 
