@@ -43,6 +43,11 @@ fn text(o: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
 }
 
+/// The test's scratch folder `name`, or `None` (the test skipped) where there is no mpirun.
+fn mpi_dir(test: &str, name: &str) -> Option<PathBuf> {
+    have_mpirun(test).then(|| tmp_dir(name))
+}
+
 fn tmp_dir(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("tetloc-mpi-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -170,11 +175,7 @@ fn scattered_points(dir: &Path, n: usize, coord: impl Fn(usize) -> f32) -> PathB
 /// the time limit (no rank is left waiting).
 #[test]
 fn a_failing_rank_ends_the_job() {
-    let test = "a_failing_rank_ends_the_job";
-    if !have_mpirun(test) {
-        return;
-    }
-    let dir = tmp_dir("fail");
+    let Some(dir) = mpi_dir("a_failing_rank_ends_the_job", "fail") else { return };
     let pvtu = small_pvtu(&dir);
     let points = points_file(&dir);
     let out = dir.join("ids.bin");
@@ -200,11 +201,7 @@ fn a_failing_rank_ends_the_job() {
 /// answered once; and `locate` of a file that is not partitioned is refused with a hint.
 #[test]
 fn bench_and_refusals() {
-    let test = "bench_and_refusals";
-    if !have_mpirun(test) {
-        return;
-    }
-    let dir = tmp_dir("bench");
+    let Some(dir) = mpi_dir("bench_and_refusals", "bench") else { return };
     let pvtu = small_pvtu(&dir);
     let (o, _) = mpirun(
         2,
@@ -258,11 +255,7 @@ fn same_value(a: f32, b: f32) -> bool {
 /// values; and options that do not run distributed are refused on every rank.
 #[test]
 fn resample_and_probe_run_distributed() {
-    let test = "resample_and_probe_run_distributed";
-    if !have_mpirun(test) {
-        return;
-    }
-    let dir = tmp_dir("ops");
+    let Some(dir) = mpi_dir("resample_and_probe_run_distributed", "ops") else { return };
     let pvtu = small_pvtu(&dir);
     let whole = dir.join("jets.vtu");
     let one = dir.join("one.npy");
@@ -319,11 +312,7 @@ fn resample_and_probe_run_distributed() {
 #[test]
 fn decomposed_openfoam_cases_run_distributed() {
     use tetloc_testdata::foam_case::{decompose, hex_grid, write_case};
-    let test = "decomposed_openfoam_cases_run_distributed";
-    if !have_mpirun(test) {
-        return;
-    }
-    let dir = tmp_dir("foam");
+    let Some(dir) = mpi_dir("decomposed_openfoam_cases_run_distributed", "foam") else { return };
     let poly = hex_grid(6);
     write_case(&dir.join("whole"), &poly, None);
     let whole = dir.join("whole/whole.foam");
