@@ -407,8 +407,17 @@ pub fn interpolate(ids: [u32; 4], bary: Bary, values: &[f32]) -> f32 {
 /// The float types values are computed in: f32 (what the GPU kernels compute, on the f32
 /// copy of the values) and f64 (on the file's values). The value definitions are generic over
 /// it, so that both precisions share one code path.
-pub trait Real: Copy + Send + Sync + std::ops::Mul<Output = Self> + std::ops::Add<Output = Self> + 'static {
+pub trait Real:
+    Copy
+    + Send
+    + Sync
+    + std::ops::Mul<Output = Self>
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + 'static
+{
     const NAN: Self;
+    fn abs(self) -> Self;
     fn from_f64(x: f64) -> Self;
     fn to_f64(self) -> f64;
     /// This precision's copy of a value kept in both (a field's value: `Field::value_in`):
@@ -418,6 +427,10 @@ pub trait Real: Copy + Send + Sync + std::ops::Mul<Output = Self> + std::ops::Ad
 
 impl Real for f32 {
     const NAN: f32 = f32::NAN;
+    #[inline(always)]
+    fn abs(self) -> f32 {
+        f32::abs(self)
+    }
     #[inline(always)]
     fn from_f64(x: f64) -> f32 {
         x as f32
@@ -434,6 +447,10 @@ impl Real for f32 {
 
 impl Real for f64 {
     const NAN: f64 = f64::NAN;
+    #[inline(always)]
+    fn abs(self) -> f64 {
+        f64::abs(self)
+    }
     #[inline(always)]
     fn from_f64(x: f64) -> f64 {
         x

@@ -135,15 +135,7 @@ impl LocalFrame {
 /// numbers of the local grid).
 #[inline(always)]
 pub fn orient3d_local(a: Vec3, b: Vec3, c: Vec3, p: Vec3, delta: f32) -> (f32, f32) {
-    let (adx, ady, adz) = (a[0] - p[0], a[1] - p[1], a[2] - p[2]);
-    let (bdx, bdy, bdz) = (b[0] - p[0], b[1] - p[1], b[2] - p[2]);
-    let (cdx, cdy, cdz) = (c[0] - p[0], c[1] - p[1], c[2] - p[2]);
-    let (bc, cb) = (bdy * cdz, cdy * bdz);
-    let (ca, ac) = (cdy * adz, ady * cdz);
-    let (ab, ba) = (ady * bdz, bdy * adz);
-    let det = adx * (bc - cb) + bdx * (ca - ac) + cdx * (ab - ba);
-    let permanent =
-        (bc.abs() + cb.abs()) * adx.abs() + (ca.abs() + ac.abs()) * bdx.abs() + (ab.abs() + ba.abs()) * cdx.abs();
+    let (det, permanent, [[adx, ady, adz], [bdx, bdy, bdz], [cdx, cdy, cdz]]) = super::det_and_permanent(a, b, c, p);
     // Row norms, widened by the rounding of the inputs.
     let two_delta = 2.0 * delta;
     let ma = adx.abs() + ady.abs() + adz.abs() + two_delta;

@@ -76,6 +76,28 @@ pub(crate) mod reference;
 mod tests;
 
 pub use local::{orient3d_local, LocalFrame, FILTER_DELTA};
+
+/// orient3d's first stage in either precision: the 3×3 determinant of the rows a − d, b − d,
+/// c − d, its permanent (the sum of its products' magnitudes, which the error bounds scale)
+/// and the rows. The f64 filter ([`orient::orient3d_stage_a`]) and the f32 one on local
+/// coordinates ([`orient3d_local`]) share it: one order of operations.
+#[inline(always)]
+pub(crate) fn det_and_permanent<T: crate::geom::Real>(
+    a: [T; 3],
+    b: [T; 3],
+    c: [T; 3],
+    d: [T; 3],
+) -> (T, T, [[T; 3]; 3]) {
+    let rows @ [[adx, ady, adz], [bdx, bdy, bdz], [cdx, cdy, cdz]] =
+        [a, b, c].map(|u| [u[0] - d[0], u[1] - d[1], u[2] - d[2]]);
+    let (bc, cb) = (bdy * cdz, cdy * bdz);
+    let (ca, ac) = (cdy * adz, ady * cdz);
+    let (ab, ba) = (ady * bdz, bdy * adz);
+    let det = adx * (bc - cb) + bdx * (ca - ac) + cdx * (ab - ba);
+    let permanent =
+        (bc.abs() + cb.abs()) * adx.abs() + (ca.abs() + ac.abs()) * bdx.abs() + (ab.abs() + ba.abs()) * cdx.abs();
+    (det, permanent, rows)
+}
 pub use orient::{orient2d, orient3d, orient3d_sos};
 pub use tet::{barycentrics, side_of_tet, side_of_tet_staged, test_point_exact, ExactTest, Query, Side, FACES};
 

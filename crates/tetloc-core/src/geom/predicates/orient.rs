@@ -33,15 +33,7 @@ pub fn orient3d(a: Point, b: Point, c: Point, d: Point) -> f64 {
 /// Stage A: the determinant in f64 from the differences, and its error bound.
 #[inline]
 pub fn orient3d_stage_a(a: Point, b: Point, c: Point, d: Point) -> (f64, f64) {
-    let (adx, ady, adz) = (a[0] - d[0], a[1] - d[1], a[2] - d[2]);
-    let (bdx, bdy, bdz) = (b[0] - d[0], b[1] - d[1], b[2] - d[2]);
-    let (cdx, cdy, cdz) = (c[0] - d[0], c[1] - d[1], c[2] - d[2]);
-    let (bc, cb) = (bdy * cdz, cdy * bdz);
-    let (ca, ac) = (cdy * adz, ady * cdz);
-    let (ab, ba) = (ady * bdz, bdy * adz);
-    let det = adx * (bc - cb) + bdx * (ca - ac) + cdx * (ab - ba);
-    let permanent =
-        (bc.abs() + cb.abs()) * adx.abs() + (ca.abs() + ac.abs()) * bdx.abs() + (ab.abs() + ba.abs()) * cdx.abs();
+    let (det, permanent, _) = super::det_and_permanent(a, b, c, d);
     (det, ORIENT3D_BOUND * permanent)
 }
 
