@@ -30,28 +30,40 @@ pub fn compare(loc: &mut dyn BatchLocator, mesh: &Mesh, set: &QuerySet) -> Misma
     let mut ids_only = vec![0; n];
     loc.locate(&set.points, &mut ids_only).unwrap();
     assert_eq!(ids, ids_only, "{}: locate and sample_many disagree", set.label);
-    let max_f = mesh.field("f").unwrap().values.iter().fold(0f64, |a, &x| a.max(f64::from(x).abs()));
     let g = &mesh.field("g").unwrap().values;
+    // g is the answer cell's value exactly; outside, f and g are NaN.
+    let g_right = |i: usize| match ids[i] {
+        got if got >= 0 => v[2 * i + 1] == g[got as usize],
+        _ => v[2 * i].is_nan() && v[2 * i + 1].is_nan(),
+    };
+    score(mesh, set, &ids, |i| f64::from(v[2 * i]), g_right)
+}
+
+/// The mismatches of answers `ids` (f's value at point i `f(i)`, g's right or not
+/// `g_right(i)`) with `set`'s oracle: [`compare`]'s and [`compare_far`]'s one scoring.
+fn score(
+    mesh: &Mesh,
+    set: &QuerySet,
+    ids: &[i32],
+    f: impl Fn(usize) -> f64,
+    g_right: impl Fn(usize) -> bool,
+) -> Mismatch {
+    let max_f = mesh.field("f").unwrap().values.iter().fold(0f64, |a, &x| a.max(f64::from(x).abs()));
     let want_values = set.value.as_ref().expect("mixed sets carry values");
     let mut m = Mismatch::default();
-    for i in 0..n {
-        let (got, want) = (ids[i], set.cell[i]);
-        if got >= 0 && v[2 * i + 1] != g[got as usize] {
-            m.cell_values += 1;
-        }
-        if got < 0 && !(v[2 * i].is_nan() && v[2 * i + 1].is_nan()) {
+    for (i, &got) in ids.iter().enumerate() {
+        if !g_right(i) {
             m.cell_values += 1;
         }
         if set.ambiguous(i) {
             continue;
         }
-        match (want >= 0, got >= 0) {
+        match (set.cell[i] >= 0, got >= 0) {
             (true, false) => m.lost += 1,
             (false, true) => m.extra += 1,
-            (true, true) if got != want => m.other += 1,
+            (true, true) if got != set.cell[i] => m.other += 1,
             (true, true) => {
-                let (got, want) = (f64::from(v[2 * i]), want_values[i]);
-                if (got - want).abs() > 1e-5 * want.abs() + 2e-6 * max_f {
+                if (f(i) - want_values[i]).abs() > 1e-5 * want_values[i].abs() + 2e-6 * max_f {
                     m.values += 1;
                 }
             }
@@ -93,32 +105,12 @@ pub fn compare_far(loc: &mut dyn BatchLocator, mesh: &Mesh, set: &QuerySet) -> M
     let n = points.len();
     let (mut ids, mut v) = (vec![0; n], vec![0f64; 2 * n]);
     loc.sample_many64(&points, &["f", "g"], &mut ids, &mut v).unwrap();
-    let max_f = mesh.field("f").unwrap().values.iter().fold(0f64, |a, &x| a.max(f64::from(x).abs()));
     let g = &mesh.field("g").unwrap().values;
-    let want_values = set.value.as_ref().expect("mixed sets carry values");
-    let mut m = Mismatch::default();
-    for i in 0..n {
-        let (got, want) = (ids[i], set.cell[i]);
-        let cell_value_ok = if got >= 0 { v[2 * i + 1] as f32 == g[got as usize] } else { v[2 * i + 1].is_nan() };
-        if !cell_value_ok || (got < 0 && !v[2 * i].is_nan()) {
-            m.cell_values += 1;
-        }
-        if set.ambiguous(i) {
-            continue;
-        }
-        match (want >= 0, got >= 0) {
-            (true, false) => m.lost += 1,
-            (false, true) => m.extra += 1,
-            (true, true) if got != want => m.other += 1,
-            (true, true) => {
-                if (v[2 * i] - want_values[i]).abs() > 1e-5 * want_values[i].abs() + 2e-6 * max_f {
-                    m.values += 1;
-                }
-            }
-            (false, false) => {}
-        }
-    }
-    m
+    let g_right = |i: usize| match ids[i] {
+        got if got >= 0 => v[2 * i + 1] as f32 == g[got as usize],
+        _ => v[2 * i].is_nan() && v[2 * i + 1].is_nan(),
+    };
+    score(mesh, set, &ids, |i| v[2 * i], g_right)
 }
 
 /// The mixed oracle sets by mesh file (`.zlib.vtu` and `.msh` of each mesh).
