@@ -2,6 +2,9 @@
 //! seconds), for profiling without Python: `cargo run --release -p tetloc-core --example
 //! cpu_ops -- MESH [PROBE_MESH] [DIMS] [SEEDS] [STEPS]`, each mesh a file or `fusion:TETS`
 //! (generated with its vector field `v`, as `tetloc gen fusion --vector`; TETS like 1.4M).
+//! `OPS` picks the operations (letters of `rpt`, all by default); `BUILD_PARTS=1` times the
+//! face neighbours and the BVH alone; `PROBE_PARTS=N` splits the probe: once more with its
+//! search built (the walks and the values), then N times ids only (the walks alone).
 
 use std::path::Path;
 use std::sync::Arc;
@@ -92,9 +95,9 @@ fn main() -> tetloc_core::Result<()> {
             probe::probe(&mut loc, &target.points, &groups, |_| Ok(()))
         })?;
         eprintln!("  {} inside", probed.n_valid());
-        if std::env::var("PROBE_PARTS").is_ok() {
+        if let Ok(repeats) = std::env::var("PROBE_PARTS") {
             timed("  probe again (bins built)", || probe::probe(&mut loc, &target.points, &groups, |_| Ok(())))?;
-            for _ in 0..std::env::var("PROBE_PARTS").unwrap().parse().unwrap_or(1) {
+            for _ in 0..repeats.parse().unwrap_or(1) {
                 timed("  ids only", || probe::probe(&mut loc, &target.points, &[], |_| Ok(())))?;
             }
         }

@@ -67,7 +67,7 @@ impl<T: Copy + Send + Sync> Buckets<T> {
         offsets[n_keys] = total as u32;
         // Each block writes its keys' offsets and its keys' counters (turned into places):
         // the counters of one key in every chunk row, reached through a shared pointer.
-        let places = SharedSlice(counts.as_mut_ptr());
+        let places = SharedSlice::new(&mut counts);
         offsets[..n_keys].par_chunks_mut(KEY_BLOCK).enumerate().for_each(|(b, offs)| {
             let mut at = block_start[b] as u32;
             for (j, o) in offs.iter_mut().enumerate() {

@@ -2,11 +2,11 @@
 //! have none. It orbits the camera continuously (an input event every 1/`rate` s, as a
 //! dragging mouse sends them; those due while a frame was decoded go as one), receives and
 //! decodes every frame, acknowledges it as the page does, and after each orbit stops and
-//! waits for the lossless still frame. It reports
-//! delivered frames/s, input-to-frame latency (from an input to the first frame that shows
-//! it or a later input), still-frame latency (from the last input to the still frame), and
-//! where a frame's time goes: march, encode, send (from the end of encoding to the arrival
-//! here, over loopback on the same clock) and decode.
+//! waits for the lossless still frame. It reports delivered frames/s, input-to-frame
+//! latency (from an input to the first frame that shows it or a later input), still-frame
+//! latency (from the last input to the still frame), and where a frame's time goes: march,
+//! encode, send (from the end of encoding to the arrival here, over loopback on the same
+//! clock) and decode.
 
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;

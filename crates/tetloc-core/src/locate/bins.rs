@@ -83,14 +83,12 @@ impl Bins {
         // 2^12 a side), its centroid's bin and the centroid's squared distance to that bin's
         // centre (for the start tets). Then the tets grouped by the bins their boxes meet.
         let n_bins = n[0] * n[1] * n[2];
-        let per_tet: Vec<([u16; 6], u32, f32)> = mesh
-            .tets
-            .par_iter()
-            .map(|&t| {
-                let v = t.map(|i| mesh.points[i as usize]);
-                let (a, b) = geom::tet_bounds(t, &mesh.points);
+        let per_tet: Vec<([u16; 6], u32, f32)> = (0..mesh.tets.len())
+            .into_par_iter()
+            .map(|t| {
+                let (a, b) = geom::tet_bounds(mesh.tets[t], &mesh.points);
                 let (a, b) = (bins.coords(a), bins.coords(b));
-                let c: Vec3 = std::array::from_fn(|k| (v[0][k] + v[1][k] + v[2][k] + v[3][k]) * 0.25);
+                let c = mesh.tet_center(t);
                 let (bin, at) = bins.bin_of(c);
                 let d2 = (0..3)
                     .map(|k| {
