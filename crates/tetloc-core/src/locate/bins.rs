@@ -123,10 +123,12 @@ impl Bins {
     }
 
     /// The bin coordinates of a point, clamped to the grid on each axis (monotone; on
-    /// values clamped at 0 the cast's truncation is the floor).
+    /// values clamped at 0 the cast's truncation is the floor). Through u32: on x86-64 a
+    /// saturating f32 → u32 cast is one conversion, to usize a few more (this runs for every
+    /// tet's box and every query; a side has at most 2^12 bins).
     #[inline]
     fn coords(&self, p: Vec3) -> [usize; 3] {
-        std::array::from_fn(|k| (((p[k] - self.lo[k]) * self.scale[k]).max(0.0) as usize).min(self.n[k] - 1))
+        std::array::from_fn(|k| ((((p[k] - self.lo[k]) * self.scale[k]).max(0.0) as u32) as usize).min(self.n[k] - 1))
     }
 
     /// The bin of a point (working coordinates) of the mesh's box, and its coordinates.

@@ -7,9 +7,12 @@ use crate::buckets::Buckets;
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicI32, Ordering::Relaxed};
 
-/// `tets` must be in canonical order. Tet counts up to 2³⁰ (two bits hold the local face).
+/// `tets` must be in canonical order (`geom::canonical_tet`: ids ascending but for the last
+/// two, which may be swapped), so that each face's vertices come sorted with no sort. Tet
+/// counts up to 2³⁰ (two bits hold the local face).
 pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
     assert!(tets.len() < 1 << 30, "face adjacency supports up to 2^30 tets");
+    debug_assert!(tets.iter().all(|&[a, b, c, d]| a <= b && b <= c.min(d)), "tets in canonical order");
     let around = VertexTets::build(tets);
     let mut result = vec![[-1i32; 4]; tets.len()];
     const _: () = assert!(std::mem::align_of::<AtomicI32>() == std::mem::align_of::<i32>());
@@ -22,20 +25,16 @@ pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
     (0..around.n_vertices()).into_par_iter().with_min_len(1024).for_each_init(Vec::new, |faces, v| {
         faces.clear();
         for &t in around.of(v) {
-            let tet = tets[t as usize];
-            for i in 0..4 {
-                let mut f = [0u32; 3];
-                let mut k = 0;
-                for (j, &w) in tet.iter().enumerate() {
-                    if j != i {
-                        f[k] = w;
-                        k += 1;
-                    }
-                }
-                f.sort_unstable();
-                if f[0] == v as u32 {
-                    faces.push([f[1], f[2], t << 2 | i as u32]);
-                }
+            // Canonical order: a ≤ b ≤ c, d (c and d in either order). The face opposite a
+            // is owned by b, the other three by a (by both where a = b).
+            let [a, b, c, d] = tets[t as usize];
+            let (lo, hi) = (c.min(d), c.max(d));
+            let t = t << 2;
+            if a == v as u32 {
+                faces.extend([[lo, hi, t | 1], [b, d, t | 2], [b, c, t | 3]]);
+            }
+            if b == v as u32 {
+                faces.push([lo, hi, t]);
             }
         }
         faces.sort_unstable();
@@ -64,8 +63,7 @@ impl VertexTets {
         // SAFETY: a tet's vertices are a function of `tets`, borrowed unchanged.
         let lists = unsafe {
             Buckets::build(n, tets.len(), |t| {
-                let mut v = tets[t];
-                v.sort_unstable();
+                let v = tets[t];
                 let second = (v[1] != v[0]).then_some((v[1] as usize, t as u32));
                 std::iter::once((v[0] as usize, t as u32)).chain(second)
             })
@@ -85,7 +83,7 @@ impl VertexTets {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{seq::SliceRandom, SeedableRng};
+    use rand::{Rng, SeedableRng};
 
     /// The reference: every face record of the mesh sorted together, equal neighbours paired
     /// (the first two where more than two tets share a face).
@@ -110,16 +108,19 @@ mod tests {
         out
     }
 
-    /// Random tets over few vertices share faces two, three and more at a time.
+    /// Random canonical tets over few vertices (repeated ids too) share faces two, three and
+    /// more at a time.
     #[test]
     fn vertex_owned_faces_pair_as_sorting_every_face() {
         let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
-        let ids: Vec<u32> = (0..12).collect();
         for n in [0usize, 1, 7, 5000] {
             let tets: Vec<[u32; 4]> = (0..n)
                 .map(|_| {
-                    let mut t = [0u32; 4];
-                    t.copy_from_slice(&ids.choose_multiple(&mut rng, 4).copied().collect::<Vec<_>>());
+                    let mut t: [u32; 4] = std::array::from_fn(|_| rng.gen_range(0..12));
+                    t.sort_unstable();
+                    if rng.gen_bool(0.5) {
+                        t.swap(2, 3);
+                    }
                     t
                 })
                 .collect();
