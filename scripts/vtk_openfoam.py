@@ -20,12 +20,7 @@ Exits with status 3 when the `vtk` module is missing, so the test can tell that 
 import json
 import sys
 
-try:
-    import vtk
-    from vtk.util.numpy_support import vtk_to_numpy
-except ImportError as e:
-    print(f"vtk_openfoam.py: {e} (pip install vtk numpy)", file=sys.stderr)
-    sys.exit(3)
+from vtk_common import vtk, vtk_to_numpy  # exits 3 without vtk
 
 
 def internal_meshes(output):

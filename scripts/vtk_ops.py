@@ -23,13 +23,7 @@ import json
 import os
 import sys
 
-try:
-    import numpy as np
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-except ImportError as e:
-    print(f"vtk_ops.py: {e} (pip install vtk numpy)", file=sys.stderr)
-    sys.exit(3)
+from vtk_common import np, point_cloud, read_points, vtk, vtk_to_numpy  # exits 3 without vtk
 
 
 def read(path):
@@ -77,12 +71,7 @@ def resample(mesh_path, dims, ours, out_dir):
 
 def points_of(path):
     if path.endswith(".bin"):
-        pts = np.fromfile(path, dtype="<f4").reshape(-1, 3).astype(np.float64)
-        cloud = vtk.vtkPolyData()
-        vp = vtk.vtkPoints()
-        vp.SetData(numpy_to_vtk(pts, deep=1))
-        cloud.SetPoints(vp)
-        return cloud
+        return point_cloud(read_points(path))
     return read(path)
 
 

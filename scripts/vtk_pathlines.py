@@ -19,14 +19,8 @@ Exits with status 3 when the `vtk` module is missing, so the test can tell that 
 import os
 import sys
 
-try:
-    import numpy as np
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-    from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
-except ImportError as e:
-    print(f"no vtk: {e}", file=sys.stderr)
-    sys.exit(3)
+from vtk_common import np, numpy_to_vtk, point_cloud, vtk, vtk_to_numpy  # exits 3 without vtk
+from vtkmodules.util.vtkAlgorithm import VTKPythonAlgorithmBase
 
 TIMES = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0]
 SDDP = vtk.vtkStreamingDemandDrivenPipeline
@@ -125,10 +119,7 @@ def write_lines(poly, prefix, out_dir, ids, times):
 
 
 def compare(out_dir, start, end, ours):
-    poly = vtk.vtkPolyData()
-    pts = vtk.vtkPoints()
-    pts.SetData(numpy_to_vtk(seeds().astype(np.float64), deep=True))
-    poly.SetPoints(pts)
+    poly = point_cloud(seeds().astype(np.float64))
     src = Series(float(start))  # held: the pipeline keeps no Python reference to it
     f = vtk.vtkParticlePathFilter()
     f.SetInputConnection(0, src.GetOutputPort())

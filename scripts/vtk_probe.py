@@ -15,13 +15,7 @@ Exits with status 3 when the `vtk` module is missing, so the test can tell that 
 import os
 import sys
 
-try:
-    import numpy as np
-    import vtk
-    from vtk.util.numpy_support import numpy_to_vtk, vtk_to_numpy
-except ImportError as e:
-    print(f"vtk_probe.py: {e} (pip install vtk numpy)", file=sys.stderr)
-    sys.exit(3)
+from vtk_common import np, point_cloud, read_points, vtk, vtk_to_numpy  # exits 3 without vtk
 
 
 def main(mesh_path, points_path, tolerance, pointset_path, out_dir, *fields):
@@ -32,13 +26,9 @@ def main(mesh_path, points_path, tolerance, pointset_path, out_dir, *fields):
     if mesh.GetNumberOfCells() == 0:
         sys.exit(f"vtk_probe.py: {mesh_path}: VTK read no cells")
 
-    pts = np.fromfile(points_path, dtype="<f4").reshape(-1, 3).astype(np.float64)
-    cloud = vtk.vtkPolyData()
-    vp = vtk.vtkPoints()
-    vp.SetData(numpy_to_vtk(pts, deep=1))
-    cloud.SetPoints(vp)
+    pts = read_points(points_path)
     probe = vtk.vtkProbeFilter()
-    probe.SetInputData(cloud)
+    probe.SetInputData(point_cloud(pts))
     probe.SetSourceData(mesh)
     probe.SetComputeTolerance(False)
     probe.SetTolerance(float(tolerance))

@@ -15,40 +15,16 @@ import argparse
 import json
 import math
 import pathlib
-import statistics
 import time
-from typing import Any, Callable, Dict
+from typing import Any, Dict
 
 import numpy as np
 import torch
 import torch.nn.functional as F
+from _torch_bench import count, timed
 
 import tetloc
 import tetloc.torch as tt
-
-
-def count(text: str) -> int:
-    text = text.strip().upper()
-    scale = {"K": 1e3, "M": 1e6, "G": 1e9}.get(text[-1:], 1)
-    return int(float(text.rstrip("KMG")) * scale)
-
-
-def timed(dev: torch.device, f: Callable[[], Any], repeats: int) -> Dict[str, float]:
-    """Seconds of `f` between two events on the current stream: best and median of `repeats`."""
-    times = []
-    for _ in range(repeats):
-        if dev.type == "cuda":
-            start, end = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
-            start.record()
-            f()
-            end.record()
-            end.synchronize()
-            times.append(start.elapsed_time(end) / 1e3)
-        else:
-            t0 = time.perf_counter()
-            f()
-            times.append(time.perf_counter() - t0)
-    return {"best_s": min(times), "median_s": statistics.median(times)}
 
 
 def errors(got: torch.Tensor, exact: torch.Tensor, field_range: float) -> Dict[str, float]:

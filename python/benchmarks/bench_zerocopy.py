@@ -17,19 +17,13 @@ from __future__ import annotations
 import argparse
 import json
 import pathlib
-import statistics
-from typing import Any, Callable, Dict
+from typing import Any, Dict
 
 import torch
+from _torch_bench import count, timed
 
 import tetloc
 import tetloc.torch as tt
-
-
-def count(text: str) -> int:
-    text = text.strip().upper()
-    scale = {"K": 1e3, "M": 1e6, "G": 1e9}.get(text[-1:], 1)
-    return int(float(text.rstrip("KMG")) * scale)
 
 
 def morton(points: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor) -> torch.Tensor:
@@ -40,20 +34,6 @@ def morton(points: torch.Tensor, lo: torch.Tensor, hi: torch.Tensor) -> torch.Te
         for axis in range(3):
             code |= ((cells[:, axis] >> bit) & 1) << (3 * bit + axis)
     return code
-
-
-def timed(dev: torch.device, f: Callable[[], Any], repeats: int) -> Dict[str, float]:
-    """Seconds of `f` between two events on the current stream: best and median of `repeats`."""
-    f()  # warm-up: buffers grow, pipelines compile
-    times = []
-    for _ in range(repeats):
-        start, end = torch.cuda.Event(enable_timing=True), torch.cuda.Event(enable_timing=True)
-        start.record()
-        f()
-        end.record()
-        end.synchronize()
-        times.append(start.elapsed_time(end) / 1e3)
-    return {"best_s": min(times), "median_s": statistics.median(times)}
 
 
 def main() -> None:
@@ -80,13 +60,13 @@ def main() -> None:
         loc = tt.Locator(mesh, device=dev, zero_copy=zero_copy)
         key = loc.path
         copies = tt.host_copies()
-        r: Dict[str, Any] = {"locate": timed(dev, lambda: loc.locate(points), args.repeats)}
-        r["forward"] = timed(dev, lambda: loc.sample(points, values), args.repeats)
+        r: Dict[str, Any] = {"locate": timed(dev, lambda: loc.locate(points), args.repeats, warm=True)}
+        r["forward"] = timed(dev, lambda: loc.sample(points, values), args.repeats, warm=True)
 
         def backward() -> None:
             loc.sample(points, values).sum().backward()
 
-        r["forward_backward"] = timed(dev, backward, args.repeats)
+        r["forward_backward"] = timed(dev, backward, args.repeats, warm=True)
         r["backward_only_s"] = r["forward_backward"]["best_s"] - r["forward"]["best_s"]
         for k in ("locate", "forward"):
             r[k]["G_per_s"] = n / r[k]["best_s"] / 1e9

@@ -200,6 +200,20 @@ def exact_values(mesh: tetloc.Mesh, ids: np.ndarray, points: np.ndarray, values:
     return out
 
 
+def same_mesh(a: tetloc.Mesh, b: tetloc.Mesh) -> None:
+    """The same cells (types, nodes), points, tets and fields: what a round trip through
+    pyvista, meshio or a file keeps."""
+    assert (a.n_points, a.n_cells, a.n_tets) == (b.n_points, b.n_cells, b.n_tets)
+    np.testing.assert_array_equal(a.points64, b.points64)
+    np.testing.assert_array_equal(a.celltypes, b.celltypes)
+    np.testing.assert_array_equal(a.offsets, b.offsets)
+    np.testing.assert_array_equal(a.cell_connectivity, b.cell_connectivity)
+    np.testing.assert_array_equal(a.tets, b.tets)
+    assert a.point_data == b.point_data and a.cell_data == b.cell_data
+    for name in list(a.point_data) + list(a.cell_data):
+        np.testing.assert_array_equal(a.field(name), b.field(name))
+
+
 # --- The fresh-clone counterpart of ../shared/data (issue 30 item 1) ---------------------
 # Meshes from the project's own generators (`tetloc gen`, with its fields `f` and `cellval`)
 # under the shared meshes' names, and their query sets in the shared layout, so that

@@ -13,31 +13,14 @@ import argparse
 import json
 import pathlib
 import sys
-import traceback
-from typing import Callable, Dict, List
+from typing import List
 
 import numpy as np
 import torch
+from _cuda_checks import check, results, tally
 
 import tetloc
 import tetloc.torch as tt
-
-results: Dict[str, str] = {}
-
-
-def check(name: str) -> Callable[[Callable[[], None]], Callable[[], None]]:
-    def run(f: Callable[[], None]) -> Callable[[], None]:
-        try:
-            f()
-            results[name] = "PASS"
-            print(f"PASS {name}", flush=True)
-        except Exception as e:  # a check that fails reports and the others still run
-            results[name] = f"FAIL: {type(e).__name__}: {e}"
-            print(f"FAIL {name}: {type(e).__name__}: {e}", flush=True)
-            traceback.print_exc()
-        return f
-
-    return run
 
 
 def kuhn_mesh(n: int) -> tetloc.Mesh:
@@ -183,9 +166,7 @@ def main() -> int:
 
     if args.json:
         args.json.write_text(json.dumps({"checks": results, "host_copies_per_sample_call": copies}, indent=1))
-    failures = sum(v.startswith("FAIL") for v in results.values())
-    print(f"{len(results) - failures} passed, {failures} failed")
-    return failures
+    return tally()
 
 
 if __name__ == "__main__":

@@ -19,30 +19,12 @@ import argparse
 import json
 import pathlib
 import sys
-import traceback
-from typing import Callable, Dict
 
 import torch
+from _cuda_checks import check, results, tally
 
 import tetloc
 import tetloc.torch as tt
-
-results: Dict[str, str] = {}
-
-
-def check(name: str) -> Callable[[Callable[[], None]], Callable[[], None]]:
-    def run(f: Callable[[], None]) -> Callable[[], None]:
-        try:
-            f()
-            results[name] = "PASS"
-            print(f"PASS {name}", flush=True)
-        except Exception as e:  # a failed check reports and the others still run
-            results[name] = f"FAIL: {type(e).__name__}: {e}"
-            print(f"FAIL {name}: {type(e).__name__}: {e}", flush=True)
-            traceback.print_exc()
-        return f
-
-    return run
 
 
 def main() -> int:
@@ -170,8 +152,7 @@ def main() -> int:
             errors = loc._cuda.validation_errors()
             assert errors == 0, f"{errors} validation errors"
 
-    failed = sum(r != "PASS" for r in results.values())
-    print(f"{len(results) - failed} passed, {failed} failed")
+    failed = tally()
     if args.json:
         args.json.write_text(json.dumps({"path": loc.path, "why": loc.zero_copy_error, "results": results}, indent=1))
     return failed

@@ -9,19 +9,9 @@ import meshio
 import numpy as np
 import pytest
 import pyvista as pv
+from conftest import same_mesh
 
 import tetloc
-
-
-def same_mesh(a: tetloc.Mesh, b: tetloc.Mesh) -> None:
-    assert (a.n_points, a.n_cells) == (b.n_points, b.n_cells)
-    np.testing.assert_array_equal(a.points, b.points)
-    np.testing.assert_array_equal(a.cells, b.cells)
-    np.testing.assert_array_equal(a.celltypes, b.celltypes)
-    np.testing.assert_array_equal(a.tets, b.tets)
-    assert a.point_data == b.point_data and a.cell_data == b.cell_data
-    for name in list(a.point_data) + list(a.cell_data):
-        np.testing.assert_array_equal(a.field(name), b.field(name))
 
 
 def test_pyvista_round_trip(grid_mesh):

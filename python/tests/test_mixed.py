@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 import pyvista as pv
 import pyvista.examples.cells as example
+from conftest import same_mesh
 
 import tetloc
 
@@ -45,19 +46,6 @@ def with_fields(grid: pv.UnstructuredGrid) -> pv.UnstructuredGrid:
     grid.point_data["v"] = p
     grid.cell_data["c"] = np.arange(grid.n_cells, dtype=np.float64) + 0.25
     return grid
-
-
-def same_mesh(a: tetloc.Mesh, b: tetloc.Mesh) -> None:
-    """The same cells (types, nodes), points, tets and fields."""
-    assert (a.n_points, a.n_cells, a.n_tets) == (b.n_points, b.n_cells, b.n_tets)
-    np.testing.assert_array_equal(a.points64, b.points64)
-    np.testing.assert_array_equal(a.celltypes, b.celltypes)
-    np.testing.assert_array_equal(a.offsets, b.offsets)
-    np.testing.assert_array_equal(a.cell_connectivity, b.cell_connectivity)
-    np.testing.assert_array_equal(a.tets, b.tets)
-    assert a.point_data == b.point_data and a.cell_data == b.cell_data
-    for name in list(a.point_data) + list(a.cell_data):
-        np.testing.assert_array_equal(a.field(name), b.field(name))
 
 
 # Corners of each VTK type tetloc reads: the cell is their convex hull when its faces are planar.

@@ -29,3 +29,37 @@ step() {
   echo "== $name: exit $rc"
   [ "$rc" -eq 0 ] || failed=$((failed + 1))
 }
+
+# wheel_setup NAME WHEEL: the start of the runs of a tetloc wheel under the machine's Python
+# (torch.sh, zerocopy.sh). Sets out (from OUT, made; this shell's output goes to $out/NAME.log
+# too), repo (two folders above the script), failed=0 (for step), work (a scratch folder), py
+# (TETLOC_PY, else python3 with WHEEL on PYTHONPATH) and data (`--data DIR` where the oracle
+# data is, else empty), and writes the card to $out/gpu.txt.
+wheel_setup() {
+  local name=$1 wheel=$2
+  out=${OUT:?set OUT to the folder for the logs}
+  mkdir -p "$out"
+  repo=$(cd "$(dirname "$0")/../.." && pwd)
+  exec > >(tee "$out/$name.log") 2>&1
+  failed=0
+  nvidia-smi --query-gpu=name,driver_version,memory.total,uuid --format=csv,noheader > "$out/gpu.txt" 2>&1
+  cat "$out/gpu.txt"
+  work=$(mktemp -d)
+  if [ -n "${TETLOC_PY:-}" ]; then
+    py=$TETLOC_PY
+  else
+    # The machine's python3 holds PyTorch and numpy (on the H200 image it is itself a virtualenv,
+    # so a `--system-site-packages` venv made from it would not see them): the wheel's files go
+    # into a folder of their own on PYTHONPATH.
+    py=python3
+    if ! python3 -m pip install -q --no-index --no-deps --no-compile --target "$work/site" "$wheel"; then
+      echo "no pip: unpacking $wheel onto PYTHONPATH"
+      python3 -c 'import sys, zipfile; zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])' "$wheel" "$work/site" ||
+        { echo "cannot unpack $wheel"; exit 1; }
+    fi
+    export PYTHONPATH=$work/site${PYTHONPATH:+:$PYTHONPATH}
+  fi
+  data=()
+  [ -d "$repo/shared/data" ] && data=(--data "$repo/shared/data")
+  [ -z "${data[*]}" ] && [ -d "$repo/../shared/data" ] && data=(--data "$repo/../shared/data")
+}

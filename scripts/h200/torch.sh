@@ -16,30 +16,9 @@
 set -uo pipefail
 wheel=${1:?usage: OUT=DIR scripts/h200/torch.sh WHEEL TETLOC_BIN}
 bin=${2:?usage: OUT=DIR scripts/h200/torch.sh WHEEL TETLOC_BIN}
-out=${OUT:?set OUT to the folder for the logs}
-mkdir -p "$out"
-repo=$(cd "$(dirname "$0")/../.." && pwd)
-exec > >(tee "$out/torch.log") 2>&1
-failed=0
-. "$(dirname "$0")/common.sh" # step
+. "$(dirname "$0")/common.sh" # wheel_setup, step
+wheel_setup torch "$wheel"
 
-nvidia-smi --query-gpu=name,driver_version,memory.total,uuid --format=csv,noheader > "$out/gpu.txt" 2>&1
-cat "$out/gpu.txt"
-work=$(mktemp -d)
-if [ -n "${TETLOC_PY:-}" ]; then
-  py=$TETLOC_PY
-else
-  # The machine's python3 holds PyTorch and numpy (on the H200 image it is itself a virtualenv,
-  # so a `--system-site-packages` venv made from it would not see them): the wheel's files go
-  # into a folder of their own on PYTHONPATH.
-  py=python3
-  if ! python3 -m pip install -q --no-index --no-deps --no-compile --target "$work/site" "$wheel"; then
-    echo "no pip: unpacking $wheel onto PYTHONPATH"
-    python3 -c 'import sys, zipfile; zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])' "$wheel" "$work/site" ||
-      { echo "cannot unpack $wheel"; exit 1; }
-  fi
-  export PYTHONPATH=$work/site${PYTHONPATH:+:$PYTHONPATH}
-fi
 device=${TORCH_DEVICE:-cuda}
 "$py" - <<'PY' 2>&1 | tee "$out/versions.txt"
 import sys, numpy, torch, tetloc
@@ -48,9 +27,6 @@ print("python", sys.version.split()[0], "numpy", numpy.__version__, "torch", tor
 print("tetloc", tetloc.__version__, "Vulkan devices", [(d["name"], d["driver"]) for d in tetloc.devices()])
 PY
 
-data=()
-[ -d "$repo/shared/data" ] && data=(--data "$repo/shared/data")
-[ -z "${data[*]}" ] && [ -d "$repo/../shared/data" ] && data=(--data "$repo/../shared/data")
 step cuda_checks 150 "$py" "$repo/python/tests/cuda_torch.py" "${data[@]}" --device "$device" \
   --json "$out/cuda_checks.json"
 

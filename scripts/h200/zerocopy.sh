@@ -17,24 +17,9 @@
 set -uo pipefail
 wheel=${1:?usage: OUT=DIR scripts/h200/zerocopy.sh WHEEL TETLOC_BIN}
 bin=${2:?usage: OUT=DIR scripts/h200/zerocopy.sh WHEEL TETLOC_BIN}
-out=${OUT:?set OUT to the folder for the logs}
-mkdir -p "$out"
-repo=$(cd "$(dirname "$0")/../.." && pwd)
-exec > >(tee "$out/zerocopy.log") 2>&1
-failed=0
-. "$(dirname "$0")/common.sh" # step
+. "$(dirname "$0")/common.sh" # wheel_setup, step
+wheel_setup zerocopy "$wheel"
 
-nvidia-smi --query-gpu=name,driver_version,memory.total,uuid --format=csv,noheader > "$out/gpu.txt" 2>&1
-cat "$out/gpu.txt"
-work=$(mktemp -d)
-py=${TETLOC_PY:-python3}
-if [ -z "${TETLOC_PY:-}" ]; then
-  if ! python3 -m pip install -q --no-index --no-deps --no-compile --target "$work/site" "$wheel"; then
-    python3 -c 'import sys, zipfile; zipfile.ZipFile(sys.argv[1]).extractall(sys.argv[2])' "$wheel" "$work/site" ||
-      { echo "cannot unpack $wheel"; exit 1; }
-  fi
-  export PYTHONPATH=$work/site${PYTHONPATH:+:$PYTHONPATH}
-fi
 "$py" - <<'PY' 2>&1 | tee "$out/versions.txt"
 import sys, torch, tetloc, tetloc._tetloc as t
 print("python", sys.version.split()[0], "torch", torch.__version__, "cuda", torch.version.cuda,
@@ -42,10 +27,6 @@ print("python", sys.version.split()[0], "torch", torch.__version__, "cuda", torc
 print("tetloc", tetloc.__version__, "CUDA driver loadable", t.cuda_driver_available())
 print("Vulkan devices", [(d["name"], d["driver"]) for d in tetloc.devices()])
 PY
-
-data=()
-[ -d "$repo/shared/data" ] && data=(--data "$repo/shared/data")
-[ -z "${data[*]}" ] && [ -d "$repo/../shared/data" ] && data=(--data "$repo/../shared/data")
 
 small=$work/jets200k.vtu
 step gen_jets200k 60 "$bin" gen jets --cells 200k -o "$small"
