@@ -1,18 +1,12 @@
 //! The `tetloc` binary end to end: exit codes, messages, files written (CPU backend, so
 //! these run anywhere; the GPU backends are tested in tetloc-vulkan).
 
+mod common;
+
+use common::{entries, read, s, tetloc, tmp, tmp_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use tetloc_testdata::{query_sets, read_f64s, require_data, run_vtk_script};
-
-fn tetloc(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
-
-fn tmp(name: &str) -> PathBuf {
-    std::env::temp_dir().join(format!("tetloc-cli-{}-{name}", std::process::id()))
-}
 
 #[test]
 fn info_reports_counts_reorientation_and_fields() {
@@ -50,8 +44,7 @@ fn locate_writes_the_oracle_answers() {
         "cpu",
     ]);
     assert!(ok, "{err}");
-    let got: Vec<i32> =
-        std::fs::read(&ids).unwrap().chunks_exact(4).map(|c| i32::from_le_bytes(c.try_into().unwrap())).collect();
+    let got: Vec<i32> = read(&ids);
     assert_eq!(got.len(), set.cell.len());
     let wrong = (0..got.len()).filter(|&i| got[i] != set.cell[i] && !set.ambiguous(i)).count();
     assert_eq!(wrong, 0);
@@ -96,8 +89,7 @@ fn locate_keeps_float64_points_far_from_the_origin() {
         "cpu",
     ]);
     assert!(ok, "{err}");
-    let got: Vec<i32> =
-        std::fs::read(&ids).unwrap().chunks_exact(4).map(|c| i32::from_le_bytes(c.try_into().unwrap())).collect();
+    let got: Vec<i32> = read(&ids);
     let wrong = (0..got.len()).filter(|&i| got[i] != set.cell[i] && !set.ambiguous(i)).count();
     assert_eq!(wrong, 0, "ids differ from the oracle");
 }
@@ -204,18 +196,6 @@ fn agulhas_terrain_is_written_and_drawn() {
 
 // ---- Issue 9: nothing lost, nothing silent. ----
 
-/// A fresh, empty directory for one test.
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = tmp(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &std::path::Path) -> &str {
-    p.to_str().unwrap()
-}
-
 /// `n` points in the unit cube (the bounds of every generated test mesh but agulhas), some
 /// outside, as raw f32 triplets.
 fn write_points(path: &std::path::Path, n: usize) -> Vec<[f32; 3]> {
@@ -227,17 +207,6 @@ fn write_points(path: &std::path::Path, n: usize) -> Vec<[f32; 3]> {
         .collect();
     std::fs::write(path, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
     pts
-}
-
-fn read_i32(path: &std::path::Path) -> Vec<i32> {
-    bytemuck::pod_collect_to_vec(&std::fs::read(path).unwrap())
-}
-
-fn entries(dir: &std::path::Path) -> Vec<String> {
-    let mut v: Vec<String> =
-        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    v.sort();
-    v
 }
 
 /// A small mesh file and a points file in `dir`.
@@ -489,7 +458,7 @@ fn nan_points_get_no_answer_on_every_backend() {
         let (ok, _, err) = tetloc(&[&args[..], &["--field", "f", "--values", s(&vals)]].concat());
         assert!(ok, "{b}: {err}");
         assert!(err.contains("4 of 300 points have a NaN or infinite coordinate"), "{b}: {err}");
-        let got = read_i32(&ids);
+        let got = read::<i32>(&ids);
         let v: Vec<f32> = bytemuck::pod_collect_to_vec(&std::fs::read(&vals).unwrap());
         for i in [0, 17, 50, 299] {
             assert_eq!(got[i], -1, "{b}: point {i}");
@@ -499,7 +468,7 @@ fn nan_points_get_no_answer_on_every_backend() {
         // The boundary tolerance over this backend: a tenth of the cube's side around it.
         let (ok, _, err) = tetloc(&[&args[..], &["--tolerance", "0.05"]].concat());
         assert!(ok, "{b}: {err}");
-        let tol = read_i32(&ids);
+        let tol = read::<i32>(&ids);
         assert!((0..300).all(|i| got[i] < 0 || tol[i] == got[i]), "{b}: an inside answer changed");
         assert!([0, 17, 50, 299].iter().all(|&i| tol[i] == -1), "{b}: a NaN point got an answer");
         match &reference {
@@ -648,7 +617,7 @@ fn boundary_tolerance_matches_vtk_probe_on(test: &str, data: &Path) {
         );
         let table = std::fs::read_to_string(&csv).unwrap();
         let our_cell: Vec<f64> = table.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
-        let exact_ids = read_i32(&exact);
+        let exact_ids = read::<i32>(&exact);
         let exact_outside = exact_ids[..n].iter().filter(|&&i| i < 0).count();
         eprintln!("{name}: {n} boundary faces, D = {d:.3e}; exact: {exact_outside} centroids outside");
         let f = &mesh.field("f").unwrap().values;
@@ -742,7 +711,7 @@ fn locate_precision_f64() {
         let args = ["locate", s(&mesh), "--points", s(&points), "--out", s(&ids), "--field", "f", "--values", s(&vals)];
         let (ok, _, err) = tetloc(&[&args[..], &["--backend", "cpu", "--precision", p]].concat());
         assert!(ok, "{p}: {err}");
-        (read_i32(&ids), bytemuck::pod_collect_to_vec::<u8, f32>(&std::fs::read(&vals).unwrap()))
+        (read::<i32>(&ids), read::<f32>(&vals))
     };
     let ((ids, v), (ids64, v64)) = (run("f32"), run("f64"));
     assert_eq!(ids, ids64);

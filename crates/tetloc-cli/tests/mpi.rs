@@ -4,6 +4,9 @@
 //! ends the job with an error, within a time limit. Without `mpirun` these skip, except in CI.
 #![cfg(feature = "mpi")]
 
+mod common;
+
+use common::{read, s, tmp_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 use std::time::{Duration, Instant};
@@ -46,21 +49,6 @@ fn text(o: &Output) -> String {
 /// The test's scratch folder `name`, or `None` (the test skipped) where there is no mpirun.
 fn mpi_dir(test: &str, name: &str) -> Option<PathBuf> {
     have_mpirun(test).then(|| tmp_dir(name))
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("tetloc-mpi-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn read<T: bytemuck::Pod>(p: &Path) -> Vec<T> {
-    bytemuck::pod_collect_to_vec(&std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display())))
 }
 
 /// `mesh` cut into 4 pieces in `dir`.

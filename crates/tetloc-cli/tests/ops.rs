@@ -2,24 +2,11 @@
 //! vtkResampleWithDataSet, vtkStreamTracer through `scripts/vtk_ops.py`), on the oracle
 //! meshes; and their bad inputs.
 
+mod common;
+
+use common::{s, tetloc, tmp, tmp_dir};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use tetloc_testdata::{read_f64s, require_data, run_vtk_script};
-
-fn tetloc(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
-
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("tetloc-ops-{}-{name}", std::process::id()));
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-5 * (1.0 + a.abs().max(b.abs()))
@@ -421,7 +408,8 @@ fn trace_rk45_matches_vtk_on(test: &str, data: &Path) {
         let vtk_args = ["rk45", "0.001", "0.5", "1e-7"];
         let name = format!("trace-{integrator}");
         let Some((vtk, ours, _)) = trace_both_on(test, data, &name, &controlled, &vtk_args) else { return };
-        let worst = on_the_same_paths(&tmp_dir(&format!("{test}-{name}")), &vtk, &ours);
+        // The folder `trace_both_on` wrote.
+        let worst = on_the_same_paths(&tmp(&format!("{test}-{name}")), &vtk, &ours);
         eprintln!("{integrator}: every point within {worst:e} of VTK's RK45 lines");
         assert!(worst <= 1e-4 * TORUS_SIZE, "{integrator}: a point {worst:e} from VTK's line");
     }

@@ -2,27 +2,12 @@
 //! cells, byte-order marks, one rule for naming fields and components, messages, and pieces
 //! outside a listing's folder.
 
+mod common;
+
+use common::{s, tetloc, tmp_dir};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use tetloc_core::FieldLocation;
 use tetloc_io::vtk::vtu;
-
-fn tetloc(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
-
-/// A fresh, empty directory for one test.
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("tetloc-readers-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 /// An ASCII `.vtu` piece: `points` (x y z ...), cells of `types` with `conn` and `offsets`,
 /// and `data` (the `<PointData>`/`<CellData>` elements).

@@ -4,33 +4,12 @@
 //! stdout ending a command quietly. Each test is its reproduction scaled to CI: small files,
 //! limits checked before allocation, the signals sent by the test.
 
+mod common;
+
+use common::{entries, s, tetloc, tmp_dir};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
-
-fn tetloc(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).output().expect("run tetloc");
-    (out.status.success(), String::from_utf8_lossy(&out.stdout).into(), String::from_utf8_lossy(&out.stderr).into())
-}
-
-/// A fresh, empty directory for one test.
-fn tmp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("tetloc-safety-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn entries(dir: &Path) -> Vec<String> {
-    let mut v: Vec<String> =
-        std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
-    v.sort();
-    v
-}
 
 /// Every file under `dir` (relative path, bytes), sorted: a snapshot to compare.
 fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
@@ -50,16 +29,22 @@ fn snapshot(dir: &Path) -> Vec<(String, Vec<u8>)> {
     out
 }
 
+/// A jets mesh of `cells` cells, `dir/MESH`, partitioned into `parts` pieces listed by
+/// `dir/LISTING`, quietly (`-q`: nothing on stderr).
+fn gen_and_partition(dir: &Path, mesh: &str, cells: &str, listing: &str, parts: &str) -> (PathBuf, PathBuf) {
+    let mesh = dir.join(mesh);
+    let (ok, _, err) = tetloc(&["gen", "jets", "--cells", cells, "-o", s(&mesh), "-q"]);
+    assert!(ok, "{err}");
+    let pvtu = dir.join(listing);
+    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", parts, "-o", s(&pvtu), "-q"]);
+    assert!(ok && err.is_empty(), "-q: {err}");
+    (mesh, pvtu)
+}
+
 /// A small mesh partitioned into `m2.pvtu` (pieces `m2/m2_0.vtu`, `m2/m2_1.vtu`), and a
 /// points file, in `dir`.
 fn partitioned(dir: &Path) -> (PathBuf, PathBuf, PathBuf) {
-    let mesh = dir.join("m.vtu");
-    let (ok, _, err) = tetloc(&["gen", "jets", "--cells", "2000", "-o", s(&mesh), "-q"]);
-    assert!(ok, "{err}");
-    let pvtu = dir.join("m2.pvtu");
-    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "2", "-o", s(&pvtu), "-q"]);
-    assert!(ok, "{err}");
-    assert!(err.is_empty(), "-q: {err}");
+    let (mesh, pvtu) = gen_and_partition(dir, "m.vtu", "2000", "m2.pvtu", "2");
     let points = dir.join("p.csv");
     std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n0.2,0.3,0.4\n").unwrap();
     (mesh, pvtu, points)
@@ -156,12 +141,7 @@ fn tets_of(mesh: &Path) -> Result<String, String> {
 #[test]
 fn a_killed_partition_keeps_a_whole_output() {
     let dir = tmp_dir("killed");
-    let mesh = dir.join("big.vtu");
-    let (ok, _, err) = tetloc(&["gen", "jets", "--cells", "150k", "-o", s(&mesh), "-q"]);
-    assert!(ok, "{err}");
-    let pvtu = dir.join("out.pvtu");
-    let (ok, _, err) = tetloc(&["partition", s(&mesh), "--parts", "4", "-o", s(&pvtu), "-q"]);
-    assert!(ok, "{err}");
+    let (mesh, pvtu) = gen_and_partition(&dir, "big.vtu", "150k", "out.pvtu", "4");
     let whole = tets_of(&pvtu).unwrap();
     let t0 = Instant::now();
     let (ok, _, _) = tetloc(&["partition", s(&mesh), "--parts", "6", "-o", s(&pvtu), "-q"]);

@@ -399,7 +399,9 @@ impl StepFields for Steps {
 
 /// The fields of step `k`: the nodal and element variables, and the id maps.
 fn read_step(file: &NcFile, path: &Path, layout: &Layout, k: usize) -> Result<Vec<Field>> {
-    let slice = |name: &str, index: Option<usize>| -> Result<Vec<f64>> {
+    // Step k of the stored variable `name` (`index`: its column in a combined variable), which
+    // must hold `want` values; `what` names the variable and `whose` what has `want` of them.
+    let slice = |name: &str, index: Option<usize>, want: usize, what: String, whose: String| -> Result<Vec<f64>> {
         let v = file.variable(name).map_err(nc_err(path, name))?;
         let mut sel = vec![NcSliceInfoElem::Index(k as u64)];
         if let Some(i) = index {
@@ -407,23 +409,16 @@ fn read_step(file: &NcFile, path: &Path, layout: &Layout, k: usize) -> Result<Ve
         }
         sel.resize(v.shape().len(), NcSliceInfoElem::Slice { start: 0, end: u64::MAX, step: 1 });
         let a = file.read_variable_slice_as_f64(name, &NcSliceInfo { selections: sel }).map_err(nc_err(path, name))?;
+        if a.len() != want {
+            return Err(Error::format(path, format!("{what} ({name}) has {} values at step {k} but {whose}", a.len())));
+        }
         Ok(a.iter().copied().collect())
     };
     let mut node = Vec::with_capacity(layout.node_vars.len());
     for v in &layout.node_vars {
         let stored = v.storage[0].as_deref().expect("nodal variables have one storage");
-        let values = slice(stored, v.combined)?;
-        if values.len() != layout.n_nodes {
-            return Err(Error::format(
-                path,
-                format!(
-                    "nodal variable '{}' ({stored}) has {} values at step {k} but the mesh has {} nodes",
-                    v.name,
-                    values.len(),
-                    layout.n_nodes
-                ),
-            ));
-        }
+        let (what, n) = (format!("nodal variable '{}'", v.name), layout.n_nodes);
+        let values = slice(stored, v.combined, n, what, format!("the mesh has {n} nodes"))?;
         node.push((v.name.clone(), values));
     }
     let mut elem = Vec::with_capacity(layout.elem_vars.len());
@@ -436,20 +431,8 @@ fn read_step(file: &NcFile, path: &Path, layout: &Layout, k: usize) -> Result<Ve
             match stored {
                 None => values.extend(std::iter::repeat_n(f64::NAN, b.n_elems)),
                 Some(s) => {
-                    let got = slice(s, None)?;
-                    if got.len() != b.n_elems {
-                        return Err(Error::format(
-                            path,
-                            format!(
-                                "element variable '{}' ({s}) has {} values at step {k} but block {} has {} elements",
-                                v.name,
-                                got.len(),
-                                b.index,
-                                b.n_elems
-                            ),
-                        ));
-                    }
-                    values.extend(got);
+                    let (what, n) = (format!("element variable '{}'", v.name), b.n_elems);
+                    values.extend(slice(s, None, n, what, format!("block {} has {n} elements", b.index))?);
                 }
             }
         }

@@ -135,15 +135,12 @@ pub(crate) fn npy_header(descr: &str, shape: &[usize]) -> Vec<u8> {
 mod tests {
     use super::*;
 
-    fn tmp(name: &str) -> std::path::PathBuf {
-        std::env::temp_dir().join(format!("tetloc-image-{}-{name}", std::process::id()))
-    }
-
     /// npyz reads what we write, shape and values, and a short image is not committed.
     #[test]
     fn npy_images_read_back() {
         let grid = ImageGrid::spanning([0.0; 3], [1.0; 3], [3, 2, 2]).unwrap();
-        let path = tmp("v.npy");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("v.npy");
         let arrays = [ImageArray { name: "v".into(), n_components: 2 }];
         let mut w = ImageWriter::create(&path, &grid, &arrays, false).unwrap();
         let values: Vec<f32> = (0..24).map(|i| i as f32).collect();

@@ -302,13 +302,6 @@ fn canonical(p: &Path) -> Option<PathBuf> {
 mod tests {
     use super::*;
 
-    fn tmp_dir(tag: &str) -> PathBuf {
-        let d = std::env::temp_dir().join(format!("tetloc-output-{}-{tag}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        d
-    }
-
     fn entries(dir: &Path) -> Vec<String> {
         let mut v: Vec<String> =
             std::fs::read_dir(dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
@@ -341,29 +334,29 @@ mod tests {
 
     #[test]
     fn commit_replaces_and_drop_keeps_the_old_file() {
-        let dir = tmp_dir("commit");
-        let path = dir.join("out.csv");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("out.csv");
         std::fs::write(&path, "old").unwrap();
         let mut f = AtomicFile::create(&path).unwrap();
         f.write_all(b"new, not committed").unwrap();
         drop(f);
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "old");
-        assert_eq!(entries(&dir), ["out.csv"], "the temporary file stays behind");
+        assert_eq!(entries(dir.path()), ["out.csv"], "the temporary file stays behind");
         write_atomically(&path, |f| put(f, b"new")).unwrap();
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "new");
-        assert_eq!(entries(&dir), ["out.csv"]);
+        assert_eq!(entries(dir.path()), ["out.csv"]);
     }
 
     /// Leftovers of an interrupted write (`.NAME.*.tmp`, file or folder) are found; this
     /// process's own temporaries and other files are not.
     #[test]
     fn stale_temporaries_are_named() {
-        let dir = tmp_dir("stale");
-        let path = dir.join("r.npy");
-        std::fs::write(dir.join(".r.npy.a1B2c3.tmp"), "half").unwrap();
-        std::fs::create_dir(dir.join(".r.npy.x9.tmp")).unwrap();
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.npy");
+        std::fs::write(dir.path().join(".r.npy.a1B2c3.tmp"), "half").unwrap();
+        std::fs::create_dir(dir.path().join(".r.npy.x9.tmp")).unwrap();
         for other in [".r.npy.tmp", ".r.npyx.1.tmp", "r.npy.1.tmp", ".s.npy.1.tmp"] {
-            std::fs::write(dir.join(other), "").unwrap();
+            std::fs::write(dir.path().join(other), "").unwrap();
         }
         let live = AtomicFile::create(&path).unwrap();
         let names: Vec<String> =
@@ -374,8 +367,8 @@ mod tests {
 
     #[test]
     fn a_write_failure_leaves_the_old_file_and_no_temporary() {
-        let dir = tmp_dir("full");
-        let path = dir.join("ids.bin");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ids.bin");
         std::fs::write(&path, "previous result").unwrap();
         let err = write_atomically(&path, |f| {
             let mut w = FailAfter { inner: f, left: 1000 };
@@ -384,32 +377,32 @@ mod tests {
         .unwrap_err();
         assert!(err.to_string().contains("no space left"), "{err}");
         assert_eq!(std::fs::read_to_string(&path).unwrap(), "previous result");
-        assert_eq!(entries(&dir), ["ids.bin"]);
+        assert_eq!(entries(dir.path()), ["ids.bin"]);
     }
 
     #[test]
     fn a_failed_rename_leaves_no_temporary() {
         // The target is a directory: the rename fails after everything was written.
-        let dir = tmp_dir("rename");
-        std::fs::create_dir(dir.join("taken.vtu")).unwrap();
-        std::fs::write(dir.join("taken.vtu/keep"), "x").unwrap();
-        let e = write_atomically(&dir.join("taken.vtu"), |f| put(f, b"data")).unwrap_err();
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::create_dir(dir.path().join("taken.vtu")).unwrap();
+        std::fs::write(dir.path().join("taken.vtu/keep"), "x").unwrap();
+        let e = write_atomically(&dir.path().join("taken.vtu"), |f| put(f, b"data")).unwrap_err();
         assert!(e.to_string().contains("taken.vtu"), "{e}");
-        assert_eq!(entries(&dir), ["taken.vtu"]);
-        assert_eq!(std::fs::read_to_string(dir.join("taken.vtu/keep")).unwrap(), "x");
+        assert_eq!(entries(dir.path()), ["taken.vtu"]);
+        assert_eq!(std::fs::read_to_string(dir.path().join("taken.vtu/keep")).unwrap(), "x");
     }
 
     #[cfg(unix)]
     #[test]
     fn outputs_get_ordinary_permissions_and_links_are_followed() {
         use std::os::unix::fs::PermissionsExt;
-        let dir = tmp_dir("perm");
-        let path = dir.join("a.npy");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("a.npy");
         write_atomically(&path, |f| put(f, b"1")).unwrap();
         let mode = std::fs::metadata(&path).unwrap().permissions().mode() & 0o777;
         assert_ne!(mode & 0o044, 0, "mode {mode:o}: readable only by the owner, unlike a plain create");
         std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o640)).unwrap();
-        let link = dir.join("link.npy");
+        let link = dir.path().join("link.npy");
         std::os::unix::fs::symlink(&path, &link).unwrap();
         write_atomically(&link, |f| put(f, b"2")).unwrap();
         assert!(link.is_symlink());
@@ -419,16 +412,16 @@ mod tests {
 
     #[test]
     fn output_paths_are_checked_up_front() {
-        let dir = tmp_dir("check");
-        let ok = dir.join("x.npy");
+        let dir = tempfile::tempdir().unwrap();
+        let ok = dir.path().join("x.npy");
         check_output(&ok, &["npy", "csv"]).unwrap();
-        assert_eq!(entries(&dir), Vec::<String>::new(), "checking creates nothing");
-        let e = check_output(&dir.join("o.h5"), &["npy", "csv"]).unwrap_err().to_string();
+        assert_eq!(entries(dir.path()), Vec::<String>::new(), "checking creates nothing");
+        let e = check_output(&dir.path().join("o.h5"), &["npy", "csv"]).unwrap_err().to_string();
         assert!(e.contains("o.h5") && e.contains("'.h5'") && e.contains("npy, csv"), "{e}");
-        let e = check_output(&dir.join("no/such/x.npy"), &["npy"]).unwrap_err().to_string();
+        let e = check_output(&dir.path().join("no/such/x.npy"), &["npy"]).unwrap_err().to_string();
         assert!(e.contains("does not exist"), "{e}");
-        std::fs::create_dir(dir.join("d.npy")).unwrap();
-        let e = check_output(&dir.join("d.npy"), &["npy"]).unwrap_err().to_string();
+        std::fs::create_dir(dir.path().join("d.npy")).unwrap();
+        let e = check_output(&dir.path().join("d.npy"), &["npy"]).unwrap_err().to_string();
         assert!(e.contains("is a directory"), "{e}");
         // A device as an output: renaming over it would replace the device node.
         #[cfg(unix)]
@@ -436,8 +429,8 @@ mod tests {
             let e = check_output(Path::new("/dev/null"), &["npy"]).unwrap_err().to_string();
             assert!(e.contains("not a regular file"), "{e}");
         }
-        std::fs::write(dir.join("plain"), "").unwrap();
-        let e = check_output(&dir.join("plain/x.npy"), &["npy"]).unwrap_err().to_string();
+        std::fs::write(dir.path().join("plain"), "").unwrap();
+        let e = check_output(&dir.path().join("plain/x.npy"), &["npy"]).unwrap_err().to_string();
         assert!(e.contains("is not a directory"), "{e}");
         // A directory that takes no new file, even for root.
         #[cfg(target_os = "linux")]
@@ -449,22 +442,22 @@ mod tests {
 
     #[test]
     fn an_output_that_is_an_input_is_refused() {
-        let dir = tmp_dir("same");
-        let mesh = dir.join("mesh.vtu");
+        let dir = tempfile::tempdir().unwrap();
+        let mesh = dir.path().join("mesh.vtu");
         std::fs::write(&mesh, "mesh").unwrap();
-        let points = dir.join("p.npy");
+        let points = dir.path().join("p.npy");
         std::fs::write(&points, "points").unwrap();
         let inputs = [FileArg::new("MESH", &mesh), FileArg::new("--points", &points)];
-        let other = dir.join("ids.npy");
+        let other = dir.path().join("ids.npy");
         check_distinct(&inputs, &[FileArg::new("--out", &other)]).unwrap();
         // The same name, another spelling of it, a hard link and a symbolic link.
-        let dotted = dir.join(".").join("mesh.vtu");
-        let hard = dir.join("hard.vtu");
+        let dotted = dir.path().join(".").join("mesh.vtu");
+        let hard = dir.path().join("hard.vtu");
         std::fs::hard_link(&mesh, &hard).unwrap();
         let mut outs = vec![mesh.clone(), dotted, hard];
         #[cfg(unix)]
         {
-            let soft = dir.join("soft.vtu");
+            let soft = dir.path().join("soft.vtu");
             std::os::unix::fs::symlink(&mesh, &soft).unwrap();
             outs.push(soft);
         }

@@ -251,14 +251,6 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use tetloc_core::mesh::Mesh;
 
-    /// A fresh temporary folder for one test.
-    fn temp_dir(test: &str) -> PathBuf {
-        let dir = std::env::temp_dir().join(format!("tetloc-tetgen-{}-{test}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&dir);
-        std::fs::create_dir_all(&dir).unwrap();
-        dir
-    }
-
     /// Two tets sharing a face, numbered from `base`, with two point attributes, boundary
     /// markers and a region attribute, and comments in odd places.
     fn files(base: u32) -> (String, String) {
@@ -311,10 +303,10 @@ mod tests {
 
     #[test]
     fn reads_both_numberings_from_either_file() {
-        let dir = temp_dir("numberings");
+        let dir = tempfile::tempdir().unwrap();
         for base in [0, 1] {
             let (node, ele) = files(base);
-            let stem = dir.join(format!("mesh{base}.1"));
+            let stem = dir.path().join(format!("mesh{base}.1"));
             std::fs::write(stem.with_extension("node"), node).unwrap();
             std::fs::write(stem.with_extension("ele"), ele).unwrap();
             for ext in ["node", "ele"] {
@@ -323,7 +315,6 @@ mod tests {
                 Mesh::new(m, "tetgen").unwrap();
             }
         }
-        std::fs::remove_dir_all(dir).unwrap();
     }
 
     #[test]
@@ -408,15 +399,14 @@ mod tests {
             assert!(msg.contains(want), "expected '{want}' in: {msg}");
         }
         // A missing sibling names the file that is missing.
-        let dir = temp_dir("missing");
+        let dir = tempfile::tempdir().unwrap();
         let (node, _) = files(0);
-        std::fs::write(dir.join("m.node"), node).unwrap();
-        match read(&dir.join("m.node")) {
-            Err(Error::Io { path, .. }) => assert_eq!(path, dir.join("m.ele")),
+        std::fs::write(dir.path().join("m.node"), node).unwrap();
+        match read(&dir.path().join("m.node")) {
+            Err(Error::Io { path, .. }) => assert_eq!(path, dir.path().join("m.ele")),
             other => panic!("{other:?}"),
         }
-        assert!(read(&dir.join("m.face")).unwrap_err().to_string().contains(".node or .ele"));
-        std::fs::remove_dir_all(dir).unwrap();
+        assert!(read(&dir.path().join("m.face")).unwrap_err().to_string().contains(".node or .ele"));
     }
 
     #[test]

@@ -27,9 +27,9 @@ enum Output {
 }
 
 fn output_kind(out: &Path) -> Result<Output> {
-    match out.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-        Some("png") => Ok(Output::Png),
-        Some("gif") => Ok(Output::Gif),
+    match tetloc_io::output::extension(out).as_str() {
+        "png" => Ok(Output::Png),
+        "gif" => Ok(Output::Gif),
         _ => Err(RenderError::Invalid(format!("{}: the output file must end in .png or .gif", out.display()))),
     }
 }

@@ -12,6 +12,9 @@
 //! a,b (default soft-bvh and every rt kernel the device runs), --repeats R (default 5),
 //! --device I, --ks 0,1,3,5.
 
+mod common;
+
+use common::num;
 use std::sync::Arc;
 use tetloc_core::gen::{flow, generate, Shape};
 use tetloc_core::queries::{self, QueryKind};
@@ -29,11 +32,8 @@ struct Args {
 
 fn parse() -> Result<Args, String> {
     let mut a = Args { tets: 1_000_000, n: None, kernels: None, repeats: 5, device: None, ks: vec![0, 1, 3, 5] };
-    let mut it = std::env::args().skip(1);
-    while let Some(flag) = it.next() {
-        let mut val = || it.next().ok_or(format!("{flag} needs a value"));
-        let num = |s: String| s.replace('_', "").parse::<usize>().map_err(|e| format!("{s}: {e}"));
-        match flag.as_str() {
+    common::each_flag(|flag, val| {
+        match flag {
             "--tets" => a.tets = num(val()?)?,
             "--n" => a.n = Some(num(val()?)?),
             "--kernels" => a.kernels = Some(val()?.split(',').map(|k| k.parse()).collect::<Result<_, _>>()?),
@@ -42,7 +42,8 @@ fn parse() -> Result<Args, String> {
             "--ks" => a.ks = val()?.split(',').map(|k| num(k.into())).collect::<Result<_, _>>()?,
             _ => return Err(format!("unknown option {flag} (see the header of examples/fields.rs)")),
         }
-    }
+        Ok(())
+    })?;
     Ok(a)
 }
 

@@ -16,6 +16,9 @@
 //! (soft-bvh variants: root traversal, entry grid, walk start at two grid resolutions,
 //! f32-first, pure-f32 and deferred exact tests).
 
+mod common;
+
+use common::num;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::gen::{generate, Shape};
@@ -59,11 +62,8 @@ fn parse() -> Result<Args, String> {
         variants: false,
         regular: false,
     };
-    let mut it = std::env::args().skip(1);
-    while let Some(flag) = it.next() {
-        let mut val = || it.next().ok_or(format!("{flag} needs a value"));
-        let num = |s: String| s.replace('_', "").parse::<usize>().map_err(|e| format!("{s}: {e}"));
-        match flag.as_str() {
+    common::each_flag(|flag, val| {
+        match flag {
             "--tets" => a.tets = num(val()?)?,
             "--shape" => a.shape = val()?.parse().map_err(|e: tetloc_core::Error| e.to_string())?,
             "--mesh" => a.mesh = Some(val()?),
@@ -105,7 +105,8 @@ fn parse() -> Result<Args, String> {
             "--regular" => a.regular = true,
             _ => return Err(format!("unknown option {flag} (see the header of examples/vkbench.rs)")),
         }
-    }
+        Ok(())
+    })?;
     Ok(a)
 }
 

@@ -403,21 +403,17 @@ pub(crate) struct Recording<'a> {
 impl Recording<'_> {
     /// Makes all earlier writes (transfers, builds, shaders) visible to all later commands.
     pub fn barrier(&self) {
-        let barrier = vk::MemoryBarrier::default()
-            .src_access_mask(vk::AccessFlags::MEMORY_WRITE)
-            .dst_access_mask(vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE);
+        let all = vk::AccessFlags::MEMORY_READ | vk::AccessFlags::MEMORY_WRITE;
+        self.memory_barrier(vk::PipelineStageFlags::ALL_COMMANDS, vk::AccessFlags::MEMORY_WRITE, all);
+    }
+
+    /// Makes the `src` writes of earlier commands at `stage` visible to the `dst` accesses of
+    /// later ones at `stage`.
+    pub fn memory_barrier(&self, stage: vk::PipelineStageFlags, src: vk::AccessFlags, dst: vk::AccessFlags) {
+        let barrier = vk::MemoryBarrier::default().src_access_mask(src).dst_access_mask(dst);
+        let no_deps = vk::DependencyFlags::empty();
         // SAFETY: recording into a command buffer in the recording state.
-        unsafe {
-            self.dev.cmd_pipeline_barrier(
-                self.cmd,
-                vk::PipelineStageFlags::ALL_COMMANDS,
-                vk::PipelineStageFlags::ALL_COMMANDS,
-                vk::DependencyFlags::empty(),
-                &[barrier],
-                &[],
-                &[],
-            )
-        };
+        unsafe { self.dev.cmd_pipeline_barrier(self.cmd, stage, stage, no_deps, &[barrier], &[], &[]) };
     }
 }
 

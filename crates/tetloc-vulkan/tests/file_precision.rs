@@ -38,18 +38,11 @@ fn f32_mesh_far_from_the_origin_answers_f64_points_exactly() {
     let mesh = Arc::new(Mesh::new(raw, "far f32 jets").unwrap());
     assert!(!mesh.info.frame.is_identity() && mesh.wants_f64_points(), "a centred frame, f64 points");
     let (lo, hi) = mesh.file_box();
-    let mut state = 29u64;
-    let mut unit = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut unit = common::unit_f64(29);
     let points: Vec<[f64; 3]> = (0..n)
         .map(|i| {
             if i % 2 == 0 {
-                let t = mesh.tets[(unit() * mesh.n_tets() as f64) as usize];
-                let w: [f64; 4] = std::array::from_fn(|_| unit());
-                let s: f64 = w.iter().sum();
-                std::array::from_fn(|k| (0..4).map(|j| w[j] / s * stored[t[j] as usize][k]).sum())
+                common::point_in_a_tet(&mesh, &mut unit, 0.0, |v| stored[v as usize])
             } else {
                 std::array::from_fn(|k| lo[k] + unit() * (hi[k] - lo[k]))
             }
@@ -93,22 +86,11 @@ fn default_values_on_slivers_stored_in_f64_match_the_cpu() {
     let test = "default_values_on_slivers_stored_in_f64_match_the_cpu";
     let Some(ctx) = common::context(test) else { return };
     let flat = Arc::new(Mesh::new(tetloc_testdata::slivers::flat_layers(8, 1e-5), "flat layers").unwrap());
-    let mut state = 12u64;
-    let mut unit = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let in_tets = |m: &Mesh, n: usize, unit: &mut dyn FnMut() -> f64| -> Vec<Vec3> {
-        (0..n)
-            .map(|_| {
-                let t = m.tets[(unit() * m.n_tets() as f64) as usize];
-                let w: [f64; 4] = std::array::from_fn(|_| unit() + 0.01);
-                let s: f64 = w.iter().sum();
-                std::array::from_fn(|k| (0..4).map(|j| w[j] / s * m.vertex64(t[j])[k]).sum::<f64>() as f32)
-            })
-            .collect()
-    };
-    let mut cases = vec![(flat.clone(), in_tets(&flat, 20_000, &mut unit))];
+    let mut unit = common::unit_f64(12);
+    let in_tets: Vec<Vec3> = (0..20_000)
+        .map(|_| common::point_in_a_tet(&flat, &mut unit, 0.01, |v| flat.vertex64(v)).map(|c| c as f32))
+        .collect();
+    let mut cases = vec![(flat.clone(), in_tets)];
     if let Some(dir) = tetloc_testdata::require_data(test) {
         let sets = tetloc_testdata::query_sets(&dir);
         let delaunay: Vec<_> = sets.iter().filter(|s| s.label.starts_with("delaunay_s.")).collect();

@@ -9,33 +9,11 @@ use tetloc_core::locate::{CellLocator, FiniteOnly};
 use tetloc_testdata::mixed::{compare, compare_far, far_mesh, mixed_sets, Mismatch};
 use tetloc_vulkan::{Kernel, LocatorOptions, SoftBvhOptions, VulkanLocator};
 
+/// The mixed sets on every kernel, and on soft-bvh traversing from the root.
 #[test]
 fn every_kernel_matches_vtk_on_mixed_meshes() {
-    let test = "every_kernel_matches_vtk_on_mixed_meshes";
-    let sets = mixed_sets(test);
-    if sets.is_empty() {
-        return;
-    }
-    let Some(ctx) = common::context(test) else { return };
-    let mut configs: Vec<_> = common::kernels(&ctx, test).into_iter().map(|k| (k, LocatorOptions::default())).collect();
-    configs.push((
-        Kernel::SoftBvh,
-        LocatorOptions { soft_bvh: SoftBvhOptions { walk_start: false, ..Default::default() }, ..Default::default() },
-    ));
-    for (name, (files, sets)) in sets {
-        let mesh = Arc::new(tetloc_io::read_mesh(&files[0], None).unwrap());
-        assert!(mesh.cells.is_some(), "{name}: a mixed mesh");
-        for (k, opts) in &configs {
-            let gpu = VulkanLocator::new(ctx.clone(), mesh.clone(), *k, opts.clone()).unwrap();
-            let mut loc = CellLocator::new(FiniteOnly::new(gpu), mesh.clone());
-            for set in &sets {
-                let m = compare(&mut loc, &mesh, set);
-                println!("{k} (walk {}) {}: {m:?}", opts.soft_bvh.walk_start, set.label);
-                assert_eq!(m, Mismatch::default(), "{k} {}", set.label);
-            }
-        }
-    }
-    common::assert_no_validation_errors(&ctx);
+    let root = (Kernel::SoftBvh, common::soft_bvh(SoftBvhOptions { walk_start: false, ..Default::default() }));
+    every_kernel_matches_vtk("every_kernel_matches_vtk_on_mixed_meshes", false, Some(root));
 }
 
 /// The mixed sets moved far from the origin (`mixed::FAR`, where f32 cannot hold their cells)
@@ -43,21 +21,32 @@ fn every_kernel_matches_vtk_on_mixed_meshes() {
 /// VTK's, as at the origin.
 #[test]
 fn every_kernel_matches_vtk_on_mixed_meshes_far_from_the_origin() {
-    let test = "every_kernel_matches_vtk_on_mixed_meshes_far_from_the_origin";
+    every_kernel_matches_vtk("every_kernel_matches_vtk_on_mixed_meshes_far_from_the_origin", true, None);
+}
+
+/// Every kernel, and `extra`, through `CellLocator` on each mixed oracle set: VTK's cells and
+/// values; `far`, with the sets moved far from the origin.
+fn every_kernel_matches_vtk(test: &str, far: bool, extra: Option<(Kernel, LocatorOptions)>) {
     let sets = mixed_sets(test);
     if sets.is_empty() {
         return;
     }
     let Some(ctx) = common::context(test) else { return };
-    for (_, (files, sets)) in sets {
-        let mesh = Arc::new(far_mesh(&files[0]));
-        for k in common::kernels(&ctx, test) {
-            let gpu = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
+    let mut configs: Vec<_> = common::kernels(&ctx, test).into_iter().map(|k| (k, LocatorOptions::default())).collect();
+    configs.extend(extra);
+    let score = if far { compare_far } else { compare };
+    for (name, (files, sets)) in sets {
+        let mesh = Arc::new(if far { far_mesh(&files[0]) } else { tetloc_io::read_mesh(&files[0], None).unwrap() });
+        assert!(mesh.cells.is_some(), "{name}: a mixed mesh");
+        for (k, opts) in &configs {
+            let gpu = VulkanLocator::new(ctx.clone(), mesh.clone(), *k, opts.clone()).unwrap();
             let mut loc = CellLocator::new(FiniteOnly::new(gpu), mesh.clone());
             for set in &sets {
-                let m = compare_far(&mut loc, &mesh, set);
-                println!("{k} far {}: {m:?}", set.label);
-                assert_eq!(m, Mismatch::default(), "{k} far {}", set.label);
+                let m = score(&mut loc, &mesh, set);
+                let label =
+                    format!("{k} (walk {}){} {}", opts.soft_bvh.walk_start, if far { " far" } else { "" }, set.label);
+                println!("{label}: {m:?}");
+                assert_eq!(m, Mismatch::default(), "{label}");
             }
         }
     }

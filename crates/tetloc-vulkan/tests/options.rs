@@ -59,26 +59,22 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
         if k == Kernel::SoftBvh {
             variants.push((
                 "up to four tets per leaf",
-                LocatorOptions { soft_bvh: SoftBvhOptions { leaf_size: 4, ..base.clone().soft_bvh }, ..base.clone() },
+                common::soft_bvh(SoftBvhOptions { leaf_size: 4, ..base.clone().soft_bvh }),
             ));
             variants.push((
                 "traversal from the root",
-                LocatorOptions {
-                    soft_bvh: SoftBvhOptions { walk_start: false, ..base.clone().soft_bvh },
-                    ..base.clone()
-                },
+                common::soft_bvh(SoftBvhOptions { walk_start: false, ..base.clone().soft_bvh }),
             ));
             variants.push((
                 "entry grid",
-                LocatorOptions {
-                    soft_bvh: SoftBvhOptions { grid_start: true, walk_start: false, ..base.clone().soft_bvh },
-                    ..base.clone()
-                },
+                common::soft_bvh(SoftBvhOptions { grid_start: true, walk_start: false, ..base.clone().soft_bvh }),
             ));
-            let grid4 = LocatorOptions {
-                soft_bvh: SoftBvhOptions { grid_start: true, walk_start: false, leaf_size: 4, ..base.clone().soft_bvh },
-                ..base.clone()
-            };
+            let grid4 = common::soft_bvh(SoftBvhOptions {
+                grid_start: true,
+                walk_start: false,
+                leaf_size: 4,
+                ..base.clone().soft_bvh
+            });
             variants.push(("entry grid, four per leaf", grid4));
             let coarse = LocatorOptions {
                 chunk_points: 997,
@@ -106,24 +102,15 @@ fn split_compaction_chunks_and_leaves_do_not_change_answers() {
             variants.push(("compact, built on the CPU", compact_cpu));
             variants.push((
                 "walk start, f32 first",
-                LocatorOptions {
-                    soft_bvh: SoftBvhOptions { walk_start: true, f32_first: true, ..base.clone().soft_bvh },
-                    ..base.clone()
-                },
+                common::soft_bvh(SoftBvhOptions { walk_start: true, f32_first: true, ..base.clone().soft_bvh }),
             ));
             variants.push((
                 "root, f32 first",
-                LocatorOptions {
-                    soft_bvh: SoftBvhOptions { walk_start: false, f32_first: true, ..base.clone().soft_bvh },
-                    ..base.clone()
-                },
+                common::soft_bvh(SoftBvhOptions { walk_start: false, f32_first: true, ..base.clone().soft_bvh }),
             ));
             variants.push((
                 "deferred exact tests",
-                LocatorOptions {
-                    soft_bvh: SoftBvhOptions { defer_exact: true, ..base.clone().soft_bvh },
-                    ..base.clone()
-                },
+                common::soft_bvh(SoftBvhOptions { defer_exact: true, ..base.clone().soft_bvh }),
             ));
             let defer_root = LocatorOptions {
                 chunk_points: 997,
@@ -259,20 +246,10 @@ fn arrays_split_over_buffers_give_the_same_answers() {
         let max = if k == Kernel::SoftBvh { point_bytes * 9 / 10 } else { point_bytes + 64 };
         let mut variants = vec![("default", LocatorOptions::default())];
         if k == Kernel::SoftBvh {
-            variants.push((
-                "root traversal",
-                LocatorOptions {
-                    soft_bvh: SoftBvhOptions { walk_start: false, ..Default::default() },
-                    ..Default::default()
-                },
-            ));
-            variants.push((
-                "four per leaf",
-                LocatorOptions {
-                    soft_bvh: SoftBvhOptions { leaf_size: 4, ..Default::default() },
-                    ..Default::default()
-                },
-            ));
+            variants.extend([
+                ("root traversal", common::soft_bvh(SoftBvhOptions { walk_start: false, ..Default::default() })),
+                ("four per leaf", common::soft_bvh(SoftBvhOptions { leaf_size: 4, ..Default::default() })),
+            ]);
         }
         for (label, opts) in variants {
             let mut whole = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts.clone()).unwrap();

@@ -115,46 +115,19 @@ fn every_kernel_matches_the_oracle_of(test: &str, dir: &std::path::Path) {
             })
             .collect();
         let mut configs: Vec<_> = kernels.iter().map(|&k| (k, LocatorOptions::default())).collect();
-        // soft-bvh's entry grid: cells no tet overlaps (holes, sparse meshes) answer -1 at once.
-        configs.push((
-            Kernel::SoftBvh,
-            LocatorOptions {
-                soft_bvh: SoftBvhOptions { grid_start: true, walk_start: false, ..Default::default() },
-                ..Default::default()
-            },
-        ));
-        // The default walks from the grid; walks leave non-convex meshes and end on faces, where
-        // traversal takes over. Traversal from the root:
-        configs.push((
-            Kernel::SoftBvh,
-            LocatorOptions {
-                soft_bvh: SoftBvhOptions { walk_start: false, ..Default::default() },
-                ..Default::default()
-            },
-        ));
-        // f32 first: the f64 fallback must still decide the points near faces here.
-        configs.push((
-            Kernel::SoftBvh,
-            LocatorOptions {
-                soft_bvh: SoftBvhOptions { walk_start: true, f32_first: true, ..Default::default() },
-                ..Default::default()
-            },
-        ));
-        // Deferred exact tests: the points near faces go through the second, exact pass.
-        configs.push((
-            Kernel::SoftBvh,
-            LocatorOptions {
-                soft_bvh: SoftBvhOptions { defer_exact: true, ..Default::default() },
-                ..Default::default()
-            },
-        ));
-        configs.push((
-            Kernel::SoftBvh,
-            LocatorOptions {
-                soft_bvh: SoftBvhOptions { defer_exact: true, walk_start: false, ..Default::default() },
-                ..Default::default()
-            },
-        ));
+        let soft_bvh = [
+            // soft-bvh's entry grid: cells no tet overlaps (holes, sparse meshes) answer -1 at once.
+            SoftBvhOptions { grid_start: true, walk_start: false, ..Default::default() },
+            // The default walks from the grid; walks leave non-convex meshes and end on faces,
+            // where traversal takes over. Traversal from the root:
+            SoftBvhOptions { walk_start: false, ..Default::default() },
+            // f32 first: the f64 fallback must still decide the points near faces here.
+            SoftBvhOptions { walk_start: true, f32_first: true, ..Default::default() },
+            // Deferred exact tests: the points near faces go through the second, exact pass.
+            SoftBvhOptions { defer_exact: true, ..Default::default() },
+            SoftBvhOptions { defer_exact: true, walk_start: false, ..Default::default() },
+        ];
+        configs.extend(soft_bvh.map(|o| (Kernel::SoftBvh, common::soft_bvh(o))));
         let n_kernels = kernels.len();
         for (c, (k, opts)) in configs.into_iter().enumerate() {
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, opts).unwrap();

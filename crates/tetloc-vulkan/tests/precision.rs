@@ -36,19 +36,9 @@ fn cost_of_f64_values() {
     raw.fields.push(Field::from_f64("g", f.location, f.values.iter().map(|&v| f64::from(v) + 1e-12).collect()));
     let mesh = Arc::new(Mesh::new(raw, "fusion").unwrap());
     let n = env("TETLOC_BENCH_POINTS", 200_000);
-    let mut state = 12345u64;
-    let mut unit = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
-    let pts64: Vec<[f64; 3]> = (0..n)
-        .map(|_| {
-            let t = mesh.tets[(unit() * mesh.n_tets() as f64) as usize];
-            let w: [f64; 4] = std::array::from_fn(|_| unit() + 0.01);
-            let s: f64 = w.iter().sum();
-            std::array::from_fn(|k| (0..4).map(|i| w[i] / s * mesh.vertex64(t[i])[k]).sum())
-        })
-        .collect();
+    let mut unit = common::unit_f64(12345);
+    let pts64: Vec<[f64; 3]> =
+        (0..n).map(|_| common::point_in_a_tet(&mesh, &mut unit, 0.01, |v| mesh.vertex64(v))).collect();
     let pts: Vec<[f32; 3]> = pts64.iter().map(|p| p.map(|c| c as f32)).collect();
     let (mut ids, mut v32, mut v64) = (vec![0i32; n], vec![0f32; n], vec![0f64; n]);
     let mut report = |name: &str, loc: &mut dyn BatchLocator| {

@@ -6,28 +6,29 @@ use super::scalar::Scalar;
 use super::{hex, GmshType, PCoords};
 use std::borrow::Cow;
 
-const NODES: [PCoords; 20] = [
-    [0.0, 0.0, 0.0],
-    [1.0, 0.0, 0.0],
-    [1.0, 1.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, 0.0, 1.0],
-    [1.0, 0.0, 1.0],
-    [1.0, 1.0, 1.0],
-    [0.0, 1.0, 1.0],
-    [0.5, 0.0, 0.0],
-    [1.0, 0.5, 0.0],
-    [0.5, 1.0, 0.0],
-    [0.0, 0.5, 0.0],
-    [0.5, 0.0, 1.0],
-    [1.0, 0.5, 1.0],
-    [0.5, 1.0, 1.0],
-    [0.0, 0.5, 1.0],
-    [0.0, 0.0, 0.5],
-    [1.0, 0.0, 0.5],
-    [1.0, 1.0, 0.5],
-    [0.0, 1.0, 0.5],
-];
+const NODES: [PCoords; 20] = corners_and_midpoints(
+    hex::SHAPE.corners,
+    &[[0, 1], [1, 2], [2, 3], [3, 0], [4, 5], [5, 6], [6, 7], [7, 4], [0, 4], [1, 5], [2, 6], [3, 7]],
+);
+
+/// The nodes of a quadratic cell whose mid-edge nodes are the edges' midpoints (this hex's,
+/// the quadratic wedge's): `corners`, then the midpoints of `edges`, in that order.
+pub(super) const fn corners_and_midpoints<const N: usize>(corners: &[PCoords], edges: &[[usize; 2]]) -> [PCoords; N] {
+    assert!(corners.len() + edges.len() == N, "one node per corner and per edge");
+    let mut nodes = [[0.0; 3]; N];
+    let mut i = 0;
+    while i < N {
+        nodes[i] = if i < corners.len() {
+            corners[i]
+        } else {
+            let [a, b] = edges[i - corners.len()];
+            let (a, b) = (corners[a], corners[b]);
+            [(a[0] + b[0]) * 0.5, (a[1] + b[1]) * 0.5, (a[2] + b[2]) * 0.5]
+        };
+        i += 1;
+    }
+    nodes
+}
 
 /// Gmsh lists the edges as (0,1) (0,3) (0,4) (1,2) (1,5) (2,3) (2,6) (3,7) (4,5) (4,7) (5,6) (6,7).
 pub(super) const GMSH_HEX20: [u16; 20] = [0, 1, 2, 3, 4, 5, 6, 7, 8, 11, 13, 9, 16, 18, 19, 17, 10, 12, 14, 15];

@@ -2,27 +2,15 @@
 //! midpoints of the triangle edges (0,1) (1,2) (2,0) (3,4) (4,5) (5,3), then of the vertical
 //! edges (0,3) (1,4) (2,5).
 
+use super::quadratic_hex::corners_and_midpoints;
 use super::scalar::Scalar;
 use super::{wedge, GmshType, PCoords};
 use std::borrow::Cow;
 
-const NODES: [PCoords; 15] = [
-    [0.0, 0.0, 0.0],
-    [1.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, 0.0, 1.0],
-    [1.0, 0.0, 1.0],
-    [0.0, 1.0, 1.0],
-    [0.5, 0.0, 0.0],
-    [0.5, 0.5, 0.0],
-    [0.0, 0.5, 0.0],
-    [0.5, 0.0, 1.0],
-    [0.5, 0.5, 1.0],
-    [0.0, 0.5, 1.0],
-    [0.0, 0.0, 0.5],
-    [1.0, 0.0, 0.5],
-    [0.0, 1.0, 0.5],
-];
+const NODES: [PCoords; 15] = corners_and_midpoints(
+    wedge::SHAPE.corners,
+    &[[0, 1], [1, 2], [2, 0], [3, 4], [4, 5], [5, 3], [0, 3], [1, 4], [2, 5]],
+);
 
 /// Gmsh lists the edges as (0,1) (0,2) (0,3) (1,2) (1,4) (2,5) (3,4) (3,5) (4,5).
 pub(super) const GMSH_PRISM15: [u16; 15] = [0, 1, 2, 3, 4, 5, 6, 9, 7, 12, 14, 13, 8, 10, 11];

@@ -363,12 +363,7 @@ impl Values<'_> {
     pub fn via_f32(self, f: impl FnOnce(&mut [f32]) -> Result<()>) -> Result<()> {
         match self {
             Values::F32(v) => f(v),
-            Values::F64(v) => {
-                let mut tmp = vec![0f32; v.len()];
-                f(&mut tmp)?;
-                v.par_iter_mut().zip(&tmp).for_each(|(o, &x)| *o = f64::from(x));
-                Ok(())
-            }
+            Values::F64(v) => via_temporary(v, f, f64::from),
         }
     }
 
@@ -376,14 +371,22 @@ impl Values<'_> {
     pub fn via_f64(self, f: impl FnOnce(&mut [f64]) -> Result<()>) -> Result<()> {
         match self {
             Values::F64(v) => f(v),
-            Values::F32(v) => {
-                let mut tmp = vec![0f64; v.len()];
-                f(&mut tmp)?;
-                v.par_iter_mut().zip(&tmp).for_each(|(o, &x)| *o = x as f32);
-                Ok(())
-            }
+            Values::F32(v) => via_temporary(v, f, |x| x as f32),
         }
     }
+}
+
+/// Runs `f` on a temporary of the other precision, then converts it into `out`: what
+/// [`Values::via_f32`] and [`Values::via_f64`] do when the values are not of theirs.
+fn via_temporary<T: Copy + Default + Sync, U: Send>(
+    out: &mut [U],
+    f: impl FnOnce(&mut [T]) -> Result<()>,
+    convert: impl Fn(T) -> U + Sync + Send,
+) -> Result<()> {
+    let mut tmp = vec![T::default(); out.len()];
+    f(&mut tmp)?;
+    out.par_iter_mut().zip(&tmp).for_each(|(o, &x)| *o = convert(x));
+    Ok(())
 }
 
 /// A batch's query points in the precision the caller has them: f32, or the file's f64.

@@ -6,22 +6,6 @@ use super::foam::Foam;
 use super::*;
 use tetloc_testdata::foam_case::{decompose, hex_grid, write_case, Poly};
 
-/// A fresh folder, removed at the end.
-struct Dir(PathBuf);
-impl Dir {
-    fn new(tag: &str) -> Dir {
-        let d = std::env::temp_dir().join(format!("tetloc-foamcase-{tag}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        Dir(d)
-    }
-}
-impl Drop for Dir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// `poly/octpoly_s_case`'s mesh (257 hexes, 32 polyhedra), with fields `lin` (its file's) and
 /// a vector `U`, at the times 0, 0.5 and 1 (`lin` scaled by 1, 2, 3).
 fn octpoly(test: &str) -> Option<Poly> {
@@ -61,10 +45,31 @@ fn octpoly(test: &str) -> Option<Poly> {
     })
 }
 
+/// [`octpoly`] written as a case in a fresh folder (removed with the guard).
+fn octpoly_case(test: &str) -> Option<(Poly, tempfile::TempDir)> {
+    let poly = octpoly(test)?;
+    let dir = tempfile::tempdir().unwrap();
+    write_case(dir.path(), &poly, None);
+    Some((poly, dir))
+}
+
 /// Processors of octpoly's cells: scattered (cell `c` on `c * 7 % 3`), so most faces are
 /// between processors and every processor borders every other.
 fn scattered(n: usize) -> Vec<usize> {
     (0..n).map(|c| c * 7 % 3).collect()
+}
+
+/// The cells of processor 0, then of 1 and 2 (`proc_of`: each cell's processor): the order of
+/// a decomposed case's cells read without cellProcAddressing, and VTK's.
+fn processor_order(proc_of: &[usize]) -> Vec<usize> {
+    (0..3).flat_map(|k| (0..proc_of.len()).filter(move |&c| proc_of[c] == k)).collect()
+}
+
+/// Cell `c`'s centre: the mean of its distinct points.
+fn centre(raw: &RawMesh, c: usize) -> [f32; 3] {
+    let (_, pts) = cell_shape(raw, c);
+    let s = pts.iter().fold([0.0; 3], |s, p| [0, 1, 2].map(|i| s[i] + f64::from_bits(p[i])));
+    s.map(|x| (x / pts.len() as f64) as f32)
 }
 
 /// The cell `c` of `raw`: its type and its distinct points' coordinates, sorted (compares
@@ -91,13 +96,13 @@ fn mesh_of(raw: RawMesh, name: &str) -> tetloc_core::Mesh {
 fn decomposed_cases_read_as_the_undecomposed_mesh() {
     let test = "decomposed_cases_read_as_the_undecomposed_mesh";
     let Some(poly) = octpoly(test) else { return };
-    let dir = Dir::new("decomposed");
-    write_case(&dir.0.join("whole"), &poly, None);
-    let whole = dir.0.join("whole/whole.foam");
+    let dir = tempfile::tempdir().unwrap();
+    write_case(&dir.path().join("whole"), &poly, None);
+    let whole = dir.path().join("whole/whole.foam");
     std::fs::write(&whole, "").unwrap();
     let proc_of = scattered(poly.n_cells());
     for addressing in [true, false] {
-        let case = dir.0.join(format!("cut-{addressing}"));
+        let case = dir.path().join(format!("cut-{addressing}"));
         decompose(&case, &poly, &proc_of, addressing);
         let (a, sa) = crate::read_series(&whole, None).unwrap();
         // The folder has only processor*/: read as decomposed, through the folder too.
@@ -108,12 +113,7 @@ fn decomposed_cases_read_as_the_undecomposed_mesh() {
         assert_eq!(b.points.len(), a.points.len(), "addressing {addressing}: shared points merged");
         let n = poly.n_cells();
         // Cell order: the undecomposed one with cellProcAddressing, processor order without.
-        let order: Vec<usize> = if addressing {
-            (0..n).collect()
-        } else {
-            let proc_of = &proc_of;
-            (0..3).flat_map(|k| (0..n).filter(move |&c| proc_of[c] == k)).collect()
-        };
+        let order: Vec<usize> = if addressing { (0..n).collect() } else { processor_order(&proc_of) };
         for (j, &c) in order.iter().enumerate() {
             assert_eq!(cell_shape(&b, j), cell_shape(&a, c), "addressing {addressing}: cell {j}");
         }
@@ -136,13 +136,8 @@ fn decomposed_cases_read_as_the_undecomposed_mesh() {
         let mb = std::sync::Arc::new(mb);
         let cpu = tetloc_core::locate::CpuLocator::new(mb.clone());
         let mut loc = tetloc_core::locate::CellLocator::new(cpu, mb.clone());
-        let centres: Vec<[f32; 3]> = (0..n)
-            .map(|j| {
-                let (_, pts) = cell_shape(&crate::read_raw(&case, None).unwrap(), j);
-                let s = pts.iter().fold([0.0; 3], |s, p| [0, 1, 2].map(|i| s[i] + f64::from_bits(p[i])));
-                s.map(|x| (x / pts.len() as f64) as f32)
-            })
-            .collect();
+        let cut = crate::read_raw(&case, None).unwrap();
+        let centres: Vec<[f32; 3]> = (0..n).map(|j| centre(&cut, j)).collect();
         let mut ids = vec![0; n];
         use tetloc_core::BatchLocator;
         loc.locate(&centres, &mut ids).unwrap();
@@ -152,12 +147,9 @@ fn decomposed_cases_read_as_the_undecomposed_mesh() {
 
 #[test]
 fn the_layout_is_chosen_and_every_file_is_an_input() {
-    let test = "the_layout_is_chosen_and_every_file_is_an_input";
-    let Some(poly) = octpoly(test) else { return };
-    let dir = Dir::new("layout");
-    write_case(&dir.0, &poly, None);
-    decompose(&dir.0, &poly, &(0..poly.n_cells()).map(|c| usize::from(c >= 100)).collect::<Vec<_>>(), false);
-    let foam = dir.0.join("c.foam");
+    let Some((poly, dir)) = octpoly_case("the_layout_is_chosen_and_every_file_is_an_input") else { return };
+    decompose(dir.path(), &poly, &(0..poly.n_cells()).map(|c| usize::from(c >= 100)).collect::<Vec<_>>(), false);
+    let foam = dir.path().join("c.foam");
     std::fs::write(&foam, "").unwrap();
     // Both: reconstructed by default (ParaView's default), decomposed when asked.
     let a = crate::read_raw(&foam, None).unwrap();
@@ -167,20 +159,20 @@ fn the_layout_is_chosen_and_every_file_is_an_input() {
     assert_eq!(a.points.len(), b.points.len());
     let files = crate::input_files(&foam, Some(crate::MeshFormat::OpenFoamDecomposed));
     for want in ["processor1/constant/polyMesh/owner", "processor0/0.5/lin", "processor1/1/U", "c.foam"] {
-        assert!(files.contains(&dir.0.join(want)), "{want} in {files:?}");
+        assert!(files.contains(&dir.path().join(want)), "{want} in {files:?}");
     }
-    assert!(!files.contains(&dir.0.join("constant/polyMesh/owner")));
+    assert!(!files.contains(&dir.path().join("constant/polyMesh/owner")));
     let files = crate::input_files(&foam, None);
-    assert!(files.contains(&dir.0.join("constant/polyMesh/owner")) && files.contains(&dir.0.join("0/lin")));
+    assert!(files.contains(&dir.path().join("constant/polyMesh/owner")) && files.contains(&dir.path().join("0/lin")));
 }
 
 #[test]
 fn bad_decomposed_cases_name_the_file() {
     let test = "bad_decomposed_cases_name_the_file";
     let Some(poly) = octpoly(test) else { return };
-    let dir = Dir::new("bad");
+    let dir = tempfile::tempdir().unwrap();
     let err = |tag: &str, spoil: &dyn Fn(&Path)| {
-        let case = dir.0.join(tag);
+        let case = dir.path().join(tag);
         decompose(&case, &poly, &scattered(poly.n_cells()), true);
         spoil(&case);
         let e = crate::read_series(&case, None).and_then(|(_, s)| s.unwrap().fields(1)).unwrap_err().to_string();
@@ -208,7 +200,7 @@ fn bad_decomposed_cases_name_the_file() {
     // A missing processor, and a collated case.
     let e = err("gap", &|c| std::fs::rename(c.join("processor1"), c.join("old")).unwrap());
     assert!(e.contains("processor1 is missing"), "{e}");
-    let collated = dir.0.join("collated");
+    let collated = dir.path().join("collated");
     std::fs::create_dir_all(collated.join("processors3/constant")).unwrap();
     let e = crate::read_raw(&collated, Some(crate::MeshFormat::OpenFoamDecomposed)).unwrap_err().to_string();
     assert!(e.contains("collated") && e.contains("processors3"), "{e}");
@@ -216,14 +208,11 @@ fn bad_decomposed_cases_name_the_file() {
 
 #[test]
 fn time_steps_are_the_time_directories() {
-    let test = "time_steps_are_the_time_directories";
-    let Some(poly) = octpoly(test) else { return };
-    let dir = Dir::new("steps");
-    write_case(&dir.0, &poly, None);
-    let (raw, steps) = crate::read_series(&dir.0, None).unwrap();
+    let Some((poly, dir)) = octpoly_case("time_steps_are_the_time_directories") else { return };
+    let (raw, steps) = crate::read_series(dir.path(), None).unwrap();
     let steps = steps.unwrap();
     assert_eq!(steps.times, [0.5, 1.0]);
-    let lin0 = read_fields(&dir.0.join("0"), 289).unwrap().pop().unwrap().1;
+    let lin0 = read_fields(&dir.path().join("0"), 289).unwrap().pop().unwrap().1;
     let lin = |fields: &[Field]| {
         let f = fields.iter().find(|f| f.name == "lin").unwrap();
         (0..f.values.len()).map(|i| f.value64(i)).collect::<Vec<f64>>()
@@ -233,18 +222,18 @@ fn time_steps_are_the_time_directories() {
     assert_eq!(lin(&steps.fields(1).unwrap()), lin0.iter().map(|v| 3.0 * v).collect::<Vec<_>>());
     assert_eq!(steps.field("U[2]", 1).unwrap().values, vec![-3.0; 289]);
     // A field missing at a later time: an error naming the time directory.
-    std::fs::remove_file(dir.0.join("1/U")).unwrap();
+    std::fs::remove_file(dir.path().join("1/U")).unwrap();
     let e = steps.fields(1).unwrap_err().to_string();
     assert!(
-        e.contains(&dir.0.join("1").display().to_string())
+        e.contains(&dir.path().join("1").display().to_string())
             && e.contains("no field 'U'")
             && e.contains("time 0.5 has it"),
         "{e}"
     );
     // A case with only the zero time: that is its one step.
-    let only = Dir::new("only0");
-    write_case(&only.0, &Poly { times: poly.times[..1].to_vec(), ..poly.clone() }, None);
-    assert_eq!(crate::read_series(&only.0, None).unwrap().1.unwrap().times, [0.0]);
+    let only = tempfile::tempdir().unwrap();
+    write_case(only.path(), &Poly { times: poly.times[..1].to_vec(), ..poly.clone() }, None);
+    assert_eq!(crate::read_series(only.path(), None).unwrap().1.unwrap().times, [0.0]);
 }
 
 /// Runs `scripts/vtk_openfoam.py` on `case`: VTK's view of it.
@@ -316,37 +305,34 @@ fn agree_with_vtk(test: &str, case: &Path, decomposed: bool, order: &[usize], vt
 fn vtk_reads_the_octpoly_case_alike() {
     let test = "vtk_reads_the_octpoly_case_alike";
     let Some(dir) = tetloc_testdata::require_data(test) else { return };
-    let case = Dir::new("vtk-octpoly");
+    let case = tempfile::tempdir().unwrap();
     // The data set's case, copied (the script writes beside it).
     let src = dir.join("poly/octpoly_s_case");
     for sub in ["constant/polyMesh", "0", "1", "system"] {
-        std::fs::create_dir_all(case.0.join(sub)).unwrap();
+        std::fs::create_dir_all(case.path().join(sub)).unwrap();
         for e in std::fs::read_dir(src.join(sub)).unwrap() {
             let e = e.unwrap();
-            std::fs::copy(e.path(), case.0.join(sub).join(e.file_name())).unwrap();
+            std::fs::copy(e.path(), case.path().join(sub).join(e.file_name())).unwrap();
         }
     }
-    agree_with_vtk(test, &case.0, false, &(0..289).collect::<Vec<_>>(), 476);
+    agree_with_vtk(test, case.path(), false, &(0..289).collect::<Vec<_>>(), 476);
 }
 
 #[test]
 fn vtk_reads_a_generated_and_a_decomposed_case_alike() {
     let test = "vtk_reads_a_generated_and_a_decomposed_case_alike";
-    let Some(poly) = octpoly(test) else { return };
-    let dir = Dir::new("vtk-gen");
-    write_case(&dir.0, &poly, None);
+    let Some((poly, dir)) = octpoly_case(test) else { return };
     let n = poly.n_cells();
-    agree_with_vtk(test, &dir.0, false, &(0..n).collect::<Vec<_>>(), poly.points.len());
+    agree_with_vtk(test, dir.path(), false, &(0..n).collect::<Vec<_>>(), poly.points.len());
     // Decomposed: VTK lists each processor's cells (and points) in turn, unmerged; tetloc's
     // cells are in the undecomposed order (cellProcAddressing).
     let proc_of = scattered(n);
-    decompose(&dir.0, &poly, &proc_of, true);
-    let proc_of = &proc_of;
-    let order: Vec<usize> = (0..3).flat_map(|k| (0..n).filter(move |&c| proc_of[c] == k)).collect();
+    decompose(dir.path(), &poly, &proc_of, true);
+    let order = processor_order(&proc_of);
     let vtk_points = (0..3)
-        .map(|k| PolyMesh::read(&dir.0.join(format!("processor{k}/constant/polyMesh"))).unwrap().points64.len())
+        .map(|k| PolyMesh::read(&dir.path().join(format!("processor{k}/constant/polyMesh"))).unwrap().points64.len())
         .sum();
-    agree_with_vtk(test, &dir.0, true, &order, vtk_points);
+    agree_with_vtk(test, dir.path(), true, &order, vtk_points);
 }
 
 /// A decomposed case's processors, read as pieces (`crate::parts`) and joined as the MPI path
@@ -357,10 +343,10 @@ fn vtk_reads_a_generated_and_a_decomposed_case_alike() {
 fn processors_are_the_pieces_of_a_partitioned_case() {
     use crate::parts;
     let poly = hex_grid(4);
-    let dir = Dir::new("parts");
+    let dir = tempfile::tempdir().unwrap();
     let proc_of = scattered(poly.n_cells());
     for addressing in [true, false] {
-        let case = dir.0.join(format!("cut-{addressing}"));
+        let case = dir.path().join(format!("cut-{addressing}"));
         decompose(&case, &poly, &proc_of, addressing);
         let foam = case.join("cut.foam");
         std::fs::write(&foam, "").unwrap();
@@ -373,14 +359,7 @@ fn processors_are_the_pieces_of_a_partitioned_case() {
         let counts: Vec<u64> = read.iter().map(|(_, p)| p.n_cells() as u64).collect();
         let first: Vec<u64> = counts.iter().scan(0, |a, &c| Some(std::mem::replace(a, *a + c))).collect();
         let (joined, ids) = crate::vtk::pieces::join(&foam, read, &first).unwrap();
-        // Each cell's centre: the mean of its distinct points.
-        let centres: Vec<[f32; 3]> = (0..ids.len())
-            .map(|c| {
-                let (_, pts) = cell_shape(&joined, c);
-                let s = pts.iter().fold([0.0; 3], |s, p| [0, 1, 2].map(|i| s[i] + f64::from_bits(p[i])));
-                s.map(|x| (x / pts.len() as f64) as f32)
-            })
-            .collect();
+        let centres: Vec<[f32; 3]> = (0..ids.len()).map(|c| centre(&joined, c)).collect();
         let whole = mesh_of(crate::read_raw(&foam, None).unwrap(), "whole");
         let parts_mesh = mesh_of(joined, "parts");
         assert_eq!(parts_mesh.n_cells(), whole.n_cells());
@@ -400,7 +379,7 @@ fn processors_are_the_pieces_of_a_partitioned_case() {
         assert!(seen.iter().all(|&s| s), "every cell once");
     }
     // A case without processors is not partitioned, and says so.
-    let plain = dir.0.join("plain");
+    let plain = dir.path().join("plain");
     write_case(&plain, &poly, None);
     assert!(!parts::is_partitioned(&plain));
     let e = parts::list(&plain).unwrap_err().to_string();

@@ -224,23 +224,13 @@ impl Case {
             }
             let got: Vec<&String> = read.iter().map(|f| &f.0).collect();
             let file = |n: &str| n.split('[').next().unwrap_or(n).to_string();
+            let first = self.parts[0].join(time);
+            let disagree = |what: String| Err(Error::format(&dir, format!("{what}: the processors disagree")));
             if let Some(missing) = names.iter().find(|n| !got.contains(n)).map(|n| file(n)) {
-                return Err(Error::format(
-                    &dir,
-                    format!(
-                        "has no field '{missing}' ({} has it): the processors disagree",
-                        self.parts[0].join(time).display()
-                    ),
-                ));
+                return disagree(format!("has no field '{missing}' ({} has it)", first.display()));
             }
             if let Some(extra) = got.iter().find(|n| !names.contains(n)).map(|n| file(n)) {
-                return Err(Error::format(
-                    &dir,
-                    format!(
-                        "has the field '{extra}' and {} has not: the processors disagree",
-                        self.parts[0].join(time).display()
-                    ),
-                ));
+                return disagree(format!("has the field '{extra}' and {} has not", first.display()));
             }
             for (name, v) in read {
                 let i = names.iter().position(|n| *n == name).expect("checked above");

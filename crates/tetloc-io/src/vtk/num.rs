@@ -8,47 +8,16 @@ use std::borrow::Cow;
 /// Runs `$body` with `$T` bound to the Rust type of a [`NumType`].
 macro_rules! with_type {
     ($ty:expr, $T:ident => $body:expr) => {
+        // One arm a variant of this list, which pairs each with its Rust type.
+        with_type!(@arms $ty, $T, $body;
+            I8 i8, U8 u8, I16 i16, U16 u16, I32 i32, U32 u32, I64 i64, U64 u64, F32 f32, F64 f64)
+    };
+    (@arms $ty:expr, $T:ident, $body:expr; $($variant:ident $t:ty),*) => {
         match $ty {
-            NumType::I8 => {
-                type $T = i8;
+            $(NumType::$variant => {
+                type $T = $t;
                 $body
-            }
-            NumType::U8 => {
-                type $T = u8;
-                $body
-            }
-            NumType::I16 => {
-                type $T = i16;
-                $body
-            }
-            NumType::U16 => {
-                type $T = u16;
-                $body
-            }
-            NumType::I32 => {
-                type $T = i32;
-                $body
-            }
-            NumType::U32 => {
-                type $T = u32;
-                $body
-            }
-            NumType::I64 => {
-                type $T = i64;
-                $body
-            }
-            NumType::U64 => {
-                type $T = u64;
-                $body
-            }
-            NumType::F32 => {
-                type $T = f32;
-                $body
-            }
-            NumType::F64 => {
-                type $T = f64;
-                $body
-            }
+            })*
         }
     };
 }
@@ -70,12 +39,7 @@ pub(crate) enum NumType {
 
 impl NumType {
     pub fn size(self) -> usize {
-        match self {
-            NumType::I8 | NumType::U8 => 1,
-            NumType::I16 | NumType::U16 => 2,
-            NumType::I32 | NumType::U32 | NumType::F32 => 4,
-            NumType::I64 | NumType::U64 | NumType::F64 => 8,
-        }
+        with_type!(self, T => T::SIZE)
     }
 
     pub fn is_float(self) -> bool {

@@ -426,24 +426,17 @@ mod tests {
     use tetloc_core::locate::{BatchLocator, CpuLocator};
     use tetloc_core::Mesh;
 
-    /// A fresh folder, removed at the end.
-    struct TempDir(PathBuf);
-    impl TempDir {
-        fn new(tag: &str) -> TempDir {
-            let d = std::env::temp_dir().join(format!("tetloc-pieces-{}-{tag}", std::process::id()));
-            let _ = std::fs::remove_dir_all(&d);
-            std::fs::create_dir_all(&d).unwrap();
-            TempDir(d)
-        }
-    }
-    impl Drop for TempDir {
-        fn drop(&mut self) {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
-
     fn cube() -> Mesh {
         KuhnGrid::new(6).jitter(0.2, 3).cell_field("c", |i, _| i as f32).mesh("cube")
+    }
+
+    /// [`cube`] partitioned into `parts` pieces, listed as `name` in a fresh folder (removed
+    /// with the guard).
+    fn partitioned_cube(name: &str, parts: usize, zlib: bool) -> (tempfile::TempDir, Mesh, PathBuf) {
+        let dir = tempfile::tempdir().unwrap();
+        let (m, out) = (cube(), dir.path().join(name));
+        crate::partition::write_pvtu(&m, parts, &out, zlib, |_| {}).unwrap();
+        (dir, m, out)
     }
 
     /// f64 fields (values f32 cannot hold, a point and a cell field) survive partitioning
@@ -451,17 +444,17 @@ mod tests {
     #[test]
     fn f64_fields_survive_the_pieces() {
         use tetloc_core::mesh::{Field, FieldLocation};
-        let dir = TempDir::new("f64");
+        let dir = tempfile::tempdir().unwrap();
         let mut m = cube();
         let g = (0..m.points.len()).map(|i| 1e-9 + i as f64 * 1e-12 + 1e-17).collect();
         m.fields.push(Field::from_f64("g", FieldLocation::Vertex, g));
         m.fields.push(Field::from_f64("h", FieldLocation::Cell, (0..m.n_cells()).map(|t| t as f64 / 3.0).collect()));
-        crate::partition::write_pvtu(&m, 3, &dir.0.join("cube.pvtu"), false, |_| {}).unwrap();
+        crate::partition::write_pvtu(&m, 3, &dir.path().join("cube.pvtu"), false, |_| {}).unwrap();
         let vtm = r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
             <DataSet index="0" file="cube.pvtu"/></vtkMultiBlockDataSet></VTKFile>"#;
-        std::fs::write(dir.0.join("cube.vtm"), vtm).unwrap();
+        std::fs::write(dir.path().join("cube.vtm"), vtm).unwrap();
         for ext in ["pvtu", "vtm"] {
-            let out = dir.0.join(format!("cube.{ext}"));
+            let out = dir.path().join(format!("cube.{ext}"));
             let back = crate::read_mesh(&out, None).unwrap();
             assert_eq!(back.points, m.points, "{ext}");
             for name in ["g", "h"] {
@@ -478,10 +471,7 @@ mod tests {
     /// cell field says so), and every point gets the same cell and value as in the original.
     #[test]
     fn partition_round_trip() {
-        let dir = TempDir::new("round");
-        let m = cube();
-        let out = dir.0.join("cube.pvtu");
-        crate::partition::write_pvtu(&m, 5, &out, true, |_| {}).unwrap();
+        let (dir, m, out) = partitioned_cube("cube.pvtu", 5, true);
         assert_eq!(list(&out).unwrap().len(), 5);
         let back = crate::read_mesh(&out, None).unwrap();
         assert_eq!(back.n_cells(), m.n_cells());
@@ -511,11 +501,11 @@ mod tests {
         // Written again over itself: replaced, still complete, the new pieces in the other
         // folder and the old ones gone; a third write goes back to the first folder.
         crate::partition::write_pvtu(&back, 2, &out, false, |_| {}).unwrap();
-        assert_eq!(list(&out).unwrap(), [0, 1].map(|k| dir.0.join(format!("cube.1/cube_{k}.vtu"))));
-        assert!(!dir.0.join("cube").exists(), "the old pieces are gone");
+        assert_eq!(list(&out).unwrap(), [0, 1].map(|k| dir.path().join(format!("cube.1/cube_{k}.vtu"))));
+        assert!(!dir.path().join("cube").exists(), "the old pieces are gone");
         crate::partition::write_pvtu(&back, 3, &out, false, |_| {}).unwrap();
-        assert_eq!(std::fs::read_dir(dir.0.join("cube")).unwrap().count(), 3);
-        assert!(!dir.0.join("cube.1").exists());
+        assert_eq!(std::fs::read_dir(dir.path().join("cube")).unwrap().count(), 3);
+        assert!(!dir.path().join("cube.1").exists());
         assert_eq!(crate::read_mesh(&out, None).unwrap().field("c").unwrap().values, back.field("c").unwrap().values);
     }
 
@@ -524,7 +514,7 @@ mod tests {
     /// file coordinates (not the centred working copy), welded by GlobalPointIds in f64.
     #[test]
     fn far_from_the_origin_pieces_keep_the_file_coordinates() {
-        let dir = TempDir::new("far");
+        let dir = tempfile::tempdir().unwrap();
         let raw = crate::test_support::jittered_grid(4, 0.25, 7);
         let shift = [512_345.037_5, 4_123_456.062_5, 0.3];
         let file: Vec<[f64; 3]> =
@@ -532,7 +522,7 @@ mod tests {
         let raw = RawMesh { points: file.iter().map(|p| p.map(|c| c as f32)).collect(), points64: Some(file), ..raw };
         let m = Mesh::new(raw, "far grid").unwrap();
         assert!(!m.info.frame.is_identity());
-        let out = dir.0.join("far.pvtu");
+        let out = dir.path().join("far.pvtu");
         crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
         for piece in list(&out).unwrap() {
             let p = crate::read_mesh(&piece, None).unwrap();
@@ -552,9 +542,9 @@ mod tests {
 
     #[test]
     fn mixed_and_higher_order_pieces() {
-        let dir = TempDir::new("mixed");
+        let dir = tempfile::tempdir().unwrap();
         for (name, m) in [("p2", KuhnGrid::new(3).order(2).mesh("p2")), ("hybrid", hybrid())] {
-            let out = dir.0.join(format!("{name}.pvtu"));
+            let out = dir.path().join(format!("{name}.pvtu"));
             crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
             let back = crate::read_mesh(&out, None).unwrap();
             assert_eq!((back.n_cells(), back.n_tets()), (m.n_cells(), m.n_tets()), "{name}");
@@ -565,15 +555,13 @@ mod tests {
 
     #[test]
     fn vtm_and_order_without_ids() {
-        let dir = TempDir::new("vtm");
-        let m = cube();
-        crate::partition::write_pvtu(&m, 2, &dir.0.join("a.pvtu"), false, |_| {}).unwrap();
+        let (dir, m, _) = partitioned_cube("a.pvtu", 2, false);
         // Pieces without global ids: numbered in piece order × cell order.
         let plain = |k: usize| {
-            let raw = crate::vtk::vtu::read(&dir.0.join(format!("a/a_{k}.vtu"))).unwrap();
+            let raw = crate::vtk::vtu::read(&dir.path().join(format!("a/a_{k}.vtu"))).unwrap();
             let mut mesh = Mesh::new(raw, "p").unwrap();
             mesh.fields.retain(|f| f.name != "GlobalCellIds");
-            let p = dir.0.join(format!("plain_{k}.vtu"));
+            let p = dir.path().join(format!("plain_{k}.vtu"));
             crate::vtk::write::write_mesh_vtu(&p, &mesh, false).unwrap();
             mesh
         };
@@ -581,19 +569,19 @@ mod tests {
         let vtm = r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
             <Block index="0"><DataSet index="0" file="plain_0.vtu"/></Block><DataSet index="1" file="plain_1.vtu"/>
             </vtkMultiBlockDataSet></VTKFile>"#;
-        std::fs::write(dir.0.join("b.vtm"), vtm).unwrap();
-        let back = crate::read_mesh(&dir.0.join("b.vtm"), None).unwrap();
+        std::fs::write(dir.path().join("b.vtm"), vtm).unwrap();
+        let back = crate::read_mesh(&dir.path().join("b.vtm"), None).unwrap();
         let c = &back.field("c").unwrap().values;
         assert_eq!(c[..p0.n_cells()], p0.field("c").unwrap().values[..]);
         assert_eq!(c[p0.n_cells()..], p1.field("c").unwrap().values[..]);
         // A .vtm of the .pvtu: its pieces, with their ids.
         std::fs::write(
-            dir.0.join("c.vtm"),
+            dir.path().join("c.vtm"),
             vtm.replace("plain_0.vtu", "a.pvtu").replace("<DataSet index=\"1\" file=\"plain_1.vtu\"/>", ""),
         )
         .unwrap();
         assert_eq!(
-            crate::read_mesh(&dir.0.join("c.vtm"), None).unwrap().field("c").unwrap().values,
+            crate::read_mesh(&dir.path().join("c.vtm"), None).unwrap().field("c").unwrap().values,
             m.field("c").unwrap().values
         );
     }
@@ -603,35 +591,31 @@ mod tests {
     #[test]
     fn input_files_list_every_piece() {
         use crate::{input_files, MeshFormat};
-        let dir = TempDir::new("inputs");
-        crate::partition::write_pvtu(&cube(), 2, &dir.0.join("a.pvtu"), false, |_| {}).unwrap();
+        let (dir, _, _) = partitioned_cube("a.pvtu", 2, false);
         let vtm = r#"<VTKFile type="vtkMultiBlockDataSet" version="1.0"><vtkMultiBlockDataSet>
             <DataSet index="0" file="a.pvtu"/></vtkMultiBlockDataSet></VTKFile>"#;
-        std::fs::write(dir.0.join("b.vtm"), vtm).unwrap();
-        let pieces = ["a/a_0.vtu", "a/a_1.vtu"].map(|p| dir.0.join(p));
-        let pvtu = input_files(&dir.0.join("a.pvtu"), None);
-        assert_eq!(pvtu, [vec![dir.0.join("a.pvtu")], pieces.to_vec()].concat());
-        let vtm = input_files(&dir.0.join("b.vtm"), None);
-        assert_eq!(vtm, [vec![dir.0.join("b.vtm"), dir.0.join("a.pvtu")], pieces.to_vec()].concat());
+        std::fs::write(dir.path().join("b.vtm"), vtm).unwrap();
+        let pieces = ["a/a_0.vtu", "a/a_1.vtu"].map(|p| dir.path().join(p));
+        let pvtu = input_files(&dir.path().join("a.pvtu"), None);
+        assert_eq!(pvtu, [vec![dir.path().join("a.pvtu")], pieces.to_vec()].concat());
+        let vtm = input_files(&dir.path().join("b.vtm"), None);
+        assert_eq!(vtm, [vec![dir.path().join("b.vtm"), dir.path().join("a.pvtu")], pieces.to_vec()].concat());
         let tetgen = input_files(Path::new("m.ele"), None);
         assert_eq!(tetgen, [PathBuf::from("m.node"), PathBuf::from("m.ele")]);
-        let missing = dir.0.join("none.pvtu");
+        let missing = dir.path().join("none.pvtu");
         assert_eq!(input_files(&missing, Some(MeshFormat::Pieces)), std::slice::from_ref(&missing));
     }
 
     #[test]
     fn errors_name_the_file() {
-        let dir = TempDir::new("errors");
-        let m = cube();
-        let out = dir.0.join("e.pvtu");
-        crate::partition::write_pvtu(&m, 3, &out, false, |_| {}).unwrap();
+        let (dir, m, out) = partitioned_cube("e.pvtu", 3, false);
         let err = |p: &Path| crate::read_mesh(p, None).unwrap_err().to_string();
         // A piece missing.
-        std::fs::rename(dir.0.join("e/e_1.vtu"), dir.0.join("e1.vtu")).unwrap();
+        std::fs::rename(dir.path().join("e/e_1.vtu"), dir.path().join("e1.vtu")).unwrap();
         let e = err(&out);
         assert!(e.starts_with(&out.display().to_string()) && e.contains("piece 1") && e.contains("e_1.vtu"), "{e}");
         // A piece with other arrays.
-        let raw = crate::vtk::vtu::read(&dir.0.join("e1.vtu")).unwrap();
+        let raw = crate::vtk::vtu::read(&dir.path().join("e1.vtu")).unwrap();
         let mut other = Mesh::new(raw, "x").unwrap();
         other.fields.retain(|f| f.name != "c");
         let gids: Vec<i32> = other.field("GlobalCellIds").unwrap().values.iter().map(|&v| v as i32).collect();
@@ -641,20 +625,21 @@ mod tests {
             n_components: 1,
             data: crate::vtk::write::ArrayData::I32(&gids),
         };
-        crate::vtk::write::write_mesh_with_cell_data(&dir.0.join("e/e_1.vtu"), &other, &[], &[ids], false).unwrap();
+        crate::vtk::write::write_mesh_with_cell_data(&dir.path().join("e/e_1.vtu"), &other, &[], &[ids], false)
+            .unwrap();
         let e = err(&out);
         assert!(e.contains("piece 1") && e.contains("e_1.vtu") && e.contains("has the arrays"), "{e}");
         // Global ids twice.
-        std::fs::copy(dir.0.join("e/e_0.vtu"), dir.0.join("e/e_1.vtu")).unwrap();
+        std::fs::copy(dir.path().join("e/e_0.vtu"), dir.path().join("e/e_1.vtu")).unwrap();
         assert!(err(&out).contains("is also the id of piece 0"), "{}", err(&out));
         // Bad XML.
         std::fs::write(&out, "<VTKFile type=\"PUnstructuredGrid\"><PUnstructuredGrid>").unwrap();
         assert!(err(&out).starts_with(&out.display().to_string()), "{}", err(&out));
         // A listing that lists itself.
-        std::fs::write(dir.0.join("self.vtm"), "<VTKFile type=\"vtkMultiBlockDataSet\"><vtkMultiBlockDataSet><DataSet file=\"self.vtm\"/></vtkMultiBlockDataSet></VTKFile>").unwrap();
-        assert!(err(&dir.0.join("self.vtm")).contains("nest more than"));
+        std::fs::write(dir.path().join("self.vtm"), "<VTKFile type=\"vtkMultiBlockDataSet\"><vtkMultiBlockDataSet><DataSet file=\"self.vtm\"/></vtkMultiBlockDataSet></VTKFile>").unwrap();
+        assert!(err(&dir.path().join("self.vtm")).contains("nest more than"));
         // An output folder that holds other files is not replaced.
-        std::fs::write(dir.0.join("e/notes.txt"), "mine").unwrap();
+        std::fs::write(dir.path().join("e/notes.txt"), "mine").unwrap();
         let e = crate::partition::write_pvtu(&m, 2, &out, false, |_| {}).unwrap_err().to_string();
         assert!(e.contains("notes.txt") && e.contains("refusing"), "{e}");
     }
@@ -664,10 +649,8 @@ mod tests {
     /// error naming the listing and the piece, and read when allowed.
     #[test]
     fn pieces_outside_the_listing_folder_are_refused() {
-        let dir = TempDir::new("outside");
-        let m = cube();
-        crate::partition::write_pvtu(&m, 2, &dir.0.join("cube.pvtu"), false, |_| {}).unwrap();
-        let sub = dir.0.join("sub");
+        let (dir, m, _) = partitioned_cube("cube.pvtu", 2, false);
+        let sub = dir.path().join("sub");
         std::fs::create_dir_all(&sub).unwrap();
         let pvtu = |sources: &[String]| {
             let pieces: String = sources.iter().map(|s| format!("<Piece Source=\"{s}\"/>")).collect();
@@ -676,9 +659,9 @@ mod tests {
                  </PUnstructuredGrid></VTKFile>"
             )
         };
-        let absolute = dir.0.join("cube/cube_1.vtu").display().to_string();
+        let absolute = dir.path().join("cube/cube_1.vtu").display().to_string();
         #[cfg(unix)]
-        std::os::unix::fs::symlink(dir.0.join("cube/cube_1.vtu"), sub.join("link.vtu")).unwrap();
+        std::os::unix::fs::symlink(dir.path().join("cube/cube_1.vtu"), sub.join("link.vtu")).unwrap();
         let vtm = "<VTKFile type=\"vtkMultiBlockDataSet\"><vtkMultiBlockDataSet>\
                    <DataSet index=\"0\" file=\"../cube.pvtu\"/></vtkMultiBlockDataSet></VTKFile>";
         std::fs::write(sub.join("nested.vtm"), vtm).unwrap();
@@ -714,8 +697,11 @@ mod tests {
             }
         }
         // Inside the folder tree (a subfolder, `./`, `a/../`) is read as before.
-        std::fs::write(dir.0.join("inside.pvtu"), pvtu(&["./cube/cube_0.vtu".into(), "sub/../cube/cube_1.vtu".into()]))
-            .unwrap();
-        assert_eq!(crate::read_mesh(&dir.0.join("inside.pvtu"), None).unwrap().n_cells(), m.n_cells());
+        std::fs::write(
+            dir.path().join("inside.pvtu"),
+            pvtu(&["./cube/cube_0.vtu".into(), "sub/../cube/cube_1.vtu".into()]),
+        )
+        .unwrap();
+        assert_eq!(crate::read_mesh(&dir.path().join("inside.pvtu"), None).unwrap().n_cells(), m.n_cells());
     }
 }

@@ -99,21 +99,9 @@ pub fn write_pvtu(
         let (mesh, ids, point_ids) = piece?;
         let name = format!("{stem}_{k}.vtu");
         let wide = ids.iter().chain(&point_ids).any(|&g| g > i32::MAX as u64);
-        let (ids32, ids64): (Vec<i32>, Vec<i64>) = if wide {
-            (Vec::new(), ids.iter().map(|&g| g as i64).collect())
-        } else {
-            (ids.iter().map(|&g| g as i32).collect(), Vec::new())
-        };
-        let data = if wide { ArrayData::I64(&ids64) } else { ArrayData::I32(&ids32) };
-        let global = NamedArray { name: "GlobalCellIds".into(), n_components: 1, data };
-        let (p32, p64): (Vec<i32>, Vec<i64>) = if wide {
-            (Vec::new(), point_ids.iter().map(|&g| g as i64).collect())
-        } else {
-            (point_ids.iter().map(|&g| g as i32).collect(), Vec::new())
-        };
-        let data = if wide { ArrayData::I64(&p64) } else { ArrayData::I32(&p32) };
-        let points = NamedArray { name: "GlobalPointIds".into(), n_components: 1, data };
-        write_mesh_with_cell_data(&tmp.path().join(&name), &mesh, &[points], &[global], zlib)?;
+        let (cells, points) = (GlobalIds::new(&ids, wide), GlobalIds::new(&point_ids, wide));
+        let (cells, points) = (cells.array("GlobalCellIds"), points.array("GlobalPointIds"));
+        write_mesh_with_cell_data(&tmp.path().join(&name), &mesh, &[points], &[cells], zlib)?;
         if declared.is_none() {
             declared = Some(declarations(&mesh, if wide { "Int64" } else { "Int32" }));
         }
@@ -153,6 +141,31 @@ pub fn write_pvtu(
     })?;
     // The listing names the new pieces: the old ones go.
     remove_folder(old_dir)
+}
+
+/// A piece's global ids as written: Int32, or Int64 where some id of the piece needs it
+/// (`wide`: cell and point ids take one type, which the listing declares).
+enum GlobalIds {
+    I32(Vec<i32>),
+    I64(Vec<i64>),
+}
+
+impl GlobalIds {
+    fn new(ids: &[u64], wide: bool) -> GlobalIds {
+        if wide {
+            GlobalIds::I64(ids.iter().map(|&g| g as i64).collect())
+        } else {
+            GlobalIds::I32(ids.iter().map(|&g| g as i32).collect())
+        }
+    }
+
+    fn array(&self, name: &str) -> NamedArray<'_> {
+        let data = match self {
+            GlobalIds::I32(v) => ArrayData::I32(v),
+            GlobalIds::I64(v) => ArrayData::I64(v),
+        };
+        NamedArray { name: name.into(), n_components: 1, data }
+    }
 }
 
 /// The listing's `<PPointData>`, `<PCellData>` and `<PPoints>`: what every piece carries.

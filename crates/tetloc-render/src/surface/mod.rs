@@ -74,10 +74,10 @@ enum Format {
 }
 
 fn format_of(path: &Path) -> Result<Format> {
-    match path.extension().and_then(|e| e.to_str()).map(str::to_ascii_lowercase).as_deref() {
-        Some("obj") => Ok(Format::Obj),
-        Some("stl") => Ok(Format::Stl),
-        Some("vtk") => Ok(Format::Vtk),
+    match tetloc_io::output::extension(path).as_str() {
+        "obj" => Ok(Format::Obj),
+        "stl" => Ok(Format::Stl),
+        "vtk" => Ok(Format::Vtk),
         _ => Err(RenderError::file(path, "unknown surface format (known: obj, stl, vtk)")),
     }
 }

@@ -14,8 +14,8 @@ use crate::VulkanLocator;
 use std::sync::Arc;
 use tetloc_core::bvh::{QNode4, WideBvh};
 use tetloc_core::gen::{self, CellKind, Shape};
-use tetloc_core::geom::Vec3;
 use tetloc_core::mesh::{Mesh, RawMesh};
+use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::BatchLocator;
 
 fn meshes() -> Vec<Mesh> {
@@ -178,14 +178,7 @@ fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
     }
 
     let mesh = Arc::new(Mesh::new(gen::generate(Shape::Agulhas, 8_000, 4), "agulhas").unwrap());
-    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
-    let mut rng = 99u64;
-    let mut unit = || {
-        rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (rng >> 40) as f32 / (1u64 << 24) as f32
-    };
-    let mut points: Vec<Vec3> =
-        (0..12_000).map(|_| std::array::from_fn(|a| lo[a] + unit() * (hi[a] - lo[a]))).collect();
+    let mut points = queries::generate(&mesh, QueryKind::Bbox, 12_000, 99);
     points.extend(mesh.points.iter().copied());
     let split = LocatorOptions {
         chunk_points: 1000,
@@ -223,14 +216,7 @@ fn streamed_uploads_split_buffers_and_chunked_batches_give_the_same_answers() {
 fn gpu_built_locator_answers_like_cpu_built() {
     let Some(ctx) = test_context("gpu_built_locator_answers_like_cpu_built") else { return };
     let mesh = Arc::new(Mesh::new(gen::generate(Shape::Agulhas, 15_000, 2), "agulhas").unwrap());
-    let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
-    let mut rng = 12345u64;
-    let mut unit = || {
-        rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-        (rng >> 40) as f32 / (1u64 << 24) as f32
-    };
-    let mut points: Vec<Vec3> =
-        (0..20_000).map(|_| std::array::from_fn(|a| lo[a] + unit() * (hi[a] - lo[a]))).collect();
+    let mut points = queries::generate(&mesh, QueryKind::Bbox, 20_000, 12345);
     points.extend((0..mesh.n_tets()).step_by(3).map(|t| mesh.tet_center(t)));
     points.extend(mesh.points.iter().copied());
     let field = mesh.fields.first().map(|f| f.name.clone());

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use tetloc_core::geom::{self, Vec3};
 use tetloc_core::mesh::Mesh;
 use tetloc_testdata::in_ci;
-use tetloc_vulkan::{Context, ContextOptions, Kernel, VkError};
+use tetloc_vulkan::{Context, ContextOptions, Kernel, LocatorOptions, SoftBvhOptions, VkError};
 
 /// A validating context on the default device; `None` (after printing SKIPPED) when this
 /// machine has no Vulkan loader or device, except in CI where that fails the test.
@@ -40,6 +40,34 @@ pub fn kernels(ctx: &Context, test: &str) -> Vec<Kernel> {
 /// Fails the test if the validation layer reported errors.
 pub fn assert_no_validation_errors(ctx: &Context) {
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors (printed above)");
+}
+
+/// The default options but soft-bvh's, which are `soft_bvh`: the kernel sweeps' variants.
+pub fn soft_bvh(soft_bvh: SoftBvhOptions) -> LocatorOptions {
+    LocatorOptions { soft_bvh, ..Default::default() }
+}
+
+/// Uniform f64s in [0, 1) from `seed` (an LCG: the same points on every run).
+pub fn unit_f64(seed: u64) -> impl FnMut() -> f64 {
+    let mut state = seed;
+    move || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    }
+}
+
+/// A point of a random tet of `mesh` (its vertices as `vertex` gives them), at random weights
+/// `unit() + lift` (normalised; a `lift` > 0 keeps the point off the tet's faces).
+pub fn point_in_a_tet(
+    mesh: &Mesh,
+    unit: &mut impl FnMut() -> f64,
+    lift: f64,
+    vertex: impl Fn(u32) -> [f64; 3],
+) -> [f64; 3] {
+    let v = mesh.tets[(unit() * mesh.n_tets() as f64) as usize].map(vertex);
+    let w: [f64; 4] = std::array::from_fn(|_| unit() + lift);
+    let s: f64 = w.iter().sum();
+    std::array::from_fn(|k| (0..4).map(|j| w[j] / s * v[j][k]).sum())
 }
 
 /// A jittered grid mesh of about `n` tets from the core generator.

@@ -239,17 +239,10 @@ fn build_bottom(
         dev.run(|r| unsafe {
             rt.accel.cmd_build_acceleration_structures(r.cmd, &[info], &[&range]);
             if compact {
-                let barrier = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR)
-                    .dst_access_mask(vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR);
-                r.dev.cmd_pipeline_barrier(
-                    r.cmd,
+                r.memory_barrier(
                     vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                    vk::PipelineStageFlags::ACCELERATION_STRUCTURE_BUILD_KHR,
-                    vk::DependencyFlags::empty(),
-                    &[barrier],
-                    &[],
-                    &[],
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_WRITE_KHR,
+                    vk::AccessFlags::ACCELERATION_STRUCTURE_READ_KHR,
                 );
                 r.dev.cmd_reset_query_pool(r.cmd, query.pool, 0, 1);
                 rt.accel.cmd_write_acceleration_structures_properties(
