@@ -1,10 +1,13 @@
 # Shared by the scripts/h200/*.sh runs (sourced, not run).
 
-# gpu_setup BIN GPU_TXT [NVIDIA_SMI_QUERY]: the device machine's Vulkan loader (the .gl/*.deb
-# packages unpacked, as scripts/gpu-march.sh does), then the date, the card and `BIN devices`
-# in GPU_TXT; where the loader finds no device, the NVIDIA ICD is named and asked again.
+# gpu_setup BIN [NVIDIA_SMI_QUERY]: the logs' folder $OUT made (the caller sets OUT), the
+# device machine's Vulkan loader (the .gl/*.deb packages unpacked, as scripts/gpu-march.sh
+# does), then the date, the card and `BIN devices` in $OUT/gpu.txt; where the loader finds no
+# device, the NVIDIA ICD is named and asked again.
 gpu_setup() {
-  local bin=$1 txt=$2 query=${3:-name,driver_version,memory.total}
+  local bin=$1 query=${2:-name,driver_version,memory.total}
+  local txt=${OUT:?set OUT to the folder for the logs}/gpu.txt
+  mkdir -p "$OUT"
   if ls .gl/*.deb >/dev/null 2>&1; then
     for f in .gl/*.deb; do dpkg -x "$f" /; done
     ldconfig

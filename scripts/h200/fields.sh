@@ -24,10 +24,8 @@ BEFORE=$1
 AFTER=$2
 FIELDS=$3
 TETS=${4:-12M}
-OUT=${OUT:?set OUT to the folder for the logs}
-mkdir -p "$OUT"
 . "$(dirname "$0")/common.sh"
-gpu_setup "$AFTER" "$OUT/gpu.txt"
+gpu_setup "$AFTER"
 
 # 1. The CLI, before and after, interleaved.
 for round in $(seq "${ROUNDS:-1}"); do

@@ -9,10 +9,8 @@
 set -u
 BIN=$1
 CELLS=${2:-12M}
-OUT=${OUT:?set OUT to the folder for the logs}
-mkdir -p "$OUT"
 . "$(dirname "$0")/common.sh"
-gpu_setup "$BIN" "$OUT/gpu.txt"
+gpu_setup "$BIN"
 for mesh in "jets-octree:$CELLS" "jets-hex:$CELLS"; do
   name=${mesh%%:*}
   echo "== $mesh" | tee -a "$OUT/summary.txt"

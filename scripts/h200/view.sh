@@ -14,11 +14,9 @@
 set -u
 BIN=$1
 BUDGET=${2:-540}
-OUT=${OUT:?set OUT to the folder for the logs}
-mkdir -p "$OUT"
 START=$SECONDS
 . "$(dirname "$0")/common.sh"
-gpu_setup "$BIN" "$OUT/gpu.txt" name,driver_version,clocks.sm,clocks.max.sm
+gpu_setup "$BIN" name,driver_version,clocks.sm,clocks.max.sm
 
 # case NAME MESH SIZE SECONDS_PER_ORBIT [view options...]
 case_() {

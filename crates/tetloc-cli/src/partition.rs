@@ -26,12 +26,8 @@ pub struct PartitionArgs {
     /// zlib-compress the pieces' appended data.
     #[arg(long)]
     zlib: bool,
-    /// Mesh file format, overriding the extension (vtu, pvtu, vtm, vtk, msh, node).
-    #[arg(long)]
-    format: Option<String>,
-    /// Seed of a generated mesh (SHAPE:N).
-    #[arg(long, default_value_t = 1)]
-    seed: u64,
+    #[command(flatten)]
+    source: mesh_arg::MeshOptions,
     /// Print only errors and warnings on stderr (no progress bar, no summary).
     #[arg(short, long)]
     quiet: bool,
@@ -41,7 +37,7 @@ pub fn run(a: &PartitionArgs) -> Result<()> {
     output::check_output(&a.out, &["pvtu"]).context("-o/--out: partition writes a .pvtu and its pieces")?;
     write_pieces::check_pvtu_output(&a.out)?;
     progress::set_quiet(a.quiet);
-    let mesh_files = mesh_arg::input_files(&a.mesh, a.format.as_deref());
+    let mesh_files = mesh_arg::input_files(&a.mesh, a.source.format.as_deref());
     let inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
     crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     // The pieces folders are replaced: an input inside one would be lost.
@@ -59,7 +55,7 @@ pub fn run(a: &PartitionArgs) -> Result<()> {
     if a.parts == 0 {
         anyhow::bail!("--parts must be at least 1");
     }
-    let mesh = mesh_arg::load(&a.mesh, a.format.as_deref(), a.seed)?;
+    let mesh = mesh_arg::load(&a.mesh, a.source.format.as_deref(), a.source.seed)?;
     let t0 = Instant::now();
     let pb = progress::bar(a.parts as u64, format!("writing {} pieces", a.parts));
     tetloc_io::partition::write_pvtu(&mesh, a.parts, &a.out, a.zlib, |_| pb.inc(1))?;

@@ -3,10 +3,10 @@
 
 mod common;
 
-use common::{entries, read, s, tetloc, tmp, tmp_dir};
+use common::{entries, read, s, tetloc, tetloc_cpu, tmp, tmp_dir};
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use tetloc_testdata::{query_sets, read_f64s, require_data, run_vtk_script};
+use tetloc_testdata::{query_sets, read_f64s, require_data, run_vtk_script, QuerySet};
 
 #[test]
 fn info_reports_counts_reorientation_and_fields() {
@@ -23,47 +23,35 @@ fn info_reports_counts_reorientation_and_fields() {
     assert_eq!(v["mesh"]["higher_order"], 3);
 }
 
+/// `tetloc locate MESH --points POINTS --out OUT --backend cpu`, then `more` arguments; it must
+/// succeed.
+fn locate_cpu(mesh: &Path, points: &Path, out: &Path, more: &[&str]) {
+    let mut args = vec!["locate", s(mesh), "--points", s(points), "--out", s(out)];
+    args.extend(more);
+    let (ok, _, err) = tetloc_cpu(&args);
+    assert!(ok, "{err}");
+}
+
+/// How many of the ids in `ids` (one a point of `set`) differ from the oracle's, its
+/// ambiguous points aside.
+fn wrong_ids(ids: &Path, set: &QuerySet) -> usize {
+    let got: Vec<i32> = read(ids);
+    assert_eq!(got.len(), set.cell.len());
+    (0..got.len()).filter(|&i| got[i] != set.cell[i] && !set.ambiguous(i)).count()
+}
+
 #[test]
 fn locate_writes_the_oracle_answers() {
     let Some(dir) = require_data("locate_writes_the_oracle_answers") else { return };
     let set = query_sets(&dir).into_iter().find(|s| s.label == "torus_s.random").unwrap();
-    let ids = tmp("ids.bin");
-    let vals = tmp("vals.npy");
-    let (ok, _, err) = tetloc(&[
-        "locate",
-        dir.join("torus_s.msh").to_str().unwrap(),
-        "--points",
-        dir.join("torus_s.random.points.bin").to_str().unwrap(),
-        "--out",
-        ids.to_str().unwrap(),
-        "--field",
-        "f",
-        "--values",
-        vals.to_str().unwrap(),
-        "--backend",
-        "cpu",
-    ]);
-    assert!(ok, "{err}");
-    let got: Vec<i32> = read(&ids);
-    assert_eq!(got.len(), set.cell.len());
-    let wrong = (0..got.len()).filter(|&i| got[i] != set.cell[i] && !set.ambiguous(i)).count();
-    assert_eq!(wrong, 0);
-    assert!(std::fs::metadata(&vals).unwrap().len() > 4 * got.len() as u64);
+    let points = dir.join("torus_s.random.points.bin");
+    let (ids, vals) = (tmp("ids.bin"), tmp("vals.npy"));
+    locate_cpu(&dir.join("torus_s.msh"), &points, &ids, &["--field", "f", "--values", s(&vals)]);
+    assert_eq!(wrong_ids(&ids, &set), 0);
+    assert!(std::fs::metadata(&vals).unwrap().len() > 4 * set.cell.len() as u64);
     // A ParaView point set with ids and values.
     let vtu = tmp("pts.vtu");
-    let (ok, _, err) = tetloc(&[
-        "locate",
-        dir.join("torus_s.vtu").to_str().unwrap(),
-        "--points",
-        dir.join("torus_s.random.points.bin").to_str().unwrap(),
-        "--out",
-        vtu.to_str().unwrap(),
-        "--field",
-        "f",
-        "--backend",
-        "cpu",
-    ]);
-    assert!(ok, "{err}");
+    locate_cpu(&dir.join("torus_s.vtu"), &points, &vtu, &["--field", "f"]);
     let text = std::fs::read(&vtu).unwrap();
     assert!(String::from_utf8_lossy(&text[..2000.min(text.len())]).contains("tet_id"));
 }
@@ -78,20 +66,8 @@ fn locate_keeps_float64_points_far_from_the_origin() {
     let (ok, out, err) = tetloc(&["info", mesh.to_str().unwrap()]);
     assert!(ok && out.contains("frame       origin") && out.contains("512"), "{out}{err}");
     let ids = tmp("utm-ids.bin");
-    let (ok, _, err) = tetloc(&[
-        "locate",
-        mesh.to_str().unwrap(),
-        "--points",
-        dir.join("utm/part_utm.random.points.npy").to_str().unwrap(),
-        "--out",
-        ids.to_str().unwrap(),
-        "--backend",
-        "cpu",
-    ]);
-    assert!(ok, "{err}");
-    let got: Vec<i32> = read(&ids);
-    let wrong = (0..got.len()).filter(|&i| got[i] != set.cell[i] && !set.ambiguous(i)).count();
-    assert_eq!(wrong, 0, "ids differ from the oracle");
+    locate_cpu(&mesh, &dir.join("utm/part_utm.random.points.npy"), &ids, &[]);
+    assert_eq!(wrong_ids(&ids, &set), 0, "ids differ from the oracle");
 }
 
 #[test]
@@ -107,8 +83,7 @@ fn bad_input_is_a_clear_error_and_a_nonzero_exit() {
         .unwrap();
     let (ok, _, err) = tetloc(&["info", truncated.to_str().unwrap()]);
     assert!(!ok && err.contains("cut.vtu"), "{err}");
-    let (ok, _, err) =
-        tetloc(&["locate", "jets:1000", "--points", "/nonexistent/p.bin", "--out", "x.bin", "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["locate", "jets:1000", "--points", "/nonexistent/p.bin", "--out", "x.bin"]);
     assert!(!ok && err.contains("/nonexistent/p.bin"), "{err}");
     let (ok, _, err) = tetloc(&["info", "jets:100G"]);
     assert!(!ok && err.contains("GB of memory"), "{err}");
@@ -139,17 +114,8 @@ fn gen_writes_a_mesh_that_reads_back() {
 
 #[test]
 fn bench_json_has_the_documented_keys() {
-    let (ok, out, err) = tetloc(&[
-        "bench",
-        "jets:5k",
-        "--backend",
-        "cpu",
-        "--queries",
-        "centers,random,bbox",
-        "--json",
-        "--repeats",
-        "1",
-    ]);
+    let (ok, out, err) =
+        tetloc_cpu(&["bench", "jets:5k", "--queries", "centers,random,bbox", "--json", "--repeats", "1"]);
     assert!(ok, "{err}");
     let rows: Vec<serde_json::Value> = out.lines().map(|l| serde_json::from_str(l).unwrap()).collect();
     assert_eq!(rows.len(), 3);
@@ -353,11 +319,11 @@ fn a_bad_first_csv_line_is_an_error() {
     let csv = dir.join("p.csv");
     std::fs::write(&csv, "1.0D-01,0.2,0.3\n0.5,0.5,0.5\n").unwrap();
     let out = dir.join("ids.csv");
-    let (ok, _, err) = tetloc(&["locate", "jets:1000", "--points", s(&csv), "--out", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["locate", "jets:1000", "--points", s(&csv), "--out", s(&out)]);
     assert!(!ok && err.contains("p.csv") && err.contains("line 1:") && err.contains("1.0D-01"), "{err}");
     assert!(!out.exists());
     std::fs::write(&csv, "x,y,z\n0.5,0.5,0.5\n2,2,2\n").unwrap();
-    let (ok, _, err) = tetloc(&["locate", "jets:1000", "--points", s(&csv), "--out", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["locate", "jets:1000", "--points", s(&csv), "--out", s(&out)]);
     assert!(ok, "{err}");
     let text = std::fs::read_to_string(&out).unwrap();
     let rows: Vec<&str> = text.lines().collect();
@@ -492,16 +458,8 @@ fn nan_points_get_no_answer_on_every_backend() {
 fn small_defects() {
     let dir = tmp_dir("small");
     // The OS error is said once.
-    let (ok, _, err) = tetloc(&[
-        "locate",
-        "jets:1000",
-        "--points",
-        "/nonexistent/p.bin",
-        "--out",
-        s(&dir.join("x.bin")),
-        "--backend",
-        "cpu",
-    ]);
+    let (ok, _, err) =
+        tetloc_cpu(&["locate", "jets:1000", "--points", "/nonexistent/p.bin", "--out", s(&dir.join("x.bin"))]);
     assert!(!ok && err.matches("os error 2").count() == 1, "{err}");
     // A mesh path that is not UTF-8.
     use std::os::unix::ffi::OsStrExt;
@@ -531,31 +489,24 @@ fn small_defects() {
     assert!(!ok && err.contains("one backend"), "{err}");
 }
 
-/// The boundary tolerance against VTK's probe filter with the same tolerance, on the oracle
-/// meshes: at the centroids of the boundary faces (on the boundary up to rounding, where the
-/// exact answer is "outside" for about half of them) every point gets the boundary tet and
-/// the value interpolated on the face, as VTK's probe says; points moved out along the face
-/// normal by half the tolerance are valid, by one and a half mostly not, as VTK says point by
-/// point. VTK also reads the `.vtp` tetloc writes.
-///
-/// On `delaunay_s` (scipy's Delaunay: half its tets inverted, slivers on the hull) VTK's probe
-/// misses about a sixth of the boundary centroids even with the tolerance, and extrapolates
-/// in slivers it accepts within the tolerance; there the reference is the exact value on the
-/// face, and VTK is only reported.
-#[test]
-fn boundary_tolerance_matches_vtk_probe() {
-    const TEST: &str = "boundary_tolerance_matches_vtk_probe";
-    let Some(data) = require_data(TEST) else { return };
-    boundary_tolerance_matches_vtk_probe_on(TEST, &data);
-}
-
-/// The fresh-clone counterpart: [`boundary_tolerance_matches_vtk_probe`] on meshes generated
-/// at test time (`tetloc_testdata::generated_data`; its `delaunay_s`, a jittered block, has
-/// no slivers, but is held to the exact values all the same).
-#[test]
-fn boundary_tolerance_matches_vtk_probe_on_generated_meshes() {
-    let test = "boundary_tolerance_matches_vtk_probe_on_generated_meshes";
-    boundary_tolerance_matches_vtk_probe_on(test, tetloc_testdata::generated_data());
+oracle_tests! {
+    /// The boundary tolerance against VTK's probe filter with the same tolerance, on the oracle
+    /// meshes: at the centroids of the boundary faces (on the boundary up to rounding, where the
+    /// exact answer is "outside" for about half of them) every point gets the boundary tet and
+    /// the value interpolated on the face, as VTK's probe says; points moved out along the face
+    /// normal by half the tolerance are valid, by one and a half mostly not, as VTK says point by
+    /// point. VTK also reads the `.vtp` tetloc writes.
+    ///
+    /// On `delaunay_s` (scipy's Delaunay: half its tets inverted, slivers on the hull) VTK's probe
+    /// misses about a sixth of the boundary centroids even with the tolerance, and extrapolates
+    /// in slivers it accepts within the tolerance; there the reference is the exact value on the
+    /// face, and VTK is only reported.
+    fn boundary_tolerance_matches_vtk_probe;
+    /// The fresh-clone counterpart: [`boundary_tolerance_matches_vtk_probe`] on meshes generated
+    /// at test time (`tetloc_testdata::generated_data`; its `delaunay_s`, a jittered block, has
+    /// no slivers, but is held to the exact values all the same).
+    fn boundary_tolerance_matches_vtk_probe_on_generated_meshes;
+    boundary_tolerance_matches_vtk_probe_on
 }
 
 fn boundary_tolerance_matches_vtk_probe_on(test: &str, data: &Path) {
@@ -692,7 +643,7 @@ fn gen_mixed_shapes_read_back_and_locate() {
         std::fs::write(&pts, "x,y,z\n1e9,0,0\n").unwrap();
         let ids = tmp(&format!("{spec}.ids.csv"));
         let args = ["locate", out.to_str().unwrap(), "--points", pts.to_str().unwrap(), "--out", ids.to_str().unwrap()];
-        let (ok, _, err) = tetloc(&[&args[..], &["--backend", "cpu"]].concat());
+        let (ok, _, err) = tetloc_cpu(&args);
         assert!(ok, "{spec}: {err}");
         for p in [out, pts, ids] {
             let _ = std::fs::remove_file(p);

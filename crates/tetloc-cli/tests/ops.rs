@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{s, tetloc, tmp, tmp_dir};
+use common::{s, tetloc, tetloc_cpu, tmp, tmp_dir};
 use std::path::{Path, PathBuf};
 use tetloc_testdata::{read_f64s, require_data, run_vtk_script};
 
@@ -12,19 +12,13 @@ fn close(a: f64, b: f64) -> bool {
     (a - b).abs() <= 1e-5 * (1.0 + a.abs().max(b.abs()))
 }
 
-/// The image of every field and the valid mask are VTK's; the .npy of one field is the
-/// .vti's array; the grid is VTK's (bounds nudged inwards, points on both ends).
-#[test]
-fn resample_matches_vtk() {
-    const TEST: &str = "resample_matches_vtk";
-    let Some(data) = require_data(TEST) else { return };
-    resample_matches_vtk_on(TEST, &data);
-}
-
-/// The fresh-clone counterpart: [`resample_matches_vtk`] on meshes generated at test time.
-#[test]
-fn resample_matches_vtk_on_generated_meshes() {
-    resample_matches_vtk_on("resample_matches_vtk_on_generated_meshes", tetloc_testdata::generated_data());
+oracle_tests! {
+    /// The image of every field and the valid mask are VTK's; the .npy of one field is the
+    /// .vti's array; the grid is VTK's (bounds nudged inwards, points on both ends).
+    fn resample_matches_vtk;
+    /// The fresh-clone counterpart: [`resample_matches_vtk`] on meshes generated at test time.
+    fn resample_matches_vtk_on_generated_meshes;
+    resample_matches_vtk_on
 }
 
 fn resample_matches_vtk_on(test: &str, data: &Path) {
@@ -32,10 +26,9 @@ fn resample_matches_vtk_on(test: &str, data: &Path) {
         let dir = tmp_dir(&format!("{test}-{name}"));
         let mesh = data.join(format!("{name}.vtu"));
         let (vti, npy) = (dir.join("r.vti"), dir.join("f.npy"));
-        let (ok, _, err) = tetloc(&["resample", s(&mesh), "--dims", "23,19,11", "-o", s(&vti), "--backend", "cpu"]);
+        let (ok, _, err) = tetloc_cpu(&["resample", s(&mesh), "--dims", "23,19,11", "-o", s(&vti)]);
         assert!(ok, "{err}");
-        let (ok, _, err) =
-            tetloc(&["resample", s(&mesh), "--dims", "23,19,11", "--field", "f", "-o", s(&npy), "--backend", "cpu"]);
+        let (ok, _, err) = tetloc_cpu(&["resample", s(&mesh), "--dims", "23,19,11", "--field", "f", "-o", s(&npy)]);
         assert!(ok, "{err}");
         let Some(()) = run_vtk_script(test, "vtk_ops.py", &["resample", s(&mesh), "23,19,11", s(&vti), s(&dir)]) else {
             return;
@@ -72,18 +65,8 @@ fn resample_matches_vtk_on(test: &str, data: &Path) {
                 .collect();
             let (p, ids) = (dir.join("differ.bin"), dir.join("differ.ids.bin"));
             std::fs::write(&p, bytemuck::cast_slice::<[f32; 3], u8>(&pts)).unwrap();
-            let (ok, _, err) = tetloc(&[
-                "locate",
-                s(&mesh),
-                "--points",
-                s(&p),
-                "--out",
-                s(&ids),
-                "--tolerance",
-                "1%",
-                "--backend",
-                "cpu",
-            ]);
+            let (ok, _, err) =
+                tetloc_cpu(&["locate", s(&mesh), "--points", s(&p), "--out", s(&ids), "--tolerance", "1%"]);
             assert!(ok, "{err}");
             let near: Vec<i32> = bytemuck::pod_collect_to_vec(&std::fs::read(&ids).unwrap());
             for (k, &i) in differ.iter().enumerate() {
@@ -124,15 +107,13 @@ fn resample_matches_vtk_on(test: &str, data: &Path) {
 fn bad_inputs_are_refused() {
     let dir = tmp_dir("bad");
     let out = dir.join("x.vti");
-    let (ok, _, err) = tetloc(&["resample", "jets:2000", "--dims", "4,0,4", "-o", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["resample", "jets:2000", "--dims", "4,0,4", "-o", s(&out)]);
     assert!(!ok && err.contains("at least 1"), "{err}");
-    let (ok, _, err) =
-        tetloc(&["resample", "jets:2000", "--dims", "4,4,4", "-o", "/nonexistent-dir/x.vti", "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["resample", "jets:2000", "--dims", "4,4,4", "-o", "/nonexistent-dir/x.vti"]);
     assert!(!ok && err.contains("does not exist"), "{err}");
-    let (ok, _, err) = tetloc(&["resample", "jets:2000", "--dims", "4,4", "-o", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["resample", "jets:2000", "--dims", "4,4", "-o", s(&out)]);
     assert!(!ok && err.contains("three"), "{err}");
-    let (ok, _, err) =
-        tetloc(&["resample", "jets:2000", "--dims", "4,4,4", "--field", "nope", "-o", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["resample", "jets:2000", "--dims", "4,4,4", "--field", "nope", "-o", s(&out)]);
     assert!(!ok && err.contains("'nope'") && err.contains("'f'"), "{err}");
     assert!(!out.exists());
     let vtp = dir.join("l.vtp");
@@ -177,11 +158,11 @@ fn bad_inputs_are_refused() {
     let pts = dir.join("p.csv");
     std::fs::write(&pts, "0.5,0.5,0.5\n").unwrap();
     let vtu = dir.join("p.vtu");
-    let (ok, _, err) = tetloc(&["probe", "jets:2000", s(&pts), "-o", s(&vtu), "--field", "nope", "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", "jets:2000", s(&pts), "-o", s(&vtu), "--field", "nope"]);
     assert!(!ok && err.contains("'nope'"), "{err}");
-    let (ok, _, err) = tetloc(&["probe", "jets:2000", s(&pts), "-o", "/nonexistent-dir/p.vtu", "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", "jets:2000", s(&pts), "-o", "/nonexistent-dir/p.vtu"]);
     assert!(!ok && err.contains("does not exist"), "{err}");
-    let (ok, _, err) = tetloc(&["probe", "jets:2000", "jets:1000", "-o", s(&dir.join("p.vtp")), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", "jets:2000", "jets:1000", "-o", s(&dir.join("p.vtp"))]);
     assert!(!ok && err.contains("vtu") && err.contains("p.vtp"), "{err}");
     assert!(!vtu.exists());
 }
@@ -192,7 +173,7 @@ fn bad_inputs_are_refused() {
 fn trace_in_batches_is_one_file() {
     let dir = tmp_dir("trace-batches");
     let run = |batch_points: &str, out: &Path| {
-        let (ok, _, err) = tetloc(&[
+        let (ok, _, err) = tetloc_cpu(&[
             "trace",
             "jets:3000",
             "--vector",
@@ -207,8 +188,6 @@ fn trace_in_batches_is_one_file() {
             "0.02",
             "--batch-points",
             batch_points,
-            "--backend",
-            "cpu",
             "-o",
             s(out),
         ]);
@@ -323,23 +302,16 @@ fn trace_matches_vtk_on_a_generated_torus() {
     same_lines(&vtk, &ours, 1e-4 * TORUS_SIZE);
 }
 
-/// `tetloc trace --backend soft-bvh` (every particle advanced together, one batched lookup
-/// per stage on the GPU) gives the cpu backend's lines: the same lines, reasons and point
-/// counts, every point within 1e-5 of the domain (float32 sampling on the device against
-/// the CPU's: ~1e-7 per lookup, over a few hundred steps). Skipped without a Vulkan device
-/// (failed in CI).
-#[test]
-fn trace_on_the_gpu_matches_cpu() {
-    const TEST: &str = "trace_on_the_gpu_matches_cpu";
-    let Some(data) = require_data(TEST) else { return };
-    trace_on_the_gpu_matches_cpu_on(TEST, &data);
-}
-
-/// The fresh-clone counterpart: [`trace_on_the_gpu_matches_cpu`] on a torus generated at test time.
-#[test]
-fn trace_on_the_gpu_matches_cpu_on_a_generated_torus() {
-    let test = "trace_on_the_gpu_matches_cpu_on_a_generated_torus";
-    trace_on_the_gpu_matches_cpu_on(test, tetloc_testdata::generated_data());
+oracle_tests! {
+    /// `tetloc trace --backend soft-bvh` (every particle advanced together, one batched lookup
+    /// per stage on the GPU) gives the cpu backend's lines: the same lines, reasons and point
+    /// counts, every point within 1e-5 of the domain (float32 sampling on the device against
+    /// the CPU's: ~1e-7 per lookup, over a few hundred steps). Skipped without a Vulkan device
+    /// (failed in CI).
+    fn trace_on_the_gpu_matches_cpu;
+    /// The fresh-clone counterpart: [`trace_on_the_gpu_matches_cpu`] on a torus generated at test time.
+    fn trace_on_the_gpu_matches_cpu_on_a_generated_torus;
+    trace_on_the_gpu_matches_cpu_on
 }
 
 fn trace_on_the_gpu_matches_cpu_on(test: &str, data: &Path) {
@@ -473,29 +445,23 @@ fn point_segment_distance(p: [f64; 3], (a, b): ([f64; 3], [f64; 3])) -> f64 {
     (0..3).map(|i| (ap[i] - t * ab[i]).powi(2)).sum::<f64>().sqrt()
 }
 
-/// Probing the torus at its `bbox` query points (many outside) against vtkResampleWithDataSet:
-/// the mask is the exact oracle's, and VTK's but at a few points (its cell search takes
-/// points within its slack outside a tet as inside, and misses a few inside: about 0.1 %);
-/// the values are VTK's; VTK reads the point set we write.
-#[test]
-fn probe_matches_vtk() {
-    const TEST: &str = "probe_matches_vtk";
-    let Some(data) = require_data(TEST) else { return };
-    probe_matches_vtk_on(TEST, &data);
-}
-
-/// The fresh-clone counterpart: [`probe_matches_vtk`] on a torus generated at test time, with
-/// exact answers.
-#[test]
-fn probe_matches_vtk_on_a_generated_torus() {
-    probe_matches_vtk_on("probe_matches_vtk_on_a_generated_torus", tetloc_testdata::generated_data());
+oracle_tests! {
+    /// Probing the torus at its `bbox` query points (many outside) against vtkResampleWithDataSet:
+    /// the mask is the exact oracle's, and VTK's but at a few points (its cell search takes
+    /// points within its slack outside a tet as inside, and misses a few inside: about 0.1 %);
+    /// the values are VTK's; VTK reads the point set we write.
+    fn probe_matches_vtk;
+    /// The fresh-clone counterpart: [`probe_matches_vtk`] on a torus generated at test time, with
+    /// exact answers.
+    fn probe_matches_vtk_on_a_generated_torus;
+    probe_matches_vtk_on
 }
 
 fn probe_matches_vtk_on(test: &str, data: &Path) {
     let dir = tmp_dir(test);
     let (mesh, pts) = (data.join("torus_s.vtu"), data.join("torus_s.bbox.points.bin"));
     let out = dir.join("p.vtp");
-    let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&pts), "-o", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", s(&mesh), s(&pts), "-o", s(&out)]);
     assert!(ok, "{err}");
     let Some(()) = run_vtk_script(test, "vtk_ops.py", &["probe", s(&mesh), s(&pts), s(&out), s(&dir)]) else { return };
     let (vm, tm) =

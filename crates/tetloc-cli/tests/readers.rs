@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{s, tetloc, tmp_dir};
+use common::{s, tetloc, tetloc_cpu, tmp_dir};
 use std::path::{Path, PathBuf};
 use tetloc_core::FieldLocation;
 use tetloc_io::vtk::vtu;
@@ -40,6 +40,16 @@ fn jets(dir: &Path) -> PathBuf {
     let (ok, _, err) = tetloc(&["gen", "jets", "--tets", "2000", "--vector", "-o", s(&mesh)]);
     assert!(ok, "{err}");
     mesh
+}
+
+/// A fresh folder `name` with a [`jets`] mesh and the points `csv` in `p.csv`: (folder, mesh,
+/// points).
+fn jets_and_csv(name: &str, csv: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let dir = tmp_dir(name);
+    let mesh = jets(&dir);
+    let pts = dir.join("p.csv");
+    std::fs::write(&pts, csv).unwrap();
+    (dir, mesh, pts)
 }
 
 /// Item 13: a field of [0, NaN, inf, -inf] is not "range 0 .. 0" alone: the non-finite values
@@ -81,7 +91,7 @@ fn fields_never_vanish() {
 
     let mesh = jets(&dir);
     let out = dir.join("probed.vtu");
-    let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&mesh), "-o", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", s(&mesh), s(&mesh), "-o", s(&out)]);
     assert!(ok, "{err}");
     let grid = vtu::read_any(&out).unwrap();
     let has = |name: &str, at: FieldLocation| grid.fields.iter().any(|f| f.name == name && f.location == at);
@@ -101,7 +111,7 @@ fn probe_targets_of_any_cells() {
         let target = dir.join(format!("{name}.vtu"));
         std::fs::write(&target, vtu_file(&[text])).unwrap();
         let out = dir.join(format!("{name}.out.vtu"));
-        let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&target), "-o", s(&out), "--backend", "cpu"]);
+        let (ok, _, err) = tetloc_cpu(&["probe", s(&mesh), s(&target), "-o", s(&out)]);
         assert!(ok, "{name}: {err}");
         let (before, after) = (vu_read(&target), vu_read(&out));
         assert_eq!((after.types, after.ends, after.conn), (before.types, before.ends, before.conn), "{name}");
@@ -136,7 +146,7 @@ fn probe_targets_of_any_cells() {
         let target = dir.join(format!("{name}.vtk"));
         std::fs::write(&target, text).unwrap();
         let out = dir.join(format!("{name}.vtk.out.vtu"));
-        let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&target), "-o", s(&out), "--backend", "cpu"]);
+        let (ok, _, err) = tetloc_cpu(&["probe", s(&mesh), s(&target), "-o", s(&out)]);
         assert!(ok, "{name}.vtk: {err}");
         let before = tetloc_io::vtk::legacy::read_any(&target).unwrap();
         let after = vu_read(&out);
@@ -158,7 +168,7 @@ fn probe_targets_of_any_cells() {
     let target = dir.join("surface.msh");
     std::fs::write(&target, msh).unwrap();
     let out = dir.join("surface.msh.out.vtu");
-    let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&target), "-o", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", s(&mesh), s(&target), "-o", s(&out)]);
     assert!(ok, "surface.msh: {err}");
     let after = vu_read(&out);
     assert_eq!(
@@ -187,12 +197,9 @@ fn vu_read(path: &Path) -> vtu::AnyGrid {
 /// Item 17: a UTF-8 byte-order mark before a CSV of points is skipped.
 #[test]
 fn csv_points_with_a_byte_order_mark() {
-    let dir = tmp_dir("bom");
-    let mesh = jets(&dir);
-    let csv = dir.join("p.csv");
-    std::fs::write(&csv, "\u{feff}x,y,z\n0.5,0.5,0.5\n0.4,0.5,0.5\n").unwrap();
+    let (dir, mesh, csv) = jets_and_csv("bom", "\u{feff}x,y,z\n0.5,0.5,0.5\n0.4,0.5,0.5\n");
     let out = dir.join("ids.csv");
-    let (ok, _, err) = tetloc(&["locate", s(&mesh), "--points", s(&csv), "--out", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["locate", s(&mesh), "--points", s(&csv), "--out", s(&out)]);
     assert!(ok, "{err}");
     assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 3);
 }
@@ -201,23 +208,9 @@ fn csv_points_with_a_byte_order_mark() {
 /// them; duplicate and reserved names are refused the same way for every output.
 #[test]
 fn one_rule_for_vector_names() {
-    let dir = tmp_dir("names");
-    let mesh = jets(&dir);
-    let pts = dir.join("p.csv");
-    std::fs::write(&pts, "0.5,0.5,0.5\n0.4,0.5,0.5\n").unwrap();
+    let (dir, mesh, pts) = jets_and_csv("names", "0.5,0.5,0.5\n0.4,0.5,0.5\n");
     let locate = |field: &str, out: &str| {
-        tetloc(&[
-            "locate",
-            s(&mesh),
-            "--points",
-            s(&pts),
-            "--field",
-            field,
-            "--out",
-            s(&dir.join(out)),
-            "--backend",
-            "cpu",
-        ])
+        tetloc_cpu(&["locate", s(&mesh), "--points", s(&pts), "--field", field, "--out", s(&dir.join(out))])
     };
     let (ok, _, err) = locate("v[1]", "a.csv");
     assert!(ok, "{err}");
@@ -228,18 +221,7 @@ fn one_rule_for_vector_names() {
         assert!(!ok && err.contains("'vtkValidPointMask' has the name of a column"), "{out}: {err}");
     }
     let resample = |fields: &str, out: &str| {
-        tetloc(&[
-            "resample",
-            s(&mesh),
-            "--dims",
-            "4,4,4",
-            "--field",
-            fields,
-            "-o",
-            s(&dir.join(out)),
-            "--backend",
-            "cpu",
-        ])
+        tetloc_cpu(&["resample", s(&mesh), "--dims", "4,4,4", "--field", fields, "-o", s(&dir.join(out))])
     };
     let (ok, _, err) = resample("f,f", "r.vti");
     assert!(!ok && err.contains("the field 'f' is named twice"), "{err}");
@@ -249,11 +231,10 @@ fn one_rule_for_vector_names() {
     }
     let (ok, _, err) = resample("v[2]", "r.npy");
     assert!(ok, "a component is one array: {err}");
-    let (ok, _, err) =
-        tetloc(&["probe", s(&mesh), s(&pts), "--field", "v[0],v", "-o", s(&dir.join("p.vtp")), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", s(&mesh), s(&pts), "--field", "v[0],v", "-o", s(&dir.join("p.vtp"))]);
     assert!(ok, "{err}");
     let trace = |vector: &str| {
-        tetloc(&[
+        tetloc_cpu(&[
             "trace",
             s(&mesh),
             "--seeds",
@@ -264,8 +245,6 @@ fn one_rule_for_vector_names() {
             "5",
             "-o",
             s(&dir.join("t.vtp")),
-            "--backend",
-            "cpu",
         ])
     };
     let (ok, _, err) = trace("v");
@@ -278,19 +257,16 @@ fn one_rule_for_vector_names() {
 /// said to be so; probe's same-file error names SOURCE or TARGET.
 #[test]
 fn messages_are_short_and_say_what_is_wrong() {
-    let dir = tmp_dir("messages");
-    let mesh = jets(&dir);
-    let csv = dir.join("bad.csv");
     let long = format!("1,2,\x1b[31m{}\n", "9".repeat(4 << 20));
-    std::fs::write(&csv, long).unwrap();
+    let (dir, mesh, csv) = jets_and_csv("messages", &long);
     let out = dir.join("ids.npy");
-    let (ok, _, err) = tetloc(&["locate", s(&mesh), "--points", s(&csv), "--out", s(&out), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["locate", s(&mesh), "--points", s(&csv), "--out", s(&out)]);
     assert!(
         !ok && err.contains("line 1") && err.len() < 400 && !err.contains('\x1b'),
         "{}",
         &err[..err.len().min(600)]
     );
-    let (ok, _, err) = tetloc(&[
+    let (ok, _, err) = tetloc_cpu(&[
         "trace",
         s(&mesh),
         "--seeds",
@@ -301,11 +277,9 @@ fn messages_are_short_and_say_what_is_wrong() {
         "1e-30",
         "-o",
         s(&dir.join("t.vtp")),
-        "--backend",
-        "cpu",
     ]);
     assert!(!ok && err.contains("too small") && !err.contains("outside"), "{err}");
-    let (ok, _, err) = tetloc(&["probe", s(&mesh), s(&mesh), "-o", s(&mesh), "--backend", "cpu"]);
+    let (ok, _, err) = tetloc_cpu(&["probe", s(&mesh), s(&mesh), "-o", s(&mesh)]);
     assert!(!ok && err.contains("same file") && err.contains("SOURCE") && !err.contains("input input"), "{err}");
     let (ok, _, err) = tetloc(&["gen", "jets", "--tets", "18446744073709551616", "-o", s(&dir.join("g.vtu"))]);
     assert!(!ok && err.contains("'18446744073709551616'") && !err.contains("552000"), "{err}");
@@ -364,7 +338,7 @@ fn gmsh_views_of_several_steps_are_time_steps() {
     for (step, want) in [("0", 1.25), ("1", 10.25)] {
         let out = dir.join(format!("v{step}.csv"));
         let args = ["locate", s(&mesh), "--points", s(&pts), "--field", "f", "--time-step", step, "--out", s(&out)];
-        let (ok, _, err) = tetloc(&[&args[..], &["--backend", "cpu"]].concat());
+        let (ok, _, err) = tetloc_cpu(&args);
         assert!(ok, "step {step}: {err}");
         let text = std::fs::read_to_string(&out).unwrap();
         let column = text.lines().next().unwrap().split(',').position(|c| c == "f").unwrap();
@@ -372,19 +346,7 @@ fn gmsh_views_of_several_steps_are_time_steps() {
         assert_eq!(value, want, "step {step}: {text}");
     }
     let out = dir.join("v2.csv");
-    let (ok, _, err) = tetloc(&[
-        "locate",
-        s(&mesh),
-        "--points",
-        s(&pts),
-        "--field",
-        "f",
-        "--time-step",
-        "2",
-        "--out",
-        s(&out),
-        "--backend",
-        "cpu",
-    ]);
+    let (ok, _, err) =
+        tetloc_cpu(&["locate", s(&mesh), "--points", s(&pts), "--field", "f", "--time-step", "2", "--out", s(&out)]);
     assert!(!ok && err.contains("time step 2 is out of range") && err.contains("steps.msh has 2 steps"), "{err}");
 }

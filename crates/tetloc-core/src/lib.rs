@@ -11,6 +11,7 @@ pub mod geom;
 pub mod locate;
 pub mod memory;
 pub mod mesh;
+pub mod named;
 pub mod ops;
 pub mod partition;
 pub mod queries;

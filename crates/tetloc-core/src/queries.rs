@@ -12,58 +12,24 @@ use crate::mesh::Mesh;
 use rand::{Rng, SeedableRng};
 use rayon::prelude::*;
 use serde::Serialize;
-use std::str::FromStr;
 
-/// A query set.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum QueryKind {
-    /// The centre of every tet, in mesh order (the paper's "uniform").
-    Centers,
-    /// A random point in a random tet (the paper's "random").
-    Random,
-    /// Uniform in the mesh's bounding box (many points outside).
-    Bbox,
-    /// The `random` points made on the host and handed to the locator as a batch: GPU
-    /// benchmarks then time the transfers too, where the others generate points in the kernel.
-    Host,
-    /// The first n points of the N×N×N grid over the mesh's bounds ([`grid`]), x fastest:
-    /// resampling to an image (n = N³ gives the whole grid).
-    Grid,
-}
-
-impl QueryKind {
-    pub const ALL: [QueryKind; 5] =
-        [QueryKind::Centers, QueryKind::Random, QueryKind::Bbox, QueryKind::Host, QueryKind::Grid];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            QueryKind::Centers => "centers",
-            QueryKind::Random => "random",
-            QueryKind::Bbox => "bbox",
-            QueryKind::Host => "host",
-            QueryKind::Grid => "grid",
-        }
-    }
-}
-
-impl std::fmt::Display for QueryKind {
-    fn fmt(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for QueryKind {
-    type Err = String;
-    fn from_str(s: &str) -> Result<Self, String> {
-        match s {
-            "centers" | "uniform" => Ok(QueryKind::Centers),
-            "random" => Ok(QueryKind::Random),
-            "bbox" => Ok(QueryKind::Bbox),
-            "host" => Ok(QueryKind::Host),
-            "grid" => Ok(QueryKind::Grid),
-            _ => Err(format!("unknown query set '{s}' (known: centers (alias uniform), random, bbox, host, grid)")),
-        }
+crate::named! {
+    /// A query set.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize)]
+    #[serde(rename_all = "lowercase")]
+    pub enum QueryKind: "query set", Err = String {
+        /// The centre of every tet, in mesh order (the paper's "uniform").
+        Centers => "centers" | "uniform",
+        /// A random point in a random tet (the paper's "random").
+        Random => "random",
+        /// Uniform in the mesh's bounding box (many points outside).
+        Bbox => "bbox",
+        /// The `random` points made on the host and handed to the locator as a batch: GPU
+        /// benchmarks then time the transfers too, where the others generate points in the kernel.
+        Host => "host",
+        /// The first n points of the N×N×N grid over the mesh's bounds ([`grid`]), x fastest:
+        /// resampling to an image (n = N³ gives the whole grid).
+        Grid => "grid",
     }
 }
 
@@ -168,7 +134,7 @@ mod tests {
         assert_eq!(generate(&mesh, QueryKind::Centers, 5, 0)[2], mesh.tet_center(2));
         assert_eq!(generate(&mesh, QueryKind::Host, 100, 5), generate(&mesh, QueryKind::Random, 100, 5));
         for kind in QueryKind::ALL {
-            assert_eq!(kind.name().parse::<QueryKind>(), Ok(kind));
+            assert_eq!(kind.name().parse::<QueryKind>().unwrap(), kind);
         }
         // The grid of 8 points: the box's corners (nudged inwards by 1e-6), x fastest.
         assert_eq!(grid(&mesh, 8).dims, [2; 3]);

@@ -20,15 +20,17 @@ pub enum Reason {
     OutOfTime = 7,
 }
 
-/// How a step is computed.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Integrator {
-    /// Classical Runge–Kutta with a fixed step (vtkRungeKutta4).
-    Rk4,
-    /// Dormand–Prince 5(4) with vtkRungeKutta45's step control.
-    Rk45,
-    /// Cash–Karp 5(4), VTK's vtkRungeKutta45 itself.
-    CashKarp,
+crate::named! {
+    /// How a step is computed.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Integrator: "integrator" {
+        /// Classical Runge–Kutta with a fixed step (vtkRungeKutta4).
+        Rk4 => "rk4",
+        /// Dormand–Prince 5(4) with vtkRungeKutta45's step control.
+        Rk45 => "rk45",
+        /// Cash–Karp 5(4), VTK's vtkRungeKutta45 itself.
+        CashKarp => "cash-karp",
+    }
 }
 
 impl Integrator {
@@ -37,36 +39,14 @@ impl Integrator {
     }
 }
 
-impl std::str::FromStr for Integrator {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Integrator> {
-        match s {
-            "rk4" => Ok(Integrator::Rk4),
-            "rk45" => Ok(Integrator::Rk45),
-            "cash-karp" => Ok(Integrator::CashKarp),
-            _ => Err(Error::Invalid(format!("integrator '{s}': rk4, rk45 (Dormand-Prince) or cash-karp (VTK's RK45)"))),
-        }
-    }
-}
-
-/// Which way lines go from their seeds. `Both` gives two lines per seed: all the forward
-/// lines, then all the backward ones (VTK's order).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Direction {
-    Forward,
-    Backward,
-    Both,
-}
-
-impl std::str::FromStr for Direction {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Direction> {
-        match s {
-            "forward" => Ok(Direction::Forward),
-            "backward" => Ok(Direction::Backward),
-            "both" => Ok(Direction::Both),
-            _ => Err(Error::Invalid(format!("direction '{s}': forward, backward or both"))),
-        }
+crate::named! {
+    /// Which way lines go from their seeds. `Both` gives two lines per seed: all the forward
+    /// lines, then all the backward ones (VTK's order).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq)]
+    pub enum Direction: "direction" {
+        Forward => "forward",
+        Backward => "backward",
+        Both => "both",
     }
 }
 

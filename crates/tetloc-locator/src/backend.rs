@@ -1,7 +1,6 @@
 //! Backend names: `cpu`, the Vulkan kernels, and `auto`.
 
 use crate::{contexts, Error};
-use std::fmt;
 use std::str::FromStr;
 use tetloc_vulkan::{DeviceInfo, Kernel};
 
@@ -28,11 +27,7 @@ impl Backend {
     }
 }
 
-impl fmt::Display for Backend {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.pad(self.name())
-    }
-}
+tetloc_core::display_name!(Backend);
 
 impl FromStr for Backend {
     type Err = Error;

@@ -4,7 +4,6 @@
 use crate::auto::{self, AutoChoice};
 use crate::{contexts, Backend, Error, Result};
 use std::collections::BTreeMap;
-use std::fmt;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::bvh::{BuildPreset, BvhNode};
@@ -71,11 +70,7 @@ impl Layer {
     }
 }
 
-impl fmt::Display for Layer {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.pad(self.name())
-    }
-}
+tetloc_core::display_name!(Layer);
 
 /// Memory of a locator: device memory for the GPU kernels, host memory for `cpu`.
 #[derive(Clone, Debug, Default)]
@@ -139,57 +134,39 @@ fn describe(backend: Backend, stack: &[Layer]) -> String {
     std::iter::once(backend.name()).chain(stack.iter().map(|l| l.name())).collect::<Vec<_>>().join(" > ")
 }
 
+/// Builder methods that only store their argument in its field: `fn name(mut self, field)`.
+macro_rules! setters {
+    ($( $(#[doc = $doc:literal])* $name:ident($field:ident: $t:ty); )*) => {$(
+        $(#[doc = $doc])*
+        pub fn $name(mut self, $field: $t) -> Self {
+            self.$field = $field;
+            self
+        }
+    )*};
+}
+
 impl<'a> LocatorBuilder<'a> {
-    pub fn backend(mut self, backend: Backend) -> Self {
-        self.backend = backend;
-        self
-    }
-
-    /// The Vulkan device index (`None`: the best device).
-    pub fn device(mut self, device: Option<usize>) -> Self {
-        self.device = device;
-        self
-    }
-
-    pub fn precision(mut self, precision: Precision) -> Self {
-        self.precision = precision;
-        self
-    }
-
-    pub fn tolerance(mut self, tolerance: Tolerance) -> Self {
-        self.tolerance = tolerance;
-        self
-    }
-
-    /// The Vulkan kernels' options (presets, rt splits, query ordering, where soft-bvh builds).
-    pub fn vulkan_options(mut self, options: LocatorOptions) -> Self {
-        self.vulkan = options;
-        self
-    }
-
-    /// cpu: build the search on first need (a resample's grid may need none; a probe's
-    /// batches need the BVH only for points on faces). The build's time and memory then
-    /// fall in the first call, not in the build's report.
-    pub fn defer_cpu_build(mut self, defer: bool) -> Self {
-        self.defer_cpu_build = defer;
-        self
-    }
-
-    /// Do not say on stderr what `auto` chose.
-    pub fn quiet(mut self, quiet: bool) -> Self {
-        self.quiet = quiet;
-        self
+    setters! {
+        backend(backend: Backend);
+        /// The Vulkan device index (`None`: the best device).
+        device(device: Option<usize>);
+        precision(precision: Precision);
+        tolerance(tolerance: Tolerance);
+        /// The Vulkan kernels' options (presets, rt splits, query ordering, where soft-bvh builds).
+        vulkan_options(vulkan: LocatorOptions);
+        /// cpu: build the search on first need (a resample's grid may need none; a probe's
+        /// batches need the BVH only for points on faces). The build's time and memory then
+        /// fall in the first call, not in the build's report.
+        defer_cpu_build(defer_cpu_build: bool);
+        /// Do not say on stderr what `auto` chose.
+        quiet(quiet: bool);
+        /// The same options over another mesh (a distributed run's pieces).
+        mesh(mesh: Arc<Mesh>);
     }
 
     /// `stage(name)` is called as each stage of the build starts (for progress bars).
     pub fn stages<'b>(self, stage: &'b dyn Fn(&'static str)) -> LocatorBuilder<'b> {
         LocatorBuilder { stages: Some(stage), ..self }
-    }
-
-    /// The same options over another mesh (a distributed run's pieces).
-    pub fn mesh(mut self, mesh: Arc<Mesh>) -> Self {
-        self.mesh = mesh;
-        self
     }
 
     /// The layers [`Self::build`] puts around the backend, innermost first.

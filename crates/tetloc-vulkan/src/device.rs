@@ -6,9 +6,8 @@
 
 use crate::context::Context;
 use crate::error::{VkError, VkResult};
-use crate::external::SharedSemaphore;
 use crate::interface::MAX_CHUNKS;
-use crate::memory::{Buffer, BufferDesc, Commands, MemItem, MemKind, SharedTracker, Sharing, Staging, Tracker};
+use crate::memory::{Buffer, BufferDesc, Commands, MemItem, MemKind, SemOp, SharedTracker, Sharing, Staging, Tracker};
 use ash::vk;
 use std::sync::{Arc, Mutex};
 
@@ -112,12 +111,7 @@ impl Device {
     #[cfg_attr(not(feature = "cuda"), allow(dead_code))]
     /// [`Device::run`] that first waits for `wait` and then signals `signal` (a semaphore and
     /// a timeline value) on the device.
-    pub fn run_synced<R>(
-        &mut self,
-        wait: Option<(&SharedSemaphore, u64)>,
-        signal: Option<(&SharedSemaphore, u64)>,
-        record: impl FnOnce(&Recording) -> R,
-    ) -> VkResult<R> {
+    pub fn run_synced<R>(&mut self, wait: SemOp, signal: SemOp, record: impl FnOnce(&Recording) -> R) -> VkResult<R> {
         self.cmds.run_synced(wait, signal, record)
     }
 

@@ -297,6 +297,10 @@ impl Drop for Buffer {
     }
 }
 
+/// A semaphore operation of a submission: the semaphore and the timeline value to wait for
+/// or signal (ignored for binary semaphores), or none.
+pub(crate) type SemOp<'a> = Option<(&'a SharedSemaphore, u64)>;
+
 /// A command pool with one command buffer and a fence: record, submit, wait.
 pub(crate) struct Commands {
     ctx: Arc<Context>,
@@ -344,12 +348,7 @@ impl Commands {
     /// [`Commands::run`] that first waits for `wait` and then signals `signal` (semaphore and
     /// timeline value; the value is ignored for binary semaphores): how work is ordered with
     /// another API's (`cuda_interop.rs`).
-    pub fn run_synced<R>(
-        &mut self,
-        wait: Option<(&SharedSemaphore, u64)>,
-        signal: Option<(&SharedSemaphore, u64)>,
-        record: impl FnOnce(&Recording) -> R,
-    ) -> VkResult<R> {
+    pub fn run_synced<R>(&mut self, wait: SemOp, signal: SemOp, record: impl FnOnce(&Recording) -> R) -> VkResult<R> {
         let dev = &self.ctx.device;
         let rec = Recording { ctx: &self.ctx, dev, cmd: self.cmd };
         // SAFETY: the previous submission has completed (we always wait), so the pool can be

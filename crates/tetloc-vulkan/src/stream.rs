@@ -384,7 +384,7 @@ fn reason(code: i32) -> VkResult<Reason> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::context::test_context;
+    use crate::context::{test_context, Context};
     use crate::{Kernel, LocatorOptions};
     use std::sync::Arc;
     use tetloc_core::gen::{self, Shape};
@@ -417,6 +417,19 @@ mod tests {
         (m, seeds)
     }
 
+    /// The device for test `test` (`None`: skipped, as [`test_context`] says), the fusion mesh
+    /// and its seeds.
+    fn setup(test: &str) -> Option<(Arc<Context>, Arc<Mesh>, Vec<Vec3>)> {
+        let ctx = test_context(test)?;
+        let (m, seeds) = fusion();
+        Some((ctx, m, seeds))
+    }
+
+    /// A soft-bvh locator of `m`.
+    fn soft_bvh(ctx: &Arc<Context>, m: &Arc<Mesh>, opts: LocatorOptions) -> VulkanLocator {
+        VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, opts).unwrap()
+    }
+
     const V: [&str; 3] = ["v[0]", "v[1]", "v[2]"];
     const SINK: [&str; 3] = ["s[0]", "s[1]", "s[2]"];
 
@@ -438,11 +451,9 @@ mod tests {
     /// lookups.
     #[test]
     fn gpu_lines_are_the_cpu_lines() {
-        const TEST: &str = "gpu_lines_are_the_cpu_lines";
-        let Some(ctx) = test_context(TEST) else { return };
-        let (m, seeds) = fusion();
+        let Some((ctx, m, seeds)) = setup("gpu_lines_are_the_cpu_lines") else { return };
         let cpu = CpuLocator::new(m.clone());
-        let mut gpu = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, LocatorOptions::default()).unwrap();
+        let mut gpu = soft_bvh(&ctx, &m, LocatorOptions::default());
         let extent = (0..3).map(|k| m.info.bounds_max[k] - m.info.bounds_min[k]).fold(0f32, f32::max) as f64;
         let mut reasons = std::collections::BTreeSet::new();
         for (o, vector) in options(&m) {
@@ -493,10 +504,8 @@ mod tests {
     /// every lookup. The benchmark runs both ways to the end.
     #[test]
     fn segments_and_hints_change_nothing() {
-        const TEST: &str = "segments_and_hints_change_nothing";
-        let Some(ctx) = test_context(TEST) else { return };
-        let (m, seeds) = fusion();
-        let mut gpu = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, LocatorOptions::default()).unwrap();
+        let Some((ctx, m, seeds)) = setup("segments_and_hints_change_nothing") else { return };
+        let mut gpu = soft_bvh(&ctx, &m, LocatorOptions::default());
         let (o, _) = options(&m).remove(0);
         let mut run = |seg, hint| gpu.trace_in_segments(&seeds, &o, V, seg, hint, &mut |_| Ok(())).unwrap().unwrap();
         let (whole, one) = run(o.max_steps + 3, true);
@@ -519,7 +528,7 @@ mod tests {
         // Packed ids (compact; small binds its own neighbour table) change nothing either.
         for preset in ["compact", "small"] {
             let opts = LocatorOptions::preset(preset).expect("a preset");
-            let mut packed = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, opts).unwrap();
+            let mut packed = soft_bvh(&ctx, &m, opts);
             let traced = packed.trace_in_segments(&seeds, &o, V, o.max_steps + 3, true, &mut |_| Ok(()));
             assert_eq!(traced.unwrap().unwrap().0, whole, "{preset}");
         }
@@ -530,12 +539,10 @@ mod tests {
     /// batch driver (`trace_with`), which gives the same lines as the CPU.
     #[test]
     fn others_decline() {
-        const TEST: &str = "others_decline";
-        let Some(ctx) = test_context(TEST) else { return };
-        let (m, seeds) = fusion();
+        let Some((ctx, m, seeds)) = setup("others_decline") else { return };
         let (mut o, _) = options(&m).remove(0);
         o.integrator = Integrator::Rk45;
-        let mut gpu = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, LocatorOptions::default()).unwrap();
+        let mut gpu = soft_bvh(&ctx, &m, LocatorOptions::default());
         assert!(gpu.trace_lines(&seeds, &o, V, &mut |_| Ok(())).unwrap().is_none());
         if ctx.info().ray_tracing {
             let mut rt = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::RtBvh, LocatorOptions::default()).unwrap();

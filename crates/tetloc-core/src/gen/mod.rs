@@ -47,27 +47,18 @@ use std::sync::Mutex;
 /// The largest tet count asked for: tet ids must fit an `i32` (`OUTSIDE` is -1).
 pub const MAX_TETS: usize = i32::MAX as usize;
 
-/// The synthetic data sets.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Shape {
-    Jets,
-    Fusion,
-    Agulhas,
-    Japan,
+crate::named! {
+    /// The synthetic data sets.
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum Shape: "shape" {
+        Jets => "jets",
+        Fusion => "fusion",
+        Agulhas => "agulhas",
+        Japan => "japan",
+    }
 }
 
 impl Shape {
-    pub const ALL: [Shape; 4] = [Shape::Jets, Shape::Fusion, Shape::Agulhas, Shape::Japan];
-
-    pub fn name(self) -> &'static str {
-        match self {
-            Shape::Jets => "jets",
-            Shape::Fusion => "fusion",
-            Shape::Agulhas => "agulhas",
-            Shape::Japan => "japan",
-        }
-    }
-
     /// Whether [`terrain`] has ground for this shape (`agulhas`: its bathymetry and continents).
     pub fn has_terrain(self) -> bool {
         self == Shape::Agulhas
@@ -85,57 +76,31 @@ impl Shape {
     }
 }
 
-impl fmt::Display for Shape {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
-
-impl FromStr for Shape {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Shape, Error> {
-        Shape::ALL.into_iter().find(|sh| sh.name().eq_ignore_ascii_case(s.trim())).ok_or_else(|| {
-            Error::Invalid(format!("unknown shape '{s}' (known: {})", Shape::ALL.map(|sh| sh.name()).join(", ")))
-        })
-    }
-}
-
 /// A mesh of `shape` with about `target_tets` tets, the same for the same seed.
 pub fn generate(shape: Shape, target_tets: usize, seed: u64) -> RawMesh {
     generate_with_progress(shape, target_tets, seed, &|_| {})
 }
 
-/// What a generated shape is made of.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum CellKind {
-    /// Six Kuhn tets per cube (the default).
-    Tets,
-    /// One hexahedron per cube.
-    Hexes,
-    /// Two wedges per cube, their triangles in the plan of the columns.
-    Wedges,
-    /// Layers of hexes, a pyramid transition, tets and wedges (`grid::cube_cells`).
-    Hybrid,
-    /// A box of hexahedra refined once inside a ball, its coarse cells beside refined ones
-    /// polyhedra ([`octree`]: the shape picks only the map).
-    Octree,
+crate::named! {
+    /// What a generated shape is made of; its name is the suffix that names the mesh
+    /// (`jets-hex`; tets have none).
+    #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+    pub enum CellKind: "cell kind" {
+        /// Six Kuhn tets per cube (the default).
+        Tets => "tet",
+        /// One hexahedron per cube.
+        Hexes => "hex",
+        /// Two wedges per cube, their triangles in the plan of the columns.
+        Wedges => "wedge",
+        /// Layers of hexes, a pyramid transition, tets and wedges (`grid::cube_cells`).
+        Hybrid => "hybrid",
+        /// A box of hexahedra refined once inside a ball, its coarse cells beside refined ones
+        /// polyhedra ([`octree`]: the shape picks only the map).
+        Octree => "octree",
+    }
 }
 
 impl CellKind {
-    pub const ALL: [CellKind; 5] =
-        [CellKind::Tets, CellKind::Hexes, CellKind::Wedges, CellKind::Hybrid, CellKind::Octree];
-
-    /// The suffix that names it (`jets-hex`); tets have none.
-    pub fn name(self) -> &'static str {
-        match self {
-            CellKind::Tets => "tet",
-            CellKind::Hexes => "hex",
-            CellKind::Wedges => "wedge",
-            CellKind::Hybrid => "hybrid",
-            CellKind::Octree => "octree",
-        }
-    }
-
     /// Cells per cube of the grid (the hybrid's mix, for a column of many levels).
     pub fn cells_per_cube(self) -> f64 {
         match self {
@@ -183,7 +148,7 @@ impl FromStr for Spec {
     type Err = Error;
     fn from_str(s: &str) -> Result<Spec, Error> {
         let (shape, kind) = s.trim().split_once('-').unwrap_or((s.trim(), "tet"));
-        let cells = CellKind::ALL.into_iter().find(|k| k.name().eq_ignore_ascii_case(kind)).ok_or_else(|| {
+        let cells = kind.parse::<CellKind>().map_err(|_| {
             Error::Invalid(format!(
                 "unknown cells '{kind}' in '{s}' (SHAPE or SHAPE-KIND, KIND one of: {})",
                 CellKind::ALL.map(|k| k.name()).join(", ")

@@ -239,13 +239,31 @@ impl CpuLocator {
         f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
     ) {
         let bins = self.bins();
+        // Point i's value for `out`, its index kept in `ties` where the BVH decides.
+        let value = |i: usize, hint: &mut Near, ties: &mut Vec<usize>| -> T {
+            match self.search(bins, &query(&points[i]), hint) {
+                Answer::Found(t, b) => f(Some((t, b))),
+                Answer::Outside => f(None),
+                Answer::Tie => {
+                    ties.push(i);
+                    f(None)
+                }
+            }
+        };
         // Morton orders hold 32-bit indices: a larger batch keeps its order.
         let sortable =
             points.len() >= SORTED.max(self.mesh.n_tets() / TETS_A_SORTED_POINT) && points.len() as u64 <= 1 << 32;
-        let ties = if !sortable {
-            self.locate_in_order(bins, points, &query, out, &f)
+        let ties = if sortable {
+            let working: Vec<Vec3> = points.par_iter().map(|p| query(p).local).collect();
+            if is_coherent(&working, self.mesh.info.mean_edge_length) {
+                in_order(out, CHUNK, &value)
+            } else {
+                self.in_morton_order(working, out, &value)
+            }
         } else {
-            self.locate_sorted(bins, points, &query, out, &f)
+            // Small batches: chunks of at least [`MIN_TASK`] points, one a thread or two,
+            // with no sort and no buffer.
+            in_order(out, points.len().div_ceil(2 * rayon::current_num_threads()).max(MIN_TASK), &value)
         };
         if !ties.is_empty() {
             // Built here, not inside the parallel loop (where a rayon task could be run by
@@ -258,80 +276,14 @@ impl CpuLocator {
         }
     }
 
-    /// Small batches, in their order: chunks of at least [`MIN_TASK`] points, one a thread
-    /// or two (a batch of fewer stays on the calling thread), each written straight to
-    /// `out`, with no sort and no buffer. The ties' indices are returned.
-    fn locate_in_order<P: Sync, T: Send + Copy>(
-        &self,
-        bins: &Bins,
-        points: &[P],
-        query: &(impl Fn(&P) -> Query + Sync),
-        out: &mut [T],
-        f: &(impl Fn(Option<(u32, Bary)>) -> T + Sync),
-    ) -> Vec<usize> {
-        let chunk = points.len().div_ceil(2 * rayon::current_num_threads()).max(MIN_TASK);
-        let each = |c: usize, (o, p): (&mut [T], &[P])| {
-            let mut hint = None;
-            let mut ties = Vec::new();
-            for (k, (o, p)) in o.iter_mut().zip(p).enumerate() {
-                *o = match self.search(bins, &query(p), &mut hint) {
-                    Answer::Found(t, b) => f(Some((t, b))),
-                    Answer::Outside => f(None),
-                    Answer::Tie => {
-                        ties.push(c * chunk + k);
-                        f(None)
-                    }
-                };
-            }
-            ties
-        };
-        if points.len() <= chunk {
-            return each(0, (out, points));
-        }
-        out.par_chunks_mut(chunk).zip(points.par_chunks(chunk)).enumerate().flat_map_iter(|(c, o)| each(c, o)).collect()
-    }
-
-    /// Large batches: in Morton order unless they are coherent already, [`CHUNK`] points a
-    /// task, each answer written straight to its place in `out`. The ties' indices are
-    /// returned.
-    fn locate_sorted<P: Sync, T: Send + Copy>(
-        &self,
-        bins: &Bins,
-        points: &[P],
-        query: &(impl Fn(&P) -> Query + Sync),
-        out: &mut [T],
-        f: &(impl Fn(Option<(u32, Bary)>) -> T + Sync),
-    ) -> Vec<usize> {
-        // Point i's value for `out`, its index kept in `ties` where the BVH decides.
-        let value = |i: usize, hint: &mut Option<(u32, [usize; 3])>, ties: &mut Vec<usize>| -> T {
-            match self.search(bins, &query(&points[i]), hint) {
-                Answer::Found(t, b) => f(Some((t, b))),
-                Answer::Outside => f(None),
-                Answer::Tie => {
-                    ties.push(i);
-                    f(None)
-                }
-            }
-        };
-        let working: Vec<Vec3> = points.par_iter().map(|p| query(p).local).collect();
-        if is_coherent(&working, self.mesh.info.mean_edge_length) {
-            return out
-                .par_chunks_mut(CHUNK)
-                .enumerate()
-                .flat_map_iter(|(c, o)| {
-                    // The previous answer and its bin's coordinates.
-                    let (mut hint, mut ties) = (None, Vec::new());
-                    for (k, o) in o.iter_mut().enumerate() {
-                        *o = value(c * CHUNK + k, &mut hint, &mut ties);
-                    }
-                    ties
-                })
-                .collect();
-        }
+    /// Every point's `value` written straight to its place in `out`, the points visited in
+    /// the Morton order of `working` (their working coordinates), [`CHUNK`] a task. The
+    /// ties' indices are returned.
+    fn in_morton_order<T: Send>(&self, working: Vec<Vec3>, out: &mut [T], value: &impl WalkValue<T>) -> Vec<usize> {
         let order = morton::order(&working, self.mesh.info.bounds_min, self.mesh.info.bounds_max);
         drop(working);
         // What the writes below stand on: one place for each point, each index once.
-        assert!(out.len() == points.len() && order.len() == points.len());
+        assert!(order.len() == out.len());
         let places = SharedSlice::new(out);
         order
             .par_chunks(CHUNK)
@@ -353,7 +305,7 @@ impl CpuLocator {
     /// a touching bin) or from the bin's start tet, then the bin's tets (see the module
     /// documentation).
     #[inline]
-    fn search(&self, bins: &Bins, q: &Query, hint: &mut Option<(u32, [usize; 3])>) -> Answer {
+    fn search(&self, bins: &Bins, q: &Query, hint: &mut Near) -> Answer {
         let (lo, hi) = (self.mesh.info.bounds_min, self.mesh.info.bounds_max);
         // A NaN or infinite coordinate is in no tet (and would lead a walk astray).
         if !q.file.iter().all(|c| c.is_finite()) || !(0..3).all(|k| q.local[k] >= lo[k] && q.local[k] <= hi[k]) {
@@ -391,6 +343,30 @@ impl CpuLocator {
         *hint = Some((found.0, at));
         Answer::Found(found.0, found.1)
     }
+}
+
+/// A batch walk's previous answer and its bin's coordinates: where the next walk starts.
+type Near = Option<(u32, [usize; 3])>;
+
+/// Point `i`'s answer in a batch, walking from `Near` and keeping `i` in the ties where the
+/// BVH decides (`locate_batch_of`'s `value`).
+trait WalkValue<T>: Fn(usize, &mut Near, &mut Vec<usize>) -> T + Sync {}
+impl<T, F: Fn(usize, &mut Near, &mut Vec<usize>) -> T + Sync> WalkValue<T> for F {}
+
+/// Every point's `value` written straight to `out`, in the points' order, `chunk` points a
+/// task (a batch of one chunk stays on the calling thread). The ties' indices are returned.
+fn in_order<T: Send>(out: &mut [T], chunk: usize, value: &impl WalkValue<T>) -> Vec<usize> {
+    let each = |c: usize, out: &mut [T]| {
+        let (mut hint, mut ties) = (None, Vec::new());
+        for (k, o) in out.iter_mut().enumerate() {
+            *o = value(c * chunk + k, &mut hint, &mut ties);
+        }
+        ties
+    };
+    if out.len() <= chunk {
+        return each(0, out);
+    }
+    out.par_chunks_mut(chunk).enumerate().flat_map_iter(|(c, o)| each(c, o)).collect()
 }
 
 /// A coarse grid over the mesh's box marking the cells that some tet's box meets: a point in

@@ -6,37 +6,19 @@
 //! for bit.
 
 use super::{check_sample_lengths, BatchLocator, GridSampler, LineTracer, Points, Values};
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::mesh::Mesh;
 use std::sync::Arc;
 
-/// The values' precision on the f64 path.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub enum Precision {
-    /// The backend's own values: f32 on the GPU (within 1e-6 of the field's range), widened.
-    #[default]
-    F32,
-    /// f64 values computed on the host from the backend's ids: the CPU's, bit for bit.
-    F64,
-}
-
-impl std::str::FromStr for Precision {
-    type Err = Error;
-    fn from_str(s: &str) -> Result<Precision> {
-        match s {
-            "f32" => Ok(Precision::F32),
-            "f64" => Ok(Precision::F64),
-            other => Err(Error::Invalid(format!("precision '{other}': expected f32 or f64"))),
-        }
-    }
-}
-
-impl std::fmt::Display for Precision {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(match self {
-            Precision::F32 => "f32",
-            Precision::F64 => "f64",
-        })
+crate::named! {
+    /// The values' precision on the f64 path.
+    #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+    pub enum Precision: "precision" {
+        /// The backend's own values: f32 on the GPU (within 1e-6 of the field's range), widened.
+        #[default]
+        F32 => "f32",
+        /// f64 values computed on the host from the backend's ids: the CPU's, bit for bit.
+        F64 => "f64",
     }
 }
 

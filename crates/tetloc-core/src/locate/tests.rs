@@ -18,6 +18,12 @@ fn random_inside(m: &crate::Mesh, rng: &mut impl Rng) -> (usize, Vec3) {
     (t, std::array::from_fn(|k| (0..4).map(|i| w[i] / s * v[i][k] as f64).sum::<f64>() as f32))
 }
 
+/// `n` points drawn inside random tets of `m` (the draw seeded by `seed`).
+fn points_inside(m: &crate::Mesh, n: usize, seed: u64) -> Vec<Vec3> {
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(seed);
+    (0..n).map(|_| random_inside(m, &mut rng).1).collect()
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(24))]
 
@@ -90,8 +96,7 @@ proptest! {
 fn sample_interpolates_vertex_fields_and_looks_up_cell_fields() {
     let m = Arc::new(grid_mesh(4, 0.25, 9));
     let mut loc = CpuLocator::new(m.clone());
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(3);
-    let mut pts: Vec<Vec3> = (0..500).map(|_| random_inside(&m, &mut rng).1).collect();
+    let mut pts = points_inside(&m, 500, 3);
     pts.push([2.0, 2.0, 2.0]);
     let mut ids = vec![0; pts.len()];
     let mut f = vec![0.0; pts.len()];
@@ -122,8 +127,7 @@ fn sample_interpolates_vertex_fields_and_looks_up_cell_fields() {
 fn batch_answers_do_not_depend_on_order() {
     let m = Arc::new(grid_mesh(6, 0.3, 11));
     let mut loc = CpuLocator::new(m.clone());
-    let mut rng = rand_pcg::Pcg64::seed_from_u64(5);
-    let mut pts: Vec<Vec3> = (0..2000).map(|_| random_inside(&m, &mut rng).1).collect();
+    let mut pts = points_inside(&m, 2000, 5);
     pts.extend(m.points.iter().copied());
     for f in m.faces().faces.iter().take(500) {
         let [a, b, c] = f.v.map(|i| m.points[i as usize]);

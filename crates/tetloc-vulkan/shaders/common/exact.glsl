@@ -5,7 +5,8 @@
 // in step.
 //
 // What an including shader must provide:
-// - doubles (shaderFloat64);
+// - doubles (shaderFloat64) and TL_F64 defined, as the f64 variants have it (det.glsl's f64
+//   determinant);
 // - round-to-nearest for 64-bit floats: two-sum and two-product are exact only then, and
 //   Vulkan leaves the rounding mode to the device unless the shader declares one. This
 //   file declares RoundingModeRTE for 64-bit floats (the device must report
@@ -23,6 +24,8 @@
 #extension GL_EXT_spirv_intrinsics : require
 spirv_execution_mode(capabilities = [4467], 4462, 64); // capability and mode RoundingModeRTE, 64-bit
 #endif
+
+#include "common/det.glsl"
 
 // ---------------------------------------------------------------- expansion.rs
 
@@ -135,14 +138,8 @@ const double TL_ORIENT2D_BOUND = 5.0lf * TL_EPS64;
 
 // orient3d_stage_a: det[a - d; b - d; c - d] in f64 and its error bound.
 double tl_orient3d_stage_a(dvec3 a, dvec3 b, dvec3 c, dvec3 d, out double bound) {
-    precise double adx = a.x - d.x, ady = a.y - d.y, adz = a.z - d.z;
-    precise double bdx = b.x - d.x, bdy = b.y - d.y, bdz = b.z - d.z;
-    precise double cdx = c.x - d.x, cdy = c.y - d.y, cdz = c.z - d.z;
-    precise double bc = bdy * cdz, cb = cdy * bdz;
-    precise double ca = cdy * adz, ac = ady * cdz;
-    precise double ab = ady * bdz, ba = bdy * adz;
-    precise double det = adx * (bc - cb) + bdx * (ca - ac) + cdx * (ab - ba);
-    precise double permanent = (abs(bc) + abs(cb)) * abs(adx) + (abs(ca) + abs(ac)) * abs(bdx) + (abs(ab) + abs(ba)) * abs(cdx);
+    precise double permanent;
+    precise double det = tl_det_and_permanent(a, b, c, d, permanent);
     bound = TL_ORIENT3D_BOUND * permanent;
     return det;
 }
@@ -245,19 +242,14 @@ vec3 tl_to_local(dvec3 x, dvec3 origin, double scale, out bool inside) {
 // arithmetic and (delta: TL_FILTER_DELTA) the rounding of the file's coordinates.
 // |det| > bound proves the sign of orient3d on the file's coordinates.
 float tl_orient3d_local(vec3 a, vec3 b, vec3 c, vec3 p, float delta, out float bound) {
-    precise float adx = a.x - p.x, ady = a.y - p.y, adz = a.z - p.z;
-    precise float bdx = b.x - p.x, bdy = b.y - p.y, bdz = b.z - p.z;
-    precise float cdx = c.x - p.x, cdy = c.y - p.y, cdz = c.z - p.z;
-    precise float bc = bdy * cdz, cb = cdy * bdz;
-    precise float ca = cdy * adz, ac = ady * cdz;
-    precise float ab = ady * bdz, ba = bdy * adz;
-    precise float det = adx * (bc - cb) + bdx * (ca - ac) + cdx * (ab - ba);
-    precise float permanent = (abs(bc) + abs(cb)) * abs(adx) + (abs(ca) + abs(ac)) * abs(bdx) + (abs(ab) + abs(ba)) * abs(cdx);
+    precise float permanent;
+    vec3 ad, bd, cd;
+    precise float det = tl_det_and_permanent(a, b, c, p, permanent, ad, bd, cd);
     // Row norms, widened by the rounding of the inputs.
     precise float two_delta = 2.0 * delta;
-    precise float ma = abs(adx) + abs(ady) + abs(adz) + two_delta;
-    precise float mb = abs(bdx) + abs(bdy) + abs(bdz) + two_delta;
-    precise float mc = abs(cdx) + abs(cdy) + abs(cdz) + two_delta;
+    precise float ma = abs(ad.x) + abs(ad.y) + abs(ad.z) + two_delta;
+    precise float mb = abs(bd.x) + abs(bd.y) + abs(bd.z) + two_delta;
+    precise float mc = abs(cd.x) + abs(cd.y) + abs(cd.z) + two_delta;
     precise float inputs = delta * (ma * mb + mb * mc + mc * ma);
     bound = TL_LOCAL_ORIENT_BOUND * permanent + inputs;
     return det;

@@ -14,18 +14,13 @@
 #ifndef TL_TET_GLSL
 #define TL_TET_GLSL
 
-// Determinant of (a-p, b-p, c-p) in f32 and its error bound (geom::orient_f32).
+#include "common/det.glsl"
+
+// Determinant of (a-p, b-p, c-p) in f32 and its error bound (geom::orient_f32: the
+// operations of det_and_permanent, in its order).
 float tl_orient_f32(vec3 a, vec3 b, vec3 c, vec3 p, out float bound) {
-    precise float adx = a.x - p.x, ady = a.y - p.y, adz = a.z - p.z;
-    precise float bdx = b.x - p.x, bdy = b.y - p.y, bdz = b.z - p.z;
-    precise float cdx = c.x - p.x, cdy = c.y - p.y, cdz = c.z - p.z;
-    precise float bc_yz = bdy * cdz, cb_yz = cdy * bdz;
-    precise float ca_yz = cdy * adz, ac_yz = ady * cdz;
-    precise float ab_yz = ady * bdz, ba_yz = bdy * adz;
-    precise float det = adx * (bc_yz - cb_yz) + bdx * (ca_yz - ac_yz) + cdx * (ab_yz - ba_yz);
-    precise float permanent = (abs(bc_yz) + abs(cb_yz)) * abs(adx)
-        + (abs(ca_yz) + abs(ac_yz)) * abs(bdx)
-        + (abs(ab_yz) + abs(ba_yz)) * abs(cdx);
+    precise float permanent;
+    precise float det = tl_det_and_permanent(a, b, c, p, permanent);
     bound = ORIENT_ERR_BOUND_F32 * permanent;
     return det;
 }

@@ -14,12 +14,12 @@ use crate::device::{Device, Split};
 use crate::error::VkResult;
 use crate::pipeline::{Binding, Program, Spec};
 use rt::AsReport;
-use std::fmt;
 use std::str::FromStr;
 use std::sync::Arc;
 use tetloc_core::bvh::Aabb;
 use tetloc_core::geom::Vec3;
 use tetloc_core::mesh::Mesh;
+use tetloc_core::named::Unknown;
 
 /// A kernel as the registry knows it.
 pub(crate) struct KernelDef {
@@ -178,18 +178,12 @@ impl Kernel {
     }
 }
 
-impl fmt::Display for Kernel {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(self.name())
-    }
-}
+tetloc_core::display_name!(Kernel);
 
 impl FromStr for Kernel {
     type Err = String;
     fn from_str(s: &str) -> Result<Kernel, String> {
-        Kernel::ALL
-            .into_iter()
-            .find(|k| k.name() == s)
-            .ok_or_else(|| format!("unknown kernel '{s}' (known: {})", Kernel::ALL.map(|k| k.name()).join(", ")))
+        let unknown = || String::unknown("kernel", s, &Kernel::ALL.map(Kernel::name));
+        Kernel::ALL.into_iter().find(|k| k.name() == s).ok_or_else(unknown)
     }
 }

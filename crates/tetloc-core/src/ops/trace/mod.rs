@@ -5,8 +5,9 @@
 //! control. The step arithmetic is one state machine per particle (`particle`), driven two
 //! ways: [`trace`] answers each particle's lookups at once from the tet of its last lookup (a
 //! walk through face neighbours; the BVH when the walk fails), so a step costs a few
-//! point-in-tet tests instead of a traversal; [`trace_batch`] advances every live particle
-//! together, one batched `sample_many` per Runge–Kutta stage, on any backend.
+//! point-in-tet tests instead of a traversal; [`trace_with`] advances every live particle
+//! together, one batched `sample_many` per Runge–Kutta stage, on any backend (or hands the
+//! lines to the backend's own tracer).
 //!
 //! VTK's loop, reproduced step for step: a seed outside the mesh, or whose first step
 //! already leaves it, gives no line; a line stops when a step (any stage) or its end point
@@ -179,9 +180,12 @@ pub(super) fn spatial_order(points: &[Vec3]) -> Vec<u32> {
     crate::bvh::morton::order(points, lo, hi)
 }
 
-/// The lines of [`trace`] through `loc`: by the backend's own tracer where it has one for
-/// these options (soft-bvh with RK4: every particle run to its end in one GPU kernel,
-/// [`crate::locate::LineTracer`]), else by [`trace_batch`].
+/// The lines of [`trace`] through `loc`, the vector's three components being `vector`: by
+/// the backend's own tracer where it has one for these options (soft-bvh with RK4: every
+/// particle run to its end in one GPU kernel, [`crate::locate::LineTracer`]), else
+/// step-synchronous on any backend: every live particle asks for its next velocity, and all
+/// of them are answered by one `sample_many` through `loc`, a round per Runge–Kutta stage
+/// (`progress` gets the number of lines done after each round).
 pub fn trace_with(
     seeds: &[Vec3],
     o: &TraceOptions,
@@ -190,24 +194,9 @@ pub fn trace_with(
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<Vec<Line>> {
     o.check()?;
-    match crate::locate::trace_lines(loc, seeds, o, vector, &mut progress)? {
-        Some(lines) => Ok(lines),
-        None => trace_batch(seeds, o, loc, vector, progress),
+    if let Some(lines) = crate::locate::trace_lines(loc, seeds, o, vector, &mut progress)? {
+        return Ok(lines);
     }
-}
-
-/// The same lines as [`trace`], step-synchronous: every live particle asks for its next
-/// velocity, and all of them are answered by one `sample_many` of the vector's three
-/// components (`vector`) through `loc` — a round per Runge–Kutta stage, on any backend.
-/// `progress` gets the number of lines done after each round.
-pub fn trace_batch(
-    seeds: &[Vec3],
-    o: &TraceOptions,
-    loc: &mut dyn BatchLocator,
-    vector: [&str; 3],
-    mut progress: impl FnMut(usize) -> Result<()>,
-) -> Result<Vec<Line>> {
-    o.check()?;
     let jobs = o.jobs(seeds.len());
     let mut live: Vec<(usize, Particle)> =
         jobs.iter().enumerate().map(|(j, &(s, b))| (j, Particle::new(s, seeds[s as usize], b))).collect();
@@ -601,10 +590,16 @@ mod tests {
         std::sync::Arc::new(crate::Mesh::new(raw, "cube+v").unwrap())
     }
 
-    /// The step-synchronous batch driver gives the per-particle driver's lines (both on the
-    /// CPU locator: the same tets, the same f64 arithmetic), for every integrator. (The
-    /// particles here take the exact test's weights, as the batch's lookups do: the held
-    /// tets' maps, whose weights differ in the last f32 bits, are off.)
+    /// Lines both ways from every seed, by `integrator`.
+    fn both_ways(integrator: Integrator, step: f64, max_steps: usize) -> TraceOptions {
+        TraceOptions { step, max_steps, direction: Direction::Both, integrator, ..Default::default() }
+    }
+
+    /// The step-synchronous batch driver (`trace_with` on the CPU locator, which has no
+    /// tracer of its own) gives the per-particle driver's lines (the same tets, the same f64
+    /// arithmetic), for every integrator. (The particles here take the exact test's weights,
+    /// as the batch's lookups do: the held tets' maps, whose weights differ in the last f32
+    /// bits, are off.)
     #[test]
     fn batch_tracing_matches_particle_tracing() {
         use crate::CpuLocator;
@@ -613,20 +608,14 @@ mod tests {
         let seeds = seeds_from_spec("grid:0.1,0.9,0.1,0.9,0.2,0.8,3,3,2").unwrap().unwrap();
         let mut outside = seeds.clone();
         outside.push([3.0, 0.5, 0.5]);
-        for integrator in [Integrator::Rk4, Integrator::Rk45, Integrator::CashKarp] {
-            let o = TraceOptions {
-                step: 0.02,
-                max_steps: 300,
-                direction: Direction::Both,
-                integrator,
-                ..Default::default()
-            };
+        for integrator in Integrator::ALL {
+            let o = both_ways(integrator, 0.02, 300);
             let one = {
                 let exact = cpu.vector_field_with(["v[0]", "v[1]", "v[2]"], f64::INFINITY).unwrap();
                 trace(&outside, &o, &exact, &|_| Ok(())).unwrap()
             };
             let mut rounds = 0;
-            let all = trace_batch(&outside, &o, &mut cpu, ["v[0]", "v[1]", "v[2]"], |_| {
+            let all = trace_with(&outside, &o, &mut cpu, ["v[0]", "v[1]", "v[2]"], |_| {
                 rounds += 1;
                 Ok(())
             })
@@ -661,14 +650,8 @@ mod tests {
         let cpu = CpuLocator::new(m.clone());
         let mut seeds = seeds_from_spec("grid:0,1,0,1,0,1,9,9,9").unwrap().unwrap();
         seeds.push([3.0, 0.5, 0.5]);
-        for integrator in [Integrator::Rk4, Integrator::Rk45, Integrator::CashKarp] {
-            let o = TraceOptions {
-                step: 0.03,
-                max_steps: 200,
-                direction: Direction::Both,
-                integrator,
-                ..Default::default()
-            };
+        for integrator in Integrator::ALL {
+            let o = both_ways(integrator, 0.03, 200);
             let xyz = ["v[0]", "v[1]", "v[2]"];
             let lines = trace(&seeds, &o, &cpu.vector_field(xyz).unwrap(), &|_| Ok(())).unwrap();
             let mut again = crate::locate::FiniteOnly::new(CpuLocator::new(m.clone()));

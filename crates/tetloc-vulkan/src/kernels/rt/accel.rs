@@ -110,23 +110,26 @@ fn geometry<'a>(kind: Geometry, input: u64, points: u64, n_points: u32) -> vk::A
     vk::AccelerationStructureGeometryKHR::default().geometry_type(ty).geometry(data).flags(vk::GeometryFlagsKHR::OPAQUE)
 }
 
-/// Builds kernel `k`'s structures: a bottom-level one per group of `order` (the items in
-/// primitive order), compacted when `compact`, and the top level over them. `points` is the
-/// mesh's vertex buffer (created with build-input usage).
-pub(crate) fn build(
-    dev: &mut Device,
-    k: &RtKernel,
-    mesh: &Mesh,
-    points: &Buffer,
-    order: &[u32],
-    groups: &[Range<usize>],
-    compact: bool,
-) -> VkResult<Built> {
-    let (blas, blas_bytes_built) = build_bottom(dev, k, mesh, points, order, groups, compact)?;
+/// What kernel `k`'s structures are built from: a bottom-level one per group of `order` (the
+/// items in primitive order), compacted when `compact`. `points` is the mesh's vertex buffer
+/// (created with build-input usage).
+#[derive(Clone, Copy)]
+pub(crate) struct Source<'a> {
+    pub k: &'a RtKernel,
+    pub mesh: &'a Mesh,
+    pub points: &'a Buffer,
+    pub order: &'a [u32],
+    pub groups: &'a [Range<usize>],
+    pub compact: bool,
+}
+
+/// Builds the structures of `src`: the bottom levels and the top level over them.
+pub(crate) fn build(dev: &mut Device, src: Source) -> VkResult<Built> {
+    let (blas, blas_bytes_built) = build_bottom(dev, src)?;
     let tlas = build_top(dev, &blas)?;
     let report = AsReport {
         blas_count: blas.len(),
-        primitives: order.len() * k.prims_per_item,
+        primitives: src.order.len() * src.k.prims_per_item,
         blas_bytes_built,
         blas_bytes: blas.iter().map(Accel::bytes).sum(),
         tlas_bytes: tlas.bytes(),
@@ -159,15 +162,8 @@ impl Drop for SizeQuery<'_> {
 }
 
 /// The bottom-level structures, one per group, and their bytes as built (before compaction).
-fn build_bottom(
-    dev: &mut Device,
-    k: &RtKernel,
-    mesh: &Mesh,
-    points: &Buffer,
-    order: &[u32],
-    groups: &[Range<usize>],
-    compact: bool,
-) -> VkResult<(Vec<Accel>, u64)> {
+fn build_bottom(dev: &mut Device, src: Source) -> VkResult<(Vec<Accel>, u64)> {
+    let Source { k, mesh, points, order, groups, compact } = src;
     let ctx = dev.ctx().clone();
     let rt = ctx.rt.as_ref().expect("acceleration structures on a device without ray tracing");
     let n_points = mesh.points.len() as u32;

@@ -10,12 +10,8 @@ use crate::shaders;
 use rayon::prelude::*;
 use tetloc_core::bvh::Aabb;
 
-pub(crate) const KERNEL: KernelDef = KernelDef {
-    name: "rt-bvh",
-    ray_tracing: true,
-    cell_boxes: true,
-    plan: |dev, input| super::plan(&RT_BVH, dev, input),
-};
+/// `cell_boxes` true: one box a cell of a mixed mesh.
+pub(crate) const KERNEL: KernelDef = super::kernel_def("rt-bvh", true, |dev, input| super::plan(&RT_BVH, dev, input));
 
 const RT_BVH: RtKernel = RtKernel {
     geometry: Geometry::Boxes,

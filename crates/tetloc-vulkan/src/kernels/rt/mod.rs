@@ -11,7 +11,7 @@ pub(crate) mod bvh;
 pub(crate) mod rep_faces;
 pub(crate) mod shared_faces;
 
-use super::{Inputs, Plan, Ray};
+use super::{Inputs, KernelDef, Plan, Ray};
 use crate::device::Device;
 use crate::error::{VkError, VkResult};
 use crate::interface::{sc, B_ACCEL, B_INSTANCES, B_NEIGHBORS, B_NEIGHBORS_HI, B_PRIMS};
@@ -60,6 +60,16 @@ pub(crate) struct RtKernel {
     /// The hit group.
     pub closest_hit: Shader,
     pub intersection: Option<Shader>,
+}
+
+/// The registry entry of rt kernel `name`: ray-tracing pipelines, one box a cell of a mixed
+/// mesh where `cell_boxes`, and `plan`, which calls [`plan`] with the kernel's [`RtKernel`].
+pub(crate) const fn kernel_def(
+    name: &'static str,
+    cell_boxes: bool,
+    plan: fn(&mut Device, &Inputs) -> VkResult<Plan>,
+) -> KernelDef {
+    KernelDef { name, ray_tracing: true, cell_boxes, plan }
 }
 
 /// SPIR-V ray flags.
@@ -135,7 +145,9 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
     } else {
         None
     };
-    let built = accel::build(dev, k, mesh, &input.points.parts[0], &order, &groups, opts.compact)?;
+    let points = &input.points.parts[0];
+    let src = accel::Source { k, mesh, points, order: &order, groups: &groups, compact: opts.compact };
+    let built = accel::build(dev, src)?;
 
     let unbound = dev.unbound();
     let [_, neighbors_hi] = Binding::split(B_NEIGHBORS, B_NEIGHBORS_HI, None, unbound);

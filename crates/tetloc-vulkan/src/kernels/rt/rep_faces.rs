@@ -8,12 +8,9 @@ use crate::kernels::KernelDef;
 use crate::shaders;
 use rayon::prelude::*;
 
-pub(crate) const KERNEL: KernelDef = KernelDef {
-    name: "rt-rep-faces",
-    ray_tracing: true,
-    cell_boxes: false,
-    plan: |dev, input| super::plan(&RT_REP_FACES, dev, input),
-};
+/// `cell_boxes` false: triangles of tets on any mesh.
+pub(crate) const KERNEL: KernelDef =
+    super::kernel_def("rt-rep-faces", false, |dev, input| super::plan(&RT_REP_FACES, dev, input));
 
 const RT_REP_FACES: RtKernel = RtKernel {
     geometry: Geometry::Triangles,

@@ -9,12 +9,9 @@ use crate::shaders;
 use rayon::prelude::*;
 use tetloc_core::geom::Vec3;
 
-pub(crate) const KERNEL: KernelDef = KernelDef {
-    name: "rt-shared-faces",
-    ray_tracing: true,
-    cell_boxes: false,
-    plan: |dev, input| super::plan(&RT_SHARED_FACES, dev, input),
-};
+/// `cell_boxes` false: triangles of tets on any mesh.
+pub(crate) const KERNEL: KernelDef =
+    super::kernel_def("rt-shared-faces", false, |dev, input| super::plan(&RT_SHARED_FACES, dev, input));
 
 const RT_SHARED_FACES: RtKernel = RtKernel {
     geometry: Geometry::Triangles,
