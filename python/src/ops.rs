@@ -283,16 +283,17 @@ pub fn trace_lines<'py>(
         let c = vector.component_refs();
         let xyz = [c[0], c[1], c[2]];
         let out_fields = trace::line_fields(&m, &vector);
+        let job = trace::PathJob { seeds, options: &o, steps: &steps, vector: xyz, fields: &out_fields };
         let arrays = match locator {
             None => {
                 let cpu = cpu_locator(py, &m)?;
                 run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
-                    trace::pathlines(seeds, &o, &cpu, &steps, xyz, &out_fields, |d| ticker.tick(d))
+                    trace::pathlines(job, &cpu, |d| ticker.tick(d))
                 })?
             }
             Some(locator) => with_backend(py, locator, |loc| {
                 run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
-                    trace::pathlines_batch(seeds, &o, &mut *loc, &m, &steps, xyz, &out_fields, |d| ticker.tick(d))
+                    trace::pathlines_batch(job, &mut *loc, &m, |d| ticker.tick(d))
                 })
             })?,
         };

@@ -7,7 +7,7 @@ use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
-use tetloc_core::locate::Tolerance;
+use tetloc_core::locate::{Points, Tolerance};
 use tetloc_core::ops::{fields, probe};
 use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::ops_output;
@@ -131,7 +131,7 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
     };
     let pb = progress::bar(pts.len() as u64, format!("probing on {}", loc.name()));
     let t0 = Instant::now();
-    let probed = probe::probe64(loc, &pts, &groups, |d| {
+    let probed = probe::probe_points(loc, Points::F64(&pts), &groups, |d| {
         pb.set_position(d as u64);
         Ok(())
     })?;

@@ -319,14 +319,15 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         pb.set_position(n as u64);
         Ok(())
     };
+    let job = trace::PathJob { seeds: &seeds, options: &o, steps: &steps, vector: xyz, fields: &out_fields };
     let t0 = Instant::now();
     let arrays = if backend == Backend::Cpu {
         let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
-        trace::pathlines(&seeds, &o, &cpu, &steps, xyz, &out_fields, tick)?
+        trace::pathlines(job, &cpu, tick)?
     } else {
         let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
-        trace::pathlines_batch(&seeds, &o, loc.as_mut(), &m, &steps, xyz, &out_fields, tick)?
+        trace::pathlines_batch(job, loc.as_mut(), &m, tick)?
     };
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();

@@ -278,18 +278,11 @@ mod tests {
 
     fn expected() -> RawMesh {
         let f = |name: &str, location, values: Vec<f32>| Field::new(name, location, values);
-        RawMesh {
-            points64: None,
-            points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
-            tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
-            fields: vec![
-                f("attr[0]", FieldLocation::Vertex, vec![0.0, 10.0, 20.0, 30.0, 40.0]),
-                f("attr[1]", FieldLocation::Vertex, vec![0.5; 5]),
-                f("region", FieldLocation::Cell, vec![3.0, -1.0]),
-            ],
-            higher_order: None,
-            cells: None,
-        }
+        crate::test_support::two_tets(vec![
+            f("attr[0]", FieldLocation::Vertex, vec![0.0, 10.0, 20.0, 30.0, 40.0]),
+            f("attr[1]", FieldLocation::Vertex, vec![0.5; 5]),
+            f("region", FieldLocation::Cell, vec![3.0, -1.0]),
+        ])
     }
 
     fn assert_same(got: &RawMesh, want: &RawMesh) {

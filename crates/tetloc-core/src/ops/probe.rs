@@ -43,19 +43,8 @@ pub fn probe(
     probe_points(loc, Points::F32(points), fields, progress)
 }
 
-/// [`probe`] at points given in f64 (a target's coordinates as its file has them): a target
-/// far from the origin keeps its precision, on backends that take f64 points.
-pub fn probe64(
-    loc: &mut dyn BatchLocator,
-    points: &[[f64; 3]],
-    fields: &[FieldGroup],
-    progress: impl FnMut(usize) -> Result<()>,
-) -> Result<Probed> {
-    probe_points(loc, Points::F64(points), fields, progress)
-}
-
-/// [`probe`] at points of either precision (what [`probe`] and [`probe64`] call; bindings
-/// that take both call it directly).
+/// [`probe`] at points of either precision: f64 points (a target's coordinates as its file
+/// has them) keep a target far from the origin precise, on backends that take f64 points.
 pub fn probe_points(
     loc: &mut dyn BatchLocator,
     points: Points,
@@ -226,7 +215,7 @@ mod tests {
         let far = Arc::new(Mesh::new(raw, "far cube").unwrap());
         let near = grid.mesh("cube");
         let groups = fields::groups_of(&far.fields);
-        let p = probe64(&mut CpuLocator::new(far.clone()), &p64, &groups, |_| Ok(())).unwrap();
+        let p = probe_points(&mut CpuLocator::new(far.clone()), Points::F64(&p64), &groups, |_| Ok(())).unwrap();
         assert_eq!(p.n_valid(), p64.len(), "every vertex is in the mesh");
         let (g, f) = &p.arrays[0];
         assert_eq!(g.name, "f");

@@ -47,20 +47,13 @@ fn spec() -> Spec {
 
 fn expected() -> RawMesh {
     let field = |name: &str, location, values: Vec<f32>| Field::new(name, location, values);
-    RawMesh {
-        points64: None,
-        points: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0], [1.0, 1.0, 1.0]],
-        tets: vec![[0, 1, 2, 3], [1, 2, 3, 4]],
-        fields: vec![
-            field("temp", FieldLocation::Vertex, vec![0.0, 1.0, 2.0, 0.0, 3.0]),
-            field("vel[0]", FieldLocation::Vertex, vec![0.0, 1.0, 0.0, 0.0, 1.0]),
-            field("vel[1]", FieldLocation::Vertex, vec![0.0, 0.0, 1.0, 0.0, 1.0]),
-            field("vel[2]", FieldLocation::Vertex, vec![10.0, 3.0, 7.0, 100.0, 5000.0]),
-            field("mat", FieldLocation::Cell, vec![90.0, 20.0]),
-        ],
-        higher_order: None,
-        cells: None,
-    }
+    crate::test_support::two_tets(vec![
+        field("temp", FieldLocation::Vertex, vec![0.0, 1.0, 2.0, 0.0, 3.0]),
+        field("vel[0]", FieldLocation::Vertex, vec![0.0, 1.0, 0.0, 0.0, 1.0]),
+        field("vel[1]", FieldLocation::Vertex, vec![0.0, 0.0, 1.0, 0.0, 1.0]),
+        field("vel[2]", FieldLocation::Vertex, vec![10.0, 3.0, 7.0, 100.0, 5000.0]),
+        field("mat", FieldLocation::Cell, vec![90.0, 20.0]),
+    ])
 }
 
 /// Bit-exact comparison (NaN equals NaN).

@@ -117,22 +117,23 @@ fn a_constant_field_maps_to_the_middle_of_the_transfer_function() {
     assert!(rgba[0][3] > 0.5, "{:?}", rgba[0]);
 }
 
+/// One ray marched through `testmesh::cube(3, 1.0, 1.0)` (its field `f`) under a grey transfer
+/// function of constant opacity, with `opts` otherwise: the renderer, the ray's colour and
+/// what the march counted.
+fn march_grey_cube(opts: RenderOptions, ray: Ray) -> (Renderer, [f32; 4], FrameStats) {
+    let mesh = Arc::new(testmesh::cube(3, 1.0, 1.0));
+    let tf = TransferFunction::builtin(Colormap::Grayscale).with_constant_opacity(1.0);
+    let r = Renderer::new(mesh.clone(), "f", &RenderOptions { tf: TfSpec::Custom(tf), ..opts }).unwrap();
+    let (rgba, stats) = r.march(&mut CpuLocator::new(mesh), &[ray]).unwrap();
+    (r, rgba[0], stats)
+}
+
 /// An opaque enough volume stops each ray at 99 % and takes fewer samples than the path has.
 #[test]
 fn rays_stop_at_the_opacity_cutoff() {
-    let mesh = Arc::new(testmesh::cube(3, 1.0, 1.0));
-    let tf = TransferFunction::builtin(Colormap::Grayscale).with_constant_opacity(1.0);
-    let opts = RenderOptions {
-        tf: TfSpec::Custom(tf),
-        opacity: 200.0,
-        step: Some(0.001),
-        range: Some((0.0, 1.0)),
-        ..Default::default()
-    };
-    let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
-    let ray = Ray { origin: [-1.0, 0.5, 0.5], dir: [1.0, 0.0, 0.0] };
-    let (rgba, stats) = r.march(&mut CpuLocator::new(mesh), &[ray]).unwrap();
-    assert!(rgba[0][3] >= OPACITY_CUTOFF && rgba[0][3] < 1.0);
+    let opts = RenderOptions { opacity: 200.0, step: Some(0.001), range: Some((0.0, 1.0)), ..Default::default() };
+    let (_, rgba, stats) = march_grey_cube(opts, Ray { origin: [-1.0, 0.5, 0.5], dir: [1.0, 0.0, 0.0] });
+    assert!(rgba[3] >= OPACITY_CUTOFF && rgba[3] < 1.0);
     // σ = 200/√3 per unit: 99 % is reached after ln(100)/σ ≈ 0.04 of the 1.0 path.
     assert!(stats.in_mesh_samples < 60, "{stats:?}");
 }
@@ -263,10 +264,7 @@ fn a_surface_file_ends_volume_integration() {
         facet([-1.0, -1.0, 0.5], [2.0, 2.0, 0.5], [-1.0, 2.0, 0.5])
     );
     std::fs::write(&stl, text).unwrap();
-    let mesh = Arc::new(testmesh::cube(3, 1.0, 1.0));
-    let tf = TransferFunction::builtin(Colormap::Grayscale).with_constant_opacity(1.0);
     let opts = RenderOptions {
-        tf: TfSpec::Custom(tf),
         opacity: 2.0,
         step: Some(0.002),
         range: Some((0.0, 2.0)),
@@ -274,13 +272,11 @@ fn a_surface_file_ends_volume_integration() {
         surface_color: [0.0; 3],
         ..Default::default()
     };
-    let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
-    let ray = Ray { origin: [0.3, 0.6, 3.0], dir: [0.0, 0.0, -1.0] };
-    let (rgba, _) = r.march(&mut CpuLocator::new(mesh), &[ray]).unwrap();
+    let (r, rgba, _) = march_grey_cube(opts, Ray { origin: [0.3, 0.6, 3.0], dir: [0.0, 0.0, -1.0] });
     let half = 1.0 - (-2.0 / 3f32.sqrt() * 0.5).exp();
     let grey = r.table.lookup(1.0)[0];
     // A black surface adds nothing: what is left is the volume in front of it.
-    assert!((rgba[0][0] / grey - half).abs() < 0.01 * half, "{} vs {half}", rgba[0][0] / grey);
+    assert!((rgba[0] / grey - half).abs() < 0.01 * half, "{} vs {half}", rgba[0] / grey);
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -30,7 +30,7 @@ use rayon::prelude::*;
 mod particle;
 mod pathline;
 pub use particle::Particle;
-pub use pathline::{pathlines, pathlines_batch, Leg, PathOptions, PathParticle};
+pub use pathline::{pathlines, pathlines_batch, Leg, PathJob, PathOptions, PathParticle};
 
 pub use crate::streamline::{Direction, Integrator, Line, Reason, TraceOptions, BATCH_POINTS};
 

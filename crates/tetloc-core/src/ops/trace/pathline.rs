@@ -475,13 +475,8 @@ struct Run<'a> {
     tracks: Vec<Track>,
 }
 
-fn setup<'a>(
-    seeds: &[Vec3],
-    o: &PathOptions,
-    steps: &'a TimeSteps,
-    vector: [&str; 3],
-    fields: &[FieldGroup],
-) -> Result<Run<'a>> {
+fn setup<'a>(job: PathJob<'a>) -> Result<Run<'a>> {
+    let PathJob { seeds, options: o, steps, vector, fields } = job;
     o.check()?;
     let legs = o.legs(&steps.source, &steps.times)?;
     let line: Vec<String> = fields.iter().flat_map(|g| g.components.iter().cloned()).collect();
@@ -523,20 +518,27 @@ fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
     LineArrays::of(&lines, super::super::probe::Probed::from_values(ids, fields, &values))
 }
 
-/// Pathlines from `seeds` through the vector (`vector`: its three component fields) of the
-/// steps `steps` of `loc`'s mesh, on the CPU: each particle walks from its last tet. `fields`
-/// (of the mesh) are recorded at the points, interpolated in time as the vector is.
-/// `progress` gets the number of legs done.
+/// What a pathline run traces: particles from `seeds` through the vector `vector` (its three
+/// component fields) of the time steps `steps`, with `options`; `fields` (of the mesh) are
+/// recorded at the line points, interpolated in time as the vector is.
+#[derive(Clone, Copy)]
+pub struct PathJob<'a> {
+    pub seeds: &'a [Vec3],
+    pub options: &'a PathOptions,
+    pub steps: &'a TimeSteps,
+    pub vector: [&'a str; 3],
+    pub fields: &'a [FieldGroup],
+}
+
+/// The pathlines of `job` on the CPU: each particle walks from its last tet. `progress` gets
+/// the number of legs done.
 pub fn pathlines(
-    seeds: &[Vec3],
-    o: &PathOptions,
+    job: PathJob,
     loc: &crate::CpuLocator,
-    steps: &TimeSteps,
-    vector: [&str; 3],
-    fields: &[FieldGroup],
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<LineArrays> {
-    let mut run = setup(seeds, o, steps, vector, fields)?;
+    let (seeds, o) = (job.seeds, job.options);
+    let mut run = setup(job)?;
     // Each leg visits the particles in the Morton order of their seeds (they move little in
     // a leg): see `spatial_order`. Back in the seeds' order at the end.
     let order = super::spatial_order(seeds);
@@ -562,24 +564,20 @@ pub fn pathlines(
         progress(n + 1)?;
     }
     run.tracks.sort_unstable_by_key(|t| t.p.id);
-    Ok(finish(run.tracks, fields))
+    Ok(finish(run.tracks, job.fields))
 }
 
 /// [`pathlines`] step-synchronous: every live particle's lookup answered by one `locate`
 /// through `loc` (any backend) per Runge–Kutta stage, the values interpolated on the host in
 /// f64 at the tets found.
-#[allow(clippy::too_many_arguments)]
 pub fn pathlines_batch(
-    seeds: &[Vec3],
-    o: &PathOptions,
+    job: PathJob,
     loc: &mut dyn BatchLocator,
     mesh: &Mesh,
-    steps: &TimeSteps,
-    vector: [&str; 3],
-    fields: &[FieldGroup],
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<LineArrays> {
-    let mut run = setup(seeds, o, steps, vector, fields)?;
+    let o = job.options;
+    let mut run = setup(job)?;
     let alias = &run.alias;
     let (mut points, mut ids): (Vec<Vec3>, Vec<i32>) = (Vec::new(), Vec::new());
     let mut live: Vec<usize> = Vec::new();
@@ -620,7 +618,7 @@ pub fn pathlines_batch(
         }
         progress(n + 1)?;
     }
-    Ok(finish(run.tracks, fields))
+    Ok(finish(run.tracks, job.fields))
 }
 
 #[cfg(test)]
@@ -684,6 +682,16 @@ mod tests {
 
     const XYZ: [&str; 3] = ["v[0]", "v[1]", "v[2]"];
 
+    /// The tests' jobs: the vector `v`.
+    fn job<'a>(
+        seeds: &'a [Vec3],
+        options: &'a PathOptions,
+        steps: &'a TimeSteps,
+        fields: &'a [FieldGroup],
+    ) -> PathJob<'a> {
+        PathJob { seeds, options, steps, vector: XYZ, fields }
+    }
+
     /// The largest distance of a line's points from the closed-form path, and its last time.
     fn miss(arrays: &LineArrays, line: usize, seed: [f64; 3], t0: f64) -> f64 {
         let start = if line == 0 { 0 } else { arrays.ends[line - 1] };
@@ -714,7 +722,7 @@ mod tests {
         let mut gaps = Vec::new();
         for h in [0.1, 0.05] {
             let o = PathOptions { step: Some(h), ..Default::default() };
-            let a = pathlines(&seeds, &o, &cpu, &steps, XYZ, &fields, |_| Ok(())).unwrap();
+            let a = pathlines(job(&seeds, &o, &steps, &fields), &cpu, |_| Ok(())).unwrap();
             assert_eq!(a.ends.len(), 3);
             assert_eq!(a.reasons, [Reason::OutOfTime as i32; 3]);
             // One point per output time: the start, each step, the end.
@@ -747,7 +755,7 @@ mod tests {
                 end_time: Some(1.75),
                 ..Default::default()
             };
-            let a = pathlines(&seeds, &o, &cpu, &steps, XYZ, &fields, |_| Ok(())).unwrap();
+            let a = pathlines(job(&seeds, &o, &steps, &fields), &cpu, |_| Ok(())).unwrap();
             assert_eq!(a.time[..a.ends[0]], [0.25, 0.5, 1.0, 1.5, 1.75], "{integrator:?}");
             let clock = &a.fields.arrays.iter().find(|(g, _)| g.name == "clock").unwrap().1;
             assert!((clock[0] - 0.25).abs() < 1e-6 && (clock[4] - 1.75).abs() < 1e-6, "{:?}", &clock[..5]);
@@ -773,9 +781,9 @@ mod tests {
         seeds.push([3.0, 0.5, 0.5]);
         for integrator in [Integrator::Rk4, Integrator::Rk45] {
             let o = PathOptions { integrator, step: Some(0.05), max_error: 1e-7, ..Default::default() };
-            let one = pathlines(&seeds, &o, &cpu, &steps, XYZ, &fields, |_| Ok(())).unwrap();
+            let one = pathlines(job(&seeds, &o, &steps, &fields), &cpu, |_| Ok(())).unwrap();
             let mut legs = 0;
-            let all = pathlines_batch(&seeds, &o, &mut cpu, &m, &steps, XYZ, &fields, |n| {
+            let all = pathlines_batch(job(&seeds, &o, &steps, &fields), &mut cpu, &m, |n| {
                 legs = n;
                 Ok(())
             })
