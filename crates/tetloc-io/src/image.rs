@@ -4,6 +4,7 @@
 //! in grid order, so memory stays bounded for any image size; the file appears complete or
 //! not at all (see [`super::output`]).
 
+pub use super::arrays::ImageArray;
 use super::output::{extension, AtomicFile};
 use super::vtk::vti::VtiWriter;
 use std::io::Write;
@@ -13,13 +14,6 @@ use tetloc_core::geom::ImageGrid;
 
 /// Extensions [`ImageWriter`] writes.
 pub const IMAGE_EXTENSIONS: &[&str] = &["vti", "npy"];
-
-/// One array of an image: a name and its components per point.
-#[derive(Clone, Debug)]
-pub struct ImageArray {
-    pub name: String,
-    pub n_components: usize,
-}
 
 /// An image being written, chunk after chunk in grid order (x fastest).
 pub struct ImageWriter {

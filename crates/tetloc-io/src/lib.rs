@@ -2,6 +2,7 @@
 //! [`MeshFormat`]), query-point / result array I/O, and the files the operations write. It
 //! sits above the mesh model (`tetloc-core`), which never reads or writes a file itself.
 
+pub mod arrays;
 pub(crate) mod cursor;
 pub mod exodus;
 pub mod gmsh;

@@ -9,8 +9,8 @@
 //! Outputs are arrays (`.npy`, `.bin`: one array a file) or tables (`.csv`: every column,
 //! `vtkValidPointMask` included, as ParaView's probe writes it), always written atomically.
 
+pub use super::arrays::{check_value_name, Values, RESULT_NAMES, VALID_MASK};
 use super::output::{extension, write_atomically};
-use super::vtk::write::ArrayData;
 use std::io::Write;
 use std::path::Path;
 use tetloc_core::error::{Error, Result};
@@ -22,10 +22,6 @@ pub const POINT_EXTENSIONS: &[&str] = &["npy", "csv", "txt", "bin", "f32", "raw"
 pub const ID_EXTENSIONS: &[&str] = &["npy", "csv", "txt", "bin", "i32", "raw"];
 /// Extensions [`write_values`] writes.
 pub const VALUE_EXTENSIONS: &[&str] = &["npy", "csv", "txt", "bin", "f32", "raw"];
-
-/// The name of the 0/1 column (UInt8 array in VTK files) that says which points got an
-/// answer: inside a cell, or within the boundary tolerance. VTK's probe filter names it so.
-pub const VALID_MASK: &str = "vtkValidPointMask";
 
 /// Reads query points: `.npy` (f32 or f64, shape (N, 3)), `.csv` (x,y,z per line, an
 /// optional `x,y,z` header line) or `.bin`/`.f32` (raw little-endian f32 triplets). Reads are
@@ -158,43 +154,6 @@ pub struct Results<'a> {
     pub values: Option<(&'a str, Values<'a>)>,
 }
 
-/// Sampled values at the precision they were interpolated in: f64 where the file's field is
-/// f64 or f64 values were asked for, else f32.
-#[derive(Clone, Copy, Debug)]
-pub enum Values<'a> {
-    F32(&'a [f32]),
-    F64(&'a [f64]),
-}
-
-impl<'a> Values<'a> {
-    pub fn len(&self) -> usize {
-        match self {
-            Values::F32(v) => v.len(),
-            Values::F64(v) => v.len(),
-        }
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.len() == 0
-    }
-
-    /// The values as a VTK array's data (Float32 or Float64).
-    pub fn array(self) -> ArrayData<'a> {
-        match self {
-            Values::F32(v) => ArrayData::F32(v),
-            Values::F64(v) => ArrayData::F64(v),
-        }
-    }
-
-    /// Value `i` as text: the shortest decimal that reads back to the same f32 or f64.
-    fn text(&self, i: usize) -> String {
-        match self {
-            Values::F32(v) => v[i].to_string(),
-            Values::F64(v) => v[i].to_string(),
-        }
-    }
-}
-
 impl Results<'_> {
     /// 1 for points that got an answer (inside a cell, or within the boundary tolerance),
     /// 0 for the others: VTK's `vtkValidPointMask`.
@@ -211,21 +170,6 @@ impl Results<'_> {
             None => Ok(()),
         }
     }
-}
-
-/// The columns and arrays that every table and point set of results has besides the values.
-pub const RESULT_NAMES: [&str; 2] = ["tet_id", VALID_MASK];
-
-/// An error when a sampled field's name is one of [`RESULT_NAMES`]: its column or array
-/// would collide with theirs (in `.csv` as in `.vtu` and `.vtp`).
-pub fn check_value_name(name: &str) -> Result<()> {
-    if RESULT_NAMES.contains(&name) {
-        return Err(Error::Invalid(format!(
-            "the field '{name}' has the name of a column tetloc writes next to it ({}); rename the field",
-            RESULT_NAMES.join(", ")
-        )));
-    }
-    Ok(())
 }
 
 /// Writes the tet ids: `.npy` (int32) or `.bin` (raw little-endian i32), or `.csv`, the whole

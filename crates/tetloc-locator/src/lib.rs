@@ -19,15 +19,14 @@
 //! # Ok(()) }
 //! ```
 
-pub mod auto;
 mod backend;
 mod builder;
 mod contexts;
 #[cfg(test)]
 mod tests;
 
-pub use auto::{AutoChoice, AutoReason};
 pub use backend::{available, kernels_on, names, Backend, AUTO, CPU};
+pub use builder::auto::{self, AutoChoice, AutoReason};
 pub use builder::{Bare, BareLocator, Built, Layer, Locator, LocatorBuilder, Memory};
 pub use contexts::{context, is_no_vulkan, validation_errors, NoContext};
 pub use tetloc_vulkan::{Kernel, LocatorOptions};

@@ -442,7 +442,7 @@ gpu_interface! {
         BUILD_PASS = 25: uint = 0;
         BUILD_MAX_LEAF = 26: uint = 1;
         /// GPU build: bytes of each buffer of a split build array (a multiple of 192, so
-        /// that every element size the build uses divides it; src/build/mod.rs `split`).
+        /// that every element size the build uses divides it; kernels/soft_bvh/build/mod.rs `split`).
         BUILD_CHUNK_BYTES = 27: uint = 0xC000_0000;
         /// Stream tracing: each lookup walks from the particle's last tet first (off: every
         /// lookup is a fresh one, for the benchmark's comparison).

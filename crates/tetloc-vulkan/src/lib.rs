@@ -22,7 +22,6 @@
 //! # Ok(()) }
 //! ```
 
-mod build;
 mod context;
 #[cfg(feature = "cuda")]
 pub mod cuda_interop;
@@ -43,13 +42,13 @@ mod shaders;
 mod stream;
 mod weights;
 
-pub use build::BuildOn;
 pub use context::{devices, Context, ContextOptions, DeviceInfo};
 pub use error::VkError;
 pub use external::{semaphore_kind, SemaphoreKind};
 /// Most fields one launch samples; a query of more takes a pass each this many.
 pub use interface::MAX_FIELDS;
 pub use kernels::rt::AsReport;
+pub use kernels::BuildOn;
 pub use kernels::{Kernel, RtOptions, SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
 #[cfg(any(test, feature = "test-hooks"))]
 pub use locator::TestHooks;

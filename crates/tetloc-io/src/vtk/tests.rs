@@ -559,7 +559,7 @@ fn write_samples() {
     let pts: Vec<[f32; 3]> = (0..100).map(|i| mesh.tet_center(i * 7)).collect();
     let ids: Vec<i32> = (0..100).map(|i| if i % 10 == 9 { -1 } else { i * 7 }).collect();
     let vals: Vec<f32> = ids.iter().map(|&i| i as f32 * 0.5).collect();
-    let (coords, values) = (vtu_write::Coords::F32(&pts), crate::points::Values::F32(&vals));
+    let (coords, values) = (vtu_write::Coords::F32(&pts), crate::arrays::Values::F32(&vals));
     vtu_write::write_points_vtu(&dir.join("points.vtu"), coords, &ids, Some(("value", values))).unwrap();
 }
 

@@ -8,9 +8,8 @@
 //! when asked) and copied into the output at the end, so memory stays bounded.
 
 use super::num::NumType;
-use crate::image::ImageArray;
+use crate::arrays::{ImageArray, VALID_MASK};
 use crate::output::AtomicFile;
-use crate::points::VALID_MASK;
 use std::fs::File;
 use std::io::{BufWriter, Seek, Write};
 use std::path::{Path, PathBuf};

@@ -11,8 +11,8 @@
 use super::blocks;
 use super::cells;
 use super::num::NumType;
+use crate::arrays::{Values, VALID_MASK};
 use crate::output::write_atomically;
-use crate::points::{Values, VALID_MASK};
 use std::io::Write;
 use std::ops::Range;
 use std::path::Path;
@@ -47,6 +47,16 @@ pub enum ArrayData<'a> {
     I32(&'a [i32]),
     I64(&'a [i64]),
     U8(&'a [u8]),
+}
+
+/// Sampled values as a VTK array's data (Float32 or Float64).
+impl<'a> From<Values<'a>> for ArrayData<'a> {
+    fn from(v: Values<'a>) -> ArrayData<'a> {
+        match v {
+            Values::F32(v) => ArrayData::F32(v),
+            Values::F64(v) => ArrayData::F64(v),
+        }
+    }
 }
 
 /// A named array of `n_components` values per tuple, tuple after tuple.
@@ -419,8 +429,8 @@ fn point_set<'a>(
         if v.len() != n {
             return Err(Error::Invalid(format!("{} points but {} values of '{name}'", n, v.len())));
         }
-        crate::points::check_value_name(name)?;
-        point_data.push(NamedArray { name: name.into(), n_components: 1, data: v.array() }.out());
+        crate::arrays::check_value_name(name)?;
+        point_data.push(NamedArray { name: name.into(), n_components: 1, data: v.into() }.out());
     }
     point_data.push(OutArray::new(VALID_MASK, NumType::U8, 1, n, |r, out| {
         out.extend(ids[r].iter().map(|&i| u8::from(i >= 0)))

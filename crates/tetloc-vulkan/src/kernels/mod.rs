@@ -8,7 +8,7 @@ pub(crate) mod rt;
 pub(crate) mod soft_bvh;
 
 pub use rt::RtOptions;
-pub use soft_bvh::{SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
+pub use soft_bvh::{BuildOn, SoftBvhOptions, GRID_TETS_PER_CELL, PRESETS};
 
 use crate::device::{Device, Split};
 use crate::error::VkResult;

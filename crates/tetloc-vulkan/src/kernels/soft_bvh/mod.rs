@@ -6,7 +6,8 @@
 //! shaders/common/soft_bvh.glsl). The volume marcher runs the same traversal (march.comp).
 
 use super::{n_prims, prim_boxes, prim_tets, Inputs, KernelDef, Plan, Ray};
-use crate::build::{self, BuildOn, Structure};
+pub(crate) mod build;
+
 use crate::device::{Device, Split};
 use crate::error::{VkError, VkResult};
 use crate::interface::{self, sc, B_ACCEL, B_ACCEL_HI, B_GRID, B_NEIGHBORS, B_NEIGHBORS_HI, B_PRIMS};
@@ -15,6 +16,8 @@ use crate::packed;
 use crate::pipeline::{Binding, Program, Spec};
 use crate::shaders;
 use ash::vk;
+pub use build::BuildOn;
+use build::Structure;
 use rayon::prelude::*;
 use std::time::Instant;
 use tetloc_core::bvh::{wide, BuildPreset, Bvh, EntryGrid, WideBvh};

@@ -1,8 +1,10 @@
 //! [`Locator::builder`]: one backend's search structure over a mesh, wrapped in the layers
 //! every front end needs, the same way for all of them.
 
-use crate::auto::{self, AutoChoice};
+pub mod auto;
+
 use crate::{contexts, Backend, Error, Result};
+use auto::AutoChoice;
 use std::collections::BTreeMap;
 use std::sync::Arc;
 use std::time::Instant;
