@@ -22,7 +22,8 @@ float tl_march_sample(vec3 p) {
     uvec4 ids;
     vec4 bary;
     int tet = tl_prev_tet >= 0 ? tl_walk(tl_prev_tet, p, WALK_MAX, ids, bary) : TL_OUTSIDE;
-    if (tet < 0) {
+    // On a face: the search's tie rule (a cell field differs between the tets).
+    if (tet < 0 || !all(greaterThan(bary, vec4(0.0)))) {
         tet = tl_locate(p, ids, bary);
     }
     tl_prev_tet = tet;

@@ -11,7 +11,8 @@
 // When rounding puts the hit on the wrong side of a face or edge (points within rounding of
 // it), the candidate fails the test; a short walk through tet neighbours then finds the
 // containing tet, so no interior point falls through a crack. A walk that finds nothing
-// sends the ray generation shader to try the opposite direction.
+// sends the ray generation shader to try the opposite direction. A point on the boundary of
+// the tet found goes to the lowest tet that holds it (walk.glsl tl_lowest_holder).
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_control_flow_attributes : require
 #extension GL_EXT_ray_tracing : require
@@ -49,7 +50,8 @@ void main() {
     vec4 bary;
     tet = tl_walk(tet, p, WALK_MAX, ids, bary);
     if (tet >= 0) {
-        pl.tet = tet;
+        // A point on the tet's boundary: the tie rule, through the neighbours.
+        pl.tet = all(greaterThan(bary, vec4(0.0))) ? tet : tl_lowest_holder(tet, bary, p);
         return;
     }
     // Not found: the point is outside the mesh, or the hit was a face coincident with

@@ -35,15 +35,16 @@ pub struct EntryGrid {
 
 impl EntryGrid {
     /// The grid over [lo, hi] with about one cell per `prims_per_cell` of the `n_prims`
-    /// primitives of `wide`, whose boxes `bounds` gives. With `contains` (does primitive `id`
-    /// hold point `p`?), each cell also names a walk start.
+    /// primitives of `wide`, whose boxes `bounds` gives. With `claim` (does primitive `id`
+    /// hold point `p`: `Some(strictly inside)`, as [`WideBvh::locate`] takes it), each cell
+    /// also names a walk start.
     pub fn new(
         wide: &WideBvh,
         n_prims: usize,
         bounds: impl Fn(u32) -> Aabb + Sync,
         (lo, hi): (Vec3, Vec3),
         prims_per_cell: usize,
-        contains: Option<&(dyn Fn(u32, Vec3) -> bool + Sync)>,
+        claim: Option<&(dyn Fn(u32, Vec3) -> Option<bool> + Sync)>,
     ) -> EntryGrid {
         let (dims, inv) = EntryGrid::shape(n_prims, (lo, hi), prims_per_cell);
         let n_cells = (dims[0] * dims[1] * dims[2]) as usize;
@@ -81,15 +82,16 @@ impl EntryGrid {
                 }
             },
         );
-        if let Some(contains) = contains {
-            // Locate each cell's centre with the reference traversal from the cell's node.
+        if let Some(claim) = claim {
+            // Locate each cell's centre with the reference search from the cell's node (the
+            // tie rule included, as the GPU build's grid_starts.comp).
             let starts = (0..n_cells)
                 .into_par_iter()
                 .map_init(Vec::new, |stack, i| match grid.cells[i] {
                     EMPTY => EMPTY,
                     node => {
                         let centre = grid.centre(i);
-                        wide.traverse(centre, node, stack, |t| contains(t, centre)).prim.unwrap_or(any[i])
+                        wide.locate(centre, node, stack, |t| claim(t, centre)).prim.unwrap_or(any[i])
                     }
                 })
                 .collect();
@@ -153,7 +155,7 @@ impl EntryGrid {
     /// The CPU reference of soft-bvh's `tl_locate` (shaders/common/soft_bvh.glsl): in `p`'s
     /// cell, `walk` from the cell's start primitive (when the grid has starts) may settle the
     /// point (it must answer only a primitive that holds `p` strictly inside, the one any
-    /// search finds); else the traversal from the cell's node with `accept` deciding the
+    /// search finds); else [`WideBvh::locate`] from the cell's node with `claim` deciding the
     /// primitives. `None` in a cell no primitive's box overlaps.
     pub fn locate(
         &self,
@@ -161,7 +163,7 @@ impl EntryGrid {
         p: Vec3,
         stack: &mut Vec<u32>,
         walk: impl FnOnce(u32) -> Option<u32>,
-        accept: impl FnMut(u32) -> bool,
+        claim: impl FnMut(u32) -> Option<bool>,
     ) -> Option<u32> {
         let cell = self.cell_of(p);
         let node = self.cells[cell];
@@ -173,6 +175,6 @@ impl EntryGrid {
                 return Some(t);
             }
         }
-        wide.traverse(p, node, stack, accept).prim
+        wide.locate(p, node, stack, claim).prim
     }
 }

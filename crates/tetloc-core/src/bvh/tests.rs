@@ -43,6 +43,14 @@ fn inside(m: &crate::Mesh, t: u32, p: Vec3) -> bool {
     matches!(geom::test_point(m.tets[t as usize], &m.points, p), geom::TetTest::Inside(_))
 }
 
+/// Whether tet `t` holds `p`: `Some(true)` strictly inside, `Some(false)` on its boundary.
+fn claim(m: &crate::Mesh, t: u32, p: Vec3) -> Option<bool> {
+    match geom::test_point(m.tets[t as usize], &m.points, p) {
+        geom::TetTest::Inside(b) => Some(!b.contains(&0.0)),
+        geom::TetTest::Outside { .. } => None,
+    }
+}
+
 /// The CPU mirror of soft-bvh's `tl_walk` (shaders/common/walk.glsl) with the walk-start
 /// rule of `tl_locate`: the walk's answer counts only when the point is strictly inside.
 fn walk(m: &crate::Mesh, start: u32, p: Vec3, max_steps: u32) -> Option<u32> {
@@ -167,6 +175,32 @@ fn wide_traversal_agrees_with_the_binary_bvh() {
     }
 }
 
+/// The tie rule: whatever the tree's shape, the wide search answers the lowest id among the
+/// tets that hold a point on faces, edges or vertices (every tet tested, by brute force), and
+/// the one tet that holds any other point.
+#[test]
+fn wide_locate_answers_the_lowest_holder() {
+    let m = tall_grid(4);
+    let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
+    let mut points = scattered(lo, hi, 3_000, 5);
+    points.extend(m.points.iter().copied());
+    points.extend(
+        m.tets.iter().map(|t| std::array::from_fn(|k| 0.5 * (m.points[t[0] as usize][k] + m.points[t[1] as usize][k]))),
+    );
+    let mut ties = 0;
+    for preset in [BuildPreset::Fast, BuildPreset::SingleTetLeaves] {
+        let q = WideBvh::collapse(&Bvh::build(&m.points, &m.tets, preset)).unwrap();
+        let mut stack = vec![];
+        for &p in &points {
+            let holders: Vec<u32> = (0..m.n_tets() as u32).filter(|&t| inside(&m, t, p)).collect();
+            ties += (holders.len() > 1) as usize;
+            let got = q.locate(p, 0, &mut stack, |t| claim(&m, t, p)).prim;
+            assert_eq!(got, holders.first().copied(), "{p:?}: holders {holders:?}");
+        }
+    }
+    assert!(ties > 200, "only {ties} points held by several tets");
+}
+
 /// The binary BVH's point query through its visitor.
 struct FirstInside<'a> {
     mesh: &'a crate::Mesh,
@@ -227,8 +261,8 @@ fn walk_starts_lead_to_the_traversal_answer() {
     let m = tall_grid(6);
     let q = WideBvh::collapse(&Bvh::build(&m.points, &m.tets, BuildPreset::SingleTetLeaves)).unwrap();
     let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
-    let holds = |t: u32, p: Vec3| inside(&m, t, p);
-    let g = EntryGrid::new(&q, m.n_tets(), |t| Aabb::of_tet(m.tets[t as usize], &m.points), (lo, hi), 1, Some(&holds));
+    let claims = |t: u32, p: Vec3| claim(&m, t, p);
+    let g = EntryGrid::new(&q, m.n_tets(), |t| Aabb::of_tet(m.tets[t as usize], &m.points), (lo, hi), 1, Some(&claims));
     assert_eq!(g.starts.len(), g.cells.len());
     assert_eq!(g.words()[3] as usize, g.cells.len());
     let mut held = 0;
@@ -251,7 +285,7 @@ fn walk_starts_lead_to_the_traversal_answer() {
                 settled = w.is_some();
                 w
             },
-            |t| inside(&m, t, p),
+            |t| claim(&m, t, p),
         );
         assert_eq!(got.is_some(), want.is_some(), "{p:?}");
         if settled {

@@ -5,7 +5,8 @@
 //! The node format is a contract with the GPU (`tetloc-vulkan`'s soft-bvh shaders read the
 //! nodes as four `uvec4` and decode child references with the constants below), and
 //! [`WideBvh::traverse`] is the CPU reference of the shader's traversal: the same order, the
-//! same dequantization, so both find the same primitive.
+//! same dequantization; [`WideBvh::locate`] adds the tie rule (`geom::lowest_claim`), so
+//! both find the same primitive.
 
 use super::{Aabb, Bvh, BvhNode};
 use crate::error::{Error, Result};
@@ -104,7 +105,8 @@ pub struct WideBvh {
 /// What one traversal found and cost.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Traversal {
-    /// The first primitive in traversal order that the caller accepted.
+    /// The first primitive in traversal order that the caller accepted (`traverse`); with
+    /// the tie rule, the answer (`locate`).
     pub prim: Option<u32>,
     /// 4-wide nodes loaded.
     pub nodes: u32,
@@ -209,6 +211,31 @@ impl WideBvh {
                 None => return t,
             }
         }
+    }
+
+    /// The CPU reference of soft-bvh's `tl_traverse` with its tie rule (`geom::lowest_claim`):
+    /// `claim` says whether a primitive holds `p` (`Some(true)`: strictly inside, which ends
+    /// the search; `Some(false)`: on its boundary, the search goes on). The answer is the
+    /// strict holder, else the lowest id among the boundary claims.
+    pub fn locate(
+        &self,
+        p: Vec3,
+        start: u32,
+        stack: &mut Vec<u32>,
+        mut claim: impl FnMut(u32) -> Option<bool>,
+    ) -> Traversal {
+        let mut tie = None;
+        let mut t = self.traverse(p, start, stack, |prim| match claim(prim) {
+            Some(strict) => {
+                if !strict {
+                    crate::geom::lowest_claim(&mut tie, (prim, ()));
+                }
+                strict
+            }
+            None => false,
+        });
+        t.prim = t.prim.or(tie.map(|(prim, ())| prim));
+        t
     }
 
     /// Checks the tree against the primitives' boxes: every primitive in exactly one leaf,

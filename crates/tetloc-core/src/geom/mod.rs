@@ -185,6 +185,47 @@ pub enum TetTest {
     Outside { face: usize },
 }
 
+/// **The tie rule.** A search that finds a tet holding the point with a zero weight (the
+/// point on one of its faces, edges or vertices, which other tets may hold too) keeps the
+/// lowest such id and searches on; a tet holding the point strictly inside ends the search.
+/// So the answer does not depend on the order a search visits the tets in: the CPU's BVH,
+/// soft-bvh's wide BVH (`tl_traverse`) and rt-bvh's hardware traversal give the same id.
+/// This records one such claim.
+#[inline]
+pub fn lowest_claim<T: Copy>(tie: &mut Option<(u32, T)>, claim: (u32, T)) {
+    if tie.is_none_or(|(t, _)| claim.0 < t) {
+        *tie = Some(claim);
+    }
+}
+
+/// The tie rule where there is no search to go on with: tet `start` holds the point with
+/// weights `bary`; the tets that hold it too are reached through the faces it lies on (a zero
+/// weight: the face opposite that vertex), from holder to holder, and the lowest id among them
+/// is the answer, with its weights. On a conforming mesh these are all the tets that hold the
+/// point. `holds` is the point-in-tet test. The CPU mirror of `shaders/common/walk.glsl`
+/// `tl_lowest_holder` (which the ray-tracing kernels use), for answers certified on f64 data.
+pub fn lowest_holder(
+    start: i32,
+    bary: Bary,
+    neighbors: &[[i32; 4]],
+    holds: impl Fn(i32) -> Option<Bary>,
+) -> (i32, Bary) {
+    let mut seen = vec![(start, bary)];
+    let mut head = 0;
+    while head < seen.len() {
+        let (t, b) = seen[head];
+        head += 1;
+        for (i, &n) in neighbors[t as usize].iter().enumerate() {
+            if b[i] == 0.0 && n >= 0 && !seen.iter().any(|&(s, _)| s == n) {
+                if let Some(nb) = holds(n) {
+                    seen.push((n, nb));
+                }
+            }
+        }
+    }
+    seen.into_iter().min_by_key(|&(t, _)| t).expect("start is seen")
+}
+
 /// The point-in-tet test. `ids` must be canonical (see [`canonical_tet`]).
 #[inline]
 pub fn test_point(ids: [u32; 4], points: &[Vec3], p: Vec3) -> TetTest {
@@ -276,7 +317,8 @@ impl Exact<'_> {
 /// decided in f32 with a bound that also covers the rounding of vertices and point to the
 /// working copy ([`Frame`]), and where that bound cannot decide, by the exact
 /// sign of orient3d on the f64 coordinates. The tie rule is [`test_point`]'s: a point on a
-/// face (exact zero) is inside, and the search's order picks among the tets that claim it.
+/// face (exact zero) is inside, and the search takes the lowest id among the tets that claim
+/// it ([`lowest_claim`]).
 /// Barycentrics are computed in f64 on the file's coordinates.
 pub fn test_point_with(ids: [u32; 4], points: &[Vec3], exact: &Exact, q: &predicates::Query) -> TetTest {
     let exact_query = exact.frame.is_identity() && q.local.map(f64::from) == q.file;

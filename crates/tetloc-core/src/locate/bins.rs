@@ -3,7 +3,7 @@
 //! whose centroid is nearest the bin's centre: a step or two away), and where the walk cannot finish (it leaves the mesh, runs long, or ends on a
 //! face) it tests every tet of its bin: the bin lists every tet whose box meets it, so one
 //! tet holding the point strictly is the answer, none means outside, and anything else (a
-//! weight of zero, two tets) is a tie that the BVH's traversal order decides.
+//! weight of zero, two tets) is a tie that the BVH's search decides by the tie rule.
 //!
 //! Bin indices are monotone in the coordinate (a subtraction, a product and a floor, each
 //! rounding monotonically, as in the occupancy grid), so a point inside a tet's box (working

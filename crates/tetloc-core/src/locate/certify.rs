@@ -3,6 +3,8 @@
 //! (`geom::test_point_with`); when the exact test puts the point outside it, the tets around
 //! it (face neighbours, three rings: 52 at most) are tested, and the one that holds the point
 //! is the answer, or none when the exact test puts the point outside the mesh's boundary there.
+//! An answer that holds the point on its boundary follows the tie rule
+//! (`geom::lowest_holder`): the lowest tet that holds it.
 //!
 //! The working copy differs from the file's data by rounding only, so a wrong answer is one
 //! for a point within rounding of a face, and the tet that holds it shares a vertex with the
@@ -71,6 +73,14 @@ impl Certifier {
                     TetTest::Inside(b) => Some(b),
                     TetTest::Outside { .. } => None,
                 };
+                // The tie rule for an answer that holds the point on its boundary.
+                let settle = |(t, b): (i32, Bary)| {
+                    if b.contains(&0.0) {
+                        geom::lowest_holder(t, b, neighbors, holds)
+                    } else {
+                        (t, b)
+                    }
+                };
                 if *t < 0 {
                     // Inside only if within rounding of a boundary face: try the tets there.
                     if !finite(&points[i]) {
@@ -78,16 +88,22 @@ impl Certifier {
                     }
                     let shell = self.shell.get().expect("built before the loop");
                     let found = shell.find(frame.to_working(points[i]), |start| search(start, neighbors, &holds).0);
-                    return found.map(|(n, b)| {
+                    return found.map(settle).map(|(n, b)| {
                         *t = n;
                         (i, Some(b))
                     });
                 }
                 if let Some(b) = holds(*t) {
+                    let (n, b) = settle((*t, b));
+                    if n != *t {
+                        *t = n;
+                        return Some((i, Some(b)));
+                    }
                     return every.then_some((i, Some(b)));
                 }
                 match search(*t, neighbors, &holds) {
-                    (Some((n, b)), _) => {
+                    (Some(found), _) => {
+                        let (n, b) = settle(found);
                         *t = n;
                         Some((i, Some(b)))
                     }

@@ -50,7 +50,7 @@ const BIN_EDGES: f64 = 1.5;
 enum Answer {
     Found(u32, Bary),
     Outside,
-    /// On a face, or held by two tets: the BVH's traversal order decides.
+    /// On a face, or held by two tets: the BVH's search decides (the tie rule).
     Tie,
 }
 
@@ -125,7 +125,8 @@ impl CpuLocator {
     }
 
     /// The tet containing `p` and the barycentric coordinates of `p` in it, by BVH traversal
-    /// (the canonical answer: the first containing tet in traversal order).
+    /// (the canonical answer: the tet that holds `p` strictly inside, or, for a point on
+    /// faces, edges or vertices, the lowest id among the tets that hold it: the tie rule).
     #[inline]
     pub fn locate_point(&self, p: Vec3) -> Option<(u32, Bary)> {
         self.find(&self.query_at(p))
@@ -149,7 +150,10 @@ impl CpuLocator {
     }
 
     /// BVH traversal in the working frame (boxes of rounded vertices hold the rounded point
-    /// whenever the file's box holds the file's point: rounding is monotone).
+    /// whenever the file's box holds the file's point: rounding is monotone). A tet that holds
+    /// the point strictly inside ends the search (no other holds it); one that holds it on its
+    /// boundary does not: the search goes on, and the lowest such id is the answer, whatever
+    /// the order of the traversal (`geom::lowest_claim`, the rule every kernel shares).
     fn find(&self, q: &Query) -> Option<(u32, Bary)> {
         let p = q.local;
         let Index { bvh, occupancy } = self.index();
@@ -160,12 +164,16 @@ impl CpuLocator {
         let mut stack = [0u32; 64];
         let mut sp = 0usize;
         let mut i = 0u32;
+        let mut tie = None;
         loop {
             let n = &nodes[i as usize];
             if n.is_leaf() {
                 for &t in &bvh.prim_ids[n.first as usize..(n.first + n.count) as usize] {
                     if let TetTest::Inside(b) = self.test(t, q) {
-                        return Some((t, b));
+                        if !b.contains(&0.0) {
+                            return Some((t, b));
+                        }
+                        geom::lowest_claim(&mut tie, (t, b));
                     }
                 }
             } else {
@@ -184,7 +192,7 @@ impl CpuLocator {
                 }
             }
             if sp == 0 {
-                return None;
+                return tie;
             }
             sp -= 1;
             i = stack[sp];
@@ -567,7 +575,7 @@ impl GridSampler for CpuLocator {
             Some(r) if r.is_for(grid, names) => r,
             _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS, names),
         };
-        // The search's order is the tie rule.
+        // The search applies the tie rule.
         let tie = |k: usize| self.find(&self.query_at(grid.point(k)));
         let nf = fields.len();
         let mut i = range.start;
@@ -698,13 +706,20 @@ mod tests {
             points.extend((0..3000).map(|_| -> Vec3 { std::array::from_fn(|k| rng.gen_range(lo[k]..=hi[k])) }));
             let mut ids = vec![0i32; points.len()];
             loc.locate(&points, &mut ids).unwrap();
-            let mut inside = 0;
+            let (mut inside, mut ties) = (0, 0);
             for (p, &id) in points.iter().zip(&ids) {
                 let want = loc.locate_point(*p).map_or(OUTSIDE, |(t, _)| t as i32);
                 assert_eq!(id, want, "{p:?}");
                 inside += usize::from(id >= 0);
+                // The tie rule: the lowest id among the tets that hold the point.
+                let holders: Vec<i32> = (0..m.n_tets())
+                    .filter(|&t| matches!(loc.test(t as u32, &loc.query_at(*p)), TetTest::Inside(_)))
+                    .map(|t| t as i32)
+                    .collect();
+                assert_eq!(id, holders.first().copied().unwrap_or(OUTSIDE), "{p:?}: holders {holders:?}");
+                ties += usize::from(holders.len() > 1);
             }
-            assert!(inside > points.len() / 2, "{inside}");
+            assert!(inside > points.len() / 2 && ties >= 50, "{inside} inside, {ties} ties");
         }
     }
 

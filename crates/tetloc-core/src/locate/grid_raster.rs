@@ -10,7 +10,8 @@
 //! The answers are the locator's. A point strictly inside one tet (no zero weight) and in no
 //! other tet has one answer, which this finds. Every other point a tet claims (on a face, an
 //! edge or a vertex, or claimed twice on a mesh whose tets overlap) is marked a tie and left
-//! to the locator's search, whose traversal order is the tie rule. A point that no tet
+//! to the locator's search, which applies the tie rule (the lowest id among the tets that
+//! hold the point: `geom::lowest_claim`). A point that no tet
 //! claims is in no tet: each tet tests every grid point of its box that its map does not put
 //! beyond a face on a row ([`TetMap::parts`]).
 //!

@@ -1,6 +1,7 @@
 // soft-bvh traversal (the paper's cuda-bvh), shared by the point-location kernel
 // (soft_bvh.comp) and the volume ray marcher: depth-first traversal of a 4-wide BVH with
-// quantized child boxes, in software, returning at the first tet that contains the point.
+// quantized child boxes, in software, returning at the tet that holds the point strictly
+// inside, or for a point on faces the lowest id that holds it (the tie rule, geom::lowest_claim).
 // Its prims are tets, or the cells of a mixed mesh (CELL_BOXES: a leaf tests a cell's tets).
 // Needs interface.glsl, mesh.glsl and tet.glsl first, and GL_EXT_control_flow_attributes.
 #ifndef TL_SOFT_BVH_GLSL
@@ -50,11 +51,14 @@ vec4 tl_bytes(uint w) {
     return vec4((uvec4(w) >> uvec4(0u, 8u, 16u, 24u)) & 0xffu);
 }
 
-// Depth-first traversal from node reference `ref` (0: the root): the first tet in
-// traversal order that contains p, or TL_OUTSIDE (TL_DEFERRED: undecided, DEFER_EXACT).
+// Depth-first traversal from node reference `ref` (0: the root): the tet that holds p
+// strictly inside, else the lowest id of the tets that hold it on their boundary, whatever
+// the traversal's order (tetloc_core::bvh::WideBvh::locate), or TL_OUTSIDE (TL_DEFERRED:
+// undecided, DEFER_EXACT).
 int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
     uint stack[STACK_SIZE];
     uint sp = 0u;
+    int tie = TL_OUTSIDE; // the lowest tet holding p on its boundary so far
     while (true) {
         if ((ref & TL_LEAF) != 0u) {
             // A direct leaf holds its tet id in all 31 bits (tetloc_core::bvh::wide).
@@ -67,7 +71,10 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
                     ids = tl_tet(tet);
                     int exit_face;
                     if (tl_test(ids, p, bary, exit_face)) {
-                        return int(tet);
+                        if (all(greaterThan(bary, vec4(0.0)))) {
+                            return int(tet); // strictly inside: no other tet holds p
+                        }
+                        tie = tie == TL_OUTSIDE ? int(tet) : min(tie, int(tet));
                     }
                     if (DEFER_EXACT && tl_undecided) {
                         return TL_DEFERRED;
@@ -103,7 +110,14 @@ int tl_traverse(uint ref, vec3 p, out uvec4 ids, out vec4 bary) {
             }
         }
         if (sp == 0u) {
-            return TL_OUTSIDE;
+            if (tie != TL_OUTSIDE) {
+                // The tie's vertices and weights again (rare: not worth registers held
+                // through the traversal).
+                ids = tl_tet(uint(tie));
+                int exit_face;
+                tl_test(ids, p, bary, exit_face);
+            }
+            return tie;
         }
         ref = stack[--sp];
     }

@@ -6,6 +6,7 @@
 
 #include "common/mesh.glsl"
 #include "common/tet.glsl"
+#include "common/walk.glsl"
 
 layout(binding = TL_B_ACCEL) uniform accelerationStructureEXT tl_tlas;
 layout(location = 0) rayPayloadEXT TlPayload pl;
@@ -14,6 +15,7 @@ layout(location = 0) rayPayloadEXT TlPayload pl;
 // p's barycentrics there (for the values).
 int tl_trace(vec3 p, out uvec4 ids, out vec4 bary) {
     pl.tet = TL_MISS;
+    pl.tie = 0u;
     traceRayEXT(tl_tlas, RAY_FLAGS, 0xff, 0, 0, 0, p, params.lo_tmin.w, params.dir.xyz, params.hi_tmax.w, 0);
     // No tet found: outside the mesh, or a ray that leaked through an edge (a hardware
     // triangle test that is not watertight) or hit one of two coincident faces (a seam of
@@ -24,6 +26,13 @@ int tl_trace(vec3 p, out uvec4 ids, out vec4 bary) {
     int tet = max(pl.tet, TL_OUTSIDE);
     ids = uvec4(0u);
     bary = vec4(0.0);
+    if (tet >= 0 && pl.tie != 0u) {
+        // rt-bvh found p on the boundary of its tet, where others may hold it too: the tie
+        // rule through the neighbours (the face kernels' hit shader settles its ties itself).
+        int exit_face;
+        tl_point_in_tet(tl_tet(uint(tet)), p, bary, exit_face);
+        tet = tl_lowest_holder(tet, bary, p);
+    }
     // The values are interpolated by the caller, after the traversal, and not in the hit
     // shaders: there the f64 refinement (REFINE_BARY) raised the registers of the whole
     // traversal (rt-bvh, random points, f64 jets 12M, H200 2026-12-05: 18 % slower than

@@ -79,4 +79,38 @@ int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
     return TL_OUTSIDE;
 }
 
+// Most tets tl_lowest_holder visits: a vertex's star (about 24 tets on a conforming mesh).
+#define TL_TIE_SEEN 128
+
+// The tie rule (tetloc_core::geom::lowest_claim) for tet `tet`, which holds p with weights
+// `bary`: the tets that hold p are found through the faces p lies on (a zero weight: the face
+// opposite that vertex), from each holder to the next, and the lowest id among them is the
+// answer. On a conforming mesh these are all the tets that hold p, as a search finds them; the
+// face kernels, which have no tet boxes to search, settle ties here.
+int tl_lowest_holder(int tet, vec4 bary, vec3 p) {
+    int seen[TL_TIE_SEEN];
+    seen[0] = tet;
+    int n = 1, lowest = tet;
+    for (int head = 0; head < n; head++) {
+        int exit_face;
+        if (head > 0) {
+            tl_point_in_tet(tl_tet(uint(seen[head])), p, bary, exit_face);
+        }
+        ivec4 next = tl_neighbors4(uint(seen[head]));
+        for (int i = 0; i < 4; i++) {
+            int u = next[i];
+            bool known = bary[i] != 0.0 || u < 0 || n == TL_TIE_SEEN;
+            for (int k = 0; k < n && !known; k++) {
+                known = seen[k] == u;
+            }
+            vec4 held;
+            if (!known && tl_point_in_tet(tl_tet(uint(u)), p, held, exit_face)) {
+                seen[n++] = u;
+                lowest = min(lowest, u);
+            }
+        }
+    }
+    return lowest;
+}
+
 #endif

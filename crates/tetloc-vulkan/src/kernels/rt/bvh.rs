@@ -2,7 +2,8 @@
 //! mixed mesh (`CELL_BOXES`); an intersection shader runs the point-in-tet test for each box
 //! an infinitesimal ray from the point starts in (on a cell's box, for each of its
 //! decomposition tets), and the ray ends at the first tet that holds it (shaders/rt_bvh.rint,
-//! rt_bvh.rchit).
+//! rt_bvh.rchit); for a point on that tet's boundary, the ray generation shader finds the
+//! lowest tet that holds it through the neighbours (the tie rule; common/trace.glsl).
 
 use super::{Geometry, RtKernel, OPAQUE, TERMINATE_ON_FIRST_HIT};
 use crate::kernels::{extent, prim_box, prim_boxes, KernelDef, Ray};
@@ -34,7 +35,6 @@ const RT_BVH: RtKernel = RtKernel {
     },
     // The prim (tet, or cell) of each box.
     table: |_, order| bytemuck::cast_slice(order).to_vec(),
-    walks: false,
     ray_flags: OPAQUE | TERMINATE_ON_FIRST_HIT,
     retry_on_miss: false,
     // An infinitesimal ray: it only finds the boxes that contain its origin.

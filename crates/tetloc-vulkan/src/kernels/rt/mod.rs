@@ -49,8 +49,6 @@ pub(crate) struct RtKernel {
     /// The primitive table (`B_PRIMS`) of all items in order: how a hit finds its tet (or the
     /// cell whose tets it tests).
     pub table: fn(&Mesh, &[u32]) -> Vec<u8>,
-    /// The hit shader walks through tet neighbours (to correct a hit off by rounding).
-    pub walks: bool,
     /// Ray flags (SPIR-V RayFlags), and whether a ray that finds nothing is retried in the
     /// opposite direction.
     pub ray_flags: u32,
@@ -139,12 +137,10 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
     let prims = dev.upload("primitive table", MemKind::Structure, storage, &(k.table)(mesh, &order))?;
     let bases: Vec<u32> = groups.iter().map(|g| (g.start * k.prims_per_item) as u32).collect();
     let instance_base = dev.upload("instance base", MemKind::Structure, storage, bytemuck::cast_slice(&bases))?;
-    let neighbors = if k.walks {
-        let nb = bytemuck::cast_slice(mesh.neighbors());
-        Some(dev.upload("tet neighbours", MemKind::Structure, storage, nb)?)
-    } else {
-        None
-    };
+    // The face kernels' hit shaders walk through the neighbours (to correct a hit off by
+    // rounding), and every kernel settles ties through them (walk.glsl tl_lowest_holder).
+    let neighbors =
+        dev.upload("tet neighbours", MemKind::Structure, storage, bytemuck::cast_slice(mesh.neighbors()))?;
     let points = &input.points.parts[0];
     let src = accel::Source { k, mesh, points, order: &order, groups: &groups, compact: opts.compact };
     let built = accel::build(dev, src)?;
@@ -155,7 +151,7 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
         Binding::accel(B_ACCEL, built.tlas.handle),
         Binding::buffer(B_PRIMS, &prims),
         Binding::buffer(B_INSTANCES, &instance_base),
-        Binding::buffer(B_NEIGHBORS, neighbors.as_ref().unwrap_or(unbound)),
+        Binding::buffer(B_NEIGHBORS, &neighbors),
         neighbors_hi,
     ];
     let spec = Spec::default()

@@ -23,7 +23,6 @@ const RT_REP_FACES: RtKernel = RtKernel {
     },
     // The tet of each group of four triangles.
     table: |_, order| bytemuck::cast_slice(order).to_vec(),
-    walks: true,
     ray_flags: OPAQUE | CULL_BACK_FACING,
     retry_on_miss: true,
     ray: crossing_ray,

@@ -39,7 +39,6 @@ const RT_SHARED_FACES: RtKernel = RtKernel {
             order.par_iter().map(|&f| [faces[f as usize].front, faces[f as usize].back]).collect();
         bytemuck::cast_slice(&sides).to_vec()
     },
-    walks: true,
     ray_flags: OPAQUE,
     retry_on_miss: true,
     ray: crossing_ray,

@@ -245,10 +245,14 @@ pub(crate) fn host_tree(
         return Ok((wide, None));
     }
     let t = Instant::now();
-    let holds = |t: usize, p: Vec3| matches!(geom::test_point(mesh.tets[t], &mesh.points, p), geom::TetTest::Inside(_));
-    let prim_holds: &(dyn Fn(u32, Vec3) -> bool + Sync) = &|c, p| prim_tets(mesh, c).any(|t| holds(t, p));
+    // Whether tet t holds p (strictly inside); a cell's claim is its first tet's that holds p.
+    let claim = |t: usize, p: Vec3| match geom::test_point(mesh.tets[t], &mesh.points, p) {
+        geom::TetTest::Inside(b) => Some(!b.contains(&0.0)),
+        geom::TetTest::Outside { .. } => None,
+    };
+    let prim_claim: &(dyn Fn(u32, Vec3) -> Option<bool> + Sync) = &|c, p| prim_tets(mesh, c).find_map(|t| claim(t, p));
     let bounds = (mesh.info.bounds_min, mesh.info.bounds_max);
-    let walk = want.walk.then_some(prim_holds);
+    let walk = want.walk.then_some(prim_claim);
     let mut grid = EntryGrid::new(&wide, boxes.len(), |p| boxes[p as usize], bounds, want.prims_per_cell, walk);
     if mesh.cells.is_some() {
         grid.starts = (0..grid.starts.len())
@@ -258,7 +262,7 @@ pub(crate) fn host_tree(
                 c => {
                     let centre = grid.centre(i);
                     let tets = prim_tets(mesh, c);
-                    tets.clone().find(|&t| holds(t, centre)).unwrap_or(tets.start) as u32
+                    tets.clone().find(|&t| claim(t, centre).is_some()).unwrap_or(tets.start) as u32
                 }
             })
             .collect();
@@ -424,7 +428,7 @@ mod tests {
             tetloc_core::Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, n, 1), "jets").unwrap();
         let (pts, tets) = (&mesh.points, &mesh.tets);
         let q = WideBvh::collapse(&Bvh::build(pts, tets, BuildPreset::SingleTetLeaves)).unwrap();
-        let holds = |t: u32, p: Vec3| geom::point_in_tet(tets[t as usize], pts, p).is_some();
+        let claim = |t: u32, p: Vec3| geom::point_in_tet(tets[t as usize], pts, p).map(|b| !b.contains(&0.0));
         let bounds = (mesh.info.bounds_min, mesh.info.bounds_max);
         let g = EntryGrid::new(
             &q,
@@ -432,7 +436,7 @@ mod tests {
             |t| tetloc_core::bvh::Aabb::of_tet(tets[t as usize], pts),
             bounds,
             per_cell,
-            Some(&holds),
+            Some(&claim),
         );
         println!(
             "jets {} tets, {} nodes, depth {}, grid {:?} ({} tets/cell), walk <= {max_steps} steps",

@@ -12,8 +12,9 @@
 //! - [`scan`]: the prefix sums the sort and the neighbours use;
 //! - [`pack`]: the neighbours and leaf prims packed to fewer bits (`compact`, `small`).
 //!
-//! Why the same bits: the answers on faces follow the traversal order, so a GPU-built tree
-//! that is the CPU's gives the same ids everywhere, and the tests compare the two exactly.
+//! Why the same bits: the same tree is the same search, node for node, so the tests can
+//! compare the two exactly (the answers, ties included, do not depend on the order since the
+//! tie rule takes the lowest id, but the costs and the structure's bytes do).
 
 mod grid;
 mod hierarchy;
