@@ -68,6 +68,17 @@ fn walk(m: &crate::Mesh, start: u32, p: Vec3, max_steps: u32) -> Option<u32> {
     None
 }
 
+/// `n` [`scattered`] points, then the mesh's vertices and an edge midpoint of each tet: on
+/// faces shared by many tets.
+fn scattered_and_on_faces(m: &crate::Mesh, n: usize, seed: u64) -> Vec<Vec3> {
+    let mut points = scattered(m.info.bounds_min, m.info.bounds_max, n, seed);
+    points.extend(m.points.iter().copied());
+    points.extend(
+        m.tets.iter().map(|t| std::array::from_fn(|k| 0.5 * (m.points[t[0] as usize][k] + m.points[t[1] as usize][k]))),
+    );
+    points
+}
+
 /// Points around and in a mesh's box, 5 % beyond each side.
 fn scattered(lo: Vec3, hi: Vec3, n: usize, mut s: u64) -> Vec<Vec3> {
     (0..n)
@@ -143,13 +154,7 @@ fn single_prim_tree() {
 #[test]
 fn wide_traversal_agrees_with_the_binary_bvh() {
     let m = tall_grid(6);
-    let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
-    let mut points = scattered(lo, hi, 20_000, 3);
-    // Vertices and edge midpoints: on faces shared by many tets.
-    points.extend(m.points.iter().copied());
-    points.extend(
-        m.tets.iter().map(|t| std::array::from_fn(|k| 0.5 * (m.points[t[0] as usize][k] + m.points[t[1] as usize][k]))),
-    );
+    let points = scattered_and_on_faces(&m, 20_000, 3);
     for preset in [BuildPreset::Fast, BuildPreset::SingleTetLeaves] {
         let bvh = Bvh::build(&m.points, &m.tets, preset);
         let q = WideBvh::collapse(&bvh).unwrap();
@@ -181,12 +186,7 @@ fn wide_traversal_agrees_with_the_binary_bvh() {
 #[test]
 fn wide_locate_answers_the_lowest_holder() {
     let m = tall_grid(4);
-    let (lo, hi) = (m.info.bounds_min, m.info.bounds_max);
-    let mut points = scattered(lo, hi, 3_000, 5);
-    points.extend(m.points.iter().copied());
-    points.extend(
-        m.tets.iter().map(|t| std::array::from_fn(|k| 0.5 * (m.points[t[0] as usize][k] + m.points[t[1] as usize][k]))),
-    );
+    let points = scattered_and_on_faces(&m, 3_000, 5);
     let mut ties = 0;
     for preset in [BuildPreset::Fast, BuildPreset::SingleTetLeaves] {
         let q = WideBvh::collapse(&Bvh::build(&m.points, &m.tets, preset)).unwrap();
