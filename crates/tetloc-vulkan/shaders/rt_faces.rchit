@@ -51,7 +51,7 @@ void main() {
     tet = tl_walk(tet, p, WALK_MAX, ids, bary);
     if (tet >= 0) {
         // A point on the tet's boundary: the tie rule, through the neighbours.
-        pl.tet = all(greaterThan(bary, vec4(0.0))) ? tet : tl_lowest_holder(tet, bary, p);
+        pl.tet = tl_on_boundary ? tl_lowest_holder(tet, bary, p) : tet;
         return;
     }
     // Not found: the point is outside the mesh, or the hit was a face coincident with

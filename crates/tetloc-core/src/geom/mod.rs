@@ -198,34 +198,6 @@ pub fn lowest_claim<T: Copy>(tie: &mut Option<(u32, T)>, claim: (u32, T)) {
     }
 }
 
-/// The tie rule where there is no search to go on with: tet `start` holds the point with
-/// weights `bary`; the tets that hold it too are reached through the faces it lies on (a zero
-/// weight: the face opposite that vertex), from holder to holder, and the lowest id among them
-/// is the answer, with its weights. On a conforming mesh these are all the tets that hold the
-/// point. `holds` is the point-in-tet test. The CPU mirror of `shaders/common/walk.glsl`
-/// `tl_lowest_holder` (which the ray-tracing kernels use), for answers certified on f64 data.
-pub fn lowest_holder(
-    start: i32,
-    bary: Bary,
-    neighbors: &[[i32; 4]],
-    holds: impl Fn(i32) -> Option<Bary>,
-) -> (i32, Bary) {
-    let mut seen = vec![(start, bary)];
-    let mut head = 0;
-    while head < seen.len() {
-        let (t, b) = seen[head];
-        head += 1;
-        for (i, &n) in neighbors[t as usize].iter().enumerate() {
-            if b[i] == 0.0 && n >= 0 && !seen.iter().any(|&(s, _)| s == n) {
-                if let Some(nb) = holds(n) {
-                    seen.push((n, nb));
-                }
-            }
-        }
-    }
-    seen.into_iter().min_by_key(|&(t, _)| t).expect("start is seen")
-}
-
 /// The point-in-tet test. `ids` must be canonical (see [`canonical_tet`]).
 #[inline]
 pub fn test_point(ids: [u32; 4], points: &[Vec3], p: Vec3) -> TetTest {

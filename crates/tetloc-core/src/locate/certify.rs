@@ -2,9 +2,10 @@
 //! the file's f64 data: each tet found is tested again with the exact test
 //! (`geom::test_point_with`); when the exact test puts the point outside it, the tets around
 //! it (face neighbours, three rings: 52 at most) are tested, and the one that holds the point
-//! is the answer, or none when the exact test puts the point outside the mesh's boundary there.
-//! An answer that holds the point on its boundary follows the tie rule
-//! (`geom::lowest_holder`): the lowest tet that holds it.
+//! is the answer. Where they hold it on a face, edge or vertex, or none of them holds it (a
+//! point within rounding of a vertex shared by many tets, whose holder lies further off), the
+//! complete search decides: a BVH over every tet, exact, with the tie rule (the lowest tet
+//! that holds the point), built on the first such point. So the answers are the CPU's.
 //!
 //! The working copy differs from the file's data by rounding only, so a wrong answer is one
 //! for a point within rounding of a face, and the tet that holds it shares a vertex with the
@@ -40,6 +41,19 @@ pub fn needs_certifying(mesh: &Mesh, points: &[[f64; 3]]) -> bool {
 #[derive(Default)]
 pub struct Certifier {
     shell: OnceLock<Shell>,
+    /// Every tet: the complete search, where the rings and the shell do not decide.
+    whole: OnceLock<Bvh>,
+}
+
+/// A tet that holds the point, with its weights; `None`: outside.
+type Found = Option<(i32, Bary)>;
+
+/// What the parallel pass makes of one answer.
+enum Verdict {
+    Stands(Bary),
+    Moves(i32, Bary),
+    /// The complete search decides.
+    Search,
 }
 
 impl Certifier {
@@ -65,76 +79,128 @@ impl Certifier {
         if tets.par_iter().zip(points).any(|(&t, p)| t < 0 && finite(p)) {
             self.shell.get_or_init(|| Shell::build(mesh));
         }
-        tets.par_iter_mut()
+        let verdicts: Vec<(usize, Verdict)> = tets
+            .par_iter()
             .enumerate()
-            .filter_map(|(i, t)| {
+            .filter_map(|(i, &t)| {
                 let q = exact.query(points[i]);
                 let holds = |t: i32| match geom::test_point_with(mesh.tets[t as usize], &mesh.points, &exact, &q) {
                     TetTest::Inside(b) => Some(b),
                     TetTest::Outside { .. } => None,
                 };
-                // The tie rule for an answer that holds the point on its boundary.
-                let settle = |(t, b): (i32, Bary)| {
-                    if b.contains(&0.0) {
-                        geom::lowest_holder(t, b, neighbors, holds)
-                    } else {
-                        (t, b)
-                    }
-                };
-                if *t < 0 {
+                // A holder that holds the point strictly inside is the only one; on its boundary
+                // the tie rule needs every holder.
+                let settle =
+                    |(t, b): (i32, Bary)| if b.contains(&0.0) { Verdict::Search } else { Verdict::Moves(t, b) };
+                let verdict = if t < 0 {
                     // Inside only if within rounding of a boundary face: try the tets there.
                     if !finite(&points[i]) {
                         return None;
                     }
                     let shell = self.shell.get().expect("built before the loop");
-                    let found = shell.find(frame.to_working(points[i]), |start| search(start, neighbors, &holds).0);
-                    return found.map(settle).map(|(n, b)| {
-                        *t = n;
-                        (i, Some(b))
-                    });
-                }
-                if let Some(b) = holds(*t) {
-                    let (n, b) = settle((*t, b));
-                    if n != *t {
-                        *t = n;
-                        return Some((i, Some(b)));
+                    match shell.find(frame.to_working(points[i]), |start| search(start, neighbors, &holds)) {
+                        Some(found) => settle(found),
+                        None if shell.near(frame.to_working(points[i])) => Verdict::Search,
+                        None => return None,
                     }
-                    return every.then_some((i, Some(b)));
-                }
-                match search(*t, neighbors, &holds) {
-                    (Some(found), _) => {
-                        let (n, b) = settle(found);
-                        *t = n;
-                        Some((i, Some(b)))
+                } else if let Some(b) = holds(t) {
+                    match b.contains(&0.0) {
+                        true => Verdict::Search,
+                        false if every => Verdict::Stands(b),
+                        false => return None,
                     }
-                    // No tet near the one found holds the point: outside, if it is near the
-                    // boundary (else the search was too short: keep the backend's answer).
-                    (None, boundary) => boundary.then(|| {
-                        *t = OUTSIDE;
-                        (i, None)
-                    }),
+                } else {
+                    match search(t, neighbors, &holds) {
+                        Some(found) => settle(found),
+                        None => Verdict::Search,
+                    }
+                };
+                Some((i, verdict))
+            })
+            .collect();
+        // The complete search, built here and not inside the parallel loop (see the shell).
+        if verdicts.iter().any(|(_, v)| matches!(v, Verdict::Search)) {
+            self.whole.get_or_init(|| Bvh::build(&mesh.points, &mesh.tets, BuildPreset::Fast));
+        }
+        let whole = self.whole.get();
+        // (index, answer, whether it may differ from the backend's)
+        let decided: Vec<(usize, Found, bool)> = verdicts
+            .into_par_iter()
+            .map(|(i, v)| match v {
+                Verdict::Stands(b) => (i, Some((tets[i], b)), false),
+                Verdict::Moves(t, b) => (i, Some((t, b)), true),
+                Verdict::Search => {
+                    let found = lowest_holder(
+                        whole.expect("built above"),
+                        mesh,
+                        &exact.query(points[i]),
+                        frame.to_working(points[i]),
+                    );
+                    (i, found, true)
                 }
+            })
+            .collect();
+        decided
+            .into_iter()
+            .filter_map(|(i, found, changes)| {
+                let t = found.map_or(OUTSIDE, |(t, _)| t);
+                let moved = changes && t != tets[i];
+                tets[i] = t;
+                (moved || every).then_some((i, found.map(|(_, b)| b)))
             })
             .collect()
     }
 }
 
-/// The tet that holds the point among `start` and its face neighbours up to [`RINGS`] rings
-/// (breadth first, each tet once), and whether a boundary face was crossed on the way.
-fn search(start: i32, neighbors: &[[i32; 4]], holds: &impl Fn(i32) -> Option<Bary>) -> (Option<(i32, Bary)>, bool) {
-    if let Some(b) = holds(start) {
-        return (Some((start, b)), false);
+/// The complete search on the file's data: the tet that holds the point strictly inside, or
+/// the lowest that holds it (the tie rule), as `CpuLocator::find` (boxes of the working copy
+/// hold the point's working coordinates wherever the file's boxes hold the point).
+fn lowest_holder(bvh: &Bvh, mesh: &Mesh, q: &geom::predicates::Query, p: Vec3) -> Found {
+    struct Lowest<'a> {
+        mesh: &'a Mesh,
+        q: &'a geom::predicates::Query,
+        p: Vec3,
+        tie: Option<(u32, Bary)>,
+        strict: Option<(u32, Bary)>,
     }
-    let (mut ring, mut seen, mut boundary) = (vec![start], vec![start], false);
+    impl Visitor for Lowest<'_> {
+        fn enter(&mut self, b: &Aabb) -> bool {
+            b.contains(self.p)
+        }
+        fn prim(&mut self, id: u32) -> bool {
+            let m = self.mesh;
+            match geom::test_point_with(m.tets[id as usize], &m.points, &m.exact(), self.q) {
+                TetTest::Inside(b) if !b.contains(&0.0) => {
+                    self.strict = Some((id, b));
+                    true
+                }
+                TetTest::Inside(b) => {
+                    geom::lowest_claim(&mut self.tie, (id, b));
+                    false
+                }
+                TetTest::Outside { .. } => false,
+            }
+        }
+    }
+    let mut l = Lowest { mesh, q, p, tie: None, strict: None };
+    bvh.traverse(&mut l);
+    l.strict.or(l.tie).map(|(t, b)| (t as i32, b))
+}
+
+/// The tet that holds the point among `start` and its face neighbours up to [`RINGS`] rings
+/// (breadth first, each tet once).
+fn search(start: i32, neighbors: &[[i32; 4]], holds: &impl Fn(i32) -> Option<Bary>) -> Option<(i32, Bary)> {
+    if let Some(b) = holds(start) {
+        return Some((start, b));
+    }
+    let (mut ring, mut seen) = (vec![start], vec![start]);
     for _ in 0..RINGS {
         let mut next = Vec::new();
         for &c in &ring {
             for &n in &neighbors[c as usize] {
-                if n < 0 {
-                    boundary = true;
-                } else if !seen.contains(&n) {
+                if n >= 0 && !seen.contains(&n) {
                     if let Some(b) = holds(n) {
-                        return (Some((n, b)), boundary);
+                        return Some((n, b));
                     }
                     seen.push(n);
                     next.push(n);
@@ -143,7 +209,7 @@ fn search(start: i32, neighbors: &[[i32; 4]], holds: &impl Fn(i32) -> Option<Bar
         }
         ring = next;
     }
-    (None, boundary)
+    None
 }
 
 /// The tets with a boundary face, by their boxes in the working copy grown by more than the
@@ -177,6 +243,12 @@ impl Shell {
         Shell { tets, bvh: Bvh::build_boxes(&boxes, BuildPreset::Fast) }
     }
 
+    /// Whether some boundary tet's grown box holds `p` (the point is within rounding of the
+    /// boundary).
+    fn near(&self, p: Vec3) -> bool {
+        self.find(p, |t| Some((t, [0.0; 4]))).is_some()
+    }
+
     /// The first answer of `search` from a boundary tet whose grown box holds `p`.
     fn find(&self, p: Vec3, search: impl Fn(i32) -> Option<(i32, Bary)>) -> Option<(i32, Bary)> {
         struct Find<'a, S> {
@@ -197,5 +269,48 @@ impl Shell {
         let mut f = Find { shell: self, p, search, found: None };
         self.bvh.traverse(&mut f);
         f.found
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::locate::CpuLocator;
+    use rand::{Rng, SeedableRng};
+    use std::sync::Arc;
+
+    /// A mesh stored in f64 (vertices moved by up to 4e-8 off the f32 grid), queried at its
+    /// vertices rounded to f32 (within rounding of the vertex: held by one of the many tets
+    /// around it, or by none), at its exact vertices (ties) and at random points: the answers
+    /// of a backend that searches the working copy, certified, are the CPU's on the f64 data.
+    #[test]
+    fn certified_answers_are_the_searchs_on_f64_data() {
+        let mut raw = crate::test_support::jittered_grid(6, 0.3, 2);
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(4);
+        let p64: Vec<[f64; 3]> =
+            raw.points.iter().map(|p| p.map(|c| f64::from(c) + rng.gen_range(-4e-8..4e-8))).collect();
+        raw.points = p64.iter().map(|p| p.map(|c| c as f32)).collect();
+        let working = Arc::new(Mesh::new(raw.clone(), "working copy").unwrap());
+        raw.points64 = Some(p64.clone());
+        let mesh = Arc::new(Mesh::new(raw, "f64").unwrap());
+        assert!(working.points == mesh.points, "the working copy is the f64 mesh rounded");
+        let mut points: Vec<[f64; 3]> = p64.iter().map(|p| p.map(|c| f64::from(c as f32))).collect();
+        points.extend(&p64);
+        points.extend((0..3000).map(|_| -> [f64; 3] { std::array::from_fn(|_| rng.gen_range(-0.05..1.05)) }));
+        // The backend: the exact test on the working copy (as the GPU kernels), tie rule included.
+        let backend = CpuLocator::new(working);
+        let mut ids: Vec<i32> = points
+            .iter()
+            .map(|p| backend.locate_point(p.map(|c| c as f32)).map_or(OUTSIDE, |(t, _)| t as i32))
+            .collect();
+        let before = ids.clone();
+        Certifier::default().certify(&mesh, &points, &mut ids, false);
+        let cpu = CpuLocator::new(mesh.clone());
+        for (i, p) in points.iter().enumerate() {
+            let want = cpu.locate_point64(*p).map_or(OUTSIDE, |(t, _)| t as i32);
+            assert_eq!(ids[i], want, "point {i} {p:?} (backend {})", before[i]);
+        }
+        let corrected = ids.iter().zip(&before).filter(|(a, b)| a != b).count();
+        assert!(corrected > 50, "only {corrected} answers corrected: the test does not reach the certifier");
     }
 }

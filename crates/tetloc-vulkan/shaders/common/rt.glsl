@@ -9,7 +9,6 @@ struct TlPayload {
     uint tie; // rt-bvh: 1 when the tet holds the point on its boundary (a tie: trace.glsl)
 };
 
-
 layout(std430, binding = TL_B_INSTANCES) readonly buffer TlInstances { uint tl_instance_base[]; };
 
 #endif

@@ -42,6 +42,12 @@ double tl_orient_f64(vec3 a, vec3 b, vec3 c, vec3 p) {
 const ivec3 TL_FACE[4] = ivec3[4](ivec3(1, 2, 3), ivec3(0, 2, 3), ivec3(0, 1, 3), ivec3(0, 1, 2));
 const float TL_PARITY[4] = float[4](-1.0, 1.0, -1.0, 1.0);
 
+// Set by tl_point_in_tet_stage when it answers inside: whether the point is on the tet's
+// boundary (a face's determinant exactly 0: a zero weight), where other tets may hold it too
+// (the tie rule, soft_bvh.glsl). A flag, not a test of the weights, so that kernels that
+// want ids alone never divide for them.
+bool tl_on_boundary = false;
+
 // Answers of tl_point_in_tet_stage.
 #define TL_TEST_OUTSIDE 0
 #define TL_TEST_INSIDE 1
@@ -96,6 +102,7 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
         bound_sum += bound;
     }
     precise float total = d[0] + d[1] + d[2] + d[3];
+    tl_on_boundary = d[0] == 0.0 || d[1] == 0.0 || d[2] == 0.0 || d[3] == 0.0;
 #ifdef TL_F64
     if (!exact && total > BARY_F32_TRUST * bound_sum) {
         bary = vec4(d[0], d[1], d[2], d[3]) / total;
@@ -111,6 +118,7 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
         if (total64 <= 0.0) {
             return TL_TEST_OUTSIDE; // zero-volume tet: contains no point
         }
+        tl_on_boundary = d64[0] <= 0.0 || d64[1] <= 0.0 || d64[2] <= 0.0 || d64[3] <= 0.0;
         bary = vec4(float(max(d64[0], 0.0) / total64), float(max(d64[1], 0.0) / total64),
                     float(max(d64[2], 0.0) / total64), float(max(d64[3], 0.0) / total64));
     }

@@ -86,7 +86,7 @@ int tl_walk(int tet, vec3 p, int max_steps, out uvec4 ids, out vec4 bary) {
 // `bary`: the tets that hold p are found through the faces p lies on (a zero weight: the face
 // opposite that vertex), from each holder to the next, and the lowest id among them is the
 // answer. On a conforming mesh these are all the tets that hold p, as a search finds them; the
-// face kernels, which have no tet boxes to search, settle ties here.
+// ray-tracing kernels, which have no tet search to go on with, settle ties here.
 int tl_lowest_holder(int tet, vec4 bary, vec3 p) {
     int seen[TL_TIE_SEEN];
     seen[0] = tet;
