@@ -18,8 +18,9 @@
 //!   point answers [`CudaError::NoDriver`]. CUDA and Vulkan must be the same GPU (device
 //!   UUIDs), else [`CudaError::DifferentGpu`].
 //!
-//! Meshes of linear tets in the identity working frame, f32 points: others are refused with
-//! [`CudaError::Unsupported`] (the host path serves them).
+//! Meshes of linear tets stored in f32 in the identity working frame, f32 points: others
+//! are refused with [`CudaError::Unsupported`] (the host path serves them, its answers
+//! certified on the file's data).
 
 use crate::context::{Context, ContextOptions};
 use crate::error::VkError;
@@ -447,9 +448,12 @@ impl CudaLocator {
     pub fn new(mesh: Arc<Mesh>, cuda_device: i32, vulkan_device: Option<usize>, validation: bool) -> CudaResult<Self> {
         load()?;
         let uuid = cuda_uuid(cuda_device)?;
-        if mesh.cells.is_some() || mesh.tet_nodes.is_some() || !mesh.info.frame.is_identity() {
+        // The kernel's answers are final only where it decides on the file's data: a mesh
+        // stored in f64 or shifted needs the host's certification (`VulkanLocator::query`).
+        if mesh.cells.is_some() || mesh.tet_nodes.is_some() || !mesh.info.frame.is_identity() || mesh.points64.is_some()
+        {
             return Err(CudaError::Unsupported(
-                "the zero-copy path takes meshes of linear tets in their own frame; this mesh goes through the host"
+                "the zero-copy path takes meshes of linear tets stored in f32 in their own frame; this mesh goes through the host, which checks the answers on the file's data"
                     .into(),
             ));
         }

@@ -585,6 +585,7 @@ impl VulkanLocator {
         values: &mut [f32],
     ) -> tetloc_core::Result<()> {
         let frame = self.mesh.info.frame;
+        let original = at;
         let working: Vec<Vec3>;
         let at = match at {
             At::Host(p) if !frame.is_identity() => {
@@ -600,23 +601,65 @@ impl VulkanLocator {
         let k = fields.len();
         if k <= MAX_FIELDS as usize {
             let out = if k == 0 { Output::IDS } else { self.ensure_fields(fields)? };
-            return Ok(run(self, out, ids, values)?);
+            run(self, out, ids, values)?;
+        } else {
+            let mut part = vec![];
+            for (g, group) in fields.chunks(MAX_FIELDS as usize).enumerate() {
+                let out = self.ensure_fields(group)?;
+                let m = group.len();
+                part.resize(ids.len() * m, 0f32);
+                run(self, out, ids, &mut part)?;
+                let first = g * MAX_FIELDS as usize;
+                values
+                    .par_chunks_mut(k)
+                    .zip(part.par_chunks(m))
+                    .for_each(|(v, p)| v[first..first + m].copy_from_slice(p));
+            }
         }
-        let mut part = vec![];
-        for (g, group) in fields.chunks(MAX_FIELDS as usize).enumerate() {
-            let out = self.ensure_fields(group)?;
-            let m = group.len();
-            part.resize(ids.len() * m, 0f32);
-            run(self, out, ids, &mut part)?;
-            let first = g * MAX_FIELDS as usize;
-            values.par_chunks_mut(k).zip(part.par_chunks(m)).for_each(|(v, p)| v[first..first + m].copy_from_slice(p));
+        if self.decides_on_copy() {
+            let points = match original {
+                At::Host(p) => std::borrow::Cow::Borrowed(p),
+                At::Grid(grid, start) => std::borrow::Cow::Owned(grid_points(grid, start..start + ids.len())),
+            };
+            let moved = self.certify_f32(&points, ids);
+            if k > 0 && !moved.is_empty() {
+                // The moved points' values, from the file's data as the other paths compute them.
+                let mesh = self.mesh.clone();
+                let fields = fields.iter().map(|f| mesh.field(f)).collect::<tetloc_core::Result<Vec<_>>>()?;
+                let wide: Vec<[f64; 3]> = moved.iter().map(|&i| points[i].map(f64::from)).collect();
+                let tets: Vec<i32> = moved.iter().map(|&i| ids[i]).collect();
+                let mut fresh = vec![0f32; moved.len() * k];
+                mesh.values_at_ids64(&wide, &tets, &fields, &mut fresh);
+                for (&i, v) in moved.iter().zip(fresh.chunks(k)) {
+                    values[i * k..(i + 1) * k].copy_from_slice(v);
+                }
+            }
         }
         Ok(())
     }
 
+    /// Whether the kernels decide on a copy that is not the file's data (f64 coordinates
+    /// rounded to f32, or a shifted working frame): then even f32 points' answers are checked
+    /// on the host, as f64 points' are.
+    fn decides_on_copy(&self) -> bool {
+        self.mesh.points64.is_some() || !self.mesh.info.frame.is_identity()
+    }
+
+    /// Checks the kernels' tets for f32 points (the file's coordinates) on the file's data
+    /// and corrects them ([`certify::Certifier`]) where the kernels decided on a copy;
+    /// returns the indices whose tet changed.
+    fn certify_f32(&self, points: &[Vec3], ids: &mut [i32]) -> Vec<usize> {
+        if !self.decides_on_copy() {
+            return vec![];
+        }
+        let wide: Vec<[f64; 3]> = points.par_iter().map(|q| q.map(f64::from)).collect();
+        self.certifier.certify(&self.mesh, &wide, ids, false).into_iter().map(|(i, _)| i).collect()
+    }
+
     /// The k + 1 launches that one launch of [`BatchLocator::query`] replaced for f32 points
     /// and values: the ids, then a launch a field (its value only), each locating the points
-    /// again. The same ids and values, bit for bit: kept to compare against (benchmarks, tests).
+    /// again. The same ids and values, bit for bit, where the kernels decide on the file's
+    /// data (not certified on the host): kept to compare against (benchmarks, tests).
     pub fn sample_per_field(
         &mut self,
         points: &[Vec3],
@@ -983,7 +1026,8 @@ impl BatchLocator for VulkanLocator {
     /// bit for bit, rounded for f32 values). f64 points go to the working frame in f64,
     /// then to f32: a mesh far from the origin is searched as precisely as one at it (the
     /// kernels decide on the working f32 copy); where the working copy or the points are not
-    /// the file's data exactly, each answer is checked (and the rare wrong one corrected) on
+    /// the file's data exactly (f32 points included, on a mesh stored in f64 or shifted),
+    /// each answer is checked (and the rare wrong one corrected, its values recomputed) on
     /// the host.
     fn query(
         &mut self,
@@ -1006,7 +1050,10 @@ impl BatchLocator for VulkanLocator {
             return self.sample_fields(At::Host(p), &names, ids, v);
         }
         match points {
-            Points::F32(p) => self.run_host(p, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?,
+            Points::F32(p) => {
+                self.run_host(p, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?;
+                self.certify_f32(p, ids);
+            }
             Points::F64(p) => {
                 let frame = mesh.info.frame;
                 let working: Vec<Vec3> = p.par_iter().map(|&q| frame.to_working(q)).collect();
