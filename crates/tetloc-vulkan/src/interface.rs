@@ -466,6 +466,14 @@ gpu_interface! {
         /// are per cell (bit j: field j).
         FIELD_COUNT = 35: uint = 0;
         FIELD_CELLS = 36: uint = 0;
+        /// The kernels decide on a copy of the file's data (a mesh stored in f64, or far from
+        /// the origin): an id answer that the f32 filter does not prove on the file's data
+        /// (strictly inside by every face's sign, the copy's rounding `Frame::delta` =
+        /// this value included; geom::holds_strictly_by_filter) is written as -2 - tet, for
+        /// the host to check (locate::certify). Negative: off.
+        CERTIFY_DELTA = 37: float = -1.0;
+        /// geom::predicates::LOCAL_ORIENT_BOUND, set at pipeline creation.
+        LOCAL_ORIENT_BOUND = 38: float = 5.4e-7;
     }
     push_constants
     /// The push constants of every locate and march pipeline.

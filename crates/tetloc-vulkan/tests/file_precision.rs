@@ -137,38 +137,50 @@ fn default_values_on_slivers_stored_in_f64_match_the_cpu() {
     common::assert_no_validation_errors(&ctx);
 }
 
-/// The grid sampler (resample's path) on a mesh stored in f64: the kernels make the grid's
-/// points themselves and decide on the f32 copy; every kernel's ids are still the CPU's
-/// (its raster, on the file's data), and its values within 1e-5 of the range of the CPU's.
-/// A grid through the thin layer of slivers puts many points within the copy's rounding of
-/// a face.
+/// The grid sampler (resample's path) on meshes the kernels hold as a copy: stored in f64
+/// (slivers), and stored in f32 far from the origin (a shifted working frame, the kernel's
+/// grid made from the working frame's axes). The kernels make the grid's points themselves
+/// and decide on the copy; every kernel's ids are still the CPU's (its raster, on the file's
+/// data), and its values within 1e-5 of the range of the CPU's. A grid through the thin
+/// layer of slivers puts many points within the copy's rounding of a face.
 #[test]
-fn the_grid_sampler_on_a_mesh_stored_in_f64_gives_the_cpus_ids() {
-    let test = "the_grid_sampler_on_a_mesh_stored_in_f64_gives_the_cpus_ids";
+fn the_grid_sampler_on_a_copy_of_the_mesh_gives_the_cpus_ids() {
+    let test = "the_grid_sampler_on_a_copy_of_the_mesh_gives_the_cpus_ids";
     let Some(ctx) = common::context(test) else { return };
-    let mesh = Arc::new(Mesh::new(tetloc_testdata::slivers::flat_layers(8, 1e-5), "flat layers").unwrap());
-    let (lo, hi) = mesh.file_bounds();
-    let grid = tetloc_core::geom::ImageGrid::spanning(lo, hi, [41, 37, 97]).unwrap();
-    let (n, range) = (grid.n_points(), range_of(&mesh));
-    let (mut cpu_ids, mut cpu) = (vec![0i32; n], vec![0f32; n]);
-    tetloc_core::locate::sample_grid(&mut CpuLocator::new(mesh.clone()), &grid, 0..n, &["f"], &mut cpu_ids, &mut cpu)
-        .unwrap();
-    assert!(cpu_ids.iter().filter(|&&t| t >= 0).count() > n / 2, "the grid fills the mesh's box");
-    for k in common::kernels(&ctx, test) {
-        let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
-        let (mut ids, mut values) = (vec![0i32; n], vec![0f32; n]);
-        tetloc_core::locate::sample_grid(&mut loc, &grid, 0..n, &["f"], &mut ids, &mut values).unwrap();
-        let differ: Vec<usize> = (0..n).filter(|&i| ids[i] != cpu_ids[i]).collect();
-        assert!(
-            differ.is_empty(),
-            "{k}: {} of {n} grid points in another tet, e.g. {:?}",
-            differ.len(),
-            differ.first()
-        );
-        for i in 0..n {
-            let (g, c) = (f64::from(values[i]), f64::from(cpu[i]));
-            assert_eq!(g.is_nan(), ids[i] < 0, "{k}: point {i}: NaN exactly outside");
-            assert!(g.is_nan() || (g - c).abs() <= 1e-5 * range, "{k}: point {i}: {g} against the CPU's {c}");
+    let flat = Mesh::new(tetloc_testdata::slivers::flat_layers(8, 1e-5), "flat layers").unwrap();
+    let mut raw = tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, 6_000, 3);
+    let offset = [512_345.25, 4_012_345.5, 100.0];
+    for p in &mut raw.points {
+        *p = std::array::from_fn(|k| (p[k] as f64 * 1000.0 + offset[k]) as f32);
+    }
+    let far = Mesh::new(raw, "far jets").unwrap();
+    assert!(!far.info.frame.is_identity(), "a shifted frame");
+    for (mesh, dims) in [(flat, [41, 37, 97]), (far, [53, 47, 41])] {
+        let mesh = Arc::new(mesh);
+        let (lo, hi) = mesh.file_bounds();
+        let grid = tetloc_core::geom::ImageGrid::spanning(lo, hi, dims).unwrap();
+        let (n, range) = (grid.n_points(), range_of(&mesh));
+        let (mut cpu_ids, mut cpu) = (vec![0i32; n], vec![0f32; n]);
+        let mut cpu_loc = CpuLocator::new(mesh.clone());
+        tetloc_core::locate::sample_grid(&mut cpu_loc, &grid, 0..n, &["f"], &mut cpu_ids, &mut cpu).unwrap();
+        assert!(cpu_ids.iter().filter(|&&t| t >= 0).count() > n / 3, "the grid meets the mesh");
+        for k in common::kernels(&ctx, test) {
+            let label = format!("{k} {}", mesh.info.source);
+            let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
+            let (mut ids, mut values) = (vec![0i32; n], vec![0f32; n]);
+            tetloc_core::locate::sample_grid(&mut loc, &grid, 0..n, &["f"], &mut ids, &mut values).unwrap();
+            let differ: Vec<usize> = (0..n).filter(|&i| ids[i] != cpu_ids[i]).collect();
+            assert!(
+                differ.is_empty(),
+                "{label}: {} of {n} grid points in another tet, e.g. {:?}",
+                differ.len(),
+                differ.first()
+            );
+            for i in 0..n {
+                let (g, c) = (f64::from(values[i]), f64::from(cpu[i]));
+                assert_eq!(g.is_nan(), ids[i] < 0, "{label}: point {i}: NaN exactly outside");
+                assert!(g.is_nan() || (g - c).abs() <= 1e-5 * range, "{label}: point {i}: {g} against the CPU's {c}");
+            }
         }
     }
     common::assert_no_validation_errors(&ctx);

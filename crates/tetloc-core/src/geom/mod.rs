@@ -324,6 +324,23 @@ pub fn test_point_with(ids: [u32; 4], points: &[Vec3], exact: &Exact, q: &predic
     }
 }
 
+/// Whether [`test_point_with`] would find `q` strictly inside tet `ids` (no weight zero),
+/// known from its f32 filter alone: `false` where some face's sign is not certain there (or
+/// is not positive), and the full test decides. Signs only, no barycentrics: the check of an
+/// answer that certification makes for every point (`locate::certify`), several times
+/// cheaper than the test's f64 weights.
+#[inline]
+pub fn holds_strictly_by_filter(ids: [u32; 4], points: &[Vec3], exact: &Exact, q: &predicates::Query) -> bool {
+    let swapped = ids[3] < ids[2];
+    let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
+    let orientation = if swapped { 1.0f32 } else { -1.0 };
+    let v = asc.map(|i| points[i as usize]);
+    SORTED_FACES.iter().all(|&(f, parity)| {
+        let (det, bound) = predicates::orient3d_local(v[f[0]], v[f[1]], v[f[2]], q.local, exact.frame.delta);
+        det.abs() > bound && parity * orientation * det > 0.0
+    })
+}
+
 /// f64 barycentric weights (of the stored vertices v0..v3).
 pub type Bary64 = [f64; 4];
 

@@ -188,3 +188,50 @@ fn refined_barycentrics_on_flat_tets_match_the_file_values() {
     assert!(worst_refined <= 1e-6 * range, "refined: {:e} of the range", worst_refined / range);
     assert!(worst_working > 1e-5 * range, "the working copy should be off here: {:e}", worst_working / range);
 }
+
+/// [`holds_strictly_by_filter`] never claims what the full test does not give: on a mesh
+/// stored in f64 (the flat slivers, vertices off their f32 copies by a visible share of a
+/// tet's height) and a far-from-origin f32 mesh, at points inside tets, at their rounded
+/// vertices and just off their faces, every point it passes is `Inside` with no zero weight
+/// by [`test_point_with`]; and it passes points well inside (most of them off the slivers:
+/// the cheap path is taken).
+#[test]
+fn the_sign_filter_passes_only_points_strictly_inside() {
+    use rand::{Rng, SeedableRng};
+    let flat = crate::Mesh::new(crate::test_support::slivers::flat_layers(8, 1e-5), "flat layers").unwrap();
+    let mut far = crate::test_support::jittered_grid(5, 0.3, 3);
+    for p in &mut far.points {
+        *p = p.map(|c| c * 1000.0 + 4.0e6);
+    }
+    let far = crate::Mesh::new(far, "far").unwrap();
+    assert!(flat.points64.is_some() && !far.info.frame.is_identity());
+    let mut rng = rand_pcg::Pcg64::seed_from_u64(9);
+    for (m, share) in [(&flat, 0.1), (&far, 0.9)] {
+        let exact = m.exact();
+        let (mut passed, mut deep) = (0, 0);
+        for _ in 0..20_000 {
+            let t = rng.gen_range(0..m.n_tets());
+            let ids = m.tets[t];
+            let kind = rng.gen_range(0..3);
+            let w: [f64; 4] = match kind {
+                0 => std::array::from_fn(|_| rng.gen_range(0.05..1.0)),
+                1 => std::array::from_fn(|i| f64::from(i == rng.gen_range(0..4))),
+                _ => std::array::from_fn(|i| if i == 0 { rng.gen_range(-1e-7..1e-7) } else { rng.gen_range(0.1..1.0) }),
+            };
+            let s: f64 = w.iter().sum();
+            let p: [f64; 3] = std::array::from_fn(|k| (0..4).map(|i| w[i] / s * m.vertex64(ids[i])[k]).sum::<f64>());
+            let p = p.map(|c| f64::from(c as f32));
+            let q = exact.query(p);
+            if holds_strictly_by_filter(ids, &m.points, &exact, &q) {
+                passed += 1;
+                match test_point_with(ids, &m.points, &exact, &q) {
+                    TetTest::Inside(b) => assert!(!b.contains(&0.0), "{}: tet {t}, {p:?}: on a face", m.info.source),
+                    TetTest::Outside { .. } => panic!("{}: tet {t}, {p:?}: outside", m.info.source),
+                }
+            }
+            deep += usize::from(kind == 0);
+        }
+        let enough = passed as f64 > share * deep as f64;
+        assert!(enough, "{}: the filter passed {passed} of {deep} points well inside", m.info.source);
+    }
+}

@@ -17,6 +17,7 @@
 use super::bins::Bins;
 use super::grid_raster::{self, Cell, GridRaster};
 use super::hint::Hint;
+use super::occupancy::Occupancy;
 use super::{check_sample_lengths, BatchLocator, GridSampler, Points, Values, OUTSIDE};
 use crate::buckets::SharedSlice;
 use crate::bvh::{morton, BuildPreset, Bvh};
@@ -43,7 +44,7 @@ const MIN_TASK: usize = 128;
 /// Walk steps before giving up and traversing the BVH.
 const MAX_WALK: usize = 24;
 /// The batches' bins, in mean edge lengths a side.
-const BIN_EDGES: f64 = 1.5;
+pub(super) const BIN_EDGES: f64 = 1.5;
 
 /// One batch point's answer before the ties are decided.
 #[derive(Clone, Copy)]
@@ -99,7 +100,7 @@ impl CpuLocator {
                 || Bvh::build(&self.mesh.points, &self.mesh.tets, self.preset),
                 || {
                     self.mesh.neighbors(); // build the adjacency now, not inside the first batch
-                    Occupancy::build(&self.mesh)
+                    Occupancy::of_tets(&self.mesh)
                 },
             );
             Index { bvh, occupancy }
@@ -375,67 +376,6 @@ fn in_order<T: Send>(out: &mut [T], chunk: usize, value: &impl WalkValue<T>) -> 
         return each(0, out);
     }
     out.par_chunks_mut(chunk).enumerate().flat_map_iter(|(c, o)| each(c, o)).collect()
-}
-
-/// A coarse grid over the mesh's box marking the cells that some tet's box meets: a point in
-/// an unmarked cell is in no tet, known from one bit instead of a BVH traversal (points of a
-/// grid in a torus' hole, particles leaving the mesh). Cell indices are monotone in the
-/// coordinate (a subtraction, a product and a floor, each rounding monotonically), so a point
-/// inside a tet's box (working coordinates) has its cell index within the box's on each axis:
-/// the test never refuses a point a tet holds.
-struct Occupancy {
-    lo: Vec3,
-    scale: Vec3,
-    n: [usize; 3],
-    bits: Vec<u64>,
-}
-
-impl Occupancy {
-    /// About one cell per mean edge length a side, at most 2^24 cells.
-    fn build(mesh: &Mesh) -> Occupancy {
-        use std::sync::atomic::{AtomicU64, Ordering};
-        let (lo, hi) = (mesh.info.bounds_min, mesh.info.bounds_max);
-        let edge = (mesh.info.mean_edge_length as f64).max(1e-30);
-        let ext: [f64; 3] = std::array::from_fn(|k| (hi[k] - lo[k]) as f64);
-        let mut cell = edge;
-        let count = |cell: f64| -> [usize; 3] { ext.map(|e| ((e / cell).ceil() as usize).clamp(1, 1 << 12)) };
-        while count(cell).iter().product::<usize>() > 1 << 24 {
-            cell *= 1.25;
-        }
-        let n = count(cell);
-        let scale = std::array::from_fn(|k| if ext[k] > 0.0 { (n[k] as f64 / ext[k]) as f32 } else { 0.0 });
-        let mut occ = Occupancy { lo, scale, n, bits: Vec::new() };
-        let words: Vec<AtomicU64> = (0..(n[0] * n[1] * n[2]).div_ceil(64)).map(|_| AtomicU64::new(0)).collect();
-        mesh.tets.par_iter().for_each(|&t| {
-            let (a, b) = geom::tet_bounds(t, &mesh.points);
-            let (a, b) = (occ.index(a), occ.index(b));
-            for z in a[2]..=b[2] {
-                for y in a[1]..=b[1] {
-                    for x in a[0]..=b[0] {
-                        let i = (z * n[1] + y) * n[0] + x;
-                        words[i / 64].fetch_or(1 << (i % 64), Ordering::Relaxed);
-                    }
-                }
-            }
-        });
-        occ.bits = words.into_iter().map(AtomicU64::into_inner).collect();
-        occ
-    }
-
-    /// The cell of a point of the mesh's box, clamped on each axis (also monotone; on
-    /// values clamped at 0 the cast's truncation is the floor).
-    #[inline]
-    fn index(&self, p: Vec3) -> [usize; 3] {
-        std::array::from_fn(|k| (((p[k] - self.lo[k]) * self.scale[k]).max(0.0) as usize).min(self.n[k] - 1))
-    }
-
-    /// False only when no tet's box holds `p` (a point in the mesh's box).
-    #[inline]
-    fn may_hold(&self, p: Vec3) -> bool {
-        let [x, y, z] = self.index(p);
-        let i = (z * self.n[1] + y) * self.n[0] + x;
-        self.bits[i / 64] >> (i % 64) & 1 != 0
-    }
 }
 
 /// Whether consecutive points are, on average, within a few tet sizes of each other, so

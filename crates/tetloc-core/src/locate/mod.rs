@@ -16,6 +16,7 @@ pub mod certify;
 mod cpu;
 mod grid_raster;
 mod hint;
+mod occupancy;
 pub mod precision;
 mod tet_map;
 #[cfg(test)]

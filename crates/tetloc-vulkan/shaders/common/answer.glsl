@@ -9,6 +9,16 @@
 #include "common/tet.glsl"
 #include "common/samples.glsl"
 
+// The id answer for the host: `tet`, or -2 - tet where the kernels decide on a copy of the
+// file's data (CERTIFY_DELTA >= 0) and the filter does not prove the point strictly inside it
+// there (the host then checks it; almost every point is proved).
+int tl_id_answer(int tet, uvec4 ids, vec3 p) {
+    if (CERTIFY_DELTA < 0.0 || tet < 0 || tl_holds_strictly_by_filter(ids, p, CERTIFY_DELTA)) {
+        return tet;
+    }
+    return -2 - tet;
+}
+
 // Point i of this launch is in `tet` (TL_OUTSIDE: none) with vertices `ids` and barycentrics
 // `bary` (read only for values inside).
 void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
@@ -25,13 +35,17 @@ void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
         return;
     }
     if (OUTPUT_MODE != TL_OUT_FIELDS) {
-        tl_store(i, tet, OUTPUT_MODE == TL_OUT_IDS ? 0.0 : tl_value(tet, ids, bary, p));
+        if (OUTPUT_MODE == TL_OUT_IDS) {
+            tl_store(i, tl_id_answer(tet, ids, p), 0.0);
+        } else {
+            tl_store(i, tet, tl_value(tet, ids, bary, p));
+        }
         return;
     }
     if (ORDERED) {
         i = tl_order_perm[i];
     }
-    tl_out[i] = uint(tet);
+    tl_out[i] = uint(tl_id_answer(tet, ids, p));
     uint at = params.counts.x + i * FIELD_COUNT;
     if (tet < 0) {
         for (uint f = 0u; f < FIELD_COUNT; f++) {

@@ -135,6 +135,41 @@ int tl_point_in_tet_stage(uvec4 ids, vec3 p, bool f32_only, out vec4 bary, out i
     return TL_TEST_INSIDE;
 }
 
+// geom::predicates::orient3d_local: the determinant in f32 with the bound that also covers
+// `delta`, the rounding of each input from the file's coordinates (Frame::delta): when
+// |det| > bound, det has the sign of orient3d on the file's coordinates.
+float tl_orient3d_local(vec3 a, vec3 b, vec3 c, vec3 p, float delta, out float bound) {
+    precise float permanent;
+    vec3 ad, bd, cd;
+    precise float det = tl_det_and_permanent(a, b, c, p, permanent, ad, bd, cd);
+    // Row norms, widened by the rounding of the inputs.
+    precise float two_delta = 2.0 * delta;
+    precise float ma = abs(ad.x) + abs(ad.y) + abs(ad.z) + two_delta;
+    precise float mb = abs(bd.x) + abs(bd.y) + abs(bd.z) + two_delta;
+    precise float mc = abs(cd.x) + abs(cd.y) + abs(cd.z) + two_delta;
+    precise float inputs = delta * (ma * mb + mb * mc + mc * ma);
+    bound = LOCAL_ORIENT_BOUND * permanent + inputs;
+    return det;
+}
+
+// geom::holds_strictly_by_filter: whether p (working coordinates, rounded from the file's
+// point) is strictly inside tet `ids` (canonical) on the file's data, proved by the f32
+// filter with the copy's rounding `delta`; false where some face's sign is not proved.
+bool tl_holds_strictly_by_filter(uvec4 ids, vec3 p, float delta) {
+    bool swapped = ids.w < ids.z;
+    uvec4 asc = swapped ? ids.xywz : ids;
+    float orientation = swapped ? 1.0 : -1.0;
+    vec3 v[4] = vec3[4](tl_vertex(asc.x), tl_vertex(asc.y), tl_vertex(asc.z), tl_vertex(asc.w));
+    [[unroll]] for (int i = 0; i < 4; i++) {
+        float bound;
+        precise float det = tl_orient3d_local(v[TL_FACE[i].x], v[TL_FACE[i].y], v[TL_FACE[i].z], p, delta, bound);
+        if (!(abs(det) > bound && TL_PARITY[i] * orientation * det > 0.0)) {
+            return false;
+        }
+    }
+    return true;
+}
+
 bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
     return tl_point_in_tet_stage(ids, p, false, bary, exit_face) == TL_TEST_INSIDE;
 }

@@ -286,7 +286,9 @@ impl VulkanLocator {
             build_seconds: 0.0,
             build_stages: vec![],
             memory,
-            certifier: certify::Certifier::default(),
+            // The kernels that search every tet miss no point of the copy; the face kernels
+            // can stop at a face with no tet behind it.
+            certifier: certify::Certifier::new(matches!(kernel, Kernel::SoftBvh | Kernel::RtBvh)),
             dev,
         };
         // Compile the id variant now, so that building includes pipeline creation.
@@ -411,6 +413,8 @@ impl VulkanLocator {
             .set(sc::OUTPUT_MODE, output as u32)
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
+            .set(sc::LOCAL_ORIENT_BOUND, tetloc_core::geom::predicates::local::LOCAL_ORIENT_BOUND.to_bits())
+            .set(sc::CERTIFY_DELTA, if self.decides_on_copy() { self.mesh.info.frame.delta } else { -1.0 }.to_bits())
             .set(sc::POINTS_CHUNK, self.mesh_on_device.points.per_chunk)
             .set(sc::TETS_CHUNK, self.mesh_on_device.tets.per_chunk)
             .set(sc::TET_BITS, self.mesh_on_device.tet_bits);
@@ -617,16 +621,21 @@ impl VulkanLocator {
             }
         }
         if self.decides_on_copy() {
-            let points = match original {
-                At::Host(p) => std::borrow::Cow::Borrowed(p),
-                At::Grid(grid, start) => std::borrow::Cow::Owned(grid_points(grid, start..start + ids.len())),
+            // The points as the kernel had them, made again here (none kept for a grid).
+            let point = |i: usize| -> [f64; 3] {
+                match original {
+                    At::Host(p) => p[i].map(f64::from),
+                    At::Grid(grid, start) => grid.point(start + i).map(f64::from),
+                }
             };
-            let moved = self.certify_f32(&points, ids);
+            // The kernel's points are these rounded to the working frame: a grid's too (its
+            // axes are the working coordinates of the host's points, one coordinate each).
+            let moved = self.certify_marked(&point, ids);
             if k > 0 && !moved.is_empty() {
                 // The moved points' values, from the file's data as the other paths compute them.
                 let mesh = self.mesh.clone();
                 let fields = fields.iter().map(|f| mesh.field(f)).collect::<tetloc_core::Result<Vec<_>>>()?;
-                let wide: Vec<[f64; 3]> = moved.iter().map(|&i| points[i].map(f64::from)).collect();
+                let wide: Vec<[f64; 3]> = moved.iter().map(|&i| point(i)).collect();
                 let tets: Vec<i32> = moved.iter().map(|&i| ids[i]).collect();
                 let mut fresh = vec![0f32; moved.len() * k];
                 mesh.values_at_ids64(&wide, &tets, &fields, &mut fresh);
@@ -645,15 +654,16 @@ impl VulkanLocator {
         self.mesh.points64.is_some() || !self.mesh.info.frame.is_identity()
     }
 
-    /// Checks the kernels' tets for f32 points (the file's coordinates) on the file's data
-    /// and corrects them ([`certify::Certifier`]) where the kernels decided on a copy;
-    /// returns the indices whose tet changed.
-    fn certify_f32(&self, points: &[Vec3], ids: &mut [i32]) -> Vec<usize> {
+    /// Checks the kernels' tets for points (`point(i)`: the file's coordinates, which the
+    /// kernels had rounded to the working frame) on the file's data and corrects them
+    /// ([`certify::Certifier`]) where the kernels decided on a copy; returns the indices whose
+    /// tet changed. There the kernels mark each answer they did not prove (-2 - tet,
+    /// CERTIFY_DELTA): only those and the points outside are checked.
+    fn certify_marked(&self, point: &(impl Fn(usize) -> [f64; 3] + Sync), ids: &mut [i32]) -> Vec<usize> {
         if !self.decides_on_copy() {
             return vec![];
         }
-        let wide: Vec<[f64; 3]> = points.par_iter().map(|q| q.map(f64::from)).collect();
-        self.certifier.certify(&self.mesh, &wide, ids, false).into_iter().map(|(i, _)| i).collect()
+        self.certifier.certify_at(&self.mesh, point, ids, false, true).into_iter().map(|(i, _)| i).collect()
     }
 
     /// The k + 1 launches that one launch of [`BatchLocator::query`] replaced for f32 points
@@ -672,6 +682,7 @@ impl VulkanLocator {
             return Ok(());
         }
         self.run_host(points, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?;
+        unmark(ids);
         let mut one = vec![0f32; if fields.is_empty() { 0 } else { points.len() }];
         for (j, f) in fields.iter().enumerate() {
             let cell = self.ensure_field(f)? == OUT_CELL;
@@ -794,6 +805,7 @@ impl VulkanLocator {
             self.dev.download(&io.queries, 0, bytemuck::cast_slice_mut(&mut points[base..base + len]))?;
             self.dev.download(&io.results, 0, bytemuck::cast_slice_mut(&mut ids[base..base + len]))?;
         }
+        unmark(&mut ids);
         Ok((points, ids))
     }
 }
@@ -827,6 +839,12 @@ impl VulkanLocator {
 enum At<'a> {
     Host(&'a [Vec3]),
     Grid(&'a ImageGrid, usize),
+}
+
+/// Every id answer without its mark (CERTIFY_DELTA: -2 - tet, an answer the kernel did not
+/// prove on the file's data).
+fn unmark(ids: &mut [i32]) {
+    ids.par_iter_mut().for_each(|t| *t = certify::unmarked(*t));
 }
 
 /// Meshes from this many tets get larger ordered launches ([`launch_points`]).
@@ -1052,13 +1070,16 @@ impl BatchLocator for VulkanLocator {
         match points {
             Points::F32(p) => {
                 self.run_host(p, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?;
-                self.certify_f32(p, ids);
+                self.certify_marked(&|i| p[i].map(f64::from), ids);
             }
             Points::F64(p) => {
                 let frame = mesh.info.frame;
                 let working: Vec<Vec3> = p.par_iter().map(|&q| frame.to_working(q)).collect();
                 self.run_working(&working, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?;
-                if certify::needs_certifying(&mesh, p) {
+                if self.decides_on_copy() {
+                    // The kernel's points: `p` in the working frame, as the host's test rounds them.
+                    self.certify_marked(&|i| p[i], ids);
+                } else if certify::needs_certifying(&mesh, p) {
                     self.certifier.certify(&mesh, p, ids, false);
                 }
             }

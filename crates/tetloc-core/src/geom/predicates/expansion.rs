@@ -7,7 +7,6 @@
 //! two-sum), the product of two f64 (Dekker's two-product, with Veltkamp's splitting, so
 //! no fused multiply-add is needed and the same code runs in GLSL on `precise` doubles),
 //! and growing an expansion by one f64 (GROW-EXPANSION, with zero components dropped).
-//! `shaders/common/exact.glsl` mirrors this file.
 
 /// `a + b = x + y` exactly, with `x = fl(a + b)` (Knuth's two-sum: no order of magnitude needed).
 #[inline]

@@ -12,7 +12,8 @@
 //!    two-product with Veltkamp splitting: no FMA).
 //! 4. The tie rule below, when the exact value is zero.
 //!
-//! `crates/tetloc-vulkan/shaders/common/exact.glsl` mirrors these files line by line.
+//! The kernels run only the f32 filter of these predicates (tet.glsl `tl_orient3d_local`);
+//! what it cannot decide the host decides with these (`locate::certify`).
 //!
 //! # The tie rule
 //!

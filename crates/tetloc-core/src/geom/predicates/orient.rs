@@ -2,8 +2,7 @@
 //!
 //! Each is staged: an f64 evaluation with a forward error bound (stage A, [`super`] derives
 //! the bound) decides almost every call; only when the value is within the bound of zero is
-//! the determinant summed exactly as an [`Expansion`]. `shaders/common/exact.glsl` mirrors
-//! this file line by line.
+//! the determinant summed exactly as an [`Expansion`].
 
 use super::expansion::Expansion;
 use super::{Sign, EPS64};
