@@ -450,8 +450,7 @@ impl CudaLocator {
         let uuid = cuda_uuid(cuda_device)?;
         // The kernel's answers are final only where it decides on the file's data: a mesh
         // stored in f64 or shifted needs the host's certification (`VulkanLocator::query`).
-        if mesh.cells.is_some() || mesh.tet_nodes.is_some() || !mesh.info.frame.is_identity() || mesh.points64.is_some()
-        {
+        if mesh.cells.is_some() || mesh.tet_nodes.is_some() || mesh.wants_f64_points() {
             return Err(CudaError::Unsupported(
                 "the zero-copy path takes meshes of linear tets stored in f32 in their own frame; this mesh goes through the host, which checks the answers on the file's data"
                     .into(),

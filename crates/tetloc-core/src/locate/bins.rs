@@ -150,4 +150,16 @@ impl Bins {
     pub(super) fn tets(&self, b: usize) -> &[u32] {
         &self.tets[self.offsets[b] as usize..self.offsets[b + 1] as usize]
     }
+
+    /// The tets of bin `b` (`p`'s) whose boxes hold `p`, ascending: most of a bin's tets are
+    /// culled by their boxes before any test. Every tet that holds `p` is among them (working
+    /// coordinates: a box of rounded vertices holds the rounded point whenever the file's box
+    /// holds the file's point, as in the BVH).
+    #[inline]
+    pub(super) fn boxes_holding<'a>(&'a self, mesh: &'a Mesh, b: usize, p: Vec3) -> impl Iterator<Item = u32> + 'a {
+        self.tets(b).iter().copied().filter(move |&t| {
+            let (lo, hi) = geom::tet_bounds(mesh.tets[t as usize], &mesh.points);
+            (0..3).all(|k| lo[k] <= p[k] && p[k] <= hi[k])
+        })
+    }
 }

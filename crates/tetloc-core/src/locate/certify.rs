@@ -37,8 +37,7 @@ const RINGS: usize = 3;
 /// file's data: the mesh or some point does not survive the rounding to the working copy.
 pub fn needs_certifying(mesh: &Mesh, points: &[[f64; 3]]) -> bool {
     let frame = &mesh.info.frame;
-    mesh.points64.is_some()
-        || !frame.is_identity()
+    mesh.wants_f64_points()
         || points.par_iter().any(|p| p.iter().all(|c| c.is_finite()) && frame.to_working(*p).map(f64::from) != *p)
 }
 
@@ -209,11 +208,7 @@ fn lowest_holder(bins: &Bins, mesh: &Mesh, q: &geom::predicates::Query) -> Found
         return None;
     }
     let mut tie = None;
-    for &t in bins.tets(bins.bin_of(p).0) {
-        let (a, b) = geom::tet_bounds(mesh.tets[t as usize], &mesh.points);
-        if !(0..3).all(|k| a[k] <= p[k] && p[k] <= b[k]) {
-            continue;
-        }
+    for t in bins.boxes_holding(mesh, bins.bin_of(p).0, p) {
         match geom::test_point_with(mesh.tets[t as usize], &mesh.points, &mesh.exact(), q) {
             TetTest::Inside(b) if !b.contains(&0.0) => return Some((t as i32, b)),
             TetTest::Inside(b) => geom::lowest_claim(&mut tie, (t, b)),

@@ -330,14 +330,7 @@ impl CpuLocator {
             Some(found) => found,
             None => {
                 let mut found = None;
-                for &t in bins.tets(b) {
-                    // Most of a bin's tets are culled by their boxes (working coordinates: a
-                    // box of rounded vertices holds the rounded point whenever the file's
-                    // box holds the file's point, as in the BVH).
-                    let (lo, hi) = geom::tet_bounds(self.mesh.tets[t as usize], &self.mesh.points);
-                    if !(0..3).all(|k| lo[k] <= q.local[k] && q.local[k] <= hi[k]) {
-                        continue;
-                    }
+                for t in bins.boxes_holding(&self.mesh, b, q.local) {
                     if let TetTest::Inside(w) = self.test(t, q) {
                         if w.contains(&0.0) || found.is_some() {
                             return Answer::Tie;

@@ -529,9 +529,11 @@ impl Mesh {
         }
     }
 
-    /// Whether f64 query points should keep their precision: the file's coordinates are not
-    /// its f32 copy (f64 data, or a centred frame: also f32 data far from the origin). On f32 data near the origin, rounding
-    /// the points to f32 first keeps the f32 path (several times faster) and its answers.
+    /// Whether the file's coordinates are not its f32 working copy (f64 data, or a centred
+    /// frame: also f32 data far from the origin). Then f64 query points keep their precision
+    /// (on f32 data near the origin, rounding them to f32 first keeps the f32 path, several
+    /// times faster, and its answers), and answers decided on the copy (the GPU kernels') are
+    /// checked on the file's data (`locate::certify`).
     pub fn wants_f64_points(&self) -> bool {
         self.points64.is_some() || !self.info.frame.is_identity()
     }

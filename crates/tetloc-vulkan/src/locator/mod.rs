@@ -414,7 +414,10 @@ impl VulkanLocator {
             .set(sc::ORIENT_ERR_BOUND_F32, tetloc_core::geom::ORIENT_ERR_BOUND_F32.to_bits())
             .set(sc::BARY_F32_TRUST, tetloc_core::geom::BARY_F32_TRUST.to_bits())
             .set(sc::LOCAL_ORIENT_BOUND, tetloc_core::geom::predicates::local::LOCAL_ORIENT_BOUND.to_bits())
-            .set(sc::CERTIFY_DELTA, if self.decides_on_copy() { self.mesh.info.frame.delta } else { -1.0 }.to_bits())
+            .set(
+                sc::CERTIFY_DELTA,
+                if self.mesh.wants_f64_points() { self.mesh.info.frame.delta } else { -1.0 }.to_bits(),
+            )
             .set(sc::POINTS_CHUNK, self.mesh_on_device.points.per_chunk)
             .set(sc::TETS_CHUNK, self.mesh_on_device.tets.per_chunk)
             .set(sc::TET_BITS, self.mesh_on_device.tet_bits);
@@ -620,7 +623,7 @@ impl VulkanLocator {
                     .for_each(|(v, p)| v[first..first + m].copy_from_slice(p));
             }
         }
-        if self.decides_on_copy() {
+        if self.mesh.wants_f64_points() {
             // The points as the kernel had them, made again here (none kept for a grid).
             let point = |i: usize| -> [f64; 3] {
                 match original {
@@ -647,20 +650,13 @@ impl VulkanLocator {
         Ok(())
     }
 
-    /// Whether the kernels decide on a copy that is not the file's data (f64 coordinates
-    /// rounded to f32, or a shifted working frame): then even f32 points' answers are checked
-    /// on the host, as f64 points' are.
-    fn decides_on_copy(&self) -> bool {
-        self.mesh.points64.is_some() || !self.mesh.info.frame.is_identity()
-    }
-
     /// Checks the kernels' tets for points (`point(i)`: the file's coordinates, which the
     /// kernels had rounded to the working frame) on the file's data and corrects them
     /// ([`certify::Certifier`]) where the kernels decided on a copy; returns the indices whose
     /// tet changed. There the kernels mark each answer they did not prove (-2 - tet,
     /// CERTIFY_DELTA): only those and the points outside are checked.
     fn certify_marked(&self, point: &(impl Fn(usize) -> [f64; 3] + Sync), ids: &mut [i32]) -> Vec<usize> {
-        if !self.decides_on_copy() {
+        if !self.mesh.wants_f64_points() {
             return vec![];
         }
         self.certifier.certify_at(&self.mesh, point, ids, false, true).into_iter().map(|(i, _)| i).collect()
@@ -1076,7 +1072,7 @@ impl BatchLocator for VulkanLocator {
                 let frame = mesh.info.frame;
                 let working: Vec<Vec3> = p.par_iter().map(|&q| frame.to_working(q)).collect();
                 self.run_working(&working, Output::IDS, bytemuck::cast_slice_mut(ids), &mut [])?;
-                if self.decides_on_copy() {
+                if self.mesh.wants_f64_points() {
                     // The kernel's points: `p` in the working frame, as the host's test rounds them.
                     self.certify_marked(&|i| p[i], ids);
                 } else if certify::needs_certifying(&mesh, p) {
