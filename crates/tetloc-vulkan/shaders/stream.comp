@@ -126,92 +126,118 @@ void main() {
     treal scale = treal(sp.frame.x);
     uint seg = sp.counts.y, base = i * seg, written = 0u;
 
+    // One lookup a turn of the loop, at `at`, and `stage` says what it is for: the seed's,
+    // RK4's second to fourth stage, or the step's end. One call site of tl_velocity, so the
+    // walk and the search are compiled once, not five times (the pipeline's compile time).
+    const int START = 0, SEED = 1, K2 = 2, K3 = 3, K4 = 4, END = 5;
+    int stage = START;
+    precise tvec3 at = x;
+    precise treal trial = 0.0, h = 0.0;
+    treal speed = 0.0;
+    tvec3 k1 = tvec3(0.0), k2 = tvec3(0.0), k3 = tvec3(0.0);
+    int limit = 0;
     if (status == TL_STREAM_SEED) {
         x = tvec3(q.seed.xyz);
         t = 0.0;
         len = 0.0;
-        if (tl_velocity(x, hint, v)) {
-            tl_record_point(base + written++, vec3(x), float(t), hint);
-            points = 1;
-            status = TL_STREAM_LIVE;
-        } else {
-            status = TL_REASON_OUT_OF_DOMAIN; // no line: the seed is outside
-        }
+        at = x;
+        stage = SEED;
     }
-    // At a recorded point x with velocity v: one step a turn, while the segment has room.
-    while (status == TL_STREAM_LIVE && written < seg) {
-        treal speed = tl_norm(tvec3(v));
-        if (points > 1 && (speed == 0.0 || speed <= terminal)) {
-            status = TL_REASON_STAGNATION;
-            break;
+    while (true) {
+        if (stage == START) {
+            // At a recorded point x with velocity v: one step, while the segment has room.
+            if (status != TL_STREAM_LIVE || written >= seg) {
+                break;
+            }
+            speed = tl_norm(tvec3(v));
+            if (points > 1 && (speed == 0.0 || speed <= terminal)) {
+                status = TL_REASON_STAGNATION;
+                break;
+            }
+            // The top of vtkStreamTracer's loop: the limits, then the step.
+            if (len >= max_length) {
+                status = TL_REASON_OUT_OF_LENGTH;
+            } else if (abs(t) >= max_time) {
+                status = TL_REASON_OUT_OF_TIME;
+            } else if (uint(steps) > sp.counts.z) {
+                status = TL_REASON_OUT_OF_STEPS;
+            } else if (speed == 0.0 || speed <= terminal) {
+                status = TL_REASON_STAGNATION;
+            }
+            if (status != TL_STREAM_LIVE) {
+                break;
+            }
+            steps++;
+            // A step that would pass the length or the time limit is shortened to land on it.
+            trial = sign * step;
+            limit = 0;
+            if (len + abs(trial) > max_length) {
+                trial = sign * (max_length - len);
+                limit = TL_REASON_OUT_OF_LENGTH;
+            }
+            if (abs(t) + abs(trial) / speed > max_time) {
+                trial = sign * (max_time - abs(t)) * speed;
+                limit = TL_REASON_OUT_OF_TIME;
+            }
+            h = trial * scale; // the step in working-frame lengths (exact: scale is a power of 2)
+            k1 = tl_unit_or_zero(v);
+            at = x + h * (0.5 * k1);
+            stage = K2;
         }
-        // The top of vtkStreamTracer's loop: the limits, then the step.
-        if (len >= max_length) {
-            status = TL_REASON_OUT_OF_LENGTH;
-        } else if (abs(t) >= max_time) {
-            status = TL_REASON_OUT_OF_TIME;
-        } else if (uint(steps) > sp.counts.z) {
-            status = TL_REASON_OUT_OF_STEPS;
-        } else if (speed == 0.0 || speed <= terminal) {
-            status = TL_REASON_STAGNATION;
-        }
-        if (status != TL_STREAM_LIVE) {
-            break;
-        }
-        steps++;
-        // A step that would pass the length or the time limit is shortened to land on it.
-        precise treal trial = sign * step;
-        int limit = 0;
-        if (len + abs(trial) > max_length) {
-            trial = sign * (max_length - len);
-            limit = TL_REASON_OUT_OF_LENGTH;
-        }
-        if (abs(t) + abs(trial) / speed > max_time) {
-            trial = sign * (max_time - abs(t)) * speed;
-            limit = TL_REASON_OUT_OF_TIME;
-        }
-        precise treal h = trial * scale; // the step in working-frame lengths (exact: scale is a power of 2)
         vec3 w;
-        tvec3 k1 = tl_unit_or_zero(v);
-        precise tvec3 at = x + h * (0.5 * k1);
-        if (!tl_velocity(at, hint, w)) {
+        bool inside = tl_velocity(at, hint, w);
+        if (stage == SEED) {
+            v = w;
+            if (inside) {
+                tl_record_point(base + written++, vec3(x), float(t), hint);
+                points = 1;
+                status = TL_STREAM_LIVE;
+            } else {
+                status = TL_REASON_OUT_OF_DOMAIN; // no line: the seed is outside
+            }
+            stage = START;
+            continue;
+        }
+        if (!inside) {
+            if (stage == END) {
+                v = w; // the step's end is outside: not recorded
+            }
             status = TL_REASON_OUT_OF_DOMAIN;
             break;
         }
-        tvec3 k2 = tl_unit_or_zero(w);
-        at = x + h * (0.5 * k2);
-        if (!tl_velocity(at, hint, w)) {
-            status = TL_REASON_OUT_OF_DOMAIN;
-            break;
+        if (stage == K2) {
+            k2 = tl_unit_or_zero(w);
+            at = x + h * (0.5 * k2);
+            stage = K3;
+        } else if (stage == K3) {
+            k3 = tl_unit_or_zero(w);
+            at = x + h * k3;
+            stage = K4;
+        } else if (stage == K4) {
+            tvec3 k4 = tl_unit_or_zero(w);
+            precise tvec3 next = x + h * (((TL_SIXTH * k1 + TL_THIRD * k2) + TL_THIRD * k3) + TL_SIXTH * k4);
+            treal moved = tl_norm(next - x) / scale;
+            if (trial == 0.0 || moved / abs(trial) <= terminal) {
+                status = TL_REASON_STAGNATION;
+                break;
+            }
+            t += trial / speed;
+            len += abs(trial);
+            // Landed on a limit: exactly on it, so the loop ends there.
+            if (limit == TL_REASON_OUT_OF_LENGTH) {
+                len = max_length;
+            } else if (limit == TL_REASON_OUT_OF_TIME) {
+                t = sign * max_time;
+            }
+            x = next;
+            at = x;
+            stage = END;
+        } else {
+            v = w;
+            tl_record_point(base + written++, vec3(x), float(t), hint);
+            points++;
+            stage = START;
         }
-        tvec3 k3 = tl_unit_or_zero(w);
-        at = x + h * k3;
-        if (!tl_velocity(at, hint, w)) {
-            status = TL_REASON_OUT_OF_DOMAIN;
-            break;
-        }
-        tvec3 k4 = tl_unit_or_zero(w);
-        precise tvec3 next = x + h * (((TL_SIXTH * k1 + TL_THIRD * k2) + TL_THIRD * k3) + TL_SIXTH * k4);
-        treal moved = tl_norm(next - x) / scale;
-        if (trial == 0.0 || moved / abs(trial) <= terminal) {
-            status = TL_REASON_STAGNATION;
-            break;
-        }
-        t += trial / speed;
-        len += abs(trial);
-        // Landed on a limit: exactly on it, so the loop ends there.
-        if (limit == TL_REASON_OUT_OF_LENGTH) {
-            len = max_length;
-        } else if (limit == TL_REASON_OUT_OF_TIME) {
-            t = sign * max_time;
-        }
-        x = next;
-        if (!tl_velocity(x, hint, v)) {
-            status = TL_REASON_OUT_OF_DOMAIN; // the step's end is outside: not recorded
-            break;
-        }
-        tl_record_point(base + written++, vec3(x), float(t), hint);
-        points++;
     }
     q.v = vec4(v, 0.0);
     q.x_xy = uvec4(tl_bits(x.x), tl_bits(x.y));

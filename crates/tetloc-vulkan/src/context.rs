@@ -112,6 +112,10 @@ pub struct Context {
     /// Memory and semaphores shared with other APIs (CUDA) through opaque fds, when the device
     /// has the extensions (`external.rs`).
     pub(crate) external: Option<ExternalFd>,
+    /// Every pipeline of this process is made through it, so making one again (the stream
+    /// pipeline of each batch of lines, a locator built again on the same mesh) reuses the
+    /// first compilation, whether or not the driver keeps a cache of its own.
+    pub(crate) pipeline_cache: vk::PipelineCache,
     info: DeviceInfo,
     validation: bool,
     // Last: the loader library must outlive every Vulkan object above.
@@ -399,6 +403,17 @@ impl Context {
         let (memory_properties, queue) = unsafe {
             (instance.get_physical_device_memory_properties(physical), device.get_device_queue(queue_family, 0))
         };
+        // SAFETY: a valid device; an empty cache (no initial data).
+        let pipeline_cache =
+            match unsafe { device.create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None) } {
+                Ok(c) => c,
+                Err(result) => {
+                    // SAFETY: nothing was created from the device yet.
+                    unsafe { device.destroy_device(None) };
+                    destroy_debug(&debug);
+                    return Err(VkError::Vk { what: "vkCreatePipelineCache", result });
+                }
+            };
         Ok(Arc::new(Context {
             instance: guard.0.take().unwrap(),
             debug,
@@ -411,6 +426,7 @@ impl Context {
             limits,
             uuid,
             external,
+            pipeline_cache,
             info,
             validation,
             _entry: entry,
@@ -546,6 +562,7 @@ impl Drop for Context {
         // `Arc<Context>`, so all of them are gone when the last Arc drops.
         unsafe {
             let _ = self.device.device_wait_idle();
+            self.device.destroy_pipeline_cache(self.pipeline_cache, None);
             self.device.destroy_device(None);
             if let Some((du, m)) = self.debug.take() {
                 du.destroy_debug_utils_messenger(m, None);

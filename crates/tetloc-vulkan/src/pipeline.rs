@@ -301,7 +301,7 @@ fn compute_pipeline(ctx: &Arc<Context>, layout: vk::PipelineLayout, spirv: &[u8]
         .specialization_info(&spec_info);
     let info = vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout);
     // SAFETY: valid module, layout and specialization data.
-    let pipeline = unsafe { dev.create_compute_pipelines(vk::PipelineCache::null(), &[info], None) }
+    let pipeline = unsafe { dev.create_compute_pipelines(ctx.pipeline_cache, &[info], None) }
         .map_err(|(_, r)| VkError::Vk { what: "vkCreateComputePipelines", result: r })?[0];
     Ok(Pipeline { ctx: ctx.clone(), pipeline, bind_point: vk::PipelineBindPoint::COMPUTE, sbt: None })
 }
@@ -373,12 +373,7 @@ fn rt_pipeline(
         .layout(layout);
     // SAFETY: valid modules, groups and layout.
     let pipeline = unsafe {
-        rt.pipeline.create_ray_tracing_pipelines(
-            vk::DeferredOperationKHR::null(),
-            vk::PipelineCache::null(),
-            &[info],
-            None,
-        )
+        rt.pipeline.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), ctx.pipeline_cache, &[info], None)
     }
     .map_err(|(_, r)| VkError::Vk { what: "vkCreateRayTracingPipelinesKHR", result: r })?[0];
     let pipeline =

@@ -263,8 +263,10 @@ impl VulkanLocator {
             let mut points: Vec<Vec<[f64; 3]>> = vec![Vec::new(); n];
             let mut times: Vec<Vec<f64>> = vec![Vec::new(); n];
             let mut tets: Vec<Vec<i32>> = vec![Vec::new(); n];
-            let mut written = vec![Vec4::default(); n * seg];
-            let mut written_tets = vec![0i32; n * seg];
+            // Zeroed by the allocator (pages fault in on every core as the read-back fills
+            // them): `vec![Vec4::default(); ..]` wrote its 512 MB on one core, batch after batch.
+            let mut written: Vec<Vec4> = bytemuck::zeroed_vec(n * seg);
+            let mut written_tets: Vec<i32> = bytemuck::zeroed_vec(n * seg);
             loop {
                 let t = Instant::now();
                 dev.run(|r| {
