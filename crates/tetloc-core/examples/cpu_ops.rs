@@ -4,7 +4,8 @@
 //! (generated with its vector field `v`, as `tetloc gen fusion --vector`; TETS like 1.4M).
 //! `OPS` picks the operations (letters of `rpt`, all by default); `BUILD_PARTS=1` times the
 //! face neighbours and the BVH alone; `PROBE_PARTS=N` splits the probe: once more with its
-//! search built (the walks and the values), then N times ids only (the walks alone).
+//! search built (the walks and the values), then N times ids only (the walks alone);
+//! `AT_TETS=1` times the GPU trace's line fields (sampled at the kernel's tets) on the CPU's lines.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -123,6 +124,32 @@ fn main() -> tetloc_core::Result<()> {
             trace::trace_sampled(&seeds, &o, &loc, xyz, &out, &|_| Ok(()))
         })?;
         eprintln!("  {} lines, {} steps", arrays.ends.len(), arrays.points.len() - arrays.ends.len());
+        if std::env::var("AT_TETS").is_ok() {
+            // The GPU trace's host side: these lines as its kernel returns them (points with
+            // their tets), their fields sampled at those tets.
+            let mut start = 0;
+            let lines: Vec<trace::Line> = arrays
+                .ends
+                .iter()
+                .map(|&end| {
+                    let line = trace::Line {
+                        seed: 0,
+                        backward: false,
+                        points: arrays.points[start..end].iter().map(|p| p.map(f64::from)).collect(),
+                        time: arrays.time[start..end].to_vec(),
+                        tets: arrays.fields.ids[start..end].to_vec(),
+                        reason: trace::Reason::OutOfSteps,
+                    };
+                    start = end;
+                    line
+                })
+                .collect();
+            for _ in 0..3 {
+                timed("  line fields at the tets (the GPU path's host side)", || {
+                    trace::LineArrays::at_tets(&lines, &mesh, &out)
+                })?;
+            }
+        }
         if std::env::var("OLD_TRACE").is_ok() {
             let field = loc.vector_field(xyz)?;
             let lines = timed("trace (old: integrate)", || trace::trace(&seeds, &o, &field, &|_| Ok(())))?;

@@ -371,9 +371,32 @@ fn bary64_of(w: [[f64; 3]; 4], swapped: bool, p: [f64; 3]) -> Option<Bary64> {
 /// weights are clamped to it.
 #[inline]
 pub fn bary64(ids: [u32; 4], points: &[Vec3], exact: &Exact, p: [f64; 3]) -> Option<Bary64> {
-    let swapped = ids[3] < ids[2];
-    let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
-    bary64_of(asc.map(|i| exact.vertex(points, i)), swapped, p)
+    Corners64::of(ids, points, exact).bary64(p)
+}
+
+/// A tet's corners on the file's coordinates as [`bary64`] reads them, read once for every
+/// point that falls in the tet.
+#[derive(Clone, Copy, Debug)]
+pub struct Corners64 {
+    /// The vertices in ascending id order.
+    w: [[f64; 3]; 4],
+    /// Whether canonical order has the last two swapped.
+    swapped: bool,
+}
+
+impl Corners64 {
+    #[inline]
+    pub fn of(ids: [u32; 4], points: &[Vec3], exact: &Exact) -> Corners64 {
+        let swapped = ids[3] < ids[2];
+        let asc = if swapped { [ids[0], ids[1], ids[3], ids[2]] } else { ids };
+        Corners64 { w: asc.map(|i| exact.vertex(points, i)), swapped }
+    }
+
+    /// [`bary64`] of `p` in this tet.
+    #[inline]
+    pub fn bary64(&self, p: [f64; 3]) -> Option<Bary64> {
+        bary64_of(self.w, self.swapped, p)
+    }
 }
 
 /// The barycentrics with which the GPU kernels interpolate on a mesh stored in f64 (tet.glsl

@@ -501,6 +501,60 @@ impl Mesh {
         });
     }
 
+    /// [`Self::values_at_ids64`] of the points of one line, in order, on one core: a line's
+    /// consecutive points mostly share a tet (a tracer steps a fraction of one), so each run
+    /// of them reads the tet's corners and the fields' values there once. The same numbers.
+    pub fn values_along64<T: geom::Real>(&self, points: &[[f64; 3]], ids: &[i32], fields: &[&Field], out: &mut [T]) {
+        let k = fields.len();
+        if k == 0 {
+            return;
+        }
+        if self.tet_nodes.is_some() {
+            // Higher-order tets interpolate on all their nodes: no corners to keep.
+            for ((o, &p), &t) in out.chunks_mut(k).zip(points).zip(ids) {
+                let found = (t >= 0).then(|| self.bary64(t as usize, p).map(|b| (t as usize, b))).flatten();
+                o.iter_mut().zip(fields).for_each(|(o, f)| *o = T::from_f64(self.value_at64(f, found)));
+            }
+            return;
+        }
+        let exact = self.exact();
+        // The tet of the run, its corners, and each field's values at its corners (a per-cell
+        // field's value repeated) in the order of `self.tets[t]`.
+        let mut held: Option<(i32, geom::Corners64)> = None;
+        let mut corner_values = vec![[0f64; 4]; k];
+        for ((o, &p), &t) in out.chunks_mut(k).zip(points).zip(ids) {
+            if t < 0 {
+                o.fill(T::from_f64(f64::NAN));
+                continue;
+            }
+            let tet = self.tets[t as usize];
+            let corners = match held {
+                Some((h, c)) if h == t => c,
+                _ => {
+                    let c = geom::Corners64::of(tet, &self.points, &exact);
+                    for (v, f) in corner_values.iter_mut().zip(fields) {
+                        *v = match f.location {
+                            FieldLocation::Vertex => tet.map(|i| f.value_in(i as usize)),
+                            FieldLocation::Cell => [f.value_in(self.cell_of_tet(t as usize)); 4],
+                        };
+                    }
+                    held = Some((t, c));
+                    c
+                }
+            };
+            let bary = corners.bary64(p);
+            for ((o, f), v) in o.iter_mut().zip(fields).zip(&corner_values) {
+                // As value_of: interpolated at the corners, or the cell's value; NaN for a
+                // tet of no volume.
+                *o = T::from_f64(match (bary, f.location) {
+                    (None, _) => f64::NAN,
+                    (Some(b), FieldLocation::Vertex) => geom::interpolate_with([0, 1, 2, 3], b, |j| v[j]),
+                    (Some(_), FieldLocation::Cell) => v[0],
+                });
+            }
+        }
+    }
+
     /// Unique faces with their front and back tets, computed on first use (a parallel sort
     /// of all 4·T tet faces: memory-hungry on huge meshes, so only when a kernel needs it).
     pub fn faces(&self) -> &FaceSet {

@@ -122,3 +122,41 @@ fn first_tets_bound_each_cells_tets() {
         }
     }
 }
+
+#[test]
+fn values_along_a_line_are_the_values_at_its_ids() {
+    // A line of points through a few tets (runs of points in one tet, some outside, a tet
+    // revisited), on a mesh with f64 vertices and an f64 vertex field, a vertex and a cell field.
+    let mut raw = crate::test_support::jittered_grid(4, 0.2, 7);
+    let n = raw.points.len();
+    raw.points64 = Some(raw.points.iter().map(|p| p.map(|c| f64::from(c) + 1e-9)).collect());
+    raw.fields.push(Field::from_f64("g", FieldLocation::Vertex, (0..n).map(|i| 1.0 / (1.0 + i as f64)).collect()));
+    let m = Mesh::new(raw, "line").unwrap();
+    let fields: Vec<&Field> = ["f", "g", "cellval"].iter().map(|c| m.field(c).unwrap()).collect();
+    let mut points = Vec::new();
+    let mut ids = Vec::new();
+    for (k, &t) in [5usize, 5, 5, 9, 9, 5, 200, 200, 17].iter().enumerate() {
+        let c = m.tet_center(t).map(f64::from);
+        points.push([c[0] + 1e-4 * k as f64, c[1], c[2]]);
+        ids.push(t as i32);
+        if k % 4 == 1 {
+            points.push(c);
+            ids.push(-1);
+        }
+    }
+    let k = fields.len();
+    for f64_out in [false, true] {
+        if f64_out {
+            let (mut want, mut got) = (vec![0f64; k * points.len()], vec![1f64; k * points.len()]);
+            m.values_at_ids64(&points, &ids, &fields, &mut want);
+            m.values_along64(&points, &ids, &fields, &mut got);
+            assert!(want.iter().zip(&got).all(|(a, b)| a.to_bits() == b.to_bits()), "{want:?}\n{got:?}");
+        } else {
+            let (mut want, mut got) = (vec![0f32; k * points.len()], vec![1f32; k * points.len()]);
+            m.values_at_ids64(&points, &ids, &fields, &mut want);
+            m.values_along64(&points, &ids, &fields, &mut got);
+            assert!(want.iter().zip(&got).all(|(a, b)| a.to_bits() == b.to_bits()), "{want:?}\n{got:?}");
+        }
+    }
+    assert!(ids.contains(&-1));
+}

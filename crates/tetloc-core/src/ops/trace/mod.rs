@@ -259,7 +259,7 @@ impl LineArrays {
 
     /// The arrays of `lines` whose points all carry their tets ([`Line::tets`]), with the
     /// values of `fields` computed there on the host, in f64 on the file's data
-    /// ([`crate::Mesh::values_at_ids64`]): no second search. `None` when some line has none.
+    /// ([`crate::Mesh::values_along64`]): no second search. `None` when some line has none.
     pub fn at_tets(lines: &[Line], mesh: &crate::Mesh, fields: &[super::FieldGroup]) -> Result<Option<LineArrays>> {
         if lines.iter().any(|l| l.tets.len() != l.points.len()) {
             return Ok(None);
@@ -275,7 +275,7 @@ impl LineArrays {
             fields: &[&crate::Field],
         ) -> Vec<T> {
             let lens: Vec<usize> = lines.iter().map(|l| l.points.len() * fields.len()).collect();
-            super::concat(&lens, |i, part| mesh.values_at_ids64(&lines[i].points, &lines[i].tets, fields, part))
+            super::concat(&lens, |i, part| mesh.values_along64(&lines[i].points, &lines[i].tets, fields, part))
         }
         let probed = if fields.iter().any(|g| g.f64) {
             super::probe::Probed::from_values64(ids, fields, &fill::<f64>(lines, mesh, &components))
