@@ -328,7 +328,7 @@ pub fn trace_lines<'py>(
         }
         Some(locator) => with_backend(py, locator, |loc| {
             let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
-                trace::trace_with(seeds, &o, &mut *loc, xyz, |d| ticker.tick(d))
+                trace::trace_with(seeds, &o, &mut *loc, xyz, &out_fields, |d| ticker.tick(d))
             })?;
             py.detach(|| LineArrays::sample(&lines, &m, &mut *loc, &out_fields)).map_err(to_py)
         })?,

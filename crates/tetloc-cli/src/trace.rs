@@ -148,17 +148,18 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     }
     let (lo, hi) = m.file_bounds();
     o.check_scale(lo.iter().chain(&hi).fold(0.0, |s, c| s.max(c.abs()))).context("--step")?;
-    // Lines are traced in batches of about BATCH_POINTS points, at least one line a batch:
-    // one line of the most steps it can take (--max-steps, or fewer by --max-length) must fit
-    // in half the memory (the mesh and the locator need the rest), refused before tracing.
+    // Lines are traced in batches of about BATCH_POINTS points, at least one line a batch,
+    // two batches at once (one written while the next is traced): two lines of the most
+    // steps they can take (--max-steps, or fewer by --max-length) must fit in half the memory
+    // (the mesh and the locator need the rest), refused before tracing.
     crate::limits::check_memory(
         &format!(
-            "--max-steps {}: a line of {} steps (held whole until it ends), with room for the mesh,",
+            "--max-steps {}: two lines of {} steps (each held whole until it ends), with room for the mesh,",
             a.max_steps,
             o.steps_bound()
         ),
         o.steps_bound() as u128 + 2,
-        2 * LINE_POINT_BYTES,
+        4 * LINE_POINT_BYTES,
     )?;
     let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
     let c = vector.component_refs();
@@ -168,11 +169,18 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let n_lines = seeds.len() * if direction == Direction::Both { 2 } else { 1 };
     let out_fields = trace::line_fields(&m, &vector);
     // Lines go to the file batch after batch (temporary files until it is complete), so an
-    // output of any size needs the memory of one batch.
+    // output of any size needs the memory of two batches: one spilled while the next is traced.
     let mut writer = PolylineWriter::new(&a.out)?;
     let batches = o.batches(seeds.len(), a.batch_points);
-    // Seconds tracing, sampling the line fields (GPU path) and spilling the batches.
+    // Seconds tracing, sampling the line fields (GPU path) and spilling the batches (the
+    // spilling overlaps the next batch's tracing).
     let (mut secs, mut sampling, mut spilling) = (0.0, 0.0, 0.0);
+    let spill = |(arrays, seed_base): (trace::LineArrays, usize)| -> Result<()> {
+        let t = Instant::now();
+        ops_output::push_lines(&mut writer, &arrays, seed_base)?;
+        spilling += t.elapsed().as_secs_f64();
+        Ok(())
+    };
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
     if backend == Backend::Cpu && m.cells.is_none() {
@@ -180,7 +188,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
         let mut base = 0;
-        for (ob, seeds_in) in batches {
+        let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
             let t0 = Instant::now();
             // The line fields come from the integrator's own lookups (no second pass).
             let arrays = trace::trace_sampled(&seeds[seeds_in.clone()], &ob, &cpu, [x, y, z], &out_fields, &|d| {
@@ -188,30 +196,29 @@ pub fn run(a: &TraceArgs) -> Result<()> {
                 Ok(())
             })?;
             secs += t0.elapsed().as_secs_f64();
-            let t1 = Instant::now();
-            ops_output::push_lines(&mut writer, &arrays, seeds_in.start)?;
-            spilling += t1.elapsed().as_secs_f64();
             base += seeds_in.len();
-        }
+            Ok((arrays, seeds_in.start))
+        };
+        overlapped(batches, trace_batch, spill)?;
         pb.finish_and_clear();
     } else {
         let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
         let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
         let mut base = 0;
-        for (ob, seeds_in) in batches {
+        let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
             let t0 = Instant::now();
-            let lines = trace::trace_with(&seeds[seeds_in.clone()], &ob, loc.as_mut(), [x, y, z], |d| {
+            let lines = trace::trace_with(&seeds[seeds_in.clone()], &ob, loc.as_mut(), [x, y, z], &out_fields, |d| {
                 pb.set_position((base + d) as u64);
                 Ok(())
             })?;
             secs += t0.elapsed().as_secs_f64();
             let t1 = Instant::now();
             let arrays = trace::LineArrays::sample(&lines, &m, loc.as_mut(), &out_fields)?;
-            let t2 = Instant::now();
-            ops_output::push_lines(&mut writer, &arrays, seeds_in.start)?;
-            (sampling, spilling) = (sampling + (t2 - t1).as_secs_f64(), spilling + t2.elapsed().as_secs_f64());
+            sampling += t1.elapsed().as_secs_f64();
             base += seeds_in.len();
-        }
+            Ok((arrays, seeds_in.start))
+        };
+        overlapped(batches, trace_batch, spill)?;
         pb.finish_and_clear();
     }
     let (n_points, n_made) = (writer.n_points(), writer.n_lines());
@@ -352,4 +359,93 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Makes each of `items` into a batch with `make` on this thread and hands it to `write` on
+/// another, so that writing one batch overlaps making the next (at most two batches exist at
+/// once: the one being written and the one being made). The first error of either stops
+/// both and is returned.
+fn overlapped<I, T: Send>(
+    items: impl IntoIterator<Item = I>,
+    mut make: impl FnMut(I) -> Result<T>,
+    mut write: impl FnMut(T) -> Result<()> + Send,
+) -> Result<()> {
+    std::thread::scope(|s| {
+        // No buffer: a batch is handed over only when the writer has finished the one before.
+        let (tx, rx) = std::sync::mpsc::sync_channel::<T>(0);
+        let writer = s.spawn(move || rx.into_iter().try_for_each(&mut write));
+        let mut made = Ok(());
+        for item in items {
+            match make(item) {
+                // A closed channel: the writer stopped on an error, which its join returns.
+                Ok(batch) => {
+                    if tx.send(batch).is_err() {
+                        break;
+                    }
+                }
+                Err(e) => {
+                    made = Err(e);
+                    break;
+                }
+            }
+        }
+        drop(tx);
+        let written = writer.join().unwrap_or_else(|_| Err(anyhow::anyhow!("the thread writing the lines panicked")));
+        made.and(written)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::overlapped;
+
+    /// Every batch is written, in order; a failing batch stops the making and the writing
+    /// after it, and its error is the one returned, whichever side it came from.
+    #[test]
+    fn overlapped_writes_every_batch_in_order_and_stops_at_the_first_error() {
+        let mut written = Vec::new();
+        overlapped(
+            0..20,
+            |i| Ok(i * i),
+            |x| {
+                written.push(x);
+                Ok(())
+            },
+        )
+        .unwrap();
+        assert_eq!(written, (0..20).map(|i| i * i).collect::<Vec<_>>());
+
+        let (mut made, mut written) = (0, Vec::new());
+        let e = overlapped(
+            0..20,
+            |i| {
+                made += 1;
+                if i == 5 {
+                    anyhow::bail!("batch {i} failed")
+                }
+                Ok(i)
+            },
+            |x| {
+                written.push(x);
+                Ok(())
+            },
+        )
+        .unwrap_err();
+        assert_eq!((e.to_string(), made), ("batch 5 failed".to_string(), 6));
+        assert_eq!(written, vec![0, 1, 2, 3, 4]);
+
+        let mut made = 0;
+        let e = overlapped(
+            0..20,
+            |i| {
+                made += 1;
+                Ok(i)
+            },
+            |x| if x == 3 { anyhow::bail!("disk full at {x}") } else { Ok(()) },
+        )
+        .unwrap_err();
+        assert_eq!(e.to_string(), "disk full at 3");
+        // The maker stops at the first batch the writer no longer takes.
+        assert!(made <= 5, "{made} batches made");
+    }
 }

@@ -138,6 +138,7 @@ fn main() -> tetloc_core::Result<()> {
                         points: arrays.points[start..end].iter().map(|p| p.map(f64::from)).collect(),
                         time: arrays.time[start..end].to_vec(),
                         tets: arrays.fields.ids[start..end].to_vec(),
+                        values: Vec::new(),
                         reason: trace::Reason::OutOfSteps,
                     };
                     start = end;

@@ -152,9 +152,10 @@ impl TraceOptions {
     }
 }
 
-/// Points a batch of [`TraceOptions::batches`] may hold by default: about 1.5 GB of lines,
-/// whatever the number of seeds.
-pub const BATCH_POINTS: usize = 1 << 25;
+/// Points a batch of [`TraceOptions::batches`] may hold by default: about 1.8 GB of lines
+/// (at `tetloc trace`'s 106 bytes a point), whatever the number of seeds; the CLI holds two
+/// batches at once (one written while the next is traced).
+pub const BATCH_POINTS: usize = 1 << 24;
 
 impl TraceOptions {
     /// The most steps a line takes: `max_steps`, or fewer where `max_length` stops it first
@@ -201,5 +202,9 @@ pub struct Line {
     /// The tet of each point, where the tracer keeps them (the GPU's stream kernel: the tet
     /// its velocity came from); empty otherwise.
     pub tets: Vec<i32>,
+    /// The line fields at each point, as the tracer sampled them there (the GPU's stream
+    /// kernel: the fields asked of [`crate::locate::LineTracer::trace_lines`], their values
+    /// a point in that order, as the backend's own sampling computes them); empty otherwise.
+    pub values: Vec<f32>,
     pub reason: Reason,
 }

@@ -29,11 +29,27 @@ layout(std430, binding = TL_B_STREAM_PARTICLES) buffer TlParticles { TlStreamPar
 layout(std430, binding = TL_B_STREAM_LINES) writeonly buffer TlLines { vec4 tl_lines[]; };
 // The tet of each of those points: the one its velocity came from.
 layout(std430, binding = TL_B_STREAM_TETS) writeonly buffer TlLineTets { int tl_line_tets[]; };
+// FIELD_COUNT line fields at each of those points.
+layout(std430, binding = TL_B_STREAM_VALUES) writeonly buffer TlLineValues { float tl_line_values[]; };
 
-// Records point x at integration time t, found in tet `tet`.
+// The last lookup that found a tet: its point, corners and barycentrics.
+vec3 tl_found_p;
+uvec4 tl_found_ids;
+vec4 tl_found_bary;
+
+// Records point x at integration time t, found in tet `tet` by the last lookup (at x), with
+// the line fields there as OUT_FIELDS samples them (answer.glsl).
 void tl_record_point(uint at, vec3 x, float t, int tet) {
     tl_lines[at] = vec4(x, t);
     tl_line_tets[at] = tet;
+    if (FIELD_COUNT > 0u) {
+        vec4 b = tl_value_bary(tl_found_ids, tl_found_p, tl_found_bary);
+        for (uint f = 0u; f < FIELD_COUNT; f++) {
+            bool cell = ((FIELD_CELLS >> f) & 1u) != 0u;
+            tl_line_values[at * FIELD_COUNT + f] =
+                tl_field_value(f, cell, tet, tl_found_ids, cell ? tl_found_bary : b);
+        }
+    }
 }
 
 uint tl_lookups = 0u, tl_fallbacks = 0u;
@@ -83,6 +99,9 @@ bool tl_velocity(tvec3 at, inout int hint, out vec3 v) {
         return false;
     }
     hint = tet;
+    tl_found_p = p;
+    tl_found_ids = ids;
+    tl_found_bary = bary;
     if (OUTPUT_MODE == TL_OUT_CELL) {
         v = tl_vector3(uint(tet));
     } else {

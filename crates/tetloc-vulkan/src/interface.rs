@@ -259,6 +259,9 @@ gpu_interface! {
         B_WEIGHTS_VALUES = 54;
         B_STEP_VALUES = 55;
         B_STEP_OUT = 56;
+        /// Stream tracing: the line fields at each line point of a segment (FIELD_COUNT
+        /// floats a point, B_FIELD's first buffers, as OUT_FIELDS samples them).
+        B_STREAM_VALUES = 57;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, their binary nodes and levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).

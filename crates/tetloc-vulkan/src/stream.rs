@@ -3,11 +3,13 @@
 //! from the particle's last tet, the entry grid and BVH only when the walk fails. Lines come
 //! back in segments: a launch advances every particle until it has written a segment's points
 //! (or ended), the host collects them and launches the next, so memory stays bounded whatever
-//! the lines' length. Each point comes with the tet its velocity came from ([`Line::tets`]),
-//! so the line fields are sampled there on the host (`LineArrays::at_tets`) instead of by a
-//! second search. Where the kernel has no stream shader (the rt kernels), the integrator
-//! is adaptive or the mesh is mixed or higher-order, [`VulkanLocator::trace_lines`] declines
-//! and `trace_with` drives the locator one Runge–Kutta stage at a time instead.
+//! the lines' length. Each point comes with the tet its velocity came from ([`Line::tets`])
+//! and the line fields there ([`Line::values`]), computed as the GPU's sampler computes them
+//! (f32 data, up to MAX_FIELDS components; else the host samples them at those tets,
+//! `LineArrays::at_tets`), so no second search runs. Where the kernel has no stream shader
+//! (the rt kernels), the integrator is adaptive or the mesh is mixed or higher-order,
+//! [`VulkanLocator::trace_lines`] declines and `trace_with` drives the locator one
+//! Runge–Kutta stage at a time instead.
 //!
 //! The GPU integrates in f32 in the mesh's working frame where the CPU integrates in f64, so
 //! lines agree to rounding (about 1e-7 of the domain a step), not bit for bit; a step that
@@ -82,6 +84,9 @@ struct Stream {
     lines: Buffer,
     /// The tet of each line point.
     tets: Buffer,
+    /// The line fields at each line point (`fields` a point).
+    values: Buffer,
+    fields: usize,
     _vector: Buffer,
     _neighbors: Option<Buffer>,
 }
@@ -113,10 +118,13 @@ fn particles(seeds: &[Vec3], jobs: &[(u32, bool)], frame: tetloc_core::mesh::Fra
 
 impl Stream {
     /// `None` where the locator has no stream shader for these options.
+    /// The line fields `fields` are sampled at each point where they are f32 data and at
+    /// most MAX_FIELDS (else none: the host samples them).
     fn open(
         loc: &mut VulkanLocator,
         o: &TraceOptions,
         vector: [&str; 3],
+        line_fields: &[&str],
         group: usize,
         seg: usize,
         hint: bool,
@@ -134,7 +142,14 @@ impl Stream {
             FieldLocation::Vertex => OUT_VERTEX,
             FieldLocation::Cell => OUT_CELL,
         };
-        let mut res = loc.resources_for(output, false);
+        let sampled = line_fields.len() <= MAX_FIELDS as usize
+            && line_fields.iter().all(|c| mesh.field(c).is_ok_and(|f| f.values64.is_none()));
+        let line_fields = if sampled { line_fields } else { &[] };
+        let cells = match line_fields.is_empty() {
+            true => 0,
+            false => loc.ensure_fields(line_fields)?.cells,
+        };
+        let mut res = loc.resources_for(output, !line_fields.is_empty());
         let Some(program) = res.plan.stream else { return Ok(None) };
         let n = fields[0].values.len();
         if (12 * n) as u64 > res.dev.device_max_buffer() {
@@ -158,6 +173,8 @@ impl Stream {
             dev.create_buffer(BufferDesc::io(MemKind::Query, (group * seg * 16) as u64), "stream lines", None)?;
         let tets =
             dev.create_buffer(BufferDesc::io(MemKind::Query, (group * seg * 4) as u64), "stream line tets", None)?;
+        let value_bytes = (group * seg * 4 * line_fields.len()).max(4) as u64;
+        let values = dev.create_buffer(BufferDesc::io(MemKind::Query, value_bytes), "stream line values", None)?;
         let mut bindings = res.bindings;
         bindings.extend([
             Binding::buffer(B_STREAM, &params_buf),
@@ -165,10 +182,13 @@ impl Stream {
             Binding::buffer(B_STREAM_PARTICLES, &particles),
             Binding::buffer(B_STREAM_LINES, &lines),
             Binding::buffer(B_STREAM_TETS, &tets),
+            Binding::buffer(B_STREAM_VALUES, &values),
         ]);
         let ctx = dev.ctx().clone();
         let desc = Descriptors::new(&ctx, &bindings, program.stages())?;
-        let spec = res.spec.set(sc::STREAM_HINT, hint as u32).set(sc::WORKGROUP, WORKGROUP);
+        let spec = (res.spec.set(sc::STREAM_HINT, hint as u32).set(sc::WORKGROUP, WORKGROUP))
+            .set(sc::FIELD_COUNT, line_fields.len() as u32)
+            .set(sc::FIELD_CELLS, cells);
         let pipeline = program.pipeline(dev, desc.layout, res.f64, &spec)?;
         let scale = mesh.info.frame.scale;
         let bits = |a: f64, b: f64| {
@@ -191,6 +211,8 @@ impl Stream {
             particles,
             lines,
             tets,
+            values,
+            fields: line_fields.len(),
             _vector: vector_buf,
             _neighbors: neighbors,
         }))
@@ -222,34 +244,40 @@ impl Stream {
 
 impl VulkanLocator {
     /// `tetloc_core::ops::trace::trace`'s lines for `seeds` (the file's coordinates), traced
-    /// on the GPU by the kernel's stream shader; `None` where there is none for these options
-    /// (see the module documentation).
+    /// on the GPU by the kernel's stream shader, with the field components `fields` sampled
+    /// at each point where the kernel can ([`Line::values`]: f32 data, at most MAX_FIELDS);
+    /// `None` where there is no stream shader for these options (see the module documentation).
     pub fn trace_rk4(
         &mut self,
         seeds: &[Vec3],
         o: &TraceOptions,
         vector: [&str; 3],
+        fields: &[&str],
         progress: &mut dyn FnMut(usize) -> tetloc_core::Result<()>,
     ) -> tetloc_core::Result<Option<(Vec<Line>, StreamStats)>> {
         o.check()?;
         let jobs = o.jobs(seeds.len());
         let group = jobs.len().clamp(1, GROUP);
-        self.trace_in_segments(seeds, o, vector, segment_points(group, o.max_steps), true, progress)
+        let seg = segment_points(group, o.max_steps);
+        self.trace_in_segments(seeds, o, vector, fields, seg, true, progress)
     }
 
     /// [`Self::trace_rk4`] with `seg` points a particle per launch, with or without the hint.
+    #[allow(clippy::too_many_arguments)]
     fn trace_in_segments(
         &mut self,
         seeds: &[Vec3],
         o: &TraceOptions,
         vector: [&str; 3],
+        fields: &[&str],
         seg: usize,
         hint: bool,
         progress: &mut dyn FnMut(usize) -> tetloc_core::Result<()>,
     ) -> tetloc_core::Result<Option<(Vec<Line>, StreamStats)>> {
         let jobs = o.jobs(seeds.len());
         let group = jobs.len().clamp(1, GROUP);
-        let Some(s) = Stream::open(self, o, vector, group, seg, hint)? else { return Ok(None) };
+        let Some(s) = Stream::open(self, o, vector, fields, group, seg, hint)? else { return Ok(None) };
+        let k = s.fields;
         let frame = self.mesh().info.frame;
         let mut stats = StreamStats { lines: jobs.len(), ..Default::default() };
         let mut lines = Vec::new();
@@ -263,10 +291,12 @@ impl VulkanLocator {
             let mut points: Vec<Vec<[f64; 3]>> = vec![Vec::new(); n];
             let mut times: Vec<Vec<f64>> = vec![Vec::new(); n];
             let mut tets: Vec<Vec<i32>> = vec![Vec::new(); n];
+            let mut values: Vec<Vec<f32>> = vec![Vec::new(); n];
             // Zeroed by the allocator (pages fault in on every core as the read-back fills
             // them): `vec![Vec4::default(); ..]` wrote its 512 MB on one core, batch after batch.
             let mut written: Vec<Vec4> = bytemuck::zeroed_vec(n * seg);
             let mut written_tets: Vec<i32> = bytemuck::zeroed_vec(n * seg);
+            let mut written_values: Vec<f32> = bytemuck::zeroed_vec(n * seg * k);
             loop {
                 let t = Instant::now();
                 dev.run(|r| {
@@ -279,15 +309,23 @@ impl VulkanLocator {
                 let last = state.iter().rposition(|p| p.counts[0] > 0).map_or(0, |j| j + 1);
                 dev.download(&s.lines, 0, bytemuck::cast_slice_mut(&mut written[..last * seg]))?;
                 dev.download(&s.tets, 0, bytemuck::cast_slice_mut(&mut written_tets[..last * seg]))?;
-                // Each particle's new points onto its line, on every core.
-                let segments = written[..last * seg].par_chunks(seg).zip(written_tets[..last * seg].par_chunks(seg));
-                let lines_so_far = points.par_iter_mut().zip(times.par_iter_mut()).zip(tets.par_iter_mut());
-                (lines_so_far.zip(&state[..last]).zip(segments)).for_each(|((((points, times), tets), p), (w, t))| {
-                    let k = p.counts[0] as usize;
-                    points.extend(w[..k].iter().map(|w| frame.to_file([w.0[0], w.0[1], w.0[2]])));
-                    times.extend(w[..k].iter().map(|w| w.0[3] as f64));
-                    tets.extend_from_slice(&t[..k]);
-                });
+                if k > 0 {
+                    dev.download(&s.values, 0, bytemuck::cast_slice_mut(&mut written_values[..last * seg * k]))?;
+                }
+                // Each particle's new points onto its line, on every core: particle j's from
+                // slot j·seg on.
+                let (w, t, v) = (&written, &written_tets, &written_values);
+                let lines_so_far = (points.par_iter_mut().zip(times.par_iter_mut()))
+                    .zip(tets.par_iter_mut().zip(values.par_iter_mut()));
+                (lines_so_far.zip(&state[..last]).enumerate()).for_each(
+                    |(j, (((points, times), (tets, values)), p))| {
+                        let slots = j * seg..j * seg + p.counts[0] as usize;
+                        points.extend(w[slots.clone()].iter().map(|w| frame.to_file([w.0[0], w.0[1], w.0[2]])));
+                        times.extend(w[slots.clone()].iter().map(|w| w.0[3] as f64));
+                        tets.extend_from_slice(&t[slots.clone()]);
+                        values.extend_from_slice(&v[slots.start * k..slots.end * k]);
+                    },
+                );
                 let live = state.iter().filter(|p| p.state[2] == STREAM_LIVE).count();
                 progress(done + n - live)?;
                 if live == 0 {
@@ -296,11 +334,11 @@ impl VulkanLocator {
             }
             done += n;
             stats.add(&state);
-            for ((((&(seed, backward), p), points), time), tets) in
-                chunk.iter().zip(&state).zip(points).zip(times).zip(tets)
+            for (((((&(seed, backward), p), points), time), tets), values) in
+                chunk.iter().zip(&state).zip(points).zip(times).zip(tets).zip(values)
             {
                 if points.len() > 1 {
-                    lines.push(Line { seed, backward, points, time, tets, reason: reason(p.state[2])? });
+                    lines.push(Line { seed, backward, points, time, tets, values, reason: reason(p.state[2])? });
                 }
             }
         }
@@ -326,7 +364,7 @@ impl VulkanLocator {
             return Err(tetloc_core::Error::Invalid(format!("trace benchmark: {n} lines (1 to {GROUP})")));
         }
         let seg = segment_points(n, o.max_steps);
-        let Some(s) = Stream::open(self, o, vector, n, seg, hint)? else { return Ok(None) };
+        let Some(s) = Stream::open(self, o, vector, &[], n, seg, hint)? else { return Ok(None) };
         let frame = self.mesh().info.frame;
         let init = particles(seeds, &jobs, frame);
         let dev = self.device();
@@ -458,11 +496,13 @@ mod tests {
         let mut gpu = soft_bvh(&ctx, &m, LocatorOptions::default());
         let extent = (0..3).map(|k| m.info.bounds_max[k] - m.info.bounds_min[k]).fold(0f32, f32::max) as f64;
         let mut reasons = std::collections::BTreeSet::new();
+        let fields = trace::line_fields(&m, &tetloc_core::ops::fields::resolve(&m, "v").unwrap());
+        let components: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
         for (o, vector) in options(&m) {
             let want = trace::trace(&seeds, &o, &cpu.vector_field(vector).unwrap(), &|_| Ok(())).unwrap();
             let mut calls = 0;
             let (got, stats) = gpu
-                .trace_rk4(&seeds, &o, vector, &mut |_| {
+                .trace_rk4(&seeds, &o, vector, &components, &mut |_| {
                     calls += 1;
                     Ok(())
                 })
@@ -485,14 +525,19 @@ mod tests {
                 stats.lookups > 0 && 4 * stats.fallbacks.saturating_sub(2 * seeds.len() as u64) < stats.lookups,
                 "{stats:?}"
             );
-            // Each point carries the tet the locator gives it: the line fields sampled there
-            // on the host are those a second search on the GPU samples.
-            let fields = trace::line_fields(&m, &tetloc_core::ops::fields::resolve(&m, "v").unwrap());
+            // Each point carries the tet the locator gives it and the line fields the GPU's
+            // sampler gives there (a second search on the GPU samples the same, bit for bit);
+            // sampled on the host at those tets, in f64, they agree to f32 rounding.
+            let traced = trace::LineArrays::from_tracer(&got, &fields).expect("GPU lines carry their fields");
             let at = trace::LineArrays::at_tets(&got, &m, &fields).unwrap().expect("GPU lines carry their tets");
             let again = trace::LineArrays::new(&got, &mut gpu, &fields).unwrap();
             assert_eq!(at.fields.ids, again.fields.ids, "{o:?}");
-            for ((_, a), (_, b)) in at.fields.arrays.iter().zip(&again.fields.arrays) {
+            assert_eq!(traced.fields.ids, again.fields.ids, "{o:?}");
+            for (((_, a), (_, b)), (_, c)) in
+                at.fields.arrays.iter().zip(&again.fields.arrays).zip(&traced.fields.arrays)
+            {
                 assert!(a.iter().zip(b).all(|(x, y)| (x - y).abs() <= 1e-5 * y.abs().max(1.0)), "{o:?}");
+                assert!(c.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits()), "{o:?}");
             }
         }
         for r in [Reason::OutOfDomain, Reason::OutOfLength, Reason::OutOfTime, Reason::OutOfSteps, Reason::Stagnation] {
@@ -509,9 +554,12 @@ mod tests {
         let Some((ctx, m, seeds)) = setup("segments_and_hints_change_nothing") else { return };
         let mut gpu = soft_bvh(&ctx, &m, LocatorOptions::default());
         let (o, _) = options(&m).remove(0);
-        let mut run = |seg, hint| gpu.trace_in_segments(&seeds, &o, V, seg, hint, &mut |_| Ok(())).unwrap().unwrap();
+        // The line fields sampled as the kernel goes (here the vector's own components).
+        let mut run =
+            |seg, hint| gpu.trace_in_segments(&seeds, &o, V, &V, seg, hint, &mut |_| Ok(())).unwrap().unwrap();
         let (whole, one) = run(o.max_steps + 3, true);
         assert_eq!(one.launches, 1);
+        assert!(whole.iter().all(|l| l.values.len() == 3 * l.points.len()));
         for (seg, hint) in [(2, true), (5, true), (o.max_steps + 3, false)] {
             let (lines, stats) = run(seg, hint);
             assert_eq!(lines, whole, "{seg} points a launch, hint {hint}");
@@ -531,7 +579,7 @@ mod tests {
         for preset in ["compact", "small"] {
             let opts = LocatorOptions::preset(preset).expect("a preset");
             let mut packed = soft_bvh(&ctx, &m, opts);
-            let traced = packed.trace_in_segments(&seeds, &o, V, o.max_steps + 3, true, &mut |_| Ok(()));
+            let traced = packed.trace_in_segments(&seeds, &o, V, &V, o.max_steps + 3, true, &mut |_| Ok(()));
             assert_eq!(traced.unwrap().unwrap().0, whole, "{preset}");
         }
         assert_eq!(ctx.validation_errors(), 0);
@@ -545,11 +593,11 @@ mod tests {
         let (mut o, _) = options(&m).remove(0);
         o.integrator = Integrator::Rk45;
         let mut gpu = soft_bvh(&ctx, &m, LocatorOptions::default());
-        assert!(gpu.trace_lines(&seeds, &o, V, &mut |_| Ok(())).unwrap().is_none());
+        assert!(gpu.trace_lines(&seeds, &o, V, &[], &mut |_| Ok(())).unwrap().is_none());
         if ctx.info().ray_tracing {
             let mut rt = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::RtBvh, LocatorOptions::default()).unwrap();
             o.integrator = Integrator::Rk4;
-            assert!(rt.trace_lines(&seeds, &o, V, &mut |_| Ok(())).unwrap().is_none());
+            assert!(rt.trace_lines(&seeds, &o, V, &[], &mut |_| Ok(())).unwrap().is_none());
         }
     }
 }

@@ -27,12 +27,14 @@ pub trait GridSampler {
 /// A backend that traces whole streamlines itself.
 pub trait LineTracer {
     /// The lines from `seeds` (in VTK's order), or `None` where it has no tracer for these
-    /// options. `progress` gets the number of lines done so far.
+    /// options. Where it can, the tracer also samples the field components `fields` at each
+    /// line point ([`Line::values`]). `progress` gets the number of lines done so far.
     fn trace_lines(
         &mut self,
         seeds: &[Vec3],
         o: &TraceOptions,
         vector: [&str; 3],
+        fields: &[&str],
         progress: &mut dyn FnMut(usize) -> Result<()>,
     ) -> Result<Option<Vec<Line>>>;
 }
@@ -58,10 +60,11 @@ pub fn trace_lines(
     seeds: &[Vec3],
     o: &TraceOptions,
     vector: [&str; 3],
+    fields: &[&str],
     progress: &mut dyn FnMut(usize) -> Result<()>,
 ) -> Result<Option<Vec<Line>>> {
     match loc.line_tracer() {
-        Some(t) => t.trace_lines(seeds, o, vector, progress),
+        Some(t) => t.trace_lines(seeds, o, vector, fields, progress),
         None => Ok(None),
     }
 }

@@ -292,13 +292,14 @@ impl<L: BatchLocator> LineTracer for FiniteOnly<L> {
         seeds: &[Vec3],
         o: &crate::streamline::TraceOptions,
         vector: [&str; 3],
+        fields: &[&str],
         progress: &mut dyn FnMut(usize) -> Result<()>,
     ) -> Result<Option<Vec<crate::streamline::Line>>> {
         let Some(tracer) = self.inner.line_tracer() else { return Ok(None) };
         let Some(c) = Compacted::of(seeds, |p| is_finite(*p)) else {
-            return tracer.trace_lines(seeds, o, vector, progress);
+            return tracer.trace_lines(seeds, o, vector, fields, progress);
         };
-        let Some(mut lines) = tracer.trace_lines(&c.points, o, vector, progress)? else { return Ok(None) };
+        let Some(mut lines) = tracer.trace_lines(&c.points, o, vector, fields, progress)? else { return Ok(None) };
         for l in &mut lines {
             l.seed = c.index[l.seed as usize] as u32;
         }

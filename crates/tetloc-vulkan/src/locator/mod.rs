@@ -544,7 +544,7 @@ impl VulkanLocator {
     /// Makes `names` (at most MAX_FIELDS) the bound fields, in that order (uploading those not
     /// on the GPU, freeing the others first, so that one launch's fields are resident), and
     /// returns the output that samples them all.
-    fn ensure_fields(&mut self, names: &[&str]) -> tetloc_core::Result<Output> {
+    pub(crate) fn ensure_fields(&mut self, names: &[&str]) -> tetloc_core::Result<Output> {
         assert!(names.len() <= MAX_FIELDS as usize, "at most MAX_FIELDS fields a launch");
         let mesh = self.mesh.clone();
         let fields = names.iter().map(|n| mesh.field(n)).collect::<tetloc_core::Result<Vec<_>>>()?;
@@ -1136,9 +1136,10 @@ impl LineTracer for VulkanLocator {
         seeds: &[Vec3],
         o: &tetloc_core::streamline::TraceOptions,
         vector: [&str; 3],
+        fields: &[&str],
         progress: &mut dyn FnMut(usize) -> tetloc_core::Result<()>,
     ) -> tetloc_core::Result<Option<Vec<tetloc_core::streamline::Line>>> {
-        Ok(self.trace_rk4(seeds, o, vector, progress)?.map(|(lines, _)| lines))
+        Ok(self.trace_rk4(seeds, o, vector, fields, progress)?.map(|(lines, _)| lines))
     }
 }
 

@@ -185,16 +185,23 @@ pub(super) fn spatial_order(points: &[Vec3]) -> Vec<u32> {
 /// particle run to its end in one GPU kernel, [`crate::locate::LineTracer`]), else
 /// step-synchronous on any backend: every live particle asks for its next velocity, and all
 /// of them are answered by one `sample_many` through `loc`, a round per Runge–Kutta stage
-/// (`progress` gets the number of lines done after each round).
+/// (`progress` gets the number of lines done after each round). `fields` are the line
+/// fields the caller then samples ([`LineArrays::sample`]): a backend's own tracer samples
+/// them as it goes where it can (f32 data only: f64 values are computed on the host).
 pub fn trace_with(
     seeds: &[Vec3],
     o: &TraceOptions,
     loc: &mut dyn BatchLocator,
     vector: [&str; 3],
+    fields: &[super::FieldGroup],
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<Vec<Line>> {
     o.check()?;
-    if let Some(lines) = crate::locate::trace_lines(loc, seeds, o, vector, &mut progress)? {
+    let names: Vec<&str> = match fields.iter().any(|g| g.f64) {
+        true => Vec::new(),
+        false => fields.iter().flat_map(|g| g.component_refs()).collect(),
+    };
+    if let Some(lines) = crate::locate::trace_lines(loc, seeds, o, vector, &names, &mut progress)? {
         return Ok(lines);
     }
     let jobs = o.jobs(seeds.len());
@@ -243,18 +250,38 @@ impl LineArrays {
         Ok(arrays)
     }
 
-    /// The arrays of `lines` with `fields`: at the tets the tracer found the points in
-    /// ([`Self::at_tets`]: the GPU's stream kernel), else sampled through `loc` ([`Self::new`]).
+    /// The arrays of `lines` with `fields`: as the tracer sampled them ([`Self::from_tracer`]:
+    /// the GPU's stream kernel), else at the tets the tracer found the points in
+    /// ([`Self::at_tets`]), else sampled through `loc` ([`Self::new`]).
     pub fn sample(
         lines: &[Line],
         mesh: &crate::Mesh,
         loc: &mut dyn BatchLocator,
         fields: &[super::FieldGroup],
     ) -> Result<LineArrays> {
+        if let Some(arrays) = Self::from_tracer(lines, fields) {
+            return Ok(arrays);
+        }
         match Self::at_tets(lines, mesh, fields)? {
             Some(arrays) => Ok(arrays),
             None => Self::new(lines, loc, fields),
         }
+    }
+
+    /// The arrays of `lines` whose points all carry their tets and the values of `fields`
+    /// (f32 data: [`Line::values`], as [`trace_with`] asks the tracer for them); `None`
+    /// otherwise.
+    pub fn from_tracer(lines: &[Line], fields: &[super::FieldGroup]) -> Option<LineArrays> {
+        let k: usize = fields.iter().map(|g| g.n_components()).sum();
+        let complete = |l: &Line| l.tets.len() == l.points.len() && l.values.len() == k * l.points.len();
+        if fields.iter().any(|g| g.f64) || !lines.iter().all(complete) {
+            return None;
+        }
+        let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
+        let ids = super::concat(&lens, |i, out| out.copy_from_slice(&lines[i].tets));
+        let widths: Vec<usize> = lens.iter().map(|n| n * k).collect();
+        let values = super::concat(&widths, |i, out| out.copy_from_slice(&lines[i].values));
+        Some(Self::of(lines, super::probe::Probed::from_values(ids, fields, &values)))
     }
 
     /// The arrays of `lines` whose points all carry their tets ([`Line::tets`]), with the
@@ -615,7 +642,7 @@ mod tests {
                 trace(&outside, &o, &exact, &|_| Ok(())).unwrap()
             };
             let mut rounds = 0;
-            let all = trace_with(&outside, &o, &mut cpu, ["v[0]", "v[1]", "v[2]"], |_| {
+            let all = trace_with(&outside, &o, &mut cpu, ["v[0]", "v[1]", "v[2]"], &[], |_| {
                 rounds += 1;
                 Ok(())
             })

@@ -220,6 +220,7 @@ impl Particle {
             points: self.points,
             time: self.time,
             tets: Vec::new(),
+            values: Vec::new(),
             reason,
         })
     }

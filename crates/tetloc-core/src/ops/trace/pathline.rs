@@ -513,6 +513,7 @@ fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
             points: t.points,
             time: t.time,
             tets: Vec::new(),
+            values: Vec::new(),
         })
         .collect();
     LineArrays::of(&lines, super::super::probe::Probed::from_values(ids, fields, &values))
