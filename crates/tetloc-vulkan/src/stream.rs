@@ -29,7 +29,7 @@ use tetloc_core::ops::trace::{Integrator, Line, Reason, TraceOptions};
 
 /// Most particles one launch advances; more lines run group after group.
 const GROUP: usize = 1 << 22;
-/// Bytes of line points a segment of a full group may write.
+/// Bytes of line points (positions, tets and line fields) a segment of a group may write.
 const SEGMENT_BYTES: usize = 1 << 30;
 const WORKGROUP: u32 = 128;
 
@@ -91,11 +91,13 @@ struct Stream {
     _neighbors: Option<Buffer>,
 }
 
-/// Points a particle writes per launch for `group` particles: the whole line when it fits.
-fn segment_points(group: usize, max_steps: usize) -> usize {
+/// Points a particle writes per launch for `group` particles with `fields` line fields (a
+/// point's position and time, its tet and the fields' values): the whole line when it fits.
+fn segment_points(group: usize, max_steps: usize, fields: usize) -> usize {
     // The seed, VTK's max_steps + 1 steps, and room to find that the line has ended.
     let whole = max_steps.saturating_add(3);
-    (SEGMENT_BYTES / (16 * group.max(1))).clamp(2, whole.max(2))
+    let point_bytes = 16 + 4 + 4 * fields;
+    (SEGMENT_BYTES / (point_bytes * group.max(1))).clamp(2, whole.max(2))
 }
 
 /// The particles of `jobs` (seed index, backward) at their seeds (the file's coordinates),
@@ -117,9 +119,9 @@ fn particles(seeds: &[Vec3], jobs: &[(u32, bool)], frame: tetloc_core::mesh::Fra
 }
 
 impl Stream {
-    /// `None` where the locator has no stream shader for these options.
-    /// The line fields `fields` are sampled at each point where they are f32 data and at
-    /// most MAX_FIELDS (else none: the host samples them).
+    /// `None` where the locator has no stream shader for these options. The components
+    /// `line_fields` are sampled at each point where they are f32 data and at most MAX_FIELDS
+    /// (else none are: the host samples them).
     fn open(
         loc: &mut VulkanLocator,
         o: &TraceOptions,
@@ -142,6 +144,9 @@ impl Stream {
             FieldLocation::Vertex => OUT_VERTEX,
             FieldLocation::Cell => OUT_CELL,
         };
+        if loc.resources_for(output, false).plan.stream.is_none() {
+            return Ok(None);
+        }
         let sampled = line_fields.len() <= MAX_FIELDS as usize
             && line_fields.iter().all(|c| mesh.field(c).is_ok_and(|f| f.values64.is_none()));
         let line_fields = if sampled { line_fields } else { &[] };
@@ -258,7 +263,9 @@ impl VulkanLocator {
         o.check()?;
         let jobs = o.jobs(seeds.len());
         let group = jobs.len().clamp(1, GROUP);
-        let seg = segment_points(group, o.max_steps);
+        // As Stream::open decides: at most MAX_FIELDS components, else the host samples them.
+        let k = if fields.len() <= MAX_FIELDS as usize { fields.len() } else { 0 };
+        let seg = segment_points(group, o.max_steps, k);
         self.trace_in_segments(seeds, o, vector, fields, seg, true, progress)
     }
 
@@ -363,7 +370,7 @@ impl VulkanLocator {
         if n == 0 || n > GROUP {
             return Err(tetloc_core::Error::Invalid(format!("trace benchmark: {n} lines (1 to {GROUP})")));
         }
-        let seg = segment_points(n, o.max_steps);
+        let seg = segment_points(n, o.max_steps, 0);
         let Some(s) = Stream::open(self, o, vector, &[], n, seg, hint)? else { return Ok(None) };
         let frame = self.mesh().info.frame;
         let init = particles(seeds, &jobs, frame);
@@ -583,6 +590,20 @@ mod tests {
             assert_eq!(traced.unwrap().unwrap().0, whole, "{preset}");
         }
         assert_eq!(ctx.validation_errors(), 0);
+    }
+
+    /// A segment's buffers stay within SEGMENT_BYTES with every line field a point, and a
+    /// small group writes its whole lines in one launch.
+    #[test]
+    fn segments_fit_their_bytes() {
+        for fields in [0, 5, MAX_FIELDS as usize] {
+            for group in [1, 1000, 33_487, GROUP] {
+                let seg = segment_points(group, 1000, fields);
+                assert!((2..=1003).contains(&seg), "{group} {fields}: {seg}");
+                assert!(seg == 2 || group * seg * (20 + 4 * fields) <= SEGMENT_BYTES, "{group} {fields}: {seg}");
+            }
+            assert_eq!(segment_points(1000, 1000, fields), 1003);
+        }
     }
 
     /// The adaptive integrators, and kernels without a stream shader, leave tracing to the
