@@ -37,6 +37,7 @@ const SHADERS: &[Shader] = &[
     shader("SOFT_BVH", "soft_bvh.comp", ShaderStage::Compute, true),
     shader("MARCH", "march.comp", ShaderStage::Compute, true),
     shader("STREAM", "stream.comp", ShaderStage::Compute, true),
+    shader("HINTED", "hinted.comp", ShaderStage::Compute, true),
     shader("MEMPROBE", "memprobe.comp", ShaderStage::Compute, false),
     // Weights applied to many steps' fields (locate once, interpolate many: src/weights.rs).
     shader("WEIGHTS", "weights.comp", ShaderStage::Compute, true),

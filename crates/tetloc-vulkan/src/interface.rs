@@ -262,6 +262,10 @@ gpu_interface! {
         /// Stream tracing: the line fields at each line point of a segment (FIELD_COUNT
         /// floats a point, B_FIELD's first buffers, as OUT_FIELDS samples them).
         B_STREAM_VALUES = 57;
+        /// Locating from hints (hinted.comp): each point's coordinates and hint tet, and the
+        /// answers.
+        B_HINTED = 58;
+        B_HINTED_IDS = 59;
         /// The build's arrays that grow with the mesh (keys, ids, binary nodes and boxes,
         /// 4-wide nodes, their binary nodes and levels, homes, faces, neighbours) are bound as arrays
         /// of MAX_CHUNKS buffers of BUILD_CHUNK_BYTES each (shaders/build/build.glsl).

@@ -29,6 +29,7 @@ mod device;
 mod error;
 #[cfg_attr(not(feature = "cuda"), allow(dead_code))] // used by cuda_interop.rs and tests
 mod external;
+mod hinted;
 mod interface;
 mod kernels;
 mod locator;

@@ -24,6 +24,28 @@ pub trait GridSampler {
     ) -> Result<()>;
 }
 
+/// A backend that locates points faster from a tet near each (a walk through face
+/// neighbours from it), with the answers of [`BatchLocator::locate`].
+pub trait HintedLocator {
+    /// The tet of each of `points` (f32, the file's coordinates; -1 outside), starting from
+    /// `hints` (a tet near each point, such as a particle's last; negative: none).
+    fn locate_from(&mut self, points: &[Vec3], hints: &[i32], ids: &mut [i32]) -> Result<()>;
+}
+
+/// [`HintedLocator::locate_from`] through `loc`'s own hinted locator, else `loc.locate`
+/// (the hints unused).
+pub fn locate_from(
+    loc: &mut (impl BatchLocator + ?Sized),
+    points: &[Vec3],
+    hints: &[i32],
+    ids: &mut [i32],
+) -> Result<()> {
+    match loc.hinted_locator() {
+        Some(h) => h.locate_from(points, hints, ids),
+        None => loc.locate(points, ids),
+    }
+}
+
 /// A backend that traces whole streamlines itself.
 pub trait LineTracer {
     /// The lines from `seeds` (in VTK's order), or `None` where it has no tracer for these

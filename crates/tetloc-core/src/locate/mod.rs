@@ -25,7 +25,7 @@ use cpu::is_coherent;
 mod tests;
 pub mod tolerance;
 
-pub use capability::{sample_grid, trace_lines, GridSampler, LineTracer};
+pub use capability::{locate_from, sample_grid, trace_lines, GridSampler, HintedLocator, LineTracer};
 pub(crate) use cells::cell_weights;
 pub use cells::CellLocator;
 pub use cpu::CpuLocator;
@@ -73,6 +73,12 @@ pub trait BatchLocator {
     /// end), or `None`: then `ops::trace::trace_with` drives the queries one Runge–Kutta stage
     /// at a time.
     fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
+        None
+    }
+
+    /// The backend's own way to locate points from a tet near each (a GPU kernel's walk), or
+    /// `None`: then [`locate_from`] runs `locate`.
+    fn hinted_locator(&mut self) -> Option<&mut dyn HintedLocator> {
         None
     }
 
@@ -281,6 +287,35 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
         self.inner.line_tracer()?;
         Some(self)
+    }
+
+    /// The backend's own hinted locator gets only the finite points ([`HintedLocator`] below).
+    fn hinted_locator(&mut self) -> Option<&mut dyn HintedLocator> {
+        self.inner.hinted_locator()?;
+        Some(self)
+    }
+}
+
+impl<L: BatchLocator> HintedLocator for FiniteOnly<L> {
+    /// Only the finite points, with their hints; the others are outside.
+    fn locate_from(&mut self, points: &[Vec3], hints: &[i32], ids: &mut [i32]) -> Result<()> {
+        if hints.len() != points.len() || ids.len() != points.len() {
+            return Err(crate::Error::Invalid(format!(
+                "locate_from: {} points, {} hints, {} ids",
+                points.len(),
+                hints.len(),
+                ids.len()
+            )));
+        }
+        let Some(h) = self.inner.hinted_locator() else { return self.locate(points, ids) };
+        let Some(c) = Compacted::of(points, |p| is_finite(*p)) else {
+            return h.locate_from(points, hints, ids);
+        };
+        let kept_hints: Vec<i32> = c.index.iter().map(|&i| hints[i]).collect();
+        let mut kept = vec![OUTSIDE; c.points.len()];
+        h.locate_from(&c.points, &kept_hints, &mut kept)?;
+        c.scatter_k(1, &kept, ids, OUTSIDE);
+        Ok(())
     }
 }
 

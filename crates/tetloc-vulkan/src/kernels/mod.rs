@@ -103,6 +103,9 @@ pub(crate) struct Plan {
     pub march: Program,
     /// The shader that traces particles (whole RK4 lines), where the kernel has one.
     pub stream: Option<Program>,
+    /// The shader that locates points from a tet near each (a walk, then the search), where
+    /// the kernel has one.
+    pub hinted: Option<Program>,
     /// The march and stream shaders walk through tet neighbours, which `bindings` lacks: the
     /// marcher and the tracer must bind a table of their own.
     pub march_needs_neighbors: bool,

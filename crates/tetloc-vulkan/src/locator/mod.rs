@@ -152,6 +152,8 @@ pub struct VulkanLocator {
     // Field order is drop order: pipelines and buffers before the device object.
     launcher: Launcher,
     io: Option<Io>,
+    /// The hinted locate's pipeline and buffers, once used (`crate::hinted`).
+    pub(crate) hinted: Option<crate::hinted::Hinted>,
     /// The fields on the GPU, in the order B_FIELD binds them: those of the last launch
     /// that sampled fields (only they are resident).
     fields: Vec<(String, Buffer)>,
@@ -275,6 +277,7 @@ impl VulkanLocator {
         let mut loc = VulkanLocator {
             launcher,
             io: None,
+            hinted: None,
             fields: vec![],
             grid_axes: None,
             plan,
@@ -346,6 +349,11 @@ impl VulkanLocator {
     /// The device object (the volume marcher submits its frames through it).
     pub fn mesh(&self) -> &Arc<Mesh> {
         &self.mesh
+    }
+
+    /// The kernel's programs and structure.
+    pub(crate) fn plan(&self) -> &Plan {
+        &self.plan
     }
 
     pub(crate) fn device(&mut self) -> &mut Device {
@@ -1096,6 +1104,15 @@ impl BatchLocator for VulkanLocator {
 
     fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
         Some(self)
+    }
+
+    /// The kernel's walk from hints (soft-bvh on tets whose f32 copy is the file's data).
+    fn hinted_locator(&mut self) -> Option<&mut dyn tetloc_core::locate::HintedLocator> {
+        if self.walks_from_hints() {
+            Some(self)
+        } else {
+            None
+        }
     }
 }
 

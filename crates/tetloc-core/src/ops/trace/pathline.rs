@@ -569,8 +569,9 @@ pub fn pathlines(
 }
 
 /// [`pathlines`] step-synchronous: every live particle's lookup answered by one `locate`
-/// through `loc` (any backend) per Runge–Kutta stage, the values interpolated on the host in
-/// f64 at the tets found.
+/// through `loc` (any backend) per Runge–Kutta stage, each from the particle's last tet where
+/// the backend walks from one ([`crate::locate::locate_from`]: soft-bvh), the values
+/// interpolated on the host in f64 at the tets found.
 pub fn pathlines_batch(
     job: PathJob,
     loc: &mut dyn BatchLocator,
@@ -580,8 +581,10 @@ pub fn pathlines_batch(
     let o = job.options;
     let mut run = setup(job)?;
     let alias = &run.alias;
-    let (mut points, mut ids): (Vec<Vec3>, Vec<i32>) = (Vec::new(), Vec::new());
+    let (mut points, mut ids, mut hints): (Vec<Vec3>, Vec<i32>, Vec<i32>) = (Vec::new(), Vec::new(), Vec::new());
     let mut live: Vec<usize> = Vec::new();
+    // Each particle's last tet, where its next lookup starts.
+    let mut last = vec![crate::locate::OUTSIDE; run.tracks.len()];
     for (n, leg) in run.legs.iter().enumerate() {
         let br = run.reader.bracket(mesh, leg.bracket)?;
         run.tracks.par_iter_mut().for_each(|tr| tr.p.start_leg(leg, o));
@@ -596,8 +599,15 @@ pub fn pathlines_batch(
                 points.extend(
                     part.iter().map(|&i| run.tracks[i].p.query().map_or([f32::NAN; 3], |(q, _)| q.map(|c| c as f32))),
                 );
+                hints.clear();
+                hints.extend(part.iter().map(|&i| last[i]));
                 ids.resize(points.len(), -1);
-                loc.locate(&points, &mut ids)?;
+                crate::locate::locate_from(loc, &points, &hints, &mut ids)?;
+                for (&i, &id) in part.iter().zip(&ids) {
+                    if id >= 0 {
+                        last[i] = id;
+                    }
+                }
                 // The answers, on every core: each track of `part` once.
                 let mut chosen: Vec<&mut Track> = Vec::with_capacity(part.len());
                 let mut rest = run.tracks.iter_mut().enumerate();

@@ -175,6 +175,7 @@ pub(crate) fn plan(k: &RtKernel, dev: &mut Device, input: &Inputs) -> VkResult<P
         march: program(shaders::MARCH_RGEN),
         // Particles are traced in a compute shader, which cannot trace rays: the batch path.
         stream: None,
+        hinted: None,
         march_needs_neighbors: false,
         ray: (k.ray)(mesh),
         accel,

@@ -207,6 +207,7 @@ fn plan(dev: &mut Device, input: &Inputs) -> VkResult<Plan> {
         locate: Program::Compute(shaders::SOFT_BVH),
         march: Program::Compute(shaders::MARCH),
         stream: Some(Program::Compute(shaders::STREAM)),
+        hinted: Some(Program::Compute(shaders::HINTED)),
         // The marcher walks from sample to sample (march.comp), with or without the walk start.
         march_needs_neighbors: !opts.walk_start,
         ray: Ray::default(),
