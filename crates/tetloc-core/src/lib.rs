@@ -4,6 +4,7 @@
 
 mod buckets;
 pub mod bvh;
+pub mod cache;
 pub mod cell;
 pub mod error;
 pub mod gen;

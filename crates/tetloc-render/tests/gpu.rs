@@ -15,7 +15,11 @@ use tetloc_vulkan::{Context, ContextOptions, Kernel, LocatorOptions, VulkanLocat
 
 /// The device, or `None` (test skipped) outside CI when there is none.
 fn context(test: &str) -> Option<Arc<Context>> {
-    let ctx = match Context::with_options(ContextOptions { device_index: None, validation: true }) {
+    let ctx = match Context::with_options(ContextOptions {
+        device_index: None,
+        validation: true,
+        pipeline_cache_dir: None,
+    }) {
         Ok(c) => c,
         Err(e) if !in_ci() => {
             eprintln!("{test}: {e}");

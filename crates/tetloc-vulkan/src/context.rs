@@ -46,13 +46,29 @@ pub struct ContextOptions {
     /// Turn on `VK_LAYER_KHRONOS_validation` when it is installed. Default: the environment
     /// variable `TETLOC_VK_VALIDATION` is set to something other than `0`.
     pub validation: bool,
+    /// Where the compiled pipelines are kept between runs (a file a device in this directory:
+    /// the next process reuses them instead of compiling again, whatever the driver caches);
+    /// `None`: not kept. Default: `tetloc_core::cache::dir()`, unless the environment variable
+    /// `TETLOC_PIPELINE_CACHE` is `0`.
+    pub pipeline_cache_dir: Option<std::path::PathBuf>,
 }
 
 impl Default for ContextOptions {
     fn default() -> Self {
         let validation = std::env::var("TETLOC_VK_VALIDATION").map(|v| !v.is_empty() && v != "0").unwrap_or(false);
-        ContextOptions { device_index: None, validation }
+        let keep = std::env::var("TETLOC_PIPELINE_CACHE").map_or(true, |v| v != "0");
+        let pipeline_cache_dir = if keep { tetloc_core::cache::dir() } else { None };
+        ContextOptions { device_index: None, validation, pipeline_cache_dir }
     }
+}
+
+/// The first bytes of a pipeline cache file ([`tetloc_core::cache::frame`]).
+const PIPELINE_CACHE_MAGIC: &[u8; 8] = b"TLPIPES1";
+
+/// The pipeline cache file of the device with `uuid` in `dir`.
+fn pipeline_cache_file(dir: &std::path::Path, uuid: &[u8; 16]) -> std::path::PathBuf {
+    let hex: String = uuid.iter().map(|b| format!("{b:02x}")).collect();
+    dir.join(format!("pipelines-{hex}.bin"))
 }
 
 /// Ray-tracing function tables and properties, present when the device has ray tracing.
@@ -116,6 +132,13 @@ pub struct Context {
     /// pipeline of each batch of lines, a locator built again on the same mesh) reuses the
     /// first compilation, whether or not the driver keeps a cache of its own.
     pub(crate) pipeline_cache: vk::PipelineCache,
+    /// Where the cache is kept between runs, and the checksum of what is there (written back
+    /// when this process made pipelines since: [`Context::save_pipeline_cache`]).
+    pipeline_cache_file: Option<(std::path::PathBuf, Mutex<u64>)>,
+    /// Pipelines were made since the cache was last saved.
+    pipelines_made: std::sync::atomic::AtomicBool,
+    /// Bytes of kept pipelines this context started from (0: none, or none that passed).
+    pipeline_cache_loaded: usize,
     info: DeviceInfo,
     validation: bool,
     // Last: the loader library must outlive every Vulkan object above.
@@ -270,7 +293,7 @@ fn enumerate(instance: &ash::Instance) -> VkResult<Vec<(vk::PhysicalDevice, Prob
 /// SKIPPED) where this machine has no Vulkan, except in CI, where that fails the test.
 #[cfg(test)]
 pub(crate) fn test_context(test: &str) -> Option<Arc<Context>> {
-    match Context::with_options(ContextOptions { device_index: None, validation: true }) {
+    match Context::with_options(ContextOptions { device_index: None, validation: true, pipeline_cache_dir: None }) {
         Ok(c) => Some(c),
         Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) if !tetloc_testdata::in_ci() => {
             eprintln!("{test}: {e}");
@@ -313,6 +336,38 @@ unsafe extern "system" fn on_message(
 }
 
 impl Context {
+    /// Bytes of compiled pipelines kept by an earlier process that this context started from
+    /// (0: none kept, or a file that failed its checks; the driver may still ignore them).
+    pub fn kept_pipeline_bytes(&self) -> usize {
+        self.pipeline_cache_loaded
+    }
+
+    /// Notes that a pipeline was made through [`Self::pipeline_cache`] (to be saved).
+    pub(crate) fn note_pipeline_made(&self) {
+        self.pipelines_made.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+
+    /// Writes the pipeline cache to its file where pipelines were made since it was last
+    /// saved and its bytes changed: best effort (a cache that cannot be written is only a
+    /// cache, and changes no answer).
+    pub fn save_pipeline_cache(&self) {
+        let Some((file, saved)) = &self.pipeline_cache_file else { return };
+        if !self.pipelines_made.swap(false, std::sync::atomic::Ordering::Relaxed) {
+            return;
+        }
+        let mut saved = saved.lock().unwrap_or_else(|p| p.into_inner());
+        // SAFETY: the cache is alive (destroyed only in Drop, after this) and internally
+        // synchronized.
+        let Ok(data) = (unsafe { self.device.get_pipeline_cache_data(self.pipeline_cache) }) else { return };
+        let sum = tetloc_core::cache::checksum(&data);
+        if data.is_empty() || sum == *saved {
+            return;
+        }
+        if tetloc_core::cache::write_atomically(file, &tetloc_core::cache::frame(PIPELINE_CACHE_MAGIC, &data)).is_ok() {
+            *saved = sum;
+        }
+    }
+
     /// Opens device `device_index` (from [`devices()`]), or the best one when `None`.
     pub fn new(device_index: Option<usize>) -> VkResult<Arc<Context>> {
         Self::with_options(ContextOptions { device_index, ..Default::default() })
@@ -403,17 +458,25 @@ impl Context {
         let (memory_properties, queue) = unsafe {
             (instance.get_physical_device_memory_properties(physical), device.get_device_queue(queue_family, 0))
         };
-        // SAFETY: a valid device; an empty cache (no initial data).
-        let pipeline_cache =
-            match unsafe { device.create_pipeline_cache(&vk::PipelineCacheCreateInfo::default(), None) } {
-                Ok(c) => c,
-                Err(result) => {
-                    // SAFETY: nothing was created from the device yet.
-                    unsafe { device.destroy_device(None) };
-                    destroy_debug(&debug);
-                    return Err(VkError::Vk { what: "vkCreatePipelineCache", result });
-                }
-            };
+        // The pipelines an earlier process compiled on this device, where kept: checked by our
+        // frame's checksum here, and by the driver against its own header (another driver's
+        // data is ignored, and replaced when this process writes the cache back).
+        let cache_file = opts.pipeline_cache_dir.as_deref().map(|d| pipeline_cache_file(d, &uuid));
+        let kept = cache_file.as_deref().and_then(|f| std::fs::read(f).ok());
+        let initial = kept.as_deref().and_then(|k| tetloc_core::cache::unframe(PIPELINE_CACHE_MAGIC, k)).unwrap_or(&[]);
+        let loaded = tetloc_core::cache::checksum(initial);
+        let cache_info = vk::PipelineCacheCreateInfo::default().initial_data(initial);
+        // SAFETY: a valid device; the initial data is the driver's own format or ignored by it
+        // (the header it checks), and its bytes are the ones that were written.
+        let pipeline_cache = match unsafe { device.create_pipeline_cache(&cache_info, None) } {
+            Ok(c) => c,
+            Err(result) => {
+                // SAFETY: nothing was created from the device yet.
+                unsafe { device.destroy_device(None) };
+                destroy_debug(&debug);
+                return Err(VkError::Vk { what: "vkCreatePipelineCache", result });
+            }
+        };
         Ok(Arc::new(Context {
             instance: guard.0.take().unwrap(),
             debug,
@@ -427,6 +490,9 @@ impl Context {
             uuid,
             external,
             pipeline_cache,
+            pipeline_cache_file: cache_file.map(|f| (f, Mutex::new(loaded))),
+            pipelines_made: std::sync::atomic::AtomicBool::new(false),
+            pipeline_cache_loaded: initial.len(),
             info,
             validation,
             _entry: entry,
@@ -562,6 +628,7 @@ impl Drop for Context {
         // `Arc<Context>`, so all of them are gone when the last Arc drops.
         unsafe {
             let _ = self.device.device_wait_idle();
+            self.save_pipeline_cache();
             self.device.destroy_pipeline_cache(self.pipeline_cache, None);
             self.device.destroy_device(None);
             if let Some((du, m)) = self.debug.take() {
@@ -569,5 +636,81 @@ impl Drop for Context {
             }
             self.instance.destroy_instance(None);
         }
+    }
+}
+
+#[cfg(test)]
+mod pipeline_cache_tests {
+    use super::*;
+    use crate::{Kernel, LocatorOptions, VulkanLocator};
+    use tetloc_core::locate::BatchLocator;
+
+    /// A context on the test device keeping its pipelines in `dir` (`None`: no device, skipped).
+    fn context_in(dir: &std::path::Path) -> Option<Arc<Context>> {
+        let opts = ContextOptions { device_index: None, validation: true, pipeline_cache_dir: Some(dir.to_path_buf()) };
+        match Context::with_options(opts) {
+            Ok(c) => Some(c),
+            Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) if !tetloc_testdata::in_ci() => {
+                tetloc_testdata::skip("pipelines_are_kept_between_contexts", &e.to_string());
+                None
+            }
+            Err(e) => panic!("{e}"),
+        }
+    }
+
+    /// Locates a few points on a small mesh (compiling soft-bvh's pipelines).
+    fn use_it(ctx: &Arc<Context>) {
+        let m = Arc::new(
+            tetloc_core::Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Fusion, 500, 1), "m").unwrap(),
+        );
+        let mut loc = VulkanLocator::new(ctx.clone(), m.clone(), Kernel::SoftBvh, LocatorOptions::default()).unwrap();
+        let points: Vec<_> = (0..m.n_tets()).map(|t| m.tet_center(t)).collect();
+        let mut ids = vec![0; points.len()];
+        loc.locate(&points, &mut ids).unwrap();
+        assert!(ids.iter().enumerate().all(|(t, &id)| id == t as i32));
+    }
+
+    /// The pipelines a context compiled are in its device's file once it is gone, and the next
+    /// context starts from them; a torn, altered or foreign file is ignored (and replaced),
+    /// never trusted.
+    #[test]
+    fn pipelines_are_kept_between_contexts() {
+        let dir = std::env::temp_dir().join(format!("tetloc-pipelines-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let Some(ctx) = context_in(&dir) else { return };
+        assert_eq!(ctx.pipeline_cache_loaded, 0);
+        use_it(&ctx);
+        let file = ctx.pipeline_cache_file.as_ref().unwrap().0.clone();
+        drop(ctx);
+        let kept = std::fs::read(&file).expect("the cache file is written");
+        let payload = tetloc_core::cache::unframe(PIPELINE_CACHE_MAGIC, &kept).expect("a whole frame").len();
+        assert!(payload > 0);
+        let ctx = context_in(&dir).unwrap();
+        assert_eq!(ctx.pipeline_cache_loaded, payload);
+        use_it(&ctx);
+        drop(ctx);
+        // Altered bytes, a torn file, and a frame whose payload is no driver's: the context
+        // starts empty (or the driver ignores the foreign header) and works.
+        let mut altered = kept.clone();
+        let at = altered.len() / 2;
+        altered[at] ^= 0x55;
+        let foreign = tetloc_core::cache::frame(PIPELINE_CACHE_MAGIC, &[0u8; 64]);
+        for (what, bytes) in [("altered", altered), ("torn", kept[..kept.len() / 3].to_vec()), ("foreign", foreign)] {
+            std::fs::write(&file, &bytes).unwrap();
+            let ctx = context_in(&dir).unwrap();
+            let expect = if what == "foreign" { 64 } else { 0 };
+            assert_eq!(ctx.pipeline_cache_loaded, expect, "{what}");
+            use_it(&ctx);
+            assert_eq!(ctx.validation_errors(), 0, "{what}");
+            drop(ctx);
+            let again = std::fs::read(&file).unwrap();
+            // The driver's data again (lavapipe keeps only its header; NVIDIA the pipelines).
+            let len = tetloc_core::cache::unframe(PIPELINE_CACHE_MAGIC, &again).map(<[u8]>::len);
+            assert_eq!(len, Some(payload), "{what}");
+        }
+        // No temporary file is left beside it.
+        let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
+        assert_eq!(left, [file.file_name().unwrap().to_os_string()]);
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -467,7 +467,8 @@ impl CudaLocator {
                 })?
             }
         };
-        let ctx = Context::with_options(ContextOptions { device_index: Some(index), validation })?;
+        let ctx =
+            Context::with_options(ContextOptions { device_index: Some(index), validation, ..Default::default() })?;
         check_same_gpu(cuda_device, &uuid, &ctx)?;
         let primary = Primary::retain(cuda_device)?;
         let _bound = primary.bind()?;

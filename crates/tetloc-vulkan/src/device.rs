@@ -42,6 +42,14 @@ impl Split {
     }
 }
 
+impl Drop for Device {
+    /// The pipelines this locator (or marcher, or tracer) compiled are kept for the next
+    /// process (the process' contexts live as long as it does, so their own drop is too late).
+    fn drop(&mut self) {
+        self.ctx.save_pipeline_cache();
+    }
+}
+
 impl Device {
     /// A device object on `ctx` with a staging buffer of `staging_bytes`; arrays larger than
     /// one buffer may be (or than `max_buffer_bytes`, a test hook) are split.

@@ -303,6 +303,7 @@ fn compute_pipeline(ctx: &Arc<Context>, layout: vk::PipelineLayout, spirv: &[u8]
     // SAFETY: valid module, layout and specialization data.
     let pipeline = unsafe { dev.create_compute_pipelines(ctx.pipeline_cache, &[info], None) }
         .map_err(|(_, r)| VkError::Vk { what: "vkCreateComputePipelines", result: r })?[0];
+    ctx.note_pipeline_made();
     Ok(Pipeline { ctx: ctx.clone(), pipeline, bind_point: vk::PipelineBindPoint::COMPUTE, sbt: None })
 }
 
@@ -376,6 +377,7 @@ fn rt_pipeline(
         rt.pipeline.create_ray_tracing_pipelines(vk::DeferredOperationKHR::null(), ctx.pipeline_cache, &[info], None)
     }
     .map_err(|(_, r)| VkError::Vk { what: "vkCreateRayTracingPipelinesKHR", result: r })?[0];
+    ctx.note_pipeline_made();
     let pipeline =
         Pipeline { ctx: ctx.clone(), pipeline, bind_point: vk::PipelineBindPoint::RAY_TRACING_KHR, sbt: None };
 

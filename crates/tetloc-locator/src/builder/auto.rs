@@ -10,7 +10,6 @@ use crate::{contexts, fmt_rate, Backend, LocatorOptions, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::fmt;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -118,11 +117,8 @@ struct AutoCache {
 }
 
 fn cache_path(key: &str) -> Option<PathBuf> {
-    let base = std::env::var_os("XDG_CACHE_HOME")
-        .map(PathBuf::from)
-        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
     let name: String = key.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
-    Some(base.join("tetloc").join(format!("auto-{name}.json")))
+    Some(tetloc_core::cache::dir()?.join(format!("auto-{name}.json")))
 }
 
 /// The ranking for device `key`: from this process' memory, from the cache file, or measured
@@ -150,28 +146,13 @@ fn ranking(
         Some(p) => {
             let json = serde_json::to_vec(&AutoCache { device: key.to_string(), ranking: ranking.clone() })
                 .map_err(|e| tetloc_core::Error::Invalid(e.to_string()))?;
-            if let Err(e) = write_atomically(p, &json) {
+            if let Err(e) = tetloc_core::cache::write_atomically(p, &json) {
                 eprintln!("warning: auto: cannot cache the measurement ({e}); it is kept for this run only");
             }
         }
         None => eprintln!("warning: auto: no cache directory (neither XDG_CACHE_HOME nor HOME is set); the measurement is kept for this run only"),
     }
     Ok((ranking, "measured"))
-}
-
-/// Writes `bytes` to `path` through a temporary file beside it, renamed over `path` once
-/// complete: another process never reads half a cache.
-fn write_atomically(path: &Path, bytes: &[u8]) -> tetloc_core::Result<()> {
-    let dir = path.parent().unwrap_or(Path::new("."));
-    std::fs::create_dir_all(dir).map_err(|e| tetloc_core::Error::io(dir, e))?;
-    let tmp = path.with_extension(format!("{}.tmp", std::process::id()));
-    let written = std::fs::File::create(&tmp)
-        .and_then(|mut f| f.write_all(bytes).and_then(|()| f.sync_all()))
-        .and_then(|()| std::fs::rename(&tmp, path));
-    written.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        tetloc_core::Error::io(path, e)
-    })
 }
 
 /// Samples/s of each backend locating random points in a small probe mesh, within about

@@ -11,7 +11,7 @@ use tetloc_vulkan::{Context, ContextOptions, Kernel, LocatorOptions, SoftBvhOpti
 /// A validating context on the default device; `None` (after printing SKIPPED) when this
 /// machine has no Vulkan loader or device, except in CI where that fails the test.
 pub fn context(test: &str) -> Option<Arc<Context>> {
-    match Context::with_options(ContextOptions { device_index: None, validation: true }) {
+    match Context::with_options(ContextOptions { device_index: None, validation: true, pipeline_cache_dir: None }) {
         Ok(c) => Some(c),
         Err(e @ (VkError::NoLoader(_) | VkError::NoDevice)) => {
             if in_ci() {
