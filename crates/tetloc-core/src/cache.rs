@@ -15,6 +15,16 @@ pub fn dir() -> Option<PathBuf> {
     Some(base.join("tetloc"))
 }
 
+/// The bytes of the cache file `path`, `None` when it cannot be read or is larger than
+/// [`MAX_FILE`] (bounded memory whatever is found there).
+pub fn read(path: &Path) -> Option<Vec<u8>> {
+    let len = std::fs::metadata(path).ok()?.len();
+    (len <= MAX_FILE).then(|| std::fs::read(path).ok()).flatten()
+}
+
+/// The largest cache file read (tetloc's own are a few MB at most).
+pub const MAX_FILE: u64 = 64 << 20;
+
 /// Writes `bytes` to `path` through a temporary file beside it, renamed over `path` once
 /// complete: another process never reads half a cache.
 pub fn write_atomically(path: &Path, bytes: &[u8]) -> Result<()> {
@@ -86,6 +96,10 @@ mod tests {
         write_atomically(&path, b"first").unwrap();
         write_atomically(&path, b"second").unwrap();
         assert_eq!(std::fs::read(&path).unwrap(), b"second");
+        assert_eq!(read(&path).as_deref(), Some(&b"second"[..]));
+        std::fs::File::create(dir.join("big")).unwrap().set_len(MAX_FILE + 1).unwrap();
+        assert_eq!(read(&dir.join("big")), None);
+        std::fs::remove_file(dir.join("big")).unwrap();
         let left: Vec<_> = std::fs::read_dir(path.parent().unwrap()).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(left, [std::ffi::OsString::from("c.bin")]);
         std::fs::write(dir.join("file"), "").unwrap();

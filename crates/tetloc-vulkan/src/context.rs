@@ -462,7 +462,7 @@ impl Context {
         // frame's checksum here, and by the driver against its own header (another driver's
         // data is ignored, and replaced when this process writes the cache back).
         let cache_file = opts.pipeline_cache_dir.as_deref().map(|d| pipeline_cache_file(d, &uuid));
-        let kept = cache_file.as_deref().and_then(|f| std::fs::read(f).ok());
+        let kept = cache_file.as_deref().and_then(tetloc_core::cache::read);
         let initial = kept.as_deref().and_then(|k| tetloc_core::cache::unframe(PIPELINE_CACHE_MAGIC, k)).unwrap_or(&[]);
         let loaded = tetloc_core::cache::checksum(initial);
         let cache_info = vk::PipelineCacheCreateInfo::default().initial_data(initial);
@@ -708,6 +708,11 @@ mod pipeline_cache_tests {
             let len = tetloc_core::cache::unframe(PIPELINE_CACHE_MAGIC, &again).map(<[u8]>::len);
             assert_eq!(len, Some(payload), "{what}");
         }
+        // A file larger than any cache is not read at all (sparse: no disk used).
+        std::fs::File::create(&file).unwrap().set_len(tetloc_core::cache::MAX_FILE + 1).unwrap();
+        let ctx = context_in(&dir).unwrap();
+        assert_eq!(ctx.kept_pipeline_bytes(), 0);
+        drop(ctx);
         // No temporary file is left beside it.
         let left: Vec<_> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name()).collect();
         assert_eq!(left, [file.file_name().unwrap().to_os_string()]);

@@ -135,7 +135,7 @@ fn ranking(
     if let Some(r) = memory.get(key) {
         return Ok((r.clone(), "measured before in this process"));
     }
-    let cached = path.and_then(|p| std::fs::read(p).ok()).and_then(|b| serde_json::from_slice::<AutoCache>(&b).ok());
+    let cached = path.and_then(tetloc_core::cache::read).and_then(|b| serde_json::from_slice::<AutoCache>(&b).ok());
     if let Some(c) = cached.filter(|c| c.device == key && !c.ranking.is_empty()) {
         memory.insert(key.to_string(), c.ranking.clone());
         return Ok((c.ranking, "cached"));
