@@ -80,18 +80,7 @@ impl HintedLocator for VulkanLocator {
                     .collect();
                 dev.write(&h.points, 0, bytemuck::cast_slice(&input))?;
                 let push = Params { counts: [n as u32, 0, h.push.counts[2], 0], ..h.push };
-                dev.run(|r| {
-                    let pl = &h.pipeline;
-                    // SAFETY: recording with a live pipeline, layout and descriptor set; the push
-                    // constants are the layout's range.
-                    unsafe {
-                        r.dev.cmd_bind_pipeline(r.cmd, pl.bind_point, pl.pipeline);
-                        r.dev.cmd_bind_descriptor_sets(r.cmd, pl.bind_point, h.desc.layout, 0, &[h.desc.set], &[]);
-                        r.dev.cmd_push_constants(r.cmd, h.desc.layout, h.desc.stages, 0, bytemuck::bytes_of(&push));
-                        r.dev.cmd_dispatch(r.cmd, (n as u32).div_ceil(WORKGROUP), 1, 1);
-                    }
-                    r.barrier();
-                })?;
+                dev.run(|r| h.pipeline.record_points(r, &h.desc, &push, n, WORKGROUP))?;
                 dev.download(&h.ids, 0, bytemuck::cast_slice_mut(ids))?;
             }
             Ok(())

@@ -275,6 +275,30 @@ pub(crate) struct Pipeline {
     pub sbt: Option<Sbt>,
 }
 
+impl Pipeline {
+    /// Records this compute pipeline over `n` invocations (one a point, in workgroups of
+    /// `workgroup`) with descriptor set `desc` and push constants `push`, then a barrier: the
+    /// launch of the shaders that bring their own descriptor set (stream, hinted).
+    pub(crate) fn record_points(
+        &self,
+        r: &crate::device::Recording,
+        desc: &Descriptors,
+        push: &Params,
+        n: usize,
+        workgroup: u32,
+    ) {
+        // SAFETY: recording with a live pipeline, layout and descriptor set; the push constants
+        // are the layout's range.
+        unsafe {
+            r.dev.cmd_bind_pipeline(r.cmd, self.bind_point, self.pipeline);
+            r.dev.cmd_bind_descriptor_sets(r.cmd, self.bind_point, desc.layout, 0, &[desc.set], &[]);
+            r.dev.cmd_push_constants(r.cmd, desc.layout, desc.stages, 0, bytemuck::bytes_of(push));
+            r.dev.cmd_dispatch(r.cmd, (n as u32).div_ceil(workgroup), 1, 1);
+        }
+        r.barrier();
+    }
+}
+
 /// The shader binding table: one record each for ray generation, miss and the hit group.
 pub(crate) struct Sbt {
     _buf: Buffer,

@@ -144,7 +144,7 @@ impl Stream {
             FieldLocation::Vertex => OUT_VERTEX,
             FieldLocation::Cell => OUT_CELL,
         };
-        if loc.resources_for(output, false).plan.stream.is_none() {
+        if loc.plan().stream.is_none() {
             return Ok(None);
         }
         let sampled = line_fields.len() <= MAX_FIELDS as usize
@@ -234,16 +234,7 @@ impl Stream {
 
     /// Records one launch over `n` particles.
     fn record_launch(&self, r: &Recording, n: usize) {
-        let pl = &self.pipeline;
-        // SAFETY: recording with live pipeline, layout and descriptor set; the push constants
-        // are the layout's range.
-        unsafe {
-            r.dev.cmd_bind_pipeline(r.cmd, pl.bind_point, pl.pipeline);
-            r.dev.cmd_bind_descriptor_sets(r.cmd, pl.bind_point, self.desc.layout, 0, &[self.desc.set], &[]);
-            r.dev.cmd_push_constants(r.cmd, self.desc.layout, self.desc.stages, 0, bytemuck::bytes_of(&self.push));
-            r.dev.cmd_dispatch(r.cmd, (n as u32).div_ceil(WORKGROUP), 1, 1);
-        }
-        r.barrier();
+        self.pipeline.record_points(r, &self.desc, &self.push, n, WORKGROUP);
     }
 }
 
