@@ -3,9 +3,11 @@
 //! cpu_ops -- MESH [PROBE_MESH] [DIMS] [SEEDS] [STEPS]`, each mesh a file or `fusion:TETS`
 //! (generated with its vector field `v`, as `tetloc gen fusion --vector`; TETS like 1.4M).
 //! `OPS` picks the operations (letters of `rpt`, all by default); `BUILD_PARTS=1` times the
-//! face neighbours and the BVH alone; `PROBE_PARTS=N` splits the probe: once more with its
+//! face neighbours and the BVH alone; `PROBE_PARTS=N` splits the probe: N times more with its
 //! search built (the walks and the values), then N times ids only (the walks alone);
-//! `AT_TETS=1` times the GPU trace's line fields (sampled at the kernel's tets) on the CPU's lines.
+//! `PROBE_FRESH=N` probes N more times with the build included, each on a fresh copy of the mesh;
+//! `NO_FIELDS=1` resamples ids only (no field values); `AT_TETS=1` times the GPU trace's line
+//! fields (sampled at the kernel's tets) on the CPU's lines.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -73,7 +75,8 @@ fn main() -> tetloc_core::Result<()> {
         // path rasterizes the tets).
         let mut loc = CpuLocator::deferred(mesh.clone(), tetloc_core::bvh::BuildPreset::Fast);
         timed(&format!("resample {dims}^3, every field (no build before)"), || {
-            resample::resample(&mut loc, &grid, &groups, 1 << 20, |ids, _| {
+            let groups: &[_] = if std::env::var("NO_FIELDS").is_ok() { &[] } else { &groups };
+            resample::resample(&mut loc, &grid, groups, 1 << 20, |ids, _| {
                 valid += ids.iter().filter(|&&i| i >= 0).count();
                 Ok(())
             })
@@ -88,6 +91,12 @@ fn main() -> tetloc_core::Result<()> {
             probe::probe(&mut fresh, &target.points, &groups, |_| Ok(()))
         })?;
         eprintln!("  {} inside; the BVH was built: {}", probed.n_valid(), fresh.index_built());
+        // Again on fresh copies of the mesh (made untimed), as the Python benchmark runs it.
+        for _ in 0..std::env::var("PROBE_FRESH").ok().and_then(|n| n.parse().ok()).unwrap_or(0) {
+            let copy = Arc::new(mesh_of(&args[1], 1)?);
+            let mut fresh = CpuLocator::deferred(copy, tetloc_core::bvh::BuildPreset::Fast);
+            timed("  again, fresh mesh", || probe::probe(&mut fresh, &target.points, &groups, |_| Ok(())))?;
+        }
     }
     let mut loc = timed("locator build", || CpuLocator::new(mesh.clone()));
     if let (true, Some(p)) = (only.contains('p'), args.get(2)) {
@@ -97,8 +106,11 @@ fn main() -> tetloc_core::Result<()> {
         })?;
         eprintln!("  {} inside", probed.n_valid());
         if let Ok(repeats) = std::env::var("PROBE_PARTS") {
-            timed("  probe again (bins built)", || probe::probe(&mut loc, &target.points, &groups, |_| Ok(())))?;
-            for _ in 0..repeats.parse().unwrap_or(1) {
+            let repeats = repeats.parse().unwrap_or(1);
+            for _ in 0..repeats {
+                timed("  probe again (bins built)", || probe::probe(&mut loc, &target.points, &groups, |_| Ok(())))?;
+            }
+            for _ in 0..repeats {
                 timed("  ids only", || probe::probe(&mut loc, &target.points, &[], |_| Ok(())))?;
             }
         }

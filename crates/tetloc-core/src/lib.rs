@@ -14,6 +14,7 @@ pub mod memory;
 pub mod mesh;
 pub mod named;
 pub mod ops;
+pub mod par;
 pub mod partition;
 pub mod queries;
 pub mod streamline;

@@ -429,14 +429,15 @@ pub fn refined_bary(v: [Vec3; 4], r: [Vec3; 4], p: Vec3) -> Option<Bary> {
 /// Puts a tet into canonical order like [`canonical_tet`], with orientations decided exactly
 /// on the file's f64 coordinates.
 pub fn canonical_tet_exact(ids: [u32; 4], file: &[[f64; 3]]) -> ([u32; 4], f64) {
-    let vol6 = |t: [u32; 4]| -> f64 {
-        let p = t.map(|i| file[i as usize]);
-        -predicates::orient3d(p[0], p[1], p[2], p[3])
-    };
-    let input_vol = vol6(ids);
+    let p = ids.map(|i| file[i as usize]);
+    let input_vol = -predicates::orient3d(p[0], p[1], p[2], p[3]);
     let mut s = ids;
     s.sort_unstable();
-    if vol6(s) < 0.0 {
+    // The sorted order's volume has the input's exact sign, flipped by each swap the sort
+    // makes (an odd number of inversions): one orientation, not a second for the sorted order.
+    let inversions = (0..4).flat_map(|i| (i + 1..4).map(move |j| (i, j))).filter(|&(i, j)| ids[i] > ids[j]).count();
+    let sorted_vol = if inversions % 2 == 1 { -input_vol } else { input_vol };
+    if sorted_vol < 0.0 {
         s.swap(2, 3);
     }
     (s, input_vol)

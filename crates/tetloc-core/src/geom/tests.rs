@@ -74,6 +74,30 @@ fn sliver_barycentrics_are_accurate() {
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(2000))]
 
+    /// One exact orientation and the sort's parity give the order that orienting the sorted
+    /// tet again gives: any vertex order, flat and repeated-vertex tets included (the points
+    /// on a small integer lattice, so coplanar ones are common).
+    #[test]
+    fn canonical_exact_needs_one_orientation(c in prop::array::uniform4(prop::array::uniform3(-2i32..3)),
+                                             order in Just([0u32, 1, 2, 3]).prop_shuffle(),
+                                             repeat in any::<bool>()) {
+        let file: Vec<[f64; 3]> = c.iter().map(|p| p.map(f64::from)).collect();
+        let mut ids = order;
+        if repeat {
+            ids[3] = ids[0];
+        }
+        let (got, vol) = canonical_tet_exact(ids, &file);
+        let vol6 = |t: [u32; 4]| -predicates::orient3d(file[t[0] as usize], file[t[1] as usize], file[t[2] as usize], file[t[3] as usize]);
+        let mut want = ids;
+        want.sort_unstable();
+        if vol6(want) < 0.0 {
+            want.swap(2, 3);
+        }
+        prop_assert_eq!(got, want);
+        prop_assert_eq!(vol, vol6(ids));
+        prop_assert!(vol6(got) >= 0.0);
+    }
+
     /// The four faces' determinants and bounds at once are orient_f32's, face by face (the
     /// bounds bit for bit; a zero determinant may differ in its sign, which no test reads: a
     /// zero is never above its bound), for points anywhere, on a vertex, an edge or a face.

@@ -21,6 +21,8 @@ pub(super) struct Bins {
     lo: Vec3,
     scale: Vec3,
     n: [usize; 3],
+    /// The last bin on each axis, as a float (`n - 1`, exact: at most 2^12 - 1).
+    last: Vec3,
     /// The tets of bin `b` are `tets[offsets[b]..offsets[b + 1]]`, ascending.
     offsets: Vec<u32>,
     tets: Vec<u32>,
@@ -78,11 +80,16 @@ impl Bins {
         }
         let n = count(cell);
         let scale = std::array::from_fn(|k| if ext[k] > 0.0 { (n[k] as f64 / ext[k]) as f32 } else { 0.0 });
-        let mut bins = Bins { lo, scale, n, offsets: Vec::new(), tets: Vec::new(), start: Vec::new() };
+        let last = n.map(|c| (c - 1) as f32);
+        let mut bins = Bins { lo, scale, n, last, offsets: Vec::new(), tets: Vec::new(), start: Vec::new() };
         // In one pass over the tets: each one's first and last bin on each axis (at most
         // 2^12 a side), its centroid's bin and the centroid's squared distance to that bin's
         // centre (for the start tets). Then the tets grouped by the bins their boxes meet.
         let n_bins = n[0] * n[1] * n[2];
+        // Each axis' bin centres, computed once (not a division per tet).
+        let centres: [Vec<f32>; 3] = std::array::from_fn(|k| {
+            (0..n[k]).map(|i| if scale[k] > 0.0 { lo[k] + (i as f32 + 0.5) / scale[k] } else { lo[k] }).collect()
+        });
         let per_tet: Vec<([u16; 6], u32, f32)> = (0..mesh.tets.len())
             .into_par_iter()
             .map(|t| {
@@ -90,12 +97,7 @@ impl Bins {
                 let (a, b) = (bins.coords(a), bins.coords(b));
                 let c = mesh.tet_center(t);
                 let (bin, at) = bins.bin_of(c);
-                let d2 = (0..3)
-                    .map(|k| {
-                        let centre = if scale[k] > 0.0 { lo[k] + (at[k] as f32 + 0.5) / scale[k] } else { lo[k] };
-                        (c[k] - centre) * (c[k] - centre)
-                    })
-                    .sum::<f32>();
+                let d2 = (0..3).map(|k| (c[k] - centres[k][at[k]]) * (c[k] - centres[k][at[k]])).sum::<f32>();
                 ([a[0], a[1], a[2], b[0], b[1], b[2]].map(|c| c as u16), bin as u32, d2)
             })
             .collect();
@@ -123,12 +125,16 @@ impl Bins {
     }
 
     /// The bin coordinates of a point, clamped to the grid on each axis (monotone; on
-    /// values clamped at 0 the cast's truncation is the floor). Through u32: on x86-64 a
-    /// saturating f32 → u32 cast is one conversion, to usize a few more (this runs for every
-    /// tet's box and every query; a side has at most 2^12 bins).
+    /// values clamped at 0 the truncation is the floor). Clamped as floats (NaN to 0), so the
+    /// conversion needs no range checks: this runs for every tet's box and every query.
     #[inline]
     fn coords(&self, p: Vec3) -> [usize; 3] {
-        std::array::from_fn(|k| ((((p[k] - self.lo[k]) * self.scale[k]).max(0.0) as u32) as usize).min(self.n[k] - 1))
+        std::array::from_fn(|k| {
+            let x = ((p[k] - self.lo[k]) * self.scale[k]).max(0.0).min(self.last[k]);
+            // SAFETY: `x` is finite and within 0..=last (a NaN becomes 0 at `max`), and
+            // `last` is at most 2^12 - 1: the value truncated fits a u32.
+            unsafe { x.to_int_unchecked::<u32>() as usize }
+        })
     }
 
     /// The bin of a point (working coordinates) of the mesh's box, and its coordinates.
@@ -161,5 +167,33 @@ impl Bins {
             let (lo, hi) = geom::tet_bounds(mesh.tets[t as usize], &mesh.points);
             (0..3).all(|k| lo[k] <= p[k] && p[k] <= hi[k])
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_support::KuhnGrid;
+    use proptest::prelude::*;
+
+    proptest! {
+        /// Bin coordinates are monotone on each axis and within the grid, whatever the value
+        /// (below or above the box, infinite, NaN): a point in a tet's box has its bin within
+        /// the bins of the box's corners.
+        #[test]
+        fn coords_are_monotone_and_clamped(p in prop::array::uniform3(-2f32..3.0), d in 0f32..2.0, axis in 0usize..3) {
+            let bins = Bins::build(&KuhnGrid::new(3).mesh("cube"), 0.7);
+            let mut q = p;
+            q[axis] += d;
+            let (a, b) = (bins.coords(p), bins.coords(q));
+            prop_assert!(a[axis] <= b[axis]);
+            prop_assert!((0..3).all(|k| a[k] < bins.n[k] && b[k] < bins.n[k]));
+            for x in [f32::NAN, f32::NEG_INFINITY, -1e30] {
+                prop_assert_eq!(bins.coords([x; 3]), [0; 3]);
+            }
+            for x in [f32::INFINITY, 1e30] {
+                prop_assert_eq!(bins.coords([x; 3]), bins.n.map(|n| n - 1));
+            }
+        }
     }
 }

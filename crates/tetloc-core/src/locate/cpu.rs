@@ -234,8 +234,9 @@ impl CpuLocator {
         None
     }
 
-    /// Locates every point, walking from the previous answer, and writes `f(answer)` to
-    /// `out`. Incoherent batches of [`SORTED`] points or more are visited in Morton order so
+    /// Locates every point, walking from the previous answer, and writes `f(i, answer)` to
+    /// `out[i]` (`f` is called once for each point, and again for a point the BVH decides).
+    /// Incoherent batches of [`SORTED`] points or more are visited in Morton order so
     /// that consecutive points are close; batches that already are (tet centres in mesh
     /// order, points along rays or particle paths) keep their order and skip the sort, and so
     /// do smaller ones, whose points are too far apart for the order to pay. Points of any
@@ -245,17 +246,17 @@ impl CpuLocator {
         points: &[P],
         query: impl Fn(&P) -> Query + Sync,
         out: &mut [T],
-        f: impl Fn(Option<(u32, Bary)>) -> T + Sync,
+        f: impl Fn(usize, Option<(u32, Bary)>) -> T + Sync,
     ) {
         let bins = self.bins();
         // Point i's value for `out`, its index kept in `ties` where the BVH decides.
         let value = |i: usize, hint: &mut Near, ties: &mut Vec<usize>| -> T {
             match self.search(bins, &query(&points[i]), hint) {
-                Answer::Found(t, b) => f(Some((t, b))),
-                Answer::Outside => f(None),
+                Answer::Found(t, b) => f(i, Some((t, b))),
+                Answer::Outside => f(i, None),
                 Answer::Tie => {
                     ties.push(i);
-                    f(None)
+                    f(i, None)
                 }
             }
         };
@@ -278,7 +279,7 @@ impl CpuLocator {
             // Built here, not inside the parallel loop (where a rayon task could be run by
             // the thread that is building it).
             self.index();
-            let found: Vec<T> = ties.par_iter().map(|&i| f(self.find(&query(&points[i])))).collect();
+            let found: Vec<T> = ties.par_iter().map(|&i| f(i, self.find(&query(&points[i])))).collect();
             for (&i, v) in ties.iter().zip(found) {
                 out[i] = v;
             }
@@ -465,7 +466,7 @@ impl BatchLocator for CpuLocator {
             Points::F64(p) => {
                 let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
                 let exact = self.mesh.exact();
-                self.locate_batch_of(p, |p| exact.query(*p), ids, |found| found.map_or(OUTSIDE, |(t, _)| t as i32));
+                self.locate_batch_of(p, |p| exact.query(*p), ids, |_, found| found.map_or(OUTSIDE, |(t, _)| t as i32));
                 match values {
                     Values::F32(v) => self.mesh.values_at_ids64(p, ids, &fields, v),
                     Values::F64(v) => self.mesh.values_at_ids64(p, ids, &fields, v),
@@ -567,14 +568,20 @@ impl CpuLocator {
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
         if fields.is_empty() {
             // Ids only: no answers kept beside them.
-            self.locate_batch_of(points, query, ids, |f| f.map_or(OUTSIDE, |(t, _)| t as i32));
+            self.locate_batch_of(points, query, ids, |_, f| f.map_or(OUTSIDE, |(t, _)| t as i32));
             return Ok(());
         }
-        let mut found = vec![None; points.len()];
-        self.locate_batch_of(points, query, &mut found, |f| f);
-        ids.par_iter_mut().zip(&found).for_each(|(id, f)| *id = f.map_or(OUTSIDE, |(t, _)| t as i32));
-        values.par_chunks_mut(fields.len()).zip(&found).for_each(|(out, &f)| {
-            self.mesh.values_at(&fields, f.map(|(t, b)| (t as usize, b)), out);
+        // Each point's values written as it is located (its tet's corners still in cache),
+        // not from a second pass over kept answers.
+        let nf = fields.len();
+        let rows = SharedSlice::new(values);
+        self.locate_batch_of(points, query, ids, |i, found| {
+            // SAFETY: `values` holds `nf` values for each of the points (checked above), and
+            // `locate_batch_of` calls this for point `i` on one task at a time: once in its
+            // parallel part (each index once) and, for a tie, again after that part has ended.
+            let out = unsafe { std::slice::from_raw_parts_mut(rows.at(i * nf), nf) };
+            self.mesh.values_at(&fields, found.map(|(t, b)| (t as usize, b)), out);
+            found.map_or(OUTSIDE, |(t, _)| t as i32)
         });
         Ok(())
     }

@@ -57,7 +57,7 @@ impl Cells {
         let n = points.len() as u32;
         let n_file_points = poly.map_or(points.len(), |d| d.n_file_points);
         let poly_tets = |c: usize| -> Option<&[[u32; 4]]> { Some(poly?.tets_of(block.polyhedra.index_of(c)?)) };
-        if let Some(k) = block.conn.par_iter().position_first(|&id| id >= n) {
+        if let Some(k) = crate::par::first_position(&block.conn, |&id| id >= n) {
             let c = block.ends.partition_point(|&e| e <= k as u64);
             return Err(format!("cell {c} references vertex {} but the mesh has only {n} vertices", block.conn[k]));
         }

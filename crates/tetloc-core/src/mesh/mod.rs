@@ -218,7 +218,7 @@ impl Mesh {
         if points.len() > u32::MAX as usize {
             return Err(err(format!("{} vertices: more than u32 indices can address", points.len())));
         }
-        if let Some(i) = points.par_iter().position_first(|p| !p.iter().all(|c| c.is_finite())) {
+        if let Some(i) = crate::par::first_position(&points, |p| !p.iter().all(|c| c.is_finite())) {
             return Err(err(format!(
                 "vertex {i} has a non-finite coordinate ({:?}) (or one too large for f32)",
                 points[i]
@@ -228,7 +228,7 @@ impl Mesh {
             if p64.len() != points.len() {
                 return Err(err(format!("{} f64 vertices for {} f32 ones", p64.len(), points.len())));
             }
-            if let Some(i) = p64.par_iter().position_first(|p| !p.iter().all(|&c| geom::predicates::in_domain(c))) {
+            if let Some(i) = crate::par::first_position(p64, |p| !p.iter().all(|&c| geom::predicates::in_domain(c))) {
                 return Err(err(format!(
                     "vertex {i} has a coordinate outside what exact arithmetic supports ({:?}: 0 or 2^-240 to 2^240 in magnitude)",
                     p64[i]
@@ -266,7 +266,7 @@ impl Mesh {
             mixed = Some(built.cells);
         }
         let n = points.len() as u32;
-        if let Some(t) = tets.par_iter().position_first(|t| t.iter().any(|&i| i >= n)) {
+        if let Some(t) = crate::par::first_position(&tets, |t| t.iter().any(|&i| i >= n)) {
             return Err(err(format!(
                 "tet {t} references vertex {} but the mesh has only {n} vertices",
                 tets[t].iter().max().unwrap()

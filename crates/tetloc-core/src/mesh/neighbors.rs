@@ -1,7 +1,8 @@
 //! Face adjacency: for each tet and each of its stored vertices, the tet across the face
 //! opposite that vertex (-1 on the boundary). Each face is owned by its smallest vertex:
 //! the tets listed at each vertex (a counting sort, linear, on every core) give that vertex's
-//! faces, a few dozen, matched among themselves in parallel. No sort of every face of the mesh.
+//! faces, a few dozen, matched among themselves in parallel (a small hash table each). No sort of
+//! every face of the mesh.
 
 use crate::buckets::Buckets;
 use rayon::prelude::*;
@@ -22,33 +23,90 @@ pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
     let out: &[[AtomicI32; 4]] = unsafe { &*(result.as_mut_slice() as *mut [[i32; 4]] as *const [[AtomicI32; 4]]) };
     // Each vertex's faces (those it is the smallest vertex of): the other two vertices, then
     // the tet and local face. Every (tet, face) slot is written by one vertex only.
-    (0..around.n_vertices()).into_par_iter().with_min_len(1024).for_each_init(Vec::new, |faces, v| {
+    (0..around.n_vertices()).into_par_iter().with_min_len(1024).for_each_init(VertexFaces::default, |faces, v| {
         faces.clear();
         for &t in around.of(v) {
             // Canonical order: a ≤ b ≤ c, d (c and d in either order). The face opposite a
-            // is owned by b, the other three by a (by both where a = b).
+            // is owned by b, the other three by a (by both where a = b). Pushed in (tet,
+            // local face) order, the order in which equal faces pair.
             let [a, b, c, d] = tets[t as usize];
             let (lo, hi) = (c.min(d), c.max(d));
             let t = t << 2;
-            if a == v as u32 {
-                faces.extend([[lo, hi, t | 1], [b, d, t | 2], [b, c, t | 3]]);
-            }
             if b == v as u32 {
                 faces.push([lo, hi, t]);
             }
-        }
-        faces.sort_unstable();
-        // Pairs of equal faces are neighbours; a face shared by more than two tets (a broken
-        // mesh) links only its first two (in tet order).
-        for k in 1..faces.len() {
-            let (a, b) = (faces[k - 1], faces[k]);
-            if a[..2] == b[..2] && (k < 2 || faces[k - 2][..2] != b[..2]) {
-                out[(a[2] >> 2) as usize][(a[2] & 3) as usize].store((b[2] >> 2) as i32, Relaxed);
-                out[(b[2] >> 2) as usize][(b[2] & 3) as usize].store((a[2] >> 2) as i32, Relaxed);
+            if a == v as u32 {
+                faces.extend([[lo, hi, t | 1], [b, d, t | 2], [b, c, t | 3]]);
             }
         }
+        // The first two of each face are neighbours; a face shared by more than two tets (a
+        // broken mesh) links only its first two.
+        faces.pair(|a, b| {
+            out[(a >> 2) as usize][(a & 3) as usize].store((b >> 2) as i32, Relaxed);
+            out[(b >> 2) as usize][(b & 3) as usize].store((a >> 2) as i32, Relaxed);
+        });
     });
     result
+}
+
+/// One vertex's faces (its other two vertices, then the tet and local face), matched by a
+/// small open-addressing table rather than a sort: a vertex owns a few dozen faces.
+#[derive(Default)]
+struct VertexFaces {
+    faces: Vec<[u32; 3]>,
+    /// 0: empty; else 1 + the index in `faces` of the first of a face, with [`PAIRED`] set
+    /// once its second has come.
+    table: Vec<u32>,
+}
+
+const PAIRED: u32 = 1 << 31;
+
+impl VertexFaces {
+    fn clear(&mut self) {
+        self.faces.clear();
+    }
+
+    fn push(&mut self, f: [u32; 3]) {
+        self.faces.push(f);
+    }
+
+    fn extend(&mut self, f: impl IntoIterator<Item = [u32; 3]>) {
+        self.faces.extend(f);
+    }
+
+    /// Calls `link(first, second)` with the tet-and-face codes of the first two of each face,
+    /// in the order the faces came.
+    fn pair(&mut self, mut link: impl FnMut(u32, u32)) {
+        let n = self.faces.len();
+        if n < 2 {
+            return;
+        }
+        // At most half full: short probes.
+        let bits = (2 * n).next_power_of_two().trailing_zeros();
+        self.table.clear();
+        self.table.resize(1 << bits, 0);
+        let mask = (1usize << bits) - 1;
+        for (i, &[lo, hi, code]) in self.faces.iter().enumerate() {
+            let key = (lo as u64) << 32 | hi as u64;
+            let mut at = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize;
+            loop {
+                let slot = self.table[at];
+                if slot == 0 {
+                    self.table[at] = i as u32 + 1;
+                    break;
+                }
+                let first = self.faces[((slot & !PAIRED) - 1) as usize];
+                if first[..2] == [lo, hi] {
+                    if slot & PAIRED == 0 {
+                        link(first[2], code);
+                        self.table[at] = slot | PAIRED;
+                    }
+                    break;
+                }
+                at = (at + 1) & mask;
+            }
+        }
+    }
 }
 
 /// The tets that own a face at each vertex, in ascending tet order (compressed rows). A

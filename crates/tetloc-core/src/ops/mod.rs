@@ -47,7 +47,46 @@ pub fn copy_components<T: Copy + Send + Sync>(
     out: &mut [T],
 ) {
     use rayon::prelude::*;
-    out.par_chunks_mut(columns.len().max(1))
-        .zip(rows.par_chunks_exact(width.max(1)))
-        .for_each(|(o, r)| o.copy_from_slice(&r[columns.clone()]));
+    /// Rows a task copies.
+    const BLOCK: usize = 1 << 13;
+    /// One block with `K` columns known when compiling: plain loads and stores (a slice copy
+    /// a row was a call to `memcpy` for one to three values).
+    fn block<T: Copy, const K: usize>(rows: &[T], width: usize, first: usize, out: &mut [T]) {
+        for (o, r) in out.chunks_exact_mut(K).zip(rows.chunks_exact(width)) {
+            let o: &mut [T; K] = o.try_into().expect("K values a row");
+            *o = std::array::from_fn(|j| r[first + j]);
+        }
+    }
+    let (k, width, first) = (columns.len(), width.max(1), columns.start);
+    if k == 0 {
+        return;
+    }
+    assert!(columns.end <= width, "columns {columns:?} of rows of {width}");
+    out.par_chunks_mut(k * BLOCK).zip(rows.par_chunks(width * BLOCK)).for_each(|(o, r)| match k {
+        1 => block::<T, 1>(r, width, first, o),
+        2 => block::<T, 2>(r, width, first, o),
+        3 => block::<T, 3>(r, width, first, o),
+        _ => o.chunks_exact_mut(k).zip(r.chunks_exact(width)).for_each(|(o, r)| o.copy_from_slice(&r[columns.clone()])),
+    });
+}
+
+#[cfg(test)]
+mod tests {
+    /// Every column range of rows of several widths, over more rows than a task's block and
+    /// not a multiple of it: the columns row after row.
+    #[test]
+    fn components_are_the_columns_row_after_row() {
+        for width in [1usize, 3, 5, 7] {
+            let n = 3 * 8192 + 17;
+            let rows: Vec<u32> = (0..(n * width) as u32).collect();
+            for first in 0..width {
+                for end in first..=width {
+                    let want: Vec<u32> = rows.chunks(width).flat_map(|r| r[first..end].to_vec()).collect();
+                    let mut out = vec![0u32; n * (end - first)];
+                    super::copy_components(&rows, width, first..end, &mut out);
+                    assert_eq!(out, want, "width {width}, columns {first}..{end}");
+                }
+            }
+        }
+    }
 }

@@ -135,8 +135,8 @@ impl ElementSink<'_> {
             .par_extend(records().flat_map_iter(|r| (4..nn).map(move |k| map.get(node(r, k)).unwrap_or(MISSING))));
         self.tags.par_extend(records().map(&tag));
         add_run(&mut self.runs, code, nn, data.len() / record);
-        let bad = self.tets[start..].par_iter().position_first(|t| t.contains(&MISSING)).or_else(|| {
-            let i = self.extra[extra_start..].par_iter().position_first(|&v| v == MISSING)?;
+        let bad = tetloc_core::par::first_position(&self.tets[start..], |t| t.contains(&MISSING)).or_else(|| {
+            let i = tetloc_core::par::first_position(&self.extra[extra_start..], |&v| v == MISSING)?;
             Some(i / (nn - 4))
         });
         if let Some(i) = bad {
