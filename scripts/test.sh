@@ -75,7 +75,8 @@ export LP_NUM_THREADS="${LP_NUM_THREADS:-$(nproc)}"
 venv=target/pyenv
 python_env() {
   { [ -x "$venv/bin/python" ] || python3 -m venv "$venv"; } &&
-    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy mypy websocket-client &&
+    # (netCDF4: python/tests/test_exodus.py writes Exodus II files with it, as SEACAS lays them out.)
+    "$venv/bin/python" -m pip install -q --disable-pip-version-check numpy pytest maturin pyvista meshio vtk scipy mypy websocket-client netCDF4 &&
     # tetloc.torch's tests (python/tests/test_torch.py). The default index's Linux wheel brings
     # the CUDA libraries: on a fresh venv (2026-12-05, torch 2.15.0) 2 min 11 s and 5.2 GB
     # (torch 1.2, nvidia-* 3.0, triton 1.0); kept with the venv between runs.

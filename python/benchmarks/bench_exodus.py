@@ -42,7 +42,7 @@ def count(s: str) -> int:
 def write_exodus(path: pathlib.Path, mesh: tetloc.Mesh, steps: int) -> None:
     """`mesh` (linear tets) as an Exodus II netCDF-4 file with the nodal variable f = x + 2y +
     3z + t at times 0, 1, ..."""
-    import netCDF4  # type: ignore[import-not-found]
+    import netCDF4
 
     pts = mesh.points64
     tets = np.asarray(mesh.tets, dtype=np.int32) + 1  # Exodus counts nodes from 1

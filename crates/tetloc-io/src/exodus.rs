@@ -17,11 +17,13 @@
 //! - nodal variables `vals_nod_var<i>` (or the older `vals_nod_var`) and element variables
 //!   `vals_elem_var<i>eb<b>` (NaN in blocks whose truth table leaves them out), named by
 //!   `name_nod_var`/`name_elem_var`; `NAME_x`, `NAME_y`, `NAME_z` become the vector `NAME`
-//!   (fields `NAME[0..3]`), as ParaView groups them;
+//!   (fields `NAME[0..3]`), as ParaView groups them (VTK's reader names the vector `NAME_`);
 //! - `time_whole`: the steps; each step's values are read when asked for ([`TimeSteps`]);
 //! - `node_num_map` and `elem_num_map` as the fields `GlobalNodeId` and `GlobalElementId`.
 
 use netcdf_reader::{NcFile, NcSliceInfo, NcSliceInfoElem, NcVariable};
+use rayon::prelude::*;
+use std::borrow::Cow;
 use std::path::{Path, PathBuf};
 use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{Field, FieldLocation, RawMesh, StepFields, TimeSteps};
@@ -63,16 +65,22 @@ fn guarded<T>(path: &Path, read: impl FnOnce() -> Result<T>) -> Result<T> {
 fn read_from(file: &NcFile, path: &Path) -> Result<(RawMesh, Layout)> {
     let layout = Layout::of(file, path)?;
     let points = layout.read_points(file, path)?;
-    let cells = layout.read_cells(file, path)?;
-    let ex =
-        crate::vtk::cells::extract(&cells.types, &cells.ends, &cells.conn, None).map_err(|m| Error::format(path, m))?;
+    let (tets, higher_order, cells) = match layout.read_tets(file, path)? {
+        Some(tets) => (tets, None, None),
+        None => {
+            let cells = layout.read_cells(file, path)?;
+            let ex = crate::vtk::cells::extract(&cells.types, &cells.ends, &cells.conn, None)
+                .map_err(|m| Error::format(path, m))?;
+            (ex.tets, ex.higher_order, ex.cells)
+        }
+    };
     let mut raw = RawMesh {
-        points: points.iter().map(|p| p.map(|c| c as f32)).collect(),
+        points: points.par_iter().map(|p| p.map(|c| c as f32)).collect(),
         points64: crate::points64_if_needed(points),
-        tets: ex.tets,
+        tets,
         fields: Vec::new(),
-        higher_order: ex.higher_order,
-        cells: ex.cells,
+        higher_order,
+        cells,
     };
     raw.fields = match layout.times.len() {
         0 => layout.id_maps.clone(),
@@ -211,7 +219,7 @@ impl Layout {
         }
         let times = match (dim(file, "time_step"), file.variable("time_whole")) {
             (Some(n), Ok(_)) if n > 0 => {
-                file.read_variable_as_f64("time_whole").map_err(nc_err(path, "time_whole"))?.iter().copied().collect()
+                values(file.read_variable_as_f64("time_whole").map_err(nc_err(path, "time_whole"))?)
             }
             _ => Vec::new(),
         };
@@ -273,17 +281,69 @@ impl Layout {
         let axes: Vec<Vec<f64>> = if file.variable("coordx").is_ok() {
             ["coordx", "coordy", "coordz"]
                 .iter()
-                .map(|v| Ok(file.read_variable_as_f64(v).map_err(nc_err(path, v))?.iter().copied().collect()))
+                .map(|v| Ok(values(file.read_variable_as_f64(v).map_err(nc_err(path, v))?)))
                 .collect::<Result<_>>()?
         } else {
-            let all: Vec<f64> =
-                file.read_variable_as_f64("coord").map_err(nc_err(path, "coord"))?.iter().copied().collect();
+            let all: Vec<f64> = values(file.read_variable_as_f64("coord").map_err(nc_err(path, "coord"))?);
             all.chunks(self.n_nodes.max(1)).map(<[f64]>::to_vec).collect()
         };
         if axes.len() != 3 || axes.iter().any(|a| a.len() != self.n_nodes) {
             return Err(Error::format(path, format!("the coordinates do not hold 3 × {} values", self.n_nodes)));
         }
-        Ok((0..self.n_nodes).map(|i| [axes[0][i], axes[1][i], axes[2][i]]).collect())
+        Ok((0..self.n_nodes).into_par_iter().map(|i| [axes[0][i], axes[1][i], axes[2][i]]).collect())
+    }
+
+    /// The tets of a mesh whose volume blocks are all linear tets (the common Exodus mesh),
+    /// straight from the connectivity and checked in parallel; `None` for any other mesh
+    /// ([`Self::read_cells`] reads it). The same tets and errors as that general path.
+    fn read_tets(&self, file: &NcFile, path: &Path) -> Result<Option<Vec<[u32; 4]>>> {
+        let volume = || self.blocks.iter().filter_map(|b| b.vtk.map(|c| (b, c)));
+        if volume().any(|(_, c)| c.code != crate::vtk::cells::TETRA || c.n_nodes != 4 || c.from_exodus.is_some()) {
+            return Ok(None);
+        }
+        let mut tets: Vec<[u32; 4]> = Vec::with_capacity(volume().map(|(b, _)| b.n_elems).sum());
+        for (b, _) in volume() {
+            let name = format!("connect{}", b.index);
+            match file.read_variable::<i32>(&name) {
+                Ok(a) => self.block_tets(b, &contiguous(&a), path, &mut tets)?,
+                Err(_) => {
+                    let a = file.read_variable::<i64>(&name).map_err(nc_err(path, &name))?;
+                    self.block_tets(b, &contiguous(&a), path, &mut tets)?
+                }
+            }
+        }
+        Ok(Some(tets))
+    }
+
+    /// Block `b`'s tets from its 1-based node ids, four an element, onto `tets`.
+    fn block_tets<T: Copy + Into<i64> + Sync>(
+        &self,
+        b: &Block,
+        ids: &[T],
+        path: &Path,
+        tets: &mut Vec<[u32; 4]>,
+    ) -> Result<()> {
+        let name = format!("connect{}", b.index);
+        if ids.len() != b.n_elems * 4 {
+            return Err(Error::format(path, format!("{name} holds {} ids, expected {} × 4", ids.len(), b.n_elems)));
+        }
+        let n = self.n_nodes as i64;
+        if let Some(at) = tetloc_core::par::first_position(ids, |id| !(1..=n).contains(&(*id).into())) {
+            return Err(Error::format(
+                path,
+                format!(
+                    "element {} of block {} names node {}; the nodes are 1 to {}",
+                    at / 4 + 1,
+                    b.index,
+                    ids[at].into(),
+                    self.n_nodes
+                ),
+            ));
+        }
+        let id = |i: T| (i.into() - 1) as u32;
+        // (Written straight into `tets`' reserved room.)
+        tets.par_extend(ids.par_chunks_exact(4).map(|e| [id(e[0]), id(e[1]), id(e[2]), id(e[3])]));
+        Ok(())
     }
 
     /// The volume cells of every block, in VTK's terms (type codes, ends, 0-based ids in VTK's
@@ -295,8 +355,8 @@ impl Layout {
             let name = format!("connect{}", b.index);
             let ids: Vec<i64> = file
                 .read_variable::<i32>(&name)
-                .map(|a| a.iter().map(|&i| i64::from(i)).collect())
-                .or_else(|_| file.read_variable::<i64>(&name).map(|a| a.iter().copied().collect()))
+                .map(|a| values(a).into_iter().map(i64::from).collect())
+                .or_else(|_| file.read_variable::<i64>(&name).map(values))
                 .map_err(nc_err(path, &name))?;
             if ids.len() != b.n_elems * cell.n_nodes {
                 return Err(Error::format(
@@ -337,7 +397,7 @@ impl Layout {
             if file.variable(var).is_err() {
                 continue;
             }
-            let ids: Vec<f64> = file.read_variable_as_f64(var).map_err(nc_err(path, var))?.iter().copied().collect();
+            let ids: Vec<f64> = values(file.read_variable_as_f64(var).map_err(nc_err(path, var))?);
             let ids = match location {
                 FieldLocation::Vertex => ids,
                 FieldLocation::Cell => self.volume_values(ids.len(), path, var, |_, range| Ok(ids[range].to_vec()))?,
@@ -373,6 +433,18 @@ impl Layout {
         }
         Ok(out)
     }
+}
+
+/// An array's values in order: borrowed where it is contiguous (as netcdf-reader's arrays
+/// are), else gathered by ndarray's element iterator, whose n-dimensional indexing costs more
+/// than a slice copy.
+fn contiguous<T: Clone>(a: &ndarray::ArrayD<T>) -> Cow<'_, [T]> {
+    a.as_slice().map_or_else(|| Cow::Owned(a.iter().cloned().collect()), Cow::Borrowed)
+}
+
+/// [`contiguous`], owned.
+fn values<T: Clone>(a: ndarray::ArrayD<T>) -> Vec<T> {
+    contiguous(&a).into_owned()
 }
 
 fn attr_string(v: &NcVariable, name: &str) -> Option<String> {
@@ -412,7 +484,7 @@ fn read_step(file: &NcFile, path: &Path, layout: &Layout, k: usize) -> Result<Ve
         if a.len() != want {
             return Err(Error::format(path, format!("{what} ({name}) has {} values at step {k} but {whose}", a.len())));
         }
-        Ok(a.iter().copied().collect())
+        Ok(values(a))
     };
     let mut node = Vec::with_capacity(layout.node_vars.len());
     for v in &layout.node_vars {
