@@ -17,18 +17,22 @@ use tetloc_core::{CpuLocator, Vec3};
 use tetloc_io as io;
 
 /// User + system seconds of this process (all threads), from /proc/self/stat.
-fn cpu_seconds() -> f64 {
+/// The process's CPU seconds (user and system) and its minor page faults, from /proc.
+fn cpu_seconds_and_faults() -> (f64, u64) {
     let stat = std::fs::read_to_string("/proc/self/stat").unwrap_or_default();
     let after = stat.rsplit_once(')').map_or("", |(_, s)| s);
     let f: Vec<f64> = after.split_whitespace().map(|x| x.parse().unwrap_or(0.0)).collect();
-    // Fields 14 and 15 (utime, stime) are the 12th and 13th after the name; 100 ticks a second.
-    (f.get(11).copied().unwrap_or(0.0) + f.get(12).copied().unwrap_or(0.0)) / 100.0
+    // Fields 10, 14 and 15 (minflt, utime, stime) are the 8th, 12th and 13th after the
+    // name; 100 ticks a second.
+    let field = |i: usize| f.get(i).copied().unwrap_or(0.0);
+    ((field(11) + field(12)) / 100.0, field(7) as u64)
 }
 
 fn timed<T>(what: &str, f: impl FnOnce() -> T) -> T {
-    let (t, c) = (Instant::now(), cpu_seconds());
+    let (t, (c, faults)) = (Instant::now(), cpu_seconds_and_faults());
     let out = f();
-    eprintln!("{what}: {:.3} s wall, {:.2} s CPU", t.elapsed().as_secs_f64(), cpu_seconds() - c);
+    let (c2, faults2) = cpu_seconds_and_faults();
+    eprintln!("{what}: {:.3} s wall, {:.2} s CPU, {} page faults", t.elapsed().as_secs_f64(), c2 - c, faults2 - faults);
     out
 }
 
