@@ -355,7 +355,7 @@ impl Layout {
             let name = format!("connect{}", b.index);
             let ids: Vec<i64> = file
                 .read_variable::<i32>(&name)
-                .map(|a| values(a).into_iter().map(i64::from).collect())
+                .map(|a| contiguous(&a).iter().map(|&i| i64::from(i)).collect())
                 .or_else(|_| file.read_variable::<i64>(&name).map(values))
                 .map_err(nc_err(path, &name))?;
             if ids.len() != b.n_elems * cell.n_nodes {
@@ -442,9 +442,20 @@ fn contiguous<T: Clone>(a: &ndarray::ArrayD<T>) -> Cow<'_, [T]> {
     a.as_slice().map_or_else(|| Cow::Owned(a.iter().cloned().collect()), Cow::Borrowed)
 }
 
-/// [`contiguous`], owned.
+/// An array's values in order, as a vector: its own buffer where it is contiguous (no copy),
+/// else [`contiguous`]'s gathered copy.
 fn values<T: Clone>(a: ndarray::ArrayD<T>) -> Vec<T> {
-    contiguous(&a).into_owned()
+    if !a.is_standard_layout() {
+        return contiguous(&a).into_owned();
+    }
+    let n = a.len();
+    let (mut buffer, offset) = a.into_raw_vec_and_offset();
+    let start = offset.unwrap_or(0);
+    if start > 0 || buffer.len() != n {
+        // (A view's window of a larger buffer: only its own values.)
+        buffer = buffer[start..start + n].to_vec();
+    }
+    buffer
 }
 
 fn attr_string(v: &NcVariable, name: &str) -> Option<String> {

@@ -23,7 +23,8 @@ pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
     let out: &[[AtomicI32; 4]] = unsafe { &*(result.as_mut_slice() as *mut [[i32; 4]] as *const [[AtomicI32; 4]]) };
     // Each vertex's faces (those it is the smallest vertex of): the other two vertices, then
     // the tet and local face. Every (tet, face) slot is written by one vertex only.
-    (0..around.n_vertices()).into_par_iter().with_min_len(1024).for_each_init(VertexFaces::default, |faces, v| {
+    let buffers = || (Vec::new(), Vec::new());
+    (0..around.n_vertices()).into_par_iter().with_min_len(1024).for_each_init(buffers, |(faces, table), v| {
         faces.clear();
         for &t in around.of(v) {
             // Canonical order: a ≤ b ≤ c, d (c and d in either order). The face opposite a
@@ -41,7 +42,7 @@ pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
         }
         // The first two of each face are neighbours; a face shared by more than two tets (a
         // broken mesh) links only its first two.
-        faces.pair(|a, b| {
+        pair(faces, table, |a, b| {
             out[(a >> 2) as usize][(a & 3) as usize].store((b >> 2) as i32, Relaxed);
             out[(b >> 2) as usize][(b & 3) as usize].store((a >> 2) as i32, Relaxed);
         });
@@ -49,62 +50,42 @@ pub fn build(tets: &[[u32; 4]]) -> Vec<[i32; 4]> {
     result
 }
 
-/// One vertex's faces (its other two vertices, then the tet and local face), matched by a
-/// small open-addressing table rather than a sort: a vertex owns a few dozen faces.
-#[derive(Default)]
-struct VertexFaces {
-    faces: Vec<[u32; 3]>,
-    /// 0: empty; else 1 + the index in `faces` of the first of a face, with [`PAIRED`] set
-    /// once its second has come.
-    table: Vec<u32>,
-}
-
+/// In `table` (0: empty; else 1 + the index in `faces` of the first of a face, with this bit
+/// set once its second has come).
 const PAIRED: u32 = 1 << 31;
 
-impl VertexFaces {
-    fn clear(&mut self) {
-        self.faces.clear();
+/// Calls `link(first, second)` with the tet-and-face codes of the first two of each of one
+/// vertex's faces (its other two vertices, then the code), in the order the faces came:
+/// matched by a small open-addressing table (`table`, reused) rather than a sort, as a
+/// vertex owns a few dozen faces.
+fn pair(faces: &[[u32; 3]], table: &mut Vec<u32>, mut link: impl FnMut(u32, u32)) {
+    let n = faces.len();
+    if n < 2 {
+        return;
     }
-
-    fn push(&mut self, f: [u32; 3]) {
-        self.faces.push(f);
-    }
-
-    fn extend(&mut self, f: impl IntoIterator<Item = [u32; 3]>) {
-        self.faces.extend(f);
-    }
-
-    /// Calls `link(first, second)` with the tet-and-face codes of the first two of each face,
-    /// in the order the faces came.
-    fn pair(&mut self, mut link: impl FnMut(u32, u32)) {
-        let n = self.faces.len();
-        if n < 2 {
-            return;
-        }
-        // At most half full: short probes.
-        let bits = (2 * n).next_power_of_two().trailing_zeros();
-        self.table.clear();
-        self.table.resize(1 << bits, 0);
-        let mask = (1usize << bits) - 1;
-        for (i, &[lo, hi, code]) in self.faces.iter().enumerate() {
-            let key = (lo as u64) << 32 | hi as u64;
-            let mut at = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize;
-            loop {
-                let slot = self.table[at];
-                if slot == 0 {
-                    self.table[at] = i as u32 + 1;
-                    break;
-                }
-                let first = self.faces[((slot & !PAIRED) - 1) as usize];
-                if first[..2] == [lo, hi] {
-                    if slot & PAIRED == 0 {
-                        link(first[2], code);
-                        self.table[at] = slot | PAIRED;
-                    }
-                    break;
-                }
-                at = (at + 1) & mask;
+    // At most half full: short probes.
+    let bits = (2 * n).next_power_of_two().trailing_zeros();
+    table.clear();
+    table.resize(1 << bits, 0);
+    let mask = (1usize << bits) - 1;
+    for (i, &[lo, hi, code]) in faces.iter().enumerate() {
+        let key = (lo as u64) << 32 | hi as u64;
+        let mut at = (key.wrapping_mul(0x9E37_79B9_7F4A_7C15) >> (64 - bits)) as usize;
+        loop {
+            let slot = table[at];
+            if slot == 0 {
+                table[at] = i as u32 + 1;
+                break;
             }
+            let first = faces[((slot & !PAIRED) - 1) as usize];
+            if first[..2] == [lo, hi] {
+                if slot & PAIRED == 0 {
+                    link(first[2], code);
+                    table[at] = slot | PAIRED;
+                }
+                break;
+            }
+            at = (at + 1) & mask;
         }
     }
 }

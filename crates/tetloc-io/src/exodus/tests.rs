@@ -142,3 +142,18 @@ fn non_exodus_files_are_refused_clearly() {
     assert!(e.contains("missing.exo"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// An array's values in order whatever its layout: standard (its own buffer), transposed
+/// (gathered), and an owned window of a larger buffer (an offset).
+#[test]
+fn values_in_order_for_every_layout() {
+    use ndarray::{s, ArrayD, IxDyn};
+    let a = ArrayD::from_shape_vec(IxDyn(&[2, 3]), (0..6).collect::<Vec<i32>>()).unwrap();
+    assert_eq!(values(a.clone()), vec![0, 1, 2, 3, 4, 5]);
+    assert!(matches!(contiguous(&a), Cow::Borrowed(_)));
+    let t = a.clone().reversed_axes();
+    assert_eq!(values(t.clone()), vec![0, 3, 1, 4, 2, 5]);
+    assert_eq!(contiguous(&t).into_owned(), vec![0, 3, 1, 4, 2, 5]);
+    let window = a.slice_move(s![1.., ..]).into_dyn();
+    assert_eq!(values(window), vec![3, 4, 5]);
+}
