@@ -5,7 +5,8 @@
 //! output times (the start time, every step time between, the end time): each leg is
 //! integrated with steps of half the leg (VTK's IntegrationStep 0.5) or `step` time units,
 //! the last one shortened to land on the leg's end, where the particle's point is recorded.
-//! Only the two steps bracketing the leg are held in memory. A particle whose lookup leaves
+//! Only the two steps bracketing the leg are held in memory, and the step the next leg adds,
+//! read on another thread while the leg is traced. A particle whose lookup leaves
 //! the mesh stops there (reason 1); one at or below the terminal speed at a leg's end stops
 //! (6); the others reach the end time (7, the code `trace --max-time` uses).
 //!
@@ -383,26 +384,47 @@ impl Bracket {
     }
 }
 
-/// Reads the steps a leg needs, holding two at a time.
+/// One step's fields (the run's names, in order) and its vector a vertex at a time.
+type Step = (Vec<Field>, Option<VertexVectors<f64>>);
+
+/// Reads the steps a leg needs, holding two at a time, and reads the step the next leg adds
+/// while this one is traced ([`Self::leg`]).
 struct StepReader<'a> {
     steps: &'a TimeSteps,
     names: Vec<String>,
     held: Option<Bracket>,
+    /// A step read ahead (its index, and the read's outcome, an error kept until needed).
+    ahead: Option<(usize, Result<Step>)>,
+}
+
+/// Step `k`'s fields named `names`, in that order (a name may come twice: the vector is also
+/// a line field), with its vector a vertex at a time.
+fn read_step(steps: &TimeSteps, names: &[String], mesh: &Mesh, k: usize) -> Result<Step> {
+    let all = steps.fields_named(k, names)?;
+    let fields: Vec<Field> = names
+        .iter()
+        .map(|n| {
+            all.iter()
+                .find(|f| &f.name == n)
+                .cloned()
+                .ok_or_else(|| Error::Invalid(format!("{}: step {k} has no field '{n}'", steps.source)))
+        })
+        .collect::<Result<_>>()?;
+    let vectors = vertex_vectors(mesh, &fields);
+    Ok((fields, vectors))
 }
 
 impl StepReader<'_> {
-    fn read(&self, k: usize) -> Result<Vec<Field>> {
-        // A name may come twice (the vector is also a line field): copied, not moved out.
-        let all = self.steps.fields_named(k, &self.names)?;
-        self.names
-            .iter()
-            .map(|n| {
-                all.iter()
-                    .find(|f| &f.name == n)
-                    .cloned()
-                    .ok_or_else(|| Error::Invalid(format!("{}: step {k} has no field '{n}'", self.steps.source)))
-            })
-            .collect()
+    fn new<'a>(steps: &'a TimeSteps, names: Vec<String>) -> StepReader<'a> {
+        StepReader { steps, names, held: None, ahead: None }
+    }
+
+    /// Step `k`: the one read ahead if it is `k`, else read now.
+    fn read(&mut self, mesh: &Mesh, k: usize) -> Result<Step> {
+        match self.ahead.take() {
+            Some((j, step)) if j == k => step,
+            _ => read_step(self.steps, &self.names, mesh, k),
+        }
     }
 
     /// The bracket of steps `j`, `j + 1` (the later step of the previous bracket kept).
@@ -412,8 +434,7 @@ impl StepReader<'_> {
             Some(b) if b.steps[0] == j => b,
             Some(b) if b.steps[1] == j => {
                 let ([_, keep], [_, keep_vectors]) = (b.fields, b.vectors);
-                let next = self.read(j + 1)?;
-                let next_vectors = vertex_vectors(mesh, &next);
+                let (next, next_vectors) = self.read(mesh, j + 1)?;
                 Bracket {
                     times: [b.times[1], self.steps.times[j + 1]],
                     steps: [j, j + 1],
@@ -422,12 +443,28 @@ impl StepReader<'_> {
                 }
             }
             _ => {
-                let fields = [self.read(j)?, self.read(j + 1)?];
-                let vectors = [vertex_vectors(mesh, &fields[0]), vertex_vectors(mesh, &fields[1])];
-                Bracket { times: [self.steps.times[j], self.steps.times[j + 1]], steps: [j, j + 1], fields, vectors }
+                let (first, second) = (self.read(mesh, j)?, self.read(mesh, j + 1)?);
+                let times = [self.steps.times[j], self.steps.times[j + 1]];
+                Bracket { times, steps: [j, j + 1], fields: [first.0, second.0], vectors: [first.1, second.1] }
             }
         };
         Ok(self.held.insert(b))
+    }
+
+    /// `trace` run on the bracket of steps `j`, `j + 1` while another thread reads the step
+    /// the next leg's bracket (`next`) adds, if it adds one: a series' reads (a file a step)
+    /// then overlap the tracing instead of stopping it. Three steps are held meanwhile.
+    fn leg<R>(&mut self, mesh: &Mesh, j: usize, next: Option<usize>, trace: impl FnOnce(&Bracket) -> R) -> Result<R> {
+        self.bracket(mesh, j)?;
+        let (steps, names, held) = (self.steps, &self.names, self.held.as_ref().expect("the bracket just made"));
+        let k = (next == Some(j + 1) && j + 2 < steps.len()).then_some(j + 2);
+        let (out, ahead) = std::thread::scope(|s| {
+            let reading = k.map(|k| s.spawn(move || read_step(steps, names, mesh, k)));
+            let out = trace(held);
+            (out, reading.map(|r| r.join().unwrap_or_else(|panic| std::panic::resume_unwind(panic))))
+        });
+        self.ahead = k.zip(ahead);
+        Ok(out)
     }
 }
 
@@ -495,7 +532,7 @@ fn setup<'a>(job: PathJob<'a>) -> Result<Run<'a>> {
         })
         .collect();
     let alias = line.iter().map(|n| vector.iter().position(|v| v == n)).collect();
-    Ok(Run { legs, reader: StepReader { steps, names, held: None }, alias, tracks })
+    Ok(Run { legs, reader: StepReader::new(steps, names), alias, tracks })
 }
 
 /// The line arrays of the tracks with two points or more (a particle injected outside the
@@ -547,21 +584,24 @@ pub fn pathlines(
     run.tracks = order.iter().map(|&i| by_seed[i as usize].take().expect("a permutation")).collect();
     let mesh = loc.mesh().clone();
     let alias = &run.alias;
+    let tracks = &mut run.tracks;
     for (n, leg) in run.legs.iter().enumerate() {
-        let br = run.reader.bracket(&mesh, leg.bracket)?;
-        run.tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
-            tr.p.start_leg(leg, o);
-            while let Some((q, t)) = tr.p.query() {
-                let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
-                let found = found.map(|(tet, b)| (tet as usize, b.map(f64::from)));
-                let v = found.map(|f| br.velocity(&mesh, f, t));
-                if tr.p.answer(v, o) {
-                    if let (Some(f), Some(v)) = (found, v) {
-                        tr.record(&mesh, br, f, alias, (v, t));
+        let next = run.legs.get(n + 1).map(|l| l.bracket);
+        run.reader.leg(&mesh, leg.bracket, next, |br| {
+            tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
+                tr.p.start_leg(leg, o);
+                while let Some((q, t)) = tr.p.query() {
+                    let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
+                    let found = found.map(|(tet, b)| (tet as usize, b.map(f64::from)));
+                    let v = found.map(|f| br.velocity(&mesh, f, t));
+                    if tr.p.answer(v, o) {
+                        if let (Some(f), Some(v)) = (found, v) {
+                            tr.record(&mesh, br, f, alias, (v, t));
+                        }
                     }
                 }
-            }
-        });
+            })
+        })?;
         progress(n + 1)?;
     }
     run.tracks.sort_unstable_by_key(|t| t.p.id);
@@ -585,48 +625,52 @@ pub fn pathlines_batch(
     let mut live: Vec<usize> = Vec::new();
     // Each particle's last tet, where its next lookup starts.
     let mut last = vec![crate::locate::OUTSIDE; run.tracks.len()];
+    let tracks = &mut run.tracks;
     for (n, leg) in run.legs.iter().enumerate() {
-        let br = run.reader.bracket(mesh, leg.bracket)?;
-        run.tracks.par_iter_mut().for_each(|tr| tr.p.start_leg(leg, o));
-        loop {
-            live.clear();
-            live.extend(run.tracks.iter().enumerate().filter(|(_, t)| t.p.query().is_some()).map(|(i, _)| i));
-            if live.is_empty() {
-                break;
-            }
-            for part in live.chunks(super::super::CHUNK) {
-                points.clear();
-                points.extend(
-                    part.iter().map(|&i| run.tracks[i].p.query().map_or([f32::NAN; 3], |(q, _)| q.map(|c| c as f32))),
-                );
-                hints.clear();
-                hints.extend(part.iter().map(|&i| last[i]));
-                ids.resize(points.len(), -1);
-                crate::locate::locate_from(loc, &points, &hints, &mut ids)?;
-                for (&i, &id) in part.iter().zip(&ids) {
-                    if id >= 0 {
-                        last[i] = id;
-                    }
+        let next = run.legs.get(n + 1).map(|l| l.bracket);
+        run.reader.leg(mesh, leg.bracket, next, |br| -> Result<()> {
+            tracks.par_iter_mut().for_each(|tr| tr.p.start_leg(leg, o));
+            loop {
+                live.clear();
+                live.extend(tracks.iter().enumerate().filter(|(_, t)| t.p.query().is_some()).map(|(i, _)| i));
+                if live.is_empty() {
+                    break;
                 }
-                // The answers, on every core: each track of `part` once.
-                let mut chosen: Vec<&mut Track> = Vec::with_capacity(part.len());
-                let mut rest = run.tracks.iter_mut().enumerate();
-                for &i in part {
-                    let (_, t) = rest.by_ref().find(|(j, _)| *j == i).expect("live indices ascend");
-                    chosen.push(t);
-                }
-                chosen.into_par_iter().zip(ids.par_iter()).for_each(|(tr, &id)| {
-                    let Some((q, t)) = tr.p.query() else { return };
-                    let found = (id >= 0).then(|| mesh.bary64(id as usize, q).map(|b| (id as usize, b))).flatten();
-                    let v = found.map(|f| br.velocity(mesh, f, t));
-                    if tr.p.answer(v, o) {
-                        if let (Some(f), Some(v)) = (found, v) {
-                            tr.record(mesh, br, f, alias, (v, t));
+                for part in live.chunks(super::super::CHUNK) {
+                    points.clear();
+                    points.extend(
+                        part.iter().map(|&i| tracks[i].p.query().map_or([f32::NAN; 3], |(q, _)| q.map(|c| c as f32))),
+                    );
+                    hints.clear();
+                    hints.extend(part.iter().map(|&i| last[i]));
+                    ids.resize(points.len(), -1);
+                    crate::locate::locate_from(loc, &points, &hints, &mut ids)?;
+                    for (&i, &id) in part.iter().zip(&ids) {
+                        if id >= 0 {
+                            last[i] = id;
                         }
                     }
-                });
+                    // The answers, on every core: each track of `part` once.
+                    let mut chosen: Vec<&mut Track> = Vec::with_capacity(part.len());
+                    let mut rest = tracks.iter_mut().enumerate();
+                    for &i in part {
+                        let (_, t) = rest.by_ref().find(|(j, _)| *j == i).expect("live indices ascend");
+                        chosen.push(t);
+                    }
+                    chosen.into_par_iter().zip(ids.par_iter()).for_each(|(tr, &id)| {
+                        let Some((q, t)) = tr.p.query() else { return };
+                        let found = (id >= 0).then(|| mesh.bary64(id as usize, q).map(|b| (id as usize, b))).flatten();
+                        let v = found.map(|f| br.velocity(mesh, f, t));
+                        if tr.p.answer(v, o) {
+                            if let (Some(f), Some(v)) = (found, v) {
+                                tr.record(mesh, br, f, alias, (v, t));
+                            }
+                        }
+                    });
+                }
             }
-        }
+            Ok(())
+        })??;
         progress(n + 1)?;
     }
     Ok(finish(run.tracks, job.fields))
@@ -825,7 +869,7 @@ mod tests {
     fn vertex_vectors_give_the_fields_velocity_bit_for_bit() {
         let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0]);
         let names = XYZ.iter().map(|s| s.to_string()).collect();
-        let mut reader = StepReader { steps: &steps, names, held: None };
+        let mut reader = StepReader::new(&steps, names);
         let fast = reader.bracket(&m, 0).unwrap();
         assert!(fast.vectors.iter().all(Option::is_some), "per-vertex components are interleaved");
         let slow = Bracket { times: fast.times, steps: fast.steps, fields: fast.fields.clone(), vectors: [None, None] };
@@ -842,6 +886,83 @@ mod tests {
             }
         }
         assert!(moving > 0, "some velocity is not zero");
+    }
+
+    /// Steps that count their reads, one of them failing.
+    struct Counted {
+        spin: Spin,
+        reads: Vec<std::sync::atomic::AtomicUsize>,
+        fail: Option<usize>,
+    }
+    impl StepFields for Counted {
+        fn read(&self, k: usize) -> Result<Vec<Field>> {
+            self.reads[k].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+            if self.fail == Some(k) {
+                return Err(Error::Invalid(format!("step {k} is torn")));
+            }
+            self.spin.read(k)
+        }
+    }
+
+    /// Each step is read once (the next leg's step read ahead while a leg is traced), only the
+    /// steps the legs need, by both drivers; a step that cannot be read is the run's error,
+    /// whether it was read ahead or not.
+    #[test]
+    fn steps_are_read_once_ahead_and_their_errors_kept() {
+        let times = vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5];
+        let (m, _) = spin_series(4, times.clone());
+        let points: Vec<[f64; 3]> = m.points.iter().map(|p| p.map(f64::from)).collect();
+        let series = |fail: Option<usize>| {
+            let reads = (0..times.len()).map(|_| Default::default()).collect();
+            let spin = Spin { points: points.clone(), times: times.clone() };
+            Arc::new(Counted { spin, reads, fail })
+        };
+        let steps_of = |c: &Arc<Counted>| {
+            struct Shared(Arc<Counted>);
+            impl StepFields for Shared {
+                fn read(&self, k: usize) -> Result<Vec<Field>> {
+                    self.0.read(k)
+                }
+            }
+            TimeSteps::new("spin.pvd", times.clone(), Box::new(Shared(c.clone())))
+        };
+        let reads =
+            |c: &Counted| c.reads.iter().map(|r| r.load(std::sync::atomic::Ordering::Relaxed)).collect::<Vec<_>>();
+        let mut cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        let seeds: Vec<Vec3> = vec![[0.6, 0.5, 0.5], [0.5, 0.3, 0.2]];
+        let within = PathOptions { start_time: Some(0.25), end_time: Some(1.75), ..Default::default() };
+        for (o, want) in [(PathOptions::default(), [1, 1, 1, 1, 1, 1]), (within, [1, 1, 1, 1, 1, 0])] {
+            for batch in [false, true] {
+                let c = series(None);
+                let steps = steps_of(&c);
+                let j = job(&seeds, &o, &steps, &fields);
+                let a =
+                    if batch { pathlines_batch(j, &mut cpu, &m, |_| Ok(())) } else { pathlines(j, &cpu, |_| Ok(())) };
+                assert_eq!(a.unwrap().ends.len(), 2);
+                assert_eq!(reads(&c), want, "batch {batch}, {o:?}");
+            }
+        }
+        // Step 0 and 1 read together, 3 read ahead during the leg of bracket 1.
+        for (fail, batch) in [(1, false), (3, false), (3, true), (5, true)] {
+            let c = series(Some(fail));
+            let steps = steps_of(&c);
+            let o = PathOptions::default();
+            let j = job(&seeds, &o, &steps, &fields);
+            let mut legs = 0;
+            let progress = |n| {
+                legs = n;
+                Ok(())
+            };
+            let e = match batch {
+                true => pathlines_batch(j, &mut cpu, &m, progress),
+                false => pathlines(j, &cpu, progress),
+            };
+            let e = e.err().expect("a torn step fails the run").to_string();
+            assert!(e.contains(&format!("step {fail} is torn")), "{e}");
+            // The legs before the one that needs the step were traced.
+            assert_eq!(legs, fail - 1, "step {fail}, batch {batch}");
+        }
     }
 
     /// A single snapshot, and times outside the series, are refused naming the file.
