@@ -409,12 +409,20 @@ impl CpuLocator {
     }
 
     /// [`Self::locate_near`] with the maps' bounds times `bound_scale` (1 but in tests).
-    #[inline]
+    /// The map's answer is inlined into the tracer's loop (the point stays in registers; a
+    /// call took it through memory, a stall on every lookup), the search is not.
+    #[inline(always)]
     pub(crate) fn locate_near_with(&self, p: Vec3, hint: &mut Hint, bound_scale: f64) -> Option<(u32, Bary)> {
         if let Some(found) = hint.inside(p) {
             hint.look_around(&self.mesh);
             return Some(found);
         }
+        self.search_near(p, hint, bound_scale)
+    }
+
+    /// [`Self::locate_near_with`] where the hint's map cannot decide: the walk from its tet.
+    #[inline(never)]
+    fn search_near(&self, p: Vec3, hint: &mut Hint, bound_scale: f64) -> Option<(u32, Bary)> {
         let found = self.locate_from(p, &mut hint.tet);
         if let Some((t, _)) = found {
             hint.found(&self.mesh, t, bound_scale);
