@@ -363,12 +363,15 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
 }
 
 /// The CPU's own locator (no wrappers) over `m`, built without the GIL: trace and pathlines
-/// walk each particle from its last tet through it.
+/// walk each particle from its last tet through it. Deferred: the tracers build the cheap
+/// bins for their searches, not the BVH (`CpuLocator::ready_for_particles`).
 fn cpu_locator(
     py: Python<'_>,
     m: &std::sync::Arc<tetloc_core::Mesh>,
 ) -> PyResult<Box<tetloc_core::locate::CpuLocator>> {
-    let bare = py.detach(|| Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build_bare());
+    let bare = py.detach(|| {
+        Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).defer_cpu_build(true).build_bare()
+    });
     match bare.map_err(crate::backend::py_error)?.locator {
         BareLocator::Cpu(cpu) => Ok(cpu),
         _ => Err(PyRuntimeError::new_err("cpu: not the CPU's locator")),

@@ -184,7 +184,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
     if backend == Backend::Cpu && m.cells.is_none() {
-        let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
+        // Deferred: the tracer builds the bins it searches, not the BVH.
+        let bare = progress::with_spinner("building the locator", || builder.defer_cpu_build(true).build_bare())?;
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
         let pb = progress::bar(n_lines as u64, "tracing on cpu");
         let mut base = 0;
@@ -329,7 +330,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     let job = trace::PathJob { seeds: &seeds, options: &o, steps: &steps, vector: xyz, fields: &out_fields };
     let t0 = Instant::now();
     let arrays = if backend == Backend::Cpu {
-        let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
+        let bare = progress::with_spinner("building the locator", || builder.defer_cpu_build(true).build_bare())?;
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
         trace::pathlines(job, &cpu, tick)?
     } else {

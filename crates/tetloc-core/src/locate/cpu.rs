@@ -420,14 +420,68 @@ impl CpuLocator {
         self.search_near(p, hint, bound_scale)
     }
 
-    /// [`Self::locate_near_with`] where the hint's map cannot decide: the walk from its tet.
+    /// [`Self::locate_near_with`] where the hint's map cannot decide: the walk from its tet,
+    /// then the BVH's search, or the bins' where only they are built
+    /// ([`Self::ready_for_particles`]).
     #[inline(never)]
     fn search_near(&self, p: Vec3, hint: &mut Hint, bound_scale: f64) -> Option<(u32, Bary)> {
-        let found = self.locate_from(p, &mut hint.tet);
+        let found = match (self.index.get(), self.bins.get()) {
+            (None, Some(bins)) => self.locate_from_bins(bins, p, &mut hint.tet),
+            _ => self.locate_from(p, &mut hint.tet),
+        };
         if let Some((t, _)) = found {
             hint.found(&self.mesh, t, bound_scale);
         }
         found
+    }
+
+    /// Readies the particles' lookups ([`Self::locate_near`]) before a parallel loop runs
+    /// them: nothing when the BVH is built, else the bins (one counting pass over the tets,
+    /// a third of the BVH's build), which the lookups that leave their tet then search. A
+    /// tracer needs a search only for its seeds and where a particle leaves its tet's
+    /// neighbours (mostly, the mesh).
+    pub fn ready_for_particles(&self) {
+        if !self.index_built() {
+            self.bins();
+        }
+    }
+
+    /// [`Self::locate_from`] without the BVH: the walk from the hint, else the bins' search
+    /// (a walk from the bin's start, then the bin's tets). A point neither decides (on a
+    /// face) gets the tie rule from its bin, whose tets include every one that can hold it.
+    /// The same answers as the BVH's where tets do not overlap (a point strictly inside two
+    /// folded tets gets the lower id here, the first the BVH's traversal meets there).
+    fn locate_from_bins(&self, bins: &Bins, p: Vec3, hint: &mut Option<u32>) -> Option<(u32, Bary)> {
+        if !super::is_finite(p) {
+            return None;
+        }
+        let q = self.query_at(p);
+        let found = hint.and_then(|h| self.walk(h, &q, true)).or_else(|| match self.search(bins, &q, &mut None) {
+            Answer::Found(t, b) => Some((t, b)),
+            Answer::Outside => None,
+            Answer::Tie => self.tie_in_bin(bins, &q),
+        });
+        if let Some((t, _)) = found {
+            *hint = Some(t);
+        }
+        found
+    }
+
+    /// The tie rule ([`geom::lowest_claim`]) over the tets of `q`'s bin whose boxes hold it:
+    /// a tet holding it strictly inside, else the lowest id among those holding it on their
+    /// boundary.
+    fn tie_in_bin(&self, bins: &Bins, q: &Query) -> Option<(u32, Bary)> {
+        let (b, _) = bins.bin_of(q.local);
+        let mut tie = None;
+        for t in bins.boxes_holding(&self.mesh, b, q.local) {
+            if let TetTest::Inside(w) = self.test(t, q) {
+                if !w.contains(&0.0) {
+                    return Some((t, w));
+                }
+                geom::lowest_claim(&mut tie, (t, w));
+            }
+        }
+        tie
     }
 
     /// The three fields `components` as one vector at a point, looked up from a hint (see

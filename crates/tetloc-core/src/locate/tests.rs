@@ -415,3 +415,46 @@ fn f32_mesh_far_from_the_origin_answers_f64_points_exactly() {
         .count();
     assert!(wrong32 > 0, "rounded points should land in wrong tets");
 }
+
+/// A particle's searches through the bins alone (a deferred locator readied for particles:
+/// no BVH is built) answer as the BVH's, tet and weights bit for bit: on points exactly on
+/// faces, edges and vertices (the tie rule taken from the bin's tets), between them and
+/// outside, each looked up from no tet and from tets near and far (the walk from a tet, then
+/// the bins' search where it fails), on the sheared Kuhn grids from ~1e-6 to ~1e6 and 1e7
+/// from the origin.
+#[test]
+fn particles_searching_the_bins_get_the_bvhs_answers() {
+    use super::grid_raster::tests::{kuhn_on_faces, ON_FACES};
+    for (unit, corner) in ON_FACES {
+        let (mesh, grid) = kuhn_on_faces(unit, corner);
+        let bvh = CpuLocator::new(mesh.clone());
+        let bins = CpuLocator::deferred(mesh.clone(), crate::bvh::BuildPreset::Fast);
+        bins.ready_for_particles();
+        let mut points: Vec<Vec3> = (0..grid.n_points()).map(|i| grid.point(i)).collect();
+        // Between the grid points, and beyond the mesh on every side.
+        let (lo, hi) = mesh.file_bounds();
+        let mid: Vec<Vec3> = points.windows(2).map(|w| std::array::from_fn(|k| 0.5 * (w[0][k] + w[1][k]))).collect();
+        points.extend(mid);
+        points.extend((0..3).flat_map(|k| {
+            let out = |x: f64| -> Vec3 {
+                std::array::from_fn(|j| if j == k { x as f32 } else { (0.5 * (lo[j] + hi[j])) as f32 })
+            };
+            [out(lo[k] - 0.1 * (hi[k] - lo[k])), out(hi[k] + 0.1 * (hi[k] - lo[k]))]
+        }));
+        let (mut ties, mut outside) = (0, 0);
+        for (i, &p) in points.iter().enumerate() {
+            let starts = [None, Some(0), Some((i * 7 % mesh.n_tets()) as u32), Some(mesh.n_tets() as u32 - 1)];
+            for start in starts {
+                let (mut a, mut b) = (Hint::default(), Hint::default());
+                (a.tet, b.tet) = (start, start);
+                let (want, got) = (bvh.locate_near(p, &mut a), bins.locate_near(p, &mut b));
+                let bits = |f: Option<(u32, geom::Bary)>| f.map(|(t, w)| (t, w.map(f32::to_bits)));
+                assert_eq!(bits(got), bits(want), "unit {unit}, point {i} {p:?} from {start:?}");
+                ties += usize::from(want.is_some_and(|(_, w)| w.contains(&0.0)));
+                outside += usize::from(want.is_none());
+            }
+        }
+        assert!(ties > 1000 && outside >= 24, "unit {unit}: {ties} ties, {outside} outside");
+        assert!(!bins.index_built(), "unit {unit}: the bins' locator built its BVH");
+    }
+}

@@ -99,6 +99,7 @@ pub fn trace_sampled(
     progress: &(impl Fn(usize) -> Result<()> + Sync),
 ) -> Result<LineArrays> {
     o.check()?;
+    loc.ready_for_particles();
     let mesh = loc.mesh();
     let [vx, vy, vz] = vector.map(|c| mesh.field(c));
     let xyz = [vx?, vy?, vz?];
@@ -684,6 +685,18 @@ mod tests {
             let mut again = crate::locate::FiniteOnly::new(CpuLocator::new(m.clone()));
             let want = LineArrays::new(&lines, &mut again, &out).unwrap();
             let got = trace_sampled(&seeds, &o, &cpu, xyz, &out, &|_| Ok(())).unwrap();
+            // Through the bins alone (no BVH built): the same lines, tets and values, bit for bit.
+            let deferred = CpuLocator::deferred(m.clone(), crate::bvh::BuildPreset::Fast);
+            let by_bins = trace_sampled(&seeds, &o, &deferred, xyz, &out, &|_| Ok(())).unwrap();
+            assert!(!deferred.index_built(), "{integrator:?}: the BVH was built");
+            assert_eq!((&by_bins.points, &by_bins.ends, &by_bins.time), (&got.points, &got.ends, &got.time));
+            assert_eq!((&by_bins.reasons, &by_bins.fields.ids), (&got.reasons, &got.fields.ids));
+            for ((_, a), (_, b)) in by_bins.fields.arrays.iter().zip(&got.fields.arrays) {
+                assert_eq!(
+                    a.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+                    b.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+                );
+            }
             assert!(want.points.len() > 1000, "{}", want.points.len());
             assert_eq!((&got.points, &got.ends, &got.time), (&want.points, &want.ends, &want.time));
             assert_eq!((&got.reasons, &got.seeds), (&want.reasons, &want.seeds));
