@@ -363,8 +363,9 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
 }
 
 /// The CPU's own locator (no wrappers) over `m`, built without the GIL: trace and pathlines
-/// walk each particle from its last tet through it. Deferred: the tracers build the cheap
-/// bins for their searches, not the BVH (`CpuLocator::ready_for_particles`).
+/// walk each particle from its last tet through it. Deferred: each tracer builds the search
+/// it needs (`CpuLocator::ready_for_particles`: the bins for streamlines, the BVH for
+/// pathlines).
 fn cpu_locator(
     py: Python<'_>,
     m: &std::sync::Arc<tetloc_core::Mesh>,

@@ -184,7 +184,7 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
     if backend == Backend::Cpu && m.cells.is_none() {
-        // Deferred: the tracer builds the bins it searches, not the BVH.
+        // Deferred: the tracer builds the search it needs (the bins, not the BVH).
         let bare = progress::with_spinner("building the locator", || builder.defer_cpu_build(true).build_bare())?;
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
         let pb = progress::bar(n_lines as u64, "tracing on cpu");

@@ -436,12 +436,17 @@ impl CpuLocator {
     }
 
     /// Readies the particles' lookups ([`Self::locate_near`]) before a parallel loop runs
-    /// them: nothing when the BVH is built, else the bins (one counting pass over the tets,
-    /// a third of the BVH's build), which the lookups that leave their tet then search. A
-    /// tracer needs a search only for its seeds and where a particle leaves its tet's
-    /// neighbours (mostly, the mesh).
-    pub fn ready_for_particles(&self) {
-        if !self.index_built() {
+    /// them (a search built inside one could wait on itself). A tracer needs a search only
+    /// for its seeds and where a particle's walk fails: for streamlines, whose steps are a
+    /// fraction of an edge, mostly where they leave the mesh, and the bins serve (one
+    /// counting pass over the tets, a third of the BVH's build); nothing is built when the
+    /// BVH is. `long_steps`: particles that cross many tets a step (pathlines, a step half a
+    /// time interval) fail their walks more often, and the BVH's search is the faster
+    /// fallback for them (measured: BENCHMARKS.md).
+    pub fn ready_for_particles(&self, long_steps: bool) {
+        if long_steps {
+            self.index();
+        } else if !self.index_built() {
             self.bins();
         }
     }

@@ -429,7 +429,7 @@ fn particles_searching_the_bins_get_the_bvhs_answers() {
         let (mesh, grid) = kuhn_on_faces(unit, corner);
         let bvh = CpuLocator::new(mesh.clone());
         let bins = CpuLocator::deferred(mesh.clone(), crate::bvh::BuildPreset::Fast);
-        bins.ready_for_particles();
+        bins.ready_for_particles(false);
         let mut points: Vec<Vec3> = (0..grid.n_points()).map(|i| grid.point(i)).collect();
         // Between the grid points, and beyond the mesh on every side.
         let (lo, hi) = mesh.file_bounds();

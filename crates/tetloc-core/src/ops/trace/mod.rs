@@ -99,7 +99,7 @@ pub fn trace_sampled(
     progress: &(impl Fn(usize) -> Result<()> + Sync),
 ) -> Result<LineArrays> {
     o.check()?;
-    loc.ready_for_particles();
+    loc.ready_for_particles(false);
     let mesh = loc.mesh();
     let [vx, vy, vz] = vector.map(|c| mesh.field(c));
     let xyz = [vx?, vy?, vz?];

@@ -577,7 +577,7 @@ pub fn pathlines(
 ) -> Result<LineArrays> {
     let (seeds, o) = (job.seeds, job.options);
     let mut run = setup(job)?;
-    loc.ready_for_particles();
+    loc.ready_for_particles(true);
     // Each leg visits the particles in the Morton order of their seeds (they move little in
     // a leg): see `spatial_order`. Back in the seeds' order at the end.
     let order = super::spatial_order(seeds);
