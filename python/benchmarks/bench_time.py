@@ -19,7 +19,7 @@ of ``.vtu`` files (tetloc reads each step from its file, inside the timing), aga
 vtkParticlePathFilter on the same steps held in memory (static mesh), run on
 ``--vtk-particles`` of the particles and scaled to all of them (the work is per particle).
 
-  python python/benchmarks/bench_time.py --pathlines --fusion 200k --particles 100k --path-steps 100
+  python python/benchmarks/bench_time.py --pathlines --fusion 200k --particles 100k --path-steps 100 [--cold]
 
 ``--fusion`` needs the ``tetloc`` CLI (``TETLOC_CLI`` or target/release/tetloc) to generate
 the mesh; measure with a release wheel.
@@ -92,6 +92,10 @@ def pathlines(args) -> None:
         seeds = np.concatenate([seeds, pts[loc.locate(pts) >= 0]])
     seeds = seeds[:n]
 
+    if args.cold:
+        # The step files out of the page cache, as a series on disk is on its first read.
+        os.sync()
+        pathlib.Path("/proc/sys/vm/drop_caches").write_text("3\n")
     series = tetloc.read(pvd)
     t0 = time.perf_counter()
     ours = tetloc.trace(series, "v", seeds, unsteady=True, backend=args.backend)
@@ -188,6 +192,8 @@ def main() -> None:
     ap.add_argument("--particles", default="100k")
     ap.add_argument("--path-steps", type=int, default=100)
     ap.add_argument("--vtk-particles", default="5k", help="particles VTK runs (scaled up)")
+    ap.add_argument("--cold", action="store_true",
+                    help="pathlines: drop the page cache before tetloc reads the steps (needs root)")
     args = ap.parse_args()
     if args.pathlines:
         return pathlines(args)

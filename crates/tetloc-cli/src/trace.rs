@@ -330,7 +330,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     let job = trace::PathJob { seeds: &seeds, options: &o, steps: &steps, vector: xyz, fields: &out_fields };
     let t0 = Instant::now();
     let arrays = if backend == Backend::Cpu {
-        let bare = progress::with_spinner("building the locator", || builder.defer_cpu_build(true).build_bare())?;
+        let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
         trace::pathlines(job, &cpu, tick)?
     } else {

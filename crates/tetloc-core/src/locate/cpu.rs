@@ -389,11 +389,22 @@ impl CpuLocator {
     /// the walk fails), which becomes the answer: one particle's lookups, each near the last.
     #[inline]
     pub fn locate_from(&self, p: Vec3, hint: &mut Option<u32>) -> Option<(u32, Bary)> {
+        self.walk_then(p, hint, |q| self.find(q))
+    }
+
+    /// The walk from `hint`'s tet, else `search`; the tet found becomes the hint.
+    #[inline]
+    fn walk_then(
+        &self,
+        p: Vec3,
+        hint: &mut Option<u32>,
+        search: impl FnOnce(&Query) -> Option<(u32, Bary)>,
+    ) -> Option<(u32, Bary)> {
         if !super::is_finite(p) {
             return None;
         }
         let q = self.query_at(p);
-        let found = hint.and_then(|h| self.walk(h, &q, true)).or_else(|| self.find(&q));
+        let found = hint.and_then(|h| self.walk(h, &q, true)).or_else(|| search(&q));
         if let Some((t, _)) = found {
             *hint = Some(t);
         }
@@ -457,19 +468,11 @@ impl CpuLocator {
     /// The same answers as the BVH's where tets do not overlap (a point strictly inside two
     /// folded tets gets the lower id here, the first the BVH's traversal meets there).
     fn locate_from_bins(&self, bins: &Bins, p: Vec3, hint: &mut Option<u32>) -> Option<(u32, Bary)> {
-        if !super::is_finite(p) {
-            return None;
-        }
-        let q = self.query_at(p);
-        let found = hint.and_then(|h| self.walk(h, &q, true)).or_else(|| match self.search(bins, &q, &mut None) {
+        self.walk_then(p, hint, |q| match self.search(bins, q, &mut None) {
             Answer::Found(t, b) => Some((t, b)),
             Answer::Outside => None,
-            Answer::Tie => self.tie_in_bin(bins, &q),
-        });
-        if let Some((t, _)) = found {
-            *hint = Some(t);
-        }
-        found
+            Answer::Tie => self.tie_in_bin(bins, q),
+        })
     }
 
     /// The tie rule ([`geom::lowest_claim`]) over the tets of `q`'s bin whose boxes hold it:

@@ -889,10 +889,10 @@ mod tests {
         assert!(moving > 0, "some velocity is not zero");
     }
 
-    /// Steps that count their reads, one of them failing.
+    /// Steps that count their reads (in a count the test keeps), one of them failing.
     struct Counted {
         spin: Spin,
-        reads: Vec<std::sync::atomic::AtomicUsize>,
+        reads: Arc<Vec<std::sync::atomic::AtomicUsize>>,
         fail: Option<usize>,
     }
     impl StepFields for Counted {
@@ -913,30 +913,25 @@ mod tests {
         let times = vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5];
         let (m, _) = spin_series(4, times.clone());
         let points: Vec<[f64; 3]> = m.points.iter().map(|p| p.map(f64::from)).collect();
+        // The series, and its count of reads a step.
         let series = |fail: Option<usize>| {
-            let reads = (0..times.len()).map(|_| Default::default()).collect();
+            let reads: Arc<Vec<std::sync::atomic::AtomicUsize>> =
+                Arc::new((0..times.len()).map(|_| Default::default()).collect());
             let spin = Spin { points: points.clone(), times: times.clone() };
-            Arc::new(Counted { spin, reads, fail })
+            let steps =
+                TimeSteps::new("spin.pvd", times.clone(), Box::new(Counted { spin, reads: reads.clone(), fail }));
+            (steps, reads)
         };
-        let steps_of = |c: &Arc<Counted>| {
-            struct Shared(Arc<Counted>);
-            impl StepFields for Shared {
-                fn read(&self, k: usize) -> Result<Vec<Field>> {
-                    self.0.read(k)
-                }
-            }
-            TimeSteps::new("spin.pvd", times.clone(), Box::new(Shared(c.clone())))
+        let reads = |c: &[std::sync::atomic::AtomicUsize]| {
+            c.iter().map(|r| r.load(std::sync::atomic::Ordering::Relaxed)).collect::<Vec<_>>()
         };
-        let reads =
-            |c: &Counted| c.reads.iter().map(|r| r.load(std::sync::atomic::Ordering::Relaxed)).collect::<Vec<_>>();
         let mut cpu = CpuLocator::new(m.clone());
         let fields = groups(&m);
         let seeds: Vec<Vec3> = vec![[0.6, 0.5, 0.5], [0.5, 0.3, 0.2]];
         let within = PathOptions { start_time: Some(0.25), end_time: Some(1.75), ..Default::default() };
         for (o, want) in [(PathOptions::default(), [1, 1, 1, 1, 1, 1]), (within, [1, 1, 1, 1, 1, 0])] {
             for batch in [false, true] {
-                let c = series(None);
-                let steps = steps_of(&c);
+                let (steps, c) = series(None);
                 let j = job(&seeds, &o, &steps, &fields);
                 let a =
                     if batch { pathlines_batch(j, &mut cpu, &m, |_| Ok(())) } else { pathlines(j, &cpu, |_| Ok(())) };
@@ -946,8 +941,7 @@ mod tests {
         }
         // Step 0 and 1 read together, 3 read ahead during the leg of bracket 1.
         for (fail, batch) in [(1, false), (3, false), (3, true), (5, true)] {
-            let c = series(Some(fail));
-            let steps = steps_of(&c);
+            let (steps, _) = series(Some(fail));
             let o = PathOptions::default();
             let j = job(&seeds, &o, &steps, &fields);
             let mut legs = 0;
