@@ -2,7 +2,7 @@
 """VTK's pathlines for tetloc's `trace --unsteady` test (crates/tetloc-cli/tests/pathlines.rs).
 
     vtk_pathlines.py series OUT_DIR
-    vtk_pathlines.py compare OUT_DIR START END OURS.vtp
+    vtk_pathlines.py compare OUT_DIR START END OURS.vtp [N]
 
 series: writes OUT_DIR/series.pvd over OUT_DIR/step_K.vtu (a unit cube of tets with a velocity
 `v` that rotates about x = y = 0.5 at a speed growing in time, plus a vertical swirl) and the
@@ -10,8 +10,10 @@ seeds as OUT_DIR/seeds.bin (raw float32 x,y,z). compare: runs vtkParticlePathFil
 default step of half an interval) on the same steps, held in memory, from START to END (step
 times: VTK 9.7 injects at its input's first time and stops at the time asked for), and
 writes its points and tetloc's (read by VTK's XML reader) as X.points.bin (float64 N x 3),
-X.ids.bin (the particle's seed index) and X.times.bin (the simulation time), float64, X = vtk
-or tetloc.
+X.ids.bin (the particle: its seed index + 1000 x its injection time in 1e-4 units) and
+X.times.bin (the simulation time), float64, X = vtk or tetloc. N: VTK's
+ForceReinjectionEveryNSteps (default 0); VTK's particles injected at END (one point each,
+which make no line in tetloc) are left out.
 
 Exits with status 3 when the `vtk` module is missing, so the test can tell that apart.
 """
@@ -111,29 +113,36 @@ class Series(VTKPythonAlgorithmBase):
         return 1
 
 
-def write_lines(poly, prefix, out_dir, ids, times):
-    pts = vtk_to_numpy(poly.GetPoints().GetData()).astype(np.float64)
+def write_arrays(pts, prefix, out_dir, ids, times):
     pts.tofile(os.path.join(out_dir, f"{prefix}.points.bin"))
     ids.astype(np.float64).tofile(os.path.join(out_dir, f"{prefix}.ids.bin"))
     times.astype(np.float64).tofile(os.path.join(out_dir, f"{prefix}.times.bin"))
 
 
-def compare(out_dir, start, end, ours):
+def particle_key(seed, injected):
+    return seed + 1000.0 * np.round(injected * 1e4)
+
+
+def compare(out_dir, start, end, ours, every="0"):
     poly = point_cloud(seeds().astype(np.float64))
     src = Series(float(start))  # held: the pipeline keeps no Python reference to it
     f = vtk.vtkParticlePathFilter()
     f.SetInputConnection(0, src.GetOutputPort())
     f.SetInputData(1, poly)
     f.SetIntegratorType(1)  # RUNGE_KUTTA4
-    f.SetForceReinjectionEveryNSteps(0)
+    f.SetForceReinjectionEveryNSteps(int(every))
     f.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")
     f.UpdateTimeStep(float(end))  # VTK 9.7: integrates from the first input time to this one
     out = f.GetOutput()
     pd = out.GetPointData()
-    ids = vtk_to_numpy(pd.GetArray("InjectedPointId"))
-    # ParticleAge is float32: the time since injection.
-    t = vtk_to_numpy(pd.GetArray("ParticleAge")).astype(np.float64) + float(start)
-    write_lines(out, "vtk", out_dir, ids, t)
+    seed = vtk_to_numpy(pd.GetArray("InjectedPointId")).astype(np.float64)
+    # InjectionStepId indexes the input's times (those from START); ParticleAge is float32,
+    # the time since injection.
+    injected = np.asarray(src.times)[vtk_to_numpy(pd.GetArray("InjectionStepId"))]
+    t = vtk_to_numpy(pd.GetArray("ParticleAge")).astype(np.float64) + injected
+    keep = injected < float(end)
+    pts = vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)[keep]
+    write_arrays(pts, "vtk", out_dir, particle_key(seed, injected)[keep], t[keep])
     r = vtk.vtkXMLPolyDataReader()
     r.SetFileName(ours)
     r.Update()
@@ -141,15 +150,19 @@ def compare(out_dir, start, end, ours):
     cells = mine.GetLines()
     conn = vtk_to_numpy(cells.GetConnectivityArray())
     offs = vtk_to_numpy(cells.GetOffsetsArray())
-    seed = vtk_to_numpy(mine.GetCellData().GetArray("SeedIds"))
+    line_seed = vtk_to_numpy(mine.GetCellData().GetArray("SeedIds"))
+    times = vtk_to_numpy(mine.GetPointData().GetArray("IntegrationTime"))
     point_ids = np.empty(mine.GetNumberOfPoints())
     for i in range(len(offs) - 1):
-        point_ids[conn[offs[i]:offs[i + 1]]] = seed[i]
-    write_lines(mine, "tetloc", out_dir, point_ids, vtk_to_numpy(mine.GetPointData().GetArray("IntegrationTime")))
+        at = conn[offs[i]:offs[i + 1]]
+        # A line's first point is its particle's injection.
+        point_ids[at] = particle_key(line_seed[i], times[at[0]])
+    pts = vtk_to_numpy(mine.GetPoints().GetData()).astype(np.float64)
+    write_arrays(pts, "tetloc", out_dir, point_ids, times)
 
 
 if __name__ == "__main__":
-    ops = {"series": (series, 1), "compare": (compare, 4)}
-    if len(sys.argv) < 2 or sys.argv[1] not in ops or len(sys.argv) - 2 != ops[sys.argv[1]][1]:
+    ops = {"series": (series, (1,)), "compare": (compare, (4, 5))}
+    if len(sys.argv) < 2 or sys.argv[1] not in ops or len(sys.argv) - 2 not in ops[sys.argv[1]][1]:
         sys.exit(__doc__)
     ops[sys.argv[1]][0](*sys.argv[2:])

@@ -226,10 +226,11 @@ fn points_of<'a, T: numpy::Element + bytemuck::Pod>(points: &'a PyReadonlyArray2
 /// int64, `IntegrationTime` (P) float64, `ReasonForTermination` and `SeedIds` (L) int32,
 /// and `fields`: (name, k, values) of the fields sampled at the points. With `unsteady`,
 /// pathlines through the mesh's time steps from `start_time` to `end_time` (`step` a time;
-/// `IntegrationTime` the simulation time, `SeedIds` the particle ids).
+/// `IntegrationTime` the simulation time, `SeedIds` each particle's seed), the seeds injected
+/// again every `reinject_every` output times (0: once).
 #[pyfunction(name = "trace")]
 #[pyo3(signature = (mesh, locator, vector, seeds, step, max_steps, max_length, max_time, direction, integrator,
-    max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None))]
+    max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None, reinject_every=0))]
 #[allow(clippy::too_many_arguments)]
 pub fn trace_lines<'py>(
     py: Python<'py>,
@@ -251,6 +252,7 @@ pub fn trace_lines<'py>(
     unsteady: bool,
     start_time: Option<f64>,
     end_time: Option<f64>,
+    reinject_every: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = mesh.mesh.clone();
     let seeds = points_of(&seeds)?;
@@ -264,6 +266,7 @@ pub fn trace_lines<'py>(
             terminal_speed,
             start_time,
             end_time,
+            reinject_every,
         };
         o.check().map_err(to_py)?;
         let Some(steps) = mesh.steps.clone() else {
@@ -297,7 +300,9 @@ pub fn trace_lines<'py>(
                 })
             })?,
         };
-        return line_dict(py, arrays);
+        let out = line_dict(py, arrays)?;
+        out.set_item("injections", o.injections(legs))?;
+        return Ok(out);
     }
     let vector = trace::vector_field(&m, vector).map_err(to_py)?;
     let o = TraceOptions {

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import pathlib
+from typing import Any
 
 import numpy as np
 import pytest
@@ -244,6 +245,38 @@ def test_pathlines_follow_the_closed_form(tmp_path, backend):
     # Between steps: injected at 0.25, stopped at 1.75.
     part = tetloc.trace(mesh, "v", seeds, unsteady=True, start_time=0.25, end_time=1.75, backend=backend)
     np.testing.assert_allclose(part["IntegrationTime"][:5], [0.25, 0.5, 1.0, 1.5, 1.75])
+
+
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
+def test_reinjected_pathlines(tmp_path, backend):
+    """reinject_every=2: the seeds injected again at every second output time (ParaView's
+    Force Reinjection Every NSteps), each injection's particles lines of their own that start
+    at their injection time and follow the closed form from there; a seed outside is counted
+    once an injection in the warning."""
+    pvd = spin_series(tmp_path, [0.0, 0.5, 1.0, 1.5, 2.0])
+    mesh = tetloc.read(pvd)
+    seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7], [3.0, 0.5, 0.5]], np.float32)
+    with pytest.warns(RuntimeWarning, match=r"2 of 6 lines"):
+        out = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, reinject_every=2, backend=backend)
+    # Injected at 0.0 (5 points) and 1.0 (3 points).
+    assert list(out["offsets"]) == [0, 5, 10, 13, 16]
+    assert list(out["SeedIds"]) == [0, 1, 0, 1]
+    t = out["IntegrationTime"]
+    np.testing.assert_allclose(t, [0.0, 0.5, 1.0, 1.5, 2.0] * 2 + [1.0, 1.5, 2.0] * 2)
+    t0 = np.repeat([0.0, 0.0, 1.0, 1.0], [5, 5, 3, 3])
+    theta = (t - t0) + 0.5 * (t * t - t0 * t0)
+    s = np.repeat(seeds[[0, 1, 0, 1]].astype(np.float64), [5, 5, 3, 3], axis=0) - [0.5, 0.5, 0.0]
+    want = np.stack([0.5 + np.cos(theta) * s[:, 0] - np.sin(theta) * s[:, 1],
+                     0.5 + np.sin(theta) * s[:, 0] + np.cos(theta) * s[:, 1], s[:, 2]], 1)
+    assert np.abs(out["points"] - want).max() < 1.2e-3
+    once = tetloc.trace(mesh, "v", seeds[:2], unsteady=True, step=0.1, backend=backend)
+    np.testing.assert_array_equal(out["points"][:10], once["points"])
+    bad: Any
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ValueError, match="reinject_every"):
+            tetloc.trace(mesh, "v", seeds, unsteady=True, reinject_every=bad, backend=backend)
+    with pytest.raises(ValueError, match="reinject_every applies to pathlines"):
+        tetloc.trace(mesh, "v", seeds, reinject_every=1, backend=backend)
 
 
 def test_pathline_bad_inputs(tmp_path, data_dir):

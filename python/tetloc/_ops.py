@@ -208,6 +208,7 @@ def trace(
     unsteady: bool = False,
     start_time: Optional[float] = None,
     end_time: Optional[float] = None,
+    reinject_every: int = 0,
 ) -> Any:
     """Streamlines of the 3-component field `vector` from `seeds` (vtkStreamTracer with steps
     in length units): `integrator` ``"rk4"`` (fixed `step`), ``"rk45"`` (adaptive,
@@ -245,10 +246,17 @@ def trace(
     step's time between, the end time); ``IntegrationTime`` is the simulation time there,
     ``SeedIds`` the particle's index in `seeds`, ``ReasonForTermination`` 1 (left the mesh),
     6 (stagnated) or 7 (reached `end_time`), and the point fields are interpolated in time too.
-    Only two steps' fields are held in memory at a time.
+    Only two steps' fields are held in memory at a time. ``reinject_every=N`` injects the seeds
+    again at every N-th output time after `start_time` (ParaView's "Force Reinjection Every
+    NSteps"): each injection's particles are lines of their own, injection after injection,
+    each line's first ``IntegrationTime`` its injection time.
     """
     if not isinstance(vector, str):
         raise TypeError(f"vector: expected a field name, got {type(vector).__name__}")
+    if isinstance(reinject_every, bool) or not isinstance(reinject_every, (int, np.integer)) or reinject_every < 0:
+        raise ValueError(f"reinject_every: expected a whole number of output times, 0 or more, got {reinject_every!r}")
+    if reinject_every and not unsteady:
+        raise ValueError("reinject_every applies to pathlines (unsteady=True)")
     m = _mesh_of(mesh, "mesh")
     pts, _ = as_points(np.asarray(seeds.points) if _is_pyvista(seeds) else seeds, "seeds")
     pyvista_out = _is_pyvista(mesh) if as_pyvista is None else as_pyvista
@@ -261,11 +269,11 @@ def trace(
     out = _tetloc.trace(
         m._raw, raw_loc, vector, pts, step, int(max_steps), max_length, max_time, direction, integrator,
         float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
-        bool(unsteady), start_time, end_time,
+        bool(unsteady), start_time, end_time, reinject_every,
     )
     fields = out.pop("fields")
     # As the CLI: seeds that give no line are counted (VTK makes none for them either).
-    n_lines = len(pts) * (2 if direction == "both" and not unsteady else 1)
+    n_lines = len(pts) * (out.pop("injections") if unsteady else 2 if direction == "both" else 1)
     without = n_lines - (len(out["offsets"]) - 1)
     if without > 0:
         warnings.warn(

@@ -36,7 +36,7 @@ pub struct TraceArgs {
     seeds: String,
     /// The streamlines: VTK polydata (.vtp) with the point fields, IntegrationTime,
     /// ReasonForTermination and SeedIds, as vtkStreamTracer writes them. With --unsteady,
-    /// IntegrationTime is the simulation time at each point and SeedIds the particle ids.
+    /// IntegrationTime is the simulation time at each point and SeedIds each particle's seed.
     #[arg(short, long)]
     out: PathBuf,
     /// Step length (mesh units; by default a tenth of the mean edge); with rk45 the first step.
@@ -94,6 +94,11 @@ pub struct TraceArgs {
     /// --unsteady: the time the particles stop at (by default the last step's).
     #[arg(long, requires = "unsteady")]
     end_time: Option<f64>,
+    /// --unsteady: inject the seeds again at every N-th output time after the start (ParaView's
+    /// "Force Reinjection Every NSteps"; 0: once). Each injection's particles are new lines,
+    /// injection after injection; a line's first IntegrationTime is its injection time.
+    #[arg(long, requires = "unsteady", default_value_t = 0, value_name = "N")]
+    reinject_every: usize,
     /// Line points a batch holds (its memory; at least one line a batch). For tests that
     /// need several batches of a small run; hidden from the help.
     #[arg(long, default_value_t = trace::BATCH_POINTS, hide = true)]
@@ -288,6 +293,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         terminal_speed: a.terminal_speed,
         start_time: a.start_time,
         end_time: a.end_time,
+        reinject_every: a.reinject_every,
     };
     o.check()?;
     let format = a
@@ -343,11 +349,11 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     ops_output::push_lines(&mut writer, &arrays, 0)?;
     let (n_points, n_made) = (writer.n_points(), writer.n_lines());
     progress::with_spinner(format!("writing {}", a.out.display()), || writer.finish(a.zlib))?;
-    if n_made < seeds.len() {
+    let particles = seeds.len() * o.injections(legs.len());
+    if n_made < particles {
         eprintln!(
-            "warning: {} of {} particles make no line (injected outside the mesh, or gone before the first output time)",
-            seeds.len() - n_made,
-            seeds.len()
+            "warning: {} of {particles} particles make no line (injected outside the mesh, or gone before the next output time)",
+            particles - n_made,
         );
     }
     if !a.common.quiet {

@@ -40,10 +40,26 @@ fn points_by_time(dir: &Path, who: &str) -> HashMap<(i64, i64), [f64; 3]> {
 /// particle walking from its last tet) and on soft-bvh (one batched lookup per stage).
 #[test]
 fn pathlines_match_vtk_particle_paths() {
-    const TEST: &str = "pathlines_match_vtk_particle_paths";
-    let dir = tmp_dir(TEST);
-    let Some(()) = run_vtk_script(TEST, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    // 40 particles at 0.4, 0.8, 1.2, 1.6: all stay inside.
+    match_vtk("pathlines_match_vtk_particle_paths", 0, 1, 160);
+}
+
+/// Reinjection against VTK's ForceReinjectionEveryNSteps: every second output time, the
+/// seeds injected at 0.4 (4 points each) and 1.2 (2 points each) are particles of their own.
+/// (VTK also injects at the end time, 1.6: one point each, which makes no line here; the
+/// script leaves those out.)
+#[test]
+fn reinjected_pathlines_match_vtk_particle_paths() {
+    match_vtk("reinjected_pathlines_match_vtk_particle_paths", 2, 2, 40 * (4 + 2));
+}
+
+/// `trace --unsteady` from 0.4 to 1.6 with `--reinject-every every` against VTK's particles
+/// (`injections` of the 40 seeds, `n_points` points), on cpu and soft-bvh.
+fn match_vtk(test: &str, every: usize, injections: usize, n_points: usize) {
+    let dir = tmp_dir(test);
+    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
     let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
+    let every = every.to_string();
     for backend in ["cpu", "soft-bvh"] {
         let out = dir.join(format!("paths-{backend}.vtp"));
         let (ok, err) = tetloc(&[
@@ -58,16 +74,17 @@ fn pathlines_match_vtk_particle_paths() {
             "0.4",
             "--end-time",
             "1.6",
+            "--reinject-every",
+            &every,
             "-o",
             s(&out),
             "--backend",
             backend,
         ]);
         assert!(ok, "{backend}: {err}");
-        run_vtk_script(TEST, "vtk_pathlines.py", &["compare", s(&dir), "0.4", "1.6", s(&out)]).unwrap();
+        run_vtk_script(test, "vtk_pathlines.py", &["compare", s(&dir), "0.4", "1.6", s(&out), &every]).unwrap();
         let (vtk, ours) = (points_by_time(&dir, "vtk"), points_by_time(&dir, "tetloc"));
-        // 40 particles at 0.4, 0.8, 1.2, 1.6: all stay inside.
-        assert_eq!(vtk.len(), 160, "VTK's points");
+        assert_eq!(vtk.len(), n_points, "VTK's points");
         assert_eq!(ours.len(), vtk.len(), "{backend}: our points");
         let mut worst: f64 = 0.0;
         for (key, v) in &vtk {
@@ -76,9 +93,10 @@ fn pathlines_match_vtk_particle_paths() {
         }
         // Both in f64 on float32 data: the positions agree to float32 rounding.
         assert!(worst < 1e-5, "{backend}: {worst:e} from VTK's particle paths");
-        // The particles moved (a rotation of about 2 radians): not a comparison of seeds.
-        let moved = vtk.iter().filter(|(k, _)| k.1 == 16000).count();
-        assert_eq!(moved, 40);
+        // Every particle reached the end (the first ones after a rotation of about 2 radians:
+        // not a comparison of seeds).
+        let at_end = vtk.iter().filter(|(k, _)| k.1 == 16000).count();
+        assert_eq!(at_end, 40 * injections);
     }
 }
 

@@ -8,7 +8,9 @@
 //! Only the two steps bracketing the leg are held in memory, and the step the next leg adds,
 //! read on another thread while the leg is traced. A particle whose lookup leaves
 //! the mesh stops there (reason 1); one at or below the terminal speed at a leg's end stops
-//! (6); the others reach the end time (7, the code `trace --max-time` uses).
+//! (6); the others reach the end time (7, the code `trace --max-time` uses). With
+//! `reinject_every` N, the seeds are injected again at every N-th output time after the start
+//! (ParaView's "Force Reinjection Every NSteps"), each injection's particles lines of their own.
 //!
 //! Two drivers share one state machine per particle ([`PathParticle`]): [`pathlines`]
 //! answers each particle's lookups at once on the CPU, walking from its last tet;
@@ -41,6 +43,10 @@ pub struct PathOptions {
     /// Injection time (by default the first step's) and end time (by default the last's).
     pub start_time: Option<f64>,
     pub end_time: Option<f64>,
+    /// Injects the seeds again at every `reinject_every`-th output time after the start
+    /// (ParaView's "Force Reinjection Every NSteps"; 0: once, at the start time). Each
+    /// injection's particles are new lines.
+    pub reinject_every: usize,
 }
 
 impl Default for PathOptions {
@@ -54,6 +60,7 @@ impl Default for PathOptions {
             terminal_speed: 1e-12,
             start_time: None,
             end_time: None,
+            reinject_every: 0,
         }
     }
 }
@@ -86,6 +93,11 @@ impl PathOptions {
             return Err(Error::Invalid(format!("the terminal speed must be 0 or more, got {}", self.terminal_speed)));
         }
         Ok(())
+    }
+
+    /// How many particles a run of `legs` legs injects a seed as (1 without reinjection).
+    pub fn injections(&self, legs: usize) -> usize {
+        injections(legs, self.reinject_every)
     }
 
     /// The legs through `steps` (named `source` in errors): from the start time to the end
@@ -123,6 +135,18 @@ impl PathOptions {
             })
             .collect())
     }
+}
+
+/// Whether the seeds are injected at the start of leg `n` (the start time, and every
+/// `every`-th output time after it when reinjecting); a particle injected at the end time
+/// would make no line (one point), so there is no leg for it.
+fn injects_at(n: usize, every: usize) -> bool {
+    n == 0 || (every > 0 && n.is_multiple_of(every))
+}
+
+/// How many times the seeds are injected over `legs` legs.
+fn injections(legs: usize, every: usize) -> usize {
+    (0..legs).filter(|&n| injects_at(n, every)).count()
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -471,6 +495,8 @@ impl StepReader<'_> {
 /// One particle with what it has recorded, and the tet of its last lookup.
 struct Track {
     p: PathParticle,
+    /// Its seed's index (`p.id` counts the particles of every injection).
+    seed: u32,
     hint: crate::locate::Hint,
     points: Vec<[f64; 3]>,
     time: Vec<f64>,
@@ -509,6 +535,9 @@ struct Run<'a> {
     reader: StepReader<'a>,
     /// A line field a component of the vector: that component's index, else None.
     alias: Vec<Option<usize>>,
+    seeds: &'a [Vec3],
+    reinject_every: usize,
+    /// The particles injected so far, an injection after another.
     tracks: Vec<Track>,
 }
 
@@ -516,27 +545,45 @@ fn setup<'a>(job: PathJob<'a>) -> Result<Run<'a>> {
     let PathJob { seeds, options: o, steps, vector, fields } = job;
     o.check()?;
     let legs = o.legs(&steps.source, &steps.times)?;
+    let particles = injections(legs.len(), o.reinject_every).saturating_mul(seeds.len());
+    if particles > super::MAX_SEEDS {
+        return Err(Error::Invalid(format!(
+            "{} seeds injected {} times make {particles} particles; at most {} (their ids are 32-bit)",
+            seeds.len(),
+            injections(legs.len(), o.reinject_every),
+            super::MAX_SEEDS
+        )));
+    }
     let line: Vec<String> = fields.iter().flat_map(|g| g.components.iter().cloned()).collect();
     let names: Vec<String> = vector.iter().map(|s| s.to_string()).chain(line.iter().cloned()).collect();
-    let t0 = legs[0].from;
-    let tracks = seeds
-        .iter()
-        .enumerate()
-        .map(|(i, &s)| Track {
-            p: PathParticle::new(i as u32, s, t0),
+    let alias = line.iter().map(|n| vector.iter().position(|v| v == n)).collect();
+    let reader = StepReader::new(steps, names);
+    Ok(Run { legs, reader, alias, seeds, reinject_every: o.reinject_every, tracks: Vec::new() })
+}
+
+impl Run<'_> {
+    /// Injects the seeds (in `order`) at the start of leg `n` if they are injected then: new
+    /// particles, numbered after those before.
+    fn inject(&mut self, n: usize, order: &[u32]) {
+        if !injects_at(n, self.reinject_every) {
+            return;
+        }
+        let (first, t) = (self.tracks.len() as u32, self.legs[n].from);
+        self.tracks.extend(order.iter().map(|&i| Track {
+            p: PathParticle::new(first + i, self.seeds[i as usize], t),
+            seed: i,
             hint: Default::default(),
             points: Vec::new(),
             time: Vec::new(),
             tets: Vec::new(),
             values: Vec::new(),
-        })
-        .collect();
-    let alias = line.iter().map(|n| vector.iter().position(|v| v == n)).collect();
-    Ok(Run { legs, reader: StepReader::new(steps, names), alias, tracks })
+        }));
+    }
 }
 
 /// The line arrays of the tracks with two points or more (a particle injected outside the
-/// mesh, or gone before the first leg's end, makes none), in particle order.
+/// mesh, or gone before the first leg's end, makes none), in particle order (injections in
+/// time order, each in the seeds' order).
 fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
     let kept: Vec<Track> = tracks.into_iter().filter(|t| t.points.len() > 1).collect();
     let ids: Vec<i32> = kept.iter().flat_map(|t| t.tets.iter().copied()).collect();
@@ -544,7 +591,7 @@ fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
     let lines: Vec<Line> = kept
         .into_iter()
         .map(|t| Line {
-            seed: t.p.id,
+            seed: t.seed,
             backward: false,
             reason: t.p.reason().unwrap_or(Reason::OutOfTime),
             points: t.points,
@@ -578,19 +625,17 @@ pub fn pathlines(
     let (seeds, o) = (job.seeds, job.options);
     let mut run = setup(job)?;
     loc.ready_for_particles(true);
-    // Each leg visits the particles in the Morton order of their seeds (they move little in
-    // a leg): see `spatial_order`. Back in the seeds' order at the end.
+    // Each leg visits an injection's particles in the Morton order of their seeds (they move
+    // little in a leg): see `spatial_order`. Back in the particles' order at the end.
     let order = super::spatial_order(seeds);
-    let mut by_seed: Vec<Option<Track>> = run.tracks.drain(..).map(Some).collect();
-    run.tracks = order.iter().map(|&i| by_seed[i as usize].take().expect("a permutation")).collect();
     let mesh = loc.mesh().clone();
-    let alias = &run.alias;
-    let tracks = &mut run.tracks;
-    for (n, leg) in run.legs.iter().enumerate() {
-        let next = run.legs.get(n + 1).map(|l| l.bracket);
+    for n in 0..run.legs.len() {
+        run.inject(n, &order);
+        let (leg, next) = (run.legs[n], run.legs.get(n + 1).map(|l| l.bracket));
+        let (alias, tracks) = (&run.alias, &mut run.tracks);
         run.reader.leg(&mesh, leg.bracket, next, |br| {
             tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
-                tr.p.start_leg(leg, o);
+                tr.p.start_leg(&leg, o);
                 while let Some((q, t)) = tr.p.query() {
                     let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
                     let found = found.map(|(tet, b)| (tet as usize, b.map(f64::from)));
@@ -621,16 +666,18 @@ pub fn pathlines_batch(
 ) -> Result<LineArrays> {
     let o = job.options;
     let mut run = setup(job)?;
-    let alias = &run.alias;
+    let seeds_order: Vec<u32> = (0..job.seeds.len() as u32).collect();
     let (mut points, mut ids, mut hints): (Vec<Vec3>, Vec<i32>, Vec<i32>) = (Vec::new(), Vec::new(), Vec::new());
     let mut live: Vec<usize> = Vec::new();
     // Each particle's last tet, where its next lookup starts.
-    let mut last = vec![crate::locate::OUTSIDE; run.tracks.len()];
-    let tracks = &mut run.tracks;
-    for (n, leg) in run.legs.iter().enumerate() {
-        let next = run.legs.get(n + 1).map(|l| l.bracket);
+    let mut last = Vec::new();
+    for n in 0..run.legs.len() {
+        run.inject(n, &seeds_order);
+        last.resize(run.tracks.len(), crate::locate::OUTSIDE);
+        let (leg, next) = (run.legs[n], run.legs.get(n + 1).map(|l| l.bracket));
+        let (alias, tracks) = (&run.alias, &mut run.tracks);
         run.reader.leg(mesh, leg.bracket, next, |br| -> Result<()> {
-            tracks.par_iter_mut().for_each(|tr| tr.p.start_leg(leg, o));
+            tracks.par_iter_mut().for_each(|tr| tr.p.start_leg(&leg, o));
             loop {
                 live.clear();
                 live.extend(tracks.iter().enumerate().filter(|(_, t)| t.p.query().is_some()).map(|(i, _)| i));
@@ -823,6 +870,54 @@ mod tests {
                 10.0 * 10.0 * 0.3 * (2.75f64 * 0.25).powi(5) / 120.0
             };
             assert!(gap < bound, "{integrator:?}: {gap:e} off the closed form (bound {bound:e})");
+        }
+    }
+
+    /// Reinjection (ParaView's "Force Reinjection Every NSteps"): the seeds are injected again
+    /// at every N-th output time; each injection's particles are lines of their own, in
+    /// injection order, that follow the closed-form path from their injection time. The first
+    /// injection's lines are those of a run without reinjection, bit for bit, and the batch
+    /// driver gives the same lines.
+    #[test]
+    fn reinjected_particles_are_new_lines_from_their_injection_times() {
+        let (m, steps) = spin_series(8, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]);
+        let mut cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        let seeds: Vec<Vec3> = vec![[0.8, 0.5, 0.3], [0.5, 0.2, 0.7], [0.65, 0.6, 0.5]];
+        let once = PathOptions { step: Some(0.05), start_time: Some(0.25), ..Default::default() };
+        let base = pathlines(job(&seeds, &once, &steps, &fields), &cpu, |_| Ok(())).unwrap();
+        // Output times 0.25, 0.5, 1.0, 1.5, 2.0, 2.5: legs 0..5.
+        for (every, starts) in [(1, vec![0.25, 0.5, 1.0, 1.5, 2.0]), (2, vec![0.25, 1.0, 2.0]), (4, vec![0.25, 2.0])] {
+            let o = PathOptions { reinject_every: every, ..once.clone() };
+            let a = pathlines(job(&seeds, &o, &steps, &fields), &cpu, |_| Ok(())).unwrap();
+            assert_eq!(a.ends.len(), starts.len() * seeds.len(), "every {every}");
+            let want_seeds: Vec<i32> = starts.iter().flat_map(|_| 0..seeds.len() as i32).collect();
+            assert_eq!(a.seeds, want_seeds, "every {every}");
+            assert_eq!(a.reasons, vec![Reason::OutOfTime as i32; a.ends.len()]);
+            for (line, &t0) in starts.iter().flat_map(|t| std::iter::repeat_n(t, seeds.len())).enumerate() {
+                let start = if line == 0 { 0 } else { a.ends[line - 1] };
+                assert_eq!(a.time[start], t0, "every {every}, line {line}");
+                assert_eq!(*a.time[..a.ends[line]].last().unwrap(), 2.5);
+                let seed = seeds[line % seeds.len()].map(f64::from);
+                let gap = miss(&a, line, seed, t0);
+                // RK4 at 0.05 (ω ≤ 3.5): as the first test's bound over ≤ 45 steps.
+                let bound = 45.0 * 10.0 * 0.3 * (3.5f64 * 0.05).powi(5) / 120.0 + 1e-6;
+                assert!(gap < bound, "every {every}, line {line}: {gap:e} off (bound {bound:e})");
+            }
+            // The first injection is the run without reinjection.
+            let n0 = base.ends[seeds.len() - 1];
+            assert_eq!(
+                (&a.ends[..seeds.len()], &a.points[..n0], &a.time[..n0]),
+                (&base.ends[..], &base.points[..], &base.time[..])
+            );
+            for ((g, x), (_, y)) in a.fields.arrays.iter().zip(&base.fields.arrays) {
+                assert_eq!(x[..n0 * g.n_components()], y[..], "{}", g.name);
+            }
+            let all = pathlines_batch(job(&seeds, &o, &steps, &fields), &mut cpu, &m, |_| Ok(())).unwrap();
+            assert_eq!((&a.ends, &a.seeds, &a.reasons, &a.time), (&all.ends, &all.seeds, &all.reasons, &all.time));
+            for (p, q) in a.points.iter().zip(&all.points) {
+                assert!((0..3).all(|k| (p[k] - q[k]).abs() < 1e-5), "every {every}: {p:?} {q:?}");
+            }
         }
     }
 
