@@ -3,6 +3,7 @@
 
     vtk_pathlines.py series OUT_DIR
     vtk_pathlines.py compare OUT_DIR START END OURS.vtp [N]
+    vtk_pathlines.py streaks OUT_DIR START END OURS.vtp
 
 series: writes OUT_DIR/series.pvd over OUT_DIR/step_K.vtu (a unit cube of tets with a velocity
 `v` that rotates about x = y = 0.5 at a speed growing in time, plus a vertical swirl) and the
@@ -13,7 +14,8 @@ writes its points and tetloc's (read by VTK's XML reader) as X.points.bin (float
 X.ids.bin (the particle: its seed index + 1000 x its injection time in 1e-4 units) and
 X.times.bin (the simulation time), float64, X = vtk or tetloc. N: VTK's
 ForceReinjectionEveryNSteps (default 0); VTK's particles injected at END (one point each,
-which make no line in tetloc) are left out.
+which make no line in tetloc) are left out. streaks: the same with vtkStreaklineFilter and
+tetloc's `--streaklines` (ids the seed index, times the particle age).
 
 Exits with status 3 when the `vtk` module is missing, so the test can tell that apart.
 """
@@ -123,26 +125,24 @@ def particle_key(seed, injected):
     return seed + 1000.0 * np.round(injected * 1e4)
 
 
-def compare(out_dir, start, end, ours, every="0"):
-    poly = point_cloud(seeds().astype(np.float64))
-    src = Series(float(start))  # held: the pipeline keeps no Python reference to it
-    f = vtk.vtkParticlePathFilter()
+def run_filter(f, src, end):
+    """VTK's particle filter `f` on the steps of `src` and the seeds, RK4, up to END."""
     f.SetInputConnection(0, src.GetOutputPort())
-    f.SetInputData(1, poly)
+    f.SetInputData(1, point_cloud(seeds().astype(np.float64)))
     f.SetIntegratorType(1)  # RUNGE_KUTTA4
-    f.SetForceReinjectionEveryNSteps(int(every))
     f.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")
     f.UpdateTimeStep(float(end))  # VTK 9.7: integrates from the first input time to this one
     out = f.GetOutput()
     pd = out.GetPointData()
     seed = vtk_to_numpy(pd.GetArray("InjectedPointId")).astype(np.float64)
-    # InjectionStepId indexes the input's times (those from START); ParticleAge is float32,
-    # the time since injection.
+    # InjectionStepId indexes the input's times (those from START); ParticleAge is float32.
     injected = np.asarray(src.times)[vtk_to_numpy(pd.GetArray("InjectionStepId"))]
-    t = vtk_to_numpy(pd.GetArray("ParticleAge")).astype(np.float64) + injected
-    keep = injected < float(end)
-    pts = vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64)[keep]
-    write_arrays(pts, "vtk", out_dir, particle_key(seed, injected)[keep], t[keep])
+    age = vtk_to_numpy(pd.GetArray("ParticleAge")).astype(np.float64)
+    return vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64), seed, injected, age
+
+
+def read_ours(ours):
+    """tetloc's polylines: points, each point's line's seed, its point data, line offsets."""
     r = vtk.vtkXMLPolyDataReader()
     r.SetFileName(ours)
     r.Update()
@@ -151,18 +151,39 @@ def compare(out_dir, start, end, ours, every="0"):
     conn = vtk_to_numpy(cells.GetConnectivityArray())
     offs = vtk_to_numpy(cells.GetOffsetsArray())
     line_seed = vtk_to_numpy(mine.GetCellData().GetArray("SeedIds"))
-    times = vtk_to_numpy(mine.GetPointData().GetArray("IntegrationTime"))
-    point_ids = np.empty(mine.GetNumberOfPoints())
+    seed = np.empty(mine.GetNumberOfPoints())
     for i in range(len(offs) - 1):
-        at = conn[offs[i]:offs[i + 1]]
-        # A line's first point is its particle's injection.
-        point_ids[at] = particle_key(line_seed[i], times[at[0]])
+        seed[conn[offs[i]:offs[i + 1]]] = line_seed[i]
     pts = vtk_to_numpy(mine.GetPoints().GetData()).astype(np.float64)
-    write_arrays(pts, "tetloc", out_dir, point_ids, times)
+    return pts, seed, mine.GetPointData(), conn, offs
+
+
+def compare(out_dir, start, end, ours, every="0"):
+    src = Series(float(start))  # held: the pipeline keeps no Python reference to it
+    f = vtk.vtkParticlePathFilter()
+    f.SetForceReinjectionEveryNSteps(int(every))
+    pts, seed, injected, age = run_filter(f, src, end)
+    keep = injected < float(end)
+    write_arrays(pts[keep], "vtk", out_dir, particle_key(seed, injected)[keep], (age + injected)[keep])
+    pts, seed, pd, conn, offs = read_ours(ours)
+    times = vtk_to_numpy(pd.GetArray("IntegrationTime"))
+    injected = np.empty(len(times))
+    for i in range(len(offs) - 1):
+        # A line's first point is its particle's injection.
+        injected[conn[offs[i]:offs[i + 1]]] = times[conn[offs[i]]]
+    write_arrays(pts, "tetloc", out_dir, particle_key(seed, injected), times)
+
+
+def streaks(out_dir, start, end, ours):
+    src = Series(float(start))
+    pts, seed, _, age = run_filter(vtk.vtkStreaklineFilter(), src, end)
+    write_arrays(pts, "vtk", out_dir, seed, age)
+    pts, seed, pd, _, _ = read_ours(ours)
+    write_arrays(pts, "tetloc", out_dir, seed, vtk_to_numpy(pd.GetArray("ParticleAge")))
 
 
 if __name__ == "__main__":
-    ops = {"series": (series, (1,)), "compare": (compare, (4, 5))}
+    ops = {"series": (series, (1,)), "compare": (compare, (4, 5)), "streaks": (streaks, (4,))}
     if len(sys.argv) < 2 or sys.argv[1] not in ops or len(sys.argv) - 2 not in ops[sys.argv[1]][1]:
         sys.exit(__doc__)
     ops[sys.argv[1]][0](*sys.argv[2:])

@@ -227,10 +227,11 @@ fn points_of<'a, T: numpy::Element + bytemuck::Pod>(points: &'a PyReadonlyArray2
 /// and `fields`: (name, k, values) of the fields sampled at the points. With `unsteady`,
 /// pathlines through the mesh's time steps from `start_time` to `end_time` (`step` a time;
 /// `IntegrationTime` the simulation time, `SeedIds` each particle's seed), the seeds injected
-/// again every `reinject_every` output times (0: once).
+/// again every `reinject_every` output times (0: once); `streaklines`: one line a seed through
+/// its particles at the end time, `ParticleAge` instead of `IntegrationTime`.
 #[pyfunction(name = "trace")]
 #[pyo3(signature = (mesh, locator, vector, seeds, step, max_steps, max_length, max_time, direction, integrator,
-    max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None, reinject_every=0))]
+    max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None, reinject_every=0, streaklines=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn trace_lines<'py>(
     py: Python<'py>,
@@ -253,6 +254,7 @@ pub fn trace_lines<'py>(
     start_time: Option<f64>,
     end_time: Option<f64>,
     reinject_every: usize,
+    streaklines: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = mesh.mesh.clone();
     let seeds = points_of(&seeds)?;
@@ -267,6 +269,7 @@ pub fn trace_lines<'py>(
             start_time,
             end_time,
             reinject_every,
+            streaklines,
         };
         o.check().map_err(to_py)?;
         let Some(steps) = mesh.steps.clone() else {
@@ -275,7 +278,9 @@ pub fn trace_lines<'py>(
                 m.info.source
             )));
         };
-        let legs = o.legs(&steps.source, &steps.times).map_err(to_py)?.len();
+        let legs = o.legs(&steps.source, &steps.times).map_err(to_py)?;
+        let injections = o.injections(&legs);
+        let legs = legs.len();
         let vector = trace::vector_field(&m, vector).map_err(to_py)?;
         if m.cells.is_some() {
             return Err(PyValueError::new_err(format!(
@@ -301,7 +306,7 @@ pub fn trace_lines<'py>(
             })?,
         };
         let out = line_dict(py, arrays)?;
-        out.set_item("injections", o.injections(legs))?;
+        out.set_item("injections", injections)?;
         return Ok(out);
     }
     let vector = trace::vector_field(&m, vector).map_err(to_py)?;
@@ -351,7 +356,7 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
     out.set_item("offsets", PyArray1::from_vec(py, offsets))?;
     // The other arrays move into numpy as they are (no copy: fresh pages cost more than
     // the copy itself here).
-    out.set_item("IntegrationTime", PyArray1::from_vec(py, arrays.time))?;
+    out.set_item(arrays.time_name, PyArray1::from_vec(py, arrays.time))?;
     out.set_item("ReasonForTermination", PyArray1::from_vec(py, arrays.reasons))?;
     out.set_item("SeedIds", PyArray1::from_vec(py, arrays.seeds))?;
     let fields: FieldArrays = arrays

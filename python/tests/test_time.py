@@ -275,8 +275,32 @@ def test_reinjected_pathlines(tmp_path, backend):
     for bad in (-1, 1.5, True):
         with pytest.raises(ValueError, match="reinject_every"):
             tetloc.trace(mesh, "v", seeds, unsteady=True, reinject_every=bad, backend=backend)
-    with pytest.raises(ValueError, match="reinject_every applies to pathlines"):
+    with pytest.raises(ValueError, match="reinject_every and streaklines apply to pathlines"):
         tetloc.trace(mesh, "v", seeds, reinject_every=1, backend=backend)
+
+
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
+def test_streaklines(tmp_path, backend):
+    """streaklines=True: per seed, its particles (injected at every output time) at the end
+    time, oldest first and the seed itself last, with their ages; each point is the last point
+    of that particle's pathline."""
+    mesh = tetloc.read(spin_series(tmp_path, [0.0, 0.5, 1.0, 1.5, 2.0]))
+    seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7]], np.float32)
+    out = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, streaklines=True, backend=backend)
+    assert "IntegrationTime" not in out
+    assert list(out["offsets"]) == [0, 5, 10]
+    assert list(out["SeedIds"]) == [0, 1]
+    np.testing.assert_array_equal(out["ParticleAge"], [2.0, 1.5, 1.0, 0.5, 0.0] * 2)
+    np.testing.assert_array_equal(out["points"][[4, 9]], seeds)
+    paths = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, reinject_every=1, backend=backend)
+    # Pathlines in injection order (0, 0.5, 1, 1.5), each injection in seed order: their last
+    # points are the streaks' oldest-first points.
+    last = paths["points"][paths["offsets"][1:] - 1].reshape(4, 2, 3)
+    np.testing.assert_array_equal(out["points"].reshape(2, 5, 3)[:, :4], last.transpose(1, 0, 2))
+    poly = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, streaklines=True, backend=backend,
+                        as_pyvista=True)
+    np.testing.assert_array_equal(poly.point_data["ParticleAge"], out["ParticleAge"])
+    assert poly.n_lines == 2
 
 
 def test_pathline_bad_inputs(tmp_path, data_dir):

@@ -209,6 +209,7 @@ def trace(
     start_time: Optional[float] = None,
     end_time: Optional[float] = None,
     reinject_every: int = 0,
+    streaklines: bool = False,
 ) -> Any:
     """Streamlines of the 3-component field `vector` from `seeds` (vtkStreamTracer with steps
     in length units): `integrator` ``"rk4"`` (fixed `step`), ``"rk45"`` (adaptive,
@@ -249,14 +250,18 @@ def trace(
     Only two steps' fields are held in memory at a time. ``reinject_every=N`` injects the seeds
     again at every N-th output time after `start_time` (ParaView's "Force Reinjection Every
     NSteps"): each injection's particles are lines of their own, injection after injection,
-    each line's first ``IntegrationTime`` its injection time.
+    each line's first ``IntegrationTime`` its injection time. ``streaklines=True`` (ParaView's
+    Streak Line filter): instead of the pathlines, one line a seed through its particles'
+    points at `end_time`, the oldest first and the one injected at `end_time` (at the seed)
+    last, with ``ParticleAge`` (the time since injection) in place of ``IntegrationTime``; the
+    seeds are then injected at every output time unless `reinject_every` says otherwise.
     """
     if not isinstance(vector, str):
         raise TypeError(f"vector: expected a field name, got {type(vector).__name__}")
     if isinstance(reinject_every, bool) or not isinstance(reinject_every, (int, np.integer)) or reinject_every < 0:
         raise ValueError(f"reinject_every: expected a whole number of output times, 0 or more, got {reinject_every!r}")
-    if reinject_every and not unsteady:
-        raise ValueError("reinject_every applies to pathlines (unsteady=True)")
+    if (reinject_every or streaklines) and not unsteady:
+        raise ValueError("reinject_every and streaklines apply to pathlines (unsteady=True)")
     m = _mesh_of(mesh, "mesh")
     pts, _ = as_points(np.asarray(seeds.points) if _is_pyvista(seeds) else seeds, "seeds")
     pyvista_out = _is_pyvista(mesh) if as_pyvista is None else as_pyvista
@@ -269,11 +274,12 @@ def trace(
     out = _tetloc.trace(
         m._raw, raw_loc, vector, pts, step, int(max_steps), max_length, max_time, direction, integrator,
         float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
-        bool(unsteady), start_time, end_time, reinject_every,
+        bool(unsteady), start_time, end_time, reinject_every, bool(streaklines),
     )
     fields = out.pop("fields")
     # As the CLI: seeds that give no line are counted (VTK makes none for them either).
-    n_lines = len(pts) * (out.pop("injections") if unsteady else 2 if direction == "both" else 1)
+    injections = out.pop("injections", 1)
+    n_lines = len(pts) * (1 if streaklines else injections if unsteady else 2 if direction == "both" else 1)
     without = n_lines - (len(out["offsets"]) - 1)
     if without > 0:
         warnings.warn(
@@ -295,7 +301,8 @@ def trace(
     poly = pv.PolyData(out["points"], lines=cells)
     for name, _, _ in fields:
         poly.point_data[name] = out[name]
-    poly.point_data["IntegrationTime"] = out["IntegrationTime"]
+    time = "ParticleAge" if streaklines else "IntegrationTime"
+    poly.point_data[time] = out[time]
     poly.cell_data["ReasonForTermination"] = out["ReasonForTermination"]
     poly.cell_data["SeedIds"] = out["SeedIds"]
     return poly

@@ -99,6 +99,13 @@ pub struct TraceArgs {
     /// injection after injection; a line's first IntegrationTime is its injection time.
     #[arg(long, requires = "unsteady", default_value_t = 0, value_name = "N")]
     reinject_every: usize,
+    /// --unsteady: streaklines instead of pathlines (ParaView's Streak Line filter): for each
+    /// seed, the line through its particles at the end time, the oldest first and the seed
+    /// itself last, with ParticleAge (the time since each particle's injection) instead of
+    /// IntegrationTime. The seeds are injected at every output time unless --reinject-every
+    /// says otherwise.
+    #[arg(long, requires = "unsteady")]
+    streaklines: bool,
     /// Line points a batch holds (its memory; at least one line a batch). For tests that
     /// need several batches of a small run; hidden from the help.
     #[arg(long, default_value_t = trace::BATCH_POINTS, hide = true)]
@@ -294,6 +301,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         start_time: a.start_time,
         end_time: a.end_time,
         reinject_every: a.reinject_every,
+        streaklines: a.streaklines,
     };
     o.check()?;
     let format = a
@@ -349,8 +357,15 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     ops_output::push_lines(&mut writer, &arrays, 0)?;
     let (n_points, n_made) = (writer.n_points(), writer.n_lines());
     progress::with_spinner(format!("writing {}", a.out.display()), || writer.finish(a.zlib))?;
-    let particles = seeds.len() * o.injections(legs.len());
-    if n_made < particles {
+    let particles = seeds.len() * o.injections(&legs);
+    let what = if a.streaklines { "streaklines" } else { "pathlines" };
+    if a.streaklines && n_made < seeds.len() {
+        eprintln!(
+            "warning: {} of {} seeds make no streakline (fewer than two of their particles are in the mesh at the end time)",
+            seeds.len() - n_made,
+            seeds.len()
+        );
+    } else if !a.streaklines && n_made < particles {
         eprintln!(
             "warning: {} of {particles} particles make no line (injected outside the mesh, or gone before the next output time)",
             particles - n_made,
@@ -358,7 +373,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     }
     if !a.common.quiet {
         eprintln!(
-            "{}: {n_made} pathlines, {n_points} points over {} legs ({} to {}) on {name} in {secs:.3} s",
+            "{}: {n_made} {what}, {n_points} points over {} legs ({} to {}) on {name} in {secs:.3} s",
             a.out.display(),
             legs.len(),
             legs[0].from,

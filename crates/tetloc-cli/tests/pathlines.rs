@@ -100,6 +100,51 @@ fn match_vtk(test: &str, every: usize, injections: usize, n_points: usize) {
     }
 }
 
+/// `--streaklines` against VTK's vtkStreaklineFilter (RK4, half an interval a step): each
+/// seed's particles injected at 0.4, 0.8, 1.2 and 1.6 (the seed itself) at 1.6, by age, within
+/// float32 rounding, on cpu and soft-bvh.
+#[test]
+fn streaklines_match_vtk_streak_lines() {
+    const TEST: &str = "streaklines_match_vtk_streak_lines";
+    let dir = tmp_dir(TEST);
+    let Some(()) = run_vtk_script(TEST, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
+    for backend in ["cpu", "soft-bvh"] {
+        let out = dir.join(format!("streaks-{backend}.vtp"));
+        let (ok, err) = tetloc(&[
+            "trace",
+            s(&pvd),
+            "--vector",
+            "v",
+            "--seeds",
+            s(&seeds),
+            "--unsteady",
+            "--streaklines",
+            "--start-time",
+            "0.4",
+            "--end-time",
+            "1.6",
+            "-o",
+            s(&out),
+            "--backend",
+            backend,
+        ]);
+        assert!(ok, "{backend}: {err}");
+        run_vtk_script(TEST, "vtk_pathlines.py", &["streaks", s(&dir), "0.4", "1.6", s(&out)]).unwrap();
+        let (vtk, ours) = (points_by_time(&dir, "vtk"), points_by_time(&dir, "tetloc"));
+        assert_eq!(vtk.len(), 40 * 4, "VTK's points");
+        assert_eq!(ours.len(), vtk.len(), "{backend}: our points");
+        let mut worst: f64 = 0.0;
+        for (key, v) in &vtk {
+            let o = ours.get(key).unwrap_or_else(|| panic!("{backend}: no point for seed {} at age {}", key.0, key.1));
+            worst = worst.max((0..3).map(|k| (o[k] - v[k]).abs()).fold(0.0, f64::max));
+        }
+        assert!(worst < 1e-5, "{backend}: {worst:e} from VTK's streaklines");
+        // The oldest particles moved (a rotation of about 2 radians): not a comparison of seeds.
+        assert_eq!(vtk.keys().filter(|k| k.1 == 12000).count(), 40);
+    }
+}
+
 /// `--unsteady` on one snapshot, and start or end times outside the series, are refused
 /// with a message naming the file.
 #[test]

@@ -97,11 +97,12 @@ pub fn resample_to_file(
 }
 
 /// Appends `lines` to `w`, a VTK polydata (`.vtp`) file being written: the fields (Float64
-/// where sampled in f64) and `IntegrationTime` (Float64) as point data, `ReasonForTermination` and `SeedIds` (Int32)
+/// where sampled in f64) and `IntegrationTime` (Float64; `ParticleAge` for streaklines:
+/// [`LineArrays::time_name`]) as point data, `ReasonForTermination` and `SeedIds` (Int32)
 /// as cell data, as vtkStreamTracer writes them. Seed ids are `seed_base` + the line's.
 pub fn push_lines(w: &mut PolylineWriter, lines: &LineArrays, seed_base: usize) -> Result<()> {
     let mut point_data = probed_field_arrays(&lines.fields);
-    point_data.push(NamedArray { name: "IntegrationTime".into(), n_components: 1, data: ArrayData::F64(&lines.time) });
+    point_data.push(NamedArray { name: lines.time_name.into(), n_components: 1, data: ArrayData::F64(&lines.time) });
     let seeds = lines
         .seeds
         .iter()

@@ -238,6 +238,9 @@ pub struct LineArrays {
     /// One past the last point of each line.
     pub ends: Vec<usize>,
     pub time: Vec<f64>,
+    /// What `time` is, as the writers name it: "IntegrationTime" (streamlines: the time
+    /// along the line; pathlines: the simulation time), or "ParticleAge" (streaklines).
+    pub time_name: &'static str,
     pub reasons: Vec<i32>,
     pub seeds: Vec<i32>,
     pub fields: super::probe::Probed,
@@ -331,6 +334,7 @@ impl LineArrays {
             }),
             ends,
             time: super::concat(&lens, |i, out| out.copy_from_slice(&lines[i].time)),
+            time_name: "IntegrationTime",
             reasons: lines.iter().map(|l| l.reason as i32).collect(),
             seeds: lines.iter().map(|l| l.seed as i32).collect(),
             fields,

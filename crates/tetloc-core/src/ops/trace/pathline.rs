@@ -11,6 +11,8 @@
 //! (6); the others reach the end time (7, the code `trace --max-time` uses). With
 //! `reinject_every` N, the seeds are injected again at every N-th output time after the start
 //! (ParaView's "Force Reinjection Every NSteps"), each injection's particles lines of their own.
+//! With `streaklines`, the output is instead one line a seed through its particles at the end
+//! time (ParaView's Streak Line filter, vtkStreaklineFilter: dye released at the seed).
 //!
 //! Two drivers share one state machine per particle ([`PathParticle`]): [`pathlines`]
 //! answers each particle's lookups at once on the CPU, walking from its last tet;
@@ -44,9 +46,14 @@ pub struct PathOptions {
     pub start_time: Option<f64>,
     pub end_time: Option<f64>,
     /// Injects the seeds again at every `reinject_every`-th output time after the start
-    /// (ParaView's "Force Reinjection Every NSteps"; 0: once, at the start time). Each
-    /// injection's particles are new lines.
+    /// (ParaView's "Force Reinjection Every NSteps"; 0: once, at the start time, or at every
+    /// output time with `streaklines`). Each injection's particles are new lines.
     pub reinject_every: usize,
+    /// Streaklines instead of pathlines: for each seed, the line through its particles' points
+    /// at the end time, the oldest first and the one injected at the end time (at the seed)
+    /// last; the line's time array is each point's particle age (the end time less its
+    /// injection time).
+    pub streaklines: bool,
 }
 
 impl Default for PathOptions {
@@ -61,6 +68,7 @@ impl Default for PathOptions {
             start_time: None,
             end_time: None,
             reinject_every: 0,
+            streaklines: false,
         }
     }
 }
@@ -95,9 +103,31 @@ impl PathOptions {
         Ok(())
     }
 
-    /// How many particles a run of `legs` legs injects a seed as (1 without reinjection).
-    pub fn injections(&self, legs: usize) -> usize {
-        injections(legs, self.reinject_every)
+    /// Every `reinjection`-th output time injects the seeds (the start time's always).
+    fn reinjection(&self) -> usize {
+        if self.streaklines && self.reinject_every == 0 {
+            1
+        } else {
+            self.reinject_every
+        }
+    }
+
+    /// The seeds' injections over `legs`: each at the start of a leg (its index and time), in
+    /// time order. Streaklines also inject at the end time when it is an injection's (a
+    /// point at the seed: the streak's newest); a pathline from there would have one point.
+    fn injections_over(&self, legs: &[Leg]) -> Vec<(usize, f64)> {
+        let every = self.reinjection();
+        let mut out: Vec<(usize, f64)> =
+            (0..legs.len()).filter(|&n| injects_at(n, every)).map(|n| (n, legs[n].from)).collect();
+        if let (true, true, Some(last)) = (self.streaklines, injects_at(legs.len(), every), legs.last()) {
+            out.push((legs.len() - 1, last.to));
+        }
+        out
+    }
+
+    /// How many particles a run over `legs` injects a seed as (1 without reinjection).
+    pub fn injections(&self, legs: &[Leg]) -> usize {
+        self.injections_over(legs).len()
     }
 
     /// The legs through `steps` (named `source` in errors): from the start time to the end
@@ -142,11 +172,6 @@ impl PathOptions {
 /// would make no line (one point), so there is no leg for it.
 fn injects_at(n: usize, every: usize) -> bool {
     n == 0 || (every > 0 && n.is_multiple_of(every))
-}
-
-/// How many times the seeds are injected over `legs` legs.
-fn injections(legs: usize, every: usize) -> usize {
-    (0..legs).filter(|&n| injects_at(n, every)).count()
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -536,7 +561,9 @@ struct Run<'a> {
     /// A line field a component of the vector: that component's index, else None.
     alias: Vec<Option<usize>>,
     seeds: &'a [Vec3],
-    reinject_every: usize,
+    /// The injections: the leg each comes at the start of (or during, for one at the end
+    /// time), and its time.
+    injections: Vec<(usize, f64)>,
     /// The particles injected so far, an injection after another.
     tracks: Vec<Track>,
 }
@@ -545,12 +572,13 @@ fn setup<'a>(job: PathJob<'a>) -> Result<Run<'a>> {
     let PathJob { seeds, options: o, steps, vector, fields } = job;
     o.check()?;
     let legs = o.legs(&steps.source, &steps.times)?;
-    let particles = injections(legs.len(), o.reinject_every).saturating_mul(seeds.len());
+    let injections = o.injections_over(&legs);
+    let particles = injections.len().saturating_mul(seeds.len());
     if particles > super::MAX_SEEDS {
         return Err(Error::Invalid(format!(
             "{} seeds injected {} times make {particles} particles; at most {} (their ids are 32-bit)",
             seeds.len(),
-            injections(legs.len(), o.reinject_every),
+            injections.len(),
             super::MAX_SEEDS
         )));
     }
@@ -558,17 +586,22 @@ fn setup<'a>(job: PathJob<'a>) -> Result<Run<'a>> {
     let names: Vec<String> = vector.iter().map(|s| s.to_string()).chain(line.iter().cloned()).collect();
     let alias = line.iter().map(|n| vector.iter().position(|v| v == n)).collect();
     let reader = StepReader::new(steps, names);
-    Ok(Run { legs, reader, alias, seeds, reinject_every: o.reinject_every, tracks: Vec::new() })
+    Ok(Run { legs, reader, alias, seeds, injections, tracks: Vec::new() })
 }
 
 impl Run<'_> {
-    /// Injects the seeds (in `order`) at the start of leg `n` if they are injected then: new
-    /// particles, numbered after those before.
+    /// Injects the seeds (in `order`) for leg `n` if they are injected in it: new particles,
+    /// numbered after those before. (One injected at the leg's end is answered in it and
+    /// waits there.)
     fn inject(&mut self, n: usize, order: &[u32]) {
-        if !injects_at(n, self.reinject_every) {
-            return;
+        let times: Vec<f64> = self.injections.iter().filter(|i| i.0 == n).map(|i| i.1).collect();
+        for t in times {
+            self.inject_at(t, order);
         }
-        let (first, t) = (self.tracks.len() as u32, self.legs[n].from);
+    }
+
+    fn inject_at(&mut self, t: f64, order: &[u32]) {
+        let first = self.tracks.len() as u32;
         self.tracks.extend(order.iter().map(|&i| Track {
             p: PathParticle::new(first + i, self.seeds[i as usize], t),
             seed: i,
@@ -601,6 +634,48 @@ fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
         })
         .collect();
     LineArrays::of(&lines, super::super::probe::Probed::from_values(ids, fields, &values))
+}
+
+/// The streaklines of the tracks (in particle order) at the end time `end`: for each of the
+/// `n_seeds` seeds, the last points of its particles that reached `end`, in injection order,
+/// each point's time its particle's age. A seed with fewer than two such particles (all
+/// injected outside the mesh, or gone) makes no line.
+fn finish_streaks(tracks: Vec<Track>, fields: &[FieldGroup], n_seeds: usize, end: f64) -> LineArrays {
+    let k: usize = fields.iter().map(|g| g.n_components()).sum();
+    let mut by_seed: Vec<Vec<&Track>> = vec![Vec::new(); n_seeds];
+    for t in tracks.iter().filter(|t| t.time.last() == Some(&end)) {
+        by_seed[t.seed as usize].push(t);
+    }
+    let streaks: Vec<(u32, &[&Track])> =
+        by_seed.iter().enumerate().filter(|(_, ts)| ts.len() > 1).map(|(s, ts)| (s as u32, &ts[..])).collect();
+    let ids: Vec<i32> = streaks.iter().flat_map(|(_, ts)| ts.iter().map(|t| t.tets[t.tets.len() - 1])).collect();
+    let values: Vec<f32> =
+        streaks.iter().flat_map(|(_, ts)| ts.iter().flat_map(|t| &t.values[t.values.len() - k..])).copied().collect();
+    let lines: Vec<Line> = streaks
+        .iter()
+        .map(|&(seed, ts)| Line {
+            seed,
+            backward: false,
+            reason: Reason::OutOfTime,
+            points: ts.iter().map(|t| t.points[t.points.len() - 1]).collect(),
+            time: ts.iter().map(|t| end - t.time[0]).collect(),
+            tets: Vec::new(),
+            values: Vec::new(),
+        })
+        .collect();
+    let mut arrays = LineArrays::of(&lines, super::super::probe::Probed::from_values(ids, fields, &values));
+    arrays.time_name = "ParticleAge";
+    arrays
+}
+
+/// The output of a run's tracks: pathlines, or streaklines at the end time.
+fn output(run: Run, o: &PathOptions, fields: &[FieldGroup]) -> LineArrays {
+    if o.streaklines {
+        let end = run.legs[run.legs.len() - 1].to;
+        finish_streaks(run.tracks, fields, run.seeds.len(), end)
+    } else {
+        finish(run.tracks, fields)
+    }
 }
 
 /// What a pathline run traces: particles from `seeds` through the vector `vector` (its three
@@ -651,7 +726,7 @@ pub fn pathlines(
         progress(n + 1)?;
     }
     run.tracks.sort_unstable_by_key(|t| t.p.id);
-    Ok(finish(run.tracks, job.fields))
+    Ok(output(run, o, job.fields))
 }
 
 /// [`pathlines`] step-synchronous: every live particle's lookup answered by one `locate`
@@ -721,7 +796,7 @@ pub fn pathlines_batch(
         })??;
         progress(n + 1)?;
     }
-    Ok(finish(run.tracks, job.fields))
+    Ok(output(run, o, job.fields))
 }
 
 #[cfg(test)]
@@ -918,6 +993,65 @@ mod tests {
             for (p, q) in a.points.iter().zip(&all.points) {
                 assert!((0..3).all(|k| (p[k] - q[k]).abs() < 1e-5), "every {every}: {p:?} {q:?}");
             }
+        }
+    }
+
+    /// Streaklines: per seed, its particles (injected at every output time) at the end time,
+    /// oldest first and the seed itself last, aged; each point is the last point of that
+    /// particle's pathline bit for bit, and on the closed form from its injection time.
+    #[test]
+    fn streaklines_join_each_seeds_particles_at_the_end_time() {
+        let (m, steps) = spin_series(8, vec![0.0, 0.5, 1.0, 1.5, 2.0]);
+        let mut cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        let seeds: Vec<Vec3> = vec![[0.8, 0.5, 0.3], [0.5, 0.2, 0.7], [3.0, 0.5, 0.5], [0.65, 0.6, 0.5]];
+        let o = PathOptions { step: Some(0.05), streaklines: true, ..Default::default() };
+        let streaks = pathlines(job(&seeds, &o, &steps, &fields), &cpu, |_| Ok(())).unwrap();
+        assert_eq!(streaks.time_name, "ParticleAge");
+        // The seed outside makes none; the others a point an injection (0, 0.5, 1, 1.5, 2).
+        assert_eq!(streaks.seeds, [0, 1, 3]);
+        assert_eq!(streaks.ends, [5, 10, 15]);
+        assert_eq!(streaks.time, [2.0, 1.5, 1.0, 0.5, 0.0].repeat(3));
+        let paths = PathOptions { streaklines: false, reinject_every: 1, ..o.clone() };
+        let paths = pathlines(job(&seeds, &paths, &steps, &fields), &cpu, |_| Ok(())).unwrap();
+        let clock = &streaks.fields.arrays.iter().find(|(g, _)| g.name == "clock").unwrap().1;
+        for (line, &seed) in [0usize, 1, 3].iter().enumerate() {
+            for j in 0..5 {
+                let at = 5 * line + j;
+                let (age, p) = (streaks.time[at], streaks.points[at]);
+                assert_eq!(clock[at], 2.0);
+                if j == 4 {
+                    assert_eq!(p, seeds[seed], "the newest particle is at its seed");
+                    continue;
+                }
+                // Injection j's particle of this seed: its pathline's last point.
+                let path = (0..paths.ends.len())
+                    .find(|&i| {
+                        let start = if i == 0 { 0 } else { paths.ends[i - 1] };
+                        paths.seeds[i] == seed as i32 && paths.time[start] == 2.0 - age
+                    })
+                    .expect("the particle's pathline");
+                assert_eq!(p, paths.points[paths.ends[path] - 1]);
+                let gap = (0..3)
+                    .map(|k| {
+                        let t0 = 2.0 - age;
+                        let theta = (2.0 - t0) + 0.5 * (4.0 - t0 * t0);
+                        let (dx, dy) = (seeds[seed][0] as f64 - 0.5, seeds[seed][1] as f64 - 0.5);
+                        let want = [
+                            0.5 + theta.cos() * dx - theta.sin() * dy,
+                            0.5 + theta.sin() * dx + theta.cos() * dy,
+                            seeds[seed][2] as f64,
+                        ];
+                        (p[k] as f64 - want[k]).abs()
+                    })
+                    .fold(0.0, f64::max);
+                assert!(gap < 1e-4, "seed {seed}, age {age}: {gap:e} off the closed form");
+            }
+        }
+        let all = pathlines_batch(job(&seeds, &o, &steps, &fields), &mut cpu, &m, |_| Ok(())).unwrap();
+        assert_eq!((&streaks.ends, &streaks.seeds, &streaks.time), (&all.ends, &all.seeds, &all.time));
+        for (p, q) in streaks.points.iter().zip(&all.points) {
+            assert!((0..3).all(|k| (p[k] - q[k]).abs() < 1e-5), "{p:?} {q:?}");
         }
     }
 
