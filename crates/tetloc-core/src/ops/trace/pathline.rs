@@ -522,6 +522,8 @@ struct Track {
     p: PathParticle,
     /// Its seed's index (`p.id` counts the particles of every injection).
     seed: u32,
+    /// The most points it can record (allocated at its first: no reallocation after).
+    room: usize,
     hint: crate::locate::Hint,
     points: Vec<[f64; 3]>,
     time: Vec<f64>,
@@ -543,6 +545,14 @@ impl Track {
     ) {
         let (x, t) = (self.p.x, self.p.t);
         let w = br.weight(t);
+        if self.points.is_empty() {
+            // (Here, on the core that traces it, not where it is injected.)
+            self.points.reserve_exact(self.room);
+            self.time.reserve_exact(self.room);
+            self.tets.reserve_exact(self.room);
+            self.values.reserve_exact(self.room * alias.len());
+        }
+        debug_assert!(self.points.len() < self.room, "a particle records more points than its legs allow");
         self.points.push(x);
         self.time.push(t);
         self.tets.push(found.0 as i32);
@@ -596,15 +606,18 @@ impl Run<'_> {
     fn inject(&mut self, n: usize, order: &[u32]) {
         let times: Vec<f64> = self.injections.iter().filter(|i| i.0 == n).map(|i| i.1).collect();
         for t in times {
-            self.inject_at(t, order);
+            // The injection point, then each remaining leg's end (none after the end time).
+            let room = if t < self.legs[n].to { self.legs.len() - n + 1 } else { 1 };
+            self.inject_at(t, room, order);
         }
     }
 
-    fn inject_at(&mut self, t: f64, order: &[u32]) {
+    fn inject_at(&mut self, t: f64, room: usize, order: &[u32]) {
         let first = self.tracks.len() as u32;
         self.tracks.extend(order.iter().map(|&i| Track {
             p: PathParticle::new(first + i, self.seeds[i as usize], t),
             seed: i,
+            room,
             hint: Default::default(),
             points: Vec::new(),
             time: Vec::new(),
@@ -619,8 +632,11 @@ impl Run<'_> {
 /// time order, each in the seeds' order).
 fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
     let kept: Vec<Track> = tracks.into_iter().filter(|t| t.points.len() > 1).collect();
-    let ids: Vec<i32> = kept.iter().flat_map(|t| t.tets.iter().copied()).collect();
-    let values: Vec<f32> = kept.iter().flat_map(|t| t.values.iter().copied()).collect();
+    // Copied on every core: with reinjection a run can record tens of millions of points.
+    let lens: Vec<usize> = kept.iter().map(|t| t.tets.len()).collect();
+    let ids = crate::ops::concat(&lens, |i, out| out.copy_from_slice(&kept[i].tets));
+    let widths: Vec<usize> = kept.iter().map(|t| t.values.len()).collect();
+    let values = crate::ops::concat(&widths, |i, out| out.copy_from_slice(&kept[i].values));
     let lines: Vec<Line> = kept
         .into_iter()
         .map(|t| Line {
