@@ -168,8 +168,9 @@ impl PathOptions {
 }
 
 /// Whether the seeds are injected at the start of leg `n` (the start time, and every
-/// `every`-th output time after it when reinjecting); a particle injected at the end time
-/// would make no line (one point), so there is no leg for it.
+/// `every`-th output time after it when reinjecting). `n` = the number of legs is the end
+/// time: a pathline from there would have one point, so only streaklines inject there
+/// ([`PathOptions::injections_over`]).
 fn injects_at(n: usize, every: usize) -> bool {
     n == 0 || (every > 0 && n.is_multiple_of(every))
 }
