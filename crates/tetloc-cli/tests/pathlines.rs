@@ -40,8 +40,8 @@ fn points_by_time(dir: &Path, who: &str) -> HashMap<(i64, i64), [f64; 3]> {
 /// particle walking from its last tet) and on soft-bvh (one batched lookup per stage).
 #[test]
 fn pathlines_match_vtk_particle_paths() {
-    // 40 particles at 0.4, 0.8, 1.2, 1.6: all stay inside.
-    match_vtk("pathlines_match_vtk_particle_paths", 0, 1, 160);
+    // 40 particles at 0.4, 0.8, 1.2, 1.6: all stay inside, and all reach 1.6.
+    match_vtk("pathlines_match_vtk_particle_paths", &[], &["compare"], 160, (16000, 40));
 }
 
 /// Reinjection against VTK's ForceReinjectionEveryNSteps: every second output time, the
@@ -50,39 +50,37 @@ fn pathlines_match_vtk_particle_paths() {
 /// script leaves those out.)
 #[test]
 fn reinjected_pathlines_match_vtk_particle_paths() {
-    match_vtk("reinjected_pathlines_match_vtk_particle_paths", 2, 2, 40 * (4 + 2));
+    let test = "reinjected_pathlines_match_vtk_particle_paths";
+    match_vtk(test, &["--reinject-every", "2"], &["compare", "2"], 40 * (4 + 2), (16000, 2 * 40));
 }
 
-/// `trace --unsteady` from 0.4 to 1.6 with `--reinject-every every` against VTK's particles
-/// (`injections` of the 40 seeds, `n_points` points), on cpu and soft-bvh.
-fn match_vtk(test: &str, every: usize, injections: usize, n_points: usize) {
+/// `--streaklines` against VTK's vtkStreaklineFilter (RK4, half an interval a step): each
+/// seed's particles injected at 0.4, 0.8, 1.2 and 1.6 (the seed itself) at 1.6, by age, within
+/// float32 rounding, on cpu and soft-bvh.
+#[test]
+fn streaklines_match_vtk_streak_lines() {
+    // Keyed by (seed, age): the oldest particles (age 1.2) are the ones that moved most.
+    match_vtk("streaklines_match_vtk_streak_lines", &["--streaklines"], &["streaks"], 40 * 4, (12000, 40));
+}
+
+/// `trace --unsteady` from 0.4 to 1.6 with `flags`, on cpu and soft-bvh, against VTK's run by
+/// `vtk_pathlines.py OP DIR 0.4 1.6 OURS [N]` (`script`: OP, then N if any): the same `n_points`
+/// points by (particle, time), each within float32 rounding; `moved.1` of them at time key
+/// `moved.0`, those that moved (a rotation of about 2 radians: not a comparison of seeds).
+fn match_vtk(test: &str, flags: &[&str], script: &[&str], n_points: usize, moved: (i64, usize)) {
     let dir = tmp_dir(test);
     let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
     let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
-    let every = every.to_string();
     for backend in ["cpu", "soft-bvh"] {
         let out = dir.join(format!("paths-{backend}.vtp"));
-        let (ok, err) = tetloc(&[
-            "trace",
-            s(&pvd),
-            "--vector",
-            "v",
-            "--seeds",
-            s(&seeds),
-            "--unsteady",
-            "--start-time",
-            "0.4",
-            "--end-time",
-            "1.6",
-            "--reinject-every",
-            &every,
-            "-o",
-            s(&out),
-            "--backend",
-            backend,
-        ]);
+        let mut args = vec!["trace", s(&pvd), "--vector", "v", "--seeds", s(&seeds), "--unsteady"];
+        args.extend(["--start-time", "0.4", "--end-time", "1.6", "-o", s(&out), "--backend", backend]);
+        args.extend(flags);
+        let (ok, err) = tetloc(&args);
         assert!(ok, "{backend}: {err}");
-        run_vtk_script(test, "vtk_pathlines.py", &["compare", s(&dir), "0.4", "1.6", s(&out), &every]).unwrap();
+        let mut call = vec![script[0], s(&dir), "0.4", "1.6", s(&out)];
+        call.extend(&script[1..]);
+        run_vtk_script(test, "vtk_pathlines.py", &call).unwrap();
         let (vtk, ours) = (points_by_time(&dir, "vtk"), points_by_time(&dir, "tetloc"));
         assert_eq!(vtk.len(), n_points, "VTK's points");
         assert_eq!(ours.len(), vtk.len(), "{backend}: our points");
@@ -92,56 +90,8 @@ fn match_vtk(test: &str, every: usize, injections: usize, n_points: usize) {
             worst = worst.max((0..3).map(|k| (o[k] - v[k]).abs()).fold(0.0, f64::max));
         }
         // Both in f64 on float32 data: the positions agree to float32 rounding.
-        assert!(worst < 1e-5, "{backend}: {worst:e} from VTK's particle paths");
-        // Every particle reached the end (the first ones after a rotation of about 2 radians:
-        // not a comparison of seeds).
-        let at_end = vtk.iter().filter(|(k, _)| k.1 == 16000).count();
-        assert_eq!(at_end, 40 * injections);
-    }
-}
-
-/// `--streaklines` against VTK's vtkStreaklineFilter (RK4, half an interval a step): each
-/// seed's particles injected at 0.4, 0.8, 1.2 and 1.6 (the seed itself) at 1.6, by age, within
-/// float32 rounding, on cpu and soft-bvh.
-#[test]
-fn streaklines_match_vtk_streak_lines() {
-    const TEST: &str = "streaklines_match_vtk_streak_lines";
-    let dir = tmp_dir(TEST);
-    let Some(()) = run_vtk_script(TEST, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
-    let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
-    for backend in ["cpu", "soft-bvh"] {
-        let out = dir.join(format!("streaks-{backend}.vtp"));
-        let (ok, err) = tetloc(&[
-            "trace",
-            s(&pvd),
-            "--vector",
-            "v",
-            "--seeds",
-            s(&seeds),
-            "--unsteady",
-            "--streaklines",
-            "--start-time",
-            "0.4",
-            "--end-time",
-            "1.6",
-            "-o",
-            s(&out),
-            "--backend",
-            backend,
-        ]);
-        assert!(ok, "{backend}: {err}");
-        run_vtk_script(TEST, "vtk_pathlines.py", &["streaks", s(&dir), "0.4", "1.6", s(&out)]).unwrap();
-        let (vtk, ours) = (points_by_time(&dir, "vtk"), points_by_time(&dir, "tetloc"));
-        assert_eq!(vtk.len(), 40 * 4, "VTK's points");
-        assert_eq!(ours.len(), vtk.len(), "{backend}: our points");
-        let mut worst: f64 = 0.0;
-        for (key, v) in &vtk {
-            let o = ours.get(key).unwrap_or_else(|| panic!("{backend}: no point for seed {} at age {}", key.0, key.1));
-            worst = worst.max((0..3).map(|k| (o[k] - v[k]).abs()).fold(0.0, f64::max));
-        }
-        assert!(worst < 1e-5, "{backend}: {worst:e} from VTK's streaklines");
-        // The oldest particles moved (a rotation of about 2 radians): not a comparison of seeds.
-        assert_eq!(vtk.keys().filter(|k| k.1 == 12000).count(), 40);
+        assert!(worst < 1e-5, "{backend}: {worst:e} from VTK's points");
+        assert_eq!(vtk.keys().filter(|k| k.1 == moved.0).count(), moved.1, "{backend}: the points that moved");
     }
 }
 
