@@ -228,10 +228,13 @@ fn points_of<'a, T: numpy::Element + bytemuck::Pod>(points: &'a PyReadonlyArray2
 /// pathlines through the mesh's time steps from `start_time` to `end_time` (`step` a time;
 /// `IntegrationTime` the simulation time, `SeedIds` each particle's seed), the seeds injected
 /// again every `reinject_every` output times (0: once); `streaklines`: one line a seed through
-/// its particles at the end time, `ParticleAge` instead of `IntegrationTime`.
+/// its particles at the end time, `ParticleAge` instead of `IntegrationTime`;
+/// `every_output_time`: `frames`, a list of (time, dict) at each output time after the start
+/// (the lines as a run ending there gives them) in place of the arrays.
 #[pyfunction(name = "trace")]
 #[pyo3(signature = (mesh, locator, vector, seeds, step, max_steps, max_length, max_time, direction, integrator,
-    max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None, reinject_every=0, streaklines=false))]
+    max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None, reinject_every=0, streaklines=false,
+    every_output_time=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn trace_lines<'py>(
     py: Python<'py>,
@@ -255,6 +258,7 @@ pub fn trace_lines<'py>(
     end_time: Option<f64>,
     reinject_every: usize,
     streaklines: bool,
+    every_output_time: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = mesh.mesh.clone();
     let seeds = points_of(&seeds)?;
@@ -292,20 +296,33 @@ pub fn trace_lines<'py>(
         let xyz = [c[0], c[1], c[2]];
         let out_fields = trace::line_fields(&m, &vector);
         let job = trace::PathJob { seeds, options: &o, steps: &steps, vector: xyz, fields: &out_fields };
-        let arrays = match locator {
+        // The lines at the end time, or at every output time: made on the job's thread.
+        let outputs = |run: trace::PathRun| match every_output_time {
+            true => run.frame_times().into_iter().enumerate().map(|(k, t)| (t, run.frame(k))).collect(),
+            false => vec![(0.0, run.output())],
+        };
+        let mut made: Vec<(f64, LineArrays)> = match locator {
             None => {
                 let cpu = cpu_locator(py, &m)?;
                 run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
-                    trace::pathlines(job, &cpu, |d| ticker.tick(d))
+                    Ok(outputs(trace::pathline_run(job, &cpu, |d| ticker.tick(d))?))
                 })?
             }
             Some(locator) => with_backend(py, locator, |loc| {
                 run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
-                    trace::pathlines_batch(job, &mut *loc, &m, |d| ticker.tick(d))
+                    Ok(outputs(trace::pathline_run_batch(job, &mut *loc, &m, |d| ticker.tick(d))?))
                 })
             })?,
         };
-        let out = line_dict(py, arrays)?;
+        let out = match every_output_time {
+            true => {
+                let out = PyDict::new(py);
+                let frames = made.into_iter().map(|(t, a)| Ok((t, line_dict(py, a)?))).collect::<PyResult<Vec<_>>>()?;
+                out.set_item("frames", frames)?;
+                out
+            }
+            false => line_dict(py, made.pop().expect("one output").1)?,
+        };
         out.set_item("injections", injections)?;
         return Ok(out);
     }

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import json
 import pathlib
-from typing import Any
+import warnings
+from typing import Any, Dict
 
 import numpy as np
 import pytest
@@ -275,7 +276,7 @@ def test_reinjected_pathlines(tmp_path, backend):
     for bad in (-1, 1.5, True):
         with pytest.raises(ValueError, match="reinject_every"):
             tetloc.trace(mesh, "v", seeds, unsteady=True, reinject_every=bad, backend=backend)
-    with pytest.raises(ValueError, match="reinject_every and streaklines apply to pathlines"):
+    with pytest.raises(ValueError, match="reinject_every, streaklines and every_output_time apply to pathlines"):
         tetloc.trace(mesh, "v", seeds, reinject_every=1, backend=backend)
 
 
@@ -301,6 +302,35 @@ def test_streaklines(tmp_path, backend):
                         as_pyvista=True)
     np.testing.assert_array_equal(poly.point_data["ParticleAge"], out["ParticleAge"])
     assert poly.n_lines == 2
+
+
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
+def test_every_output_time(tmp_path, backend):
+    """every_output_time=True: (time, lines) at each output time after the start, each equal
+    to the run that ends there (pathlines reinjected, with a particle that leaves the cube
+    between output times; streaklines; pyvista), the last one the run's own output."""
+    mesh = tetloc.read(spin_series(tmp_path, [0.0, 0.5, 1.0, 1.5, 2.0]))
+    # The last seed's circle (radius 0.52, from 20 degrees) leaves the unit cube through y = 1
+    # at 74 degrees: at t = 0.69 from 0, between the first two output times.
+    seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7], [0.988, 0.678, 0.5]], np.float32)
+    for kind in ({"reinject_every": 2}, {"streaklines": True}):
+        opts: Dict[str, Any] = dict(unsteady=True, step=0.1, start_time=0.25, backend=backend, **kind)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            frames = tetloc.trace(mesh, "v", seeds, every_output_time=True, **opts)
+            assert [t for t, _ in frames] == [0.5, 1.0, 1.5, 2.0]
+            for t, lines in frames:
+                alone = tetloc.trace(mesh, "v", seeds, end_time=t, **opts)
+                assert lines.keys() == alone.keys(), (kind, t)
+                for name in alone:
+                    np.testing.assert_array_equal(lines[name], alone[name], err_msg=f"{kind} at {t}: {name}")
+            polys = tetloc.trace(mesh, "v", seeds, every_output_time=True, as_pyvista=True, **opts)
+        assert [p.n_lines for _, p in polys] == [len(lines["offsets"]) - 1 for _, lines in frames]
+    paths = tetloc.trace(mesh, "v", seeds, every_output_time=True, unsteady=True, step=0.1, backend=backend)
+    gone = [int((lines["ReasonForTermination"] == 1).sum()) for _, lines in paths]
+    assert gone[0] < gone[-1], gone  # cut at first (reason 7), gone by the end (1)
+    with pytest.raises(ValueError, match="every_output_time apply to pathlines"):
+        tetloc.trace(mesh, "v", seeds, every_output_time=True, backend=backend)
 
 
 def test_pathline_bad_inputs(tmp_path, data_dir):

@@ -210,6 +210,7 @@ def trace(
     end_time: Optional[float] = None,
     reinject_every: int = 0,
     streaklines: bool = False,
+    every_output_time: bool = False,
 ) -> Any:
     """Streamlines of the 3-component field `vector` from `seeds` (vtkStreamTracer with steps
     in length units): `integrator` ``"rk4"`` (fixed `step`), ``"rk45"`` (adaptive,
@@ -255,13 +256,17 @@ def trace(
     points at `end_time`, the oldest first and the one injected at `end_time` (at the seed)
     last, with ``ParticleAge`` (the time since injection) in place of ``IntegrationTime``; the
     seeds are then injected at every output time unless `reinject_every` says otherwise.
+    ``every_output_time=True``: a list of ``(time, lines)``, one for each output time after
+    `start_time`, each what the filter shows at that time (the pathlines up to it, a particle
+    that goes on after it ending there with reason 7, or the streaklines at it): the same as a
+    run with that `end_time`, for an animation.
     """
     if not isinstance(vector, str):
         raise TypeError(f"vector: expected a field name, got {type(vector).__name__}")
     if isinstance(reinject_every, bool) or not isinstance(reinject_every, (int, np.integer)) or reinject_every < 0:
         raise ValueError(f"reinject_every: expected a whole number of output times, 0 or more, got {reinject_every!r}")
-    if (reinject_every or streaklines) and not unsteady:
-        raise ValueError("reinject_every and streaklines apply to pathlines (unsteady=True)")
+    if (reinject_every or streaklines or every_output_time) and not unsteady:
+        raise ValueError("reinject_every, streaklines and every_output_time apply to pathlines (unsteady=True)")
     m = _mesh_of(mesh, "mesh")
     pts, _ = as_points(np.asarray(seeds.points) if _is_pyvista(seeds) else seeds, "seeds")
     pyvista_out = _is_pyvista(mesh) if as_pyvista is None else as_pyvista
@@ -274,13 +279,14 @@ def trace(
     out = _tetloc.trace(
         m._raw, raw_loc, vector, pts, step, int(max_steps), max_length, max_time, direction, integrator,
         float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
-        bool(unsteady), start_time, end_time, reinject_every, bool(streaklines),
+        bool(unsteady), start_time, end_time, reinject_every, bool(streaklines), bool(every_output_time),
     )
-    fields = out.pop("fields")
     # As the CLI: seeds that give no line are counted (VTK makes none for them either).
     injections = out.pop("injections", 1)
     n_lines = len(pts) * (1 if streaklines else injections if unsteady else 2 if direction == "both" else 1)
-    without = n_lines - (len(out["offsets"]) - 1)
+    frames = out.pop("frames", None)
+    last = frames[-1][1] if frames else out
+    without = n_lines - (len(last["offsets"]) - 1)
     if without > 0:
         warnings.warn(
             f"trace: {without} of {n_lines} lines have no step inside the mesh (their seed is outside it, "
@@ -288,6 +294,15 @@ def trace(
             RuntimeWarning,
             stacklevel=2,
         )
+    if frames is not None:
+        return [(t, _lines(lines, streaklines, pyvista_out)) for t, lines in frames]
+    return _lines(out, streaklines, pyvista_out)
+
+
+def _lines(out: Dict[str, Any], streaklines: bool, pyvista_out: bool) -> Any:
+    """`_tetloc.trace`'s lines as `trace` returns them: the fields under their names, or a
+    ``pyvista.PolyData`` of lines."""
+    fields = out.pop("fields")
     n = len(out["points"])
     for name, k, values in fields:
         out[name] = _shaped(values, k, (n,))

@@ -119,6 +119,7 @@ pub(crate) fn check_args(a: &LocateArgs) -> Result<()> {
     let mesh_files = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
     let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
     inputs.push(FileArg::new("--points", &a.points));
+    outputs.extend(a.common.index_arg());
     crate::outputs::check_distinct(&inputs, &outputs)?;
     Ok(())
 }

@@ -221,9 +221,18 @@ struct Common {
     /// named STEM_K.EXT, and a .pvd beside --out that indexes them by time.
     #[arg(long, value_name = "K|all")]
     time_step: Option<time_steps::TimeStep>,
+    /// The `.pvd` index that `--time-step all` writes beside --out (set for each step's run,
+    /// not an argument): an output of every step, so checked against its inputs.
+    #[arg(skip)]
+    index: Option<PathBuf>,
 }
 
 impl Common {
+    /// The index as one of a command's outputs, when `--time-step all` writes one.
+    fn index_arg(&self) -> Option<FileArg<'_>> {
+        self.index.as_deref().map(|p| FileArg::new("the --time-step all index", p))
+    }
+
     /// The one time step to run on (`all` is run step by step by [`run`]).
     fn step(&self) -> Option<usize> {
         match self.time_step {
@@ -272,9 +281,21 @@ fn distributed(cli: Cli, size: usize) -> i32 {
         _ => None,
     };
     let is_listing = listing.as_ref().is_some_and(|m| tetloc_io::parts::is_partitioned(Path::new(m)));
+    let time_step = match &cli.command {
+        Command::Locate(a) => a.common.time_step,
+        Command::Bench { common, .. } => common.time_step,
+        Command::Resample(a) => a.common.time_step,
+        Command::Probe(a) => a.common.time_step,
+        _ => None,
+    };
     // One rank runs as one process, unless it is to load a partitioned mesh through MPI.
     if size == 1 && !(is_listing && cfg!(feature = "mpi")) {
         return main_exit(run(cli));
+    }
+    if is_listing && time_step.is_some() {
+        // The ranks read their pieces' first step: refused rather than answered on it.
+        eprintln!("error: {size} ranks: --time-step is not supported under mpirun; run each step without mpirun");
+        return 1;
     }
     #[cfg(feature = "mpi")]
     if is_listing {
@@ -343,6 +364,10 @@ fn run(cli: Cli) -> Result<()> {
             backend,
             common,
         } => {
+            if common.time_step.is_some() {
+                // It reads the first step's fields: refused rather than measured on them.
+                anyhow::bail!("bench measures one snapshot; --time-step is for locate, resample, probe and trace");
+            }
             let opts = common.opts()?;
             // The query arrays are checked before the mesh is read.
             let n = n.map(|s| mesh_arg::parse_count(&s)).transpose()?;

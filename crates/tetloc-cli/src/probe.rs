@@ -86,7 +86,8 @@ pub(crate) fn check(a: &ProbeArgs) -> Result<bool> {
     };
     let mut inputs: Vec<FileArg> = sources.iter().map(|p| FileArg::new("SOURCE", p)).collect();
     inputs.extend(targets.iter().map(|p| FileArg::new("TARGET", p)));
-    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    let outputs: Vec<FileArg> = std::iter::once(FileArg::new("--out", &a.out)).chain(a.common.index_arg()).collect();
+    crate::outputs::check_distinct(&inputs, &outputs)?;
     Ok(point_set)
 }
 

@@ -68,7 +68,8 @@ pub(crate) fn check(a: &ResampleArgs) -> Result<Plan> {
     check_image_size(&a.out, [nx, ny, nz], 1, a.zlib)?;
     let inputs: Vec<PathBuf> = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
     let inputs: Vec<FileArg> = inputs.iter().map(|p| FileArg::new("MESH", p)).collect();
-    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    let outputs: Vec<FileArg> = std::iter::once(FileArg::new("--out", &a.out)).chain(a.common.index_arg()).collect();
+    crate::outputs::check_distinct(&inputs, &outputs)?;
     if output::extension(&a.out) == "npy" && a.field.len() != 1 {
         bail!("--out {}: .npy holds one array; name one --field (or write .vti)", a.out.display());
     }

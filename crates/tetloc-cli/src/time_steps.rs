@@ -119,39 +119,39 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
         return command(args);
     }
     let (mesh, out) = args.series();
-    each_step(mesh, args.common().format.as_deref(), out, |k, n| {
+    let times = times(mesh, args.common().format.as_deref())?;
+    if times.is_empty() {
+        check_step(&Path::new(mesh).display().to_string(), 0, 0).context("--time-step all")?;
+    }
+    for (k, t) in times.iter().enumerate() {
         let mut a = args.clone();
         a.common_mut().time_step = Some(TimeStep::One(k));
-        a.rename_outputs(k, n);
-        command(&a)
-    })
+        // Each step's run checks the index too: none of them may read it.
+        a.common_mut().index = index_path(out);
+        a.rename_outputs(k, times.len());
+        command(&a).with_context(|| format!("time step {k} (time {t})"))?;
+    }
+    write_index(out, &times)
 }
 
-/// Runs `run(k)` for every step of `arg`, then writes `out`'s `.pvd` index of the steps'
-/// `--out` files when they are VTK files ParaView opens.
-fn each_step(
-    arg: &OsStr,
-    format: Option<&str>,
-    out: &Path,
-    mut run: impl FnMut(usize, usize) -> Result<()>,
-) -> Result<()> {
-    let times = times(arg, format)?;
-    if times.is_empty() {
-        check_step(&Path::new(arg).display().to_string(), 0, 0).context("--time-step all")?;
-    }
-    for k in 0..times.len() {
-        run(k, times.len()).with_context(|| format!("time step {k} (time {})", times[k]))?;
-    }
+/// The `.pvd` that indexes `--out`'s steps (`OUT.pvd`), where they are VTK files ParaView
+/// opens (.vtu, .vtp, .vti).
+pub fn index_path(out: &Path) -> Option<PathBuf> {
     let ext = tetloc_io::output::extension(out);
-    if !matches!(ext.as_str(), "vtu" | "vtp" | "vti") {
+    matches!(ext.as_str(), "vtu" | "vtp" | "vti").then(|| out.with_extension("pvd"))
+}
+
+/// Writes [`index_path`]'s `.pvd` of the files `step_path(out, k, n)` at `times` (a note
+/// instead for other formats).
+pub fn write_index(out: &Path, times: &[f64]) -> Result<()> {
+    let Some(index) = index_path(out) else {
         eprintln!(
             "wrote {} steps as {}; no .pvd index (it lists VTK files: .vtu, .vtp, .vti)",
             times.len(),
             step_path(out, 0, times.len()).display()
         );
         return Ok(());
-    }
-    let index = out.with_extension("pvd");
+    };
     let mut f = io::output::AtomicFile::create(&index)?;
     let mut text = String::from("<?xml version=\"1.0\"?>\n<VTKFile type=\"Collection\" version=\"0.1\" byte_order=\"LittleEndian\">\n<Collection>\n");
     for (k, t) in times.iter().enumerate() {

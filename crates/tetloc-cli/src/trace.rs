@@ -10,6 +10,7 @@
 //! `--unsteady`: pathlines (ParaView's Particle Path filter) through a time series, one point
 //! per particle at the start time, each step time and the end time ([`run_unsteady`]).
 
+use crate::time_steps::{self, TimeStep};
 use crate::{mesh_arg, progress, Common};
 use anyhow::{Context, Result};
 use std::ffi::OsString;
@@ -22,7 +23,7 @@ use tetloc_io::points;
 use tetloc_io::vtk::write::PolylineWriter;
 use tetloc_locator::{Backend, BareLocator};
 
-#[derive(clap::Args)]
+#[derive(clap::Args, Clone)]
 pub struct TraceArgs {
     /// A mesh file (.vtu, .vtk, .msh, .node/.ele, .pvtu/.vtm), or SHAPE:N to generate one (e.g. fusion:1M)
     /// with its closed-form flow `v` (as `tetloc gen --vector`).
@@ -86,6 +87,8 @@ pub struct TraceArgs {
     /// .pvd); the particles, injected at the seeds at --start-time, move through the vector
     /// interpolated linearly in time between the steps, time being the integration variable,
     /// until --end-time or until they leave the mesh. Two steps are held in memory at a time.
+    /// With --time-step all: OUT_K.vtp at each output time after the start (the lines as a run
+    /// ending there draws them) and OUT.pvd indexing them by time.
     #[arg(long)]
     unsteady: bool,
     /// --unsteady: the time the particles are injected at (by default the first step's).
@@ -118,11 +121,19 @@ pub struct TraceArgs {
 /// time, tet and sampled values, the spilled copy; measured at about 106).
 const LINE_POINT_BYTES: u128 = 128;
 
+crate::time_steps::on_steps!(TraceArgs, mesh);
+
+/// Streamlines in one step's field (`--time-step K|all` as the other commands take it), or
+/// pathlines through the steps (`--unsteady`, whose `--time-step all` is its output times).
 pub fn run(a: &TraceArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     if a.unsteady {
         return run_unsteady(a);
     }
+    time_steps::run(a, run_steady)
+}
+
+fn run_steady(a: &TraceArgs) -> Result<()> {
     let direction: Direction = a.direction.parse()?;
     output::check_output(&a.out, &["vtp"]).context("--out: streamlines are written as VTK polydata")?;
     let spec = trace::seeds_from_spec(&a.seeds);
@@ -132,7 +143,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     if spec.is_none() {
         inputs.push(FileArg::new("--seeds", &seeds_file));
     }
-    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    let outputs: Vec<FileArg> = std::iter::once(FileArg::new("--out", &a.out)).chain(a.common.index_arg()).collect();
+    crate::outputs::check_distinct(&inputs, &outputs)?;
     let seeds = match spec {
         Some(s) => s.context("--seeds")?,
         None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
@@ -153,7 +165,10 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     let opts = a.common.opts()?;
 
     // Generated shapes come with their closed-form flow `v` (`gen --vector`).
-    let m = mesh_arg::load_with_flow(&a.mesh, a.common.format.as_deref(), a.common.seed)?;
+    let m = match a.common.step() {
+        None => mesh_arg::load_with_flow(&a.mesh, a.common.format.as_deref(), a.common.seed)?,
+        Some(k) => time_steps::load(&a.mesh, a.common.format.as_deref(), a.common.seed, Some(k))?,
+    };
     if a.step.is_none() {
         o.step = 0.1 * m.info.mean_edge_length as f64;
         o.check()?;
@@ -269,9 +284,13 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
             a.direction
         );
     }
-    if a.common.time_step.is_some() {
-        anyhow::bail!("--unsteady runs through the steps from --start-time to --end-time; --time-step picks one step");
-    }
+    let frames = match a.common.time_step {
+        None => false,
+        Some(TimeStep::All) => true,
+        Some(TimeStep::One(_)) => anyhow::bail!(
+            "--unsteady runs through the steps from --start-time to --end-time; --time-step K picks one step (--time-step all writes the lines at every output time)"
+        ),
+    };
     if mesh_arg::parse_generated(&a.mesh).is_some() {
         anyhow::bail!(
             "{}: --unsteady needs a time series (an Exodus file with time steps, or a .pvd); a generated mesh is a single snapshot",
@@ -279,11 +298,14 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         );
     }
     let spec = trace::seeds_from_spec(&a.seeds);
-    let mut inputs = vec![FileArg::new("MESH", path)];
+    let meshes = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
+    let mut inputs: Vec<FileArg> = meshes.iter().map(|p| FileArg::new("MESH", p)).collect();
     if spec.is_none() {
         inputs.push(FileArg::new("--seeds", Path::new(&a.seeds)));
     }
-    crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    if !frames {
+        crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
+    }
     let seeds = match spec {
         Some(s) => s.context("--seeds")?,
         None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
@@ -322,6 +344,17 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         );
     };
     let legs = o.legs(&steps.source, &steps.times)?;
+    // --time-step all: a file at each output time after the start, and their index.
+    let frame_files: Vec<PathBuf> = match frames {
+        true => (0..legs.len()).map(|k| time_steps::step_path(&a.out, k, legs.len())).collect(),
+        false => Vec::new(),
+    };
+    if frames {
+        let index = time_steps::index_path(&a.out);
+        let mut outputs: Vec<FileArg> = frame_files.iter().map(|p| FileArg::new("--out (a time's file)", p)).collect();
+        outputs.extend(index.as_deref().map(|p| FileArg::new("the --time-step all index", p)));
+        crate::outputs::check_distinct(&inputs, &outputs)?;
+    }
     let m = std::sync::Arc::new(tetloc_core::Mesh::new(raw, path.display().to_string())?);
     if m.cells.is_some() {
         anyhow::bail!(
@@ -343,20 +376,34 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     };
     let job = trace::PathJob { seeds: &seeds, options: &o, steps: &steps, vector: xyz, fields: &out_fields };
     let t0 = Instant::now();
-    let arrays = if backend == Backend::Cpu {
+    let run = if backend == Backend::Cpu {
         let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
-        trace::pathlines(job, &cpu, tick)?
+        trace::pathline_run(job, &cpu, tick)?
     } else {
         let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
-        trace::pathlines_batch(job, loc.as_mut(), &m, tick)?
+        trace::pathline_run_batch(job, loc.as_mut(), &m, tick)?
     };
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
-    let mut writer = PolylineWriter::new(&a.out)?;
-    ops_output::push_lines(&mut writer, &arrays, 0)?;
-    let (n_points, n_made) = (writer.n_points(), writer.n_lines());
-    progress::with_spinner(format!("writing {}", a.out.display()), || writer.finish(a.zlib))?;
+    let write = |path: &Path, arrays: &trace::LineArrays| -> Result<(usize, usize)> {
+        let mut writer = PolylineWriter::new(path)?;
+        ops_output::push_lines(&mut writer, arrays, 0)?;
+        let made = (writer.n_points(), writer.n_lines());
+        progress::with_spinner(format!("writing {}", path.display()), || writer.finish(a.zlib))?;
+        Ok(made)
+    };
+    let (n_points, n_made) = if frames {
+        let times = run.frame_times();
+        let mut last = (0, 0);
+        for (k, file) in frame_files.iter().enumerate() {
+            last = write(file, &run.frame(k))?;
+        }
+        time_steps::write_index(&a.out, &times)?;
+        last
+    } else {
+        write(&a.out, &run.output())?
+    };
     let particles = seeds.len() * o.injections(&legs);
     let what = if a.streaklines { "streaklines" } else { "pathlines" };
     if a.streaklines && n_made < seeds.len() {
@@ -372,9 +419,15 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         );
     }
     if !a.common.quiet {
+        let written = match (frames, time_steps::index_path(&a.out)) {
+            (true, index) => {
+                let shown = index.unwrap_or_else(|| frame_files[0].clone());
+                format!("{}: {} files, one an output time; at the end time", shown.display(), legs.len())
+            }
+            (false, _) => format!("{}:", a.out.display()),
+        };
         eprintln!(
-            "{}: {n_made} {what}, {n_points} points over {} legs ({} to {}) on {name} in {secs:.3} s",
-            a.out.display(),
+            "{written} {n_made} {what}, {n_points} points over {} legs ({} to {}) on {name} in {secs:.3} s",
             legs.len(),
             legs[0].from,
             legs[legs.len() - 1].to

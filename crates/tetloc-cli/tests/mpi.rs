@@ -221,6 +221,11 @@ fn bench_and_refusals() {
     assert_eq!(rows[0]["ties"], 0, "centres lie on no face");
     let (o, _) = mpirun(2, &[], &["locate", s(&dir.join("jets.vtu")), "--points", "p.bin", "--out", "x.bin"]);
     assert!(!o.status.success() && text(&o).contains("tetloc partition"), "{}", text(&o));
+    // The ranks read the pieces' first step: a step asked for is refused, not answered on it.
+    let out = dir.join("x.bin");
+    let (o, _) = mpirun(2, &[], &["locate", s(&pvtu), "--points", "p.bin", "--out", s(&out), "--time-step", "0"]);
+    assert!(!o.status.success() && text(&o).contains("--time-step is not supported under mpirun"), "{}", text(&o));
+    assert!(!out.exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

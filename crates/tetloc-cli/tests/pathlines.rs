@@ -1,6 +1,7 @@
-//! `trace --unsteady` end to end: pathlines through a `.pvd` series against VTK's
-//! vtkParticlePathFilter (through `scripts/vtk_pathlines.py`), on cpu and soft-bvh; and the
-//! bad inputs (a single snapshot, times outside the series).
+//! `trace` through a `.pvd` series end to end: pathlines (`--unsteady`) against VTK's
+//! vtkParticlePathFilter (through `scripts/vtk_pathlines.py`), on cpu and soft-bvh, their
+//! files at every output time (`--time-step all`), streamlines in one step's field; and the
+//! bad inputs (a single snapshot, times outside the series, an index over the series).
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -140,4 +141,107 @@ fn unsteady_bad_inputs_are_refused() {
     ]);
     assert!(!ok && err.contains("--unsteady"), "--start-time without --unsteady: {err}");
     assert!(!out.exists());
+}
+
+/// `--time-step all`: a file at each output time after the start, each the run that ends
+/// there (byte for byte: pathlines with reinjection, and streaklines), on cpu and soft-bvh,
+/// and the `.pvd` that indexes them by time. An index that would write over the series, and
+/// `--time-step K`, are refused before anything is written.
+#[test]
+fn every_output_time_is_the_run_that_ends_there() {
+    let test = "every_output_time_is_the_run_that_ends_there";
+    let dir = tmp_dir(test);
+    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
+    let series = std::fs::read(&pvd).unwrap();
+    let trace = |out: &Path, flags: &[&str]| {
+        let mut args = vec!["trace", s(&pvd), "--vector", "v", "--seeds", s(&seeds), "--unsteady", "-q"];
+        args.extend(["--start-time", "0.4", "-o", s(out)]);
+        args.extend(flags);
+        tetloc(&args)
+    };
+    for backend in ["cpu", "soft-bvh"] {
+        for what in [&["--reinject-every", "2"][..], &["--streaklines"]] {
+            let out = dir.join(format!("frames-{backend}.vtp"));
+            let (ok, err) = trace(&out, &[&["--backend", backend, "--time-step", "all"], what].concat());
+            assert!(ok, "{backend} {what:?}: {err}");
+            assert!(!out.exists(), "{backend} {what:?}: --out itself is not written");
+            // Output times after 0.4: the series' 0.8, 1.2, 1.6 and 2.0.
+            let index = std::fs::read_to_string(dir.join(format!("frames-{backend}.pvd"))).unwrap();
+            for (k, t) in ["0.8", "1.2", "1.6", "2.0"].iter().enumerate() {
+                let frame = dir.join(format!("frames-{backend}_{k}.vtp"));
+                let entry = format!("timestep=\"{t}\" group=\"\" part=\"0\" file=\"frames-{backend}_{k}.vtp\"");
+                assert!(index.contains(&entry), "{backend} {what:?}: no {entry} in {index}");
+                let end = dir.join("end.vtp");
+                let (ok, err) = trace(&end, &[&["--backend", backend, "--end-time", t], what].concat());
+                assert!(ok, "{backend} {what:?} to {t}: {err}");
+                let (a, b) = (std::fs::read(&frame).unwrap(), std::fs::read(&end).unwrap());
+                assert!(a == b, "{backend} {what:?}: {} differs from the run that ends at {t}", frame.display());
+            }
+            assert_eq!(index.matches("<DataSet").count(), 4, "{index}");
+        }
+    }
+    let (ok, err) = trace(&dir.join("series.vtp"), &["--backend", "cpu", "--time-step", "all"]);
+    assert!(!ok && err.contains("index") && err.contains("series.pvd"), "{err}");
+    assert!(std::fs::read(&pvd).unwrap() == series, "the series was written over");
+    assert!(!dir.join("series_0.vtp").exists());
+    let (ok, err) = trace(&dir.join("one.vtp"), &["--backend", "cpu", "--time-step", "1"]);
+    assert!(!ok && err.contains("--time-step all"), "{err}");
+}
+
+/// `--time-step all` on probe: an index (`OUT.pvd`) that is the input series is refused at
+/// the first step, before any step's file or the index is written.
+#[test]
+fn a_time_step_index_never_writes_over_the_series() {
+    let test = "a_time_step_index_never_writes_over_the_series";
+    let dir = tmp_dir(test);
+    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let pvd = dir.join("series.pvd");
+    let series = std::fs::read(&pvd).unwrap();
+    let target = dir.join("step_0.vtu");
+    let out = dir.join("series.vtu");
+    let (ok, err) = tetloc(&["probe", s(&pvd), s(&target), "--time-step", "all", "-o", s(&out), "--backend", "cpu"]);
+    assert!(!ok && err.contains("index") && err.contains("series.pvd") && err.contains("input"), "{err}");
+    assert!(std::fs::read(&pvd).unwrap() == series, "the series was written over");
+    assert!(!dir.join("series_0.vtu").exists());
+    // Another name works: a file a step and the index.
+    let out = dir.join("probed.vtu");
+    let (ok, err) = tetloc(&["probe", s(&pvd), s(&target), "--time-step", "all", "-o", s(&out), "--backend", "cpu"]);
+    assert!(ok, "{err}");
+    let index = std::fs::read_to_string(dir.join("probed.pvd")).unwrap();
+    assert_eq!(index.matches("<DataSet").count(), 6, "{index}");
+}
+
+/// Streamlines in one step of a series: `--time-step K` traces step K's field (the same file
+/// as tracing that step's `.vtu` alone), `--time-step all` writes each step's and their index,
+/// and no flag traces the first step. `bench`, which measures one snapshot, refuses a step.
+#[test]
+fn streamlines_in_a_step_trace_that_steps_field() {
+    let test = "streamlines_in_a_step_trace_that_steps_field";
+    let dir = tmp_dir(test);
+    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
+    let trace = |mesh: &Path, out: &Path, flags: &[&str]| {
+        let mut args = vec!["trace", s(mesh), "--vector", "v", "--seeds", s(&seeds), "-q", "--backend", "cpu"];
+        args.extend(["-o", s(out)]);
+        args.extend(flags);
+        let (ok, err) = tetloc(&args);
+        assert!(ok, "{flags:?}: {err}");
+        std::fs::read(out).unwrap_or_default()
+    };
+    let alone: Vec<Vec<u8>> =
+        (0..6).map(|k| trace(&dir.join(format!("step_{k}.vtu")), &dir.join("a.vtp"), &[])).collect();
+    assert!(alone[0] != alone[4], "the steps' fields differ");
+    for k in [0, 4] {
+        assert!(trace(&pvd, &dir.join("k.vtp"), &["--time-step", &k.to_string()]) == alone[k], "step {k}");
+    }
+    assert!(trace(&pvd, &dir.join("first.vtp"), &[]) == alone[0], "no --time-step: the first step");
+    trace(&pvd, &dir.join("all.vtp"), &["--time-step", "all"]);
+    for (k, want) in alone.iter().enumerate() {
+        assert!(std::fs::read(dir.join(format!("all_{k}.vtp"))).unwrap() == *want, "--time-step all, step {k}");
+    }
+    let index = std::fs::read_to_string(dir.join("all.pvd")).unwrap();
+    assert!(index.contains("timestep=\"1.6\" group=\"\" part=\"0\" file=\"all_4.vtp\""), "{index}");
+    let (ok, err) = tetloc(&["bench", s(&pvd), "--time-step", "1", "--backend", "cpu"]);
+    assert!(!ok && err.contains("--time-step"), "{err}");
 }

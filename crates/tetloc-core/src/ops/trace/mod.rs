@@ -30,7 +30,9 @@ use rayon::prelude::*;
 mod particle;
 mod pathline;
 pub use particle::Particle;
-pub use pathline::{pathlines, pathlines_batch, Leg, PathJob, PathOptions, PathParticle};
+pub use pathline::{
+    pathline_run, pathline_run_batch, pathlines, pathlines_batch, Leg, PathJob, PathOptions, PathParticle, PathRun,
+};
 
 pub use crate::streamline::{Direction, Integrator, Line, Reason, TraceOptions, BATCH_POINTS};
 

@@ -20,7 +20,7 @@
 //! Runge–Kutta stage on any backend, and interpolates on the host.
 
 use super::particle::{combine, norm, MAX_STAGES};
-use super::{Integrator, Line, LineArrays, Reason};
+use super::{Integrator, LineArrays, Reason};
 use crate::error::{Error, Result};
 use crate::geom::{Bary64, Vec3};
 use crate::locate::BatchLocator;
@@ -628,70 +628,162 @@ impl Run<'_> {
     }
 }
 
-/// The line arrays of the tracks with two points or more (a particle injected outside the
-/// mesh, or gone before the first leg's end, makes none), in particle order (injections in
-/// time order, each in the seeds' order).
-fn finish(tracks: Vec<Track>, fields: &[FieldGroup]) -> LineArrays {
-    let kept: Vec<Track> = tracks.into_iter().filter(|t| t.points.len() > 1).collect();
-    // Copied on every core: with reinjection a run can record tens of millions of points.
-    let lens: Vec<usize> = kept.iter().map(|t| t.tets.len()).collect();
-    let ids = crate::ops::concat(&lens, |i, out| out.copy_from_slice(&kept[i].tets));
-    let widths: Vec<usize> = kept.iter().map(|t| t.values.len()).collect();
-    let values = crate::ops::concat(&widths, |i, out| out.copy_from_slice(&kept[i].values));
-    let lines: Vec<Line> = kept
-        .into_iter()
-        .map(|t| Line {
-            seed: t.seed,
-            backward: false,
-            reason: t.p.reason().unwrap_or(Reason::OutOfTime),
-            points: t.points,
-            time: t.time,
-            tets: Vec::new(),
-            values: Vec::new(),
-        })
-        .collect();
-    LineArrays::of(&lines, super::super::probe::Probed::from_values(ids, fields, &values))
+/// A finished run: its particles, in particle order (injections in time order, each in the
+/// seeds' order), each with the points it recorded (its injection point and every output
+/// time it reached). Its output can be taken at any output time ([`Self::frame`]: what
+/// ParaView's filter shows at that time) or at the end time ([`Self::output`]).
+pub struct PathRun {
+    tracks: Vec<Track>,
+    legs: Vec<Leg>,
+    n_seeds: usize,
+    streaklines: bool,
+    fields: Vec<FieldGroup>,
 }
 
-/// The streaklines of the tracks (in particle order) at the end time `end`: for each of the
-/// `n_seeds` seeds, the last points of its particles that reached `end`, in injection order,
-/// each point's time its particle's age. A seed with fewer than two such particles (all
-/// injected outside the mesh, or gone) makes no line.
-fn finish_streaks(tracks: Vec<Track>, fields: &[FieldGroup], n_seeds: usize, end: f64) -> LineArrays {
-    let k: usize = fields.iter().map(|g| g.n_components()).sum();
-    let mut by_seed: Vec<Vec<&Track>> = vec![Vec::new(); n_seeds];
-    for t in tracks.iter().filter(|t| t.time.last() == Some(&end)) {
-        by_seed[t.seed as usize].push(t);
+/// An output line: its seed, its reason, and the runs of track points it joins (a range of
+/// [`Cuts::runs`]).
+struct Cut {
+    seed: u32,
+    reason: Reason,
+    runs: std::ops::Range<usize>,
+}
+
+/// The lines of an output as runs of the tracks' points: each run a track and a range of its
+/// points (a pathline is one run; a streakline one point of each of its particles).
+#[derive(Default)]
+struct Cuts {
+    lines: Vec<Cut>,
+    runs: Vec<(usize, std::ops::Range<usize>)>,
+}
+
+impl Cuts {
+    fn push(&mut self, seed: u32, reason: Reason, runs: impl IntoIterator<Item = (usize, std::ops::Range<usize>)>) {
+        let from = self.runs.len();
+        self.runs.extend(runs);
+        self.lines.push(Cut { seed, reason, runs: from..self.runs.len() });
     }
-    let streaks: Vec<(u32, &[&Track])> =
-        by_seed.iter().enumerate().filter(|(_, ts)| ts.len() > 1).map(|(s, ts)| (s as u32, &ts[..])).collect();
-    let ids: Vec<i32> = streaks.iter().flat_map(|(_, ts)| ts.iter().map(|t| t.tets[t.tets.len() - 1])).collect();
-    let values: Vec<f32> =
-        streaks.iter().flat_map(|(_, ts)| ts.iter().flat_map(|t| &t.values[t.values.len() - k..])).copied().collect();
-    let lines: Vec<Line> = streaks
-        .iter()
-        .map(|&(seed, ts)| Line {
-            seed,
-            backward: false,
-            reason: Reason::OutOfTime,
-            points: ts.iter().map(|t| t.points[t.points.len() - 1]).collect(),
-            time: ts.iter().map(|t| end - t.time[0]).collect(),
-            tets: Vec::new(),
-            values: Vec::new(),
-        })
-        .collect();
-    let mut arrays = LineArrays::of(&lines, super::super::probe::Probed::from_values(ids, fields, &values));
-    arrays.time_name = "ParticleAge";
-    arrays
+
+    /// A line's runs: each a track's index and a range of its points.
+    fn runs(&self, c: &Cut) -> impl Iterator<Item = (usize, std::ops::Range<usize>)> + '_ {
+        self.runs[c.runs.clone()].iter().cloned()
+    }
 }
 
-/// The output of a run's tracks: pathlines, or streaklines at the end time.
-fn output(run: Run, o: &PathOptions, fields: &[FieldGroup]) -> LineArrays {
-    if o.streaklines {
-        let end = run.legs[run.legs.len() - 1].to;
-        finish_streaks(run.tracks, fields, run.seeds.len(), end)
-    } else {
-        finish(run.tracks, fields)
+impl PathRun {
+    /// The output times after the start: each leg's end, the end time last.
+    pub fn frame_times(&self) -> Vec<f64> {
+        self.legs.iter().map(|l| l.to).collect()
+    }
+
+    /// The output at the `k`-th of [`Self::frame_times`], as a run ending there gives it:
+    /// the pathlines up to that time (a particle that goes on after it ends there with
+    /// reason 7, as at the end time), or the streaklines at that time.
+    pub fn frame(&self, k: usize) -> LineArrays {
+        let at = self.legs[k].to;
+        let mut cuts = Cuts::default();
+        if self.streaklines {
+            // For each seed, the point at `at` of each of its particles there, oldest first.
+            let mut by_seed: Vec<Vec<(usize, usize)>> = vec![Vec::new(); self.n_seeds];
+            for (i, t) in self.tracks.iter().enumerate() {
+                if let Ok(j) = t.time.binary_search_by(|x| x.total_cmp(&at)) {
+                    by_seed[t.seed as usize].push((i, j));
+                }
+            }
+            for (seed, points) in by_seed.iter().enumerate().filter(|(_, ps)| ps.len() > 1) {
+                cuts.push(seed as u32, Reason::OutOfTime, points.iter().map(|&(i, j)| (i, j..j + 1)));
+            }
+            let mut arrays = self.arrays(&cuts, |t, _| at - t.time[0]);
+            arrays.time_name = "ParticleAge";
+            return arrays;
+        }
+        // A track with two points or more by then (a particle injected outside the mesh, or
+        // gone before the next output time, makes no line).
+        for (i, t) in self.tracks.iter().enumerate() {
+            let n = t.time.partition_point(|&x| x <= at);
+            if n > 1 {
+                // Its reason when it stopped before `at`, or at it for its speed (checked at
+                // a leg's end); one that leaves the mesh after `at` was still going there.
+                let last = t.time[t.time.len() - 1];
+                let reason = match t.p.reason() {
+                    Some(r) if last < at || (last == at && r == Reason::Stagnation) => r,
+                    _ => Reason::OutOfTime,
+                };
+                cuts.push(t.seed, reason, [(i, 0..n)]);
+            }
+        }
+        self.arrays(&cuts, |_, time| time)
+    }
+
+    /// The output at the end time: pathlines, or streaklines at the end time.
+    pub fn output(self) -> LineArrays {
+        self.frame(self.legs.len() - 1)
+    }
+
+    /// The line arrays of `cuts`, each point's time `time(track, its time)`. Copied on every
+    /// core: with reinjection a run can record tens of millions of points.
+    fn arrays(&self, cuts: &Cuts, time: impl Fn(&Track, f64) -> f64 + Sync) -> LineArrays {
+        let k: usize = self.fields.iter().map(|g| g.n_components()).sum();
+        let lens: Vec<usize> = cuts.lines.iter().map(|c| cuts.runs(c).map(|(_, r)| r.len()).sum()).collect();
+        let points = self.gather(cuts, &lens, 1, |t, r, out: &mut [Vec3]| {
+            for (o, p) in out.iter_mut().zip(&t.points[r]) {
+                *o = p.map(|c| c as f32);
+            }
+        });
+        let times = self.gather(cuts, &lens, 1, |t, r, out: &mut [f64]| {
+            for (o, &x) in out.iter_mut().zip(&t.time[r]) {
+                *o = time(t, x);
+            }
+        });
+        let ids = self.gather(cuts, &lens, 1, |t, r, out| out.copy_from_slice(&t.tets[r]));
+        let values = self.gather(cuts, &lens, k, |t, r, out| out.copy_from_slice(&t.values[r.start * k..r.end * k]));
+        LineArrays {
+            points,
+            ends: lens
+                .iter()
+                .scan(0, |end, n| {
+                    *end += n;
+                    Some(*end)
+                })
+                .collect(),
+            time: times,
+            time_name: "IntegrationTime",
+            reasons: cuts.lines.iter().map(|c| c.reason as i32).collect(),
+            seeds: cuts.lines.iter().map(|c| c.seed as i32).collect(),
+            fields: super::super::probe::Probed::from_values(ids, &self.fields, &values),
+        }
+    }
+
+    /// Each line's `width` items a point (`lens` points a line), filled run after run by
+    /// `put(track, its points' range, out)`.
+    fn gather<T: Copy + Default + Send + Sync>(
+        &self,
+        cuts: &Cuts,
+        lens: &[usize],
+        width: usize,
+        put: impl Fn(&Track, std::ops::Range<usize>, &mut [T]) + Sync,
+    ) -> Vec<T> {
+        let widths: Vec<usize> = lens.iter().map(|n| n * width).collect();
+        super::super::concat(&widths, |line, out| {
+            let mut at = 0;
+            for (i, r) in cuts.runs(&cuts.lines[line]) {
+                let n = r.len() * width;
+                put(&self.tracks[i], r, &mut out[at..at + n]);
+                at += n;
+            }
+        })
+    }
+}
+
+impl Run<'_> {
+    /// The finished run (its tracks in particle order).
+    fn finished(self, o: &PathOptions, fields: &[FieldGroup]) -> PathRun {
+        PathRun {
+            tracks: self.tracks,
+            legs: self.legs,
+            n_seeds: self.seeds.len(),
+            streaklines: o.streaklines,
+            fields: fields.to_vec(),
+        }
     }
 }
 
@@ -707,13 +799,23 @@ pub struct PathJob<'a> {
     pub fields: &'a [FieldGroup],
 }
 
-/// The pathlines of `job` on the CPU: each particle walks from its last tet. `progress` gets
-/// the number of legs done.
+/// The pathlines (or streaklines) of `job` on the CPU at the end time: [`pathline_run`]'s
+/// output.
 pub fn pathlines(
     job: PathJob,
     loc: &crate::CpuLocator,
-    mut progress: impl FnMut(usize) -> Result<()>,
+    progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<LineArrays> {
+    Ok(pathline_run(job, loc, progress)?.output())
+}
+
+/// The run of `job` on the CPU: each particle walks from its last tet. `progress` gets the
+/// number of legs done.
+pub fn pathline_run(
+    job: PathJob,
+    loc: &crate::CpuLocator,
+    mut progress: impl FnMut(usize) -> Result<()>,
+) -> Result<PathRun> {
     let (seeds, o) = (job.seeds, job.options);
     let mut run = setup(job)?;
     loc.ready_for_particles(true);
@@ -743,19 +845,29 @@ pub fn pathlines(
         progress(n + 1)?;
     }
     run.tracks.sort_unstable_by_key(|t| t.p.id);
-    Ok(output(run, o, job.fields))
+    Ok(run.finished(o, job.fields))
 }
 
-/// [`pathlines`] step-synchronous: every live particle's lookup answered by one `locate`
-/// through `loc` (any backend) per Runge–Kutta stage, each from the particle's last tet where
-/// the backend walks from one ([`crate::locate::locate_from`]: soft-bvh), the values
-/// interpolated on the host in f64 at the tets found.
+/// [`pathline_run_batch`]'s output at the end time.
 pub fn pathlines_batch(
     job: PathJob,
     loc: &mut dyn BatchLocator,
     mesh: &Mesh,
-    mut progress: impl FnMut(usize) -> Result<()>,
+    progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<LineArrays> {
+    Ok(pathline_run_batch(job, loc, mesh, progress)?.output())
+}
+
+/// [`pathline_run`] step-synchronous: every live particle's lookup answered by one `locate`
+/// through `loc` (any backend) per Runge–Kutta stage, each from the particle's last tet where
+/// the backend walks from one ([`crate::locate::locate_from`]: soft-bvh), the values
+/// interpolated on the host in f64 at the tets found.
+pub fn pathline_run_batch(
+    job: PathJob,
+    loc: &mut dyn BatchLocator,
+    mesh: &Mesh,
+    mut progress: impl FnMut(usize) -> Result<()>,
+) -> Result<PathRun> {
     let o = job.options;
     let mut run = setup(job)?;
     let seeds_order: Vec<u32> = (0..job.seeds.len() as u32).collect();
@@ -813,7 +925,7 @@ pub fn pathlines_batch(
         })??;
         progress(n + 1)?;
     }
-    Ok(output(run, o, job.fields))
+    Ok(run.finished(o, job.fields))
 }
 
 #[cfg(test)]
@@ -1069,6 +1181,52 @@ mod tests {
         assert_eq!((&streaks.ends, &streaks.seeds, &streaks.time), (&all.ends, &all.seeds, &all.time));
         for (p, q) in streaks.points.iter().zip(&all.points) {
             assert!((0..3).all(|k| (p[k] - q[k]).abs() < 1e-5), "{p:?} {q:?}");
+        }
+    }
+
+    /// Every output time's frame of a run is the run that ends there, bit for bit:
+    /// pathlines (reinjected, with particles leaving the cube between output times, so some
+    /// frames cut a line that goes on and some keep one that has stopped) and streaklines,
+    /// on both drivers. The last frame is the run's output.
+    #[test]
+    fn each_frame_is_the_run_that_ends_at_its_time() {
+        let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]);
+        let mut cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        let mut seeds = crate::ops::trace::seeds_from_spec("grid:0.05,0.95,0.05,0.95,0.3,0.7,5,5,2").unwrap().unwrap();
+        seeds.push([3.0, 0.5, 0.5]);
+        let paths = PathOptions { step: Some(0.05), start_time: Some(0.25), reinject_every: 2, ..Default::default() };
+        let streaks = PathOptions { streaklines: true, reinject_every: 0, ..paths.clone() };
+        let same = |a: &LineArrays, b: &LineArrays, what: &str| {
+            assert_eq!((&a.ends, &a.seeds, &a.reasons), (&b.ends, &b.seeds, &b.reasons), "{what}");
+            assert_eq!((&a.points, &a.time, a.time_name), (&b.points, &b.time, b.time_name), "{what}");
+            assert_eq!(a.fields.ids, b.fields.ids, "{what}");
+            assert_eq!(a.fields.arrays, b.fields.arrays, "{what}");
+        };
+        for (o, name) in [(&paths, "pathlines"), (&streaks, "streaklines")] {
+            for batch in [false, true] {
+                let mut run = |o: &PathOptions| match batch {
+                    true => pathline_run_batch(job(&seeds, o, &steps, &fields), &mut cpu, &m, |_| Ok(())).unwrap(),
+                    false => pathline_run(job(&seeds, o, &steps, &fields), &cpu, |_| Ok(())).unwrap(),
+                };
+                let whole = run(o);
+                assert_eq!(whole.frame_times(), [0.5, 1.0, 1.5, 2.0, 2.5]);
+                // Lines gone out of the mesh by each frame.
+                let mut gone = Vec::new();
+                for (k, t) in whole.frame_times().into_iter().enumerate() {
+                    let what = format!("{name}, batch {batch}, frame {k} at {t}");
+                    let frame = whole.frame(k);
+                    same(&frame, &run(&PathOptions { end_time: Some(t), ..o.clone() }).output(), &what);
+                    gone.push(frame.reasons.iter().filter(|&&r| r == Reason::OutOfDomain as i32).count());
+                }
+                let last = whole.frame(4);
+                same(&last, &whole.output(), &format!("{name}, batch {batch}: the output"));
+                if !o.streaklines {
+                    // Lines cut at frame 0 (reason 7) that have left by frame 1, and frames
+                    // before the last holding lines that have stopped.
+                    assert!(gone[0] < gone[1], "{name}, batch {batch}: {gone:?} gone by each frame");
+                }
+            }
         }
     }
 
