@@ -41,6 +41,9 @@ def test_every_step_matches_the_oracle(time_dir, oracle, name):
         got = loc.sample(points, "f", step=k)
         np.testing.assert_allclose(got, want[k], rtol=1e-12, atol=1e-12)
         np.testing.assert_allclose(W @ mesh.field("f", step=k), want[k], rtol=1e-12, atol=1e-12)
+        # The mesh at that step, for the operations that take a mesh.
+        at = mesh.at_step(k)
+        np.testing.assert_allclose(tetloc.probe(at, points, backend="cpu")["f"], want[k], rtol=1e-12, atol=1e-12)
     # Step 0 is what the mesh holds.
     np.testing.assert_array_equal(mesh.field("f", step=0), mesh.field("f"))
     with pytest.raises(ValueError, match="out of range"):
@@ -218,6 +221,30 @@ def spin_series(tmp_path: pathlib.Path, times) -> pathlib.Path:
     pvd.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n<Collection>\n'
                    + "\n".join(entries) + "\n</Collection>\n</VTKFile>\n")
     return pvd
+
+
+def test_a_mesh_at_a_step(tmp_path):
+    """Mesh.at_step(k): the same mesh with step k's fields (its steps kept), so streamlines,
+    probes and locators run on that step: the same as on step k's file read alone."""
+    mesh = tetloc.read(spin_series(tmp_path, [0.0, 0.5, 1.0, 1.5]))
+    at = mesh.at_step(3)
+    assert at.times == mesh.times and at.n_tets == mesh.n_tets
+    np.testing.assert_array_equal(at.field("v"), mesh.field("v", step=3))
+    np.testing.assert_array_equal(at.field("v", step=1), mesh.field("v", step=1))
+    alone = tetloc.read(tmp_path / "s_3.vtu")
+    seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7]], np.float32)
+    lines, want = (tetloc.trace(m, "v", seeds, backend="cpu", max_steps=50) for m in (at, alone))
+    for name in want:
+        np.testing.assert_array_equal(lines[name], want[name], err_msg=name)
+    assert not np.array_equal(lines["v"], tetloc.trace(mesh, "v", seeds, backend="cpu", max_steps=50)["v"])
+    pts = np.random.default_rng(1).uniform(0.1, 0.9, (100, 3)).astype(np.float32)
+    np.testing.assert_array_equal(tetloc.probe(at, pts, backend="cpu")["v"], tetloc.probe(alone, pts, backend="cpu")["v"])
+    with pytest.raises(ValueError, match="out of range"):
+        mesh.at_step(4)
+    with pytest.raises(ValueError, match="no time steps"):
+        alone.at_step(0)
+    with pytest.raises(TypeError):
+        mesh.at_step(1.0)  # type: ignore[arg-type]
 
 
 @pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])

@@ -294,6 +294,15 @@ class Mesh:
         step = _step_index(step)
         return _fields.join(self._raw.step_fields(list(comps), step), k)
 
+    def at_step(self, step: int) -> "Mesh":
+        """This mesh with the fields of time step `step` (0-based, an index into ``times``) in
+        place of the first step's, so that ``probe``, ``resample_to_image``, ``trace`` and
+        ``Locator`` work on that step (as the CLI's ``--time-step K``): the file is read again
+        with that step's fields, its steps kept. ``ValueError`` for a step out of range or a
+        mesh without steps. To sample many steps at the same points, locate once instead:
+        ``Locator.step_weights``."""
+        return Mesh._wrap(self._raw.at_step(_step_index(step)))
+
     def field_location(self, name: str) -> str:
         """Where field `name` lives: "point" or "cell"."""
         self._index.components(name)
