@@ -284,7 +284,7 @@ def test_reinjected_pathlines(tmp_path, backend):
     pvd = spin_series(tmp_path, [0.0, 0.5, 1.0, 1.5, 2.0])
     mesh = tetloc.read(pvd)
     seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7], [3.0, 0.5, 0.5]], np.float32)
-    with pytest.warns(RuntimeWarning, match=r"2 of 6 lines"):
+    with pytest.warns(RuntimeWarning, match=r"trace: 2 of 6 particles make no line \(injected outside the mesh"):
         out = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, reinject_every=2, backend=backend)
     # Injected at 0.0 (5 points) and 1.0 (3 points).
     assert list(out["offsets"]) == [0, 5, 10, 13, 16]
@@ -325,6 +325,9 @@ def test_streaklines(tmp_path, backend):
     # points are the streaks' oldest-first points.
     last = paths["points"][paths["offsets"][1:] - 1].reshape(4, 2, 3)
     np.testing.assert_array_equal(out["points"].reshape(2, 5, 3)[:, :4], last.transpose(1, 0, 2))
+    outside = np.vstack([seeds, [[3.0, 0.5, 0.5]]]).astype(np.float32)
+    with pytest.warns(RuntimeWarning, match=r"trace: 1 of 3 seeds make no streakline \(fewer than two"):
+        tetloc.trace(mesh, "v", outside, unsteady=True, step=0.1, streaklines=True, backend=backend)
     poly = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, streaklines=True, backend=backend,
                         as_pyvista=True)
     np.testing.assert_array_equal(poly.point_data["ParticleAge"], out["ParticleAge"])

@@ -288,12 +288,17 @@ def trace(
     last = frames[-1][1] if frames else out
     without = n_lines - (len(last["offsets"]) - 1)
     if without > 0:
-        warnings.warn(
-            f"trace: {without} of {n_lines} lines have no step inside the mesh (their seed is outside it, "
-            "or on its boundary going out); VTK makes no line for them either",
-            RuntimeWarning,
-            stacklevel=2,
-        )
+        # The CLI's words for each kind of line.
+        if streaklines:
+            why = (f"{without} of {n_lines} seeds make no streakline (fewer than two of their particles are "
+                   "in the mesh at the end time)")
+        elif unsteady:
+            why = (f"{without} of {n_lines} particles make no line (injected outside the mesh, or gone before "
+                   "the next output time)")
+        else:
+            why = (f"{without} of {n_lines} lines have no step inside the mesh (their seed is outside it, "
+                   "or on its boundary going out); VTK makes no line for them either")
+        warnings.warn(f"trace: {why}", RuntimeWarning, stacklevel=2)
     if frames is not None:
         return [(t, _lines(lines, streaklines, pyvista_out)) for t, lines in frames]
     return _lines(out, streaklines, pyvista_out)
