@@ -230,7 +230,7 @@ struct Common {
 impl Common {
     /// The index as one of a command's outputs, when `--time-step all` writes one.
     fn index_arg(&self) -> Option<FileArg<'_>> {
-        self.index.as_deref().map(|p| FileArg::new("the --time-step all index", p))
+        self.index.as_deref().map(time_steps::index_arg)
     }
 
     /// The one time step to run on (`all` is run step by step by [`run`]).

@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tetloc_core::mesh::steps::check_step;
 use tetloc_core::Mesh;
+use tetloc_io::output::FileArg;
 use tetloc_io::{self as io, MeshFormat};
 
 /// Which step(s) a command runs on.
@@ -139,6 +140,11 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
 pub fn index_path(out: &Path) -> Option<PathBuf> {
     let ext = tetloc_io::output::extension(out);
     matches!(ext.as_str(), "vtu" | "vtp" | "vti").then(|| out.with_extension("pvd"))
+}
+
+/// The index as a command's output, for [`crate::outputs::check_distinct`].
+pub fn index_arg(index: &Path) -> FileArg<'_> {
+    FileArg::new("the --time-step all index", index)
 }
 
 /// Writes [`index_path`]'s `.pvd` of the files `step_path(out, k, n)` at `times` (a note

@@ -352,7 +352,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     if frames {
         let index = time_steps::index_path(&a.out);
         let mut outputs: Vec<FileArg> = frame_files.iter().map(|p| FileArg::new("--out (a time's file)", p)).collect();
-        outputs.extend(index.as_deref().map(|p| FileArg::new("the --time-step all index", p)));
+        outputs.extend(index.as_deref().map(time_steps::index_arg));
         crate::outputs::check_distinct(&inputs, &outputs)?;
     }
     let m = std::sync::Arc::new(tetloc_core::Mesh::new(raw, path.display().to_string())?);

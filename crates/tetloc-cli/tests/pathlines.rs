@@ -23,6 +23,14 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// A folder with `vtk_pathlines.py`'s series (`series.pvd` over `step_K.vtu`) and its seeds
+/// (`seeds.bin`); `None` where the test is skipped (no VTK outside CI).
+fn series(test: &str) -> Option<PathBuf> {
+    let dir = tmp_dir(test);
+    run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)])?;
+    Some(dir)
+}
+
 /// Each pathline point, by (particle, time in 1e-4 units): its position.
 fn points_by_time(dir: &Path, who: &str) -> HashMap<(i64, i64), [f64; 3]> {
     let pts = read_f64s(&dir.join(format!("{who}.points.bin")));
@@ -69,8 +77,7 @@ fn streaklines_match_vtk_streak_lines() {
 /// points by (particle, time), each within float32 rounding; `moved.1` of them at time key
 /// `moved.0`, those that moved (a rotation of about 2 radians: not a comparison of seeds).
 fn match_vtk(test: &str, flags: &[&str], script: &[&str], n_points: usize, moved: (i64, usize)) {
-    let dir = tmp_dir(test);
-    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let Some(dir) = series(test) else { return };
     let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
     for backend in ["cpu", "soft-bvh"] {
         let out = dir.join(format!("paths-{backend}.vtp"));
@@ -150,8 +157,7 @@ fn unsteady_bad_inputs_are_refused() {
 #[test]
 fn every_output_time_is_the_run_that_ends_there() {
     let test = "every_output_time_is_the_run_that_ends_there";
-    let dir = tmp_dir(test);
-    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let Some(dir) = series(test) else { return };
     let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
     let series = std::fs::read(&pvd).unwrap();
     let trace = |out: &Path, flags: &[&str]| {
@@ -194,8 +200,7 @@ fn every_output_time_is_the_run_that_ends_there() {
 #[test]
 fn a_time_step_index_never_writes_over_the_series() {
     let test = "a_time_step_index_never_writes_over_the_series";
-    let dir = tmp_dir(test);
-    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let Some(dir) = series(test) else { return };
     let pvd = dir.join("series.pvd");
     let series = std::fs::read(&pvd).unwrap();
     let target = dir.join("step_0.vtu");
@@ -218,8 +223,7 @@ fn a_time_step_index_never_writes_over_the_series() {
 #[test]
 fn streamlines_in_a_step_trace_that_steps_field() {
     let test = "streamlines_in_a_step_trace_that_steps_field";
-    let dir = tmp_dir(test);
-    let Some(()) = run_vtk_script(test, "vtk_pathlines.py", &["series", s(&dir)]) else { return };
+    let Some(dir) = series(test) else { return };
     let (pvd, seeds) = (dir.join("series.pvd"), dir.join("seeds.bin"));
     let trace = |mesh: &Path, out: &Path, flags: &[&str]| {
         let mut args = vec!["trace", s(mesh), "--vector", "v", "--seeds", s(&seeds), "-q", "--backend", "cpu"];

@@ -989,6 +989,15 @@ mod tests {
 
     const XYZ: [&str; 3] = ["v[0]", "v[1]", "v[2]"];
 
+    /// An n × n × 2 grid of seeds over the cube (the corners' circles leave it) and one seed
+    /// outside it.
+    fn leaving_seeds(n: usize) -> Vec<Vec3> {
+        let spec = format!("grid:0.05,0.95,0.05,0.95,0.3,0.7,{n},{n},2");
+        let mut seeds = crate::ops::trace::seeds_from_spec(&spec).unwrap().unwrap();
+        seeds.push([3.0, 0.5, 0.5]);
+        seeds
+    }
+
     /// The tests' jobs: the vector `v`.
     fn job<'a>(
         seeds: &'a [Vec3],
@@ -1193,8 +1202,7 @@ mod tests {
         let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]);
         let mut cpu = CpuLocator::new(m.clone());
         let fields = groups(&m);
-        let mut seeds = crate::ops::trace::seeds_from_spec("grid:0.05,0.95,0.05,0.95,0.3,0.7,5,5,2").unwrap().unwrap();
-        seeds.push([3.0, 0.5, 0.5]);
+        let seeds = leaving_seeds(5);
         let paths = PathOptions { step: Some(0.05), start_time: Some(0.25), reinject_every: 2, ..Default::default() };
         let streaks = PathOptions { streaklines: true, reinject_every: 0, ..paths.clone() };
         let same = |a: &LineArrays, b: &LineArrays, what: &str| {
@@ -1237,8 +1245,7 @@ mod tests {
         let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]);
         let mut cpu = CpuLocator::new(m.clone());
         let fields = groups(&m);
-        let mut seeds = crate::ops::trace::seeds_from_spec("grid:0.05,0.95,0.05,0.95,0.3,0.7,7,7,2").unwrap().unwrap();
-        seeds.push([3.0, 0.5, 0.5]);
+        let seeds = leaving_seeds(7);
         for integrator in [Integrator::Rk4, Integrator::Rk45] {
             let o = PathOptions { integrator, step: Some(0.05), max_error: 1e-7, ..Default::default() };
             let one = pathlines(job(&seeds, &o, &steps, &fields), &cpu, |_| Ok(())).unwrap();
