@@ -234,6 +234,7 @@ def test_page_shows_a_frame_and_follows_a_drag_and_a_tf_edit(browser: Browser, s
         page.screenshot(os.environ["TETLOC_VIEW_SCREENSHOT"])
     first = page.canvas()
     assert first.std() > 5, "the first frame is not blank"
+    assert page.eval("document.getElementById('timebox').hidden"), "a snapshot has no time slider"
     n = page.eval("tetloc.frames")
     page.drag("#frame", 0.5, 0.5, 60, 20)
     still_after(page, n)
@@ -282,6 +283,67 @@ def test_page_frame_png_and_render_state_agree(browser: Browser, server: Server,
     finally:
         assert again.stop() == 0
     page.close()
+
+
+def gmsh_series(path: pathlib.Path, times: List[float], n: int = 6) -> None:
+    """A Kuhn cube of n³ cubes whose vertex field f is x + k·y at step k of `times`."""
+    ijk = [(i, j, k) for k in range(n + 1) for j in range(n + 1) for i in range(n + 1)]
+    vid = {c: 1 + m for m, c in enumerate(ijk)}
+    tets = []
+    for c in [(i, j, k) for k in range(n) for j in range(n) for i in range(n)]:
+        for axes in [(0, 1, 2), (0, 2, 1), (1, 0, 2), (1, 2, 0), (2, 0, 1), (2, 1, 0)]:
+            v, tet = list(c), [vid[c]]
+            for a in axes:
+                v[a] += 1
+                tet.append(vid[(v[0], v[1], v[2])])
+            tets.append(tet)
+    xyz = [[x / n for x in c] for c in ijk]
+    lines = ["$MeshFormat", "4.1 0 8", "$EndMeshFormat", "$Nodes", f"1 {len(ijk)} 1 {len(ijk)}", f"3 1 0 {len(ijk)}"]
+    lines += [str(m + 1) for m in range(len(ijk))] + [f"{p[0]!r} {p[1]!r} {p[2]!r}" for p in xyz]
+    lines += ["$EndNodes", "$Elements", f"1 {len(tets)} 1 {len(tets)}", f"3 1 4 {len(tets)}"]
+    lines += [f"{e + 1} {' '.join(map(str, t))}" for e, t in enumerate(tets)] + ["$EndElements"]
+    for step, t in enumerate(times):
+        lines += ["$NodeData", "1", '"f"', "1", repr(float(t)), "3", str(step), "1", str(len(ijk))]
+        lines += [f"{m + 1} {p[0] + step * p[1]!r}" for m, p in enumerate(xyz)] + ["$EndNodeData"]
+    path.write_text("\n".join(lines) + "\n")
+
+
+def test_page_moves_through_time(browser: Browser, server: Server, cli: str, tmp_path: pathlib.Path) -> None:
+    """The time slider shows each step of a series, keeping the colours' range; the exported
+    state renders offline to the frame shown; play moves on and wraps around."""
+    series = tmp_path / "steps.msh"
+    gmsh_series(series, [0.0, 0.25, 1.0])
+    backend = server.arg("--backend")
+    s = Server(cli, str(series), "--backend", backend, "--size", SIZE)
+    try:
+        page = open_page(browser, s)
+        assert not page.eval("document.getElementById('timebox').hidden")
+        assert page.eval("document.getElementById('time').max") == "2"
+        assert page.eval("document.getElementById('timeval').textContent") == "step 0 of 2, t = 0"
+        first, drawn = page.canvas(), page.eval("tetloc.header.range")
+        n = page.eval("tetloc.frames")
+        page.eval("(() => { const t = document.getElementById('time'); t.value = 2; t.dispatchEvent(new Event('input')); return 1; })()")
+        still_after(page, n)
+        assert page.eval("tetloc.state.time_step") == 2
+        assert page.eval("tetloc.state.tf.range") == pytest.approx(drawn), "the range is kept through time"
+        assert page.eval("tetloc.header.range") == pytest.approx(drawn)
+        last = page.canvas()
+        assert np.abs(last - first).mean() > 2, "step 2 differs from step 0"
+        state = tmp_path / "view.json"
+        state.write_text(page.eval("JSON.stringify(tetloc.state)"))
+        out = tmp_path / "offline.png"
+        subprocess.run([cli, "render", str(series), "--state", str(state), "--backend", backend, "-o", str(out), "--quiet"], check=True, timeout=TIMEOUT)
+        assert psnr(last, page.image(out.read_bytes())) >= 40
+        # Play: step 2 wraps to 0, then 1; pause stops it.
+        page.eval("document.getElementById('play').click()")
+        page.wait("tetloc.state.time_step === 1")
+        page.eval("document.getElementById('play').click()")
+        assert page.eval("document.getElementById('play').textContent") == "play"
+        page.wait("tetloc.settled()")
+        assert page.eval("tetloc.state.time_step") == 1
+        page.close()
+    finally:
+        assert s.stop() == 0
 
 
 def test_two_pages_update_and_one_closing_leaves_the_other(browser: Browser, server: Server) -> None:
@@ -380,4 +442,26 @@ def test_python_view_handle(cli: str) -> None:
         assert np.abs(v.frame().astype(float) - farther).mean() > 1
         with pytest.raises(urllib.error.HTTPError):
             v.set_field("no-such-field")
+        assert v.times == []
     assert v._proc.returncode == 0
+
+
+def test_python_view_handle_moves_through_time(cli: str, tmp_path: pathlib.Path) -> None:
+    import tetloc
+
+    series = tmp_path / "steps.msh"
+    gmsh_series(series, [0.0, 0.5, 2.0], n=4)
+    with tetloc.view(series, "f", backend="cpu", size=(48, 40), time_step=1, cli=cli) as v:
+        assert v.times == [0.0, 0.5, 2.0]
+        assert v.state()["time_step"] == 1
+        second = v.frame()
+        drawn = json.loads(v._request("/frame.json"))["range"]
+        v.set_time_step(2)
+        assert v.state()["time_step"] == 2 and v.state()["tf"]["range"] == pytest.approx(drawn)
+        assert np.abs(v.frame().astype(float) - second).mean() > 1
+        with pytest.raises(urllib.error.HTTPError, match="400"):
+            v.set_time_step(3)
+        out = tmp_path / "offline.png"
+        (tmp_path / "view.json").write_text(json.dumps(v.state()))
+        subprocess.run([cli, "render", str(series), "--state", str(tmp_path / "view.json"), "--backend", "cpu", "-o", str(out), "--quiet"], check=True, timeout=TIMEOUT)
+        assert np.array_equal(v.frame(), tetloc._view._decode_png(out.read_bytes()))

@@ -8,6 +8,7 @@ the current frame as a numpy array, and stops the server::
     v = tetloc.view("mesh.vtu", "temperature", size=(640, 480))
     v.set_tf(colormap="plasma", range=(0.0, 300.0))
     img = v.frame()          # (480, 640, 3) uint8, the lossless still frame
+    v.set_time_step(3)       # a series' step 4 (v.times: each step's time)
     v.stop()
 """
 
@@ -88,6 +89,26 @@ class Viewer:
             tf["scale"] = float(scale)
         self.set_state(s)
 
+    def set_time_step(self, k: int) -> None:
+        """Shows time step ``k`` (0-based) of a series, as the page's time slider does. A
+        range left to the field's is first pinned to the one drawn with, so the colours mean
+        the same values at every step (``set_tf(range=...)`` sets another)."""
+        s = self.state()
+        if s["tf"]["range"] is None:
+            s["tf"]["range"] = list(self._range())
+        s["time_step"] = int(k)
+        self.set_state(s)
+
+    def _range(self) -> Tuple[float, float]:
+        """The range the current still frame was drawn with."""
+        lo, hi = json.loads(self._request("/frame.json"))["range"]
+        return float(lo), float(hi)
+
+    @property
+    def times(self) -> List[float]:
+        """Each time step's time (empty for a single snapshot)."""
+        return [float(t) for t in json.loads(self._request("/mesh.json"))["times"]]
+
     def set_field(self, field: str) -> None:
         s = self.state()
         s["field"], s["tf"]["range"] = field, None
@@ -118,15 +139,19 @@ def view(
     size: Tuple[int, int] = (768, 768),
     port: int = 0,
     state: Optional[PathLike] = None,
+    time_step: Optional[int] = None,
     cli: Optional[str] = None,
 ) -> Viewer:
     """Starts ``tetloc view`` on ``mesh`` (a file, or ``SHAPE:N``) in the background and
-    returns once it serves; ``port=0`` picks a free port."""
+    returns once it serves; ``port=0`` picks a free port. ``time_step``: the step of a series
+    shown first (see :meth:`Viewer.set_time_step`)."""
     args: List[str] = [_cli(cli), "view", os.fspath(mesh), "--backend", backend, "--size", f"{size[0]}x{size[1]}", "--port", str(port), "--quiet"]
     if field is not None:
         args += ["--field", field]
     if state is not None:
         args += ["--state", os.fspath(state)]
+    if time_step is not None:
+        args += ["--time-step", str(int(time_step))]
     proc = subprocess.Popen(args, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     assert proc.stdout is not None and proc.stderr is not None
     url = proc.stdout.readline().strip()

@@ -1,13 +1,16 @@
 //! `tetloc render`: the volume ray marcher over any backend.
 
 use crate::backend::BackendOptions;
-use crate::mesh_arg;
+use crate::{mesh_arg, time_steps};
 use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::PathBuf;
+use std::sync::Arc;
+use tetloc_core::Mesh;
 use tetloc_io::output::FileArg;
 use tetloc_locator::{Backend, BareLocator};
 use tetloc_render as tr;
+use time_steps::TimeStep;
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -74,6 +77,13 @@ pub struct RenderArgs {
     /// Measure frames per second over an orbit of this many frames instead of writing images.
     #[arg(long, num_args = 0..=1, default_missing_value = "16")]
     fps: Option<u32>,
+    /// A time series (an Exodus file with steps, a .pvd, a Gmsh file of several steps): render
+    /// the fields of time step K (0-based; with --state: instead of the state's; by default
+    /// the state's, else the first), or `all` of them with one camera and one range (the
+    /// first step's unless --range or the state sets one): OUT_K.png a step, or one GIF
+    /// through time when --out ends in .gif.
+    #[arg(long, value_name = "K|all")]
+    time_step: Option<TimeStep>,
     #[command(flatten)]
     source: mesh_arg::MeshOptions,
     /// Print only errors and warnings on stderr (not the backend `auto` chose, nor the files written).
@@ -141,31 +151,21 @@ pub fn run(a: RenderArgs) -> Result<()> {
     if let Some(b) = &a.background {
         o.background = tr::parse_color("--background", b)?;
     }
+    if a.time_step == Some(TimeStep::All) {
+        return render_steps(&a, o, &field);
+    }
     // The image files are checked, and kept apart from every input, before any work.
     let out = a.out.clone().unwrap_or_else(|| "render.png".into());
     let files = match a.fps {
         Some(_) => a.out.iter().map(|o| tr::check_outputs(o, 1)).collect::<tr::Result<Vec<_>>>()?.concat(),
         None => tr::check_outputs(&out, o.frames)?,
     };
-    let outputs: Vec<FileArg> = files.iter().map(|f| FileArg::new("--out", f)).collect();
-    let mesh_files = mesh_arg::input_files(&a.mesh, a.source.format.as_deref());
-    let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
-    if let Some(path) = &a.state {
-        inputs.push(FileArg::new("--state", path));
-    }
-    if let tr::TfSpec::File { path, .. } = &o.tf {
-        inputs.push(FileArg::new("--tf", path));
-    }
-    if let Some(tr::SurfaceSpec::File(path)) = &o.surface {
-        inputs.push(FileArg::new("--surface", path));
-    }
-    crate::outputs::check_distinct(&inputs, &outputs)?;
-    let mut mesh = mesh_arg::load(&a.mesh, a.source.format.as_deref(), a.source.seed)?;
-    // `|NAME|`: a vector's magnitude, as the viewer colours it.
-    if let (true, Some(m)) = (field.starts_with('|'), std::sync::Arc::get_mut(&mut mesh)) {
-        tr::state::add_magnitudes(m);
-    }
-    tetloc_core::ops::fields::resolve_scalar(&mesh.fields, &field).context("--field")?;
+    check_inputs(&a, &o, &files)?;
+    let step = match a.time_step {
+        Some(TimeStep::One(k)) => Some(k),
+        _ => state.as_ref().and_then(|s| s.time_step),
+    };
+    let mesh = with_magnitudes(time_steps::load(&a.mesh, a.source.format.as_deref(), a.source.seed, step)?, &field)?;
     let renderer = tr::Renderer::new(mesh.clone(), &field, &o)?;
     check_samples_per_ray(&mesh, renderer.step())?;
     let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
@@ -202,6 +202,97 @@ pub fn run(a: RenderArgs) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// `--time-step all`: the series read once, one image a step with one camera and one range
+/// (the first step's unless one is set, so that colours mean the same values throughout):
+/// `OUT_K.png` a step, or one animated GIF through time. Step K's image is `--time-step K`'s
+/// with that range.
+fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result<()> {
+    if a.fps.is_some() || o.frames > 1 || a.backend.contains(',') {
+        anyhow::bail!(
+            "--time-step all renders one image a step with one backend: not with --fps, --frames or several backends"
+        );
+    }
+    crate::progress::set_quiet(a.quiet);
+    let (mesh, series) = time_steps::load_series(&a.mesh, a.source.format.as_deref(), a.source.seed, Some(0))?;
+    let series = series.context("--time-step all: the mesh has no time steps")?;
+    let n = series.times().len();
+    let out = a.out.clone().unwrap_or_else(|| "render.png".into());
+    let gif = tetloc_io::output::extension(&out) == "gif";
+    let files: Vec<PathBuf> =
+        if gif { vec![out.clone()] } else { (0..n).map(|k| time_steps::step_path(&out, k, n)).collect() };
+    for f in &files {
+        tetloc_io::output::check_output(f, &["png", "gif"])?;
+    }
+    check_inputs(a, &o, &files)?;
+    let mut mesh = with_magnitudes(mesh, field)?;
+    let mut renderer = tr::Renderer::new(mesh.clone(), field, &o)?;
+    check_samples_per_ray(&mesh, renderer.step())?;
+    if o.range.is_none() {
+        o.range = Some(renderer.range());
+        renderer = renderer.with_options(field, &o)?;
+    }
+    let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
+    let mut writer = match gif {
+        true => Some(tr::GifWriter::create(&out, o.width, o.height, (400 / n as u32).clamp(2, 100) as u16)?),
+        false => None,
+    };
+    let bar = crate::progress::bar(n as u64, "rendering the steps");
+    for k in 0..n {
+        if k > 0 {
+            mesh = with_magnitudes(Arc::new(series.mesh(k)?), field)?;
+            renderer = renderer.for_step(mesh.clone(), field, &o)?;
+        }
+        // A marcher a step (the locators hold their mesh's fields), each dropped before the next.
+        let mut marcher = build_marcher(&opts, &mesh, &a.backend, &renderer, a.host_march)?;
+        let (image, _) =
+            renderer.render(&mut marcher, &renderer.camera(0)).with_context(|| format!("time step {k}"))?;
+        match &mut writer {
+            Some(w) => w.add(&image)?,
+            None => image.write_png(&time_steps::step_path(&out, k, n))?,
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if let Some(w) = writer {
+        w.finish()?;
+    }
+    if !a.quiet {
+        let (lo, hi) = renderer.range();
+        eprintln!("rendered {n} time steps over the range {lo},{hi}");
+        for f in &files {
+            eprintln!("wrote {}", f.display());
+        }
+    }
+    Ok(())
+}
+
+/// Refuses outputs that are inputs: the mesh's files, the state, a preset, a surface.
+fn check_inputs(a: &RenderArgs, o: &tr::RenderOptions, files: &[PathBuf]) -> Result<()> {
+    let outputs: Vec<FileArg> = files.iter().map(|f| FileArg::new("--out", f)).collect();
+    let mesh_files = mesh_arg::input_files(&a.mesh, a.source.format.as_deref());
+    let mut inputs: Vec<FileArg> = mesh_files.iter().map(|p| FileArg::new("MESH", p)).collect();
+    if let Some(path) = &a.state {
+        inputs.push(FileArg::new("--state", path));
+    }
+    if let tr::TfSpec::File { path, .. } = &o.tf {
+        inputs.push(FileArg::new("--tf", path));
+    }
+    if let Some(tr::SurfaceSpec::File(path)) = &o.surface {
+        inputs.push(FileArg::new("--surface", path));
+    }
+    crate::outputs::check_distinct(&inputs, &outputs)
+}
+
+/// The mesh with `|NAME|` magnitudes when `field` is one (as the viewer colours a vector),
+/// `field` checked to be a scalar of it.
+fn with_magnitudes(mut mesh: Arc<Mesh>, field: &str) -> Result<Arc<Mesh>> {
+    if let (true, Some(m)) = (field.starts_with('|'), Arc::get_mut(&mut mesh)) {
+        tr::state::add_magnitudes(m);
+    }
+    tetloc_core::ops::fields::resolve_scalar(&mesh.fields, field).context("--field")?;
+    Ok(mesh)
 }
 
 /// Most frames of an orbit (GIF frames, numbered PNGs, or frames measured by `--fps`).

@@ -10,6 +10,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tetloc_core::mesh::steps::check_step;
+use tetloc_core::mesh::{RawMesh, TimeSteps};
 use tetloc_core::Mesh;
 use tetloc_io::output::FileArg;
 use tetloc_io::{self as io, MeshFormat};
@@ -48,16 +49,85 @@ pub fn load(arg: &OsStr, format: Option<&str>, seed: u64, step: Option<usize>) -
     if mesh_arg::parse_generated(arg).is_some() {
         check_step(&path.display().to_string(), 0, k)?;
     }
-    let format = format_of(format)?;
-    let mesh = progress::with_spinner(format!("reading {} step {k}", path.display()), || -> Result<Mesh> {
-        let (mut raw, steps) = io::read_series(path, format)?;
-        match steps {
-            None => check_step(&path.display().to_string(), 0, k)?,
-            Some(s) => raw.fields = s.fields(k)?,
-        }
-        Ok(Mesh::new(raw, path.display().to_string())?)
+    let series = progress::with_spinner(format!("reading {} step {k}", path.display()), || {
+        Series::open(path, format).and_then(|s| s.into_mesh(k))
     })?;
-    Ok(Arc::new(mesh))
+    Ok(Arc::new(series))
+}
+
+/// The mesh `arg` at `step` (`None`: the first), and its series kept when it has steps, for
+/// moving through them later ([`Series::mesh`]): `view`.
+pub fn load_series(
+    arg: &OsStr,
+    format: Option<&str>,
+    seed: u64,
+    step: Option<usize>,
+) -> Result<(Arc<Mesh>, Option<Series>)> {
+    let path = Path::new(arg);
+    if mesh_arg::parse_generated(arg).is_some() || !path.exists() {
+        if let Some(k) = step {
+            check_step(&path.display().to_string(), 0, k)?;
+        }
+        return Ok((mesh_arg::load(arg, format, seed)?, None));
+    }
+    progress::with_spinner(format!("reading {}", path.display()), || {
+        let series = Series::open(path, format)?;
+        if series.times().is_empty() {
+            if let Some(k) = step {
+                check_step(&series.name, 0, k)?;
+            }
+            return Ok((Arc::new(series.into_mesh_as_read()?), None));
+        }
+        let mesh = series.mesh(step.unwrap_or(0))?;
+        Ok((Arc::new(mesh), Some(series)))
+    })
+}
+
+/// A file read once as a time series: its mesh, and its steps' fields read a step at a time.
+/// `view` moves through the steps with it, reading no mesh again.
+pub struct Series {
+    raw: RawMesh,
+    steps: Option<TimeSteps>,
+    name: String,
+}
+
+impl Series {
+    pub fn open(path: &Path, format: Option<&str>) -> Result<Series> {
+        let (raw, steps) = io::read_series(path, format_of(format)?)?;
+        Ok(Series { raw, steps, name: path.display().to_string() })
+    }
+
+    /// Each step's time (empty for a single snapshot).
+    pub fn times(&self) -> &[f64] {
+        self.steps.as_ref().map_or(&[], |s| &s.times)
+    }
+
+    /// The mesh with step `k`'s fields, as `--time-step K` reads it.
+    pub fn mesh(&self, k: usize) -> Result<Mesh> {
+        let mut raw = self.raw.clone();
+        raw.fields = self.fields(k)?;
+        Ok(Mesh::new(raw, self.name.clone())?)
+    }
+
+    fn into_mesh_as_read(self) -> Result<Mesh> {
+        Ok(Mesh::new(self.raw, self.name)?)
+    }
+
+    fn into_mesh(mut self, k: usize) -> Result<Mesh> {
+        self.raw.fields = self.fields(k)?;
+        Ok(Mesh::new(self.raw, self.name)?)
+    }
+
+    fn fields(&self, k: usize) -> Result<Vec<tetloc_core::mesh::Field>> {
+        match &self.steps {
+            // A snapshot has no steps: an error for any k.
+            None => {
+                check_step(&self.name, 0, k)?;
+                Ok(self.raw.fields.clone())
+            }
+            Some(s) => Ok(s.fields(k)?),
+        }
+    }
 }
 
 /// The times of the steps of `arg` (empty for a single snapshot or a generated mesh).

@@ -19,20 +19,12 @@ struct Server {
 
 impl Server {
     fn start(extra: &[&str]) -> Server {
+        Self::start_on("fusion:2k", extra)
+    }
+
+    fn start_on(mesh: &str, extra: &[&str]) -> Server {
         let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
-            .args([
-                "view",
-                "fusion:2k",
-                "--backend",
-                "cpu",
-                "--size",
-                "40x32",
-                "--port",
-                "0",
-                "--token",
-                TOKEN,
-                "--quiet",
-            ])
+            .args(["view", mesh, "--backend", "cpu", "--size", "40x32", "--port", "0", "--token", TOKEN, "--quiet"])
             .args(extra)
             .stdout(Stdio::piped())
             .stderr(Stdio::inherit())
@@ -119,6 +111,71 @@ fn frame(ws: &mut WebSocket<TcpStream>) -> (serde_json::Value, Vec<u8>) {
             return (h, b[4 + n..].to_vec());
         }
     }
+}
+
+/// The still frame of the state sent: reads the acceptance, then frames until that
+/// generation's still one.
+fn still_frame_of(ws: &mut WebSocket<TcpStream>, state: &serde_json::Value) -> Vec<u8> {
+    ws.send(Message::text(serde_json::json!({"type": "state", "state": state, "moving": false}).to_string())).unwrap();
+    let gen = loop {
+        if let Message::Text(t) = ws.read().unwrap() {
+            let m: serde_json::Value = serde_json::from_str(&t).unwrap();
+            assert_eq!(m["type"], "accepted", "{m}");
+            break m["gen"].as_u64().unwrap();
+        }
+    };
+    loop {
+        let (h, png) = frame(ws);
+        if h["still"] == true && h["gen"].as_u64().unwrap() >= gen {
+            return png;
+        }
+    }
+}
+
+fn pixels(png: &[u8]) -> Vec<u8> {
+    let mut r = png::Decoder::new(std::io::Cursor::new(png.to_vec())).read_info().unwrap();
+    let mut buf = vec![0; r.output_buffer_size()];
+    r.next_frame(&mut buf).unwrap();
+    buf
+}
+
+/// A Gmsh file of a Kuhn cube (3³ cubes, 162 tets) with the vertex field `f` = x + k·y at
+/// step k of `times` (a pattern that changes, not only its scale).
+fn gmsh_series(path: &std::path::Path, times: &[f64]) {
+    let n = 3usize;
+    let id = |i: usize, j: usize, k: usize| 1 + i + (n + 1) * (j + (n + 1) * k);
+    let corners: Vec<[usize; 3]> =
+        (0..=n).flat_map(|k| (0..=n).flat_map(move |j| (0..=n).map(move |i| [i, j, k]))).collect();
+    let mut tets = Vec::new();
+    for c in (0..n).flat_map(|k| (0..n).flat_map(move |j| (0..n).map(move |i| [i, j, k]))) {
+        for axes in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+            let mut v = c;
+            let mut tet = vec![id(v[0], v[1], v[2])];
+            for a in axes {
+                v[a] += 1;
+                tet.push(id(v[0], v[1], v[2]));
+            }
+            tets.push(tet);
+        }
+    }
+    let x = |c: &[usize; 3]| c.map(|v| v as f64 / n as f64);
+    let mut text = format!("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 {0} 1 {0}\n3 1 0 {0}\n", corners.len());
+    (1..=corners.len()).for_each(|i| text += &format!("{i}\n"));
+    corners.iter().for_each(|c| text += &format!("{} {} {}\n", x(c)[0], x(c)[1], x(c)[2]));
+    text += &format!("$EndNodes\n$Elements\n1 {0} 1 {0}\n3 1 4 {0}\n", tets.len());
+    for (e, t) in tets.iter().enumerate() {
+        text += &format!("{} {} {} {} {}\n", e + 1, t[0], t[1], t[2], t[3]);
+    }
+    text += "$EndElements\n";
+    for (step, t) in times.iter().enumerate() {
+        text += &format!("$NodeData\n1\n\"f\"\n1\n{t:?}\n3\n{step}\n1\n{}\n", corners.len());
+        for (i, c) in corners.iter().enumerate() {
+            let p = x(c);
+            text += &format!("{} {}\n", i + 1, p[0] + step as f64 * p[1]);
+        }
+        text += "$EndNodeData\n";
+    }
+    std::fs::write(path, text).unwrap();
 }
 
 fn png_size(png: &[u8]) -> (u32, u32) {
@@ -272,4 +329,127 @@ fn the_benchmark_client_orbits_and_gets_every_still_frame() {
     assert!(gens.windows(2).all(|w| w[0] <= w[1]), "{gens:?}");
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(s.interrupt(), Some(0));
+}
+
+/// A series in the viewer: the page learns the times; a state's `time_step` shows that step
+/// (the frame is `render --state`'s of the exported state, and step K of the series renders
+/// as the file of step K alone); a step out of range is an error and the connection stays;
+/// `--time-step K` starts there.
+#[test]
+fn a_series_is_viewed_step_by_step() {
+    let dir = std::env::temp_dir().join(format!("tetloc-view-steps-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let series = dir.join("steps.msh");
+    gmsh_series(&series, &[0.0, 0.5, 1.5]);
+    let s_ = |p: &std::path::Path| p.to_str().unwrap().to_string();
+    let render = |mesh: &std::path::Path, out: &std::path::Path, extra: &[&str]| {
+        let o = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+            .args(["render", &s_(mesh), "--backend", "cpu", "--quiet", "-o", &s_(out)])
+            .args(extra)
+            .output()
+            .unwrap();
+        (o.status.success(), String::from_utf8_lossy(&o.stderr).into_owned())
+    };
+    // Step K of the series renders as the file of step K alone (the field at its time 0).
+    let alone = dir.join("alone.msh");
+    let frames: Vec<Vec<u8>> = (0..3)
+        .map(|k| {
+            let out = dir.join(format!("r{k}.png"));
+            assert!(render(&series, &out, &["--field", "f", "--size", "40x32", "--time-step", &k.to_string()]).0);
+            pixels(&std::fs::read(&out).unwrap())
+        })
+        .collect();
+    gmsh_series(&dir.join("two.msh"), &[0.0, 1.0]);
+    let text = std::fs::read_to_string(dir.join("two.msh")).unwrap();
+    let first_view = text.find("$NodeData").unwrap();
+    let step1 = &text[text[first_view + 1..].find("$NodeData").unwrap() + first_view + 1..];
+    std::fs::write(&alone, format!("{}{}", &text[..first_view], step1.replace("\n1.0\n3\n1\n", "\n0.0\n3\n0\n")))
+        .unwrap();
+    let out = dir.join("alone.png");
+    assert!(render(&alone, &out, &["--field", "f", "--size", "40x32"]).0);
+    assert_eq!(pixels(&std::fs::read(&out).unwrap()), frames[1], "step 1 of the series is the file of step 1 alone");
+    assert_ne!(frames[0], frames[2], "the steps differ");
+    let (ok, err) = render(&series, &out, &["--field", "f", "--time-step", "3"]);
+    assert!(!ok && err.contains("time step 3 is out of range") && err.contains("steps.msh"), "{err}");
+    // --time-step all: a PNG a step with the first step's range (f = x: 0 to 1), each the
+    // image of --time-step K with that range; or one GIF of a frame a step.
+    let all = dir.join("all.png");
+    let (ok, err) = render(&series, &all, &["--field", "f", "--size", "40x32", "--time-step", "all"]);
+    assert!(ok, "{err}");
+    for k in 0..3 {
+        let want = dir.join(format!("want{k}.png"));
+        let (ok, err) = render(
+            &series,
+            &want,
+            &["--field", "f", "--size", "40x32", "--time-step", &k.to_string(), "--range", "0,1"],
+        );
+        assert!(ok, "{err}");
+        let got = pixels(&std::fs::read(dir.join(format!("all_{k}.png"))).unwrap());
+        assert_eq!(got, pixels(&std::fs::read(&want).unwrap()), "step {k}");
+        assert_eq!(k == 0, got == frames[0], "step {k}: the first step's range is its own");
+    }
+    let movie = dir.join("all.gif");
+    assert!(render(&series, &movie, &["--field", "f", "--size", "40x32", "--time-step", "all"]).0);
+    let mut decoder = gif::DecodeOptions::new().read_info(std::fs::File::open(&movie).unwrap()).unwrap();
+    let mut n = 0;
+    while decoder.read_next_frame().unwrap().is_some() {
+        n += 1;
+    }
+    assert_eq!(n, 3, "a frame a step");
+    let (ok, err) = render(&dir.join("alone.msh"), &all, &["--field", "f", "--time-step", "all"]);
+    assert!(!ok && err.contains("no time steps"), "{err}");
+
+    let s = Server::start_on(&s_(&series), &[]);
+    let mut ws = s.websocket(TOKEN).unwrap();
+    let greeting = hello(&mut ws);
+    assert_eq!(greeting["mesh"]["times"], serde_json::json!([0.0, 0.5, 1.5]));
+    assert!(greeting["state"].get("time_step").is_none(), "{}", greeting["state"]);
+    let mut state = greeting["state"].clone();
+    let (_, first) = frame(&mut ws);
+    state["time_step"] = 2.into();
+    let last = still_frame_of(&mut ws, &state);
+    assert_ne!(pixels(&first), pixels(&last), "step 2 is shown");
+    let (_, state_json) = s.get(&format!("/state.json?token={TOKEN}"));
+    let exported: serde_json::Value = serde_json::from_slice(&state_json).unwrap();
+    assert_eq!(exported["time_step"], 2);
+    std::fs::write(dir.join("view.json"), &state_json).unwrap();
+    let offline = dir.join("offline.png");
+    let (ok, err) = render(&series, &offline, &["--state", &s_(&dir.join("view.json"))]);
+    assert!(ok, "{err}");
+    assert_eq!(pixels(&std::fs::read(&offline).unwrap()), pixels(&last), "render --state renders the step shown");
+    // Out of range: an error, and the connection stays.
+    state["time_step"] = 3.into();
+    ws.send(Message::text(serde_json::json!({"type": "state", "state": state, "moving": false}).to_string())).unwrap();
+    let error = loop {
+        if let Message::Text(t) = ws.read().unwrap() {
+            break t;
+        }
+    };
+    assert!(error.contains("time step 3 is out of range") && error.contains("steps.msh has 3 steps"), "{error}");
+    state["time_step"] = 0.into();
+    assert_eq!(pixels(&still_frame_of(&mut ws, &state)), pixels(&first), "back to the first step");
+    // The benchmark client plays the series: each step shown once a pass, each a still frame.
+    let o = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+        .args(["view-bench", &format!("http://{}/?token={TOKEN}", s.addr), "--time-steps", "2"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!((r["time_steps"].as_u64(), r["steps_shown"].as_u64()), (Some(3), Some(6)), "{r}");
+    assert_eq!(r["step_to_still_ms"]["n"], 6, "{r}");
+    assert_eq!(s.interrupt(), Some(0));
+    // --time-step K starts there; a snapshot has no steps.
+    let s = Server::start_on(&s_(&series), &["--time-step", "2"]);
+    let mut ws = s.websocket(TOKEN).unwrap();
+    assert_eq!(hello(&mut ws)["state"]["time_step"], 2);
+    let (h, png) = frame(&mut ws);
+    assert_eq!((h["still"].as_bool(), pixels(&png)), (Some(true), pixels(&last)));
+    drop(s);
+    let o = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+        .args(["view", "fusion:2k", "--port", "0", "--time-step", "1", "--quiet"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("no time steps"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
 }

@@ -171,10 +171,27 @@ impl Renderer {
         Self::build(self.mesh.clone(), field, opts, Some(self))
     }
 
+    /// A renderer of another time step of the same mesh: `mesh` holds the same points and
+    /// cells with that step's fields. The occupancy grid and the surface (geometry only) are
+    /// kept; a range not set in `opts` is the new step's, as a fresh renderer of that step
+    /// has it, so a viewer's frame of step K is `render --time-step K`'s image.
+    pub fn for_step(&self, mesh: Arc<Mesh>, field: &str, opts: &RenderOptions) -> Result<Renderer> {
+        let geometry = |i: &tetloc_core::mesh::MeshInfo| (i.n_points, i.n_tets, i.n_cells, i.bounds_min, i.bounds_max);
+        if geometry(&self.mesh.info) != geometry(&mesh.info) {
+            return Err(RenderError::Invalid(format!(
+                "{}: a time step's mesh differs from the one rendered ({} tets against {})",
+                mesh.info.source, mesh.info.n_tets, self.mesh.info.n_tets
+            )));
+        }
+        Self::build(mesh, field, opts, Some(self))
+    }
+
     fn build(mesh: Arc<Mesh>, field: &str, opts: &RenderOptions, old: Option<&Renderer>) -> Result<Renderer> {
         opts.validate()?;
         let values = &mesh.field(field)?.values;
-        let old_range = old.filter(|o| o.field == field && o.opts.range.is_none()).map(|o| o.range);
+        // The old range holds for the same field of the same values only (not another step's).
+        let old_range =
+            old.filter(|o| o.field == field && o.opts.range.is_none() && Arc::ptr_eq(&o.mesh, &mesh)).map(|o| o.range);
         let range = match (opts.range, old_range) {
             (Some(r), _) => r,
             (None, Some(r)) => r,

@@ -8,8 +8,10 @@
 //!   "tf": { "colormap": "viridis", "colors": [], "space": "RGB",
 //!           "opacity": [[0, 0, 0.5, 0], [1, 1, 0.5, 0]], "range": null, "scale": 8 },
 //!   "step": null, "skip": true, "background": [0.1, 0.1, 0.1],
-//!   "surface": null, "surface_color": [0.8, 0.8, 0.78] }
+//!   "surface": null, "surface_color": [0.8, 0.8, 0.78], "time_step": 3 }
 //! ```
+//!
+//! `time_step` (a series' step, 0-based) is written only when set.
 //!
 //! The camera is in the file's coordinates. `tf.colors` (ParaView's `RGBPoints` over the
 //! normalised domain: `[x, r, g, b]`) replaces the named colormap when not empty, so an
@@ -58,6 +60,10 @@ pub struct ViewState {
     pub surface: Option<String>,
     #[serde(default = "default_surface_color")]
     pub surface_color: [f32; 3],
+    /// The time step shown (0-based) of a series (an Exodus file with steps, a `.pvd`):
+    /// `null` or absent, the first. Written only when set, so a snapshot's state is as before.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub time_step: Option<usize>,
 }
 
 fn yes() -> bool {
@@ -128,6 +134,7 @@ impl ViewState {
             background: o.background,
             surface: None,
             surface_color: o.surface_color,
+            time_step: None,
         }
     }
 
@@ -336,6 +343,25 @@ mod tests {
         let tf = back.transfer_function().unwrap();
         assert_eq!(tf.color_at(1.0), [1.0, 0.5, 0.0]);
         assert_eq!(tf.opacity_at(0.5), 0.5);
+    }
+
+    /// A state with no step writes no `time_step` (a snapshot's state is as before, and reads
+    /// in an older tetloc); a step round-trips; a state without the key shows the first step.
+    #[test]
+    fn the_time_step_is_written_only_when_set() {
+        let mut s = ViewState::new(&cube(), "f", 8, 8);
+        assert!(!s.to_json().contains("time_step"));
+        s.time_step = Some(3);
+        let text = s.to_json();
+        assert!(text.contains("\"time_step\": 3"), "{text}");
+        assert_eq!(ViewState::parse(&text, Path::new("v.json")).unwrap().time_step, Some(3));
+        let old = text.replace(",\n  \"time_step\": 3", "");
+        assert!(!old.contains("time_step"), "{old}");
+        assert_eq!(ViewState::parse(&old, Path::new("v.json")).unwrap().time_step, None);
+        let e = ViewState::parse(&text.replace("\"time_step\": 3", "\"time_step\": -1"), Path::new("n.json"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("n.json: not a view state"), "{e}");
     }
 
     #[test]

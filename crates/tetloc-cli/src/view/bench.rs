@@ -7,6 +7,10 @@
 //! latency (from the last input to the still frame), and where a frame's time goes: march,
 //! encode, send (from the end of encoding to the arrival here, over loopback on the same
 //! clock) and decode.
+//!
+//! With `--time-steps P` it plays a series instead, as the page's play button does: every
+//! step in turn, P times over, each sent as a stop and followed by its still frame. It
+//! reports the step-to-still-frame latency and the steps shown a second.
 
 use anyhow::{Context, Result};
 use std::collections::BTreeMap;
@@ -39,6 +43,9 @@ pub struct BenchArgs {
     /// Also write every frame's numbers here (CSV).
     #[arg(long)]
     frames_csv: Option<std::path::PathBuf>,
+    /// Play the series' time steps this many times over instead of orbiting.
+    #[arg(long, default_value_t = 0)]
+    time_steps: u32,
 }
 
 /// One frame as received.
@@ -76,6 +83,9 @@ pub fn run(a: BenchArgs) -> Result<()> {
     // socket's read timeout is counted in kernel ticks, several milliseconds, and held the
     // inputs back to about the frame rate).
     ws.get_mut().set_nonblocking(true)?;
+    if a.time_steps > 0 {
+        return play(&mut ws, &hello, state, gen, a.time_steps);
+    }
     let start = Instant::now();
     let mut sent: BTreeMap<u64, Instant> = BTreeMap::new();
     let mut frames: Vec<Frame> = Vec::new();
@@ -186,6 +196,59 @@ pub fn run(a: BenchArgs) -> Result<()> {
         }
         std::fs::write(path, csv).with_context(|| format!("writing {}", path.display()))?;
     }
+    let _ = ws.close(None);
+    Ok(())
+}
+
+/// Plays every time step `passes` times over, each a stop waited for until its still frame;
+/// prints the latencies.
+fn play(
+    ws: &mut WebSocket<TcpStream>,
+    hello: &serde_json::Value,
+    mut state: tr::ViewState,
+    mut gen: u64,
+    passes: u32,
+) -> Result<()> {
+    let n = hello["mesh"]["times"].as_array().map_or(0, Vec::len);
+    anyhow::ensure!(n >= 2, "--time-steps: the mesh has {n} time steps (a series of two or more is needed)");
+    // As the page does: the colours' range pinned to the first step's.
+    if state.tf.range.is_none() {
+        let fields = hello["mesh"]["fields"].as_array().context("no fields in hello")?;
+        let field = fields.iter().find(|f| f["name"] == state.field.as_str());
+        let range = field.and_then(|f| f["range"].as_array()).context("no range of the field shown")?;
+        let at = |k: usize| range.get(k).and_then(|v| v.as_f64()).map(|v| v as f32);
+        state.tf.range = Some([at(0).context("range")?, at(1).context("range")?]);
+    }
+    let (start, mut frames, mut latency) = (Instant::now(), Vec::new(), Vec::new());
+    for _ in 0..passes {
+        for k in (0..n).map(|k| (k + 1) % n) {
+            state.time_step = Some(k);
+            send_state(ws, &state, false)?;
+            gen += 1;
+            let sent = Instant::now();
+            loop {
+                if !receive(ws, &mut frames)? {
+                    std::thread::sleep(IDLE);
+                }
+                if frames.last().is_some_and(|f: &Frame| f.still && f.gen >= gen) {
+                    latency.push((frames.last().unwrap().at - sent).as_secs_f64() * 1e3);
+                    break;
+                }
+                anyhow::ensure!(sent.elapsed() < Duration::from_secs(600), "no still frame of step {k} within 600 s");
+            }
+        }
+    }
+    let elapsed = start.elapsed().as_secs_f64();
+    let summary = serde_json::json!({
+        "backend": hello["mesh"]["backend"],
+        "tets": hello["mesh"]["tets"],
+        "size": state.size,
+        "time_steps": n,
+        "steps_shown": latency.len(),
+        "steps_per_second": latency.len() as f64 / elapsed,
+        "step_to_still_ms": percentiles(&mut latency),
+    });
+    println!("{}", serde_json::to_string_pretty(&summary)?);
     let _ = ws.close(None);
     Ok(())
 }

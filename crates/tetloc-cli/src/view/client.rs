@@ -166,6 +166,11 @@ pub fn check(hub: &Hub, state: &tr::ViewState) -> Result<(), String> {
     if !known {
         return Err(format!("no field '{}'", state.field));
     }
+    if let Some(k) = state.time_step {
+        let n = hub.describe()["times"].as_array().map_or(0, Vec::len);
+        let source = hub.describe()["source"].as_str().unwrap_or("the mesh").to_string();
+        tetloc_core::mesh::steps::check_step(&source, n, k).map_err(|e| e.to_string())?;
+    }
     Ok(())
 }
 

@@ -60,6 +60,9 @@ pub struct RawFrame {
     pub rgb: Vec<u8>,
     pub march_ms: f64,
     pub gpu_ms: f64,
+    /// The values the transfer function spans in this frame (the state's, else the field's
+    /// range at the time step shown).
+    pub range: (f32, f32),
     /// When the render thread took the state it shows (input-to-frame latency).
     pub started: Instant,
 }
@@ -78,6 +81,11 @@ pub struct Encoded {
 impl Encoded {
     pub fn image(&self) -> &[u8] {
         &self.message[self.image_at..]
+    }
+
+    /// The JSON header (gen, size, range, timings).
+    pub fn header(&self) -> &[u8] {
+        &self.message[4..self.image_at]
     }
 }
 
@@ -262,6 +270,7 @@ pub fn encode(raw: &RawFrame, seq: u64, quality: u8) -> anyhow::Result<Encoded> 
         "height": raw.height,
         "march_ms": raw.march_ms,
         "gpu_ms": raw.gpu_ms,
+        "range": [raw.range.0, raw.range.1],
         "encode_ms": encode_ms,
         "bytes": image.len(),
         "latency_ms": raw.started.elapsed().as_secs_f64() * 1e3,
@@ -320,7 +329,17 @@ mod tests {
     fn raw(still: bool) -> RawFrame {
         let (width, height) = (40, 30);
         let rgb = (0..width * height * 3).map(|i| (i % 251) as u8).collect();
-        RawFrame { gen: 3, still, width, height, rgb, march_ms: 1.0, gpu_ms: 0.5, started: Instant::now() }
+        RawFrame {
+            gen: 3,
+            still,
+            width,
+            height,
+            rgb,
+            march_ms: 1.0,
+            gpu_ms: 0.5,
+            range: (0.0, 1.0),
+            started: Instant::now(),
+        }
     }
 
     #[test]

@@ -1,8 +1,10 @@
 //! The HTTP side: a request head read in bounded memory and time, the token checked before
-//! anything else (403 without it, for every path and for the WebSocket), then one of five
+//! anything else (403 without it, for every path and for the WebSocket), then one of seven
 //! answers: the page (embedded in the binary), `GET /frame.png` (the still frame of the
-//! current view), `GET /state.json`, `PUT /state.json` (a script sets the view), or the
-//! WebSocket upgrade. No path maps to a file.
+//! current view) and `GET /frame.json` (its header: size, the range it was drawn with,
+//! timings), `GET /mesh.json` (what the page's hello says of the mesh: fields, bounds, time
+//! steps), `GET /state.json`, `PUT /state.json` (a script sets the view), or the WebSocket
+//! upgrade. No path maps to a file.
 
 use super::frames::{lock, Hub};
 use std::io::{Read, Write};
@@ -128,6 +130,11 @@ fn handle(mut stream: TcpStream, hub: &Arc<Hub>) -> std::io::Result<()> {
             Some(f) => respond(&stream, 200, "image/png", f.image()),
             None => respond(&stream, 503, "text/plain", b"no frame yet\n"),
         },
+        "/frame.json" => match hub.current_still(STILL_TIMEOUT) {
+            Some(f) => respond(&stream, 200, "application/json", f.header()),
+            None => respond(&stream, 503, "text/plain", b"no frame yet\n"),
+        },
+        "/mesh.json" => respond(&stream, 200, "application/json", hub.describe().to_string().as_bytes()),
         "/state.json" => {
             let state = lock(&hub.input).state.to_json();
             respond(&stream, 200, "application/json", state.as_bytes())

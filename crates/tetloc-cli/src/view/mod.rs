@@ -62,6 +62,11 @@ pub struct ViewArgs {
     /// A view state (JSON) exported by the viewer, to start from.
     #[arg(long)]
     state: Option<PathBuf>,
+    /// A time series (an Exodus file with steps, a .pvd, a Gmsh file of several steps): start
+    /// at time step K (0-based; default: the state's, else the first). The page's time slider
+    /// moves through the steps.
+    #[arg(long, value_name = "K")]
+    time_step: Option<usize>,
     #[command(flatten)]
     source: mesh_arg::MeshOptions,
     /// Print only the URL, errors and warnings.
@@ -85,7 +90,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
             a.host
         );
     }
-    let mut mesh = mesh_arg::load(&a.mesh, a.source.format.as_deref(), a.source.seed)?;
+    let step = a.time_step.or(state.as_ref().and_then(|s| s.time_step));
+    let (mut mesh, series) = crate::time_steps::load_series(&a.mesh, a.source.format.as_deref(), a.source.seed, step)?;
     if let Some(m) = Arc::get_mut(&mut mesh) {
         tr::state::add_magnitudes(m);
     }
@@ -100,6 +106,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         None => tr::ViewState::new(&mesh, &field, 768, 768),
     };
     state.field = field;
+    state.time_step = step;
     if let Some(size) = &a.size {
         let (w, h) = tr::parse_size(size)?;
         state.size = [w, h];
@@ -107,8 +114,9 @@ pub fn run(a: ViewArgs) -> Result<()> {
     state.validate()?;
     let opts = BackendOptions { device: a.device, quiet: a.quiet, preset: a.preset.clone(), ..Default::default() };
     let hub = Arc::new(frames::Hub::new(token.clone(), state.clone()));
-    let backend = scene::spawn(mesh.clone(), &a.backend, opts, state.clone(), hub.clone())?;
-    hub.set_describe(scene::describe(&mesh, &state, &backend));
+    let times = series.as_ref().map_or_else(Vec::new, |s| s.times().to_vec());
+    let backend = scene::spawn(mesh.clone(), series, &a.backend, opts, state.clone(), hub.clone())?;
+    hub.set_describe(scene::describe(&mesh, &times, &state, &backend));
     frames::spawn_encoder(hub.clone());
     // Ctrl-C ends a server normally.
     crate::signals::exit_zero_on_interrupt();

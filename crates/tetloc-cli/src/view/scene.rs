@@ -6,9 +6,11 @@
 use super::frames::{lock, Hub, RawFrame};
 use crate::backend::BackendOptions;
 use crate::render::{build_marcher, check_samples_per_ray, AnyMarcher};
+use crate::time_steps::Series;
 use anyhow::Result;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tetloc_core::mesh::steps::check_step;
 use tetloc_core::Mesh;
 use tetloc_render as tr;
 
@@ -22,6 +24,9 @@ const MIN_SCALE: f64 = 0.125;
 
 pub struct Scene {
     mesh: Arc<Mesh>,
+    /// The file's time steps (`None`: a snapshot) and the one shown.
+    series: Option<Series>,
+    time_step: usize,
     backend: String,
     opts: BackendOptions,
     renderer: tr::Renderer,
@@ -32,12 +37,46 @@ pub struct Scene {
 }
 
 impl Scene {
-    pub fn new(mesh: Arc<Mesh>, backend: &str, opts: BackendOptions, state: &tr::ViewState) -> Result<Scene> {
+    /// `mesh` is `series`' step `state.time_step` (the first when `None`).
+    pub fn new(
+        mesh: Arc<Mesh>,
+        series: Option<Series>,
+        backend: &str,
+        opts: BackendOptions,
+        state: &tr::ViewState,
+    ) -> Result<Scene> {
         let renderer = tr::Renderer::new(mesh.clone(), &state.field, &state.render_options()?)?;
         check_samples_per_ray(&mesh, renderer.step())?;
         let marcher = build_marcher(&opts, &mesh, backend, &renderer, false)?;
         let marcher_name = tr::Marcher::name(&marcher).to_string();
-        Ok(Scene { mesh, backend: backend.to_string(), opts, renderer, marcher: Some(marcher), marcher_name })
+        Ok(Scene {
+            mesh,
+            series,
+            time_step: state.time_step.unwrap_or(0),
+            backend: backend.to_string(),
+            opts,
+            renderer,
+            marcher: Some(marcher),
+            marcher_name,
+        })
+    }
+
+    /// Shows time step `k`: the mesh with its fields, a renderer of it (grid and surface
+    /// kept) and a new marcher (the locators hold their mesh's fields).
+    fn show_step(&mut self, k: usize, field: &str, opts: &tr::RenderOptions) -> Result<()> {
+        let Some(series) = &self.series else {
+            check_step(&self.mesh.info.source, 0, k)?;
+            return Ok(());
+        };
+        let mut mesh = series.mesh(k)?;
+        tr::state::add_magnitudes(&mut mesh);
+        let mesh = Arc::new(mesh);
+        let renderer = self.renderer.for_step(mesh.clone(), field, opts)?;
+        // The old marcher goes first, to free its memory.
+        self.marcher = None;
+        self.marcher = Some(build_marcher(&self.opts, &mesh, &self.backend, &renderer, false)?);
+        (self.mesh, self.renderer, self.time_step) = (mesh, renderer, k);
+        Ok(())
     }
 
     pub fn marcher_name(&self) -> &str {
@@ -47,6 +86,10 @@ impl Scene {
     /// Makes the renderer and marcher show `state`.
     fn apply(&mut self, state: &tr::ViewState) -> Result<()> {
         let want = state.render_options()?;
+        let step = state.time_step.unwrap_or(0);
+        if step != self.time_step {
+            self.show_step(step, &state.field, &want)?;
+        }
         let have = self.renderer.options();
         let same_look = tr::RenderOptions {
             camera: have.camera,
@@ -98,7 +141,7 @@ impl Scene {
 
 /// What the page needs to know of the mesh: bounds, fields with their ranges, the
 /// backend, the built-in colormaps (sampled, for the editor's colour bar) and the home camera.
-pub fn describe(mesh: &Mesh, state: &tr::ViewState, backend: &str) -> serde_json::Value {
+pub fn describe(mesh: &Mesh, times: &[f64], state: &tr::ViewState, backend: &str) -> serde_json::Value {
     use rayon::prelude::*;
     let i = &mesh.info;
     let fields: Vec<_> = mesh
@@ -139,6 +182,9 @@ pub fn describe(mesh: &Mesh, state: &tr::ViewState, backend: &str) -> serde_json
         "colormaps": colormaps,
         "home": home,
         "size": state.size,
+        // Each time step's time (empty for a snapshot); the fields' ranges are the first
+        // shown step's, and each frame's header carries the range it was drawn with.
+        "times": times,
     })
 }
 
@@ -146,6 +192,7 @@ pub fn describe(mesh: &Mesh, state: &tr::ViewState, backend: &str) -> serde_json
 /// threads) and then renders for good; returns the backend's name once the scene is built.
 pub fn spawn(
     mesh: Arc<Mesh>,
+    series: Option<Series>,
     backend: &str,
     opts: BackendOptions,
     state: tr::ViewState,
@@ -154,7 +201,7 @@ pub fn spawn(
     let (tx, rx) = std::sync::mpsc::channel();
     let backend = backend.to_string();
     std::thread::Builder::new().name("view-render".into()).spawn(move || {
-        match Scene::new(mesh, &backend, opts, &state) {
+        match Scene::new(mesh, series, &backend, opts, &state) {
             Ok(mut scene) => {
                 let _ = tx.send(Ok(scene.marcher_name().to_string()));
                 render_loop(&mut scene, &hub)
@@ -237,6 +284,7 @@ fn render_loop(scene: &mut Scene, hub: &Hub) {
             rgb,
             march_ms,
             gpu_ms: stats.gpu_seconds * 1e3,
+            range: scene.renderer.range(),
             started,
         });
     }

@@ -430,3 +430,29 @@ fn a_mesh_far_from_the_origin_renders_as_at_the_origin() {
     assert!(sb.in_mesh_samples > 300, "the mesh is in view");
     assert!(db >= 40.0, "PSNR {db}");
 }
+
+/// Another time step's renderer keeps the occupancy grid and the surface, takes the new
+/// step's range, and renders what a fresh renderer of that step renders; a mesh of other
+/// geometry is refused.
+#[test]
+fn another_time_step_renders_as_a_fresh_renderer_of_it() {
+    use tetloc_testdata::KuhnGrid;
+    let step = |scale: f32| Arc::new(KuhnGrid::new(4).vertex_field(move |p| scale * (p[0] + 2.0 * p[1])).mesh("s"));
+    let (first, later) = (step(1.0), step(5.0));
+    let opts = small(RenderOptions { surface: Some(SurfaceSpec::Boundary), ..Default::default() });
+    let r0 = Renderer::new(first.clone(), "f", &opts).unwrap();
+    let r1 = r0.for_step(later.clone(), "f", &opts).unwrap();
+    let fresh = Renderer::new(later.clone(), "f", &opts).unwrap();
+    assert!(Arc::ptr_eq(r0.grid.as_ref().unwrap(), r1.grid.as_ref().unwrap()), "the grid is kept");
+    assert!(Arc::ptr_eq(r0.surface.as_ref().unwrap(), r1.surface.as_ref().unwrap()), "the surface is kept");
+    assert_eq!(r0.range(), (0.0, 3.0));
+    assert_eq!(r1.range(), fresh.range());
+    assert_eq!(r1.range(), (0.0, 15.0), "the new step's range");
+    let mut cpu = CpuLocator::new(later);
+    let (a, _) = r1.render(&mut cpu, &r1.camera(0)).unwrap();
+    let (b, _) = fresh.render(&mut cpu, &fresh.camera(0)).unwrap();
+    assert_eq!(a.pixels, b.pixels);
+    let other = Arc::new(KuhnGrid::new(3).mesh("other"));
+    let e = r0.for_step(other, "f", &opts).err().unwrap().to_string();
+    assert!(e.contains("differs"), "{e}");
+}
