@@ -11,11 +11,12 @@ seeds as OUT_DIR/seeds.bin (raw float32 x,y,z). compare: runs vtkParticlePathFil
 default step of half an interval) on the same steps, held in memory, from START to END (step
 times: VTK 9.7 injects at its input's first time and stops at the time asked for), and
 writes its points and tetloc's (read by VTK's XML reader) as X.points.bin (float64 N x 3),
-X.ids.bin (the particle: its seed index + 1000 x its injection time in 1e-4 units) and
+X.ids.bin (the particle: its seed index + 1000 x its injection time in 1e-4 units + 1e8 x its
+ParticleId, from each program's own InjectedPointId, InjectionStepId and ParticleId) and
 X.times.bin (the simulation time), float64, X = vtk or tetloc. N: VTK's
 ForceReinjectionEveryNSteps (default 0); VTK's particles injected at END (one point each,
 which make no line in tetloc) are left out. streaks: the same with vtkStreaklineFilter and
-tetloc's `--streaklines` (ids the seed index, times the particle age).
+tetloc's `--streaklines` (times the particle age).
 
 Exits with status 3 when the `vtk` module is missing, so the test can tell that apart.
 """
@@ -121,8 +122,8 @@ def write_arrays(pts, prefix, out_dir, ids, times):
     times.astype(np.float64).tofile(os.path.join(out_dir, f"{prefix}.times.bin"))
 
 
-def particle_key(seed, injected):
-    return seed + 1000.0 * np.round(injected * 1e4)
+def particle_key(seed, injected, particle=0):
+    return seed + 1000.0 * np.round(injected * 1e4) + 1e8 * particle
 
 
 def run_filter(f, src, end):
@@ -138,7 +139,8 @@ def run_filter(f, src, end):
     # InjectionStepId indexes the input's times (those from START); ParticleAge is float32.
     injected = np.asarray(src.times)[vtk_to_numpy(pd.GetArray("InjectionStepId"))]
     age = vtk_to_numpy(pd.GetArray("ParticleAge")).astype(np.float64)
-    return vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64), seed, injected, age
+    particle = vtk_to_numpy(pd.GetArray("ParticleId")).astype(np.float64)
+    return vtk_to_numpy(out.GetPoints().GetData()).astype(np.float64), seed, injected, age, particle
 
 
 def read_ours(ours):
@@ -162,24 +164,33 @@ def compare(out_dir, start, end, ours, every="0"):
     src = Series(float(start))  # held: the pipeline keeps no Python reference to it
     f = vtk.vtkParticlePathFilter()
     f.SetForceReinjectionEveryNSteps(int(every))
-    pts, seed, injected, age = run_filter(f, src, end)
+    pts, seed, injected, age, particle = run_filter(f, src, end)
     keep = injected < float(end)
-    write_arrays(pts[keep], "vtk", out_dir, particle_key(seed, injected)[keep], (age + injected)[keep])
-    pts, seed, pd, conn, offs = read_ours(ours)
+    write_arrays(pts[keep], "vtk", out_dir, particle_key(seed, injected, particle)[keep], (age + injected)[keep])
+    pts, line_seed, pd, conn, offs = read_ours(ours)
     times = vtk_to_numpy(pd.GetArray("IntegrationTime"))
-    injected = np.empty(len(times))
+    # Each point's particle by tetloc's own arrays, named as VTK's: the key is VTK's.
+    seed, particle = (vtk_to_numpy(pd.GetArray(n)).astype(np.float64) for n in ("InjectedPointId", "ParticleId"))
+    injected = np.asarray(src.times)[vtk_to_numpy(pd.GetArray("InjectionStepId"))]
+    age = vtk_to_numpy(pd.GetArray("ParticleAge")).astype(np.float64)
+    first = np.empty(len(times))
     for i in range(len(offs) - 1):
-        # A line's first point is its particle's injection.
-        injected[conn[offs[i]:offs[i + 1]]] = times[conn[offs[i]]]
-    write_arrays(pts, "tetloc", out_dir, particle_key(seed, injected), times)
+        first[conn[offs[i]:offs[i + 1]]] = times[conn[offs[i]]]
+    # The line's seed and first time (its injection) say the same as the arrays.
+    assert np.array_equal(seed, line_seed) and np.array_equal(injected, first), "InjectedPointId, InjectionStepId"
+    assert np.abs(age + injected - times).max() < 1e-6, "ParticleAge"
+    write_arrays(pts, "tetloc", out_dir, particle_key(seed, injected, particle), times)
 
 
 def streaks(out_dir, start, end, ours):
     src = Series(float(start))
-    pts, seed, _, age = run_filter(vtk.vtkStreaklineFilter(), src, end)
-    write_arrays(pts, "vtk", out_dir, seed, age)
-    pts, seed, pd, _, _ = read_ours(ours)
-    write_arrays(pts, "tetloc", out_dir, seed, vtk_to_numpy(pd.GetArray("ParticleAge")))
+    pts, seed, injected, age, particle = run_filter(vtk.vtkStreaklineFilter(), src, end)
+    write_arrays(pts, "vtk", out_dir, particle_key(seed, injected, particle), age)
+    pts, line_seed, pd, _, _ = read_ours(ours)
+    seed, particle = (vtk_to_numpy(pd.GetArray(n)).astype(np.float64) for n in ("InjectedPointId", "ParticleId"))
+    assert np.array_equal(seed, line_seed), "InjectedPointId"
+    injected = np.asarray(src.times)[vtk_to_numpy(pd.GetArray("InjectionStepId"))]
+    write_arrays(pts, "tetloc", out_dir, particle_key(seed, injected, particle), vtk_to_numpy(pd.GetArray("ParticleAge")))
 
 
 if __name__ == "__main__":

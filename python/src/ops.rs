@@ -376,6 +376,14 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
     out.set_item(arrays.time_name, PyArray1::from_vec(py, arrays.time))?;
     out.set_item("ReasonForTermination", PyArray1::from_vec(py, arrays.reasons))?;
     out.set_item("SeedIds", PyArray1::from_vec(py, arrays.seeds))?;
+    if let Some(p) = arrays.particles {
+        out.set_item("ParticleId", PyArray1::from_vec(py, p.particle_id))?;
+        out.set_item("InjectedPointId", PyArray1::from_vec(py, p.injected_point_id))?;
+        out.set_item("InjectionStepId", PyArray1::from_vec(py, p.injection_step_id))?;
+        if let Some(age) = p.age {
+            out.set_item("ParticleAge", PyArray1::from_vec(py, age))?;
+        }
+    }
     let fields: FieldArrays = arrays
         .fields
         .arrays

@@ -299,6 +299,16 @@ def test_reinjected_pathlines(tmp_path, backend):
     assert np.abs(out["points"] - want).max() < 1.2e-3
     once = tetloc.trace(mesh, "v", seeds[:2], unsteady=True, step=0.1, backend=backend)
     np.testing.assert_array_equal(out["points"][:10], once["points"])
+    # Each point's particle, as vtkParticlePathFilter writes it (ids start again each injection).
+    sizes = [5, 5, 3, 3]
+    np.testing.assert_array_equal(out["ParticleId"], np.repeat([0, 1, 0, 1], sizes))
+    np.testing.assert_array_equal(out["InjectedPointId"], np.repeat([0, 1, 0, 1], sizes))
+    assert out["InjectedPointId"].dtype == np.int64 and out["ParticleId"].dtype == np.int32
+    np.testing.assert_array_equal(out["InjectionStepId"], np.repeat([0, 0, 2, 2], sizes))
+    np.testing.assert_array_equal(out["ParticleAge"], (t - t0).astype(np.float32))
+    poly = tetloc.trace(mesh, "v", seeds[:2], unsteady=True, step=0.1, reinject_every=2, backend=backend, as_pyvista=True)
+    for name in ("ParticleId", "InjectedPointId", "InjectionStepId", "ParticleAge"):
+        np.testing.assert_array_equal(poly.point_data[name], out[name])
     bad: Any
     for bad in (-1, 1.5, True):
         with pytest.raises(ValueError, match="reinject_every"):
@@ -320,6 +330,10 @@ def test_streaklines(tmp_path, backend):
     assert list(out["SeedIds"]) == [0, 1]
     np.testing.assert_array_equal(out["ParticleAge"], [2.0, 1.5, 1.0, 0.5, 0.0] * 2)
     np.testing.assert_array_equal(out["points"][[4, 9]], seeds)
+    # Each point's particle: seed k's injected at output time j has ParticleId k.
+    np.testing.assert_array_equal(out["ParticleId"], np.repeat([0, 1], 5))
+    np.testing.assert_array_equal(out["InjectionStepId"], [0, 1, 2, 3, 4] * 2)
+    assert out["ParticleAge"].dtype == np.float64, "the streaks' time array is their age"
     paths = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, reinject_every=1, backend=backend)
     # Pathlines in injection order (0, 0.5, 1, 1.5), each injection in seed order: their last
     # points are the streaks' oldest-first points.

@@ -248,6 +248,11 @@ def trace(
     step's time between, the end time); ``IntegrationTime`` is the simulation time there,
     ``SeedIds`` the particle's index in `seeds`, ``ReasonForTermination`` 1 (left the mesh),
     6 (stagnated) or 7 (reached `end_time`), and the point fields are interpolated in time too.
+    Each point also carries its particle as vtkParticlePathFilter writes it: ``ParticleId``
+    int32 (its index among the particles its injection put inside the mesh; it starts again at
+    each injection, as VTK's), ``InjectedPointId`` int64 (its seed), ``InjectionStepId`` int32
+    (its injection's output time: 0 for `start_time`) and ``ParticleAge`` float32 (streaklines:
+    their time array is the age, in float64).
     Only two steps' fields are held in memory at a time. ``reinject_every=N`` injects the seeds
     again at every N-th output time after `start_time` (ParaView's "Force Reinjection Every
     NSteps"): each injection's particles are lines of their own, injection after injection,
@@ -304,6 +309,10 @@ def trace(
     return _lines(out, streaklines, pyvista_out)
 
 
+#: The point arrays pathlines and streaklines add, as vtkParticlePathFilter writes them.
+PARTICLE_ARRAYS = ("ParticleId", "InjectedPointId", "InjectionStepId", "ParticleAge")
+
+
 def _lines(out: Dict[str, Any], streaklines: bool, pyvista_out: bool) -> Any:
     """`_tetloc.trace`'s lines as `trace` returns them: the fields under their names, or a
     ``pyvista.PolyData`` of lines."""
@@ -323,6 +332,9 @@ def _lines(out: Dict[str, Any], streaklines: bool, pyvista_out: bool) -> Any:
         poly.point_data[name] = out[name]
     time = "ParticleAge" if streaklines else "IntegrationTime"
     poly.point_data[time] = out[time]
+    for name in PARTICLE_ARRAYS:
+        if name in out and name != time:
+            poly.point_data[name] = out[name]
     poly.cell_data["ReasonForTermination"] = out["ReasonForTermination"]
     poly.cell_data["SeedIds"] = out["SeedIds"]
     return poly

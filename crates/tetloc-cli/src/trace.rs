@@ -37,7 +37,10 @@ pub struct TraceArgs {
     seeds: String,
     /// The streamlines: VTK polydata (.vtp) with the point fields, IntegrationTime,
     /// ReasonForTermination and SeedIds, as vtkStreamTracer writes them. With --unsteady,
-    /// IntegrationTime is the simulation time at each point and SeedIds each particle's seed.
+    /// IntegrationTime is the simulation time at each point and SeedIds each particle's seed,
+    /// and each point carries its particle as vtkParticlePathFilter writes it: ParticleId (its
+    /// index among the particles of its injection inside the mesh), InjectedPointId (its
+    /// seed), InjectionStepId (its injection's output time) and ParticleAge.
     #[arg(short, long)]
     out: PathBuf,
     /// Step length (mesh units; by default a tenth of the mean edge); with rk45 the first step.

@@ -68,13 +68,15 @@ fn reinjected_pathlines_match_vtk_particle_paths() {
 /// float32 rounding, on cpu and soft-bvh.
 #[test]
 fn streaklines_match_vtk_streak_lines() {
-    // Keyed by (seed, age): the oldest particles (age 1.2) are the ones that moved most.
+    // Keyed by (particle, age), each side's particle by its own ParticleId, InjectedPointId
+    // and InjectionStepId: the oldest particles (age 1.2) are the ones that moved most.
     match_vtk("streaklines_match_vtk_streak_lines", &["--streaklines"], &["streaks"], 40 * 4, (12000, 40));
 }
 
 /// `trace --unsteady` from 0.4 to 1.6 with `flags`, on cpu and soft-bvh, against VTK's run by
 /// `vtk_pathlines.py OP DIR 0.4 1.6 OURS [N]` (`script`: OP, then N if any): the same `n_points`
-/// points by (particle, time), each within float32 rounding; `moved.1` of them at time key
+/// points by (particle, time), each side's particle named by its own point arrays
+/// (ParticleId, InjectedPointId, InjectionStepId), each point within float32 rounding; `moved.1` of them at time key
 /// `moved.0`, those that moved (a rotation of about 2 radians: not a comparison of seeds).
 fn match_vtk(test: &str, flags: &[&str], script: &[&str], n_points: usize, moved: (i64, usize)) {
     let Some(dir) = series(test) else { return };

@@ -99,10 +99,24 @@ pub fn resample_to_file(
 /// Appends `lines` to `w`, a VTK polydata (`.vtp`) file being written: the fields (Float64
 /// where sampled in f64) and `IntegrationTime` (Float64; `ParticleAge` for streaklines:
 /// [`LineArrays::time_name`]) as point data, `ReasonForTermination` and `SeedIds` (Int32)
-/// as cell data, as vtkStreamTracer writes them. Seed ids are `seed_base` + the line's.
+/// as cell data, as vtkStreamTracer writes them; pathlines and streaklines add their
+/// particles' point data as vtkParticlePathFilter does ([`tetloc_core::ops::trace::ParticleArrays`]:
+/// `ParticleId`, `InjectedPointId`, `InjectionStepId`, `ParticleAge`). Seed ids are
+/// `seed_base` + the line's.
 pub fn push_lines(w: &mut PolylineWriter, lines: &LineArrays, seed_base: usize) -> Result<()> {
     let mut point_data = probed_field_arrays(&lines.fields);
     point_data.push(NamedArray { name: lines.time_name.into(), n_components: 1, data: ArrayData::F64(&lines.time) });
+    let injected: Vec<i64>;
+    if let Some(p) = &lines.particles {
+        let array = |name: &str, data| NamedArray { name: name.into(), n_components: 1, data };
+        injected = p.injected_point_id.iter().map(|&s| s + seed_base as i64).collect();
+        point_data.push(array("ParticleId", ArrayData::I32(&p.particle_id)));
+        point_data.push(array("InjectedPointId", ArrayData::I64(&injected)));
+        point_data.push(array("InjectionStepId", ArrayData::I32(&p.injection_step_id)));
+        if let Some(age) = &p.age {
+            point_data.push(array("ParticleAge", ArrayData::F32(age)));
+        }
+    }
     let seeds = lines
         .seeds
         .iter()

@@ -246,6 +246,26 @@ pub struct LineArrays {
     pub reasons: Vec<i32>,
     pub seeds: Vec<i32>,
     pub fields: super::probe::Probed,
+    /// Pathlines and streaklines: each point's particle (`None` for streamlines).
+    pub particles: Option<ParticleArrays>,
+}
+
+/// Each point's particle, as vtkParticlePathFilter and vtkStreaklineFilter write them (point
+/// data): ParaView's names, types and numbering.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ParticleArrays {
+    /// `ParticleId` (Int32): the particle's index among those its injection put inside the
+    /// mesh, in the seeds' order. As VTK's, it starts again at each injection: with
+    /// reinjection, (`ParticleId`, `InjectionStepId`) names a particle.
+    pub particle_id: Vec<i32>,
+    /// `InjectedPointId` (Int64, VTK's id type): its seed's index.
+    pub injected_point_id: Vec<i64>,
+    /// `InjectionStepId` (Int32): the output time it was injected at (0: the start time, k:
+    /// the k-th output time after it).
+    pub injection_step_id: Vec<i32>,
+    /// `ParticleAge` (Float32, as VTK's): the time since its injection. `None` for
+    /// streaklines, whose time array is already their age in f64.
+    pub age: Option<Vec<f32>>,
 }
 
 impl LineArrays {
@@ -340,6 +360,7 @@ impl LineArrays {
             reasons: lines.iter().map(|l| l.reason as i32).collect(),
             seeds: lines.iter().map(|l| l.seed as i32).collect(),
             fields,
+            particles: None,
         }
     }
 }

@@ -20,7 +20,7 @@
 //! Runge–Kutta stage on any backend, and interpolates on the host.
 
 use super::particle::{combine, norm, MAX_STAGES};
-use super::{Integrator, LineArrays, Reason};
+use super::{Integrator, LineArrays, ParticleArrays, Reason};
 use crate::error::{Error, Result};
 use crate::geom::{Bary64, Vec3};
 use crate::locate::BatchLocator;
@@ -736,6 +736,21 @@ impl PathRun {
         });
         let ids = self.gather(cuts, &lens, 1, |t, r, out| out.copy_from_slice(&t.tets[r]));
         let values = self.gather(cuts, &lens, k, |t, r, out| out.copy_from_slice(&t.values[r.start * k..r.end * k]));
+        // Each point's particle: constant along a track's run.
+        let numbers = self.particle_numbers();
+        let number = |t: &Track| numbers[t.p.id as usize];
+        let particles = ParticleArrays {
+            particle_id: self.gather(cuts, &lens, 1, |t, _, out| out.fill(number(t).0)),
+            injected_point_id: self.gather(cuts, &lens, 1, |t, _, out| out.fill(i64::from(t.seed))),
+            injection_step_id: self.gather(cuts, &lens, 1, |t, _, out| out.fill(number(t).1)),
+            age: (!self.streaklines).then(|| {
+                self.gather(cuts, &lens, 1, |t, r, out: &mut [f32]| {
+                    for (o, &x) in out.iter_mut().zip(&t.time[r]) {
+                        *o = (x - t.time[0]) as f32;
+                    }
+                })
+            }),
+        };
         LineArrays {
             points,
             ends: lens
@@ -750,7 +765,28 @@ impl PathRun {
             reasons: cuts.lines.iter().map(|c| c.reason as i32).collect(),
             seeds: cuts.lines.iter().map(|c| c.seed as i32).collect(),
             fields: super::super::probe::Probed::from_values(ids, &self.fields, &values),
+            particles: Some(particles),
         }
+    }
+
+    /// Each particle's `ParticleId` and `InjectionStepId`, by its id (injection after
+    /// injection, each in the seeds' order): its index among the particles its injection put
+    /// inside the mesh (those that recorded a point; -1 for the others), and the index of its
+    /// injection time among the output times (the start time's 0), as VTK numbers them.
+    fn particle_numbers(&self) -> Vec<(i32, i32)> {
+        let times: Vec<f64> = self.legs.first().map(|l| l.from).into_iter().chain(self.frame_times()).collect();
+        let mut numbers = vec![(-1, -1); self.tracks.len()];
+        let mut inside = 0;
+        for (k, t) in self.tracks.iter().enumerate() {
+            if k % self.n_seeds.max(1) == 0 {
+                inside = 0;
+            }
+            if let Some(&t0) = t.time.first() {
+                numbers[t.p.id as usize] = (inside, times.partition_point(|&x| x < t0) as i32);
+                inside += 1;
+            }
+        }
+        numbers
     }
 
     /// Each line's `width` items a point (`lens` points a line), filled run after run by
@@ -1210,6 +1246,7 @@ mod tests {
             assert_eq!((&a.points, &a.time, a.time_name), (&b.points, &b.time, b.time_name), "{what}");
             assert_eq!(a.fields.ids, b.fields.ids, "{what}");
             assert_eq!(a.fields.arrays, b.fields.arrays, "{what}");
+            assert_eq!(a.particles, b.particles, "{what}");
         };
         for (o, name) in [(&paths, "pathlines"), (&streaks, "streaklines")] {
             for batch in [false, true] {
@@ -1233,6 +1270,72 @@ mod tests {
                     // Lines cut at frame 0 (reason 7) that have left by frame 1, and frames
                     // before the last holding lines that have stopped.
                     assert!(gone[0] < gone[1], "{name}, batch {batch}: {gone:?} gone by each frame");
+                }
+            }
+        }
+    }
+
+    /// Each point carries its particle as vtkParticlePathFilter numbers it: `ParticleId` its
+    /// index among the particles its injection put inside the mesh (a seed outside takes
+    /// none; it starts again at each injection), `InjectedPointId` its seed,
+    /// `InjectionStepId` its injection's output time, `ParticleAge` the time since (f32);
+    /// streaklines too, their time array being their age. On both drivers.
+    #[test]
+    fn particles_are_numbered_as_vtk_numbers_them() {
+        let (m, steps) = spin_series(6, vec![0.0, 0.5, 1.0, 1.5, 2.0, 2.5]);
+        let mut cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        // The seed outside first: the others' ParticleIds are their seed's index less one.
+        let mut seeds = leaving_seeds(3);
+        seeds.rotate_right(1);
+        let output_times = [0.25, 0.5, 1.0, 1.5, 2.0, 2.5];
+        let paths = PathOptions { step: Some(0.05), start_time: Some(0.25), reinject_every: 2, ..Default::default() };
+        let streaks = PathOptions { streaklines: true, reinject_every: 0, ..paths.clone() };
+        for batch in [false, true] {
+            let mut run = |o: &PathOptions| match batch {
+                true => pathline_run_batch(job(&seeds, o, &steps, &fields), &mut cpu, &m, |_| Ok(())).unwrap(),
+                false => pathline_run(job(&seeds, o, &steps, &fields), &cpu, |_| Ok(())).unwrap(),
+            };
+            let out = run(&paths).output();
+            let p = out.particles.as_ref().unwrap();
+            let age = p.age.as_ref().unwrap();
+            let mut injections = std::collections::BTreeSet::new();
+            for (line, &end) in out.ends.iter().enumerate() {
+                let (seed, start) = (out.seeds[line], if line == 0 { 0 } else { out.ends[line - 1] });
+                assert_ne!(seed, 0, "the seed outside makes no line");
+                for i in start..end {
+                    assert_eq!(p.particle_id[i], seed - 1, "batch {batch}, line {line}");
+                    assert_eq!(p.injected_point_id[i], i64::from(seed));
+                    assert_eq!(
+                        output_times[p.injection_step_id[i] as usize], out.time[start],
+                        "injected at its first time"
+                    );
+                    assert_eq!(age[i], (out.time[i] - out.time[start]) as f32);
+                }
+                injections.insert(p.injection_step_id[start]);
+            }
+            assert_eq!(
+                injections.into_iter().collect::<Vec<_>>(),
+                [0, 2, 4],
+                "batch {batch}: every second output time"
+            );
+            let out = run(&streaks).output();
+            assert_eq!(out.time_name, "ParticleAge");
+            let p = out.particles.as_ref().unwrap();
+            assert!(p.age.is_none(), "the time array is the age");
+            for (line, &end) in out.ends.iter().enumerate() {
+                let start = if line == 0 { 0 } else { out.ends[line - 1] };
+                for i in start..end {
+                    assert_eq!(
+                        (p.particle_id[i], p.injected_point_id[i]),
+                        (out.seeds[line] - 1, i64::from(out.seeds[line]))
+                    );
+                    let injected = output_times[p.injection_step_id[i] as usize];
+                    assert!(
+                        (injected + out.time[i] - 2.5).abs() < 1e-12,
+                        "batch {batch}: injected {injected}, age {}",
+                        out.time[i]
+                    );
                 }
             }
         }
