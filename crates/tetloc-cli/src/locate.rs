@@ -143,7 +143,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     check_args(a)?;
     let opts = a.common.opts()?;
 
-    let m = crate::time_steps::load(&a.mesh, a.common.format.as_deref(), a.common.seed, a.common.step())?;
+    let m = a.common.load_mesh(&a.mesh)?;
     if let Some(f) = &a.field {
         fields::resolve_scalar(&m.fields, f).context("--field")?;
     }

@@ -225,6 +225,10 @@ struct Common {
     /// not an argument): an output of every step, so checked against its inputs.
     #[arg(skip)]
     index: Option<PathBuf>,
+    /// The series `--time-step all` read once, for each step's run to take its mesh from
+    /// (set for each step's run, not an argument).
+    #[arg(skip)]
+    series: Option<std::sync::Arc<time_steps::Series>>,
 }
 
 impl Common {
@@ -238,6 +242,15 @@ impl Common {
         match self.time_step {
             Some(time_steps::TimeStep::One(k)) => Some(k),
             _ => None,
+        }
+    }
+
+    /// The mesh `arg` at the step to run on: from the series `--time-step all` read once, else
+    /// read now ([`time_steps::load`]).
+    fn load_mesh(&self, arg: &std::ffi::OsStr) -> Result<std::sync::Arc<tetloc_core::Mesh>> {
+        match (&self.series, self.step()) {
+            (Some(series), Some(k)) => time_steps::step_mesh(series, k),
+            _ => time_steps::load(arg, self.format.as_deref(), self.seed, self.step()),
         }
     }
 

@@ -95,7 +95,7 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     let point_set = check(a)?;
     let opts = a.common.opts()?;
-    let source = crate::time_steps::load(&a.source, a.common.format.as_deref(), a.common.seed, a.common.step())?;
+    let source = a.common.load_mesh(&a.source)?;
     let (_, builder) = opts.builder(&source, &a.backend)?;
     // cpu: the probe's batches search bins; the BVH is built only if a point lands on a face.
     let builder = builder.tolerance(a.tolerance).defer_cpu_build(true);

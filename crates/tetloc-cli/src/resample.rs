@@ -108,7 +108,7 @@ pub fn run(a: &ResampleArgs) -> Result<()> {
     progress::set_quiet(a.common.quiet);
     let plan = check(a)?;
     let opts = a.common.opts()?;
-    let m = crate::time_steps::load(&a.mesh, a.common.format.as_deref(), a.common.seed, a.common.step())?;
+    let m = a.common.load_mesh(&a.mesh)?;
     // On the CPU the search is built only if the grid needs it (its grid path rasterizes the
     // tets; only grid points on faces need the search's tie rule).
     let (_, builder) = opts.builder(&m, &a.backend)?;

@@ -83,8 +83,15 @@ pub fn load_series(
     })
 }
 
+/// Step `k`'s mesh from a series read once (`--time-step all`).
+pub fn step_mesh(series: &Series, k: usize) -> Result<Arc<Mesh>> {
+    let mesh = progress::with_spinner(format!("{} step {k}", series.name), || series.mesh(k))?;
+    Ok(Arc::new(mesh))
+}
+
 /// A file read once as a time series: its mesh, and its steps' fields read a step at a time.
-/// `view` moves through the steps with it, reading no mesh again.
+/// `view`, `render --time-step all` and every command's `--time-step all` move through the
+/// steps with it, reading no mesh again.
 pub struct Series {
     raw: RawMesh,
     steps: Option<TimeSteps>,
@@ -190,13 +197,21 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
         return command(args);
     }
     let (mesh, out) = args.series();
-    let times = times(mesh, args.common().format.as_deref())?;
+    // Read once: each step's run takes its mesh from it (the file is not read again).
+    let series = match mesh_arg::parse_generated(mesh) {
+        Some(_) => None,
+        None => Some(Arc::new(progress::with_spinner(format!("reading {}", Path::new(mesh).display()), || {
+            Series::open(Path::new(mesh), args.common().format.as_deref())
+        })?)),
+    };
+    let times = series.as_ref().map_or_else(Vec::new, |s| s.times().to_vec());
     if times.is_empty() {
         check_step(&Path::new(mesh).display().to_string(), 0, 0).context("--time-step all")?;
     }
     for (k, t) in times.iter().enumerate() {
         let mut a = args.clone();
         a.common_mut().time_step = Some(TimeStep::One(k));
+        a.common_mut().series = series.clone();
         // Each step's run checks the index too: none of them may read it.
         a.common_mut().index = index_path(out);
         a.rename_outputs(k, times.len());

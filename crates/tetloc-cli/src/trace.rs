@@ -170,7 +170,7 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
     // Generated shapes come with their closed-form flow `v` (`gen --vector`).
     let m = match a.common.step() {
         None => mesh_arg::load_with_flow(&a.mesh, a.common.format.as_deref(), a.common.seed)?,
-        Some(k) => time_steps::load(&a.mesh, a.common.format.as_deref(), a.common.seed, Some(k))?,
+        Some(_) => a.common.load_mesh(&a.mesh)?,
     };
     if a.step.is_none() {
         o.step = 0.1 * m.info.mean_edge_length as f64;
