@@ -319,7 +319,7 @@ def test_page_moves_through_time(browser: Browser, server: Server, cli: str, tmp
         page = open_page(browser, s)
         assert not page.eval("document.getElementById('timebox').hidden")
         assert page.eval("document.getElementById('time').max") == "2"
-        assert page.eval("document.getElementById('timeval').textContent") == "step 0 of 2, t = 0"
+        assert page.eval("document.getElementById('timeval').textContent") == "step 0 (0 to 2), t = 0"
         first, drawn = page.canvas(), page.eval("tetloc.header.range")
         n = page.eval("tetloc.frames")
         page.eval("(() => { const t = document.getElementById('time'); t.value = 2; t.dispatchEvent(new Event('input')); return 1; })()")

@@ -8,7 +8,7 @@ the current frame as a numpy array, and stops the server::
     v = tetloc.view("mesh.vtu", "temperature", size=(640, 480))
     v.set_tf(colormap="plasma", range=(0.0, 300.0))
     img = v.frame()          # (480, 640, 3) uint8, the lossless still frame
-    v.set_time_step(3)       # a series' step 4 (v.times: each step's time)
+    v.set_time_step(3)       # a series' step 3, 0-based (v.times: each step's time)
     v.stop()
 """
 

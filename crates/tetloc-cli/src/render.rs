@@ -4,7 +4,7 @@ use crate::backend::BackendOptions;
 use crate::{mesh_arg, time_steps};
 use anyhow::{Context, Result};
 use std::ffi::OsString;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tetloc_core::Mesh;
 use tetloc_io::output::FileArg;
@@ -215,10 +215,13 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result
         );
     }
     crate::progress::set_quiet(a.quiet);
-    let (mesh, series) = time_steps::load_series(&a.mesh, a.source.format.as_deref(), a.source.seed, Some(0))?;
+    let out = a.out.clone().unwrap_or_else(|| "render.png".into());
+    // The output's kind and folder before the series is read; each step's name once it is.
+    tetloc_io::output::check_output(&out, &["png", "gif"])?;
+    let (mesh, series) = time_steps::load_series(&a.mesh, a.source.format.as_deref(), a.source.seed, Some(0))
+        .context("--time-step all")?;
     let series = series.context("--time-step all: the mesh has no time steps")?;
     let n = series.times().len();
-    let out = a.out.clone().unwrap_or_else(|| "render.png".into());
     let gif = tetloc_io::output::extension(&out) == "gif";
     let files: Vec<PathBuf> =
         if gif { vec![out.clone()] } else { (0..n).map(|k| time_steps::step_path(&out, k, n)).collect() };
@@ -240,18 +243,20 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result
     };
     let bar = crate::progress::bar(n as u64, "rendering the steps");
     for k in 0..n {
-        if k > 0 {
-            mesh = with_magnitudes(Arc::new(series.mesh(k)?), field)?;
-            renderer = renderer.for_step(mesh.clone(), field, &o)?;
-        }
-        // A marcher a step (the locators hold their mesh's fields), each dropped before the next.
-        let mut marcher = build_marcher(&opts, &mesh, &a.backend, &renderer, a.host_march)?;
-        let (image, _) =
-            renderer.render(&mut marcher, &renderer.camera(0)).with_context(|| format!("time step {k}"))?;
-        match &mut writer {
-            Some(w) => w.add(&image)?,
-            None => image.write_png(&time_steps::step_path(&out, k, n))?,
-        }
+        let mut step = || -> Result<()> {
+            if k > 0 {
+                mesh = with_magnitudes(Arc::new(series.mesh(k)?), field)?;
+                renderer = renderer.for_step(mesh.clone(), field, &o)?;
+            }
+            // A marcher a step (the locators hold their mesh's fields), each dropped before the next.
+            let mut marcher = build_marcher(&opts, &mesh, &a.backend, &renderer, a.host_march)?;
+            let (image, _) = renderer.render(&mut marcher, &renderer.camera(0))?;
+            match &mut writer {
+                Some(w) => Ok(w.add(&image)?),
+                None => Ok(image.write_png(&time_steps::step_path(&out, k, n))?),
+            }
+        };
+        step().with_context(|| format!("{}: time step {k}", Path::new(&a.mesh).display()))?;
         bar.inc(1);
     }
     bar.finish_and_clear();

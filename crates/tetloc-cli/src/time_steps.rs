@@ -64,8 +64,10 @@ pub fn load_series(
     step: Option<usize>,
 ) -> Result<(Arc<Mesh>, Option<Series>)> {
     let path = Path::new(arg);
-    if mesh_arg::parse_generated(arg).is_some() || !path.exists() {
-        if let Some(k) = step {
+    let generated = mesh_arg::parse_generated(arg).is_some();
+    if generated || !path.exists() {
+        // A generated mesh has no steps; a missing file gets `mesh_arg::load`'s "no such file".
+        if let (true, Some(k)) = (generated, step) {
             check_step(&path.display().to_string(), 0, k)?;
         }
         return Ok((mesh_arg::load(arg, format, seed)?, None));
@@ -100,7 +102,11 @@ pub struct Series {
 
 impl Series {
     pub fn open(path: &Path, format: Option<&str>) -> Result<Series> {
-        let (raw, steps) = io::read_series(path, format_of(format)?)?;
+        let (mut raw, steps) = io::read_series(path, format_of(format)?)?;
+        if steps.is_some() {
+            // Each step's mesh takes that step's fields: the first step's are not kept twice.
+            raw.fields = Vec::new();
+        }
         Ok(Series { raw, steps, name: path.display().to_string() })
     }
 

@@ -398,6 +398,10 @@ fn a_series_is_viewed_step_by_step() {
     assert_eq!(n, 3, "a frame a step");
     let (ok, err) = render(&dir.join("alone.msh"), &all, &["--field", "f", "--time-step", "all"]);
     assert!(!ok && err.contains("no time steps"), "{err}");
+    let (ok, err) = render(&dir.join("typo.msh"), &all, &["--field", "f", "--time-step", "all"]);
+    assert!(!ok && err.contains("typo.msh: no such file"), "a missing file is not a snapshot: {err}");
+    let (ok, err) = render(&series, &dir.join("all.txt"), &["--field", "f", "--time-step", "all"]);
+    assert!(!ok && err.contains("all.txt") && !dir.join("all.txt").exists(), "{err}");
 
     let s = Server::start_on(&s_(&series), &[]);
     let mut ws = s.websocket(TOKEN).unwrap();

@@ -220,8 +220,10 @@ fn play(
         state.tf.range = Some([at(0).context("range")?, at(1).context("range")?]);
     }
     let (start, mut frames, mut latency) = (Instant::now(), Vec::new(), Vec::new());
+    // From the step after the one shown, so that every input changes the step.
+    let shown = state.time_step.unwrap_or(0);
     for _ in 0..passes {
-        for k in (0..n).map(|k| (k + 1) % n) {
+        for k in (1..=n).map(|k| (shown + k) % n) {
             state.time_step = Some(k);
             send_state(ws, &state, false)?;
             gen += 1;

@@ -68,6 +68,8 @@ impl Scene {
             check_step(&self.mesh.info.source, 0, k)?;
             return Ok(());
         };
+        // Unknown until the step is shown: a failure below leaves the next state to rebuild.
+        self.time_step = usize::MAX;
         let mut mesh = series.mesh(k)?;
         tr::state::add_magnitudes(&mut mesh);
         let mesh = Arc::new(mesh);
