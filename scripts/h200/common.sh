@@ -66,3 +66,33 @@ wheel_setup() {
   [ -d "$repo/shared/data" ] && data=(--data "$repo/shared/data")
   [ -z "${data[*]}" ] && [ -d "$repo/../shared/data" ] && data=(--data "$repo/../shared/data")
 }
+
+# view_case NAME VIEW_ARGS...: `$BIN view VIEW_ARGS --port 0` in the background for the
+# view scripts (BIN, OUT, START and BUDGET set by the caller): skipped with under 60 s of the
+# budget left; returns 1 when no URL comes (the mesh is loaded and the locator built before
+# it is printed). Otherwise the URL is in $view_url, the pid in $view_pid, and the case's
+# lines go to $OUT/summary.txt; `view_stop` ends it.
+view_case() {
+  local name=$1
+  shift
+  if [ $((BUDGET - (SECONDS - START))) -lt 60 ]; then echo "== $name: skipped (budget)" | tee -a "$OUT/summary.txt"; return 1; fi
+  echo "== $name: view $*" | tee -a "$OUT/summary.txt"
+  local s0=$SECONDS
+  "$BIN" view "$@" --port 0 > "$OUT/$name.url" 2> "$OUT/$name.server.log" &
+  view_pid=$!
+  while [ ! -s "$OUT/$name.url" ] && kill -0 "$view_pid" 2>/dev/null && [ $((SECONDS - START)) -lt "$BUDGET" ]; do sleep 1; done
+  if [ ! -s "$OUT/$name.url" ]; then
+    echo "   no URL (see $name.server.log)" | tee -a "$OUT/summary.txt"
+    kill -INT "$view_pid" 2>/dev/null; wait "$view_pid"
+    return 1
+  fi
+  view_url=$(head -1 "$OUT/$name.url")
+  echo "   ready after $((SECONDS - s0)) s" | tee -a "$OUT/summary.txt"
+}
+
+# view_stop: Ctrl-C to the server of the last view_case, and its exit code in the summary.
+view_stop() {
+  kill -INT "$view_pid"
+  wait "$view_pid"
+  echo "   server exit $? (0: Ctrl-C ends it cleanly)" | tee -a "$OUT/summary.txt"
+}

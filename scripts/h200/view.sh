@@ -22,26 +22,11 @@ gpu_setup "$BIN" name,driver_version,clocks.sm,clocks.max.sm
 case_() {
   local name=$1 mesh=$2 size=$3 orbit=$4
   shift 4
-  local left=$((BUDGET - (SECONDS - START)))
-  if [ "$left" -lt 60 ]; then echo "== $name: skipped (budget)" | tee -a "$OUT/summary.txt"; return; fi
-  echo "== $name: view $mesh --size $size $*" | tee -a "$OUT/summary.txt"
-  local s0=$SECONDS
-  "$BIN" view "$mesh" --field f --size "$size" --port 0 --backend soft-bvh "$@" > "$OUT/$name.url" 2> "$OUT/$name.server.log" &
-  local pid=$!
-  # The URL line comes once the mesh is loaded and the locator built.
-  while [ ! -s "$OUT/$name.url" ] && kill -0 "$pid" 2>/dev/null && [ $((SECONDS - START)) -lt "$BUDGET" ]; do sleep 1; done
-  if [ ! -s "$OUT/$name.url" ]; then
-    echo "   no URL (see $name.server.log)" | tee -a "$OUT/summary.txt"
-    kill -INT "$pid" 2>/dev/null; wait "$pid"
-    return
-  fi
-  echo "   ready after $((SECONDS - s0)) s" | tee -a "$OUT/summary.txt"
-  timeout $((BUDGET - (SECONDS - START))) "$BIN" view-bench "$(head -1 "$OUT/$name.url")" --seconds "$orbit" --orbits 3 \
+  view_case "$name" "$mesh" --field f --size "$size" --backend soft-bvh "$@" || return
+  timeout $((BUDGET - (SECONDS - START))) "$BIN" view-bench "$view_url" --seconds "$orbit" --orbits 3 \
     --frames-csv "$OUT/$name.frames.csv" > "$OUT/$name.json" 2> "$OUT/$name.bench.log"
   echo "   bench exit $?" | tee -a "$OUT/summary.txt"
-  kill -INT "$pid"
-  wait "$pid"
-  echo "   server exit $? (0: Ctrl-C ends it cleanly)" | tee -a "$OUT/summary.txt"
+  view_stop
   cat "$OUT/$name.json" >> "$OUT/summary.txt"
 }
 

@@ -10,7 +10,7 @@ use tetloc_core::Mesh;
 use tetloc_io::output::FileArg;
 use tetloc_locator::{Backend, BareLocator};
 use tetloc_render as tr;
-use time_steps::TimeStep;
+use time_steps::{Series, TimeStep};
 
 #[derive(clap::Args)]
 pub struct RenderArgs {
@@ -245,8 +245,7 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result
     for k in 0..n {
         let mut step = || -> Result<()> {
             if k > 0 {
-                mesh = with_magnitudes(Arc::new(series.mesh(k)?), field)?;
-                renderer = renderer.for_step(mesh.clone(), field, &o)?;
+                (mesh, renderer) = step_renderer(&series, k, &renderer, field, &o)?;
             }
             // A marcher a step (the locators hold their mesh's fields), each dropped before the next.
             let mut marcher = build_marcher(&opts, &mesh, &a.backend, &renderer, a.host_march)?;
@@ -271,6 +270,23 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result
         }
     }
     Ok(())
+}
+
+/// Time step `k` of `series` to render as `renderer` does, its grid and surface kept: the mesh
+/// with that step's fields and `|NAME|` magnitudes (as the viewer colours vectors), and its
+/// renderer (`render --time-step all`, and `view`'s time slider).
+pub fn step_renderer(
+    series: &Series,
+    k: usize,
+    renderer: &tr::Renderer,
+    field: &str,
+    o: &tr::RenderOptions,
+) -> Result<(Arc<Mesh>, tr::Renderer)> {
+    let mut mesh = series.mesh(k)?;
+    tr::state::add_magnitudes(&mut mesh);
+    let mesh = Arc::new(mesh);
+    let renderer = renderer.for_step(mesh.clone(), field, o)?;
+    Ok((mesh, renderer))
 }
 
 /// Refuses outputs that are inputs: the mesh's files, the state, a preset, a surface.

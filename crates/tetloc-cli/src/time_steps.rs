@@ -9,7 +9,7 @@ use std::ffi::OsStr;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
-use tetloc_core::mesh::steps::check_step;
+use tetloc_core::mesh::steps::no_steps;
 use tetloc_core::mesh::{RawMesh, TimeSteps};
 use tetloc_core::Mesh;
 use tetloc_io::output::FileArg;
@@ -47,7 +47,7 @@ pub fn load(arg: &OsStr, format: Option<&str>, seed: u64, step: Option<usize>) -
     let Some(k) = step else { return mesh_arg::load(arg, format, seed) };
     let path = Path::new(arg);
     if mesh_arg::parse_generated(arg).is_some() {
-        check_step(&path.display().to_string(), 0, k)?;
+        return Err(no_steps(&path.display().to_string(), k).into());
     }
     let series = progress::with_spinner(format!("reading {} step {k}", path.display()), || {
         Series::open(path, format).and_then(|s| s.into_mesh(k))
@@ -68,7 +68,7 @@ pub fn load_series(
     if generated || !path.exists() {
         // A generated mesh has no steps; a missing file gets `mesh_arg::load`'s "no such file".
         if let (true, Some(k)) = (generated, step) {
-            check_step(&path.display().to_string(), 0, k)?;
+            return Err(no_steps(&path.display().to_string(), k).into());
         }
         return Ok((mesh_arg::load(arg, format, seed)?, None));
     }
@@ -76,7 +76,7 @@ pub fn load_series(
         let series = Series::open(path, format)?;
         if series.times().is_empty() {
             if let Some(k) = step {
-                check_step(&series.name, 0, k)?;
+                return Err(no_steps(&series.name, k).into());
             }
             return Ok((Arc::new(series.into_mesh_as_read()?), None));
         }
@@ -133,12 +133,8 @@ impl Series {
 
     fn fields(&self, k: usize) -> Result<Vec<tetloc_core::mesh::Field>> {
         match &self.steps {
-            // A snapshot has no steps: an error for any k.
-            None => {
-                check_step(&self.name, 0, k)?;
-                Ok(self.raw.fields.clone())
-            }
             Some(s) => Ok(s.fields(k)?),
+            None => Err(no_steps(&self.name, k).into()),
         }
     }
 }
@@ -148,8 +144,7 @@ pub fn times(arg: &OsStr, format: Option<&str>) -> Result<Vec<f64>> {
     if mesh_arg::parse_generated(arg).is_some() {
         return Ok(Vec::new());
     }
-    let (_, steps) = io::read_series(Path::new(arg), format_of(format)?)?;
-    Ok(steps.map_or_else(Vec::new, |s| s.times))
+    Ok(Series::open(Path::new(arg), format)?.times().to_vec())
 }
 
 /// `STEM_K.EXT` for step `k` of `n` (K padded to the digits of the last step).
@@ -212,7 +207,7 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
     };
     let times = series.as_ref().map_or_else(Vec::new, |s| s.times().to_vec());
     if times.is_empty() {
-        check_step(&Path::new(mesh).display().to_string(), 0, 0).context("--time-step all")?;
+        return Err(no_steps(&Path::new(mesh).display().to_string(), 0)).context("--time-step all");
     }
     for (k, t) in times.iter().enumerate() {
         let mut a = args.clone();

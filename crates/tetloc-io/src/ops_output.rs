@@ -106,10 +106,14 @@ pub fn resample_to_file(
 pub fn push_lines(w: &mut PolylineWriter, lines: &LineArrays, seed_base: usize) -> Result<()> {
     let mut point_data = probed_field_arrays(&lines.fields);
     point_data.push(NamedArray { name: lines.time_name.into(), n_components: 1, data: ArrayData::F64(&lines.time) });
-    let injected: Vec<i64>;
+    let injected: std::borrow::Cow<[i64]>;
     if let Some(p) = &lines.particles {
         let array = |name: &str, data| NamedArray { name: name.into(), n_components: 1, data };
-        injected = p.injected_point_id.iter().map(|&s| s + seed_base as i64).collect();
+        // Pathlines are written as one batch (`seed_base` 0): no copy.
+        injected = match seed_base {
+            0 => (&p.injected_point_id).into(),
+            b => p.injected_point_id.iter().map(|&s| s + b as i64).collect(),
+        };
         point_data.push(array("ParticleId", ArrayData::I32(&p.particle_id)));
         point_data.push(array("InjectedPointId", ArrayData::I64(&injected)));
         point_data.push(array("InjectionStepId", ArrayData::I32(&p.injection_step_id)));

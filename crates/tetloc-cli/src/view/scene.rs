@@ -5,12 +5,12 @@
 
 use super::frames::{lock, Hub, RawFrame};
 use crate::backend::BackendOptions;
-use crate::render::{build_marcher, check_samples_per_ray, AnyMarcher};
+use crate::render::{build_marcher, check_samples_per_ray, step_renderer, AnyMarcher};
 use crate::time_steps::Series;
 use anyhow::Result;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
-use tetloc_core::mesh::steps::check_step;
+use tetloc_core::mesh::steps::no_steps;
 use tetloc_core::Mesh;
 use tetloc_render as tr;
 
@@ -65,15 +65,11 @@ impl Scene {
     /// kept) and a new marcher (the locators hold their mesh's fields).
     fn show_step(&mut self, k: usize, field: &str, opts: &tr::RenderOptions) -> Result<()> {
         let Some(series) = &self.series else {
-            check_step(&self.mesh.info.source, 0, k)?;
-            return Ok(());
+            return Err(no_steps(&self.mesh.info.source, k).into());
         };
         // Unknown until the step is shown: a failure below leaves the next state to rebuild.
         self.time_step = usize::MAX;
-        let mut mesh = series.mesh(k)?;
-        tr::state::add_magnitudes(&mut mesh);
-        let mesh = Arc::new(mesh);
-        let renderer = self.renderer.for_step(mesh.clone(), field, opts)?;
+        let (mesh, renderer) = step_renderer(series, k, &self.renderer, field, opts)?;
         // The old marcher goes first, to free its memory.
         self.marcher = None;
         self.marcher = Some(build_marcher(&self.opts, &mesh, &self.backend, &renderer, false)?);

@@ -81,12 +81,17 @@ impl TimeSteps {
 /// An error unless `k` names one of `n` steps of `source` (none: it has no time steps).
 pub fn check_step(source: &str, n: usize, k: usize) -> Result<()> {
     match n {
-        0 => Err(Error::Invalid(format!("{source} has no time steps (a single snapshot): there is no step {k}"))),
+        0 => Err(no_steps(source, k)),
         n if k >= n => {
             Err(Error::Invalid(format!("time step {k} is out of range: {source} has {n} steps (0 to {})", n - 1)))
         }
         _ => Ok(()),
     }
+}
+
+/// The error for step `k` of `source`, a single snapshot.
+pub fn no_steps(source: &str, k: usize) -> Error {
+    Error::Invalid(format!("{source} has no time steps (a single snapshot): there is no step {k}"))
 }
 
 #[cfg(test)]
