@@ -334,13 +334,15 @@ def test_page_moves_through_time(browser: Browser, server: Server, cli: str, tmp
         out = tmp_path / "offline.png"
         subprocess.run([cli, "render", str(series), "--state", str(state), "--backend", backend, "-o", str(out), "--quiet"], check=True, timeout=TIMEOUT)
         assert psnr(last, page.image(out.read_bytes())) >= 40
-        # Play: step 2 wraps to 0, then 1; pause stops it.
+        # Play: step 2 wraps to 0, then 1; pause stops it. Play moves on every 30 ms once a
+        # step is still, so the step paused at is read in the same script as the click.
         page.eval("document.getElementById('play').click()")
         page.wait("tetloc.state.time_step === 1")
-        page.eval("document.getElementById('play').click()")
+        paused_at = page.eval("(() => { document.getElementById('play').click(); return tetloc.state.time_step; })()")
         assert page.eval("document.getElementById('play').textContent") == "play"
         page.wait("tetloc.settled()")
-        assert page.eval("tetloc.state.time_step") == 1
+        time.sleep(0.3)
+        assert page.eval("tetloc.settled()") and page.eval("tetloc.state.time_step") == paused_at
         page.close()
     finally:
         assert s.stop() == 0
