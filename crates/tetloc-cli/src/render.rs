@@ -242,6 +242,8 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result
         false => None,
     };
     let bar = crate::progress::bar(n as u64, "rendering the steps");
+    // The steps' images appear together once the last is written.
+    let set = tetloc_io::output::OutputSet::begin();
     for k in 0..n {
         let mut step = || -> Result<()> {
             if k > 0 {
@@ -255,13 +257,16 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result
                 None => Ok(image.write_png(&time_steps::step_path(&out, k, n))?),
             }
         };
-        step().with_context(|| format!("{}: time step {k}", Path::new(&a.mesh).display()))?;
+        step().with_context(|| {
+            format!("{}: time step {k}; {}", Path::new(&a.mesh).display(), time_steps::NOTHING_WRITTEN)
+        })?;
         bar.inc(1);
     }
     bar.finish_and_clear();
     if let Some(w) = writer {
         w.finish()?;
     }
+    time_steps::commit_steps(set, &out)?;
     if !a.quiet {
         let (lo, hi) = renderer.range();
         eprintln!("rendered {n} time steps over the range {lo},{hi}");

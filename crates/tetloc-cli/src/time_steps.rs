@@ -1,7 +1,9 @@
 //! `--time-step K|all`: commands over a time series (an Exodus file with steps, a `.pvd`).
 //! `K` runs the command on step K's fields; `all` runs it once per step, each step's outputs
 //! named `STEM_K.EXT` (each written atomically, as every output), and then writes a `.pvd`
-//! beside `--out` that indexes them by time for ParaView.
+//! beside `--out` that indexes them by time for ParaView. The steps' files and the index
+//! appear together once the last step is written (an `OutputSet`): a failed step leaves the
+//! previous run's files as they were.
 
 use crate::{mesh_arg, progress, Common};
 use anyhow::{Context, Result};
@@ -12,7 +14,7 @@ use std::sync::Arc;
 use tetloc_core::mesh::steps::no_steps;
 use tetloc_core::mesh::{RawMesh, TimeSteps};
 use tetloc_core::Mesh;
-use tetloc_io::output::FileArg;
+use tetloc_io::output::{FileArg, OutputSet};
 use tetloc_io::{self as io, MeshFormat};
 
 /// Which step(s) a command runs on.
@@ -209,6 +211,8 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
     if times.is_empty() {
         return Err(no_steps(&Path::new(mesh).display().to_string(), 0)).context("--time-step all");
     }
+    // Every step's outputs and the index appear together, once the last step is written.
+    let set = OutputSet::begin();
     for (k, t) in times.iter().enumerate() {
         let mut a = args.clone();
         a.common_mut().time_step = Some(TimeStep::One(k));
@@ -216,9 +220,28 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
         // Each step's run checks the index too: none of them may read it.
         a.common_mut().index = index_path(out);
         a.rename_outputs(k, times.len());
-        command(&a).with_context(|| format!("time step {k} (time {t})"))?;
+        command(&a).with_context(|| format!("time step {k} (time {t}); {NOTHING_WRITTEN}"))?;
     }
-    write_index(out, &times)
+    write_index(out, &times)?;
+    commit_steps(set, out)
+}
+
+/// What a failed step of `--time-step all` says of the outputs.
+pub const NOTHING_WRITTEN: &str =
+    "no step's output was written (a series' files appear only once every step is written)";
+
+/// Puts the files of `--time-step all` with output `out`, written in `set`, in place: first
+/// the old index goes (a crash during the renames leaves no index over a mix of old and new
+/// steps), then the steps, then the new index.
+pub fn commit_steps(set: OutputSet, out: &Path) -> Result<()> {
+    let old_index = index_path(out);
+    Ok(set.commit_after(|| match old_index {
+        Some(index) => match std::fs::remove_file(&index) {
+            Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(tetloc_core::Error::io(&index, e)),
+            _ => Ok(()),
+        },
+        None => Ok(()),
+    })?)
 }
 
 /// The `.pvd` that indexes `--out`'s steps (`OUT.pvd`), where they are VTK files ParaView

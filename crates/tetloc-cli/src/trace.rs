@@ -399,10 +399,14 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     let (n_points, n_made) = if frames {
         let times = run.frame_times();
         let mut last = (0, 0);
+        // The times' files and their index appear together once the last is written.
+        let set = tetloc_io::output::OutputSet::begin();
         for (k, file) in frame_files.iter().enumerate() {
-            last = write(file, &run.frame(k))?;
+            last = write(file, &run.frame(k))
+                .with_context(|| format!("output time {k}; {}", time_steps::NOTHING_WRITTEN))?;
         }
         time_steps::write_index(&a.out, &times)?;
+        time_steps::commit_steps(set, &a.out)?;
         last
     } else {
         write(&a.out, &run.output())?

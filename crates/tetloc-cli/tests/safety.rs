@@ -349,3 +349,64 @@ fn gen_names_every_shape() {
     let (ok, _, err) = tetloc(&["gen", "jets", "--tets", "500", "-o", s(&dir.join("a.vtu")), "-q"]);
     assert!(ok && err.is_empty(), "{err}");
 }
+
+/// `--time-step all`: a step that fails (here the series' last file, cut short) leaves the
+/// previous run's files and index byte for byte, and no temporary: the steps' files and the
+/// `.pvd` appear together once every step is written. So for `probe`'s files and for
+/// `render`'s images; the error names the file and says nothing was written.
+#[test]
+fn a_failed_time_step_keeps_the_previous_steps() {
+    let dir = tmp_dir("failed_step");
+    let series = |name: &str, files: [&str; 3]| {
+        let lines: String =
+            files.iter().enumerate().map(|(k, f)| format!("<DataSet timestep=\"{k}\" file=\"{f}\"/>")).collect();
+        let text = format!("<?xml version=\"1.0\"?><VTKFile type=\"Collection\" version=\"0.1\"><Collection>{lines}</Collection></VTKFile>");
+        std::fs::write(dir.join(name), text).unwrap();
+        dir.join(name)
+    };
+    for (name, seed) in [("a.vtu", "1"), ("b.vtu", "2")] {
+        let (ok, _, err) = tetloc(&["gen", "fusion", "--tets", "3000", "--seed", seed, "-o", s(&dir.join(name)), "-q"]);
+        assert!(ok, "{err}");
+    }
+    let b = std::fs::read(dir.join("b.vtu")).unwrap();
+    std::fs::write(dir.join("cut.vtu"), &b[..b.len() / 2]).unwrap();
+    let (good, bad) =
+        (series("good.pvd", ["a.vtu", "a.vtu", "a.vtu"]), series("bad.pvd", ["b.vtu", "b.vtu", "cut.vtu"]));
+    let target = dir.join("a.vtu");
+    let (probe, render) = (dir.join("p.vtu"), dir.join("f.png"));
+    // `probe` or `render` of the series, every step.
+    let run = |command: &str, pvd: &Path| {
+        let mut args = vec![command, s(pvd), "--time-step", "all", "--backend", "cpu", "-q"];
+        match command {
+            "probe" => args.extend([s(&target), "-o", s(&probe)]),
+            _ => args.extend(["--field", "f", "--size", "16x16", "-o", s(&render)]),
+        }
+        tetloc(&args)
+    };
+    for command in ["probe", "render"] {
+        let (ok, _, err) = run(command, &good);
+        assert!(ok, "{err}");
+    }
+    let before = snapshot(&dir);
+    assert!(["p.pvd", "p_0.vtu", "p_2.vtu", "f_0.png", "f_2.png"].iter().all(|f| before.iter().any(|(n, _)| n == f)));
+    for command in ["probe", "render"] {
+        let (ok, _, err) = run(command, &bad);
+        assert!(
+            !ok && err.contains("cut.vtu")
+                && err.contains("time step 2")
+                && err.contains("no step's output was written"),
+            "{err}"
+        );
+        assert!(
+            before == snapshot(&dir),
+            "a failed step changed the previous files or left a temporary: {:?}",
+            entries(&dir)
+        );
+    }
+    // A series that succeeds replaces them all.
+    let (ok, _, err) = run("probe", &series("new.pvd", ["b.vtu", "b.vtu", "b.vtu"]));
+    assert!(ok, "{err}");
+    let after = snapshot(&dir);
+    let file = |snap: &[(String, Vec<u8>)], name: &str| snap.iter().find(|(n, _)| n == name).map(|(_, b)| b.clone());
+    assert!(file(&after, "p_2.vtu") != file(&before, "p_2.vtu") && file(&after, "p.pvd").is_some());
+}

@@ -10,6 +10,11 @@
 //! them ([`remove_temporaries`]). A process killed outright (SIGKILL, power loss) can leave
 //! its temporary file behind, named `.NAME.XXXXXX.tmp` next to NAME (never a partial NAME);
 //! [`stale_temporaries`] finds them.
+//!
+//! Outputs that belong together (the files of `--time-step all` and their `.pvd`) are written
+//! in an [`OutputSet`]: each file is finished under its temporary name, and all of them are
+//! renamed into place only once the last is written, so a failed step leaves the previous
+//! set as it was.
 
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -36,6 +41,81 @@ impl Drop for Registered {
         let mut list = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner);
         if let Some(k) = list.iter().rposition(|p| *p == self.0) {
             list.swap_remove(k);
+        }
+    }
+}
+
+/// The files an open [`OutputSet`] holds: each one's temporary (registered) and its target.
+static STAGED: Mutex<Option<Vec<(Registered, PathBuf)>>> = Mutex::new(None);
+
+/// Outputs that appear together or not at all. While a set is open, an [`AtomicFile`]
+/// committed anywhere in the process is flushed and synced under its temporary name and kept
+/// there (still registered, so that a signal removes it); [`OutputSet::commit`] then renames
+/// them all over their targets, in the order they were committed. A set dropped without
+/// `commit` (an error in a later file) removes what it holds: every target stays as it was.
+/// A set opened while another is open adds to that one, which commits.
+#[must_use = "an OutputSet's files reach their targets only by commit()"]
+pub struct OutputSet {
+    owner: bool,
+}
+
+impl OutputSet {
+    pub fn begin() -> OutputSet {
+        let mut staged = STAGED.lock().unwrap_or_else(PoisonError::into_inner);
+        let owner = staged.is_none();
+        if owner {
+            *staged = Some(Vec::new());
+        }
+        OutputSet { owner }
+    }
+
+    /// Renames every file of the set over its target. A crash during the renames leaves some
+    /// targets new and others old: a caller whose set has an index removes the old index
+    /// first ([`OutputSet::commit_after`]).
+    pub fn commit(self) -> Result<()> {
+        self.commit_after(|| Ok(()))
+    }
+
+    /// [`Self::commit`] once `first` has run (nothing is renamed if it fails).
+    pub fn commit_after(mut self, first: impl FnOnce() -> Result<()>) -> Result<()> {
+        if !self.owner {
+            return first();
+        }
+        self.owner = false;
+        let files = STAGED.lock().unwrap_or_else(PoisonError::into_inner).take().unwrap_or_default();
+        let mut files = files.into_iter();
+        let renamed = first().and_then(|()| {
+            let mut dirs: Vec<PathBuf> = Vec::new();
+            for (tmp, target) in files.by_ref() {
+                std::fs::rename(&tmp.0, &target).map_err(|e| Error::io(&target, e))?;
+                let dir = parent_dir(&target).to_path_buf();
+                if !dirs.contains(&dir) {
+                    dirs.push(dir);
+                }
+            }
+            // The renames reach the disk with their directories (best effort, as in commit).
+            for d in dirs {
+                if let Ok(d) = File::open(d) {
+                    let _ = d.sync_all();
+                }
+            }
+            Ok(())
+        });
+        // What an error left is removed (those renamed are in place).
+        for (tmp, _) in files {
+            let _ = std::fs::remove_file(&tmp.0);
+        }
+        renamed
+    }
+}
+
+impl Drop for OutputSet {
+    fn drop(&mut self) {
+        if self.owner {
+            let files = STAGED.lock().unwrap_or_else(PoisonError::into_inner).take().unwrap_or_default();
+            for (tmp, _) in files {
+                let _ = std::fs::remove_file(&tmp.0);
+            }
         }
     }
 }
@@ -131,11 +211,20 @@ impl AtomicFile {
         &self.target
     }
 
-    /// Flushes, syncs the data to disk and renames the temporary file over the target.
+    /// Flushes, syncs the data to disk and renames the temporary file over the target (or,
+    /// while an [`OutputSet`] is open, keeps it for the set's commit).
     pub fn commit(self) -> Result<()> {
         let io = |e: std::io::Error| Error::io(&self.target, e);
         let tmp = self.tmp.into_inner().map_err(|e| Error::io(&self.target, e.into_error()))?;
         tmp.as_file().sync_all().map_err(io)?;
+        {
+            let mut staged = STAGED.lock().unwrap_or_else(PoisonError::into_inner);
+            if let Some(files) = staged.as_mut() {
+                tmp.keep().map_err(|e| io(e.error))?;
+                files.push((self._registered, self.target));
+                return Ok(());
+            }
+        }
         tmp.persist(&self.target).map_err(|e| io(e.error))?;
         // The rename itself reaches the disk with the directory (best effort: not every
         // file system lets a directory be opened and synced).
