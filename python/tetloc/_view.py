@@ -19,6 +19,7 @@ import os
 import shutil
 import signal
 import subprocess
+import urllib.error
 import urllib.request
 import zlib
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
@@ -47,8 +48,14 @@ class Viewer:
         req = urllib.request.Request(f"{self.base}{path}?token={self.token}", data=body, method=method)
         if body is not None:
             req.add_header("Content-Type", "application/json")
-        with urllib.request.urlopen(req, timeout=600) as r:
-            return bytes(r.read())
+        try:
+            with urllib.request.urlopen(req, timeout=600) as r:
+                return bytes(r.read())
+        except urllib.error.HTTPError as e:
+            # The server's own words: a state it refuses (400) or cannot draw (422: a step's
+            # file it cannot read, say) is the caller's ValueError.
+            why = e.read().decode("utf-8", "replace").strip()
+            raise (ValueError if e.code in (400, 422) else RuntimeError)(f"tetloc view: {why}") from None
 
     def _repr_html_(self) -> str:
         return f'<iframe src="{self.url}" width="100%" height="720" style="border:0"></iframe>'
@@ -92,12 +99,14 @@ class Viewer:
     def set_time_step(self, k: int) -> None:
         """Shows time step ``k`` (0-based) of a series, as the page's time slider does. A
         range left to the field's is first pinned to the one drawn with, so the colours mean
-        the same values at every step (``set_tf(range=...)`` sets another)."""
+        the same values at every step (``set_tf(range=...)`` sets another). Returns once
+        the step is shown; a step whose file cannot be read raises ``ValueError`` naming it."""
         s = self.state()
         if s["tf"]["range"] is None:
             s["tf"]["range"] = list(self._range())
         s["time_step"] = int(k)
         self.set_state(s)
+        self._range()
 
     def _range(self) -> Tuple[float, float]:
         """The range the current still frame was drawn with."""
@@ -115,7 +124,8 @@ class Viewer:
         self.set_state(s)
 
     def frame(self) -> np.ndarray:
-        """The current view's lossless still frame, (height, width, 3) uint8 sRGB."""
+        """The current view's lossless still frame, (height, width, 3) uint8 sRGB
+        (``ValueError`` where the current view cannot be drawn, saying why)."""
         return _decode_png(self._request("/frame.png"))
 
     def stop(self) -> int:

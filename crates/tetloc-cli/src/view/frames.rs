@@ -191,16 +191,24 @@ impl Hub {
         self.raw_ready.notify_one();
     }
 
-    /// The still frame of the state current now, waiting up to `timeout` for it.
-    pub fn current_still(&self, timeout: Duration) -> Option<Arc<Encoded>> {
+    /// The still frame of the state current now, waiting up to `timeout` for it; or why the
+    /// render thread could not draw that state (a step's file it could not read, say), since
+    /// an older frame would show another view.
+    pub fn current_still(&self, timeout: Duration) -> Result<Arc<Encoded>, Still> {
         let deadline = Instant::now() + timeout;
         let mut out = lock(&self.out);
         loop {
-            let gen = lock(&self.input).gen;
+            let (gen, failed) = {
+                let i = lock(&self.input);
+                (i.gen, i.error.as_ref().filter(|(g, _)| *g == i.gen).map(|(_, e)| e.clone()))
+            };
             if let Some(s) = out.still.as_ref().filter(|s| s.gen == gen) {
-                return Some(s.clone());
+                return Ok(s.clone());
             }
-            let left = deadline.checked_duration_since(Instant::now())?;
+            if let Some(e) = failed {
+                return Err(Still::Failed(e));
+            }
+            let left = deadline.checked_duration_since(Instant::now()).ok_or(Still::NotYet)?;
             out = self
                 .out_ready
                 .wait_timeout(out, left.min(Duration::from_millis(50)))
@@ -208,6 +216,15 @@ impl Hub {
                 .0;
         }
     }
+}
+
+/// Why [`Hub::current_still`] has no frame.
+#[derive(Debug)]
+pub enum Still {
+    /// None within the time allowed.
+    NotYet,
+    /// The current state could not be drawn: the render thread's error.
+    Failed(String),
 }
 
 /// Starts the encode thread.

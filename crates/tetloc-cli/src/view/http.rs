@@ -6,7 +6,7 @@
 //! steps), `GET /state.json`, `PUT /state.json` (a script sets the view), or the WebSocket
 //! upgrade. No path maps to a file.
 
-use super::frames::{lock, Hub};
+use super::frames::{lock, Hub, Still};
 use std::io::{Read, Write};
 use std::net::{TcpListener, TcpStream};
 use std::sync::atomic::{AtomicUsize, Ordering};
@@ -126,13 +126,12 @@ fn handle(mut stream: TcpStream, hub: &Arc<Hub>) -> std::io::Result<()> {
     }
     match req.path.as_str() {
         "/" | "/index.html" => respond(&stream, 200, "text/html; charset=utf-8", PAGE.as_bytes()),
-        "/frame.png" => match hub.current_still(STILL_TIMEOUT) {
-            Some(f) => respond(&stream, 200, "image/png", f.image()),
-            None => respond(&stream, 503, "text/plain", b"no frame yet\n"),
-        },
-        "/frame.json" => match hub.current_still(STILL_TIMEOUT) {
-            Some(f) => respond(&stream, 200, "application/json", f.header()),
-            None => respond(&stream, 503, "text/plain", b"no frame yet\n"),
+        "/frame.png" | "/frame.json" => match hub.current_still(STILL_TIMEOUT) {
+            Ok(f) if req.path == "/frame.png" => respond(&stream, 200, "image/png", f.image()),
+            Ok(f) => respond(&stream, 200, "application/json", f.header()),
+            Err(Still::NotYet) => respond(&stream, 503, "text/plain", b"no frame yet\n"),
+            // Unprocessable: the view set cannot be drawn (the state says why it is not shown).
+            Err(Still::Failed(why)) => respond(&stream, 422, "text/plain", format!("{why}\n").as_bytes()),
         },
         "/mesh.json" => respond(&stream, 200, "application/json", hub.describe().to_string().as_bytes()),
         "/state.json" => {
@@ -206,6 +205,7 @@ fn respond(mut stream: &TcpStream, status: u16, content_type: &str, body: &[u8])
         403 => "Forbidden",
         404 => "Not Found",
         405 => "Method Not Allowed",
+        422 => "Unprocessable Content",
         _ => "Service Unavailable",
     };
     // The page allows nothing from elsewhere: its own script and style, frames as blobs.
