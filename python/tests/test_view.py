@@ -348,6 +348,22 @@ def test_page_moves_through_time(browser: Browser, server: Server, cli: str, tmp
         assert s.stop() == 0
 
 
+def test_play_stops_at_a_step_that_cannot_be_read(browser: Browser, cli: str, tmp_path: pathlib.Path) -> None:
+    """Playing a series whose last step's file is cut short: the page shows the error,
+    naming the file, and the play stops there."""
+    s = Server(cli, str(cut_series(cli, tmp_path)), "--backend", "cpu", "--size", SIZE)
+    try:
+        page = open_page(browser, s)
+        page.eval("document.getElementById('play').click()")
+        page.wait("tetloc.errors.length > 0")
+        assert "cut.vtu" in page.eval("tetloc.errors[0]")
+        assert page.eval("document.getElementById('play').textContent") == "play"
+        assert page.eval("tetloc.state.time_step") == 2
+        page.close()
+    finally:
+        assert s.stop() == 0
+
+
 def test_two_pages_update_and_one_closing_leaves_the_other(browser: Browser, server: Server) -> None:
     a, b = open_page(browser, server), open_page(browser, server)
     na, nb = a.eval("tetloc.frames"), b.eval("tetloc.frames")
@@ -469,18 +485,24 @@ def test_python_view_handle_moves_through_time(cli: str, tmp_path: pathlib.Path)
         assert np.array_equal(v.frame(), tetloc._view._decode_png(out.read_bytes()))
 
 
-def test_a_step_that_cannot_be_read_is_an_error_not_an_older_frame(cli: str, tmp_path: pathlib.Path) -> None:
-    """A series whose last step's file is cut short: showing that step raises, naming the
-    file, and so does the frame (the still of another step is not served in its place); the
-    viewer goes on with the other steps."""
-    import tetloc
-
+def cut_series(cli: str, tmp_path: pathlib.Path) -> pathlib.Path:
+    """A .pvd of three steps whose last step's file is cut short."""
     subprocess.run([cli, "gen", "fusion", "--tets", "2000", "-o", str(tmp_path / "s.vtu"), "-q"], check=True, timeout=TIMEOUT)
     whole = (tmp_path / "s.vtu").read_bytes()
     (tmp_path / "cut.vtu").write_bytes(whole[: len(whole) // 2])
     sets = "".join(f'<DataSet timestep="{k}" file="{f}"/>' for k, f in enumerate(["s.vtu", "s.vtu", "cut.vtu"]))
     series = tmp_path / "series.pvd"
     series.write_text(f'<?xml version="1.0"?><VTKFile type="Collection" version="0.1"><Collection>{sets}</Collection></VTKFile>')
+    return series
+
+
+def test_a_step_that_cannot_be_read_is_an_error_not_an_older_frame(cli: str, tmp_path: pathlib.Path) -> None:
+    """A series whose last step's file is cut short: showing that step raises, naming the
+    file, and so does the frame (the still of another step is not served in its place); the
+    viewer goes on with the other steps."""
+    import tetloc
+
+    series = cut_series(cli, tmp_path)
     with tetloc.view(series, "f", backend="cpu", size=(48, 40), cli=cli) as v:
         first = v.frame()
         with pytest.raises(ValueError, match="cut.vtu"):
