@@ -16,8 +16,9 @@ use time_steps::{Series, TimeStep};
 pub struct RenderArgs {
     /// A mesh file, or SHAPE:N to generate one.
     mesh: OsString,
-    /// The scalar field to render (with --state: instead of the state's).
-    #[arg(long, required_unless_present = "state")]
+    /// The scalar field to render (with --state: instead of the state's; by default the
+    /// state's, else the mesh's first, as `view` shows it).
+    #[arg(long)]
     field: Option<String>,
     /// A view state (JSON) exported by `tetloc view`: camera, transfer function, step,
     /// background and surface, rendered as the viewer showed them.
@@ -97,11 +98,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Some(s) => s.render_options()?,
         None => tr::RenderOptions::default(),
     };
-    let field = match (&a.field, &state) {
-        (Some(f), _) => f.clone(),
-        (None, Some(s)) => s.field.clone(),
-        (None, None) => anyhow::bail!("--field is required"),
-    };
+    let field = a.field.clone().or_else(|| state.as_ref().map(|s| s.field.clone()));
     if let Some(size) = &a.size {
         (o.width, o.height) = tr::parse_size(size)?;
     }
@@ -152,7 +149,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
         o.background = tr::parse_color("--background", b)?;
     }
     if a.time_step == Some(TimeStep::All) {
-        return render_steps(&a, o, &field);
+        return render_steps(&a, o, field.as_deref());
     }
     // The image files are checked, and kept apart from every input, before any work.
     let out = a.out.clone().unwrap_or_else(|| "render.png".into());
@@ -165,7 +162,9 @@ pub fn run(a: RenderArgs) -> Result<()> {
         Some(TimeStep::One(k)) => Some(k),
         _ => state.as_ref().and_then(|s| s.time_step),
     };
-    let mesh = with_magnitudes(time_steps::load(&a.mesh, a.source.format.as_deref(), a.source.seed, step)?, &field)?;
+    let mesh = time_steps::load(&a.mesh, a.source.format.as_deref(), a.source.seed, step)?;
+    let field = field_or_first(field.as_deref(), &mesh)?;
+    let mesh = with_magnitudes(mesh, &field)?;
     let renderer = tr::Renderer::new(mesh.clone(), &field, &o)?;
     check_samples_per_ray(&mesh, renderer.step())?;
     let opts = BackendOptions { device: a.device, quiet: a.quiet, ..Default::default() };
@@ -208,7 +207,7 @@ pub fn run(a: RenderArgs) -> Result<()> {
 /// (the first step's unless one is set, so that colours mean the same values throughout):
 /// `OUT_K.png` a step, or one animated GIF through time. Step K's image is `--time-step K`'s
 /// with that range.
-fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result<()> {
+fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: Option<&str>) -> Result<()> {
     if a.fps.is_some() || o.frames > 1 || a.backend.contains(',') {
         anyhow::bail!(
             "--time-step all renders one image a step with one backend: not with --fps, --frames or several backends"
@@ -229,6 +228,7 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: &str) -> Result
         tetloc_io::output::check_output(f, &["png", "gif"])?;
     }
     check_inputs(a, &o, &files)?;
+    let field = &field_or_first(field, &mesh)?;
     let mut mesh = with_magnitudes(mesh, field)?;
     let mut renderer = tr::Renderer::new(mesh.clone(), field, &o)?;
     check_samples_per_ray(&mesh, renderer.step())?;
@@ -309,6 +309,17 @@ fn check_inputs(a: &RenderArgs, o: &tr::RenderOptions, files: &[PathBuf]) -> Res
         inputs.push(FileArg::new("--surface", path));
     }
     crate::outputs::check_distinct(&inputs, &outputs)
+}
+
+/// The field named, else the mesh's first (what `view` and `render` show by default).
+pub fn field_or_first(named: Option<&str>, mesh: &Mesh) -> Result<String> {
+    match named {
+        Some(f) => Ok(f.to_string()),
+        None => {
+            let first = mesh.fields.first().map(|f| f.name.clone());
+            first.with_context(|| format!("{}: the mesh has no fields to show", mesh.info.source))
+        }
+    }
 }
 
 /// The mesh with `|NAME|` magnitudes when `field` is one (as the viewer colours a vector),

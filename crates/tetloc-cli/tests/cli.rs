@@ -693,3 +693,30 @@ fn locate_precision_f64() {
     let (ok, _, err) = tetloc(&["locate", s(&mesh), "--points", s(&points), "--out", "x.bin", "--precision", "f16"]);
     assert!(!ok && err.contains("f16"), "{err}");
 }
+
+/// `render` without `--field` shows the mesh's first field, as `view` does; a mesh without
+/// fields is refused by both, naming the file.
+#[test]
+fn render_shows_the_first_field_by_default() {
+    let dir = tmp_dir("render_first_field");
+    let render = |mesh: &str, out: &str, extra: &[&str]| {
+        let args = ["render", mesh, "--backend", "cpu", "--size", "24x20", "-q", "-o", out];
+        tetloc(&[&args[..], extra].concat())
+    };
+    let (a, b) = (dir.join("a.png"), dir.join("b.png"));
+    for (out, extra) in [(&a, &[][..]), (&b, &["--field", "f"][..])] {
+        let (ok, _, err) = render("fusion:2k", s(out), extra);
+        assert!(ok, "{err}");
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap(), "fusion's first field is f");
+    let (ok, _, err) = render("fusion:2k", s(&a), &["--field", "cellval"]);
+    assert!(ok, "{err}");
+    assert_ne!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    std::fs::write(dir.join("bare.node"), "4 3 0 0\n1 0 0 0\n2 1 0 0\n3 0 1 0\n4 0 0 1\n").unwrap();
+    std::fs::write(dir.join("bare.ele"), "1 4 0\n1 1 2 3 4\n").unwrap();
+    let bare = dir.join("bare.node");
+    let (ok, _, err) = render(s(&bare), s(&a), &[]);
+    assert!(!ok && err.contains("bare.node: the mesh has no fields to show"), "{err}");
+    let (ok, _, err) = tetloc(&["view", s(&bare), "--port", "0", "--backend", "cpu", "-q"]);
+    assert!(!ok && err.contains("bare.node: the mesh has no fields to show"), "{err}");
+}

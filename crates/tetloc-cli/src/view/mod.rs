@@ -95,11 +95,8 @@ pub fn run(a: ViewArgs) -> Result<()> {
     if let Some(m) = Arc::get_mut(&mut mesh) {
         tr::state::add_magnitudes(m);
     }
-    let field = match (&a.field, &state) {
-        (Some(f), _) => f.clone(),
-        (None, Some(s)) => s.field.clone(),
-        (None, None) => mesh.fields.first().map(|f| f.name.clone()).context("the mesh has no fields to show")?,
-    };
+    let field = a.field.clone().or_else(|| state.as_ref().map(|s| s.field.clone()));
+    let field = crate::render::field_or_first(field.as_deref(), &mesh)?;
     tetloc_core::ops::fields::resolve_scalar(&mesh.fields, &field).context("--field")?;
     let mut state = match state {
         Some(s) => s,
