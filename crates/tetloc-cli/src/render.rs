@@ -244,14 +244,16 @@ fn render_steps(a: &RenderArgs, mut o: tr::RenderOptions, field: Option<&str>) -
     let bar = crate::progress::bar(n as u64, "rendering the steps");
     // The steps' images appear together once the last is written.
     let set = tetloc_io::output::OutputSet::begin();
+    let mut marcher = None;
     for k in 0..n {
         let mut step = || -> Result<()> {
             if k > 0 {
                 (mesh, renderer) = step_renderer(&series, k, &renderer, field, &o)?;
             }
-            // A marcher a step (the locators hold their mesh's fields), each dropped before the next.
-            let mut marcher = build_marcher(&opts, &mesh, &a.backend, &renderer, a.host_march)?;
-            let (image, _) = renderer.render(&mut marcher, &renderer.camera(0))?;
+            let marcher = kept_or_built(&mut marcher, &renderer, || {
+                build_marcher(&opts, &mesh, &a.backend, &renderer, a.host_march)
+            })?;
+            let (image, _) = renderer.render(marcher, &renderer.camera(0))?;
             match &mut writer {
                 Some(w) => Ok(w.add(&image)?),
                 None => Ok(image.write_png(&time_steps::step_path(&out, k, n))?),
@@ -287,7 +289,7 @@ pub fn step_renderer(
     field: &str,
     o: &tr::RenderOptions,
 ) -> Result<(Arc<Mesh>, tr::Renderer)> {
-    let mut mesh = series.mesh(k)?;
+    let mut mesh = series.mesh_like(k, renderer.mesh())?;
     tr::state::add_magnitudes(&mut mesh);
     let mesh = Arc::new(mesh);
     let renderer = renderer.for_step(mesh.clone(), field, o)?;
@@ -376,6 +378,40 @@ impl tr::Marcher for AnyMarcher {
             AnyMarcher::Host(l) => tr::HostMarcher(l.as_mut()).march_frame(r, cam),
         }
     }
+}
+
+impl AnyMarcher {
+    /// Takes the fields of `renderer`'s time step, a mesh made from this marcher's by
+    /// `Mesh::with_fields` ([`step_renderer`]), keeping its search structures (and the
+    /// GPU's copy of the mesh); false where it cannot: build a new marcher.
+    pub fn take_step(&mut self, renderer: &tr::Renderer) -> Result<bool> {
+        match self {
+            AnyMarcher::Gpu(m) => Ok(m.take_step(renderer)?),
+            AnyMarcher::Host(l) => Ok(l.take_fields(renderer.mesh())),
+        }
+    }
+}
+
+/// `marcher` made ready for `renderer`'s time step: the one there takes the step's fields
+/// ([`AnyMarcher::take_step`]), else it is dropped (its memory freed first) and `build`
+/// makes a new one. A failed step leaves no marcher.
+pub fn kept_or_built<'a>(
+    marcher: &'a mut Option<AnyMarcher>,
+    renderer: &tr::Renderer,
+    build: impl FnOnce() -> Result<AnyMarcher>,
+) -> Result<&'a mut AnyMarcher> {
+    let ready = match marcher.take() {
+        Some(mut m) => {
+            if m.take_step(renderer)? {
+                m
+            } else {
+                drop(m);
+                build()?
+            }
+        }
+        None => build()?,
+    };
+    Ok(marcher.insert(ready))
 }
 
 /// The marcher of backend `name` for `renderer`'s frames (`render` and `view`). GPU

@@ -124,6 +124,16 @@ impl Series {
         Ok(Mesh::new(raw, self.name.clone())?)
     }
 
+    /// Step `k`'s mesh made from `shown`, a mesh of this series, with step `k`'s fields
+    /// ([`Mesh::with_fields`]: a locator built on `shown` can take it and keep its search
+    /// structures); a mixed mesh's is read as [`Self::mesh`] reads it.
+    pub fn mesh_like(&self, k: usize, shown: &Mesh) -> Result<Mesh> {
+        if shown.cells.is_some() {
+            return self.mesh(k);
+        }
+        Ok(shown.with_fields(self.fields(k)?)?)
+    }
+
     fn into_mesh_as_read(self) -> Result<Mesh> {
         Ok(Mesh::new(self.raw, self.name)?)
     }

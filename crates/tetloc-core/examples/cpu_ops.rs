@@ -2,7 +2,8 @@
 //! seconds), for profiling without Python: `cargo run --release -p tetloc-core --example
 //! cpu_ops -- MESH [PROBE_MESH] [DIMS] [SEEDS] [STEPS]`, each mesh a file or `fusion:TETS`
 //! (generated with its vector field `v`, as `tetloc gen fusion --vector`; TETS like 1.4M).
-//! `OPS` picks the operations (letters of `rpt`, all by default); `BUILD_PARTS=1` times the
+//! `OPS` picks the operations (letters of `rpt`, all by default; `s` times a time step's mesh
+//! and the built locator taking its fields); `BUILD_PARTS=1` times the
 //! face neighbours and the BVH alone; `PROBE_PARTS=N` splits the probe: N times more with its
 //! search built (the walks and the values), then N times ids only (the walks alone);
 //! `PROBE_FRESH=N` probes N more times with the build included, each on a fresh copy of the mesh;
@@ -13,7 +14,7 @@ use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::ops::{fields, probe, resample, trace, ImageGrid};
-use tetloc_core::{CpuLocator, Vec3};
+use tetloc_core::{BatchLocator, CpuLocator, Vec3};
 use tetloc_io as io;
 
 /// User + system seconds of this process (all threads), from /proc/self/stat.
@@ -118,6 +119,14 @@ fn main() -> tetloc_core::Result<()> {
                 timed("  ids only", || probe::probe(&mut loc, &target.points, &[], |_| Ok(())))?;
             }
         }
+    }
+    if only.contains('s') {
+        // Another time step (this mesh's fields copied as if read anew): its mesh made from this
+        // one's geometry, and the built locator taking its fields, as `view` moves through time.
+        let fields = mesh.fields.clone();
+        let step = Arc::new(timed("a time step's mesh (Mesh::with_fields)", || mesh.with_fields(fields))?);
+        let taken = timed("  the built locator takes its fields", || loc.take_fields(&step));
+        assert!(taken, "the same geometry");
     }
     if only.contains('t') {
         // Seeds at the centres of pseudo-random tets (a fixed LCG, as reproducible as the bench's).

@@ -150,3 +150,38 @@ fn auto_takes_cpu_on_a_cpu_device() {
         assert!(crate::available(None).contains(&built.backend));
     }
 }
+
+/// Every stack the front door builds takes another time step's fields (`Mesh::with_fields`)
+/// through all its layers, on the CPU and on a GPU kernel: the search is kept where a viewer
+/// or `render --time-step all` moves through time, and the answers are then a new stack's.
+#[test]
+fn every_built_stack_takes_another_steps_fields() {
+    let m = mesh();
+    let later = |f: &tetloc_core::mesh::Field| {
+        let values = (0..f.values.len()).map(|i| 1.0 - f.value64(i)).collect();
+        tetloc_core::mesh::Field::from_f64(f.name.clone(), f.location, values)
+    };
+    let step = Arc::new(m.with_fields(m.fields.iter().map(later).collect()).unwrap());
+    let mut backends = vec![Backend::Cpu];
+    if has_vulkan("every_built_stack_takes_another_steps_fields") {
+        backends.push(Backend::Kernel(Kernel::SoftBvh));
+    }
+    let points: Vec<[f32; 3]> = (0..200).map(|i| [0.1 + 0.004 * i as f32, 0.5, 0.3 + 0.002 * i as f32]).collect();
+    for backend in backends {
+        for (precision, tolerance) in [(Precision::F32, "0"), (Precision::F64, "1%")] {
+            let b = |m: &Arc<Mesh>| {
+                let b = Locator::builder(m.clone()).backend(backend).precision(precision).quiet(true);
+                b.tolerance(tolerance.parse().unwrap()).build().unwrap()
+            };
+            let mut built = b(&m);
+            assert!(built.locator.take_fields(&step), "{}", built.describe());
+            let sampled = |loc: &mut dyn BatchLocator| {
+                let (mut ids, mut values) = (vec![0; points.len()], vec![0f32; points.len()]);
+                loc.locate_and_sample(&points, "f", &mut ids, &mut values).unwrap();
+                (ids, values.iter().map(|v| v.to_bits()).collect::<Vec<_>>())
+            };
+            let taken = sampled(&mut *built.locator);
+            assert!(taken == sampled(&mut *b(&step).locator), "{}: not a new stack's answers", built.describe());
+        }
+    }
+}

@@ -80,6 +80,19 @@ impl GpuMarcher {
         self.key = k;
         Ok(())
     }
+
+    /// [`Self::retarget`] to a renderer of another time step of this marcher's mesh
+    /// (`Mesh::with_fields`; the same field and skipping): the search structure stays on the
+    /// GPU and only the step's field is uploaded. False, with nothing changed, where the
+    /// step cannot be taken so (another geometry or field): build a new marcher.
+    pub fn take_step(&mut self, renderer: &Renderer) -> Result<bool> {
+        let k = key(renderer);
+        if (&k.0, k.2) != (&self.key.0, self.key.2) || !self.march.take_fields(renderer.mesh(), renderer.field())? {
+            return Ok(false);
+        }
+        self.retarget(renderer)?;
+        Ok(true)
+    }
 }
 
 impl GpuMarcher {

@@ -248,3 +248,41 @@ fn gpu_srgb8_frames_and_retargeting() {
     assert!(m.retarget(&other_field).unwrap_err().to_string().contains("marches field 'f'"));
     assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
 }
+
+/// A GPU marcher takes another time step of its mesh (`Mesh::with_fields`, the renderer's
+/// `for_step`), its mesh and structure kept on the device: its frames are then a new
+/// marcher's, bit for bit, on every kernel, and the step shows. A mesh of another geometry,
+/// or a field that moved from the points to the cells, needs a new marcher: refused, and
+/// the marcher renders as before.
+#[test]
+fn a_gpu_marcher_takes_another_time_step() {
+    use tetloc_core::mesh::{Field, FieldLocation};
+    let Some(ctx) = context("a_gpu_marcher_takes_another_time_step") else { return };
+    let mesh = Arc::new(testmesh::torus(10, 3));
+    let opts = RenderOptions { width: 64, height: 48, ..Default::default() };
+    let later = |f: &Field| {
+        Field::from_f64(f.name.clone(), f.location, (0..f.values.len()).map(|i| (3.0 * f.value64(i)).sin()).collect())
+    };
+    let step = Arc::new(mesh.with_fields(mesh.fields.iter().map(later).collect()).unwrap());
+    let frame = |r: &Renderer, m: &mut GpuMarcher| r.render(m, &r.camera(0)).unwrap().0;
+    for kernel in kernels(&ctx) {
+        let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
+        let mut m = gpu_marcher(&ctx, &mesh, kernel, &r);
+        let before = frame(&r, &mut m);
+        let r2 = r.for_step(step.clone(), "f", &opts).unwrap();
+        assert!(m.take_step(&r2).unwrap(), "{kernel}");
+        let taken = frame(&r2, &mut m);
+        let fresh = frame(&r2, &mut gpu_marcher(&ctx, &step, kernel, &r2));
+        assert_eq!(psnr(&taken, &fresh).unwrap(), f64::INFINITY, "{kernel}: a new marcher's frame");
+        assert!(psnr(&taken, &before).unwrap() < 40.0, "{kernel}: the step shows");
+        let read_anew = Arc::new(testmesh::torus(10, 3));
+        assert!(!m.take_step(&r2.for_step(read_anew, "f", &opts).unwrap()).unwrap(), "{kernel}: another geometry");
+        assert_eq!(psnr(&frame(&r2, &mut m), &taken).unwrap(), f64::INFINITY, "{kernel}: nothing changed");
+    }
+    let per_cell = Field::new("f", FieldLocation::Cell, (0..mesh.n_cells()).map(|c| (c % 7) as f32).collect());
+    let moved = Arc::new(mesh.with_fields(vec![per_cell]).unwrap());
+    let r = Renderer::new(mesh.clone(), "f", &opts).unwrap();
+    let mut m = gpu_marcher(&ctx, &mesh, Kernel::SoftBvh, &r);
+    assert!(!m.take_step(&r.for_step(moved, "f", &opts).unwrap()).unwrap(), "a field now per cell");
+    assert_eq!(ctx.validation_errors(), 0, "Vulkan validation errors");
+}

@@ -17,7 +17,9 @@ use crate::memory::{Buffer, BufferDesc, MemKind};
 use crate::pipeline::{Binding, Descriptors, Pipeline};
 use crate::Kernel;
 use ash::vk;
+use std::sync::Arc;
 use std::time::Instant;
+use tetloc_core::{BatchLocator, Mesh};
 
 /// An occupancy grid for exact empty-space skipping (tetloc-render's `OccupancyGrid`).
 #[derive(Clone, Debug)]
@@ -97,6 +99,9 @@ pub struct VolumeMarcher {
     pixels: Option<(Buffer, usize)>,
     query_pool: Option<vk::QueryPool>,
     busy: u32,
+    /// False after a [`Self::take_fields`] that could not upload the new field: the old one
+    /// is freed, so no frame is marched.
+    field_bound: bool,
     loc: VulkanLocator,
 }
 
@@ -189,6 +194,7 @@ impl VolumeMarcher {
             pixels: None,
             query_pool,
             busy: 0,
+            field_bound: true,
             loc,
         })
     }
@@ -225,6 +231,25 @@ impl VolumeMarcher {
         self.params.box_lo_tf_lo[3] = tf_lo;
         self.params.box_hi_tf_inv[3] = tf_inv_range;
         Ok(())
+    }
+
+    /// Marches `mesh`'s field `field` from now on: another time step of the locator's mesh
+    /// (`BatchLocator::take_fields`), whose field alone is uploaded. False, with nothing
+    /// changed, where the geometry is not the same.
+    pub fn take_fields(&mut self, mesh: &Arc<Mesh>, field: &str) -> tetloc_core::Result<bool> {
+        // The pipeline is specialised to the field's location: another one needs a new marcher.
+        let location = |m: &Mesh| m.field(field).map(|f| f.location);
+        if location(mesh)? != location(self.loc.mesh())? || !self.loc.take_fields(mesh) {
+            return Ok(false);
+        }
+        // The old field is freed now: until the new one is bound, no frame is marched.
+        self.field_bound = false;
+        let res = self.loc.resources(field)?;
+        let bound = res.bindings.into_iter().filter(|b| b.slot == B_FIELD).collect::<Vec<_>>();
+        // No frame is in flight: `render` waits for its submission.
+        self.desc.write(&bound);
+        self.field_bound = true;
+        Ok(true)
     }
 
     /// Benchmarks: march each frame `n` more times, untimed, before the timed march, so that
@@ -275,6 +300,9 @@ impl VolumeMarcher {
     }
 
     fn render_frame(&mut self, view: &MarchView, mut out: Out) -> VkResult<MarchStats> {
+        if !self.field_bound {
+            return Err(VkError::Mesh("march: the field of the last time step could not be uploaded".into()));
+        }
         let n = view.width as usize * view.height as usize;
         let dev = self.loc.device();
         let ctx = dev.ctx().clone();

@@ -196,3 +196,45 @@ fn the_grid_sampler_samples_every_field_in_one_launch() {
     }
     common::assert_no_validation_errors(&ctx);
 }
+
+/// A built locator takes another time step's fields (`Mesh::with_fields`), its mesh and
+/// structure kept on the device: its answers are then a new locator's on that mesh, bit for
+/// bit, for host points and the grid sampler, on every kernel; a mesh of another geometry is
+/// refused, nothing changed.
+#[test]
+fn a_built_locator_takes_another_steps_fields() {
+    let test = "a_built_locator_takes_another_steps_fields";
+    let Some(ctx) = common::context(test) else { return };
+    let first = Arc::new(Mesh::new(with_fields(generate(Shape::Jets, 6_000, 3), Shape::Jets), "jets").unwrap());
+    let flipped = |f: &Field| {
+        Field::from_f64(f.name.clone(), f.location, (0..f.values.len()).map(|i| 3.0 - 2.0 * f.value64(i)).collect())
+    };
+    let step = Arc::new(first.with_fields(first.fields.iter().map(flipped).collect()).unwrap());
+    let (lo, hi) = first.file_bounds();
+    let grid = ImageGrid::spanning(lo, hi, [19, 17, 13]).unwrap();
+    let pts = points(&first, 2_000, 5);
+    let set = ["cellval", "v[0]", "v[1]", "v[2]", "f"];
+    let answers = |loc: &mut VulkanLocator| {
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        let (mut ids, mut vals) = (vec![0i32; pts.len()], vec![0f32; pts.len() * set.len()]);
+        loc.sample_many(&pts, &set, &mut ids, &mut vals).unwrap();
+        let n = grid.n_points();
+        let (mut gids, mut gvals) = (vec![0i32; n], vec![0f32; n * set.len()]);
+        loc.sample_grid(&grid, 0..n, &set, &mut gids, &mut gvals).unwrap();
+        (ids, bits(&vals), gids, bits(&gvals))
+    };
+    for kernel in common::kernels(&ctx, test) {
+        let new =
+            |m: &Arc<Mesh>| VulkanLocator::new(ctx.clone(), m.clone(), kernel, LocatorOptions::default()).unwrap();
+        let mut loc = new(&first);
+        let before = answers(&mut loc);
+        assert!(loc.take_fields(&step), "{kernel}");
+        let taken = answers(&mut loc);
+        assert!(taken == answers(&mut new(&step)), "{kernel}: not a new locator's answers on the step");
+        assert!(taken.1 != before.1, "{kernel}: the step's values show");
+        let other = Arc::new(Mesh::new(with_fields(generate(Shape::Jets, 6_000, 3), Shape::Jets), "jets").unwrap());
+        assert!(!loc.take_fields(&other), "{kernel}: another geometry (the same numbers, read anew)");
+        assert!(answers(&mut loc) == taken, "{kernel}: nothing changed");
+    }
+    common::assert_no_validation_errors(&ctx);
+}

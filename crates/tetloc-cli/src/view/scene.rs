@@ -5,7 +5,7 @@
 
 use super::frames::{lock, Hub, RawFrame};
 use crate::backend::BackendOptions;
-use crate::render::{build_marcher, check_samples_per_ray, step_renderer, AnyMarcher};
+use crate::render::{build_marcher, check_samples_per_ray, kept_or_built, step_renderer, AnyMarcher};
 use crate::time_steps::Series;
 use anyhow::Result;
 use std::sync::Arc;
@@ -62,7 +62,8 @@ impl Scene {
     }
 
     /// Shows time step `k`: the mesh with its fields, a renderer of it (grid and surface
-    /// kept) and a new marcher (the locators hold their mesh's fields).
+    /// kept), and the marcher given the step's fields (its search structures kept) or, where
+    /// it cannot take them, a new one.
     fn show_step(&mut self, k: usize, field: &str, opts: &tr::RenderOptions) -> Result<()> {
         let Some(series) = &self.series else {
             return Err(no_steps(&self.mesh.info.source, k).into());
@@ -70,9 +71,8 @@ impl Scene {
         // Unknown until the step is shown: a failure below leaves the next state to rebuild.
         self.time_step = usize::MAX;
         let (mesh, renderer) = step_renderer(series, k, &self.renderer, field, opts)?;
-        // The old marcher goes first, to free its memory.
-        self.marcher = None;
-        self.marcher = Some(build_marcher(&self.opts, &mesh, &self.backend, &renderer, false)?);
+        let (opts, backend) = (&self.opts, &self.backend);
+        kept_or_built(&mut self.marcher, &renderer, || build_marcher(opts, &mesh, backend, &renderer, false))?;
         (self.mesh, self.renderer, self.time_step) = (mesh, renderer, k);
         Ok(())
     }

@@ -325,6 +325,15 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         self.inner.name()
     }
 
+    /// The bulges kept (they are the geometry's).
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        let taken = self.mesh.same_geometry(mesh) && self.inner.take_fields(mesh);
+        if taken {
+            self.mesh = mesh.clone();
+        }
+        taken
+    }
+
     /// Mixed meshes: the inner backend's tets (on f64 points its exact f64 path), refined to
     /// cells on the file's coordinates, and values from the cells' shape functions (in f64 on
     /// the file's values for f64 values).

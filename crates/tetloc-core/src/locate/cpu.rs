@@ -525,6 +525,16 @@ impl BatchLocator for CpuLocator {
         "cpu"
     }
 
+    /// The BVH, occupancy grid and bins kept; a rasterized grid's values dropped.
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        if !self.mesh.same_geometry(mesh) {
+            return false;
+        }
+        self.mesh = mesh.clone();
+        self.raster = None;
+        true
+    }
+
     /// f32 points: one lookup per point for every field. f64 points: exact on the file's
     /// data (every face sign that the f32 filter cannot decide is decided on the f64
     /// coordinates of the mesh and the point), values in f64 on the file's values, at f64

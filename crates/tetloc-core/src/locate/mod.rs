@@ -35,8 +35,10 @@ pub use tolerance::{Tolerance, WithTolerance};
 
 use crate::error::Result;
 use crate::geom::{ImageGrid, Real, Vec3};
+use crate::Mesh;
 use rayon::prelude::*;
 use std::ops::Range;
+use std::sync::Arc;
 
 /// Id returned for a point outside every tet.
 pub const OUTSIDE: i32 = -1;
@@ -80,6 +82,15 @@ pub trait BatchLocator {
     /// `None`: then [`locate_from`] runs `locate`.
     fn hinted_locator(&mut self) -> Option<&mut dyn HintedLocator> {
         None
+    }
+
+    /// Takes `mesh`'s fields in place of its own mesh's, keeping what it built: `mesh` has
+    /// the geometry of the mesh it locates in ([`Mesh::same_geometry`]: another time step,
+    /// made by [`Mesh::with_fields`]). False, with nothing changed, where the geometry is not
+    /// the same or the locator cannot (the default): build a new one then.
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        let _ = mesh;
+        false
     }
 
     /// Ids only.
@@ -129,6 +140,9 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     }
     fn line_tracer(&mut self) -> Option<&mut dyn LineTracer> {
         (**self).line_tracer()
+    }
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        (**self).take_fields(mesh)
     }
 }
 
@@ -281,6 +295,10 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
     /// A grid's points are finite (its bounds are).
     fn grid_sampler(&mut self) -> Option<&mut dyn GridSampler> {
         self.inner.grid_sampler()
+    }
+
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        self.inner.take_fields(mesh)
     }
 
     /// The backend's own tracer gets only the finite seeds ([`LineTracer`] below).

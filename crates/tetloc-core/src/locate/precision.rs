@@ -63,6 +63,14 @@ impl<L: BatchLocator> BatchLocator for F64Values<L> {
         self.inner.name()
     }
 
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        let taken = self.mesh.same_geometry(mesh) && self.inner.take_fields(mesh);
+        if taken {
+            self.mesh = mesh.clone();
+        }
+        taken
+    }
+
     /// f64 points on a mesh of tets: the backend's ids, then the host's f64 values there.
     fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
         let Points::F64(p) = points else { return self.inner.query(points, fields, ids, values) };

@@ -458,3 +458,51 @@ fn particles_searching_the_bins_get_the_bvhs_answers() {
         assert!(!bins.index_built(), "unit {unit}: the bins' locator built its BVH");
     }
 }
+
+/// A built locator takes another time step's fields (`Mesh::with_fields`), its search kept:
+/// its answers are then a fresh locator's on that mesh, bit for bit, for points (f32 and
+/// f64) and for a rasterized grid whose slab held the old step's values; through the
+/// layers that hold the mesh too. A mesh of another geometry is refused, nothing changed.
+#[test]
+fn a_built_locator_takes_another_steps_fields() {
+    let first = Arc::new(grid_mesh(5, 0.25, 4));
+    let flipped = |f: &crate::mesh::Field| {
+        crate::mesh::Field::from_f64(
+            f.name.clone(),
+            f.location,
+            (0..f.values.len()).map(|i| 2.5 - f.value64(i)).collect(),
+        )
+    };
+    let step = Arc::new(first.with_fields(first.fields.iter().map(flipped).collect()).unwrap());
+    let grid = ImageGrid::spanning([-0.05, 0.0, 0.01], [1.05, 1.0, 0.99], [17, 15, 13]).unwrap();
+    let points = points_inside(&first, 300, 9);
+    let points64: Vec<[f64; 3]> = points.iter().map(|p| p.map(|c| f64::from(c) + 1e-9)).collect();
+    let fields = ["f", "cellval"];
+    let answers = |loc: &mut dyn BatchLocator| {
+        let n = grid.n_points();
+        let (mut ids, mut values) = (vec![0; n], vec![0f32; 2 * n]);
+        sample_grid(loc, &grid, 0..n, &fields, &mut ids, &mut values).unwrap();
+        let (mut ids32, mut v32) = (vec![0; points.len()], vec![0f32; 2 * points.len()]);
+        loc.sample_many(&points, &fields, &mut ids32, &mut v32).unwrap();
+        let (mut ids64, mut v64) = (vec![0; points.len()], vec![0f64; 2 * points.len()]);
+        loc.sample_many64(&points64, &fields, &mut ids64, &mut v64).unwrap();
+        let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        (ids, bits(&values), ids32, bits(&v32), ids64, v64.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+    };
+    let layered = |m: &Arc<crate::Mesh>| -> Box<dyn BatchLocator> {
+        let cpu = cells::CellLocator::new(FiniteOnly::new(CpuLocator::new(m.clone())), m.clone());
+        let f64_values = precision::F64Values::new(cpu, m.clone());
+        Box::new(tolerance::WithTolerance::new(f64_values, m.clone(), tolerance::Tolerance::PercentOfMeanEdge(1.0)))
+    };
+    for build in [|m: &Arc<crate::Mesh>| -> Box<dyn BatchLocator> { Box::new(CpuLocator::new(m.clone())) }, layered] {
+        let mut loc = build(&first);
+        let before = answers(&mut *loc);
+        assert!(loc.take_fields(&step));
+        let taken = answers(&mut *loc);
+        assert_eq!(taken, answers(&mut *build(&step)), "a fresh locator's answers on the step");
+        assert_ne!(taken.1, before.1, "the step's values show");
+        let other = Arc::new(grid_mesh(5, 0.25, 4));
+        assert!(!loc.take_fields(&other), "another geometry (the same numbers, read anew)");
+        assert_eq!(answers(&mut *loc), taken, "nothing changed");
+    }
+}

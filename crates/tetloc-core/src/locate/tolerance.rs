@@ -277,6 +277,15 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
         self.inner.name()
     }
 
+    /// The boundary kept (it is the geometry's).
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        let taken = self.mesh.same_geometry(mesh) && self.inner.take_fields(mesh);
+        if taken {
+            self.mesh = mesh.clone();
+        }
+        taken
+    }
+
     /// The backend's answers, then the rescue of its outside points (values from the file's
     /// values in f64, rounded for f32 values). No grid sampler or tracer of the backend's
     /// own: they would skip the rescue.

@@ -27,7 +27,7 @@ use crate::geom::{self, Vec3};
 use rayon::prelude::*;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 /// Where a scalar field lives.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -200,8 +200,37 @@ pub struct Mesh {
     /// decomposition) to them. `None` for a mesh of tets: it pays nothing for mixed cells.
     pub cells: Option<Cells>,
     pub info: MeshInfo,
-    faces: OnceLock<FaceSet>,
-    neighbors: OnceLock<Vec<[i32; 4]>>,
+    /// Shared by the meshes of one geometry ([`Mesh::with_fields`]), as computed by the first.
+    faces: Arc<OnceLock<FaceSet>>,
+    neighbors: Arc<OnceLock<Vec<[i32; 4]>>>,
+    /// Which geometry this is: a number of its own from [`Mesh::new`], shared by the meshes
+    /// [`Mesh::with_fields`] makes from it ([`Mesh::same_geometry`]).
+    geometry: u64,
+}
+
+/// The numbers [`Mesh::new`] gives each geometry.
+static GEOMETRIES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Refuses fields whose lengths do not fit the mesh: one value a file point or a cell.
+fn check_fields(fields: &[Field], n_points: usize, n_cells: usize, err: impl Fn(String) -> Error) -> Result<()> {
+    for f in fields {
+        let want = match f.location {
+            FieldLocation::Vertex => n_points,
+            FieldLocation::Cell => n_cells,
+        };
+        if f.values.len() != want {
+            return Err(err(format!(
+                "field '{}' has {} values, expected {want} (one per {:?})",
+                f.name,
+                f.values.len(),
+                f.location
+            )));
+        }
+        if let Some(v) = f.values64.as_ref().filter(|v| v.len() != want) {
+            return Err(err(format!("field '{}' has {} f64 values, expected {want}", f.name, v.len())));
+        }
+    }
+    Ok(())
 }
 
 impl Mesh {
@@ -273,23 +302,7 @@ impl Mesh {
             )));
         }
         let n_cells = mixed.as_ref().map_or(tets.len(), Cells::len);
-        for f in &fields {
-            let want = match f.location {
-                FieldLocation::Vertex => n_file_points,
-                FieldLocation::Cell => n_cells,
-            };
-            if f.values.len() != want {
-                return Err(err(format!(
-                    "field '{}' has {} values, expected {want} (one per {:?})",
-                    f.name,
-                    f.values.len(),
-                    f.location
-                )));
-            }
-            if let Some(v) = f.values64.as_ref().filter(|v| v.len() != want) {
-                return Err(err(format!("field '{}' has {} f64 values, expected {want}", f.name, v.len())));
-            }
-        }
+        check_fields(&fields, n_file_points, n_cells, err)?;
         // Point data at the centroids: the means of the values they are the means of.
         if let Some(d) = &poly {
             for f in fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
@@ -386,9 +399,43 @@ impl Mesh {
             tet_nodes,
             cells: mixed,
             info,
-            faces: OnceLock::new(),
-            neighbors: OnceLock::new(),
+            faces: Arc::default(),
+            neighbors: Arc::default(),
+            geometry: GEOMETRIES.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         })
+    }
+
+    /// This mesh with `fields` in place of its own: another time step of it. The points,
+    /// tets and higher-order nodes are copied as they are (the face neighbours and faces are
+    /// shared), so nothing is validated or reordered again but the fields' lengths, as
+    /// [`Mesh::new`] checks them; a locator built on this mesh can take the new one's
+    /// fields and keep its search structures (`BatchLocator::take_fields`). Refused for a
+    /// mixed mesh, whose cells are not copied: read its step anew.
+    pub fn with_fields(&self, fields: Vec<Field>) -> Result<Mesh> {
+        let err = |msg: String| Error::Mesh { source_name: self.info.source.clone(), msg };
+        if self.cells.is_some() {
+            return Err(err("a mixed mesh takes another step's fields only when read anew".into()));
+        }
+        check_fields(&fields, self.info.n_points, self.n_cells(), err)?;
+        Ok(Mesh {
+            points: crate::par::copy(&self.points),
+            points64: self.points64.as_deref().map(crate::par::copy),
+            tets: crate::par::copy(&self.tets),
+            fields,
+            tet_nodes: self.tet_nodes.clone(),
+            cells: None,
+            info: self.info.clone(),
+            faces: self.faces.clone(),
+            neighbors: self.neighbors.clone(),
+            geometry: self.geometry,
+        })
+    }
+
+    /// Whether `other` has this mesh's geometry: one of them was made from the other, or
+    /// both from a third, by [`Mesh::with_fields`]. (The geometry of a shared mesh does not
+    /// change: locators hold their mesh behind an `Arc`.)
+    pub fn same_geometry(&self, other: &Mesh) -> bool {
+        self.geometry == other.geometry
     }
 
     pub fn n_tets(&self) -> usize {

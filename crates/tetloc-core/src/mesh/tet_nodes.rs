@@ -12,7 +12,7 @@ use crate::geom::Bary64;
 use rayon::prelude::*;
 
 /// The nodes of a mesh of higher-order tets, all of one type.
-#[derive(Debug)]
+#[derive(Clone, Debug)]
 pub struct TetNodes {
     ty: CellType,
     /// Per tet, `n_extra()` node ids: the tet's nodes after its 4 corners, in VTK's node order

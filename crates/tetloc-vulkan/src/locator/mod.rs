@@ -1040,6 +1040,18 @@ impl BatchLocator for VulkanLocator {
         self.kernel.name()
     }
 
+    /// The mesh and structure stay on the device; the old fields are unbound and freed, and
+    /// the new ones uploaded when a launch asks for them.
+    fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
+        if !self.mesh.same_geometry(mesh) {
+            return false;
+        }
+        self.launcher.desc.write(&[Binding::array(B_FIELD, &[], MAX_FIELDS, self.dev.unbound())]);
+        self.fields.clear();
+        self.mesh = mesh.clone();
+        true
+    }
+
     /// f32 points with f32 values: one launch a batch locates each point once and writes its
     /// id and every field's value, interpolated on the device where the tet's nodes were just
     /// read (values on the host read the mesh at random from host memory). Otherwise the
