@@ -160,7 +160,19 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     }
     let (_, builder) = opts.builder(&m, &a.backend)?;
     let builder = builder.precision(a.precision).tolerance(a.tolerance);
-    let mut loc: Box<dyn BatchLocator> = progress::with_spinner("building the locator", || builder.build())?.locator;
+    let build = || Ok(progress::with_spinner("building the locator", || builder.build())?.locator);
+    a.common.with_locator(&m, build, |loc| locate_all(a, &m, &pts64, &pts, loc))
+}
+
+/// Locates `pts` (and `pts64`, the file's precision) in `m` through `loc`, and writes the
+/// results.
+fn locate_all(
+    a: &LocateArgs,
+    m: &tetloc_core::Mesh,
+    pts64: &[[f64; 3]],
+    pts: &[[f32; 3]],
+    loc: &mut dyn BatchLocator,
+) -> Result<()> {
     // Chunks keep the progress bar moving and bound GPU batch memory.
     const CHUNK: usize = 1 << 22;
     let mut ids = vec![0i32; pts.len()];
@@ -203,10 +215,10 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     let secs = t0.elapsed().as_secs_f64();
 
     let values = if wide_values { Values::F64(&values64) } else { Values::F32(&values) };
-    write_results(a, Coords::of(&pts64, &pts), &ids, values)?;
+    write_results(a, Coords::of(pts64, pts), &ids, values)?;
     if !a.common.quiet {
         let none = ids.iter().filter(|&&i| i < 0).count();
-        let within = match a.tolerance.distance(&m) {
+        let within = match a.tolerance.distance(m) {
             d if d > 0.0 => format!(" by more than the tolerance {} ({d:.3e})", a.tolerance),
             _ => String::new(),
         };

@@ -229,6 +229,9 @@ struct Common {
     /// (set for each step's run, not an argument).
     #[arg(skip)]
     series: Option<std::sync::Arc<time_steps::Series>>,
+    /// The locator the step before left (set for each step's run of `--time-step all`).
+    #[arg(skip)]
+    kept: Option<time_steps::KeptLocator>,
 }
 
 impl Common {
@@ -249,9 +252,23 @@ impl Common {
     /// read now ([`time_steps::load`]).
     fn load_mesh(&self, arg: &std::ffi::OsStr) -> Result<std::sync::Arc<tetloc_core::Mesh>> {
         match (&self.series, self.step()) {
-            (Some(series), Some(k)) => time_steps::step_mesh(series, k),
+            (Some(series), Some(k)) => {
+                let like = self.kept.as_ref().and_then(time_steps::KeptLocator::mesh);
+                time_steps::step_mesh(series, k, like.as_deref())
+            }
             _ => time_steps::load(arg, self.format.as_deref(), self.seed, self.step()),
         }
+    }
+
+    /// Runs `work` with the locator `build` makes for `mesh`, or under `--time-step all` the
+    /// step before's given this step's fields ([`time_steps::with_locator`]).
+    fn with_locator<R>(
+        &self,
+        mesh: &std::sync::Arc<tetloc_core::Mesh>,
+        build: impl FnOnce() -> Result<Box<dyn tetloc_core::BatchLocator + Send>>,
+        work: impl FnOnce(&mut dyn tetloc_core::BatchLocator) -> Result<R>,
+    ) -> Result<R> {
+        time_steps::with_locator(self.kept.as_ref(), mesh, build, work)
     }
 
     fn opts(&self) -> Result<BackendOptions> {

@@ -99,8 +99,8 @@ pub fn run(a: &ProbeArgs) -> Result<()> {
     let (_, builder) = opts.builder(&source, &a.backend)?;
     // cpu: the probe's batches search bins; the BVH is built only if a point lands on a face.
     let builder = builder.tolerance(a.tolerance).defer_cpu_build(true);
-    let mut loc: Box<dyn BatchLocator> = progress::with_spinner("building the locator", || builder.build())?.locator;
-    execute(a, point_set, &source, loc.as_mut())
+    let build = || Ok(progress::with_spinner("building the locator", || builder.build())?.locator);
+    a.common.with_locator(&source, build, |loc| execute(a, point_set, &source, loc))
 }
 
 /// Probes through `loc`: `fields_of` names SOURCE's fields (the mesh, or one piece of it).

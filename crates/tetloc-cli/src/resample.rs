@@ -113,8 +113,8 @@ pub fn run(a: &ResampleArgs) -> Result<()> {
     // tets; only grid points on faces need the search's tie rule).
     let (_, builder) = opts.builder(&m, &a.backend)?;
     let builder = builder.defer_cpu_build(true);
-    let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
-    execute(a, &plan, &m, m.file_bounds(), loc.as_mut())
+    let build = || Ok(progress::with_spinner("building the locator", || builder.build())?.locator);
+    a.common.with_locator(&m, build, |loc| execute(a, &plan, &m, m.file_bounds(), loc))
 }
 
 /// Resamples through `loc`: `fields_of` names the fields (the mesh, or one piece of it),

@@ -3,17 +3,20 @@
 //! named `STEM_K.EXT` (each written atomically, as every output), and then writes a `.pvd`
 //! beside `--out` that indexes them by time for ParaView. The steps' files and the index
 //! appear together once the last step is written (an `OutputSet`): a failed step leaves the
-//! previous run's files as they were.
+//! previous run's files as they were. The series is read once, and each step's run takes the
+//! locator of the step before, given its fields ([`with_locator`]).
 
 use crate::{mesh_arg, progress, Common};
 use anyhow::{Context, Result};
+use std::cell::RefCell;
 use std::ffi::OsStr;
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::rc::Rc;
 use std::sync::Arc;
 use tetloc_core::mesh::steps::no_steps;
 use tetloc_core::mesh::{RawMesh, TimeSteps};
-use tetloc_core::Mesh;
+use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::output::{FileArg, OutputSet};
 use tetloc_io::{self as io, MeshFormat};
 
@@ -87,9 +90,13 @@ pub fn load_series(
     })
 }
 
-/// Step `k`'s mesh from a series read once (`--time-step all`).
-pub fn step_mesh(series: &Series, k: usize) -> Result<Arc<Mesh>> {
-    let mesh = progress::with_spinner(format!("{} step {k}", series.name), || series.mesh(k))?;
+/// Step `k`'s mesh from a series read once (`--time-step all`), made from the mesh of the
+/// step before (`like`) where there is one, for its locator to take ([`with_locator`]).
+pub fn step_mesh(series: &Series, k: usize, like: Option<&Mesh>) -> Result<Arc<Mesh>> {
+    let mesh = progress::with_spinner(format!("{} step {k}", series.name), || match like {
+        Some(shown) => series.mesh_like(k, shown),
+        None => series.mesh(k),
+    })?;
     Ok(Arc::new(mesh))
 }
 
@@ -223,10 +230,12 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
     }
     // Every step's outputs and the index appear together, once the last step is written.
     let set = OutputSet::begin();
+    let kept = KeptLocator::default();
     for (k, t) in times.iter().enumerate() {
         let mut a = args.clone();
         a.common_mut().time_step = Some(TimeStep::One(k));
         a.common_mut().series = series.clone();
+        a.common_mut().kept = Some(kept.clone());
         // Each step's run checks the index too: none of them may read it.
         a.common_mut().index = index_path(out);
         a.rename_outputs(k, times.len());
@@ -234,6 +243,57 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
     }
     write_index(out, &times)?;
     commit_steps(set, out)
+}
+
+/// The locator a step's run of `--time-step all` leaves for the next one's, with the mesh it
+/// locates in (the steps share their geometry: the next step's mesh is made from it).
+#[derive(Clone, Default)]
+pub struct KeptLocator(Rc<RefCell<Option<Kept>>>);
+
+/// A locator as the front door builds it, and the mesh it locates in now.
+type BuiltLocator = Box<dyn BatchLocator + Send>;
+type Kept = (Arc<Mesh>, BuiltLocator);
+
+impl KeptLocator {
+    /// The mesh of the locator kept, if any.
+    pub fn mesh(&self) -> Option<Arc<Mesh>> {
+        self.0.borrow().as_ref().map(|(m, _)| m.clone())
+    }
+}
+
+impl std::fmt::Debug for KeptLocator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("KeptLocator")
+    }
+}
+
+/// Runs `work` with a locator for `mesh`: under `--time-step all` (`kept`), the step
+/// before's, given this step's fields where it can take them (`BatchLocator::take_fields`:
+/// its search kept), and kept in turn for the next step when `work` succeeds; else the one
+/// `build` makes.
+pub fn with_locator<R>(
+    kept: Option<&KeptLocator>,
+    mesh: &Arc<Mesh>,
+    build: impl FnOnce() -> Result<BuiltLocator>,
+    work: impl FnOnce(&mut dyn BatchLocator) -> Result<R>,
+) -> Result<R> {
+    let mut loc = match kept.and_then(|k| k.0.borrow_mut().take()) {
+        Some((_, mut old)) => {
+            if old.take_fields(mesh) {
+                old
+            } else {
+                // Its memory freed before the new one is built.
+                drop(old);
+                build()?
+            }
+        }
+        None => build()?,
+    };
+    let out = work(loc.as_mut());
+    if let (Some(k), true) = (kept, out.is_ok()) {
+        *k.0.borrow_mut() = Some((mesh.clone(), loc));
+    }
+    out
 }
 
 /// What a failed step of `--time-step all` says of the outputs.

@@ -487,3 +487,46 @@ fn probe_matches_vtk_on(test: &str, data: &Path) {
     assert!(off * 50 <= both, "f differs from VTK's at {off} of {both} points");
     assert!((0..tf.len()).filter(|&i| tm[i] == 0.0).all(|i| tf[i].is_nan()));
 }
+
+/// `--time-step all` runs each step with the locator the step before left, given that
+/// step's fields (its search kept): every step's output is `--time-step K`'s run alone, byte
+/// for byte, for `probe`, `resample` and `locate`, on the CPU and on a GPU kernel, and the
+/// steps differ.
+#[test]
+fn each_step_of_all_is_that_step_run_alone() {
+    let dir = tmp_dir("each_step");
+    let series = dir.join("steps.msh");
+    common::gmsh_series(&series, &[0.0, 0.5, 1.5]);
+    let pts = dir.join("p.csv");
+    let text: String =
+        (0..200).map(|i| format!("{},{},{}\n", 0.05 + 0.0045 * i as f64, 0.3 + 0.002 * i as f64, 0.61)).collect();
+    std::fs::write(&pts, text).unwrap();
+    let runs: [(&str, &str, Vec<&str>); 3] = [
+        ("probe", "vtu", vec![s(&series), s(&pts)]),
+        ("resample", "npy", vec![s(&series), "--dims", "9,8,7", "--field", "f"]),
+        ("locate", "csv", vec![s(&series), "--points", s(&pts), "--field", "f"]),
+    ];
+    for backend in ["cpu"].into_iter().chain(common::gpu_backend("each_step_of_all_is_that_step_run_alone")) {
+        for (command, ext, args) in &runs {
+            let out = |name: &str| dir.join(format!("{command}-{backend}-{name}.{ext}"));
+            let run = |step: &str, to: &Path| {
+                let mut a = vec![*command];
+                a.extend(args);
+                a.extend(["--time-step", step, "--backend", backend, "-q"]);
+                a.extend([if *command == "locate" { "--out" } else { "-o" }, s(to)]);
+                let (ok, _, err) = tetloc(&a);
+                assert!(ok, "{command} {backend} --time-step {step}: {err}");
+            };
+            run("all", &out("all"));
+            let mut steps = Vec::new();
+            for k in 0..3 {
+                run(&k.to_string(), &out(&format!("one{k}")));
+                let all = std::fs::read(out(&format!("all_{k}"))).unwrap();
+                assert!(all == std::fs::read(out(&format!("one{k}"))).unwrap(), "{command} {backend}: step {k}");
+                steps.push(all);
+            }
+            assert!(steps[0] != steps[1] && steps[1] != steps[2], "{command} {backend}: the steps differ");
+        }
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

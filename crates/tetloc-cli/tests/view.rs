@@ -10,6 +10,9 @@ use std::time::{Duration, Instant};
 use tungstenite::protocol::frame::coding::CloseCode;
 use tungstenite::{Message, WebSocket};
 
+mod common;
+use common::{gmsh_series, gpu_backend};
+
 const TOKEN: &str = "test-token-123";
 
 struct Server {
@@ -137,45 +140,6 @@ fn pixels(png: &[u8]) -> Vec<u8> {
     let mut buf = vec![0; r.output_buffer_size()];
     r.next_frame(&mut buf).unwrap();
     buf
-}
-
-/// A Gmsh file of a Kuhn cube (3³ cubes, 162 tets) with the vertex field `f` = x + k·y at
-/// step k of `times` (a pattern that changes, not only its scale).
-fn gmsh_series(path: &std::path::Path, times: &[f64]) {
-    let n = 3usize;
-    let id = |i: usize, j: usize, k: usize| 1 + i + (n + 1) * (j + (n + 1) * k);
-    let corners: Vec<[usize; 3]> =
-        (0..=n).flat_map(|k| (0..=n).flat_map(move |j| (0..=n).map(move |i| [i, j, k]))).collect();
-    let mut tets = Vec::new();
-    for c in (0..n).flat_map(|k| (0..n).flat_map(move |j| (0..n).map(move |i| [i, j, k]))) {
-        for axes in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
-            let mut v = c;
-            let mut tet = vec![id(v[0], v[1], v[2])];
-            for a in axes {
-                v[a] += 1;
-                tet.push(id(v[0], v[1], v[2]));
-            }
-            tets.push(tet);
-        }
-    }
-    let x = |c: &[usize; 3]| c.map(|v| v as f64 / n as f64);
-    let mut text = format!("$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 {0} 1 {0}\n3 1 0 {0}\n", corners.len());
-    (1..=corners.len()).for_each(|i| text += &format!("{i}\n"));
-    corners.iter().for_each(|c| text += &format!("{} {} {}\n", x(c)[0], x(c)[1], x(c)[2]));
-    text += &format!("$EndNodes\n$Elements\n1 {0} 1 {0}\n3 1 4 {0}\n", tets.len());
-    for (e, t) in tets.iter().enumerate() {
-        text += &format!("{} {} {} {} {}\n", e + 1, t[0], t[1], t[2], t[3]);
-    }
-    text += "$EndElements\n";
-    for (step, t) in times.iter().enumerate() {
-        text += &format!("$NodeData\n1\n\"f\"\n1\n{t:?}\n3\n{step}\n1\n{}\n", corners.len());
-        for (i, c) in corners.iter().enumerate() {
-            let p = x(c);
-            text += &format!("{} {}\n", i + 1, p[0] + step as f64 * p[1]);
-        }
-        text += "$EndNodeData\n";
-    }
-    std::fs::write(path, text).unwrap();
 }
 
 fn png_size(png: &[u8]) -> (u32, u32) {
@@ -329,18 +293,6 @@ fn the_benchmark_client_orbits_and_gets_every_still_frame() {
     assert!(gens.windows(2).all(|w| w[0] <= w[1]), "{gens:?}");
     std::fs::remove_dir_all(&dir).ok();
     assert_eq!(s.interrupt(), Some(0));
-}
-
-/// `soft-bvh` where `tetloc devices` lists a Vulkan device; outside CI, none (after a
-/// SKIPPED line) where there is none, and in CI a failure.
-fn gpu_backend(test: &str) -> Option<&'static str> {
-    let o = Command::new(env!("CARGO_BIN_EXE_tetloc")).arg("devices").output().unwrap();
-    if o.status.success() && String::from_utf8_lossy(&o.stdout).contains(", Vulkan ") {
-        return Some("soft-bvh");
-    }
-    assert!(!tetloc_testdata::in_ci(), "{test}: no Vulkan device in CI");
-    tetloc_testdata::skip(test, "no Vulkan device");
-    None
 }
 
 /// A series in the viewer: the page learns the times; a state's `time_step` shows that step
