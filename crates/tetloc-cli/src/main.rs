@@ -539,7 +539,7 @@ fn gen(
         mesh.fields.extend(v);
     }
     if f64 {
-        mesh.points64 = Some(below_f32_resolution(&mesh));
+        mesh.points64 = Some(std::sync::Arc::new(below_f32_resolution(&mesh)));
     }
     let gen_s = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();

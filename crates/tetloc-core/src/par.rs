@@ -15,12 +15,6 @@ pub fn first_position<T: Sync>(items: &[T], bad: impl Fn(&T) -> bool + Sync) -> 
     items[start..].iter().position(&bad).map(|i| start + i)
 }
 
-/// A copy of `items` made on every core: a large copy's time is mostly the first touch of
-/// its fresh pages, which one core faults in alone.
-pub fn copy<T: Copy + Send + Sync>(items: &[T]) -> Vec<T> {
-    items.par_iter().with_min_len(BLOCK).copied().collect()
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -227,8 +227,8 @@ mod tests {
             with_v.push(Field { values64: None, name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
         }
         let raw = tetloc_core::RawMesh {
-            points: m.points.clone(),
-            tets: m.tets.clone(),
+            points: m.points.to_vec(),
+            tets: m.tets.to_vec(),
             fields: with_v,
             ..Default::default()
         };

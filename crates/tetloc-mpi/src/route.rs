@@ -230,7 +230,7 @@ mod tests {
             let p = m.vertex64(i).map(|c| c as f32);
             assert!(r.may_hold(p), "vertex {i} at {p:?}");
         }
-        for t in &m.tets {
+        for t in m.tets.iter() {
             let c: [f64; 3] = std::array::from_fn(|k| t.iter().map(|&v| m.vertex64(v)[k]).sum::<f64>() / 4.0);
             assert!(r.may_hold(c.map(|x| x as f32)));
         }

@@ -87,7 +87,7 @@ fn legacy_vtk_binary(mesh: &Mesh) -> Vec<u8> {
         b.extend(mesh.vertex64(i as u32).iter().flat_map(|c| c.to_be_bytes()));
     }
     b.extend(format!("\nCELLS {m} {}\n", 5 * m).bytes());
-    for t in &mesh.tets {
+    for t in mesh.tets.iter() {
         b.extend([4, t[0], t[1], t[2], t[3]].iter().flat_map(|&i| (i as i32).to_be_bytes()));
     }
     b.extend(format!("\nCELL_TYPES {m}\n").bytes());

@@ -22,7 +22,7 @@ fn probe_points(mesh: &Mesh) -> (Vec<Vec3>, Vec<bool>) {
             boundary_edges.insert((f.v[a], f.v[b]));
         }
     }
-    let mut pts: Vec<Vec3> = mesh.points.clone();
+    let mut pts: Vec<Vec3> = mesh.points.to_vec();
     let mut on_boundary = boundary_vertex;
     for f in faces {
         let [a, b, c] = f.v.map(|i| mesh.points[i as usize]);

@@ -129,7 +129,7 @@ fn no_degenerate_or_inverted_tets_and_no_unused_vertices() {
             assert_eq!(m.info.n_degenerate, 0, "{shape} {target}");
             assert_eq!(m.info.n_reoriented, 0, "{shape} {target}");
             let mut used = vec![false; m.points.len()];
-            for t in &m.tets {
+            for t in m.tets.iter() {
                 for &v in t {
                     used[v as usize] = true;
                 }
@@ -287,7 +287,7 @@ fn report() {
             let (np, nt) = (raw.points.len(), raw.tets.len());
             let m = Mesh::new(raw, "report").unwrap();
             let (mut emin, mut emax) = (f64::MAX, 0f64);
-            for t in &m.tets {
+            for t in m.tets.iter() {
                 let v = t.map(|i| m.points[i as usize].map(|c| c as f64));
                 for (a, b) in [(0, 1), (0, 2), (0, 3), (1, 2), (1, 3), (2, 3)] {
                     let e = (0..3).map(|k| (v[a][k] - v[b][k]).powi(2)).sum::<f64>().sqrt();
@@ -317,7 +317,7 @@ fn agulhas_terrain_lies_under_the_sea_and_rises_into_land() {
     let t = terrain(Shape::Agulhas, 60_000, 3).unwrap();
     // Mesh vertex columns share their plan position: the lowest level is the sea floor.
     let mut floor = std::collections::HashMap::new();
-    for p in &m.points {
+    for p in m.points.iter() {
         let z = floor.entry((p[0].to_bits(), p[1].to_bits())).or_insert(f32::INFINITY);
         *z = z.min(p[2]);
     }

@@ -229,7 +229,7 @@ mod tests {
                                                    extra in prop::collection::vec(prop::array::uniform3(-0.1f32..1.1), 50)) {
             let mesh = KuhnGrid::new(4).jitter(jitter, seed).mesh("cube");
             let bins = Bins::build(&mesh, edges);
-            let mut points = mesh.points.clone();
+            let mut points = mesh.points.to_vec();
             points.extend(mesh.tets.iter().map(|t| {
                 let (a, b) = (mesh.points[t[0] as usize], mesh.points[t[3] as usize]);
                 std::array::from_fn(|k| 0.5 * (a[k] + b[k]))

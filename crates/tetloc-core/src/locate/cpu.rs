@@ -835,7 +835,7 @@ mod tests {
         let m = Arc::new(Mesh::new(generate(Shape::Fusion, 20_000, 3), "fusion").unwrap());
         let loc = CpuLocator::new(m.clone());
         let occ = &loc.index().occupancy;
-        for &t in &m.tets {
+        for &t in m.tets.iter() {
             let v = t.map(|i| m.points[i as usize]);
             let mid = |a: Vec3, b: Vec3| -> Vec3 { std::array::from_fn(|k| 0.5 * (a[k] + b[k])) };
             let c: Vec3 = std::array::from_fn(|k| 0.25 * v.iter().map(|p| p[k]).sum::<f32>());

@@ -326,7 +326,7 @@ mod tests {
         let base = Mesh::new(crate::test_support::jittered_grid(4, 0.35, 5), "jittered").unwrap();
         let (mut checked, mut unwidened_wrong) = (0, 0);
         for (scale, shift) in [(1.0, 0.0), (1e-6, 0.0), (1e6, 0.0), (1.0, 1e7), (1e-3, -1e7)] {
-            for &tet in &base.tets {
+            for &tet in base.tets.iter() {
                 let v = tet.map(|i| base.vertex64(i).map(|c| c * scale + shift));
                 let (lo, hi) = bounds_of(&v);
                 let Some(map) = TetMap::over_box(v, (lo, hi), 1.0) else { continue };

@@ -183,16 +183,19 @@ pub struct MeshInfo {
 }
 
 /// A validated tetrahedral mesh, ready for point location.
+///
+/// Its geometry (points, tets, faces, neighbours) sits behind `Arc`s: the meshes of a time
+/// series' steps ([`Mesh::with_fields`]) share one copy, which none of them can change.
 #[derive(Debug)]
 pub struct Mesh {
     /// The vertices in the working frame (`info.frame`), f32: what every backend searches.
-    pub points: Vec<Vec3>,
+    pub points: Arc<Vec<Vec3>>,
     /// The file's f64 coordinates when the working copy is not exactly them (f64 data, or an
     /// f32 file far from the origin, widened): exact decisions use them where the f32 filter
     /// cannot decide.
-    pub points64: Option<Vec<[f64; 3]>>,
+    pub points64: Option<Arc<Vec<[f64; 3]>>>,
     /// Tets in file order, each in canonical vertex order (see [`geom::canonical_tet`]).
-    pub tets: Vec<[u32; 4]>,
+    pub tets: Arc<Vec<[u32; 4]>>,
     pub fields: Vec<Field>,
     /// The nodes of higher-order tets beyond their corners (`None`: linear tets, or a mixed mesh).
     pub tet_nodes: Option<TetNodes>,
@@ -392,9 +395,9 @@ impl Mesh {
             total_volume: acc.volume,
         };
         Ok(Mesh {
-            points,
-            points64,
-            tets,
+            points: Arc::new(points),
+            points64: points64.map(Arc::new),
+            tets: Arc::new(tets),
             fields,
             tet_nodes,
             cells: mixed,
@@ -405,9 +408,9 @@ impl Mesh {
         })
     }
 
-    /// This mesh with `fields` in place of its own: another time step of it. The points,
-    /// tets and higher-order nodes are copied as they are (the face neighbours and faces are
-    /// shared), so nothing is validated or reordered again but the fields' lengths, as
+    /// This mesh with `fields` in place of its own: another time step of it. Its geometry is
+    /// shared (the higher-order nodes copied), so nothing is validated or reordered again but
+    /// the fields' lengths, as
     /// [`Mesh::new`] checks them; a locator built on this mesh can take the new one's
     /// fields and keep its search structures (`BatchLocator::take_fields`). Refused for a
     /// mixed mesh, whose cells are not copied: read its step anew.
@@ -418,9 +421,9 @@ impl Mesh {
         }
         check_fields(&fields, self.info.n_points, self.n_cells(), err)?;
         Ok(Mesh {
-            points: crate::par::copy(&self.points),
-            points64: self.points64.as_deref().map(crate::par::copy),
-            tets: crate::par::copy(&self.tets),
+            points: self.points.clone(),
+            points64: self.points64.clone(),
+            tets: self.tets.clone(),
             fields,
             tet_nodes: self.tet_nodes.clone(),
             cells: None,
@@ -432,8 +435,8 @@ impl Mesh {
     }
 
     /// Whether `other` has this mesh's geometry: one of them was made from the other, or
-    /// both from a third, by [`Mesh::with_fields`]. (The geometry of a shared mesh does not
-    /// change: locators hold their mesh behind an `Arc`.)
+    /// both from a third, by [`Mesh::with_fields`] (whose meshes share one geometry, which
+    /// none can change).
     pub fn same_geometry(&self, other: &Mesh) -> bool {
         self.geometry == other.geometry
     }
@@ -651,7 +654,7 @@ impl Mesh {
             let x = frame.to_working64(x);
             std::array::from_fn(|k| (x[k] - f64::from(w[k])) as f32)
         };
-        Some(file.par_iter().zip(&self.points).map(residual).collect())
+        Some(file.par_iter().zip(self.points.par_iter()).map(residual).collect())
     }
 
     /// Vertex `i` as the file has it (f64).
@@ -666,7 +669,7 @@ impl Mesh {
     /// The exact-decision context of `geom::test_point_with` for this mesh's tets.
     #[inline]
     pub fn exact(&self) -> geom::Exact<'_> {
-        geom::Exact { file: self.points64.as_deref(), frame: &self.info.frame }
+        geom::Exact { file: self.points64.as_deref().map(Vec::as_slice), frame: &self.info.frame }
     }
 
     /// The centroid of tet `t`.

@@ -141,7 +141,7 @@ mod tests {
     fn probing_a_mesh_onto_itself_and_beyond() {
         let m = Arc::new(KuhnGrid::new(3).mesh("cube"));
         let groups = fields::groups(&m);
-        let mut points = m.points.clone();
+        let mut points = m.points.to_vec();
         points.push([2.0, 0.5, 0.5]);
         let mut loc = CpuLocator::new(m.clone());
         let mut last = 0;

@@ -47,7 +47,7 @@ mod tests {
             let values = m.points.iter().map(|p| (c + 1) as f32 * p[c]).collect();
             fields.push(Field { values64: None, name: format!("v[{c}]"), location: FieldLocation::Vertex, values });
         }
-        let raw = crate::RawMesh { points: m.points.clone(), tets: m.tets.clone(), fields, ..Default::default() };
+        let raw = crate::RawMesh { points: m.points.to_vec(), tets: m.tets.to_vec(), fields, ..Default::default() };
         Arc::new(Mesh::new(raw, "cube+v").unwrap())
     }
 

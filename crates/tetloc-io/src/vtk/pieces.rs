@@ -479,7 +479,7 @@ mod tests {
         assert_eq!(back.tets, m.tets);
         assert_eq!(back.field("c").unwrap().values, m.field("c").unwrap().values, "cells renumbered by global id");
         assert!(back.field("GlobalCellIds").is_err(), "the ids are the numbering, not a field");
-        for (a, b) in back.tets.iter().zip(&m.tets) {
+        for (a, b) in back.tets.iter().zip(m.tets.iter()) {
             assert_eq!(a.map(|i| back.points[i as usize]), b.map(|i| m.points[i as usize]));
         }
         let pts: Vec<[f32; 3]> =

@@ -652,21 +652,21 @@ fn f64_fields_round_trip_exactly() {
         )
         .into_bytes();
         let put = |bytes: &mut Vec<u8>, text: String| bytes.extend_from_slice(text.as_bytes());
-        for p in &mesh.points {
+        for p in mesh.points.iter() {
             match binary {
                 true => p.iter().for_each(|c| bytes.extend_from_slice(&c.to_be_bytes())),
                 false => put(&mut bytes, format!("{:?} {:?} {:?}\n", p[0], p[1], p[2])),
             }
         }
         put(&mut bytes, format!("\nCELLS {} {}\n", mesh.n_tets(), 5 * mesh.n_tets()));
-        for t in &mesh.tets {
+        for t in mesh.tets.iter() {
             match binary {
                 true => [4, t[0], t[1], t[2], t[3]].iter().for_each(|i| bytes.extend_from_slice(&i.to_be_bytes())),
                 false => put(&mut bytes, format!("4 {} {} {} {}\n", t[0], t[1], t[2], t[3])),
             }
         }
         put(&mut bytes, format!("\nCELL_TYPES {}\n", mesh.n_tets()));
-        for _ in &mesh.tets {
+        for _ in mesh.tets.iter() {
             match binary {
                 true => bytes.extend_from_slice(&10i32.to_be_bytes()),
                 false => put(&mut bytes, "10\n".into()),

@@ -978,9 +978,9 @@ mod tests {
         let tmp = TempPath::new("mesh");
         write_mesh(&tmp.0, mesh, &[], zlib, wide).unwrap();
         let back = vtu::read(&tmp.0).unwrap();
-        assert_eq!(back.points, mesh.points);
+        assert_eq!(back.points[..], mesh.points[..]);
         // Canonical tets are written as they are (right-handed, VTK's orientation).
-        assert_eq!(back.tets, mesh.tets);
+        assert_eq!(back.tets[..], mesh.tets[..]);
         assert_eq!(back.fields.len(), mesh.fields.len());
         for (a, b) in back.fields.iter().zip(&mesh.fields) {
             assert_eq!((&a.name, a.location), (&b.name, b.location));
@@ -988,7 +988,7 @@ mod tests {
             assert_eq!(a.values.len(), b.values.len());
         }
         // Positive volume in VTK's convention: det(p1 - p0, p2 - p0, p3 - p0) > 0.
-        for t in &back.tets {
+        for t in back.tets.iter() {
             let p = t.map(|i| back.points[i as usize].map(f64::from));
             let d = |k: usize| [0, 1, 2].map(|c| p[k][c] - p[0][c]);
             let (a, b, c) = (d(1), d(2), d(3));
@@ -1172,7 +1172,7 @@ mod tests {
     #[test]
     fn vectors_are_written_as_one_array() {
         let m = small_mesh();
-        let mut raw = RawMesh { points: m.points.clone(), tets: m.tets.clone(), ..Default::default() };
+        let mut raw = RawMesh { points: m.points.to_vec(), tets: m.tets.to_vec(), ..Default::default() };
         for c in 0..3 {
             let values = (0..5).map(|i| (10 * c + i) as f32).collect();
             raw.fields.push(Field { values64: None, name: format!("v[{c}]"), location: FieldLocation::Vertex, values });

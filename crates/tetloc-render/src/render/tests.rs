@@ -399,9 +399,9 @@ fn a_mesh_far_from_the_origin_renders_as_at_the_origin() {
     let near = testmesh::two_blobs(8, 3);
     let offset = [512_345.0, 4_123_456.0, 0.0];
     let raw = tetloc_core::mesh::RawMesh {
-        points: near.points.clone(),
+        points: near.points.to_vec(),
         points64: None,
-        tets: near.tets.clone(),
+        tets: near.tets.to_vec(),
         fields: near.fields.clone(),
         higher_order: None,
         cells: None,

@@ -29,7 +29,7 @@ impl TriMesh {
     /// The faces of `mesh` that have a tet on one side only.
     pub fn boundary(mesh: &Mesh) -> TriMesh {
         let triangles = mesh.faces().faces.iter().filter(|f| f.front < 0 || f.back < 0).map(|f| f.v).collect();
-        TriMesh { positions: mesh.points.clone(), triangles }
+        TriMesh { positions: mesh.points.to_vec(), triangles }
     }
 
     /// The surface in a mesh's working frame (its positions are in the file's coordinates).

@@ -130,7 +130,7 @@ fn planar_hexes_answer_as_their_tet_split() {
     };
     let tets_raw = crate::RawMesh {
         points: m.points32.clone(),
-        tets: hexes.tets.clone(),
+        tets: hexes.tets.to_vec(),
         fields: vec![field(&m.points32)],
         ..Default::default()
     };

@@ -641,7 +641,7 @@ mod tests {
                 values,
             });
         }
-        let raw = crate::RawMesh { points: m.points.clone(), tets: m.tets.clone(), fields, ..Default::default() };
+        let raw = crate::RawMesh { points: m.points.to_vec(), tets: m.tets.to_vec(), fields, ..Default::default() };
         std::sync::Arc::new(crate::Mesh::new(raw, "cube+v").unwrap())
     }
 

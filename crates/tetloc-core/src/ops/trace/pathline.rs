@@ -1010,8 +1010,8 @@ mod tests {
         let points: Vec<[f64; 3]> = m.points.iter().map(|p| p.map(f64::from)).collect();
         let spin = Spin { points, times: times.clone() };
         let raw = crate::RawMesh {
-            points: m.points.clone(),
-            tets: m.tets.clone(),
+            points: m.points.to_vec(),
+            tets: m.tets.to_vec(),
             fields: spin.read(0).unwrap(),
             ..Default::default()
         };
