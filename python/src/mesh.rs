@@ -191,15 +191,24 @@ impl PyMesh {
         self.steps.as_ref().map_or_else(Vec::new, |s| s.times.clone())
     }
 
-    /// The mesh with the fields of time step `step`: its file read again with that step's
-    /// fields, as the CLI's `--time-step K` reads it (its steps kept).
+    /// The mesh with the fields of time step `step` (its steps kept), as the CLI's
+    /// `--time-step K` reads it: only that step's fields are read, and the mesh shares this
+    /// one's geometry (`Mesh::with_fields`: its faces and neighbours computed once for every
+    /// step); a mixed mesh's file is read again.
     fn at_step(&self, py: Python<'_>, step: usize) -> PyResult<PyMesh> {
         let (Some(s), Some(origin)) = (&self.steps, &self.origin) else {
             return Err(to_py(tetloc_core::mesh::steps::check_step(&self.mesh.info.source, 0, step).unwrap_err()));
         };
-        // Checked before the file is read again.
+        // Checked before anything is read.
         tetloc_core::mesh::steps::check_step(&s.source, s.times.len(), step).map_err(to_py)?;
-        read_origin(py, origin, Some(step))
+        if self.mesh.cells.is_some() {
+            return read_origin(py, origin, Some(step));
+        }
+        let (steps, shown) = (s.clone(), self.mesh.clone());
+        let mesh = background::run(py, "reading a time step", None, move |_| {
+            shown.with_fields(steps.fields(step).map_err(to_py)?).map_err(to_py)
+        })?;
+        Ok(PyMesh { mesh: Arc::new(mesh), steps: self.steps.clone(), origin: self.origin.clone() })
     }
 
     /// Scalar fields `names` at time step `step`, read from the file now in one pass (a

@@ -297,8 +297,9 @@ class Mesh:
     def at_step(self, step: int) -> "Mesh":
         """This mesh with the fields of time step `step` (0-based, an index into ``times``) in
         place of the first step's, so that ``probe``, ``resample_to_image``, ``trace`` and
-        ``Locator`` work on that step (as the CLI's ``--time-step K``): the file is read again
-        with that step's fields, its steps kept. ``ValueError`` for a step out of range or a
+        ``Locator`` work on that step (as the CLI's ``--time-step K``): only that step's fields
+        are read, on this mesh's geometry (shared, not copied; a mixed mesh's file is read
+        again), its steps kept. ``ValueError`` for a step out of range or a
         mesh without steps. To sample many steps at the same points, locate once instead:
         ``Locator.step_weights``."""
         return Mesh._wrap(self._raw.at_step(_step_index(step)))
