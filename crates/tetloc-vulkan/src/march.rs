@@ -235,7 +235,8 @@ impl VolumeMarcher {
 
     /// Marches `mesh`'s field `field` from now on: another time step of the locator's mesh
     /// (`BatchLocator::take_fields`), whose field alone is uploaded. False, with nothing
-    /// changed, where the geometry is not the same.
+    /// changed, where the geometry is not the same or the field's location (points, cells)
+    /// is not.
     pub fn take_fields(&mut self, mesh: &Arc<Mesh>, field: &str) -> tetloc_core::Result<bool> {
         // The pipeline is specialised to the field's location: another one needs a new marcher.
         let location = |m: &Mesh| m.field(field).map(|f| f.location);
