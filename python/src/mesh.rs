@@ -25,33 +25,6 @@ pub struct PyMesh {
     pub mesh: Arc<Mesh>,
     /// The file's time steps (`None`: one snapshot); the mesh holds the first step's fields.
     pub steps: Option<Arc<TimeSteps>>,
-    /// How the file was read (`None`: a mesh made from arrays): [`Self::at_step`] reads it again.
-    origin: Option<Origin>,
-}
-
-/// A mesh file and how it was read.
-#[derive(Clone)]
-struct Origin {
-    path: PathBuf,
-    format: Option<MeshFormat>,
-    options: io::ReadOptions,
-}
-
-/// Reads `origin` with the fields of step `step` (`None`: as the file stores them, the first
-/// step's for a series), without the GIL: the mesh and its steps.
-fn read_origin(py: Python<'_>, origin: &Origin, step: Option<usize>) -> PyResult<PyMesh> {
-    let o = origin.clone();
-    let (mesh, steps) = background::run(py, "reading a mesh", None, move |_| {
-        let (mut raw, steps) = io::read_series_with(&o.path, o.format, o.options).map_err(to_py)?;
-        if let Some(k) = step {
-            match &steps {
-                Some(s) => raw.fields = s.fields(k).map_err(to_py)?,
-                None => tetloc_core::mesh::steps::check_step(&o.path.display().to_string(), 0, k).map_err(to_py)?,
-            }
-        }
-        Ok((Mesh::new(raw, o.path.display().to_string()).map_err(to_py)?, steps))
-    })?;
-    Ok(PyMesh { mesh: Arc::new(mesh), steps: steps.map(Arc::new), origin: Some(origin.clone()) })
 }
 
 fn location_name(l: FieldLocation) -> &'static str {
@@ -137,7 +110,7 @@ impl PyMesh {
         // The readers' path: `Mesh::new` decomposes mixed cells and keeps higher-order nodes.
         let raw = volume.into_mesh(points, points64, fields);
         let mesh = py.detach(|| Mesh::new(raw, source)).map_err(to_py)?;
-        Ok(PyMesh { mesh: Arc::new(mesh), steps: None, origin: None })
+        Ok(PyMesh { mesh: Arc::new(mesh), steps: None })
     }
 
     #[getter]
@@ -194,21 +167,18 @@ impl PyMesh {
     /// The mesh with the fields of time step `step` (its steps kept), as the CLI's
     /// `--time-step K` reads it: only that step's fields are read, and the mesh shares this
     /// one's geometry (`Mesh::with_fields`: its faces and neighbours computed once for every
-    /// step); a mixed mesh's file is read again.
+    /// step).
     fn at_step(&self, py: Python<'_>, step: usize) -> PyResult<PyMesh> {
-        let (Some(s), Some(origin)) = (&self.steps, &self.origin) else {
+        let Some(s) = &self.steps else {
             return Err(to_py(tetloc_core::mesh::steps::check_step(&self.mesh.info.source, 0, step).unwrap_err()));
         };
         // Checked before anything is read.
         tetloc_core::mesh::steps::check_step(&s.source, s.times.len(), step).map_err(to_py)?;
-        if self.mesh.cells.is_some() {
-            return read_origin(py, origin, Some(step));
-        }
         let (steps, shown) = (s.clone(), self.mesh.clone());
         let mesh = background::run(py, "reading a time step", None, move |_| {
             shown.with_fields(steps.fields(step).map_err(to_py)?).map_err(to_py)
         })?;
-        Ok(PyMesh { mesh: Arc::new(mesh), steps: self.steps.clone(), origin: self.origin.clone() })
+        Ok(PyMesh { mesh: Arc::new(mesh), steps: self.steps.clone() })
     }
 
     /// Scalar fields `names` at time step `step`, read from the file now in one pass (a
@@ -317,5 +287,10 @@ pub fn read_mesh(py: Python<'_>, path: PathBuf, format: Option<&str>, allow_outs
         })
         .transpose()?;
     let options = io::ReadOptions { allow_outside_pieces };
-    read_origin(py, &Origin { path, format, options }, None)
+    // Without the GIL: the mesh and its steps.
+    let (mesh, steps) = background::run(py, "reading a mesh", None, move |_| {
+        let (raw, steps) = io::read_series_with(&path, format, options).map_err(to_py)?;
+        Ok((Mesh::new(raw, path.display().to_string()).map_err(to_py)?, steps))
+    })?;
+    Ok(PyMesh { mesh: Arc::new(mesh), steps: steps.map(Arc::new) })
 }

@@ -133,11 +133,8 @@ impl Series {
 
     /// Step `k`'s mesh made from `shown`, a mesh of this series, with step `k`'s fields
     /// ([`Mesh::with_fields`]: a locator built on `shown` can take it and keep its search
-    /// structures); a mixed mesh's is read as [`Self::mesh`] reads it.
+    /// structures).
     pub fn mesh_like(&self, k: usize, shown: &Mesh) -> Result<Mesh> {
-        if shown.cells.is_some() {
-            return self.mesh(k);
-        }
         Ok(shown.with_fields(self.fields(k)?)?)
     }
 

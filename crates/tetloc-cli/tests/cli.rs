@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{entries, read, s, tetloc, tetloc_cpu, tmp, tmp_dir};
+use common::{entries, read, s, tetloc, tetloc_cpu, tmp, tmp_dir, vulkan_devices};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use tetloc_testdata::{query_sets, read_f64s, require_data, run_vtk_script, QuerySet};
@@ -340,26 +340,6 @@ fn dev_zero_is_refused() {
         let (ok, _, err) = tetloc(&["info", "/dev/zero", "--format", format]);
         assert!(!ok && err.contains("/dev/zero") && err.contains("not a regular file"), "{format}: {err}");
     }
-}
-
-/// The Vulkan devices `tetloc devices` lists: (device type, ray tracing). `None` (after a
-/// SKIPPED line) when there is none outside CI; a failure in CI.
-fn vulkan_devices(test: &str) -> Option<Vec<(String, bool)>> {
-    let (ok, out, err) = tetloc(&["devices"]);
-    let list: Vec<(String, bool)> = out
-        .lines()
-        .filter_map(|l| {
-            // `0: NAME (DRIVER, TYPE), Vulkan 1.3, ...`
-            let kind = l.split_once("), Vulkan ")?.0.rsplit_once(", ")?.1.to_string();
-            Some((kind, l.contains("ray tracing: yes")))
-        })
-        .collect();
-    if ok && !list.is_empty() {
-        return Some(list);
-    }
-    assert!(!tetloc_testdata::in_ci(), "{test}: no Vulkan device in CI: {out}{err}");
-    tetloc_testdata::skip(test, "no Vulkan device");
-    None
 }
 
 /// `auto` decides in seconds and says what it chose: on a CPU-emulated Vulkan device

@@ -102,9 +102,7 @@ impl OutputSet {
             Ok(())
         });
         // What an error left is removed (those renamed are in place).
-        for (tmp, _) in files {
-            let _ = std::fs::remove_file(&tmp.0);
-        }
+        discard(files);
         renamed
     }
 }
@@ -112,11 +110,15 @@ impl OutputSet {
 impl Drop for OutputSet {
     fn drop(&mut self) {
         if self.owner {
-            let files = STAGED.lock().unwrap_or_else(PoisonError::into_inner).take().unwrap_or_default();
-            for (tmp, _) in files {
-                let _ = std::fs::remove_file(&tmp.0);
-            }
+            discard(STAGED.lock().unwrap_or_else(PoisonError::into_inner).take().unwrap_or_default());
         }
+    }
+}
+
+/// Removes staged temporaries (their targets stay as they were).
+fn discard(files: impl IntoIterator<Item = (Registered, PathBuf)>) {
+    for (tmp, _) in files {
+        let _ = std::fs::remove_file(&tmp.0);
     }
 }
 

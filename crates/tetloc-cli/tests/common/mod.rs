@@ -110,14 +110,27 @@ pub fn gmsh_series(path: &std::path::Path, times: &[f64]) {
     std::fs::write(path, text).unwrap();
 }
 
-/// `soft-bvh` where `tetloc devices` lists a Vulkan device; outside CI, none (after a
-/// SKIPPED line) where there is none, and in CI a failure.
-pub fn gpu_backend(test: &str) -> Option<&'static str> {
-    let o = Command::new(env!("CARGO_BIN_EXE_tetloc")).arg("devices").output().unwrap();
-    if o.status.success() && String::from_utf8_lossy(&o.stdout).contains(", Vulkan ") {
-        return Some("soft-bvh");
+/// The Vulkan devices `tetloc devices` lists: (device type, ray tracing). `None` (after a
+/// SKIPPED line) when there is none outside CI; a failure in CI.
+pub fn vulkan_devices(test: &str) -> Option<Vec<(String, bool)>> {
+    let (ok, out, err) = tetloc(&["devices"]);
+    let list: Vec<(String, bool)> = out
+        .lines()
+        .filter_map(|l| {
+            // `0: NAME (DRIVER, TYPE), Vulkan 1.3, ...`
+            let kind = l.split_once("), Vulkan ")?.0.rsplit_once(", ")?.1.to_string();
+            Some((kind, l.contains("ray tracing: yes")))
+        })
+        .collect();
+    if ok && !list.is_empty() {
+        return Some(list);
     }
-    assert!(!tetloc_testdata::in_ci(), "{test}: no Vulkan device in CI");
+    assert!(!tetloc_testdata::in_ci(), "{test}: no Vulkan device in CI: {out}{err}");
     tetloc_testdata::skip(test, "no Vulkan device");
     None
+}
+
+/// `soft-bvh` where there is a Vulkan device ([`vulkan_devices`]).
+pub fn gpu_backend(test: &str) -> Option<&'static str> {
+    vulkan_devices(test).map(|_| "soft-bvh")
 }

@@ -231,9 +231,8 @@ fn dist2(a: [f64; 3], b: [f64; 3]) -> f64 {
 pub struct Decomposed {
     /// How many points the file has: new point `i` is vertex `n_file_points + i`.
     pub n_file_points: usize,
-    /// Each new point is the mean of these file points: `sources[source_ends[i − 1]..source_ends[i]]`.
-    pub source_ends: Vec<u64>,
-    pub sources: Vec<u32>,
+    /// The file points each new point is the mean of.
+    pub means: Means,
     /// The new points' coordinates (the means, in f64).
     pub points: Vec<[f64; 3]>,
     /// Polyhedron `k`'s tets are `tets[tet_ends[k − 1]..tet_ends[k]]` (in no particular
@@ -249,21 +248,6 @@ impl Decomposed {
         &self.tets[start..self.tet_ends[k] as usize]
     }
 
-    /// The values of a per-vertex field at the new points: the means of its values at their
-    /// sources.
-    pub fn extend_values(&self, values: &[f64]) -> Vec<f64> {
-        (0..self.source_ends.len())
-            .map(|i| {
-                let s = &self.sources[self.source_range(i)];
-                s.iter().map(|&p| values[p as usize]).sum::<f64>() / s.len() as f64
-            })
-            .collect()
-    }
-
-    fn source_range(&self, i: usize) -> std::ops::Range<usize> {
-        (if i == 0 { 0 } else { self.source_ends[i - 1] as usize })..self.source_ends[i] as usize
-    }
-
     /// Adds a new point, the mean of `of` (file point ids), and returns its vertex id.
     fn add_mean(&mut self, of: &[u32], file: &dyn Fn(u32) -> [f64; 3]) -> u32 {
         let mut sum = [0.0f64; 3];
@@ -272,9 +256,32 @@ impl Decomposed {
             (0..3).for_each(|k| sum[k] += x[k]);
         }
         self.points.push(sum.map(|s| s / of.len() as f64));
-        self.sources.extend_from_slice(of);
-        self.source_ends.push(self.sources.len() as u64);
+        self.means.sources.extend_from_slice(of);
+        self.means.source_ends.push(self.means.sources.len() as u64);
         (self.n_file_points + self.points.len() - 1) as u32
+    }
+}
+
+/// The file points each new point of a decomposition is the mean of: a per-vertex field's
+/// values there (kept by the mesh, for every time step's fields).
+#[derive(Clone, Debug, Default)]
+pub struct Means {
+    /// New point `i` is the mean of `sources[source_ends[i − 1]..source_ends[i]]`.
+    source_ends: Vec<u64>,
+    sources: Vec<u32>,
+}
+
+impl Means {
+    /// The values of a per-vertex field at the new points: the means of its values at their
+    /// sources.
+    pub fn extend_values(&self, values: &[f64]) -> Vec<f64> {
+        (0..self.source_ends.len())
+            .map(|i| {
+                let start = if i == 0 { 0 } else { self.source_ends[i - 1] as usize };
+                let s = &self.sources[start..self.source_ends[i] as usize];
+                s.iter().map(|&p| values[p as usize]).sum::<f64>() / s.len() as f64
+            })
+            .collect()
     }
 }
 
@@ -383,7 +390,7 @@ mod tests {
         // Linear precision: an affine field's mean at each new point is its value there.
         let f = |p: [f64; 3]| 1.0 + 2.0 * p[0] - 3.0 * p[1] + 0.5 * p[2];
         let values: Vec<f64> = pts.iter().map(|&p| f(p)).collect();
-        for (v, p) in d.extend_values(&values).iter().zip(&d.points) {
+        for (v, p) in d.means.extend_values(&values).iter().zip(&d.points) {
             assert!((v - f(*p)).abs() < 1e-14);
         }
     }

@@ -468,7 +468,7 @@ pub(super) mod tests {
         agrees_with_the_search(raw, &grid.unwrap());
         let mut raw = test_support::jittered_grid(3, 0.2, 1);
         raw.fields.clear();
-        raw.tets.extend(raw.tets.to_vec());
+        raw.tets.extend(raw.tets.clone());
         let grid = ImageGrid::spanning([0.0; 3], [1.0; 3], [7, 8, 9]).unwrap();
         let ties = agrees_with_the_search(raw, &grid);
         assert!(ties >= 5 * 6 * 7, "{ties} ties");

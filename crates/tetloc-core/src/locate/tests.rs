@@ -505,4 +505,21 @@ fn a_built_locator_takes_another_steps_fields() {
         assert!(!loc.take_fields(&other), "another geometry (the same numbers, read anew)");
         assert_eq!(answers(&mut *loc), taken, "nothing changed");
     }
+    // A mixed mesh through the layers: values from its cells' shape functions.
+    use crate::gen::{generate_spec, CellKind, Shape, Spec};
+    let raw = generate_spec(Spec { shape: Shape::Jets, cells: CellKind::Hybrid }, 400, 3, &|_| ());
+    let first = Arc::new(crate::Mesh::new(raw, "hybrid").unwrap());
+    let step = Arc::new(first.with_fields(first.fields.iter().map(flipped).collect()).unwrap());
+    let names: Vec<&str> = first.fields.iter().map(|f| f.name.as_str()).collect();
+    let points = points_inside(&first, 300, 9);
+    let sampled = |loc: &mut dyn BatchLocator| {
+        let (mut ids, mut values) = (vec![0; points.len()], vec![0f32; names.len() * points.len()]);
+        loc.sample_many(&points, &names, &mut ids, &mut values).unwrap();
+        (ids, values.iter().map(|x| x.to_bits()).collect::<Vec<_>>())
+    };
+    let mut loc = layered(&first);
+    let before = sampled(&mut *loc);
+    assert!(first.cells.is_some() && loc.take_fields(&step));
+    let taken = sampled(&mut *loc);
+    assert!(taken == sampled(&mut *layered(&step)) && taken.1 != before.1, "a mixed mesh's step");
 }

@@ -22,6 +22,7 @@ pub use summary::{FieldSummary, MeshSummary};
 pub use tet_nodes::TetNodes;
 pub use vectors::VertexVectors;
 
+use crate::cell::polyhedron::Means;
 use crate::error::{Error, Result};
 use crate::geom::{self, Vec3};
 use rayon::prelude::*;
@@ -184,7 +185,7 @@ pub struct MeshInfo {
 
 /// A validated tetrahedral mesh, ready for point location.
 ///
-/// Its geometry (points, tets, faces, neighbours) sits behind `Arc`s: the meshes of a time
+/// Its geometry (points, tets, cells, faces, neighbours) sits behind `Arc`s: the meshes of a time
 /// series' steps ([`Mesh::with_fields`]) share one copy, which none of them can change.
 #[derive(Debug)]
 pub struct Mesh {
@@ -201,8 +202,11 @@ pub struct Mesh {
     pub tet_nodes: Option<TetNodes>,
     /// A mesh with cells other than tets: the cells, and the map from `tets` (their conforming
     /// decomposition) to them. `None` for a mesh of tets: it pays nothing for mixed cells.
-    pub cells: Option<Cells>,
+    pub cells: Option<Arc<Cells>>,
     pub info: MeshInfo,
+    /// A mesh with polyhedra: the file points each centroid is the mean of, for every step's
+    /// point data there.
+    means: Option<Arc<Means>>,
     /// Shared by the meshes of one geometry ([`Mesh::with_fields`]), as computed by the first.
     faces: Arc<OnceLock<FaceSet>>,
     neighbors: Arc<OnceLock<Vec<[i32; 4]>>>,
@@ -214,9 +218,17 @@ pub struct Mesh {
 /// The numbers [`Mesh::new`] gives each geometry.
 static GEOMETRIES: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
-/// Refuses fields whose lengths do not fit the mesh: one value a file point or a cell.
-fn check_fields(fields: &[Field], n_points: usize, n_cells: usize, err: impl Fn(String) -> Error) -> Result<()> {
-    for f in fields {
+/// Refuses fields whose lengths do not fit the mesh (one value a file point or a cell), and
+/// gives the per-vertex ones their values at the polyhedra's centroids (`means`): the means of
+/// the values they are the means of.
+fn complete_fields(
+    fields: &mut [Field],
+    n_points: usize,
+    n_cells: usize,
+    means: Option<&Means>,
+    err: impl Fn(String) -> Error,
+) -> Result<()> {
+    for f in fields.iter() {
         let want = match f.location {
             FieldLocation::Vertex => n_points,
             FieldLocation::Cell => n_cells,
@@ -231,6 +243,12 @@ fn check_fields(fields: &[Field], n_points: usize, n_cells: usize, err: impl Fn(
         }
         if let Some(v) = f.values64.as_ref().filter(|v| v.len() != want) {
             return Err(err(format!("field '{}' has {} f64 values, expected {want}", f.name, v.len())));
+        }
+    }
+    if let Some(means) = means {
+        for f in fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
+            let file: Vec<f64> = (0..n_points).map(|i| f.value64(i)).collect();
+            f.extend_from(&Field::from_f64(f.name.clone(), f.location, means.extend_values(&file)));
         }
     }
     Ok(())
@@ -305,14 +323,8 @@ impl Mesh {
             )));
         }
         let n_cells = mixed.as_ref().map_or(tets.len(), Cells::len);
-        check_fields(&fields, n_file_points, n_cells, err)?;
-        // Point data at the centroids: the means of the values they are the means of.
-        if let Some(d) = &poly {
-            for f in fields.iter_mut().filter(|f| f.location == FieldLocation::Vertex) {
-                let file: Vec<f64> = (0..n_file_points).map(|i| f.value64(i)).collect();
-                f.extend_from(&Field::from_f64(f.name.clone(), f.location, d.extend_values(&file)));
-            }
-        }
+        let means = poly.map(|d| Arc::new(d.means));
+        complete_fields(&mut fields, n_file_points, n_cells, means.as_deref(), err)?;
 
         // Higher-order nodes follow their corners into canonical order.
         let tet_nodes = match &cells {
@@ -400,34 +412,32 @@ impl Mesh {
             tets: Arc::new(tets),
             fields,
             tet_nodes,
-            cells: mixed,
+            cells: mixed.map(Arc::new),
             info,
+            means,
             faces: Arc::default(),
             neighbors: Arc::default(),
             geometry: GEOMETRIES.fetch_add(1, std::sync::atomic::Ordering::Relaxed),
         })
     }
 
-    /// This mesh with `fields` in place of its own: another time step of it. Its geometry is
-    /// shared (the higher-order nodes copied), so nothing is validated or reordered again but
-    /// the fields' lengths, as
-    /// [`Mesh::new`] checks them; a locator built on this mesh can take the new one's
-    /// fields and keep its search structures (`BatchLocator::take_fields`). Refused for a
-    /// mixed mesh, whose cells are not copied: read its step anew.
-    pub fn with_fields(&self, fields: Vec<Field>) -> Result<Mesh> {
+    /// This mesh with `fields` in place of its own: another time step of it. Its geometry
+    /// (and a mixed mesh's cells) is shared, so nothing is validated or reordered again: the
+    /// fields are checked and completed as [`Mesh::new`] does it (their values at the
+    /// polyhedra's centroids). A locator built on this mesh can take the new one's fields and
+    /// keep its search structures (`BatchLocator::take_fields`).
+    pub fn with_fields(&self, mut fields: Vec<Field>) -> Result<Mesh> {
         let err = |msg: String| Error::Mesh { source_name: self.info.source.clone(), msg };
-        if self.cells.is_some() {
-            return Err(err("a mixed mesh takes another step's fields only when read anew".into()));
-        }
-        check_fields(&fields, self.info.n_points, self.n_cells(), err)?;
+        complete_fields(&mut fields, self.info.n_points, self.n_cells(), self.means.as_deref(), err)?;
         Ok(Mesh {
             points: self.points.clone(),
             points64: self.points64.clone(),
             tets: self.tets.clone(),
             fields,
             tet_nodes: self.tet_nodes.clone(),
-            cells: None,
+            cells: self.cells.clone(),
             info: self.info.clone(),
+            means: self.means.clone(),
             faces: self.faces.clone(),
             neighbors: self.neighbors.clone(),
             geometry: self.geometry,
@@ -447,7 +457,7 @@ impl Mesh {
 
     /// The file's volume cells: the tets, or a mixed mesh's cells.
     pub fn n_cells(&self) -> usize {
-        self.cells.as_ref().map_or(self.tets.len(), Cells::len)
+        self.cells.as_ref().map_or(self.tets.len(), |c| c.len())
     }
 
     /// The cell that tet `t` is (a tet mesh) or belongs to (a mixed mesh's decomposition).

@@ -988,7 +988,7 @@ mod tests {
             assert_eq!(a.values.len(), b.values.len());
         }
         // Positive volume in VTK's convention: det(p1 - p0, p2 - p0, p3 - p0) > 0.
-        for t in back.tets.iter() {
+        for t in &back.tets {
             let p = t.map(|i| back.points[i as usize].map(f64::from));
             let d = |k: usize| [0, 1, 2].map(|c| p[k][c] - p[0][c]);
             let (a, b, c) = (d(1), d(2), d(3));
