@@ -268,7 +268,7 @@ impl Common {
         build: impl FnOnce() -> Result<Box<dyn tetloc_core::BatchLocator + Send>>,
         work: impl FnOnce(&mut dyn tetloc_core::BatchLocator) -> Result<R>,
     ) -> Result<R> {
-        time_steps::with_locator(self.kept.as_ref(), mesh, build, work)
+        time_steps::with_locator(self.kept.as_ref(), mesh, build, |loc| work(loc.as_mut()))
     }
 
     fn opts(&self) -> Result<BackendOptions> {

@@ -8,6 +8,7 @@
 
 use crate::{mesh_arg, progress, Common};
 use anyhow::{Context, Result};
+use std::any::Any;
 use std::cell::RefCell;
 use std::ffi::OsStr;
 use std::io::Write;
@@ -243,13 +244,13 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
 }
 
 /// The locator a step's run of `--time-step all` leaves for the next one's, with the mesh it
-/// locates in (the steps share their geometry: the next step's mesh is made from it).
+/// locates in (the steps share their geometry: the next step's mesh is made from it). Any
+/// locator type: the front door's stack, or the CPU's own for `trace`'s per-particle walks.
 #[derive(Clone, Default)]
 pub struct KeptLocator(Rc<RefCell<Option<Kept>>>);
 
-/// A locator as the front door builds it, and the mesh it locates in now.
-type BuiltLocator = Box<dyn BatchLocator + Send>;
-type Kept = (Arc<Mesh>, BuiltLocator);
+/// A locator (a `L` of [`with_locator`], boxed) and the mesh it locates in now.
+type Kept = (Arc<Mesh>, Box<dyn Any>);
 
 impl KeptLocator {
     /// The mesh of the locator kept, if any.
@@ -265,30 +266,27 @@ impl std::fmt::Debug for KeptLocator {
 }
 
 /// Runs `work` with a locator for `mesh`: under `--time-step all` (`kept`), the step
-/// before's, given this step's fields where it can take them (`BatchLocator::take_fields`:
-/// its search kept), and kept in turn for the next step when `work` succeeds; else the one
-/// `build` makes.
-pub fn with_locator<R>(
+/// before's when it is an `L` too, given this step's fields where it can take them
+/// (`BatchLocator::take_fields`: its search kept), and kept in turn for the next step when
+/// `work` succeeds; else the one `build` makes.
+pub fn with_locator<L: BatchLocator + 'static, R>(
     kept: Option<&KeptLocator>,
     mesh: &Arc<Mesh>,
-    build: impl FnOnce() -> Result<BuiltLocator>,
-    work: impl FnOnce(&mut dyn BatchLocator) -> Result<R>,
+    build: impl FnOnce() -> Result<L>,
+    work: impl FnOnce(&mut L) -> Result<R>,
 ) -> Result<R> {
-    let mut loc = match kept.and_then(|k| k.0.borrow_mut().take()) {
-        Some((_, mut old)) => {
-            if old.take_fields(mesh) {
-                old
-            } else {
-                // Its memory freed before the new one is built.
-                drop(old);
-                build()?
-            }
+    let old = kept.and_then(|k| k.0.borrow_mut().take()).and_then(|(_, old)| old.downcast::<L>().ok());
+    let mut loc = match old.map(|mut old| (old.take_fields(mesh), old)) {
+        Some((true, old)) => *old,
+        old => {
+            // Its memory freed before the new one is built.
+            drop(old);
+            build()?
         }
-        None => build()?,
     };
-    let out = work(loc.as_mut());
+    let out = work(&mut loc);
     if let (Some(k), true) = (kept, out.is_ok()) {
-        *k.0.borrow_mut() = Some((mesh.clone(), loc));
+        *k.0.borrow_mut() = Some((mesh.clone(), Box::new(loc)));
     }
     out
 }

@@ -213,44 +213,57 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
     };
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
+    // Under --time-step all each step's run takes the locator the step before left.
+    let kept = a.common.kept.as_ref();
     if backend == Backend::Cpu && m.cells.is_none() {
         // Deferred: the tracer builds the search it needs (the bins, not the BVH).
-        let bare = progress::with_spinner("building the locator", || builder.defer_cpu_build(true).build_bare())?;
-        let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
-        let pb = progress::bar(n_lines as u64, "tracing on cpu");
-        let mut base = 0;
-        let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
-            let t0 = Instant::now();
-            // The line fields come from the integrator's own lookups (no second pass).
-            let arrays = trace::trace_sampled(&seeds[seeds_in.clone()], &ob, &cpu, [x, y, z], &out_fields, &|d| {
-                pb.set_position((base + d) as u64);
-                Ok(())
-            })?;
-            secs += t0.elapsed().as_secs_f64();
-            base += seeds_in.len();
-            Ok((arrays, seeds_in.start))
+        let build = || {
+            let bare = progress::with_spinner("building the locator", || builder.defer_cpu_build(true).build_bare())?;
+            let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
+            Ok(cpu)
         };
-        overlapped(batches, trace_batch, spill)?;
-        pb.finish_and_clear();
+        time_steps::with_locator(kept, &m, build, |cpu| {
+            let cpu: &tetloc_core::CpuLocator = cpu;
+            let pb = progress::bar(n_lines as u64, "tracing on cpu");
+            let mut base = 0;
+            let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
+                let t0 = Instant::now();
+                // The line fields come from the integrator's own lookups (no second pass).
+                let arrays = trace::trace_sampled(&seeds[seeds_in.clone()], &ob, cpu, [x, y, z], &out_fields, &|d| {
+                    pb.set_position((base + d) as u64);
+                    Ok(())
+                })?;
+                secs += t0.elapsed().as_secs_f64();
+                base += seeds_in.len();
+                Ok((arrays, seeds_in.start))
+            };
+            overlapped(batches, trace_batch, spill)?;
+            pb.finish_and_clear();
+            Ok(())
+        })?;
     } else {
-        let mut loc = progress::with_spinner("building the locator", || builder.build())?.locator;
-        let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
-        let mut base = 0;
-        let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
-            let t0 = Instant::now();
-            let lines = trace::trace_with(&seeds[seeds_in.clone()], &ob, loc.as_mut(), [x, y, z], &out_fields, |d| {
-                pb.set_position((base + d) as u64);
-                Ok(())
-            })?;
-            secs += t0.elapsed().as_secs_f64();
-            let t1 = Instant::now();
-            let arrays = trace::LineArrays::sample(&lines, &m, loc.as_mut(), &out_fields)?;
-            sampling += t1.elapsed().as_secs_f64();
-            base += seeds_in.len();
-            Ok((arrays, seeds_in.start))
-        };
-        overlapped(batches, trace_batch, spill)?;
-        pb.finish_and_clear();
+        let build = || Ok(progress::with_spinner("building the locator", || builder.build())?.locator);
+        time_steps::with_locator(kept, &m, build, |loc| {
+            let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
+            let mut base = 0;
+            let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
+                let t0 = Instant::now();
+                let lines =
+                    trace::trace_with(&seeds[seeds_in.clone()], &ob, loc.as_mut(), [x, y, z], &out_fields, |d| {
+                        pb.set_position((base + d) as u64);
+                        Ok(())
+                    })?;
+                secs += t0.elapsed().as_secs_f64();
+                let t1 = Instant::now();
+                let arrays = trace::LineArrays::sample(&lines, &m, loc.as_mut(), &out_fields)?;
+                sampling += t1.elapsed().as_secs_f64();
+                base += seeds_in.len();
+                Ok((arrays, seeds_in.start))
+            };
+            overlapped(batches, trace_batch, spill)?;
+            pb.finish_and_clear();
+            Ok(())
+        })?;
     }
     let (n_points, n_made) = (writer.n_points(), writer.n_lines());
     let t_write = Instant::now();

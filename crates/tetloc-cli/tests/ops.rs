@@ -490,21 +490,23 @@ fn probe_matches_vtk_on(test: &str, data: &Path) {
 
 /// `--time-step all` runs each step with the locator the step before left, given that
 /// step's fields (its search kept): every step's output is `--time-step K`'s run alone, byte
-/// for byte, for `probe`, `resample` and `locate`, on the CPU and on a GPU kernel, and the
+/// for byte, for `probe`, `resample`, `locate` and `trace` (streamlines in each step's `v`),
+/// on the CPU and on a GPU kernel, and the
 /// steps differ.
 #[test]
 fn each_step_of_all_is_that_step_run_alone() {
     let dir = tmp_dir("each_step");
     let series = dir.join("steps.msh");
-    common::gmsh_series(&series, &[0.0, 0.5, 1.5]);
+    common::gmsh_series_of(&series, &[0.0, 0.5, 1.5], true);
     let pts = dir.join("p.csv");
     let text: String =
         (0..200).map(|i| format!("{},{},{}\n", 0.05 + 0.0045 * i as f64, 0.3 + 0.002 * i as f64, 0.61)).collect();
     std::fs::write(&pts, text).unwrap();
-    let runs: [(&str, &str, Vec<&str>); 3] = [
+    let runs: [(&str, &str, Vec<&str>); 4] = [
         ("probe", "vtu", vec![s(&series), s(&pts)]),
         ("resample", "npy", vec![s(&series), "--dims", "9,8,7", "--field", "f"]),
         ("locate", "csv", vec![s(&series), "--points", s(&pts), "--field", "f"]),
+        ("trace", "vtp", vec![s(&series), "--vector", "v", "--seeds", s(&pts), "--step", "0.01"]),
     ];
     for backend in ["cpu"].into_iter().chain(common::gpu_backend("each_step_of_all_is_that_step_run_alone")) {
         for (command, ext, args) in &runs {

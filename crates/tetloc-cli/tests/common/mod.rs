@@ -74,6 +74,12 @@ macro_rules! oracle_tests {
 /// A Gmsh file of a Kuhn cube (3³ cubes, 162 tets) with the vertex field `f` = x + k·y at
 /// step k of `times` (a pattern that changes, not only its scale).
 pub fn gmsh_series(path: &std::path::Path, times: &[f64]) {
+    gmsh_series_of(path, times, false)
+}
+
+/// [`gmsh_series`], and with `flow` a vector `v` at each step after its `f`:
+/// `(0.2, 0.1 + step·(x − 0.5), 0.05)`.
+pub fn gmsh_series_of(path: &std::path::Path, times: &[f64], flow: bool) {
     let n = 3usize;
     let id = |i: usize, j: usize, k: usize| 1 + i + (n + 1) * (j + (n + 1) * k);
     let corners: Vec<[usize; 3]> =
@@ -106,6 +112,14 @@ pub fn gmsh_series(path: &std::path::Path, times: &[f64]) {
             text += &format!("{} {}\n", i + 1, p[0] + step as f64 * p[1]);
         }
         text += "$EndNodeData\n";
+        if flow {
+            text += &format!("$NodeData\n1\n\"v\"\n1\n{t:?}\n3\n{step}\n3\n{}\n", corners.len());
+            for (i, c) in corners.iter().enumerate() {
+                let p = x(c);
+                text += &format!("{} 0.2 {} 0.05\n", i + 1, 0.1 + step as f64 * (p[0] - 0.5));
+            }
+            text += "$EndNodeData\n";
+        }
     }
     std::fs::write(path, text).unwrap();
 }
