@@ -198,6 +198,8 @@ fn a_mesh_takes_another_steps_fields_on_its_geometry() {
         assert_eq!(format!("{:?}", step.fields), format!("{:?}", read.fields));
         assert!(Arc::ptr_eq(&step.points, &first.points) && Arc::ptr_eq(&step.tets, &first.tets), "shared");
         assert!(Arc::ptr_eq(&step.neighbors, &first.neighbors), "the neighbours are shared");
+        let table = |m: &Mesh| m.tet_nodes.as_ref().map(|n| n.table().as_ptr());
+        assert!(table(&step) == table(&first), "the higher-order nodes are shared");
         let short = vec![Field::new("p", FieldLocation::Vertex, vec![0.0; n - 1])];
         let e = first.with_fields(short).unwrap_err().to_string();
         assert!(e.contains("s.pvd") && e.contains(&format!("field 'p' has {} values, expected {n}", n - 1)), "{e}");

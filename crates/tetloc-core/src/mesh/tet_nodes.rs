@@ -10,14 +10,16 @@
 use crate::cell::{self, corner_permutation, CellBlock, CellType, TetPermutations};
 use crate::geom::Bary64;
 use rayon::prelude::*;
+use std::sync::Arc;
 
 /// The nodes of a mesh of higher-order tets, all of one type.
 #[derive(Clone, Debug)]
 pub struct TetNodes {
     ty: CellType,
     /// Per tet, `n_extra()` node ids: the tet's nodes after its 4 corners, in VTK's node order
-    /// for `ty` taken over the tet's *canonical* corners (`Mesh::tets`).
-    extra: Vec<u32>,
+    /// for `ty` taken over the tet's *canonical* corners (`Mesh::tets`). Shared by a
+    /// series' steps (`Mesh::with_fields`), as the corners are.
+    extra: Arc<Vec<u32>>,
 }
 
 impl TetNodes {
@@ -70,7 +72,7 @@ impl TetNodes {
                 out.copy_from_slice(&row[4..]);
             },
         );
-        Ok(Some(TetNodes { ty: *first, extra }))
+        Ok(Some(TetNodes { ty: *first, extra: Arc::new(extra) }))
     }
 
     /// The tets' cell type.
@@ -118,7 +120,7 @@ impl TetNodes {
     }
 
     pub fn memory_bytes(&self) -> usize {
-        std::mem::size_of_val(self.extra.as_slice())
+        std::mem::size_of_val(self.table())
     }
 }
 
