@@ -217,10 +217,12 @@ fn exact_local(frame: &LocalFrame, x: Point) -> r::Exact3 {
 
 /// A mesh-like frame for four points: the box of the points and of two far corners `ratio`
 /// times the points' spread away, so that the points are a small part of the mesh (0: the
-/// points' own box).
+/// points' own box). Points that all coincide get far corners at `ratio` (their corners
+/// would otherwise lie a denormal's width away, outside the predicates' domain).
 fn frame_for(pts: &[Point], ratio: f64) -> LocalFrame {
     let c = pts[0];
-    let spread = pts.iter().flat_map(|p| (0..3).map(move |k| (p[k] - c[k]).abs())).fold(1e-300, f64::max);
+    let spread = pts.iter().flat_map(|p| (0..3).map(move |k| (p[k] - c[k]).abs())).fold(0.0, f64::max);
+    let spread = if spread > 0.0 { spread } else { 1.0 };
     let far = |s: f64| std::array::from_fn(|k| c[k] + s * ratio * spread * [1.0, 0.7, 0.4][k]);
     let mut all = pts.to_vec();
     all.extend([far(1.0), far(-1.3)]);
