@@ -154,6 +154,7 @@ fn auto_takes_cpu_on_a_cpu_device() {
 /// Every stack the front door builds takes another time step's fields (`Mesh::with_fields`)
 /// through all its layers, on the CPU and on a GPU kernel: the search is kept where a viewer
 /// or `render --time-step all` moves through time, and the answers are then a new stack's.
+/// The layers pass the backend's preferred batch on too.
 #[test]
 fn every_built_stack_takes_another_steps_fields() {
     let m = mesh();
@@ -174,6 +175,8 @@ fn every_built_stack_takes_another_steps_fields() {
                 b.tolerance(tolerance.parse().unwrap()).build().unwrap()
             };
             let mut built = b(&m);
+            // (And the backend's preferred batch comes through every layer: the CPU's alone.)
+            assert_eq!(built.locator.preferred_batch().is_some(), backend == Backend::Cpu, "{}", built.describe());
             assert!(built.locator.take_fields(&step), "{}", built.describe());
             let sampled = |loc: &mut dyn BatchLocator| {
                 let (mut ids, mut values) = (vec![0; points.len()], vec![0f32; points.len()]);

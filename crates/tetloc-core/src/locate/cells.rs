@@ -334,6 +334,10 @@ impl<L: BatchLocator> BatchLocator for CellLocator<L> {
         taken
     }
 
+    fn preferred_batch(&self) -> Option<usize> {
+        self.inner.preferred_batch()
+    }
+
     /// Mixed meshes: the inner backend's tets (on f64 points its exact f64 path), refined to
     /// cells on the file's coordinates, and values from the cells' shape functions (in f64 on
     /// the file's values for f64 values).

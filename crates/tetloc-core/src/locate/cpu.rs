@@ -41,6 +41,9 @@ const TETS_A_SORTED_POINT: usize = 32;
 /// The fewest points a task of a small batch gets (fewer stay on the calling thread): rayon's
 /// hand-over costs about as much as walking them.
 const MIN_TASK: usize = 128;
+/// The points a batch should hold at most ([`BatchLocator::preferred_batch`]), but never too
+/// few to be sorted.
+const BATCH: usize = 1 << 16;
 /// Walk steps before giving up and traversing the BVH.
 const MAX_WALK: usize = 24;
 /// The batches' bins, in mean edge lengths a side.
@@ -533,6 +536,12 @@ impl BatchLocator for CpuLocator {
         self.mesh = mesh.clone();
         self.raster = None;
         true
+    }
+
+    /// A batch's values in cache until they are copied out: the probe of fusion 1.4M at
+    /// 983k points (five values a point) ran 4–5 % faster in batches of 2^16 than in one.
+    fn preferred_batch(&self) -> Option<usize> {
+        Some(BATCH.max(self.mesh.n_tets() / TETS_A_SORTED_POINT))
     }
 
     /// f32 points: one lookup per point for every field. f64 points: exact on the file's

@@ -84,6 +84,13 @@ pub trait BatchLocator {
         None
     }
 
+    /// The most points a batch of queries should hold for this backend's best rate, or
+    /// `None` for any (`ops` cuts larger jobs into such batches). The CPU's is small enough
+    /// for a batch's values to stay in cache; a GPU's launches want them large.
+    fn preferred_batch(&self) -> Option<usize> {
+        None
+    }
+
     /// Takes `mesh`'s fields in place of its own mesh's, keeping what it built: `mesh` has
     /// the geometry of the mesh it locates in ([`Mesh::same_geometry`]: another time step,
     /// made by [`Mesh::with_fields`]). False, with nothing changed, where the geometry is not
@@ -143,6 +150,10 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     }
     fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
         (**self).take_fields(mesh)
+    }
+
+    fn preferred_batch(&self) -> Option<usize> {
+        (**self).preferred_batch()
     }
 }
 
@@ -299,6 +310,10 @@ impl<L: BatchLocator> BatchLocator for FiniteOnly<L> {
 
     fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
         self.inner.take_fields(mesh)
+    }
+
+    fn preferred_batch(&self) -> Option<usize> {
+        self.inner.preferred_batch()
     }
 
     /// The backend's own tracer gets only the finite seeds ([`LineTracer`] below).

@@ -71,6 +71,10 @@ impl<L: BatchLocator> BatchLocator for F64Values<L> {
         taken
     }
 
+    fn preferred_batch(&self) -> Option<usize> {
+        self.inner.preferred_batch()
+    }
+
     /// f64 points on a mesh of tets: the backend's ids, then the host's f64 values there.
     fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> Result<()> {
         let Points::F64(p) = points else { return self.inner.query(points, fields, ids, values) };

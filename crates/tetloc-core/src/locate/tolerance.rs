@@ -286,6 +286,10 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
         taken
     }
 
+    fn preferred_batch(&self) -> Option<usize> {
+        self.inner.preferred_batch()
+    }
+
     /// The backend's answers, then the rescue of its outside points (values from the file's
     /// values in f64, rounded for f32 values). No grid sampler or tracer of the backend's
     /// own: they would skip the rescue.

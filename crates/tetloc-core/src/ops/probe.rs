@@ -52,32 +52,58 @@ pub fn probe_points(
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<Probed> {
     let names: Vec<&str> = fields.iter().flat_map(|g| g.component_refs()).collect();
-    let width = names.len();
     let n = points.len();
     let mut ids = vec![0i32; n];
+    // Batches as the backend takes them best: the CPU's values stay in cache until each
+    // batch's columns are copied to the fields' arrays.
+    let batch = loc.preferred_batch().unwrap_or(CHUNK).clamp(1, CHUNK);
     // Fields of f64 data, and points f32 cannot hold, go through the f64 path (its exact
     // ids and f64 values) where the backend takes f64 points (an empty batch says whether
     // it does): every field in one pass.
     let wide =
         (fields.iter().any(|g| g.f64) || points.need_f64()) && loc.sample_many64(&[], &names, &mut [], &mut []).is_ok();
     if wide {
-        let mut values = vec![0f64; n * width];
-        for start in (0..n).step_by(CHUNK) {
-            let r = start..(start + CHUNK).min(n);
-            let p64 = points.wide(r.clone());
-            loc.sample_many64(&p64, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
-            progress(r.end)?;
-        }
-        return Ok(Probed::from_values64(ids, fields, &values));
+        let arrays64 = in_batches(n, batch, fields, &mut ids, &mut progress, |r, ids, values| {
+            loc.sample_many64(&points.wide(r), &names, ids, values)
+        })?;
+        let arrays =
+            fields.iter().zip(&arrays64).map(|(g, v)| (g.clone(), v.par_iter().map(|&v| v as f32).collect())).collect();
+        let arrays64 = fields.iter().zip(arrays64).map(|(g, v)| g.f64.then_some(v)).collect();
+        return Ok(Probed { ids, arrays, arrays64 });
     }
-    let mut values = vec![0f32; n * width];
-    for start in (0..n).step_by(CHUNK) {
-        let r = start..(start + CHUNK).min(n);
-        let p = points.narrow(r.clone());
-        loc.sample_many(&p, &names, &mut ids[r.clone()], &mut values[r.start * width..r.end * width])?;
+    let arrays = in_batches(n, batch, fields, &mut ids, &mut progress, |r, ids, values| {
+        loc.sample_many(&points.narrow(r), &names, ids, values)
+    })?;
+    Ok(Probed { ids, arrays: fields.iter().cloned().zip(arrays).collect(), arrays64: Vec::new() })
+}
+
+/// Samples `n` points in batches of `batch` (`sample(range, ids, values)`, every field's
+/// components a point), each batch's values in one buffer, reused, and copied out to one
+/// array per field (its components together).
+fn in_batches<T: Copy + Default + Send + Sync>(
+    n: usize,
+    batch: usize,
+    fields: &[FieldGroup],
+    ids: &mut [i32],
+    progress: &mut impl FnMut(usize) -> Result<()>,
+    mut sample: impl FnMut(std::ops::Range<usize>, &mut [i32], &mut [T]) -> Result<()>,
+) -> Result<Vec<Vec<T>>> {
+    let width: usize = fields.iter().map(FieldGroup::n_components).sum();
+    let mut arrays: Vec<Vec<T>> = fields.iter().map(|g| vec![T::default(); n * g.n_components()]).collect();
+    let mut buffer = vec![T::default(); batch.min(n) * width];
+    for start in (0..n).step_by(batch) {
+        let r = start..(start + batch).min(n);
+        let values = &mut buffer[..r.len() * width];
+        sample(r.clone(), &mut ids[r.clone()], values)?;
+        let mut at = 0;
+        for (g, out) in fields.iter().zip(&mut arrays) {
+            let k = g.n_components();
+            super::copy_components(values, width, at..at + k, &mut out[r.start * k..r.end * k]);
+            at += k;
+        }
         progress(r.end)?;
     }
-    Ok(Probed::from_values(ids, fields, &values))
+    Ok(arrays)
 }
 
 impl Probed {
@@ -226,5 +252,64 @@ mod tests {
         let q = probe(&mut CpuLocator::new(far.clone()), &p32, &groups, |_| Ok(())).unwrap();
         let off = want.iter().zip(&q.arrays[0].1).filter(|(a, b)| (*a - *b).abs() > 1e-3 || b.is_nan()).count();
         assert!(off > 0, "f32 targets this far out lose precision");
+    }
+
+    /// A probe in the backend's batches (here 7 points, the last batch short) is the probe
+    /// in one: the same ids, every field's values bit for bit, the progress at each batch's
+    /// end; in f32 and in f64 (a field of f64 data).
+    #[test]
+    fn batches_give_the_one_batch_answers() {
+        use crate::mesh::{Field, FieldLocation};
+        struct Batched(CpuLocator);
+        impl BatchLocator for Batched {
+            fn name(&self) -> &str {
+                "batched"
+            }
+            fn query(
+                &mut self,
+                points: Points<'_>,
+                fields: &[&str],
+                ids: &mut [i32],
+                values: crate::locate::Values<'_>,
+            ) -> Result<()> {
+                assert!(points.len() <= 7, "a batch of {}", points.len());
+                self.0.query(points, fields, ids, values)
+            }
+            fn preferred_batch(&self) -> Option<usize> {
+                Some(7)
+            }
+        }
+        let mut m = KuhnGrid::new(3).jitter(0.2, 4).mesh("cube");
+        let g: Vec<f64> = m.points.iter().map(|p| 1e-9 + p[1] as f64 * 1e-12).collect();
+        for k in 0..3 {
+            let v = m.points.iter().map(|p| p[k] * (k as f32 - 1.5)).collect();
+            m.fields.push(Field::new(format!("v[{k}]"), FieldLocation::Vertex, v));
+        }
+        m.fields.push(Field::new("h", FieldLocation::Cell, (0..m.n_tets()).map(|t| t as f32).collect()));
+        m.fields.push(Field::from_f64("g", FieldLocation::Vertex, g));
+        let m = Arc::new(m);
+        let mut points: Vec<Vec3> = (0..60).map(|i| [0.017 * i as f32, 0.4 + 0.009 * i as f32, 0.5]).collect();
+        points.push([1.5, 0.5, 0.5]);
+        let bits = |p: &Probed| {
+            let f32s =
+                p.arrays.iter().map(|(_, v)| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>()).collect::<Vec<_>>();
+            let f64s = p.arrays64.iter().map(|v| v.as_ref().map(|v| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>()));
+            (p.ids.clone(), f32s, f64s.collect::<Vec<_>>())
+        };
+        let all = fields::groups_of(&m.fields);
+        assert!(all.iter().any(|g| g.f64) && all.iter().any(|g| g.n_components() == 3), "f64 and vector fields");
+        for groups in [fields::groups_of(&m.fields[..1]), all] {
+            let one = probe(&mut CpuLocator::new(m.clone()), &points, &groups, |_| Ok(())).unwrap();
+            let mut done = Vec::new();
+            let batched = probe(&mut Batched(CpuLocator::new(m.clone())), &points, &groups, |d| {
+                done.push(d);
+                Ok(())
+            })
+            .unwrap();
+            assert!(bits(&one) == bits(&batched), "{} fields", groups.len());
+            assert_eq!(one.arrays.len(), groups.len());
+            assert_eq!(done, (1..=9).map(|k| (7 * k).min(61)).collect::<Vec<_>>());
+            assert!(one.n_valid() > 50 && one.n_valid() < 61);
+        }
     }
 }
