@@ -211,10 +211,10 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
         spilling += t.elapsed().as_secs_f64();
         Ok(())
     };
-    // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
-    // maps answers to cells and interpolates with the cells' shape functions.
     // Under --time-step all each step's run takes the locator the step before left.
     let kept = a.common.kept.as_ref();
+    // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
+    // maps answers to cells and interpolates with the cells' shape functions.
     if backend == Backend::Cpu && m.cells.is_none() {
         // Deferred: the tracer builds the search it needs (the bins, not the BVH).
         let build = || {

@@ -32,7 +32,7 @@ impl Probed {
     }
 }
 
-/// Samples `fields` (of the mesh `loc` locates in) at `points`, in chunks; `progress` gets the
+/// Samples `fields` (of the mesh `loc` locates in) at `points`, in the backend's batches; `progress` gets the
 /// number of points done so far (an error from it stops the probe: an interruption).
 pub fn probe(
     loc: &mut dyn BatchLocator,
