@@ -32,8 +32,9 @@ impl Probed {
     }
 }
 
-/// Samples `fields` (of the mesh `loc` locates in) at `points`, in the backend's batches; `progress` gets the
-/// number of points done so far (an error from it stops the probe: an interruption).
+/// Samples `fields` (of the mesh `loc` locates in) at `points`, in the backend's batches;
+/// `progress` gets the number of points done so far (an error from it stops the probe: an
+/// interruption).
 pub fn probe(
     loc: &mut dyn BatchLocator,
     points: &[Vec3],
