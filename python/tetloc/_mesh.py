@@ -298,9 +298,9 @@ class Mesh:
         """This mesh with the fields of time step `step` (0-based, an index into ``times``) in
         place of the first step's, so that ``probe``, ``resample_to_image``, ``trace`` and
         ``Locator`` work on that step (as the CLI's ``--time-step K``): only that step's fields
-        are read, on this mesh's geometry (shared, not copied), its steps kept. ``ValueError`` for a step out of range or a
-        mesh without steps. To sample many steps at the same points, locate once instead:
-        ``Locator.step_weights``."""
+        are read, on this mesh's geometry (shared, not copied), its steps kept. ``ValueError``
+        for a step out of range or a mesh without steps. To sample many steps at the same
+        points, locate once instead: ``Locator.step_weights``."""
         return Mesh._wrap(self._raw.at_step(_step_index(step)))
 
     def field_location(self, name: str) -> str:

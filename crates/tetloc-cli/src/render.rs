@@ -400,17 +400,7 @@ pub fn kept_or_built<'a>(
     renderer: &tr::Renderer,
     build: impl FnOnce() -> Result<AnyMarcher>,
 ) -> Result<&'a mut AnyMarcher> {
-    let ready = match marcher.take() {
-        Some(mut m) => {
-            if m.take_step(renderer)? {
-                m
-            } else {
-                drop(m);
-                build()?
-            }
-        }
-        None => build()?,
-    };
+    let ready = crate::time_steps::taken_or_built(marcher.take(), |m| m.take_step(renderer), build)?;
     Ok(marcher.insert(ready))
 }
 

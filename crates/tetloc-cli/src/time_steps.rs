@@ -276,19 +276,29 @@ pub fn with_locator<L: BatchLocator + 'static, R>(
     work: impl FnOnce(&mut L) -> Result<R>,
 ) -> Result<R> {
     let old = kept.and_then(|k| k.0.borrow_mut().take()).and_then(|(_, old)| old.downcast::<L>().ok());
-    let mut loc = match old.map(|mut old| (old.take_fields(mesh), old)) {
-        Some((true, old)) => *old,
-        old => {
-            // Its memory freed before the new one is built.
-            drop(old);
-            build()?
-        }
-    };
+    let mut loc = taken_or_built(old.map(|old| *old), |old| Ok(old.take_fields(mesh)), build)?;
     let out = work(&mut loc);
     if let (Some(k), true) = (kept, out.is_ok()) {
         *k.0.borrow_mut() = Some((mesh.clone(), Box::new(loc)));
     }
     out
+}
+
+/// What a step is shown or run with: `old`, the step before's, where `take` makes it take
+/// the step (true), else what `build` makes, `old` dropped first to free its memory. An error
+/// from `take` drops it too.
+pub fn taken_or_built<T>(
+    old: Option<T>,
+    take: impl FnOnce(&mut T) -> Result<bool>,
+    build: impl FnOnce() -> Result<T>,
+) -> Result<T> {
+    match old.map(|mut old| take(&mut old).map(|taken| (taken, old))).transpose()? {
+        Some((true, old)) => Ok(old),
+        old => {
+            drop(old);
+            build()
+        }
+    }
 }
 
 /// What a failed step of `--time-step all` says of the outputs.

@@ -16,6 +16,7 @@ use anyhow::{Context, Result};
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use tetloc_core::geom::Vec3;
 use tetloc_core::ops::trace::{self, Direction, Integrator, PathOptions, TraceOptions};
 use tetloc_io::ops_output;
 use tetloc_io::output::{self, FileArg};
@@ -202,9 +203,8 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
     // output of any size needs the memory of two batches: one spilled while the next is traced.
     let mut writer = PolylineWriter::new(&a.out)?;
     let batches = o.batches(seeds.len(), a.batch_points);
-    // Seconds tracing, sampling the line fields (GPU path) and spilling the batches (the
-    // spilling overlaps the next batch's tracing).
-    let (mut secs, mut sampling, mut spilling) = (0.0, 0.0, 0.0);
+    // Seconds spilling the batches (overlapping the next batch's tracing).
+    let mut spilling = 0.0;
     let spill = |(arrays, seed_base): (trace::LineArrays, usize)| -> Result<()> {
         let t = Instant::now();
         ops_output::push_lines(&mut writer, &arrays, seed_base)?;
@@ -215,7 +215,7 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
     let kept = a.common.kept.as_ref();
     // The per-particle walk runs on tets: mixed meshes take the batch tracer, whose locator
     // maps answers to cells and interpolates with the cells' shape functions.
-    if backend == Backend::Cpu && m.cells.is_none() {
+    let (secs, sampling) = if backend == Backend::Cpu && m.cells.is_none() {
         // Deferred: the tracer builds the search it needs (the bins, not the BVH).
         let build = || {
             let bare = progress::with_spinner("building the locator", || builder.defer_cpu_build(true).build_bare())?;
@@ -223,48 +223,22 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
             Ok(cpu)
         };
         time_steps::with_locator(kept, &m, build, |cpu| {
-            let cpu: &tetloc_core::CpuLocator = cpu;
-            let pb = progress::bar(n_lines as u64, "tracing on cpu");
-            let mut base = 0;
-            let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
-                let t0 = Instant::now();
+            trace_in_batches(&seeds, batches, n_lines, name, spill, &mut |seeds, ob, progress| {
                 // The line fields come from the integrator's own lookups (no second pass).
-                let arrays = trace::trace_sampled(&seeds[seeds_in.clone()], &ob, cpu, [x, y, z], &out_fields, &|d| {
-                    pb.set_position((base + d) as u64);
-                    Ok(())
-                })?;
-                secs += t0.elapsed().as_secs_f64();
-                base += seeds_in.len();
-                Ok((arrays, seeds_in.start))
-            };
-            overlapped(batches, trace_batch, spill)?;
-            pb.finish_and_clear();
-            Ok(())
-        })?;
+                Ok((trace::trace_sampled(seeds, ob, cpu, [x, y, z], &out_fields, &progress)?, 0.0))
+            })
+        })?
     } else {
         let build = || Ok(progress::with_spinner("building the locator", || builder.build())?.locator);
         time_steps::with_locator(kept, &m, build, |loc| {
-            let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
-            let mut base = 0;
-            let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
-                let t0 = Instant::now();
-                let lines =
-                    trace::trace_with(&seeds[seeds_in.clone()], &ob, loc.as_mut(), [x, y, z], &out_fields, |d| {
-                        pb.set_position((base + d) as u64);
-                        Ok(())
-                    })?;
-                secs += t0.elapsed().as_secs_f64();
-                let t1 = Instant::now();
+            trace_in_batches(&seeds, batches, n_lines, name, spill, &mut |seeds, ob, progress| {
+                let lines = trace::trace_with(seeds, ob, loc.as_mut(), [x, y, z], &out_fields, progress)?;
+                let t = Instant::now();
                 let arrays = trace::LineArrays::sample(&lines, &m, loc.as_mut(), &out_fields)?;
-                sampling += t1.elapsed().as_secs_f64();
-                base += seeds_in.len();
-                Ok((arrays, seeds_in.start))
-            };
-            overlapped(batches, trace_batch, spill)?;
-            pb.finish_and_clear();
-            Ok(())
-        })?;
-    }
+                Ok((arrays, t.elapsed().as_secs_f64()))
+            })
+        })?
+    };
     let (n_points, n_made) = (writer.n_points(), writer.n_lines());
     let t_write = Instant::now();
     progress::with_spinner(format!("writing {}", a.out.display()), || writer.finish(a.zlib))?;
@@ -454,6 +428,46 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// A batch's tracer: `(seeds, options, progress)` to the batch's line arrays and the seconds
+/// of it spent sampling the line fields apart from the tracing (0 where the tracer samples
+/// them as it goes). `progress` takes the lines of the batch done so far.
+type TraceOne<'a> = dyn FnMut(
+        &[Vec3],
+        &TraceOptions,
+        &(dyn Fn(usize) -> tetloc_core::Result<()> + Sync),
+    ) -> Result<(trace::LineArrays, f64)>
+    + 'a;
+
+/// Traces `seeds` in `batches`, each batch's lines handed to `spill` while the next is traced
+/// ([`overlapped`]), under a bar of the `n_lines` lines on backend `name`. Returns the seconds
+/// tracing and the seconds sampling the line fields apart.
+fn trace_in_batches(
+    seeds: &[Vec3],
+    batches: Vec<(TraceOptions, std::ops::Range<usize>)>,
+    n_lines: usize,
+    name: &str,
+    spill: impl FnMut((trace::LineArrays, usize)) -> Result<()> + Send,
+    trace_one: &mut TraceOne<'_>,
+) -> Result<(f64, f64)> {
+    let pb = progress::bar(n_lines as u64, format!("tracing on {name}"));
+    let (mut secs, mut sampling, mut base) = (0.0, 0.0, 0);
+    let trace_batch = |(ob, seeds_in): (TraceOptions, std::ops::Range<usize>)| {
+        let t = Instant::now();
+        let done = base;
+        let (arrays, sampled) = trace_one(&seeds[seeds_in.clone()], &ob, &|d| {
+            pb.set_position((done + d) as u64);
+            Ok(())
+        })?;
+        secs += t.elapsed().as_secs_f64() - sampled;
+        sampling += sampled;
+        base += seeds_in.len();
+        Ok((arrays, seeds_in.start))
+    };
+    overlapped(batches, trace_batch, spill)?;
+    pb.finish_and_clear();
+    Ok((secs, sampling))
 }
 
 /// Makes each of `items` into a batch with `make` on this thread and hands it to `write` on

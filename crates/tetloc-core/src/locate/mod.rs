@@ -157,6 +157,17 @@ impl<L: BatchLocator + ?Sized> BatchLocator for Box<L> {
     }
 }
 
+/// [`BatchLocator::take_fields`] of a layer that holds its own `mesh` over `inner`: the inner
+/// locator takes the step's fields, then the layer's mesh is the step's (what the layer built
+/// from the mesh, its bulges or boundary, is the geometry's and stays).
+pub(crate) fn layer_takes_fields(own: &mut Arc<Mesh>, inner: &mut impl BatchLocator, mesh: &Arc<Mesh>) -> bool {
+    let taken = own.same_geometry(mesh) && inner.take_fields(mesh);
+    if taken {
+        *own = mesh.clone();
+    }
+    taken
+}
+
 /// Points `range` of `grid`, as [`sample_grid`] samples them.
 pub fn grid_points(grid: &ImageGrid, range: Range<usize>) -> Vec<Vec3> {
     range.into_par_iter().map(|i| grid.point(i)).collect()

@@ -64,11 +64,7 @@ impl<L: BatchLocator> BatchLocator for F64Values<L> {
     }
 
     fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
-        let taken = self.mesh.same_geometry(mesh) && self.inner.take_fields(mesh);
-        if taken {
-            self.mesh = mesh.clone();
-        }
-        taken
+        super::layer_takes_fields(&mut self.mesh, &mut self.inner, mesh)
     }
 
     fn preferred_batch(&self) -> Option<usize> {

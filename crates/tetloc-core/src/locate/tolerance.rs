@@ -279,11 +279,7 @@ impl<L: BatchLocator> BatchLocator for WithTolerance<L> {
 
     /// The boundary kept (it is the geometry's).
     fn take_fields(&mut self, mesh: &Arc<Mesh>) -> bool {
-        let taken = self.mesh.same_geometry(mesh) && self.inner.take_fields(mesh);
-        if taken {
-            self.mesh = mesh.clone();
-        }
-        taken
+        super::layer_takes_fields(&mut self.mesh, &mut self.inner, mesh)
     }
 
     fn preferred_batch(&self) -> Option<usize> {

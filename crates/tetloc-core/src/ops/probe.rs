@@ -161,6 +161,36 @@ mod tests {
     use crate::CpuLocator;
     use std::sync::Arc;
 
+    /// The CPU locator as another backend: one that takes f32 points only, or that prefers
+    /// batches of `batch` points (and is never given more).
+    struct Backend {
+        cpu: CpuLocator,
+        f32_only: bool,
+        batch: Option<usize>,
+    }
+
+    impl BatchLocator for Backend {
+        fn name(&self) -> &str {
+            "backend"
+        }
+        fn query(
+            &mut self,
+            points: Points<'_>,
+            fields: &[&str],
+            ids: &mut [i32],
+            values: crate::locate::Values<'_>,
+        ) -> Result<()> {
+            assert!(points.len() <= self.batch.unwrap_or(usize::MAX), "a batch of {}", points.len());
+            match points {
+                Points::F64(_) if self.f32_only => Err(crate::Error::Invalid("f32 points only".into())),
+                _ => self.cpu.query(points, fields, ids, values),
+            }
+        }
+        fn preferred_batch(&self) -> Option<usize> {
+            self.batch
+        }
+    }
+
     /// Probing a mesh at its own vertices gives back its point field; points beyond it get
     /// NaN and mask 0; a cell field becomes point data. (How the result is written:
     /// `tetloc_io::ops_output`.)
@@ -209,25 +239,8 @@ mod tests {
         let got = p.arrays64[i].as_ref().expect("probed in f64 with a tolerance");
         assert!(got.iter().zip(&g).all(|(a, b)| a.to_bits() == b.to_bits()));
         // A backend that takes f32 points only gives f32 values.
-        struct Narrow(CpuLocator);
-        impl BatchLocator for Narrow {
-            fn name(&self) -> &str {
-                "narrow"
-            }
-            fn query(
-                &mut self,
-                points: Points<'_>,
-                fields: &[&str],
-                ids: &mut [i32],
-                values: crate::locate::Values<'_>,
-            ) -> Result<()> {
-                match points {
-                    Points::F32(_) => self.0.query(points, fields, ids, values),
-                    Points::F64(_) => Err(crate::Error::Invalid("f32 points only".into())),
-                }
-            }
-        }
-        let p = probe(&mut Narrow(CpuLocator::new(m.clone())), &m.points, &groups, |_| Ok(())).unwrap();
+        let narrow = &mut Backend { cpu: CpuLocator::new(m.clone()), f32_only: true, batch: None };
+        let p = probe(narrow, &m.points, &groups, |_| Ok(())).unwrap();
         assert!(p.arrays64.iter().all(Option::is_none));
     }
 
@@ -261,25 +274,6 @@ mod tests {
     #[test]
     fn batches_give_the_one_batch_answers() {
         use crate::mesh::{Field, FieldLocation};
-        struct Batched(CpuLocator);
-        impl BatchLocator for Batched {
-            fn name(&self) -> &str {
-                "batched"
-            }
-            fn query(
-                &mut self,
-                points: Points<'_>,
-                fields: &[&str],
-                ids: &mut [i32],
-                values: crate::locate::Values<'_>,
-            ) -> Result<()> {
-                assert!(points.len() <= 7, "a batch of {}", points.len());
-                self.0.query(points, fields, ids, values)
-            }
-            fn preferred_batch(&self) -> Option<usize> {
-                Some(7)
-            }
-        }
         let mut m = KuhnGrid::new(3).jitter(0.2, 4).mesh("cube");
         let g: Vec<f64> = m.points.iter().map(|p| 1e-9 + p[1] as f64 * 1e-12).collect();
         for k in 0..3 {
@@ -302,7 +296,8 @@ mod tests {
         for groups in [fields::groups_of(&m.fields[..1]), all] {
             let one = probe(&mut CpuLocator::new(m.clone()), &points, &groups, |_| Ok(())).unwrap();
             let mut done = Vec::new();
-            let batched = probe(&mut Batched(CpuLocator::new(m.clone())), &points, &groups, |d| {
+            let batched = &mut Backend { cpu: CpuLocator::new(m.clone()), f32_only: false, batch: Some(7) };
+            let batched = probe(batched, &points, &groups, |d| {
                 done.push(d);
                 Ok(())
             })
