@@ -1,6 +1,7 @@
 //! Ending quietly and cleanly: SIGINT, SIGTERM and SIGHUP remove the temporaries of the
-//! outputs being written (`output::remove_temporaries`) and end the process with the shell's
-//! code for the signal (128 + N: 130 for SIGINT, 143 for SIGTERM); a panic removes them too,
+//! outputs being written and end the process with the shell's code for the signal (128 + N:
+//! 130 for SIGINT, 143 for SIGTERM; `output::remove_temporaries_then_exit`, which no new
+//! temporary can slip past); a panic removes them too,
 //! and so does SIGABRT (an abort, such as a failed allocation's, or `kill -ABRT`), which then
 //! ends the process as SIGABRT does.
 //! A closed stdout (`tetloc info m.vtu | head -1`) ends the command quietly with exit code 0,
@@ -27,9 +28,12 @@ pub fn install() {
         Ok(mut signals) => {
             std::thread::spawn(move || {
                 if let Some(sig) = signals.forever().next() {
-                    output::remove_temporaries();
                     let stop = sig == SIGINT || sig == SIGTERM;
-                    std::process::exit(if stop && SERVING.load(Ordering::SeqCst) { 0 } else { 128 + sig });
+                    output::remove_temporaries_then_exit(if stop && SERVING.load(Ordering::SeqCst) {
+                        0
+                    } else {
+                        128 + sig
+                    });
                 }
             });
         }

@@ -30,9 +30,19 @@ static TEMPORARIES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 pub struct Registered(PathBuf);
 
 impl Registered {
-    pub fn new(path: &Path) -> Registered {
-        TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner).push(path.to_path_buf());
-        Registered(path.to_path_buf())
+    /// Creates a temporary (`create`, whose result's path is `path`) and lists it, in one step
+    /// for the signal handler: [`remove_temporaries_then_exit`] waits for the list, so it never
+    /// runs between the temporary's creation and its listing (which would leave it behind).
+    /// `create` must not panic: the panic hook waits for the list too.
+    pub fn create<T>(
+        create: impl FnOnce() -> std::io::Result<T>,
+        path: impl Fn(&T) -> &Path,
+    ) -> std::io::Result<(T, Registered)> {
+        let mut list = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner);
+        let made = create()?;
+        let at = path(&made).to_path_buf();
+        list.push(at.clone());
+        Ok((made, Registered(at)))
     }
 }
 
@@ -122,10 +132,23 @@ fn discard(files: impl IntoIterator<Item = (Registered, PathBuf)>) {
     }
 }
 
-/// Removes the temporaries of every output being written (for a handler of SIGINT or
-/// SIGTERM, or a panic, just before the process ends); returns how many there were.
+/// Removes the temporaries of every output being written (for a panic, just before the
+/// process ends); returns how many there were.
 pub fn remove_temporaries() -> usize {
+    remove_listed(&mut TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner))
+}
+
+/// Removes the temporaries of every output being written and ends the process with `code`
+/// (a handler of SIGINT or SIGTERM), holding the list: no other thread creates a temporary
+/// after the removal ([`Registered::create`] waits for the list).
+pub fn remove_temporaries_then_exit(code: i32) -> ! {
     let mut list = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner);
+    remove_listed(&mut list);
+    std::process::exit(code)
+}
+
+/// Removes the temporaries `list` holds and empties it; returns how many there were.
+fn remove_listed(list: &mut Vec<PathBuf>) -> usize {
     // Newest first (a piece's file before its folder). Another thread may still be writing: it
     // can add one more entry to a temporary folder before its next registration, which waits
     // for this lock; so a folder that is not gone yet is tried again.
@@ -203,8 +226,8 @@ impl AtomicFile {
             let mode = std::fs::metadata(&target).map(|m| m.permissions().mode() & 0o7777).unwrap_or(0o666);
             builder.permissions(std::fs::Permissions::from_mode(mode));
         }
-        let tmp = builder.tempfile_in(dir).map_err(|e| Error::io(&target, e))?;
-        let _registered = Registered::new(tmp.path());
+        let (tmp, _registered) =
+            Registered::create(|| builder.tempfile_in(dir), |t| t.path()).map_err(|e| Error::io(&target, e))?;
         Ok(AtomicFile { target, tmp: BufWriter::with_capacity(1 << 20, tmp), _registered })
     }
 
@@ -315,9 +338,7 @@ pub fn check_output(path: &Path, extensions: &[&str]) -> Result<()> {
     if !dir.is_dir() {
         return Err(Error::format(path, format!("{} is not a directory", dir.display())));
     }
-    tempfile::Builder::new()
-        .prefix(".tetloc-write-check.")
-        .tempfile_in(dir)
+    Registered::create(|| tempfile::Builder::new().prefix(".tetloc-write-check.").tempfile_in(dir), |t| t.path())
         .map_err(|e| Error::format(path, format!("cannot create files in {}: {e}", dir.display())))?;
     Ok(())
 }
@@ -440,6 +461,22 @@ mod tests {
 
     /// Leftovers of an interrupted write (`.NAME.*.tmp`, file or folder) are found; this
     /// process's own temporaries and other files are not.
+    /// A temporary is listed in the same step that creates it: the signal handler, which
+    /// waits for the list, cannot run between the two (it would leave the temporary behind).
+    #[test]
+    fn a_temporary_is_created_and_listed_in_one_step() {
+        let dir = tempfile::tempdir().unwrap();
+        let create = || {
+            let held = std::thread::scope(|s| s.spawn(|| TEMPORARIES.try_lock().is_err()).join().unwrap());
+            assert!(held, "the list is held while the temporary is created");
+            tempfile::Builder::new().tempfile_in(dir.path())
+        };
+        let (made, registered) = Registered::create(create, |t| t.path()).unwrap();
+        let listed = TEMPORARIES.lock().unwrap_or_else(PoisonError::into_inner).contains(&made.path().to_path_buf());
+        assert!(listed, "listed as it is created");
+        drop(registered);
+    }
+
     #[test]
     fn stale_temporaries_are_named() {
         let dir = tempfile::tempdir().unwrap();

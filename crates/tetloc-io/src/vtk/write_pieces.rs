@@ -87,12 +87,8 @@ pub fn write_pvtu(
     };
     let parent = crate::output::parent_dir(path).to_path_buf();
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = tempfile::Builder::new()
-        .prefix(&format!(".{name}."))
-        .suffix(".tmp")
-        .tempdir_in(&parent)
-        .map_err(|e| Error::io(new_dir, e))?;
-    let registered = Registered::new(tmp.path());
+    let make = || tempfile::Builder::new().prefix(&format!(".{name}.")).suffix(".tmp").tempdir_in(&parent);
+    let (tmp, registered) = Registered::create(make, |t| t.path()).map_err(|e| Error::io(new_dir, e))?;
     let n = pieces.len();
     let mut declared: Option<String> = None;
     for (k, piece) in pieces.enumerate() {
