@@ -189,6 +189,23 @@ fn names(file: &NcFile, var: &str, path: &Path) -> Result<Vec<String>> {
     }
 }
 
+/// The variables' names must be one per variable (`count` of them, as `count_of` says), none
+/// empty, none twice: else variables would be dropped or shadowed silently.
+fn check_var_names(path: &Path, what: &str, var: &str, count_of: &str, names: &[String], count: usize) -> Result<()> {
+    let fail = |msg: String| Err(Error::format(path, format!("{what} variables: {msg}")));
+    if names.len() != count {
+        return fail(format!("the file has {count} ({count_of}) but {var} names {}; each needs a name", names.len()));
+    }
+    if let Some(i) = names.iter().position(|n| n.trim().is_empty()) {
+        return fail(format!("variable {} has an empty name in {var}", i + 1));
+    }
+    let mut seen = std::collections::HashSet::new();
+    match names.iter().find(|n| !seen.insert(n.as_str())) {
+        Some(n) => fail(format!("'{n}' is named twice in {var}")),
+        None => Ok(()),
+    }
+}
+
 impl Layout {
     fn of(file: &NcFile, path: &Path) -> Result<Layout> {
         let need = |name: &str| {
@@ -223,6 +240,10 @@ impl Layout {
             }
             _ => Vec::new(),
         };
+        if let Some(i) = times.iter().position(|t| !t.is_finite()) {
+            // The increasing check below compares neighbours only: a lone NaN would pass.
+            return Err(Error::format(path, format!("time_whole at step {i} is {}, not a finite time", times[i])));
+        }
         if let Some(i) =
             times.windows(2).position(|w: &[f64]| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
         {
@@ -234,6 +255,10 @@ impl Layout {
         // Nodal variables: one netCDF variable each, or all in one.
         let node_names = names(file, "name_nod_var", path)?;
         let combined = file.variable("vals_nod_var").is_ok();
+        let stored = (1..).take_while(|i| file.variable(&format!("vals_nod_var{i}")).is_ok()).count();
+        let n_node_vars = dim(file, "num_nod_var").unwrap_or(if combined { node_names.len() } else { stored });
+        let count_of = "num_nod_var or vals_nod_var*";
+        check_var_names(path, "nodal", "name_nod_var", count_of, &node_names, n_node_vars)?;
         let node_vars = node_names
             .iter()
             .enumerate()
@@ -245,6 +270,8 @@ impl Layout {
             .collect();
         // Element variables, per block, as the truth table says.
         let elem_names = names(file, "name_elem_var", path)?;
+        let n_elem_vars = dim(file, "num_elem_var").unwrap_or(elem_names.len());
+        check_var_names(path, "element", "name_elem_var", "num_elem_var", &elem_names, n_elem_vars)?;
         let table: Option<Vec<i32>> = match file.variable("elem_var_tab") {
             Ok(_) => Some(
                 file.read_variable::<i32>("elem_var_tab")
@@ -524,6 +551,8 @@ fn read_step(file: &NcFile, path: &Path, layout: &Layout, k: usize) -> Result<Ve
     let mut fields = grouped(node, FieldLocation::Vertex);
     fields.extend(grouped(elem, FieldLocation::Cell));
     fields.extend(layout.id_maps.iter().cloned());
+    // Distinct names can still meet after grouping (`v_x`.. as `v[0]`.. beside a `v[0]`).
+    crate::check_distinct_fields(path, &fields)?;
     Ok(fields)
 }
 

@@ -112,6 +112,20 @@ pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
     }
 }
 
+/// An error naming `path` and the name if two of `fields` share a name and location: commands
+/// would use the first silently. A point and a cell field of one name are two fields (as in VTK).
+pub(crate) fn check_distinct_fields(path: &Path, fields: &[tetloc_core::mesh::Field]) -> Result<()> {
+    use tetloc_core::mesh::FieldLocation;
+    let mut seen = std::collections::HashSet::new();
+    match fields.iter().find(|f| !seen.insert((f.name.as_str(), f.location == FieldLocation::Vertex))) {
+        None => Ok(()),
+        Some(f) => {
+            let at = if f.location == FieldLocation::Vertex { "point" } else { "cell" };
+            Err(Error::format(path, format!("two {at} fields named '{}'; field names must be unique", f.name)))
+        }
+    }
+}
+
 /// Memory the system can still hand out (Linux `MemAvailable`), if known.
 pub fn available_memory_bytes() -> Option<u64> {
     tetloc_core::memory::available_bytes()

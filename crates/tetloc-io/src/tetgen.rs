@@ -28,6 +28,12 @@ pub fn read(path: &Path) -> Result<RawMesh> {
         _ => return Err(Error::format(path, "a TetGen mesh is named by its .node or .ele file")),
     }
     let (node_path, ele_path) = siblings(path);
+    for p in [&node_path, &ele_path] {
+        // Checked before opening: a FIFO blocks the open, a device never ends.
+        if std::fs::metadata(p).is_ok_and(|m| !m.is_file()) {
+            return Err(Error::format(p, "not a regular file (a folder, FIFO or device); TetGen meshes are files"));
+        }
+    }
     let node = std::fs::read(&node_path).map_err(|e| Error::io(&node_path, e))?;
     let ele = std::fs::read(&ele_path).map_err(|e| Error::io(&ele_path, e))?;
     parse(&node, &ele, path)
@@ -98,8 +104,9 @@ fn siblings(path: &Path) -> (PathBuf, PathBuf) {
 }
 
 /// Splits row-major attributes (`n` per item) into one field each.
-fn attribute_fields(values: Vec<f32>, n: usize, location: FieldLocation, name: impl Fn(usize) -> String) -> Vec<Field> {
-    (0..n).map(|i| Field::new(name(i), location, values.iter().skip(i).step_by(n).copied().collect())).collect()
+fn attribute_fields(values: Vec<f64>, n: usize, location: FieldLocation, name: impl Fn(usize) -> String) -> Vec<Field> {
+    // f64 as in the file (`from_f64` keeps them where f32 would round).
+    (0..n).map(|i| Field::from_f64(name(i), location, values.iter().skip(i).step_by(n).copied().collect())).collect()
 }
 
 /// The next data line (`#` starts a comment; blank lines are skipped), which must be there:
@@ -119,7 +126,7 @@ fn expect_no_more(c: &mut Cursor, count: usize, what: &str) -> Result<()> {
 struct Nodes {
     points: Vec<[f64; 3]>,
     /// `n_attrs` per point, row-major.
-    attrs: Vec<f32>,
+    attrs: Vec<f64>,
     n_attrs: usize,
     /// The id of the first point: 0 or 1.
     base: u64,
@@ -173,7 +180,7 @@ fn read_nodes(c: &mut Cursor) -> Result<Nodes> {
         }
         points.push([r.f64("x")?, r.f64("y")?, r.f64("z")?]);
         for _ in 0..n_attrs {
-            attrs.push(r.f64("a point attribute")? as f32);
+            attrs.push(r.f64("a point attribute")?);
         }
         if n_markers == 1 && !r.at_end() {
             r.i64("a boundary marker")?;
@@ -191,7 +198,7 @@ struct Tets {
     extra: Vec<u32>,
     higher_order: Option<u8>,
     /// `n_attrs` per tet, row-major.
-    attrs: Vec<f32>,
+    attrs: Vec<f64>,
     n_attrs: usize,
 }
 
@@ -237,7 +244,7 @@ fn read_tets(c: &mut Cursor, nodes: &Nodes) -> Result<Tets> {
         }
         tets.push(t);
         for _ in 0..n_attrs {
-            attrs.push(r.f64("a tetrahedron attribute")? as f32);
+            attrs.push(r.f64("a tetrahedron attribute")?);
         }
         r.expect_end(MORE_VALUES_AFTER_TET)?;
     }
@@ -336,6 +343,19 @@ mod tests {
         assert_eq!(m.cells.unwrap().nodes(0), &[0, 1, 2, 3, 5, 4, 6, 7, 8, 9]);
     }
 
+    /// Point and region attributes keep the file's f64 values (ones f32 would round).
+    #[test]
+    fn attributes_keep_f64() {
+        let (node, _) = files(0);
+        let node = node.replace("  0  0 0 0  0 0.5", "  0  0 0 0  0.1000000000000001 1e300");
+        let ele = "1 4 1\n0 0 1 2 3 16777217\n";
+        let m = parse(node.as_bytes(), ele.as_bytes(), Path::new("m.node")).unwrap();
+        let v64 = |name: &str| m.fields.iter().find(|f| f.name == name).unwrap().values64.clone().unwrap();
+        assert_eq!(v64("attr[0]")[0], 0.1000000000000001);
+        assert_eq!(v64("attr[1]")[0], 1e300);
+        assert_eq!(v64("region"), [16777217.0]);
+    }
+
     #[test]
     fn several_region_attributes() {
         let (node, _) = files(0);
@@ -400,6 +420,14 @@ mod tests {
             other => panic!("{other:?}"),
         }
         assert!(read(&dir.path().join("m.face")).unwrap_err().to_string().contains(".node or .ele"));
+        // A sibling that is a FIFO is refused, not opened (which would block for a writer).
+        #[cfg(unix)]
+        {
+            let made = std::process::Command::new("mkfifo").arg(dir.path().join("m.ele")).status();
+            assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+            let e = read(&dir.path().join("m.node")).unwrap_err().to_string();
+            assert!(e.contains("m.ele") && e.contains("not a regular file"), "{e}");
+        }
     }
 
     #[test]

@@ -157,3 +157,157 @@ fn values_in_order_for_every_layout() {
     let window = a.slice_move(s![1.., ..]).into_dyn();
     assert_eq!(values(window), vec![3, 4, 5]);
 }
+
+/// A netCDF variable: name, dimension indices, `elem_type` attribute, type, data.
+type NcVar = (String, Vec<usize>, Option<&'static str>, u32, Vec<u8>);
+
+/// A classic (CDF-1) netCDF file, written by hand for the tests: `dims` (size 0: the record
+/// dimension), then per variable its name, dimension indices, `elem_type` attribute, type
+/// (2 char, 4 int, 6 double) and big-endian data (all records for a record variable).
+struct Nc {
+    dims: Vec<(&'static str, usize)>,
+    vars: Vec<NcVar>,
+    n_records: usize,
+}
+
+impl Nc {
+    fn bytes(&self) -> Vec<u8> {
+        fn name(out: &mut Vec<u8>, s: &str) {
+            out.extend((s.len() as u32).to_be_bytes());
+            out.extend(s.as_bytes());
+            out.resize(out.len().next_multiple_of(4), 0);
+        }
+        let size = |ty: u32| match ty {
+            2 => 1,
+            4 => 4,
+            _ => 8,
+        };
+        let is_rec = |dims: &[usize]| dims.first().is_some_and(|&d| self.dims[d].1 == 0);
+        // One record's (or the whole fixed variable's) bytes, padded to 4.
+        let vsize = |(_, dims, _, ty, _): &NcVar| {
+            let n: usize = dims.iter().filter(|&&d| self.dims[d].1 != 0).map(|&d| self.dims[d].1).product();
+            (n * size(*ty)).next_multiple_of(4)
+        };
+        let header = |begins: &[u32]| {
+            let mut h = b"CDF\x01".to_vec();
+            h.extend((self.n_records as u32).to_be_bytes());
+            h.extend(10u32.to_be_bytes());
+            h.extend((self.dims.len() as u32).to_be_bytes());
+            for (n, len) in &self.dims {
+                name(&mut h, n);
+                h.extend((*len as u32).to_be_bytes());
+            }
+            h.extend([0u8; 8]); // no global attributes
+            h.extend(11u32.to_be_bytes());
+            h.extend((self.vars.len() as u32).to_be_bytes());
+            for (v, b) in self.vars.iter().zip(begins) {
+                name(&mut h, &v.0);
+                h.extend((v.1.len() as u32).to_be_bytes());
+                v.1.iter().for_each(|&d| h.extend((d as u32).to_be_bytes()));
+                match v.2 {
+                    None => h.extend([0u8; 8]),
+                    Some(a) => {
+                        h.extend(12u32.to_be_bytes());
+                        h.extend(1u32.to_be_bytes());
+                        name(&mut h, "elem_type");
+                        h.extend(2u32.to_be_bytes());
+                        name(&mut h, a);
+                    }
+                }
+                h.extend(v.3.to_be_bytes());
+                h.extend((vsize(v) as u32).to_be_bytes());
+                h.extend(b.to_be_bytes());
+            }
+            h
+        };
+        let mut begins = vec![0u32; self.vars.len()];
+        let mut at = header(&begins).len();
+        for (v, b) in self.vars.iter().zip(&mut begins).filter(|(v, _)| !is_rec(&v.1)) {
+            *b = at as u32;
+            at += vsize(v);
+        }
+        let rec_size: usize = self.vars.iter().filter(|v| is_rec(&v.1)).map(vsize).sum();
+        for (v, b) in self.vars.iter().zip(&mut begins).filter(|(v, _)| is_rec(&v.1)) {
+            *b = at as u32;
+            at += vsize(v);
+        }
+        let mut out = header(&begins);
+        for v in self.vars.iter().filter(|v| !is_rec(&v.1)) {
+            out.extend(&v.4);
+            out.resize(out.len().next_multiple_of(4), 0);
+        }
+        for r in 0..self.n_records {
+            for v in self.vars.iter().filter(|v| is_rec(&v.1)) {
+                let n = v.4.len() / self.n_records;
+                out.extend(&v.4[r * n..(r + 1) * n]);
+                out.resize(out.len().next_multiple_of(4), 0);
+            }
+        }
+        assert_eq!(out.len(), at + rec_size * self.n_records.saturating_sub(1));
+        out
+    }
+}
+
+/// A two-tet Exodus file with nodal variables: `n_vars` (the `num_nod_var` dimension) stored
+/// `vals_nod_var<i>`, `names` in `name_nod_var` (none: no such variable), at `times`.
+fn exodus_file(n_vars: usize, names: Option<&[&str]>, times: &[f64]) -> Vec<u8> {
+    let f64s = |v: &[f64]| v.iter().flat_map(|x| x.to_be_bytes()).collect::<Vec<u8>>();
+    let dims = vec![
+        ("len_name", 33),
+        ("num_dim", 3),
+        ("num_nodes", 5),
+        ("num_el_blk", 1),
+        ("num_el_in_blk1", 2),
+        ("num_nod_per_el1", 4),
+        ("time_step", 0),
+        ("num_nod_var", n_vars),
+    ];
+    let pts = crate::test_support::two_tets(vec![]).points;
+    let mut vars = vec![("time_whole".to_string(), vec![6], None, 6, f64s(times))];
+    for (k, axis) in ["coordx", "coordy", "coordz"].iter().enumerate() {
+        vars.push((axis.to_string(), vec![2], None, 6, f64s(&pts.iter().map(|p| p[k] as f64).collect::<Vec<_>>())));
+    }
+    let conn: Vec<u8> = [1, 2, 3, 4, 2, 3, 4, 5].iter().flat_map(|i: &i32| i.to_be_bytes()).collect();
+    vars.push(("connect1".into(), vec![4, 5], Some("TETRA4"), 4, conn));
+    if let Some(names) = names {
+        let mut chars = vec![0u8; 33 * n_vars];
+        for (i, n) in names.iter().enumerate() {
+            chars[33 * i..33 * i + n.len()].copy_from_slice(n.as_bytes());
+        }
+        vars.push(("name_nod_var".into(), vec![7, 0], None, 2, chars));
+    }
+    for i in 0..n_vars {
+        let vals: Vec<f64> = (0..times.len() * 5).map(|j| (10 * i + j) as f64).collect();
+        vars.push((format!("vals_nod_var{}", i + 1), vec![6, 2], None, 6, f64s(&vals)));
+    }
+    Nc { dims, vars, n_records: times.len() }.bytes()
+}
+
+/// Nodal variables are never dropped or shadowed silently: values without names, a count
+/// above the names, an empty or repeated name are errors naming the file and the problem.
+#[test]
+fn nodal_variable_names_must_match_the_variables() {
+    let path = Path::new("v.exo");
+    let ok = parse(&exodus_file(2, Some(&["f", "g"]), &[0.0]), path).unwrap();
+    let names: Vec<&str> = ok.fields.iter().map(|f| f.name.as_str()).collect();
+    assert_eq!(names, ["f", "g"]);
+    assert_eq!(ok.fields[1].values, [10.0, 11.0, 12.0, 13.0, 14.0]);
+    let cases: [(usize, Option<&[&str]>, &str); 3] = [
+        (1, None, "the file has 1 (num_nod_var or vals_nod_var*) but name_nod_var names 0"),
+        (2, Some(&["f"]), "variable 2 has an empty name"),
+        (2, Some(&["f", "f"]), "'f' is named twice in name_nod_var"),
+    ];
+    for (n, names, want) in cases {
+        let e = parse(&exodus_file(n, names, &[0.0]), path).unwrap_err().to_string();
+        assert!(e.starts_with("v.exo") && e.contains("nodal variables") && e.contains(want), "{e}");
+    }
+}
+
+/// Every time must be finite, a lone step's too (the increasing check compares neighbours).
+#[test]
+fn times_must_be_finite() {
+    for times in [&[f64::NAN][..], &[f64::INFINITY], &[0.0, f64::NAN]] {
+        let e = parse(&exodus_file(1, Some(&["f"]), times), Path::new("t.exo")).unwrap_err().to_string();
+        assert!(e.starts_with("t.exo") && e.contains("time_whole") && e.contains("not a finite time"), "{e}");
+    }
+}

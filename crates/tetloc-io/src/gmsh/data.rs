@@ -22,6 +22,8 @@ pub(super) struct FieldAcc {
     ncomp: usize,
     /// The file's values (f64 in every Gmsh file); fields keep them where f32 cannot.
     values: Vec<f64>,
+    /// Whether a section of this step gave the row a value: a second, different one is an error.
+    given: Vec<bool>,
 }
 
 impl FieldAcc {
@@ -121,7 +123,14 @@ impl Parser<'_> {
                 if self.field_values > 64 * c.buf.len() + (1 << 20) {
                     return Err(c.fail(format!("too many field values for the file's size at {what} '{name}'")));
                 }
-                let acc = FieldAcc { name: name.clone(), location, step, ncomp, values: vec![f64::NAN; len] };
+                let acc = FieldAcc {
+                    name: name.clone(),
+                    location,
+                    step,
+                    ncomp,
+                    values: vec![f64::NAN; len],
+                    given: vec![false; n_items],
+                };
                 match existing {
                     Some(i) => {
                         self.fields[i] = acc;
@@ -167,28 +176,40 @@ impl Parser<'_> {
                 }
             }
         };
-        let mut values = slot.map(|i| &mut self.fields[i].values);
-        let mut store = |row: Option<usize>, comp: usize, v: f64| {
-            if let (Some(row), Some(values)) = (row, values.as_deref_mut()) {
-                values[row * ncomp + comp] = v;
+        let mut acc = slot.map(|i| &mut self.fields[i]);
+        let entity = if location == FieldLocation::Vertex { "node" } else { "element" };
+        // Partitions may repeat a shared node's value; a different one would be lost silently.
+        let mut store = |tag: i64, row: Option<usize>, v: &[f64]| -> Result<(), String> {
+            let (Some(row), Some(acc)) = (row, acc.as_deref_mut()) else { return Ok(()) };
+            let old = &mut acc.values[row * ncomp..(row + 1) * ncomp];
+            if acc.given[row] && old.iter().zip(v).any(|(a, b)| a.to_bits() != b.to_bits()) {
+                return Err(format!("{what} '{name}' step {step} gives {entity} {tag} two values: {old:?} and {v:?}"));
             }
+            old.copy_from_slice(v);
+            acc.given[row] = true;
+            Ok(())
         };
+        let mut record_values = [0f64; MAX_COMPONENTS];
         if c.binary {
             let big = c.big_endian;
             let data = c.take_records(count as u64, record, &format!("values of {what} '{name}'"))?;
-            for r in data.chunks_exact(record) {
-                let row = lookup(get_i32(r, big) as i64).map_err(|m| c.fail(m))?;
-                for k in 0..ncomp {
-                    store(row, k, get_f64(&r[4 + 8 * k..], big));
+            for (i, r) in data.chunks_exact(record).enumerate() {
+                let tag = get_i32(r, big) as i64;
+                let row = lookup(tag).map_err(|m| c.fail(m))?;
+                for (k, v) in record_values[..ncomp].iter_mut().enumerate() {
+                    *v = get_f64(&r[4 + 8 * k..], big);
                 }
+                store(tag, row, &record_values[..ncomp]).map_err(|m| c.fail(format!("record {i}: {m}")))?;
             }
         } else {
             for _ in 0..count {
                 let tag_pos = c.here();
-                let row = lookup(c.ascii_i64("an entity tag")?).map_err(|m| c.fail_at(tag_pos, m))?;
-                for k in 0..ncomp {
-                    store(row, k, c.ascii_f64("a field value")?);
+                let tag = c.ascii_i64("an entity tag")?;
+                let row = lookup(tag).map_err(|m| c.fail_at(tag_pos, m))?;
+                for v in &mut record_values[..ncomp] {
+                    *v = c.ascii_f64("a field value")?;
                 }
+                store(tag, row, &record_values[..ncomp]).map_err(|m| c.fail_at(tag_pos, m))?;
             }
         }
         Ok(())

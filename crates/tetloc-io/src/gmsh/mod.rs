@@ -52,7 +52,7 @@ use tetloc_core::error::{Error, Result};
 use tetloc_core::mesh::{Field, FieldLocation, RawMesh, StepFields, TimeSteps};
 
 pub fn read(path: &Path) -> Result<RawMesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::read_file(path)?;
     parse(&bytes, path)
 }
 
@@ -62,7 +62,7 @@ pub fn read(path: &Path) -> Result<RawMesh> {
 /// else the step number). A step's fields are every view at its highest step up to that one
 /// (a view written at fewer steps keeps its last values), read from the file when asked.
 pub fn read_series(path: &Path) -> Result<(RawMesh, Option<TimeSteps>)> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::read_file(path)?;
     let parser = Parser::new(&bytes, path, MIN_PARALLEL, false).run()?;
     let mut steps: Vec<(i64, Option<f64>)> = Vec::new();
     let mut sections = parser.step_times.clone();
@@ -107,7 +107,7 @@ struct GmshSteps {
 
 impl StepFields for GmshSteps {
     fn read(&self, k: usize) -> Result<Vec<Field>> {
-        let bytes = std::fs::read(&self.path).map_err(|e| Error::io(&self.path, e))?;
+        let bytes = crate::read_file(&self.path)?;
         let mut parser = Parser::new(&bytes, &self.path, MIN_PARALLEL, false);
         parser.step_limit = Some(self.steps[k]);
         Ok(parser.run()?.finish()?.fields)
@@ -133,7 +133,7 @@ fn parse_with(bytes: &[u8], path: &Path, min_parallel: usize) -> Result<RawMesh>
 /// `$NodeData` and `$ElementData`. What `probe` keeps of a target, which may be any point set:
 /// a surface mesh, a cloud of points, a volume.
 pub fn read_any(path: &Path) -> Result<AnyGrid> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::read_file(path)?;
     parse_any(&bytes, path)
 }
 
@@ -238,6 +238,25 @@ impl<'a> Parser<'a> {
                 b"Elements" => self.read_elements(start)?,
                 b"NodeData" => self.read_data(FieldLocation::Vertex, start)?,
                 b"ElementData" => self.read_data(FieldLocation::Cell, start)?,
+                // Skipping it would drop a view silently.
+                b"ElementNodeData" => {
+                    let c = &mut self.c;
+                    let view = match c.ascii_u64("the number of string tags")? {
+                        0 => "unnamed".to_string(),
+                        _ => {
+                            c.skip_ws();
+                            let tag = c.line().unwrap_or_default().trim_ascii();
+                            String::from_utf8_lossy(tag).trim_matches('"').to_string()
+                        }
+                    };
+                    return Err(c.fail_at(
+                        start,
+                        format!(
+                            "$ElementNodeData view '{view}': values per element node are not supported \
+                             (tetloc reads $NodeData and $ElementData)"
+                        ),
+                    ));
+                }
                 b"MeshFormat" => return Err(self.c.fail_at(start, "a second $MeshFormat section")),
                 _ => {
                     let mut end = b"$End".to_vec();

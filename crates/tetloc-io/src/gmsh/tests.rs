@@ -442,6 +442,45 @@ fn wrong_element_types_and_unknown_element_tags() {
     }
 }
 
+/// A view giving one node (or element) two different values, within a section or across
+/// sections of one step, is an error naming the view and the entity; the same value again (a
+/// node shared by two partitions' sections) is fine.
+#[test]
+fn one_entity_given_two_values_is_refused() {
+    for e in ENCODINGS {
+        let mut s = spec();
+        s.node_data[0].3.push((7, vec![2.0])); // node 7's value again: fine
+        s.node_data.push(("temp", 0, 1, vec![(3, vec![1.0])])); // another section, same value
+        assert!(parse(&write(&s, e), &p()).is_ok(), "{e:?}");
+        let mut within = spec();
+        within.node_data[0].3.push((7, vec![1000.0]));
+        let mut across = spec();
+        across.node_data.push(("temp", 0, 1, vec![(3, vec![-500.0])]));
+        let mut cells = spec();
+        cells.elem_data[0].3.push((9, vec![91.0]));
+        for (s, want) in [
+            (within, "$NodeData 'temp' step 0 gives node 7 two values: [2.0] and [1000.0]"),
+            (across, "$NodeData 'temp' step 0 gives node 3 two values: [1.0] and [-500.0]"),
+            (cells, "$ElementData 'mat' step 0 gives element 9 two values: [90.0] and [91.0]"),
+        ] {
+            let msg = err_of(&write(&s, e));
+            assert!(msg.starts_with("test.msh") && msg.contains(want), "{e:?}: {msg}");
+        }
+    }
+}
+
+/// `$ElementNodeData` is refused, naming the view, not skipped silently.
+#[test]
+fn element_node_data_is_refused() {
+    for e in ENCODINGS.into_iter().filter(|e| !e.binary) {
+        let mut bytes = write(&spec(), e);
+        bytes.extend(b"$ElementNodeData\n1\n\"grad\"\n1\n0.0\n3\n0\n1\n1\n9 4 1 2 3 4\n$EndElementNodeData\n");
+        let msg = err_of(&bytes);
+        assert!(msg.starts_with("test.msh") && msg.contains("$ElementNodeData view 'grad'"), "{e:?}: {msg}");
+        assert!(msg.contains("not supported"), "{msg}");
+    }
+}
+
 /// Ok only where the cut falls right after a section's `$End...` line (a shorter but whole
 /// file); everything else is an error, never a panic.
 fn check_truncations(bytes: &[u8], lengths: impl Iterator<Item = usize>, what: &str) {

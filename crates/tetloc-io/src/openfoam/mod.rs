@@ -88,7 +88,14 @@ pub fn times(dir: &Path) -> Result<Vec<String>> {
             name.parse::<f64>().ok().filter(|t| t.is_finite()).map(|t| (t, name))
         })
         .collect();
-    out.sort_by(|a, b| a.0.total_cmp(&b.0));
+    out.sort_by(|a, b| a.0.total_cmp(&b.0).then_with(|| a.1.cmp(&b.1)));
+    // `1` and `1.0` would be two steps at one time, each with its own fields.
+    if let Some(w) = out.windows(2).find(|w| w[0].0 == w[1].0) {
+        return Err(Error::format(
+            dir,
+            format!("the time folders '{}' and '{}' name the same time, {}", w[0].1, w[1].1, w[0].0),
+        ));
+    }
     Ok(out.into_iter().map(|t| t.1).collect())
 }
 
@@ -327,8 +334,16 @@ fn read_fields(dir: &Path, n_cells: usize) -> Result<Vec<(String, Vec<f64>)>> {
         .collect();
     paths.sort();
     let mut out = Vec::new();
+    // Field name -> the file giving it (`lin` and `lin.gz`, or `v[0]` beside a vector `v`).
+    let mut given = std::collections::HashMap::new();
     for path in paths {
-        out.extend(read_field(&path, n_cells)?);
+        for (name, v) in read_field(&path, n_cells)? {
+            if let Some(first) = given.insert(name.clone(), path.clone()) {
+                let files = format!("{} and {}", first.display(), path.display());
+                return Err(Error::format(dir, format!("{files} both give the field '{name}'; names must be unique")));
+            }
+            out.push((name, v));
+        }
     }
     Ok(out)
 }

@@ -200,3 +200,30 @@ fn bad_cases_are_named() {
     let e = crate::read_mesh(Path::new("/nonexistent/x.foam"), None).unwrap_err().to_string();
     assert!(e.contains("not an OpenFOAM case"), "{e}");
 }
+
+/// Two files giving one field (`p` and `p.gz`; a scalar `U[0]` beside the vector `U`) are an
+/// error naming the folder and both files, not the first kept silently.
+#[test]
+fn one_field_from_two_files_is_refused() {
+    let mut z = flate2::write::GzEncoder::new(Vec::new(), flate2::Compression::default());
+    z.write_all(field("volScalarField", "uniform 9").as_bytes()).unwrap();
+    let gz = z.finish().unwrap();
+    let case = write_case("dupfield", false, false, WALLS, 0, &fields());
+    std::fs::write(case.dir.join("1/p.gz"), gz).unwrap();
+    let e = crate::read_mesh(&case.dir, None).unwrap_err().to_string();
+    assert!(e.contains("p.gz") && e.contains("both give the field 'p'"), "{e}");
+    let mut clash = fields();
+    clash.push(("U[0]", field("volScalarField", "uniform 9")));
+    let e = crate::read_mesh(&write_case("clash", false, false, WALLS, 0, &clash).dir, None).unwrap_err().to_string();
+    assert!(e.contains("U[0]") && e.contains("both give the field 'U[0]'"), "{e}");
+}
+
+/// Time folders that name one time (`1` and `1.0`) are an error naming both.
+#[test]
+fn two_folders_of_one_time_are_refused() {
+    let case = write_case("sametime", false, false, WALLS, 0, &fields());
+    std::fs::create_dir_all(case.dir.join("1.0")).unwrap();
+    std::fs::write(case.dir.join("1.0/p"), field("volScalarField", "uniform 9")).unwrap();
+    let e = crate::read_series(&case.dir, None).err().unwrap().to_string();
+    assert!(e.contains("'1' and '1.0' name the same time"), "{e}");
+}

@@ -81,6 +81,16 @@ fn parse_grid<'a>(bytes: &'a [u8], path: &'a Path) -> Result<Grid<'a>> {
         let args = r.args();
         let arg = |i: usize| args.get(i).map(String::as_str);
         match kw.as_str() {
+            // A second section would replace the first silently.
+            "POINTS" | "CELLS" | "CELL_TYPES"
+                if match kw.as_str() {
+                    "POINTS" => g.points.is_some(),
+                    "CELLS" => g.cells.is_some(),
+                    _ => g.types.is_some(),
+                } =>
+            {
+                return Err(r.fail(format!("a second {kw} section; a file has one")));
+            }
             "POINTS" => {
                 let n = r.count(arg(0), "POINTS count")?;
                 let ty = r.num_type(arg(1))?;
@@ -211,6 +221,7 @@ impl Grid<'_> {
             f.values = cells::filter_cells(std::mem::take(&mut f.values), ex.kept.as_deref());
             f.values64 = f.values64.take().map(|v| cells::filter_cells(v, ex.kept.as_deref()));
         }
+        crate::check_distinct_fields(path, &fields)?;
         Ok(ex.into_mesh(points, points64, fields))
     }
 
@@ -556,6 +567,34 @@ w 2 5 int
         assert_eq!(get("v[1]").values, vec![2., 5., 8., 11., 14.]);
         assert_eq!(get("w[0]").values, vec![1., 3., 5., 7., 9.]);
         assert_eq!(m.fields.len(), 1 + 1 + 3 + 2);
+    }
+
+    /// A second POINTS (CELLS, CELL_TYPES) section, or two attributes of one name at one
+    /// location, is an error rather than one of them used silently; a point and a cell
+    /// attribute of one name are two fields.
+    #[test]
+    fn repeated_sections_and_names_are_refused() {
+        let ok = ASCII_42.replace("3 4 1 2\n", "4 4 1 2 0\n").replace("CELLS 3 13", "CELLS 3 14");
+        let points = "POINTS 5 float\n0 0 0 1 0 0 0 1 0\n0 0 1 1 1 1\n";
+        let types = "CELL_TYPES 3\n10 5\n10\n";
+        let cases = [
+            (ok.replace("METADATA", &format!("{points}METADATA")), "line 14: a second POINTS section"),
+            (ok.replace("CELL_DATA 3", &format!("{types}CELL_DATA 3")), "a second CELL_TYPES section"),
+            (
+                ok.replace("VECTORS v float\n1 2 3 4 5 6 7 8 9 10 11 12 13 14 15", "SCALARS s float\n5 6 7 8 9"),
+                "two point fields named 's'",
+            ),
+            (
+                ok.replace("VECTORS v float", "VECTORS s float").replace("SCALARS s double", "SCALARS s[1] double"),
+                "'s[1]'",
+            ),
+        ];
+        for (src, want) in cases {
+            let e = parse_str(&src).unwrap_err().to_string();
+            assert!(e.starts_with("test.vtk") && e.contains(want), "{want}: {e}");
+        }
+        let m = parse_str(&ok.replace("cell%20id", "s")).unwrap();
+        assert_eq!(m.fields.iter().filter(|f| f.name == "s").count(), 2, "a point and a cell 's'");
     }
 
     #[test]

@@ -22,6 +22,7 @@
 //! sliver between the face's two triangles and its bilinear patch may come back outside.
 
 use super::vtu;
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
 use tetloc_core::cell::CellBlock;
@@ -94,7 +95,7 @@ pub fn list(path: &Path) -> Result<Vec<PathBuf>> {
 pub fn list_with(path: &Path, allow_outside: bool) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     let root = if allow_outside { None } else { Some(listing_folder(path)?) };
-    list_into(path, 0, root.as_deref(), &mut out, &mut Vec::new())?;
+    list_into(path, 0, root.as_deref(), &mut out, &mut Vec::new(), &mut HashMap::new())?;
     Ok(out)
 }
 
@@ -103,7 +104,7 @@ pub fn list_with(path: &Path, allow_outside: bool) -> Result<Vec<PathBuf>> {
 pub fn files_read(path: &Path) -> Result<Vec<PathBuf>> {
     let (mut pieces, mut listings) = (Vec::new(), Vec::new());
     let root = if allows_outside_by_default() { None } else { Some(listing_folder(path)?) };
-    list_into(path, 0, root.as_deref(), &mut pieces, &mut listings)?;
+    list_into(path, 0, root.as_deref(), &mut pieces, &mut listings, &mut HashMap::new())?;
     listings.extend(pieces);
     Ok(listings)
 }
@@ -163,12 +164,42 @@ fn climbs_out(path: &Path) -> bool {
     false
 }
 
+/// What makes two names one file: (device, inode) on Unix, so hard links count too; the
+/// canonical path elsewhere.
+#[cfg(unix)]
+type FileKey = (u64, u64);
+#[cfg(not(unix))]
+type FileKey = PathBuf;
+
+/// The identity of the listed file `f`, or `None` if it does not exist (reading it says so);
+/// an error if it is not a regular file: opening a FIFO blocks forever, a device never ends.
+fn listed_file_key(listing: &Path, f: &Path) -> Result<Option<FileKey>> {
+    // `metadata` follows symbolic links: a link to a FIFO is a FIFO.
+    let Ok(meta) = std::fs::metadata(f) else { return Ok(None) };
+    if !meta.is_file() {
+        let kind = if meta.is_dir() { "a folder" } else { "not a regular file (a FIFO, socket or device?)" };
+        return Err(Error::format(listing, format!("lists {}, which is {kind}; pieces must be files", f.display())));
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        Ok(Some((meta.dev(), meta.ino())))
+    }
+    #[cfg(not(unix))]
+    {
+        Ok(std::fs::canonicalize(f).ok())
+    }
+}
+
+/// Collects the pieces of `path` into `out` (and the listings read into `listings`); `seen`
+/// maps every file listed so far to its name, so that no piece is read twice.
 fn list_into(
     path: &Path,
     depth: usize,
     root: Option<&Path>,
     out: &mut Vec<PathBuf>,
     listings: &mut Vec<PathBuf>,
+    seen: &mut HashMap<FileKey, PathBuf>,
 ) -> Result<()> {
     listings.push(path.to_path_buf());
     if depth > MAX_NESTING {
@@ -184,9 +215,22 @@ fn list_into(
         if let Some(root) = root {
             check_inside(root, path, &f)?;
         }
+        let key = listed_file_key(path, &f)?;
+        let is_piece = crate::output::extension(&f) == "vtu";
+        // Without global ids a repeated piece would be read twice, silently. (A listing met
+        // again is left to the nesting limit: its pieces repeat anyway.)
+        if let Some(key) = key.filter(|_| is_piece) {
+            if let Some(first) = seen.insert(key, f.clone()) {
+                let again = if first == f { String::new() } else { format!(" (first as {})", first.display()) };
+                return Err(Error::format(
+                    path,
+                    format!("lists {} a second time{again}: each piece must be listed once", f.display()),
+                ));
+            }
+        }
         match crate::output::extension(&f).as_str() {
             "vtu" => out.push(f),
-            "pvtu" | "vtm" => list_into(&f, depth + 1, root, out, listings)?,
+            "pvtu" | "vtm" => list_into(&f, depth + 1, root, out, listings, seen)?,
             _ => {
                 return Err(Error::format(
                     path,
@@ -331,6 +375,24 @@ fn weld(mut raw: RawMesh, ids: &[u64], listing: &Path) -> Result<RawMesh> {
                     format!(
                         "global point id {} is at {:?} in one piece and at {:?} in another",
                         ids[i], raw.points[first], raw.points[i]
+                    ),
+                ));
+            }
+            // Keeping one copy's value would drop the other's silently. Bitwise: NaN == NaN.
+            let vertex = raw.fields.iter().filter(|f| f.location == FieldLocation::Vertex);
+            if let Some(f) = vertex.clone().find(|f| match &f.values64 {
+                Some(v) => v[first].to_bits() != v[i].to_bits(),
+                None => f.values[first].to_bits() != f.values[i].to_bits(),
+            }) {
+                let at = |j: usize| f.values64.as_ref().map_or(f.values[j] as f64, |v| v[j]);
+                return Err(Error::format(
+                    listing,
+                    format!(
+                        "point field '{}' is {} at global point id {} in one piece and {} in another",
+                        f.name,
+                        at(first),
+                        ids[i],
+                        at(i)
                     ),
                 ));
             }
@@ -642,6 +704,91 @@ mod tests {
         std::fs::write(dir.path().join("e/notes.txt"), "mine").unwrap();
         let e = crate::partition::write_pvtu(&m, 2, &out, false, |_| {}).unwrap_err().to_string();
         assert!(e.contains("notes.txt") && e.contains("refusing"), "{e}");
+    }
+
+    /// Two pieces that share a vertex (same global id and coordinates) but disagree on a
+    /// point field's value there: an error naming the field and the id, not one value kept.
+    #[test]
+    fn shared_vertices_with_different_values_are_refused() {
+        use tetloc_core::mesh::Field;
+        // Two pieces' tets, joined: points 1 and 4 are copies of global point id 1.
+        let ids = [0, 1, 2, 3, 1];
+        let raw = |f: Field| {
+            let mut raw = crate::test_support::two_tets(vec![f]);
+            raw.points[4] = raw.points[1];
+            raw
+        };
+        let listing = Path::new("w.pvtu");
+        let nan = Field::from_f64("g", FieldLocation::Vertex, vec![f64::NAN; 5]);
+        assert_eq!(weld(raw(nan), &ids, listing).unwrap().points.len(), 4, "NaN == NaN by bits");
+        let f32s = Field::new("f", FieldLocation::Vertex, vec![0.0, 1.0, 2.0, 3.0, 1000.0]);
+        let f64s = Field::from_f64("h", FieldLocation::Vertex, vec![0.0, 0.1, 2.0, 3.0, 0.1 + 1e-12]);
+        for (f, name) in [(f32s, "'f'"), (f64s, "'h'")] {
+            let e = weld(raw(f), &ids, listing).unwrap_err().to_string();
+            assert!(e.starts_with("w.pvtu") && e.contains(name) && e.contains("global point id 1"), "{e}");
+        }
+    }
+
+    /// A `<Piece Source>` listing for the test folder.
+    fn pvtu_of(sources: &[&str]) -> String {
+        let pieces: String = sources.iter().map(|s| format!("<Piece Source=\"{s}\"/>")).collect();
+        format!("<VTKFile type=\"PUnstructuredGrid\"><PUnstructuredGrid>{pieces}</PUnstructuredGrid></VTKFile>")
+    }
+
+    /// One piece listed twice (same name, another spelling, a link, via a nested listing) is
+    /// an error naming the listing and the piece: without global ids it would be read twice.
+    #[test]
+    fn a_piece_listed_twice_is_refused() {
+        let (dir, _, _) = partitioned_cube("a.pvtu", 2, false);
+        let d = dir.path();
+        #[cfg(unix)]
+        std::fs::hard_link(d.join("a/a_0.vtu"), d.join("hard.vtu")).unwrap();
+        #[cfg(unix)]
+        std::os::unix::fs::symlink("a/a_0.vtu", d.join("soft.vtu")).unwrap();
+        let mut cases = vec![
+            ("same", pvtu_of(&["a/a_0.vtu", "a/a_0.vtu"]), "a_0.vtu a second time"),
+            ("spelt", pvtu_of(&["a/a_0.vtu", "a/a_1.vtu", "./a/../a/a_0.vtu"]), "(first as"),
+        ];
+        if cfg!(unix) {
+            cases.push(("hard", pvtu_of(&["a/a_0.vtu", "hard.vtu"]), "hard.vtu a second time"));
+            cases.push(("soft", pvtu_of(&["soft.vtu", "a/a_1.vtu", "a/a_0.vtu"]), "soft.vtu)"));
+        }
+        for (name, text, want) in &cases {
+            let listing = d.join(format!("{name}.pvtu"));
+            std::fs::write(&listing, text).unwrap();
+            let e = crate::read_mesh(&listing, None).unwrap_err().to_string();
+            assert!(e.starts_with(&listing.display().to_string()) && e.contains(want), "{name}: {e}");
+            assert!(list(&listing).is_err(), "{name}");
+        }
+        // Across a nested listing: a .vtm of the .pvtu and one of its pieces.
+        let vtm = "<VTKFile type=\"vtkMultiBlockDataSet\"><vtkMultiBlockDataSet><DataSet file=\"a.pvtu\"/>\
+                   <DataSet file=\"a/a_1.vtu\"/></vtkMultiBlockDataSet></VTKFile>";
+        std::fs::write(d.join("n.vtm"), vtm).unwrap();
+        let e = crate::read_mesh(&d.join("n.vtm"), None).unwrap_err().to_string();
+        assert!(e.contains("n.vtm") && e.contains("a_1.vtu a second time"), "{e}");
+    }
+
+    /// A piece that is not a regular file (a FIFO, a link to a device, a folder) is refused
+    /// before it is opened: opening a FIFO blocks until a writer comes, which may be never.
+    #[cfg(unix)]
+    #[test]
+    fn pieces_that_are_not_regular_files_are_refused() {
+        let (dir, _, _) = partitioned_cube("a.pvtu", 2, false);
+        let d = dir.path();
+        let made = std::process::Command::new("mkfifo").arg(d.join("pipe.vtu")).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        std::os::unix::fs::symlink("/dev/zero", d.join("zero.vtu")).unwrap();
+        std::fs::create_dir(d.join("dir.vtu")).unwrap();
+        for (piece, want) in
+            [("pipe.vtu", "not a regular file"), ("zero.vtu", "not a regular file"), ("dir.vtu", "a folder")]
+        {
+            let listing = d.join("x.pvtu");
+            std::fs::write(&listing, pvtu_of(&["a/a_0.vtu", piece])).unwrap();
+            // Allowed outside: the link to /dev/zero leads out of the folder.
+            let opts = crate::ReadOptions { allow_outside_pieces: true };
+            let e = crate::read_mesh_with(&listing, None, opts).unwrap_err().to_string();
+            assert!(e.starts_with(&listing.display().to_string()) && e.contains(piece) && e.contains(want), "{e}");
+        }
     }
 
     /// Issue 29 item 20: pieces outside the listing's folder tree (`../`, absolute paths,

@@ -534,6 +534,8 @@ impl<'a> Ctx<'a, '_> {
         for (section, location, n) in
             [("PointData", FieldLocation::Vertex, n_points), ("CellData", FieldLocation::Cell, n_cells)]
         {
+            // Field name -> the array giving it: a second one would be shadowed by the first.
+            let mut given = std::collections::HashMap::new();
             for da in piece.child(section).into_iter().flat_map(|s| s.children_named("DataArray")) {
                 if matches!(da.attr("type"), Some("String" | "Bit")) {
                     continue; // no numeric field
@@ -543,6 +545,16 @@ impl<'a> Ctx<'a, '_> {
                     self.fail(format!("DataArray '{name}': NumberOfComponents is not a positive count"))
                 })?;
                 let field_name = |c: usize| if nc == 1 { name.to_string() } else { format!("{name}[{c}]") };
+                for c in 0..nc {
+                    if let Some(first) = given.insert(field_name(c), name) {
+                        let what = if first == name {
+                            format!("has two arrays named '{name}'")
+                        } else {
+                            format!("arrays '{first}' and '{name}' both give the field '{}'", field_name(c))
+                        };
+                        return Err(self.fail(format!("<{section}> {what}; array names must be unique")));
+                    }
+                }
                 if !(0..nc).any(|c| wanted(&field_name(c))) {
                     continue; // not asked for: left undecoded
                 }
@@ -759,6 +771,34 @@ mod tests {
         let names: Vec<&str> = m.fields.iter().map(|f| f.name.as_str()).collect();
         assert_eq!(names, ["f", "v[0]", "v[1]", "c"]);
         assert_eq!(m.fields[2].values, vec![2., 4., 6., 8.]);
+    }
+
+    /// Two arrays giving one field name at one location (the same name twice, or a vector
+    /// `v` beside a scalar `v[0]`) are an error naming the file and the name; a point and a
+    /// cell array of one name are two fields, as in VTK.
+    #[test]
+    fn arrays_of_one_name_are_refused() {
+        let f = "<DataArray type=\"Float64\" Name=\"f\" format=\"ascii\">0 1 2 3</DataArray>";
+        let first = ASCII_TWO_PIECES.replacen(f, &format!("{f}{f}"), 1);
+        let v0 = "<DataArray type=\"Float64\" Name=\"v[0]\" format=\"ascii\">0 1 2 3</DataArray></PointData>";
+        let clash = ASCII_TWO_PIECES.replacen("</PointData>", v0, 1);
+        for (src, want) in
+            [(first, "two arrays named 'f'"), (clash, "arrays 'v' and 'v[0]' both give the field 'v[0]'")]
+        {
+            let e = parse_str(&src).unwrap_err().to_string();
+            assert!(e.starts_with("test.vtu") && e.contains("<PointData>") && e.contains(want), "{e}");
+        }
+        let c = "<CellData><DataArray type=\"UInt8\" Name=\"c\" format=\"ascii\">7 9</DataArray>";
+        let point_and_cell = ASCII_TWO_PIECES.replacen(c, &c.replace("\"c\"", "\"f\""), 1);
+        let point_and_cell = point_and_cell.replace("Name=\"c\" format=\"ascii\">11", "Name=\"f\" format=\"ascii\">11");
+        let point_and_cell = point_and_cell.replace(
+            "<PointData><DataArray type=\"Float64\" Name=\"f\" format=\"ascii\">4 5 6 7</DataArray></PointData>",
+            "<PointData><DataArray type=\"Float64\" Name=\"f\" format=\"ascii\">4 5 6 7</DataArray>\
+             <DataArray type=\"Int32\" Name=\"v\" NumberOfComponents=\"2\" format=\"ascii\">0 0 0 0 0 0 0 0</DataArray></PointData>",
+        );
+        let m = parse_str(&point_and_cell).unwrap();
+        let names: Vec<_> = m.fields.iter().map(|f| (f.name.as_str(), f.location)).collect();
+        assert!(names.contains(&("f", FieldLocation::Vertex)) && names.contains(&("f", FieldLocation::Cell)));
     }
 
     /// Issue 29 item 14: an empty second `<Piece>` (with or without its arrays) keeps the
