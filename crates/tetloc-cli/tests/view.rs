@@ -428,3 +428,169 @@ fn a_series_is_viewed_step_by_step() {
     assert!(!o.status.success() && err.contains("no time steps"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// Whether the server has closed `s` (a read gives EOF or a reset, a write fails).
+fn closed_by_server(s: &mut TcpStream) -> bool {
+    let mut buf = [0u8; 256];
+    match s.read(&mut buf) {
+        Ok(0) => true,
+        Ok(_) => false,
+        Err(e) => !matches!(e.kind(), std::io::ErrorKind::WouldBlock | std::io::ErrorKind::TimedOut),
+    }
+}
+
+/// A client that trickles its request head (a byte every 300 ms, well within any per-read
+/// timeout) is closed once the head's total deadline (5 s) has passed, not held for good.
+#[test]
+fn a_request_head_sent_a_byte_at_a_time_is_cut_off() {
+    let s = Server::start(&[]);
+    let mut slow = TcpStream::connect(&s.addr).unwrap();
+    slow.set_read_timeout(Some(Duration::from_millis(300))).unwrap();
+    // Generous: the deadline is 5 s; before the fix the connection stayed open.
+    let give_up = Instant::now() + Duration::from_secs(60);
+    let head = format!("GET /mesh.json?token={TOKEN} HTTP/1.1\r\nHost: x\r\nX-Pad: {}", "a".repeat(1000));
+    let mut sent = 0;
+    let closed = loop {
+        if Instant::now() > give_up {
+            break false;
+        }
+        if sent < head.len() && slow.write_all(&head.as_bytes()[sent..sent + 1]).is_err() {
+            break true;
+        }
+        sent += 1;
+        if closed_by_server(&mut slow) {
+            break true;
+        }
+    };
+    assert!(closed, "a head trickled for 60 s ({sent} bytes) kept its connection");
+    assert!(sent < head.len(), "the whole head went out before the server closed it");
+    assert!(s.get(&format!("/mesh.json?token={TOKEN}")).0.contains(" 200 "));
+}
+
+/// Connections that never finish their request head cannot hold every slot: a request with
+/// the token is still answered (the oldest unfinished heads make room for it).
+#[test]
+fn unfinished_heads_cannot_lock_out_the_token_holder() {
+    let s = Server::start(&[]);
+    // More than the server's 64 connection slots.
+    let mut idle: Vec<TcpStream> = (0..80)
+        .map(|_| {
+            let mut c = TcpStream::connect(&s.addr).unwrap();
+            c.write_all(b"G").unwrap();
+            c
+        })
+        .collect();
+    let (status, body) = s.get(&format!("/mesh.json?token={TOKEN}"));
+    assert!(status.contains(" 200 "), "{status}: {}", String::from_utf8_lossy(&body));
+    // The oldest were closed to make room; a request with the token went through each time.
+    idle[0].set_read_timeout(Some(Duration::from_secs(30))).unwrap();
+    assert!(closed_by_server(&mut idle[0]), "the oldest unfinished head was closed");
+    for _ in 0..3 {
+        assert!(s.get(&format!("/state.json?token={TOKEN}")).0.contains(" 200 "));
+    }
+    drop(idle);
+}
+
+/// `PUT /state.json` with `body`: status line and body.
+fn put_state(s: &Server, body: &str) -> (String, String) {
+    let mut c = TcpStream::connect(&s.addr).unwrap();
+    c.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
+    write!(c, "PUT /state.json?token={TOKEN} HTTP/1.1\r\nHost: x\r\nContent-Length: {}\r\n\r\n{body}", body.len())
+        .unwrap();
+    let mut all = Vec::new();
+    c.read_to_end(&mut all).unwrap();
+    let all = String::from_utf8_lossy(&all).into_owned();
+    let (head, body) = all.split_once("\r\n\r\n").expect("a response head");
+    (head.lines().next().unwrap().to_string(), body.to_string())
+}
+
+/// A state asking for a frame over the viewer's pixel budget is refused with the limit
+/// named (8192² took 9 GB and 100 s to render), on PUT and on the WebSocket; and a state
+/// whose camera numbers overflow float32 is refused with that reason.
+#[test]
+fn oversized_frames_and_overflowing_cameras_are_refused() {
+    let s = Server::start(&[]);
+    let (_, state) = s.get(&format!("/state.json?token={TOKEN}"));
+    let state: serde_json::Value = serde_json::from_slice(&state).unwrap();
+    let with = |f: &dyn Fn(&mut serde_json::Value)| {
+        let mut v = state.clone();
+        f(&mut v);
+        v
+    };
+    let big = with(&|v| v["size"] = serde_json::json!([8192, 8192]));
+    let (status, why) = put_state(&s, &big.to_string());
+    assert!(status.contains(" 400 ") && why.contains("8192x8192") && why.contains("4194304 pixels"), "{status}: {why}");
+    let served: serde_json::Value = serde_json::from_slice(&s.get(&format!("/state.json?token={TOKEN}")).1).unwrap();
+    assert_eq!(served["size"], serde_json::json!([40, 32]), "the refused state was not taken");
+    let back = put_state(&s, &state.to_string());
+    assert!(back.0.contains(" 200 "), "{back:?}");
+    for (camera, want) in [
+        (with(&|v| v["camera"]["eye"][0] = 1e39.into()), "out of float32 range"),
+        (with(&|v| v["camera"]["target"] = serde_json::json!([1e30, 1e30, 1e30])), "overflows float32"),
+    ] {
+        let (status, why) = put_state(&s, &camera.to_string());
+        assert!(status.contains(" 400 ") && why.contains(want) && !why.contains("eye equals target"), "{why}");
+    }
+    let mut ws = s.websocket(TOKEN).unwrap();
+    hello(&mut ws);
+    ws.send(Message::text(serde_json::json!({"type": "state", "state": big, "moving": false}).to_string())).unwrap();
+    let error = loop {
+        if let Message::Text(t) = ws.read().unwrap() {
+            break t;
+        }
+    };
+    assert!(error.contains("\"error\"") && error.contains("4194304 pixels"), "{error}");
+    // --size over the budget is refused at the start.
+    let o = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+        .args(["view", "fusion:2k", "--port", "0", "--size", "4096x4096", "--quiet"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("4194304 pixels"), "{err}");
+}
+
+/// A newer state supersedes a still frame being rendered: a large still followed at once by
+/// a small one gives the small one's frame, and no frame of the large state is ever sent.
+#[test]
+fn a_newer_state_supersedes_a_large_still_frame() {
+    let s = Server::start(&[]);
+    let mut ws = s.websocket(TOKEN).unwrap();
+    let state = hello(&mut ws)["state"].clone();
+    frame(&mut ws);
+    // The largest frame, with a fine step: minutes of rendering, stopped within a batch.
+    let (_, mesh) = s.get(&format!("/mesh.json?token={TOKEN}"));
+    let bounds = serde_json::from_slice::<serde_json::Value>(&mesh).unwrap()["bounds"].clone();
+    let diagonal = (0..3).map(|k| (bounds[1][k].as_f64().unwrap() - bounds[0][k].as_f64().unwrap()).powi(2));
+    let mut big = state.clone();
+    big["size"] = serde_json::json!([2048, 2048]);
+    big["step"] = (diagonal.sum::<f64>().sqrt() / 2000.0).into();
+    let mut gens = Vec::new();
+    for (k, st) in [&big, &state].into_iter().enumerate() {
+        ws.send(Message::text(serde_json::json!({"type": "state", "state": st, "moving": false}).to_string())).unwrap();
+        if k == 0 {
+            // Let the render thread start the large frame; were it slower to start, the large
+            // state would merely be skipped.
+            std::thread::sleep(Duration::from_millis(300));
+        }
+    }
+    let last = loop {
+        match ws.read().unwrap() {
+            Message::Text(t) => {
+                let m: serde_json::Value = serde_json::from_str(&t).unwrap();
+                assert_eq!(m["type"], "accepted", "{m}");
+                gens.push(m["gen"].as_u64().unwrap());
+            }
+            Message::Binary(b) => {
+                let n = u32::from_le_bytes(b[..4].try_into().unwrap()) as usize;
+                let h: serde_json::Value = serde_json::from_slice(&b[4..4 + n]).unwrap();
+                ws.send(Message::text(serde_json::json!({"type": "ack", "seq": h["seq"]}).to_string())).unwrap();
+                assert_ne!(h["width"], 2048, "a frame of the superseded state was sent: {h}");
+                if gens.len() == 2 && h["still"] == true && h["gen"].as_u64() == Some(gens[1]) {
+                    break h;
+                }
+            }
+            _ => {}
+        }
+    };
+    assert_eq!((last["width"].as_u64(), last["height"].as_u64()), (Some(40), Some(32)), "{last}");
+}

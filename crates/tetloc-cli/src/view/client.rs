@@ -158,9 +158,12 @@ pub fn run(stream: TcpStream, rest: Vec<u8>, hub: Arc<Hub>) -> std::io::Result<(
     }
 }
 
-/// Checks a state a client sent: valid, and its field one of the mesh's.
+/// Checks a state a client sent: valid, of a size the viewer draws, and its field one of
+/// the mesh's.
 pub fn check(hub: &Hub, state: &tr::ViewState) -> Result<(), String> {
+    check_camera(&state.camera)?;
     state.validate().map_err(|e| e.to_string())?;
+    super::scene::check_size(state.size)?;
     let known =
         hub.describe()["fields"].as_array().is_some_and(|f| f.iter().any(|f| f["name"] == state.field.as_str()));
     if !known {
@@ -170,6 +173,27 @@ pub fn check(hub: &Hub, state: &tr::ViewState) -> Result<(), String> {
         let n = hub.describe()["times"].as_array().map_or(0, Vec::len);
         let source = hub.describe()["source"].as_str().unwrap_or("the mesh").to_string();
         tetloc_core::mesh::steps::check_step(&source, n, k).map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
+/// Largest camera coordinate: the camera is placed in float32, and the length of a
+/// difference of points must not overflow there (3·(2·1e18)² < f32::MAX ≈ 3.4e38).
+const MAX_CAMERA_COORDINATE: f64 = 1e18;
+
+/// Names a camera number that float32 cannot hold or compute with (validation would
+/// otherwise blame "eye equals target" on the overflow).
+fn check_camera(c: &tr::CameraState) -> Result<(), String> {
+    for (name, v) in [("eye", c.eye), ("target", c.target), ("up", c.up)] {
+        let Some(x) = v.into_iter().find(|x| x.is_nan() || x.abs() > MAX_CAMERA_COORDINATE) else { continue };
+        let why = if !x.is_finite() {
+            "is not a finite number".to_string()
+        } else if x.abs() > f64::from(f32::MAX) {
+            "is out of float32 range".to_string()
+        } else {
+            format!("overflows float32 arithmetic (coordinates must be within ±{MAX_CAMERA_COORDINATE:e})")
+        };
+        return Err(format!("camera {name} {v:?}: {x:e} {why}"));
     }
     Ok(())
 }
@@ -216,6 +240,24 @@ mod tests {
         let mut r = RateLimit::new();
         let allowed = (0..1000).take_while(|_| r.take()).count();
         assert!((BURST as usize..BURST as usize + 5).contains(&allowed), "{allowed}");
+    }
+
+    #[test]
+    fn camera_numbers_out_of_float32_reach_are_named() {
+        let c = |eye: f64, target: f64| tr::CameraState {
+            eye: [eye, 1.0, 2.0],
+            target: [target, 0.0, 0.0],
+            up: [0.0, 0.0, 1.0],
+            zoom: 1.0,
+        };
+        assert_eq!(check_camera(&c(3.0, 0.0)), Ok(()));
+        assert_eq!(check_camera(&c(-1e17, 1e17)), Ok(()));
+        let e = check_camera(&c(1e39, 0.0)).unwrap_err();
+        assert!(e.contains("eye") && e.contains("1e39") && e.contains("out of float32 range"), "{e}");
+        let e = check_camera(&c(3.0, 1e30)).unwrap_err();
+        assert!(e.contains("target") && e.contains("overflows float32"), "{e}");
+        let e = check_camera(&c(f64::NAN, 0.0)).unwrap_err();
+        assert!(e.contains("not a finite number"), "{e}");
     }
 
     #[test]

@@ -7,11 +7,12 @@
 //! upgrade. No path maps to a file.
 
 use super::frames::{lock, Hub, Still};
-use std::io::{Read, Write};
-use std::net::{TcpListener, TcpStream};
+use std::collections::VecDeque;
+use std::io::{ErrorKind, Read, Write};
+use std::net::{Shutdown, TcpListener, TcpStream};
 use std::sync::atomic::{AtomicUsize, Ordering};
-use std::sync::Arc;
-use std::time::Duration;
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 /// The page, with its script and style, served as it is.
 const PAGE: &str = include_str!("page.html");
@@ -19,28 +20,78 @@ const PAGE: &str = include_str!("page.html");
 const MAX_HEAD: usize = 8 * 1024;
 /// Most connections served at once (WebSocket clients included).
 const MAX_CONNECTIONS: usize = 64;
-/// How long a client may take to send its request head.
-const HEAD_TIMEOUT: Duration = Duration::from_secs(10);
+/// How long a client may take to send its whole request head (not each read: a client
+/// trickling a byte at a time would hold its slot for good). Browsers and scripts send the
+/// head in one packet; 5 s leaves room for a slow tunnel.
+const HEAD_DEADLINE: Duration = Duration::from_secs(5);
+/// How long an authenticated client may take to send a `PUT /state.json` body (at most
+/// `MAX_STATE_BYTES`, 256 KiB: 20 s is ~13 KB/s).
+const BODY_DEADLINE: Duration = Duration::from_secs(20);
 /// How long `/frame.png` waits for the still frame of the current view.
 const STILL_TIMEOUT: Duration = Duration::from_secs(60);
+
+/// Connections still sending their request head (not yet authenticated), oldest first.
+/// With every slot taken, a new connection evicts the oldest of these: clients that never
+/// finish a head cannot lock out one that sends its head at once (a token holder's).
+#[derive(Default)]
+struct Pending {
+    next: u64,
+    conns: VecDeque<(u64, TcpStream)>,
+}
+
+impl Pending {
+    /// Registers a connection (a handle to shut it down); returns its id.
+    fn add(&mut self, stream: &TcpStream) -> Option<u64> {
+        let handle = stream.try_clone().ok()?;
+        self.next += 1;
+        self.conns.push_back((self.next, handle));
+        Some(self.next)
+    }
+
+    /// Its head is read: no longer evictable. False if it was evicted meanwhile.
+    fn remove(&mut self, id: u64) -> bool {
+        let before = self.conns.len();
+        self.conns.retain(|(i, _)| *i != id);
+        self.conns.len() < before
+    }
+
+    /// Closes the oldest; its thread's read fails and the thread ends. False if none.
+    fn evict_oldest(&mut self) -> bool {
+        let Some((_, s)) = self.conns.pop_front() else { return false };
+        let _ = s.shutdown(Shutdown::Both);
+        true
+    }
+}
 
 /// Accepts connections until the process ends.
 pub fn serve(listener: TcpListener, hub: Arc<Hub>) {
     let live = Arc::new(AtomicUsize::new(0));
+    let pending = Arc::new(Mutex::new(Pending::default()));
     for stream in listener.incoming() {
         let Ok(stream) = stream else { continue };
-        if live.fetch_add(1, Ordering::SeqCst) >= MAX_CONNECTIONS {
-            live.fetch_sub(1, Ordering::SeqCst);
+        // Only this thread counts up, so the load below cannot go stale upwards. Evicted
+        // threads end at once but count until then: at most twice the slots, all told.
+        let n = live.load(Ordering::SeqCst);
+        if n >= 2 * MAX_CONNECTIONS || n >= MAX_CONNECTIONS && !lock(&pending).evict_oldest() {
             let _ = respond(&stream, 503, "text/plain", b"too many connections\n");
             continue;
         }
-        let (hub, done) = (hub.clone(), live.clone());
+        live.fetch_add(1, Ordering::SeqCst);
+        let id = lock(&pending).add(&stream);
+        let (hub, done, pend) = (hub.clone(), live.clone(), pending.clone());
         let spawned = std::thread::Builder::new().name("view-conn".into()).spawn(move || {
-            let _ = handle(stream, &hub);
+            let _ = handle(stream, &hub, || id.is_none_or(|id| lock(&pend).remove(id)));
+            // An early error skips the removal above; its handle must not stay listed.
+            if let Some(id) = id {
+                lock(&pend).remove(id);
+            }
             done.fetch_sub(1, Ordering::SeqCst);
         });
         if spawned.is_err() {
             live.fetch_sub(1, Ordering::SeqCst);
+            if let Some(id) = id {
+                lock(&pending).remove(id);
+            }
         }
     }
 }
@@ -80,12 +131,22 @@ pub fn token_matches(given: Option<&str>, token: &str) -> bool {
     a.len() == b.len() && a.iter().zip(b).fold(0u8, |acc, (x, y)| acc | (x ^ y)) == 0
 }
 
-/// Reads up to the end of the head; returns the head and any bytes read past it.
-fn read_head(stream: &mut TcpStream) -> std::io::Result<Option<(Vec<u8>, Vec<u8>)>> {
+/// One read that fails once `deadline` has passed (a socket timeout bounds one read only).
+fn read_by(stream: &mut TcpStream, buf: &mut [u8], deadline: Instant) -> std::io::Result<usize> {
+    let left = deadline.saturating_duration_since(Instant::now());
+    if left.is_zero() {
+        return Err(ErrorKind::TimedOut.into());
+    }
+    stream.set_read_timeout(Some(left))?;
+    stream.read(buf)
+}
+
+/// Reads up to the end of the head by `deadline`; returns the head and any bytes read past it.
+fn read_head(stream: &mut TcpStream, deadline: Instant) -> std::io::Result<Option<(Vec<u8>, Vec<u8>)>> {
     let mut buf = Vec::with_capacity(1024);
     let mut chunk = [0u8; 1024];
     loop {
-        let n = stream.read(&mut chunk)?;
+        let n = read_by(stream, &mut chunk, deadline)?;
         if n == 0 {
             return Ok(None);
         }
@@ -100,11 +161,16 @@ fn read_head(stream: &mut TcpStream) -> std::io::Result<Option<(Vec<u8>, Vec<u8>
     }
 }
 
-fn handle(mut stream: TcpStream, hub: &Arc<Hub>) -> std::io::Result<()> {
-    stream.set_read_timeout(Some(HEAD_TIMEOUT))?;
+/// Serves one connection; `head_read` takes it off the evictable list (false: evicted).
+fn handle(mut stream: TcpStream, hub: &Arc<Hub>, head_read: impl FnOnce() -> bool) -> std::io::Result<()> {
     stream.set_write_timeout(Some(Duration::from_secs(30)))?;
     stream.set_nodelay(true)?;
-    let Some((head, rest)) = read_head(&mut stream)? else {
+    let head = read_head(&mut stream, Instant::now() + HEAD_DEADLINE);
+    if !head_read() {
+        return Ok(());
+    }
+    // Past the deadline: close without an answer (a client this slow may not read one).
+    let Some((head, rest)) = head? else {
         return respond(&stream, 400, "text/plain", b"bad request\n");
     };
     let Some(req) = parse_head(&head) else {
@@ -158,16 +224,22 @@ fn put_state(mut stream: TcpStream, req: &Request, mut body: Vec<u8>, hub: &Hub)
             format!("need a Content-Length of at most {max} bytes\n").as_bytes(),
         );
     };
-    if body.len() < len {
-        let mut more = vec![0u8; len - body.len()];
-        stream.read_exact(&mut more)?;
-        body.extend_from_slice(&more);
+    let deadline = Instant::now() + BODY_DEADLINE;
+    let mut chunk = [0u8; 16 * 1024];
+    while body.len() < len {
+        match read_by(&mut stream, &mut chunk, deadline)? {
+            0 => return Err(ErrorKind::UnexpectedEof.into()),
+            n => body.extend_from_slice(&chunk[..n]),
+        }
     }
     body.truncate(len);
     let text = String::from_utf8_lossy(&body);
-    let state = tetloc_render::ViewState::parse(&text, std::path::Path::new("PUT /state.json"))
-        .map_err(|e| e.to_string())
-        .and_then(|s| super::client::check(hub, &s).map(|()| s));
+    let path = std::path::Path::new("PUT /state.json");
+    // `check` before `ViewState::parse`'s validation: it names out-of-range camera numbers.
+    let state = match serde_json::from_str::<tetloc_render::ViewState>(&text) {
+        Ok(s) => super::client::check(hub, &s).map(|()| s).map_err(|e| format!("{}: {e}", path.display())),
+        Err(_) => Err(tetloc_render::ViewState::parse(&text, path).err().map_or_else(String::new, |e| e.to_string())),
+    };
     match state {
         Ok(s) => {
             let gen = hub.set_state(s, false, 0);

@@ -109,6 +109,7 @@ pub fn run(a: ViewArgs) -> Result<()> {
         state.size = [w, h];
     }
     state.validate()?;
+    scene::check_size(state.size).map_err(anyhow::Error::msg)?;
     let opts = BackendOptions { device: a.device, quiet: a.quiet, preset: a.preset.clone(), ..Default::default() };
     let hub = Arc::new(frames::Hub::new(token.clone(), state.clone()));
     let times = series.as_ref().map_or_else(Vec::new, |s| s.times().to_vec());

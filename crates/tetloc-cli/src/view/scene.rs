@@ -10,8 +10,9 @@ use crate::time_steps::Series;
 use anyhow::Result;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
+use tetloc_core::locate::{Points, Values};
 use tetloc_core::mesh::steps::no_steps;
-use tetloc_core::Mesh;
+use tetloc_core::{BatchLocator, Mesh, Result as CoreResult};
 use tetloc_render as tr;
 
 /// With no event for this long, a moving view gets its full-size lossless frame.
@@ -21,6 +22,22 @@ const QUIET: Duration = Duration::from_millis(80);
 const TARGET_MS: f64 = 14.0;
 /// Smallest fraction of the still size a moving frame is rendered at, per side.
 const MIN_SCALE: f64 = 0.125;
+/// Most pixels a viewer frame may have: 2^22 (2048², 2560x1440 fits). A host render takes
+/// about 130 bytes a pixel (rays, their march state, the image: 0.55 GB measured at 2048²;
+/// 8192² took 9 GB), and a GPU render cannot be stopped midway: one state must not ask more.
+/// `tetloc render` draws larger images.
+pub const MAX_FRAME_PIXELS: u64 = 1 << 22;
+
+/// Refuses a frame size over [`MAX_FRAME_PIXELS`].
+pub fn check_size([w, h]: [u32; 2]) -> Result<(), String> {
+    if u64::from(w) * u64::from(h) > MAX_FRAME_PIXELS {
+        return Err(format!(
+            "size {w}x{h}: a viewer frame has at most {MAX_FRAME_PIXELS} pixels (2048x2048); \
+             `tetloc render` draws larger images"
+        ));
+    }
+    Ok(())
+}
 
 pub struct Scene {
     mesh: Arc<Mesh>,
@@ -116,24 +133,79 @@ impl Scene {
 
     /// Renders the current view at `width`×`height` as 8-bit sRGB RGB. The GPU marcher
     /// composites and encodes on the GPU and downloads 4 bytes a pixel; the host marcher's
-    /// linear image is encoded here.
-    fn render(&mut self, width: u32, height: u32) -> Result<(Vec<u8>, tr::FrameStats)> {
+    /// linear image is encoded here. A host render stops between batches once `stop` says
+    /// the frame is no longer wanted (`None`); a GPU frame is one call, and always finishes.
+    fn render(&mut self, width: u32, height: u32, stop: &dyn Fn() -> bool) -> Result<Option<Frame>> {
         let cam = self.renderer.camera_sized(width, height);
         match self.marcher.as_mut() {
+            Some(AnyMarcher::Host(l)) => {
+                let mut s = Stoppable { inner: &mut **l, stop, stopped: false };
+                let r = self.renderer.render(&mut tr::HostMarcher(&mut s), &cam);
+                if s.stopped {
+                    return Ok(None);
+                }
+                let (image, stats) = r?;
+                Ok(Some((super::frames::srgb8(&image), stats)))
+            }
             Some(AnyMarcher::Gpu(m)) => {
                 let (rgba, stats) = m.march_srgb8(&self.renderer, &cam)?;
                 let rgb = rgba.iter().flat_map(|p| {
                     let [r, g, b, _] = p.to_le_bytes();
                     [r, g, b]
                 });
-                Ok((rgb.collect(), stats))
-            }
-            Some(m) => {
-                let (image, stats) = self.renderer.render(m, &cam)?;
-                Ok((super::frames::srgb8(&image), stats))
+                Ok(Some((rgb.collect(), stats)))
             }
             None => anyhow::bail!("no marcher (an earlier rebuild failed)"),
         }
+    }
+}
+
+/// A rendered frame: 8-bit sRGB RGB and its statistics.
+type Frame = (Vec<u8>, tr::FrameStats);
+
+/// A host locator whose batches fail once `stop` says so: a newer state supersedes a still
+/// frame within one batch of samples, rather than waiting seconds for a large frame.
+struct Stoppable<'a> {
+    inner: &'a mut dyn BatchLocator,
+    stop: &'a dyn Fn() -> bool,
+    stopped: bool,
+}
+
+impl Stoppable<'_> {
+    fn check(&mut self) -> tetloc_core::Result<()> {
+        self.stopped = self.stopped || (self.stop)();
+        if self.stopped {
+            return Err(tetloc_core::Error::Invalid("superseded by a newer view".into()));
+        }
+        Ok(())
+    }
+}
+
+impl BatchLocator for Stoppable<'_> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+    fn query(&mut self, points: Points<'_>, fields: &[&str], ids: &mut [i32], values: Values<'_>) -> CoreResult<()> {
+        self.check()?;
+        self.inner.query(points, fields, ids, values)
+    }
+    // The renderer's calls: forwarded, since backends override them for speed.
+    fn sample(&mut self, points: &[[f32; 3]], field: &str, values: &mut [f32]) -> CoreResult<()> {
+        self.check()?;
+        self.inner.sample(points, field, values)
+    }
+    fn sample_many64(
+        &mut self,
+        points: &[[f64; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: &mut [f64],
+    ) -> CoreResult<()> {
+        self.check()?;
+        self.inner.sample_many64(points, fields, ids, values)
+    }
+    fn preferred_batch(&self) -> Option<usize> {
+        self.inner.preferred_batch()
     }
 }
 
@@ -248,8 +320,12 @@ fn render_loop(scene: &mut Scene, hub: &Hub) {
         let s = if still { 1.0 } else { scale };
         let (sw, sh) = (((w as f64 * s).round() as u32).max(1), ((h as f64 * s).round() as u32).max(1));
         let t = Instant::now();
-        let (rgb, stats) = match scene.render(sw, sh) {
-            Ok(r) => r,
+        // A still frame (full size, maybe large) gives way to any newer state; moving
+        // frames always finish, or a fast drag would show none.
+        let stop = || still && lock(&hub.input).gen != gen;
+        let (rgb, stats) = match scene.render(sw, sh, &stop) {
+            Ok(Some(r)) => r,
+            Ok(None) => continue,
             Err(e) => {
                 lock(&hub.input).error = Some((gen, format!("{e:#}")));
                 hub.out_ready.notify_all();
@@ -285,5 +361,50 @@ fn render_loop(scene: &mut Scene, hub: &Hub) {
             range: scene.renderer.range(),
             started,
         });
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::cell::Cell;
+
+    /// Answers every point with tet 0 and value 1.
+    struct Ones;
+
+    impl BatchLocator for Ones {
+        fn name(&self) -> &str {
+            "ones"
+        }
+        fn query(&mut self, _: Points<'_>, _: &[&str], ids: &mut [i32], values: Values<'_>) -> CoreResult<()> {
+            ids.fill(0);
+            if let Values::F32(v) = values {
+                v.fill(1.0);
+            }
+            Ok(())
+        }
+    }
+
+    #[test]
+    fn a_stoppable_locator_fails_its_batches_once_told_to_stop() {
+        let (want_stop, mut ones) = (Cell::new(false), Ones);
+        let stop = || want_stop.get();
+        let mut s = Stoppable { inner: &mut ones, stop: &stop, stopped: false };
+        let mut v = [0.0f32; 2];
+        s.sample(&[[0.0; 3]; 2], "f", &mut v).unwrap();
+        assert_eq!(v, [1.0, 1.0]);
+        want_stop.set(true);
+        assert!(s.sample(&[[0.0; 3]; 2], "f", &mut v).is_err() && s.stopped);
+        want_stop.set(false);
+        assert!(s.sample_many64(&[[0.0; 3]], &["f"], &mut [0], &mut [0.0]).is_err(), "stopped stays stopped");
+    }
+
+    #[test]
+    fn frame_sizes_are_bounded_by_a_pixel_budget() {
+        assert_eq!(check_size([2048, 2048]), Ok(()));
+        assert_eq!(check_size([8192, 512]), Ok(()));
+        let e = check_size([2049, 2048]).unwrap_err();
+        assert!(e.contains("2049x2048") && e.contains("4194304 pixels"), "{e}");
+        assert!(check_size([8192, 8192]).is_err());
     }
 }
