@@ -1,5 +1,14 @@
 //! `tetloc`: which tetrahedron of this mesh contains this point, and what is the field value there?
 
+/// `eprintln!` that never panics (std's does when stderr is closed or full), for every module
+/// below: a lost stderr loses the messages, not the run and its outputs.
+macro_rules! eprintln {
+    ($($arg:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($arg)*);
+    }};
+}
+
 mod backend;
 mod bench;
 mod demo;

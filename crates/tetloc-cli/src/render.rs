@@ -7,7 +7,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 use tetloc_core::Mesh;
-use tetloc_io::output::FileArg;
+use tetloc_io::output::{self, FileArg};
 use tetloc_locator::{Backend, BareLocator};
 use tetloc_render as tr;
 use time_steps::{Series, TimeStep};
@@ -188,7 +188,11 @@ pub fn run(a: RenderArgs) -> Result<()> {
                 }
             }
             None => {
+                // An orbit's numbered PNGs reach their names together, after the last frame:
+                // an interrupted run over an older orbit leaves the old set, not a mix.
+                let set = output::OutputSet::begin();
                 let report = tr::render_to_file(&renderer, marcher, &out)?;
+                set.commit()?;
                 if !a.quiet {
                     for f in &report.frames {
                         eprintln!("{f}");

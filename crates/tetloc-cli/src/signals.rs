@@ -5,7 +5,8 @@
 //! and so does SIGABRT (an abort, such as a failed allocation's, or `kill -ABRT`), which then
 //! ends the process as SIGABRT does.
 //! A closed stdout (`tetloc info m.vtu | head -1`) ends the command quietly with exit code 0,
-//! as ripgrep does, instead of a panic message.
+//! as ripgrep does, instead of a panic message; another failure to write it (a full disk) is
+//! an error. (Messages to stderr never panic: `main.rs`'s `eprintln!`.)
 
 use signal_hook::consts::{SIGABRT, SIGHUP, SIGINT, SIGTERM};
 use signal_hook::iterator::Signals;
@@ -60,15 +61,28 @@ pub fn install() {
     let default = std::panic::take_hook();
     std::panic::set_hook(Box::new(move |info| {
         output::remove_temporaries();
-        if is_closed_stdout(info.payload()) {
-            std::process::exit(0);
+        match stdout_failure(info.payload()) {
+            Some(StdoutFailure::Closed) => std::process::exit(0),
+            // Another write error (a full disk, /dev/full): an error, not a panic's report.
+            Some(StdoutFailure::Other(text)) => {
+                use std::io::Write as _;
+                let _ = writeln!(std::io::stderr(), "error: {text}");
+                std::process::exit(1);
+            }
+            None => default(info),
         }
-        default(info);
     }));
 }
 
-/// Whether a panic (its payload) is `println!`'s on a closed stdout.
-fn is_closed_stdout(payload: &(dyn std::any::Any + Send)) -> bool {
+/// How `println!` failed, where a panic (its payload) is its failure to write to stdout.
+enum StdoutFailure {
+    /// A closed pipe (`| head -1`): the reader has what it wants.
+    Closed,
+    Other(String),
+}
+
+fn stdout_failure(payload: &(dyn std::any::Any + Send)) -> Option<StdoutFailure> {
     let text = payload.downcast_ref::<String>().map(String::as_str).or_else(|| payload.downcast_ref::<&str>().copied());
-    text.is_some_and(|t| t.starts_with("failed printing to stdout") && t.contains("Broken pipe"))
+    let text = text.filter(|t| t.starts_with("failed printing to stdout"))?;
+    Some(if text.contains("Broken pipe") { StdoutFailure::Closed } else { StdoutFailure::Other(text.to_string()) })
 }

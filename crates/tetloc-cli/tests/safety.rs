@@ -310,8 +310,8 @@ fn render_samples_and_frames_are_capped() {
     assert!(entries(&dir).is_empty());
 }
 
-/// Runs tetloc with its stdout a pipe whose reading end is already closed.
-fn with_closed_stdout(args: &[&str]) -> Output {
+/// A pipe whose reading end is already closed: its writing end.
+fn closed_pipe() -> std::fs::File {
     use std::os::fd::FromRawFd;
     let mut fds = [0; 2];
     // SAFETY: `fds` has room for the two descriptors pipe() returns.
@@ -319,8 +319,43 @@ fn with_closed_stdout(args: &[&str]) -> Output {
     // SAFETY: fds[0] is the reading end pipe() just opened, closed once here.
     unsafe { libc::close(fds[0]) };
     // SAFETY: fds[1] is the writing end, owned from now on by this File alone.
-    let writer = unsafe { std::fs::File::from_raw_fd(fds[1]) };
-    Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).stdout(writer).output().unwrap()
+    unsafe { std::fs::File::from_raw_fd(fds[1]) }
+}
+
+/// Runs tetloc with its stdout a pipe whose reading end is already closed.
+fn with_closed_stdout(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args).stdout(closed_pipe()).output().unwrap()
+}
+
+/// A closed stderr (`tetloc ... 2>&1 | true`) loses the messages, not the run: the output is
+/// written and the exit code is the run's (std's `eprintln!` panicked, exit 101, no output);
+/// a stdout that cannot be written for another reason (a full disk) is an error, not a panic.
+#[test]
+fn a_closed_stderr_loses_the_messages_not_the_run() {
+    let dir = tmp_dir("closed-stderr");
+    let (pts, out) = (dir.join("p.csv"), dir.join("ids.csv"));
+    std::fs::write(&pts, "0.5,0.5,0.5\n0.2,0.3,0.4\n").unwrap();
+    let run = |args: &[&str]| {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+            .args(args)
+            .stdout(Stdio::null())
+            .stderr(closed_pipe())
+            .spawn()
+            .unwrap();
+        child.wait().unwrap().code()
+    };
+    let locate = ["locate", "jets:2000", "--points", s(&pts), "--out", s(&out), "--backend", "cpu"];
+    assert_eq!(run(&locate), Some(0));
+    assert_eq!(std::fs::read_to_string(&out).unwrap().lines().count(), 3, "a header and two rows");
+    // An error still exits 1, its message lost.
+    assert_eq!(run(&["locate", s(&dir.join("missing.vtu")), "--points", s(&pts), "--out", s(&out)]), Some(1));
+    if Path::new("/dev/full").exists() {
+        let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(["info", "jets:2000"]).stdout(full).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.starts_with("error: failed printing to stdout") && !err.contains("panicked"), "{err}");
+        assert_eq!(o.status.code(), Some(1), "{err}");
+    }
 }
 
 /// Item 10: `tetloc info x.vtu | head -1` and other printing commands end quietly, exit 0,
@@ -409,4 +444,38 @@ fn a_failed_time_step_keeps_the_previous_steps() {
     let after = snapshot(&dir);
     let file = |snap: &[(String, Vec<u8>)], name: &str| snap.iter().find(|(n, _)| n == name).map(|(_, b)| b.clone());
     assert!(file(&after, "p_2.vtu") != file(&before, "p_2.vtu") && file(&after, "p.pvd").is_some());
+}
+
+/// An orbit's numbered PNGs appear together: a run interrupted over an older orbit leaves
+/// the older frames as they were, not a mix of both runs' frames (nor any temporary).
+#[test]
+fn an_interrupted_orbit_keeps_the_older_frames() {
+    let dir = tmp_dir("orbit");
+    let out = dir.join("g.png");
+    let args = |frames: &'static str| {
+        [
+            "render",
+            "jets:2000",
+            "--field",
+            "f",
+            "--backend",
+            "cpu",
+            "--size",
+            "32x32",
+            "--frames",
+            frames,
+            "-o",
+            s(&out),
+        ]
+        .map(String::from)
+    };
+    let (ok, _, err) = tetloc(&args("4").iter().map(String::as_str).collect::<Vec<_>>());
+    assert!(ok, "{err}");
+    let before = snapshot(&dir);
+    assert_eq!(before.len(), 4);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc")).args(args("300")).stderr(Stdio::null()).spawn().unwrap();
+    assert!(wait_for(&dir, ".g_0003.png.", Duration::from_secs(120)), "no fourth frame: {:?}", entries(&dir));
+    signal(&child, "INT");
+    assert_eq!(child.wait().unwrap().code(), Some(130));
+    assert_eq!(snapshot(&dir), before, "the older orbit's frames changed");
 }

@@ -10,6 +10,7 @@ use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use mpi::Count;
 use rayon::prelude::*;
+use std::io::Write as _;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
@@ -46,7 +47,7 @@ impl Cluster {
         let (rank, size) = (cluster.rank, cluster.size);
         let default_hook = std::panic::take_hook();
         std::panic::set_hook(Box::new(move |info| {
-            eprintln!("tetloc: rank {rank} of {size} panicked; aborting the job");
+            let _ = writeln!(std::io::stderr(), "tetloc: rank {rank} of {size} panicked; aborting the job");
             default_hook(info);
             SimpleCommunicator::world().abort(101);
         }));
@@ -105,7 +106,7 @@ impl Cluster {
     /// Ends the whole job from one rank after an error that the others cannot know of (they
     /// may be waiting in a collective): says which rank and why, then MPI_Abort.
     pub fn abort(&self, msg: &str) -> ! {
-        eprintln!("error: rank {} of {}: {msg}", self.rank, self.size);
+        let _ = writeln!(std::io::stderr(), "error: rank {} of {}: {msg}", self.rank, self.size);
         self.world.abort(1)
     }
 

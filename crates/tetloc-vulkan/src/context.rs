@@ -4,6 +4,7 @@
 use crate::error::{VkError, VkResult};
 use ash::vk;
 use std::ffi::{c_void, CStr};
+use std::io::Write as _;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 
@@ -329,7 +330,7 @@ unsafe extern "system" fn on_message(
             } else {
                 CStr::from_ptr((*data).p_message).to_string_lossy()
             };
-            eprintln!("tetloc-vulkan: validation error: {msg}");
+            let _ = writeln!(std::io::stderr(), "tetloc-vulkan: validation error: {msg}");
         }
     }
     vk::FALSE

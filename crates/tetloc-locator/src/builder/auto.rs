@@ -10,6 +10,7 @@ use crate::{contexts, fmt_rate, Backend, LocatorOptions, Result};
 use serde::{Deserialize, Serialize};
 use std::collections::HashMap;
 use std::fmt;
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
@@ -66,7 +67,7 @@ pub fn choose(device: Option<usize>, options: &LocatorOptions, quiet: bool) -> R
     }
     let choice = decide(device, options)?;
     if !quiet {
-        eprintln!("auto: {} ({})", choice.backend, choice.reason);
+        let _ = writeln!(std::io::stderr(), "auto: {} ({})", choice.backend, choice.reason);
     }
     choices.insert(device, choice.clone());
     Ok(choice)
@@ -147,10 +148,15 @@ fn ranking(
             let json = serde_json::to_vec(&AutoCache { device: key.to_string(), ranking: ranking.clone() })
                 .map_err(|e| tetloc_core::Error::Invalid(e.to_string()))?;
             if let Err(e) = tetloc_core::cache::write_atomically(p, &json) {
-                eprintln!("warning: auto: cannot cache the measurement ({e}); it is kept for this run only");
+                let _ = writeln!(
+                    std::io::stderr(),
+                    "warning: auto: cannot cache the measurement ({e}); it is kept for this run only"
+                );
             }
         }
-        None => eprintln!("warning: auto: no cache directory (neither XDG_CACHE_HOME nor HOME is set); the measurement is kept for this run only"),
+        None => {
+            let _ = writeln!(std::io::stderr(), "warning: auto: no cache directory (neither XDG_CACHE_HOME nor HOME is set); the measurement is kept for this run only");
+        }
     }
     Ok((ranking, "measured"))
 }
@@ -183,7 +189,7 @@ fn measure(avail: &[Backend], device: Option<usize>, options: &LocatorOptions, b
         let mut loc = match built {
             Ok(b) => b.locator,
             Err(e) => {
-                eprintln!("warning: auto: {backend} left out: {e}");
+                let _ = writeln!(std::io::stderr(), "warning: auto: {backend} left out: {e}");
                 continue;
             }
         };

@@ -6,6 +6,7 @@ pub mod auto;
 use crate::{contexts, Backend, Error, Result};
 use auto::AutoChoice;
 use std::collections::BTreeMap;
+use std::io::Write as _;
 use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::bvh::{BuildPreset, BvhNode};
@@ -231,7 +232,7 @@ impl<'a> LocatorBuilder<'a> {
     pub fn build(&self) -> Result<Built> {
         let built = self.build_unexplained()?;
         if std::env::var_os("TETLOC_EXPLAIN").is_some_and(|v| !v.is_empty() && v != "0") {
-            eprintln!("locator: {}", built.describe());
+            let _ = writeln!(std::io::stderr(), "locator: {}", built.describe());
         }
         Ok(built)
     }

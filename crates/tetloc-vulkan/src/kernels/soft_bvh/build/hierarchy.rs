@@ -10,6 +10,7 @@ use crate::error::VkResult;
 use crate::interface::*;
 use crate::memory::{Buffer, MemKind};
 use crate::pipeline::Spec;
+use std::io::Write as _;
 use std::time::Instant;
 
 /// Levels recorded per submission before the host looks whether the tree has ended.
@@ -149,7 +150,11 @@ fn levels(
         if profile {
             let sizes: Vec<u32> = (0..(last - first) as usize).map(|k| words[8 * k + 5] - words[8 * k + 4]).collect();
             let what = if wide { "4-wide" } else { "binary" };
-            eprintln!("{what} levels {first}..{last}: {:.4} s, entries {sizes:?}", t.elapsed().as_secs_f64());
+            let _ = writeln!(
+                std::io::stderr(),
+                "{what} levels {first}..{last}: {:.4} s, entries {sizes:?}",
+                t.elapsed().as_secs_f64()
+            );
         }
         for k in first..=last {
             let w = &words[8 * (k - first) as usize..];
