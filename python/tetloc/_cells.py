@@ -91,6 +91,13 @@ def voxels_as_hexahedra(cells: CellList) -> CellList:
     return types, offsets, conn
 
 
+def check_codes(codes: np.ndarray, arg: str) -> None:
+    """VTK cell type codes are 0..255 (VTK's unsigned char): others are refused, not wrapped."""
+    if codes.dtype.kind not in "iu" or not np.all((codes >= 0) & (codes <= 255)):
+        bad = codes[~((codes >= 0) & (codes <= 255))][:3] if codes.dtype.kind in "iu" else codes[:3]
+        raise ValueError(f"{arg}: VTK cell type codes are whole numbers from 0 to 255; got {list(bad)}")
+
+
 def from_padded(cells: Any, celltypes: Any, arg: str = "cells") -> CellList:
     """pyvista's legacy padded array ``[n0, ids..., n1, ids...]`` with its cell types."""
     padded = np.asarray(cells)
@@ -99,6 +106,7 @@ def from_padded(cells: Any, celltypes: Any, arg: str = "cells") -> CellList:
         raise ValueError(f"{arg}: with celltypes, expected a flat integer array [n0, ids..., n1, ids...] (pyvista's cells)")
     if types.ndim != 1 or types.dtype.kind not in "iu":
         raise ValueError(f"celltypes: expected a 1-D array of VTK cell type codes, got shape {types.shape}, dtype {types.dtype}")
+    check_codes(types, "celltypes")
     counts = np.empty(len(types), np.int64)
     k = int(padded[0]) if len(padded) else 0
     if len(padded) == len(types) * (k + 1) and (padded[:: k + 1] == k).all():
@@ -138,6 +146,7 @@ def from_blocks(blocks: Mapping[Any, Any], arg: str = "cells") -> CellList:
     types, offsets, conn = [], [np.zeros(1, np.int64)], []
     end = 0
     for code, rows in blocks.items():
+        check_codes(np.asarray([code]), f"{arg} (a key)")
         a = np.asarray(rows)
         if a.ndim != 2 or a.dtype.kind not in "iu":
             raise ValueError(f"{arg}[{int(code)}]: shape {a.shape}, dtype {a.dtype}; expected (n, k) integer ids")

@@ -91,7 +91,7 @@ def split(
             raise ValueError(
                 f"{arg}['{name}']: shape {a.shape}; expected ({n},) or ({n}, k), one row per {location}"
             )
-        dtype = np.float64 if a.dtype == np.float64 else np.float32
+        dtype = np.float64 if a.dtype.kind == "f" and a.dtype.itemsize == 8 else np.float32  # '>f8' too
         if a.ndim == 1:
             out.append((name, location, np.ascontiguousarray(a, dtype=dtype)))
         else:

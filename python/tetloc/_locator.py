@@ -235,7 +235,7 @@ class Locator:
         else:
             out = v[np.maximum(cells, 0)]
         out[cells < 0] = np.nan
-        out = out.astype(values.dtype if values.dtype == np.float64 else np.float32)
+        out = out.astype(np.float64 if values.dtype.kind == "f" and values.dtype.itemsize == 8 else np.float32)
         out = out[:, 0] if values.ndim == 1 else out
         return out.reshape(lead + out.shape[1:])
 

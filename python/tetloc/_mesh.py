@@ -125,7 +125,8 @@ class Mesh:
             raise ValueError(f"point_data/cell_data: field names given twice: {dup} (vector NAME gives NAME[i])")
         # float64 coordinates are kept where float32 would round them: answers are then
         # exact on them (and a mesh far from the origin keeps its precision).
-        points64 = np.ascontiguousarray(pts, dtype=np.float64) if pts.dtype == np.float64 else None
+        wide = pts.dtype.kind == "f" and pts.dtype.itemsize == 8  # big-endian '>f8' too
+        points64 = np.ascontiguousarray(pts, dtype=np.float64) if wide else None
         points32 = np.ascontiguousarray(pts, dtype=np.float32)
         if cell_list is None:
             conn32 = np.ascontiguousarray(tets, dtype=np.uint32).ravel()

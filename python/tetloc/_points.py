@@ -67,7 +67,8 @@ def as_points64(points: Any, arg: str = "points") -> Tuple[np.ndarray, Tuple[int
     a = _to_numpy(points, arg)
     if a.dtype.kind in "biu":
         a = a.astype(np.float64)
-    if a.dtype != np.float64 or a.ndim == 0 or a.shape[-1] != 3:
+    # By kind and size, not `== np.float64`: big-endian '>f8' holds the same digits.
+    if a.dtype.kind != "f" or a.dtype.itemsize != 8 or a.ndim == 0 or a.shape[-1] != 3:
         return None
     lead = a.shape[:-1]
     flat = a if a.ndim == 2 else a.reshape(-1, 3)

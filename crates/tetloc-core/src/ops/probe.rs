@@ -16,8 +16,8 @@ pub struct Probed {
     pub ids: Vec<i32>,
     /// Each field with its values, k per point (NaN where the point got none).
     pub arrays: Vec<(FieldGroup, Vec<f32>)>,
-    /// For each of `arrays`, its f64 values when the field has f64 data and the backend
-    /// takes f64 points (`None` otherwise): what the writers write, as Float64.
+    /// One entry for each of `arrays`: its f64 values when the field has f64 data and the
+    /// backend takes f64 points (`None` otherwise): what the writers write, as Float64.
     pub arrays64: Vec<Option<Vec<f64>>>,
 }
 
@@ -75,7 +75,7 @@ pub fn probe_points(
     let arrays = in_batches(n, batch, fields, &mut ids, &mut progress, |r, ids, values| {
         loc.sample_many(&points.narrow(r), &names, ids, values)
     })?;
-    Ok(Probed { ids, arrays: fields.iter().cloned().zip(arrays).collect(), arrays64: Vec::new() })
+    Ok(Probed { ids, arrays: fields.iter().cloned().zip(arrays).collect(), arrays64: vec![None; fields.len()] })
 }
 
 /// Samples `n` points in batches of `batch` (`sample(range, ids, values)`, every field's
@@ -141,7 +141,7 @@ impl Probed {
                 (g.clone(), v)
             })
             .collect();
-        Probed { ids, arrays, arrays64: Vec::new() }
+        Probed { ids, arrays, arrays64: vec![None; fields.len()] }
     }
 }
 
@@ -214,6 +214,13 @@ mod tests {
         let want = &m.field("f").unwrap().values;
         assert!(want.iter().zip(f).all(|(a, b)| (a - b).abs() <= 1e-6 * (1.0 + a.abs())));
         assert!(f.last().unwrap().is_nan() && *p.mask().last().unwrap() == 0);
+        // Every field has its (here empty) f64 entry: the Python binding pairs them up, and
+        // dropped every field where this list was empty.
+        assert_eq!(p.arrays64.len(), p.arrays.len());
+        assert!(p.arrays64.iter().all(Option::is_none));
+        let width: usize = groups.iter().map(FieldGroup::n_components).sum();
+        let lines = Probed::from_values(p.ids.clone(), &groups, &vec![0.0; p.ids.len() * width]);
+        assert_eq!(lines.arrays64.len(), groups.len());
     }
 
     /// A field of f64 data is probed in f64 (as VTK's probe keeps the source array's type): at
