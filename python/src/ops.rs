@@ -146,6 +146,16 @@ pub fn resample_to_image<'py>(
         n.checked_mul(k).ok_or_else(|| PyValueError::new_err(format!("dims {dims:?}: too many points for memory")))
     };
     size(width.max(1))?;
+    // The image is held whole (a mask byte and 4 bytes a component a point): refused before
+    // allocating where memory cannot hold it (an allocation that fails aborts the interpreter).
+    let need = n as u128 * (1 + 4 * width as u128);
+    if let Some(avail) = tetloc_core::memory::available_bytes().filter(|&a| need > a as u128) {
+        return Err(pyo3::exceptions::PyMemoryError::new_err(format!(
+            "dims {dims:?}: the image needs {:.1} GB, and about {:.1} GB of memory is available",
+            need as f64 / 1e9,
+            avail as f64 / 1e9
+        )));
+    }
     let mut mask = vec![0u8; n];
     let mut values: Vec<Vec<f32>> = widths.iter().map(|&k| vec![0f32; n * k]).collect();
     with_backend(py, locator, |loc| {
@@ -230,11 +240,12 @@ fn points_of<'a, T: numpy::Element + bytemuck::Pod>(points: &'a PyReadonlyArray2
 /// again every `reinject_every` output times (0: once); `streaklines`: one line a seed through
 /// its particles at the end time, `ParticleAge` instead of `IntegrationTime`;
 /// `every_output_time`: `frames`, a list of (time, dict) at each output time after the start
-/// (the lines as a run ending there gives them) in place of the arrays.
+/// (the lines as a run ending there gives them) in place of the arrays. `vorticity`:
+/// streamlines also carry `Vorticity`, `Rotation`, `AngularVelocity` and `Normals` (float64).
 #[pyfunction(name = "trace")]
 #[pyo3(signature = (mesh, locator, vector, seeds, step, max_steps, max_length, max_time, direction, integrator,
     max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None, reinject_every=0, streaklines=false,
-    every_output_time=false))]
+    every_output_time=false, vorticity=false))]
 #[allow(clippy::too_many_arguments)]
 pub fn trace_lines<'py>(
     py: Python<'py>,
@@ -259,9 +270,13 @@ pub fn trace_lines<'py>(
     reinject_every: usize,
     streaklines: bool,
     every_output_time: bool,
+    vorticity: bool,
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = mesh.mesh.clone();
     let seeds = points_of(&seeds)?;
+    if unsteady && vorticity {
+        return Err(PyValueError::new_err("vorticity applies to streamlines, not to pathlines (unsteady=True)"));
+    }
     if unsteady {
         let o = trace::PathOptions {
             integrator: integrator.parse::<Integrator>().map_err(to_py)?,
@@ -340,12 +355,22 @@ pub fn trace_lines<'py>(
         max_step,
     };
     o.check().map_err(to_py)?;
+    // As the CLI: a step f64 cannot tell from none at the mesh's coordinates is refused.
+    let (lo, hi) = m.file_bounds();
+    o.check_scale(lo.iter().chain(&hi).fold(0.0, |s, c| s.max(c.abs()))).map_err(to_py)?;
     let c = vector.component_refs();
     let xyz = [c[0], c[1], c[2]];
     let n_lines = seeds.len() * if o.direction == trace::Direction::Both { 2 } else { 1 };
     let out_fields = trace::line_fields(&m, &vector);
+    // Step-synchronous through a locator's batches, its answers (cells, on a mixed mesh) kept.
+    let batched = |loc: &mut (dyn BatchLocator + Send)| -> PyResult<LineArrays> {
+        let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
+            trace::trace_with(seeds, &o, &mut *loc, xyz, &out_fields, |d| ticker.tick(d))
+        })?;
+        py.detach(|| LineArrays::sample(&lines, &m, &mut *loc, &out_fields)).map_err(to_py)
+    };
     let arrays = match locator {
-        None => {
+        None if m.cells.is_none() => {
             // The line arrays come from the integrator's own lookups (no second pass), through
             // the CPU's locator itself (each particle walks from its last tet).
             let cpu = cpu_locator(py, &m)?;
@@ -353,13 +378,17 @@ pub fn trace_lines<'py>(
                 trace::trace_sampled(seeds, &o, &cpu, xyz, &out_fields, &|d| ticker.tick(d))
             })?
         }
-        Some(locator) => with_backend(py, locator, |loc| {
-            let lines = run_job(py, "tracing", n_lines, progress.as_ref(), |ticker| {
-                trace::trace_with(seeds, &o, &mut *loc, xyz, &out_fields, |d| ticker.tick(d))
-            })?;
-            py.detach(|| LineArrays::sample(&lines, &m, &mut *loc, &out_fields)).map_err(to_py)
-        })?,
+        // The per-particle walk runs on tets: mixed meshes take the batch tracer (as the CLI),
+        // through the CPU's stack, which maps answers to cells and interpolates with the
+        // cells' shape functions.
+        None => {
+            let cpu = || Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build();
+            let mut built = py.detach(cpu).map_err(crate::backend::py_error)?;
+            batched(built.locator.as_mut())?
+        }
+        Some(locator) => with_backend(py, locator, |loc| batched(loc))?,
     };
+    let arrays = py.detach(|| arrays.with_vorticity(vorticity.then_some((&*m, &vector)))).map_err(to_py)?;
     line_dict(py, arrays)
 }
 
@@ -383,6 +412,16 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
         if let Some(age) = p.age {
             out.set_item("ParticleAge", PyArray1::from_vec(py, age))?;
         }
+    }
+    if let Some(v) = arrays.vorticity {
+        let vectors = |v: Vec<[f64; 3]>| -> PyResult<Bound<'_, PyArray2<f64>>> {
+            let n = v.len();
+            PyArray1::from_vec(py, bytemuck::cast_vec::<[f64; 3], f64>(v)).reshape([n, 3])
+        };
+        out.set_item("Vorticity", vectors(v.vorticity)?)?;
+        out.set_item("Rotation", PyArray1::from_vec(py, v.rotation))?;
+        out.set_item("AngularVelocity", PyArray1::from_vec(py, v.angular_velocity))?;
+        out.set_item("Normals", vectors(v.normals)?)?;
     }
     let fields: FieldArrays = arrays
         .fields

@@ -340,3 +340,182 @@ def test_every_backend_agrees_with_cpu(vulkan, swirl_mesh, backend):
     np.testing.assert_array_equal(t_gpu["SeedIds"], t_cpu["SeedIds"])
     np.testing.assert_allclose(t_gpu["points"], t_cpu["points"], atol=1e-5)
     assert not in_ci() or tetloc._tetloc.validation_errors() == 0
+
+
+@pytest.mark.parametrize("shape, size", [("fusion", "--tets=20k"), ("jets-hex", "--cells=3000")])
+def test_trace_vorticity_matches_vtk(cli, tmp_path, shape, size):
+    """``vorticity=True`` gives vtkStreamTracer's ComputeVorticity arrays. The vorticity is the
+    curl in the cell holding each point: wherever VTK's FindCell returns a cell that holds the
+    point strictly, it is the curl of VTK's own ``vtkCell.Derivatives`` there. The tracer's
+    arrays agree at most points; where they differ, VTK's tracer took a neighbouring cell,
+    since its cell search accepts points just outside a cell and the gradient jumps across
+    faces. On lines where every vorticity agrees, AngularVelocity, Rotation and Normals agree
+    too, within the float32 rounding of the line points. The CLI's ``--vorticity`` writes the
+    same arrays."""
+    vtk = need("vtk")
+    pv = need("pyvista")
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    mesh_path = tmp_path / "m.vtu"
+    subprocess.run([cli, "gen", shape, size, "--vector", "-o", str(mesh_path), "--quiet"], check=True)
+    grid = pv.read(mesh_path)
+    centres = np.asarray(grid.cell_centers().points, dtype=np.float32)
+    seeds = centres[:: max(1, len(centres) // 25)]
+    step = 0.1 * float(np.mean(grid.compute_cell_sizes(length=False, area=False).cell_data["Volume"]) ** (1 / 3))
+    t = vtk.vtkStreamTracer()
+    t.SetInputData(grid)
+    src = vtk.vtkPolyData()
+    pts = vtk.vtkPoints()
+    for p in seeds:
+        pts.InsertNextPoint(*map(float, p))
+    src.SetPoints(pts)
+    t.SetSourceData(src)
+    t.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")
+    t.SetIntegratorTypeToRungeKutta4()
+    t.SetIntegrationStepUnit(vtk.vtkStreamTracer.LENGTH_UNIT)
+    t.SetInitialIntegrationStep(step)
+    t.SetMaximumNumberOfSteps(150)
+    t.SetMaximumPropagation(1e30)
+    t.SetIntegrationDirectionToBoth()
+    t.SetComputeVorticity(True)
+    t.Update()
+    theirs = t.GetOutput()
+    ours = tetloc.trace(tetloc.read(mesh_path), "v", seeds, step=step, max_steps=150, direction="both",
+                        backend="cpu", vorticity=True)
+    theirs_offsets = vtk_to_numpy(theirs.GetLines().GetOffsetsArray())
+    np.testing.assert_array_equal(ours["offsets"], theirs_offsets)
+    points = ours["points"].astype(np.float64)
+    np.testing.assert_allclose(points, vtk_to_numpy(theirs.GetPoints().GetData()), atol=1e-5)
+    theirs_arrays = {name: vtk_to_numpy(theirs.GetPointData().GetArray(name))
+                     for name in ("Vorticity", "AngularVelocity", "Rotation", "Normals")}
+    for name, values in theirs_arrays.items():
+        assert ours[name].dtype == np.float64 and ours[name].shape == values.shape, name
+
+    vertex_v = vtk_to_numpy(grid.GetPointData().GetArray("v")).astype(np.float64)
+    scale = np.abs(theirs_arrays["Vorticity"]).max()
+    held = 0
+    for p, mine in zip(points, ours["Vorticity"]):
+        weights, pcoords = [0.0] * 8, [0.0] * 3
+        c = grid.FindCell(p, None, 0, 0.0, vtk.reference(0), pcoords, weights)
+        cell = grid.GetCell(c)
+        closest, d2, sub = [0.0] * 3, vtk.reference(0.0), vtk.reference(0)
+        inside = cell.EvaluatePosition(p, closest, sub, pcoords, d2, weights)
+        n = cell.GetNumberOfPoints()
+        # Distances to the faces in parametric units: a tet's barycentrics, a hex's pcoords.
+        faces = [1 - sum(pcoords)] + pcoords if n == 4 else pcoords + [1 - x for x in pcoords]
+        if inside != 1 or min(faces) <= 1e-6:
+            continue  # on or near a face: either neighbour's gradient is the curl there
+        ids = [cell.GetPointId(k) for k in range(n)]
+        derivs = [0.0] * 9
+        cell.Derivatives(0, pcoords, vertex_v[ids].ravel().tolist(), 3, derivs)
+        d = np.array(derivs).reshape(3, 3)  # d[c][k] = dv_c/dx_k
+        curl = [d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]]
+        np.testing.assert_allclose(mine, curl, rtol=0, atol=1e-9 * scale)
+        held += 1
+    assert held > 0.8 * len(points), (held, len(points))
+
+    same = np.abs(ours["Vorticity"] - theirs_arrays["Vorticity"]).max(axis=1) <= 1e-9 * scale
+    assert same.mean() > 0.9, same.mean()
+    clean = np.zeros(len(points), bool)
+    for a, b in zip(theirs_offsets[:-1], theirs_offsets[1:]):
+        clean[a:b] = same[a:b].all()
+    assert clean.sum() > 0.3 * len(points), clean.sum()
+    for name, tol in (("AngularVelocity", 1e-5), ("Rotation", 1e-5), ("Normals", 1e-3)):
+        their = theirs_arrays[name]
+        np.testing.assert_allclose(ours[name][clean], their[clean], rtol=0, atol=tol * max(1.0, np.abs(their).max()),
+                                   err_msg=name)
+
+    out = tmp_path / "lines.vtp"
+    seeds_path = tmp_path / "seeds.npy"
+    np.save(seeds_path, seeds)
+    subprocess.run([cli, "trace", str(mesh_path), "--vector", "v", "--seeds", str(seeds_path), "--step", repr(step),
+                    "--max-steps", "150", "--direction", "both", "--backend", "cpu", "--vorticity", "-o", str(out),
+                    "--quiet"], check=True)
+    written = pv.read(out)
+    for name in theirs_arrays:
+        np.testing.assert_array_equal(np.asarray(written.point_data[name]), ours[name], err_msg=name)
+    with pytest.raises(ValueError, match="streamlines"):
+        tetloc.trace(tetloc.read(mesh_path), "v", seeds, unsteady=True, vorticity=True)
+
+
+def test_probe_keeps_every_field_at_any_precision():
+    """Hostile test: probing float32 fields at float32 points (or at float64 points that float32
+    holds, such as points on faces) returned the mask alone, every field dropped."""
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], np.float64)
+    for dtype in (np.float32, np.float64):
+        mesh = tetloc.Mesh(pts, np.array([[0, 1, 2, 3], [1, 2, 3, 4]]), point_data={"f": (pts @ [1, 2, 3]).astype(dtype)})
+        loc = tetloc.Locator(mesh, backend="cpu")
+        for target in (np.array([[0.5, 0.5, 0.0]]), np.array([[0.1, 0.1, 0.1]], np.float32), mesh, np.zeros((0, 3))):
+            got = tetloc.probe(mesh, target, backend="cpu")
+            assert set(got) == {"f", "vtkValidPointMask"}, (dtype, target)
+            at = mesh.points64 if isinstance(target, tetloc.Mesh) else np.asarray(target, np.float64)
+            np.testing.assert_allclose(got["f"], loc.sample(at, "f"), rtol=1e-6)
+            np.testing.assert_array_equal(tetloc.probe(mesh, target, "f", backend="cpu"), got["f"])
+
+
+def test_big_endian_float64_points_keep_their_digits():
+    """'>f8' points are float64: located and sampled as '<f8' ones, not rounded to float32."""
+    pts = np.array([[0, 0, 0], [0.1, 0, 0], [0.1, 1, 0], [0.1, 0, 1], [1, 0, 0]], np.float64)
+    mesh = tetloc.Mesh(pts, np.array([[0, 1, 2, 3], [1, 4, 2, 3]]), point_data={"f": pts[:, 0] * 3})
+    loc = tetloc.Locator(mesh, backend="cpu")
+    near = np.array([[0.1 - 1e-9, 0.2, 0.2], [0.1 + 1e-9, 0.2, 0.2]])
+    ids = loc.locate(near)
+    assert list(ids) == [0, 1]
+    np.testing.assert_array_equal(loc.locate(near.astype(">f8")), ids)
+    np.testing.assert_array_equal(loc.sample(near.astype(">f8"), "f"), loc.sample(near, "f"))
+    assert loc.sample(near.astype(">f8"), "f").dtype == np.float64
+    np.testing.assert_array_equal(tetloc.probe(mesh, near.astype(">f8"), "f", backend="cpu"),
+                                  tetloc.probe(mesh, near, "f", backend="cpu"))
+    big = tetloc.Mesh(pts.astype(">f8"), np.array([[0, 1, 2, 3], [1, 4, 2, 3]]), point_data={"f": (pts[:, 0] * 3).astype(">f8")})
+    np.testing.assert_array_equal(big.points64, mesh.points64)
+    assert big.field("f").dtype == np.float64
+
+
+def test_resample_far_from_the_origin_samples_the_images_points():
+    """On a mesh far from the origin (float64 coordinates), each image point's mask and value
+    are those of locating that point (origin + index x spacing, in float64), not of its float32
+    rounding, which at 4e6 is a quarter of a metre away."""
+    points, cells = kuhn_grid(5, 40.0)
+    rng = np.random.default_rng(3)
+    points = points + rng.uniform(-6, 6, points.shape) * (np.abs(points % 200) > 1e-9)  # the box's faces stay flat
+    far = points + [512345.0, 4123456.0, 39.0]
+    mesh = tetloc.Mesh(far, cells, point_data={"f": (points @ [1, 2, 3]) / 600})
+    loc = tetloc.Locator(mesh, backend="cpu")
+    dims = (23, 19, 17)
+    lo, hi = far.min(axis=0) - 3, far.max(axis=0) + 3
+    img = tetloc.resample_to_image(loc, ["f"], dims=dims, bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
+    axes = [lo[k] + np.arange(dims[k]) * ((hi[k] - lo[k]) / (dims[k] - 1)) for k in range(3)]  # as VTK lays them
+    z, y, x = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")
+    g = np.stack([x, y, z], -1).reshape(-1, 3)
+    ids = loc.locate(g)
+    np.testing.assert_array_equal(img["vtkValidPointMask"].ravel(), (ids >= 0).astype(np.uint8))
+    inside = ids >= 0
+    np.testing.assert_allclose(img["f"].ravel()[inside], loc.sample(g, "f")[inside], rtol=0, atol=1e-5)
+    # The float32 points differ: some grid points change cell there.
+    assert (loc.locate(g.astype(np.float32).astype(np.float64)) != ids).any()
+
+
+def test_resample_beyond_memory_is_refused(swirl_mesh):
+    with pytest.raises(MemoryError, match="dims"):
+        tetloc.resample_to_image(swirl_mesh, "f", dims=(100000, 100000, 100000), backend="cpu")
+
+
+def test_trace_edge_cases(swirl_mesh):
+    """A step f64 cannot tell from none is refused (it gave no line and a misleading warning);
+    no line at all still makes an (empty) pyvista PolyData, with the warning."""
+    with pytest.raises(ValueError, match="too small"):
+        tetloc.trace(swirl_mesh, "v", seeds(), step=1e-20, backend="cpu")
+    with pytest.warns(RuntimeWarning, match="4 of 4 lines"):
+        lines = tetloc.trace(swirl_mesh, "v", np.full((4, 3), 5.0), backend="cpu", as_pyvista=True)
+    assert lines.n_points == 0
+
+
+def test_cell_type_codes_are_checked():
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float64)
+    for bad in (266, -246, 2**32 + 10):
+        with pytest.raises(ValueError, match="celltypes.*0 to 255"):
+            tetloc.Mesh(pts, np.array([4, 0, 1, 2, 3]), celltypes=np.array([bad]))
+    with pytest.raises(ValueError, match="0 to 255"):
+        tetloc.Mesh(pts, {266: np.array([[0, 1, 2, 3]])})
+    with pytest.raises(ValueError, match="0 to 255"):
+        tetloc.Mesh(pts, {"tetra": np.array([[0, 1, 2, 3]])})

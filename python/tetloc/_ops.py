@@ -211,6 +211,7 @@ def trace(
     reinject_every: int = 0,
     streaklines: bool = False,
     every_output_time: bool = False,
+    vorticity: bool = False,
 ) -> Any:
     """Streamlines of the 3-component field `vector` from `seeds` (vtkStreamTracer with steps
     in length units): `integrator` ``"rk4"`` (fixed `step`), ``"rk45"`` (adaptive,
@@ -236,6 +237,13 @@ def trace(
     ``tetloc.REASONS``), and the mesh's point fields at the points under their names. With
     ``as_pyvista=True`` (the default for a pyvista mesh) a ``pyvista.PolyData`` of lines with
     those point and cell arrays, as ParaView's Stream Tracer outputs.
+
+    ``vorticity=True`` (ParaView's "Compute Vorticity", vtkStreamTracer's arrays, float64):
+    ``Vorticity`` (P, 3), the curl of `vector` in the cell holding each point (a vector stored
+    per cell has none: zeros); ``AngularVelocity`` (P,), the vorticity along the unit
+    velocity; ``Rotation`` (P,), the angular velocity integrated along the line by the
+    trapezoid rule in ``IntegrationTime``; ``Normals`` (P, 3), vtkPolyLine's sliding normals
+    turned by the rotation, which ribbon and tube filters orient by. Streamlines only.
 
     ``unsteady=True``: pathlines, as ParaView's Particle Path filter (vtkParticlePathFilter),
     through the time steps of `mesh` (read from an Exodus file with steps or a ``.pvd``):
@@ -285,6 +293,7 @@ def trace(
         m._raw, raw_loc, vector, pts, step, int(max_steps), max_length, max_time, direction, integrator,
         float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
         bool(unsteady), start_time, end_time, reinject_every, bool(streaklines), bool(every_output_time),
+        bool(vorticity),
     )
     # As the CLI: seeds that give no line are counted (VTK makes none for them either).
     injections = out.pop("injections", 1)
@@ -311,6 +320,8 @@ def trace(
 
 #: The point arrays pathlines and streaklines add, as vtkParticlePathFilter writes them.
 PARTICLE_ARRAYS = ("ParticleId", "InjectedPointId", "InjectionStepId", "ParticleAge")
+#: The point arrays ``vorticity=True`` adds, as vtkStreamTracer's ComputeVorticity writes them.
+VORTICITY_ARRAYS = ("Vorticity", "Rotation", "AngularVelocity", "Normals")
 
 
 def _lines(out: Dict[str, Any], streaklines: bool, pyvista_out: bool) -> Any:
@@ -324,6 +335,8 @@ def _lines(out: Dict[str, Any], streaklines: bool, pyvista_out: bool) -> Any:
         return out
     import pyvista as pv
 
+    if n == 0:
+        return pv.PolyData()  # no line (pyvista refuses empty arrays)
     offsets = out["offsets"]
     sizes = np.diff(offsets)
     cells = np.insert(np.arange(n, dtype=np.int64), offsets[:-1], sizes) if n else np.zeros(0, np.int64)
@@ -332,7 +345,7 @@ def _lines(out: Dict[str, Any], streaklines: bool, pyvista_out: bool) -> Any:
         poly.point_data[name] = out[name]
     time = "ParticleAge" if streaklines else "IntegrationTime"
     poly.point_data[time] = out[time]
-    for name in PARTICLE_ARRAYS:
+    for name in PARTICLE_ARRAYS + VORTICITY_ARRAYS:
         if name in out and name != time:
             poly.point_data[name] = out[name]
     poly.cell_data["ReasonForTermination"] = out["ReasonForTermination"]

@@ -82,6 +82,13 @@ pub struct TraceArgs {
     /// zlib-compress the output's arrays.
     #[arg(long)]
     zlib: bool,
+    /// Also write ParaView's "Compute Vorticity" arrays at each line point (vtkStreamTracer's,
+    /// Float64): Vorticity (the curl of the vector in the cell holding the point),
+    /// AngularVelocity (the vorticity along the unit velocity), Rotation (the angular velocity
+    /// integrated along the line in IntegrationTime) and Normals (sliding normals turned by the
+    /// rotation, for ribbons and tubes). Streamlines only.
+    #[arg(long, conflicts_with = "unsteady")]
+    vorticity: bool,
     /// The backend: cpu (each particle walks from its last tet), a GPU kernel (soft-bvh with
     /// rk4: whole lines in one kernel, each particle walking from its last tet; otherwise
     /// every particle advanced together, one batch per stage), or auto.
@@ -225,7 +232,10 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
         time_steps::with_locator(kept, &m, build, |cpu| {
             trace_in_batches(&seeds, batches, n_lines, name, spill, &mut |seeds, ob, progress| {
                 // The line fields come from the integrator's own lookups (no second pass).
-                Ok((trace::trace_sampled(seeds, ob, cpu, [x, y, z], &out_fields, &progress)?, 0.0))
+                let arrays = trace::trace_sampled(seeds, ob, cpu, [x, y, z], &out_fields, &progress)?;
+                let t = Instant::now();
+                let arrays = arrays.with_vorticity(a.vorticity.then_some((&*m, &vector)))?;
+                Ok((arrays, t.elapsed().as_secs_f64()))
             })
         })?
     } else {
@@ -235,6 +245,7 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
                 let lines = trace::trace_with(seeds, ob, loc.as_mut(), [x, y, z], &out_fields, progress)?;
                 let t = Instant::now();
                 let arrays = trace::LineArrays::sample(&lines, &m, loc.as_mut(), &out_fields)?;
+                let arrays = arrays.with_vorticity(a.vorticity.then_some((&*m, &vector)))?;
                 Ok((arrays, t.elapsed().as_secs_f64()))
             })
         })?

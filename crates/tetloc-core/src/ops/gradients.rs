@@ -74,6 +74,41 @@ pub fn weights(mesh: &Mesh, points: &[Point], ids: &[i32]) -> Weights {
     out
 }
 
+/// A point's nodes, their weights and the weights' gradients ([`PointWeights::at`]).
+pub type NodesWeightsGradients<'a> = (&'a [u32], &'a [f64], &'a [[f64; 3]]);
+
+/// One point's weights and gradients at a time, with its own buffers (one per thread): for
+/// passes over many points that use each point's weights once (a trace's vorticity), where
+/// [`Weights`] for all of them would hold `width` × 36 bytes a point.
+pub struct PointWeights {
+    scratch: Scratch,
+    nodes: Vec<u32>,
+    w: Vec<f64>,
+    g: Vec<[f64; 3]>,
+}
+
+impl PointWeights {
+    /// Buffers for `mesh`'s points ([`width`] entries a point).
+    pub fn new(mesh: &Mesh) -> PointWeights {
+        let width = width(mesh);
+        PointWeights {
+            scratch: Scratch::default(),
+            nodes: vec![0; width],
+            w: vec![0.0; width],
+            g: vec![[0.0; 3]; width],
+        }
+    }
+
+    /// Point `p`'s nodes, weights and gradients in cell (or tet) `id`, as [`weights`] gives
+    /// them (padded with weight and gradient 0); `None` where it has none.
+    pub fn at(&mut self, mesh: &Mesh, id: usize, p: Point) -> Option<NodesWeightsGradients<'_>> {
+        self.w.fill(0.0);
+        self.g.fill([0.0; 3]);
+        let row = Row { nodes: &mut self.nodes, w: &mut self.w, g: &mut self.g };
+        point_weights(mesh, id, p, &mut self.scratch, row).then_some((&self.nodes, &self.w, &self.g))
+    }
+}
+
 /// One point's slots in [`Weights`].
 struct Row<'a> {
     nodes: &'a mut [u32],

@@ -29,10 +29,12 @@ use rayon::prelude::*;
 
 mod particle;
 mod pathline;
+mod vorticity;
 pub use particle::Particle;
 pub use pathline::{
     pathline_run, pathline_run_batch, pathlines, pathlines_batch, Leg, PathJob, PathOptions, PathParticle, PathRun,
 };
+pub use vorticity::{vorticity, VorticityArrays};
 
 pub use crate::streamline::{Direction, Integrator, Line, Reason, TraceOptions, BATCH_POINTS};
 
@@ -248,6 +250,8 @@ pub struct LineArrays {
     pub fields: super::probe::Probed,
     /// Pathlines and streaklines: each point's particle (`None` for streamlines).
     pub particles: Option<ParticleArrays>,
+    /// vtkStreamTracer's `ComputeVorticity` arrays, where asked for ([`vorticity`]).
+    pub vorticity: Option<VorticityArrays>,
 }
 
 /// Each point's particle, as vtkParticlePathFilter and vtkStreaklineFilter write them (point
@@ -338,6 +342,15 @@ impl LineArrays {
         Ok(Some(Self::of(lines, probed)))
     }
 
+    /// These arrays with [`vorticity`]'s, where `through` gives the mesh and the traced
+    /// vector (`None`: as they are).
+    pub fn with_vorticity(mut self, through: Option<(&crate::Mesh, &super::FieldGroup)>) -> Result<LineArrays> {
+        if let Some((mesh, vector)) = through {
+            self.vorticity = Some(vorticity(mesh, vector, &self)?);
+        }
+        Ok(self)
+    }
+
     /// The arrays of `lines` (points as float32, line after line) with `fields`.
     pub(super) fn of(lines: &[Line], fields: super::probe::Probed) -> LineArrays {
         let lens: Vec<usize> = lines.iter().map(|l| l.points.len()).collect();
@@ -361,6 +374,7 @@ impl LineArrays {
             seeds: lines.iter().map(|l| l.seed as i32).collect(),
             fields,
             particles: None,
+            vorticity: None,
         }
     }
 }
@@ -628,7 +642,7 @@ mod tests {
     }
 
     /// A unit cube of n³ Kuhn cubes with its field `f` and a swirling vector field `v`.
-    fn swirl_cube(n: usize) -> std::sync::Arc<crate::Mesh> {
+    pub(super) fn swirl_cube(n: usize) -> std::sync::Arc<crate::Mesh> {
         let m = crate::test_support::KuhnGrid::new(n).mesh("cube");
         let mut fields = m.fields.clone();
         let swirl = |p: Vec3| [-(p[1] - 0.5) + 0.1, (p[0] - 0.5) + 0.05 * p[2], 0.2 - 0.1 * p[0]];

@@ -56,6 +56,10 @@ pub struct PathOptions {
     pub streaklines: bool,
 }
 
+/// Most steps a pathline's particle may need from the start time to the end time (about 20
+/// minutes of one core at 100 ns a step).
+pub const MAX_PATH_STEPS: f64 = 1e10;
+
 impl Default for PathOptions {
     fn default() -> Self {
         PathOptions {
@@ -99,6 +103,27 @@ impl PathOptions {
         }
         if self.terminal_speed.is_nan() || self.terminal_speed < 0.0 {
             return Err(Error::Invalid(format!("the terminal speed must be 0 or more, got {}", self.terminal_speed)));
+        }
+        Ok(())
+    }
+
+    /// An error when a particle could take more than [`MAX_PATH_STEPS`] steps from `t0` to
+    /// `t1`, or a step f64 cannot add to the times: pathlines have no step limit but the end
+    /// time, so such a step would run for hours, or for ever (`t + h == t`).
+    fn check_step_count(&self, t0: f64, t1: f64) -> Result<()> {
+        let step = self.step.unwrap_or(f64::INFINITY);
+        let smallest = match self.integrator.is_adaptive() {
+            true => self.min_step.unwrap_or(step / 50.0).min(step),
+            false => step,
+        };
+        let resolution = 4.0 * f64::EPSILON * t0.abs().max(t1.abs());
+        if smallest < resolution || (t1 - t0) / smallest > MAX_PATH_STEPS {
+            return Err(Error::Invalid(format!(
+                "the step {smallest:e} is too small for the times {t0} to {t1}: a particle could take \
+                 {:.1e} steps (at most {MAX_PATH_STEPS:.0e}), or f64 cannot add it to times of that size; \
+                 use a larger step",
+                (t1 - t0) / smallest
+            )));
         }
         Ok(())
     }
@@ -153,6 +178,7 @@ impl PathOptions {
         if t0 >= t1 {
             return Err(Error::Invalid(format!("the end time {t1} must come after the start time {t0} ({source})")));
         }
+        self.check_step_count(t0, t1)?;
         let mut stops = vec![t0];
         stops.extend(times.iter().copied().filter(|&t| t > t0 && t < t1));
         stops.push(t1);
@@ -766,6 +792,7 @@ impl PathRun {
             seeds: cuts.lines.iter().map(|c| c.seed as i32).collect(),
             fields: super::super::probe::Probed::from_values(ids, &self.fields, &values),
             particles: Some(particles),
+            vorticity: None,
         }
     }
 
@@ -1495,5 +1522,20 @@ mod tests {
         let legs = o.legs("s.pvd", &times).unwrap();
         assert_eq!(legs, [Leg { from: 0.5, to: 1.0, bracket: 0 }, Leg { from: 1.0, to: 2.0, bracket: 1 }]);
         assert!(PathOptions { step: Some(0.0), ..Default::default() }.check().is_err());
+        // Steps too small to finish (or to move the time at all) are refused up front: a
+        // particle has no step limit but the end time.
+        for (step, integrator, start) in [
+            (Some(1e-12), Integrator::Rk4, None),
+            (Some(1e-300), Integrator::Rk4, None),
+            (Some(1e-9), Integrator::Rk45, None),
+            (Some(1e-6), Integrator::Rk4, Some(1.5)),
+        ] {
+            let times = [0.0, 1.0, 2e9];
+            let o = PathOptions { step, integrator, start_time: start, ..Default::default() };
+            let e = o.legs("s.pvd", &times).unwrap_err().to_string();
+            assert!(e.contains("too small") && e.contains("use a larger step"), "{step:?}: {e}");
+        }
+        let o = PathOptions { step: Some(1e-6), ..Default::default() };
+        assert!(o.legs("s.pvd", &times).is_ok(), "2e6 steps a particle is a run");
     }
 }
