@@ -688,7 +688,8 @@ mod tests {
 
     /// A grid one of whose z planes holds more points than a raster slab (issue 29, item 6:
     /// `resample --dims 100000,100000,...` allocated the whole plane) is searched in the
-    /// caller's chunks instead, with the same answers; a grid of many planes likewise.
+    /// caller's chunks instead, with the answers at its f64 points; a grid of many planes
+    /// likewise.
     #[test]
     fn grids_beyond_a_slab_are_searched_in_chunks() {
         let m = Arc::new(crate::test_support::grid_mesh(4, 0.2, 3));
@@ -702,9 +703,10 @@ mod tests {
             let (mut ids, mut values) = (vec![0; range.len()], vec![0f32; range.len()]);
             loc.sample_grid(&grid, range.clone(), &["f"], &mut ids, &mut values).unwrap();
             assert!(loc.raster.is_none(), "{dims:?}: a slab was rasterized");
-            let points = super::super::grid_points(&grid, range);
+            // The grid's own f64 points (`GridSampler`'s contract for the CPU).
+            let points = super::super::grid_points64(&grid, range);
             let (mut ids2, mut values2) = (vec![0; points.len()], vec![0f32; points.len()]);
-            loc.sample_many(&points, &["f"], &mut ids2, &mut values2).unwrap();
+            loc.query(Points::F64(&points), &["f"], &mut ids2, Values::F32(&mut values2)).unwrap();
             assert_eq!(ids, ids2);
             assert!(ids.iter().any(|&i| i >= 0) && ids.iter().any(|&i| i < 0), "{dims:?}");
             assert_eq!(
