@@ -52,16 +52,9 @@ impl ImageGrid {
     /// The `i`-th point (x fastest), computed in f64 as VTK does and rounded to f32.
     #[inline]
     pub fn point(&self, i: usize) -> Vec3 {
-        self.point64(i).map(|c| c as f32)
-    }
-
-    /// The `i`-th point as the image's origin and spacing place it (f64, as VTK computes it):
-    /// where f32 is too coarse (a mesh far from the origin), the point the CPU samples.
-    #[inline]
-    pub fn point64(&self, i: usize) -> [f64; 3] {
         let [nx, ny, _] = self.dims;
         let idx = [i % nx, i / nx % ny, i / (nx * ny)];
-        std::array::from_fn(|k| self.origin[k] + idx[k] as f64 * self.spacing[k])
+        std::array::from_fn(|k| (self.origin[k] + idx[k] as f64 * self.spacing[k]) as f32)
     }
 
     /// The high corner.

@@ -10,8 +10,7 @@ use crate::streamline::{Line, TraceOptions};
 use std::ops::Range;
 
 /// A backend that samples a grid's points its own way, with the answers of
-/// [`BatchLocator::sample_many`] at [`grid_points`] (the CPU's: of `sample_many64` at the
-/// f64 points, `grid_points64`).
+/// [`BatchLocator::sample_many`] at [`grid_points`].
 pub trait GridSampler {
     /// Ids and values (`fields.len()` a point) at points `range` of `grid` (x fastest,
     /// [`ImageGrid::point`]): `resample`'s chunks.

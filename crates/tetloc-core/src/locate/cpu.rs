@@ -572,11 +572,9 @@ impl BatchLocator for CpuLocator {
 
 impl GridSampler for CpuLocator {
     /// The grid's points located by rasterizing the tets (`GridRaster`), the ties by the
-    /// search: the same ids as [`BatchLocator::sample_many64`] at the grid's f64 points
-    /// ([`super::grid_points64`]: where f32 would move them, on a mesh far from the origin,
-    /// the image's own points), bit for bit, and values within rounding of its (the weights
-    /// of an affine map, not of the exact test, where a tet holds a point by more than the
-    /// map's error bound).
+    /// search: the same ids as [`BatchLocator::sample_many`] at the grid's points, bit for
+    /// bit, and values within rounding of its (the weights of an affine map, not of the exact
+    /// test, where a tet holds a point by more than the map's error bound).
     fn sample_grid(
         &mut self,
         grid: &ImageGrid,
@@ -592,8 +590,7 @@ impl GridSampler for CpuLocator {
         let huge = grid.dims[0].saturating_mul(grid.dims[1]) > grid_raster::SLAB_POINTS
             || grid.dims[2] > grid_raster::SLAB_POINTS;
         if self.mesh.n_tets() >= grid_raster::MAX_TETS || huge {
-            let points = super::grid_points64(grid, range);
-            return self.query(Points::F64(&points), fields, ids, Values::F32(values));
+            return self.sample_many(&super::grid_points(grid, range), fields, ids, values);
         }
         let names = fields;
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
@@ -602,8 +599,7 @@ impl GridSampler for CpuLocator {
             _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS, names),
         };
         // The search applies the tie rule.
-        let exact = self.mesh.exact();
-        let tie = |k: usize| self.find(&exact.query(grid.point64(k)));
+        let tie = |k: usize| self.find(&self.query_at(grid.point(k)));
         let nf = fields.len();
         let mut i = range.start;
         while i < range.end {
@@ -688,8 +684,7 @@ mod tests {
 
     /// A grid one of whose z planes holds more points than a raster slab (issue 29, item 6:
     /// `resample --dims 100000,100000,...` allocated the whole plane) is searched in the
-    /// caller's chunks instead, with the answers at its f64 points; a grid of many planes
-    /// likewise.
+    /// caller's chunks instead, with the same answers; a grid of many planes likewise.
     #[test]
     fn grids_beyond_a_slab_are_searched_in_chunks() {
         let m = Arc::new(crate::test_support::grid_mesh(4, 0.2, 3));
@@ -703,10 +698,9 @@ mod tests {
             let (mut ids, mut values) = (vec![0; range.len()], vec![0f32; range.len()]);
             loc.sample_grid(&grid, range.clone(), &["f"], &mut ids, &mut values).unwrap();
             assert!(loc.raster.is_none(), "{dims:?}: a slab was rasterized");
-            // The grid's own f64 points (`GridSampler`'s contract for the CPU).
-            let points = super::super::grid_points64(&grid, range);
+            let points = super::super::grid_points(&grid, range);
             let (mut ids2, mut values2) = (vec![0; points.len()], vec![0f32; points.len()]);
-            loc.query(Points::F64(&points), &["f"], &mut ids2, Values::F32(&mut values2)).unwrap();
+            loc.sample_many(&points, &["f"], &mut ids2, &mut values2).unwrap();
             assert_eq!(ids, ids2);
             assert!(ids.iter().any(|&i| i >= 0) && ids.iter().any(|&i| i < 0), "{dims:?}");
             assert_eq!(

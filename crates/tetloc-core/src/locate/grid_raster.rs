@@ -20,7 +20,7 @@
 use super::tet_map::{bounds_of, Side, TetMap};
 use crate::buckets::Buckets;
 use crate::geom::ImageGrid;
-use crate::geom::{self, Bary, TetTest};
+use crate::geom::{self, predicates::Query, Bary, TetTest};
 use crate::mesh::{Field, Mesh};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -254,7 +254,9 @@ impl GridRaster {
     /// The exact test of grid point (i, j, k) in tet `t`, and its claim.
     #[inline]
     fn try_point(&self, mesh: &Mesh, fields: &[&Field], t: u32, tet: [u32; 4], [i, j, k]: [usize; 3]) {
-        let q = mesh.exact().query([self.axes[0].at[i], self.axes[1].at[j], self.axes[2].at[k]]);
+        let file = [self.axes[0].at[i], self.axes[1].at[j], self.axes[2].at[k]];
+        let p = file.map(|c| c as f32);
+        let q = Query { local: mesh.info.frame.to_working_f32(p), file };
         let TetTest::Inside(w) = geom::test_point_with(tet, &mesh.points, &mesh.exact(), &q) else { return };
         let at = ((k - self.planes.start) * self.grid.dims[1] + j) * self.grid.dims[0] + i;
         if w.contains(&0.0) {
@@ -288,9 +290,8 @@ fn file_bounds(mesh: &Mesh, t: usize) -> ([f64; 3], [f64; 3]) {
     bounds_of(&mesh.tets[t].map(|i| mesh.vertex64(i)))
 }
 
-/// One axis of the grid: its points' coordinates ([`ImageGrid::point64`]'s: f64, so a mesh far
-/// from the origin is sampled where the image's points are, not where f32 rounds them),
-/// increasing, and the index guess that finds a coordinate's place in O(1).
+/// One axis of the grid: its points' coordinates as the locator gets them (the f32 point,
+/// in f64), increasing, and the index guess that finds a coordinate's place in O(1).
 struct Axis {
     at: Vec<f64>,
     origin: f64,
@@ -303,7 +304,8 @@ struct Axis {
 
 impl Axis {
     fn new(grid: &ImageGrid, k: usize) -> Axis {
-        let at: Vec<f64> = (0..grid.dims[k]).map(|i| grid.origin[k] + i as f64 * grid.spacing[k]).collect();
+        let at: Vec<f64> =
+            (0..grid.dims[k]).map(|i| (grid.origin[k] + i as f64 * grid.spacing[k]) as f32 as f64).collect();
         let per_unit = if grid.spacing[k] > 0.0 { 1.0 / grid.spacing[k] } else { 0.0 };
         let origin = grid.origin[k];
         let off = at.iter().enumerate().map(|(i, &x)| ((x - origin) * per_unit - i as f64).abs()).fold(0.0, f64::max);
@@ -391,8 +393,7 @@ pub(super) mod tests {
         raw
     }
 
-    /// Every grid point's answer against the search's at its f64 point (the image's), a slab
-    /// of two planes at a time, the
+    /// Every grid point's answer against the search's, a slab of two planes at a time, the
     /// maps' bounds times `bound_scale`: a point inside gets the search's tet and, for every
     /// field, its value within 1e-5 of the field's range; a point outside is outside; ties
     /// are points on faces (or claimed twice). The number of ties, or the first disagreement.
@@ -409,8 +410,8 @@ pub(super) mod tests {
         raster.bound_scale = bound_scale;
         let (mut ties, mut got, mut want) = (0, vec![0f32; fields.len()], vec![0f32; fields.len()]);
         for i in 0..grid.n_points() {
-            let p = grid.point64(i);
-            let found = loc.locate_point64(p);
+            let p = grid.point(i);
+            let found = loc.locate_point(p);
             raster.hold(mesh, &fields, i);
             match raster.cell(i) {
                 Cell::Outside if found.is_some() => return Err(format!("point {i} {p:?}: outside, not {found:?}")),
@@ -586,8 +587,8 @@ pub(super) mod tests {
         assert!(lost_without_slack > 0, "no point was lost without the slack");
     }
 
-    /// Through the locator: `sample_grid` equals `sample_many64` at the grid's f64 points (ids
-    /// bit for bit, values within rounding), in chunks that straddle slabs (a jittered grid whose jitter folds a few tets over
+    /// Through the locator: `sample_grid` equals `sample_many` at the grid's points (ids bit
+    /// for bit, values within rounding), in chunks that straddle slabs (a jittered grid whose jitter folds a few tets over
     /// their neighbours, and a generated torus); on the torus, whose tets do not overlap, it
     /// builds no BVH.
     #[test]
@@ -622,10 +623,8 @@ pub(super) mod tests {
                 assert!(!rasterized.index_built(), "a BVH was built");
             }
             let (mut ids2, mut values2) = (vec![0; n], vec![0f32; 2 * n]);
-            let points = crate::locate::grid_points64(&grid, 0..n);
-            let f64_points = crate::locate::Points::F64(&points);
-            let values32 = crate::locate::Values::F32(&mut values2);
-            CpuLocator::new(mesh.clone()).query(f64_points, &fields, &mut ids2, values32).unwrap();
+            let points = crate::locate::grid_points(&grid, 0..n);
+            CpuLocator::new(mesh.clone()).sample_many(&points, &fields, &mut ids2, &mut values2).unwrap();
             assert_eq!(ids, ids2);
             // Values: NaN at the same points, the cell field's bit for bit, the vertex field's
             // within 1e-5 of its range (the map's weights against the exact test's).

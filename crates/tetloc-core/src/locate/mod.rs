@@ -173,11 +173,6 @@ pub fn grid_points(grid: &ImageGrid, range: Range<usize>) -> Vec<Vec3> {
     range.into_par_iter().map(|i| grid.point(i)).collect()
 }
 
-/// [`grid_points`] in f64 ([`ImageGrid::point64`]).
-pub fn grid_points64(grid: &ImageGrid, range: Range<usize>) -> Vec<[f64; 3]> {
-    range.into_par_iter().map(|i| grid.point64(i)).collect()
-}
-
 /// Whether all three coordinates are finite (not NaN, not infinite).
 #[inline]
 pub fn is_finite(p: Vec3) -> bool {
