@@ -239,25 +239,31 @@ def test_trace_matches_the_cli(cli, swirl_mesh, tmp_path):
         np.testing.assert_array_equal(np.asarray(ours.cell_data[name]), np.asarray(theirs.cell_data[name]))
 
 
-def test_trace_matches_vtk(swirl_mesh):
-    vtk = need("vtk")
-    need("pyvista")
-    from vtk.util.numpy_support import vtk_to_numpy
-
-    grid = swirl_mesh.to_pyvista()
+def vtk_rk4_tracer(vtk, grid, seeds, step: float, max_steps: int):
+    """vtkStreamTracer on `grid`'s point vector ``v`` from `seeds`: RK4, steps in length units."""
     t = vtk.vtkStreamTracer()
     t.SetInputData(grid)
     src = vtk.vtkPolyData()
     pts = vtk.vtkPoints()
-    for p in seeds():
+    for p in seeds:
         pts.InsertNextPoint(*map(float, p))
     src.SetPoints(pts)
     t.SetSourceData(src)
     t.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")
     t.SetIntegratorTypeToRungeKutta4()
     t.SetIntegrationStepUnit(vtk.vtkStreamTracer.LENGTH_UNIT)
-    t.SetInitialIntegrationStep(0.01)
-    t.SetMaximumNumberOfSteps(500)
+    t.SetInitialIntegrationStep(step)
+    t.SetMaximumNumberOfSteps(max_steps)
+    return t
+
+
+def test_trace_matches_vtk(swirl_mesh):
+    vtk = need("vtk")
+    need("pyvista")
+    from vtk.util.numpy_support import vtk_to_numpy
+
+    grid = swirl_mesh.to_pyvista()
+    t = vtk_rk4_tracer(vtk, grid, seeds(), 0.01, 500)
     t.SetMaximumPropagation(1e30)
     t.SetComputeVorticity(False)
     t.Update()
@@ -362,19 +368,7 @@ def test_trace_vorticity_matches_vtk(cli, tmp_path, shape, size):
     centres = np.asarray(grid.cell_centers().points, dtype=np.float32)
     seeds = centres[:: max(1, len(centres) // 25)]
     step = 0.1 * float(np.mean(grid.compute_cell_sizes(length=False, area=False).cell_data["Volume"]) ** (1 / 3))
-    t = vtk.vtkStreamTracer()
-    t.SetInputData(grid)
-    src = vtk.vtkPolyData()
-    pts = vtk.vtkPoints()
-    for p in seeds:
-        pts.InsertNextPoint(*map(float, p))
-    src.SetPoints(pts)
-    t.SetSourceData(src)
-    t.SetInputArrayToProcess(0, 0, 0, vtk.vtkDataObject.FIELD_ASSOCIATION_POINTS, "v")
-    t.SetIntegratorTypeToRungeKutta4()
-    t.SetIntegrationStepUnit(vtk.vtkStreamTracer.LENGTH_UNIT)
-    t.SetInitialIntegrationStep(step)
-    t.SetMaximumNumberOfSteps(150)
+    t = vtk_rk4_tracer(vtk, grid, seeds, step, 150)
     t.SetMaximumPropagation(1e30)
     t.SetIntegrationDirectionToBoth()
     t.SetComputeVorticity(True)
