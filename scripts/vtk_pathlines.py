@@ -16,7 +16,10 @@ ParticleId, from each program's own InjectedPointId, InjectionStepId and Particl
 X.times.bin (the simulation time), float64, X = vtk or tetloc. N: VTK's
 ForceReinjectionEveryNSteps (default 0); VTK's particles injected at END (one point each,
 which make no line in tetloc) are left out. streaks: the same with vtkStreaklineFilter and
-tetloc's `--streaklines` (times the particle age).
+tetloc's `--streaklines` (times the particle age). compare, when OURS.vtp has `Vorticity`
+(`--vorticity`), also runs VTK's ComputeVorticity and writes X.turning.bin (float64 N x 3: the
+vorticity's x component, AngularVelocity, Rotation): VTK 9.7 stores its Vorticity array with one
+component, the x, so that is what both give.
 
 Exits with status 3 when the `vtk` module is missing, so the test can tell that apart.
 """
@@ -126,6 +129,14 @@ def particle_key(seed, injected, particle=0):
     return seed + 1000.0 * np.round(injected * 1e4) + 1e8 * particle
 
 
+def turning(pd, prefix, out_dir, keep=slice(None)):
+    """The vorticity's x component, AngularVelocity and Rotation of `pd` into X.turning.bin."""
+    vort = vtk_to_numpy(pd.GetArray("Vorticity")).astype(np.float64)
+    vort_x = vort if vort.ndim == 1 else vort[:, 0]
+    cols = [vort_x] + [vtk_to_numpy(pd.GetArray(n)).astype(np.float64) for n in ("AngularVelocity", "Rotation")]
+    np.stack(cols, 1)[keep].tofile(os.path.join(out_dir, f"{prefix}.turning.bin"))
+
+
 def run_filter(f, src, end):
     """VTK's particle filter `f` on the steps of `src` and the seeds, RK4, up to END."""
     f.SetInputConnection(0, src.GetOutputPort())
@@ -164,10 +175,15 @@ def compare(out_dir, start, end, ours, every="0"):
     src = Series(float(start))  # held: the pipeline keeps no Python reference to it
     f = vtk.vtkParticlePathFilter()
     f.SetForceReinjectionEveryNSteps(int(every))
-    pts, seed, injected, age, particle = run_filter(f, src, end)
-    keep = injected < float(end)
-    write_arrays(pts[keep], "vtk", out_dir, particle_key(seed, injected, particle)[keep], (age + injected)[keep])
     pts, line_seed, pd, conn, offs = read_ours(ours)
+    vorticity = pd.HasArray("Vorticity")
+    f.SetComputeVorticity(vorticity)
+    vtk_pts, seed, injected, age, particle = run_filter(f, src, end)
+    keep = injected < float(end)
+    write_arrays(vtk_pts[keep], "vtk", out_dir, particle_key(seed, injected, particle)[keep], (age + injected)[keep])
+    if vorticity:
+        turning(f.GetOutput().GetPointData(), "vtk", out_dir, keep)
+        turning(pd, "tetloc", out_dir)
     times = vtk_to_numpy(pd.GetArray("IntegrationTime"))
     # Each point's particle by tetloc's own arrays, named as VTK's: the key is VTK's.
     seed, particle = (vtk_to_numpy(pd.GetArray(n)).astype(np.float64) for n in ("InjectedPointId", "ParticleId"))

@@ -240,8 +240,9 @@ fn points_of<'a, T: numpy::Element + bytemuck::Pod>(points: &'a PyReadonlyArray2
 /// again every `reinject_every` output times (0: once); `streaklines`: one line a seed through
 /// its particles at the end time, `ParticleAge` instead of `IntegrationTime`;
 /// `every_output_time`: `frames`, a list of (time, dict) at each output time after the start
-/// (the lines as a run ending there gives them) in place of the arrays. `vorticity`:
-/// streamlines also carry `Vorticity`, `Rotation`, `AngularVelocity` and `Normals` (float64).
+/// (the lines as a run ending there gives them) in place of the arrays. `vorticity`: the
+/// lines also carry `Vorticity`, `Rotation`, `AngularVelocity` and, streamlines, `Normals`
+/// (float64).
 #[pyfunction(name = "trace")]
 #[pyo3(signature = (mesh, locator, vector, seeds, step, max_steps, max_length, max_time, direction, integrator,
     max_error, min_step, max_step, terminal_speed, progress=None, unsteady=false, start_time=None, end_time=None, reinject_every=0, streaklines=false,
@@ -274,9 +275,6 @@ pub fn trace_lines<'py>(
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = mesh.mesh.clone();
     let seeds = points_of(&seeds)?;
-    if unsteady && vorticity {
-        return Err(PyValueError::new_err("vorticity applies to streamlines, not to pathlines (unsteady=True)"));
-    }
     if unsteady {
         let o = trace::PathOptions {
             integrator: integrator.parse::<Integrator>().map_err(to_py)?,
@@ -289,6 +287,7 @@ pub fn trace_lines<'py>(
             end_time,
             reinject_every,
             streaklines,
+            vorticity,
         };
         o.check().map_err(to_py)?;
         let Some(steps) = mesh.steps.clone() else {
@@ -421,7 +420,9 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
         out.set_item("Vorticity", vectors(v.vorticity)?)?;
         out.set_item("Rotation", PyArray1::from_vec(py, v.rotation))?;
         out.set_item("AngularVelocity", PyArray1::from_vec(py, v.angular_velocity))?;
-        out.set_item("Normals", vectors(v.normals)?)?;
+        if let Some(normals) = v.normals {
+            out.set_item("Normals", vectors(normals)?)?;
+        }
     }
     let fields: FieldArrays = arrays
         .fields

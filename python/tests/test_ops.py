@@ -428,8 +428,6 @@ def test_trace_vorticity_matches_vtk(cli, tmp_path, shape, size):
     written = pv.read(out)
     for name in theirs_arrays:
         np.testing.assert_array_equal(np.asarray(written.point_data[name]), ours[name], err_msg=name)
-    with pytest.raises(ValueError, match="streamlines"):
-        tetloc.trace(tetloc.read(mesh_path), "v", seeds, unsteady=True, vorticity=True)
 
 
 def test_probe_keeps_every_field_at_any_precision():

@@ -140,6 +140,13 @@ def test_step_weights_apply_is_the_matrix(data_dir, vulkan, no_validation_errors
                 g = sw.sample("g")[0]
                 np.testing.assert_array_equal(g[inside], mesh.field("g")[sw.cells[inside]].astype(np.float32))
                 assert np.isnan(g[~inside]).all()
+            # No step: no value (not a reshape error); values that are not real numbers are
+            # refused (complex ones lost their imaginary parts).
+            assert sw.apply(values[:0]).shape == (0, len(pts), 2)
+            assert sw.apply(values[:0, :, 0]).shape == (0, len(pts))
+            for bad in (values.astype(np.complex64), values.astype(object)):
+                with pytest.raises(TypeError, match="real numbers"):
+                    sw.apply(bad)
 
 
 def quadratic_tets(n: int = 3):
@@ -275,6 +282,29 @@ def test_pathlines_follow_the_closed_form(tmp_path, backend):
     # Between steps: injected at 0.25, stopped at 1.75.
     part = tetloc.trace(mesh, "v", seeds, unsteady=True, start_time=0.25, end_time=1.75, backend=backend)
     np.testing.assert_allclose(part["IntegrationTime"][:5], [0.25, 0.5, 1.0, 1.5, 1.75])
+
+
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
+def test_pathline_vorticity(tmp_path, backend):
+    """vorticity=True with unsteady=True: the spin's curl (0, 0, 2 w(t)) at every point, the
+    injection between two steps included (the curl interpolated in time); it is across the
+    flow, so no angular velocity and no rotation; no Normals (vtkParticlePathFilter writes
+    none); the same arrays on the PolyData."""
+    mesh = tetloc.read(spin_series(tmp_path, [0.0, 0.5, 1.0, 1.5, 2.0]))
+    seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7]], np.float32)
+    kw: Dict[str, Any] = dict(unsteady=True, step=0.1, start_time=0.25, vorticity=True, backend=backend)
+    out = tetloc.trace(mesh, "v", seeds, **kw)
+    t = out["IntegrationTime"]
+    assert len(t) == 10 and t[0] == 0.25
+    want = np.zeros((len(t), 3))
+    want[:, 2] = 2 * (1 + t)
+    assert out["Vorticity"].dtype == np.float64 and "Normals" not in out
+    np.testing.assert_allclose(out["Vorticity"], want, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(out["AngularVelocity"], 0, atol=1e-6)
+    np.testing.assert_allclose(out["Rotation"], 0, atol=1e-6)
+    poly = tetloc.trace(mesh, "v", seeds, as_pyvista=True, **kw)
+    for name in ("Vorticity", "AngularVelocity", "Rotation"):
+        np.testing.assert_array_equal(poly.point_data[name], out[name])
 
 
 @pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])

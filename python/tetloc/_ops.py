@@ -243,7 +243,11 @@ def trace(
     per cell has none: zeros); ``AngularVelocity`` (P,), the vorticity along the unit
     velocity; ``Rotation`` (P,), the angular velocity integrated along the line by the
     trapezoid rule in ``IntegrationTime``; ``Normals`` (P, 3), vtkPolyLine's sliding normals
-    turned by the rotation, which ribbon and tube filters orient by. Streamlines only.
+    turned by the rotation, which ribbon and tube filters orient by. With ``unsteady=True``
+    the first three, as vtkParticlePathFilter's "Compute Vorticity" gives them, the curl and
+    the velocity interpolated in time at each point and the rotation integrated in simulation
+    time from 0 at the particle's injection (VTK takes the later step's curl alone: between
+    two steps, as at a `start_time` off the steps, the two differ; at a step's time they agree).
 
     ``unsteady=True``: pathlines, as ParaView's Particle Path filter (vtkParticlePathFilter),
     through the time steps of `mesh` (read from an Exodus file with steps or a ``.pvd``):
@@ -320,7 +324,8 @@ def trace(
 
 #: The point arrays pathlines and streaklines add, as vtkParticlePathFilter writes them.
 PARTICLE_ARRAYS = ("ParticleId", "InjectedPointId", "InjectionStepId", "ParticleAge")
-#: The point arrays ``vorticity=True`` adds, as vtkStreamTracer's ComputeVorticity writes them.
+#: The point arrays ``vorticity=True`` adds, as vtkStreamTracer's ComputeVorticity writes them
+#: (pathlines and streaklines: no ``Normals``).
 VORTICITY_ARRAYS = ("Vorticity", "Rotation", "AngularVelocity", "Normals")
 
 

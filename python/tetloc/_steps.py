@@ -57,11 +57,16 @@ class StepWeights:
         (S, n_vertices, k) for S steps, step first: (S, n_points) or (S, n_points, k) float32.
         For one step, pass ``values[None]`` and take ``[0]``."""
         v = np.asarray(values)
+        if v.dtype.kind not in "biuf":
+            # (Complex values would lose their imaginary parts, objects and text fail late.)
+            raise TypeError(f"values: expected real numbers, got dtype {v.dtype}")
         if v.ndim not in (2, 3) or v.shape[1] != self._mesh.n_points:
             raise ValueError(
                 f"values: shape {v.shape}; expected (steps, {self._mesh.n_points}) or "
                 f"(steps, {self._mesh.n_points}, components): the steps of a point field"
             )
+        if v.shape[0] == 0 and (v.ndim == 2 or v.shape[2] > 0):
+            return np.empty((0, self.n_points) + v.shape[2:], np.float32)  # no step: nothing to apply
         three = np.ascontiguousarray(v.reshape(v.shape[0], v.shape[1], -1), dtype=np.float32)
         out = self._raw.apply(three)
         return out[:, :, 0] if v.ndim == 2 else out

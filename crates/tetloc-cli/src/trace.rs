@@ -86,8 +86,10 @@ pub struct TraceArgs {
     /// Float64): Vorticity (the curl of the vector in the cell holding the point),
     /// AngularVelocity (the vorticity along the unit velocity), Rotation (the angular velocity
     /// integrated along the line in IntegrationTime) and Normals (sliding normals turned by the
-    /// rotation, for ribbons and tubes). Streamlines only.
-    #[arg(long, conflicts_with = "unsteady")]
+    /// rotation, for ribbons and tubes). With --unsteady the first three, as
+    /// vtkParticlePathFilter's: the curl and velocity interpolated in time, the rotation
+    /// integrated in simulation time from the injection (no Normals).
+    #[arg(long)]
     vorticity: bool,
     /// The backend: cpu (each particle walks from its last tet), a GPU kernel (soft-bvh with
     /// rk4: whole lines in one kernel, each particle walking from its last tet; otherwise
@@ -325,6 +327,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         end_time: a.end_time,
         reinject_every: a.reinject_every,
         streaklines: a.streaklines,
+        vorticity: a.vorticity,
     };
     o.check()?;
     let format = a

@@ -102,8 +102,8 @@ pub fn resample_to_file(
 /// as cell data, as vtkStreamTracer writes them; pathlines and streaklines add their
 /// particles' point data as vtkParticlePathFilter does ([`tetloc_core::ops::trace::ParticleArrays`]:
 /// `ParticleId`, `InjectedPointId`, `InjectionStepId`, `ParticleAge`), and lines with
-/// vorticity its four arrays as vtkStreamTracer names them (Float64: `Vorticity`, `Rotation`,
-/// `AngularVelocity`, `Normals`). Seed ids are `seed_base` + the line's.
+/// vorticity its arrays as vtkStreamTracer names them (Float64: `Vorticity`, `Rotation`,
+/// `AngularVelocity`, and for streamlines `Normals`). Seed ids are `seed_base` + the line's.
 pub fn push_lines(w: &mut PolylineWriter, lines: &LineArrays, seed_base: usize) -> Result<()> {
     let mut point_data = probed_field_arrays(&lines.fields);
     point_data.push(NamedArray { name: lines.time_name.into(), n_components: 1, data: ArrayData::F64(&lines.time) });
@@ -127,7 +127,9 @@ pub fn push_lines(w: &mut PolylineWriter, lines: &LineArrays, seed_base: usize) 
         point_data.push(array("Vorticity", 3, ArrayData::F64(bytemuck::cast_slice(&v.vorticity))));
         point_data.push(array("Rotation", 1, ArrayData::F64(&v.rotation)));
         point_data.push(array("AngularVelocity", 1, ArrayData::F64(&v.angular_velocity)));
-        point_data.push(array("Normals", 3, ArrayData::F64(bytemuck::cast_slice(&v.normals))));
+        if let Some(normals) = &v.normals {
+            point_data.push(array("Normals", 3, ArrayData::F64(bytemuck::cast_slice(normals))));
+        }
     }
     let seeds = lines
         .seeds

@@ -20,11 +20,13 @@
 //! Runge–Kutta stage on any backend, and interpolates on the host.
 
 use super::particle::{combine, norm, MAX_STAGES};
+use super::vorticity::{self, VorticityArrays};
 use super::{Integrator, LineArrays, ParticleArrays, Reason};
 use crate::error::{Error, Result};
 use crate::geom::{Bary64, Vec3};
 use crate::locate::BatchLocator;
 use crate::mesh::{Field, TimeSteps, VertexVectors};
+use crate::ops::gradients::PointWeights;
 use crate::ops::FieldGroup;
 use crate::Mesh;
 use rayon::prelude::*;
@@ -54,6 +56,14 @@ pub struct PathOptions {
     /// last; the line's time array is each point's particle age (the end time less its
     /// injection time).
     pub streaklines: bool,
+    /// ParaView's "Compute Vorticity" (vtkParticleTracerBase's arrays) at each recorded point:
+    /// `Vorticity`, the curl of the vector in the cell holding the point, interpolated in
+    /// time as the vector is; `AngularVelocity`, the vorticity along the unit velocity; and
+    /// `Rotation`, the angular velocity integrated along the particle's points in time by
+    /// the trapezoid rule (0 at its injection). VTK takes the curl of the later step alone,
+    /// so at a time between two steps (the injection point, a start or end time off the
+    /// steps) its vorticity is the later step's; at a step's time the two agree.
+    pub vorticity: bool,
 }
 
 /// Most steps a pathline's particle may need from the start time to the end time (about 20
@@ -73,6 +83,7 @@ impl Default for PathOptions {
             end_time: None,
             reinject_every: 0,
             streaklines: false,
+            vorticity: false,
         }
     }
 }
@@ -556,12 +567,15 @@ struct Track {
     time: Vec<f64>,
     tets: Vec<i32>,
     values: Vec<f32>,
+    /// With vorticity: at each point, the vorticity, the angular velocity and the rotation.
+    turning: Vec<([f64; 3], f64, f64)>,
 }
 
 impl Track {
     /// Records the particle's point at `found`, with the line fields (indices 3.. of the
     /// bracket, after the vector) there at its time. `velocity`: the vector there at time
     /// `.1` (the lookup's), which a line field that is one of its components (`alias`) takes.
+    /// `weights`: the vorticity's buffers, when it is asked for.
     fn record(
         &mut self,
         mesh: &Mesh,
@@ -569,6 +583,7 @@ impl Track {
         found: (usize, Bary64),
         alias: &[Option<usize>],
         velocity: ([f64; 3], f64),
+        weights: Option<&mut PointWeights>,
     ) {
         let (x, t) = (self.p.x, self.p.t);
         let w = br.weight(t);
@@ -578,6 +593,24 @@ impl Track {
             self.time.reserve_exact(self.room);
             self.tets.reserve_exact(self.room);
             self.values.reserve_exact(self.room * alias.len());
+            if weights.is_some() {
+                self.turning.reserve_exact(self.room);
+            }
+        }
+        if let Some(weights) = weights {
+            let v = if velocity.1 == t { velocity.0 } else { br.velocity(mesh, found, t) };
+            let mut curl_of = |step: usize| {
+                let [x0, x1, x2, ..] = &br.fields[step][..] else { unreachable!("the vector comes first") };
+                vorticity::curl_in_tet(mesh, [x0, x1, x2], weights, found.0, x)
+            };
+            let at0 = curl_of(0);
+            let curl = blend(w, at0, || curl_of(1));
+            let omega = vorticity::angular_velocity(curl, v);
+            let rotation = match (self.turning.last(), self.time.last()) {
+                (Some(&(_, omega0, rotation0)), Some(&t0)) => rotation0 + (omega0 + omega) / 2.0 * (t - t0),
+                _ => 0.0,
+            };
+            self.turning.push((curl, omega, rotation));
         }
         debug_assert!(self.points.len() < self.room, "a particle records more points than its legs allow");
         self.points.push(x);
@@ -650,6 +683,7 @@ impl Run<'_> {
             time: Vec::new(),
             tets: Vec::new(),
             values: Vec::new(),
+            turning: Vec::new(),
         }));
     }
 }
@@ -663,6 +697,7 @@ pub struct PathRun {
     legs: Vec<Leg>,
     n_seeds: usize,
     streaklines: bool,
+    vorticity: bool,
     fields: Vec<FieldGroup>,
 }
 
@@ -777,6 +812,19 @@ impl PathRun {
                 })
             }),
         };
+        let turning = |pick: fn(&([f64; 3], f64, f64)) -> f64| {
+            self.gather(cuts, &lens, 1, |t, r, out: &mut [f64]| {
+                out.iter_mut().zip(&t.turning[r]).for_each(|(o, x)| *o = pick(x))
+            })
+        };
+        let vorticity = self.vorticity.then(|| VorticityArrays {
+            vorticity: self.gather(cuts, &lens, 1, |t, r, out: &mut [[f64; 3]]| {
+                out.iter_mut().zip(&t.turning[r]).for_each(|(o, x)| *o = x.0)
+            }),
+            rotation: turning(|x| x.2),
+            angular_velocity: turning(|x| x.1),
+            normals: None,
+        });
         LineArrays {
             points,
             ends: lens
@@ -792,7 +840,7 @@ impl PathRun {
             seeds: cuts.lines.iter().map(|c| c.seed as i32).collect(),
             fields: super::super::probe::Probed::from_values(ids, &self.fields, &values),
             particles: Some(particles),
-            vorticity: None,
+            vorticity,
         }
     }
 
@@ -845,6 +893,7 @@ impl Run<'_> {
             legs: self.legs,
             n_seeds: self.seeds.len(),
             streaklines: o.streaklines,
+            vorticity: o.vorticity,
             fields: fields.to_vec(),
         }
     }
@@ -891,7 +940,8 @@ pub fn pathline_run(
         let (leg, next) = (run.legs[n], run.legs.get(n + 1).map(|l| l.bracket));
         let (alias, tracks) = (&run.alias, &mut run.tracks);
         run.reader.leg(&mesh, leg.bracket, next, |br| {
-            tracks.par_iter_mut().with_min_len(64).for_each(|tr| {
+            let buffers = || o.vorticity.then(|| PointWeights::new(&mesh));
+            tracks.par_iter_mut().with_min_len(64).for_each_init(buffers, |weights, tr| {
                 tr.p.start_leg(&leg, o);
                 while let Some((q, t)) = tr.p.query() {
                     let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
@@ -899,7 +949,7 @@ pub fn pathline_run(
                     let v = found.map(|f| br.velocity(&mesh, f, t));
                     if tr.p.answer(v, o) {
                         if let (Some(f), Some(v)) = (found, v) {
-                            tr.record(&mesh, br, f, alias, (v, t));
+                            tr.record(&mesh, br, f, alias, (v, t), weights.as_mut());
                         }
                     }
                 }
@@ -972,13 +1022,14 @@ pub fn pathline_run_batch(
                         let (_, t) = rest.by_ref().find(|(j, _)| *j == i).expect("live indices ascend");
                         chosen.push(t);
                     }
-                    chosen.into_par_iter().zip(ids.par_iter()).for_each(|(tr, &id)| {
+                    let buffers = || o.vorticity.then(|| PointWeights::new(mesh));
+                    chosen.into_par_iter().zip(ids.par_iter()).for_each_init(buffers, |weights, (tr, &id)| {
                         let Some((q, t)) = tr.p.query() else { return };
                         let found = (id >= 0).then(|| mesh.bary64(id as usize, q).map(|b| (id as usize, b))).flatten();
                         let v = found.map(|f| br.velocity(mesh, f, t));
                         if tr.p.answer(v, o) {
                             if let (Some(f), Some(v)) = (found, v) {
-                                tr.record(mesh, br, f, alias, (v, t));
+                                tr.record(mesh, br, f, alias, (v, t), weights.as_mut());
                             }
                         }
                     });
@@ -1001,10 +1052,12 @@ mod tests {
 
     /// Rotation about the axis x = y = 0.5 at the angular speed ω(t) = 1 + t: the field is
     /// linear in space and in time, so the mesh and the time interpolation reproduce it
-    /// exactly, and a particle at radius r turns by θ(t) = (t - t0) + (t² - t0²)/2.
+    /// exactly, and a particle at radius r turns by θ(t) = (t - t0) + (t² - t0²)/2. With a
+    /// `lift` a, the z component a (x - 0.5) adds (0, -a, 0) to the curl (0, 0, 2ω(t)).
     struct Spin {
         points: Vec<[f64; 3]>,
         times: Vec<f64>,
+        lift: f64,
     }
     fn omega(t: f64) -> f64 {
         1.0 + t
@@ -1012,12 +1065,10 @@ mod tests {
     impl StepFields for Spin {
         fn read(&self, k: usize) -> Result<Vec<Field>> {
             let w = omega(self.times[k]);
-            let comps: [fn(&[f64; 3], f64) -> f64; 3] = [|p, w| -w * (p[1] - 0.5), |p, w| w * (p[0] - 0.5), |_, _| 0.0];
-            let mut out: Vec<Field> = comps
-                .iter()
-                .enumerate()
-                .map(|(c, f)| {
-                    let v64: Vec<f64> = self.points.iter().map(|p| f(p, w)).collect();
+            let a = self.lift;
+            let mut out: Vec<Field> = (0..3)
+                .map(|c| {
+                    let v64: Vec<f64> = self.points.iter().map(|p| spin_at(*p, w, a)[c]).collect();
                     Field {
                         name: format!("v[{c}]"),
                         location: FieldLocation::Vertex,
@@ -1032,10 +1083,19 @@ mod tests {
         }
     }
 
+    /// [`Spin`]'s velocity at `p` for the angular speed `w`.
+    fn spin_at(p: [f64; 3], w: f64, lift: f64) -> [f64; 3] {
+        [-w * (p[1] - 0.5), w * (p[0] - 0.5), lift * (p[0] - 0.5)]
+    }
+
     fn spin_series(n: usize, times: Vec<f64>) -> (Arc<Mesh>, TimeSteps) {
+        lifted_spin_series(n, times, 0.0)
+    }
+
+    fn lifted_spin_series(n: usize, times: Vec<f64>, lift: f64) -> (Arc<Mesh>, TimeSteps) {
         let m = crate::test_support::KuhnGrid::new(n).mesh("cube");
         let points: Vec<[f64; 3]> = m.points.iter().map(|p| p.map(f64::from)).collect();
-        let spin = Spin { points, times: times.clone() };
+        let spin = Spin { points, times: times.clone(), lift };
         let raw = crate::RawMesh {
             points: m.points.to_vec(),
             tets: m.tets.to_vec(),
@@ -1405,6 +1465,66 @@ mod tests {
         }
     }
 
+    /// Pathlines' vorticity on the lifted spin, linear in space and time: at every recorded
+    /// point (the start time between two steps included) the curl (0, -a, 2ω(t)), the angular
+    /// velocity along the field there, the rotation the trapezoid sum of those from 0 at the
+    /// injection; on both drivers, for pathlines and streaklines, and in each frame.
+    #[test]
+    fn pathline_vorticity_is_the_curl_in_time_and_its_integral() {
+        let lift = 0.3;
+        let (m, steps) = lifted_spin_series(6, vec![0.0, 0.5, 1.0, 1.5], lift);
+        let mut cpu = CpuLocator::new(m.clone());
+        let fields = groups(&m);
+        let seeds: Vec<Vec3> = vec![[0.7, 0.5, 0.4], [0.5, 0.3, 0.45], [0.62, 0.6, 0.5], [0.5, 0.5, 0.5]];
+        let check = |arrays: &LineArrays, what: &str| {
+            let v = arrays.vorticity.as_ref().unwrap_or_else(|| panic!("{what}: no vorticity"));
+            assert!(v.normals.is_none(), "{what}: pathlines have no normals");
+            let n = arrays.points.len();
+            assert!(n > 10 && v.vorticity.len() == n && v.rotation.len() == n && v.angular_velocity.len() == n);
+            let mut start = 0;
+            for &end in &arrays.ends {
+                for i in start..end {
+                    // (A streakline's times are its particles' ages at the end time.)
+                    let t = if what == "streaklines" { 1.5 } else { arrays.time[i] };
+                    let want = [0.0, -lift, 2.0 * omega(t)];
+                    let w = v.vorticity[i];
+                    assert!((0..3).all(|k| (w[k] - want[k]).abs() < 1e-9), "{what} point {i} at {t}: {w:?}");
+                    let u = spin_at(arrays.points[i].map(f64::from), omega(t), lift);
+                    // (0 where the flow stops: the seed on the axis.)
+                    let along = if norm(u) == 0.0 { 0.0 } else { (want[1] * u[1] + want[2] * u[2]) / norm(u) };
+                    assert!((v.angular_velocity[i] - along).abs() < 1e-6, "{what} point {i}");
+                    if what == "streaklines" {
+                        continue;
+                    }
+                    if i == start {
+                        assert_eq!(v.rotation[i], 0.0, "{what}: a line starts unturned");
+                    } else {
+                        let dt = t - arrays.time[i - 1];
+                        let step = (v.angular_velocity[i - 1] + v.angular_velocity[i]) / 2.0 * dt;
+                        assert!((v.rotation[i] - v.rotation[i - 1] - step).abs() < 1e-12, "{what} point {i}");
+                    }
+                }
+                start = end;
+            }
+            assert!(v.rotation.iter().any(|r| r.abs() > 0.01), "{what}: nothing turned");
+        };
+        let o = PathOptions { vorticity: true, start_time: Some(0.25), step: Some(0.05), ..Default::default() };
+        let run = pathline_run(job(&seeds, &o, &steps, &fields), &cpu, |_| Ok(())).unwrap();
+        check(&run.frame(1), "a frame");
+        check(&run.output(), "pathlines");
+        check(&pathlines_batch(job(&seeds, &o, &steps, &fields), &mut cpu, &m, |_| Ok(())).unwrap(), "batch");
+        let streak = PathOptions { streaklines: true, ..o.clone() };
+        let lines = pathlines(job(&seeds, &streak, &steps, &fields), &cpu, |_| Ok(())).unwrap();
+        check(&lines, "streaklines");
+        // A streakline's points are its particles' at the end time, each turned since its
+        // own injection: the oldest turned most.
+        let v = lines.vorticity.as_ref().unwrap();
+        assert!(v.rotation[0].abs() > v.rotation[lines.ends[0] - 1].abs());
+        assert_eq!(v.rotation[lines.ends[0] - 1], 0.0);
+        let plain = PathOptions { vorticity: false, ..o };
+        assert!(pathlines(job(&seeds, &plain, &steps, &fields), &cpu, |_| Ok(())).unwrap().vorticity.is_none());
+    }
+
     /// The velocity from the vector a vertex at a time is the per-field path's, bit for bit,
     /// at the steps, between them and at the bracket's ends.
     #[test]
@@ -1458,7 +1578,7 @@ mod tests {
         let series = |fail: Option<usize>| {
             let reads: Arc<Vec<std::sync::atomic::AtomicUsize>> =
                 Arc::new((0..times.len()).map(|_| Default::default()).collect());
-            let spin = Spin { points: points.clone(), times: times.clone() };
+            let spin = Spin { points: points.clone(), times: times.clone(), lift: 0.0 };
             let steps =
                 TimeSteps::new("spin.pvd", times.clone(), Box::new(Counted { spin, reads: reads.clone(), fail }));
             (steps, reads)

@@ -25,7 +25,8 @@ pub struct VorticityArrays {
     pub vorticity: Vec<[f64; 3]>,
     pub rotation: Vec<f64>,
     pub angular_velocity: Vec<f64>,
-    pub normals: Vec<[f64; 3]>,
+    /// Streamlines only: vtkParticlePathFilter writes no normals.
+    pub normals: Option<Vec<[f64; 3]>>,
 }
 
 /// The vorticity arrays of `lines` traced through `vector` (a 3-component field of `mesh`).
@@ -39,8 +40,9 @@ pub fn vorticity(mesh: &Mesh, vector: &FieldGroup, lines: &LineArrays) -> Result
         vorticity: vec![[0.0; 3]; n],
         rotation: vec![0.0; n],
         angular_velocity: vec![0.0; n],
-        normals: vec![[0.0; 3]; n],
+        normals: Some(vec![[0.0; 3]; n]),
     };
+    let normals = out.normals.as_mut().expect("just made");
     let line = |l: usize| LinePoints {
         points: lines.points[starts[l]..starts[l + 1]].iter().map(|p| p.map(f64::from)).collect(),
         ids: &lines.fields.ids[starts[l]..starts[l + 1]],
@@ -51,7 +53,7 @@ pub fn vorticity(mesh: &Mesh, vector: &FieldGroup, lines: &LineArrays) -> Result
     // of the line before ((0, 0, 1) before the first), so those few are done again after.
     let slices = split_by(flat(&mut out.vorticity), &starts, 3)
         .into_iter()
-        .zip(split_by(flat(&mut out.normals), &starts, 3))
+        .zip(split_by(flat(normals), &starts, 3))
         .zip(split_by(&mut out.rotation, &starts, 1).into_iter().zip(split_by(&mut out.angular_velocity, &starts, 1)))
         .map(|((vorticity, normals), (rotation, omega))| Slices { vorticity, normals, rotation, omega });
     let lasts: Vec<Option<[f64; 3]>> = slices
@@ -69,7 +71,7 @@ pub fn vorticity(mesh: &Mesh, vector: &FieldGroup, lines: &LineArrays) -> Result
                 let r = starts[l]..starts[l + 1];
                 let mut at = Slices {
                     vorticity: &mut flat(&mut out.vorticity)[3 * r.start..3 * r.end],
-                    normals: &mut flat(&mut out.normals)[3 * r.start..3 * r.end],
+                    normals: &mut flat(normals)[3 * r.start..3 * r.end],
                     rotation: &mut out.rotation[r.clone()],
                     omega: &mut out.angular_velocity[r],
                 };
@@ -129,12 +131,19 @@ impl Vector<'_> {
         carried: Option<[f64; 3]>,
     ) -> Option<[f64; 3]> {
         let mut velocity = vec![[0.0; 3]; line.points.len()];
+        // In a linear tet the gradients are constant: a run of a line's points in one tet
+        // takes the curl of its first (the same numbers) and interpolates the velocity alone.
+        let linear_tets = self.mesh.cells.is_none() && self.mesh.tet_nodes.is_none();
+        let mut held: Option<(i32, [f64; 3])> = None;
         for (i, (&p, &id)) in line.points.iter().zip(line.ids).enumerate() {
-            let (v, w) = self.velocity_and_curl(weights, id, p);
+            let (v, w) = match held {
+                Some((tet, curl)) if linear_tets && tet == id => (self.velocity_in_tet(id, p), curl),
+                _ => self.velocity_and_curl(weights, id, p),
+            };
+            held = Some((id, w));
             velocity[i] = v;
             at.vorticity[3 * i..3 * i + 3].copy_from_slice(&w);
-            let speed = norm(v);
-            at.omega[i] = if speed != 0.0 && speed.is_finite() { dot(w, v) / speed } else { 0.0 };
+            at.omega[i] = angular_velocity(w, v);
         }
         at.rotation[0] = 0.0;
         for i in 1..line.points.len() {
@@ -151,6 +160,27 @@ impl Vector<'_> {
         };
         turn_normals(at.normals, &velocity, at.rotation);
         Some(last)
+    }
+
+    /// [`Self::velocity_and_curl`]'s velocity at point `p` of tet `id` of a mesh of linear
+    /// tets, with the same arithmetic (the tet's shape functions at the point's barycentrics).
+    fn velocity_in_tet(&self, id: i32, p: [f64; 3]) -> [f64; 3] {
+        if id < 0 || id as usize >= self.mesh.n_tets() {
+            return [f64::NAN; 3];
+        }
+        if self.xyz.iter().any(|f| f.location != FieldLocation::Vertex) {
+            return self.xyz.map(|f| f.value64(id as usize));
+        }
+        let Some(b) = self.mesh.bary64(id as usize, p) else { return [f64::NAN; 3] };
+        let mut w = [0.0; 4];
+        crate::cell::CellType::tet().def().shape_functions([b[1], b[2], b[3]], &mut w);
+        let mut v = [0.0; 3];
+        for (&node, w) in self.mesh.tets[id as usize].iter().zip(w) {
+            for (c, f) in self.xyz.iter().enumerate() {
+                v[c] += w * f.value64(node as usize);
+            }
+        }
+        v
     }
 
     /// The velocity at point `p` of cell (or tet) `id`, and its curl there: a vector stored
@@ -179,6 +209,31 @@ impl Vector<'_> {
             }
         }
         (v, [d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]])
+    }
+}
+
+/// The curl at point `p` of tet `tet` of the vector whose components are `xyz` (fields of
+/// `mesh`): the derivatives of the cell holding the tet (its own shape functions, as
+/// [`vorticity`] takes them), zero for a vector stored per cell. Pathlines' vorticity.
+pub(super) fn curl_in_tet(
+    mesh: &Mesh,
+    xyz: [&crate::Field; 3],
+    weights: &mut PointWeights,
+    tet: usize,
+    p: [f64; 3],
+) -> [f64; 3] {
+    let id = if mesh.cells.is_some() { mesh.cell_of_tet(tet) } else { tet };
+    Vector { mesh, xyz }.velocity_and_curl(weights, id as i32, p).1
+}
+
+/// The angular velocity for vorticity `w` at velocity `v`: `w` along the unit velocity, 0
+/// where the flow stops (see the module).
+pub(super) fn angular_velocity(w: [f64; 3], v: [f64; 3]) -> f64 {
+    let speed = norm(v);
+    if speed != 0.0 && speed.is_finite() {
+        dot(w, v) / speed
+    } else {
+        0.0
     }
 }
 
@@ -320,7 +375,7 @@ mod tests {
                 assert!((0..3).all(|k| (w[k] - curl[k]).abs() < 1e-5), "point {i}: {w:?}");
                 let u = swirl(lines.points[i].map(f64::from));
                 assert!((v.angular_velocity[i] - dot(w, u) / norm(u)).abs() < 1e-5, "point {i}");
-                let n = v.normals[i];
+                let n = v.normals.as_ref().unwrap()[i];
                 assert!((norm(n) - 1.0).abs() < 1e-9, "point {i}: |n| = {}", norm(n));
                 // Across the segments, which turn from the velocity by half a step's angle.
                 let across = dot(n, u).abs() / norm(u);
@@ -336,6 +391,35 @@ mod tests {
         }
         // Backward lines turn the other way in time.
         assert!(v.rotation.iter().any(|&r| r > 0.1) && v.rotation.iter().any(|&r| r < -0.1));
+    }
+
+    /// The curl held through a run of points in one tet and the velocity interpolated alone
+    /// there are what the full computation gives at every point, bit for bit.
+    #[test]
+    fn a_tets_held_curl_is_every_points_curl() {
+        let m = swirl_cube(4);
+        let vector = vector_field(&m, "v").unwrap();
+        let cpu = crate::CpuLocator::new(m.clone());
+        let seeds = seeds_from_spec("grid:0.1,0.9,0.1,0.9,0.1,0.9,3,3,3").unwrap().unwrap();
+        let o = TraceOptions { step: 0.02, max_steps: 200, ..Default::default() };
+        let lines = trace_sampled(&seeds, &o, &cpu, ["v[0]", "v[1]", "v[2]"], &line_fields(&m, &vector), &|_| Ok(()))
+            .unwrap()
+            .with_vorticity(Some((&m, &vector)))
+            .unwrap();
+        let v = lines.vorticity.as_ref().unwrap();
+        let xyz: Vec<&crate::Field> = vector.component_refs().iter().map(|c| m.field(c).unwrap()).collect();
+        let field = Vector { mesh: &m, xyz: [xyz[0], xyz[1], xyz[2]] };
+        let mut weights = PointWeights::new(&m);
+        let ids = &lines.fields.ids;
+        let repeats = ids.windows(2).filter(|w| w[0] == w[1]).count();
+        assert!(repeats > ids.len() / 2, "{repeats} of {} points share their tet with the one before", ids.len());
+        for (i, (p, &id)) in lines.points.iter().zip(ids).enumerate() {
+            let p = p.map(f64::from);
+            let (velocity, curl) = field.velocity_and_curl(&mut weights, id, p);
+            assert_eq!(v.vorticity[i].map(f64::to_bits), curl.map(f64::to_bits), "point {i}");
+            assert_eq!(field.velocity_in_tet(id, p).map(f64::to_bits), velocity.map(f64::to_bits), "point {i}");
+            assert_eq!(v.angular_velocity[i].to_bits(), angular_velocity(curl, velocity).to_bits(), "point {i}");
+        }
     }
 
     /// vtkPolyLine's sliding normals: along a planar curve the plane's normal; along a straight
