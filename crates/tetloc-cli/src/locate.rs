@@ -147,6 +147,7 @@ pub fn run(a: &LocateArgs) -> Result<()> {
     if let Some(f) = &a.field {
         fields::resolve_scalar(&m.fields, f).context("--field")?;
     }
+    tetloc_io::check_regular_input(&a.points).context("--points")?;
     let pts64 = points::read_points64(&a.points)?;
     let pts: Vec<[f32; 3]> = pts64.iter().map(|p| p.map(|c| c as f32)).collect();
     let non_finite = count_non_finite(&pts);

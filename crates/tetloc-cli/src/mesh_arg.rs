@@ -126,6 +126,8 @@ pub fn load(arg: &OsStr, format: Option<&str>, seed: u64) -> Result<Arc<Mesh>> {
             Spec::all_names().join(", ")
         );
     }
+    // Refused before it is opened: a FIFO would block for ever.
+    io::check_regular_input(path)?;
     let mesh = progress::with_spinner(format!("reading {}", path.display()), || io::read_mesh(path, format))?;
     Ok(Arc::new(mesh))
 }

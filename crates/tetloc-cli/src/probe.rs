@@ -117,6 +117,10 @@ pub(crate) fn execute(a: &ProbeArgs, point_set: bool, fields_of: &Mesh, loc: &mu
     // A .vtu, .vtk or .msh target is any point set (a surface, vertices, volumes): read as it is,
     // its cells kept as they are; other mesh formats are read as meshes.
     let (mut target_mesh, mut target_grid) = (None, None);
+    if mesh_arg::parse_generated(&a.target).is_none() {
+        // Refused before it is opened: a FIFO would block for ever.
+        tetloc_io::check_regular_input(target)?;
+    }
     let pts: Vec<[f64; 3]> = if point_set {
         points::read_points64(target)?
     } else if let Some(read_any) = any_cells_reader(a) {

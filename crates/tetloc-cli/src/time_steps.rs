@@ -112,6 +112,7 @@ pub struct Series {
 
 impl Series {
     pub fn open(path: &Path, format: Option<&str>) -> Result<Series> {
+        io::check_regular_input(path)?;
         let (mut raw, steps) = io::read_series(path, format_of(format)?)?;
         if steps.is_some() {
             // Each step's mesh takes that step's fields: the first step's are not kept twice.
@@ -239,7 +240,7 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
         a.rename_outputs(k, times.len());
         command(&a).with_context(|| format!("time step {k} (time {t}); {NOTHING_WRITTEN}"))?;
     }
-    write_index(out, &times)?;
+    write_index(out, &times, args.common().quiet)?;
     commit_steps(set, out)
 }
 
@@ -332,9 +333,12 @@ pub fn index_arg(index: &Path) -> FileArg<'_> {
 }
 
 /// Writes [`index_path`]'s `.pvd` of the files `step_path(out, k, n)` at `times` (a note
-/// instead for other formats).
-pub fn write_index(out: &Path, times: &[f64]) -> Result<()> {
+/// instead for other formats, unless `quiet`: `-q` prints nothing on success).
+pub fn write_index(out: &Path, times: &[f64], quiet: bool) -> Result<()> {
     let Some(index) = index_path(out) else {
+        if quiet {
+            return Ok(());
+        }
         eprintln!(
             "wrote {} steps as {}; no .pvd index (it lists VTK files: .vtu, .vtp, .vti)",
             times.len(),

@@ -134,6 +134,68 @@ pub struct TraceArgs {
 /// time, tet and sampled values, the spilled copy; measured at about 106).
 const LINE_POINT_BYTES: u128 = 128;
 
+/// Bytes a line takes in its batch besides its points: its `Line`, its job and order entries,
+/// the tracer's state (measured at about 360 with --max-steps 1: 700 bytes a seed in all).
+const LINE_STATE_BYTES: u128 = 512;
+
+/// Bytes a seed holds for the whole run: its point (12) and, per line, the end the writer
+/// keeps until the file is written (8).
+fn seed_bytes(dirs: u128) -> u128 {
+    std::mem::size_of::<Vec3>() as u128 + dirs * std::mem::size_of::<usize>() as u128
+}
+
+/// The seeds a `line:`/`grid:` spec makes, read without making them; `None` where it does not
+/// parse, or makes more than `trace::MAX_SEEDS` (making them says why, without allocating).
+fn spec_seed_count(spec: &str) -> Option<usize> {
+    let (kind, args) = spec.split_once(':')?;
+    let v: Vec<f64> = args.split(',').map(|s| s.trim().parse().ok()).collect::<Option<_>>()?;
+    let counts = match (kind, v.len()) {
+        ("line", 7) | ("grid", 9) => &v[6..],
+        _ => return None,
+    };
+    let n = counts.iter().try_fold(1u128, |n, &c| (c >= 1.0 && c.fract() == 0.0 && c < 1e12).then(|| n * c as u128))?;
+    usize::try_from(n).ok().filter(|&n| n <= trace::MAX_SEEDS)
+}
+
+/// Refuses `n` seeds (`dirs` lines each) whose points and lines' ends cannot fit, before
+/// they are made and before the mesh is read.
+fn check_seeds_memory(n: usize, dirs: u128) -> Result<()> {
+    let what =
+        format!("--seeds: {n} seeds ({} lines, each seed's point and line ends held to the end)", n as u128 * dirs);
+    crate::limits::check_memory(&what, n as u128, seed_bytes(dirs))
+}
+
+/// Refuses a trace whose memory cannot fit, before any line is traced: every seed's point
+/// and line ends ([`seed_bytes`]), the list of batches, and two batches at once (one written
+/// while the next is traced), each of the lines `TraceOptions::batches` puts in one, every
+/// line holding its state and the most points it can take (--max-steps, or fewer by
+/// --max-length). Seeds already made (`!unmade`) count only through what they add.
+fn check_trace_memory(
+    o: &TraceOptions,
+    n_seeds: usize,
+    batch_points: usize,
+    max_steps: usize,
+    unmade: bool,
+) -> Result<()> {
+    let dirs: u128 = if o.direction == Direction::Both { 2 } else { 1 };
+    let n = n_seeds as u128;
+    let points = o.steps_bound() as u128 + 2;
+    // As `TraceOptions::batches`: at least one line a batch, one direction a batch.
+    let per_batch = (batch_points as u128 / points).max(1).min(n.max(1));
+    let n_batches = dirs * n.div_ceil(per_batch);
+    let batch_entry = std::mem::size_of::<(TraceOptions, std::ops::Range<usize>)>() as u128;
+    let held = if unmade { 0 } else { std::mem::size_of::<Vec3>() as u128 };
+    let whole_run = n * (seed_bytes(dirs) - held) + n_batches * batch_entry;
+    let batches = 2 * per_batch.saturating_mul(LINE_STATE_BYTES + points.saturating_mul(LINE_POINT_BYTES));
+    let what = format!(
+        "--seeds ({n_seeds} seeds) with --max-steps {max_steps}: {} lines of up to {} steps, {per_batch} a batch \
+         (two batches at once),",
+        n * dirs,
+        o.steps_bound()
+    );
+    crate::limits::check_memory(&what, whole_run.saturating_add(batches), 1)
+}
+
 crate::time_steps::on_steps!(TraceArgs, mesh);
 
 /// Streamlines in one step's field (`--time-step K|all` as the other commands take it), or
@@ -149,19 +211,14 @@ pub fn run(a: &TraceArgs) -> Result<()> {
 fn run_steady(a: &TraceArgs) -> Result<()> {
     let direction: Direction = a.direction.parse()?;
     output::check_output(&a.out, &["vtp"]).context("--out: streamlines are written as VTK polydata")?;
-    let spec = trace::seeds_from_spec(&a.seeds);
     let meshes = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
     let seeds_file = PathBuf::from(&a.seeds);
     let mut inputs: Vec<FileArg> = meshes.iter().map(|p| FileArg::new("MESH", p)).collect();
-    if spec.is_none() {
+    if !is_seed_spec(&a.seeds) {
         inputs.push(FileArg::new("--seeds", &seeds_file));
     }
     let outputs: Vec<FileArg> = std::iter::once(FileArg::new("--out", &a.out)).chain(a.common.index_arg()).collect();
     crate::outputs::check_distinct(&inputs, &outputs)?;
-    let seeds = match spec {
-        Some(s) => s.context("--seeds")?,
-        None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
-    };
     let mut o = TraceOptions {
         step: a.step.unwrap_or(1.0), // checked now, the default set once the mesh is read
         max_steps: a.max_steps,
@@ -176,6 +233,11 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
     };
     o.check()?;
     let opts = a.common.opts()?;
+    // Before the mesh is read: all the trace needs where --step is given, else the seeds'.
+    let seeds = make_seeds(&a.seeds, |n| match a.step {
+        Some(_) => check_trace_memory(&o, n, a.batch_points, a.max_steps, true),
+        None => check_seeds_memory(n, if direction == Direction::Both { 2 } else { 1 }),
+    })?;
 
     // Generated shapes come with their closed-form flow `v` (`gen --vector`).
     let m = match a.common.step() {
@@ -188,19 +250,7 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
     }
     let (lo, hi) = m.file_bounds();
     o.check_scale(lo.iter().chain(&hi).fold(0.0, |s, c| s.max(c.abs()))).context("--step")?;
-    // Lines are traced in batches of about BATCH_POINTS points, at least one line a batch,
-    // two batches at once (one written while the next is traced): two lines of the most
-    // steps they can take (--max-steps, or fewer by --max-length) must fit in half the memory
-    // (the mesh and the locator need the rest), refused before tracing.
-    crate::limits::check_memory(
-        &format!(
-            "--max-steps {}: two lines of {} steps (each held whole until it ends), with room for the mesh,",
-            a.max_steps,
-            o.steps_bound()
-        ),
-        o.steps_bound() as u128 + 2,
-        4 * LINE_POINT_BYTES,
-    )?;
+    check_trace_memory(&o, seeds.len(), a.batch_points, a.max_steps, false)?;
     let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
     let c = vector.component_refs();
     let [x, y, z] = [c[0], c[1], c[2]];
@@ -300,19 +350,15 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
             path.display()
         );
     }
-    let spec = trace::seeds_from_spec(&a.seeds);
     let meshes = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
     let mut inputs: Vec<FileArg> = meshes.iter().map(|p| FileArg::new("MESH", p)).collect();
-    if spec.is_none() {
+    if !is_seed_spec(&a.seeds) {
         inputs.push(FileArg::new("--seeds", Path::new(&a.seeds)));
     }
     if !frames {
         crate::outputs::check_distinct(&inputs, &[FileArg::new("--out", &a.out)])?;
     }
-    let seeds = match spec {
-        Some(s) => s.context("--seeds")?,
-        None => points::read_points(Path::new(&a.seeds)).context("--seeds")?,
-    };
+    let seeds = make_seeds(&a.seeds, |n| check_seeds_memory(n, 1))?;
     if seeds.len() > trace::MAX_SEEDS {
         anyhow::bail!("--seeds: {} particles; at most {} (their ids are 32-bit)", seeds.len(), trace::MAX_SEEDS);
     }
@@ -339,6 +385,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
                 .with_context(|| format!("unknown --format '{f}' (known: {})", tetloc_io::KNOWN_MESH_FORMATS))
         })
         .transpose()?;
+    tetloc_io::check_regular_input(path)?;
     let (raw, steps) =
         progress::with_spinner(format!("reading {}", path.display()), || tetloc_io::read_series(path, format))?;
     let Some(steps) = steps else {
@@ -406,7 +453,7 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
             last = write(file, &run.frame(k))
                 .with_context(|| format!("output time {k}; {}", time_steps::NOTHING_WRITTEN))?;
         }
-        time_steps::write_index(&a.out, &times)?;
+        time_steps::write_index(&a.out, &times, a.common.quiet)?;
         time_steps::commit_steps(set, &a.out)?;
         last
     } else {
@@ -442,6 +489,27 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Whether `--seeds` is a `line:`/`grid:` spec (else a file of points).
+fn is_seed_spec(seeds: &str) -> bool {
+    matches!(seeds.split_once(':'), Some(("line" | "grid", _)))
+}
+
+/// The seeds of `--seeds`: a spec's made, after `check` of their count where it parses (they
+/// are made at once, and core's own check counts only their points); a file's read, refused
+/// first if it is not a regular file (opening a FIFO blocks until a writer comes).
+fn make_seeds(arg: &str, check: impl FnOnce(usize) -> Result<()>) -> Result<Vec<Vec3>> {
+    if let Some(n) = spec_seed_count(arg) {
+        check(n)?;
+    }
+    match trace::seeds_from_spec(arg) {
+        Some(made) => made.context("--seeds"),
+        None => {
+            let path = Path::new(arg);
+            tetloc_io::check_regular_input(path).and_then(|()| points::read_points(path)).context("--seeds")
+        }
+    }
 }
 
 /// A batch's tracer: `(seeds, options, progress)` to the batch's line arrays and the seconds

@@ -479,3 +479,144 @@ fn an_interrupted_orbit_keeps_the_older_frames() {
     assert_eq!(child.wait().unwrap().code(), Some(130));
     assert_eq!(snapshot(&dir), before, "the older orbit's frames changed");
 }
+
+/// Runs `tetloc ARGS`, killed after `secs` (a blocked open would otherwise hang the test):
+/// its failure's stderr; a panic if it succeeded, hung, or panicked.
+fn refused_within(args: &[&str], secs: u64) -> String {
+    use std::io::Read;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_tetloc"))
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let t0 = Instant::now();
+    let status = loop {
+        if let Some(status) = child.try_wait().unwrap() {
+            break status;
+        }
+        if t0.elapsed() > Duration::from_secs(secs) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("{args:?} still ran after {secs} s");
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    let mut err = String::new();
+    child.stderr.take().unwrap().read_to_string(&mut err).unwrap();
+    assert!(!status.success(), "{args:?} succeeded");
+    assert!(!err.contains("panicked"), "{err}");
+    err
+}
+
+/// A FIFO given as any input the CLI reads by name (the mesh, a series, points, seeds, a
+/// probe's target, a view state, a preset, a surface) is refused before it is opened, with
+/// the file named, instead of blocking for ever on the open.
+#[test]
+fn a_fifo_input_is_refused_not_opened() {
+    let dir = tmp_dir("fifo");
+    let fifo = |name: &str| {
+        let p = dir.join(name);
+        let made = Command::new("mkfifo").arg(&p).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        p
+    };
+    let (mesh, points, seeds, state) = (fifo("p.vtu"), fifo("p.csv"), fifo("s.npy"), fifo("view.json"));
+    let (series, tf, surface) = (fifo("s.pvd"), fifo("tf.json"), fifo("ground.obj"));
+    let out = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let (ids, vtu, vtp, png) = (out("ids.npy"), out("o.vtu"), out("t.vtp"), out("r.png"));
+    let cpu = ["--backend", "cpu"];
+    let cases: Vec<(Vec<&str>, &Path)> = vec![
+        (vec!["info", s(&mesh)], &mesh),
+        (vec!["locate", s(&mesh), "--points", "x.csv", "--out", &ids], &mesh),
+        (vec!["locate", "jets:1000", "--points", s(&points), "--out", &ids, cpu[0], cpu[1]], &points),
+        (vec!["locate", s(&series), "--points", "x.csv", "--out", &ids, "--time-step", "all"], &series),
+        (vec!["probe", "jets:1000", s(&points), "-o", &vtu, cpu[0], cpu[1]], &points),
+        (vec!["trace", "jets:1000", "--vector", "v", "--seeds", s(&seeds), "-o", &vtp, cpu[0], cpu[1]], &seeds),
+        (
+            vec!["trace", s(&series), "--vector", "v", "--seeds", "line:0,0,0,1,1,1,3", "--unsteady", "-o", &vtp],
+            &series,
+        ),
+        (vec!["render", "jets:1000", "--state", s(&state), "-o", &png], &state),
+        (vec!["render", "jets:1000", "--field", "f", "--tf", s(&tf), "-o", &png], &tf),
+        (vec!["render", "jets:1000", "--field", "f", "--surface", s(&surface), "-o", &png], &surface),
+    ];
+    for (args, input) in cases {
+        let err = refused_within(&args, 20);
+        assert!(err.contains(s(input)) && err.contains("not a regular file"), "{args:?}: {err}");
+    }
+    assert!(!dir.join("ids.npy").exists() && !dir.join("r.png").exists());
+}
+
+/// Item 2 of the CLI defects: a seed grid within SeedIds whose trace cannot fit is refused at
+/// once, counting what the trace holds for each seed (its point, its lines' ends, the lines
+/// of a batch and their state), before the seeds are made or the mesh read; a small one runs.
+#[test]
+fn trace_memory_counts_what_each_seed_takes() {
+    let dir = tmp_dir("trace-memory");
+    let out = dir.join("t.vtp");
+    let args = ["trace", "jets:2000", "--vector", "v", "-o", s(&out), "--backend", "cpu", "--step", "0.01"];
+    // 2e9 seeds (under the 2^31 SeedIds), all lines in one batch (the hidden test hook).
+    let one_batch = ["--max-steps", "1", "--batch-points", "1000000000000000"];
+    let grid = ["--seeds", "grid:0,1,0,1,0,1,1000,1000,2000"];
+    let e = refused(&[&args[..], &grid, &one_batch].concat(), 10);
+    assert!(e.contains("2000000000 lines") && e.contains("GB of memory"), "{e}");
+    assert!(entries(&dir).is_empty());
+    let small = ["--seeds", "grid:0.2,0.8,0.2,0.8,0.2,0.8,3,3,3"];
+    let (ok, _, err) = tetloc(&[&args[..], &small, &one_batch].concat());
+    assert!(ok && out.exists(), "{err}");
+}
+
+/// `-q` prints nothing on success, `--time-step all` included (it said "wrote N steps" where
+/// the outputs have no .pvd index).
+#[test]
+fn quiet_time_step_all_prints_nothing() {
+    let dir = tmp_dir("quiet-steps");
+    let series = dir.join("s.msh");
+    common::gmsh_series(&series, &[0.0, 0.5, 1.0]);
+    let points = dir.join("p.csv");
+    std::fs::write(&points, "x,y,z\n0.5,0.5,0.5\n0.2,0.3,0.4\n").unwrap();
+    let o = |name: &str| dir.join(name).to_str().unwrap().to_string();
+    let all = ["--time-step", "all", "--backend", "cpu", "-q"];
+    for args in [
+        vec!["locate", s(&series), "--points", s(&points), "--out", &o("ids.npy")],
+        vec!["locate", s(&series), "--points", s(&points), "--out", &o("ids.csv")],
+        vec!["resample", s(&series), "--field", "f", "--dims", "3,3,3", "-o", &o("r.npy")],
+        vec!["probe", s(&series), s(&points), "-o", &o("p.vtu")],
+    ] {
+        let (ok, out, err) = tetloc(&[&args[..], &all].concat());
+        assert!(ok && out.is_empty() && err.is_empty(), "{args:?}: {out}{err}");
+    }
+    assert!(dir.join("r_2.npy").exists() && dir.join("ids_2.csv").exists() && dir.join("p.pvd").exists());
+}
+
+/// Camera numbers beyond what the camera's f32 arithmetic takes (`--camera`, a view state's
+/// camera) are refused naming the option or file and the value, not as "eye equals target"
+/// or "9 numbers expected"; nothing is read or written first.
+#[test]
+fn huge_camera_numbers_are_named() {
+    let dir = tmp_dir("camera");
+    let png = dir.join("r.png");
+    let args = ["render", "jets:1000", "--field", "f", "--backend", "cpu", "--size", "8x8", "-o", s(&png)];
+    for (camera, named) in [("0,0,1e300,0,0,0,0,1,0", "ez = 1e300"), ("0,0,5,0,0,0,0,inf,0", "uy = inf")] {
+        let e = refused(&[&args[..], &[&format!("--camera={camera}")]].concat(), 10);
+        assert!(e.contains("--camera") && e.contains(named) && e.contains("finite"), "{e}");
+    }
+    let state = dir.join("view.json");
+    let write = |eye: &str| {
+        let text = format!(
+            r#"{{"version":1,"field":"f","size":[8,8],"camera":{{"eye":[{eye}],"target":[0,0,0],"up":[0,1,0],"zoom":1}},"tf":{{"colormap":"viridis","opacity":[[0,0,0.5,0],[1,1,0.5,0]],"scale":1}},"background":[0,0,0]}}"#
+        );
+        std::fs::write(&state, text).unwrap();
+    };
+    for (eye, named) in [("0,0,1e30", "camera.eye[2] = 1e30"), ("1e300,0,0", "camera.eye[0] = 1e300")] {
+        write(eye);
+        let e = refused(&["render", "jets:1000", "--backend", "cpu", "--state", s(&state), "-o", s(&png)], 10);
+        assert!(e.contains("--state") && e.contains(s(&state)) && e.contains(named), "{e}");
+    }
+    // A usable state still renders.
+    write("0,0,5");
+    let (ok, _, err) = tetloc(&["render", "jets:1000", "--backend", "cpu", "--state", s(&state), "-o", s(&png), "-q"]);
+    assert!(ok && png.exists(), "{err}");
+}

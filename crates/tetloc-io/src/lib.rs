@@ -95,6 +95,11 @@ pub(crate) fn strip_bom(bytes: &[u8]) -> &[u8] {
 /// it nests and all their pieces. A listing that cannot be read counts as itself alone
 /// (reading the mesh then fails before anything is written).
 pub fn input_files(path: &Path, format: Option<MeshFormat>) -> Vec<PathBuf> {
+    if check_regular_input(path).is_err() {
+        // A listing that is a FIFO is not opened to list it (that would block); reading it
+        // is refused with a clear error.
+        return vec![path.to_path_buf()];
+    }
     match format.or_else(|| MeshFormat::from_path(path).ok()) {
         Some(MeshFormat::TetGen) => vec![path.with_extension("node"), path.with_extension("ele")],
         Some(MeshFormat::Pieces) => vtk::pieces::files_read(path).unwrap_or_else(|_| vec![path.to_path_buf()]),
@@ -150,6 +155,20 @@ pub(crate) fn check_fits_in_memory(path: &Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Refuses, before it is opened, an input that is neither a regular file nor a folder (an
+/// OpenFOAM case): opening a FIFO blocks until a writer comes, which may be never, and a
+/// device may never end. A path that does not exist passes (opening it says so).
+pub fn check_regular_input(path: &Path) -> Result<()> {
+    // `metadata` follows symbolic links: a link to a FIFO is a FIFO.
+    match std::fs::metadata(path) {
+        Ok(meta) if !meta.is_file() && !meta.is_dir() => Err(Error::format(
+            path,
+            "not a regular file (a FIFO, socket or device?); inputs are read from files, save it to one first",
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Most bytes read from a file that is not a regular file (a pipe, a device such as
@@ -303,6 +322,26 @@ pub fn read_mesh_with(path: &Path, format: Option<MeshFormat>, options: ReadOpti
 #[cfg(test)]
 mod memory_tests {
     use super::*;
+
+    /// A FIFO (which would block the open until a writer comes) and a device are refused
+    /// before they are opened, naming the file; files, folders and missing paths pass.
+    #[cfg(unix)]
+    #[test]
+    fn non_regular_inputs_are_refused_before_opening() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("p.vtu");
+        let made = std::process::Command::new("mkfifo").arg(&fifo).status();
+        assert!(made.is_ok_and(|s| s.success()), "mkfifo");
+        for p in [fifo.as_path(), Path::new("/dev/null")] {
+            let e = check_regular_input(p).unwrap_err().to_string();
+            assert!(e.contains(&p.display().to_string()) && e.contains("not a regular file"), "{e}");
+        }
+        let file = dir.path().join("m.vtu");
+        std::fs::write(&file, "x").unwrap();
+        for p in [file.as_path(), dir.path(), &dir.path().join("missing.vtu")] {
+            check_regular_input(p).unwrap();
+        }
+    }
 
     /// A (sparse) file larger than memory is refused up front with a clear error, not an
     /// allocation failure.

@@ -111,8 +111,13 @@ fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {
     let setup_s = t0.elapsed().as_secs_f64();
 
     // Rank 0 reads the points and hands each rank a contiguous slice.
-    let pts =
-        if cluster.is_root() { points::read_points(&a.points).map_err(|e| e.to_string()) } else { Ok(Vec::new()) };
+    let pts = match cluster.is_root() {
+        // A FIFO is refused before it is opened (opening it would block for ever).
+        true => tetloc_io::check_regular_input(&a.points)
+            .and_then(|()| points::read_points(&a.points))
+            .map_err(|e| e.to_string()),
+        false => Ok(Vec::new()),
+    };
     let pts = cluster.agree("read the points", pts)?;
     let mine = scatter(cluster, &pts);
     let fields: Vec<&str> = a.field.as_deref().into_iter().collect();

@@ -75,7 +75,7 @@ pub struct ViewArgs {
 }
 
 pub fn run(a: ViewArgs) -> Result<()> {
-    let state = a.state.as_deref().map(tr::ViewState::load).transpose()?;
+    let state = a.state.as_deref().map(crate::render::load_state).transpose()?;
     let token = match &a.token {
         Some(t) => check_token(t)?,
         None => random_token()?,
