@@ -21,7 +21,7 @@ import time
 import urllib.error
 import urllib.parse
 import urllib.request
-from typing import Any, Iterator, List, Optional
+from typing import Any, Dict, Iterator, List, Optional, Tuple
 
 import numpy as np
 import pytest
@@ -462,6 +462,40 @@ def test_python_view_handle(cli: str) -> None:
             v.set_field("no-such-field")
         assert v.times == []
     assert v._proc.returncode == 0
+
+
+def test_python_view_refuses_bad_arguments_by_type(cli: str, tmp_path: pathlib.Path) -> None:
+    """Hostile test: every argument error came back as a RuntimeError from the command (a port
+    of -1 as clap's usage text), and a stopped viewer's methods raised urllib's URLError."""
+    import tetloc
+
+    bad: List[Tuple[Dict[str, Any], type, str]] = [
+        (dict(port=-1), ValueError, "port"),
+        (dict(port=70000), ValueError, "port"),
+        (dict(port="80"), TypeError, "port"),
+        (dict(time_step=-1), ValueError, "time_step"),
+        (dict(time_step=1.0), TypeError, "time_step"),
+        (dict(size=(0, 10)), ValueError, "size"),
+        (dict(size="64x64"), TypeError, "size"),
+        (dict(field=3), TypeError, "field"),
+        (dict(state=tmp_path / "none.json"), FileNotFoundError, "none.json"),
+        (dict(field="no-such-field"), ValueError, "no-such-field"),
+        (dict(backend="no-such-backend"), ValueError, "no-such-backend"),
+    ]
+    for kw, error, match in bad:
+        with pytest.raises(error, match=match):
+            tetloc.view("fusion:2k", cli=cli, **kw)
+    with pytest.raises(FileNotFoundError, match="absent.vtu"):
+        tetloc.view(tmp_path / "absent.vtu", cli=cli)
+    v = tetloc.view("fusion:2k", "f", backend="cpu", size=(16, 16), cli=cli)
+    with pytest.raises(TypeError):
+        v.set_time_step(True)
+    with pytest.raises(TypeError, match="field"):
+        v.set_field(None)  # type: ignore[arg-type]
+    assert v.stop() == 0
+    for call in (v.frame, v.state, lambda: v.times):
+        with pytest.raises(RuntimeError, match="the server has stopped"):
+            call()
 
 
 def test_python_view_handle_moves_through_time(cli: str, tmp_path: pathlib.Path) -> None:

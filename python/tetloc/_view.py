@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import shutil
 import signal
 import subprocess
@@ -45,6 +46,7 @@ class Viewer:
         self.base, self.token = url.split("/?token=")
 
     def _request(self, path: str, method: str = "GET", body: Optional[bytes] = None) -> bytes:
+        self._check_running()
         req = urllib.request.Request(f"{self.base}{path}?token={self.token}", data=body, method=method)
         if body is not None:
             req.add_header("Content-Type", "application/json")
@@ -56,6 +58,15 @@ class Viewer:
             # file it cannot read, say) is the caller's ValueError.
             why = e.read().decode("utf-8", "replace").strip()
             raise (ValueError if e.code in (400, 422) else RuntimeError)(f"tetloc view: {why}") from None
+        except urllib.error.URLError as e:
+            self._check_running()
+            raise RuntimeError(f"tetloc view: the server at {self.base} did not answer ({e.reason})") from None
+
+    def _check_running(self) -> None:
+        """A ``RuntimeError`` once the server has stopped (:meth:`stop`, or it ended)."""
+        code = self._proc.poll()
+        if code is not None:
+            raise RuntimeError(f"tetloc view: the server has stopped (exit code {code}); start another with tetloc.view")
 
     def _repr_html_(self) -> str:
         return f'<iframe src="{self.url}" width="100%" height="720" style="border:0"></iframe>'
@@ -101,10 +112,11 @@ class Viewer:
         range left to the field's is first pinned to the one drawn with, so the colours mean
         the same values at every step (``set_tf(range=...)`` sets another). Returns once
         the step is shown; a step whose file cannot be read raises ``ValueError`` naming it."""
+        k = _whole("time step", k)
         s = self.state()
         if s["tf"]["range"] is None:
             s["tf"]["range"] = list(self._range())
-        s["time_step"] = int(k)
+        s["time_step"] = k
         self.set_state(s)
         self._range()
 
@@ -119,6 +131,8 @@ class Viewer:
         return [float(t) for t in json.loads(self._request("/mesh.json"))["times"]]
 
     def set_field(self, field: str) -> None:
+        if not isinstance(field, str):
+            raise TypeError(f"field: expected a field name, got {type(field).__name__}")
         s = self.state()
         s["field"], s["tf"]["range"] = field, None
         self.set_state(s)
@@ -154,7 +168,25 @@ def view(
 ) -> Viewer:
     """Starts ``tetloc view`` on ``mesh`` (a file, or ``SHAPE:N``) in the background and
     returns once it serves; ``port=0`` picks a free port. ``time_step``: the step of a series
-    shown first (see :meth:`Viewer.set_time_step`)."""
+    shown first (see :meth:`Viewer.set_time_step`). Arguments of the wrong type raise
+    ``TypeError``, and values out of range ``ValueError``, before anything starts; a mesh or
+    state file that does not exist ``FileNotFoundError``; a server that refuses to start (a
+    field the mesh lacks, a file it cannot read) ``ValueError`` with its message."""
+    for name, value in (("field", field), ("backend", backend)):
+        if value is not None and not isinstance(value, str):
+            raise TypeError(f"{name}: expected a string, got {type(value).__name__}")
+    if not (isinstance(size, (tuple, list)) and len(size) == 2):
+        raise TypeError(f"size: expected (width, height) in pixels, got {size!r}")
+    size = (_whole("size", size[0], least=1), _whole("size", size[1], least=1))
+    if not 0 <= _whole("port", port) <= 65535:
+        raise ValueError(f"port: expected 0 (any free port) to 65535, got {port}")
+    if time_step is not None:
+        time_step = _whole("time_step", time_step)
+    for name, path in (("mesh", mesh), ("state", state)):
+        # (A mesh may also be SHAPE:N, generated: only a path with a folder or a file
+        # extension is checked here.)
+        if path is not None and not os.path.exists(os.fspath(path)) and (name == "state" or _looks_like_a_path(path)):
+            raise FileNotFoundError(f"{name}: {os.fspath(path)}: no such file")
     args: List[str] = [_cli(cli), "view", os.fspath(mesh), "--backend", backend, "--size", f"{size[0]}x{size[1]}", "--port", str(port), "--quiet"]
     if field is not None:
         args += ["--field", field]
@@ -166,9 +198,29 @@ def view(
     assert proc.stdout is not None and proc.stderr is not None
     url = proc.stdout.readline().strip()
     if not url.startswith("http://"):
-        proc.wait()
-        raise RuntimeError(f"tetloc view did not start: {proc.stderr.read().strip()}")
+        code = proc.wait()
+        why = proc.stderr.read().strip()
+        # The command's own refusal of its inputs (it says "error: ..." and exits 1 or 2).
+        raise (ValueError if code in (1, 2) and why.startswith("error:") else RuntimeError)(
+            f"tetloc view did not start: {why or f'exit code {code}'}"
+        )
     return Viewer(proc, url)
+
+
+def _whole(name: str, value: Any, least: int = 0) -> int:
+    """`value` as a whole number of at least `least`: a ``TypeError`` for another type (a
+    bool or a float included), a ``ValueError`` below `least`."""
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name}: expected a whole number, got {value!r}")
+    if value < least:
+        raise ValueError(f"{name}: expected at least {least}, got {value}")
+    return int(value)
+
+
+def _looks_like_a_path(mesh: PathLike) -> bool:
+    """Whether `mesh` names a file rather than a generated shape (``SHAPE:N``, as
+    ``fusion:1.4M``)."""
+    return re.fullmatch(r"[A-Za-z][\w-]*:[0-9.eE+]+[kKmMgG]?", os.fspath(mesh)) is None
 
 
 def _decode_png(data: bytes) -> np.ndarray:
