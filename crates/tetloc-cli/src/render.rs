@@ -109,7 +109,6 @@ pub fn run(a: RenderArgs) -> Result<()> {
         o.zoom = tr::parse_positive("--zoom", z)?;
     }
     if let Some(c) = &a.camera {
-        check_camera_numbers(c)?;
         o.camera = Some(tr::parse_camera(c)?);
     }
     if let Some(s) = &a.step {
@@ -302,64 +301,11 @@ pub fn step_renderer(
     Ok((mesh, renderer))
 }
 
-/// Largest camera coordinate taken (`--camera`, a state's camera): the camera squares
-/// differences of coordinates in f32, which overflow beyond about 1e19.
-const MAX_CAMERA_COORD: f64 = 1e18;
-
-/// Whether a camera number is finite and within [`MAX_CAMERA_COORD`].
-fn camera_number_ok(v: f64) -> bool {
-    v.is_finite() && v.abs() <= MAX_CAMERA_COORD
-}
-
-/// Refuses `--camera` numbers that are not finite or beyond [`MAX_CAMERA_COORD`], naming the
-/// one (the parser's own message says only that 9 numbers were expected, or that eye and
-/// target meet, where they overflowed).
-fn check_camera_numbers(s: &str) -> Result<()> {
-    const NAMES: [&str; 9] = ["ex", "ey", "ez", "tx", "ty", "tz", "ux", "uy", "uz"];
-    for (text, name) in s.split(',').zip(NAMES) {
-        // What does not parse is left to the parser's message.
-        if let Ok(v) = text.trim().parse::<f64>() {
-            if !camera_number_ok(v) {
-                anyhow::bail!(
-                    "--camera '{s}': {name} = {}: camera coordinates must be finite and at most {MAX_CAMERA_COORD:e} in magnitude",
-                    text.trim()
-                );
-            }
-        }
-    }
-    Ok(())
-}
-
-/// A view state file (`render --state`, `view --state`): refused before it is opened if it
-/// is not a regular file (a FIFO would block), its camera's numbers checked before the
-/// state's own checks (which, once they overflow f32, say only that eye and target meet).
+/// A view state file (`render --state`, `view --state`), refused before it is opened if it
+/// is not a regular file (a FIFO would block).
 pub fn load_state(path: &Path) -> Result<tr::ViewState> {
-    use std::io::Read;
     tetloc_io::check_regular_input(path).context("--state")?;
-    let io = |e| tetloc_core::Error::io(path, e);
-    let file = std::fs::File::open(path).map_err(io).context("--state")?;
-    let mut text = String::new();
-    // One byte past the limit: `parse` refuses a larger file, read in bounded memory.
-    let limit = tr::state::MAX_STATE_BYTES as u64 + 1;
-    file.take(limit).read_to_string(&mut text).map_err(io).context("--state")?;
-    // Text that is not JSON is left to `parse`, which says where.
-    if let Ok(v) = serde_json::from_str::<serde_json::Value>(&text) {
-        for key in ["eye", "target", "up", "zoom"] {
-            let value = &v["camera"][key];
-            let numbers = value.as_array().map_or_else(|| vec![value], |a| a.iter().collect());
-            for (i, n) in numbers.iter().enumerate() {
-                let Some(x) = n.as_f64() else { continue };
-                if !camera_number_ok(x) {
-                    let at = if value.is_array() { format!("camera.{key}[{i}]") } else { format!("camera.{key}") };
-                    anyhow::bail!(
-                        "--state: {}: {at} = {x:e}: camera numbers must be at most {MAX_CAMERA_COORD:e} in magnitude",
-                        path.display()
-                    );
-                }
-            }
-        }
-    }
-    tr::ViewState::parse(&text, path).context("--state")
+    tr::ViewState::load(path).context("--state")
 }
 
 /// Refuses a `--tf` preset or `--surface` file that is not a regular file (a FIFO, a

@@ -217,8 +217,29 @@ pub fn parse_view(s: &str) -> Result<(f32, f32)> {
     Ok((v[0], v[1]))
 }
 
+/// Largest camera coordinate taken (`--camera`, a state's camera): the camera squares
+/// differences of coordinates in f32, which overflow beyond about 1e19.
+pub const MAX_CAMERA_COORD: f64 = 1e18;
+
+/// Whether a camera coordinate is finite and within [`MAX_CAMERA_COORD`].
+pub fn camera_coordinate_ok(v: f64) -> bool {
+    v.is_finite() && v.abs() <= MAX_CAMERA_COORD
+}
+
 /// `ex,ey,ez,tx,ty,tz,ux,uy,uz`: eye, target and up.
 pub fn parse_camera(s: &str) -> Result<LookAt> {
+    // A number that is not finite or too large is named (beyond f32, or overflowing in the
+    // camera's arithmetic, it would read as no number, or as eye meeting target).
+    const NAMES: [&str; 9] = ["ex", "ey", "ez", "tx", "ty", "tz", "ux", "uy", "uz"];
+    for (text, name) in s.split(',').zip(NAMES) {
+        if text.trim().parse::<f64>().is_ok_and(|v| !camera_coordinate_ok(v)) {
+            let v = text.trim();
+            let why = format!(
+                "{name} = {v}: camera coordinates must be finite and at most {MAX_CAMERA_COORD:e} in magnitude"
+            );
+            return Err(RenderError::option("--camera", s, why));
+        }
+    }
     let v = numbers("--camera", s, 9, "eye,target,up (ex,ey,ez,tx,ty,tz,ux,uy,uz)")?;
     let look = LookAt { eye: [v[0], v[1], v[2]], target: [v[3], v[4], v[5]], up: [v[6], v[7], v[8]] };
     if !look.is_usable() {

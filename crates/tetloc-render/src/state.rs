@@ -175,8 +175,16 @@ impl ViewState {
             return bad(format!("size {w}x{h}: each side must be 1..{MAX_SIDE} pixels"));
         }
         let c = &self.camera;
-        if !(c.eye.iter().chain(&c.target).chain(&c.up).all(|v| v.is_finite()) && c.zoom.is_finite() && c.zoom > 0.0) {
-            return bad("camera: eye, target and up must be finite and zoom positive".into());
+        for (name, v) in [("eye", c.eye), ("target", c.target), ("up", c.up)] {
+            if let Some((i, x)) = v.iter().enumerate().find(|(_, &x)| !crate::options::camera_coordinate_ok(x)) {
+                return bad(format!(
+                    "camera.{name}[{i}] = {x:e}: camera coordinates must be finite and at most {:e} in magnitude",
+                    crate::options::MAX_CAMERA_COORD
+                ));
+            }
+        }
+        if !(c.zoom.is_finite() && c.zoom > 0.0) {
+            return bad(format!("camera.zoom = {}: must be a positive number", c.zoom));
         }
         let t = &self.tf;
         if Colormap::from_name(&t.colormap).is_none() && t.colors.is_empty() {
@@ -403,7 +411,10 @@ mod tests {
         };
         assert!(text(&|s| s.version = 2).contains("s.json: view state version 2"));
         assert!(text(&|s| s.size = [0, 8]).contains("size 0x8"));
-        assert!(text(&|s| s.camera.zoom = -1.0).contains("camera"));
+        assert!(text(&|s| s.camera.zoom = -1.0).contains("camera.zoom"));
+        // Coordinates beyond f32's camera arithmetic (a client's PUT as a file's): named.
+        assert!(text(&|s| s.camera.eye[2] = 1e30).contains("camera.eye[2] = 1e30"));
+        assert!(text(&|s| s.camera.up[0] = -1e19).contains("camera.up[0] = -1e19"));
         assert!(text(&|s| s.tf.colormap = "jet".into()).contains("'jet' is not a built-in colormap"));
         assert!(text(&|s| s.tf.opacity.clear()).contains("tf.opacity: 0 points"));
         assert!(text(&|s| s.tf.opacity[1][0] = -0.5).contains("tf.opacity: point 1"));
