@@ -1,11 +1,12 @@
 #!/usr/bin/env python3
 """VTK's pathlines for tetloc's `trace --unsteady` test (crates/tetloc-cli/tests/pathlines.rs).
 
-    vtk_pathlines.py series OUT_DIR
+    vtk_pathlines.py series OUT_DIR [hex]
     vtk_pathlines.py compare OUT_DIR START END OURS.vtp [N]
     vtk_pathlines.py streaks OUT_DIR START END OURS.vtp
 
-series: writes OUT_DIR/series.pvd over OUT_DIR/step_K.vtu (a unit cube of tets with a velocity
+series: writes OUT_DIR/series.pvd over OUT_DIR/step_K.vtu (a unit cube of tets, or with `hex` of
+hexahedra, whose trilinear interpolation of the velocity differs from its tets'; with a velocity
 `v` that rotates about x = y = 0.5 at a speed growing in time, plus a vertical swirl) and the
 seeds as OUT_DIR/seeds.bin (raw float32 x,y,z). compare: runs vtkParticlePathFilter (RK4, its
 default step of half an interval) on the same steps, held in memory, from START to END (step
@@ -34,7 +35,21 @@ TIMES = [0.0, 0.4, 0.8, 1.2, 1.6, 2.0]
 SDDP = vtk.vtkStreamingDemandDrivenPipeline
 
 
-def cube(n=10):
+def cube(n=10, kind="tet"):
+    if kind == "hex":
+        grid = vtk.vtkUnstructuredGrid()
+        ijk = np.stack(np.meshgrid(*[np.arange(n + 1)] * 3, indexing="ij"), -1).reshape(-1, 3)[:, ::-1]
+        points = vtk.vtkPoints()
+        points.SetData(numpy_to_vtk(ijk.astype(np.float64) / n, deep=True))
+        grid.SetPoints(points)
+        at = lambda i, j, k: (k * (n + 1) + j) * (n + 1) + i  # noqa: E731
+        for k in range(n):
+            for j in range(n):
+                for i in range(n):
+                    corners = [at(i, j, k), at(i + 1, j, k), at(i + 1, j + 1, k), at(i, j + 1, k),
+                               at(i, j, k + 1), at(i + 1, j, k + 1), at(i + 1, j + 1, k + 1), at(i, j + 1, k + 1)]
+                    grid.InsertNextCell(vtk.VTK_HEXAHEDRON, 8, corners)
+        return grid
     img = vtk.vtkImageData()
     img.SetDimensions(n + 1, n + 1, n + 1)
     img.SetSpacing(1.0 / n, 1.0 / n, 1.0 / n)
@@ -52,10 +67,16 @@ def velocity(p, t):
     return np.stack([-w * y, w * x, 0.15 * np.sin(2 * np.pi * p[:, 0]) * np.cos(2 * t) * (z * (1 - z)) * 4], 1)
 
 
-def steps():
+def kind_of(out_dir):
+    """The series' cells, as `series` wrote it down."""
+    with open(os.path.join(out_dir, "kind")) as f:
+        return f.read().strip()
+
+
+def steps(kind):
     grids = []
     for t in TIMES:
-        g = cube()
+        g = cube(kind=kind)
         p = vtk_to_numpy(g.GetPoints().GetData()).astype(np.float64)
         v = numpy_to_vtk(velocity(p, t).astype(np.float32), deep=True)
         v.SetName("v")
@@ -73,10 +94,13 @@ def seeds():
     return np.stack([0.5 + r * np.cos(a), 0.5 + r * np.sin(a), z], 1).astype(np.float32)
 
 
-def series(out_dir):
+def series(out_dir, kind="tet"):
+    assert kind in ("tet", "hex"), kind
     os.makedirs(out_dir, exist_ok=True)
+    with open(os.path.join(out_dir, "kind"), "w") as f:
+        f.write(kind)
     lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1">', "<Collection>"]
-    for k, (t, g) in enumerate(zip(TIMES, steps())):
+    for k, (t, g) in enumerate(zip(TIMES, steps(kind))):
         w = vtk.vtkXMLUnstructuredGridWriter()
         w.SetFileName(os.path.join(out_dir, f"step_{k}.vtu"))
         w.SetInputData(g)
@@ -91,12 +115,12 @@ def series(out_dir):
 class Series(VTKPythonAlgorithmBase):
     """The steps in memory, as a temporal source."""
 
-    def __init__(self, start):
+    def __init__(self, start, kind):
         # A composite output: vtkParticlePathFilter (VTK 9.7) keeps a plain dataset input by
         # reference, so the step before would alias the source's reused output object and both
         # ends of an interval would hold the newer step. A fresh block a step avoids that.
         VTKPythonAlgorithmBase.__init__(self, nInputPorts=0, nOutputPorts=1, outputType="vtkMultiBlockDataSet")
-        self.grids = steps()
+        self.grids = steps(kind)
         # vtkParticlePathFilter injects at the first time its input has: the steps from START.
         self.times = [t for t in TIMES if t >= start]
 
@@ -172,7 +196,7 @@ def read_ours(ours):
 
 
 def compare(out_dir, start, end, ours, every="0"):
-    src = Series(float(start))  # held: the pipeline keeps no Python reference to it
+    src = Series(float(start), kind_of(out_dir))  # held: the pipeline keeps no Python reference to it
     f = vtk.vtkParticlePathFilter()
     f.SetForceReinjectionEveryNSteps(int(every))
     pts, line_seed, pd, conn, offs = read_ours(ours)
@@ -199,7 +223,7 @@ def compare(out_dir, start, end, ours, every="0"):
 
 
 def streaks(out_dir, start, end, ours):
-    src = Series(float(start))
+    src = Series(float(start), kind_of(out_dir))
     pts, seed, injected, age, particle = run_filter(vtk.vtkStreaklineFilter(), src, end)
     write_arrays(pts, "vtk", out_dir, particle_key(seed, injected, particle), age)
     pts, line_seed, pd, _, _ = read_ours(ours)
@@ -210,7 +234,7 @@ def streaks(out_dir, start, end, ours):
 
 
 if __name__ == "__main__":
-    ops = {"series": (series, (1,)), "compare": (compare, (4, 5)), "streaks": (streaks, (4,))}
+    ops = {"series": (series, (1, 2)), "compare": (compare, (4, 5)), "streaks": (streaks, (4,))}
     if len(sys.argv) < 2 or sys.argv[1] not in ops or len(sys.argv) - 2 not in ops[sys.argv[1]][1]:
         sys.exit(__doc__)
     ops[sys.argv[1]][0](*sys.argv[2:])

@@ -300,12 +300,6 @@ pub fn trace_lines<'py>(
         let injections = o.injections(&legs);
         let legs = legs.len();
         let vector = trace::vector_field(&m, vector).map_err(to_py)?;
-        if m.cells.is_some() {
-            return Err(PyValueError::new_err(format!(
-                "{}: unsteady=True traces through tetrahedral meshes; this one has other cell types",
-                m.info.source
-            )));
-        }
         let c = vector.component_refs();
         let xyz = [c[0], c[1], c[2]];
         let out_fields = trace::line_fields(&m, &vector);
@@ -316,10 +310,20 @@ pub fn trace_lines<'py>(
             false => vec![(0.0, run.output())],
         };
         let mut made: Vec<(f64, LineArrays)> = match locator {
-            None => {
+            None if m.cells.is_none() => {
                 let cpu = cpu_locator(py, &m)?;
                 run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
                     Ok(outputs(trace::pathline_run(job, &cpu, |d| ticker.tick(d))?))
+                })?
+            }
+            // The per-particle walk runs on tets: a mixed mesh goes through the CPU's stack,
+            // whose answers are cells, interpolated with the cells' shape functions.
+            None => {
+                let cpu = || Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build();
+                let mut built = py.detach(cpu).map_err(crate::backend::py_error)?;
+                let loc = built.locator.as_mut();
+                run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
+                    Ok(outputs(trace::pathline_run_batch(job, &mut *loc, &m, |d| ticker.tick(d))?))
                 })?
             }
             Some(locator) => with_backend(py, locator, |loc| {

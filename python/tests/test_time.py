@@ -285,6 +285,46 @@ def test_pathlines_follow_the_closed_form(tmp_path, backend):
 
 
 @pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
+def test_pathlines_through_hexahedra(tmp_path, backend):
+    """unsteady=True on a mesh of hexahedra (refused before: tets only): the spin's closed-form
+    path and its speed at the points (the cells' interpolation against VTK's: the CLI's test
+    pathlines_through_hexahedra_match_vtk_particle_paths)."""
+    import pyvista as pv
+
+    n = 6
+    ijk = np.stack(np.meshgrid(*[np.arange(n + 1)] * 3, indexing="ij"), -1).reshape(-1, 3)[:, ::-1]
+    points = ijk.astype(np.float64) / n
+    at = lambda i, j, k: (k * (n + 1) + j) * (n + 1) + i  # noqa: E731
+    cells = np.array([[at(i, j, k), at(i + 1, j, k), at(i + 1, j + 1, k), at(i, j + 1, k),
+                       at(i, j, k + 1), at(i + 1, j, k + 1), at(i + 1, j + 1, k + 1), at(i, j + 1, k + 1)]
+                      for k in range(n) for j in range(n) for i in range(n)])
+    grid = pv.UnstructuredGrid({pv.CellType.HEXAHEDRON: cells}, points)
+    entries = []
+    times = [0.0, 0.5, 1.0, 1.5, 2.0]
+    for k, t in enumerate(times):
+        w = 1.0 + t
+        grid.point_data["v"] = np.stack([-w * (points[:, 1] - 0.5), w * (points[:, 0] - 0.5), 0 * points[:, 0]], 1)
+        grid.save(tmp_path / f"h_{k}.vtu")
+        entries.append(f'<DataSet timestep="{t!r}" part="0" file="h_{k}.vtu"/>')
+    pvd = tmp_path / "hex.pvd"
+    pvd.write_text('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1">\n<Collection>\n'
+                   + "\n".join(entries) + "\n</Collection>\n</VTKFile>\n")
+    mesh = tetloc.read(pvd)
+    seeds = np.array([[0.8, 0.5, 0.3], [0.5, 0.2, 0.7]], np.float32)
+    out = tetloc.trace(mesh, "v", seeds, unsteady=True, step=0.1, backend=backend)
+    assert list(out["offsets"]) == [0, 5, 10] and list(out["ReasonForTermination"]) == [7, 7]
+    t = out["IntegrationTime"]
+    theta = t + 0.5 * t * t
+    s = np.repeat(seeds.astype(np.float64), 5, axis=0) - [0.5, 0.5, 0.0]
+    want = np.stack([0.5 + np.cos(theta) * s[:, 0] - np.sin(theta) * s[:, 1],
+                     0.5 + np.sin(theta) * s[:, 0] + np.cos(theta) * s[:, 1], s[:, 2]], 1)
+    assert np.abs(out["points"] - want).max() < 1.2e-3
+    # The vector recorded at the points, interpolated in the cells and in time: w(t) r.
+    speed = np.linalg.norm(out["v"], axis=1)
+    np.testing.assert_allclose(speed, (1 + t) * np.linalg.norm(s[:, :2], axis=1), rtol=1e-3)
+
+
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
 def test_pathline_vorticity(tmp_path, backend):
     """vorticity=True with unsteady=True: the spin's curl (0, 0, 2 w(t)) at every point, the
     injection between two steps included (the curl interpolated in time); it is across the

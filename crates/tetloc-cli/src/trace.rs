@@ -407,12 +407,6 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
         crate::outputs::check_distinct(&inputs, &outputs)?;
     }
     let m = std::sync::Arc::new(tetloc_core::Mesh::new(raw, path.display().to_string())?);
-    if m.cells.is_some() {
-        anyhow::bail!(
-            "{}: --unsteady traces through tetrahedral meshes; this one has other cell types",
-            path.display()
-        );
-    }
     let vector = trace::vector_field(&m, &a.vector).context("--vector")?;
     let c = vector.component_refs();
     let xyz = [c[0], c[1], c[2]];
@@ -427,7 +421,9 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
     };
     let job = trace::PathJob { seeds: &seeds, options: &o, steps: &steps, vector: xyz, fields: &out_fields };
     let t0 = Instant::now();
-    let run = if backend == Backend::Cpu {
+    // The per-particle walk runs on tets; a mixed mesh goes through its cell locator (every
+    // particle a batch, each answer a cell interpolated with its own shape functions).
+    let run = if backend == Backend::Cpu && m.cells.is_none() {
         let bare = progress::with_spinner("building the locator", || builder.build_bare())?;
         let BareLocator::Cpu(cpu) = bare.locator else { anyhow::bail!("cpu: not the CPU's locator") };
         trace::pathline_run(job, &cpu, tick)?

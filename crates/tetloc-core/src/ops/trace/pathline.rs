@@ -17,7 +17,9 @@
 //! Two drivers share one state machine per particle ([`PathParticle`]): [`pathlines`]
 //! answers each particle's lookups at once on the CPU, walking from its last tet;
 //! [`pathlines_batch`] advances every live particle together, one batched `locate` per
-//! Runge–Kutta stage on any backend, and interpolates on the host.
+//! Runge–Kutta stage on any backend, and interpolates on the host. A mixed mesh takes the
+//! second: its locators answer cells, interpolated with the cells' own shape functions (as
+//! vtkParticlePathFilter does), where the first walks the tets of their decomposition.
 
 use super::particle::{combine, norm, MAX_STAGES};
 use super::vorticity::{self, VorticityArrays};
@@ -25,7 +27,7 @@ use super::{Integrator, LineArrays, ParticleArrays, Reason};
 use crate::error::{Error, Result};
 use crate::geom::{Bary64, Vec3};
 use crate::locate::BatchLocator;
-use crate::mesh::{Field, TimeSteps, VertexVectors};
+use crate::mesh::{Field, FieldLocation, TimeSteps, VertexVectors};
 use crate::ops::gradients::PointWeights;
 use crate::ops::FieldGroup;
 use crate::Mesh;
@@ -435,6 +437,54 @@ fn blend<const N: usize>(w: f64, a: [f64; N], b: impl FnOnce() -> [f64; N]) -> [
     }
 }
 
+/// Where a lookup found a particle: barycentrics in a tet (a tetrahedral mesh), or a cell of
+/// a mixed mesh with its nodes and their shape functions' weights at the point, by which
+/// the cell's values are interpolated, as VTK's filter interpolates them.
+#[derive(Clone, Copy, Debug)]
+enum Spot<'a> {
+    Tet(usize, Bary64),
+    Cell(usize, &'a [u32], &'a [f64]),
+}
+
+impl Spot<'_> {
+    /// The tet, or the cell: the id the line points record.
+    fn id(&self) -> usize {
+        match *self {
+            Spot::Tet(id, _) | Spot::Cell(id, _, _) => id,
+        }
+    }
+}
+
+/// A thread's buffers for the cells' weights and the vorticity's derivatives.
+struct Scratch {
+    weights: PointWeights,
+    nodes: Vec<u32>,
+    w: Vec<f64>,
+}
+
+impl Scratch {
+    fn new(mesh: &Mesh) -> Scratch {
+        Scratch { weights: PointWeights::new(mesh), nodes: Vec::new(), w: Vec::new() }
+    }
+}
+
+/// The spot of point `p` in cell `cell` of a mixed mesh (`None`: it has no weights there, a
+/// degenerate cell), its nodes and weights copied into `nodes` and `w`.
+fn cell_spot<'a>(
+    mesh: &Mesh,
+    weights: &mut PointWeights,
+    (nodes, w): (&'a mut Vec<u32>, &'a mut Vec<f64>),
+    cell: usize,
+    p: [f64; 3],
+) -> Option<Spot<'a>> {
+    let (n, ws, _) = weights.at(mesh, cell, p)?;
+    nodes.clear();
+    nodes.extend_from_slice(n);
+    w.clear();
+    w.extend_from_slice(ws);
+    Some(Spot::Cell(cell, nodes, w))
+}
+
 /// The vector of a step's fields (its first three) a vertex at a time.
 fn vertex_vectors(mesh: &Mesh, fields: &[Field]) -> Option<VertexVectors<f64>> {
     let [x, y, z] = fields.get(..3)? else { return None };
@@ -452,21 +502,29 @@ impl Bracket {
         }
     }
 
-    /// Field `k` at barycentrics `b` of tet `tet`, at the later step's weight `w`.
+    /// Field `k` at `spot`, at the later step's weight `w`.
     #[inline]
-    fn value(&self, mesh: &Mesh, k: usize, found: (usize, Bary64), w: f64) -> f64 {
-        let at = |step: usize| [mesh.value_of::<f64>(&self.fields[step][k], Some(found))];
+    fn value(&self, mesh: &Mesh, k: usize, spot: Spot<'_>, w: f64) -> f64 {
+        let at = |step: usize| {
+            let field = &self.fields[step][k];
+            [match spot {
+                Spot::Tet(tet, bary) => mesh.value_of::<f64>(field, Some((tet, bary))),
+                Spot::Cell(cell, _, _) if field.location != FieldLocation::Vertex => field.value64(cell),
+                Spot::Cell(_, nodes, weights) => {
+                    nodes.iter().zip(weights).map(|(&n, &w)| w * field.value64(n as usize)).sum()
+                }
+            }]
+        };
         blend(w, at(0), || at(1))[0]
     }
 
-    fn velocity(&self, mesh: &Mesh, found: (usize, Bary64), t: f64) -> [f64; 3] {
+    fn velocity(&self, mesh: &Mesh, spot: Spot<'_>, t: f64) -> [f64; 3] {
         let w = self.weight(t);
-        let [Some(a), Some(b)] = &self.vectors else {
-            return std::array::from_fn(|k| self.value(mesh, k, found, w));
+        let (Spot::Tet(tet, bary), [Some(a), Some(b)]) = (spot, &self.vectors) else {
+            return std::array::from_fn(|k| self.value(mesh, k, spot, w));
         };
         // What `value` computes (Mesh::value_of's interpolation, then the blend in time),
         // from one read of each corner's three components.
-        let (tet, bary) = found;
         blend(w, a.at(mesh, tet, bary), || b.at(mesh, tet, bary))
     }
 }
@@ -572,7 +630,7 @@ struct Track {
 }
 
 impl Track {
-    /// Records the particle's point at `found`, with the line fields (indices 3.. of the
+    /// Records the particle's point at `spot`, with the line fields (indices 3.. of the
     /// bracket, after the vector) there at its time. `velocity`: the vector there at time
     /// `.1` (the lookup's), which a line field that is one of its components (`alias`) takes.
     /// `weights`: the vorticity's buffers, when it is asked for.
@@ -580,7 +638,7 @@ impl Track {
         &mut self,
         mesh: &Mesh,
         br: &Bracket,
-        found: (usize, Bary64),
+        spot: Spot<'_>,
         alias: &[Option<usize>],
         velocity: ([f64; 3], f64),
         weights: Option<&mut PointWeights>,
@@ -598,10 +656,10 @@ impl Track {
             }
         }
         if let Some(weights) = weights {
-            let v = if velocity.1 == t { velocity.0 } else { br.velocity(mesh, found, t) };
+            let v = if velocity.1 == t { velocity.0 } else { br.velocity(mesh, spot, t) };
             let mut curl_of = |step: usize| {
                 let [x0, x1, x2, ..] = &br.fields[step][..] else { unreachable!("the vector comes first") };
-                vorticity::curl_in_tet(mesh, [x0, x1, x2], weights, found.0, x)
+                vorticity::curl_at(mesh, [x0, x1, x2], weights, spot.id(), x)
             };
             let at0 = curl_of(0);
             let curl = blend(w, at0, || curl_of(1));
@@ -615,11 +673,11 @@ impl Track {
         debug_assert!(self.points.len() < self.room, "a particle records more points than its legs allow");
         self.points.push(x);
         self.time.push(t);
-        self.tets.push(found.0 as i32);
+        self.tets.push(spot.id() as i32);
         self.values.extend(alias.iter().enumerate().map(|(k, a)| match a {
             // The same field at the same point and time: the value `value` would compute.
             Some(c) if velocity.1 == t => velocity.0[*c] as f32,
-            _ => br.value(mesh, 3 + k, found, w) as f32,
+            _ => br.value(mesh, 3 + k, spot, w) as f32,
         }));
     }
 }
@@ -929,6 +987,13 @@ pub fn pathline_run(
     mut progress: impl FnMut(usize) -> Result<()>,
 ) -> Result<PathRun> {
     let (seeds, o) = (job.seeds, job.options);
+    if loc.mesh().cells.is_some() {
+        return Err(Error::Invalid(format!(
+            "{}: the per-particle walk runs on tets; a mixed mesh's pathlines go through its cell locator \
+             (pathline_run_batch)",
+            loc.mesh().info.source
+        )));
+    }
     let mut run = setup(job)?;
     loc.ready_for_particles(true);
     // Each leg visits an injection's particles in the Morton order of their seeds (they move
@@ -945,11 +1010,11 @@ pub fn pathline_run(
                 tr.p.start_leg(&leg, o);
                 while let Some((q, t)) = tr.p.query() {
                     let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
-                    let found = found.map(|(tet, b)| (tet as usize, b.map(f64::from)));
-                    let v = found.map(|f| br.velocity(&mesh, f, t));
+                    let spot = found.map(|(tet, b)| Spot::Tet(tet as usize, b.map(f64::from)));
+                    let v = spot.map(|s| br.velocity(&mesh, s, t));
                     if tr.p.answer(v, o) {
-                        if let (Some(f), Some(v)) = (found, v) {
-                            tr.record(&mesh, br, f, alias, (v, t), weights.as_mut());
+                        if let (Some(s), Some(v)) = (spot, v) {
+                            tr.record(&mesh, br, s, alias, (v, t), weights.as_mut());
                         }
                     }
                 }
@@ -974,7 +1039,8 @@ pub fn pathlines_batch(
 /// [`pathline_run`] step-synchronous: every live particle's lookup answered by one `locate`
 /// through `loc` (any backend) per Runge–Kutta stage, each from the particle's last tet where
 /// the backend walks from one ([`crate::locate::locate_from`]: soft-bvh), the values
-/// interpolated on the host in f64 at the tets found.
+/// interpolated on the host in f64 at the tets found (the cells, with their shape functions,
+/// on a mixed mesh, whose locators answer cells).
 pub fn pathline_run_batch(
     job: PathJob,
     loc: &mut dyn BatchLocator,
@@ -983,6 +1049,8 @@ pub fn pathline_run_batch(
 ) -> Result<PathRun> {
     let o = job.options;
     let mut run = setup(job)?;
+    // A mixed mesh's locators answer cells, interpolated with the cells' shape functions.
+    let cells = mesh.cells.is_some();
     let seeds_order: Vec<u32> = (0..job.seeds.len() as u32).collect();
     let (mut points, mut ids, mut hints): (Vec<Vec3>, Vec<i32>, Vec<i32>) = (Vec::new(), Vec::new(), Vec::new());
     let mut live: Vec<usize> = Vec::new();
@@ -1022,14 +1090,19 @@ pub fn pathline_run_batch(
                         let (_, t) = rest.by_ref().find(|(j, _)| *j == i).expect("live indices ascend");
                         chosen.push(t);
                     }
-                    let buffers = || o.vorticity.then(|| PointWeights::new(mesh));
-                    chosen.into_par_iter().zip(ids.par_iter()).for_each_init(buffers, |weights, (tr, &id)| {
+                    let buffers = || Scratch::new(mesh);
+                    chosen.into_par_iter().zip(ids.par_iter()).for_each_init(buffers, |scratch, (tr, &id)| {
                         let Some((q, t)) = tr.p.query() else { return };
-                        let found = (id >= 0).then(|| mesh.bary64(id as usize, q).map(|b| (id as usize, b))).flatten();
-                        let v = found.map(|f| br.velocity(mesh, f, t));
+                        let Scratch { weights, nodes, w } = scratch;
+                        let spot = match (id >= 0, cells) {
+                            (false, _) => None,
+                            (true, true) => cell_spot(mesh, weights, (nodes, w), id as usize, q),
+                            (true, false) => mesh.bary64(id as usize, q).map(|b| Spot::Tet(id as usize, b)),
+                        };
+                        let v = spot.map(|s| br.velocity(mesh, s, t));
                         if tr.p.answer(v, o) {
-                            if let (Some(f), Some(v)) = (found, v) {
-                                tr.record(mesh, br, f, alias, (v, t), weights.as_mut());
+                            if let (Some(s), Some(v)) = (spot, v) {
+                                tr.record(mesh, br, s, alias, (v, t), o.vorticity.then_some(&mut *weights));
                             }
                         }
                     });
@@ -1045,7 +1118,7 @@ pub fn pathline_run_batch(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::mesh::{FieldLocation, StepFields};
+    use crate::mesh::StepFields;
     use crate::CpuLocator;
     use rand::{Rng, SeedableRng};
     use std::sync::Arc;
@@ -1525,6 +1598,114 @@ mod tests {
         assert!(pathlines(job(&seeds, &plain, &steps, &fields), &cpu, |_| Ok(())).unwrap().vorticity.is_none());
     }
 
+    /// The lifted spin's series on an n³ grid of hexahedra over the unit cube, the inner
+    /// vertices jittered (trilinear cells with curved faces, which still reproduce a linear
+    /// field exactly), with a cell field `id` (each cell's index).
+    fn hex_spin_series(n: usize, times: Vec<f64>, lift: f64) -> (Arc<Mesh>, TimeSteps) {
+        let mut rng = rand_pcg::Pcg64::seed_from_u64(7);
+        let at = |i: usize, j: usize, k: usize| ((k * (n + 1) + j) * (n + 1) + i) as u32;
+        let mut points = Vec::new();
+        for k in 0..=n {
+            for j in 0..=n {
+                for i in 0..=n {
+                    let inner = |c: usize| c > 0 && c < n;
+                    let jitter = |c: usize, rng: &mut rand_pcg::Pcg64| match inner(c) {
+                        true => rng.gen_range(-0.2..0.2) / n as f64,
+                        false => 0.0,
+                    };
+                    let (a, b, c) = (jitter(i, &mut rng), jitter(j, &mut rng), jitter(k, &mut rng));
+                    points.push([
+                        (i as f64 / n as f64 + a) as f32,
+                        (j as f64 / n as f64 + b) as f32,
+                        (k as f64 / n as f64 + c) as f32,
+                    ]);
+                }
+            }
+        }
+        let hex = crate::cell::CellType::from_vtk(12, 8).unwrap();
+        let mut block = crate::cell::CellBlock::default();
+        for k in 0..n {
+            for j in 0..n {
+                for i in 0..n {
+                    block.conn.extend([
+                        at(i, j, k),
+                        at(i + 1, j, k),
+                        at(i + 1, j + 1, k),
+                        at(i, j + 1, k),
+                        at(i, j, k + 1),
+                        at(i + 1, j, k + 1),
+                        at(i + 1, j + 1, k + 1),
+                        at(i, j + 1, k + 1),
+                    ]);
+                    block.types.push(hex);
+                    block.ends.push(block.conn.len() as u64);
+                }
+            }
+        }
+        let n_cells = block.len();
+        let pts64: Vec<[f64; 3]> = points.iter().map(|p| p.map(f64::from)).collect();
+        let spin = Spin { points: pts64, times: times.clone(), lift };
+        let mut fields = spin.read(0).unwrap();
+        fields.push(Field::new("id", FieldLocation::Cell, (0..n_cells).map(|c| c as f32).collect()));
+        let raw = crate::RawMesh { points, cells: Some(block), fields, ..Default::default() };
+        let mesh = Arc::new(Mesh::new(raw, "hexes").unwrap());
+        (mesh, TimeSteps::new("hexes.pvd", times, Box::new(HexSpin { spin, n_cells })))
+    }
+
+    /// [`Spin`]'s steps with the hex grid's cell field.
+    struct HexSpin {
+        spin: Spin,
+        n_cells: usize,
+    }
+
+    impl StepFields for HexSpin {
+        fn read(&self, k: usize) -> Result<Vec<Field>> {
+            let mut fields = self.spin.read(k)?;
+            fields.push(Field::new("id", FieldLocation::Cell, (0..self.n_cells).map(|c| c as f32).collect()));
+            Ok(fields)
+        }
+    }
+
+    /// Pathlines through a mesh of hexahedra, by its cell locator (each answer a cell,
+    /// interpolated with its trilinear shape functions): the spin's closed-form path, the
+    /// vector recorded as the field there, the cell field that of the cell each point is in,
+    /// and the lifted spin's vorticity; the per-particle walk refuses the mesh, naming it.
+    #[test]
+    fn pathlines_through_hexahedra_follow_the_closed_form() {
+        let (m, steps) = hex_spin_series(6, vec![0.0, 0.5, 1.0, 1.5, 2.0], 0.0);
+        let fields = groups(&m);
+        let mut loc = crate::locate::CellLocator::new(CpuLocator::new(m.clone()), m.clone());
+        let seeds: Vec<Vec3> = vec![[0.8, 0.5, 0.3], [0.5, 0.2, 0.7], [0.65, 0.6, 0.5]];
+        let o = PathOptions { step: Some(0.05), ..Default::default() };
+        let lines = pathlines_batch(job(&seeds, &o, &steps, &fields), &mut loc, &m, |_| Ok(())).unwrap();
+        assert_eq!(lines.ends, [5, 10, 15]);
+        for (line, seed) in seeds.iter().enumerate() {
+            let worst = miss(&lines, line, seed.map(f64::from), 0.0);
+            assert!(worst < 1e-4, "line {line}: {worst:e} from the closed form");
+        }
+        let value = |name: &str| &lines.fields.arrays.iter().find(|(g, _)| g.name == name).unwrap().1;
+        let (v, ids) = (value("v"), &lines.fields.ids);
+        for (i, p) in lines.points.iter().enumerate() {
+            let want = spin_at(p.map(f64::from), omega(lines.time[i]), 0.0);
+            assert!((0..3).all(|k| (f64::from(v[3 * i + k]) - want[k]).abs() < 1e-5), "point {i}");
+            // The cell answered holds the point (its `id` is the cell's index).
+            assert_eq!(value("id")[i], ids[i] as f32, "point {i}");
+            assert!(ids[i] >= 0 && (ids[i] as usize) < m.cells.as_ref().unwrap().len());
+        }
+        let lift = 0.3;
+        let (m, steps) = hex_spin_series(6, vec![0.0, 0.5, 1.0], lift);
+        let mut loc = crate::locate::CellLocator::new(CpuLocator::new(m.clone()), m.clone());
+        let o = PathOptions { step: Some(0.05), vorticity: true, ..Default::default() };
+        let lines = pathlines_batch(job(&seeds, &o, &steps, &groups(&m)), &mut loc, &m, |_| Ok(())).unwrap();
+        let turning = lines.vorticity.as_ref().unwrap();
+        for (i, w) in turning.vorticity.iter().enumerate() {
+            let want = [0.0, -lift, 2.0 * omega(lines.time[i])];
+            assert!((0..3).all(|k| (w[k] - want[k]).abs() < 1e-9), "point {i}: {w:?}");
+        }
+        let e = pathline_run(job(&seeds, &o, &steps, &groups(&m)), &CpuLocator::new(m.clone()), |_| Ok(()));
+        assert!(e.is_err_and(|e| e.to_string().contains("hexes")));
+    }
+
     /// The velocity from the vector a vertex at a time is the per-field path's, bit for bit,
     /// at the steps, between them and at the bracket's ends.
     #[test]
@@ -1542,7 +1723,8 @@ mod tests {
             let sum: f64 = raw.iter().sum();
             let bary = raw.map(|r| r / sum);
             for t in [0.0, rng.gen_range(0.0..0.5), 0.25, 0.5] {
-                let (a, b) = (fast.velocity(&m, (tet, bary), t), slow.velocity(&m, (tet, bary), t));
+                let spot = Spot::Tet(tet, bary);
+                let (a, b) = (fast.velocity(&m, spot, t), slow.velocity(&m, spot, t));
                 assert_eq!(a.map(f64::to_bits), b.map(f64::to_bits), "tet {tet}, t {t}");
                 moving += (a != [0.0; 3]) as usize;
             }

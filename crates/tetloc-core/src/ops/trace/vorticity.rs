@@ -212,17 +212,16 @@ impl Vector<'_> {
     }
 }
 
-/// The curl at point `p` of tet `tet` of the vector whose components are `xyz` (fields of
-/// `mesh`): the derivatives of the cell holding the tet (its own shape functions, as
-/// [`vorticity`] takes them), zero for a vector stored per cell. Pathlines' vorticity.
-pub(super) fn curl_in_tet(
+/// The curl at point `p` of cell (or tet) `id`, as the locators answer (a cell of a mixed
+/// mesh), of the vector whose components are `xyz` (fields of `mesh`): the cell's own
+/// derivatives, as [`vorticity`] takes them; zero for a vector stored per cell. Pathlines'.
+pub(super) fn curl_at(
     mesh: &Mesh,
     xyz: [&crate::Field; 3],
     weights: &mut PointWeights,
-    tet: usize,
+    id: usize,
     p: [f64; 3],
 ) -> [f64; 3] {
-    let id = if mesh.cells.is_some() { mesh.cell_of_tet(tet) } else { tet };
     Vector { mesh, xyz }.velocity_and_curl(weights, id as i32, p).1
 }
 
