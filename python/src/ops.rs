@@ -319,8 +319,7 @@ pub fn trace_lines<'py>(
             // The per-particle walk runs on tets: a mixed mesh goes through the CPU's stack,
             // whose answers are cells, interpolated with the cells' shape functions.
             None => {
-                let cpu = || Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build();
-                let mut built = py.detach(cpu).map_err(crate::backend::py_error)?;
+                let mut built = cpu_stack(py, &m)?;
                 let loc = built.locator.as_mut();
                 run_job(py, "pathlines", legs, progress.as_ref(), |ticker| {
                     Ok(outputs(trace::pathline_run_batch(job, &mut *loc, &m, |d| ticker.tick(d))?))
@@ -385,8 +384,7 @@ pub fn trace_lines<'py>(
         // through the CPU's stack, which maps answers to cells and interpolates with the
         // cells' shape functions.
         None => {
-            let cpu = || Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build();
-            let mut built = py.detach(cpu).map_err(crate::backend::py_error)?;
+            let mut built = cpu_stack(py, &m)?;
             batched(built.locator.as_mut())?
         }
         Some(locator) => with_backend(py, locator, |loc| batched(loc))?,
@@ -439,6 +437,14 @@ fn line_dict(py: Python<'_>, arrays: LineArrays) -> PyResult<Bound<'_, PyDict>> 
         .collect();
     out.set_item("fields", fields)?;
     Ok(out)
+}
+
+/// The CPU's whole stack over `m` (a mixed mesh's answers cells, interpolated with the cells'
+/// shape functions), built without the GIL: the tracers of meshes the per-particle walk,
+/// which runs on tets, does not take.
+fn cpu_stack(py: Python<'_>, m: &std::sync::Arc<tetloc_core::Mesh>) -> PyResult<tetloc_locator::Built> {
+    let build = || Locator::builder(m.clone()).backend(tetloc_locator::Backend::Cpu).build();
+    py.detach(build).map_err(crate::backend::py_error)
 }
 
 /// The CPU's own locator (no wrappers) over `m`, built without the GIL: trace and pathlines

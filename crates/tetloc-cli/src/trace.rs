@@ -144,19 +144,6 @@ fn seed_bytes(dirs: u128) -> u128 {
     std::mem::size_of::<Vec3>() as u128 + dirs * std::mem::size_of::<usize>() as u128
 }
 
-/// The seeds a `line:`/`grid:` spec makes, read without making them; `None` where it does not
-/// parse, or makes more than `trace::MAX_SEEDS` (making them says why, without allocating).
-fn spec_seed_count(spec: &str) -> Option<usize> {
-    let (kind, args) = spec.split_once(':')?;
-    let v: Vec<f64> = args.split(',').map(|s| s.trim().parse().ok()).collect::<Option<_>>()?;
-    let counts = match (kind, v.len()) {
-        ("line", 7) | ("grid", 9) => &v[6..],
-        _ => return None,
-    };
-    let n = counts.iter().try_fold(1u128, |n, &c| (c >= 1.0 && c.fract() == 0.0 && c < 1e12).then(|| n * c as u128))?;
-    usize::try_from(n).ok().filter(|&n| n <= trace::MAX_SEEDS)
-}
-
 /// Refuses `n` seeds (`dirs` lines each) whose points and lines' ends cannot fit, before
 /// they are made and before the mesh is read.
 fn check_seeds_memory(n: usize, dirs: u128) -> Result<()> {
@@ -489,15 +476,18 @@ fn run_unsteady(a: &TraceArgs) -> Result<()> {
 
 /// Whether `--seeds` is a `line:`/`grid:` spec (else a file of points).
 fn is_seed_spec(seeds: &str) -> bool {
-    matches!(seeds.split_once(':'), Some(("line" | "grid", _)))
+    trace::seed_spec_count(seeds).is_some()
 }
 
 /// The seeds of `--seeds`: a spec's made, after `check` of their count where it parses (they
 /// are made at once, and core's own check counts only their points); a file's read, refused
 /// first if it is not a regular file (opening a FIFO blocks until a writer comes).
 fn make_seeds(arg: &str, check: impl FnOnce(usize) -> Result<()>) -> Result<Vec<Vec3>> {
-    if let Some(n) = spec_seed_count(arg) {
-        check(n)?;
+    // (A spec that does not parse, or of more than MAX_SEEDS: making them says why.)
+    if let Some(Ok(n)) = trace::seed_spec_count(arg) {
+        if n <= trace::MAX_SEEDS {
+            check(n)?;
+        }
     }
     match trace::seeds_from_spec(arg) {
         Some(made) => made.context("--seeds"),

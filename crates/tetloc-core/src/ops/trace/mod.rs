@@ -418,12 +418,6 @@ pub const MAX_SEEDS: usize = i32::MAX as usize;
 /// included) or `grid:X0,X1,Y0,Y1,Z0,Z1,NX,NY,NZ` (a regular grid as `resample` lays it
 /// out); `None` when `spec` is neither (a file of points, then).
 pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
-    let (kind, args) = spec.split_once(':')?;
-    let nums = || -> Result<Vec<f64>> {
-        args.split(',')
-            .map(|s| s.trim().parse::<f64>().map_err(|_| Error::Invalid(format!("{spec}: '{s}' is not a number"))))
-            .collect()
-    };
     // The seeds are held at once (12 bytes each) and numbered by Int32 `SeedIds`.
     let bounded = |n: usize| -> Result<usize> {
         let need = n as u128 * std::mem::size_of::<Vec3>() as u128;
@@ -440,38 +434,72 @@ pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
         }
         Ok(n)
     };
-    // A count is said back as it was written: an f64 prints 2^64 as 18446744073709552000.
-    let count = |x: f64| -> Result<usize> {
-        if x >= 1.0 && x.fract() == 0.0 && x < 1e12 {
-            Ok(x as usize)
-        } else {
-            let written = args.split(',').map(str::trim).find(|s| s.parse::<f64>().ok() == Some(x));
-            Err(Error::Invalid(format!("{spec}: '{}' is not a count of at least 1", written.unwrap_or("?"))))
-        }
-    };
-    match kind {
-        "line" => Some(nums().and_then(|v| {
-            let [x0, y0, z0, x1, y1, z1, n] = v[..] else {
-                return Err(Error::Invalid(format!("{spec}: line:X0,Y0,Z0,X1,Y1,Z1,N takes 7 numbers")));
-            };
-            let n = bounded(count(n)?)?;
-            let (a, b) = ([x0, y0, z0], [x1, y1, z1]);
-            Ok((0..n)
+    Some(SeedSpec::parse(spec)?.and_then(|s| {
+        let n = bounded(s.len())?;
+        Ok(match s {
+            SeedSpec::Line(a, b, _) => (0..n)
                 .map(|i| {
                     let s = if n == 1 { 0.0 } else { i as f64 / (n - 1) as f64 };
                     std::array::from_fn(|k| (a[k] + s * (b[k] - a[k])) as f32)
                 })
-                .collect())
-        })),
-        "grid" => Some(nums().and_then(|v| {
-            let [x0, x1, y0, y1, z0, z1, nx, ny, nz] = v[..] else {
-                return Err(Error::Invalid(format!("{spec}: grid:X0,X1,Y0,Y1,Z0,Z1,NX,NY,NZ takes 9 numbers")));
-            };
-            let g = ImageGrid::spanning([x0, y0, z0], [x1, y1, z1], [count(nx)?, count(ny)?, count(nz)?])?;
-            bounded(g.n_points())?;
-            Ok((0..g.n_points()).map(|i| g.point(i)).collect())
-        })),
-        _ => None,
+                .collect(),
+            SeedSpec::Grid(g) => (0..n).map(|i| g.point(i)).collect(),
+        })
+    }))
+}
+
+/// How many seeds [`seeds_from_spec`] makes of `spec`, without making them (a caller checks
+/// the memory the trace will take first); `None` when `spec` is not a specification.
+pub fn seed_spec_count(spec: &str) -> Option<Result<usize>> {
+    Some(SeedSpec::parse(spec)?.map(|s| s.len()))
+}
+
+/// A parsed seed specification ([`seeds_from_spec`]): a line's ends and its count, or a grid.
+enum SeedSpec {
+    Line([f64; 3], [f64; 3], usize),
+    Grid(ImageGrid),
+}
+
+impl SeedSpec {
+    fn parse(spec: &str) -> Option<Result<SeedSpec>> {
+        let (kind, args) = spec.split_once(':')?;
+        let nums = || -> Result<Vec<f64>> {
+            args.split(',')
+                .map(|s| s.trim().parse::<f64>().map_err(|_| Error::Invalid(format!("{spec}: '{s}' is not a number"))))
+                .collect()
+        };
+        // A count is said back as it was written: an f64 prints 2^64 as 18446744073709552000.
+        let count = |x: f64| -> Result<usize> {
+            if x >= 1.0 && x.fract() == 0.0 && x < 1e12 {
+                Ok(x as usize)
+            } else {
+                let written = args.split(',').map(str::trim).find(|s| s.parse::<f64>().ok() == Some(x));
+                Err(Error::Invalid(format!("{spec}: '{}' is not a count of at least 1", written.unwrap_or("?"))))
+            }
+        };
+        match kind {
+            "line" => Some(nums().and_then(|v| {
+                let [x0, y0, z0, x1, y1, z1, n] = v[..] else {
+                    return Err(Error::Invalid(format!("{spec}: line:X0,Y0,Z0,X1,Y1,Z1,N takes 7 numbers")));
+                };
+                Ok(SeedSpec::Line([x0, y0, z0], [x1, y1, z1], count(n)?))
+            })),
+            "grid" => Some(nums().and_then(|v| {
+                let [x0, x1, y0, y1, z0, z1, nx, ny, nz] = v[..] else {
+                    return Err(Error::Invalid(format!("{spec}: grid:X0,X1,Y0,Y1,Z0,Z1,NX,NY,NZ takes 9 numbers")));
+                };
+                let dims = [count(nx)?, count(ny)?, count(nz)?];
+                Ok(SeedSpec::Grid(ImageGrid::spanning([x0, y0, z0], [x1, y1, z1], dims)?))
+            })),
+            _ => None,
+        }
+    }
+
+    fn len(&self) -> usize {
+        match self {
+            SeedSpec::Line(_, _, n) => *n,
+            SeedSpec::Grid(g) => g.n_points(),
+        }
     }
 }
 

@@ -657,12 +657,12 @@ impl Track {
         }
         if let Some(weights) = weights {
             let v = if velocity.1 == t { velocity.0 } else { br.velocity(mesh, spot, t) };
-            let mut curl_of = |step: usize| {
+            let xyz = |step: usize| {
                 let [x0, x1, x2, ..] = &br.fields[step][..] else { unreachable!("the vector comes first") };
-                vorticity::curl_at(mesh, [x0, x1, x2], weights, spot.id(), x)
+                [x0, x1, x2]
             };
-            let at0 = curl_of(0);
-            let curl = blend(w, at0, || curl_of(1));
+            let curls = vorticity::curls_at(mesh, [xyz(0), xyz(1)], weights, spot.id(), x);
+            let curl = curls.map_or([0.0; 3], |[c0, c1]| blend(w, c0, || c1));
             let omega = vorticity::angular_velocity(curl, v);
             let rotation = match (self.turning.last(), self.time.last()) {
                 (Some(&(_, omega0, rotation0)), Some(&t0)) => rotation0 + (omega0 + omega) / 2.0 * (t - t0),

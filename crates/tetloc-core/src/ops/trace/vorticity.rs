@@ -197,32 +197,48 @@ impl Vector<'_> {
         }
         let Some((nodes, w, g)) = weights.at(self.mesh, id as usize, p) else { return ([f64::NAN; 3], [0.0; 3]) };
         let mut v = [0.0; 3];
-        // d[c][k] = ∂v_c/∂x_k
-        let mut d = [[0.0f64; 3]; 3];
-        for ((&node, &w), g) in nodes.iter().zip(w).zip(g) {
+        for (&node, &w) in nodes.iter().zip(w) {
             for (c, f) in self.xyz.iter().enumerate() {
-                let value = f.value64(node as usize);
-                v[c] += w * value;
-                for k in 0..3 {
-                    d[c][k] += g[k] * value;
-                }
+                v[c] += w * f.value64(node as usize);
             }
         }
-        (v, [d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]])
+        (v, curl_of(self.xyz, nodes, g))
     }
 }
 
-/// The curl at point `p` of cell (or tet) `id`, as the locators answer (a cell of a mixed
-/// mesh), of the vector whose components are `xyz` (fields of `mesh`): the cell's own
-/// derivatives, as [`vorticity`] takes them; zero for a vector stored per cell. Pathlines'.
-pub(super) fn curl_at(
+/// The curl of the vector whose components are `xyz` at a point with these `nodes` and
+/// shape-function gradients `g` (as [`PointWeights::at`] gives them).
+fn curl_of(xyz: [&crate::Field; 3], nodes: &[u32], g: &[[f64; 3]]) -> [f64; 3] {
+    // d[c][k] = ∂v_c/∂x_k
+    let mut d = [[0.0f64; 3]; 3];
+    for (&node, g) in nodes.iter().zip(g) {
+        for (c, f) in xyz.iter().enumerate() {
+            let value = f.value64(node as usize);
+            for k in 0..3 {
+                d[c][k] += g[k] * value;
+            }
+        }
+    }
+    [d[2][1] - d[1][2], d[0][2] - d[2][0], d[1][0] - d[0][1]]
+}
+
+/// The curls at point `p` of cell (or tet) `id`, as the locators answer (a cell of a mixed
+/// mesh), of two steps' vectors (`steps`, each its components: fields of `mesh`), by the
+/// cell's own derivatives as [`vorticity`] takes them, its weights made once for both;
+/// `None` (no curl) for a vector stored per cell or a point without weights. Pathlines'.
+pub(super) fn curls_at(
     mesh: &Mesh,
-    xyz: [&crate::Field; 3],
+    steps: [[&crate::Field; 3]; 2],
     weights: &mut PointWeights,
     id: usize,
     p: [f64; 3],
-) -> [f64; 3] {
-    Vector { mesh, xyz }.velocity_and_curl(weights, id as i32, p).1
+) -> Option<[[f64; 3]; 2]> {
+    let cells = mesh.cells.as_ref().map_or(mesh.n_tets(), |c| c.len());
+    if id >= cells || steps.iter().flatten().any(|f| f.location != FieldLocation::Vertex) {
+        return None;
+    }
+    let (nodes, _, g) = weights.at(mesh, id, p)?;
+    Some(steps.map(|xyz| curl_of(xyz, nodes, g)))
 }
 
 /// The angular velocity for vorticity `w` at velocity `v`: `w` along the unit velocity, 0
@@ -348,12 +364,8 @@ mod tests {
     use super::super::{line_fields, seeds_from_spec, trace_sampled, vector_field, Direction, TraceOptions};
     use super::*;
 
-    /// The swirl is affine, so its vorticity is one vector everywhere, the curl of its matrix:
-    /// (-0.05, 0.1, 2) (within the f32 rounding of its vertex values); the angular velocity is
-    /// that along the unit velocity; the rotation its trapezoid integral in time; the normals
-    /// unit vectors across the line.
-    #[test]
-    fn an_affine_fields_vorticity_is_its_curl() {
+    /// Lines both ways through the swirl of a 4³ cube, with their vorticity arrays.
+    fn swirl_lines() -> (std::sync::Arc<Mesh>, FieldGroup, LineArrays) {
         let m = swirl_cube(4);
         let vector = vector_field(&m, "v").unwrap();
         let cpu = crate::CpuLocator::new(m.clone());
@@ -363,6 +375,16 @@ mod tests {
             .unwrap()
             .with_vorticity(Some((&m, &vector)))
             .unwrap();
+        (m, vector, lines)
+    }
+
+    /// The swirl is affine, so its vorticity is one vector everywhere, the curl of its matrix:
+    /// (-0.05, 0.1, 2) (within the f32 rounding of its vertex values); the angular velocity is
+    /// that along the unit velocity; the rotation its trapezoid integral in time; the normals
+    /// unit vectors across the line.
+    #[test]
+    fn an_affine_fields_vorticity_is_its_curl() {
+        let (_, _, lines) = swirl_lines();
         let v = lines.vorticity.as_ref().unwrap();
         assert!(lines.points.len() > 1000 && v.vorticity.len() == lines.points.len());
         let curl = [-0.05, 0.1, 2.0];
@@ -396,15 +418,7 @@ mod tests {
     /// there are what the full computation gives at every point, bit for bit.
     #[test]
     fn a_tets_held_curl_is_every_points_curl() {
-        let m = swirl_cube(4);
-        let vector = vector_field(&m, "v").unwrap();
-        let cpu = crate::CpuLocator::new(m.clone());
-        let seeds = seeds_from_spec("grid:0.1,0.9,0.1,0.9,0.1,0.9,3,3,3").unwrap().unwrap();
-        let o = TraceOptions { step: 0.02, max_steps: 200, ..Default::default() };
-        let lines = trace_sampled(&seeds, &o, &cpu, ["v[0]", "v[1]", "v[2]"], &line_fields(&m, &vector), &|_| Ok(()))
-            .unwrap()
-            .with_vorticity(Some((&m, &vector)))
-            .unwrap();
+        let (m, vector, lines) = swirl_lines();
         let v = lines.vorticity.as_ref().unwrap();
         let xyz: Vec<&crate::Field> = vector.component_refs().iter().map(|c| m.field(c).unwrap()).collect();
         let field = Vector { mesh: &m, xyz: [xyz[0], xyz[1], xyz[2]] };
