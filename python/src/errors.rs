@@ -2,7 +2,7 @@
 //! ...) for files that cannot be opened, `ValueError` for bad files and bad arguments,
 //! `tetloc.DeviceError` for the GPU. No panic crosses into the interpreter.
 
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use std::panic::{catch_unwind, AssertUnwindSafe};
 
@@ -25,6 +25,7 @@ pub fn to_py(e: tetloc_core::Error) -> PyErr {
             None => PyValueError::new_err(e.to_string()),
         },
         Error::Backend { .. } => DeviceError::new_err(e.to_string()),
+        Error::OutOfMemory { .. } => PyMemoryError::new_err(e.to_string()),
         _ => PyValueError::new_err(e.to_string()),
     }
 }

@@ -5,6 +5,8 @@ vtkStreamTracer), pyvista in and out, bad arguments, and every backend against c
 from __future__ import annotations
 
 import subprocess
+import sys
+from typing import Any, Dict
 
 import numpy as np
 import pytest
@@ -466,6 +468,40 @@ def test_big_endian_float64_points_keep_their_digits():
 def test_resample_beyond_memory_is_refused(swirl_mesh):
     with pytest.raises(MemoryError, match="dims"):
         tetloc.resample_to_image(swirl_mesh, "f", dims=(100000, 100000, 100000), backend="cpu")
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="RLIMIT_AS as Linux counts it")
+def test_a_process_memory_limit_is_a_memory_error_not_a_crash():
+    """Under an address-space limit (``ulimit -v``, as batch systems set; a cgroup's limit is
+    read the same way) an image that the machine could hold but the process cannot is a
+    MemoryError. The check compared with the machine's free memory alone, so the allocation
+    was tried and failed, and that aborts the interpreter."""
+    script = """
+import resource, numpy as np, tetloc
+vm = next(int(l.split()[1]) * 1024 for l in open("/proc/self/status") if l.startswith("VmSize:"))
+points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], np.float32)
+mesh = tetloc.Mesh(points, np.array([[0, 1, 2, 3]]), point_data={"f": points[:, 0]})
+resource.setrlimit(resource.RLIMIT_AS, (vm + (1 << 30), resource.RLIM_INFINITY))
+try:
+    tetloc.resample_to_image(mesh, "f", dims=(1000, 1000, 600), backend="cpu")
+except MemoryError as e:
+    print("MemoryError:", e)
+"""
+    run = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=120)
+    assert run.returncode == 0, run.stderr
+    assert "MemoryError: dims" in run.stdout and "GB of memory is available" in run.stdout, run.stdout
+
+
+@pytest.mark.parametrize("arg", ["max_steps", "reinject_every"])
+def test_trace_counts_are_whole_numbers(swirl_mesh, arg):
+    """A count given as a float, a bool or a string is a TypeError (``int()`` took
+    max_steps=2.9 as 2, and a wrong type of reinject_every was a ValueError), one below 0 a
+    ValueError: as tetloc.view's counts."""
+    for bad in [2.9, True, "3", -1]:
+        kwargs: Dict[str, Any] = {arg: bad}
+        error, message = (ValueError, "expected at least 0, got -1") if bad == -1 else (TypeError, "expected a whole")
+        with pytest.raises(error, match=f"{arg}: {message}"):
+            tetloc.trace(swirl_mesh, "v", seeds(), backend="cpu", **kwargs)
 
 
 def test_trace_edge_cases(swirl_mesh):

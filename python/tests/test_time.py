@@ -422,6 +422,16 @@ def test_every_output_time(tmp_path, backend):
         tetloc.trace(mesh, "v", seeds, every_output_time=True, backend=backend)
 
 
+def test_pathlines_beyond_memory_are_a_memory_error(tmp_path):
+    """3M seeds injected again at every one of 40 output times would record 2.6e9 points
+    (hundreds of GB): a MemoryError before any step is read. The run held every particle to
+    the end unchecked, until an allocation failed and aborted the interpreter."""
+    mesh = tetloc.read(spin_series(tmp_path, [0.05 * k for k in range(41)]))
+    seeds = np.full((3_000_000, 3), 0.5, np.float32)
+    with pytest.raises(MemoryError, match=r"120000000 particles over 40 output times .* GB of memory"):
+        tetloc.trace(mesh, "v", seeds, unsteady=True, reinject_every=1, backend="cpu")
+
+
 def test_pathline_bad_inputs(tmp_path, data_dir):
     with pytest.raises(ValueError, match=r"delaunay_s.vtu.*single snapshot"):
         tetloc.trace(tetloc.read(data_dir / "delaunay_s.vtu"), "v", np.zeros((1, 3), np.float32), unsteady=True)

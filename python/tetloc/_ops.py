@@ -12,6 +12,7 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 import numpy as np
 
 from . import _tetloc
+from ._args import whole
 from ._locator import Locator
 from ._mesh import Mesh
 from ._points import as_points, as_points64
@@ -280,8 +281,8 @@ def trace(
     """
     if not isinstance(vector, str):
         raise TypeError(f"vector: expected a field name, got {type(vector).__name__}")
-    if isinstance(reinject_every, bool) or not isinstance(reinject_every, (int, np.integer)) or reinject_every < 0:
-        raise ValueError(f"reinject_every: expected a whole number of output times, 0 or more, got {reinject_every!r}")
+    reinject_every = whole("reinject_every", reinject_every)
+    max_steps = whole("max_steps", max_steps)
     if (reinject_every or streaklines or every_output_time) and not unsteady:
         raise ValueError("reinject_every, streaklines and every_output_time apply to pathlines (unsteady=True)")
     m = _mesh_of(mesh, "mesh")
@@ -294,7 +295,7 @@ def trace(
     else:
         raw_loc = Locator(m, backend=backend, device=device)._raw
     out = _tetloc.trace(
-        m._raw, raw_loc, vector, pts, step, int(max_steps), max_length, max_time, direction, integrator,
+        m._raw, raw_loc, vector, pts, step, max_steps, max_length, max_time, direction, integrator,
         float(max_error), min_step, max_step, float(terminal_speed), _progress(progress, "tetloc trace"),
         bool(unsteady), start_time, end_time, reinject_every, bool(streaklines), bool(every_output_time),
         bool(vorticity),

@@ -27,6 +27,8 @@ from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 
+from ._args import whole
+
 PathLike = Union[str, "os.PathLike[str]"]
 
 
@@ -112,7 +114,7 @@ class Viewer:
         range left to the field's is first pinned to the one drawn with, so the colours mean
         the same values at every step (``set_tf(range=...)`` sets another). Returns once
         the step is shown; a step whose file cannot be read raises ``ValueError`` naming it."""
-        k = _whole("time step", k)
+        k = whole("time step", k)
         s = self.state()
         if s["tf"]["range"] is None:
             s["tf"]["range"] = list(self._range())
@@ -177,11 +179,11 @@ def view(
             raise TypeError(f"{name}: expected a string, got {type(value).__name__}")
     if not (isinstance(size, (tuple, list)) and len(size) == 2):
         raise TypeError(f"size: expected (width, height) in pixels, got {size!r}")
-    size = (_whole("size", size[0], least=1), _whole("size", size[1], least=1))
-    if not 0 <= _whole("port", port) <= 65535:
+    size = (whole("size", size[0], least=1), whole("size", size[1], least=1))
+    if not 0 <= whole("port", port) <= 65535:
         raise ValueError(f"port: expected 0 (any free port) to 65535, got {port}")
     if time_step is not None:
-        time_step = _whole("time_step", time_step)
+        time_step = whole("time_step", time_step)
     for name, path in (("mesh", mesh), ("state", state)):
         # (A mesh may also be SHAPE:N, generated: only a path with a folder or a file
         # extension is checked here.)
@@ -205,16 +207,6 @@ def view(
             f"tetloc view did not start: {why or f'exit code {code}'}"
         )
     return Viewer(proc, url)
-
-
-def _whole(name: str, value: Any, least: int = 0) -> int:
-    """`value` as a whole number of at least `least`: a ``TypeError`` for another type (a
-    bool or a float included), a ``ValueError`` below `least`."""
-    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name}: expected a whole number, got {value!r}")
-    if value < least:
-        raise ValueError(f"{name}: expected at least {least}, got {value}")
-    return int(value)
 
 
 def _looks_like_a_path(mesh: PathLike) -> bool:

@@ -10,15 +10,9 @@ fn gb(bytes: u128) -> String {
 }
 
 /// Refuses `count` items of `bytes_each` bytes (`what` says what they are) when they need
-/// more memory than the system can hand out (Linux `MemAvailable`; unchecked elsewhere).
+/// more memory than this process may take (`tetloc_core::memory`; unchecked off Linux).
 pub fn check_memory(what: &str, count: u128, bytes_each: u128) -> Result<()> {
-    let need = count.saturating_mul(bytes_each);
-    if let Some(avail) = tetloc_io::available_memory_bytes() {
-        if need > avail as u128 {
-            bail!("{what} need about {} of memory, {} are available", gb(need), gb(avail as u128));
-        }
-    }
-    Ok(())
+    Ok(tetloc_core::memory::check(count.saturating_mul(bytes_each), || what.to_string())?)
 }
 
 /// Bytes free for an unprivileged user on the file system of `dir`, if known.

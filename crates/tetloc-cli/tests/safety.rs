@@ -620,3 +620,26 @@ fn huge_camera_numbers_are_named() {
     let (ok, _, err) = tetloc(&["render", "jets:1000", "--backend", "cpu", "--state", s(&state), "-o", s(&png), "-q"]);
     assert!(ok && png.exists(), "{err}");
 }
+
+/// A process limit below the machine's free memory (`ulimit -v`, as batch systems set;
+/// a cgroup's limit is read the same way, `tetloc_core::memory`) is what a memory check
+/// compares with: a mesh too large for it is refused with the sizes named. The check
+/// compared with the machine's free memory alone, so the generator started and aborted
+/// ("memory allocation of ... failed").
+#[cfg(target_os = "linux")]
+#[test]
+fn a_process_memory_limit_is_a_clear_error_not_an_abort() {
+    let dir = tmp_dir("ulimit");
+    let out = dir.join("big.vtu");
+    let t0 = Instant::now();
+    let run = Command::new("sh")
+        .args(["-c", r#"ulimit -v 1500000 && exec "$@""#, "sh", env!("CARGO_BIN_EXE_tetloc")])
+        .args(["gen", "fusion", "--tets", "100M", "-o", s(&out)])
+        .output()
+        .expect("run sh");
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(!run.status.success() && t0.elapsed() < Duration::from_secs(20), "{err}");
+    assert!(err.contains("fusion:100000000") && err.contains("GB of memory"), "{err}");
+    assert!(!err.contains("memory allocation") && !err.contains("panicked"), "{err}");
+    assert!(entries(&dir).is_empty(), "{:?}", entries(&dir));
+}

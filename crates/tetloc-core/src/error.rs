@@ -32,9 +32,18 @@ pub enum Error {
     #[error("{0}")]
     Invalid(String),
 
+    /// Work refused before it starts: it needs more memory than this process may take
+    /// ([`crate::memory::available_bytes`]). `what` names the work and its counts.
+    #[error("{what} need about {:.1} GB of memory, {:.1} GB are available", gb(*.need), gb(*.available as u128))]
+    OutOfMemory { what: String, need: u128, available: u64 },
+
     /// An error from a GPU or other pluggable backend.
     #[error("{backend}: {source}")]
     Backend { backend: String, source: Box<dyn std::error::Error + Send + Sync> },
+}
+
+fn gb(bytes: u128) -> f64 {
+    bytes as f64 / 1e9
 }
 
 fn fmt_counts(counts: &[(String, usize)]) -> String {

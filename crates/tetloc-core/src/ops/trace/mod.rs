@@ -420,18 +420,10 @@ pub const MAX_SEEDS: usize = i32::MAX as usize;
 pub fn seeds_from_spec(spec: &str) -> Option<Result<Vec<Vec3>>> {
     // The seeds are held at once (12 bytes each) and numbered by Int32 `SeedIds`.
     let bounded = |n: usize| -> Result<usize> {
-        let need = n as u128 * std::mem::size_of::<Vec3>() as u128;
-        let avail = crate::memory::available_bytes();
         if n > MAX_SEEDS {
             return Err(Error::Invalid(format!("{spec}: {n} seeds; at most {MAX_SEEDS} (SeedIds are 32-bit)")));
         }
-        if let Some(avail) = avail.filter(|&a| need > a as u128) {
-            return Err(Error::Invalid(format!(
-                "{spec}: {n} seeds need {:.1} GB of memory, {:.1} GB are available",
-                need as f64 / 1e9,
-                avail as f64 / 1e9
-            )));
-        }
+        crate::memory::check(n as u128 * std::mem::size_of::<Vec3>() as u128, || format!("{spec}: {n} seeds"))?;
         Ok(n)
     };
     Some(SeedSpec::parse(spec)?.and_then(|s| {

@@ -711,10 +711,44 @@ fn setup<'a>(job: PathJob<'a>) -> Result<Run<'a>> {
         )));
     }
     let line: Vec<String> = fields.iter().flat_map(|g| g.components.iter().cloned()).collect();
+    check_memory(&legs, &injections, seeds.len(), line.len(), o.vorticity)?;
     let names: Vec<String> = vector.iter().map(|s| s.to_string()).chain(line.iter().cloned()).collect();
     let alias = line.iter().map(|n| vector.iter().position(|v| v == n)).collect();
     let reader = StepReader::new(steps, names);
     Ok(Run { legs, reader, alias, seeds, injections, tracks: Vec::new() })
+}
+
+/// The most points a particle injected at time `t` of leg `n` records: its injection point,
+/// then each remaining leg's end (none after the end time).
+fn room(legs: &[Leg], (n, t): (usize, f64)) -> usize {
+    if t < legs[n].to {
+        legs.len() - n + 1
+    } else {
+        1
+    }
+}
+
+/// Bytes a recorded point takes while the output is made from the tracks: the track's
+/// copy (its point in f64, time, tet, `values` line values, with vorticity its three
+/// arrays) and the output's (the point in f32, time, id, values, the four particle arrays,
+/// the vorticity's).
+fn point_bytes(values: usize, vorticity: bool) -> u128 {
+    let turning = if vorticity { 40 } else { 0 };
+    let track = 24 + 8 + 4 + 4 * values + turning;
+    let output = 12 + 8 + 4 + 4 * values + 20 + turning;
+    (track + output) as u128
+}
+
+/// Refuses a run whose particles and points cannot fit, before any step is read: every
+/// particle is held to the end with every point it can record (`room`).
+fn check_memory(legs: &[Leg], injections: &[(usize, f64)], seeds: usize, values: usize, vorticity: bool) -> Result<()> {
+    let seeds = seeds as u128;
+    let particles = injections.len() as u128 * seeds;
+    let points = seeds * injections.iter().map(|&i| room(legs, i) as u128).sum::<u128>();
+    let need = particles * std::mem::size_of::<Track>() as u128 + points.saturating_mul(point_bytes(values, vorticity));
+    crate::memory::check(need, || {
+        format!("{particles} particles over {} output times ({points} line points at most)", legs.len())
+    })
 }
 
 impl Run<'_> {
@@ -724,9 +758,7 @@ impl Run<'_> {
     fn inject(&mut self, n: usize, order: &[u32]) {
         let times: Vec<f64> = self.injections.iter().filter(|i| i.0 == n).map(|i| i.1).collect();
         for t in times {
-            // The injection point, then each remaining leg's end (none after the end time).
-            let room = if t < self.legs[n].to { self.legs.len() - n + 1 } else { 1 };
-            self.inject_at(t, room, order);
+            self.inject_at(t, room(&self.legs, (n, t)), order);
         }
     }
 
@@ -1801,6 +1833,38 @@ mod tests {
             // The legs before the one that needs the step were traced.
             assert_eq!(legs, fail - 1, "step {fail}, batch {batch}");
         }
+    }
+
+    /// A run whose particles and their points cannot fit is refused before any step is
+    /// read, by both drivers: 200k seeds injected again at every one of 2,000 output times
+    /// would record 4e11 points (tens of TB). The run held every track to the end unchecked,
+    /// so it read and traced until an allocation failed (an abort).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn runs_beyond_memory_are_refused_before_any_step_is_read() {
+        let times: Vec<f64> = (0..2001).map(f64::from).collect();
+        let (m, _) = spin_series(2, times.clone());
+        let points: Vec<[f64; 3]> = m.points.iter().map(|p| p.map(f64::from)).collect();
+        let reads: Arc<Vec<std::sync::atomic::AtomicUsize>> =
+            Arc::new((0..times.len()).map(|_| Default::default()).collect());
+        let spin = Spin { points, times: times.clone(), lift: 0.0 };
+        let steps = TimeSteps::new("spin.pvd", times, Box::new(Counted { spin, reads: reads.clone(), fail: None }));
+        let seeds = vec![[0.6f32, 0.5, 0.5]; 200_000];
+        let o = PathOptions { reinject_every: 1, ..Default::default() };
+        let fields = groups(&m);
+        let mut cpu = CpuLocator::new(m.clone());
+        for batch in [false, true] {
+            let j = job(&seeds, &o, &steps, &fields);
+            let e = match batch {
+                true => pathlines_batch(j, &mut cpu, &m, |_| Ok(())),
+                false => pathlines(j, &cpu, |_| Ok(())),
+            };
+            let e = e.err().expect("refused");
+            assert!(matches!(e, Error::OutOfMemory { .. }), "{e}");
+            let e = e.to_string();
+            assert!(e.contains("400000000 particles over 2000 output times") && e.contains("GB of memory"), "{e}");
+        }
+        assert!(reads.iter().all(|r| r.load(std::sync::atomic::Ordering::Relaxed) == 0));
     }
 
     /// A single snapshot, and times outside the series, are refused naming the file.
