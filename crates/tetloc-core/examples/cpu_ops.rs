@@ -8,7 +8,9 @@
 //! search built (the walks and the values), then N times ids only (the walks alone);
 //! `PROBE_FRESH=N` probes N more times with the build included, each on a fresh copy of the mesh;
 //! `NO_FIELDS=1` resamples ids only (no field values); `AT_TETS=1` times the GPU trace's line
-//! fields (sampled at the kernel's tets) on the CPU's lines.
+//! fields (sampled at the kernel's tets) on the CPU's lines. `OPS=l cpu_ops SERIES [SEEDS]`
+//! times pathlines (`pathline_run`, RK4 at half an interval, the series' point fields on the
+//! lines) through a time series (a `.pvd`), as `bench_time.py --pathlines` runs them.
 
 use std::path::Path;
 use std::sync::Arc;
@@ -52,8 +54,41 @@ fn mesh_of(arg: &str, seed: u64) -> tetloc_core::Result<tetloc_core::Mesh> {
     tetloc_core::Mesh::new(raw, arg)
 }
 
+/// Pathlines through the series at `path` from `n_seeds` seeds at the centres of
+/// pseudo-random tets, timed `repeats` times.
+fn pathlines(path: &str, n_seeds: usize, repeats: usize) -> tetloc_core::Result<()> {
+    let (raw, steps) = io::read_series(Path::new(path), None)?;
+    let steps = steps.expect("a time series");
+    let mesh = Arc::new(tetloc_core::Mesh::new(raw, path)?);
+    let loc = CpuLocator::new(mesh.clone());
+    let mut s = 1u64;
+    let seeds: Vec<Vec3> = (0..n_seeds)
+        .map(|_| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            mesh.tet_center(((s >> 33) as usize) % mesh.tets.len())
+        })
+        .collect();
+    let vector = trace::vector_field(&mesh, "v")?;
+    let c = vector.component_refs();
+    let out = trace::line_fields(&mesh, &vector);
+    let o = trace::PathOptions::default();
+    for _ in 0..repeats {
+        let job =
+            trace::PathJob { seeds: &seeds, options: &o, steps: &steps, vector: [c[0], c[1], c[2]], fields: &out };
+        let run = timed("pathlines", || trace::pathline_run(job, &loc, |_| Ok(())))?;
+        let lines = timed("  their output", || run.output());
+        eprintln!("  {} lines, {} points", lines.ends.len(), lines.points.len());
+    }
+    Ok(())
+}
+
 fn main() -> tetloc_core::Result<()> {
     let args: Vec<String> = std::env::args().collect();
+    if std::env::var("OPS").is_ok_and(|o| o == "l") {
+        let n: usize = args.get(2).map_or(100_000, |s| s.parse().unwrap());
+        let repeats = std::env::var("REPEATS").map_or(3, |s| s.parse().unwrap());
+        return pathlines(&args[1], n, repeats);
+    }
     let mesh = Arc::new(mesh_of(&args[1], 1)?);
     // WRITE_VTU=PATH: write the mesh (for the Python benchmarks, without the CLI) and stop.
     if let Ok(path) = std::env::var("WRITE_VTU") {
