@@ -368,27 +368,47 @@ pub fn check_distinct(inputs: &[FileArg], outputs: &[FileArg]) -> Result<()> {
             other.path.display()
         ))
     };
-    for (k, o) in outputs.iter().enumerate() {
-        if let Some(i) = inputs.iter().find(|i| same_file(o.path, i.path)) {
-            return Err(clash(o, i, "input"));
+    // Each path's identity taken once and looked up: an orbit's 10,000 numbered frames were
+    // compared pair by pair (5e7 comparisons, each a few system calls).
+    let mut seen: std::collections::HashMap<FileKey, (&FileArg, &str)> = std::collections::HashMap::new();
+    for i in inputs {
+        if let Some(key) = file_key(i.path) {
+            seen.entry(key).or_insert((i, "input"));
         }
-        if let Some(p) = outputs[..k].iter().find(|p| same_file(o.path, p.path)) {
-            return Err(clash(o, p, "output"));
+    }
+    for o in outputs {
+        if let Some(key) = file_key(o.path) {
+            if let Some(&(other, what)) = seen.get(&key) {
+                return Err(clash(o, other, what));
+            }
+            seen.insert(key, (o, "output"));
         }
     }
     Ok(())
 }
 
-/// Whether two paths name the same file (or would, once `a` is created).
-pub fn same_file(a: &Path, b: &Path) -> bool {
+/// What names a file: its device and inode where it exists, else the canonical path that
+/// creating it would give it.
+#[derive(Clone, Debug, PartialEq, Eq, Hash)]
+enum FileKey {
+    Inode(u64, u64),
+    Path(PathBuf),
+}
+
+fn file_key(p: &Path) -> Option<FileKey> {
     #[cfg(unix)]
     {
         use std::os::unix::fs::MetadataExt;
-        if let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) {
-            return (ma.dev(), ma.ino()) == (mb.dev(), mb.ino());
+        if let Ok(m) = std::fs::metadata(p) {
+            return Some(FileKey::Inode(m.dev(), m.ino()));
         }
     }
-    match (canonical(a), canonical(b)) {
+    canonical(p).map(FileKey::Path)
+}
+
+/// Whether two paths name the same file (or would, once `a` is created).
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    match (file_key(a), file_key(b)) {
         (Some(x), Some(y)) => x == y,
         _ => false,
     }
@@ -601,6 +621,16 @@ mod tests {
             .to_string();
         assert!(e.contains("--values") && e.contains("output --out"), "{e}");
         assert_eq!(std::fs::read_to_string(&mesh).unwrap(), "mesh");
+        // An orbit's 10,000 numbered frames, the last another spelling of the 7th.
+        let mut frames: Vec<PathBuf> = (0..10_000).map(|k| dir.path().join(format!("f_{k:05}.png"))).collect();
+        let outs = |frames: &[PathBuf]| -> Result<()> {
+            check_distinct(&inputs, &frames.iter().map(|f| FileArg::new("--out", f)).collect::<Vec<_>>())
+        };
+        outs(&frames).unwrap();
+        *frames.last_mut().unwrap() = dir.path().join(".").join("f_00007.png");
+        let e = outs(&frames).unwrap_err().to_string();
+        let seventh = format!("the output --out {}; ", frames[7].display());
+        assert!(e.contains("./f_00007.png is the same file as") && e.contains(&seventh), "{e}");
     }
 }
 
