@@ -16,7 +16,8 @@ X.ids.bin (the particle: its seed index + 1000 x its injection time in 1e-4 unit
 ParticleId, from each program's own InjectedPointId, InjectionStepId and ParticleId) and
 X.times.bin (the simulation time), float64, X = vtk or tetloc. N: VTK's
 ForceReinjectionEveryNSteps (default 0); VTK's particles injected at END (one point each,
-which make no line in tetloc) are left out. streaks: the same with vtkStreaklineFilter and
+which make no line in tetloc) are left out; both also check that tetloc writes VTK's particle
+arrays in VTK's types (ErrorCode and ParticleSourceId 0 in both). streaks: the same with vtkStreaklineFilter and
 tetloc's `--streaklines` (times the particle age). compare, when OURS.vtp has `Vorticity`
 (`--vorticity`), also runs VTK's ComputeVorticity and writes X.turning.bin (float64 N x 3: the
 vorticity's x component, AngularVelocity, Rotation): VTK 9.7 stores its Vorticity array with one
@@ -195,6 +196,21 @@ def read_ours(ours):
     return pts, seed, mine.GetPointData(), conn, offs
 
 
+#: vtkParticlePathFilter's particle arrays (VTK 9.7); the last two are 0 at every point it writes.
+PARTICLE_ARRAYS = ("ParticleId", "InjectedPointId", "InjectionStepId", "ParticleAge", "ErrorCode", "ParticleSourceId")
+
+
+def same_particle_arrays(theirs, ours, streaks=False):
+    """tetloc writes each of VTK's particle arrays in its numpy type (streaklines: the age is
+    their time array, float64), and the constant ones equal."""
+    for name in PARTICLE_ARRAYS:
+        assert ours.HasArray(name), f"tetloc writes no {name}"
+        a, b = vtk_to_numpy(theirs.GetArray(name)), vtk_to_numpy(ours.GetArray(name))
+        assert a.dtype == b.dtype or (streaks and name == "ParticleAge"), f"{name}: VTK's {a.dtype}, tetloc's {b.dtype}"
+    for name in PARTICLE_ARRAYS[-2:]:
+        assert not vtk_to_numpy(theirs.GetArray(name)).any() and not vtk_to_numpy(ours.GetArray(name)).any(), name
+
+
 def compare(out_dir, start, end, ours, every="0"):
     src = Series(float(start), kind_of(out_dir))  # held: the pipeline keeps no Python reference to it
     f = vtk.vtkParticlePathFilter()
@@ -203,6 +219,7 @@ def compare(out_dir, start, end, ours, every="0"):
     vorticity = pd.HasArray("Vorticity")
     f.SetComputeVorticity(vorticity)
     vtk_pts, seed, injected, age, particle = run_filter(f, src, end)
+    same_particle_arrays(f.GetOutput().GetPointData(), pd)
     keep = injected < float(end)
     write_arrays(vtk_pts[keep], "vtk", out_dir, particle_key(seed, injected, particle)[keep], (age + injected)[keep])
     if vorticity:
@@ -224,9 +241,11 @@ def compare(out_dir, start, end, ours, every="0"):
 
 def streaks(out_dir, start, end, ours):
     src = Series(float(start), kind_of(out_dir))
-    pts, seed, injected, age, particle = run_filter(vtk.vtkStreaklineFilter(), src, end)
+    f = vtk.vtkStreaklineFilter()
+    pts, seed, injected, age, particle = run_filter(f, src, end)
     write_arrays(pts, "vtk", out_dir, particle_key(seed, injected, particle), age)
     pts, line_seed, pd, _, _ = read_ours(ours)
+    same_particle_arrays(f.GetOutput().GetPointData(), pd, streaks=True)
     seed, particle = (vtk_to_numpy(pd.GetArray(n)).astype(np.float64) for n in ("InjectedPointId", "ParticleId"))
     assert np.array_equal(seed, line_seed), "InjectedPointId"
     injected = np.asarray(src.times)[vtk_to_numpy(pd.GetArray("InjectionStepId"))]

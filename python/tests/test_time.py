@@ -351,12 +351,15 @@ def test_reinjected_pathlines(tmp_path, backend):
     assert out["InjectedPointId"].dtype == np.int64 and out["ParticleId"].dtype == np.int32
     np.testing.assert_array_equal(out["InjectionStepId"], np.repeat([0, 0, 2, 2], sizes))
     np.testing.assert_array_equal(out["ParticleAge"], (t - t0).astype(np.float32))
+    # VTK's constant arrays, in its types (vtk_pathlines.py compare checks them against VTK's).
+    for name, dtype in (("ErrorCode", np.int32), ("ParticleSourceId", np.int8)):
+        assert out[name].dtype == dtype and out[name].shape == (16,) and not out[name].any(), name
     poly = tetloc.trace(mesh, "v", seeds[:2], unsteady=True, step=0.1, reinject_every=2, backend=backend, as_pyvista=True)
-    for name in ("ParticleId", "InjectedPointId", "InjectionStepId", "ParticleAge"):
+    for name in tetloc._ops.PARTICLE_ARRAYS:
         np.testing.assert_array_equal(poly.point_data[name], out[name])
     bad: Any
-    for bad in (-1, 1.5, True):
-        with pytest.raises(ValueError, match="reinject_every"):
+    for bad, error in ((-1, ValueError), (1.5, TypeError), (True, TypeError)):
+        with pytest.raises(error, match="reinject_every"):
             tetloc.trace(mesh, "v", seeds, unsteady=True, reinject_every=bad, backend=backend)
     with pytest.raises(ValueError, match="reinject_every, streaklines and every_output_time apply to pathlines"):
         tetloc.trace(mesh, "v", seeds, reinject_every=1, backend=backend)

@@ -264,8 +264,10 @@ def trace(
     Each point also carries its particle as vtkParticlePathFilter writes it: ``ParticleId``
     int32 (its index among the particles its injection put inside the mesh; it starts again at
     each injection, as VTK's), ``InjectedPointId`` int64 (its seed), ``InjectionStepId`` int32
-    (its injection's output time: 0 for `start_time`) and ``ParticleAge`` float32 (streaklines:
-    their time array is the age, in float64).
+    (its injection's output time: 0 for `start_time`), ``ParticleAge`` float32 (streaklines:
+    their time array is the age, in float64), and VTK's ``ErrorCode`` int32 and
+    ``ParticleSourceId`` int8, 0 at every point (points are recorded where a step succeeded,
+    and the seeds are one source).
     Only two steps' fields are held in memory at a time. ``reinject_every=N`` injects the seeds
     again at every N-th output time after `start_time` (ParaView's "Force Reinjection Every
     NSteps"): each injection's particles are lines of their own, injection after injection,
@@ -324,7 +326,7 @@ def trace(
 
 
 #: The point arrays pathlines and streaklines add, as vtkParticlePathFilter writes them.
-PARTICLE_ARRAYS = ("ParticleId", "InjectedPointId", "InjectionStepId", "ParticleAge")
+PARTICLE_ARRAYS = ("ParticleId", "InjectedPointId", "InjectionStepId", "ErrorCode", "ParticleAge", "ParticleSourceId")
 #: The point arrays ``vorticity=True`` adds, as vtkStreamTracer's ComputeVorticity writes them
 #: (pathlines and streaklines: no ``Normals``).
 VORTICITY_ARRAYS = ("Vorticity", "Rotation", "AngularVelocity", "Normals")
@@ -335,6 +337,11 @@ def _lines(out: Dict[str, Any], streaklines: bool, pyvista_out: bool) -> Any:
     ``pyvista.PolyData`` of lines."""
     fields = out.pop("fields")
     n = len(out["points"])
+    if "ParticleId" in out:
+        # VTK's two constant arrays: a point is recorded only where its step succeeded, and
+        # the seeds are one source (np.zeros' pages stay unallocated until written).
+        out["ErrorCode"] = np.zeros(n, np.int32)
+        out["ParticleSourceId"] = np.zeros(n, np.int8)
     for name, k, values in fields:
         out[name] = _shaped(values, k, (n,))
     if not pyvista_out:

@@ -41,7 +41,8 @@ pub struct TraceArgs {
     /// IntegrationTime is the simulation time at each point and SeedIds each particle's seed,
     /// and each point carries its particle as vtkParticlePathFilter writes it: ParticleId (its
     /// index among the particles of its injection inside the mesh), InjectedPointId (its
-    /// seed), InjectionStepId (its injection's output time) and ParticleAge.
+    /// seed), InjectionStepId (its injection's output time), ParticleAge, and ErrorCode and
+    /// ParticleSourceId (0: points are recorded where a step succeeded; one seed source).
     #[arg(short, long)]
     out: PathBuf,
     /// Step length (mesh units; by default a tenth of the mean edge); with rk45 the first step.

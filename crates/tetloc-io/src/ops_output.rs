@@ -101,13 +101,20 @@ pub fn resample_to_file(
 /// [`LineArrays::time_name`]) as point data, `ReasonForTermination` and `SeedIds` (Int32)
 /// as cell data, as vtkStreamTracer writes them; pathlines and streaklines add their
 /// particles' point data as vtkParticlePathFilter does ([`tetloc_core::ops::trace::ParticleArrays`]:
-/// `ParticleId`, `InjectedPointId`, `InjectionStepId`, `ParticleAge`), and lines with
+/// `ParticleId`, `InjectedPointId`, `InjectionStepId`, `ParticleAge`; and VTK's `ErrorCode`
+/// (Int32) and `ParticleSourceId` (Int8), 0 at every point: a point is recorded only where
+/// its step succeeded, and the seeds are one source), and lines with
 /// vorticity its arrays as vtkStreamTracer names them (Float64: `Vorticity`, `Rotation`,
 /// `AngularVelocity`, and for streamlines `Normals`). Seed ids are `seed_base` + the line's.
 pub fn push_lines(w: &mut PolylineWriter, lines: &LineArrays, seed_base: usize) -> Result<()> {
     let mut point_data = probed_field_arrays(&lines.fields);
     point_data.push(NamedArray { name: lines.time_name.into(), n_components: 1, data: ArrayData::F64(&lines.time) });
     let injected: std::borrow::Cow<[i64]>;
+    // Zeroed pages that are only read stay unallocated (the kernel's zero page).
+    let (error_code, source_id) = match lines.particles {
+        Some(_) => (vec![0i32; lines.points.len()], vec![0i8; lines.points.len()]),
+        None => (Vec::new(), Vec::new()),
+    };
     if let Some(p) = &lines.particles {
         let array = |name: &str, data| NamedArray { name: name.into(), n_components: 1, data };
         // Pathlines are written as one batch (`seed_base` 0): no copy.
@@ -118,9 +125,11 @@ pub fn push_lines(w: &mut PolylineWriter, lines: &LineArrays, seed_base: usize) 
         point_data.push(array("ParticleId", ArrayData::I32(&p.particle_id)));
         point_data.push(array("InjectedPointId", ArrayData::I64(&injected)));
         point_data.push(array("InjectionStepId", ArrayData::I32(&p.injection_step_id)));
+        point_data.push(array("ErrorCode", ArrayData::I32(&error_code)));
         if let Some(age) = &p.age {
             point_data.push(array("ParticleAge", ArrayData::F32(age)));
         }
+        point_data.push(array("ParticleSourceId", ArrayData::I8(&source_id)));
     }
     if let Some(v) = &lines.vorticity {
         let array = |name: &str, n_components, data| NamedArray { name: name.into(), n_components, data };

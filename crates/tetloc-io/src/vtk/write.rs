@@ -46,6 +46,7 @@ pub enum ArrayData<'a> {
     F64(&'a [f64]),
     I32(&'a [i32]),
     I64(&'a [i64]),
+    I8(&'a [i8]),
     U8(&'a [u8]),
 }
 
@@ -74,6 +75,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F64(v) => v.len(),
             ArrayData::I32(v) => v.len(),
             ArrayData::I64(v) => v.len(),
+            ArrayData::I8(v) => v.len(),
             ArrayData::U8(v) => v.len(),
         };
         n / self.n_components.max(1)
@@ -86,6 +88,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F64(v) => OutArray::slice(name, NumType::F64, k, v),
             ArrayData::I32(v) => OutArray::slice(name, NumType::I32, k, v),
             ArrayData::I64(v) => OutArray::slice(name, NumType::I64, k, v),
+            ArrayData::I8(v) => OutArray::slice(name, NumType::I8, k, v),
             ArrayData::U8(v) => OutArray::slice(name, NumType::U8, k, v),
         }
     }
@@ -109,6 +112,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F64(_) => NumType::F64,
             ArrayData::I32(_) => NumType::I32,
             ArrayData::I64(_) => NumType::I64,
+            ArrayData::I8(_) => NumType::I8,
             ArrayData::U8(_) => NumType::U8,
         }
     }
@@ -120,6 +124,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F64(v) => bytemuck::cast_slice(v),
             ArrayData::I32(v) => bytemuck::cast_slice(v),
             ArrayData::I64(v) => bytemuck::cast_slice(v),
+            ArrayData::I8(v) => bytemuck::cast_slice(v),
             ArrayData::U8(v) => v,
         }
     }
@@ -130,6 +135,7 @@ impl<'a> NamedArray<'a> {
             ArrayData::F64(v) => v.len(),
             ArrayData::I32(v) => v.len(),
             ArrayData::I64(v) => v.len(),
+            ArrayData::I8(v) => v.len(),
             ArrayData::U8(v) => v.len(),
         }
     }
