@@ -149,13 +149,7 @@ pub fn resample_to_image<'py>(
     // The image is held whole (a mask byte and 4 bytes a component a point): refused before
     // allocating where memory cannot hold it (an allocation that fails aborts the interpreter).
     let need = n as u128 * (1 + 4 * width as u128);
-    if let Some(avail) = tetloc_core::memory::available_bytes().filter(|&a| need > a as u128) {
-        return Err(pyo3::exceptions::PyMemoryError::new_err(format!(
-            "dims {dims:?}: the image needs {:.1} GB, and about {:.1} GB of memory is available",
-            need as f64 / 1e9,
-            avail as f64 / 1e9
-        )));
-    }
+    tetloc_core::memory::check(need, || format!("dims {dims:?}: the image's {n} points")).map_err(to_py)?;
     let mut mask = vec![0u8; n];
     let mut values: Vec<Vec<f32>> = widths.iter().map(|&k| vec![0f32; n * k]).collect();
     with_backend(py, locator, |loc| {

@@ -54,6 +54,18 @@ fn mesh_of(arg: &str, seed: u64) -> tetloc_core::Result<tetloc_core::Mesh> {
     tetloc_core::Mesh::new(raw, arg)
 }
 
+/// `n` seeds at the centres of pseudo-random tets (a fixed LCG, as reproducible as the
+/// bench's).
+fn tet_center_seeds(mesh: &tetloc_core::Mesh, n: usize) -> Vec<Vec3> {
+    let mut s = 1u64;
+    (0..n)
+        .map(|_| {
+            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            mesh.tet_center(((s >> 33) as usize) % mesh.tets.len())
+        })
+        .collect()
+}
+
 /// Pathlines through the series at `path` from `n_seeds` seeds at the centres of
 /// pseudo-random tets, timed `repeats` times.
 fn pathlines(path: &str, n_seeds: usize, repeats: usize) -> tetloc_core::Result<()> {
@@ -61,13 +73,7 @@ fn pathlines(path: &str, n_seeds: usize, repeats: usize) -> tetloc_core::Result<
     let steps = steps.expect("a time series");
     let mesh = Arc::new(tetloc_core::Mesh::new(raw, path)?);
     let loc = CpuLocator::new(mesh.clone());
-    let mut s = 1u64;
-    let seeds: Vec<Vec3> = (0..n_seeds)
-        .map(|_| {
-            s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-            mesh.tet_center(((s >> 33) as usize) % mesh.tets.len())
-        })
-        .collect();
+    let seeds = tet_center_seeds(&mesh, n_seeds);
     let vector = trace::vector_field(&mesh, "v")?;
     let c = vector.component_refs();
     let out = trace::line_fields(&mesh, &vector);
@@ -164,14 +170,7 @@ fn main() -> tetloc_core::Result<()> {
         assert!(taken, "the same geometry");
     }
     if only.contains('t') {
-        // Seeds at the centres of pseudo-random tets (a fixed LCG, as reproducible as the bench's).
-        let mut s = 1u64;
-        let seeds: Vec<Vec3> = (0..n_seeds)
-            .map(|_| {
-                s = s.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                mesh.tet_center(((s >> 33) as usize) % mesh.tets.len())
-            })
-            .collect();
+        let seeds = tet_center_seeds(&mesh, n_seeds);
         let vector = trace::vector_field(&mesh, "v")?;
         let out = trace::line_fields(&mesh, &vector);
         let o = trace::TraceOptions {
