@@ -153,6 +153,7 @@ pub fn resample_to_image<'py>(
     let mut mask = vec![0u8; n];
     let mut values: Vec<Vec<f32>> = widths.iter().map(|&k| vec![0f32; n * k]).collect();
     with_backend(py, locator, |loc| {
+        let grid = resample::grid_for(grid.clone(), &mesh, loc);
         run_job(py, "resampling", n, progress.as_ref(), |ticker| {
             let mut at = 0;
             resample::resample(loc, &grid, &groups, TICK_POINTS, |ids, vals| {

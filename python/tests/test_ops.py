@@ -465,6 +465,35 @@ def test_big_endian_float64_points_keep_their_digits():
     assert big.field("f").dtype == np.float64
 
 
+@pytest.mark.parametrize("backend", ["cpu", "soft-bvh"])
+def test_resample_far_from_the_origin_samples_the_images_points(request, backend):
+    """On a mesh far from the origin (float64 coordinates), each image point's mask and value
+    are those of locating that point (origin + index x spacing, in float64, as VTK lays the
+    image), not of its float32 rounding, which at 4e6 is a quarter of a metre away: on the CPU
+    and on a GPU kernel alike."""
+    if backend != "cpu":
+        request.getfixturevalue("vulkan")
+    points, cells = kuhn_grid(5, 40.0)
+    rng = np.random.default_rng(3)
+    points = points + rng.uniform(-6, 6, points.shape) * (np.abs(points % 200) > 1e-9)  # the box's faces stay flat
+    far = points + [512345.0, 4123456.0, 39.0]
+    mesh = tetloc.Mesh(far, cells, point_data={"f": (points @ [1, 2, 3]) / 600})
+    loc = tetloc.Locator(mesh, backend=backend)
+    dims = (23, 19, 17)
+    lo, hi = far.min(axis=0) - 3, far.max(axis=0) + 3
+    img = tetloc.resample_to_image(loc, ["f"], dims=dims, bounds=(lo[0], hi[0], lo[1], hi[1], lo[2], hi[2]))
+    axes = [lo[k] + np.arange(dims[k]) * ((hi[k] - lo[k]) / (dims[k] - 1)) for k in range(3)]  # as VTK lays them
+    z, y, x = np.meshgrid(axes[2], axes[1], axes[0], indexing="ij")
+    g = np.stack([x, y, z], -1).reshape(-1, 3)
+    cpu = tetloc.Locator(mesh, backend="cpu")
+    ids = cpu.locate(g)
+    np.testing.assert_array_equal(img["vtkValidPointMask"].ravel(), (ids >= 0).astype(np.uint8))
+    inside = ids >= 0
+    np.testing.assert_allclose(img["f"].ravel()[inside], cpu.sample(g, "f")[inside], rtol=0, atol=1e-5)
+    # The float32 points differ: some grid points change cell there.
+    assert (cpu.locate(g.astype(np.float32).astype(np.float64)) != ids).any()
+
+
 def test_resample_beyond_memory_is_refused(swirl_mesh):
     with pytest.raises(MemoryError, match="dims"):
         tetloc.resample_to_image(swirl_mesh, "f", dims=(100000, 100000, 100000), backend="cpu")

@@ -6,7 +6,7 @@ use anyhow::{bail, Context, Result};
 use std::ffi::OsString;
 use std::path::PathBuf;
 use std::time::Instant;
-use tetloc_core::ops::{fields, ImageGrid};
+use tetloc_core::ops::{fields, resample, ImageGrid};
 use tetloc_core::{BatchLocator, Mesh};
 use tetloc_io::image::IMAGE_EXTENSIONS;
 use tetloc_io::ops_output;
@@ -135,6 +135,7 @@ pub(crate) fn execute(
         Some((lo, hi)) => ImageGrid::spanning(lo, hi, plan.dims)?,
         None => ImageGrid::over_bounds(mesh_bounds.0, mesh_bounds.1, plan.dims)?,
     };
+    let grid = resample::grid_for(grid, m, loc);
     let pb = progress::bar(grid.n_points() as u64, format!("resampling on {}", loc.name()));
     let t0 = Instant::now();
     let stats = ops_output::resample_to_file(loc, &grid, &groups, &a.out, a.zlib, |d| pb.set_position(d as u64))?;

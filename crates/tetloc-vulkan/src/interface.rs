@@ -236,7 +236,8 @@ gpu_interface! {
         B_STREAM_PARTICLES = 44;
         B_STREAM_LINES = 45;
         /// The `grid` sample set's point coordinates: NX x values, NY y values, NZ z values
-        /// (working frame), which SAMPLE_GRID composes.
+        /// (working frame), which SAMPLE_GRID composes; for a grid of f64 points, then each
+        /// one's residual (what f32 lacks) in the same order.
         B_GRID_AXES = 46;
         /// Stream tracing: the tet of each line point of a segment (the lookup that found its
         /// velocity), so that the host samples the line fields there without a second search.
@@ -493,8 +494,9 @@ gpu_interface! {
         hi_tmax: [f32; 4],
         /// Ray direction (xyz).
         dir: [f32; 4],
-        /// SAMPLE_GRID: points per row (NX), rows per slab (NY), and the slab that global
-        /// index 0 of this launch starts (the index counts from there), 0.
+        /// SAMPLE_GRID: points per row (NX), rows per slab (NY), the slab that global index 0
+        /// of this launch starts (the index counts from there), and where B_GRID_AXES's
+        /// residuals of a grid of f64 points start (0: none).
         grid: [u32; 4],
     }
     structs {

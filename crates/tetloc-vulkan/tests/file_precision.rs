@@ -139,10 +139,12 @@ fn default_values_on_slivers_stored_in_f64_match_the_cpu() {
 
 /// The grid sampler (resample's path) on meshes the kernels hold as a copy: stored in f64
 /// (slivers), and stored in f32 far from the origin (a shifted working frame, the kernel's
-/// grid made from the working frame's axes). The kernels make the grid's points themselves
-/// and decide on the copy; every kernel's ids are still the CPU's (its raster, on the file's
-/// data), and its values within 1e-5 of the range of the CPU's. A grid through the thin
-/// layer of slivers puts many points within the copy's rounding of a face.
+/// grid made from the working frame's axes), the grid's points in f64 and rounded to f32;
+/// and the f64 points of a grid over a mesh near the origin that is its own f32 copy (the
+/// kernels mark nothing there: every answer is checked). The kernels make the grid's points
+/// themselves and decide on the copy; every kernel's ids are still the CPU's (its raster, on
+/// the file's data), and its values within 1e-5 of the range of the CPU's. A grid through
+/// the thin layer of slivers puts many points within the copy's rounding of a face.
 #[test]
 fn the_grid_sampler_on_a_copy_of_the_mesh_gives_the_cpus_ids() {
     let test = "the_grid_sampler_on_a_copy_of_the_mesh_gives_the_cpus_ids";
@@ -155,17 +157,24 @@ fn the_grid_sampler_on_a_copy_of_the_mesh_gives_the_cpus_ids() {
     }
     let far = Mesh::new(raw, "far jets").unwrap();
     assert!(!far.info.frame.is_identity(), "a shifted frame");
-    for (mesh, dims) in [(flat, [41, 37, 97]), (far, [53, 47, 41])] {
-        let mesh = Arc::new(mesh);
+    let near = Mesh::new(tetloc_core::gen::generate(tetloc_core::gen::Shape::Jets, 6_000, 3), "jets").unwrap();
+    let (flat, far, near) = (Arc::new(flat), Arc::new(far), Arc::new(near));
+    let cases = [(&flat, [41, 37, 97], false), (&flat, [41, 37, 97], true), (&far, [53, 47, 41], false)];
+    let cases = cases.into_iter().chain([(&far, [53, 47, 41], true), (&near, [41, 43, 47], true)]);
+    let mut far_ids: Vec<Vec<i32>> = vec![];
+    for (mesh, dims, wide) in cases {
         let (lo, hi) = mesh.file_bounds();
-        let grid = tetloc_core::geom::ImageGrid::spanning(lo, hi, dims).unwrap();
-        let (n, range) = (grid.n_points(), range_of(&mesh));
+        let grid = tetloc_core::geom::ImageGrid::spanning(lo, hi, dims).unwrap().with_f64_points(wide);
+        let (n, range) = (grid.n_points(), range_of(mesh));
         let (mut cpu_ids, mut cpu) = (vec![0i32; n], vec![0f32; n]);
         let mut cpu_loc = CpuLocator::new(mesh.clone());
         tetloc_core::locate::sample_grid(&mut cpu_loc, &grid, 0..n, &["f"], &mut cpu_ids, &mut cpu).unwrap();
         assert!(cpu_ids.iter().filter(|&&t| t >= 0).count() > n / 3, "the grid meets the mesh");
+        if Arc::ptr_eq(mesh, &far) {
+            far_ids.push(cpu_ids.clone());
+        }
         for k in common::kernels(&ctx, test) {
-            let label = format!("{k} {}", mesh.info.source);
+            let label = format!("{k} {} (f64 points: {wide})", mesh.info.source);
             let mut loc = VulkanLocator::new(ctx.clone(), mesh.clone(), k, LocatorOptions::default()).unwrap();
             let (mut ids, mut values) = (vec![0i32; n], vec![0f32; n]);
             tetloc_core::locate::sample_grid(&mut loc, &grid, 0..n, &["f"], &mut ids, &mut values).unwrap();
@@ -183,5 +192,7 @@ fn the_grid_sampler_on_a_copy_of_the_mesh_gives_the_cpus_ids() {
             }
         }
     }
+    // Far from the origin, f32 moves some of the grid's points into other tets.
+    assert!(far_ids[0].iter().zip(&far_ids[1]).any(|(a, b)| a != b), "the far grid's f32 points stay in their tets");
     common::assert_no_validation_errors(&ctx);
 }

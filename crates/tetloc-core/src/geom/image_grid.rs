@@ -12,6 +12,12 @@ pub struct ImageGrid {
     pub origin: [f64; 3],
     /// The distance between neighbouring points per axis; 0 on an axis with one point.
     pub spacing: [f64; 3],
+    /// Whether the samplers locate the points in f64, as the image's origin and spacing place
+    /// them ([`Self::point64`]), or their f32 rounding ([`Self::point`]): set it for a mesh
+    /// whose file coordinates are not its f32 copy (`Mesh::wants_f64_points`: f64 data, or
+    /// far from the origin, where f32 moves a point by up to half a metre at UTM coordinates),
+    /// as the f64 path of a query is taken there.
+    pub f64_points: bool,
 }
 
 impl ImageGrid {
@@ -32,7 +38,7 @@ impl ImageGrid {
             return Err(Error::Invalid(format!("grid bounds {lo:?} .. {hi:?} are not finite, ordered bounds")));
         }
         let spacing = std::array::from_fn(|k| if dims[k] > 1 { (hi[k] - lo[k]) / (dims[k] - 1) as f64 } else { 0.0 });
-        Ok(ImageGrid { dims, origin: lo, spacing })
+        Ok(ImageGrid { dims, origin: lo, spacing, f64_points: false })
     }
 
     /// The grid over a mesh's bounds as vtkResampleToImage makes it (`UseInputBounds`): the
@@ -45,6 +51,11 @@ impl ImageGrid {
         Self::spanning(std::array::from_fn(|k| mid[k] - half[k]), std::array::from_fn(|k| mid[k] + half[k]), dims)
     }
 
+    /// This grid with its points located in f64 (`wide`) or as their f32 rounding.
+    pub fn with_f64_points(self, wide: bool) -> ImageGrid {
+        ImageGrid { f64_points: wide, ..self }
+    }
+
     pub fn n_points(&self) -> usize {
         self.dims.iter().product()
     }
@@ -52,9 +63,38 @@ impl ImageGrid {
     /// The `i`-th point (x fastest), computed in f64 as VTK does and rounded to f32.
     #[inline]
     pub fn point(&self, i: usize) -> Vec3 {
+        self.exact_point(i).map(|c| c as f32)
+    }
+
+    /// The `i`-th point as the samplers locate it, in f64: the image's own point where
+    /// [`Self::f64_points`], else its f32 rounding ([`Self::point`]) widened.
+    #[inline]
+    pub fn point64(&self, i: usize) -> [f64; 3] {
+        let p = self.exact_point(i);
+        if self.f64_points {
+            p
+        } else {
+            p.map(|c| c as f32 as f64)
+        }
+    }
+
+    /// Coordinate `i` of axis `k` as the samplers locate it ([`Self::point64`]'s).
+    #[inline]
+    pub fn axis64(&self, k: usize, i: usize) -> f64 {
+        let x = self.origin[k] + i as f64 * self.spacing[k];
+        if self.f64_points {
+            x
+        } else {
+            x as f32 as f64
+        }
+    }
+
+    /// The `i`-th point as the image's origin and spacing place it, in f64.
+    #[inline]
+    fn exact_point(&self, i: usize) -> [f64; 3] {
         let [nx, ny, _] = self.dims;
         let idx = [i % nx, i / nx % ny, i / (nx * ny)];
-        std::array::from_fn(|k| (self.origin[k] + idx[k] as f64 * self.spacing[k]) as f32)
+        std::array::from_fn(|k| self.origin[k] + idx[k] as f64 * self.spacing[k])
     }
 
     /// The high corner.

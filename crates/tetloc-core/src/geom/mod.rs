@@ -408,10 +408,11 @@ impl Corners64 {
 /// far from the origin keeps its digits), clamped to 0 and normalised as in [`bary64`];
 /// `v`, `r` and the weights in stored (canonical) order. `None` for a tet of no volume.
 #[inline]
-pub fn refined_bary(v: [Vec3; 4], r: [Vec3; 4], p: Vec3) -> Option<Bary> {
+pub fn refined_bary(v: [Vec3; 4], r: [Vec3; 4], p: Vec3, p_residual: Vec3) -> Option<Bary> {
     let w: [[f64; 3]; 4] = std::array::from_fn(|i| std::array::from_fn(|k| f64::from(v[i][k]) + f64::from(r[i][k])));
     let from0 = |x: [f64; 3]| -> [f64; 3] { std::array::from_fn(|k| x[k] - w[0][k]) };
-    let (e1, e2, e3, q) = (from0(w[1]), from0(w[2]), from0(w[3]), from0(p.map(f64::from)));
+    let p: [f64; 3] = std::array::from_fn(|k| f64::from(p[k]) + f64::from(p_residual[k]));
+    let (e1, e2, e3, q) = (from0(w[1]), from0(w[2]), from0(w[3]), from0(p));
     // det(a, b, c) = a · (b × c): the canonical order makes det(e1, e2, e3) positive.
     let det = |a: [f64; 3], b: [f64; 3], c: [f64; 3]| {
         a[0] * (b[1] * c[2] - b[2] * c[1]) + a[1] * (b[2] * c[0] - b[0] * c[2]) + a[2] * (b[0] * c[1] - b[1] * c[0])

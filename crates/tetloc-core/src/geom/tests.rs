@@ -178,7 +178,8 @@ proptest! {
 /// Issue 29.12 without a GPU: on flat tets stored in f64 (`test_support::slivers`, 1.25e-6
 /// high, 0.125 wide), values interpolated with [`refined_bary`] on the working copy and its
 /// residuals (what the GPU kernels compute) are within 1e-6 of the field's range of the f64
-/// values on the file's data (`Mesh::value_at64`, the CPU's), at points in random tets;
+/// values on the file's data (`Mesh::value_at64`, the CPU's), at f64 points in random tets
+/// given as their f32 rounding and its residual (a grid's f64 points on the GPU);
 /// the working copy's own barycentrics ([`test_point`] on the f32 vertices, what the kernels
 /// used before) are off by more than 1e-5 of it.
 #[test]
@@ -198,10 +199,13 @@ fn refined_barycentrics_on_flat_tets_match_the_file_values() {
         let ids = m.tets[t];
         let w: [f64; 4] = std::array::from_fn(|_| rng.gen_range(0.05..1.0));
         let s: f64 = w.iter().sum();
-        let p: Vec3 = std::array::from_fn(|k| (0..4).map(|i| w[i] / s * m.vertex64(ids[i])[k]).sum::<f64>() as f32);
-        let want = m.value_at64(f, m.bary64(t, p.map(f64::from)).map(|b| (t, b)));
+        // An f64 point (a grid's), its f32 rounding and what that lacks (the residual).
+        let exact: [f64; 3] = std::array::from_fn(|k| (0..4).map(|i| w[i] / s * m.vertex64(ids[i])[k]).sum::<f64>());
+        let p: Vec3 = exact.map(|c| c as f32);
+        let p_residual: Vec3 = std::array::from_fn(|k| (exact[k] - f64::from(p[k])) as f32);
+        let want = m.value_at64(f, m.bary64(t, exact).map(|b| (t, b)));
         let v = ids.map(|i| m.points[i as usize]);
-        let refined = refined_bary(v, ids.map(|i| residuals[i as usize]), p).expect("a tet with volume");
+        let refined = refined_bary(v, ids.map(|i| residuals[i as usize]), p, p_residual).expect("a tet with volume");
         worst_refined = worst_refined.max((m.value_at(f, Some((t, refined))) as f64 - want).abs());
         if let TetTest::Inside(b) = test_point(ids, &m.points, p) {
             worst_working = worst_working.max((m.value_at(f, Some((t, b))) as f64 - want).abs());

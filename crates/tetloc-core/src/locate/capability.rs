@@ -3,17 +3,17 @@
 //! falls back to plain queries where the backend has none. Their words (grids, streamlines)
 //! live below the locators, in `geom` and `streamline`.
 
-use super::{grid_points, BatchLocator};
+use super::{query_grid_points, BatchLocator};
 use crate::error::Result;
 use crate::geom::{ImageGrid, Vec3};
 use crate::streamline::{Line, TraceOptions};
 use std::ops::Range;
 
-/// A backend that samples a grid's points its own way, with the answers of
-/// [`BatchLocator::sample_many`] at [`grid_points`].
+/// A backend that samples a grid's points its own way, with the answers of a query of them
+/// ([`query_grid_points`]: the f64 points or their f32 rounding, as the grid asks).
 pub trait GridSampler {
     /// Ids and values (`fields.len()` a point) at points `range` of `grid` (x fastest,
-    /// [`ImageGrid::point`]): `resample`'s chunks.
+    /// [`ImageGrid::point64`]): `resample`'s chunks.
     fn sample_grid(
         &mut self,
         grid: &ImageGrid,
@@ -73,7 +73,7 @@ pub fn sample_grid(
     if let Some(g) = loc.grid_sampler() {
         return g.sample_grid(grid, range, fields, ids, values);
     }
-    loc.sample_many(&grid_points(grid, range), fields, ids, values)
+    query_grid_points(loc, grid, range, fields, ids, values)
 }
 
 /// [`LineTracer::trace_lines`] through `loc`'s own tracer, `None` where it has none.

@@ -572,9 +572,9 @@ impl BatchLocator for CpuLocator {
 
 impl GridSampler for CpuLocator {
     /// The grid's points located by rasterizing the tets (`GridRaster`), the ties by the
-    /// search: the same ids as [`BatchLocator::sample_many`] at the grid's points, bit for
-    /// bit, and values within rounding of its (the weights of an affine map, not of the exact
-    /// test, where a tet holds a point by more than the map's error bound).
+    /// search: the same ids as a query of the grid's points ([`super::query_grid_points`]), bit
+    /// for bit, and values within rounding of its (the weights of an affine map, not of the
+    /// exact test, where a tet holds a point by more than the map's error bound).
     fn sample_grid(
         &mut self,
         grid: &ImageGrid,
@@ -590,7 +590,7 @@ impl GridSampler for CpuLocator {
         let huge = grid.dims[0].saturating_mul(grid.dims[1]) > grid_raster::SLAB_POINTS
             || grid.dims[2] > grid_raster::SLAB_POINTS;
         if self.mesh.n_tets() >= grid_raster::MAX_TETS || huge {
-            return self.sample_many(&super::grid_points(grid, range), fields, ids, values);
+            return super::query_grid_points(self, grid, range, fields, ids, values);
         }
         let names = fields;
         let fields = fields.iter().map(|f| self.mesh.field(f)).collect::<Result<Vec<_>>>()?;
@@ -599,7 +599,8 @@ impl GridSampler for CpuLocator {
             _ => GridRaster::new(&self.mesh, grid, grid_raster::SLAB_POINTS, names),
         };
         // The search applies the tie rule.
-        let tie = |k: usize| self.find(&self.query_at(grid.point(k)));
+        let exact = self.mesh.exact();
+        let tie = |k: usize| self.find(&exact.query(grid.point64(k)));
         let nf = fields.len();
         let mut i = range.start;
         while i < range.end {

@@ -20,7 +20,7 @@
 use super::tet_map::{bounds_of, Side, TetMap};
 use crate::buckets::Buckets;
 use crate::geom::ImageGrid;
-use crate::geom::{self, predicates::Query, Bary, TetTest};
+use crate::geom::{self, Bary, TetTest};
 use crate::mesh::{Field, Mesh};
 use rayon::prelude::*;
 use std::ops::Range;
@@ -254,9 +254,8 @@ impl GridRaster {
     /// The exact test of grid point (i, j, k) in tet `t`, and its claim.
     #[inline]
     fn try_point(&self, mesh: &Mesh, fields: &[&Field], t: u32, tet: [u32; 4], [i, j, k]: [usize; 3]) {
-        let file = [self.axes[0].at[i], self.axes[1].at[j], self.axes[2].at[k]];
-        let p = file.map(|c| c as f32);
-        let q = Query { local: mesh.info.frame.to_working_f32(p), file };
+        // The point as the grid gives it (`ImageGrid::point64`), taken to the working frame.
+        let q = mesh.exact().query([self.axes[0].at[i], self.axes[1].at[j], self.axes[2].at[k]]);
         let TetTest::Inside(w) = geom::test_point_with(tet, &mesh.points, &mesh.exact(), &q) else { return };
         let at = ((k - self.planes.start) * self.grid.dims[1] + j) * self.grid.dims[0] + i;
         if w.contains(&0.0) {
@@ -290,8 +289,9 @@ fn file_bounds(mesh: &Mesh, t: usize) -> ([f64; 3], [f64; 3]) {
     bounds_of(&mesh.tets[t].map(|i| mesh.vertex64(i)))
 }
 
-/// One axis of the grid: its points' coordinates as the locator gets them (the f32 point,
-/// in f64), increasing, and the index guess that finds a coordinate's place in O(1).
+/// One axis of the grid: its points' coordinates as the samplers locate them
+/// ([`ImageGrid::axis64`]: the f64 point, or its f32 rounding), increasing, and the index guess
+/// that finds a coordinate's place in O(1).
 struct Axis {
     at: Vec<f64>,
     origin: f64,
@@ -304,8 +304,7 @@ struct Axis {
 
 impl Axis {
     fn new(grid: &ImageGrid, k: usize) -> Axis {
-        let at: Vec<f64> =
-            (0..grid.dims[k]).map(|i| (grid.origin[k] + i as f64 * grid.spacing[k]) as f32 as f64).collect();
+        let at: Vec<f64> = (0..grid.dims[k]).map(|i| grid.axis64(k, i)).collect();
         let per_unit = if grid.spacing[k] > 0.0 { 1.0 / grid.spacing[k] } else { 0.0 };
         let origin = grid.origin[k];
         let off = at.iter().enumerate().map(|(i, &x)| ((x - origin) * per_unit - i as f64).abs()).fold(0.0, f64::max);
@@ -374,7 +373,7 @@ pub(super) mod tests {
     use crate::locate::GridSampler;
     use crate::mesh::{FieldLocation, RawMesh};
     use crate::test_support::{self, KuhnGrid};
-    use crate::{BatchLocator, CpuLocator};
+    use crate::CpuLocator;
     use std::sync::Arc;
 
     /// `raw` with three more vertex fields: the coordinates less the box's corner (so that
@@ -393,7 +392,8 @@ pub(super) mod tests {
         raw
     }
 
-    /// Every grid point's answer against the search's, a slab of two planes at a time, the
+    /// Every grid point's answer against the search's at the point as the grid gives it
+    /// ([`ImageGrid::point64`]: f64, or its f32 rounding), a slab of two planes at a time, the
     /// maps' bounds times `bound_scale`: a point inside gets the search's tet and, for every
     /// field, its value within 1e-5 of the field's range; a point outside is outside; ties
     /// are points on faces (or claimed twice). The number of ties, or the first disagreement.
@@ -410,8 +410,8 @@ pub(super) mod tests {
         raster.bound_scale = bound_scale;
         let (mut ties, mut got, mut want) = (0, vec![0f32; fields.len()], vec![0f32; fields.len()]);
         for i in 0..grid.n_points() {
-            let p = grid.point(i);
-            let found = loc.locate_point(p);
+            let p = grid.point64(i);
+            let found = loc.locate_point64(p);
             raster.hold(mesh, &fields, i);
             match raster.cell(i) {
                 Cell::Outside if found.is_some() => return Err(format!("point {i} {p:?}: outside, not {found:?}")),
@@ -458,14 +458,18 @@ pub(super) mod tests {
         assert!(ties > 9 * 9 * 9 / 2, "{ties} ties");
     }
 
-    /// Far from the origin (the f64 file coordinates rounded to a working frame) and on a
-    /// mesh whose tets overlap (every tet twice: every point inside claimed twice).
+    /// Far from the origin (the f64 file coordinates rounded to a working frame), with the
+    /// grid's f64 points and with their f32 rounding (a quarter of the cells' size away), and
+    /// on a mesh whose tets overlap (every tet twice: every point inside claimed twice).
     #[test]
     fn far_meshes_and_overlapping_tets() {
         let raw = test_support::mixed::moved(test_support::jittered_grid(5, 0.3, 7), [512345.0, 4123456.0, -2.5e6]);
         let grid =
             ImageGrid::spanning([512344.9, 4123456.1, -2.5e6], [512346.1, 4123456.9, -2.5e6 + 1.0], [19, 13, 11]);
-        agrees_with_the_search(raw, &grid.unwrap());
+        let grid = grid.unwrap();
+        for wide in [true, false] {
+            agrees_with_the_search(raw.clone(), &grid.clone().with_f64_points(wide));
+        }
         let mut raw = test_support::jittered_grid(3, 0.2, 1);
         raw.fields.clear();
         raw.tets.extend(raw.tets.clone());
@@ -587,10 +591,28 @@ pub(super) mod tests {
         assert!(lost_without_slack > 0, "no point was lost without the slack");
     }
 
-    /// Through the locator: `sample_grid` equals `sample_many` at the grid's points (ids bit
-    /// for bit, values within rounding), in chunks that straddle slabs (a jittered grid whose jitter folds a few tets over
-    /// their neighbours, and a generated torus); on the torus, whose tets do not overlap, it
-    /// builds no BVH.
+    /// A jittered grid of 10 m cells at UTM coordinates (f64 data): f32 rounds its
+    /// coordinates to a quarter or half of a metre.
+    fn far_mesh() -> Mesh {
+        let mut raw = test_support::jittered_grid(6, 0.3, 2);
+        raw.points.iter_mut().for_each(|p| *p = p.map(|c| 60.0 * c));
+        Mesh::new(test_support::mixed::moved(raw, FAR), "far").unwrap()
+    }
+
+    const FAR: [f64; 3] = [512345.0, 4123456.0, 39.0];
+
+    /// A grid over [`far_mesh`] and beyond it, its points in f64.
+    fn far_grid() -> ImageGrid {
+        let lo = [FAR[0] - 3.0, FAR[1] + 0.1, FAR[2] + 0.6];
+        let hi = [FAR[0] + 63.0, FAR[1] + 59.9, FAR[2] + 59.4];
+        ImageGrid::spanning(lo, hi, [31, 29, 27]).unwrap().with_f64_points(true)
+    }
+
+    /// Through the locator: `sample_grid` equals a query of the grid's points (ids bit for
+    /// bit, values within rounding), in chunks that straddle slabs (a jittered grid whose jitter
+    /// folds a few tets over their neighbours, a generated torus, and a mesh far from the
+    /// origin whose grid asks for its f64 points, which its f32 points do not give); on the
+    /// torus, whose tets do not overlap, it builds no BVH.
     #[test]
     fn sample_grid_is_sample_many() {
         let torus = Mesh::new(crate::gen::generate(crate::gen::Shape::Fusion, 20_000, 3), "fusion").unwrap();
@@ -607,6 +629,7 @@ pub(super) mod tests {
                 ["f", "cellval"],
             ),
             (true, torus, grid.unwrap(), ["f", "cellval"]),
+            (false, far_mesh(), far_grid(), ["f", "cellval"]),
         ] {
             let mesh = Arc::new(mesh);
             let n = grid.n_points();
@@ -623,9 +646,16 @@ pub(super) mod tests {
                 assert!(!rasterized.index_built(), "a BVH was built");
             }
             let (mut ids2, mut values2) = (vec![0; n], vec![0f32; 2 * n]);
-            let points = crate::locate::grid_points(&grid, 0..n);
-            CpuLocator::new(mesh.clone()).sample_many(&points, &fields, &mut ids2, &mut values2).unwrap();
+            let mut searched = CpuLocator::new(mesh.clone());
+            crate::locate::query_grid_points(&mut searched, &grid, 0..n, &fields, &mut ids2, &mut values2).unwrap();
             assert_eq!(ids, ids2);
+            if grid.f64_points {
+                // The f32 rounding of the points is another grid: some of its points change cell.
+                let rounded = grid.clone().with_f64_points(false);
+                let (mut ids3, mut values3) = (vec![0; n], vec![0f32; 2 * n]);
+                rasterized.sample_grid(&rounded, 0..n, &fields, &mut ids3, &mut values3).unwrap();
+                assert!(ids3.iter().zip(&ids).any(|(a, b)| a != b), "the f32 points are in the same cells");
+            }
             // Values: NaN at the same points, the cell field's bit for bit, the vertex field's
             // within 1e-5 of its range (the map's weights against the exact test's).
             let f = mesh.field("f").unwrap();

@@ -168,9 +168,32 @@ pub(crate) fn layer_takes_fields(own: &mut Arc<Mesh>, inner: &mut impl BatchLoca
     taken
 }
 
-/// Points `range` of `grid`, as [`sample_grid`] samples them.
+/// Points `range` of `grid`, rounded to f32 ([`ImageGrid::point`]).
 pub fn grid_points(grid: &ImageGrid, range: Range<usize>) -> Vec<Vec3> {
     range.into_par_iter().map(|i| grid.point(i)).collect()
+}
+
+/// Points `range` of `grid` in f64 as the samplers locate them ([`ImageGrid::point64`]).
+pub fn grid_points64(grid: &ImageGrid, range: Range<usize>) -> Vec<[f64; 3]> {
+    range.into_par_iter().map(|i| grid.point64(i)).collect()
+}
+
+/// What every [`GridSampler`] answers: a query of `grid`'s points `range`, the f64 points
+/// where the grid asks for them ([`ImageGrid::f64_points`]), else their f32 rounding.
+pub fn query_grid_points(
+    loc: &mut (impl BatchLocator + ?Sized),
+    grid: &ImageGrid,
+    range: Range<usize>,
+    fields: &[&str],
+    ids: &mut [i32],
+    values: &mut [f32],
+) -> Result<()> {
+    if grid.f64_points {
+        let points = grid_points64(grid, range);
+        loc.query(Points::F64(&points), fields, ids, Values::F32(values))
+    } else {
+        loc.sample_many(&grid_points(grid, range), fields, ids, values)
+    }
 }
 
 /// Whether all three coordinates are finite (not NaN, not infinite).

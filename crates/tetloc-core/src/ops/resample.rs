@@ -5,6 +5,18 @@
 use super::{FieldGroup, ImageGrid};
 use crate::error::Result;
 use crate::locate::BatchLocator;
+use crate::Mesh;
+
+/// `grid` with the points `resample` locates for `mesh` through `loc`: its f64 points
+/// ([`ImageGrid::f64_points`]) where the mesh's file coordinates are not its f32 copy (f64
+/// data, or far from the origin: [`Mesh::wants_f64_points`], the rule for a query's points)
+/// and the backend takes f64 points (an empty batch says whether it does); else their f32
+/// rounding, which on a mesh that is its own f32 copy near the origin moves a point by at
+/// most half an f32 step of its coordinates, the data's own precision.
+pub fn grid_for(grid: ImageGrid, mesh: &Mesh, loc: &mut dyn BatchLocator) -> ImageGrid {
+    let wide = mesh.wants_f64_points() && loc.sample_many64(&[], &[], &mut [], &mut []).is_ok();
+    grid.with_f64_points(wide)
+}
 
 /// Samples `fields` at every point of `grid`, `chunk` points at a time in grid order (x
 /// fastest), and hands each chunk's ids (-1: no value) and values (every field's components

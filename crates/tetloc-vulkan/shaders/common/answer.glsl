@@ -26,7 +26,7 @@ void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
         // Unordered launches only (the zero-copy path).
         uint n = params.counts.x;
         bool inside = tet >= 0;
-        vec4 b = inside ? tl_value_bary(ids, p, bary) : vec4(0.0);
+        vec4 b = inside ? tl_value_bary_at(ids, p, tl_sample_residual(i), bary) : vec4(0.0);
         tl_out[i] = uint(tet);
         for (uint j = 0u; j < 4u; j++) {
             tl_out[TL_WEIGHTS_NODES_AT * n + 4u * i + j] = inside ? ids[j] : 0u;
@@ -42,6 +42,7 @@ void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
         }
         return;
     }
+    vec3 r = tl_sample_residual(i);
     if (ORDERED) {
         i = tl_order_perm[i];
     }
@@ -53,7 +54,7 @@ void tl_answer(uint i, int tet, uvec4 ids, vec4 bary, vec3 p) {
         }
         return;
     }
-    vec4 b = tl_value_bary(ids, p, bary);
+    vec4 b = tl_value_bary_at(ids, p, r, bary);
     for (uint f = 0u; f < FIELD_COUNT; f++) {
         bool cell = ((FIELD_CELLS >> f) & 1u) != 0u;
         tl_out[at + f] = floatBitsToUint(tl_field_value(f, cell, tet, ids, cell ? bary : b));

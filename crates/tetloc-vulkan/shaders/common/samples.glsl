@@ -14,7 +14,8 @@ layout(std430, binding = TL_B_OUT) writeonly buffer TlOut { uint tl_out[]; };
 layout(std430, binding = TL_B_ORDER_POINTS) buffer TlOrderPoints { float tl_order_points[]; };
 layout(std430, binding = TL_B_ORDER_PERM) buffer TlOrderPerm { uint tl_order_perm[]; };
 // The grid's coordinates per axis (x values, then y, then z), computed on the host as
-// ops::ImageGrid::point does: the same points as the CPU's, bit for bit.
+// ops::ImageGrid::point64 does and rounded to the working frame: the points a query of the
+// grid's points sends (then, for a grid of f64 points, each coordinate's residual).
 layout(std430, binding = TL_B_GRID_AXES) readonly buffer TlGridAxes { float tl_grid_axes[]; };
 
 // PCG hash (O'Neill's RXS-M-XS output of one LCG step): cheap and well mixed.
@@ -82,6 +83,19 @@ vec3 tl_sample(uint i) {
         precise vec3 p = params.lo_tmin.xyz + u * (params.hi_tmax.xyz - params.lo_tmin.xyz);
         return p;
     }
+}
+
+// The residual of point i of this launch: what its coordinates lack in f32 (working frame).
+// A grid of f64 points (params.grid.w: where its residual axes start, after the axes; 0 for
+// none) keeps each coordinate's residual beside it; every other point is exact (0).
+vec3 tl_sample_residual(uint i) {
+    if (SAMPLE_MODE != TL_SAMPLE_GRID || ORDERED || params.grid.w == 0u) {
+        return vec3(0.0);
+    }
+    uint g = params.counts.y + i;
+    uint nx = params.grid.x, ny = params.grid.y, at = params.grid.w;
+    uint z = params.grid.z + g / (nx * ny);
+    return vec3(tl_grid_axes[at + g % nx], tl_grid_axes[at + nx + (g / nx) % ny], tl_grid_axes[at + nx + ny + z]);
 }
 
 void tl_record(uint i, vec3 p) {

@@ -177,17 +177,18 @@ bool tl_point_in_tet(uvec4 ids, vec3 p, out vec4 bary, out int exit_face) {
 #include "common/high_order.glsl"
 
 #ifdef TL_F64
-// geom::refined_bary: on a mesh stored in f64 (REFINE_BARY), the barycentrics of p (working
-// coordinates) in tet `ids` on the working copy plus each vertex's residual (the file's
+// geom::refined_bary: on a mesh stored in f64 (REFINE_BARY), the barycentrics of p plus its
+// residual r (working coordinates: a grid's f64 point is p + r, a host point has r = 0)
+// in tet `ids` on the working copy plus each vertex's residual (the file's
 // coordinates to about 2^-48), in f64 from sub-volumes relative to vertex 0, clamped to 0 and
 // normalised; `bary` (the search's, on the f32 copy) for a tet of no volume there. Once per
 // point, on the tet found: the search keeps its f32 test.
-vec4 tl_refined_bary(uvec4 ids, vec3 p, vec4 bary) {
+vec4 tl_refined_bary(uvec4 ids, vec3 p, vec3 r, vec4 bary) {
     dvec3 w0 = dvec3(tl_vertex(ids.x)) + dvec3(tl_residual(ids.x));
     precise dvec3 e1 = (dvec3(tl_vertex(ids.y)) + dvec3(tl_residual(ids.y))) - w0;
     precise dvec3 e2 = (dvec3(tl_vertex(ids.z)) + dvec3(tl_residual(ids.z))) - w0;
     precise dvec3 e3 = (dvec3(tl_vertex(ids.w)) + dvec3(tl_residual(ids.w))) - w0;
-    precise dvec3 q = dvec3(p) - w0;
+    precise dvec3 q = (dvec3(p) + dvec3(r)) - w0;
     // det(a, b, c) = a . (b x c): positive for canonical tets.
     precise double total = dot(e1, cross(e2, e3));
     precise double d1 = dot(q, cross(e2, e3)), d2 = dot(e1, cross(q, e3)), d3 = dot(e1, cross(e2, q));
@@ -201,14 +202,20 @@ vec4 tl_refined_bary(uvec4 ids, vec3 p, vec4 bary) {
 #endif
 
 // The barycentrics a point's values are interpolated with: on a mesh stored in f64, refined
-// on the file's coordinates (once a point, whatever its number of fields).
-vec4 tl_value_bary(uvec4 ids, vec3 p, vec4 bary) {
+// on the file's coordinates (once a point, whatever its number of fields), at p + r (r: the
+// point's residual, tl_sample_residual).
+vec4 tl_value_bary_at(uvec4 ids, vec3 p, vec3 r, vec4 bary) {
 #ifdef TL_F64
     if (REFINE_BARY) {
-        return tl_refined_bary(ids, p, bary);
+        return tl_refined_bary(ids, p, r, bary);
     }
 #endif
     return bary;
+}
+
+// tl_value_bary_at of a point the kernel has exactly.
+vec4 tl_value_bary(uvec4 ids, vec3 p, vec4 bary) {
+    return tl_value_bary_at(ids, p, vec3(0.0), bary);
 }
 
 // Mesh::interpolate of field `f` (tl_fields[f]) in tet `tet` >= 0: per vertex

@@ -26,7 +26,7 @@ use std::sync::Arc;
 use std::time::Instant;
 use tetloc_core::geom::ImageGrid;
 use tetloc_core::geom::Vec3;
-use tetloc_core::locate::{certify, check_sample_lengths, grid_points, GridSampler, LineTracer, Points, Values};
+use tetloc_core::locate::{certify, check_sample_lengths, query_grid_points, GridSampler, LineTracer, Points, Values};
 use tetloc_core::mesh::{FieldLocation, Mesh};
 use tetloc_core::queries::QueryKind;
 use tetloc_core::BatchLocator;
@@ -457,21 +457,31 @@ impl VulkanLocator {
     }
 
     /// Makes the kernels' `grid` sample set the points of `grid` (given in the file's
-    /// coordinates when `file_coords`, else in the working frame): each axis's coordinates
-    /// as `ImageGrid::point` computes them, taken to the working frame as host points are, so
-    /// that the kernel locates exactly the points the host would have sent.
+    /// coordinates when `file_coords`, else in the working frame): each axis's coordinates as
+    /// the grid gives them (`ImageGrid::point64`: its f64 points, or their f32 rounding),
+    /// taken to the working frame as a query's points are, so that the kernel locates exactly
+    /// the points a query of the grid's points would have sent.
     fn ensure_grid_axes(&mut self, grid: &ImageGrid, file_coords: bool) -> VkResult<()> {
         if self.grid_axes.as_ref().is_some_and(|(g, f, _)| g == grid && *f == file_coords) {
             return Ok(());
         }
         self.grid_axes = None;
         self.launcher.desc.write(&[Binding::buffer(B_GRID_AXES, self.dev.unbound())]);
-        let [nx, ny, nz] = grid.dims;
+        let [nx, ny, _] = grid.dims;
         let frame = self.mesh.info.frame;
-        let working = |p: Vec3| if file_coords { frame.to_working_f32(p) } else { p };
-        let mut axes: Vec<f32> = (0..nx).map(|i| working(grid.point(i))[0]).collect();
-        axes.extend((0..ny).map(|j| working(grid.point(j * nx))[1]));
-        axes.extend((0..nz).map(|k| working(grid.point(k * nx * ny))[2]));
+        let exact =
+            |i: usize| if file_coords { frame.to_working64(grid.point64(i)) } else { grid.point(i).map(f64::from) };
+        let along = |k: usize| -> Vec<f64> {
+            let step = [1, nx, nx * ny][k];
+            (0..grid.dims[k]).map(|i| exact(i * step)[k]).collect()
+        };
+        let exact_axes: Vec<f64> = (0..3).flat_map(along).collect();
+        let mut axes: Vec<f32> = exact_axes.iter().map(|&x| x as f32).collect();
+        // A grid of f64 points: each coordinate's residual after the axes, which the kernels'
+        // values on a mesh stored in f64 take (tl_sample_residual); params.grid[3] says where.
+        if file_coords && grid.f64_points {
+            axes.extend(exact_axes.iter().map(|&x| (x - f64::from(x as f32)) as f32));
+        }
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         let buf = self.dev.upload("grid axes", MemKind::Query, storage, bytemuck::cast_slice(&axes))?;
         self.launcher.desc.write(&[Binding::buffer(B_GRID_AXES, &buf)]);
@@ -631,17 +641,25 @@ impl VulkanLocator {
                     .for_each(|(v, p)| v[first..first + m].copy_from_slice(p));
             }
         }
-        if self.mesh.wants_f64_points() {
+        let grid64 = matches!(original, At::Grid(grid, _) if grid.f64_points);
+        if self.mesh.wants_f64_points() || grid64 {
             // The points as the kernel had them, made again here (none kept for a grid).
             let point = |i: usize| -> [f64; 3] {
                 match original {
                     At::Host(p) => p[i].map(f64::from),
-                    At::Grid(grid, start) => grid.point(start + i).map(f64::from),
+                    At::Grid(grid, start) => grid.point64(start + i),
                 }
             };
             // The kernel's points are these rounded to the working frame: a grid's too (its
-            // axes are the working coordinates of the host's points, one coordinate each).
-            let moved = self.certify_marked(&point, ids);
+            // axes are the working coordinates of its points, one coordinate each). Where the
+            // kernels mark nothing (a mesh that is its own f32 copy), every answer for a
+            // grid's f64 points is checked, as `query` checks f64 points.
+            let moved: Vec<usize> = if self.mesh.wants_f64_points() {
+                self.certify_marked(&point, ids)
+            } else {
+                let all = self.certifier.certify_at(&self.mesh, point, ids, false, false);
+                all.into_iter().map(|(i, _)| i).collect()
+            };
             if k > 0 && !moved.is_empty() {
                 // The moved points' values, from the file's data as the other paths compute them.
                 let mesh = self.mesh.clone();
@@ -755,7 +773,10 @@ impl VulkanLocator {
         let chunk = (self.launch_limit(false) / output.words()).min(1 << 30).min(ids.len() / 4).max(1);
         self.ensure_io(chunk, output.words())?;
         self.pipeline(v)?;
-        let [nx, ny, _] = grid.dims;
+        let [nx, ny, nz] = grid.dims;
+        // Where the axes' residuals start (0: none; `ensure_grid_axes`).
+        let with_residuals = self.grid_axes.as_ref().is_some_and(|(g, file_coords, _)| *file_coords && g.f64_points);
+        let residuals_at = if with_residuals { (nx + ny + nz) as u32 } else { 0 };
         let m = output.fields as usize;
         let mut value_chunks = values.chunks_mut(chunk * m.max(1));
         let mut first = start;
@@ -763,7 +784,7 @@ impl VulkanLocator {
             let len = res.len() / 4;
             let vals: &mut [f32] = if m == 0 { &mut [] } else { value_chunks.next().expect("m values a point") };
             let mut params = self.params(len, first % (nx * ny), 0);
-            params.grid = [nx as u32, ny as u32, (first / (nx * ny)) as u32, 0];
+            params.grid = [nx as u32, ny as u32, (first / (nx * ny)) as u32, residuals_at];
             let io = self.io.as_ref().expect("ensure_io made it");
             let launch = self.launcher.launch(v, io.deferred.as_ref().map(|d| d.buffer));
             self.dev.run(|r| launch.record(r, &params))?;
@@ -1144,7 +1165,7 @@ impl GridSampler for VulkanLocator {
         let slab = grid.dims[0] * grid.dims[1];
         if slab >= 1 << 31 {
             // Beyond the kernel's u32 index within a slab: host points.
-            return self.sample_many(&grid_points(grid, range), fields, ids, values);
+            return query_grid_points(self, grid, range, fields, ids, values);
         }
         for f in fields {
             self.mesh.field(f)?;
@@ -1153,7 +1174,7 @@ impl GridSampler for VulkanLocator {
             return Ok(());
         }
         self.ensure_grid_axes(grid, true)?;
-        // The ids and every value in one launch a batch, as `query` does.
+        // The ids and every value in one launch a batch, as `query` does for f32 points.
         self.sample_fields(At::Grid(grid, range.start), fields, ids, values)
     }
 }
