@@ -63,25 +63,22 @@ impl ImageGrid {
     /// The `i`-th point (x fastest), computed in f64 as VTK does and rounded to f32.
     #[inline]
     pub fn point(&self, i: usize) -> Vec3 {
-        self.exact_point(i).map(|c| c as f32)
+        let idx = self.index(i);
+        std::array::from_fn(|k| self.coordinate(k, idx[k]) as f32)
     }
 
     /// The `i`-th point as the samplers locate it, in f64: the image's own point where
     /// [`Self::f64_points`], else its f32 rounding ([`Self::point`]) widened.
     #[inline]
     pub fn point64(&self, i: usize) -> [f64; 3] {
-        let p = self.exact_point(i);
-        if self.f64_points {
-            p
-        } else {
-            p.map(|c| c as f32 as f64)
-        }
+        let idx = self.index(i);
+        std::array::from_fn(|k| self.axis64(k, idx[k]))
     }
 
     /// Coordinate `i` of axis `k` as the samplers locate it ([`Self::point64`]'s).
     #[inline]
     pub fn axis64(&self, k: usize, i: usize) -> f64 {
-        let x = self.origin[k] + i as f64 * self.spacing[k];
+        let x = self.coordinate(k, i);
         if self.f64_points {
             x
         } else {
@@ -89,17 +86,22 @@ impl ImageGrid {
         }
     }
 
-    /// The `i`-th point as the image's origin and spacing place it, in f64.
+    /// Coordinate `i` of axis `k` as the image's origin and spacing place it, in f64.
     #[inline]
-    fn exact_point(&self, i: usize) -> [f64; 3] {
+    fn coordinate(&self, k: usize, i: usize) -> f64 {
+        self.origin[k] + i as f64 * self.spacing[k]
+    }
+
+    /// The axis indices of point `i` (x fastest).
+    #[inline]
+    fn index(&self, i: usize) -> [usize; 3] {
         let [nx, ny, _] = self.dims;
-        let idx = [i % nx, i / nx % ny, i / (nx * ny)];
-        std::array::from_fn(|k| self.origin[k] + idx[k] as f64 * self.spacing[k])
+        [i % nx, i / nx % ny, i / (nx * ny)]
     }
 
     /// The high corner.
     pub fn end(&self) -> [f64; 3] {
-        std::array::from_fn(|k| self.origin[k] + (self.dims[k] - 1) as f64 * self.spacing[k])
+        std::array::from_fn(|k| self.coordinate(k, self.dims[k] - 1))
     }
 }
 
@@ -118,6 +120,21 @@ mod tests {
         assert_eq!(pts[3], [0.0, 1.0, 2.0]);
         assert_eq!(pts[5], [1.0, 1.0, 2.0]);
         assert_eq!(g.end(), [1.0, 1.0, 2.0]);
+    }
+
+    /// Far from the origin the f64 points are the image's own (origin + index × spacing), and
+    /// without `f64_points` their f32 rounding (up to an eighth of a metre away at 4e6).
+    #[test]
+    fn f64_points_are_the_images_own() {
+        let g = ImageGrid::spanning([512345.1, 4123456.3, 0.1], [512355.1, 4123466.3, 10.1], [11, 11, 11]).unwrap();
+        let wide = g.clone().with_f64_points(true);
+        let i = 5 + 11 * 7 + 121 * 3;
+        let own: [f64; 3] = std::array::from_fn(|k| g.origin[k] + [5.0, 7.0, 3.0][k] * g.spacing[k]);
+        assert_eq!(wide.point64(i), own);
+        assert_eq!(g.point64(i), g.point(i).map(f64::from));
+        assert!((g.point64(i)[1] - own[1]).abs() > 0.04, "{:?} against {own:?}", g.point64(i));
+        assert_eq!((0..3).map(|k| wide.axis64(k, [5, 7, 3][k])).collect::<Vec<_>>(), wide.point64(i));
+        assert_eq!((0..3).map(|k| g.axis64(k, [5, 7, 3][k])).collect::<Vec<_>>(), g.point64(i));
     }
 
     #[test]

@@ -614,7 +614,7 @@ pub(super) mod tests {
     /// origin whose grid asks for its f64 points, which its f32 points do not give); on the
     /// torus, whose tets do not overlap, it builds no BVH.
     #[test]
-    fn sample_grid_is_sample_many() {
+    fn sample_grid_is_a_query_of_its_points() {
         let torus = Mesh::new(crate::gen::generate(crate::gen::Shape::Fusion, 20_000, 3), "fusion").unwrap();
         let grid = ImageGrid::over_bounds(
             torus.info.bounds_min.map(f64::from),
