@@ -16,6 +16,7 @@ pub mod named;
 pub mod ops;
 pub mod par;
 pub mod partition;
+mod prefetch;
 pub mod queries;
 pub mod streamline;
 #[cfg(test)]

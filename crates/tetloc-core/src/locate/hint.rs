@@ -19,6 +19,7 @@
 use super::tet_map::{bounds_of, Side, TetMap};
 use crate::geom::{Bary, Vec3};
 use crate::mesh::Mesh;
+use crate::prefetch::line_of;
 
 /// The tet of a particle's last lookup, and what the next lookup needs to stay in it
 /// cheaply. `Hint::default()` knows no tet: the first lookup searches.
@@ -75,8 +76,8 @@ impl Hint {
         let neighbors = mesh.neighbors();
         for n in neighbors[h.tet as usize] {
             if n >= 0 {
-                prefetch(&mesh.tets[n as usize]);
-                prefetch(&neighbors[n as usize]);
+                line_of(&mesh.tets[n as usize]);
+                line_of(&neighbors[n as usize]);
             }
         }
     }
@@ -87,26 +88,12 @@ impl Hint {
         if self.held.as_ref().is_some_and(|h| h.tet == tet) {
             return;
         }
-        prefetch(&mesh.neighbors()[tet as usize]);
+        line_of(&mesh.neighbors()[tet as usize]);
         let v = mesh.tets[tet as usize].map(|i| mesh.vertex64(i));
         let (lo, hi) = bounds_of(&v);
         let map = TetMap::over_box(v, (lo, hi), bound_scale);
         self.held = Some(Held { tet, lo, hi, map, looked_around: false });
     }
-}
-
-/// Asks the cache for the line holding `x`: no effect on any value, only on when a later
-/// read of it arrives.
-#[inline(always)]
-fn prefetch<T>(x: &T) {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a prefetch hint reads nothing into the program and never faults; `x` is a live
-    // reference besides.
-    unsafe {
-        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>((x as *const T).cast())
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = x;
 }
 
 #[cfg(test)]

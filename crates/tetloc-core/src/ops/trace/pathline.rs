@@ -630,6 +630,19 @@ struct Track {
 }
 
 impl Track {
+    /// Asks the cache for the places of the point the particle records next, ahead of the
+    /// leg's lookups. A leg visits every particle once, so these lines went cold since the
+    /// last; each of a point's stores into them waited a memory round trip (a quarter of a
+    /// pathline run's time, 100k particles of fusion 200k over 100 steps).
+    fn prefetch_record(&self, n_values: usize) {
+        use crate::prefetch::next_pushes;
+        next_pushes(&self.points, 1);
+        next_pushes(&self.time, 1);
+        next_pushes(&self.tets, 1);
+        next_pushes(&self.values, n_values);
+        next_pushes(&self.turning, 1);
+    }
+
     /// Records the particle's point at `spot`, with the line fields (indices 3.. of the
     /// bracket, after the vector) there at its time. `velocity`: the vector there at time
     /// `.1` (the lookup's), which a line field that is one of its components (`alias`) takes.
@@ -1039,6 +1052,7 @@ pub fn pathline_run(
         run.reader.leg(&mesh, leg.bracket, next, |br| {
             let buffers = || o.vorticity.then(|| PointWeights::new(&mesh));
             tracks.par_iter_mut().with_min_len(64).for_each_init(buffers, |weights, tr| {
+                tr.prefetch_record(alias.len());
                 tr.p.start_leg(&leg, o);
                 while let Some((q, t)) = tr.p.query() {
                     let found = loc.locate_near(q.map(|c| c as f32), &mut tr.hint);
