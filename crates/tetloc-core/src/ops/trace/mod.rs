@@ -137,7 +137,10 @@ pub fn trace_sampled(
         .map(|&j| {
             let (seed, backward) = jobs[j as usize];
             let mut p = Particle::new(seed, seeds[seed as usize], backward);
-            let (mut hint, mut ids, mut values) = (Hint::default(), Vec::new(), Vec::new());
+            let room = (o.steps_bound() + 2).min(LINE_ROOM);
+            p.reserve(room);
+            let (mut hint, mut ids, mut values) =
+                (Hint::default(), Vec::with_capacity(room), Vec::with_capacity(room * source.len()));
             // The other fields' values, then the vector's, at the last lookup.
             let mut here = vec![0f32; out.len() + 3];
             while let Some(q) = p.query() {
@@ -158,6 +161,8 @@ pub fn trace_sampled(
                 }
             }
             progress(done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1)?;
+            ids.shrink_to_fit();
+            values.shrink_to_fit();
             Ok((j, p.finish().map(|l| (l, ids, values))))
         })
         .collect::<Result<_>>()?;
@@ -171,6 +176,9 @@ pub fn trace_sampled(
     let values = super::concat(&widths, |i, out| out.copy_from_slice(&values[i]));
     Ok(LineArrays::of(&lines, super::probe::Probed::from_values(ids, fields, &values)))
 }
+
+/// The most points a CPU line makes room for at its start (more grow as they come).
+const LINE_ROOM: usize = 4096;
 
 /// The order in which a CPU tracer visits particles: the Morton order of their points (over
 /// the points' own box). Particles close in the order are close in space, so one finds the

@@ -178,6 +178,13 @@ impl Particle {
     }
 
     /// Points recorded so far (the seed, then each step's end).
+    /// Room for `n` points, taken at once: a line that grew by doubling copied its points
+    /// each time, into fresh pages.
+    pub fn reserve(&mut self, n: usize) {
+        self.points.reserve_exact(n);
+        self.time.reserve_exact(n);
+    }
+
     pub fn n_points(&self) -> usize {
         self.points.len()
     }
@@ -214,11 +221,14 @@ impl Particle {
     /// The line, when it has more than its seed (VTK makes none otherwise).
     pub fn finish(self) -> Option<super::Line> {
         let State::Done(reason) = self.state else { return None };
-        (self.points.len() > 1).then_some(super::Line {
+        let (mut points, mut time) = (self.points, self.time);
+        points.shrink_to_fit();
+        time.shrink_to_fit();
+        (points.len() > 1).then_some(super::Line {
             seed: self.seed,
             backward: self.backward,
-            points: self.points,
-            time: self.time,
+            points,
+            time,
             tets: Vec::new(),
             values: Vec::new(),
             reason,
