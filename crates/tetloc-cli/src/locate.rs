@@ -59,7 +59,7 @@ pub struct LocateArgs {
     pub(crate) common: Common,
 }
 
-crate::time_steps::on_steps!(LocateArgs, mesh, values);
+crate::time_steps::on_steps!(LocateArgs, check_args, mesh, values);
 
 /// What `--out` is, by its extension.
 #[derive(Clone, Copy, PartialEq, Eq)]

@@ -47,7 +47,7 @@ pub struct ProbeArgs {
     pub(crate) common: Common,
 }
 
-crate::time_steps::on_steps!(ProbeArgs, source);
+crate::time_steps::on_steps!(ProbeArgs, check, source);
 
 /// Whether TARGET names a point set (by its extension) rather than a mesh.
 fn is_point_set(target: &Path) -> bool {

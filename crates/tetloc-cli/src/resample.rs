@@ -43,7 +43,7 @@ pub struct ResampleArgs {
     pub(crate) common: Common,
 }
 
-crate::time_steps::on_steps!(ResampleArgs, mesh);
+crate::time_steps::on_steps!(ResampleArgs, check, mesh);
 
 /// What the arguments ask for, checked before any mesh is read.
 pub(crate) struct Plan {

@@ -184,13 +184,15 @@ pub(crate) trait OnSteps: Clone {
     fn common_mut(&mut self) -> &mut Common;
     /// Names its outputs for step `k` of `n` ([`step_path`]).
     fn rename_outputs(&mut self, k: usize, n: usize);
+    /// The command's checks of its arguments and outputs, which read no mesh.
+    fn check(&self) -> Result<()>;
 }
 
 /// Implements [`OnSteps`] for a command's arguments that hold `common: Common` and `out`:
-/// `on_steps!(Args, mesh_field, optional_output...)`, each optional output (an
-/// `Option<PathBuf>`) renamed for a step as `--out` is.
+/// `on_steps!(Args, check_fn, mesh_field, optional_output...)`, each optional output (an
+/// `Option<PathBuf>`) renamed for a step as `--out` is; `check_fn(&Args)` checks them.
 macro_rules! on_steps {
-    ($args:ty, $series:ident $(, $extra:ident)*) => {
+    ($args:ty, $check:path, $series:ident $(, $extra:ident)*) => {
         impl crate::time_steps::OnSteps for $args {
             fn series(&self) -> (&std::ffi::OsStr, &std::path::Path) {
                 (&self.$series, &self.out)
@@ -205,6 +207,9 @@ macro_rules! on_steps {
                 self.out = crate::time_steps::step_path(&self.out, k, n);
                 $(self.$extra = self.$extra.as_ref().map(|v| crate::time_steps::step_path(v, k, n));)*
             }
+            fn check(&self) -> anyhow::Result<()> {
+                $check(self).map(drop)
+            }
         }
     };
 }
@@ -216,6 +221,11 @@ pub(crate) fn run<A: OnSteps>(args: &A, command: fn(&A) -> Result<()>) -> Result
         return command(args);
     }
     let (mesh, out) = args.series();
+    // The arguments and outputs first, as one step's run checks them, before the series is
+    // read (a large one takes a while): a wrong `--out` is refused at once.
+    let mut first = args.clone();
+    first.common_mut().index = index_path(out);
+    first.check()?;
     // Read once: each step's run takes its mesh from it (the file is not read again).
     let series = match mesh_arg::parse_generated(mesh) {
         Some(_) => None,

@@ -184,7 +184,7 @@ fn check_trace_memory(
     crate::limits::check_memory(&what, whole_run.saturating_add(batches), 1)
 }
 
-crate::time_steps::on_steps!(TraceArgs, mesh);
+crate::time_steps::on_steps!(TraceArgs, check_steady, mesh);
 
 /// Streamlines in one step's field (`--time-step K|all` as the other commands take it), or
 /// pathlines through the steps (`--unsteady`, whose `--time-step all` is its output times).
@@ -196,7 +196,8 @@ pub fn run(a: &TraceArgs) -> Result<()> {
     time_steps::run(a, run_steady)
 }
 
-fn run_steady(a: &TraceArgs) -> Result<()> {
+/// Checks streamlines' direction, output and inputs (no file is read).
+fn check_steady(a: &TraceArgs) -> Result<Direction> {
     let direction: Direction = a.direction.parse()?;
     output::check_output(&a.out, &["vtp"]).context("--out: streamlines are written as VTK polydata")?;
     let meshes = mesh_arg::input_files(&a.mesh, a.common.format.as_deref());
@@ -207,6 +208,11 @@ fn run_steady(a: &TraceArgs) -> Result<()> {
     }
     let outputs: Vec<FileArg> = std::iter::once(FileArg::new("--out", &a.out)).chain(a.common.index_arg()).collect();
     crate::outputs::check_distinct(&inputs, &outputs)?;
+    Ok(direction)
+}
+
+fn run_steady(a: &TraceArgs) -> Result<()> {
+    let direction = check_steady(a)?;
     let mut o = TraceOptions {
         step: a.step.unwrap_or(1.0), // checked now, the default set once the mesh is read
         max_steps: a.max_steps,

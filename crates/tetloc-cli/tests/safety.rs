@@ -446,6 +446,35 @@ fn a_failed_time_step_keeps_the_previous_steps() {
     assert!(file(&after, "p_2.vtu") != file(&before, "p_2.vtu") && file(&after, "p.pvd").is_some());
 }
 
+/// `--time-step all` checks each command's arguments and outputs before it reads the series,
+/// as a single step's run does: a wrong `--out` is refused at once, by name, here on a series
+/// whose first file cannot be read (the error was that file's, or came after reading it).
+#[test]
+fn time_step_all_checks_the_output_before_the_series() {
+    let dir = tmp_dir("step_out_first");
+    let (ok, _, err) = tetloc(&["gen", "fusion", "--tets", "3000", "-o", s(&dir.join("a.vtu")), "-q"]);
+    assert!(ok, "{err}");
+    let a = std::fs::read(dir.join("a.vtu")).unwrap();
+    std::fs::write(dir.join("cut.vtu"), &a[..a.len() / 2]).unwrap();
+    let lines: String = (0..2).map(|k| format!("<DataSet timestep=\"{k}\" file=\"cut.vtu\"/>")).collect();
+    let pvd = dir.join("s.pvd");
+    std::fs::write(&pvd, format!("<VTKFile type=\"Collection\"><Collection>{lines}</Collection></VTKFile>")).unwrap();
+    let (out, target) = (dir.join("o.bad"), dir.join("a.vtu"));
+    let (pvd, out, target) = (s(&pvd), s(&out), s(&target));
+    let before = entries(&dir);
+    for command in [
+        vec!["locate", pvd, "--points", "p.csv", "--out", out],
+        vec!["resample", pvd, "--dims", "4,4,4", "-o", out],
+        vec!["probe", pvd, target, "-o", out],
+        vec!["trace", pvd, "--vector", "v", "--seeds", "line:0,0,0,1,1,1,3", "-o", out],
+    ] {
+        let args: Vec<&str> = command.iter().copied().chain(["--time-step", "all", "--backend", "cpu"]).collect();
+        let (ok, _, err) = tetloc(&args);
+        assert!(!ok && err.contains("--out") && err.contains("o.bad") && !err.contains("cut.vtu"), "{args:?}: {err}");
+        assert_eq!(entries(&dir), before, "{args:?}");
+    }
+}
+
 /// An orbit's numbered PNGs appear together: a run interrupted over an older orbit leaves
 /// the older frames as they were, not a mix of both runs' frames (nor any temporary).
 #[test]
