@@ -115,6 +115,59 @@ fn ranks_answer_as_one_process() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A mesh in UTM coordinates stored in f64 (`utm/part_utm`), in 4 pieces, with its f64 query
+/// points: 2 and 4 ranks write the ids and values one process writes on the whole file, byte
+/// for byte, and `resample` the same mask (values within f32 rounding: one process's raster
+/// interpolates in f32). The ranks exchange and answer the file's f64 points, as one process
+/// takes them; in f32 the points moved by up to half a metre there, some into other cells.
+#[test]
+fn far_meshes_run_distributed_at_the_files_precision() {
+    let test = "far_meshes_run_distributed_at_the_files_precision";
+    let Some(data) = require_data(test) else { return };
+    if !have_mpirun(test) {
+        return;
+    }
+    let dir = tmp_dir("utm");
+    let mesh = data.join("utm/part_utm.vtu");
+    let pvtu = partition(&dir, &mesh, "part_utm", 4);
+    let bytes = |p: &Path| std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+    for set in ["random", "bbox"] {
+        let points = data.join(format!("utm/part_utm.{set}.points.npy"));
+        // ids and f's values of `mesh` by one process (`None`) or N ranks.
+        let run = |mesh: &Path, ranks: Option<usize>| {
+            let tag = format!("{set}.{}", ranks.unwrap_or(0));
+            let (ids, vals) = (dir.join(format!("{tag}.ids.bin")), dir.join(format!("{tag}.f.bin")));
+            let args = ["locate", s(mesh), "--points", s(&points), "--backend", "cpu", "--field", "f"];
+            let args: Vec<&str> = args.into_iter().chain(["--out", s(&ids), "--values", s(&vals)]).collect();
+            let o = match ranks {
+                None => tetloc(&args),
+                Some(n) => mpirun(n, &[], &args).0,
+            };
+            assert!(o.status.success(), "{tag}: {}", text(&o));
+            (bytes(&ids), bytes(&vals))
+        };
+        let want = run(&mesh, None);
+        for n in [2, 4] {
+            assert!(run(&pvtu, Some(n)) == want, "{set}, {n} ranks: the ids or values differ from one process's");
+        }
+    }
+    let image = |mesh: &Path, ranks: Option<usize>| {
+        let out = dir.join(format!("r{}.npy", ranks.unwrap_or(0)));
+        let args = ["resample", s(mesh), "--field", "f", "--dims", "23,19,17", "--backend", "cpu", "-o", s(&out)];
+        let o = match ranks {
+            None => tetloc(&args),
+            Some(n) => mpirun(n, &[], &args).0,
+        };
+        assert!(o.status.success(), "{}", text(&o));
+        npy_values(&out)
+    };
+    let (want, got) = (image(&mesh, None), image(&pvtu, Some(2)));
+    assert_eq!(want.len(), got.len());
+    let differ = (0..got.len()).filter(|&i| !same_value(got[i], want[i])).count();
+    assert_eq!(differ, 0, "2 ranks: {differ} grid points differ from one process's");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// `tetloc locate MESH --points POINTS --backend cpu --field FIELD`, ids and values written to
 /// `dir` under `tag`, by one process (`ranks`: `None`) or `mpirun -n N`: the ids and values.
 fn locate_cpu(

@@ -14,6 +14,7 @@ use std::io::Write as _;
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
+use tetloc_core::locate::{Points, Values};
 use tetloc_core::{BatchLocator, Mesh, Vec3};
 use tetloc_io::{parts, vtk::pieces};
 
@@ -209,6 +210,46 @@ pub struct Stats {
     pub ties: u64,
 }
 
+/// The precision in which the ranks exchange points and answer them: f32, or f64 (the
+/// file's own points, for a mesh stored in f64 or far from the origin), with values in the
+/// same precision.
+pub trait Precision: tetloc_core::geom::Real + Equivalence + bytemuck::Pod + Default {
+    /// The f32 point a point is routed by: its rounding to nearest. Routing by it is
+    /// conservative: rounding is monotone, and the regions' boxes are rounded outward
+    /// (`route`), so a point inside a cell rounds into the cell's rounded box.
+    fn routed(p: [Self; 3]) -> Vec3;
+    /// f64's (as a call announces its precision to the ranks).
+    const WIDE: bool;
+    fn points(p: &[[Self; 3]]) -> Points<'_>;
+    fn values(v: &mut [Self]) -> Values<'_>;
+}
+
+impl Precision for f32 {
+    fn routed(p: Vec3) -> Vec3 {
+        p
+    }
+    const WIDE: bool = false;
+    fn points(p: &[Vec3]) -> Points<'_> {
+        Points::F32(p)
+    }
+    fn values(v: &mut [f32]) -> Values<'_> {
+        Values::F32(v)
+    }
+}
+
+impl Precision for f64 {
+    fn routed(p: [f64; 3]) -> Vec3 {
+        p.map(|c| c as f32)
+    }
+    const WIDE: bool = true;
+    fn points(p: &[[f64; 3]]) -> Points<'_> {
+        Points::F64(p)
+    }
+    fn values(v: &mut [f64]) -> Values<'_> {
+        Values::F64(v)
+    }
+}
+
 /// Any backend on each rank, queried collectively: every rank hands in its own points and
 /// gets their answers, in their order, as one process would give them on the whole mesh.
 pub struct DistLocator<'c, L> {
@@ -253,8 +294,9 @@ impl<'c, L: BatchLocator> DistLocator<'c, L> {
     }
 
     /// Collective: the global cell id (-1: none) and the values of `fields` (NaN: none) for
-    /// each of this rank's points. Every rank must call it, with any number of points.
-    pub fn query(&mut self, points: &[Vec3], fields: &[&str]) -> Reduced {
+    /// each of this rank's points, f32 or f64 ([`Precision`]). Every rank must call it, with
+    /// any number of points, in the same precision.
+    pub fn query<T: Precision>(&mut self, points: &[[T; 3]], fields: &[&str]) -> Reduced<T> {
         if let Some(kind) = launch::fault(self.cluster.rank) {
             match kind.as_str() {
                 "abort" => std::process::abort(),
@@ -276,23 +318,24 @@ impl<'c, L: BatchLocator> DistLocator<'c, L> {
         out
     }
 
-    fn round(&mut self, points: &[Vec3], fields: &[&str]) -> Reduced {
+    fn round<T: Precision>(&mut self, points: &[[T; 3]], fields: &[&str]) -> Reduced<T> {
         let (world, k) = (&self.cluster.world, fields.len());
         // Out: each point to every rank whose region may hold it.
-        let routes = Routes::plan(points, &self.regions);
+        let routed: Vec<Vec3> = points.par_iter().map(|&p| T::routed(p)).collect();
+        let routes = Routes::plan(&routed, &self.regions);
         let send = routes.gather(points);
         let send_counts: Vec<Count> = routes.counts.iter().map(|&c| c as Count).collect();
         let mut recv_counts = vec![0 as Count; self.cluster.size];
         world.all_to_all_into(&send_counts[..], &mut recv_counts[..]);
-        let recv_points = exchange(world, bytemuck::cast_slice::<Vec3, f32>(&send), &send_counts, &recv_counts, 3);
-        let recv_points: &[Vec3] = bytemuck::cast_slice(&recv_points);
+        let recv_points = exchange(world, bytemuck::cast_slice::<[T; 3], T>(&send), &send_counts, &recv_counts, 3);
+        let recv_points: &[[T; 3]] = bytemuck::cast_slice(&recv_points);
 
         // Answer what was sent here.
         let n = recv_points.len();
-        let (mut ids, mut values) = (vec![-1i32; n], vec![f32::NAN; n * k]);
+        let (mut ids, mut values) = (vec![-1i32; n], vec![T::NAN; n * k]);
         if let (Some(local), true) = (&mut self.local, n > 0) {
             let t = Instant::now();
-            if let Err(e) = local.sample_many(recv_points, fields, &mut ids, &mut values) {
+            if let Err(e) = local.query(T::points(recv_points), fields, &mut ids, T::values(&mut values)) {
                 self.cluster.abort(&format!("locating {n} points: {e}"));
             }
             self.stats.local_secs += t.elapsed().as_secs_f64();

@@ -11,7 +11,8 @@
 //!
 //! **A query** (collective, each rank with its own points): each point goes to every rank
 //! whose region may hold it (one all-to-all of counts, one of points), those ranks answer
-//! with their local locator (global cell id and values), the answers go back the same way,
+//! with their local locator (global cell id and values; in f32, or in f64 for the file's f64
+//! points, `dist::Precision`), the answers go back the same way,
 //! and the owner keeps, per point, the claim with the lowest global id ([`reduce`], which
 //! says why that is the one-process answer). Unexpected errors and panics after setup call
 //! MPI_Abort: the job ends, no rank is left waiting.

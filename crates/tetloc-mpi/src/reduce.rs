@@ -12,15 +12,16 @@
 //! lowest global id makes the answer independent of the number of ranks and of which rank
 //! answered first. Such points are counted ([`Reduced::ties`]).
 
+use tetloc_core::geom::Real;
 use tetloc_core::OUTSIDE;
 
-/// The chosen answers for a batch.
+/// The chosen answers for a batch, with values in f32 or f64 (`T`).
 #[derive(Debug, Default)]
-pub struct Reduced {
+pub struct Reduced<T = f32> {
     /// Global cell id per point, -1 where no rank claimed it.
     pub ids: Vec<i64>,
     /// `k` values per point, NaN where no rank claimed it.
-    pub values: Vec<f32>,
+    pub values: Vec<T>,
     /// Points claimed by more than one rank.
     pub ties: usize,
 }
@@ -30,7 +31,7 @@ pub struct Reduced {
 /// `values[s·k..(s+1)·k]` its values. The answers come rank after rank, each rank's in
 /// ascending batch index (as `Routes::plan` sends them): blocks of points are reduced in
 /// parallel, each from its own slice of every rank's answers.
-pub fn reduce(n: usize, index: &[u32], ids: &[i64], values: &[f32], k: usize) -> Reduced {
+pub fn reduce<T: Real>(n: usize, index: &[u32], ids: &[i64], values: &[T], k: usize) -> Reduced<T> {
     use rayon::prelude::*;
     // Each rank's run of answers: where the batch index stops ascending.
     let mut runs = vec![0];
@@ -39,7 +40,7 @@ pub fn reduce(n: usize, index: &[u32], ids: &[i64], values: &[f32], k: usize) ->
     // Blocks of ids and of values go in step; without fields, a placeholder value per point
     // keeps them so (dropped at the end).
     let per = k.max(1);
-    let mut out = Reduced { ids: vec![OUTSIDE as i64; n], values: vec![f32::NAN; n * per], ties: 0 };
+    let mut out = Reduced { ids: vec![OUTSIDE as i64; n], values: vec![T::NAN; n * per], ties: 0 };
     let ties: usize = out
         .ids
         .par_chunks_mut(BLOCK)
@@ -113,7 +114,7 @@ mod tests {
                 }
             })
             .collect();
-        let r = reduce(n, &index, &ids, &[], 0);
+        let r = reduce::<f32>(n, &index, &ids, &[], 0);
         assert!(r.values.is_empty());
         assert!((0..n).all(|i| r.ids[i] == if i % 3 == 0 { i as i64 } else { 1000 + i as i64 }));
         assert_eq!(r.ties, n.div_ceil(3));

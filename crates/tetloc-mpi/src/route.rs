@@ -144,8 +144,9 @@ impl Routes {
         Routes { counts, index }
     }
 
-    /// The coordinates of the points to send, rank after rank.
-    pub fn gather(&self, points: &[Vec3]) -> Vec<Vec3> {
+    /// The points to send (as `plan` was given them, or in another precision), rank after
+    /// rank.
+    pub fn gather<P: Copy + Send + Sync>(&self, points: &[P]) -> Vec<P> {
         use rayon::prelude::*;
         self.index.par_iter().map(|&i| points[i as usize]).collect()
     }

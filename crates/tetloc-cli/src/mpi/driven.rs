@@ -6,7 +6,7 @@
 use super::{gather, scatter};
 use tetloc_core::locate::{check_sample_lengths, Points, Values};
 use tetloc_core::BatchLocator;
-use tetloc_mpi::dist::{Cluster, DistLocator};
+use tetloc_mpi::dist::{Cluster, DistLocator, Precision};
 use tetloc_mpi::mpi::traits::*;
 
 /// The length that ends [`serve`]'s loop instead of announcing a call.
@@ -30,6 +30,15 @@ impl<'c> Driven<'c> {
     pub fn finish(self) {
         announce(self.cluster, None);
     }
+
+    /// One collective call: `points` located and sampled by the ranks, in their precision
+    /// (announced first, so that every rank calls in it); the global ids and the values.
+    fn call<T: Precision>(&mut self, points: &[[T; 3]], fields: &[&str]) -> (Vec<i64>, Vec<T>) {
+        announce(self.cluster, Some((fields, T::WIDE)));
+        let mine = scatter(self.cluster, points);
+        let got = self.loc.query(&mine, fields);
+        (gather(self.cluster, &got.ids), gather(self.cluster, &got.values))
+    }
 }
 
 impl BatchLocator for Driven<'_> {
@@ -37,7 +46,7 @@ impl BatchLocator for Driven<'_> {
         &self.name
     }
 
-    /// f32 points only (the ranks exchange f32 points).
+    /// f32 points, or f64 points (the ranks exchange and answer them in f64).
     fn query(
         &mut self,
         points: Points<'_>,
@@ -45,61 +54,82 @@ impl BatchLocator for Driven<'_> {
         ids: &mut [i32],
         values: Values<'_>,
     ) -> Result<(), tetloc_core::Error> {
-        let Points::F32(points) = points else {
-            return Err(tetloc_core::Error::Invalid(format!("the {} backend takes f32 points only", self.name)));
-        };
         // Checked before the collective call: every rank must take part in it or none.
         check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
-        announce(self.cluster, Some(fields));
-        let mine = scatter(self.cluster, points);
-        let got = self.loc.query(&mine, fields);
-        let all_ids = gather(self.cluster, &got.ids);
-        let all_values = gather(self.cluster, &got.values);
-        for (out, &g) in ids.iter_mut().zip(&all_ids) {
-            *out = i32::try_from(g).map_err(|_| {
-                tetloc_core::Error::Invalid(format!("global cell id {g} does not fit the int32 outputs"))
-            })?;
-        }
-        values.via_f32(|v| {
-            v.copy_from_slice(&all_values);
+        let global = |all_ids: Vec<i64>, ids: &mut [i32]| -> Result<(), tetloc_core::Error> {
+            for (out, &g) in ids.iter_mut().zip(&all_ids) {
+                *out = i32::try_from(g).map_err(|_| {
+                    tetloc_core::Error::Invalid(format!("global cell id {g} does not fit the int32 outputs"))
+                })?;
+            }
             Ok(())
-        })
+        };
+        match points {
+            Points::F32(points) => {
+                let (all_ids, all_values) = self.call(points, fields);
+                global(all_ids, ids)?;
+                values.via_f32(|v| {
+                    v.copy_from_slice(&all_values);
+                    Ok(())
+                })
+            }
+            Points::F64(points) => {
+                let (all_ids, all_values) = self.call(points, fields);
+                global(all_ids, ids)?;
+                values.via_f64(|v| {
+                    v.copy_from_slice(&all_values);
+                    Ok(())
+                })
+            }
+        }
     }
 }
 
 /// On every rank but 0: answers rank 0's calls until it says it is done.
 pub fn serve(cluster: &Cluster, loc: &mut DistLocator<'_, Box<dyn BatchLocator>>) {
-    while let Some(fields) = announcement(cluster) {
-        let names: Vec<&str> = fields.iter().map(String::as_str).collect();
-        let mine = scatter(cluster, &[]);
-        let got = loc.query(&mine, &names);
+    fn answer<T: Precision>(cluster: &Cluster, loc: &mut DistLocator<'_, Box<dyn BatchLocator>>, names: &[&str]) {
+        let mine = scatter::<T>(cluster, &[]);
+        let got = loc.query(&mine, names);
         gather(cluster, &got.ids);
         gather(cluster, &got.values);
     }
+    while let Some((fields, wide)) = announcement(cluster) {
+        let names: Vec<&str> = fields.iter().map(String::as_str).collect();
+        match wide {
+            true => answer::<f64>(cluster, loc, &names),
+            false => answer::<f32>(cluster, loc, &names),
+        }
+    }
 }
 
-/// Rank 0 tells the others what comes next: a call sampling `fields`, or the end (`None`).
-fn announce(cluster: &Cluster, fields: Option<&[&str]>) {
+/// Rank 0 tells the others what comes next: a call sampling `fields` with points in f64
+/// (`true`) or f32, or the end (`None`).
+fn announce(cluster: &Cluster, call: Option<(&[&str], bool)>) {
     let root = cluster.world.process_at_rank(0);
-    let text = fields.map(|f| f.join("\n"));
+    let text = call.map(|(f, _)| f.join("\n"));
     let mut len = text.as_ref().map_or(DONE, |t| t.len() as u64);
     root.broadcast_into(&mut len);
-    if let Some(t) = text {
-        let mut bytes = t.into_bytes();
+    if let (Some(t), Some((_, wide))) = (text, call) {
+        // The precision first, then the names: a buffer of at least one byte (an empty one
+        // points at 0x1, which OpenMPI reads as MPI_IN_PLACE).
+        let mut bytes = vec![u8::from(wide)];
+        bytes.extend_from_slice(t.as_bytes());
         root.broadcast_into(&mut bytes[..]);
     }
 }
 
-/// The other side of [`announce`]: the fields of the next call, or `None` at the end.
-fn announcement(cluster: &Cluster) -> Option<Vec<String>> {
+/// The other side of [`announce`]: the fields of the next call and whether its points are
+/// f64, or `None` at the end.
+fn announcement(cluster: &Cluster) -> Option<(Vec<String>, bool)> {
     let root = cluster.world.process_at_rank(0);
     let mut len = 0u64;
     root.broadcast_into(&mut len);
     if len == DONE {
         return None;
     }
-    let mut bytes = vec![0u8; len as usize];
+    let mut bytes = vec![0u8; len as usize + 1];
     root.broadcast_into(&mut bytes[..]);
-    let text = String::from_utf8_lossy(&bytes);
-    Some(if text.is_empty() { Vec::new() } else { text.split('\n').map(str::to_string).collect() })
+    let text = String::from_utf8_lossy(&bytes[1..]);
+    let fields = if text.is_empty() { Vec::new() } else { text.split('\n').map(str::to_string).collect() };
+    Some((fields, bytes[0] == 1))
 }

@@ -13,6 +13,7 @@ use rand::{Rng, SeedableRng};
 use std::path::Path;
 use std::sync::Arc;
 use std::time::Instant;
+use tetloc_core::locate::Precision;
 use tetloc_core::queries::{self, QueryKind};
 use tetloc_core::{BatchLocator, Mesh, Vec3};
 use tetloc_io::points::{self, Values};
@@ -103,31 +104,42 @@ fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {
     let t0 = Instant::now();
     let part = load_part(cluster, listing)?;
     let has_field = match (&a.field, &part) {
-        (Some(f), Some(p)) => p.mesh.field(f).map(|_| ()).map_err(|e| e.to_string()),
-        _ => Ok(()),
+        (Some(f), Some(p)) => p.mesh.field(f).map(|f| f.values64.is_some()).map_err(|e| e.to_string()),
+        _ => Ok(false),
     };
-    cluster.agree("find the field", has_field)?;
+    let f64_field = cluster.agree("find the field", has_field)?;
+    // As one process locates: at the file's precision where any rank's pieces want it (f64
+    // data, or far from the origin), values in f64 for an f64 field or `--precision f64`.
+    let any = |b: bool| cluster.max_u64(u64::from(b)) == 1;
+    let wide_values = a.field.is_some() && (a.precision == Precision::F64 || any(f64_field));
+    let at_f64 = any(part.as_ref().is_some_and(|p| p.mesh.wants_f64_points())) || wide_values;
     let mut loc = build(cluster, &a.backend, &a.common, part.as_ref())?;
     let setup_s = t0.elapsed().as_secs_f64();
 
     // Rank 0 reads the points and hands each rank a contiguous slice.
-    let pts = match cluster.is_root() {
+    let pts64 = match cluster.is_root() {
         // A FIFO is refused before it is opened (opening it would block for ever).
         true => tetloc_io::check_regular_input(&a.points)
-            .and_then(|()| points::read_points(&a.points))
+            .and_then(|()| points::read_points64(&a.points))
             .map_err(|e| e.to_string()),
         false => Ok(Vec::new()),
     };
-    let pts = cluster.agree("read the points", pts)?;
-    let mine = scatter(cluster, &pts);
+    let pts64 = cluster.agree("read the points", pts64)?;
+    let pts: Vec<Vec3> = pts64.iter().map(|p| p.map(|c| c as f32)).collect();
     let fields: Vec<&str> = a.field.as_deref().into_iter().collect();
     let t1 = Instant::now();
-    let got = loc.query(&mine, &fields);
+    let (got_ids, ties, values32, values64) = if at_f64 {
+        let got = loc.query(&scatter(cluster, &pts64), &fields);
+        (got.ids, got.ties, Vec::new(), got.values)
+    } else {
+        let got = loc.query(&scatter(cluster, &pts), &fields);
+        (got.ids, got.ties, got.values, Vec::new())
+    };
     cluster.world.barrier();
     let query_s = t1.elapsed().as_secs_f64();
-    let ties = cluster.sum_u64(got.ties as u64);
-    let ids = gather(cluster, &got.ids);
-    let values = gather(cluster, &got.values);
+    let ties = cluster.sum_u64(ties as u64);
+    let ids = gather(cluster, &got_ids);
+    let (values32, values64) = (gather(cluster, &values32), gather(cluster, &values64));
     if !cluster.is_root() {
         return Ok(());
     }
@@ -135,8 +147,16 @@ fn run_locate(cluster: &Cluster, a: &locate::LocateArgs) -> Result<()> {
         .iter()
         .map(|&g| i32::try_from(g).map_err(|_| anyhow::anyhow!("global cell id {g} does not fit the int32 outputs")))
         .collect::<Result<Vec<i32>>>()?;
-    // Distributed locates sample in f32 (the partitions' kernels; f64 is not routed yet).
-    locate::write_results(a, Coords::F32(&pts), &ids, Values::F32(&values))?;
+    let narrowed: Vec<f32>;
+    let values = match (at_f64, wide_values) {
+        (_, true) => Values::F64(&values64),
+        (true, false) => {
+            narrowed = values64.iter().map(|&v| v as f32).collect();
+            Values::F32(&narrowed)
+        }
+        (false, false) => Values::F32(&values32),
+    };
+    locate::write_results(a, Coords::of(&pts64, &pts), &ids, values)?;
     if !a.common.quiet {
         let none = ids.iter().filter(|&&i| i < 0).count();
         eprintln!(
@@ -210,16 +230,16 @@ fn whole_bounds(cluster: &Cluster, part: Option<&Part>) -> ([f64; 3], [f64; 3]) 
 }
 
 /// Rank 0's points, a contiguous slice to each rank.
-fn scatter(cluster: &Cluster, pts: &[Vec3]) -> Vec<Vec3> {
+fn scatter<T: Equivalence + Copy + Default>(cluster: &Cluster, pts: &[[T; 3]]) -> Vec<[T; 3]> {
     let root = cluster.world.process_at_rank(0);
     let mut n = pts.len() as u64;
     root.broadcast_into(&mut n);
     let counts: Vec<Count> =
         (0..cluster.size).map(|r| (launch::pieces_of(n as usize, cluster.size, r).len() * 3) as Count).collect();
     let displs = displacements(&counts);
-    let mut mine = vec![0f32; counts[cluster.rank] as usize];
+    let mut mine = vec![T::default(); counts[cluster.rank] as usize];
     if cluster.is_root() {
-        let flat: Vec<f32> = pts.iter().flatten().copied().collect();
+        let flat: Vec<T> = pts.iter().flatten().copied().collect();
         let send = Partition::new(&flat[..], &counts[..], &displs[..]);
         root.scatter_varcount_into_root(&send, &mut mine[..]);
     } else {
