@@ -177,7 +177,6 @@ impl Particle {
         }
     }
 
-    /// Points recorded so far (the seed, then each step's end).
     /// Room for `n` points, taken at once: a line that grew by doubling copied its points
     /// each time, into fresh pages.
     pub fn reserve(&mut self, n: usize) {
@@ -185,6 +184,7 @@ impl Particle {
         self.time.reserve_exact(n);
     }
 
+    /// Points recorded so far (the seed, then each step's end).
     pub fn n_points(&self) -> usize {
         self.points.len()
     }
