@@ -91,9 +91,10 @@ fn ranks_answer_as_one_process() {
         let field = if mesh == "hybrid" { "g" } else { "cellval" };
         let (points, oracle, flags) = join_sets(&dir, &sets);
         let pvtu = partition(&dir, &sets[0].mesh_path, mesh, 4);
-        let (want_ids, want_vals) = locate_cpu(&dir, &sets[0].mesh_path, &points, field, &format!("{mesh}.ref"), None);
+        let (want_ids, want_vals) =
+            locate_cpu::<f32>(&dir, &sets[0].mesh_path, &points, field, &format!("{mesh}.ref"), None);
         for n in [1, 2, 4] {
-            let (ids, vals) = locate_cpu(&dir, &pvtu, &points, field, &format!("{mesh}.{n}-ranks"), Some(n));
+            let (ids, vals) = locate_cpu::<f32>(&dir, &pvtu, &points, field, &format!("{mesh}.{n}-ranks"), Some(n));
             assert_eq!(ids.len(), want_ids.len());
             let (mut ties, mut oracle_mismatch) = (0, 0);
             for i in 0..ids.len() {
@@ -130,38 +131,19 @@ fn far_meshes_run_distributed_at_the_files_precision() {
     let dir = tmp_dir("utm");
     let mesh = data.join("utm/part_utm.vtu");
     let pvtu = partition(&dir, &mesh, "part_utm", 4);
-    let bytes = |p: &Path| std::fs::read(p).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
     for set in ["random", "bbox"] {
         let points = data.join(format!("utm/part_utm.{set}.points.npy"));
-        // ids and f's values of `mesh` by one process (`None`) or N ranks.
-        let run = |mesh: &Path, ranks: Option<usize>| {
-            let tag = format!("{set}.{}", ranks.unwrap_or(0));
-            let (ids, vals) = (dir.join(format!("{tag}.ids.bin")), dir.join(format!("{tag}.f.bin")));
-            let args = ["locate", s(mesh), "--points", s(&points), "--backend", "cpu", "--field", "f"];
-            let args: Vec<&str> = args.into_iter().chain(["--out", s(&ids), "--values", s(&vals)]).collect();
-            let o = match ranks {
-                None => tetloc(&args),
-                Some(n) => mpirun(n, &[], &args).0,
-            };
-            assert!(o.status.success(), "{tag}: {}", text(&o));
-            (bytes(&ids), bytes(&vals))
-        };
-        let want = run(&mesh, None);
+        // `f` is stored in f64: its values are written in f64.
+        let (want_ids, want_vals) = locate_cpu::<f64>(&dir, &mesh, &points, "f", &format!("{set}.ref"), None);
         for n in [2, 4] {
-            assert!(run(&pvtu, Some(n)) == want, "{set}, {n} ranks: the ids or values differ from one process's");
+            let (ids, vals) = locate_cpu::<f64>(&dir, &pvtu, &points, "f", &format!("{set}.{n}"), Some(n));
+            assert!(ids == want_ids, "{set}, {n} ranks: the ids differ from one process's");
+            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+            assert!(bits(&vals) == bits(&want_vals), "{set}, {n} ranks: the values differ from one process's");
         }
     }
-    let image = |mesh: &Path, ranks: Option<usize>| {
-        let out = dir.join(format!("r{}.npy", ranks.unwrap_or(0)));
-        let args = ["resample", s(mesh), "--field", "f", "--dims", "23,19,17", "--backend", "cpu", "-o", s(&out)];
-        let o = match ranks {
-            None => tetloc(&args),
-            Some(n) => mpirun(n, &[], &args).0,
-        };
-        assert!(o.status.success(), "{}", text(&o));
-        npy_values(&out)
-    };
-    let (want, got) = (image(&mesh, None), image(&pvtu, Some(2)));
+    let want = resample_f(&dir, &mesh, "r1.npy", None);
+    let got = resample_f(&dir, &pvtu, "r2.npy", Some(2));
     assert_eq!(want.len(), got.len());
     let differ = (0..got.len()).filter(|&i| !same_value(got[i], want[i])).count();
     assert_eq!(differ, 0, "2 ranks: {differ} grid points differ from one process's");
@@ -170,14 +152,15 @@ fn far_meshes_run_distributed_at_the_files_precision() {
 
 /// `tetloc locate MESH --points POINTS --backend cpu --field FIELD`, ids and values written to
 /// `dir` under `tag`, by one process (`ranks`: `None`) or `mpirun -n N`: the ids and values.
-fn locate_cpu(
+/// `V`: the values' type as written (f64 for a field stored in f64).
+fn locate_cpu<V: bytemuck::Pod>(
     dir: &Path,
     mesh: &Path,
     points: &Path,
     field: &str,
     tag: &str,
     ranks: Option<usize>,
-) -> (Vec<i32>, Vec<f32>) {
+) -> (Vec<i32>, Vec<V>) {
     let (ids, vals) = (dir.join(format!("{tag}.ids.bin")), dir.join(format!("{tag}.f.bin")));
     let args = ["locate", s(mesh), "--points", s(points), "--backend", "cpu", "--field", field, "--out", s(&ids)];
     let args: Vec<&str> = args.into_iter().chain(["--values", s(&vals)]).collect();
@@ -187,6 +170,19 @@ fn locate_cpu(
     };
     assert!(o.status.success(), "{tag}: {}", text(&o));
     (read(&ids), read(&vals))
+}
+
+/// `tetloc resample MESH --field f --dims 23,19,17 --backend cpu -o dir/OUT` by one process
+/// (`ranks`: `None`) or `mpirun -n N`: the image's values.
+fn resample_f(dir: &Path, mesh: &Path, out: &str, ranks: Option<usize>) -> Vec<f32> {
+    let out = dir.join(out);
+    let args = ["resample", s(mesh), "--field", "f", "--dims", "23,19,17", "--backend", "cpu", "-o", s(&out)];
+    let o = match ranks {
+        None => tetloc(&args),
+        Some(n) => mpirun(n, &[], &args).0,
+    };
+    assert!(o.status.success(), "{}: {}", out.display(), text(&o));
+    npy_values(&out)
 }
 
 /// A small generated mesh in 4 pieces.
@@ -304,16 +300,9 @@ fn resample_and_probe_run_distributed() {
     let Some(dir) = mpi_dir("resample_and_probe_run_distributed", "ops") else { return };
     let pvtu = small_pvtu(&dir);
     let whole = dir.join("jets.vtu");
-    let one = dir.join("one.npy");
-    let o = tetloc(&["resample", s(&whole), "--field", "f", "--dims", "23,19,17", "--backend", "cpu", "-o", s(&one)]);
-    assert!(o.status.success(), "{}", text(&o));
-    let want = npy_values(&one);
+    let want = resample_f(&dir, &whole, "one.npy", None);
     for n in [2, 3] {
-        let got_path = dir.join(format!("ranks{n}.npy"));
-        let args = ["resample", s(&pvtu), "--field", "f", "--dims", "23,19,17", "--backend", "cpu", "-o", s(&got_path)];
-        let (o, _) = mpirun(n, &[], &args);
-        assert!(o.status.success(), "{n} ranks: {}", text(&o));
-        let got = npy_values(&got_path);
+        let got = resample_f(&dir, &pvtu, &format!("ranks{n}.npy"), Some(n));
         assert_eq!(got.len(), want.len());
         let valid = want.iter().filter(|v| !v.is_nan()).count();
         assert!(valid > 1000, "most of the grid is inside: {valid}");
@@ -370,7 +359,7 @@ fn decomposed_openfoam_cases_run_distributed() {
     std::fs::write(&cut, "").unwrap();
     // Points at odd multiples of 1/128 in [-0.5, 6.5)³: none on a face, some outside.
     let points = scattered_points(&dir, 4000, |h| (h % 448) as f32 / 64.0 - 0.5 + 1.0 / 128.0);
-    let locate = |mesh: &Path, tag: &str, n: Option<usize>| locate_cpu(&dir, mesh, &points, "lin", tag, n);
+    let locate = |mesh: &Path, tag: &str, n: Option<usize>| locate_cpu::<f32>(&dir, mesh, &points, "lin", tag, n);
     let (want_ids, want_vals) = locate(&whole, "one", None);
     let inside = want_ids.iter().filter(|&&i| i >= 0).count();
     assert!(inside > 2000 && inside < want_ids.len(), "{inside} inside");

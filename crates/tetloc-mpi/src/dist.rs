@@ -222,6 +222,8 @@ pub trait Precision: tetloc_core::geom::Real + Equivalence + bytemuck::Pod + Def
     const WIDE: bool;
     fn points(p: &[[Self; 3]]) -> Points<'_>;
     fn values(v: &mut [Self]) -> Values<'_>;
+    /// Copies `from` into `to`, of either precision (rounded where it is the other).
+    fn put(to: Values<'_>, from: &[Self]) -> Result<(), tetloc_core::Error>;
 }
 
 impl Precision for f32 {
@@ -235,6 +237,12 @@ impl Precision for f32 {
     fn values(v: &mut [f32]) -> Values<'_> {
         Values::F32(v)
     }
+    fn put(to: Values<'_>, from: &[f32]) -> Result<(), tetloc_core::Error> {
+        to.via_f32(|v| {
+            v.copy_from_slice(from);
+            Ok(())
+        })
+    }
 }
 
 impl Precision for f64 {
@@ -247,6 +255,12 @@ impl Precision for f64 {
     }
     fn values(v: &mut [f64]) -> Values<'_> {
         Values::F64(v)
+    }
+    fn put(to: Values<'_>, from: &[f64]) -> Result<(), tetloc_core::Error> {
+        to.via_f64(|v| {
+            v.copy_from_slice(from);
+            Ok(())
+        })
     }
 }
 

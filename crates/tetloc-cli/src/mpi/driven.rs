@@ -32,12 +32,24 @@ impl<'c> Driven<'c> {
     }
 
     /// One collective call: `points` located and sampled by the ranks, in their precision
-    /// (announced first, so that every rank calls in it); the global ids and the values.
-    fn call<T: Precision>(&mut self, points: &[[T; 3]], fields: &[&str]) -> (Vec<i64>, Vec<T>) {
+    /// (announced first, so that every rank calls in it), into `ids` (global) and `values`.
+    fn call<T: Precision>(
+        &mut self,
+        points: &[[T; 3]],
+        fields: &[&str],
+        ids: &mut [i32],
+        values: Values<'_>,
+    ) -> Result<(), tetloc_core::Error> {
         announce(self.cluster, Some((fields, T::WIDE)));
         let mine = scatter(self.cluster, points);
         let got = self.loc.query(&mine, fields);
-        (gather(self.cluster, &got.ids), gather(self.cluster, &got.values))
+        let (all_ids, all_values) = (gather(self.cluster, &got.ids), gather(self.cluster, &got.values));
+        for (out, &g) in ids.iter_mut().zip(&all_ids) {
+            *out = i32::try_from(g).map_err(|_| {
+                tetloc_core::Error::Invalid(format!("global cell id {g} does not fit the int32 outputs"))
+            })?;
+        }
+        T::put(values, &all_values)
     }
 }
 
@@ -56,31 +68,9 @@ impl BatchLocator for Driven<'_> {
     ) -> Result<(), tetloc_core::Error> {
         // Checked before the collective call: every rank must take part in it or none.
         check_sample_lengths(points.len(), fields.len(), ids.len(), values.len())?;
-        let global = |all_ids: Vec<i64>, ids: &mut [i32]| -> Result<(), tetloc_core::Error> {
-            for (out, &g) in ids.iter_mut().zip(&all_ids) {
-                *out = i32::try_from(g).map_err(|_| {
-                    tetloc_core::Error::Invalid(format!("global cell id {g} does not fit the int32 outputs"))
-                })?;
-            }
-            Ok(())
-        };
         match points {
-            Points::F32(points) => {
-                let (all_ids, all_values) = self.call(points, fields);
-                global(all_ids, ids)?;
-                values.via_f32(|v| {
-                    v.copy_from_slice(&all_values);
-                    Ok(())
-                })
-            }
-            Points::F64(points) => {
-                let (all_ids, all_values) = self.call(points, fields);
-                global(all_ids, ids)?;
-                values.via_f64(|v| {
-                    v.copy_from_slice(&all_values);
-                    Ok(())
-                })
-            }
+            Points::F32(points) => self.call(points, fields, ids, values),
+            Points::F64(points) => self.call(points, fields, ids, values),
         }
     }
 }
